@@ -1,0 +1,1 @@
+//! Clarke and Park transforms (placeholder).

@@ -1,0 +1,177 @@
+//! The crate's one error type.
+//!
+//! Every variant carries what went wrong and where: the column and row of a log, the
+//! parameter by name, the experiment and sample of a simulation. User input never
+//! panics; it ends up in one of these variants.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong in greybox.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// A file could not be opened or read.
+    #[error("cannot read {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+    /// A CSV file is malformed (bad field, ragged row, unparsable number).
+    #[error("{path}: line {line}: {message}")]
+    Csv {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number in the file (the header is line 1).
+        line: u64,
+        /// What is wrong.
+        message: String,
+    },
+    /// A required column is not in a log's header.
+    #[error("{path}: missing column `{column}` (header has: {available})")]
+    MissingColumn {
+        /// The file.
+        path: PathBuf,
+        /// The column name that was looked for.
+        column: String,
+        /// The header's column names, comma separated.
+        available: String,
+    },
+    /// A signal holds NaN or ±Inf.
+    #[error("signal `{column}` is not finite at row {row} (value {value})")]
+    NonFinite {
+        /// Signal (column) name.
+        column: String,
+        /// 0-based sample index (data row, header excluded).
+        row: usize,
+        /// The offending value.
+        value: f64,
+    },
+    /// Two signals of one experiment have different lengths.
+    #[error("signal `{column}` has {found} samples, expected {expected}")]
+    LengthMismatch {
+        /// Signal (column) name.
+        column: String,
+        /// Length of the reference signal.
+        expected: usize,
+        /// Length of this signal.
+        found: usize,
+    },
+    /// An experiment has fewer samples than an estimate needs.
+    #[error("experiment `{name}` has {len} samples; at least {min} are needed")]
+    TooShort {
+        /// Experiment name.
+        name: String,
+        /// Number of samples found.
+        len: usize,
+        /// Minimum number of samples.
+        min: usize,
+    },
+    /// The time column is not uniformly sampled.
+    #[error(
+        "time column `{column}` is not uniform at row {row}: step {dt:e} s, expected {expected:e} s (relative tolerance {tolerance:e})"
+    )]
+    NonUniformTime {
+        /// Time column name.
+        column: String,
+        /// 0-based data row where the step deviates (the step from row−1 to row).
+        row: usize,
+        /// The step found [s].
+        dt: f64,
+        /// The mean step [s].
+        expected: f64,
+        /// Relative tolerance applied.
+        tolerance: f64,
+    },
+    /// The sample time is not a positive finite number.
+    #[error("sample time h must be positive and finite, got {h} s")]
+    InvalidSampleTime {
+        /// The value given [s].
+        h: f64,
+    },
+    /// The number of pole pairs is zero.
+    #[error("number of pole pairs n_p must be at least 1, got {n_p}")]
+    InvalidPolePairs {
+        /// The value given.
+        n_p: u32,
+    },
+    /// A parameter value is unusable (non-finite, non-positive where it must be positive).
+    #[error("parameter `{name}` = {value}: {reason}")]
+    InvalidParameter {
+        /// Parameter name, e.g. `l_s`.
+        name: String,
+        /// The value.
+        value: f64,
+        /// Why it is unusable.
+        reason: String,
+    },
+    /// A parameter's bounds are empty, non-finite where they may not be, or exclude zero-free ranges.
+    #[error("parameter `{name}`: invalid bounds [{lower}, {upper}]: {reason}")]
+    InvalidBounds {
+        /// Parameter name.
+        name: String,
+        /// Lower bound.
+        lower: f64,
+        /// Upper bound.
+        upper: f64,
+        /// Why they are invalid.
+        reason: String,
+    },
+    /// The start value of a parameter lies outside its bounds.
+    #[error("start value of parameter `{name}` = {value} lies outside its bounds [{lower}, {upper}]")]
+    StartOutsideBounds {
+        /// Parameter name.
+        name: String,
+        /// Start value.
+        value: f64,
+        /// Lower bound.
+        lower: f64,
+        /// Upper bound.
+        upper: f64,
+    },
+    /// The model simulation produced a non-finite state.
+    #[error(
+        "simulation of experiment `{experiment}` diverged at sample {sample} (state not finite) with {parameters}"
+    )]
+    SimulationDiverged {
+        /// Experiment name.
+        experiment: String,
+        /// 0-based sample index where the state first became non-finite.
+        sample: usize,
+        /// The parameter values, `name = value` comma separated.
+        parameters: String,
+    },
+    /// A numerical step failed (singular matrix, failed decomposition).
+    #[error("numerical failure in {context}: {reason}")]
+    Numerical {
+        /// Where it happened.
+        context: String,
+        /// What happened.
+        reason: String,
+    },
+    /// An option or argument is inconsistent (wrong length, unknown name).
+    #[error("invalid option `{option}`: {reason}")]
+    InvalidOption {
+        /// The option.
+        option: String,
+        /// Why it is invalid.
+        reason: String,
+    },
+    /// The optimiser failed for a reason other than the ones above.
+    #[error("optimiser failed: {0}")]
+    Solver(String),
+}
+
+/// Short for `std::result::Result<T, greybox::Error>`.
+pub type Result<T> = std::result::Result<T, Error>;
+
+impl Error {
+    /// Recovers a greybox error that travelled through argmin's `anyhow`-based error type.
+    pub(crate) fn from_argmin(e: argmin::core::Error) -> Self {
+        match e.downcast::<Error>() {
+            Ok(err) => err,
+            Err(other) => Error::Solver(other.to_string()),
+        }
+    }
+}

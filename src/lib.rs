@@ -1,0 +1,12 @@
+//! # greybox
+//!
+//! Grey-box estimation of the electrical parameters of permanent-magnet synchronous
+//! motors from drive logs.
+#![warn(missing_docs)]
+
+pub mod data;
+pub mod error;
+pub mod model;
+
+pub use data::{Experiment, Signals};
+pub use error::{Error, Result};

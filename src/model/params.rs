@@ -1,0 +1,98 @@
+//! Parameter metadata.
+
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// Metadata of one model parameter: name, unit, nominal value, bounds and fixed flag.
+///
+/// `nominal` sets the parameter's scale (the default scaling divides by it); `None` means
+/// "use the magnitude of the start value". Bounds are inclusive, `lower < upper`, and may be
+/// infinite.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Parameter {
+    /// Symbol in snake case, e.g. `r_s`.
+    pub name: String,
+    /// SI unit, e.g. `ohm`, `H`, `V s/rad`.
+    pub unit: String,
+    /// Typical magnitude used for scaling and finite-difference steps; `None` = |start|.
+    pub nominal: Option<f64>,
+    /// Lower bound (inclusive).
+    pub lower: f64,
+    /// Upper bound (inclusive).
+    pub upper: f64,
+    /// Held at its start value during estimation.
+    pub fixed: bool,
+}
+
+impl Parameter {
+    /// A free parameter bounded to `(0, ∞)`: the lower bound is `1e-9 × nominal`.
+    pub fn positive(name: &str, unit: &str, nominal: f64) -> Self {
+        Self {
+            name: name.into(),
+            unit: unit.into(),
+            nominal: Some(nominal),
+            lower: 1e-9 * nominal.abs(),
+            upper: f64::INFINITY,
+            fixed: false,
+        }
+    }
+
+    /// A free parameter with no bounds.
+    pub fn free(name: &str, unit: &str, nominal: f64) -> Self {
+        Self {
+            name: name.into(),
+            unit: unit.into(),
+            nominal: Some(nominal),
+            lower: f64::NEG_INFINITY,
+            upper: f64::INFINITY,
+            fixed: false,
+        }
+    }
+
+    /// Checks that the bounds are a non-empty interval without NaN.
+    ///
+    /// # Errors
+    /// [`Error::InvalidBounds`] naming the parameter.
+    pub fn check_bounds(&self) -> Result<()> {
+        let bad = |reason: &str| Error::InvalidBounds {
+            name: self.name.clone(),
+            lower: self.lower,
+            upper: self.upper,
+            reason: reason.into(),
+        };
+        if self.lower.is_nan() || self.upper.is_nan() {
+            return Err(bad("a bound is NaN"));
+        }
+        if self.lower >= self.upper {
+            return Err(bad("lower bound must be below upper bound"));
+        }
+        if self.lower == f64::INFINITY || self.upper == f64::NEG_INFINITY {
+            return Err(bad("empty interval"));
+        }
+        Ok(())
+    }
+
+    /// Checks that `value` is finite and within the bounds.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] for a non-finite value, [`Error::StartOutsideBounds`]
+    /// when outside `[lower, upper]`.
+    pub fn check_start(&self, value: f64) -> Result<()> {
+        if !value.is_finite() {
+            return Err(Error::InvalidParameter {
+                name: self.name.clone(),
+                value,
+                reason: "start value is not finite".into(),
+            });
+        }
+        if value < self.lower || value > self.upper {
+            return Err(Error::StartOutsideBounds {
+                name: self.name.clone(),
+                value,
+                lower: self.lower,
+                upper: self.upper,
+            });
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,322 @@
+//! Surface-magnet PMSM (`L_d = L_q = L_s`) with the exact zero-order-hold step.
+//!
+//! State and output `x = y = (i_d, i_q)` [A, peak]; parameters `θ = (r_s, l_s, k_e)`
+//! [Ω, H, V s/rad]. Continuous model (thesis eq. 5.1, MODEL.md §2), in complex form with
+//! `i = i_d + j i_q`, `ω_e = n_p ω_m`:
+//!
+//! ```text
+//! L_s di/dt = u − (R_s + j ω_e L_s) i − j √(2/3) K_e ω_m
+//! ```
+//!
+//! Exact step over one period (MODEL.md §4), `z = R_s + j ω_e L_s`, `a = e^{−z h/L_s}`:
+//!
+//! ```text
+//! dq hold:      i[k+1] = a i[k] + (1 − a)/z · (u[k] − j e)
+//! stator hold:  i[k+1] = a i[k] + u₀ e^{−jφ} (1 − e^{−R_s h/L_s})/R_s − (1 − a)/z · j e
+//! ```
+//!
+//! with `e = √(2/3) K_e ω_m`, `φ = ω_e h`, `u₀ = u[k] jφ/(1 − e^{−jφ})`; `ω_m` is the
+//! interval mean `(ω_m[k] + ω_m[k+1])/2`. The rotation `e^{−jφ}` and `u₀` depend on the
+//! data only and are computed once in [`GreyBoxModel::prepare`]; `e^{−R_s h/L_s}` depends on
+//! θ only and is computed once per θ. Sensitivities differentiate this recursion
+//! (forward sensitivity), so one pass gives residuals and gradients.
+
+use super::{GreyBoxModel, Parameter, Prepared, VoltageHold};
+use crate::data::Experiment;
+use crate::error::{Error, Result};
+use nalgebra::Complex;
+
+type C64 = Complex<f64>;
+
+/// `√(2/3)`: back-EMF per K_e and mechanical speed (MODEL.md §2).
+pub const SQRT_2_3: f64 = 0.816_496_580_927_726;
+
+/// Per-interval data of the SPM step, independent of θ (index k = 0..N−2).
+#[derive(Clone, Debug)]
+pub struct SpmInputs {
+    /// Sample time h [s].
+    pub h: f64,
+    /// Interval-mean electrical speed ω_e [rad/s].
+    pub w_e: Vec<f64>,
+    /// `√(2/3)` × interval-mean mechanical speed [rad/s]: back-EMF per unit K_e.
+    pub emf: Vec<f64>,
+    /// Rotation of the dq frame over the period, `e^{−j ω_e h}`.
+    pub rot: Vec<C64>,
+    /// Versine of the period's rotation, `1 − cos(ω_e h) = 2 sin²(ω_e h/2)` (exact near 0).
+    pub vers: Vec<f64>,
+    /// Voltage term of the step [V]: `u[k]` (dq hold) or `u₀ e^{−jφ}` (stator hold).
+    pub u: Vec<C64>,
+}
+
+/// θ-dependent coefficients of the SPM step.
+#[derive(Clone, Debug)]
+pub struct SpmCoefficients {
+    r: f64,
+    l: f64,
+    k_e: f64,
+    h: f64,
+    /// `e^{−R_s h/L_s}`.
+    d: f64,
+    /// `1 − e^{−R_s h/L_s}` without cancellation.
+    one_minus_d: f64,
+    /// `(1 − e^{−R_s h/L_s})/R_s` [1/Ω].
+    g: f64,
+    g_r: f64,
+    g_l: f64,
+}
+
+/// Surface-magnet PMSM model with exact sampled-data step and analytic sensitivities.
+///
+/// Parameters `(r_s [Ω], l_s [H], k_e [V s/rad])`; `r_s` and `l_s` bounded positive,
+/// `k_e` unbounded (a negative estimate means the log's sign convention differs).
+/// Source: thesis eq. 5.1 and section 5.2 (Tenerz 2011); MODEL.md §2, §4.
+#[derive(Clone, Debug)]
+pub struct PmsmSpm {
+    hold: VoltageHold,
+    params: Vec<Parameter>,
+}
+
+impl PmsmSpm {
+    /// SPM model with the given voltage hold and default parameter metadata.
+    pub fn new(hold: VoltageHold) -> Self {
+        Self { hold, params: spm_parameters() }
+    }
+    /// The voltage hold this model assumes.
+    pub fn hold(&self) -> VoltageHold {
+        self.hold
+    }
+    /// Mutable parameter metadata (bounds, fixed flags, nominal values).
+    pub fn parameters_mut(&mut self) -> &mut [Parameter] {
+        &mut self.params
+    }
+}
+
+impl Default for PmsmSpm {
+    fn default() -> Self {
+        Self::new(VoltageHold::default())
+    }
+}
+
+pub(crate) fn positive_param(name: &str, unit: &str) -> Parameter {
+    Parameter {
+        name: name.into(),
+        unit: unit.into(),
+        nominal: None,
+        lower: 1e-12,
+        upper: f64::INFINITY,
+        fixed: false,
+    }
+}
+
+pub(crate) fn k_e_param() -> Parameter {
+    Parameter {
+        name: "k_e".into(),
+        unit: "V s/rad".into(),
+        nominal: None,
+        lower: f64::NEG_INFINITY,
+        upper: f64::INFINITY,
+        fixed: false,
+    }
+}
+
+fn spm_parameters() -> Vec<Parameter> {
+    vec![positive_param("r_s", "ohm"), positive_param("l_s", "H"), k_e_param()]
+}
+
+/// `e^{w} − 1` for complex w without cancellation near 0.
+pub(crate) fn cexpm1(w: C64) -> C64 {
+    let (s, c) = w.im.sin_cos();
+    let half = (0.5 * w.im).sin();
+    C64::new(w.re.exp_m1() * c - 2.0 * half * half, w.re.exp() * s)
+}
+
+/// Per-interval speed, rotation and held voltage shared by the SPM and IPM models.
+pub(crate) fn interval_inputs(e: &Experiment, hold: VoltageHold) -> SpmInputs {
+    let n = e.len() - 1;
+    let h = e.h();
+    let np = f64::from(e.n_p());
+    let (mut w_e, mut emf, mut rot, mut vers, mut u) = (
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+    );
+    let wm = e.w_m();
+    for k in 0..n {
+        let w_m = 0.5 * (wm[k] + wm[k + 1]);
+        let we = np * w_m;
+        let phi = we * h;
+        let r = C64::new(phi.cos(), -phi.sin());
+        let uk = C64::new(e.u_d()[k], e.u_q()[k]);
+        w_e.push(we);
+        emf.push(SQRT_2_3 * w_m);
+        rot.push(r);
+        let half = (0.5 * phi).sin();
+        vers.push(2.0 * half * half);
+        u.push(match hold {
+            VoltageHold::Dq => uk,
+            VoltageHold::Stator => stator_start(uk, phi) * r,
+        });
+    }
+    SpmInputs { h, w_e, emf, rot, vers, u }
+}
+
+/// Start-of-period dq voltage `u₀ = ū jφ/(1 − e^{−jφ})` of a stator-held voltage whose
+/// dq period mean is `ū` (MODEL.md §4); the limit φ → 0 is `ū`.
+pub(crate) fn stator_start(mean: C64, phi: f64) -> C64 {
+    if phi.abs() < 1e-8 {
+        // jφ/(1 − e^{−jφ}) = 1 + jφ/2 − φ²/12 + O(φ⁴)
+        return mean * C64::new(1.0 - phi * phi / 12.0, 0.5 * phi);
+    }
+    let denom = -cexpm1(C64::new(0.0, -phi));
+    mean * C64::new(0.0, phi) / denom
+}
+
+/// Measured `(i_d, i_q)` rows and the first state, shared by the PMSM models.
+pub(crate) fn current_outputs(e: &Experiment) -> (Vec<f64>, Vec<f64>) {
+    let y: Vec<f64> = e.i_d().iter().zip(e.i_q()).flat_map(|(&d, &q)| [d, q]).collect();
+    let x0 = vec![e.i_d()[0], e.i_q()[0]];
+    (y, x0)
+}
+
+pub(crate) fn check_positive(name: &str, v: f64) -> Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::InvalidParameter {
+            name: name.into(),
+            value: v,
+            reason: "must be positive and finite".into(),
+        })
+    }
+}
+
+impl GreyBoxModel for PmsmSpm {
+    type Inputs = SpmInputs;
+    type Coefficients = SpmCoefficients;
+
+    fn name(&self) -> &str {
+        "pmsm_spm"
+    }
+    fn n_states(&self) -> usize {
+        2
+    }
+    fn n_outputs(&self) -> usize {
+        2
+    }
+    fn output_names(&self) -> Vec<String> {
+        vec!["i_d".into(), "i_q".into()]
+    }
+    fn parameters(&self) -> &[Parameter] {
+        &self.params
+    }
+
+    fn prepare(&self, e: &Experiment) -> Result<Prepared<SpmInputs>> {
+        let (y, x0) = current_outputs(e);
+        Ok(Prepared { name: e.name().into(), n: e.len(), y, x0, inputs: interval_inputs(e, self.hold) })
+    }
+
+    fn coefficients(&self, theta: &[f64], inputs: &SpmInputs) -> Result<SpmCoefficients> {
+        let (r, l, k_e) = (theta[0], theta[1], theta[2]);
+        check_positive("r_s", r)?;
+        check_positive("l_s", l)?;
+        if !k_e.is_finite() {
+            return Err(Error::InvalidParameter {
+                name: "k_e".into(),
+                value: k_e,
+                reason: "must be finite".into(),
+            });
+        }
+        let h = inputs.h;
+        let x = r * h / l;
+        let d = (-x).exp();
+        let one_minus_d = -(-x).exp_m1();
+        let g = one_minus_d / r;
+        Ok(SpmCoefficients {
+            r,
+            l,
+            k_e,
+            h,
+            d,
+            one_minus_d,
+            g,
+            g_r: ((h / l) * d - g) / r,
+            g_l: -(h / l) * (d / l),
+        })
+    }
+
+    #[inline]
+    fn step(&self, c: &SpmCoefficients, inp: &SpmInputs, k: usize, x: &[f64], x_next: &mut [f64]) {
+        let (a, b) = self.ab(c, inp, k);
+        let i = C64::new(x[0], x[1]);
+        let je = C64::new(0.0, c.k_e * inp.emf[k]);
+        let forced = match self.hold {
+            VoltageHold::Dq => b * (inp.u[k] - je),
+            VoltageHold::Stator => inp.u[k] * c.g - b * je,
+        };
+        let n = a * i + forced;
+        x_next[0] = n.re;
+        x_next[1] = n.im;
+    }
+
+    fn has_sensitivities(&self) -> bool {
+        true
+    }
+
+    #[inline]
+    fn step_sensitivity(
+        &self,
+        c: &SpmCoefficients,
+        inp: &SpmInputs,
+        k: usize,
+        x: &[f64],
+        s: &[f64],
+        x_next: &mut [f64],
+        s_next: &mut [f64],
+    ) {
+        let (a, b) = self.ab(c, inp, k);
+        let w = inp.w_e[k];
+        let z = C64::new(c.r, w * c.l);
+        let hl = c.h / c.l;
+        let a_r = a * (-hl);
+        let a_l = a * (c.r * hl / c.l);
+        let b_r = (a * hl - b) / z;
+        let b_l = (a * (-c.r * hl / c.l) - b * C64::new(0.0, w)) / z;
+        let i = C64::new(x[0], x[1]);
+        let emf = inp.emf[k];
+        let je = C64::new(0.0, c.k_e * emf);
+        let u = inp.u[k];
+        let (forced, f_r, f_l) = match self.hold {
+            VoltageHold::Dq => (b * (u - je), b_r * (u - je), b_l * (u - je)),
+            VoltageHold::Stator => (u * c.g - b * je, u * c.g_r - b_r * je, u * c.g_l - b_l * je),
+        };
+        let f_k = -b * C64::new(0.0, emf);
+        let n = a * i + forced;
+        x_next[0] = n.re;
+        x_next[1] = n.im;
+        let sr = a * C64::new(s[0], s[3]) + a_r * i + f_r;
+        let sl = a * C64::new(s[1], s[4]) + a_l * i + f_l;
+        let sk = a * C64::new(s[2], s[5]) + f_k;
+        s_next[0] = sr.re;
+        s_next[1] = sl.re;
+        s_next[2] = sk.re;
+        s_next[3] = sr.im;
+        s_next[4] = sl.im;
+        s_next[5] = sk.im;
+    }
+}
+
+impl PmsmSpm {
+    /// `a = e^{−z h/L}` and `b = (1 − a)/z` for interval k.
+    #[inline(always)]
+    fn ab(&self, c: &SpmCoefficients, inp: &SpmInputs, k: usize) -> (C64, C64) {
+        let w = inp.w_e[k];
+        let a = inp.rot[k] * c.d;
+        let z = C64::new(c.r, w * c.l);
+        // 1 − a = (1 − d) cos φ + (1 − cos φ) + j d sin φ, free of cancellation.
+        let rot = inp.rot[k];
+        let one_minus_a = C64::new(c.one_minus_d * rot.re + inp.vers[k], -c.d * rot.im);
+        (a, one_minus_a / z)
+    }
+}
