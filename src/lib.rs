@@ -7,6 +7,10 @@
 pub mod data;
 pub mod error;
 pub mod model;
+pub mod simulate;
+pub mod estimate;
+pub mod pmsm;
 
 pub use data::{Experiment, Signals};
+pub use data::csv::{CsvOptions, read_csv};
 pub use error::{Error, Result};

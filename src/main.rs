@@ -1,1 +1,272 @@
-fn main() {}
+//! `greybox`: fit PMSM parameters to drive logs from the command line.
+//!
+//! ```text
+//! greybox fit LOG... --pole-pairs N [--model spm|ipm] [--hold auto|dq|stator] [--json PATH]
+//! ```
+//! The library does the work; this file only maps flags to options and prints.
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use greybox::data::csv::{ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
+use greybox::estimate::linear::MotorKind;
+use greybox::estimate::{PemOptions, ScalingKind, Tolerances};
+use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[derive(Parser, Debug)]
+#[command(name = "greybox", version, about = "Grey-box estimation of PMSM parameters (R_s, L_s or L_d/L_q, K_e) from drive logs")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Fit a PMSM model to one or more logs (jointly, shared parameters) by the prediction-error method.
+    Fit(FitArgs),
+}
+
+#[derive(Args, Debug)]
+struct FitArgs {
+    /// Drive logs (CSV, plain or gzip). Several logs are fitted jointly with shared parameters.
+    #[arg(required = true)]
+    logs: Vec<PathBuf>,
+    /// Number of pole pairs n_p of the motor.
+    #[arg(long, short = 'p')]
+    pole_pairs: u32,
+    /// Machine model: surface (spm: r_s, l_s, k_e) or interior magnets (ipm: r_s, l_d, l_q, k_e).
+    #[arg(long, value_enum, default_value_t = ModelArg::Spm)]
+    model: ModelArg,
+    /// Voltage hold between samples: auto picks the one with the lower loss.
+    #[arg(long, value_enum, default_value_t = HoldArg::Auto)]
+    hold: HoldArg,
+    /// Write the JSON report to this file ("-" for stdout).
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Start values in model order, comma separated, SI units (default: linear least squares).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    start: Option<Vec<f64>>,
+    /// Parameters held at their start value, comma separated (e.g. r_s).
+    #[arg(long, value_delimiter = ',')]
+    fix: Vec<String>,
+    /// Parameters estimated separately per log, comma separated (e.g. r_s).
+    #[arg(long, value_delimiter = ',')]
+    per_log: Vec<String>,
+    /// Parameter scaling.
+    #[arg(long, value_enum, default_value_t = ScalingArg::Nominal)]
+    scaling: ScalingArg,
+    /// k-step-ahead prediction horizon in samples (default: output error, i.e. pure simulation).
+    #[arg(long)]
+    horizon: Option<usize>,
+    /// Maximum number of solver iterations.
+    #[arg(long, default_value_t = Tolerances::default().max_iters)]
+    max_iters: u64,
+    /// Relative cost-reduction tolerance.
+    #[arg(long, default_value_t = Tolerances::default().ftol)]
+    ftol: f64,
+    /// Step tolerance (scaled parameters).
+    #[arg(long, default_value_t = Tolerances::default().xtol)]
+    xtol: f64,
+    /// Gradient tolerance (cosine between residual and Jacobian columns).
+    #[arg(long, default_value_t = Tolerances::default().gtol)]
+    gtol: f64,
+    /// Do not print the table.
+    #[arg(long, short = 'q')]
+    quiet: bool,
+    #[command(flatten)]
+    columns: ColumnArgs,
+}
+
+#[derive(Args, Debug)]
+struct ColumnArgs {
+    /// Time column [s].
+    #[arg(long, default_value = "t")]
+    col_t: String,
+    /// d-axis voltage column.
+    #[arg(long, default_value = "ud")]
+    col_ud: String,
+    /// q-axis voltage column.
+    #[arg(long, default_value = "uq")]
+    col_uq: String,
+    /// d-axis current column.
+    #[arg(long, default_value = "id")]
+    col_id: String,
+    /// q-axis current column.
+    #[arg(long, default_value = "iq")]
+    col_iq: String,
+    /// Speed column.
+    #[arg(long, default_value = "w_m")]
+    col_w: String,
+    /// Rotor angle column (optional; needed with --dq-from-phases).
+    #[arg(long, default_value = "theta_m")]
+    col_theta: String,
+    /// d-axis voltage reference column (optional).
+    #[arg(long, default_value = "ud_ref")]
+    col_ud_ref: String,
+    /// q-axis voltage reference column (optional).
+    #[arg(long, default_value = "uq_ref")]
+    col_uq_ref: String,
+    /// Phase current columns a,b,c (with --dq-from-phases).
+    #[arg(long, value_delimiter = ',', num_args = 3, default_values = ["ia", "ib", "ic"])]
+    col_i_abc: Vec<String>,
+    /// Phase voltage columns a,b,c (with --dq-from-phases).
+    #[arg(long, value_delimiter = ',', num_args = 3, default_values = ["ua", "ub", "uc"])]
+    col_u_abc: Vec<String>,
+    /// Unit of the speed column.
+    #[arg(long, value_enum, default_value_t = SpeedUnitArg::RadS)]
+    speed_unit: SpeedUnitArg,
+    /// Whether the speed and angle columns are mechanical or electrical.
+    #[arg(long, value_enum, default_value_t = FrameArg::Mechanical)]
+    speed_frame: FrameArg,
+    /// Scaling of the current columns (peak: |i_dq| = phase peak; rms: |i_dq| = phase RMS).
+    #[arg(long, value_enum, default_value_t = ScaleArg::Peak)]
+    current_scale: ScaleArg,
+    /// Scaling of the voltage columns.
+    #[arg(long, value_enum, default_value_t = ScaleArg::Peak)]
+    voltage_scale: ScaleArg,
+    /// Compute dq currents and voltages from the phase columns and the rotor angle.
+    #[arg(long)]
+    dq_from_phases: bool,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum ModelArg {
+    Spm,
+    Ipm,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum HoldArg {
+    Auto,
+    Dq,
+    Stator,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum ScalingArg {
+    Nominal,
+    Log,
+    ColumnNorm,
+    Identity,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum SpeedUnitArg {
+    #[value(name = "rad/s", alias = "rad-s")]
+    RadS,
+    Rpm,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum FrameArg {
+    Mechanical,
+    Electrical,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum ScaleArg {
+    Peak,
+    Rms,
+}
+
+impl ColumnArgs {
+    fn options(&self) -> CsvOptions {
+        let scale = |s: ScaleArg| match s {
+            ScaleArg::Peak => Scale::Peak,
+            ScaleArg::Rms => Scale::Rms,
+        };
+        CsvOptions {
+            columns: ColumnNames {
+                t: self.col_t.clone(),
+                u_d: self.col_ud.clone(),
+                u_q: self.col_uq.clone(),
+                i_d: self.col_id.clone(),
+                i_q: self.col_iq.clone(),
+                w_m: self.col_w.clone(),
+                theta_m: self.col_theta.clone(),
+                u_d_ref: self.col_ud_ref.clone(),
+                u_q_ref: self.col_uq_ref.clone(),
+                i_a: self.col_i_abc[0].clone(),
+                i_b: self.col_i_abc[1].clone(),
+                i_c: self.col_i_abc[2].clone(),
+                u_a: self.col_u_abc[0].clone(),
+                u_b: self.col_u_abc[1].clone(),
+                u_c: self.col_u_abc[2].clone(),
+            },
+            speed_unit: match self.speed_unit {
+                SpeedUnitArg::RadS => SpeedUnit::RadPerSec,
+                SpeedUnitArg::Rpm => SpeedUnit::Rpm,
+            },
+            speed_frame: match self.speed_frame {
+                FrameArg::Mechanical => Frame::Mechanical,
+                FrameArg::Electrical => Frame::Electrical,
+            },
+            current_scale: scale(self.current_scale),
+            voltage_scale: scale(self.voltage_scale),
+            source: if self.dq_from_phases { DqSource::Phases } else { DqSource::Dq },
+            ..CsvOptions::default()
+        }
+    }
+}
+
+fn run_fit(a: &FitArgs) -> greybox::Result<()> {
+    let t0 = Instant::now();
+    let csv = a.columns.options();
+    let logs = a.logs.iter().map(|p| greybox::read_csv(p, a.pole_pairs, &csv)).collect::<greybox::Result<Vec<_>>>()?;
+    let read_s = t0.elapsed().as_secs_f64();
+    let options = PmsmFitOptions {
+        model: match a.model {
+            ModelArg::Spm => MotorKind::Spm,
+            ModelArg::Ipm => MotorKind::Ipm,
+        },
+        hold: match a.hold {
+            HoldArg::Auto => HoldChoice::Auto,
+            HoldArg::Dq => HoldChoice::Dq,
+            HoldArg::Stator => HoldChoice::Stator,
+        },
+        start: a.start.clone(),
+        fixed: a.fix.clone(),
+        bounds: Vec::new(),
+        pem: PemOptions {
+            tolerances: Tolerances { ftol: a.ftol, xtol: a.xtol, gtol: a.gtol, max_iters: a.max_iters },
+            scaling: match a.scaling {
+                ScalingArg::Nominal => ScalingKind::Nominal,
+                ScalingArg::Log => ScalingKind::Log,
+                ScalingArg::ColumnNorm => ScalingKind::ColumnNorm,
+                ScalingArg::Identity => ScalingKind::Identity,
+            },
+            horizon: a.horizon,
+            per_experiment: a.per_log.clone(),
+            progress: true,
+            ..PemOptions::default()
+        },
+    };
+    let mut result = fit_pmsm(&logs, &options)?;
+    result.timing.read_s = read_s;
+    result.timing.total_s = t0.elapsed().as_secs_f64();
+    if !a.quiet {
+        print!("{result}");
+    }
+    if let Some(path) = &a.json {
+        let json = result.to_json();
+        if path.as_os_str() == "-" {
+            println!("{json}");
+        } else {
+            std::fs::write(path, json + "\n").map_err(|source| greybox::Error::Io { path: path.clone(), source })?;
+        }
+    }
+    if !result.solver.success {
+        eprintln!("warning: the fit did not converge ({})", result.solver.termination);
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let r = match &cli.command {
+        Command::Fit(a) => run_fit(a),
+    };
+    match r {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,43 @@
+//! Criterion benches: one normal-equation pass (simulation with sensitivities) and a whole
+//! fit on a development log.
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use greybox::estimate::{PemProblem, scaling::NominalScaling};
+use greybox::model::{GreyBoxModel, PmsmIpm, PmsmSpm, VoltageHold};
+use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
+use greybox::simulate::Shooting;
+use std::hint::black_box;
+
+fn log(stem: &str, n_p: u32) -> greybox::Experiment {
+    let path = format!("{}/../shared/data/{stem}.csv.gz", env!("CARGO_MANIFEST_DIR"));
+    greybox::read_csv(path, n_p, &Default::default()).expect("log")
+}
+
+fn pass<M: GreyBoxModel>(c: &mut Criterion, name: &str, model: &M, e: &greybox::Experiment, start: &[f64]) {
+    let prep = model.prepare(e).unwrap();
+    let problem = PemProblem::new(model, vec![(prep, None)], start, &[], &NominalScaling, Shooting::default(), None).unwrap();
+    let p = problem.start_vector(start);
+    c.bench_function(&format!("{name}: normal equations, {} samples", e.len()), |b| {
+        b.iter(|| black_box(problem.normal_equations(black_box(&p)).unwrap()))
+    });
+    c.bench_function(&format!("{name}: cost only, {} samples", e.len()), |b| {
+        b.iter(|| black_box(problem.cost(black_box(&p)).unwrap()))
+    });
+}
+
+fn benches(c: &mut Criterion) {
+    let servo = log("servo_spm_moves_idinj", 4);
+    let ipm = log("ipm_moves_idinj", 2);
+    pass(c, "spm stator hold", &PmsmSpm::new(VoltageHold::Stator), &servo, &[0.9, 4.5e-3, 0.54]);
+    pass(c, "ipm stator hold", &PmsmIpm::new(VoltageHold::Stator), &ipm, &[0.35, 3.2e-3, 7.5e-3, 0.42]);
+    let mut g = c.benchmark_group("fit");
+    g.sample_size(10);
+    g.bench_function("spm fit servo_spm_moves_idinj (LS start, stator hold)", |b| {
+        let o = PmsmFitOptions { hold: HoldChoice::Stator, ..Default::default() };
+        b.iter(|| black_box(fit_pmsm(std::slice::from_ref(&servo), &o).unwrap()))
+    });
+    g.finish();
+}
+
+criterion_group!(fit, benches);
+criterion_main!(fit);

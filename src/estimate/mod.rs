@@ -1,0 +1,343 @@
+//! Estimation: the prediction-error fit of any [`GreyBoxModel`], the linear
+//! least-squares start, parameter scaling and the solvers.
+//!
+//! [`fit`] is the generic entry point: it builds a [`PemProblem`] over one or more
+//! experiments, runs the chosen argmin solver from a given start and computes the
+//! statistics of the estimate. The PMSM-specific layer (least-squares start, voltage-hold
+//! selection, derived `K_t`, `ψ_f`) is [`crate::pmsm`].
+
+pub mod linear;
+pub mod lm;
+pub mod problem;
+pub mod result;
+pub mod scaling;
+pub mod solver;
+
+pub use lm::LevenbergMarquardt;
+pub use problem::PemProblem;
+pub use result::{DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing};
+pub use scaling::{ParameterScaling, ScalingKind, Transform};
+pub use solver::{LeastSquares, Termination, Tolerances};
+
+use crate::data::Experiment;
+use crate::error::{Error, Result};
+use crate::model::GreyBoxModel;
+use crate::simulate::Shooting;
+use argmin::core::observers::{Observe, ObserverMode};
+use argmin::core::{Executor, State, TerminationReason};
+use nalgebra::{DMatrix, DVector};
+use result::t_quantile_975;
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// Which optimiser runs the prediction-error fit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SolverKind {
+    /// Levenberg-Marquardt ([`LevenbergMarquardt`]).
+    #[default]
+    Lm,
+}
+
+/// Options of a prediction-error fit. Plain data with defaults; serialisable.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct PemOptions {
+    /// The optimiser.
+    pub solver: SolverKind,
+    /// Stopping tolerances.
+    pub tolerances: Tolerances,
+    /// Parameter scaling rule.
+    pub scaling: ScalingKind,
+    /// k-step-ahead prediction horizon; `None` = output error (simulation).
+    pub horizon: Option<usize>,
+    /// Parameters estimated separately for every experiment (e.g. `["r_s"]`).
+    pub per_experiment: Vec<String>,
+    /// Output weights Λ (length n_y), `None` = 1.
+    pub output_weights: Option<Vec<f64>>,
+    /// Show a progress spinner on stderr (only when stderr is a terminal).
+    pub progress: bool,
+}
+
+impl Default for PemOptions {
+    fn default() -> Self {
+        Self {
+            solver: SolverKind::Lm,
+            tolerances: Tolerances::default(),
+            scaling: ScalingKind::Nominal,
+            horizon: None,
+            per_experiment: Vec::new(),
+            output_weights: None,
+            progress: false,
+        }
+    }
+}
+
+/// Prediction-error fit of `model` to `experiments` from `start` (length n_θ, model order).
+///
+/// # Errors
+/// Those of [`GreyBoxModel::prepare`]; [`Error::InvalidOption`], [`Error::InvalidBounds`],
+/// [`Error::StartOutsideBounds`] for inconsistent options (see [`PemProblem::new`]);
+/// [`Error::SimulationDiverged`] or [`Error::InvalidParameter`] when the model cannot be
+/// simulated at the start. A fit that stops without converging is not an error: its
+/// [`SolverReport::success`] is false.
+///
+/// # Example
+/// ```no_run
+/// use greybox::{estimate, model::{PmsmSpm, VoltageHold}};
+/// # fn main() -> greybox::Result<()> {
+/// let log = greybox::read_csv("data/sample.csv.gz", 4, &Default::default())?;
+/// let model = PmsmSpm::new(VoltageHold::Stator);
+/// let fit = estimate::fit(&model, &[log], &[1.0, 5e-3, 0.5], &Default::default())?;
+/// println!("{fit}");
+/// # Ok(()) }
+/// ```
+pub fn fit<M: GreyBoxModel>(
+    model: &M,
+    experiments: &[Experiment],
+    start: &[f64],
+    options: &PemOptions,
+) -> Result<FitResult> {
+    fit_weighted(model, experiments, None, start, options)
+}
+
+/// As [`fit`], with per-sample weights β_k for every experiment (`weights[e]` of length N_e).
+///
+/// # Errors
+/// As [`fit`]; [`Error::InvalidOption`] for weights of the wrong count or length or a
+/// negative or non-finite weight.
+pub fn fit_weighted<M: GreyBoxModel>(
+    model: &M,
+    experiments: &[Experiment],
+    weights: Option<Vec<Vec<f64>>>,
+    start: &[f64],
+    options: &PemOptions,
+) -> Result<FitResult> {
+    let t0 = Instant::now();
+    options.tolerances.validate()?;
+    if let Some(w) = &weights
+        && w.len() != experiments.len()
+    {
+        return Err(Error::InvalidOption {
+            option: "weights".into(),
+            reason: format!("{} weight vectors for {} experiments", w.len(), experiments.len()),
+        });
+    }
+    let mut weights = weights.map(|w| w.into_iter().map(Some).collect::<Vec<_>>());
+    let preps = experiments
+        .iter()
+        .enumerate()
+        .map(|(i, e)| Ok((model.prepare(e)?, weights.as_mut().and_then(|w| w[i].take()))))
+        .collect::<Result<Vec<_>>>()?;
+    let scaling = options.scaling.rule();
+    let shooting = Shooting { horizon: options.horizon };
+    let problem = PemProblem::new(
+        model,
+        preps,
+        start,
+        &options.per_experiment,
+        scaling.as_ref(),
+        shooting,
+        options.output_weights.clone(),
+    )?;
+    let p0 = problem.start_vector(start);
+    let (p_hat, report) = run_solver(&problem, p0, options)?;
+    let mut result = assemble(&problem, &p_hat, start, report)?;
+    result.timing.fit_s = t0.elapsed().as_secs_f64();
+    result.timing.total_s = result.timing.fit_s;
+    Ok(result)
+}
+
+/// Runs the chosen solver through argmin's executor; returns p̂ and the report.
+pub(crate) fn run_solver<O: LeastSquares>(
+    problem: &O,
+    p0: DVector<f64>,
+    options: &PemOptions,
+) -> Result<(DVector<f64>, SolverReport)> {
+    if p0.is_empty() {
+        // Everything fixed: nothing to optimise.
+        return Ok((
+            p0,
+            SolverReport {
+                name: "none".into(),
+                iterations: 0,
+                termination: "all parameters fixed".into(),
+                reason: Termination::StepTolerance,
+                success: true,
+                evaluations: 0,
+            },
+        ));
+    }
+    match options.solver {
+        SolverKind::Lm => {
+            let solver = LevenbergMarquardt::new(options.tolerances);
+            let mut exec = Executor::new(problem, solver).configure(|s| s.param(p0).max_iters(options.tolerances.max_iters));
+            if options.progress {
+                exec = exec.add_observer(Progress::new(), ObserverMode::Always);
+            }
+            let res = exec.run().map_err(Error::from_argmin)?;
+            let evaluations = res.state.get_func_counts().values().sum::<u64>();
+            let reason = match (res.solver.termination(), res.state.get_termination_reason()) {
+                (Some(t), _) => t.clone(),
+                (None, Some(TerminationReason::MaxItersReached)) => Termination::MaxIterations,
+                (None, r) => Termination::Stopped(r.map(|r| r.text().to_string()).unwrap_or_default()),
+            };
+            let p = res.state.get_best_param().cloned().ok_or_else(|| Error::Solver("no estimate".into()))?;
+            Ok((
+                p,
+                SolverReport {
+                    name: "lm".into(),
+                    iterations: res.state.get_iter(),
+                    termination: reason.to_string(),
+                    success: reason.success(),
+                    reason,
+                    evaluations,
+                },
+            ))
+        }
+    }
+}
+
+/// Computes the statistics at p̂ and fills a [`FitResult`].
+pub(crate) fn assemble<M: GreyBoxModel>(
+    problem: &PemProblem<'_, M>,
+    p: &DVector<f64>,
+    start: &[f64],
+    solver: SolverReport,
+) -> Result<FitResult> {
+    let model = problem.model();
+    let params = model.parameters();
+    let (ny, np) = (model.n_outputs(), problem.n_free());
+    let sums = problem.sums(p)?;
+    let n = sums.count;
+    let n_res = n * ny;
+    let dof = n_res.saturating_sub(np);
+    let sse_total: f64 = sums.sse.iter().sum();
+    // A⁻¹ for the reported covariance (the one explicit inverse, STYLE.md rule 7).
+    let a_inv: Option<DMatrix<f64>> = sums.jtj.clone().cholesky().map(|c| c.inverse());
+    let dtheta: Vec<f64> = problem.free().iter().enumerate().map(|(g, f)| f.transform.dtheta_dp(p[g])).collect();
+    let cov_theta = a_inv.as_ref().map(|ai| {
+        let sigma2: Vec<f64> = sums.sse.iter().map(|s| s / (n as f64 - np as f64 / ny as f64).max(1.0)).collect();
+        let mut b = DMatrix::<f64>::zeros(np, np);
+        for (bi, s2) in sums.jtwwj.iter().zip(&sigma2) {
+            b += bi * *s2;
+        }
+        let cov_p = ai * b * ai;
+        DMatrix::from_fn(np, np, |i, j| cov_p[(i, j)] * dtheta[i] * dtheta[j])
+    });
+    let tq = t_quantile_975(dof);
+    let e2w = 2.0 * sums.cost;
+    let names = problem.terms().iter().map(|t| t.prep.name.clone()).collect::<Vec<_>>();
+    let mut parameters = Vec::new();
+    // Fixed parameters are reported once, in model order, with the free ones.
+    let mut free_of_index: Vec<Vec<usize>> = vec![Vec::new(); params.len()];
+    for (g, f) in problem.free().iter().enumerate() {
+        free_of_index[f.index].push(g);
+    }
+    for (j, prm) in params.iter().enumerate() {
+        if free_of_index[j].is_empty() {
+            parameters.push(ParameterEstimate {
+                name: prm.name.clone(),
+                unit: prm.unit.clone(),
+                value: start[j],
+                std_error: 0.0,
+                ci95: [start[j], start[j]],
+                error_index_percent: 0.0,
+                fixed: true,
+                experiment: None,
+                start: start[j],
+            });
+            continue;
+        }
+        for &g in &free_of_index[j] {
+            let f = &problem.free()[g];
+            let value = f.transform.to_theta(p[g]);
+            let se = cov_theta.as_ref().map_or(f64::INFINITY, |c| c[(g, g)].max(0.0).sqrt());
+            let idx = a_inv.as_ref().map_or(f64::INFINITY, |ai| {
+                100.0 * (e2w * ai[(g, g)]).max(0.0).sqrt() * dtheta[g].abs() / value.abs()
+            });
+            parameters.push(ParameterEstimate {
+                name: prm.name.clone(),
+                unit: prm.unit.clone(),
+                value,
+                std_error: se,
+                ci95: [value - tq * se, value + tq * se],
+                error_index_percent: idx,
+                fixed: false,
+                experiment: f.experiment.map(|e| names[e].clone()),
+                start: start[j],
+            });
+        }
+    }
+    // Free entries of `parameters` in model order map to free indices g in that order.
+    let order: Vec<usize> = free_of_index.iter().flatten().copied().collect();
+    let correlation = match &cov_theta {
+        Some(c) => order
+            .iter()
+            .map(|&a| order.iter().map(|&b| c[(a, b)] / (c[(a, a)] * c[(b, b)]).sqrt()).collect())
+            .collect(),
+        None => vec![vec![f64::NAN; np]; np],
+    };
+    let fit = FitStatistics {
+        outputs: model.output_names(),
+        fit_percent: sums
+            .sse
+            .iter()
+            .zip(&sums.sst)
+            .map(|(e, t)| if *t > 0.0 { 100.0 * (1.0 - (e / t).sqrt()) } else { f64::NAN })
+            .collect(),
+        rms_residual: sums.sse.iter().map(|e| (e / n as f64).sqrt()).collect(),
+        loss: sums.cost,
+        mse: sse_total / n_res as f64,
+        aic: n_res as f64 * (sse_total / n_res as f64).ln() + 2.0 * np as f64,
+        bic: n_res as f64 * (sse_total / n_res as f64).ln() + np as f64 * (n_res as f64).ln(),
+        samples: n,
+        dof,
+    };
+    let mut notes = Vec::new();
+    if a_inv.is_none() {
+        notes.push("information matrix JᵀWJ is singular: some parameters are not identifiable from these data".into());
+    }
+    Ok(FitResult {
+        model: model.name().to_string(),
+        hold: None,
+        experiments: names,
+        parameters,
+        derived: Vec::new(),
+        fit,
+        correlation,
+        solver,
+        timing: Timing::default(),
+        notes,
+    })
+}
+
+/// A spinner on stderr showing iteration and cost (hidden when stderr is not a terminal).
+struct Progress {
+    bar: indicatif::ProgressBar,
+}
+
+impl Progress {
+    fn new() -> Self {
+        let bar = indicatif::ProgressBar::new_spinner();
+        bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+        Self { bar }
+    }
+}
+
+impl<I: State<Float = f64>> Observe<I> for Progress {
+    fn observe_iter(&mut self, state: &I, _kv: &argmin::core::KV) -> std::result::Result<(), argmin::core::Error> {
+        self.bar.set_message(format!("iteration {}: cost {:.6e}", state.get_iter(), state.get_best_cost()));
+        self.bar.tick();
+        if state.terminated() {
+            self.bar.finish_and_clear();
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Progress {
+    fn drop(&mut self) {
+        self.bar.finish_and_clear();
+    }
+}

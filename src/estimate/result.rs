@@ -1,0 +1,220 @@
+//! The result of a fit: estimates with uncertainty, fit statistics, solver report.
+//!
+//! Statistics (MODEL.md §5; Ljung, *System Identification*, 2nd ed., sections 9.3 and
+//! 16.4; thesis 5.3 and appendix B):
+//! - covariance `Cov(θ̂) = A⁻¹ (Σ_i σ̂_i² B_i) A⁻¹` with `A = JᵀWJ`, `B_i = Σ_k w_ki² J_kiᵀJ_ki`
+//!   and `σ̂_i² = E_i²/(N − n_p/n_y)` the residual variance of output i; with uniform weights
+//!   and equal noise this is the textbook `σ̂² (JᵀJ)⁻¹`;
+//! - 95 % confidence interval `θ̂ ± t_{0.975, N n_y − n_p} σ_θ`;
+//! - parametric error index `P_i = 100 √(E² [A⁻¹]_ii)/|θ̂_i|` with `E² = Σ w ε²`: the change
+//!   of θ_i (others re-optimised) that doubles E², in percent;
+//! - fit per output `100 (1 − ‖y − ŷ‖/‖y − ȳ‖)` (NRMSE fit, as MATLAB's `compare`);
+//! - `AIC = N ln(E²/N) + 2 n_p`, `BIC = N ln(E²/N) + n_p ln N` over all `N = N_k n_y`
+//!   residuals (Gaussian likelihood, constants dropped).
+
+use crate::estimate::solver::Termination;
+use crate::model::VoltageHold;
+use serde::{Deserialize, Serialize};
+
+/// One estimated (or fixed) parameter.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ParameterEstimate {
+    /// Symbol, e.g. `r_s`.
+    pub name: String,
+    /// Unit, e.g. `ohm`.
+    pub unit: String,
+    /// Estimate θ̂ [unit].
+    pub value: f64,
+    /// Standard error [unit] (0 for fixed, ∞ when not identifiable).
+    pub std_error: f64,
+    /// 95 % confidence interval `[lo, hi]` [unit].
+    pub ci95: [f64; 2],
+    /// Parametric error index [%] (thesis 5.3).
+    pub error_index_percent: f64,
+    /// Held fixed during the fit.
+    pub fixed: bool,
+    /// Experiment this value belongs to, for per-experiment parameters; `None` when shared.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub experiment: Option<String>,
+    /// Start value [unit].
+    pub start: f64,
+}
+
+/// A quantity derived from the estimates (e.g. `k_t`, `psi_f`), with propagated uncertainty.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DerivedEstimate {
+    /// Symbol, e.g. `k_t`.
+    pub name: String,
+    /// Unit, e.g. `N m/A`.
+    pub unit: String,
+    /// Value [unit].
+    pub value: f64,
+    /// Standard error [unit].
+    pub std_error: f64,
+    /// Experiment, for quantities derived from per-experiment parameters.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub experiment: Option<String>,
+}
+
+/// Goodness of fit.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FitStatistics {
+    /// Output names, length n_y.
+    pub outputs: Vec<String>,
+    /// NRMSE fit per output [%], length n_y.
+    pub fit_percent: Vec<f64>,
+    /// RMS residual per output [output unit], length n_y.
+    pub rms_residual: Vec<f64>,
+    /// Criterion value at the estimate, `V = ½ Σ β_k εᵀΛε`.
+    pub loss: f64,
+    /// Mean squared residual over all outputs, `E²/(N n_y)`.
+    pub mse: f64,
+    /// Akaike information criterion.
+    pub aic: f64,
+    /// Bayesian information criterion.
+    pub bic: f64,
+    /// Residual samples per output N (first samples excluded).
+    pub samples: usize,
+    /// Degrees of freedom `N n_y − n_p`.
+    pub dof: usize,
+}
+
+/// How the solver ran.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SolverReport {
+    /// `lm` or `gn`.
+    pub name: String,
+    /// Iterations (trial steps).
+    pub iterations: u64,
+    /// Human-readable termination reason.
+    pub termination: String,
+    /// Machine-readable termination reason.
+    pub reason: Termination,
+    /// Whether the fit converged.
+    pub success: bool,
+    /// Cost and normal-equation evaluations.
+    pub evaluations: u64,
+}
+
+/// Wall-clock timing [s].
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Timing {
+    /// Reading the logs.
+    pub read_s: f64,
+    /// The fit (start estimate, hold selection, optimisation, statistics).
+    pub fit_s: f64,
+    /// Everything.
+    pub total_s: f64,
+}
+
+/// Everything a fit produces; serialises to the JSON report.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FitResult {
+    /// Model name, e.g. `pmsm_spm`.
+    pub model: String,
+    /// Voltage hold the model used, for the PMSM models.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub hold: Option<VoltageHold>,
+    /// Names of the experiments fitted.
+    pub experiments: Vec<String>,
+    /// Estimates, model parameter order (per-experiment copies follow each other).
+    pub parameters: Vec<ParameterEstimate>,
+    /// Derived quantities.
+    pub derived: Vec<DerivedEstimate>,
+    /// Goodness of fit.
+    pub fit: FitStatistics,
+    /// Correlation matrix of the free parameters (order of the free entries of `parameters`).
+    pub correlation: Vec<Vec<f64>>,
+    /// Solver report.
+    pub solver: SolverReport,
+    /// Timing.
+    pub timing: Timing,
+    /// Remarks on the fit (start estimate, hold selection, warnings).
+    pub notes: Vec<String>,
+}
+
+impl FitResult {
+    /// The estimate of the parameter called `name` (first match), if any.
+    pub fn parameter(&self, name: &str) -> Option<&ParameterEstimate> {
+        self.parameters.iter().find(|p| p.name == name)
+    }
+    /// The derived quantity called `name` (first match), if any.
+    pub fn derived(&self, name: &str) -> Option<&DerivedEstimate> {
+        self.derived.iter().find(|p| p.name == name)
+    }
+    /// The JSON report (pretty-printed).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+    }
+}
+
+impl std::fmt::Display for FitResult {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let hold = self.hold.map(|h| format!(", {h} voltage hold")).unwrap_or_default();
+        writeln!(f, "model {}{hold}; {} experiment(s): {}", self.model, self.experiments.len(), self.experiments.join(", "))?;
+        writeln!(
+            f,
+            "{:<14} {:>14} {:>11} {:>29} {:>9}  {}",
+            "parameter", "estimate", "std error", "95 % interval", "index %", "unit"
+        )?;
+        let row = |f: &mut std::fmt::Formatter<'_>, name: String, v: f64, se: f64, ci: Option<[f64; 2]>, idx: Option<f64>, unit: &str| {
+            let ci = ci.map(|c| format!("[{:.6e}, {:.6e}]", c[0], c[1])).unwrap_or_default();
+            let idx = idx.map(|i| format!("{i:.4}")).unwrap_or_default();
+            writeln!(f, "{name:<14} {v:>14.7e} {se:>11.3e} {ci:>29} {idx:>9}  {unit}")
+        };
+        for p in &self.parameters {
+            let mut name = p.name.clone();
+            if let Some(e) = &p.experiment {
+                name = format!("{name}[{e}]");
+            }
+            if p.fixed {
+                name.push_str(" (fixed)");
+            }
+            row(f, name, p.value, p.std_error, Some(p.ci95), Some(p.error_index_percent), &p.unit)?;
+        }
+        for d in &self.derived {
+            let name = match &d.experiment {
+                Some(e) => format!("{}[{e}]", d.name),
+                None => d.name.clone(),
+            };
+            row(f, name, d.value, d.std_error, None, None, &d.unit)?;
+        }
+        let s = &self.fit;
+        let per = |v: &[f64], digits: usize| {
+            s.outputs.iter().zip(v).map(|(n, x)| format!("{n} {x:.digits$}")).collect::<Vec<_>>().join(", ")
+        };
+        writeln!(f, "fit [%]: {};  rms residual: {}", per(&s.fit_percent, 4), per(&s.rms_residual, 6))?;
+        writeln!(f, "loss {:.6e}, mse {:.6e}, AIC {:.1}, BIC {:.1}, N {} per output", s.loss, s.mse, s.aic, s.bic, s.samples)?;
+        writeln!(
+            f,
+            "solver {}: {} after {} iterations ({} evaluations); fit {:.3} s",
+            self.solver.name, self.solver.termination, self.solver.iterations, self.solver.evaluations, self.timing.fit_s
+        )?;
+        for n in &self.notes {
+            writeln!(f, "note: {n}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Two-sided 97.5 % quantile of Student's t with `dof` degrees of freedom.
+///
+/// Exact for 1 and 2 degrees of freedom, Cornish-Fisher expansion otherwise
+/// (Abramowitz & Stegun 26.7.5; error below 1e-4 for dof ≥ 3).
+pub fn t_quantile_975(dof: usize) -> f64 {
+    const Z: f64 = 1.959_963_984_540_054;
+    match dof {
+        0 => f64::INFINITY,
+        1 => 12.706_204_736_174_7,
+        2 => 4.302_652_729_749_464,
+        _ => {
+            let n = dof as f64;
+            let z2 = Z * Z;
+            let g1 = (z2 + 1.0) * Z / 4.0;
+            let g2 = ((5.0 * z2 + 16.0) * z2 + 3.0) * Z / 96.0;
+            let g3 = (((3.0 * z2 + 19.0) * z2 + 17.0) * z2 - 15.0) * Z / 384.0;
+            let g4 = ((((79.0 * z2 + 776.0) * z2 + 1482.0) * z2 - 1920.0) * z2 - 945.0) * Z / 92160.0;
+            Z + g1 / n + g2 / (n * n) + g3 / (n * n * n) + g4 / (n * n * n * n)
+        }
+    }
+}

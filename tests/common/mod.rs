@@ -1,0 +1,105 @@
+//! Shared test helpers: the development logs and their ground truth, synthetic records.
+#![allow(dead_code)]
+
+use greybox::model::{GreyBoxModel, Prepared};
+use greybox::{Experiment, Signals};
+use std::path::PathBuf;
+
+/// Path of a log in ../shared/data.
+pub fn data(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(name)
+}
+
+/// Ground truth of a log, from its JSON.
+#[derive(Debug, Clone)]
+pub struct Truth {
+    pub r_s: f64,
+    pub l_d: f64,
+    pub l_q: f64,
+    pub k_e: f64,
+    pub psi_f: f64,
+    pub n_p: u32,
+    pub salient: bool,
+}
+
+pub fn truth(stem: &str) -> Truth {
+    let text = std::fs::read_to_string(data(&format!("{stem}.json"))).expect("truth JSON");
+    let v: serde_json::Value = serde_json::from_str(&text).expect("valid JSON");
+    let f = |k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{stem}.json: {k}"));
+    let (l_d, l_q) = (f("Ld_H"), f("Lq_H"));
+    Truth {
+        r_s: f("Rs_ohm"),
+        l_d,
+        l_q,
+        k_e: f("Ke_project_Vs_per_rad_mech"),
+        psi_f: f("psi_f_Vs"),
+        n_p: v["np_pole_pairs"].as_u64().expect("n_p") as u32,
+        salient: v["Ls_H"].is_null(),
+    }
+}
+
+/// Reads a log with its truth's pole-pair number.
+pub fn load(stem: &str) -> (Experiment, Truth) {
+    let t = truth(stem);
+    let e = greybox::read_csv(data(&format!("{stem}.csv.gz")), t.n_p, &Default::default()).expect("log reads");
+    (e, t)
+}
+
+/// Relative error.
+pub fn rel(est: f64, truth: f64) -> f64 {
+    ((est - truth) / truth).abs()
+}
+
+/// Small deterministic generator (xorshift64*), so tests need no RNG crate.
+pub struct Rng(pub u64);
+impl Rng {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    /// Standard normal (Box-Muller).
+    pub fn normal(&mut self) -> f64 {
+        let u1 = self.uniform().max(1e-300);
+        let u2 = self.uniform();
+        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+    }
+}
+
+/// Exciting inputs: random voltage steps plus a back-EMF-like term and a speed sweep that
+/// reverses, with n samples at step h.
+pub fn exciting_signals(n: usize, h: f64, w_max: f64, u_amp: f64, k_e: f64, rng: &mut Rng) -> Signals {
+    let mut s = Signals::default();
+    let (mut ud, mut uq) = (0.0, 0.0);
+    let f_w = 1.0 / (n as f64 * h); // one speed period over the record
+    for k in 0..n {
+        let t = k as f64 * h;
+        if k % 40 == 0 {
+            ud = u_amp * (2.0 * rng.uniform() - 1.0);
+            uq = u_amp * (2.0 * rng.uniform() - 1.0);
+        }
+        let w = w_max * (2.0 * std::f64::consts::PI * f_w * t).sin() + 0.1 * w_max * (13.0 * t).cos();
+        s.w_m.push(w);
+        s.u_d.push(ud);
+        s.u_q.push(uq + 0.8165 * k_e * w);
+    }
+    s.i_d = vec![0.0; n];
+    s.i_q = vec![0.0; n];
+    s
+}
+
+/// Replaces the currents of `signals` by the model's own simulation at θ from rest.
+pub fn simulate_into<M: GreyBoxModel>(model: &M, theta: &[f64], h: f64, n_p: u32, mut signals: Signals) -> Experiment {
+    let e = Experiment::try_new("synthetic", h, n_p, signals.clone()).expect("valid signals");
+    let prep: Prepared<M::Inputs> = model.prepare(&e).expect("prepare");
+    let y = greybox::simulate::simulate(model, &prep, theta).expect("simulate");
+    let ny = model.n_outputs();
+    signals.i_d = (0..e.len()).map(|k| y[k * ny]).collect();
+    signals.i_q = (0..e.len()).map(|k| y[k * ny + 1]).collect();
+    Experiment::try_new("synthetic", h, n_p, signals).expect("valid signals")
+}

@@ -1,0 +1,99 @@
+//! Recovery of the ground truth from the development logs in ../shared/data: SPM model on
+//! the non-salient logs, IPM on the salient ones, actual voltage columns, least-squares
+//! start (never the truth), automatic voltage-hold choice.
+
+mod common;
+
+use common::{Truth, load, rel};
+use greybox::estimate::FitResult;
+use greybox::estimate::linear::MotorKind;
+use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
+
+fn fit_log(stem: &str) -> (FitResult, Truth) {
+    let (e, t) = load(stem);
+    let model = if t.salient { MotorKind::Ipm } else { MotorKind::Spm };
+    let fit = fit_pmsm(&[e], &PmsmFitOptions { model, ..Default::default() }).expect("fit runs");
+    eprintln!("{stem}:\n{fit}");
+    (fit, t)
+}
+
+fn truths(t: &Truth) -> Vec<(&'static str, f64)> {
+    if t.salient {
+        vec![("r_s", t.r_s), ("l_d", t.l_d), ("l_q", t.l_q), ("k_e", t.k_e)]
+    } else {
+        vec![("r_s", t.r_s), ("l_s", t.l_d), ("k_e", t.k_e)]
+    }
+}
+
+fn assert_within(stem: &str, tol: f64) {
+    let (fit, t) = fit_log(stem);
+    assert!(fit.solver.success, "{stem}: {}", fit.solver.termination);
+    for (name, truth) in truths(&t) {
+        let est = fit.parameter(name).unwrap().value;
+        let e = rel(est, truth);
+        eprintln!("{stem} {name}: relative error {e:.3e}");
+        assert!(e < tol, "{stem} {name}: {est:e} vs truth {truth:e}: relative error {e:e}");
+    }
+    let psi = fit.derived("psi_f").unwrap().value;
+    assert!(rel(psi, t.psi_f) < tol, "{stem} psi_f {psi} vs {}", t.psi_f);
+}
+
+#[test]
+fn servo_spm_moves() {
+    assert_within("servo_spm_moves", 1e-4);
+}
+
+#[test]
+fn servo_spm_moves_idinj() {
+    assert_within("servo_spm_moves_idinj", 1e-4);
+}
+
+#[test]
+fn ipm_moves_idinj() {
+    assert_within("ipm_moves_idinj", 1e-4);
+}
+
+#[test]
+fn gem_spm_moves_idinj() {
+    assert_within("gem_spm_moves_idinj", 1e-4);
+}
+
+#[test]
+fn gem_ipm_moves_idinj() {
+    assert_within("gem_ipm_moves_idinj", 1e-4);
+}
+
+/// Motulator logs hold the voltage in the stator frame, GEM logs in dq: the automatic
+/// choice must find that from the data alone.
+#[test]
+fn automatic_hold_matches_the_simulator() {
+    use greybox::model::VoltageHold;
+    for (stem, hold) in [("servo_spm_moves_idinj", VoltageHold::Stator), ("gem_spm_moves_idinj", VoltageHold::Dq)] {
+        let (fit, _) = fit_log(stem);
+        assert_eq!(fit.hold, Some(hold), "{stem}");
+    }
+}
+
+/// Noisy logs: every parameter within 3 reported standard errors and 0.2 % of the truth.
+fn assert_noisy(stem: &str) {
+    let (fit, t) = fit_log(stem);
+    assert!(fit.solver.success, "{stem}: {}", fit.solver.termination);
+    for (name, truth) in truths(&t) {
+        let p = fit.parameter(name).unwrap();
+        let z = (p.value - truth) / p.std_error;
+        eprintln!("{stem} {name}: rel {:.3e}, {z:.2} standard errors", rel(p.value, truth));
+        assert!(rel(p.value, truth) < 2e-3, "{stem} {name}: {} vs {truth}", p.value);
+        assert!(z.abs() < 3.0, "{stem} {name}: {} ± {} vs {truth} ({z:.2} se)", p.value, p.std_error);
+        assert!(p.ci95[0] < p.value && p.value < p.ci95[1]);
+    }
+}
+
+#[test]
+fn servo_spm_moves_idinj_noisy() {
+    assert_noisy("servo_spm_moves_idinj_noisy");
+}
+
+#[test]
+fn gem_ipm_moves_idinj_noisy() {
+    assert_noisy("gem_ipm_moves_idinj_noisy");
+}
