@@ -8,5 +8,6 @@ pub mod data;
 pub mod error;
 pub mod model;
 
+pub use data::csv::{CsvOptions, read_csv};
 pub use data::{Experiment, Signals};
 pub use error::{Error, Result};
