@@ -11,6 +11,7 @@ pub mod simulate;
 pub mod estimate;
 pub mod pmsm;
 
+pub use data::csv::{CsvOptions, read_csv};
 pub use data::{Experiment, Signals};
 pub use data::csv::{CsvOptions, read_csv};
 pub use error::{Error, Result};

@@ -1,0 +1,610 @@
+//! Data-input layer: CSV reading of the development logs, unit options, Clarke/Park,
+//! dq from phase quantities, and a clear error for every kind of bad input.
+
+use std::f64::consts::{PI, SQRT_2};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use approx::assert_relative_eq;
+use greybox::Error;
+use greybox::data::csv::{AngleUnit, CsvOptions, DqSource, Frame, Scale, SpeedUnit, read_csv, read_csv_many};
+use greybox::data::transform::{
+    clarke, currents_to_dq, inverse_clarke, inverse_park, park, stator_held_voltages_to_dq,
+    stator_hold_mean_factor,
+};
+use greybox::data::{Experiment, MIN_SAMPLES, Signals};
+use proptest::prelude::*;
+
+const SERVO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/servo_spm_moves_idinj.csv.gz");
+const GEM: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/gem_spm_moves_idinj.csv.gz");
+const GEM_NOISY: &str =
+    concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/gem_ipm_moves_idinj_noisy.csv.gz");
+const SAMPLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz");
+
+/// A fresh file path under the system temp dir, unique per process and call.
+fn temp_path(tag: &str, ext: &str) -> PathBuf {
+    static COUNTER: AtomicUsize = AtomicUsize::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    std::env::temp_dir().join(format!("greybox-test-{}-{n}-{tag}.{ext}", std::process::id()))
+}
+
+/// Writes `contents` to a fresh temp file and returns its path.
+fn temp_file(tag: &str, contents: &[u8]) -> PathBuf {
+    let p = temp_path(tag, "csv");
+    std::fs::write(&p, contents).expect("write temp file");
+    p
+}
+
+/// A valid 6-column log of `n` rows at h = 1 ms (t, ud, uq, id, iq, w_m).
+fn valid_rows(n: usize) -> String {
+    let mut s = String::from("t,ud,uq,id,iq,w_m\n");
+    for k in 0..n {
+        let t = k as f64 * 1e-3;
+        s.push_str(&format!("{t:.6},{},{},{},{},{}\n", 0.1 * k as f64, 1.0, 0.5, -0.25, 10.0));
+    }
+    s
+}
+
+fn read_default(p: &Path) -> greybox::Result<Experiment> {
+    read_csv(p, 4, &CsvOptions::default())
+}
+
+// ---------------------------------------------------------------- real logs
+
+#[test]
+fn reads_motulator_log() {
+    let e = read_csv(SERVO, 4, &CsvOptions::default()).unwrap();
+    assert_eq!(e.name(), "servo_spm_moves_idinj");
+    assert_eq!(e.len(), 72_000);
+    assert_eq!(e.n_p(), 4);
+    assert!((e.h() - 1e-4).abs() < 1e-12, "h = {}", e.h());
+    let s = e.signals();
+    assert_eq!(s.theta_m.as_ref().map(Vec::len), Some(72_000));
+    assert_eq!(s.u_d_ref.as_ref().map(Vec::len), Some(72_000));
+    assert_eq!(s.u_q_ref.as_ref().map(Vec::len), Some(72_000));
+    // Row 1 of the file: 0.000100,0,0,-5.363765e-10,0.0001616121,-0.03324986,-1.663893e-06,...
+    assert_eq!(e.i_d()[1], -5.363765e-10);
+    assert_eq!(e.i_q()[1], 0.0001616121);
+    assert_eq!(e.w_m()[1], -0.03324986);
+    assert_eq!(e.theta_m().unwrap()[1], -1.663893e-06);
+    assert_eq!(s.u_q_ref.as_ref().unwrap()[1], -0.001827789);
+}
+
+#[test]
+fn reads_gem_log_without_references() {
+    let e = read_csv(GEM, 4, &CsvOptions::default()).unwrap();
+    assert_eq!(e.name(), "gem_spm_moves_idinj");
+    assert_eq!(e.len(), 58_400);
+    assert!((e.h() - 1.25e-4).abs() < 1e-12, "h = {}", e.h());
+    assert!(e.theta_m().is_some());
+    assert!(e.signals().u_d_ref.is_none());
+    assert!(e.signals().u_q_ref.is_none());
+}
+
+#[test]
+fn reads_many_in_order() {
+    let v = read_csv_many(&[GEM, SERVO], 4, &CsvOptions::default()).unwrap();
+    assert_eq!(v.len(), 2);
+    assert_eq!(v[0].name(), "gem_spm_moves_idinj");
+    assert_eq!(v[1].name(), "servo_spm_moves_idinj");
+    let missing = temp_path("many-missing", "csv");
+    let err = read_csv_many(&[Path::new(GEM), &missing], 4, &CsvOptions::default()).unwrap_err();
+    assert!(matches!(err, Error::Io { .. }), "{err:?}");
+}
+
+#[test]
+fn sample_log_is_a_verbatim_cut_of_the_servo_log() {
+    let sample = read_csv(SAMPLE, 4, &CsvOptions::default()).unwrap();
+    let full = read_csv(SERVO, 4, &CsvOptions::default()).unwrap();
+    assert_eq!(sample.name(), "sample");
+    assert_eq!(sample.len(), 20_000);
+    assert!((sample.h() - 1e-4).abs() < 1e-12);
+    // t = 0.6 s is row 6000 of the full log.
+    let cut = full.slice(6_000..26_000).unwrap();
+    assert_eq!(sample.signals(), cut.signals());
+}
+
+/// Half a unit in the 7th significant digit of `x`: the rounding of a `%.7g` field.
+fn q7(x: f64) -> f64 {
+    if x == 0.0 { 0.0 } else { 0.5 * 10f64.powf(x.abs().log10().floor() - 6.0) }
+}
+
+/// The named columns of a gzip CSV, parsed independently of greybox's reader.
+fn raw_columns(path: &str, names: &[&str]) -> Vec<Vec<f64>> {
+    let gz = flate2::read::MultiGzDecoder::new(std::fs::File::open(path).unwrap());
+    let mut rdr = csv::Reader::from_reader(gz);
+    let header = rdr.headers().unwrap().clone();
+    let idx: Vec<usize> = names.iter().map(|n| header.iter().position(|h| h == *n).unwrap()).collect();
+    let mut cols = vec![Vec::new(); names.len()];
+    for rec in rdr.records() {
+        let rec = rec.unwrap();
+        for (c, &i) in cols.iter_mut().zip(&idx) {
+            c.push(rec[i].parse::<f64>().unwrap());
+        }
+    }
+    cols
+}
+
+/// Compares dq signals `(d, q)` derived from the phase columns `abc` with the file's
+/// `(d_ref, q_ref)` over `rows`: returns (max |Δx_dq|, max of |Δx_dq| / rounding bound).
+///
+/// Every value was written with 7 significant digits. The bound adds the rotation by the
+/// rounded angle, `|x_dq| n_p q7(θ_m)` (≈ 2e-6 rad at |θ_m| ≈ 3: 2.4e-5 A at 12 A), plus
+/// `|x_dq| q7(θ_e)` where the file's dq values were computed from a logged, rounded θ_e
+/// (gym-electric-motor's noisy file), the phase rounding through Clarke,
+/// `≤ 1.8 max_x q7(x_x)`, and the rounding of the dq values themselves, `2 q7(|x_dq|)`.
+fn dq_error(
+    (d, q): (&[f64], &[f64]),
+    (d_ref, q_ref): (&[f64], &[f64]),
+    abc: &[Vec<f64>],
+    theta_m: &[f64],
+    theta_e_ref: Option<&[f64]>,
+    n_p: f64,
+    rows: std::ops::Range<usize>,
+) -> (f64, f64) {
+    rows.map(|k| {
+        let x = d_ref[k].hypot(q_ref[k]);
+        let err = (d[k] - d_ref[k]).hypot(q[k] - q_ref[k]);
+        let angle = n_p * q7(theta_m[k]) + theta_e_ref.map_or(0.0, |th| q7(th[k]));
+        let phase = abc.iter().map(|c| q7(c[k])).fold(0.0, f64::max);
+        (err, err / (x * angle + 1.8 * phase + 2.0 * q7(x) + 1e-15))
+    })
+    .fold((0.0, 0.0), |(a, b), (e, r)| (f64::max(a, e), f64::max(b, r)))
+}
+
+#[test]
+fn phases_reproduce_motulator_dq_signals() {
+    let dq = read_csv(SERVO, 4, &CsvOptions::default()).unwrap();
+    let opts = CsvOptions { source: DqSource::Phases, ..CsvOptions::default() };
+    let ph = read_csv(SERVO, 4, &opts).unwrap();
+    assert_eq!(ph.len(), dq.len());
+    let n = dq.len();
+    let th = dq.theta_m().unwrap();
+    let raw = raw_columns(SERVO, &["ia", "ib", "ic", "ua", "ub", "uc"]);
+    let (i_abc, u_abc) = raw.split_at(3);
+    let (e_i, r_i) = dq_error((ph.i_d(), ph.i_q()), (dq.i_d(), dq.i_q()), i_abc, th, None, 4.0, 0..n);
+    // The last row has no w_m[k+1]: its period speed is w_m[k]; compare the others.
+    let (e_u, r_u) = dq_error((ph.u_d(), ph.u_q()), (dq.u_d(), dq.u_q()), u_abc, th, None, 4.0, 0..n - 1);
+    let u_mag: Vec<f64> = (0..n).map(|k| dq.u_d()[k].hypot(dq.u_q()[k])).collect();
+    let u_max = u_mag.iter().copied().fold(0.0, f64::max);
+    let e_u_rel = (0..n - 1)
+        .filter(|&k| u_mag[k] > 1.0)
+        .map(|k| (ph.u_d()[k] - dq.u_d()[k]).hypot(ph.u_q()[k] - dq.u_q()[k]) / u_mag[k])
+        .fold(0.0, f64::max);
+    eprintln!(
+        "phases -> dq (motulator): max |Δi_dq| = {e_i:.3e} A ({r_i:.3} of the rounding bound), \
+         max |Δu_dq| = {e_u:.3e} V ({r_u:.3} of the rounding bound, |u|max = {u_max:.1} V), \
+         max |Δu|/|u| (|u| > 1 V) = {e_u_rel:.3e}"
+    );
+    assert!(r_i <= 1.0, "current error {e_i:e} A exceeds the 7-digit rounding bound ({r_i})");
+    assert!(e_i < 3e-5, "current error {e_i:e} A");
+    assert!(r_u <= 1.0, "voltage error {e_u:e} V exceeds the 7-digit rounding bound ({r_u})");
+    assert!(e_u < 5e-6 * u_max, "voltage error {e_u:e} V of {u_max} V");
+    assert!(e_u_rel < 5e-6, "relative voltage error {e_u_rel:e}");
+    // Without the stator-hold factor the error is of order φ/2 = n_p w h / 2 (≈ 0.06 at
+    // 280 rad/s): the factor is what makes the match.
+    let worst = (0..n - 1)
+        .filter(|&k| u_mag[k] > 1.0)
+        .map(|k| {
+            let (fr, fi) = stator_hold_mean_factor(4.0 * 0.5 * (dq.w_m()[k] + dq.w_m()[k + 1]) * 1e-4);
+            let (d, q) = (ph.u_d()[k], ph.u_q()[k]);
+            // Undo the factor: divide by (fr + j fi).
+            let m2 = fr * fr + fi * fi;
+            let (d0, q0) = ((d * fr + q * fi) / m2, (q * fr - d * fi) / m2);
+            (d0 - dq.u_d()[k]).hypot(q0 - dq.u_q()[k]) / u_mag[k]
+        })
+        .fold(0.0, f64::max);
+    eprintln!("without the stator-hold factor: max |Δu|/|u| = {worst:.3e}");
+    assert!(worst > 1e-2, "uncorrected error {worst:e} should be large");
+}
+
+#[test]
+fn phases_reproduce_gem_noisy_currents() {
+    // GEM's phase voltages come from a dq-held voltage, so only the currents are compared.
+    let dq = read_csv(GEM_NOISY, 4, &CsvOptions::default()).unwrap();
+    let ph =
+        read_csv(GEM_NOISY, 4, &CsvOptions { source: DqSource::Phases, ..CsvOptions::default() }).unwrap();
+    let th = dq.theta_m().unwrap();
+    let mut raw = raw_columns(GEM_NOISY, &["ia", "ib", "ic", "theta_e"]);
+    let theta_e = raw.pop().unwrap();
+    let (e_i, r_i) =
+        dq_error((ph.i_d(), ph.i_q()), (dq.i_d(), dq.i_q()), &raw, th, Some(&theta_e), 4.0, 0..dq.len());
+    let i_max = dq.i_d().iter().zip(dq.i_q()).map(|(d, q)| d.hypot(*q)).fold(0.0, f64::max);
+    eprintln!(
+        "phases -> dq (GEM noisy): max |Δi_dq| = {e_i:.3e} A ({r_i:.3} of the rounding bound, |i|max {i_max:.1} A)"
+    );
+    assert!(r_i <= 1.0, "current error {e_i:e} A exceeds the 7-digit rounding bound ({r_i})");
+    assert!(e_i < 5e-6 * i_max, "current error {e_i:e} A of {i_max} A");
+}
+
+// ---------------------------------------------------------------- unit options
+
+#[test]
+fn unit_options_convert_to_si() {
+    // rpm, electrical frame, degrees, RMS currents and voltages, renamed columns.
+    let n = MIN_SAMPLES + 4;
+    let n_p = 3;
+    let mut s = String::from("time, Vd ,Vq,Id,Iq,speed_rpm,angle_deg,Vd_ref,Vq_ref,extra\n");
+    for k in 0..n {
+        let t = 2.5e-4 * k as f64;
+        s.push_str(&format!("{t},10,-20,1,2,3000,{},5,6,whatever\n", 90 + k));
+    }
+    let p = temp_file("units", s.as_bytes());
+    let mut opts = CsvOptions {
+        speed_unit: SpeedUnit::Rpm,
+        speed_frame: Frame::Electrical,
+        angle_unit: AngleUnit::Deg,
+        current_scale: Scale::Rms,
+        voltage_scale: Scale::Rms,
+        ..CsvOptions::default()
+    };
+    let c = &mut opts.columns;
+    (c.t, c.u_d, c.u_q, c.i_d, c.i_q) = ("time".into(), "Vd".into(), "Vq".into(), "Id".into(), "Iq".into());
+    (c.w_m, c.theta_m, c.u_d_ref, c.u_q_ref) =
+        ("speed_rpm".into(), "angle_deg".into(), "Vd_ref".into(), "Vq_ref".into());
+    let e = read_csv(&p, n_p, &opts).unwrap();
+    assert_eq!(e.len(), n);
+    assert_relative_eq!(e.h(), 2.5e-4, max_relative = 1e-12);
+    // 3000 rpm electrical = 100π rad/s electrical = 100π/3 rad/s mechanical.
+    assert_relative_eq!(e.w_m()[0], 100.0 * PI / 3.0, max_relative = 1e-12);
+    assert_relative_eq!(e.theta_m().unwrap()[2], (92.0_f64).to_radians() / 3.0, max_relative = 1e-12);
+    assert_relative_eq!(e.u_d()[0], 10.0 * SQRT_2, max_relative = 1e-12);
+    assert_relative_eq!(e.u_q()[0], -20.0 * SQRT_2, max_relative = 1e-12);
+    assert_relative_eq!(e.i_d()[0], SQRT_2, max_relative = 1e-12);
+    assert_relative_eq!(e.i_q()[0], 2.0 * SQRT_2, max_relative = 1e-12);
+    assert_relative_eq!(e.signals().u_q_ref.as_ref().unwrap()[0], 6.0 * SQRT_2, max_relative = 1e-12);
+    // Plain and gzip give the same; the gzip file has no `.gz` name: detection is by content.
+    let gz = temp_path("units-gz", "csv");
+    let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    std::io::Write::write_all(&mut enc, s.as_bytes()).unwrap();
+    std::fs::write(&gz, enc.finish().unwrap()).unwrap();
+    let e_gz = read_csv(&gz, n_p, &opts).unwrap();
+    assert_eq!(e_gz.signals(), e.signals());
+    std::fs::remove_file(p).ok();
+    std::fs::remove_file(gz).ok();
+}
+
+#[test]
+fn options_round_trip_through_serde() {
+    let opts = CsvOptions { speed_unit: SpeedUnit::Rpm, source: DqSource::Phases, ..CsvOptions::default() };
+    let json = serde_json::to_string(&opts).unwrap();
+    let back: CsvOptions = serde_json::from_str(&json).unwrap();
+    assert_eq!(back, opts);
+    // Missing fields take their defaults.
+    let partial: CsvOptions = serde_json::from_str(r#"{"columns": {"w_m": "speed"}}"#).unwrap();
+    assert_eq!(partial.columns.w_m, "speed");
+    assert_eq!(partial.columns.t, "t");
+    assert_eq!(partial.speed_unit, SpeedUnit::RadPerSec);
+}
+
+// ---------------------------------------------------------------- transforms
+
+#[test]
+fn clarke_park_known_values() {
+    // A phase peak of 2 at angle 0: i_a = 2, i_b = i_c = −1 → (α, β) = (2, 0).
+    let (al, be) = clarke(2.0, -1.0, -1.0);
+    assert_relative_eq!(al, 2.0, epsilon = 1e-15);
+    assert_relative_eq!(be, 0.0, epsilon = 1e-15);
+    // At θ_e = π/2 the α axis is −q.
+    let (d, q) = park(al, be, PI / 2.0);
+    assert_relative_eq!(d, 0.0, epsilon = 1e-15);
+    assert_relative_eq!(q, -2.0, epsilon = 1e-15);
+    assert_eq!(stator_hold_mean_factor(0.0), (1.0, 0.0));
+    // Series and closed form agree across the switch at 1e-8.
+    let (a, b) = stator_hold_mean_factor(0.99e-8);
+    let (c, d) = stator_hold_mean_factor(1.01e-8);
+    assert_relative_eq!(a, c, max_relative = 1e-15);
+    assert_relative_eq!(b / 0.99e-8, d / 1.01e-8, max_relative = 1e-12);
+    let (c, d) = stator_hold_mean_factor(0.5);
+    assert_relative_eq!(c, 0.5_f64.sin() / 0.5, max_relative = 1e-15);
+    assert_relative_eq!(d, -(1.0 - 0.5_f64.cos()) / 0.5, max_relative = 1e-14);
+}
+
+#[test]
+fn phase_transforms_check_lengths() {
+    let a = [0.0; 4];
+    let err = currents_to_dq(&a, &a, &a[..3], &a, 4).unwrap_err();
+    assert!(matches!(&err, Error::LengthMismatch { column, .. } if column == "ic"), "{err:?}");
+    let err = stator_held_voltages_to_dq(&a, &a, &a, &a, &a[..2], 1e-4, 4).unwrap_err();
+    assert!(matches!(&err, Error::LengthMismatch { column, .. } if column == "w_m"), "{err:?}");
+    assert!(err.to_string().contains("w_m"));
+}
+
+proptest! {
+    #[test]
+    fn park_inverse_park_is_identity(d in -1e3..1e3f64, q in -1e3..1e3f64, th in -100.0..100.0f64) {
+        let (al, be) = inverse_park(d, q, th);
+        let (d2, q2) = park(al, be, th);
+        prop_assert!((d2 - d).abs() <= 1e-12 * (1.0 + d.abs() + q.abs()));
+        prop_assert!((q2 - q).abs() <= 1e-12 * (1.0 + d.abs() + q.abs()));
+        // Park preserves the magnitude.
+        prop_assert!((al.hypot(be) - d.hypot(q)).abs() <= 1e-12 * (1.0 + d.hypot(q)));
+    }
+
+    #[test]
+    fn clarke_inverse_clarke_is_identity(x_a in -1e3..1e3f64, x_b in -1e3..1e3f64, al in -1e3..1e3f64, be in -1e3..1e3f64) {
+        let scale = 1e-12 * (1.0 + x_a.abs() + x_b.abs());
+        // Balanced set: x_c = −x_a − x_b.
+        let x_c = -x_a - x_b;
+        let (a, b) = clarke(x_a, x_b, x_c);
+        let (ya, yb, yc) = inverse_clarke(a, b);
+        prop_assert!((ya - x_a).abs() <= scale && (yb - x_b).abs() <= scale && (yc - x_c).abs() <= scale);
+        let (al2, be2) = clarke(inverse_clarke(al, be).0, inverse_clarke(al, be).1, inverse_clarke(al, be).2);
+        let s2 = 1e-12 * (1.0 + al.abs() + be.abs());
+        prop_assert!((al2 - al).abs() <= s2 && (be2 - be).abs() <= s2);
+    }
+
+    #[test]
+    fn try_new_never_panics(
+        h in prop_oneof![Just(f64::NAN), Just(0.0), Just(-1.0), Just(f64::INFINITY), 1e-6..1.0f64],
+        n_p in 0u32..5,
+        lens in proptest::collection::vec(0usize..40, 5),
+        x in prop_oneof![Just(f64::NAN), Just(f64::NEG_INFINITY), any::<f64>()],
+        at in 0usize..40,
+        opt in proptest::option::of(0usize..40),
+    ) {
+        let mk = |n: usize| (0..n).map(|k| if k == at { x } else { k as f64 }).collect::<Vec<f64>>();
+        let s = Signals {
+            u_d: mk(lens[0]), u_q: mk(lens[1]), i_d: mk(lens[2]), i_q: mk(lens[3]), w_m: mk(lens[4]),
+            theta_m: opt.map(mk), u_d_ref: None, u_q_ref: opt.map(mk),
+        };
+        let t: Vec<f64> = (0..lens[0]).map(|k| k as f64 * 1e-3).collect();
+        let _ = Experiment::try_new("garbage", h, n_p, s.clone());
+        let _ = Experiment::try_from_time("garbage", &t, n_p, s);
+    }
+
+    #[test]
+    fn read_csv_never_panics_on_random_bytes(bytes in proptest::collection::vec(any::<u8>(), 0..400), gz in any::<bool>()) {
+        let data = if gz {
+            let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+            std::io::Write::write_all(&mut enc, &bytes).unwrap();
+            enc.finish().unwrap()
+        } else { bytes };
+        let p = temp_file("bytes", &data);
+        let r = read_default(&p);
+        std::fs::remove_file(&p).ok();
+        prop_assert!(r.is_err());
+        let phases = CsvOptions { source: DqSource::Phases, ..CsvOptions::default() };
+        let p = temp_file("bytes-ph", b"t,w_m,theta_m,ia,ib,ic,ua,ub,uc\n");
+        std::fs::write(&p, [b"t,w_m,theta_m,ia,ib,ic,ua,ub,uc\n".as_slice(), &data].concat()).unwrap();
+        let _ = read_csv(&p, 2, &phases);
+        std::fs::remove_file(&p).ok();
+    }
+
+    #[test]
+    fn read_csv_never_panics_on_random_floats(
+        rows in proptest::collection::vec(
+            proptest::collection::vec(prop_oneof![Just(f64::NAN), Just(f64::INFINITY), any::<f64>(), -10.0..10.0f64], 9),
+            0..40),
+        n_p in 0u32..4,
+        phases in any::<bool>(),
+    ) {
+        let mut s = String::from("t,ud,uq,id,iq,w_m,theta_m,ia,ib\n");
+        for r in &rows {
+            let line: Vec<String> = r.iter().map(f64::to_string).collect();
+            s.push_str(&line.join(","));
+            s.push('\n');
+        }
+        let p = temp_file("floats", s.as_bytes());
+        let opts = CsvOptions { source: if phases { DqSource::Phases } else { DqSource::Dq }, ..CsvOptions::default() };
+        let _ = read_csv(&p, n_p, &opts);
+        std::fs::remove_file(&p).ok();
+    }
+
+    #[test]
+    fn read_csv_never_panics_on_valid_time_with_random_values(
+        vals in proptest::collection::vec(prop_oneof![Just(f64::NAN), Just(f64::INFINITY), any::<f64>()], 17 * 20),
+        n_p in 1u32..4,
+    ) {
+        let mut s = String::from("t,w_m,theta_m,ia,ib,ic,ua,ub,uc,ud,uq,id,iq,ud_ref,uq_ref,x,y\n");
+        for (k, r) in vals.chunks(17).enumerate() {
+            let mut line = vec![format!("{}", k as f64 * 1e-4)];
+            line.extend(r[1..].iter().map(f64::to_string));
+            s.push_str(&line.join(","));
+            s.push('\n');
+        }
+        let p = temp_file("valid-time", s.as_bytes());
+        for source in [DqSource::Dq, DqSource::Phases] {
+            let _ = read_csv(&p, n_p, &CsvOptions { source, ..CsvOptions::default() });
+        }
+        std::fs::remove_file(&p).ok();
+    }
+}
+
+// ---------------------------------------------------------------- errors, one each
+
+#[test]
+fn error_missing_file() {
+    let p = temp_path("does-not-exist", "csv.gz");
+    let err = read_default(&p).unwrap_err();
+    assert!(matches!(err, Error::Io { .. }), "{err:?}");
+    assert!(err.to_string().contains(&*p.to_string_lossy()), "{err}");
+}
+
+#[test]
+fn error_empty_file() {
+    let p = temp_file("empty", b"");
+    let err = read_default(&p).unwrap_err();
+    assert!(matches!(err, Error::TooShort { len: 0, .. }), "{err:?}");
+    let stem = p.file_stem().unwrap().to_string_lossy().into_owned();
+    assert!(err.to_string().contains(&stem), "{err}");
+    std::fs::remove_file(p).ok();
+}
+
+#[test]
+fn error_header_only() {
+    let p = temp_file("header-only", b"t,ud,uq,id,iq,w_m\n");
+    let err = read_default(&p).unwrap_err();
+    assert!(matches!(err, Error::TooShort { len: 0, .. }), "{err:?}");
+    assert!(err.to_string().contains("header-only"), "{err}");
+    std::fs::remove_file(p).ok();
+}
+
+#[test]
+fn error_too_few_rows() {
+    let p = temp_file("short", valid_rows(MIN_SAMPLES - 1).as_bytes());
+    let err = read_default(&p).unwrap_err();
+    assert!(
+        matches!(err, Error::TooShort { len, min, .. } if len == MIN_SAMPLES - 1 && min == MIN_SAMPLES),
+        "{err:?}"
+    );
+    assert!(err.to_string().contains("short"), "{err}");
+    std::fs::remove_file(&p).ok();
+    // Exactly MIN_SAMPLES rows is enough.
+    let p = temp_file("just-enough", valid_rows(MIN_SAMPLES).as_bytes());
+    assert_eq!(read_default(&p).unwrap().len(), MIN_SAMPLES);
+    std::fs::remove_file(p).ok();
+}
+
+/// `valid_rows(20)` with data row `row`'s field `col` replaced by `text`.
+fn with_field(row: usize, col: usize, text: &str) -> String {
+    let mut lines: Vec<String> = valid_rows(20).lines().map(str::to_string).collect();
+    let mut fields: Vec<String> = lines[row + 1].split(',').map(str::to_string).collect();
+    fields[col] = text.to_string();
+    lines[row + 1] = fields.join(",");
+    lines.join("\n") + "\n"
+}
+
+#[test]
+fn error_nan() {
+    let p = temp_file("nan", with_field(7, 3, "nan").as_bytes());
+    let err = read_default(&p).unwrap_err();
+    assert!(
+        matches!(&err, Error::NonFinite { column, row: 7, value } if column == "id" && value.is_nan()),
+        "{err:?}"
+    );
+    let msg = err.to_string();
+    assert!(msg.contains("`id`") && msg.contains("row 7"), "{msg}");
+    std::fs::remove_file(p).ok();
+}
+
+#[test]
+fn error_inf() {
+    let p = temp_file("inf", with_field(12, 5, "-inf").as_bytes());
+    let err = read_default(&p).unwrap_err();
+    assert!(
+        matches!(&err, Error::NonFinite { column, row: 12, value } if column == "w_m" && *value == f64::NEG_INFINITY),
+        "{err:?}"
+    );
+    let msg = err.to_string();
+    assert!(msg.contains("`w_m`") && msg.contains("row 12"), "{msg}");
+    std::fs::remove_file(p).ok();
+}
+
+#[test]
+fn error_nan_names_remapped_and_phase_columns() {
+    // A remapped column is named as in the file.
+    let text = with_field(3, 1, "NaN").replace("t,ud,", "t,Vd,");
+    let p = temp_file("nan-remap", text.as_bytes());
+    let mut opts = CsvOptions::default();
+    opts.columns.u_d = "Vd".into();
+    let err = read_csv(&p, 4, &opts).unwrap_err();
+    assert!(matches!(&err, Error::NonFinite { column, row: 3, .. } if column == "Vd"), "{err:?}");
+    std::fs::remove_file(p).ok();
+    // With DqSource::Phases a NaN is reported in its phase column, not a derived dq one.
+    let mut s = String::from("t,w_m,theta_m,ia,ib,ic,ua,ub,uc\n");
+    for k in 0..20 {
+        let ib = if k == 9 { "nan".to_string() } else { "0.5".into() };
+        s.push_str(&format!("{},1,0.1,1,{ib},-1.5,2,-1,-1\n", k as f64 * 1e-3));
+    }
+    let p = temp_file("nan-phase", s.as_bytes());
+    let err = read_csv(&p, 4, &CsvOptions { source: DqSource::Phases, ..CsvOptions::default() }).unwrap_err();
+    assert!(matches!(&err, Error::NonFinite { column, row: 9, .. } if column == "ib"), "{err:?}");
+    std::fs::remove_file(p).ok();
+}
+
+#[test]
+fn error_ragged_row() {
+    let mut text = valid_rows(20);
+    text = text.replacen("\n0.005000,", "\n0.005000,99,", 1);
+    let p = temp_file("ragged", text.as_bytes());
+    let err = read_default(&p).unwrap_err();
+    // Header = line 1, row k = line k + 2: t = 0.005 is row 5, line 7.
+    assert!(matches!(err, Error::Csv { line: 7, .. }), "{err:?}");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("line 7") && msg.contains(&*p.to_string_lossy()) && msg.contains("7 fields"),
+        "{msg}"
+    );
+    std::fs::remove_file(p).ok();
+}
+
+#[test]
+fn error_unparsable_number() {
+    let p = temp_file("unparsable", with_field(4, 2, "1.2.3").as_bytes());
+    let err = read_default(&p).unwrap_err();
+    assert!(matches!(err, Error::Csv { line: 6, .. }), "{err:?}");
+    let msg = err.to_string();
+    assert!(msg.contains("`uq`") && msg.contains("1.2.3") && msg.contains("line 6"), "{msg}");
+    std::fs::remove_file(&p).ok();
+    // An unused column may hold anything.
+    let text = valid_rows(20).replace("w_m\n", "w_m,note\n").replace(",10\n", ",10,n/a\n");
+    let p = temp_file("unused-text", text.as_bytes());
+    assert_eq!(read_default(&p).unwrap().len(), 20);
+    std::fs::remove_file(p).ok();
+}
+
+#[test]
+fn error_non_uniform_time() {
+    // Drop the sample at t = 0.010 s (row 10).
+    let text: String =
+        valid_rows(30).lines().filter(|l| !l.starts_with("0.010000,")).map(|l| format!("{l}\n")).collect();
+    let p = temp_file("dropped", text.as_bytes());
+    let err = read_default(&p).unwrap_err();
+    assert!(matches!(&err, Error::NonUniformTime { column, .. } if column == "t"), "{err:?}");
+    let msg = err.to_string();
+    assert!(msg.contains("`t`") && msg.contains("row"), "{msg}");
+    std::fs::remove_file(p).ok();
+}
+
+#[test]
+fn error_missing_column() {
+    let text = valid_rows(20).replace("t,ud,uq,id,iq,w_m", "t,ud,uq,id,iq,speed");
+    let p = temp_file("missing-col", text.as_bytes());
+    let err = read_default(&p).unwrap_err();
+    assert!(matches!(&err, Error::MissingColumn { column, .. } if column == "w_m"), "{err:?}");
+    let msg = err.to_string();
+    assert!(msg.contains("`w_m`") && msg.contains("speed") && msg.contains(&*p.to_string_lossy()), "{msg}");
+    // Phases need the phase columns and theta_m.
+    let err = read_csv(&p, 4, &CsvOptions { source: DqSource::Phases, ..CsvOptions::default() }).unwrap_err();
+    assert!(matches!(&err, Error::MissingColumn { column, .. } if column == "ia"), "{err:?}");
+    std::fs::remove_file(p).ok();
+}
+
+#[test]
+fn error_zero_pole_pairs() {
+    // Checked before the file is opened: even a missing file reports the pole pairs.
+    let err = read_csv(temp_path("np0", "csv"), 0, &CsvOptions::default()).unwrap_err();
+    assert!(matches!(err, Error::InvalidPolePairs { n_p: 0 }), "{err:?}");
+    assert!(err.to_string().contains("n_p"), "{err}");
+}
+
+fn signals(n: usize) -> Signals {
+    let v = vec![1.0; n];
+    Signals { u_d: v.clone(), u_q: v.clone(), i_d: v.clone(), i_q: v.clone(), w_m: v, ..Signals::default() }
+}
+
+#[test]
+fn error_try_new_length_mismatch() {
+    let mut s = signals(20);
+    s.i_q.pop();
+    let err = Experiment::try_new("x", 1e-4, 4, s).unwrap_err();
+    assert!(
+        matches!(&err, Error::LengthMismatch { column, expected: 20, found: 19 } if column == "iq"),
+        "{err:?}"
+    );
+    assert!(err.to_string().contains("`iq`"), "{err}");
+    let mut s = signals(20);
+    s.theta_m = Some(vec![0.0; 21]);
+    let err = Experiment::try_new("x", 1e-4, 4, s).unwrap_err();
+    assert!(matches!(&err, Error::LengthMismatch { column, .. } if column == "theta_m"), "{err:?}");
+}
+
+#[test]
+fn error_try_new_bad_sample_time() {
+    for h in [0.0, -1e-4, f64::NAN, f64::INFINITY] {
+        let err = Experiment::try_new("x", h, 4, signals(20)).unwrap_err();
+        assert!(matches!(err, Error::InvalidSampleTime { .. }), "{err:?}");
+        assert!(err.to_string().contains("sample time h"), "{err}");
+    }
+}
