@@ -13,5 +13,4 @@ pub mod pmsm;
 
 pub use data::csv::{CsvOptions, read_csv};
 pub use data::{Experiment, Signals};
-pub use data::csv::{CsvOptions, read_csv};
 pub use error::{Error, Result};

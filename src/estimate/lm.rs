@@ -64,11 +64,11 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
 
     fn init(&mut self, problem: &mut Problem<O>, mut state: LsState) -> Result<(LsState, Option<KV>), argmin::core::Error> {
         let mut p = state.take_param().ok_or_else(|| crate::Error::Solver("no start vector".into()))?;
-        problem.problem("project", |o| {
+        problem.problem("project_count", |o| {
             o.project(&mut p);
             Ok(())
         })?;
-        let ne = problem.problem("normal_equations", |o| Ok(o.normal_equations(&p)?))?;
+        let ne = problem.problem("normal_equations_count", |o| Ok(o.normal_equations(&p)?))?;
         if !ne.cost.is_finite() {
             return Err(crate::Error::Solver(format!("cost at the start is {}", ne.cost)).into());
         }
@@ -102,7 +102,7 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
             return Ok((restore(state, jtr, jtj), Some(argmin::kv!("lambda" => self.lambda; "accepted" => false;))));
         };
         let mut trial = &p + &delta;
-        problem.problem("project", |o| {
+        problem.problem("project_count", |o| {
             o.project(&mut trial);
             Ok(())
         })?;
@@ -111,7 +111,7 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
             self.stop(Termination::StepTolerance);
             return Ok((restore(state, jtr, jtj), Some(argmin::kv!("lambda" => self.lambda; "accepted" => false;))));
         }
-        let eval = problem.problem("normal_equations", |o| match o.normal_equations(&trial) {
+        let eval = problem.problem("normal_equations_count", |o| match o.normal_equations(&trial) {
             Ok(ne) => Ok(Some(ne)),
             Err(e) if is_infeasible(&e) => Ok(None),
             Err(e) => Err(e.into()),

@@ -171,12 +171,13 @@ pub(crate) fn run_solver<O: LeastSquares>(
     match options.solver {
         SolverKind::Lm => {
             let solver = LevenbergMarquardt::new(options.tolerances);
-            let mut exec = Executor::new(problem, solver).configure(|s| s.param(p0).max_iters(options.tolerances.max_iters));
+            let mut exec = Executor::new(problem, solver).configure(|s| s.param(p0).max_iters(options.tolerances.max_iters).counting(true));
             if options.progress {
                 exec = exec.add_observer(Progress::new(), ObserverMode::Always);
             }
             let res = exec.run().map_err(Error::from_argmin)?;
-            let evaluations = res.state.get_func_counts().values().sum::<u64>();
+            let counts = res.state.get_func_counts();
+            let evaluations = ["normal_equations_count", "cost_count"].iter().filter_map(|k| counts.get(*k)).sum();
             let reason = match (res.solver.termination(), res.state.get_termination_reason()) {
                 (Some(t), _) => t.clone(),
                 (None, Some(TerminationReason::MaxItersReached)) => Termination::MaxIterations,
