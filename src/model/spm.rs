@@ -26,7 +26,7 @@ use crate::data::Experiment;
 use crate::error::{Error, Result};
 use nalgebra::Complex;
 
-type C64 = Complex<f64>;
+pub(crate) type C64 = Complex<f64>;
 
 /// `√(2/3)`: back-EMF per K_e and mechanical speed (MODEL.md §2).
 pub const SQRT_2_3: f64 = 0.816_496_580_927_726;
@@ -130,11 +130,49 @@ pub(crate) fn cexpm1(w: C64) -> C64 {
     C64::new(w.re.exp_m1() * c - 2.0 * half * half, w.re.exp() * s)
 }
 
-/// Per-interval speed, rotation and held voltage shared by the SPM and IPM models.
-pub(crate) fn interval_inputs(e: &Experiment, hold: VoltageHold) -> SpmInputs {
-    let n = e.len() - 1;
+/// Data-only quantities of one sample interval, shared by the SPM and IPM models.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Interval {
+    /// Interval-mean electrical speed ω_e [rad/s].
+    pub w_e: f64,
+    /// `√(2/3)` × interval-mean mechanical speed [rad/s]: back-EMF per unit K_e.
+    pub emf: f64,
+    /// Rotation of the dq frame over the period, `e^{−jφ}`, `φ = ω_e h`.
+    pub rot: C64,
+    /// `1 − cos φ`, free of cancellation near 0.
+    pub vers: f64,
+    /// dq voltage at the start of the period [V]: `u[k]` (dq hold) or `u₀` (stator hold).
+    pub u0: C64,
+}
+
+/// The intervals `k = 0..N−2` of an experiment: interval-mean speed, rotation and the
+/// start-of-period voltage for the given hold (MODEL.md §4).
+pub(crate) fn intervals(e: &Experiment, hold: VoltageHold) -> impl Iterator<Item = Interval> + '_ {
     let h = e.h();
     let np = f64::from(e.n_p());
+    let wm = e.w_m();
+    (0..e.len() - 1).map(move |k| {
+        let w_m = 0.5 * (wm[k] + wm[k + 1]);
+        let w_e = np * w_m;
+        let phi = w_e * h;
+        let uk = C64::new(e.u_d()[k], e.u_q()[k]);
+        let half = (0.5 * phi).sin();
+        Interval {
+            w_e,
+            emf: SQRT_2_3 * w_m,
+            rot: C64::new(phi.cos(), -phi.sin()),
+            vers: 2.0 * half * half,
+            u0: match hold {
+                VoltageHold::Dq => uk,
+                VoltageHold::Stator => stator_start(uk, phi),
+            },
+        }
+    })
+}
+
+/// Per-interval speed, rotation and held voltage term of the SPM step.
+pub(crate) fn interval_inputs(e: &Experiment, hold: VoltageHold) -> SpmInputs {
+    let n = e.len() - 1;
     let (mut w_e, mut emf, mut rot, mut vers, mut u) = (
         Vec::with_capacity(n),
         Vec::with_capacity(n),
@@ -142,24 +180,18 @@ pub(crate) fn interval_inputs(e: &Experiment, hold: VoltageHold) -> SpmInputs {
         Vec::with_capacity(n),
         Vec::with_capacity(n),
     );
-    let wm = e.w_m();
-    for k in 0..n {
-        let w_m = 0.5 * (wm[k] + wm[k + 1]);
-        let we = np * w_m;
-        let phi = we * h;
-        let r = C64::new(phi.cos(), -phi.sin());
-        let uk = C64::new(e.u_d()[k], e.u_q()[k]);
-        w_e.push(we);
-        emf.push(SQRT_2_3 * w_m);
-        rot.push(r);
-        let half = (0.5 * phi).sin();
-        vers.push(2.0 * half * half);
+    for iv in intervals(e, hold) {
+        w_e.push(iv.w_e);
+        emf.push(iv.emf);
+        rot.push(iv.rot);
+        vers.push(iv.vers);
+        // The stator-held voltage enters the SPM step rotated to the end of the period.
         u.push(match hold {
-            VoltageHold::Dq => uk,
-            VoltageHold::Stator => stator_start(uk, phi) * r,
+            VoltageHold::Dq => iv.u0,
+            VoltageHold::Stator => iv.u0 * iv.rot,
         });
     }
-    SpmInputs { h, w_e, emf, rot, vers, u }
+    SpmInputs { h: e.h(), w_e, emf, rot, vers, u }
 }
 
 /// Start-of-period dq voltage `u₀ = ū jφ/(1 − e^{−jφ})` of a stator-held voltage whose
