@@ -15,7 +15,9 @@ fn log(stem: &str, n_p: u32) -> greybox::Experiment {
 
 fn pass<M: GreyBoxModel>(c: &mut Criterion, name: &str, model: &M, e: &greybox::Experiment, start: &[f64]) {
     let prep = model.prepare(e).unwrap();
-    let problem = PemProblem::new(model, vec![(prep, None)], start, &[], &NominalScaling, Shooting::default(), None).unwrap();
+    let problem =
+        PemProblem::new(model, vec![(prep, None)], start, &[], &NominalScaling, Shooting::default(), None)
+            .unwrap();
     let p = problem.start_vector(start);
     c.bench_function(&format!("{name}: normal equations, {} samples", e.len()), |b| {
         b.iter(|| black_box(problem.normal_equations(black_box(&p)).unwrap()))

@@ -6,10 +6,10 @@
 
 pub mod data;
 pub mod error;
-pub mod model;
-pub mod simulate;
 pub mod estimate;
+pub mod model;
 pub mod pmsm;
+pub mod simulate;
 
 pub use data::csv::{CsvOptions, read_csv};
 pub use data::{Experiment, Signals};

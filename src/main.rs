@@ -15,7 +15,11 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 #[derive(Parser, Debug)]
-#[command(name = "greybox", version, about = "Grey-box estimation of PMSM parameters (R_s, L_s or L_d/L_q, K_e) from drive logs")]
+#[command(
+    name = "greybox",
+    version,
+    about = "Grey-box estimation of PMSM parameters (R_s, L_s or L_d/L_q, K_e) from drive logs"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -208,7 +212,11 @@ impl ColumnArgs {
 fn run_fit(a: &FitArgs) -> greybox::Result<()> {
     let t0 = Instant::now();
     let csv = a.columns.options();
-    let logs = a.logs.iter().map(|p| greybox::read_csv(p, a.pole_pairs, &csv)).collect::<greybox::Result<Vec<_>>>()?;
+    let logs = a
+        .logs
+        .iter()
+        .map(|p| greybox::read_csv(p, a.pole_pairs, &csv))
+        .collect::<greybox::Result<Vec<_>>>()?;
     let read_s = t0.elapsed().as_secs_f64();
     let options = PmsmFitOptions {
         model: match a.model {
@@ -248,7 +256,8 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
         if path.as_os_str() == "-" {
             println!("{json}");
         } else {
-            std::fs::write(path, json + "\n").map_err(|source| greybox::Error::Io { path: path.clone(), source })?;
+            std::fs::write(path, json + "\n")
+                .map_err(|source| greybox::Error::Io { path: path.clone(), source })?;
         }
     }
     if !result.solver.success {

@@ -70,9 +70,10 @@ pub struct PmsmFitOptions {
 /// ```
 pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<FitResult> {
     let t0 = Instant::now();
-    let first = experiments
-        .first()
-        .ok_or_else(|| Error::InvalidOption { option: "experiments".into(), reason: "no log given".into() })?;
+    let first = experiments.first().ok_or_else(|| Error::InvalidOption {
+        option: "experiments".into(),
+        reason: "no log given".into(),
+    })?;
     if let Some(e) = experiments.iter().find(|e| e.n_p() != first.n_p()) {
         return Err(Error::InvalidOption {
             option: "pole pairs".into(),
@@ -92,7 +93,13 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             if s.len() != names.len() {
                 return Err(Error::InvalidOption {
                     option: "start".into(),
-                    reason: format!("{} values given, the {:?} model has {} ({})", s.len(), options.model, names.len(), names.join(", ")),
+                    reason: format!(
+                        "{} values given, the {:?} model has {} ({})",
+                        s.len(),
+                        options.model,
+                        names.len(),
+                        names.join(", ")
+                    ),
                 });
             }
             notes.push("start given by the user".to_string());
@@ -110,7 +117,12 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             }
             notes.push(format!(
                 "start from linear least squares: {}",
-                ls.names.iter().zip(&ls.theta).map(|(n, v)| format!("{n} = {v:.6e}")).collect::<Vec<_>>().join(", ")
+                ls.names
+                    .iter()
+                    .zip(&ls.theta)
+                    .map(|(n, v)| format!("{n} = {v:.6e}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ));
             ls.theta
         }
@@ -149,7 +161,10 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         losses.push((hold, r.fit.loss, r.solver.success));
         let better = match &best {
             None => true,
-            Some(b) => (r.solver.success && !b.solver.success) || (r.solver.success == b.solver.success && r.fit.loss < b.fit.loss),
+            Some(b) => {
+                (r.solver.success && !b.solver.success)
+                    || (r.solver.success == b.solver.success && r.fit.loss < b.fit.loss)
+            }
         };
         if better {
             best = Some(r);
@@ -170,7 +185,12 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     Ok(result)
 }
 
-fn fit_model<M: GreyBoxModel>(m: &M, experiments: &[Experiment], start: &[f64], pem: &PemOptions) -> Result<FitResult> {
+fn fit_model<M: GreyBoxModel>(
+    m: &M,
+    experiments: &[Experiment],
+    start: &[f64],
+    pem: &PemOptions,
+) -> Result<FitResult> {
     fit(m, experiments, start, pem)
 }
 

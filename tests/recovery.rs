@@ -68,7 +68,9 @@ fn gem_ipm_moves_idinj() {
 #[test]
 fn automatic_hold_matches_the_simulator() {
     use greybox::model::VoltageHold;
-    for (stem, hold) in [("servo_spm_moves_idinj", VoltageHold::Stator), ("gem_spm_moves_idinj", VoltageHold::Dq)] {
+    for (stem, hold) in
+        [("servo_spm_moves_idinj", VoltageHold::Stator), ("gem_spm_moves_idinj", VoltageHold::Dq)]
+    {
         let (fit, _) = fit_log(stem);
         assert_eq!(fit.hold, Some(hold), "{stem}");
     }

@@ -12,8 +12,18 @@ use proptest::prelude::*;
 
 type C = Complex<f64>;
 
+#[allow(clippy::too_many_arguments)]
 /// Fine RK4 of `L di/dt = u(s) − (R + jω_e L) i − j √(2/3) K_e ω_m` over one period.
-fn rk4_period(i0: C, u_mean: C, w_m: f64, n_p: f64, th: [f64; 3], h: f64, hold: VoltageHold, steps: usize) -> C {
+fn rk4_period(
+    i0: C,
+    u_mean: C,
+    w_m: f64,
+    n_p: f64,
+    th: [f64; 3],
+    h: f64,
+    hold: VoltageHold,
+    steps: usize,
+) -> C {
     let [r, l, k_e] = th;
     let w_e = n_p * w_m;
     let phi = w_e * h;
@@ -45,7 +55,13 @@ fn rk4_period(i0: C, u_mean: C, w_m: f64, n_p: f64, th: [f64; 3], h: f64, hold: 
 
 fn two_sample_experiment(u: C, w0: f64, w1: f64, h: f64, n_p: u32) -> Experiment {
     let n = 16;
-    let mut s = Signals { u_d: vec![u.re; n], u_q: vec![u.im; n], i_d: vec![0.0; n], i_q: vec![0.0; n], ..Default::default() };
+    let mut s = Signals {
+        u_d: vec![u.re; n],
+        u_q: vec![u.im; n],
+        i_d: vec![0.0; n],
+        i_q: vec![0.0; n],
+        ..Default::default()
+    };
     s.w_m = vec![w1; n];
     s.w_m[0] = w0;
     Experiment::try_new("one-step", h, n_p, s).unwrap()
@@ -136,7 +152,8 @@ fn invalid_parameters_are_named() {
     let m = PmsmSpm::default();
     let e = two_sample_experiment(C::new(1.0, 1.0), 1.0, 1.0, 1e-4, 2);
     let prep = m.prepare(&e).unwrap();
-    for (th, name) in [([0.0, 1e-3, 0.1], "r_s"), ([1.0, -1e-3, 0.1], "l_s"), ([1.0, 1e-3, f64::NAN], "k_e")] {
+    for (th, name) in [([0.0, 1e-3, 0.1], "r_s"), ([1.0, -1e-3, 0.1], "l_s"), ([1.0, 1e-3, f64::NAN], "k_e")]
+    {
         let err = m.coefficients(&th, &prep.inputs).unwrap_err().to_string();
         assert!(err.contains(name), "{err}");
     }

@@ -109,7 +109,10 @@ pub fn regressors(e: &Experiment, kind: MotorKind) -> (Vec<f64>, Vec<f64>) {
 /// ```
 pub fn least_squares(experiments: &[Experiment], kind: MotorKind) -> Result<LinearEstimate> {
     if experiments.is_empty() {
-        return Err(Error::InvalidOption { option: "experiments".into(), reason: "no experiment given".into() });
+        return Err(Error::InvalidOption {
+            option: "experiments".into(),
+            reason: "no experiment given".into(),
+        });
     }
     let cols = kind.parameter_names().len();
     let (mut phi, mut y) = (Vec::new(), Vec::new());
@@ -125,7 +128,10 @@ pub fn least_squares(experiments: &[Experiment], kind: MotorKind) -> Result<Line
     if let Some(j) = norms.iter().position(|&n| !(n > 0.0 && n.is_finite())) {
         return Err(Error::Numerical {
             context: "linear least squares".into(),
-            reason: format!("regressor of `{}` is zero or not finite: the data do not excite it", kind.parameter_names()[j]),
+            reason: format!(
+                "regressor of `{}` is zero or not finite: the data do not excite it",
+                kind.parameter_names()[j]
+            ),
         });
     }
     let a = Mat::<f64>::from_fn(rows, cols, |i, j| phi[i * cols + j] / norms[j]);
@@ -133,7 +139,10 @@ pub fn least_squares(experiments: &[Experiment], kind: MotorKind) -> Result<Line
     let sol = a.qr().solve_lstsq(&b);
     let theta: Vec<f64> = (0..cols).map(|j| sol[(j, 0)] / norms[j]).collect();
     if theta.iter().any(|t| !t.is_finite()) {
-        return Err(Error::Numerical { context: "linear least squares".into(), reason: "solution is not finite".into() });
+        return Err(Error::Numerical {
+            context: "linear least squares".into(),
+            reason: "solution is not finite".into(),
+        });
     }
     let mut sse = [0.0; 2];
     let mut gram = DMatrix::<f64>::zeros(cols, cols);
@@ -148,9 +157,8 @@ pub fn least_squares(experiments: &[Experiment], kind: MotorKind) -> Result<Line
         }
     }
     let e2 = sse[0] + sse[1];
-    let inv_diag = covariance_diagonal(&gram).map(|d| {
-        DVector::from_iterator(cols, d.iter().enumerate().map(|(j, v)| v / (norms[j] * norms[j])))
-    });
+    let inv_diag = covariance_diagonal(&gram)
+        .map(|d| DVector::from_iterator(cols, d.iter().enumerate().map(|(j, v)| v / (norms[j] * norms[j]))));
     let error_index_percent = (0..cols)
         .map(|j| match &inv_diag {
             Some(d) => 100.0 * (e2 * d[j]).sqrt() / theta[j].abs(),

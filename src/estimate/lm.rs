@@ -8,7 +8,9 @@
 //! non-linear least squares problems*, 2004, section 3.2). Trial points where the model
 //! cannot be simulated count as a rejected step.
 
-use crate::estimate::solver::{LeastSquares, Termination, Tolerances, damped_solve, is_infeasible, scaled_gradient};
+use crate::estimate::solver::{
+    LeastSquares, Termination, Tolerances, damped_solve, is_infeasible, scaled_gradient,
+};
 use argmin::core::{IterState, KV, Problem, Solver, TerminationReason, TerminationStatus};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
@@ -38,7 +40,10 @@ impl LevenbergMarquardt {
     /// [`crate::Error::InvalidOption`] for λ₀ not positive and finite.
     pub fn with_lambda(mut self, lambda0: f64) -> crate::Result<Self> {
         if !(lambda0.is_finite() && lambda0 > 0.0) {
-            return Err(crate::Error::InvalidOption { option: "lambda".into(), reason: format!("must be > 0, got {lambda0}") });
+            return Err(crate::Error::InvalidOption {
+                option: "lambda".into(),
+                reason: format!("must be > 0, got {lambda0}"),
+            });
         }
         self.lambda = lambda0;
         Ok(self)
@@ -62,7 +67,11 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
         "lm"
     }
 
-    fn init(&mut self, problem: &mut Problem<O>, mut state: LsState) -> Result<(LsState, Option<KV>), argmin::core::Error> {
+    fn init(
+        &mut self,
+        problem: &mut Problem<O>,
+        mut state: LsState,
+    ) -> Result<(LsState, Option<KV>), argmin::core::Error> {
         let mut p = state.take_param().ok_or_else(|| crate::Error::Solver("no start vector".into()))?;
         problem.problem("project_count", |o| {
             o.project(&mut p);
@@ -78,11 +87,16 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
         } else if scaled_gradient(&ne.jtj, &ne.jtr, ne.cost) <= self.tol.gtol {
             self.stop(Termination::GradientTolerance);
         }
-        let state = state.param(p).cost(ne.cost).gradient(ne.jtr).hessian(ne.jtj).max_iters(self.tol.max_iters);
+        let state =
+            state.param(p).cost(ne.cost).gradient(ne.jtr).hessian(ne.jtj).max_iters(self.tol.max_iters);
         Ok((state, Some(argmin::kv!("lambda" => self.lambda;))))
     }
 
-    fn next_iter(&mut self, problem: &mut Problem<O>, mut state: LsState) -> Result<(LsState, Option<KV>), argmin::core::Error> {
+    fn next_iter(
+        &mut self,
+        problem: &mut Problem<O>,
+        mut state: LsState,
+    ) -> Result<(LsState, Option<KV>), argmin::core::Error> {
         let p = state.take_param().expect("initialised in init");
         let jtr = state.take_gradient().expect("initialised in init");
         let jtj = state.take_hessian().expect("initialised in init");
@@ -99,7 +113,10 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
         let Some(delta) = damped_solve(&jtj, d, self.lambda, &jtr) else {
             self.lambda *= self.nu;
             self.nu *= 2.0;
-            return Ok((restore(state, jtr, jtj), Some(argmin::kv!("lambda" => self.lambda; "accepted" => false;))));
+            return Ok((
+                restore(state, jtr, jtj),
+                Some(argmin::kv!("lambda" => self.lambda; "accepted" => false;)),
+            ));
         };
         let mut trial = &p + &delta;
         problem.problem("project_count", |o| {
@@ -109,7 +126,10 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
         let step = &trial - &p;
         if step.norm() <= self.tol.xtol * (p.norm() + self.tol.xtol) {
             self.stop(Termination::StepTolerance);
-            return Ok((restore(state, jtr, jtj), Some(argmin::kv!("lambda" => self.lambda; "accepted" => false;))));
+            return Ok((
+                restore(state, jtr, jtj),
+                Some(argmin::kv!("lambda" => self.lambda; "accepted" => false;)),
+            ));
         }
         let eval = problem.problem("normal_equations_count", |o| match o.normal_equations(&trial) {
             Ok(ne) => Ok(Some(ne)),
@@ -140,7 +160,10 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
                 if !self.lambda.is_finite() || self.lambda > 1e32 {
                     self.stop(Termination::NoDescent);
                 }
-                Ok((restore(state, jtr, jtj), Some(argmin::kv!("lambda" => self.lambda; "accepted" => false;))))
+                Ok((
+                    restore(state, jtr, jtj),
+                    Some(argmin::kv!("lambda" => self.lambda; "accepted" => false;)),
+                ))
             }
         }
     }

@@ -171,13 +171,15 @@ pub(crate) fn run_solver<O: LeastSquares>(
     match options.solver {
         SolverKind::Lm => {
             let solver = LevenbergMarquardt::new(options.tolerances);
-            let mut exec = Executor::new(problem, solver).configure(|s| s.param(p0).max_iters(options.tolerances.max_iters).counting(true));
+            let mut exec = Executor::new(problem, solver)
+                .configure(|s| s.param(p0).max_iters(options.tolerances.max_iters).counting(true));
             if options.progress {
                 exec = exec.add_observer(Progress::new(), ObserverMode::Always);
             }
             let res = exec.run().map_err(Error::from_argmin)?;
             let counts = res.state.get_func_counts();
-            let evaluations = ["normal_equations_count", "cost_count"].iter().filter_map(|k| counts.get(*k)).sum();
+            let evaluations =
+                ["normal_equations_count", "cost_count"].iter().filter_map(|k| counts.get(*k)).sum();
             let reason = match (res.solver.termination(), res.state.get_termination_reason()) {
                 (Some(t), _) => t.clone(),
                 (None, Some(TerminationReason::MaxItersReached)) => Termination::MaxIterations,
@@ -216,9 +218,11 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     let sse_total: f64 = sums.sse.iter().sum();
     // A⁻¹ for the reported covariance (the one explicit inverse, STYLE.md rule 7).
     let a_inv: Option<DMatrix<f64>> = sums.jtj.clone().cholesky().map(|c| c.inverse());
-    let dtheta: Vec<f64> = problem.free().iter().enumerate().map(|(g, f)| f.transform.dtheta_dp(p[g])).collect();
+    let dtheta: Vec<f64> =
+        problem.free().iter().enumerate().map(|(g, f)| f.transform.dtheta_dp(p[g])).collect();
     let cov_theta = a_inv.as_ref().map(|ai| {
-        let sigma2: Vec<f64> = sums.sse.iter().map(|s| s / (n as f64 - np as f64 / ny as f64).max(1.0)).collect();
+        let sigma2: Vec<f64> =
+            sums.sse.iter().map(|s| s / (n as f64 - np as f64 / ny as f64).max(1.0)).collect();
         let mut b = DMatrix::<f64>::zeros(np, np);
         for (bi, s2) in sums.jtwwj.iter().zip(&sigma2) {
             b += bi * *s2;
@@ -297,7 +301,10 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     };
     let mut notes = Vec::new();
     if a_inv.is_none() {
-        notes.push("information matrix JᵀWJ is singular: some parameters are not identifiable from these data".into());
+        notes.push(
+            "information matrix JᵀWJ is singular: some parameters are not identifiable from these data"
+                .into(),
+        );
     }
     Ok(FitResult {
         model: model.name().to_string(),
@@ -327,7 +334,11 @@ impl Progress {
 }
 
 impl<I: State<Float = f64>> Observe<I> for Progress {
-    fn observe_iter(&mut self, state: &I, _kv: &argmin::core::KV) -> std::result::Result<(), argmin::core::Error> {
+    fn observe_iter(
+        &mut self,
+        state: &I,
+        _kv: &argmin::core::KV,
+    ) -> std::result::Result<(), argmin::core::Error> {
         self.bar.set_message(format!("iteration {}: cost {:.6e}", state.get_iter(), state.get_best_cost()));
         self.bar.tick();
         if state.terminated() {

@@ -21,6 +21,12 @@ pub enum Slot {
     Free(usize),
 }
 
+/// One experiment's prepared data with optional per-sample weights β_k (length N).
+pub type WeightedData<I> = (Prepared<I>, Option<Vec<f64>>);
+
+/// One experiment's share of the cost and normal equations (cost, `JᵀWJ` row-major, `JᵀWε`).
+type Partial = (f64, Vec<f64>, Vec<f64>);
+
 /// One free parameter of the optimisation.
 #[derive(Clone, Debug)]
 pub struct FreeParameter {
@@ -97,7 +103,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         model: &'m M,
-        preps: Vec<(Prepared<M::Inputs>, Option<Vec<f64>>)>,
+        preps: Vec<WeightedData<M::Inputs>>,
         start: &[f64],
         per_experiment: &[String],
         scaling: &dyn ParameterScaling,
@@ -108,7 +114,12 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         if start.len() != params.len() {
             return Err(Error::InvalidOption {
                 option: "start".into(),
-                reason: format!("{} values given, model `{}` has {} parameters", start.len(), model.name(), params.len()),
+                reason: format!(
+                    "{} values given, model `{}` has {} parameters",
+                    start.len(),
+                    model.name(),
+                    params.len()
+                ),
             });
         }
         for name in per_experiment {
@@ -133,7 +144,10 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         }
         let n_exp = preps.len();
         if n_exp == 0 {
-            return Err(Error::InvalidOption { option: "experiments".into(), reason: "no experiment given".into() });
+            return Err(Error::InvalidOption {
+                option: "experiments".into(),
+                reason: "no experiment given".into(),
+            });
         }
         let mut free = Vec::new();
         let mut slots = vec![vec![Slot::Fixed(0.0); params.len()]; n_exp];
@@ -163,13 +177,21 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                 if w.len() != prep.n {
                     return Err(Error::InvalidOption {
                         option: "weights".into(),
-                        reason: format!("experiment `{}`: {} weights for {} samples", prep.name, w.len(), prep.n),
+                        reason: format!(
+                            "experiment `{}`: {} weights for {} samples",
+                            prep.name,
+                            w.len(),
+                            prep.n
+                        ),
                     });
                 }
                 if let Some((k, v)) = w.iter().enumerate().find(|(_, v)| !(v.is_finite() && **v >= 0.0)) {
                     return Err(Error::InvalidOption {
                         option: "weights".into(),
-                        reason: format!("experiment `{}`: weight {v} at sample {k} is not finite and ≥ 0", prep.name),
+                        reason: format!(
+                            "experiment `{}`: weight {v} at sample {k} is not finite and ≥ 0",
+                            prep.name
+                        ),
                     });
                 }
             }
@@ -220,7 +242,10 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
 
     /// Scaled start vector p₀ for model start values θ₀.
     pub fn start_vector(&self, start: &[f64]) -> DVector<f64> {
-        DVector::from_iterator(self.free.len(), self.free.iter().map(|f| f.transform.to_scaled(start[f.index])))
+        DVector::from_iterator(
+            self.free.len(),
+            self.free.iter().map(|f| f.transform.to_scaled(start[f.index])),
+        )
     }
 
     /// θ of experiment `e` at scaled point p (length n_θ).
@@ -308,7 +333,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
     /// Those of the simulation: invalid θ, [`Error::SimulationDiverged`].
     pub fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations> {
         let np = self.free.len();
-        let parts: Vec<Result<(f64, Vec<f64>, Vec<f64>)>> = (0..self.terms.len())
+        let parts: Vec<Result<Partial>> = (0..self.terms.len())
             .into_par_iter()
             .map(|e| {
                 let mut cost = 0.0;
@@ -330,8 +355,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                 Ok((cost, jtj, jtr))
             })
             .collect();
-        let mut out =
-            NormalEquations { cost: 0.0, jtj: DMatrix::zeros(np, np), jtr: DVector::zeros(np) };
+        let mut out = NormalEquations { cost: 0.0, jtj: DMatrix::zeros(np, np), jtr: DVector::zeros(np) };
         for part in parts {
             let (c, jtj, jtr) = part?;
             out.cost += c;
@@ -360,7 +384,8 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             .into_par_iter()
             .map(|e| {
                 let term = &self.terms[e];
-                let yhat = crate::simulate::simulate_with(self.model, &term.prep, &self.theta(e, p), self.shooting)?;
+                let yhat =
+                    crate::simulate::simulate_with(self.model, &term.prep, &self.theta(e, p), self.shooting)?;
                 let mut cost = 0.0;
                 for k in (0..term.prep.n).filter(|&k| self.counted(k)) {
                     let beta = term.weights.as_ref().map_or(1.0, |b| b[k]);

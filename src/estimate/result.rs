@@ -151,13 +151,25 @@ impl FitResult {
 impl std::fmt::Display for FitResult {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let hold = self.hold.map(|h| format!(", {h} voltage hold")).unwrap_or_default();
-        writeln!(f, "model {}{hold}; {} experiment(s): {}", self.model, self.experiments.len(), self.experiments.join(", "))?;
         writeln!(
             f,
-            "{:<14} {:>14} {:>11} {:>29} {:>9}  {}",
-            "parameter", "estimate", "std error", "95 % interval", "index %", "unit"
+            "model {}{hold}; {} experiment(s): {}",
+            self.model,
+            self.experiments.len(),
+            self.experiments.join(", ")
         )?;
-        let row = |f: &mut std::fmt::Formatter<'_>, name: String, v: f64, se: f64, ci: Option<[f64; 2]>, idx: Option<f64>, unit: &str| {
+        writeln!(
+            f,
+            "{:<14} {:>14} {:>11} {:>29} {:>9}  unit",
+            "parameter", "estimate", "std error", "95 % interval", "index %"
+        )?;
+        let row = |f: &mut std::fmt::Formatter<'_>,
+                   name: String,
+                   v: f64,
+                   se: f64,
+                   ci: Option<[f64; 2]>,
+                   idx: Option<f64>,
+                   unit: &str| {
             let ci = ci.map(|c| format!("[{:.6e}, {:.6e}]", c[0], c[1])).unwrap_or_default();
             let idx = idx.map(|i| format!("{i:.4}")).unwrap_or_default();
             writeln!(f, "{name:<14} {v:>14.7e} {se:>11.3e} {ci:>29} {idx:>9}  {unit}")
@@ -184,11 +196,19 @@ impl std::fmt::Display for FitResult {
             s.outputs.iter().zip(v).map(|(n, x)| format!("{n} {x:.digits$}")).collect::<Vec<_>>().join(", ")
         };
         writeln!(f, "fit [%]: {};  rms residual: {}", per(&s.fit_percent, 4), per(&s.rms_residual, 6))?;
-        writeln!(f, "loss {:.6e}, mse {:.6e}, AIC {:.1}, BIC {:.1}, N {} per output", s.loss, s.mse, s.aic, s.bic, s.samples)?;
+        writeln!(
+            f,
+            "loss {:.6e}, mse {:.6e}, AIC {:.1}, BIC {:.1}, N {} per output",
+            s.loss, s.mse, s.aic, s.bic, s.samples
+        )?;
         writeln!(
             f,
             "solver {}: {} after {} iterations ({} evaluations); fit {:.3} s",
-            self.solver.name, self.solver.termination, self.solver.iterations, self.solver.evaluations, self.timing.fit_s
+            self.solver.name,
+            self.solver.termination,
+            self.solver.iterations,
+            self.solver.evaluations,
+            self.timing.fit_s
         )?;
         for n in &self.notes {
             writeln!(f, "note: {n}")?;

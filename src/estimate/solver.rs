@@ -74,11 +74,17 @@ impl Tolerances {
     pub fn validate(&self) -> Result<()> {
         for (name, v) in [("ftol", self.ftol), ("xtol", self.xtol), ("gtol", self.gtol)] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(Error::InvalidOption { option: name.into(), reason: format!("must be finite and ≥ 0, got {v}") });
+                return Err(Error::InvalidOption {
+                    option: name.into(),
+                    reason: format!("must be finite and ≥ 0, got {v}"),
+                });
             }
         }
         if self.max_iters == 0 {
-            return Err(Error::InvalidOption { option: "max_iters".into(), reason: "must be at least 1".into() });
+            return Err(Error::InvalidOption {
+                option: "max_iters".into(),
+                reason: "must be at least 1".into(),
+            });
         }
         Ok(())
     }
@@ -107,7 +113,10 @@ pub enum Termination {
 impl Termination {
     /// Whether the fit converged.
     pub fn success(&self) -> bool {
-        matches!(self, Self::GradientTolerance | Self::StepTolerance | Self::CostTolerance | Self::ZeroResidual)
+        matches!(
+            self,
+            Self::GradientTolerance | Self::StepTolerance | Self::CostTolerance | Self::ZeroResidual
+        )
     }
 }
 
@@ -137,7 +146,12 @@ pub(crate) fn scaled_gradient(jtj: &DMatrix<f64>, jtr: &DVector<f64>, cost: f64)
 }
 
 /// Solves `(H + λ D) δ = g` by Cholesky; `None` when the matrix is not positive definite.
-pub(crate) fn damped_solve(h: &DMatrix<f64>, d: &DVector<f64>, lambda: f64, g: &DVector<f64>) -> Option<DVector<f64>> {
+pub(crate) fn damped_solve(
+    h: &DMatrix<f64>,
+    d: &DVector<f64>,
+    lambda: f64,
+    g: &DVector<f64>,
+) -> Option<DVector<f64>> {
     let mut a = h.clone();
     for j in 0..a.nrows() {
         a[(j, j)] += lambda * d[j];

@@ -138,7 +138,9 @@ where
 
 fn check_shooting<M: GreyBoxModel>(model: &M, shooting: Shooting) -> Result<()> {
     match shooting.horizon {
-        Some(0) => Err(Error::InvalidOption { option: "horizon".into(), reason: "must be at least 1".into() }),
+        Some(0) => {
+            Err(Error::InvalidOption { option: "horizon".into(), reason: "must be at least 1".into() })
+        }
         Some(_) if model.n_states() != model.n_outputs() => Err(Error::InvalidOption {
             option: "horizon".into(),
             reason: format!(
@@ -152,7 +154,12 @@ fn check_shooting<M: GreyBoxModel>(model: &M, shooting: Shooting) -> Result<()> 
     }
 }
 
-pub(crate) fn diverged<M: GreyBoxModel>(model: &M, prep: &Prepared<M::Inputs>, theta: &[f64], k: usize) -> Error {
+pub(crate) fn diverged<M: GreyBoxModel>(
+    model: &M,
+    prep: &Prepared<M::Inputs>,
+    theta: &[f64],
+    k: usize,
+) -> Error {
     Error::SimulationDiverged {
         experiment: prep.name.clone(),
         sample: k,

@@ -41,7 +41,8 @@ pub fn truth(stem: &str) -> Truth {
 /// Reads a log with its truth's pole-pair number.
 pub fn load(stem: &str) -> (Experiment, Truth) {
     let t = truth(stem);
-    let e = greybox::read_csv(data(&format!("{stem}.csv.gz")), t.n_p, &Default::default()).expect("log reads");
+    let e =
+        greybox::read_csv(data(&format!("{stem}.csv.gz")), t.n_p, &Default::default()).expect("log reads");
     (e, t)
 }
 
@@ -94,7 +95,13 @@ pub fn exciting_signals(n: usize, h: f64, w_max: f64, u_amp: f64, k_e: f64, rng:
 }
 
 /// Replaces the currents of `signals` by the model's own simulation at θ from rest.
-pub fn simulate_into<M: GreyBoxModel>(model: &M, theta: &[f64], h: f64, n_p: u32, mut signals: Signals) -> Experiment {
+pub fn simulate_into<M: GreyBoxModel>(
+    model: &M,
+    theta: &[f64],
+    h: f64,
+    n_p: u32,
+    mut signals: Signals,
+) -> Experiment {
     let e = Experiment::try_new("synthetic", h, n_p, signals.clone()).expect("valid signals");
     let prep: Prepared<M::Inputs> = model.prepare(&e).expect("prepare");
     let y = greybox::simulate::simulate(model, &prep, theta).expect("simulate");
