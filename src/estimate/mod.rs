@@ -12,12 +12,14 @@ pub mod problem;
 pub mod result;
 pub mod scaling;
 pub mod solver;
+pub mod weighting;
 
 pub use lm::LevenbergMarquardt;
 pub use problem::PemProblem;
 pub use result::{DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing};
 pub use scaling::{ParameterScaling, ScalingKind, Transform};
 pub use solver::{LeastSquares, Termination, Tolerances};
+pub use weighting::{Weighting, WeightingKind};
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
@@ -53,8 +55,10 @@ pub struct PemOptions {
     pub horizon: Option<usize>,
     /// Parameters estimated separately for every experiment (e.g. `["r_s"]`).
     pub per_experiment: Vec<String>,
-    /// Output weights Λ (length n_y), `None` = 1.
+    /// Output weights Λ (length n_y), `None` = 1 (or the weighting rule's).
     pub output_weights: Option<Vec<f64>>,
+    /// Sample weighting β_k (thesis eq. 5.11); a custom rule goes through [`fit_with_weighting`].
+    pub weighting: WeightingKind,
     /// Show a progress spinner on stderr (only when stderr is a terminal).
     pub progress: bool,
 }
@@ -68,6 +72,7 @@ impl Default for PemOptions {
             horizon: None,
             per_experiment: Vec::new(),
             output_weights: None,
+            weighting: WeightingKind::Uniform,
             progress: false,
         }
     }
@@ -98,36 +103,28 @@ pub fn fit<M: GreyBoxModel>(
     start: &[f64],
     options: &PemOptions,
 ) -> Result<FitResult> {
-    fit_weighted(model, experiments, None, start, options)
+    let rule = options.weighting.rule()?;
+    fit_with_weighting(model, experiments, start, options, rule.as_ref())
 }
 
-/// As [`fit`], with per-sample weights β_k for every experiment (`weights[e]` of length N_e).
+/// As [`fit`], with a weighting rule object (e.g. a [`weighting::CustomWeighting`]) in place of
+/// `options.weighting`. `options.output_weights`, when set, override the rule's.
 ///
 /// # Errors
-/// As [`fit`]; [`Error::InvalidOption`] for weights of the wrong count or length or a
-/// negative or non-finite weight.
-pub fn fit_weighted<M: GreyBoxModel>(
+/// As [`fit`]; [`Error::InvalidOption`] for negative or non-finite weights.
+pub fn fit_with_weighting<M: GreyBoxModel>(
     model: &M,
     experiments: &[Experiment],
-    weights: Option<Vec<Vec<f64>>>,
     start: &[f64],
     options: &PemOptions,
+    weighting: &dyn Weighting,
 ) -> Result<FitResult> {
     let t0 = Instant::now();
     options.tolerances.validate()?;
-    if let Some(w) = &weights
-        && w.len() != experiments.len()
-    {
-        return Err(Error::InvalidOption {
-            option: "weights".into(),
-            reason: format!("{} weight vectors for {} experiments", w.len(), experiments.len()),
-        });
-    }
-    let mut weights = weights.map(|w| w.into_iter().map(Some).collect::<Vec<_>>());
+    let uniform = weighting.is_uniform();
     let preps = experiments
         .iter()
-        .enumerate()
-        .map(|(i, e)| Ok((model.prepare(e)?, weights.as_mut().and_then(|w| w[i].take()))))
+        .map(|e| Ok((model.prepare(e)?, if uniform { None } else { Some(weighting.weights(e)?) })))
         .collect::<Result<Vec<_>>>()?;
     let scaling = options.scaling.rule();
     let shooting = Shooting { horizon: options.horizon };
@@ -138,11 +135,14 @@ pub fn fit_weighted<M: GreyBoxModel>(
         &options.per_experiment,
         scaling.as_ref(),
         shooting,
-        options.output_weights.clone(),
+        options.output_weights.clone().or_else(|| weighting.output_weights()),
     )?;
     let p0 = problem.start_vector(start);
     let (p_hat, report) = run_solver(&problem, p0, options)?;
     let mut result = assemble(&problem, &p_hat, start, report)?;
+    if !uniform {
+        result.notes.push(format!("sample weighting: {}", weighting.name()));
+    }
     result.timing.fit_s = t0.elapsed().as_secs_f64();
     result.timing.total_s = result.timing.fit_s;
     Ok(result)
