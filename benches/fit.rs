@@ -2,10 +2,9 @@
 //! fit on a development log.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use greybox::estimate::{PemProblem, scaling::NominalScaling};
+use greybox::estimate::{PemProblem, ProblemOptions, scaling::NominalScaling};
 use greybox::model::{GreyBoxModel, PmsmIpm, PmsmSpm, VoltageHold};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
-use greybox::simulate::Shooting;
 use std::hint::black_box;
 
 fn log(stem: &str, n_p: u32) -> greybox::Experiment {
@@ -16,7 +15,7 @@ fn log(stem: &str, n_p: u32) -> greybox::Experiment {
 fn pass<M: GreyBoxModel>(c: &mut Criterion, name: &str, model: &M, e: &greybox::Experiment, start: &[f64]) {
     let prep = model.prepare(e).unwrap();
     let problem =
-        PemProblem::new(model, vec![(prep, None)], start, &[], &NominalScaling, Shooting::default(), None)
+        PemProblem::new(model, vec![(prep, None)], start, &NominalScaling, &ProblemOptions::default())
             .unwrap();
     let p = problem.start_vector(start);
     c.bench_function(&format!("{name}: normal equations, {} samples", e.len()), |b| {

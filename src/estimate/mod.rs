@@ -15,7 +15,7 @@ pub mod solver;
 pub mod weighting;
 
 pub use lm::LevenbergMarquardt;
-pub use problem::PemProblem;
+pub use problem::{Loss, PemProblem, ProblemOptions};
 pub use result::{DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing};
 pub use scaling::{ParameterScaling, ScalingKind, Transform};
 pub use solver::{LeastSquares, Termination, Tolerances};
@@ -28,6 +28,7 @@ use crate::simulate::Shooting;
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Executor, State, TerminationReason};
 use nalgebra::{DMatrix, DVector};
+use problem::FreeKind;
 use result::t_quantile_975;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -59,6 +60,13 @@ pub struct PemOptions {
     pub output_weights: Option<Vec<f64>>,
     /// Sample weighting β_k (thesis eq. 5.11); a custom rule goes through [`fit_with_weighting`].
     pub weighting: WeightingKind,
+    /// Robust fit: Huber loss with threshold `δ_i = c σ̂_i` per output, where `c` is this
+    /// value (1.345 is the usual choice: 95 % efficiency under Gaussian noise) and σ̂_i the
+    /// robust scale `1.4826 MAD` of the residuals of a preceding quadratic fit. `None` =
+    /// quadratic loss.
+    pub huber: Option<f64>,
+    /// Estimate each experiment's initial state instead of taking the first measurement.
+    pub estimate_x0: bool,
     /// Show a progress spinner on stderr (only when stderr is a terminal).
     pub progress: bool,
 }
@@ -73,6 +81,8 @@ impl Default for PemOptions {
             per_experiment: Vec::new(),
             output_weights: None,
             weighting: WeightingKind::Uniform,
+            huber: None,
+            estimate_x0: false,
             progress: false,
         }
     }
@@ -126,20 +136,48 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
         .iter()
         .map(|e| Ok((model.prepare(e)?, if uniform { None } else { Some(weighting.weights(e)?) })))
         .collect::<Result<Vec<_>>>()?;
+    if let Some(c) = options.huber
+        && !(c.is_finite() && c > 0.0)
+    {
+        return Err(Error::InvalidOption {
+            option: "huber".into(),
+            reason: format!("constant must be positive, got {c}"),
+        });
+    }
     let scaling = options.scaling.rule();
-    let shooting = Shooting { horizon: options.horizon };
-    let problem = PemProblem::new(
-        model,
-        preps,
-        start,
-        &options.per_experiment,
-        scaling.as_ref(),
-        shooting,
-        options.output_weights.clone().or_else(|| weighting.output_weights()),
-    )?;
+    let mut popts = ProblemOptions {
+        per_experiment: options.per_experiment.clone(),
+        shooting: Shooting { horizon: options.horizon },
+        output_weights: options.output_weights.clone().or_else(|| weighting.output_weights()),
+        loss: Loss::Quadratic,
+        estimate_x0: options.estimate_x0,
+    };
+    let problem = PemProblem::new(model, preps, start, scaling.as_ref(), &popts)?;
     let p0 = problem.start_vector(start);
-    let (p_hat, report) = run_solver(&problem, p0, options)?;
+    let (mut p_hat, mut report) = run_solver(&problem, p0, options)?;
+    let mut notes = Vec::new();
+    let problem = match options.huber {
+        None => problem,
+        Some(c) => {
+            // Thresholds from the robust scale of the quadratic fit's residuals, then the
+            // Huber fit from the quadratic estimate.
+            let scale = problem.robust_scale(&p_hat)?;
+            let delta: Vec<f64> = scale.iter().map(|s| c * s.max(f64::MIN_POSITIVE)).collect();
+            notes.push(format!(
+                "Huber loss, thresholds {} (c = {c} × 1.4826 MAD of the quadratic fit's residuals)",
+                delta.iter().map(|d| format!("{d:.4e}")).collect::<Vec<_>>().join(", ")
+            ));
+            let theta0 = problem.theta(0, &p_hat);
+            let terms = problem.into_data();
+            popts.loss = Loss::Huber { delta };
+            let robust = PemProblem::new(model, terms, &theta0, scaling.as_ref(), &popts)?;
+            let p1 = robust.start_vector(&theta0);
+            (p_hat, report) = run_solver(&robust, p1, options)?;
+            robust
+        }
+    };
     let mut result = assemble(&problem, &p_hat, start, report)?;
+    result.notes.append(&mut notes);
     if !uniform {
         result.notes.push(format!("sample weighting: {}", weighting.name()));
     }
@@ -216,31 +254,49 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     let n_res = n * ny;
     let dof = n_res.saturating_sub(np);
     let sse_total: f64 = sums.sse.iter().sum();
-    // A⁻¹ for the reported covariance (the one explicit inverse, STYLE.md rule 7).
-    let a_inv: Option<DMatrix<f64>> = sums.jtj.clone().cholesky().map(|c| c.inverse());
+    // Inverses for the reported covariance and error index (the one explicit inverse,
+    // STYLE.md rule 7): bread⁻¹ meat bread⁻¹ (sandwich) and (JᵀWJ)⁻¹.
+    let info_inv: Option<DMatrix<f64>> = sums.jtj.clone().cholesky().map(|c| c.inverse());
+    let bread_inv: Option<DMatrix<f64>> = sums.bread.clone().cholesky().map(|c| c.inverse());
     let dtheta: Vec<f64> =
         problem.free().iter().enumerate().map(|(g, f)| f.transform.dtheta_dp(p[g])).collect();
-    let cov_theta = a_inv.as_ref().map(|ai| {
-        let sigma2: Vec<f64> =
-            sums.sse.iter().map(|s| s / (n as f64 - np as f64 / ny as f64).max(1.0)).collect();
-        let mut b = DMatrix::<f64>::zeros(np, np);
-        for (bi, s2) in sums.jtwwj.iter().zip(&sigma2) {
-            b += bi * *s2;
-        }
-        let cov_p = ai * b * ai;
+    let cov_theta = bread_inv.as_ref().map(|ai| {
+        let cov_p = ai * &sums.meat * ai;
         DMatrix::from_fn(np, np, |i, j| cov_p[(i, j)] * dtheta[i] * dtheta[j])
     });
     let tq = t_quantile_975(dof);
-    let e2w = 2.0 * sums.cost;
     let names = problem.terms().iter().map(|t| t.prep.name.clone()).collect::<Vec<_>>();
+    let state_names: Vec<String> = if model.n_states() == ny {
+        model.output_names().iter().map(|n| format!("x0_{n}")).collect()
+    } else {
+        (0..model.n_states()).map(|i| format!("x0[{i}]")).collect()
+    };
+    let estimate = |g: usize, name: String, unit: String, start: f64| {
+        let f = &problem.free()[g];
+        let value = f.transform.to_theta(p[g]);
+        let se = cov_theta.as_ref().map_or(f64::INFINITY, |c| c[(g, g)].max(0.0).sqrt());
+        let idx = info_inv.as_ref().map_or(f64::INFINITY, |ai| {
+            100.0 * (sums.e2_weighted * ai[(g, g)]).max(0.0).sqrt() * dtheta[g].abs() / value.abs()
+        });
+        ParameterEstimate {
+            name,
+            unit,
+            value,
+            std_error: se,
+            ci95: [value - tq * se, value + tq * se],
+            error_index_percent: idx,
+            fixed: false,
+            experiment: f.experiment.map(|e| names[e].clone()),
+            start,
+        }
+    };
     let mut parameters = Vec::new();
-    // Fixed parameters are reported once, in model order, with the free ones.
-    let mut free_of_index: Vec<Vec<usize>> = vec![Vec::new(); params.len()];
-    for (g, f) in problem.free().iter().enumerate() {
-        free_of_index[f.index].push(g);
-    }
+    // Free entries of `parameters`, in order, are the free indices in `order`.
+    let mut order = Vec::new();
     for (j, prm) in params.iter().enumerate() {
-        if free_of_index[j].is_empty() {
+        let copies: Vec<usize> =
+            (0..np).filter(|&g| problem.free()[g].kind == FreeKind::Parameter(j)).collect();
+        if copies.is_empty() {
             parameters.push(ParameterEstimate {
                 name: prm.name.clone(),
                 unit: prm.unit.clone(),
@@ -252,30 +308,19 @@ pub(crate) fn assemble<M: GreyBoxModel>(
                 experiment: None,
                 start: start[j],
             });
-            continue;
         }
-        for &g in &free_of_index[j] {
-            let f = &problem.free()[g];
-            let value = f.transform.to_theta(p[g]);
-            let se = cov_theta.as_ref().map_or(f64::INFINITY, |c| c[(g, g)].max(0.0).sqrt());
-            let idx = a_inv.as_ref().map_or(f64::INFINITY, |ai| {
-                100.0 * (e2w * ai[(g, g)]).max(0.0).sqrt() * dtheta[g].abs() / value.abs()
-            });
-            parameters.push(ParameterEstimate {
-                name: prm.name.clone(),
-                unit: prm.unit.clone(),
-                value,
-                std_error: se,
-                ci95: [value - tq * se, value + tq * se],
-                error_index_percent: idx,
-                fixed: false,
-                experiment: f.experiment.map(|e| names[e].clone()),
-                start: start[j],
-            });
+        for g in copies {
+            parameters.push(estimate(g, prm.name.clone(), prm.unit.clone(), start[j]));
+            order.push(g);
         }
     }
-    // Free entries of `parameters` in model order map to free indices g in that order.
-    let order: Vec<usize> = free_of_index.iter().flatten().copied().collect();
+    for (g, f) in problem.free().iter().enumerate() {
+        if let (FreeKind::InitialState(i), Some(e)) = (f.kind, f.experiment) {
+            let x0 = problem.terms()[e].prep.x0[i];
+            parameters.push(estimate(g, state_names[i].clone(), String::new(), x0));
+            order.push(g);
+        }
+    }
     let correlation = match &cov_theta {
         Some(c) => order
             .iter()
@@ -300,7 +345,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         dof,
     };
     let mut notes = Vec::new();
-    if a_inv.is_none() {
+    if info_inv.is_none() || bread_inv.is_none() {
         notes.push(
             "information matrix JᵀWJ is singular: some parameters are not identifiable from these data"
                 .into(),

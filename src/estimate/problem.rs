@@ -1,16 +1,74 @@
 //! The prediction-error problem: experiments, the map from the optimiser's scaled vector
-//! p to each experiment's θ, and one-pass evaluation of the cost and normal equations.
+//! p to each experiment's θ (and, on request, initial state), and one-pass evaluation of
+//! the cost and normal equations.
 //!
-//! Criterion (MODEL.md §5; Ljung, *System Identification*, ch. 7):
-//! `V(p) = ½ Σ_e Σ_k β_ek Σ_i Λ_i ε_eki²`, `ε = y − ŷ(θ(p))`. The Jacobian used is
-//! `J = ∂ŷ/∂p` (so `∂ε/∂p = −J` and the Gauss-Newton step solves `JᵀWJ δ = JᵀWε`).
+//! Criterion (MODEL.md §5; Ljung, *System Identification*, 2nd ed., ch. 7 and 15.2):
+//! `V(p) = Σ_e Σ_k β_ek Σ_i Λ_i ρ(ε_eki)`, `ε = y − ŷ(θ(p))`, with `ρ(ε) = ½ε²`
+//! (quadratic) or Huber's `ρ(ε) = ½ε²` for `|ε| ≤ δ`, `δ|ε| − ½δ²` beyond (Huber 1981,
+//! *Robust Statistics*, 7.8). The Jacobian is `J = ∂ŷ/∂p` (so `∂ε/∂p = −J`) and the
+//! Gauss-Newton step solves `JᵀWJ δ = JᵀWψ(ε)`; for Huber the weight of a residual
+//! beyond δ is `δ/|ε|` (iteratively reweighted least squares).
 
 use crate::error::{Error, Result};
 use crate::estimate::scaling::{ParameterScaling, Transform};
 use crate::model::{GreyBoxModel, Prepared};
-use crate::simulate::{Shooting, visit_sensitivities};
+use crate::simulate::{Shooting, simulate_from, visit_sensitivities_from};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// One experiment's prepared data with optional per-sample weights β_k (length N).
+pub type WeightedData<I> = (Prepared<I>, Option<Vec<f64>>);
+
+/// One experiment's share of the cost and normal equations (cost, `JᵀWJ` row-major, `JᵀWψ`).
+type Partial = (f64, Vec<f64>, Vec<f64>);
+
+/// The loss ρ applied to each residual.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Loss {
+    /// `ρ(ε) = ½ ε²`.
+    #[default]
+    Quadratic,
+    /// Huber's loss with threshold δ_i per output [output unit], length n_y.
+    Huber {
+        /// Thresholds δ_i > 0.
+        delta: Vec<f64>,
+    },
+}
+
+impl Loss {
+    /// `(ρ(ε), ψ(ε), IRLS weight ψ(ε)/ε, ψ'(ε))` for residual `e` of output `i`.
+    #[inline]
+    fn eval(&self, i: usize, e: f64) -> (f64, f64, f64, f64) {
+        match self {
+            Self::Quadratic => (0.5 * e * e, e, 1.0, 1.0),
+            Self::Huber { delta } => {
+                let (d, a) = (delta[i], e.abs());
+                if a <= d {
+                    (0.5 * e * e, e, 1.0, 1.0)
+                } else {
+                    (d * a - 0.5 * d * d, d * e.signum(), d / a, 0.0)
+                }
+            }
+        }
+    }
+}
+
+/// Options of a [`PemProblem`] beyond the model, data and start.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ProblemOptions {
+    /// Parameters estimated separately for each experiment, by name.
+    pub per_experiment: Vec<String>,
+    /// Simulation or k-step-ahead prediction.
+    pub shooting: Shooting,
+    /// Output weights Λ (length n_y), `None` = 1.
+    pub output_weights: Option<Vec<f64>>,
+    /// Residual loss.
+    pub loss: Loss,
+    /// Estimate each experiment's initial state x₀ (n_x extra parameters per experiment).
+    pub estimate_x0: bool,
+}
 
 /// Where each model parameter of one experiment comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -21,18 +79,21 @@ pub enum Slot {
     Free(usize),
 }
 
-/// One experiment's prepared data with optional per-sample weights β_k (length N).
-pub type WeightedData<I> = (Prepared<I>, Option<Vec<f64>>);
-
-/// One experiment's share of the cost and normal equations (cost, `JᵀWJ` row-major, `JᵀWε`).
-type Partial = (f64, Vec<f64>, Vec<f64>);
+/// What a free parameter of the optimisation is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FreeKind {
+    /// Model parameter with this index.
+    Parameter(usize),
+    /// Component of the initial state of one experiment.
+    InitialState(usize),
+}
 
 /// One free parameter of the optimisation.
 #[derive(Clone, Debug)]
 pub struct FreeParameter {
-    /// Model parameter index.
-    pub index: usize,
-    /// Experiment index for a per-experiment parameter; `None` when shared.
+    /// Model parameter or initial-state component.
+    pub kind: FreeKind,
+    /// Experiment index for a per-experiment parameter or initial state; `None` when shared.
     pub experiment: Option<usize>,
     /// θ ↔ p map.
     pub transform: Transform,
@@ -51,34 +112,40 @@ pub struct Term<I> {
     pub weights: Option<Vec<f64>>,
     /// Source of every model parameter for this experiment, length n_θ.
     pub slots: Vec<Slot>,
+    /// Index of the first of n_x free initial-state parameters, when estimated.
+    pub x0_free: Option<usize>,
 }
 
 /// Cost and normal equations at one point (scaled space, length n_p).
 #[derive(Clone, Debug)]
 pub struct NormalEquations {
-    /// `V = ½ Σ w ε²`.
+    /// `V = Σ w ρ(ε)`.
     pub cost: f64,
-    /// `JᵀWJ`, `n_p × n_p`.
+    /// `JᵀWJ` (IRLS-weighted for Huber), `n_p × n_p`.
     pub jtj: DMatrix<f64>,
-    /// `JᵀWε`, length n_p.
+    /// `JᵀWψ(ε)`, length n_p.
     pub jtr: DVector<f64>,
 }
 
 /// Sums at the estimate from which the statistics of a fit follow.
 #[derive(Clone, Debug)]
 pub struct Sums {
-    /// Weighted cost `½ Σ w ε²`.
+    /// Cost `V`.
     pub cost: f64,
+    /// Weighted residual sum of squares `Σ w ε²` (the E² of the error index).
+    pub e2_weighted: f64,
     /// Unweighted residual sum of squares per output, length n_y.
     pub sse: Vec<f64>,
     /// Number of residual samples per output (same for every output).
     pub count: usize,
     /// `Σ (y − ȳ)²` per output, length n_y.
     pub sst: Vec<f64>,
-    /// `JᵀWJ` (scaled space).
+    /// `JᵀWJ` (scaled space): the information matrix of the error index and diagnostics.
     pub jtj: DMatrix<f64>,
-    /// Per output i: `Σ_k w_ki² J_kiᵀ J_ki` (scaled space), for the sandwich covariance.
-    pub jtwwj: Vec<DMatrix<f64>>,
+    /// Bread `A = Σ w ψ'(ε) JᵀJ` of the sandwich covariance `A⁻¹ B A⁻¹`.
+    pub bread: DMatrix<f64>,
+    /// Meat `B`: `Σ_i σ̂_i² Σ_k w² J_kiᵀJ_ki` (quadratic), `N/(N − n_p) Σ w² ψ² JᵀJ` (Huber).
+    pub meat: DMatrix<f64>,
 }
 
 /// A prediction-error problem over one or more experiments of one model.
@@ -88,46 +155,45 @@ pub struct PemProblem<'m, M: GreyBoxModel> {
     free: Vec<FreeParameter>,
     shooting: Shooting,
     output_weights: Vec<f64>,
+    loss: Loss,
 }
 
 impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
     /// Builds the problem: `start` (length n_θ) are the model parameters' start values,
-    /// shared by all experiments; parameters named in `per_experiment` get one free copy
-    /// per experiment; fixed parameters (metadata flag) are held at their start.
+    /// shared by all experiments; parameters named in `options.per_experiment` get one free
+    /// copy per experiment; fixed parameters (metadata flag) are held at their start; with
+    /// `options.estimate_x0` each experiment's initial state is free, starting from the
+    /// measured one.
     ///
     /// # Errors
     /// [`Error::InvalidOption`] for a wrong `start` length, an unknown name in
-    /// `per_experiment`, wrong weight lengths or a non-positive output weight;
-    /// [`Error::InvalidBounds`], [`Error::StartOutsideBounds`], [`Error::InvalidParameter`]
-    /// for unusable bounds or starts; those of the scaling rule.
-    #[allow(clippy::too_many_arguments)]
+    /// `per_experiment`, wrong weight lengths, a non-positive output weight or Huber
+    /// threshold, no experiment; [`Error::InvalidBounds`], [`Error::StartOutsideBounds`],
+    /// [`Error::InvalidParameter`] for unusable bounds or starts; those of the scaling rule.
     pub fn new(
         model: &'m M,
         preps: Vec<WeightedData<M::Inputs>>,
         start: &[f64],
-        per_experiment: &[String],
         scaling: &dyn ParameterScaling,
-        shooting: Shooting,
-        output_weights: Option<Vec<f64>>,
+        options: &ProblemOptions,
     ) -> Result<Self> {
         let params = model.parameters();
+        let invalid = |option: &str, reason: String| Error::InvalidOption { option: option.into(), reason };
         if start.len() != params.len() {
-            return Err(Error::InvalidOption {
-                option: "start".into(),
-                reason: format!(
-                    "{} values given, model `{}` has {} parameters",
-                    start.len(),
-                    model.name(),
-                    params.len()
-                ),
-            });
+            let reason = format!(
+                "{} values given, model `{}` has {} parameters",
+                start.len(),
+                model.name(),
+                params.len()
+            );
+            return Err(invalid("start", reason));
         }
-        for name in per_experiment {
+        for name in &options.per_experiment {
             if !params.iter().any(|p| &p.name == name) {
-                return Err(Error::InvalidOption {
-                    option: "per_experiment".into(),
-                    reason: format!("no parameter `{name}` in model `{}`", model.name()),
-                });
+                return Err(invalid(
+                    "per_experiment",
+                    format!("no parameter `{name}` in model `{}`", model.name()),
+                ));
             }
         }
         for (p, &v) in params.iter().zip(start) {
@@ -135,36 +201,46 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             p.check_start(v)?;
         }
         let ny = model.n_outputs();
-        let output_weights = output_weights.unwrap_or_else(|| vec![1.0; ny]);
-        if output_weights.len() != ny || output_weights.iter().any(|w| !(w.is_finite() && *w > 0.0)) {
-            return Err(Error::InvalidOption {
-                option: "output_weights".into(),
-                reason: format!("need {ny} positive finite weights, got {output_weights:?}"),
-            });
+        let positive = |v: &[f64]| v.len() == ny && v.iter().all(|w| w.is_finite() && *w > 0.0);
+        let output_weights = options.output_weights.clone().unwrap_or_else(|| vec![1.0; ny]);
+        if !positive(&output_weights) {
+            return Err(invalid(
+                "output_weights",
+                format!("need {ny} positive finite weights, got {output_weights:?}"),
+            ));
+        }
+        if let Loss::Huber { delta } = &options.loss
+            && !positive(delta)
+        {
+            return Err(invalid("huber", format!("need {ny} positive finite thresholds, got {delta:?}")));
         }
         let n_exp = preps.len();
         if n_exp == 0 {
-            return Err(Error::InvalidOption {
-                option: "experiments".into(),
-                reason: "no experiment given".into(),
-            });
+            return Err(invalid("experiments", "no experiment given".into()));
         }
         let mut free = Vec::new();
         let mut slots = vec![vec![Slot::Fixed(0.0); params.len()]; n_exp];
         for (j, p) in params.iter().enumerate() {
             if p.fixed {
-                for s in slots.iter_mut() {
-                    s[j] = Slot::Fixed(start[j]);
-                }
+                slots.iter_mut().for_each(|s| s[j] = Slot::Fixed(start[j]));
                 continue;
             }
             let transform = scaling.transform(p, start[j], None)?;
             let (lower_p, upper_p) = (transform.to_scaled(p.lower), transform.to_scaled(p.upper));
-            let copies: Vec<Option<usize>> =
-                if per_experiment.contains(&p.name) { (0..n_exp).map(Some).collect() } else { vec![None] };
+            let copies: Vec<Option<usize>> = if options.per_experiment.contains(&p.name) {
+                (0..n_exp).map(Some).collect()
+            } else {
+                vec![None]
+            };
             for e in copies {
                 let g = free.len();
-                free.push(FreeParameter { index: j, experiment: e, transform, lower_p, upper_p });
+                free.push(FreeParameter {
+                    kind: FreeKind::Parameter(j),
+                    experiment: e,
+                    transform,
+                    lower_p,
+                    upper_p,
+                });
                 match e {
                     Some(e) => slots[e][j] = Slot::Free(g),
                     None => slots.iter_mut().for_each(|s| s[j] = Slot::Free(g)),
@@ -172,32 +248,47 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             }
         }
         let mut terms = Vec::with_capacity(n_exp);
-        for ((prep, weights), slots) in preps.into_iter().zip(slots) {
+        for (e, ((prep, weights), slots)) in preps.into_iter().zip(slots).enumerate() {
             if let Some(w) = &weights {
                 if w.len() != prep.n {
-                    return Err(Error::InvalidOption {
-                        option: "weights".into(),
-                        reason: format!(
-                            "experiment `{}`: {} weights for {} samples",
-                            prep.name,
-                            w.len(),
-                            prep.n
-                        ),
-                    });
+                    return Err(invalid(
+                        "weights",
+                        format!("experiment `{}`: {} weights for {} samples", prep.name, w.len(), prep.n),
+                    ));
                 }
                 if let Some((k, v)) = w.iter().enumerate().find(|(_, v)| !(v.is_finite() && **v >= 0.0)) {
-                    return Err(Error::InvalidOption {
-                        option: "weights".into(),
-                        reason: format!(
-                            "experiment `{}`: weight {v} at sample {k} is not finite and ≥ 0",
-                            prep.name
-                        ),
-                    });
+                    return Err(invalid(
+                        "weights",
+                        format!("experiment `{}`: weight {v} at sample {k} is not finite and ≥ 0", prep.name),
+                    ));
                 }
             }
-            terms.push(Term { prep, weights, slots });
+            let x0_free = options.estimate_x0.then(|| {
+                let g = free.len();
+                // Scale of the state: its RMS over the record (outputs are states for the PMSM).
+                let rms = (prep.y.iter().map(|v| v * v).sum::<f64>() / prep.y.len() as f64).sqrt();
+                let scale = if rms > 0.0 && rms.is_finite() { rms } else { 1.0 };
+                for i in 0..prep.x0.len() {
+                    free.push(FreeParameter {
+                        kind: FreeKind::InitialState(i),
+                        experiment: Some(e),
+                        transform: Transform::Linear { scale },
+                        lower_p: f64::NEG_INFINITY,
+                        upper_p: f64::INFINITY,
+                    });
+                }
+                g
+            });
+            terms.push(Term { prep, weights, slots, x0_free });
         }
-        let mut problem = Self { model, terms, free, shooting, output_weights };
+        let mut problem = Self {
+            model,
+            terms,
+            free,
+            shooting: options.shooting,
+            output_weights,
+            loss: options.loss.clone(),
+        };
         if scaling.needs_column_norms() {
             problem.rescale_by_column_norms(start, scaling)?;
         }
@@ -209,10 +300,11 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         let ne = self.normal_equations(&p0)?;
         let params = self.model.parameters();
         for (g, fp) in self.free.iter_mut().enumerate() {
-            // column norm in θ units: ‖∂ŷ/∂θ‖ = ‖∂ŷ/∂p‖ / (dθ/dp)
+            let FreeKind::Parameter(j) = fp.kind else { continue };
+            // Column norm in θ units: ‖∂ŷ/∂θ‖ = ‖∂ŷ/∂p‖ / (dθ/dp).
             let norm = ne.jtj[(g, g)].sqrt() / fp.transform.dtheta_dp(p0[g]).abs();
-            let p = &params[fp.index];
-            fp.transform = scaling.transform(p, start[fp.index], Some(norm))?;
+            let p = &params[j];
+            fp.transform = scaling.transform(p, start[j], Some(norm))?;
             fp.lower_p = fp.transform.to_scaled(p.lower);
             fp.upper_p = fp.transform.to_scaled(p.upper);
         }
@@ -239,12 +331,20 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
     pub fn shooting(&self) -> Shooting {
         self.shooting
     }
+    /// The residual loss.
+    pub fn loss(&self) -> &Loss {
+        &self.loss
+    }
 
-    /// Scaled start vector p₀ for model start values θ₀.
+    /// Scaled start vector p₀ for model start values θ₀ (initial states from the measurement).
     pub fn start_vector(&self, start: &[f64]) -> DVector<f64> {
         DVector::from_iterator(
             self.free.len(),
-            self.free.iter().map(|f| f.transform.to_scaled(start[f.index])),
+            self.free.iter().map(|f| match (f.kind, f.experiment) {
+                (FreeKind::Parameter(j), _) => f.transform.to_scaled(start[j]),
+                (FreeKind::InitialState(i), Some(e)) => f.transform.to_scaled(self.terms[e].prep.x0[i]),
+                (FreeKind::InitialState(_), None) => 0.0,
+            }),
         )
     }
 
@@ -260,6 +360,17 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             .collect()
     }
 
+    /// Initial state of experiment `e` at p (measured, or estimated).
+    pub fn x0(&self, e: usize, p: &DVector<f64>) -> Vec<f64> {
+        let term = &self.terms[e];
+        match term.x0_free {
+            Some(g) => {
+                (0..term.prep.x0.len()).map(|i| self.free[g + i].transform.to_theta(p[g + i])).collect()
+            }
+            None => term.prep.x0.clone(),
+        }
+    }
+
     /// Projects p onto the bounds (componentwise clamp in scaled space).
     pub fn project(&self, p: &mut DVector<f64>) {
         for (g, f) in self.free.iter().enumerate() {
@@ -267,7 +378,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         }
     }
 
-    /// `dθ/dp` for every model parameter of experiment e, with the global index (0 for fixed).
+    /// `dθ/dp` for every model parameter of experiment e, with its global index.
     fn chain(&self, e: usize, p: &DVector<f64>) -> (Vec<Option<usize>>, Vec<f64>) {
         self.terms[e]
             .slots
@@ -296,12 +407,19 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         let theta = self.theta(e, p);
         let (global, dtheta) = self.chain(e, p);
         let scale = self.fd_scale(e, p);
+        let x0 = self.x0(e, p);
+        let nx = x0.len();
+        let x0_chain: Vec<(usize, f64)> = term
+            .x0_free
+            .map(|g| (0..nx).map(|i| (g + i, self.free[g + i].transform.dtheta_dp(p[g + i]))).collect())
+            .unwrap_or_default();
         let mut eps = vec![0.0; ny];
         let mut jac = vec![0.0; ny * np];
         let mut w = vec![0.0; ny];
         let nth = theta.len();
-        visit_sensitivities(self.model, &term.prep, &theta, &scale, self.shooting, |k, yhat, dy| {
-            if !self.counted(k) {
+        let first = usize::from(term.x0_free.is_none());
+        let visit = |k: usize, yhat: &[f64], dy: &[f64], dy0: &[f64]| {
+            if k < first {
                 return;
             }
             let y = term.prep.y_at(k, ny);
@@ -315,18 +433,25 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                         jac[i * np + g] += dy[i * nth + j] * dtheta[j];
                     }
                 }
+                for (m, &(g, d)) in x0_chain.iter().enumerate() {
+                    jac[i * np + g] += dy0[i * nx + m] * d;
+                }
             }
             f(k, &eps, &w, &jac);
-        })
+        };
+        visit_sensitivities_from(
+            self.model,
+            &term.prep,
+            &theta,
+            &x0,
+            term.x0_free.is_some(),
+            &scale,
+            self.shooting,
+            visit,
+        )
     }
 
-    /// Whether sample k carries a residual: every sample but the first, whose prediction
-    /// is the measured initial state itself.
-    fn counted(&self, k: usize) -> bool {
-        k > 0
-    }
-
-    /// Cost `V(p)` and normal equations `JᵀWJ`, `JᵀWε` in one pass per experiment
+    /// Cost `V(p)` and normal equations `JᵀWJ`, `JᵀWψ` in one pass per experiment
     /// (experiments in parallel, summed in a fixed order: identical for any thread count).
     ///
     /// # Errors
@@ -341,11 +466,12 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                 let mut jtr = vec![0.0; np];
                 self.pass(e, p, |_, eps, w, jac| {
                     for (i, (&ei, &wi)) in eps.iter().zip(w).enumerate() {
-                        cost += 0.5 * wi * ei * ei;
+                        let (rho, psi, irls, _) = self.loss.eval(i, ei);
+                        cost += wi * rho;
                         let row = &jac[i * np..(i + 1) * np];
                         for a in 0..np {
-                            let wa = wi * row[a];
-                            jtr[a] += wa * ei;
+                            jtr[a] += wi * row[a] * psi;
+                            let wa = wi * irls * row[a];
                             for b in a..np {
                                 jtj[a * np + b] += wa * row[b];
                             }
@@ -366,11 +492,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                 }
             }
         }
-        for a in 0..np {
-            for b in 0..a {
-                out.jtj[(a, b)] = out.jtj[(b, a)];
-            }
-        }
+        out.jtj.fill_lower_triangle_with_upper_triangle();
         Ok(out)
     }
 
@@ -385,13 +507,14 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             .map(|e| {
                 let term = &self.terms[e];
                 let yhat =
-                    crate::simulate::simulate_with(self.model, &term.prep, &self.theta(e, p), self.shooting)?;
+                    simulate_from(self.model, &term.prep, &self.theta(e, p), &self.x0(e, p), self.shooting)?;
+                let first = usize::from(term.x0_free.is_none());
                 let mut cost = 0.0;
-                for k in (0..term.prep.n).filter(|&k| self.counted(k)) {
+                for k in first..term.prep.n {
                     let beta = term.weights.as_ref().map_or(1.0, |b| b[k]);
                     for i in 0..ny {
                         let eps = term.prep.y[k * ny + i] - yhat[k * ny + i];
-                        cost += 0.5 * beta * self.output_weights[i] * eps * eps;
+                        cost += beta * self.output_weights[i] * self.loss.eval(i, eps).0;
                     }
                 }
                 Ok(cost)
@@ -401,7 +524,8 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
     }
 
     /// Weighted residuals `√w ε` stacked `[e][k][i]` and the Jacobian `√w ∂ŷ/∂p`
-    /// (`N_total n_y × n_p`): the full matrices, for tests and diagnostics only.
+    /// (`N_total n_y × n_p`): the full matrices, for tests and diagnostics only
+    /// (quadratic-loss view; the default path never forms them).
     ///
     /// # Errors
     /// As [`normal_equations`](Self::normal_equations).
@@ -428,51 +552,106 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
     /// As [`normal_equations`](Self::normal_equations).
     pub fn sums(&self, p: &DVector<f64>) -> Result<Sums> {
         let (ny, np) = (self.model.n_outputs(), self.free.len());
-        let mut s = Sums {
-            cost: 0.0,
-            sse: vec![0.0; ny],
-            count: 0,
-            sst: vec![0.0; ny],
-            jtj: DMatrix::zeros(np, np),
-            jtwwj: vec![DMatrix::zeros(np, np); ny],
-        };
-        let mut sum_y = vec![0.0; ny];
-        let mut sum_y2 = vec![0.0; ny];
+        let zero = DMatrix::<f64>::zeros(np, np);
+        let (mut cost, mut e2w, mut count) = (0.0, 0.0, 0usize);
+        let (mut sse, mut sum_y, mut sum_y2) = (vec![0.0; ny], vec![0.0; ny], vec![0.0; ny]);
+        let (mut jtj, mut bread) = (zero.clone(), zero.clone());
+        // Per output: Σ w² J_iᵀJ_i (quadratic) or Σ w² ψ² J_iᵀJ_i (Huber).
+        let mut meat_i = vec![zero.clone(); ny];
         for e in 0..self.terms.len() {
             let term = &self.terms[e];
             // Shift by the first measurement to keep Σy² − (Σy)²/n free of cancellation.
             let y0: Vec<f64> = term.prep.y_at(0, ny).to_vec();
             let (mut ey, mut ey2) = (vec![0.0; ny], vec![0.0; ny]);
-            let mut count = 0usize;
+            let mut n_e = 0usize;
             self.pass(e, p, |k, eps, w, jac| {
-                count += 1;
+                n_e += 1;
                 let y = term.prep.y_at(k, ny);
                 for i in 0..ny {
-                    s.cost += 0.5 * w[i] * eps[i] * eps[i];
-                    s.sse[i] += eps[i] * eps[i];
+                    let (rho, psi, _, dpsi) = self.loss.eval(i, eps[i]);
+                    cost += w[i] * rho;
+                    e2w += w[i] * eps[i] * eps[i];
+                    sse[i] += eps[i] * eps[i];
                     let d = y[i] - y0[i];
                     ey[i] += d;
                     ey2[i] += d * d;
+                    let m = match self.loss {
+                        Loss::Quadratic => w[i] * w[i],
+                        Loss::Huber { .. } => w[i] * w[i] * psi * psi,
+                    };
                     let row = &jac[i * np..(i + 1) * np];
                     for a in 0..np {
-                        for b in 0..np {
-                            s.jtj[(a, b)] += w[i] * row[a] * row[b];
-                            s.jtwwj[i][(a, b)] += w[i] * w[i] * row[a] * row[b];
+                        for b in a..np {
+                            let jj = row[a] * row[b];
+                            jtj[(a, b)] += w[i] * jj;
+                            bread[(a, b)] += w[i] * dpsi * jj;
+                            meat_i[i][(a, b)] += m * jj;
                         }
                     }
                 }
             })?;
-            s.count += count;
+            count += n_e;
             for i in 0..ny {
-                // Pool per-experiment means: Σ(y − ȳ)² over all experiments about the grand mean.
-                sum_y[i] += ey[i] + count as f64 * y0[i];
-                sum_y2[i] += ey2[i] + 2.0 * y0[i] * ey[i] + count as f64 * y0[i] * y0[i];
+                // Pool about the grand mean over all experiments.
+                sum_y[i] += ey[i] + n_e as f64 * y0[i];
+                sum_y2[i] += ey2[i] + 2.0 * y0[i] * ey[i] + n_e as f64 * y0[i] * y0[i];
             }
         }
-        for i in 0..ny {
-            let n = s.count as f64;
-            s.sst[i] = (sum_y2[i] - sum_y[i] * sum_y[i] / n).max(0.0);
+        let n = count as f64;
+        let sst = (0..ny).map(|i| (sum_y2[i] - sum_y[i] * sum_y[i] / n).max(0.0)).collect();
+        let mut meat = zero;
+        for (i, mi) in meat_i.iter().enumerate() {
+            let factor = match self.loss {
+                // σ̂_i² = E_i²/(N − n_p/n_y)
+                Loss::Quadratic => sse[i] / (n - np as f64 / ny as f64).max(1.0),
+                Loss::Huber { .. } => n / (n - np as f64 / ny as f64).max(1.0),
+            };
+            meat += mi * factor;
         }
-        Ok(s)
+        for m in [&mut jtj, &mut bread, &mut meat] {
+            m.fill_lower_triangle_with_upper_triangle();
+        }
+        Ok(Sums { cost, e2_weighted: e2w, sse, count, sst, jtj, bread, meat })
     }
+
+    /// Robust scale `1.4826 × MAD` of each output's residuals at p (length n_y), the
+    /// standard deviation for Gaussian residuals (Huber 1981, 5.1).
+    ///
+    /// # Errors
+    /// As [`cost`](Self::cost).
+    pub fn robust_scale(&self, p: &DVector<f64>) -> Result<Vec<f64>> {
+        let ny = self.model.n_outputs();
+        let mut res: Vec<Vec<f64>> = vec![Vec::new(); ny];
+        for (e, term) in self.terms.iter().enumerate() {
+            let yhat =
+                simulate_from(self.model, &term.prep, &self.theta(e, p), &self.x0(e, p), self.shooting)?;
+            for k in usize::from(term.x0_free.is_none())..term.prep.n {
+                for (i, r) in res.iter_mut().enumerate() {
+                    r.push(term.prep.y[k * ny + i] - yhat[k * ny + i]);
+                }
+            }
+        }
+        Ok(res.into_iter().map(|r| 1.4826 * mad(r)).collect())
+    }
+
+    /// Gives the experiments' data back (to build a problem with other options).
+    pub fn into_data(self) -> Vec<WeightedData<M::Inputs>> {
+        self.terms.into_iter().map(|t| (t.prep, t.weights)).collect()
+    }
+}
+
+/// Median absolute deviation from the median (0 for an empty slice).
+fn mad(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let median = |v: &mut Vec<f64>| {
+        let m = v.len() / 2;
+        *v.select_nth_unstable_by(m, f64::total_cmp).1
+    };
+    let med = median(&mut v);
+    for x in v.iter_mut() {
+        *x = (*x - med).abs();
+    }
+    median(&mut v)
 }

@@ -192,6 +192,66 @@ pub trait GreyBoxModel: Sync {
         let n = dy.len();
         dy.copy_from_slice(&s[..n]);
     }
+
+    /// Directional derivative of the step with respect to the state,
+    /// `out = ∂x_next/∂x · v` (lengths n_x); propagates the sensitivity to an estimated
+    /// initial state. The default is a central difference with step
+    /// `1e-4 (1 + |x|)/|v|`, exact to rounding for models affine in the state (as the PMSM).
+    #[allow(clippy::too_many_arguments)]
+    fn step_state_derivative(
+        &self,
+        c: &Self::Coefficients,
+        inputs: &Self::Inputs,
+        k: usize,
+        x: &[f64],
+        v: &[f64],
+        out: &mut [f64],
+    ) {
+        let n = x.len();
+        let (mut xp, mut xm, mut fm) = (x.to_vec(), x.to_vec(), vec![0.0; n]);
+        let d = direction_step(x, v);
+        for i in 0..n {
+            xp[i] += d * v[i];
+            xm[i] -= d * v[i];
+        }
+        self.step(c, inputs, k, &xp, out);
+        self.step(c, inputs, k, &xm, &mut fm);
+        for i in 0..n {
+            out[i] = (out[i] - fm[i]) / (2.0 * d);
+        }
+    }
+
+    /// Directional derivative of the output map, `out = ∂y/∂x · v` (v length n_x, out
+    /// length n_y); the default is a central difference of [`output`](Self::output).
+    fn output_state_derivative(
+        &self,
+        c: &Self::Coefficients,
+        inputs: &Self::Inputs,
+        k: usize,
+        x: &[f64],
+        v: &[f64],
+        out: &mut [f64],
+    ) {
+        let (n, ny) = (x.len(), out.len());
+        let (mut xp, mut xm, mut ym) = (x.to_vec(), x.to_vec(), vec![0.0; ny]);
+        let d = direction_step(x, v);
+        for i in 0..n {
+            xp[i] += d * v[i];
+            xm[i] -= d * v[i];
+        }
+        self.output(c, inputs, k, &xp, out);
+        self.output(c, inputs, k, &xm, &mut ym);
+        for i in 0..ny {
+            out[i] = (out[i] - ym[i]) / (2.0 * d);
+        }
+    }
+}
+
+/// Step length along direction v for the state derivatives: `1e-4 (1 + ‖x‖)/‖v‖`.
+fn direction_step(x: &[f64], v: &[f64]) -> f64 {
+    let nx = x.iter().map(|a| a * a).sum::<f64>().sqrt();
+    let nv = v.iter().map(|a| a * a).sum::<f64>().sqrt();
+    if nv > 0.0 { 1e-4 * (1.0 + nx) / nv } else { 1.0 }
 }
 
 /// Parameter values as `name = value` pairs, comma separated (for messages).

@@ -297,6 +297,23 @@ impl GreyBoxModel for PmsmSpm {
     }
 
     #[inline]
+    fn step_state_derivative(
+        &self,
+        c: &SpmCoefficients,
+        inp: &SpmInputs,
+        k: usize,
+        _x: &[f64],
+        v: &[f64],
+        out: &mut [f64],
+    ) {
+        // The step is affine in i: ∂i[k+1]/∂i[k] · v = a v.
+        let (a, _) = self.ab(c, inp, k);
+        let r = a * C64::new(v[0], v[1]);
+        out[0] = r.re;
+        out[1] = r.im;
+    }
+
+    #[inline]
     fn step_sensitivity(
         &self,
         c: &SpmCoefficients,

@@ -53,11 +53,26 @@ pub fn simulate_with<M: GreyBoxModel>(
     theta: &[f64],
     shooting: Shooting,
 ) -> Result<Vec<f64>> {
+    simulate_from(model, prep, theta, &prep.x0, shooting)
+}
+
+/// As [`simulate_with`], from the initial state `x0` (length n_x) instead of the measured one.
+///
+/// # Errors
+/// As [`simulate_with`]; [`Error::InvalidOption`] for `x0` of the wrong length.
+pub fn simulate_from<M: GreyBoxModel>(
+    model: &M,
+    prep: &Prepared<M::Inputs>,
+    theta: &[f64],
+    x0: &[f64],
+    shooting: Shooting,
+) -> Result<Vec<f64>> {
     check_shooting(model, shooting)?;
+    check_x0(model, x0)?;
     let (nx, ny) = (model.n_states(), model.n_outputs());
     let c = model.coefficients(theta, &prep.inputs)?;
     let mut yhat = vec![0.0; prep.n * ny];
-    let mut x = prep.x0.clone();
+    let mut x = x0.to_vec();
     let mut xn = vec![0.0; nx];
     for k in 0..prep.n {
         model.output(&c, &prep.inputs, k, &x, &mut yhat[k * ny..(k + 1) * ny]);
@@ -97,16 +112,52 @@ where
     M: GreyBoxModel,
     F: FnMut(usize, &[f64], &[f64]),
 {
+    visit_sensitivities_from(model, prep, theta, &prep.x0, false, fd_scale, shooting, |k, y, dy, _| {
+        visit(k, y, dy)
+    })
+}
+
+/// As [`visit_sensitivities`], from the initial state `x0` (length n_x), and, when
+/// `x0_sensitivity` is true, also with `∂ŷ_k/∂x₀` (row-major `n_y × n_x`, the fourth
+/// argument of `visit`; empty otherwise). After a restart (k-step prediction) the state no
+/// longer depends on x₀ and that sensitivity is zero.
+///
+/// # Errors
+/// As [`simulate_with`]; [`Error::InvalidOption`] for `x0` of the wrong length.
+#[allow(clippy::too_many_arguments)]
+pub fn visit_sensitivities_from<M, F>(
+    model: &M,
+    prep: &Prepared<M::Inputs>,
+    theta: &[f64],
+    x0: &[f64],
+    x0_sensitivity: bool,
+    fd_scale: &[f64],
+    shooting: Shooting,
+    mut visit: F,
+) -> Result<()>
+where
+    M: GreyBoxModel,
+    F: FnMut(usize, &[f64], &[f64], &[f64]),
+{
     check_shooting(model, shooting)?;
+    check_x0(model, x0)?;
     let (nx, ny, nth) = (model.n_states(), model.n_outputs(), theta.len());
     let c = model.coefficients(theta, &prep.inputs)?;
     let analytic = model.has_sensitivities();
-    let mut x = prep.x0.clone();
+    let mut x = x0.to_vec();
     let mut xn = vec![0.0; nx];
     let mut s = vec![0.0; nx * nth];
     let mut sn = vec![0.0; nx * nth];
     let mut y = vec![0.0; ny];
     let mut dy = vec![0.0; ny * nth];
+    // ∂x/∂x₀ kept column by column (column m = direction e_m at k = 0).
+    let n0 = if x0_sensitivity { nx } else { 0 };
+    let mut s0: Vec<Vec<f64>> =
+        (0..n0).map(|m| (0..nx).map(|i| f64::from(u8::from(i == m))).collect()).collect();
+    let mut s0n = vec![0.0; nx];
+    let mut col = vec![0.0; ny];
+    let mut dy0 = vec![0.0; ny * n0];
+    let mut live0 = x0_sensitivity;
     for k in 0..prep.n {
         model.output(&c, &prep.inputs, k, &x, &mut y);
         if analytic {
@@ -114,12 +165,29 @@ where
         } else {
             fd_output(model, prep, theta, fd_scale, k, &x, &s, &mut dy)?;
         }
-        visit(k, &y, &dy);
+        for (m, v) in s0.iter().enumerate() {
+            if live0 {
+                model.output_state_derivative(&c, &prep.inputs, k, &x, v, &mut col);
+            } else {
+                col.fill(0.0);
+            }
+            for i in 0..ny {
+                dy0[i * n0 + m] = col[i];
+            }
+        }
+        visit(k, &y, &dy, &dy0);
         if shooting.restarts_at(k) {
             x.copy_from_slice(prep.y_at(k, ny));
             s.fill(0.0);
+            live0 = false;
         }
         if k + 1 < prep.n {
+            if live0 {
+                for v in s0.iter_mut() {
+                    model.step_state_derivative(&c, &prep.inputs, k, &x, v, &mut s0n);
+                    v.copy_from_slice(&s0n);
+                }
+            }
             if analytic {
                 model.step_sensitivity(&c, &prep.inputs, k, &x, &s, &mut xn, &mut sn);
             } else {
@@ -132,6 +200,16 @@ where
             std::mem::swap(&mut x, &mut xn);
             std::mem::swap(&mut s, &mut sn);
         }
+    }
+    Ok(())
+}
+
+fn check_x0<M: GreyBoxModel>(model: &M, x0: &[f64]) -> Result<()> {
+    if x0.len() != model.n_states() {
+        return Err(Error::InvalidOption {
+            option: "x0".into(),
+            reason: format!("{} values for a model with {} states", x0.len(), model.n_states()),
+        });
     }
     Ok(())
 }
