@@ -1,7 +1,33 @@
 //! # greybox
 //!
 //! Grey-box estimation of the electrical parameters of permanent-magnet synchronous
-//! motors from drive logs.
+//! motors (PMSM) from drive logs: stator resistance `r_s` [Ω], inductance `l_s` (or `l_d`,
+//! `l_q`) [H] and back-EMF constant `k_e` [V s/rad], hence torque constant `k_t` [N m/A]
+//! and magnet flux `psi_f` [V s].
+//!
+//! Data flow: [`data`] (an [`Experiment`] read from a CSV log) → [`model`] (the
+//! [`model::GreyBoxModel`] trait; [`model::PmsmSpm`], [`model::PmsmIpm`] with exact
+//! sampled-data steps) → [`simulate`] (single shooting with forward sensitivities) →
+//! [`estimate`] (prediction-error fit by Levenberg-Marquardt, linear least squares,
+//! statistics) → [`estimate::FitResult`] (table and JSON). [`pmsm::fit_pmsm`] does it all
+//! in one call. Physics and conventions: Tenerz (2011), *Parameter estimation in a
+//! permanent magnet synchronous motor*, chapters 3 and 5; dq quantities are
+//! amplitude-invariant, speeds and angles mechanical unless a name says `_e`.
+//!
+//! # Example
+//! ```
+//! use greybox::pmsm::{fit_pmsm, PmsmFitOptions};
+//!
+//! # fn main() -> greybox::Result<()> {
+//! // A 2 s log of a servo motor with 4 pole pairs, shipped in the repository.
+//! let log = greybox::read_csv("data/sample.csv.gz", 4, &Default::default())?;
+//! let fit = fit_pmsm(&[log], &PmsmFitOptions::default())?;
+//! assert!(fit.solver.success);
+//! let r_s = fit.parameter("r_s").unwrap();
+//! println!("R_s = {:.6} ± {:.1e} Ω", r_s.value, r_s.std_error);
+//! println!("{fit}");
+//! # Ok(()) }
+//! ```
 #![warn(missing_docs)]
 
 pub mod data;

@@ -8,7 +8,8 @@
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use greybox::data::csv::{ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
 use greybox::estimate::linear::MotorKind;
-use greybox::estimate::{PemOptions, ScalingKind, Tolerances};
+use greybox::estimate::weighting::SpeedShape;
+use greybox::estimate::{PemOptions, ScalingKind, Tolerances, WeightingKind};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -63,6 +64,16 @@ struct FitArgs {
     /// k-step-ahead prediction horizon in samples (default: output error, i.e. pure simulation).
     #[arg(long)]
     horizon: Option<usize>,
+    /// Sample weighting β(ω): uniform, low-speed:W0, high-speed:W0 or band:LO:HI[:FLOOR]
+    /// (speeds mechanical, rad/s; thesis eq. 5.11).
+    #[arg(long, default_value = "uniform", value_parser = parse_weighting)]
+    weighting: WeightingKind,
+    /// Robust fit with Huber's loss; the value is c in δ = c·σ̂ (default 1.345 when given without value).
+    #[arg(long, num_args = 0..=1, default_missing_value = "1.345")]
+    huber: Option<f64>,
+    /// Estimate each log's initial state instead of taking the first measured currents.
+    #[arg(long)]
+    estimate_x0: bool,
     /// Maximum number of solver iterations.
     #[arg(long, default_value_t = Tolerances::default().max_iters)]
     max_iters: u64,
@@ -209,6 +220,31 @@ impl ColumnArgs {
     }
 }
 
+/// Parses `uniform`, `low-speed:W0`, `high-speed:W0`, `band:LO:HI[:FLOOR]`.
+fn parse_weighting(s: &str) -> Result<WeightingKind, String> {
+    let parts: Vec<&str> = s.split(':').collect();
+    let num = |i: usize| -> Result<f64, String> {
+        parts
+            .get(i)
+            .ok_or_else(|| format!("`{s}`: missing number {i}"))?
+            .parse::<f64>()
+            .map_err(|e| format!("`{s}`: {e}"))
+    };
+    let shape = match parts[0] {
+        "uniform" if parts.len() == 1 => return Ok(WeightingKind::Uniform),
+        "low-speed" if parts.len() == 2 => SpeedShape::LowSpeed { w0: num(1)? },
+        "high-speed" if parts.len() == 2 => SpeedShape::HighSpeed { w0: num(1)? },
+        "band" if parts.len() == 3 || parts.len() == 4 => {
+            SpeedShape::Band { lo: num(1)?, hi: num(2)?, floor: if parts.len() == 4 { num(3)? } else { 0.0 } }
+        }
+        _ => {
+            return Err(format!("`{s}`: expected uniform, low-speed:W0, high-speed:W0 or band:LO:HI[:FLOOR]"));
+        }
+    };
+    greybox::estimate::weighting::SpeedWeighting::try_new(shape).map_err(|e| e.to_string())?;
+    Ok(WeightingKind::Speed { shape })
+}
+
 fn run_fit(a: &FitArgs) -> greybox::Result<()> {
     let t0 = Instant::now();
     let csv = a.columns.options();
@@ -241,6 +277,9 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
             },
             horizon: a.horizon,
             per_experiment: a.per_log.clone(),
+            weighting: a.weighting,
+            huber: a.huber,
+            estimate_x0: a.estimate_x0,
             progress: true,
             ..PemOptions::default()
         },

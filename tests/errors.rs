@@ -1,0 +1,268 @@
+//! Bad input to the estimator and the command line: clear errors naming the culprit, no panic.
+
+mod common;
+
+use greybox::estimate::{PemOptions, Tolerances, fit};
+use greybox::model::{GreyBoxModel, Parameter, PmsmSpm, Prepared, VoltageHold};
+use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
+use greybox::{Error, Experiment, Result, Signals};
+use std::process::Command;
+
+fn sample() -> Experiment {
+    greybox::read_csv(concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz"), 4, &Default::default())
+        .unwrap()
+}
+
+/// `x[k+1] = a x[k] + u[k]`, output x: unstable for |a| > 1.
+struct Scalar {
+    p: Vec<Parameter>,
+}
+impl GreyBoxModel for Scalar {
+    type Inputs = Vec<f64>;
+    type Coefficients = f64;
+    fn name(&self) -> &str {
+        "scalar"
+    }
+    fn n_states(&self) -> usize {
+        1
+    }
+    fn n_outputs(&self) -> usize {
+        1
+    }
+    fn output_names(&self) -> Vec<String> {
+        vec!["y".into()]
+    }
+    fn parameters(&self) -> &[Parameter] {
+        &self.p
+    }
+    fn prepare(&self, e: &Experiment) -> Result<Prepared<Vec<f64>>> {
+        Ok(Prepared {
+            name: e.name().into(),
+            n: e.len(),
+            y: e.i_d().to_vec(),
+            x0: vec![e.i_d()[0]],
+            inputs: e.u_d().to_vec(),
+        })
+    }
+    fn coefficients(&self, th: &[f64], _: &Vec<f64>) -> Result<f64> {
+        Ok(th[0])
+    }
+    fn step(&self, a: &f64, u: &Vec<f64>, k: usize, x: &[f64], xn: &mut [f64]) {
+        xn[0] = a * x[0] + u[k];
+    }
+}
+
+fn scalar_experiment(a: f64, n: usize) -> Experiment {
+    let u: Vec<f64> = (0..n).map(|k| ((k * 7919) % 13) as f64 - 6.0).collect();
+    let mut x = vec![0.0; n];
+    for k in 1..n {
+        x[k] = a * x[k - 1] + u[k - 1];
+    }
+    let s = Signals {
+        u_d: u,
+        u_q: vec![0.0; n],
+        i_d: x,
+        i_q: vec![0.0; n],
+        w_m: vec![0.0; n],
+        ..Default::default()
+    };
+    Experiment::try_new("scalar", 1e-3, 1, s).unwrap()
+}
+
+#[test]
+fn diverging_simulation_at_the_start_is_an_error_naming_sample_and_parameters() {
+    let m = Scalar { p: vec![Parameter::free("a", "-", 1.0)] };
+    let e = scalar_experiment(0.9, 3000);
+    let err = fit(&m, &[e], &[3.0], &PemOptions::default()).unwrap_err();
+    assert!(matches!(err, Error::SimulationDiverged { .. }), "{err:?}");
+    let msg = err.to_string();
+    assert!(msg.contains("scalar") && msg.contains("a = 3e0") && msg.contains("diverged at sample"), "{msg}");
+}
+
+#[test]
+fn trial_steps_into_divergence_are_rejected_not_fatal() {
+    // Start on the stable side near the edge: trial steps beyond |a| = 1 blow up over 3000
+    // samples and must count as rejected steps.
+    let m = Scalar { p: vec![Parameter::free("a", "-", 1.0)] };
+    let e = scalar_experiment(0.9, 3000);
+    let r = fit(&m, &[e], &[0.999], &PemOptions::default()).unwrap();
+    assert!(r.solver.success, "{}", r.solver.termination);
+    assert!((r.parameters[0].value - 0.9).abs() < 1e-9, "{}", r.parameters[0].value);
+}
+
+#[test]
+fn bounds_that_exclude_the_start_are_named() {
+    let opts = PmsmFitOptions {
+        start: Some(vec![0.9, 4.5e-3, 0.54]),
+        bounds: vec![("r_s".into(), 1.0, 2.0)],
+        ..Default::default()
+    };
+    let err = fit_pmsm(&[sample()], &opts).unwrap_err();
+    assert!(matches!(err, Error::StartOutsideBounds { .. }), "{err:?}");
+    assert!(err.to_string().contains("r_s"), "{err}");
+}
+
+#[test]
+fn empty_or_reversed_bounds_are_named() {
+    for (lo, hi) in [(2.0, 1.0), (1.0, 1.0), (f64::NAN, 1.0)] {
+        let opts = PmsmFitOptions { bounds: vec![("l_s".into(), lo, hi)], ..Default::default() };
+        let err = fit_pmsm(&[sample()], &opts).unwrap_err();
+        assert!(matches!(err, Error::InvalidBounds { .. }), "{err:?}");
+        assert!(err.to_string().contains("l_s"), "{err}");
+    }
+}
+
+#[test]
+fn non_positive_start_of_a_positive_parameter_is_named() {
+    let opts = PmsmFitOptions { start: Some(vec![0.9, -4.5e-3, 0.54]), ..Default::default() };
+    let err = fit_pmsm(&[sample()], &opts).unwrap_err();
+    assert!(err.to_string().contains("l_s"), "{err}");
+}
+
+#[test]
+fn option_errors_name_the_option() {
+    let e = sample();
+    let cases: Vec<(PmsmFitOptions, &str)> = vec![
+        (PmsmFitOptions { start: Some(vec![1.0, 2.0]), ..Default::default() }, "start"),
+        (PmsmFitOptions { fixed: vec!["nope".into()], ..Default::default() }, "nope"),
+        (
+            PmsmFitOptions {
+                pem: PemOptions { per_experiment: vec!["x".into()], ..Default::default() },
+                ..Default::default()
+            },
+            "`x`",
+        ),
+        (
+            PmsmFitOptions {
+                pem: PemOptions { horizon: Some(0), ..Default::default() },
+                ..Default::default()
+            },
+            "horizon",
+        ),
+        (
+            PmsmFitOptions {
+                pem: PemOptions { huber: Some(-1.0), ..Default::default() },
+                ..Default::default()
+            },
+            "huber",
+        ),
+        (
+            PmsmFitOptions {
+                pem: PemOptions {
+                    tolerances: Tolerances { ftol: f64::NAN, ..Default::default() },
+                    ..Default::default()
+                },
+                ..Default::default()
+            },
+            "ftol",
+        ),
+        (
+            PmsmFitOptions {
+                pem: PemOptions { output_weights: Some(vec![1.0, 0.0]), ..Default::default() },
+                ..Default::default()
+            },
+            "output_weights",
+        ),
+    ];
+    for (opts, culprit) in cases {
+        let err = fit_pmsm(std::slice::from_ref(&e), &opts).unwrap_err();
+        assert!(err.to_string().contains(culprit), "expected `{culprit}` in: {err}");
+    }
+    let err = fit_pmsm(&[], &PmsmFitOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("no log"), "{err}");
+}
+
+#[test]
+fn logs_of_different_motors_cannot_be_fitted_jointly() {
+    let a = sample();
+    let b =
+        greybox::read_csv(concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz"), 2, &Default::default())
+            .unwrap();
+    let err = fit_pmsm(&[a, b], &PmsmFitOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("n_p"), "{err}");
+}
+
+#[test]
+fn no_speed_makes_the_least_squares_start_fail_clearly() {
+    let n = 200;
+    let s = Signals {
+        u_d: (0..n).map(|k| (k % 7) as f64).collect(),
+        u_q: (0..n).map(|k| (k % 5) as f64).collect(),
+        i_d: (0..n).map(|k| (k % 3) as f64).collect(),
+        i_q: (0..n).map(|k| (k % 2) as f64).collect(),
+        w_m: vec![0.0; n],
+        ..Default::default()
+    };
+    let e = Experiment::try_new("standstill", 1e-4, 4, s).unwrap();
+    let err = fit_pmsm(&[e], &PmsmFitOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("k_e"), "{err}");
+}
+
+#[test]
+fn model_rejects_invalid_parameter_values_by_name() {
+    let m = PmsmSpm::new(VoltageHold::Dq);
+    let prep = m.prepare(&sample()).unwrap();
+    let err = m.coefficients(&[0.9, 0.0, 0.5], &prep.inputs).unwrap_err();
+    assert!(err.to_string().contains("l_s"), "{err}");
+}
+
+fn greybox(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_greybox"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn cli_reports_bad_input_without_panicking() {
+    for (args, culprit) in [
+        (vec!["fit", "no/such/file.csv", "-p", "4"], "no/such/file.csv"),
+        (vec!["fit", "data/sample.csv.gz", "-p", "0"], "pole pairs"),
+        (vec!["fit", "data/sample.csv.gz", "-p", "4", "--col-ud", "u_d_missing"], "u_d_missing"),
+        (vec!["fit", "data/sample.csv.gz", "-p", "4", "--start", "1,2"], "start"),
+        (vec!["fit", "data/sample.csv.gz", "-p", "4", "--weighting", "low-speed:-5"], "corner speed"),
+    ] {
+        let out = greybox(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+        assert!(err.contains(culprit), "{args:?}: expected `{culprit}` in: {err}");
+    }
+}
+
+#[test]
+fn cli_fit_prints_a_table_and_writes_the_json_report() {
+    let json = std::env::temp_dir().join(format!("greybox-cli-{}.json", std::process::id()));
+    let out = greybox(&["fit", "data/sample.csv.gz", "-p", "4", "--json", json.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let table = String::from_utf8_lossy(&out.stdout);
+    for word in ["r_s", "l_s", "k_e", "k_t", "psi_f", "95 % interval", "converged"] {
+        assert!(table.contains(word), "table lacks {word}:\n{table}");
+    }
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    std::fs::remove_file(&json).ok();
+    assert_eq!(v["model"], "pmsm_spm");
+    let names: Vec<&str> =
+        v["parameters"].as_array().unwrap().iter().map(|p| p["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["r_s", "l_s", "k_e"]);
+    for p in v["parameters"].as_array().unwrap() {
+        for key in ["unit", "value", "std_error", "ci95", "error_index_percent", "fixed"] {
+            assert!(!p[key].is_null(), "parameter lacks {key}: {p}");
+        }
+        assert_eq!(p["ci95"].as_array().unwrap().len(), 2);
+    }
+    let derived: Vec<&str> =
+        v["derived"].as_array().unwrap().iter().map(|p| p["name"].as_str().unwrap()).collect();
+    assert_eq!(derived, ["k_t", "psi_f"]);
+    for key in ["fit_percent", "rms_residual", "loss", "aic", "bic"] {
+        assert!(!v["fit"][key].is_null(), "fit lacks {key}");
+    }
+    assert_eq!(v["solver"]["name"], "lm");
+    assert_eq!(v["solver"]["success"], true);
+    assert!(v["solver"]["iterations"].as_u64().unwrap() > 0);
+    assert!(v["solver"]["termination"].is_string());
+    for key in ["read_s", "fit_s", "total_s"] {
+        assert!(v["timing"][key].as_f64().unwrap() >= 0.0, "timing lacks {key}");
+    }
+}
