@@ -29,6 +29,9 @@
 //! # Ok(()) }
 //! ```
 #![warn(missing_docs)]
+// Units are written in brackets, `[V]`, `[rad/s]`, as in the field's texts; rustdoc would
+// read them as links.
+#![allow(rustdoc::broken_intra_doc_links)]
 
 pub mod data;
 pub mod error;

@@ -71,9 +71,9 @@ struct FitArgs {
     /// Robust fit with Huber's loss; the value is c in δ = c·σ̂ (default 1.345 when given without value).
     #[arg(long, num_args = 0..=1, default_missing_value = "1.345")]
     huber: Option<f64>,
-    /// Estimate each log's initial state instead of taking the first measured currents.
+    /// Take the first measured currents as the exact initial state instead of estimating it.
     #[arg(long)]
-    estimate_x0: bool,
+    fixed_x0: bool,
     /// Maximum number of solver iterations.
     #[arg(long, default_value_t = Tolerances::default().max_iters)]
     max_iters: u64,
@@ -238,7 +238,9 @@ fn parse_weighting(s: &str) -> Result<WeightingKind, String> {
             SpeedShape::Band { lo: num(1)?, hi: num(2)?, floor: if parts.len() == 4 { num(3)? } else { 0.0 } }
         }
         _ => {
-            return Err(format!("`{s}`: expected uniform, low-speed:W0, high-speed:W0 or band:LO:HI[:FLOOR]"));
+            return Err(format!(
+                "`{s}`: expected uniform, low-speed:W0, high-speed:W0 or band:LO:HI[:FLOOR]"
+            ));
         }
     };
     greybox::estimate::weighting::SpeedWeighting::try_new(shape).map_err(|e| e.to_string())?;
@@ -279,7 +281,7 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
             per_experiment: a.per_log.clone(),
             weighting: a.weighting,
             huber: a.huber,
-            estimate_x0: a.estimate_x0,
+            estimate_x0: !a.fixed_x0,
             progress: true,
             ..PemOptions::default()
         },

@@ -65,7 +65,10 @@ pub struct PemOptions {
     /// robust scale `1.4826 MAD` of the residuals of a preceding quadratic fit. `None` =
     /// quadratic loss.
     pub huber: Option<f64>,
-    /// Estimate each experiment's initial state instead of taking the first measurement.
+    /// Estimate each experiment's initial state (n_x nuisance parameters per experiment)
+    /// instead of taking the first measurement as exact. On by default: noise on the first
+    /// sample otherwise propagates through the first time constants of every residual and
+    /// the reported intervals come out too narrow on short noisy records.
     pub estimate_x0: bool,
     /// Show a progress spinner on stderr (only when stderr is a terminal).
     pub progress: bool,
@@ -82,7 +85,7 @@ impl Default for PemOptions {
             output_weights: None,
             weighting: WeightingKind::Uniform,
             huber: None,
-            estimate_x0: false,
+            estimate_x0: true,
             progress: false,
         }
     }
@@ -314,11 +317,11 @@ pub(crate) fn assemble<M: GreyBoxModel>(
             order.push(g);
         }
     }
+    let mut initial_states = Vec::new();
     for (g, f) in problem.free().iter().enumerate() {
         if let (FreeKind::InitialState(i), Some(e)) = (f.kind, f.experiment) {
             let x0 = problem.terms()[e].prep.x0[i];
-            parameters.push(estimate(g, state_names[i].clone(), String::new(), x0));
-            order.push(g);
+            initial_states.push(estimate(g, state_names[i].clone(), model.state_unit(i), x0));
         }
     }
     let correlation = match &cov_theta {
@@ -326,7 +329,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
             .iter()
             .map(|&a| order.iter().map(|&b| c[(a, b)] / (c[(a, a)] * c[(b, b)]).sqrt()).collect())
             .collect(),
-        None => vec![vec![f64::NAN; np]; np],
+        None => vec![vec![f64::NAN; order.len()]; order.len()],
     };
     let fit = FitStatistics {
         outputs: model.output_names(),
@@ -356,6 +359,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         hold: None,
         experiments: names,
         parameters,
+        initial_states,
         derived: Vec::new(),
         fit,
         correlation,

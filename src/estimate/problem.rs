@@ -555,6 +555,8 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         let zero = DMatrix::<f64>::zeros(np, np);
         let (mut cost, mut e2w, mut count) = (0.0, 0.0, 0usize);
         let (mut sse, mut sum_y, mut sum_y2) = (vec![0.0; ny], vec![0.0; ny], vec![0.0; ny]);
+        // Residuals of samples with non-zero weight: the noise estimate ignores weighted-out ones.
+        let (mut sse_live, mut n_live) = (vec![0.0; ny], vec![0usize; ny]);
         let (mut jtj, mut bread) = (zero.clone(), zero.clone());
         // Per output: Σ w² J_iᵀJ_i (quadratic) or Σ w² ψ² J_iᵀJ_i (Huber).
         let mut meat_i = vec![zero.clone(); ny];
@@ -572,6 +574,10 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                     cost += w[i] * rho;
                     e2w += w[i] * eps[i] * eps[i];
                     sse[i] += eps[i] * eps[i];
+                    if w[i] > 0.0 {
+                        sse_live[i] += eps[i] * eps[i];
+                        n_live[i] += 1;
+                    }
                     let d = y[i] - y0[i];
                     ey[i] += d;
                     ey2[i] += d * d;
@@ -601,10 +607,12 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         let sst = (0..ny).map(|i| (sum_y2[i] - sum_y[i] * sum_y[i] / n).max(0.0)).collect();
         let mut meat = zero;
         for (i, mi) in meat_i.iter().enumerate() {
+            let live = n_live[i] as f64;
+            let dof = (live - np as f64 / ny as f64).max(1.0);
             let factor = match self.loss {
-                // σ̂_i² = E_i²/(N − n_p/n_y)
-                Loss::Quadratic => sse[i] / (n - np as f64 / ny as f64).max(1.0),
-                Loss::Huber { .. } => n / (n - np as f64 / ny as f64).max(1.0),
+                // σ̂_i² = E_i²/(N − n_p/n_y) over the samples with non-zero weight.
+                Loss::Quadratic => sse_live[i] / dof,
+                Loss::Huber { .. } => live / dof,
             };
             meat += mi * factor;
         }

@@ -119,11 +119,15 @@ pub struct FitResult {
     pub experiments: Vec<String>,
     /// Estimates, model parameter order (per-experiment copies follow each other).
     pub parameters: Vec<ParameterEstimate>,
+    /// Estimated initial states (`x0_i_d`, `x0_i_q` for the PMSM), one set per experiment;
+    /// empty when the first measurement is taken as the initial state.
+    pub initial_states: Vec<ParameterEstimate>,
     /// Derived quantities.
     pub derived: Vec<DerivedEstimate>,
     /// Goodness of fit.
     pub fit: FitStatistics,
-    /// Correlation matrix of the free parameters (order of the free entries of `parameters`).
+    /// Correlation matrix of the free model parameters (order of the free entries of
+    /// `parameters`; initial states excluded).
     pub correlation: Vec<Vec<f64>>,
     /// Solver report.
     pub solver: SolverReport,
@@ -183,6 +187,10 @@ impl std::fmt::Display for FitResult {
                 name.push_str(" (fixed)");
             }
             row(f, name, p.value, p.std_error, Some(p.ci95), Some(p.error_index_percent), &p.unit)?;
+        }
+        for p in &self.initial_states {
+            let name = format!("{}[{}]", p.name, p.experiment.as_deref().unwrap_or(""));
+            row(f, name, p.value, p.std_error, Some(p.ci95), None, &p.unit)?;
         }
         for d in &self.derived {
             let name = match &d.experiment {

@@ -254,10 +254,11 @@ impl Sub {
         Aug { x: [f_d, f_q], s, v: [self.w_v * t.v[1], -self.w_v * t.v[0]] }
     }
 
-    /// `z ← e^{τM} z` by the Taylor series applied to the vector.
+    /// `z ← e^{τM} z` by the Taylor series applied to the vector; `one` is the constant
+    /// component of z (1 for the step, 0 for its homogeneous part, the state derivative).
     #[inline(always)]
-    fn propagate<const SENS: bool>(&self, z: &mut Aug) {
-        let mut t = self.apply::<SENS>(z, 1.0);
+    fn propagate<const SENS: bool>(&self, z: &mut Aug, one: f64) {
+        let mut t = self.apply::<SENS>(z, one);
         let mut sum = *z;
         sum.add(&t);
         let mut quiet = u8::from(t.negligible::<SENS>(&sum));
@@ -293,8 +294,9 @@ impl Sub {
     }
 }
 
-/// `z ← e^{hM} z`, choosing substeps or scaling and squaring from the spectral scale.
-fn advance<const SENS: bool>(c: &IpmCoefficients, inp: &IpmInputs, k: usize, z: &mut Aug) {
+/// `z ← e^{hM} z`, choosing substeps or scaling and squaring from the spectral scale;
+/// `one` is the constant component of z (see [`Sub::propagate`]).
+fn advance<const SENS: bool>(c: &IpmCoefficients, inp: &IpmInputs, k: usize, z: &mut Aug, one: f64) {
     let w_e = inp.w_e[k];
     let w_v = match inp.hold {
         VoltageHold::Stator => w_e,
@@ -306,14 +308,14 @@ fn advance<const SENS: bool>(c: &IpmCoefficients, inp: &IpmInputs, k: usize, z: 
         return;
     }
     if rho <= RHO_MAX {
-        Sub::new(c, c.h, w_e, inp.emf[k], w_v).propagate::<SENS>(z);
+        Sub::new(c, c.h, w_e, inp.emf[k], w_v).propagate::<SENS>(z, one);
         return;
     }
     let m = (rho / RHO_MAX).ceil();
     if m <= MAX_SUBSTEPS as f64 {
         let sub = Sub::new(c, c.h / m, w_e, inp.emf[k], w_v);
         for _ in 0..m as usize {
-            sub.propagate::<SENS>(z);
+            sub.propagate::<SENS>(z, one);
         }
         return;
     }
@@ -333,7 +335,9 @@ fn advance<const SENS: bool>(c: &IpmCoefficients, inp: &IpmInputs, k: usize, z: 
     for _ in 0..squarings {
         e = e * e;
     }
-    let zn = e * nalgebra::SVector::<f64, NZ>::from(z.to_vector());
+    let mut zv = z.to_vector();
+    zv[NZ - 1] = one;
+    let zn = e * nalgebra::SVector::<f64, NZ>::from(zv);
     *z = Aug::from_vector(zn.as_slice());
 }
 
@@ -355,6 +359,9 @@ impl GreyBoxModel for PmsmIpm {
     }
     fn parameters(&self) -> &[Parameter] {
         &self.params
+    }
+    fn state_unit(&self, _i: usize) -> String {
+        "A".into()
     }
 
     fn prepare(&self, e: &Experiment) -> Result<Prepared<IpmInputs>> {
@@ -425,8 +432,38 @@ impl GreyBoxModel for PmsmIpm {
     fn step(&self, c: &IpmCoefficients, inp: &IpmInputs, k: usize, x: &[f64], x_next: &mut [f64]) {
         let u = inp.u0[k];
         let mut z = Aug { x: [x[0], x[1]], v: [u.re, u.im], ..Aug::default() };
-        advance::<false>(c, inp, k, &mut z);
+        advance::<false>(c, inp, k, &mut z, 1.0);
         x_next.copy_from_slice(&z.x);
+    }
+
+    /// `Φ v`: the step is affine in the state, so its state derivative is the homogeneous
+    /// propagation of v (voltage and constant terms zero).
+    #[inline]
+    fn step_state_derivative(
+        &self,
+        c: &IpmCoefficients,
+        inp: &IpmInputs,
+        k: usize,
+        _x: &[f64],
+        v: &[f64],
+        out: &mut [f64],
+    ) {
+        let mut z = Aug { x: [v[0], v[1]], ..Aug::default() };
+        advance::<false>(c, inp, k, &mut z, 0.0);
+        out.copy_from_slice(&z.x);
+    }
+
+    #[inline]
+    fn output_state_derivative(
+        &self,
+        _c: &IpmCoefficients,
+        _inp: &IpmInputs,
+        _k: usize,
+        _x: &[f64],
+        v: &[f64],
+        out: &mut [f64],
+    ) {
+        out.copy_from_slice(&v[..2]);
     }
 
     fn has_sensitivities(&self) -> bool {
@@ -452,7 +489,7 @@ impl GreyBoxModel for PmsmIpm {
             s: [[s[0], s[4]], [s[1], s[5]], [s[2], s[6]], [s[3], s[7]]],
             v: [u.re, u.im],
         };
-        advance::<true>(c, inp, k, &mut z);
+        advance::<true>(c, inp, k, &mut z, 1.0);
         x_next.copy_from_slice(&z.x);
         for j in 0..4 {
             s_next[j] = z.s[j][0];
@@ -485,7 +522,7 @@ mod tests {
             let m = 8;
             let sub = Sub::new(&c, c.h / m as f64, w_e, emf, w_v);
             for _ in 0..m {
-                sub.propagate::<true>(&mut a);
+                sub.propagate::<true>(&mut a, 1.0);
             }
             let mt = Sub::new(&c, c.h / 8.0, w_e, emf, w_v).dense();
             let mut e = Mat::identity();

@@ -129,6 +129,10 @@ pub trait GreyBoxModel: Sync {
     fn output_names(&self) -> Vec<String>;
     /// Parameter metadata (name, unit, nominal value, bounds, fixed flag), length n_θ.
     fn parameters(&self) -> &[Parameter];
+    /// Unit of state i, for reports (default: empty).
+    fn state_unit(&self, _i: usize) -> String {
+        String::new()
+    }
 
     /// Extracts inputs, measured outputs and the initial state from an experiment.
     ///

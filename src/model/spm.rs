@@ -243,6 +243,9 @@ impl GreyBoxModel for PmsmSpm {
     fn parameters(&self) -> &[Parameter] {
         &self.params
     }
+    fn state_unit(&self, _i: usize) -> String {
+        "A".into()
+    }
 
     fn prepare(&self, e: &Experiment) -> Result<Prepared<SpmInputs>> {
         let (y, x0) = current_outputs(e);
@@ -311,6 +314,19 @@ impl GreyBoxModel for PmsmSpm {
         let r = a * C64::new(v[0], v[1]);
         out[0] = r.re;
         out[1] = r.im;
+    }
+
+    #[inline]
+    fn output_state_derivative(
+        &self,
+        _c: &SpmCoefficients,
+        _inp: &SpmInputs,
+        _k: usize,
+        _x: &[f64],
+        v: &[f64],
+        out: &mut [f64],
+    ) {
+        out.copy_from_slice(&v[..2]);
     }
 
     #[inline]
