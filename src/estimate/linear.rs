@@ -1,4 +1,5 @@
-//! Linear least squares on the dq voltage equations (thesis section 5.2.1, MODEL.md §5).
+//! Linear least squares (LS) and weighted least squares (WLS) on the dq voltage equations
+//! (thesis section 5.2.1, MODEL.md §5).
 //!
 //! Both voltage equations are stacked, one row each per sample interval k, with the
 //! forward difference `(i[k+1] − i[k])/h` and interval means of current and speed, so that
@@ -13,16 +14,25 @@
 //!   u_q: [ i_q,  n_p ω_m i_d,  di_q/dt,  √(2/3) ω_m ]
 //! ```
 //!
-//! Solved by a QR decomposition of the tall regressor matrix (faer). With noisy currents
-//! the derivative column is errors-in-variables and `L` comes out low: use the result as
-//! the start of the prediction-error fit, not as the answer.
+//! [`weighted_least_squares`] optionally passes every signal through the same zero-phase
+//! Butterworth low-pass first ([`crate::estimate::filter`]) and weights both rows of
+//! interval k by the sample weight β_{k+1} of the sample that interval ends in (thesis
+//! eq. 5.11). The tall system is solved by a QR decomposition (faer) of the column-
+//! equilibrated, row-weighted regressor matrix; `R` of that decomposition also gives the
+//! rank check and `(ΦᵀWΦ)⁻¹` for the standard errors and the parametric error index
+//! (thesis 5.3). With noisy currents the derivative column is errors-in-variables and `L`
+//! comes out low: use the result as the start of the prediction-error fit, not as the
+//! answer.
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
+use crate::estimate::filter::{self, Butterworth};
+use crate::estimate::weighting::{Uniform, Weighting};
 use crate::model::spm::SQRT_2_3;
 use faer::prelude::*;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
+use std::fmt;
 
 /// Which machine the regression assumes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -43,26 +53,108 @@ impl MotorKind {
             Self::Ipm => &["r_s", "l_d", "l_q", "k_e"],
         }
     }
+    /// Parameter units in order (`Ω`, `H`, `V s/rad`; K_e per mechanical rad/s).
+    pub fn parameter_units(self) -> &'static [&'static str] {
+        match self {
+            Self::Spm => &["Ω", "H", "V s/rad"],
+            Self::Ipm => &["Ω", "H", "H", "V s/rad"],
+        }
+    }
+}
+
+/// Smallest accepted `|R_jj|` of the QR factor of the column-equilibrated regressors (unit
+/// column norms): below it, column j is numerically a combination of the columns before
+/// it and the estimate is refused as rank deficient.
+pub const RANK_TOLERANCE: f64 = 1e-9;
+
+/// Options of [`weighted_least_squares`]. Plain data with defaults; serialisable.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct LinearOptions {
+    /// Cutoff f_c [Hz] of the zero-phase Butterworth low-pass applied to every signal
+    /// (u_d, u_q, i_d, i_q, w_m) before the regressors are formed; `None` = no filter.
+    /// Must lie in `(0, 1/(2h))` for every experiment.
+    pub prefilter: Option<f64>,
+    /// Order of that filter: even, 2..=[`filter::MAX_ORDER`]; default 4.
+    pub filter_order: usize,
+}
+
+impl Default for LinearOptions {
+    fn default() -> Self {
+        Self { prefilter: None, filter_order: filter::DEFAULT_ORDER }
+    }
 }
 
 /// Result of the linear least-squares estimate.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LinearEstimate {
-    /// Parameter names, e.g. `["r_s", "l_s", "k_e"]`.
+    /// The regression model.
+    pub kind: MotorKind,
+    /// Parameter names, e.g. `["r_s", "l_s", "k_e"]`, length n_θ.
     pub names: Vec<String>,
+    /// Parameter units, e.g. `["Ω", "H", "V s/rad"]`, length n_θ.
+    pub units: Vec<String>,
     /// Estimates θ̂ in SI units (Ω, H, V s/rad), length n_θ.
     pub theta: Vec<f64>,
-    /// Parametric error index `P_i = 100 √(E² [(ΦᵀΦ)⁻¹]_ii) / |θ̂_i|` [%] (thesis 5.3).
+    /// Standard errors, `√(σ̂² [(ΦᵀWΦ)⁻¹]_ii)` with `σ̂² = E²/(rows_w − n_θ)` (rows_w: rows
+    /// of positive weight), same units as θ̂, length n_θ; NaN without degrees of freedom.
+    /// They assume white equation errors, which filtering and errors-in-variables break:
+    /// read them as a scale, not as a confidence statement.
+    pub std_error: Vec<f64>,
+    /// Parametric error index `P_i = 100 √(E² [(ΦᵀWΦ)⁻¹]_ii) / |θ̂_i|` [%] (thesis 5.3,
+    /// appendix B): the relative change of θ_i (the others re-optimised) that doubles E².
+    /// Small is well excited. Length n_θ.
     pub error_index_percent: Vec<f64>,
-    /// RMS equation residual of the d and q rows [V], length 2.
+    /// Weighted squared equation error `E² = Σ β r²` at θ̂ [V²].
+    pub e2: f64,
+    /// Unweighted RMS equation residual of the d and q rows [V], `[d, q]`.
     pub rms_residual: [f64; 2],
-    /// Number of regression rows.
+    /// Number of regression rows (2 per sample interval, all experiments).
     pub rows: usize,
+    /// The sample weighting, by [`Weighting::name`].
+    pub weighting: String,
+    /// The options used.
+    pub options: LinearOptions,
 }
 
-/// Regressor matrix Φ (rows × n_θ, row-major) and voltages y of one experiment.
+impl LinearEstimate {
+    /// Estimate of parameter `name` [SI], if the model has it.
+    pub fn value(&self, name: &str) -> Option<f64> {
+        self.names.iter().position(|n| n == name).map(|i| self.theta[i])
+    }
+}
+
+impl fmt::Display for LinearEstimate {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let filter = match self.options.prefilter {
+            Some(fc) => format!("prefilter Butterworth order {} at {fc} Hz", self.options.filter_order),
+            None => "no prefilter".into(),
+        };
+        writeln!(
+            f,
+            "linear least squares ({:?}; weighting {}; {filter}): {} rows, E² = {:.6e} V²",
+            self.kind, self.weighting, self.rows, self.e2
+        )?;
+        writeln!(
+            f,
+            "  {:<10} {:>14} {:>12} {:>14}  unit",
+            "parameter", "value", "std error", "error index %"
+        )?;
+        for i in 0..self.theta.len() {
+            writeln!(
+                f,
+                "  {:<10} {:>14.7e} {:>12.3e} {:>14.4}  {}",
+                self.names[i], self.theta[i], self.std_error[i], self.error_index_percent[i], self.units[i]
+            )?;
+        }
+        write!(f, "  rms residual: d {:.4e} V, q {:.4e} V", self.rms_residual[0], self.rms_residual[1])
+    }
+}
+
+/// Regressor matrix Φ (rows × n_θ, row-major, rows = 2(N − 1)) and voltages y (length
+/// rows) of one experiment, unfiltered and unweighted.
 ///
-/// Rows alternate d, q for every interval `k = 0..N−2`.
+/// Rows alternate d, q for every interval `k = 0..N−2` (see the module documentation).
 pub fn regressors(e: &Experiment, kind: MotorKind) -> (Vec<f64>, Vec<f64>) {
     let (h, np) = (e.h(), f64::from(e.n_p()));
     let (id, iq, wm) = (e.i_d(), e.i_q(), e.w_m());
@@ -91,12 +183,11 @@ pub fn regressors(e: &Experiment, kind: MotorKind) -> (Vec<f64>, Vec<f64>) {
     (phi, y)
 }
 
-/// Least-squares estimate of θ from one or more experiments of one motor.
+/// Unweighted, unfiltered least-squares estimate of θ from one or more experiments of one
+/// motor: [`weighted_least_squares`] with [`Uniform`] weights and default options.
 ///
 /// # Errors
-/// [`Error::InvalidOption`] for an empty experiment list; [`Error::Numerical`] when the
-/// regressors are rank deficient (e.g. no speed: K_e not identifiable) or the solution is
-/// not finite.
+/// Those of [`weighted_least_squares`].
 ///
 /// # Example
 /// ```no_run
@@ -104,39 +195,126 @@ pub fn regressors(e: &Experiment, kind: MotorKind) -> (Vec<f64>, Vec<f64>) {
 /// # fn main() -> greybox::Result<()> {
 /// let e = greybox::read_csv("data/sample.csv.gz", 4, &Default::default())?;
 /// let ls = least_squares(&[e], MotorKind::Spm)?;
-/// println!("R_s = {:.4} Ω", ls.theta[0]);
+/// println!("{ls}");
 /// # Ok(()) }
 /// ```
 pub fn least_squares(experiments: &[Experiment], kind: MotorKind) -> Result<LinearEstimate> {
-    if experiments.is_empty() {
+    weighted_least_squares(experiments, kind, &Uniform, &LinearOptions::default())
+}
+
+/// Weighted least-squares estimate of θ (model order of `kind`) from one or more
+/// experiments of one motor, `min Σ_k β_{k+1} (|r_d,k|² + |r_q,k|²)` over the stacked
+/// voltage-equation residuals r of every interval k.
+///
+/// Every signal (u_d, u_q, i_d, i_q, w_m) of each experiment is first filtered with the
+/// same zero-phase Butterworth low-pass when `options.prefilter` is set; the weights β come
+/// from `weighting` on the experiment as given (unfiltered).
+///
+/// # Errors
+/// [`Error::InvalidOption`] for an empty experiment list (option `experiments`),
+/// experiments with different pole-pair numbers (`pole pairs`), a filter order that is 0,
+/// odd or too large (`filter_order`), a cutoff not in `(0, 1/(2h))` for some experiment
+/// (`prefilter`, naming the experiment), weights that are negative, non-finite, all zero or
+/// of the wrong length (`weighting`); [`Error::Numerical`] when a parameter is not
+/// excited (its regressor column is zero) or not identifiable (its column is numerically a
+/// combination of the earlier ones, [`RANK_TOLERANCE`]), naming the parameter, or when the
+/// solution is not finite.
+///
+/// # Source
+/// Thesis 5.2.1 (regression), eq. 5.11 (sample weights), 5.3 and appendix B (error index);
+/// MODEL.md §4–5.
+pub fn weighted_least_squares(
+    experiments: &[Experiment],
+    kind: MotorKind,
+    weighting: &dyn Weighting,
+    options: &LinearOptions,
+) -> Result<LinearEstimate> {
+    let first = experiments.first().ok_or_else(|| Error::InvalidOption {
+        option: "experiments".into(),
+        reason: "no experiment given".into(),
+    })?;
+    if let Some(e) = experiments.iter().find(|e| e.n_p() != first.n_p()) {
         return Err(Error::InvalidOption {
-            option: "experiments".into(),
-            reason: "no experiment given".into(),
+            option: "pole pairs".into(),
+            reason: format!(
+                "`{}` has n_p = {} but `{}` has n_p = {}: one estimate needs one motor",
+                e.name(),
+                e.n_p(),
+                first.name(),
+                first.n_p()
+            ),
         });
     }
-    let cols = kind.parameter_names().len();
-    let (mut phi, mut y) = (Vec::new(), Vec::new());
+    filter::check_order(options.filter_order).map_err(|e| rename_option(e, "filter_order", None))?;
+    let names = kind.parameter_names();
+    let cols = names.len();
+    // Unweighted rows, and √β per row.
+    let (mut phi, mut y, mut sw) = (Vec::new(), Vec::new(), Vec::new());
     for e in experiments {
-        let (p, v) = regressors(e, kind);
+        let filtered;
+        let data = match options.prefilter {
+            Some(fc) => {
+                let bw = Butterworth::try_new(options.filter_order, fc, e.h())
+                    .map_err(|err| rename_option(err, "prefilter", Some(e.name())))?;
+                filtered = bw.filtfilt_experiment(e)?;
+                &filtered
+            }
+            None => e,
+        };
+        let (p, v) = regressors(data, kind);
+        if weighting.is_uniform() {
+            sw.resize(sw.len() + v.len(), 1.0);
+        } else {
+            let beta = weighting.weights(e)?;
+            if beta.len() != e.len() {
+                return Err(Error::InvalidOption {
+                    option: "weighting".into(),
+                    reason: format!(
+                        "{} gave {} weights for the {} samples of `{}`",
+                        weighting.name(),
+                        beta.len(),
+                        e.len(),
+                        e.name()
+                    ),
+                });
+            }
+            // Interval k ends in sample k + 1: both its rows take β_{k+1}.
+            sw.extend(beta[1..].iter().flat_map(|b| [b.sqrt(), b.sqrt()]));
+        }
         phi.extend(p);
         y.extend(v);
     }
     let rows = y.len();
     // Column equilibration keeps the QR well scaled (columns differ by ~10⁴).
-    let norms: Vec<f64> =
-        (0..cols).map(|j| (0..rows).map(|i| phi[i * cols + j].powi(2)).sum::<f64>().sqrt()).collect();
+    let norms: Vec<f64> = (0..cols)
+        .map(|j| (0..rows).map(|i| (sw[i] * phi[i * cols + j]).powi(2)).sum::<f64>().sqrt())
+        .collect();
     if let Some(j) = norms.iter().position(|&n| !(n > 0.0 && n.is_finite())) {
         return Err(Error::Numerical {
             context: "linear least squares".into(),
             reason: format!(
-                "regressor of `{}` is zero or not finite: the data do not excite it",
-                kind.parameter_names()[j]
+                "regressor of `{}` is zero or not finite (after weighting): the data do not excite it",
+                names[j]
             ),
         });
     }
-    let a = Mat::<f64>::from_fn(rows, cols, |i, j| phi[i * cols + j] / norms[j]);
-    let b = Mat::<f64>::from_fn(rows, 1, |i, _| y[i]);
-    let sol = a.qr().solve_lstsq(&b);
+    let a = Mat::<f64>::from_fn(rows, cols, |i, j| sw[i] * phi[i * cols + j] / norms[j]);
+    let b = Mat::<f64>::from_fn(rows, 1, |i, _| sw[i] * y[i]);
+    let qr = a.qr();
+    let r = qr.thin_R();
+    if let Some(j) = (0..cols).find(|&j| r[(j, j)].is_nan() || r[(j, j)].abs() < RANK_TOLERANCE) {
+        return Err(Error::Numerical {
+            context: "linear least squares".into(),
+            reason: format!(
+                "rank deficient: the regressor of `{}` is (nearly) a combination of those of `{}` \
+                 (|R_jj| = {:.1e} < {RANK_TOLERANCE:e}); the data do not separate these parameters",
+                names[j],
+                names[..j].join("`, `"),
+                r[(j, j)].abs()
+            ),
+        });
+    }
+    let sol = qr.solve_lstsq(&b);
     let theta: Vec<f64> = (0..cols).map(|j| sol[(j, 0)] / norms[j]).collect();
     if theta.iter().any(|t| !t.is_finite()) {
         return Err(Error::Numerical {
@@ -144,38 +322,54 @@ pub fn least_squares(experiments: &[Experiment], kind: MotorKind) -> Result<Line
             reason: "solution is not finite".into(),
         });
     }
-    let mut sse = [0.0; 2];
-    let mut gram = DMatrix::<f64>::zeros(cols, cols);
+    let (mut sse, mut e2) = ([0.0; 2], 0.0);
     for i in 0..rows {
         let row = &phi[i * cols..(i + 1) * cols];
-        let r = y[i] - row.iter().zip(&theta).map(|(a, b)| a * b).sum::<f64>();
-        sse[i % 2] += r * r;
-        for a in 0..cols {
-            for b in 0..cols {
-                gram[(a, b)] += row[a] * row[b] / (norms[a] * norms[b]);
-            }
-        }
+        let res = y[i] - row.iter().zip(&theta).map(|(a, b)| a * b).sum::<f64>();
+        sse[i % 2] += res * res;
+        e2 += (sw[i] * res).powi(2);
     }
-    let e2 = sse[0] + sse[1];
-    let inv_diag = covariance_diagonal(&gram)
-        .map(|d| DVector::from_iterator(cols, d.iter().enumerate().map(|(j, v)| v / (norms[j] * norms[j]))));
-    let error_index_percent = (0..cols)
-        .map(|j| match &inv_diag {
-            Some(d) => 100.0 * (e2 * d[j]).sqrt() / theta[j].abs(),
-            None => f64::INFINITY,
-        })
-        .collect();
+    // diag((ΦᵀWΦ)⁻¹) = diag(D⁻¹ R⁻¹ R⁻ᵀ D⁻¹): squared row norms of R⁻¹, unscaled.
+    let r_inv = DMatrix::from_fn(cols, cols, |i, j| r[(i, j)])
+        .solve_upper_triangular(&DMatrix::identity(cols, cols))
+        .ok_or_else(|| Error::Numerical {
+            context: "linear least squares".into(),
+            reason: "triangular factor R is singular".into(),
+        })?;
+    let inv_diag: Vec<f64> = (0..cols).map(|j| r_inv.row(j).norm_squared() / norms[j].powi(2)).collect();
+    let rows_w = sw.iter().filter(|w| **w > 0.0).count();
+    let sigma2 = if rows_w > cols { e2 / (rows_w - cols) as f64 } else { f64::NAN };
+    let half = (rows / 2) as f64;
     Ok(LinearEstimate {
-        names: kind.parameter_names().iter().map(|s| s.to_string()).collect(),
+        kind,
+        names: names.iter().map(|s| s.to_string()).collect(),
+        units: kind.parameter_units().iter().map(|s| s.to_string()).collect(),
+        std_error: inv_diag.iter().map(|d| (sigma2 * d).sqrt()).collect(),
+        error_index_percent: inv_diag
+            .iter()
+            .zip(&theta)
+            .map(|(d, t)| 100.0 * (e2 * d).sqrt() / t.abs())
+            .collect(),
         theta,
-        error_index_percent,
-        rms_residual: [(sse[0] / (rows / 2) as f64).sqrt(), (sse[1] / (rows / 2) as f64).sqrt()],
+        e2,
+        rms_residual: [(sse[0] / half).sqrt(), (sse[1] / half).sqrt()],
         rows,
+        weighting: weighting.name(),
+        options: options.clone(),
     })
 }
 
-/// Diagonal of `G⁻¹` for a symmetric positive definite G, via Cholesky; `None` if singular.
-pub(crate) fn covariance_diagonal(g: &DMatrix<f64>) -> Option<DVector<f64>> {
-    let inv = g.clone().cholesky()?.inverse();
-    Some(inv.diagonal())
+/// Renames the option of an [`Error::InvalidOption`] from the filter to the field of
+/// [`LinearOptions`], adding the experiment's name.
+fn rename_option(err: Error, option: &str, experiment: Option<&str>) -> Error {
+    match err {
+        Error::InvalidOption { reason, .. } => Error::InvalidOption {
+            option: option.into(),
+            reason: match experiment {
+                Some(name) => format!("{reason} (experiment `{name}`)"),
+                None => reason,
+            },
+        },
+        other => other,
+    }
 }

@@ -6,6 +6,7 @@
 //! statistics of the estimate. The PMSM-specific layer (least-squares start, voltage-hold
 //! selection, derived `K_t`, `ψ_f`) is [`crate::pmsm`].
 
+pub mod filter;
 pub mod linear;
 pub mod lm;
 pub mod problem;
