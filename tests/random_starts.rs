@@ -1,0 +1,93 @@
+//! Basin of attraction of the global minimum: from random starts with every parameter
+//! drawn log-uniformly in [0.2×, 5×] of the truth, Levenberg-Marquardt must reach the
+//! estimate of the fit from the least-squares start (to 1e-6 relative) in ≥ 99 % of the
+//! starts. The truth is used only to centre the random starts, which is the point here.
+
+mod common;
+
+use common::{Rng, exciting_signals, load, rel, simulate_into};
+use greybox::Experiment;
+use greybox::model::{PmsmSpm, VoltageHold};
+use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
+
+const NAMES: [&str; 3] = ["r_s", "l_s", "k_e"];
+/// Starts lie in `[truth / SPAN, truth × SPAN]`, log-uniform.
+const SPAN: f64 = 5.0;
+
+fn estimate(fit: &greybox::estimate::FitResult) -> Vec<f64> {
+    NAMES.iter().map(|n| fit.parameter(n).expect("estimated").value).collect()
+}
+
+fn show(v: &[f64]) -> String {
+    format!("[{}]", v.iter().map(|x| format!("{x:.6e}")).collect::<Vec<_>>().join(", "))
+}
+
+/// Fits `log` from `starts` random starts around `truth`; returns the fraction [%] that
+/// reach the least-squares-start estimate, printing every start that does not.
+fn success_rate(label: &str, log: &Experiment, truth: [f64; 3], starts: usize, seed: u64) -> f64 {
+    let opts = PmsmFitOptions { hold: HoldChoice::Stator, ..Default::default() };
+    let reference = fit_pmsm(std::slice::from_ref(log), &opts).expect("fit from the LS start");
+    assert!(reference.solver.success, "{label}: LS-start fit: {}", reference.solver.termination);
+    let best = estimate(&reference);
+    eprintln!("{label}: LS-start fit {}, loss {:.6e}", show(&best), reference.fit.loss);
+    let mut rng = Rng(seed);
+    let (mut reached, mut iterations) = (0usize, 0u64);
+    for i in 0..starts {
+        let start: Vec<f64> =
+            truth.iter().map(|t| t * (SPAN.ln() * (2.0 * rng.uniform() - 1.0)).exp()).collect();
+        let o = PmsmFitOptions { start: Some(start.clone()), ..opts.clone() };
+        match fit_pmsm(std::slice::from_ref(log), &o) {
+            Ok(fit) => {
+                iterations += fit.solver.iterations;
+                let end = estimate(&fit);
+                if end.iter().zip(&best).all(|(a, b)| rel(*a, *b) < 1e-6) {
+                    reached += 1;
+                } else {
+                    eprintln!(
+                        "{label}: start {i} {} ended at {}: {} after {} iterations, loss {:.6e}",
+                        show(&start),
+                        show(&end),
+                        fit.solver.termination,
+                        fit.solver.iterations,
+                        fit.fit.loss
+                    );
+                }
+            }
+            Err(e) => eprintln!("{label}: start {i} {}: error {e}", show(&start)),
+        }
+    }
+    let rate = 100.0 * reached as f64 / starts as f64;
+    eprintln!(
+        "{label}: {reached} of {starts} starts reach the global minimum ({rate:.1} %), mean {:.1} iterations",
+        iterations as f64 / starts as f64
+    );
+    rate
+}
+
+/// A simulated SPM record (stator hold, 3000 samples, speed to 250 rad/s) with light
+/// current noise (σ 0.05 A).
+#[test]
+fn simulated_record_from_400_random_starts() {
+    let truth = [0.9, 4.5e-3, 0.539];
+    let mut rng = Rng(77);
+    let signals = exciting_signals(3000, 1e-4, 250.0, 60.0, truth[2], &mut rng);
+    let clean = simulate_into(&PmsmSpm::new(VoltageHold::Stator), &truth, 1e-4, 4, signals);
+    let mut s = clean.signals().clone();
+    let mut noise = Rng(99);
+    for v in s.i_d.iter_mut().chain(s.i_q.iter_mut()) {
+        *v += 0.05 * noise.normal();
+    }
+    let log = Experiment::try_new("simulated", 1e-4, 4, s).expect("valid signals");
+    let rate = success_rate("simulated", &log, truth, 400, 12345);
+    assert!(rate >= 99.0, "simulated record: only {rate:.1} % of the random starts reach the minimum");
+}
+
+/// The first 2.5 s of the servo log: ±30 rad/s, +100 rad/s and the whole −4 A
+/// d-current injection (0.9–1.7 s).
+#[test]
+fn servo_log_from_200_random_starts() {
+    let (log, t) = load("servo_spm_moves_idinj");
+    let log = log.slice(0..25_000).expect("2.5 s of the log");
+    let rate = success_rate("servo 0–2.5 s", &log, [t.r_s, t.l_d, t.k_e], 200, 54321);
+    assert!(rate >= 99.0, "servo log: only {rate:.1} % of the random starts reach the minimum");
+}
