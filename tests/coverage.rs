@@ -3,19 +3,19 @@
 //! must contain the truth in 95 % of the realisations (MODEL.md §5: output error is
 //! unbiased under white measurement noise, and `σ̂² (JᵀJ)⁻¹` is its covariance).
 //!
-//! The output-error simulation starts from the measured `i[0]` and treats it as exact
-//! (`Prepared::x0`). Noise on `i[0]` then enters every residual of the first L/R time
-//! constants coherently, which the reported covariance does not account for; on a record
-//! of 2500 samples that widens the spread of `l_s` by ≈ 7–12 % (see the ignored test).
-//! The two passing tests check the covariance where its assumption holds: with `i[0]`
-//! exact, and with the initial transient weighted out.
+//! By default the fit estimates the initial state (`PemOptions::estimate_x0`). Taking the
+//! measured, noisy `i[0]` as exact instead lets its error enter every residual of the
+//! first L/R time constants coherently; on a record of 2500 samples that widened the
+//! spread of `l_s` by ≈ 7 % (measured l_s coverage 91.7 % with a fixed x0). The other two
+//! tests check the fixed-x0 path where its assumption holds: with `i[0]` exact, and with
+//! the initial transient weighted out.
 
 mod common;
 
 use common::{Rng, exciting_signals, simulate_into};
 use greybox::estimate::linear::{MotorKind, least_squares};
 use greybox::estimate::weighting::CustomWeighting;
-use greybox::estimate::{FitResult, fit_with_weighting};
+use greybox::estimate::{FitResult, PemOptions, fit_with_weighting};
 use greybox::model::{PmsmSpm, VoltageHold};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
 use greybox::{Experiment, Signals};
@@ -97,11 +97,12 @@ fn assert_band(label: &str, cov: [f64; 3]) {
 }
 
 /// i[0] exact (the drive starts from standstill with zero current), noise on every
-/// later sample; plain `fit_pmsm`.
+/// later sample; the first sample taken as the exact initial state.
 #[test]
 fn ci95_coverage_with_exact_initial_state() {
     let clean = clean_record();
-    let opts = PmsmFitOptions { hold: HoldChoice::Stator, ..Default::default() };
+    let pem = PemOptions { estimate_x0: false, ..Default::default() };
+    let opts = PmsmFitOptions { hold: HoldChoice::Stator, pem, ..Default::default() };
     let cov = coverage(|r| fit_pmsm(&[noisy(&clean, seed(r), 1)], &opts).expect("fit runs"));
     assert_band("exact i[0]", cov);
 }
@@ -116,18 +117,15 @@ fn ci95_coverage_with_initial_transient_weighted_out() {
     let cov = coverage(|r| {
         let e = noisy(&clean, seed(r), 0);
         let start = least_squares(std::slice::from_ref(&e), MotorKind::Spm).expect("LS start").theta;
-        fit_with_weighting(&model, &[e], &start, &Default::default(), &skip).expect("fit runs")
+        let pem = PemOptions { estimate_x0: false, ..Default::default() };
+        fit_with_weighting(&model, &[e], &start, &pem, &skip).expect("fit runs")
     });
     assert_band("i[0] noisy, transient weighted out", cov);
 }
 
-/// The done-when item as stated: noise on every sample including i[0], plain `fit_pmsm`.
-/// Measured (1000 realisations): r_s 93.1 %, l_s 91.7 %, k_e 93.8 %; sd of (θ̂ − θ)/se
-/// 1.080, 1.069, 1.061 (0.97–1.00 in the tests above). The error of i[0], taken as exact
-/// by the simulation, is not in the reported covariance. Ignored until the fit estimates
-/// x0 (or accounts for its noise); the two tests above pass with the same record and noise.
+/// The done-when item as stated: noise on every sample including i[0], plain `fit_pmsm`
+/// (which estimates the initial state).
 #[test]
-#[ignore = "src: the covariance ignores the noise of the measured initial state (l_s coverage 91.7 %)"]
 fn ci95_coverage_with_noisy_initial_state() {
     let clean = clean_record();
     let opts = PmsmFitOptions { hold: HoldChoice::Stator, ..Default::default() };
