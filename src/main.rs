@@ -1,14 +1,14 @@
 //! `greybox`: fit PMSM parameters to drive logs from the command line.
 //!
 //! ```text
-//! greybox fit LOG... --pole-pairs N [--model spm|ipm] [--hold auto|dq|stator] [--json PATH]
+//! greybox fit LOG... --pole-pairs N [--model spm|ipm] [--hold auto|dq|stator] [--solver lm|gn] [--json PATH]
 //! ```
 //! The library does the work; this file only maps flags to options and prints.
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use greybox::data::csv::{ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
 use greybox::estimate::linear::MotorKind;
-use greybox::estimate::{PemOptions, ScalingKind, Tolerances};
+use greybox::estimate::{PemOptions, ScalingKind, SolverKind, Tolerances};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -57,6 +57,9 @@ struct FitArgs {
     /// Parameters estimated separately per log, comma separated (e.g. r_s).
     #[arg(long, value_delimiter = ',')]
     per_log: Vec<String>,
+    /// Optimiser: Levenberg-Marquardt (lm) or damped Gauss-Newton with line search (gn).
+    #[arg(long, value_enum, default_value_t = SolverArg::Lm)]
+    solver: SolverArg,
     /// Parameter scaling.
     #[arg(long, value_enum, default_value_t = ScalingArg::Nominal)]
     scaling: ScalingArg,
@@ -146,6 +149,11 @@ enum HoldArg {
     Stator,
 }
 #[derive(Clone, Copy, Debug, ValueEnum)]
+enum SolverArg {
+    Lm,
+    Gn,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
 enum ScalingArg {
     Nominal,
     Log,
@@ -232,6 +240,10 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
         fixed: a.fix.clone(),
         bounds: Vec::new(),
         pem: PemOptions {
+            solver: match a.solver {
+                SolverArg::Lm => SolverKind::Lm,
+                SolverArg::Gn => SolverKind::Gn,
+            },
             tolerances: Tolerances { ftol: a.ftol, xtol: a.xtol, gtol: a.gtol, max_iters: a.max_iters },
             scaling: match a.scaling {
                 ScalingArg::Nominal => ScalingKind::Nominal,

@@ -160,11 +160,14 @@ impl Weighting for SpeedWeighting {
     }
 }
 
+/// A user sample-weight closure `β(experiment, k)`.
+type SampleWeightFn = dyn Fn(&Experiment, usize) -> f64 + Send + Sync;
+
 /// A user closure `β(experiment, k)` with optional output weights.
 #[derive(Clone)]
 pub struct CustomWeighting {
     name: String,
-    f: Arc<dyn Fn(&Experiment, usize) -> f64 + Send + Sync>,
+    f: Arc<SampleWeightFn>,
     output: Option<Vec<f64>>,
 }
 
