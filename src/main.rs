@@ -1,7 +1,7 @@
 //! `greybox`: fit PMSM parameters to drive logs from the command line.
 //!
 //! ```text
-//! greybox fit LOG... --pole-pairs N [--model spm|ipm] [--hold auto|dq|stator] [--json PATH]
+//! greybox fit LOG... --pole-pairs N [--model spm|ipm] [--hold auto|dq|stator] [--solver lm|gn] [--json PATH]
 //! ```
 //! The library does the work; this file only maps flags to options and prints.
 
@@ -9,7 +9,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use greybox::data::csv::{ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
 use greybox::estimate::linear::MotorKind;
 use greybox::estimate::weighting::SpeedShape;
-use greybox::estimate::{PemOptions, ScalingKind, Tolerances, WeightingKind};
+use greybox::estimate::{PemOptions, ScalingKind, SolverKind, Tolerances, WeightingKind};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -58,6 +58,9 @@ struct FitArgs {
     /// Parameters estimated separately per log, comma separated (e.g. r_s).
     #[arg(long, value_delimiter = ',')]
     per_log: Vec<String>,
+    /// Optimiser: Levenberg-Marquardt (lm) or damped Gauss-Newton with line search (gn).
+    #[arg(long, value_enum, default_value_t = SolverArg::Lm)]
+    solver: SolverArg,
     /// Parameter scaling.
     #[arg(long, value_enum, default_value_t = ScalingArg::Nominal)]
     scaling: ScalingArg,
@@ -155,6 +158,11 @@ enum HoldArg {
     Auto,
     Dq,
     Stator,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum SolverArg {
+    Lm,
+    Gn,
 }
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum ScalingArg {
@@ -270,6 +278,10 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
         fixed: a.fix.clone(),
         bounds: Vec::new(),
         pem: PemOptions {
+            solver: match a.solver {
+                SolverArg::Lm => SolverKind::Lm,
+                SolverArg::Gn => SolverKind::Gn,
+            },
             tolerances: Tolerances { ftol: a.ftol, xtol: a.xtol, gtol: a.gtol, max_iters: a.max_iters },
             scaling: match a.scaling {
                 ScalingArg::Nominal => ScalingKind::Nominal,

@@ -9,9 +9,10 @@
 //! cannot be simulated count as a rejected step.
 
 use crate::estimate::solver::{
-    LeastSquares, Termination, Tolerances, damped_solve, is_infeasible, scaled_gradient,
+    LeastSquares, ReportsTermination, Termination, Tolerances, damped_solve, init_state, is_infeasible,
+    scaled_gradient, status,
 };
-use argmin::core::{IterState, KV, Problem, Solver, TerminationReason, TerminationStatus};
+use argmin::core::{IterState, KV, Problem, Solver, TerminationStatus};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
@@ -70,25 +71,11 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
     fn init(
         &mut self,
         problem: &mut Problem<O>,
-        mut state: LsState,
+        state: LsState,
     ) -> Result<(LsState, Option<KV>), argmin::core::Error> {
-        let mut p = state.take_param().ok_or_else(|| crate::Error::Solver("no start vector".into()))?;
-        problem.problem("project_count", |o| {
-            o.project(&mut p);
-            Ok(())
-        })?;
-        let ne = problem.problem("normal_equations_count", |o| Ok(o.normal_equations(&p)?))?;
-        if !ne.cost.is_finite() {
-            return Err(crate::Error::Solver(format!("cost at the start is {}", ne.cost)).into());
-        }
-        self.diag = Some(ne.jtj.diagonal());
-        if ne.cost == 0.0 {
-            self.stop(Termination::ZeroResidual);
-        } else if scaled_gradient(&ne.jtj, &ne.jtr, ne.cost) <= self.tol.gtol {
-            self.stop(Termination::GradientTolerance);
-        }
-        let state =
-            state.param(p).cost(ne.cost).gradient(ne.jtr).hessian(ne.jtj).max_iters(self.tol.max_iters);
+        let (state, t) = init_state(problem, state, &self.tol)?;
+        self.termination = t;
+        self.diag = state.get_hessian().map(|h| h.diagonal());
         Ok((state, Some(argmin::kv!("lambda" => self.lambda;))))
     }
 
@@ -169,10 +156,12 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
     }
 
     fn terminate(&mut self, _state: &LsState) -> TerminationStatus {
-        match &self.termination {
-            Some(t) if t.success() => TerminationStatus::Terminated(TerminationReason::SolverConverged),
-            Some(t) => TerminationStatus::Terminated(TerminationReason::SolverExit(t.to_string())),
-            None => TerminationStatus::NotTerminated,
-        }
+        status(self.termination.as_ref())
+    }
+}
+
+impl ReportsTermination for LevenbergMarquardt {
+    fn termination(&self) -> Option<&Termination> {
+        self.termination.as_ref()
     }
 }

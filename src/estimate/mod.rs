@@ -7,6 +7,7 @@
 //! selection, derived `K_t`, `ψ_f`) is [`crate::pmsm`].
 
 pub mod filter;
+pub mod gn;
 pub mod linear;
 pub mod lm;
 pub mod problem;
@@ -15,10 +16,12 @@ pub mod scaling;
 pub mod solver;
 pub mod weighting;
 
+pub use gn::GaussNewton;
 pub use lm::LevenbergMarquardt;
 pub use problem::{Loss, PemProblem, ProblemOptions};
 pub use result::{DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing};
 pub use scaling::{ParameterScaling, ScalingKind, Transform};
+pub use solver::ReportsTermination;
 pub use solver::{LeastSquares, Termination, Tolerances};
 pub use weighting::{Weighting, WeightingKind};
 
@@ -27,7 +30,8 @@ use crate::error::{Error, Result};
 use crate::model::GreyBoxModel;
 use crate::simulate::Shooting;
 use argmin::core::observers::{Observe, ObserverMode};
-use argmin::core::{Executor, State, TerminationReason};
+use argmin::core::{Executor, Solver, State, TerminationReason};
+use lm::LsState;
 use nalgebra::{DMatrix, DVector};
 use problem::FreeKind;
 use result::t_quantile_975;
@@ -41,6 +45,8 @@ pub enum SolverKind {
     /// Levenberg-Marquardt ([`LevenbergMarquardt`]).
     #[default]
     Lm,
+    /// Damped Gauss-Newton with an Armijo backtracking line search ([`GaussNewton`]).
+    Gn,
 }
 
 /// Options of a prediction-error fit. Plain data with defaults; serialisable.
@@ -211,36 +217,48 @@ pub(crate) fn run_solver<O: LeastSquares>(
         ));
     }
     match options.solver {
-        SolverKind::Lm => {
-            let solver = LevenbergMarquardt::new(options.tolerances);
-            let mut exec = Executor::new(problem, solver)
-                .configure(|s| s.param(p0).max_iters(options.tolerances.max_iters).counting(true));
-            if options.progress {
-                exec = exec.add_observer(Progress::new(), ObserverMode::Always);
-            }
-            let res = exec.run().map_err(Error::from_argmin)?;
-            let counts = res.state.get_func_counts();
-            let evaluations =
-                ["normal_equations_count", "cost_count"].iter().filter_map(|k| counts.get(*k)).sum();
-            let reason = match (res.solver.termination(), res.state.get_termination_reason()) {
-                (Some(t), _) => t.clone(),
-                (None, Some(TerminationReason::MaxItersReached)) => Termination::MaxIterations,
-                (None, r) => Termination::Stopped(r.map(|r| r.text().to_string()).unwrap_or_default()),
-            };
-            let p = res.state.get_best_param().cloned().ok_or_else(|| Error::Solver("no estimate".into()))?;
-            Ok((
-                p,
-                SolverReport {
-                    name: "lm".into(),
-                    iterations: res.state.get_iter(),
-                    termination: reason.to_string(),
-                    success: reason.success(),
-                    reason,
-                    evaluations,
-                },
-            ))
-        }
+        SolverKind::Lm => execute(problem, LevenbergMarquardt::new(options.tolerances), p0, options),
+        SolverKind::Gn => execute(problem, GaussNewton::new(options.tolerances), p0, options),
     }
+}
+
+/// Runs `solver` from `p0` through argmin's executor and reports how it stopped.
+fn execute<'p, O, S>(
+    problem: &'p O,
+    solver: S,
+    p0: DVector<f64>,
+    options: &PemOptions,
+) -> Result<(DVector<f64>, SolverReport)>
+where
+    O: LeastSquares,
+    S: Solver<&'p O, LsState> + ReportsTermination,
+{
+    let name = solver.name().to_string();
+    let mut exec = Executor::new(problem, solver)
+        .configure(|s| s.param(p0).max_iters(options.tolerances.max_iters).counting(true));
+    if options.progress {
+        exec = exec.add_observer(Progress::new(), ObserverMode::Always);
+    }
+    let res = exec.run().map_err(Error::from_argmin)?;
+    let counts = res.state.get_func_counts();
+    let evaluations = ["normal_equations_count", "cost_count"].iter().filter_map(|k| counts.get(*k)).sum();
+    let reason = match (res.solver.termination(), res.state.get_termination_reason()) {
+        (Some(t), _) => t.clone(),
+        (None, Some(TerminationReason::MaxItersReached)) => Termination::MaxIterations,
+        (None, r) => Termination::Stopped(r.map(|r| r.text().to_string()).unwrap_or_default()),
+    };
+    let p = res.state.get_best_param().cloned().ok_or_else(|| Error::Solver("no estimate".into()))?;
+    Ok((
+        p,
+        SolverReport {
+            name,
+            iterations: res.state.get_iter(),
+            termination: reason.to_string(),
+            success: reason.success(),
+            reason,
+            evaluations,
+        },
+    ))
 }
 
 /// Computes the statistics at p̂ and fills a [`FitResult`].

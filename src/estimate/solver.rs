@@ -1,8 +1,10 @@
 //! What the least-squares solvers need from a problem, their tolerances and how they stop.
 
 use crate::error::{Error, Result};
+use crate::estimate::lm::LsState;
 use crate::estimate::problem::{NormalEquations, PemProblem};
 use crate::model::GreyBoxModel;
+use argmin::core::{Problem, TerminationReason, TerminationStatus};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
@@ -132,6 +134,54 @@ impl std::fmt::Display for Termination {
             Self::Stopped(s) => write!(f, "not converged: stopped by the executor ({s})"),
         }
     }
+}
+
+/// A solver that records why it stopped, so that the fit report can say so.
+pub trait ReportsTermination {
+    /// Why the solver stopped, once it has; `None` while running or when argmin stopped it
+    /// (iteration limit, timeout, interrupt).
+    fn termination(&self) -> Option<&Termination>;
+}
+
+/// argmin's status for a solver's own termination reason (`None` = keep going).
+pub(crate) fn status(t: Option<&Termination>) -> TerminationStatus {
+    match t {
+        Some(t) if t.success() => TerminationStatus::Terminated(TerminationReason::SolverConverged),
+        Some(t) => TerminationStatus::Terminated(TerminationReason::SolverExit(t.to_string())),
+        None => TerminationStatus::NotTerminated,
+    }
+}
+
+/// The common start of the solvers: projects the start vector, evaluates the normal
+/// equations there and fills the state (`p`, cost, `JᵀWε`, `JᵀWJ`, `max_iters`). Returns
+/// the state and a termination when the start is already a solution (zero residual or
+/// gradient within `gtol`).
+///
+/// # Errors
+/// No start vector in the state; a non-finite cost at the start; every error of
+/// [`LeastSquares::normal_equations`] (at the start, infeasibility is an error).
+pub(crate) fn init_state<O: LeastSquares>(
+    problem: &mut Problem<O>,
+    mut state: LsState,
+    tol: &Tolerances,
+) -> std::result::Result<(LsState, Option<Termination>), argmin::core::Error> {
+    let mut p = state.take_param().ok_or_else(|| Error::Solver("no start vector".into()))?;
+    problem.problem("project_count", |o| {
+        o.project(&mut p);
+        Ok(())
+    })?;
+    let ne = problem.problem("normal_equations_count", |o| Ok(o.normal_equations(&p)?))?;
+    if !ne.cost.is_finite() {
+        return Err(Error::Solver(format!("cost at the start is {}", ne.cost)).into());
+    }
+    let t = if ne.cost == 0.0 {
+        Some(Termination::ZeroResidual)
+    } else if scaled_gradient(&ne.jtj, &ne.jtr, ne.cost) <= tol.gtol {
+        Some(Termination::GradientTolerance)
+    } else {
+        None
+    };
+    Ok((state.param(p).cost(ne.cost).gradient(ne.jtr).hessian(ne.jtj).max_iters(tol.max_iters), t))
 }
 
 /// MINPACK's scaled gradient norm: `max_j |g_j| / (√H_jj ‖r‖)`, with `‖r‖² = 2 cost`.

@@ -1,0 +1,330 @@
+//! Damped Gauss-Newton with a backtracking (Armijo) line search, as an argmin [`Solver`].
+//!
+//! Each iteration solves the Gauss-Newton normal equations `JᵀWJ δ = JᵀWε` by Cholesky
+//! (no inverse). When `JᵀWJ` is not positive definite (a parameter the data do not
+//! determine), a Levenberg-style shift `μ D`, `D = diag(JᵀWJ)`, is added with μ growing
+//! ×10 from 1e-12 until the factorisation succeeds; the KV entry `shift` reports μ.
+//! Parameters pressed against a bound are held there and the normal equations solved for
+//! the others (KV `held`), so that δ is a descent direction of the bounded problem.
+//!
+//! The step length α starts at 1 and shrinks by the backtracking factor (½) until the
+//! projected trial point `p_α = P(p + α δ)` meets the sufficient-decrease (Armijo)
+//! condition `V(p_α) ≤ V(p) − c₁ (JᵀWε)ᵀ(p_α − p)` (the gradient of V is `−JᵀWε`) and lowers
+//! the cost: a cost increase is never accepted. The search evaluates the cost alone
+//! ([`LeastSquares::cost`]); the normal equations are evaluated once, at the accepted
+//! point. Trial points where the model cannot be simulated count as failed trials.
+//!
+//! Stopping follows the Levenberg-Marquardt solver ([`crate::estimate::LevenbergMarquardt`],
+//! MINPACK conventions, [`Tolerances`]): `gtol` on the scaled gradient, `xtol` on the full
+//! projected Gauss-Newton step (α = 1), `ftol` on the relative decrease of an accepted
+//! step, and [`Termination::NoDescent`] when α falls below its minimum (1e-10). When the
+//! full step fails but both its predicted and its actual relative change of the cost are
+//! at most `ftol`, the cost sits at its rounding floor and the fit stops with
+//! [`Termination::CostTolerance`] (MINPACK's `info = 1` test, Moré et al. 1980).
+//!
+//! Sources: Dennis & Schnabel, *Numerical Methods for Unconstrained Optimization and
+//! Nonlinear Equations*, 1983, section 6.3 (backtracking line search) and 10.2 (damped
+//! Gauss-Newton); Nocedal & Wright, *Numerical Optimization*, 2nd ed., 2006, sections 3.1
+//! (Armijo condition, backtracking) and 10.3 (Gauss-Newton); Björck, *Numerical Methods
+//! for Least Squares Problems*, 1996, section 9.2 (damped Gauss-Newton) and 5.2 (bounds).
+
+use crate::estimate::lm::LsState;
+use crate::estimate::solver::{
+    LeastSquares, ReportsTermination, Termination, Tolerances, damped_solve, init_state, is_infeasible,
+    scaled_gradient, status,
+};
+use argmin::core::{KV, Problem, Solver, TerminationStatus};
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+/// First Levenberg-style shift μ tried when `JᵀWJ` is not positive definite (relative to
+/// `diag(JᵀWJ)`).
+const SHIFT_START: f64 = 1e-12;
+/// Largest shift tried: beyond it the matrix has non-finite entries.
+const SHIFT_MAX: f64 = 1e16;
+
+/// Damped Gauss-Newton solver settings and state.
+///
+/// Defaults: sufficient-decrease constant `c₁ = 1e-4`, backtracking factor ½, minimum
+/// step length `α_min = 1e-10` (Nocedal & Wright 2006, section 3.1).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct GaussNewton {
+    tol: Tolerances,
+    c1: f64,
+    factor: f64,
+    alpha_min: f64,
+    termination: Option<Termination>,
+}
+
+impl GaussNewton {
+    /// A solver with the given tolerances and the default line-search settings.
+    pub fn new(tol: Tolerances) -> Self {
+        Self { tol, c1: 1e-4, factor: 0.5, alpha_min: 1e-10, termination: None }
+    }
+
+    /// Sets the sufficient-decrease (Armijo) constant c₁ (dimensionless, in (0, 1)).
+    ///
+    /// # Errors
+    /// [`crate::Error::InvalidOption`] for c₁ outside (0, 1) or not finite.
+    pub fn with_c1(mut self, c1: f64) -> crate::Result<Self> {
+        self.c1 = open_unit("c1", c1)?;
+        Ok(self)
+    }
+
+    /// Sets the backtracking factor by which α shrinks after a failed trial (in (0, 1)).
+    ///
+    /// # Errors
+    /// [`crate::Error::InvalidOption`] for a factor outside (0, 1) or not finite.
+    pub fn with_backtracking_factor(mut self, factor: f64) -> crate::Result<Self> {
+        self.factor = open_unit("backtracking_factor", factor)?;
+        Ok(self)
+    }
+
+    /// Sets the minimum step length α_min (> 0); below it the line search has failed.
+    ///
+    /// # Errors
+    /// [`crate::Error::InvalidOption`] for α_min not positive and finite, or above 1.
+    pub fn with_min_alpha(mut self, alpha_min: f64) -> crate::Result<Self> {
+        if !(alpha_min.is_finite() && alpha_min > 0.0 && alpha_min <= 1.0) {
+            return Err(crate::Error::InvalidOption {
+                option: "min_alpha".into(),
+                reason: format!("must be in (0, 1], got {alpha_min}"),
+            });
+        }
+        self.alpha_min = alpha_min;
+        Ok(self)
+    }
+
+    /// Why the solver stopped, once it has.
+    pub fn termination(&self) -> Option<&Termination> {
+        self.termination.as_ref()
+    }
+
+    /// The stopping tolerances.
+    pub fn tolerances(&self) -> &Tolerances {
+        &self.tol
+    }
+
+    fn stop(&mut self, t: Termination) {
+        self.termination = Some(t);
+    }
+}
+
+fn open_unit(option: &str, v: f64) -> crate::Result<f64> {
+    if v.is_finite() && v > 0.0 && v < 1.0 {
+        Ok(v)
+    } else {
+        Err(crate::Error::InvalidOption {
+            option: option.into(),
+            reason: format!("must be in (0, 1), got {v}"),
+        })
+    }
+}
+
+/// Solves `H δ = g` by Cholesky, shifted by `μ diag(H)` with μ = 0, 1e-12, 1e-11, … while
+/// `H` is not positive definite. Returns δ and μ; `None` only for non-finite entries.
+fn shifted_solve(h: &DMatrix<f64>, g: &DVector<f64>) -> Option<(DVector<f64>, f64)> {
+    if let Some(c) = h.clone().cholesky() {
+        return Some((c.solve(g), 0.0));
+    }
+    let dmax = h.diagonal().iter().copied().filter(|d| d.is_finite()).fold(0.0, f64::max);
+    let fill = if dmax > 0.0 { dmax } else { 1.0 };
+    let d = h.diagonal().map(|v| if v > 0.0 { v } else { fill });
+    let mut mu = SHIFT_START;
+    while mu <= SHIFT_MAX {
+        if let Some(delta) = damped_solve(h, &d, mu, g) {
+            return Some((delta, mu));
+        }
+        mu *= 10.0;
+    }
+    None
+}
+
+/// The search direction at p with the bounds taken into account.
+struct Direction {
+    /// δ (scaled space, length n_p), zero in the held components.
+    delta: DVector<f64>,
+    /// Largest diagonal shift μ used (0 when `JᵀWJ` was positive definite).
+    shift: f64,
+    /// Number of parameters held at a bound.
+    held: usize,
+}
+
+impl GaussNewton {
+    /// Gauss-Newton direction with parameters held at the bounds they are pressed against:
+    /// first those where the steepest-descent direction `JᵀWε` points out of the box, then
+    /// any whose reduced Gauss-Newton step points out, re-solving the normal equations for
+    /// the others each time (at most n_p rounds). Every parameter at a bound then moves
+    /// inwards or not at all, so short steps need no projection and δ is a descent
+    /// direction (Bertsekas, *SIAM J. Control Optim.* 20(2), 1982; Kelley, *Iterative
+    /// Methods for Optimization*, 1999, section 5.5). Without active bounds this is the
+    /// plain Gauss-Newton step.
+    fn direction<O: LeastSquares>(
+        problem: &mut Problem<O>,
+        p: &DVector<f64>,
+        jtj: &DMatrix<f64>,
+        jtr: &DVector<f64>,
+    ) -> Result<Option<Direction>, argmin::core::Error> {
+        let n = p.len();
+        // Components at a bound that `d` would push out of the box: a short probe along
+        // sign(d) is projected straight back onto p.
+        let mut outward = |d: &DVector<f64>| {
+            let mut q = DVector::from_fn(n, |j, _| p[j] + d[j].signum() * 1e-6 * (p[j].abs() + 1.0));
+            problem.problem("project_count", |o| {
+                o.project(&mut q);
+                Ok(())
+            })?;
+            Ok::<Vec<bool>, argmin::core::Error>((0..n).map(|j| d[j] != 0.0 && q[j] == p[j]).collect())
+        };
+        let mut held = outward(jtr)?;
+        let mut shift: f64 = 0.0;
+        loop {
+            let free: Vec<usize> = (0..n).filter(|&j| !held[j]).collect();
+            let mut delta = DVector::zeros(n);
+            if !free.is_empty() {
+                let h = jtj.select_rows(&free).select_columns(&free);
+                let g = jtr.select_rows(&free);
+                let Some((d, mu)) = shifted_solve(&h, &g) else { return Ok(None) };
+                shift = shift.max(mu);
+                for (k, &j) in free.iter().enumerate() {
+                    delta[j] = d[k];
+                }
+            }
+            let blocked = outward(&delta)?;
+            let mut grew = false;
+            for j in 0..n {
+                if blocked[j] && !held[j] {
+                    held[j] = true;
+                    grew = true;
+                }
+            }
+            if !grew {
+                return Ok(Some(Direction { delta, shift, held: held.iter().filter(|&&h| h).count() }));
+            }
+        }
+    }
+}
+
+impl ReportsTermination for GaussNewton {
+    fn termination(&self) -> Option<&Termination> {
+        self.termination.as_ref()
+    }
+}
+
+impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
+    fn name(&self) -> &str {
+        "gn"
+    }
+
+    fn init(
+        &mut self,
+        problem: &mut Problem<O>,
+        state: LsState,
+    ) -> Result<(LsState, Option<KV>), argmin::core::Error> {
+        let (state, t) = init_state(problem, state, &self.tol)?;
+        self.termination = t;
+        let kv = argmin::kv!("c1" => self.c1; "backtracking_factor" => self.factor; "min_alpha" => self.alpha_min;);
+        Ok((state, Some(kv)))
+    }
+
+    fn next_iter(
+        &mut self,
+        problem: &mut Problem<O>,
+        mut state: LsState,
+    ) -> Result<(LsState, Option<KV>), argmin::core::Error> {
+        let p = state.take_param().ok_or_else(|| crate::Error::Solver("GN: no parameter in state".into()))?;
+        let jtr = state.take_gradient().ok_or_else(|| crate::Error::Solver("GN: no JᵀWε in state".into()))?;
+        let jtj = state.take_hessian().ok_or_else(|| crate::Error::Solver("GN: no JᵀWJ in state".into()))?;
+        let cost = state.get_cost();
+        let keep =
+            |state: LsState, p: DVector<f64>, jtr, jtj| state.param(p).cost(cost).gradient(jtr).hessian(jtj);
+
+        let Some(Direction { delta, shift, held }) = Self::direction(problem, &p, &jtj, &jtr)? else {
+            // Only non-finite entries defeat every shift.
+            self.stop(Termination::NoDescent);
+            let kv = argmin::kv!(
+                "alpha" => 0.0; "shift" => f64::INFINITY; "held" => 0u64; "trials" => 0u64; "accepted" => false;
+            );
+            return Ok((keep(state, p, jtr, jtj), Some(kv)));
+        };
+        let held = held as u64;
+        let project = |problem: &mut Problem<O>, mut x: DVector<f64>| {
+            problem.problem("project_count", |o| {
+                o.project(&mut x);
+                Ok(())
+            })?;
+            Ok::<_, argmin::core::Error>(x)
+        };
+
+        let full = project(problem, &p + &delta)?;
+        let full_step = &full - &p;
+        if full_step.norm() <= self.tol.xtol * (p.norm() + self.tol.xtol) {
+            self.stop(Termination::StepTolerance);
+            let kv = argmin::kv!(
+                "alpha" => 1.0; "shift" => shift; "held" => held; "trials" => 0u64; "accepted" => false;
+            );
+            return Ok((keep(state, p, jtr, jtj), Some(kv)));
+        }
+        // Decrease of the quadratic model for the full projected step.
+        let predicted = full_step.dot(&jtr) - 0.5 * full_step.dot(&(&jtj * &full_step));
+
+        let mut alpha = 1.0;
+        let mut trials = 0u64;
+        let mut trial = full;
+        loop {
+            trials += 1;
+            let step = &trial - &p;
+            let c = problem.problem("cost_count", |o| match o.cost(&trial) {
+                Ok(c) => Ok(Some(c)),
+                Err(e) if is_infeasible(&e) => Ok(None),
+                Err(e) => Err(e.into()),
+            })?;
+            let armijo = cost - self.c1 * jtr.dot(&step);
+            if let Some(c) = c.filter(|c| c.is_finite() && *c < cost && *c <= armijo) {
+                let ne = problem.problem("normal_equations_count", |o| match o.normal_equations(&trial) {
+                    Ok(ne) => Ok(Some(ne)),
+                    Err(e) if is_infeasible(&e) => Ok(None),
+                    Err(e) => Err(e.into()),
+                })?;
+                // The two evaluations agree to rounding; the state keeps the normal
+                // equations' cost, which must also be a decrease.
+                if let Some(ne) = ne.filter(|ne| ne.cost.is_finite() && ne.cost < cost) {
+                    let actual = cost - ne.cost;
+                    if ne.cost == 0.0 {
+                        self.stop(Termination::ZeroResidual);
+                    } else if actual <= self.tol.ftol * cost {
+                        self.stop(Termination::CostTolerance);
+                    } else if scaled_gradient(&ne.jtj, &ne.jtr, ne.cost) <= self.tol.gtol {
+                        self.stop(Termination::GradientTolerance);
+                    }
+                    let kv = argmin::kv!(
+                        "alpha" => alpha; "shift" => shift; "held" => held; "trials" => trials;
+                        "accepted" => true; "cost_search" => c;
+                    );
+                    return Ok((state.param(trial).cost(ne.cost).gradient(ne.jtr).hessian(ne.jtj), Some(kv)));
+                }
+            }
+            let negligible = |d: f64| d.abs() <= self.tol.ftol * cost;
+            if trials == 1 && negligible(predicted) && c.is_some_and(|c| negligible(cost - c)) {
+                // Even the full step cannot lower the cost by more than ftol: the cost is
+                // at its rounding floor and backtracking would only chase rounding noise.
+                self.stop(Termination::CostTolerance);
+                break;
+            }
+            alpha *= self.factor;
+            if alpha < self.alpha_min {
+                self.stop(Termination::NoDescent);
+                break;
+            }
+            trial = project(problem, &p + &delta * alpha)?;
+        }
+        let kv = argmin::kv!(
+            "alpha" => alpha; "shift" => shift; "held" => held; "trials" => trials; "accepted" => false;
+        );
+        Ok((keep(state, p, jtr, jtj), Some(kv)))
+    }
+
+    fn terminate(&mut self, _state: &LsState) -> TerminationStatus {
+        status(self.termination.as_ref())
+    }
+}
