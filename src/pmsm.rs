@@ -11,6 +11,7 @@
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
+use crate::estimate::diagnostics::StartComparison;
 use crate::estimate::linear::{MotorKind, least_squares};
 use crate::estimate::{DerivedEstimate, FitResult, PemOptions, fit};
 use crate::model::{GreyBoxModel, PmsmIpm, PmsmSpm, VoltageHold};
@@ -88,6 +89,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     }
     let names = options.model.parameter_names();
     let mut notes = Vec::new();
+    let mut ls_theta = None;
     let start = match &options.start {
         Some(s) => {
             if s.len() != names.len() {
@@ -124,6 +126,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                     .collect::<Vec<_>>()
                     .join(", ")
             ));
+            ls_theta = Some(ls.theta.clone());
             ls.theta
         }
     };
@@ -178,6 +181,21 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         ));
     }
     result.derived = derived(&result, first.n_p());
+    if let Some(ls) = ls_theta {
+        result.diagnostics.start_comparison = names
+            .iter()
+            .zip(&ls)
+            .filter_map(|(n, &l)| {
+                let p = result.parameter(n)?;
+                (!p.fixed).then(|| StartComparison {
+                    name: n.to_string(),
+                    least_squares: l,
+                    pem: p.value,
+                    difference_percent: 100.0 * (l - p.value) / p.value,
+                })
+            })
+            .collect();
+    }
     notes.append(&mut result.notes);
     result.notes = notes;
     result.timing.fit_s = t0.elapsed().as_secs_f64();

@@ -6,6 +6,7 @@
 //! statistics of the estimate. The PMSM-specific layer (least-squares start, voltage-hold
 //! selection, derived `K_t`, `ψ_f`) is [`crate::pmsm`].
 
+pub mod diagnostics;
 pub mod filter;
 pub mod gn;
 pub mod linear;
@@ -31,6 +32,7 @@ use crate::model::GreyBoxModel;
 use crate::simulate::Shooting;
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Executor, Solver, State, TerminationReason};
+use diagnostics::{DiagnosticThresholds, diagnose};
 use lm::LsState;
 use nalgebra::{DMatrix, DVector};
 use problem::FreeKind;
@@ -77,6 +79,8 @@ pub struct PemOptions {
     /// sample otherwise propagates through the first time constants of every residual and
     /// the reported intervals come out too narrow on short noisy records.
     pub estimate_x0: bool,
+    /// Thresholds of the identifiability diagnostics.
+    pub diagnostics: DiagnosticThresholds,
     /// Show a progress spinner on stderr (only when stderr is a terminal).
     pub progress: bool,
 }
@@ -93,6 +97,7 @@ impl Default for PemOptions {
             weighting: WeightingKind::Uniform,
             huber: None,
             estimate_x0: true,
+            diagnostics: DiagnosticThresholds::default(),
             progress: false,
         }
     }
@@ -186,7 +191,7 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
             robust
         }
     };
-    let mut result = assemble(&problem, &p_hat, start, report)?;
+    let mut result = assemble(&problem, &p_hat, start, report, &options.diagnostics)?;
     result.notes.append(&mut notes);
     if !uniform {
         result.notes.push(format!("sample weighting: {}", weighting.name()));
@@ -267,6 +272,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     p: &DVector<f64>,
     start: &[f64],
     solver: SolverReport,
+    thresholds: &DiagnosticThresholds,
 ) -> Result<FitResult> {
     let model = problem.model();
     let params = model.parameters();
@@ -278,8 +284,10 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     let sse_total: f64 = sums.sse.iter().sum();
     // Inverses for the reported covariance and error index (the one explicit inverse,
     // STYLE.md rule 7): bread⁻¹ meat bread⁻¹ (sandwich) and (JᵀWJ)⁻¹.
-    let info_inv: Option<DMatrix<f64>> = sums.jtj.clone().cholesky().map(|c| c.inverse());
-    let bread_inv: Option<DMatrix<f64>> = sums.bread.clone().cholesky().map(|c| c.inverse());
+    // Parameters the data do not see at all (a zero column, e.g. an initial state whose
+    // transient is weighted out) are left out of the inversion and get an infinite error.
+    let info_inv = inverse_on_support(&sums.jtj);
+    let bread_inv = inverse_on_support(&sums.bread);
     let dtheta: Vec<f64> =
         problem.free().iter().enumerate().map(|(g, f)| f.transform.dtheta_dp(p[g])).collect();
     let cov_theta = bread_inv.as_ref().map(|ai| {
@@ -296,7 +304,11 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     let estimate = |g: usize, name: String, unit: String, start: f64| {
         let f = &problem.free()[g];
         let value = f.transform.to_theta(p[g]);
-        let se = cov_theta.as_ref().map_or(f64::INFINITY, |c| c[(g, g)].max(0.0).sqrt());
+        let unseen = sums.bread[(g, g)].is_nan() || sums.bread[(g, g)] <= 0.0;
+        let se = match &cov_theta {
+            Some(c) if !unseen => c[(g, g)].max(0.0).sqrt(),
+            _ => f64::INFINITY,
+        };
         let idx = info_inv.as_ref().map_or(f64::INFINITY, |ai| {
             100.0 * (sums.e2_weighted * ai[(g, g)]).max(0.0).sqrt() * dtheta[g].abs() / value.abs()
         });
@@ -350,6 +362,25 @@ pub(crate) fn assemble<M: GreyBoxModel>(
             .collect(),
         None => vec![vec![f64::NAN; order.len()]; order.len()],
     };
+    let diag_names: Vec<String> = order
+        .iter()
+        .map(|&g| {
+            let f = &problem.free()[g];
+            let FreeKind::Parameter(j) = f.kind else { unreachable!("order holds model parameters only") };
+            match f.experiment {
+                Some(e) => format!("{}[{}]", params[j].name, names[e]),
+                None => params[j].name.clone(),
+            }
+        })
+        .collect();
+    let rel = |g: usize| problem.free()[g].transform.to_theta(p[g]) / dtheta[g];
+    let info_rel = DMatrix::from_fn(order.len(), order.len(), |a, b| {
+        let (ga, gb) = (order[a], order[b]);
+        sums.jtj[(ga, gb)] * rel(ga) * rel(gb)
+    });
+    let free_index: Vec<f64> =
+        parameters.iter().filter(|q| !q.fixed).map(|q| q.error_index_percent).collect();
+    let diagnostics = diagnose(&info_rel, &diag_names, &free_index, &correlation, thresholds);
     let fit = FitStatistics {
         outputs: model.output_names(),
         fit_percent: sums
@@ -380,12 +411,35 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         parameters,
         initial_states,
         derived: Vec::new(),
+        diagnostics,
         fit,
         correlation,
         solver,
         timing: Timing::default(),
         notes,
     })
+}
+
+/// Inverse of a symmetric positive semi-definite matrix on the rows/columns with a
+/// non-zero diagonal (Cholesky); the others get ∞ on the diagonal and 0 elsewhere. `None`
+/// when the supported block is not positive definite.
+fn inverse_on_support(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let n = a.nrows();
+    let live: Vec<usize> = (0..n).filter(|&i| a[(i, i)] > 0.0).collect();
+    let sub = DMatrix::from_fn(live.len(), live.len(), |i, j| a[(live[i], live[j])]);
+    let inv = sub.cholesky()?.inverse();
+    let mut out = DMatrix::zeros(n, n);
+    for i in 0..n {
+        if a[(i, i)] <= 0.0 {
+            out[(i, i)] = f64::INFINITY;
+        }
+    }
+    for (i, &r) in live.iter().enumerate() {
+        for (j, &c) in live.iter().enumerate() {
+            out[(r, c)] = inv[(i, j)];
+        }
+    }
+    Some(out)
 }
 
 /// A spinner on stderr showing iteration and cost (hidden when stderr is not a terminal).

@@ -12,6 +12,7 @@
 //! - `AIC = N ln(E²/N) + 2 n_p`, `BIC = N ln(E²/N) + n_p ln N` over all `N = N_k n_y`
 //!   residuals (Gaussian likelihood, constants dropped).
 
+use crate::estimate::diagnostics::Diagnostics;
 use crate::estimate::solver::Termination;
 use crate::model::VoltageHold;
 use serde::{Deserialize, Serialize};
@@ -124,6 +125,8 @@ pub struct FitResult {
     pub initial_states: Vec<ParameterEstimate>,
     /// Derived quantities.
     pub derived: Vec<DerivedEstimate>,
+    /// Identifiability diagnostics and advice.
+    pub diagnostics: Diagnostics,
     /// Goodness of fit.
     pub fit: FitStatistics,
     /// Correlation matrix of the free model parameters (order of the free entries of
@@ -218,6 +221,28 @@ impl std::fmt::Display for FitResult {
             self.solver.evaluations,
             self.timing.fit_s
         )?;
+        let d = &self.diagnostics;
+        writeln!(
+            f,
+            "identifiability: singular values {} (relative information), condition number {:.3e}",
+            d.singular_values.iter().map(|v| format!("{v:.3e}")).collect::<Vec<_>>().join(", "),
+            d.condition_number
+        )?;
+        if !d.start_comparison.is_empty() {
+            let parts: Vec<String> = d
+                .start_comparison
+                .iter()
+                .map(|c| format!("{} {:+.4} %", c.name, c.difference_percent))
+                .collect();
+            writeln!(
+                f,
+                "least-squares start vs estimate (LS bias if the fit is right): {}",
+                parts.join(", ")
+            )?;
+        }
+        for a in &d.advice {
+            writeln!(f, "advice: {a}")?;
+        }
         for n in &self.notes {
             writeln!(f, "note: {n}")?;
         }

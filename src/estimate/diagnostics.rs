@@ -1,0 +1,176 @@
+//! Identifiability diagnostics: how well the data determine each parameter, and what to
+//! do when they do not.
+//!
+//! From the information matrix at the estimate in relative units,
+//! `M = diag(θ̂) JᵀWJ diag(θ̂)` (the sensitivity to a relative change of each parameter),
+//! the singular values and condition number say how many parameter combinations the
+//! data pin down; the parametric error index (thesis 5.3) and the correlation matrix name
+//! the parameters that are poorly determined or confounded. The advice follows MODEL.md
+//! §6 (thesis 5.1.1, 6.3): `K_e` needs speed, `R_s` current at low speed or a d-current
+//! injection, `L` current transients or `i_d ≠ 0` at speed; `R_s`, cable resistance and a
+//! dead-time voltage separate only through current reversals and different levels.
+
+use serde::{Deserialize, Serialize};
+
+/// Thresholds above which a parameter is reported as poorly determined or confounded.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct DiagnosticThresholds {
+    /// Parametric error index [%] above which a parameter is poorly determined.
+    pub error_index_percent: f64,
+    /// |correlation| above which two parameters are reported as confounded.
+    pub correlation: f64,
+    /// Condition number of the relative information matrix above which it is ill-conditioned.
+    pub condition_number: f64,
+}
+
+impl Default for DiagnosticThresholds {
+    fn default() -> Self {
+        Self { error_index_percent: 10.0, correlation: 0.95, condition_number: 1e8 }
+    }
+}
+
+/// A parameter whose error index exceeds the threshold.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PoorlyDetermined {
+    /// Parameter name (with `[experiment]` for per-experiment copies).
+    pub name: String,
+    /// Its error index [%].
+    pub error_index_percent: f64,
+}
+
+/// A pair of strongly correlated parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Correlated {
+    /// First parameter.
+    pub a: String,
+    /// Second parameter.
+    pub b: String,
+    /// Their estimated correlation.
+    pub correlation: f64,
+}
+
+/// The least-squares start against the prediction-error estimate of one parameter.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StartComparison {
+    /// Parameter name.
+    pub name: String,
+    /// Least-squares estimate [unit].
+    pub least_squares: f64,
+    /// Prediction-error estimate [unit].
+    pub pem: f64,
+    /// `100 (LS − PEM)/PEM` [%]: the bias of LS if PEM is right.
+    pub difference_percent: f64,
+}
+
+/// Diagnostics of a fit (JSON key `diagnostics`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Diagnostics {
+    /// Singular values of the relative information matrix, descending (free model parameters).
+    pub singular_values: Vec<f64>,
+    /// Ratio of the largest to the smallest singular value (∞ when singular).
+    pub condition_number: f64,
+    /// Parameters whose error index exceeds the threshold.
+    pub poorly_determined: Vec<PoorlyDetermined>,
+    /// Parameter pairs whose |correlation| exceeds the threshold.
+    pub correlated: Vec<Correlated>,
+    /// The least-squares start against the estimate, when the fit started from LS.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub start_comparison: Vec<StartComparison>,
+    /// Plain-language advice.
+    pub advice: Vec<String>,
+}
+
+/// Builds the diagnostics from the relative information matrix `m` (n × n, symmetric),
+/// the parameter names, error indices [%] and correlation matrix of the same parameters.
+pub fn diagnose(
+    m: &nalgebra::DMatrix<f64>,
+    names: &[String],
+    error_index: &[f64],
+    correlation: &[Vec<f64>],
+    thresholds: &DiagnosticThresholds,
+) -> Diagnostics {
+    let mut singular_values: Vec<f64> = if m.iter().all(|v| v.is_finite()) && m.nrows() > 0 {
+        m.clone().svd(false, false).singular_values.iter().copied().collect()
+    } else {
+        Vec::new()
+    };
+    singular_values.sort_by(|a, b| b.total_cmp(a));
+    let condition_number = match (singular_values.first(), singular_values.last()) {
+        (Some(&hi), Some(&lo)) if lo > 0.0 => hi / lo,
+        _ => f64::INFINITY,
+    };
+    let poorly_determined: Vec<PoorlyDetermined> = names
+        .iter()
+        .zip(error_index)
+        .filter(|(_, e)| e.is_nan() || **e > thresholds.error_index_percent)
+        .map(|(n, e)| PoorlyDetermined { name: n.clone(), error_index_percent: *e })
+        .collect();
+    let mut correlated = Vec::new();
+    for a in 0..names.len() {
+        for b in a + 1..names.len() {
+            let r = correlation.get(a).and_then(|row| row.get(b)).copied().unwrap_or(f64::NAN);
+            if r.abs() > thresholds.correlation {
+                correlated.push(Correlated { a: names[a].clone(), b: names[b].clone(), correlation: r });
+            }
+        }
+    }
+    let mut advice: Vec<String> = poorly_determined
+        .iter()
+        .map(|p| format!("{} (error index {:.3} %)", advice_for(&p.name), p.error_index_percent))
+        .collect();
+    for c in &correlated {
+        advice.push(format!(
+            "{} and {} are strongly correlated (ρ = {:+.3}): the data hardly separate them; {}",
+            c.a,
+            c.b,
+            c.correlation,
+            pair_advice(&c.a, &c.b)
+        ));
+    }
+    if condition_number > thresholds.condition_number {
+        advice.push(format!(
+            "the information matrix is ill-conditioned (condition number {condition_number:.2e}): \
+             some parameter combination is not determined; fix a parameter or add excitation"
+        ));
+    }
+    Diagnostics {
+        singular_values,
+        condition_number,
+        poorly_determined,
+        correlated,
+        start_comparison: Vec::new(),
+        advice,
+    }
+}
+
+fn base(name: &str) -> &str {
+    name.split('[').next().unwrap_or(name)
+}
+
+fn advice_for(name: &str) -> String {
+    match base(name) {
+        "r_s" => {
+            format!("{name} poorly determined: add low-speed data with current, or a d-current injection")
+        }
+        "k_e" => format!("{name} poorly determined: add data at higher speed"),
+        "l_s" | "l_d" | "l_q" => {
+            format!(
+                "{name} poorly determined: add current transients (steps of the current reference) or i_d ≠ 0 at speed"
+            )
+        }
+        _ => format!("{name} poorly determined: the data carry little information about it"),
+    }
+}
+
+fn pair_advice(a: &str, b: &str) -> &'static str {
+    let mut pair = [base(a), base(b)];
+    pair.sort_unstable();
+    match pair {
+        ["k_e", "r_s"] => "add low-speed data with current, where R_s acts without back-EMF",
+        ["l_s", "r_s"] | ["l_d", "r_s"] | ["l_q", "r_s"] => {
+            "add current steps of both signs and several levels"
+        }
+        _ => "add excitation that moves them differently, or fix one of them",
+    }
+}
