@@ -9,9 +9,12 @@
 //! often the reported 95 % interval contains the truth (binomial ±1.96 σ band alongside),
 //! for three treatments of the initial state i[0] that the simulation starts from:
 //!
-//! - `noisy i[0]`: noise on every sample, plain `fit_pmsm`;
-//! - `exact i[0]`: noise from sample 1 on (a log starting at standstill, zero current);
-//! - `transient out`: noise on every sample, the first 500 residuals (10 L/R) weighted 0.
+//! - `x0 estimated`: noise on every sample, plain `fit_pmsm` (estimates the initial state);
+//! - `noisy i[0]`: noise on every sample, the first sample taken as the exact initial state;
+//! - `exact i[0]`: noise from sample 1 on (a log starting at standstill, zero current),
+//!   first sample taken as exact;
+//! - `transient out`: noise on every sample, the first 500 residuals (10 L/R) weighted 0,
+//!   first sample taken as exact.
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -19,7 +22,7 @@ mod common;
 use common::{Rng, exciting_signals, simulate_into};
 use greybox::estimate::linear::{MotorKind, least_squares};
 use greybox::estimate::weighting::CustomWeighting;
-use greybox::estimate::{FitResult, fit_with_weighting};
+use greybox::estimate::{FitResult, PemOptions, fit_with_weighting};
 use greybox::model::{PmsmSpm, VoltageHold};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
 use greybox::{Experiment, Signals};
@@ -32,8 +35,12 @@ const H: f64 = 1e-4;
 const SIGMA: f64 = 0.1;
 const TRANSIENT: usize = 500;
 
+/// Estimate, standard error and 95 % interval of one parameter.
+type Row = (f64, f64, [f64; 2]);
+
 #[derive(Clone, Copy, Debug)]
 enum Scenario {
+    EstimatedStart,
     NoisyStart,
     ExactStart,
     TransientOut,
@@ -42,6 +49,7 @@ enum Scenario {
 impl Scenario {
     fn label(self) -> &'static str {
         match self {
+            Self::EstimatedStart => "x0 estimated",
             Self::NoisyStart => "noisy i[0]",
             Self::ExactStart => "exact i[0]",
             Self::TransientOut => "transient out",
@@ -60,15 +68,20 @@ fn noisy(clean: &Experiment, seed: u64, first: usize) -> Experiment {
 
 fn fit_one(clean: &Experiment, scenario: Scenario, r: u64) -> greybox::Result<FitResult> {
     let seed = 0x9e37_79b9_7f4a_7c15u64.wrapping_mul(r + 1);
-    let opts = PmsmFitOptions { hold: HoldChoice::Stator, ..Default::default() };
+    let fixed = PemOptions { estimate_x0: false, ..Default::default() };
+    let opts = PmsmFitOptions { hold: HoldChoice::Stator, pem: fixed.clone(), ..Default::default() };
     match scenario {
+        Scenario::EstimatedStart => fit_pmsm(
+            &[noisy(clean, seed, 0)],
+            &PmsmFitOptions { hold: HoldChoice::Stator, ..Default::default() },
+        ),
         Scenario::NoisyStart => fit_pmsm(&[noisy(clean, seed, 0)], &opts),
         Scenario::ExactStart => fit_pmsm(&[noisy(clean, seed, 1)], &opts),
         Scenario::TransientOut => {
             let e = noisy(clean, seed, 0);
             let start = least_squares(std::slice::from_ref(&e), MotorKind::Spm)?.theta;
             let skip = CustomWeighting::new("skip transient", |_, k| if k < TRANSIENT { 0.0 } else { 1.0 });
-            fit_with_weighting(&PmsmSpm::new(VoltageHold::Stator), &[e], &start, &Default::default(), &skip)
+            fit_with_weighting(&PmsmSpm::new(VoltageHold::Stator), &[e], &start, &fixed, &skip)
         }
     }
 }
@@ -86,8 +99,10 @@ fn main() -> greybox::Result<()> {
         "{:<14} {:<5} {:>11} {:>11} {:>11} {:>11} {:>8} {:>10} {:>8}",
         "i[0]", "param", "truth", "bias/truth", "sd(θ̂)", "mean se", "sd/se", "coverage", "failed"
     );
-    for scenario in [Scenario::NoisyStart, Scenario::ExactStart, Scenario::TransientOut] {
-        let fits: Vec<Option<[(f64, f64, [f64; 2]); 3]>> = (0..realisations)
+    for scenario in
+        [Scenario::EstimatedStart, Scenario::NoisyStart, Scenario::ExactStart, Scenario::TransientOut]
+    {
+        let fits: Vec<Option<[Row; 3]>> = (0..realisations)
             .into_par_iter()
             .map(|r| {
                 let fit = fit_one(&clean, scenario, r).ok().filter(|f| f.solver.success)?;
