@@ -7,7 +7,7 @@
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use greybox::data::csv::{ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
-use greybox::estimate::linear::MotorKind;
+use greybox::estimate::linear::{LinearOptions, MotorKind, weighted_least_squares};
 use greybox::estimate::weighting::SpeedShape;
 use greybox::estimate::{PemOptions, ScalingKind, SolverKind, Tolerances, WeightingKind};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
@@ -77,6 +77,14 @@ struct FitArgs {
     /// Take the first measured currents as the exact initial state instead of estimating it.
     #[arg(long)]
     fixed_x0: bool,
+    /// Low-pass prefilter cutoff [Hz], 4th-order Butterworth: on the residuals for pem
+    /// (causal L(q)), on every signal for ls (zero-phase, forward-backward).
+    #[arg(long)]
+    prefilter: Option<f64>,
+    /// Estimation method: prediction error (pem) or the linear least-squares regression of
+    /// the voltage equations (ls; weighted by --weighting, filtered by --prefilter).
+    #[arg(long, value_enum, default_value_t = MethodArg::Pem)]
+    method: MethodArg,
     /// Maximum number of solver iterations.
     #[arg(long, default_value_t = Tolerances::default().max_iters)]
     max_iters: u64,
@@ -152,6 +160,11 @@ struct ColumnArgs {
 enum ModelArg {
     Spm,
     Ipm,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum MethodArg {
+    Pem,
+    Ls,
 }
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum HoldArg {
@@ -264,11 +277,21 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
         .map(|p| greybox::read_csv(p, a.pole_pairs, &csv))
         .collect::<greybox::Result<Vec<_>>>()?;
     let read_s = t0.elapsed().as_secs_f64();
+    let kind = match a.model {
+        ModelArg::Spm => MotorKind::Spm,
+        ModelArg::Ipm => MotorKind::Ipm,
+    };
+    if let MethodArg::Ls = a.method {
+        let rule = a.weighting.rule()?;
+        let opts = LinearOptions { prefilter: a.prefilter, ..LinearOptions::default() };
+        let ls = weighted_least_squares(&logs, kind, rule.as_ref(), &opts)?;
+        if !a.quiet {
+            print!("{ls}");
+        }
+        return write_json(a, serde_json::to_string_pretty(&ls).unwrap_or_default());
+    }
     let options = PmsmFitOptions {
-        model: match a.model {
-            ModelArg::Spm => MotorKind::Spm,
-            ModelArg::Ipm => MotorKind::Ipm,
-        },
+        model: kind,
         hold: match a.hold {
             HoldArg::Auto => HoldChoice::Auto,
             HoldArg::Dq => HoldChoice::Dq,
@@ -294,6 +317,7 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
             weighting: a.weighting,
             huber: a.huber,
             estimate_x0: !a.fixed_x0,
+            prefilter: a.prefilter,
             progress: true,
             ..PemOptions::default()
         },
@@ -304,19 +328,24 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
     if !a.quiet {
         print!("{result}");
     }
-    if let Some(path) = &a.json {
-        let json = result.to_json();
-        if path.as_os_str() == "-" {
-            println!("{json}");
-        } else {
-            std::fs::write(path, json + "\n")
-                .map_err(|source| greybox::Error::Io { path: path.clone(), source })?;
-        }
-    }
+    write_json(a, result.to_json())?;
     if !result.solver.success {
         eprintln!("warning: the fit did not converge ({})", result.solver.termination);
     }
     Ok(())
+}
+
+/// Writes the JSON report where `--json` says ("-" = stdout).
+fn write_json(a: &FitArgs, json: String) -> greybox::Result<()> {
+    match &a.json {
+        None => Ok(()),
+        Some(path) if path.as_os_str() == "-" => {
+            println!("{json}");
+            Ok(())
+        }
+        Some(path) => std::fs::write(path, json + "\n")
+            .map_err(|source| greybox::Error::Io { path: path.clone(), source }),
+    }
 }
 
 fn main() -> ExitCode {

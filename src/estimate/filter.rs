@@ -271,8 +271,12 @@ impl Butterworth {
             .collect()
     }
 
-    /// One sample through the cascade, transposed direct form II.
-    fn step(&self, z: &mut [[f64; 2]], x: f64) -> f64 {
+    /// One sample through the causal cascade (transposed direct form II); `z` holds the
+    /// state of every section (length [`sections`](Self::sections)`.len()`, zeros = at rest).
+    /// This is the streaming form of [`filter`](Self::filter), used for the residual
+    /// prefilter L(q) of the prediction-error fit.
+    #[inline]
+    pub fn step(&self, z: &mut [[f64; 2]], x: f64) -> f64 {
         let mut v = x;
         for (s, zs) in self.sections.iter().zip(z.iter_mut()) {
             let y = s.b[0] * v + zs[0];

@@ -147,7 +147,7 @@ impl fmt::Display for LinearEstimate {
                 self.names[i], self.theta[i], self.std_error[i], self.error_index_percent[i], self.units[i]
             )?;
         }
-        write!(f, "  rms residual: d {:.4e} V, q {:.4e} V", self.rms_residual[0], self.rms_residual[1])
+        writeln!(f, "  rms residual: d {:.4e} V, q {:.4e} V", self.rms_residual[0], self.rms_residual[1])
     }
 }
 

@@ -74,6 +74,10 @@ pub struct PemOptions {
     /// robust scale `1.4826 MAD` of the residuals of a preceding quadratic fit. `None` =
     /// quadratic loss.
     pub huber: Option<f64>,
+    /// Residual prefilter L(q): cutoff [Hz] of a causal low-pass Butterworth filter of
+    /// order 4 applied to the residuals and their sensitivities (the thesis uses a
+    /// 4th-order low-pass; MODEL.md §5). `None` = no filter.
+    pub prefilter: Option<f64>,
     /// Estimate each experiment's initial state (n_x nuisance parameters per experiment)
     /// instead of taking the first measurement as exact. On by default: noise on the first
     /// sample otherwise propagates through the first time constants of every residual and
@@ -96,6 +100,7 @@ impl Default for PemOptions {
             output_weights: None,
             weighting: WeightingKind::Uniform,
             huber: None,
+            prefilter: None,
             estimate_x0: true,
             diagnostics: DiagnosticThresholds::default(),
             progress: false,
@@ -166,6 +171,13 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
         output_weights: options.output_weights.clone().or_else(|| weighting.output_weights()),
         loss: Loss::Quadratic,
         estimate_x0: options.estimate_x0,
+        prefilters: match options.prefilter {
+            None => Vec::new(),
+            Some(fc) => experiments
+                .iter()
+                .map(|e| filter::Butterworth::try_new(filter::DEFAULT_ORDER, fc, e.h()))
+                .collect::<Result<_>>()?,
+        },
     };
     let problem = PemProblem::new(model, preps, start, scaling.as_ref(), &popts)?;
     let p0 = problem.start_vector(start);

@@ -10,6 +10,7 @@
 //! beyond δ is `δ/|ε|` (iteratively reweighted least squares).
 
 use crate::error::{Error, Result};
+use crate::estimate::filter::Butterworth;
 use crate::estimate::scaling::{ParameterScaling, Transform};
 use crate::model::{GreyBoxModel, Prepared};
 use crate::simulate::{Shooting, simulate_from, visit_sensitivities_from};
@@ -68,6 +69,9 @@ pub struct ProblemOptions {
     pub loss: Loss,
     /// Estimate each experiment's initial state x₀ (n_x extra parameters per experiment).
     pub estimate_x0: bool,
+    /// Residual prefilter L(q), one per experiment (its sample time), or empty for none:
+    /// `ε_f = L(q) ε` and `J_f = L(q) J`, causal, from rest (MODEL.md §5).
+    pub prefilters: Vec<Butterworth>,
 }
 
 /// Where each model parameter of one experiment comes from.
@@ -156,6 +160,7 @@ pub struct PemProblem<'m, M: GreyBoxModel> {
     shooting: Shooting,
     output_weights: Vec<f64>,
     loss: Loss,
+    prefilters: Vec<Butterworth>,
 }
 
 impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
@@ -217,6 +222,12 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         let n_exp = preps.len();
         if n_exp == 0 {
             return Err(invalid("experiments", "no experiment given".into()));
+        }
+        if !options.prefilters.is_empty() && options.prefilters.len() != n_exp {
+            return Err(invalid(
+                "prefilter",
+                format!("{} filters for {n_exp} experiments", options.prefilters.len()),
+            ));
         }
         let mut free = Vec::new();
         let mut slots = vec![vec![Slot::Fixed(0.0); params.len()]; n_exp];
@@ -288,6 +299,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             shooting: options.shooting,
             output_weights,
             loss: options.loss.clone(),
+            prefilters: options.prefilters.clone(),
         };
         if scaling.needs_column_norms() {
             problem.rescale_by_column_norms(start, scaling)?;
@@ -418,6 +430,10 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         let mut w = vec![0.0; ny];
         let nth = theta.len();
         let first = usize::from(term.x0_free.is_none());
+        let filter = self.prefilters.get(e);
+        let sections = filter.map_or(0, |f| f.sections().len());
+        let mut z_eps = vec![vec![[0.0; 2]; sections]; ny];
+        let mut z_jac = vec![vec![[0.0; 2]; sections]; ny * np];
         let visit = |k: usize, yhat: &[f64], dy: &[f64], dy0: &[f64]| {
             if k < first {
                 return;
@@ -435,6 +451,12 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                 }
                 for (m, &(g, d)) in x0_chain.iter().enumerate() {
                     jac[i * np + g] += dy0[i * nx + m] * d;
+                }
+                if let Some(l) = filter {
+                    eps[i] = l.step(&mut z_eps[i], eps[i]);
+                    for a in 0..np {
+                        jac[i * np + a] = l.step(&mut z_jac[i * np + a], jac[i * np + a]);
+                    }
                 }
             }
             f(k, &eps, &w, &jac);
@@ -509,11 +531,16 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                 let yhat =
                     simulate_from(self.model, &term.prep, &self.theta(e, p), &self.x0(e, p), self.shooting)?;
                 let first = usize::from(term.x0_free.is_none());
+                let filter = self.prefilters.get(e);
+                let mut z = vec![vec![[0.0; 2]; filter.map_or(0, |f| f.sections().len())]; ny];
                 let mut cost = 0.0;
                 for k in first..term.prep.n {
                     let beta = term.weights.as_ref().map_or(1.0, |b| b[k]);
                     for i in 0..ny {
-                        let eps = term.prep.y[k * ny + i] - yhat[k * ny + i];
+                        let mut eps = term.prep.y[k * ny + i] - yhat[k * ny + i];
+                        if let Some(l) = filter {
+                            eps = l.step(&mut z[i], eps);
+                        }
                         cost += beta * self.output_weights[i] * self.loss.eval(i, eps).0;
                     }
                 }
