@@ -132,3 +132,14 @@ fn ci95_coverage_with_noisy_initial_state() {
     let cov = coverage(|r| fit_pmsm(&[noisy(&clean, seed(r), 0)], &opts).expect("fit runs"));
     assert_band("noisy i[0]", cov);
 }
+
+/// With a residual prefilter L(q) the filtered residuals are coloured; the reported
+/// covariance (Newey-West over the filter's memory) must still cover the truth.
+#[test]
+fn ci95_coverage_with_residual_prefilter() {
+    let clean = clean_record();
+    let pem = PemOptions { prefilter: Some(1000.0), ..Default::default() };
+    let opts = PmsmFitOptions { hold: HoldChoice::Stator, pem, ..Default::default() };
+    let cov = coverage(|r| fit_pmsm(&[noisy(&clean, seed(r), 0)], &opts).expect("fit runs"));
+    assert_band("prefilter 1 kHz", cov);
+}

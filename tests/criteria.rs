@@ -15,7 +15,13 @@ const THETA: [f64; 3] = [0.9, 4.5e-3, 0.539];
 fn record(seed: u64, n: usize) -> Experiment {
     let h = 1e-4;
     let mut rng = Rng(seed);
-    simulate_into(&PmsmSpm::new(VoltageHold::Stator), &THETA, h, 4, exciting_signals(n, h, 250.0, 60.0, THETA[2], &mut rng))
+    simulate_into(
+        &PmsmSpm::new(VoltageHold::Stator),
+        &THETA,
+        h,
+        4,
+        exciting_signals(n, h, 250.0, 60.0, THETA[2], &mut rng),
+    )
 }
 
 fn assert_recovers(opts: &PemOptions, start: &[f64], tol: f64, label: &str) {
@@ -33,13 +39,23 @@ const START: [f64; 3] = [1.3, 3.0e-3, 0.6];
 #[test]
 fn k_step_prediction_recovers_noise_free_parameters() {
     for k in [1, 5, 50] {
-        assert_recovers(&PemOptions { horizon: Some(k), ..Default::default() }, &START, 1e-8, &format!("horizon {k}"));
+        assert_recovers(
+            &PemOptions { horizon: Some(k), ..Default::default() },
+            &START,
+            1e-8,
+            &format!("horizon {k}"),
+        );
     }
 }
 
 #[test]
 fn residual_prefilter_recovers_noise_free_parameters() {
-    assert_recovers(&PemOptions { prefilter: Some(800.0), ..Default::default() }, &START, 1e-8, "prefilter 800 Hz");
+    assert_recovers(
+        &PemOptions { prefilter: Some(800.0), ..Default::default() },
+        &START,
+        1e-8,
+        "prefilter 800 Hz",
+    );
 }
 
 #[test]
@@ -62,13 +78,22 @@ fn initial_state_is_estimated_when_the_first_sample_is_wrong() {
     let bad = Experiment::try_new("bad-first", e.h(), e.n_p(), s).unwrap();
     let m = PmsmSpm::new(VoltageHold::Stator);
     let worst = |r: &greybox::estimate::FitResult| {
-        ["r_s", "l_s", "k_e"].iter().zip(THETA).map(|(n, t)| rel(r.parameter(n).unwrap().value, t)).fold(0.0, f64::max)
+        ["r_s", "l_s", "k_e"]
+            .iter()
+            .zip(THETA)
+            .map(|(n, t)| rel(r.parameter(n).unwrap().value, t))
+            .fold(0.0, f64::max)
     };
     let est = fit(&m, std::slice::from_ref(&bad), &START, &PemOptions::default()).unwrap();
     let fixed = fit(&m, &[bad], &START, &PemOptions { estimate_x0: false, ..Default::default() }).unwrap();
     assert!(fixed.initial_states.is_empty());
-    let x0_error: f64 = est.initial_states.iter().zip(true_first).map(|(p, t)| (p.value - t).abs()).fold(0.0, f64::max);
-    eprintln!("worst relative error: x0 estimated {:.2e}, x0 fixed {:.2e}; x0 error {x0_error:.2e} A", worst(&est), worst(&fixed));
+    let x0_error: f64 =
+        est.initial_states.iter().zip(true_first).map(|(p, t)| (p.value - t).abs()).fold(0.0, f64::max);
+    eprintln!(
+        "worst relative error: x0 estimated {:.2e}, x0 fixed {:.2e}; x0 error {x0_error:.2e} A",
+        worst(&est),
+        worst(&fixed)
+    );
     assert!(worst(&fixed) > 1e-4, "a wrong fixed x0 should bias the fit: {:e}", worst(&fixed));
     assert!(worst(&est) < worst(&fixed) / 20.0, "estimated {:e} vs fixed {:e}", worst(&est), worst(&fixed));
     assert!(x0_error < 0.1, "x0 off by {x0_error} A");
@@ -107,7 +132,12 @@ impl<M: GreyBoxModel> GreyBoxModel for NoSensitivities<M> {
     }
 }
 
-fn normal_equations<M: GreyBoxModel>(m: &M, e: &Experiment, theta: &[f64], x0: bool) -> (nalgebra::DMatrix<f64>, nalgebra::DVector<f64>) {
+fn normal_equations<M: GreyBoxModel>(
+    m: &M,
+    e: &Experiment,
+    theta: &[f64],
+    x0: bool,
+) -> (nalgebra::DMatrix<f64>, nalgebra::DVector<f64>) {
     let prep = m.prepare(e).unwrap();
     let opts = ProblemOptions { estimate_x0: x0, ..Default::default() };
     let p = PemProblem::new(m, vec![(prep, None)], theta, &NominalScaling, &opts).unwrap();
@@ -121,7 +151,8 @@ fn finite_difference_fallback_matches_analytic_sensitivities() {
     let theta = [1.1, 4.0e-3, 0.55];
     for x0 in [false, true] {
         let (a_jtj, a_jtr) = normal_equations(&PmsmSpm::new(VoltageHold::Stator), &e, &theta, x0);
-        let (f_jtj, f_jtr) = normal_equations(&NoSensitivities(PmsmSpm::new(VoltageHold::Stator)), &e, &theta, x0);
+        let (f_jtj, f_jtr) =
+            normal_equations(&NoSensitivities(PmsmSpm::new(VoltageHold::Stator)), &e, &theta, x0);
         let dj = (&a_jtj - &f_jtj).norm() / a_jtj.norm();
         let dr = (&a_jtr - &f_jtr).norm() / a_jtr.norm();
         eprintln!("x0 {x0}: JᵀJ {dj:.2e}, Jᵀε {dr:.2e}");
@@ -134,7 +165,8 @@ fn finite_difference_fallback_matches_analytic_sensitivities() {
     let e = simulate_into(&ipm, &th, h, 2, exciting_signals(1500, h, 200.0, 40.0, th[3], &mut rng));
     let start = [0.4, 3.0e-3, 7.0e-3, 0.4];
     let (a_jtj, a_jtr) = normal_equations(&ipm, &e, &start, true);
-    let (f_jtj, f_jtr) = normal_equations(&NoSensitivities(PmsmIpm::new(VoltageHold::Stator)), &e, &start, true);
+    let (f_jtj, f_jtr) =
+        normal_equations(&NoSensitivities(PmsmIpm::new(VoltageHold::Stator)), &e, &start, true);
     let dj = (&a_jtj - &f_jtj).norm() / a_jtj.norm();
     let dr = (&a_jtr - &f_jtr).norm() / a_jtr.norm();
     eprintln!("IPM: JᵀJ {dj:.2e}, Jᵀε {dr:.2e}");

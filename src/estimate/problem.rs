@@ -148,7 +148,10 @@ pub struct Sums {
     pub jtj: DMatrix<f64>,
     /// Bread `A = Σ w ψ'(ε) JᵀJ` of the sandwich covariance `A⁻¹ B A⁻¹`.
     pub bread: DMatrix<f64>,
-    /// Meat `B`: `Σ_i σ̂_i² Σ_k w² J_kiᵀJ_ki` (quadratic), `N/(N − n_p) Σ w² ψ² JᵀJ` (Huber).
+    /// Meat `B`: `Σ_i σ̂_i² Σ_k w² J_kiᵀJ_ki` (quadratic), `N/(N − n_p) Σ w² ψ² JᵀJ` (Huber);
+    /// with a residual prefilter L(q), `Σ_i σ̂_i² gᵢᵀgᵢ` with `gᵢ = Lᵀ(W J_f)` (the
+    /// time-reversed filter applied to the weighted filtered Jacobian) and σ̂ from the raw
+    /// residuals: exact for white raw residuals.
     pub meat: DMatrix<f64>,
 }
 
@@ -410,7 +413,15 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
 
     /// Runs `f(k, ε_k, w_k, J_k)` over every counted sample of experiment e, where
     /// `J_k = ∂ŷ_k/∂p` is row-major `n_y × n_p` and `w_k[i] = β_k Λ_i`.
-    fn pass<F>(&self, e: usize, p: &DVector<f64>, mut f: F) -> Result<()>
+    fn pass<F>(&self, e: usize, p: &DVector<f64>, f: F) -> Result<()>
+    where
+        F: FnMut(usize, &[f64], &[f64], &[f64]),
+    {
+        self.pass_with(e, p, true, f)
+    }
+
+    /// As [`pass`](Self::pass); `filtered = false` skips the residual prefilter.
+    fn pass_with<F>(&self, e: usize, p: &DVector<f64>, filtered: bool, mut f: F) -> Result<()>
     where
         F: FnMut(usize, &[f64], &[f64], &[f64]),
     {
@@ -430,7 +441,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         let mut w = vec![0.0; ny];
         let nth = theta.len();
         let first = usize::from(term.x0_free.is_none());
-        let filter = self.prefilters.get(e);
+        let filter = if filtered { self.prefilters.get(e) } else { None };
         let sections = filter.map_or(0, |f| f.sections().len());
         let mut z_eps = vec![vec![[0.0; 2]; sections]; ny];
         let mut z_jac = vec![vec![[0.0; 2]; sections]; ny * np];
@@ -579,74 +590,74 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
     /// As [`normal_equations`](Self::normal_equations).
     pub fn sums(&self, p: &DVector<f64>) -> Result<Sums> {
         let (ny, np) = (self.model.n_outputs(), self.free.len());
-        let zero = DMatrix::<f64>::zeros(np, np);
-        let (mut cost, mut e2w, mut count) = (0.0, 0.0, 0usize);
-        let (mut sse, mut sum_y, mut sum_y2) = (vec![0.0; ny], vec![0.0; ny], vec![0.0; ny]);
-        // Residuals of samples with non-zero weight: the noise estimate ignores weighted-out ones.
-        let (mut sse_live, mut n_live) = (vec![0.0; ny], vec![0usize; ny]);
-        let (mut jtj, mut bread) = (zero.clone(), zero.clone());
-        // Per output: Σ w² J_iᵀJ_i (quadratic) or Σ w² ψ² J_iᵀJ_i (Huber).
-        let mut meat_i = vec![zero.clone(); ny];
+        let mut acc = Accumulator::new(ny, np);
         for e in 0..self.terms.len() {
             let term = &self.terms[e];
             // Shift by the first measurement to keep Σy² − (Σy)²/n free of cancellation.
-            let y0: Vec<f64> = term.prep.y_at(0, ny).to_vec();
-            let (mut ey, mut ey2) = (vec![0.0; ny], vec![0.0; ny]);
-            let mut n_e = 0usize;
-            self.pass(e, p, |k, eps, w, jac| {
-                n_e += 1;
-                let y = term.prep.y_at(k, ny);
-                for i in 0..ny {
-                    let (rho, psi, _, dpsi) = self.loss.eval(i, eps[i]);
-                    cost += w[i] * rho;
-                    e2w += w[i] * eps[i] * eps[i];
-                    sse[i] += eps[i] * eps[i];
-                    if w[i] > 0.0 {
-                        sse_live[i] += eps[i] * eps[i];
-                        n_live[i] += 1;
+            acc.start_experiment(term.prep.y_at(0, ny));
+            match self.prefilters.get(e) {
+                None => self.pass(e, p, |k, eps, w, jac| {
+                    acc.sample(&self.loss, term.prep.y_at(k, ny), eps, eps, w, jac);
+                    for i in 0..ny {
+                        let psi = self.loss.eval(i, eps[i]).1;
+                        let m = match self.loss {
+                            Loss::Quadratic => w[i] * w[i],
+                            Loss::Huber { .. } => w[i] * w[i] * psi * psi,
+                        };
+                        acc.add_meat(i, m, &jac[i * np..(i + 1) * np]);
                     }
-                    let d = y[i] - y0[i];
-                    ey[i] += d;
-                    ey2[i] += d * d;
-                    let m = match self.loss {
-                        Loss::Quadratic => w[i] * w[i],
-                        Loss::Huber { .. } => w[i] * w[i] * psi * psi,
-                    };
-                    let row = &jac[i * np..(i + 1) * np];
-                    for a in 0..np {
-                        for b in a..np {
-                            let jj = row[a] * row[b];
-                            jtj[(a, b)] += w[i] * jj;
-                            bread[(a, b)] += w[i] * dpsi * jj;
-                            meat_i[i][(a, b)] += m * jj;
+                })?,
+                Some(l) => {
+                    // The criterion sees L(q)ε; under white raw residuals e the score is
+                    // J_fᵀ W L e, whose covariance is σ² gᵀg with g = Lᵀ (W J_f): the
+                    // time-reversed filter applied to the weighted filtered Jacobian.
+                    let mut raw: Vec<RawSample> = Vec::new();
+                    self.pass_with(e, p, false, |k, eps, w, jac| {
+                        raw.push((k, eps.to_vec(), w.to_vec(), jac.to_vec()))
+                    })?;
+                    let sections = l.sections().len();
+                    let mut z_eps = vec![vec![[0.0; 2]; sections]; ny];
+                    let mut z_jac = vec![vec![[0.0; 2]; sections]; ny * np];
+                    let mut weighted = vec![vec![0.0; raw.len()]; ny * np];
+                    for (n, (k, eps, w, jac)) in raw.iter_mut().enumerate() {
+                        let mut eps_f = eps.clone();
+                        for i in 0..ny {
+                            eps_f[i] = l.step(&mut z_eps[i], eps[i]);
+                            for a in 0..np {
+                                jac[i * np + a] = l.step(&mut z_jac[i * np + a], jac[i * np + a]);
+                            }
+                        }
+                        acc.sample(&self.loss, term.prep.y_at(*k, ny), &eps_f, eps, w, jac);
+                        for i in 0..ny {
+                            let dpsi = self.loss.eval(i, eps_f[i]).3;
+                            for a in 0..np {
+                                weighted[i * np + a][n] = w[i] * dpsi * jac[i * np + a];
+                            }
+                        }
+                    }
+                    for i in 0..ny {
+                        let g: Vec<Vec<f64>> = (0..np)
+                            .map(|a| {
+                                let mut z = vec![[0.0; 2]; sections];
+                                let mut col: Vec<f64> =
+                                    weighted[i * np + a].iter().rev().map(|&v| l.step(&mut z, v)).collect();
+                                col.reverse();
+                                col
+                            })
+                            .collect();
+                        let mut row = vec![0.0; np];
+                        for n in 0..raw.len() {
+                            for (r, col) in row.iter_mut().zip(&g) {
+                                *r = col[n];
+                            }
+                            acc.add_meat(i, 1.0, &row);
                         }
                     }
                 }
-            })?;
-            count += n_e;
-            for i in 0..ny {
-                // Pool about the grand mean over all experiments.
-                sum_y[i] += ey[i] + n_e as f64 * y0[i];
-                sum_y2[i] += ey2[i] + 2.0 * y0[i] * ey[i] + n_e as f64 * y0[i] * y0[i];
             }
+            acc.end_experiment();
         }
-        let n = count as f64;
-        let sst = (0..ny).map(|i| (sum_y2[i] - sum_y[i] * sum_y[i] / n).max(0.0)).collect();
-        let mut meat = zero;
-        for (i, mi) in meat_i.iter().enumerate() {
-            let live = n_live[i] as f64;
-            let dof = (live - np as f64 / ny as f64).max(1.0);
-            let factor = match self.loss {
-                // σ̂_i² = E_i²/(N − n_p/n_y) over the samples with non-zero weight.
-                Loss::Quadratic => sse_live[i] / dof,
-                Loss::Huber { .. } => live / dof,
-            };
-            meat += mi * factor;
-        }
-        for m in [&mut jtj, &mut bread, &mut meat] {
-            m.fill_lower_triangle_with_upper_triangle();
-        }
-        Ok(Sums { cost, e2_weighted: e2w, sse, count, sst, jtj, bread, meat })
+        Ok(acc.finish(&self.loss, np, !self.prefilters.is_empty()))
     }
 
     /// Robust scale `1.4826 × MAD` of each output's residuals at p (length n_y), the
@@ -689,4 +700,140 @@ fn mad(mut v: Vec<f64>) -> f64 {
         *x = (*x - med).abs();
     }
     median(&mut v)
+}
+
+/// One unfiltered sample of a pass: `(k, ε, w, J)`.
+type RawSample = (usize, Vec<f64>, Vec<f64>, Vec<f64>);
+
+/// Running sums of [`PemProblem::sums`].
+struct Accumulator {
+    ny: usize,
+    np: usize,
+    cost: f64,
+    e2w: f64,
+    count: usize,
+    n_e: usize,
+    sse: Vec<f64>,
+    // Raw residuals of samples with non-zero weight: the noise estimate ignores weighted-out ones.
+    sse_live: Vec<f64>,
+    n_live: Vec<usize>,
+    y0: Vec<f64>,
+    ey: Vec<f64>,
+    ey2: Vec<f64>,
+    sum_y: Vec<f64>,
+    sum_y2: Vec<f64>,
+    jtj: DMatrix<f64>,
+    bread: DMatrix<f64>,
+    // Per output: Σ w² J_iᵀJ_i (quadratic), Σ w² ψ² J_iᵀJ_i (Huber) or gᵀg (prefilter).
+    meat_i: Vec<DMatrix<f64>>,
+}
+
+impl Accumulator {
+    fn new(ny: usize, np: usize) -> Self {
+        let z = DMatrix::zeros(np, np);
+        Self {
+            ny,
+            np,
+            cost: 0.0,
+            e2w: 0.0,
+            count: 0,
+            n_e: 0,
+            sse: vec![0.0; ny],
+            sse_live: vec![0.0; ny],
+            n_live: vec![0; ny],
+            y0: vec![0.0; ny],
+            ey: vec![0.0; ny],
+            ey2: vec![0.0; ny],
+            sum_y: vec![0.0; ny],
+            sum_y2: vec![0.0; ny],
+            jtj: z.clone(),
+            bread: z.clone(),
+            meat_i: vec![z; ny],
+        }
+    }
+
+    fn start_experiment(&mut self, y0: &[f64]) {
+        self.y0.copy_from_slice(y0);
+        self.ey.fill(0.0);
+        self.ey2.fill(0.0);
+        self.n_e = 0;
+    }
+
+    /// One sample: `eps` the residual the criterion sees (filtered or not), `raw` the
+    /// output error itself, `jac` the criterion's Jacobian (row-major n_y × n_p).
+    fn sample(&mut self, loss: &Loss, y: &[f64], eps: &[f64], raw: &[f64], w: &[f64], jac: &[f64]) {
+        let np = self.np;
+        self.n_e += 1;
+        for i in 0..self.ny {
+            let (rho, _, _, dpsi) = loss.eval(i, eps[i]);
+            self.cost += w[i] * rho;
+            self.e2w += w[i] * eps[i] * eps[i];
+            self.sse[i] += raw[i] * raw[i];
+            if w[i] > 0.0 {
+                self.sse_live[i] += raw[i] * raw[i];
+                self.n_live[i] += 1;
+            }
+            let d = y[i] - self.y0[i];
+            self.ey[i] += d;
+            self.ey2[i] += d * d;
+            let row = &jac[i * np..(i + 1) * np];
+            for a in 0..np {
+                for b in a..np {
+                    let jj = row[a] * row[b];
+                    self.jtj[(a, b)] += w[i] * jj;
+                    self.bread[(a, b)] += w[i] * dpsi * jj;
+                }
+            }
+        }
+    }
+
+    /// Adds `m · row rowᵀ` to the meat of output i (upper triangle).
+    fn add_meat(&mut self, i: usize, m: f64, row: &[f64]) {
+        for a in 0..self.np {
+            for b in a..self.np {
+                self.meat_i[i][(a, b)] += m * row[a] * row[b];
+            }
+        }
+    }
+
+    fn end_experiment(&mut self) {
+        let n = self.n_e as f64;
+        self.count += self.n_e;
+        for i in 0..self.ny {
+            // Pool about the grand mean over all experiments.
+            let y0 = self.y0[i];
+            self.sum_y[i] += self.ey[i] + n * y0;
+            self.sum_y2[i] += self.ey2[i] + 2.0 * y0 * self.ey[i] + n * y0 * y0;
+        }
+    }
+
+    fn finish(mut self, loss: &Loss, np: usize, prefiltered: bool) -> Sums {
+        let (ny, n) = (self.ny, self.count as f64);
+        let sst = (0..ny).map(|i| (self.sum_y2[i] - self.sum_y[i] * self.sum_y[i] / n).max(0.0)).collect();
+        let mut meat = DMatrix::zeros(np, np);
+        for (i, mi) in self.meat_i.iter().enumerate() {
+            let live = self.n_live[i] as f64;
+            let dof = (live - np as f64 / ny as f64).max(1.0);
+            let factor = match loss {
+                // Huber without prefilter: ψ² is already in the meat.
+                Loss::Huber { .. } if !prefiltered => live / dof,
+                // σ̂_i² = E_i²/(N − n_p/n_y) of the raw residuals with non-zero weight.
+                _ => self.sse_live[i] / dof,
+            };
+            meat += mi * factor;
+        }
+        for m in [&mut self.jtj, &mut self.bread, &mut meat] {
+            m.fill_lower_triangle_with_upper_triangle();
+        }
+        Sums {
+            cost: self.cost,
+            e2_weighted: self.e2w,
+            sse: self.sse,
+            count: self.count,
+            sst,
+            jtj: self.jtj,
+            bread: self.bread,
+            meat,
+        }
+    }
 }
