@@ -211,18 +211,7 @@ pub trait GreyBoxModel: Sync {
         v: &[f64],
         out: &mut [f64],
     ) {
-        let n = x.len();
-        let (mut xp, mut xm, mut fm) = (x.to_vec(), x.to_vec(), vec![0.0; n]);
-        let d = direction_step(x, v);
-        for i in 0..n {
-            xp[i] += d * v[i];
-            xm[i] -= d * v[i];
-        }
-        self.step(c, inputs, k, &xp, out);
-        self.step(c, inputs, k, &xm, &mut fm);
-        for i in 0..n {
-            out[i] = (out[i] - fm[i]) / (2.0 * d);
-        }
+        directional_difference(x, v, out, |xs, o| self.step(c, inputs, k, xs, o));
     }
 
     /// Directional derivative of the output map, `out = ∂y/∂x · v` (v length n_x, out
@@ -236,26 +225,23 @@ pub trait GreyBoxModel: Sync {
         v: &[f64],
         out: &mut [f64],
     ) {
-        let (n, ny) = (x.len(), out.len());
-        let (mut xp, mut xm, mut ym) = (x.to_vec(), x.to_vec(), vec![0.0; ny]);
-        let d = direction_step(x, v);
-        for i in 0..n {
-            xp[i] += d * v[i];
-            xm[i] -= d * v[i];
-        }
-        self.output(c, inputs, k, &xp, out);
-        self.output(c, inputs, k, &xm, &mut ym);
-        for i in 0..ny {
-            out[i] = (out[i] - ym[i]) / (2.0 * d);
-        }
+        directional_difference(x, v, out, |xs, o| self.output(c, inputs, k, xs, o));
     }
 }
 
-/// Step length along direction v for the state derivatives: `1e-4 (1 + ‖x‖)/‖v‖`.
-fn direction_step(x: &[f64], v: &[f64]) -> f64 {
-    let nx = x.iter().map(|a| a * a).sum::<f64>().sqrt();
-    let nv = v.iter().map(|a| a * a).sum::<f64>().sqrt();
-    if nv > 0.0 { 1e-4 * (1.0 + nx) / nv } else { 1.0 }
+/// Central difference of `f` at x along direction v, step `1e-4 (1 + ‖x‖)/‖v‖`:
+/// `out = (f(x + d v) − f(x − d v))/(2d)`.
+fn directional_difference(x: &[f64], v: &[f64], out: &mut [f64], mut f: impl FnMut(&[f64], &mut [f64])) {
+    let norm = |u: &[f64]| u.iter().map(|a| a * a).sum::<f64>().sqrt();
+    let nv = norm(v);
+    let d = if nv > 0.0 { 1e-4 * (1.0 + norm(x)) / nv } else { 1.0 };
+    let shifted = |sign: f64| x.iter().zip(v).map(|(a, b)| a + sign * d * b).collect::<Vec<f64>>();
+    let mut minus = vec![0.0; out.len()];
+    f(&shifted(1.0), out);
+    f(&shifted(-1.0), &mut minus);
+    for (o, m) in out.iter_mut().zip(&minus) {
+        *o = (*o - m) / (2.0 * d);
+    }
 }
 
 /// Parameter values as `name = value` pairs, comma separated (for messages).

@@ -163,7 +163,9 @@ where
         if analytic {
             model.output_sensitivity(&c, &prep.inputs, k, &x, &s, &mut dy);
         } else {
-            fd_output(model, prep, theta, fd_scale, k, &x, &s, &mut dy)?;
+            fd_sensitivity(model, prep, theta, fd_scale, &x, &s, &mut dy, ny, |c, xv, o| {
+                model.output(c, &prep.inputs, k, xv, o)
+            })?;
         }
         for (m, v) in s0.iter().enumerate() {
             if live0 {
@@ -192,7 +194,9 @@ where
                 model.step_sensitivity(&c, &prep.inputs, k, &x, &s, &mut xn, &mut sn);
             } else {
                 model.step(&c, &prep.inputs, k, &x, &mut xn);
-                fd_step(model, prep, theta, fd_scale, k, &x, &s, &mut sn)?;
+                fd_sensitivity(model, prep, theta, fd_scale, &x, &s, &mut sn, nx, |c, xv, o| {
+                    model.step(c, &prep.inputs, k, xv, o)
+                })?;
             }
             if !xn.iter().chain(sn.iter()).all(|v| v.is_finite()) {
                 return Err(diverged(model, prep, theta, k + 1));
@@ -259,49 +263,33 @@ where
     finitediff::vec::central_jacobian(&f)(&v0).map_err(Error::from_argmin)
 }
 
-/// Forward-sensitivity step from finite differences: `s_next = F_x s + F_θ`.
+/// Sensitivity of `g(x, θ)` from finite differences, chained with the state sensitivity:
+/// `out = G_x s + G_θ` (row-major `n_out × n_θ`). `g` is the step (`n_out = n_x`) or the
+/// output map (`n_out = n_y`), evaluated by `eval(coefficients, x, out)`.
 #[allow(clippy::too_many_arguments)]
-fn fd_step<M: GreyBoxModel>(
+fn fd_sensitivity<M, G>(
     model: &M,
     prep: &Prepared<M::Inputs>,
     theta: &[f64],
     scale: &[f64],
-    k: usize,
     x: &[f64],
     s: &[f64],
-    s_next: &mut [f64],
-) -> Result<()> {
+    out: &mut [f64],
+    n_out: usize,
+    eval: G,
+) -> Result<()>
+where
+    M: GreyBoxModel,
+    G: Fn(&M::Coefficients, &[f64], &mut [f64]),
+{
     let nx = model.n_states();
     let jac = fd_jacobian(nx, x, theta, scale, |xv, th| {
         let c = model.coefficients(th, &prep.inputs)?;
-        let mut xn = vec![0.0; nx];
-        model.step(&c, &prep.inputs, k, xv, &mut xn);
-        Ok(xn)
+        let mut o = vec![0.0; n_out];
+        eval(&c, xv, &mut o);
+        Ok(o)
     })?;
-    chain(&jac, nx, s, scale, s_next);
-    Ok(())
-}
-
-/// Output sensitivity from finite differences: `dy = G_x s + G_θ`.
-#[allow(clippy::too_many_arguments)]
-fn fd_output<M: GreyBoxModel>(
-    model: &M,
-    prep: &Prepared<M::Inputs>,
-    theta: &[f64],
-    scale: &[f64],
-    k: usize,
-    x: &[f64],
-    s: &[f64],
-    dy: &mut [f64],
-) -> Result<()> {
-    let (nx, ny) = (model.n_states(), model.n_outputs());
-    let jac = fd_jacobian(nx, x, theta, scale, |xv, th| {
-        let c = model.coefficients(th, &prep.inputs)?;
-        let mut y = vec![0.0; ny];
-        model.output(&c, &prep.inputs, k, xv, &mut y);
-        Ok(y)
-    })?;
-    chain(&jac, nx, s, scale, dy);
+    chain(&jac, nx, s, scale, out);
     Ok(())
 }
 
