@@ -137,6 +137,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     };
     let mut best: Option<FitResult> = None;
     let mut losses = Vec::new();
+    let mut others: Vec<FitResult> = Vec::new();
     for &hold in holds {
         // The second hold starts from the first's estimate: it converges in a few steps.
         let s = match &best {
@@ -170,10 +171,17 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             }
         };
         if better {
-            best = Some(r);
+            if let Some(b) = best.replace(r) {
+                others.push(b);
+            }
+        } else {
+            others.push(r);
         }
     }
     let mut result = best.expect("at least one hold is fitted");
+    if let Some(a) = hold_ambiguity(&result, &others, names) {
+        result.diagnostics.advice.push(a);
+    }
     if losses.len() > 1 {
         notes.push(format!(
             "voltage hold chosen automatically by the lower loss: {}",
@@ -201,6 +209,34 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     result.timing.fit_s = t0.elapsed().as_secs_f64();
     result.timing.total_s = result.timing.fit_s;
     Ok(result)
+}
+
+/// Advice when the losses of the two holds are close (ratio below 2) but their estimates
+/// differ by more than 3 standard errors: the data do not clearly say how the voltage was
+/// held (PWM ripple, dead time, or a voltage column that is not a period mean).
+fn hold_ambiguity(best: &FitResult, others: &[FitResult], names: &[&str]) -> Option<String> {
+    let other = others.first()?;
+    let ratio = other.fit.loss / best.fit.loss;
+    if !(ratio < 2.0) {
+        return None;
+    }
+    let (name, z) = names
+        .iter()
+        .filter_map(|n| {
+            let (a, b) = (best.parameter(n)?, other.parameter(n)?);
+            Some((*n, ((a.value - b.value) / a.std_error).abs()))
+        })
+        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+    (z > 3.0).then(|| {
+        format!(
+            "the {} and {} voltage holds fit almost equally well (loss ratio {ratio:.3}) but their {name} \
+             differs by {z:.0} standard errors: the log does not say how the voltage was held; a real \
+             inverter holds it in the stator frame (--hold stator); this fit used the {} hold",
+            best.hold.map(|h| h.to_string()).unwrap_or_default(),
+            other.hold.map(|h| h.to_string()).unwrap_or_default(),
+            best.hold.map(|h| h.to_string()).unwrap_or_default(),
+        )
+    })
 }
 
 fn fit_model<M: GreyBoxModel>(

@@ -187,3 +187,34 @@ fn multi_experiment_results_do_not_depend_on_the_thread_count() {
         assert_eq!(a.std_error.to_bits(), b.std_error.to_bits(), "{}", a.name);
     }
 }
+
+#[test]
+fn full_residuals_and_jacobian_agree_with_the_streamed_normal_equations() {
+    let e = record(31, 1200);
+    let m = PmsmSpm::new(VoltageHold::Stator);
+    let start = [1.1, 4.0e-3, 0.55];
+    for x0 in [false, true] {
+        let prep = m.prepare(&e).unwrap();
+        let opts = ProblemOptions { estimate_x0: x0, ..Default::default() };
+        let p = PemProblem::new(&m, vec![(prep, None)], &start, &NominalScaling, &opts).unwrap();
+        let p0 = p.start_vector(&start);
+        let ne = p.normal_equations(&p0).unwrap();
+        let (r, j) = p.residuals_and_jacobian(&p0).unwrap();
+        let jtj = j.transpose() * &j;
+        let jtr = j.transpose() * &r;
+        assert!((&jtj - &ne.jtj).norm() / ne.jtj.norm() < 1e-12, "x0 {x0}");
+        assert!((&jtr - &ne.jtr).norm() / ne.jtr.norm() < 1e-12, "x0 {x0}");
+        assert!((0.5 * r.norm_squared() - ne.cost).abs() / ne.cost < 1e-12, "x0 {x0}");
+    }
+}
+
+#[test]
+fn wrong_parameter_count_is_an_error_not_a_panic() {
+    let e = record(32, 100);
+    let m = PmsmSpm::new(VoltageHold::Stator);
+    let prep = m.prepare(&e).unwrap();
+    let err = greybox::simulate::simulate(&m, &prep, &[0.9, 4.5e-3]).unwrap_err();
+    assert!(err.to_string().contains("theta"), "{err}");
+    let err = fit(&m, &[e], &[0.9], &PemOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("start"), "{err}");
+}

@@ -266,3 +266,22 @@ fn cli_fit_prints_a_table_and_writes_the_json_report() {
         assert!(v["timing"][key].as_f64().unwrap() >= 0.0, "timing lacks {key}");
     }
 }
+
+#[test]
+fn a_sample_dropped_late_in_a_long_log_is_named_by_its_row() {
+    let n = 20_000;
+    let mut t: Vec<f64> = (0..=n).map(|k| k as f64 * 1e-4).collect();
+    t.remove(15_000);
+    let s = |v: f64| vec![v; n];
+    let signals = Signals { u_d: s(1.0), u_q: s(1.0), i_d: s(0.0), i_q: s(0.0), w_m: s(0.0), ..Default::default() };
+    let err = Experiment::try_from_time("dropped", &t, 4, signals.clone()).unwrap_err();
+    match &err {
+        Error::NonUniformTime { row, column, .. } => assert_eq!((*row, column.as_str()), (15_000, "t"), "{err}"),
+        other => panic!("{other:?}"),
+    }
+    // A decreasing time stamp is named too.
+    let mut t2: Vec<f64> = (0..n).map(|k| k as f64 * 1e-4).collect();
+    t2[700] = t2[698];
+    let err = Experiment::try_from_time("backwards", &t2, 4, signals).unwrap_err();
+    assert!(matches!(err, Error::NonUniformTime { row: 700, .. }), "{err:?}");
+}

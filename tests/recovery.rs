@@ -99,3 +99,25 @@ fn servo_spm_moves_idinj_noisy() {
 fn gem_ipm_moves_idinj_noisy() {
     assert_noisy("gem_ipm_moves_idinj_noisy");
 }
+
+/// The PWM log with dead time: its switching ripple makes the dq hold fit slightly better
+/// than the (physically right) stator hold. The automatic choice must say that the hold is
+/// ambiguous, and the stator hold must land where the data README says (L_s within
+/// 0.15 %, R_s and K_e within ≈ 1e-4).
+#[test]
+fn pwm_log_flags_an_ambiguous_hold_and_the_stator_hold_is_close() {
+    let (e, t) = load("servo_spm_pwm_deadtime_idinj");
+    let auto = fit_pmsm(std::slice::from_ref(&e), &PmsmFitOptions::default()).unwrap();
+    assert!(
+        auto.diagnostics.advice.iter().any(|a| a.contains("voltage holds fit almost equally well")),
+        "{:?}",
+        auto.diagnostics.advice
+    );
+    let opts = PmsmFitOptions { hold: greybox::pmsm::HoldChoice::Stator, ..Default::default() };
+    let stator = fit_pmsm(&[e], &opts).unwrap();
+    let err = |n: &str, truth: f64| rel(stator.parameter(n).unwrap().value, truth);
+    eprintln!("PWM, stator hold: r_s {:.2e}, l_s {:.2e}, k_e {:.2e}", err("r_s", t.r_s), err("l_s", t.l_d), err("k_e", t.k_e));
+    assert!(err("l_s", t.l_d) < 1.5e-3);
+    assert!(err("r_s", t.r_s) < 2e-4);
+    assert!(err("k_e", t.k_e) < 1e-4);
+}

@@ -85,11 +85,13 @@ impl Experiment {
 
     /// Like [`Experiment::try_new`], with the sample time taken from a time vector `t` [s].
     ///
-    /// `t` must be strictly uniform: every step within `TIME_TOLERANCE` (relative) of the
-    /// mean step `(t[N−1] − t[0])/(N − 1)`.
+    /// `t` must be strictly increasing and uniform: every step within [`TIME_TOLERANCE`]
+    /// (relative) of the mean step `h = (t[N−1] − t[0])/(N − 1)`, and `t[k]` within `h/2`
+    /// of `t[0] + k h`.
     ///
     /// # Errors
-    /// Those of [`Experiment::try_new`], plus [`Error::NonUniformTime`] naming the row, and
+    /// Those of [`Experiment::try_new`], plus [`Error::NonUniformTime`] naming the column
+    /// and the row of the first non-increasing or irregular step, and
     /// [`Error::NonFinite`]/[`Error::LengthMismatch`] for the `t` column itself.
     pub fn try_from_time(name: impl Into<String>, t: &[f64], n_p: u32, signals: Signals) -> Result<Self> {
         let name = name.into();
@@ -160,6 +162,9 @@ impl Experiment {
     }
     /// Electrical speed over interval k, `w_e = n_p (w_m[k] + w_m[k+1])/2` [rad/s], for
     /// `k < N − 1` (MODEL.md §4: speed at the interval mean).
+    ///
+    /// # Panics
+    /// If `k ≥ N − 1`.
     pub fn w_e_interval(&self, k: usize) -> f64 {
         0.5 * f64::from(self.n_p) * (self.s.w_m[k] + self.s.w_m[k + 1])
     }
@@ -191,32 +196,37 @@ impl Experiment {
     }
 }
 
-/// Uniformity tolerance of a time column, relative to the step h: every `t[k]` must lie
-/// within `0.01 h` of `t[0] + k h`.
+/// Uniformity tolerance of a time column, relative to the step h: every step
+/// `t[k] − t[k−1]` must lie within `0.25 h` of the mean step h, and every `t[k]` within
+/// `h/2` of `t[0] + k h`.
 ///
-/// This admits the rounding of times written with 6 decimals at h ≥ 100 µs, and still
-/// catches a dropped, repeated or shifted sample (a deviation of a whole step).
-pub const TIME_TOLERANCE: f64 = 1e-2;
+/// The first test names the row of a dropped, repeated or shifted sample; the second
+/// catches a slow drift of the rate. Both admit the rounding of times written with 6
+/// decimals at any rate up to 100 kHz.
+pub const TIME_TOLERANCE: f64 = 0.25;
 
-/// Mean step of a uniform time vector, checked sample by sample.
+/// Mean step of a uniform, strictly increasing time vector, checked sample by sample.
 fn uniform_step(t: &[f64], column: &str) -> Result<f64> {
     let n = t.len();
+    let bad = |row: usize, expected: f64| Error::NonUniformTime {
+        column: column.to_string(),
+        row,
+        dt: t[row] - t[row - 1],
+        expected,
+        tolerance: TIME_TOLERANCE,
+    };
+    if let Some(k) = (1..n).find(|&k| t[k] <= t[k - 1]) {
+        return Err(bad(k, (t[n - 1] - t[0]) / (n - 1) as f64));
+    }
     let h = (t[n - 1] - t[0]) / (n - 1) as f64;
     if !(h.is_finite() && h > 0.0) {
         return Err(Error::InvalidSampleTime { h });
     }
-    let tol = TIME_TOLERANCE * h;
-    for k in 1..n {
-        let dev = t[k] - (t[0] + k as f64 * h);
-        if dev.abs() > tol {
-            return Err(Error::NonUniformTime {
-                column: column.to_string(),
-                row: k,
-                dt: t[k] - t[k - 1],
-                expected: h,
-                tolerance: TIME_TOLERANCE,
-            });
-        }
+    if let Some(k) = (1..n).find(|&k| ((t[k] - t[k - 1]) - h).abs() > TIME_TOLERANCE * h) {
+        return Err(bad(k, h));
+    }
+    if let Some(k) = (1..n).find(|&k| (t[k] - (t[0] + k as f64 * h)).abs() > 0.5 * h) {
+        return Err(bad(k, h));
     }
     Ok(h)
 }

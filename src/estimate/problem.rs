@@ -208,6 +208,9 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             p.check_bounds()?;
             p.check_start(v)?;
         }
+        for (prep, _) in &preps {
+            crate::simulate::check_inputs(model, prep, start, &prep.x0)?;
+        }
         let ny = model.n_outputs();
         let positive = |v: &[f64]| v.len() == ny && v.iter().all(|w| w.is_finite() && *w > 0.0);
         let output_weights = options.output_weights.clone().unwrap_or_else(|| vec![1.0; ny]);
@@ -282,13 +285,16 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                 // Scale of the state: its RMS over the record (outputs are states for the PMSM).
                 let rms = (prep.y.iter().map(|v| v * v).sum::<f64>() / prep.y.len() as f64).sqrt();
                 let scale = if rms > 0.0 && rms.is_finite() { rms } else { 1.0 };
+                // An initial state the data barely see (its transient weighted out) must
+                // not wander off: bound it to ten times the largest measured output.
+                let bound = (10.0 * prep.y.iter().fold(0.0f64, |m, v| m.max(v.abs())) + 1.0) / scale;
                 for i in 0..prep.x0.len() {
                     free.push(FreeParameter {
                         kind: FreeKind::InitialState(i),
                         experiment: Some(e),
                         transform: Transform::Linear { scale },
-                        lower_p: f64::NEG_INFINITY,
-                        upper_p: f64::INFINITY,
+                        lower_p: -bound,
+                        upper_p: bound,
                     });
                 }
                 g
@@ -351,7 +357,11 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         &self.loss
     }
 
-    /// Scaled start vector p₀ for model start values θ₀ (initial states from the measurement).
+    /// Scaled start vector p₀ (length n_p) for model start values θ₀ (initial states from
+    /// the measurement).
+    ///
+    /// # Panics
+    /// If `start` has fewer than n_θ entries.
     pub fn start_vector(&self, start: &[f64]) -> DVector<f64> {
         DVector::from_iterator(
             self.free.len(),
@@ -363,7 +373,10 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         )
     }
 
-    /// θ of experiment `e` at scaled point p (length n_θ).
+    /// θ of experiment `e` at scaled point p (length n_p); returns length n_θ.
+    ///
+    /// # Panics
+    /// If `e` is not an experiment index or p is shorter than n_p.
     pub fn theta(&self, e: usize, p: &DVector<f64>) -> Vec<f64> {
         self.terms[e]
             .slots

@@ -67,6 +67,9 @@ pub struct Prepared<I> {
 
 impl<I> Prepared<I> {
     /// Measured output vector at sample k, length n_y.
+    ///
+    /// # Panics
+    /// If `(k + 1) n_y` exceeds `y.len()` (k ≥ N for consistent data).
     pub fn y_at(&self, k: usize, n_y: usize) -> &[f64] {
         &self.y[k * n_y..(k + 1) * n_y]
     }
@@ -140,10 +143,11 @@ pub trait GreyBoxModel: Sync {
     /// Model-specific: e.g. a missing optional signal the model needs.
     fn prepare(&self, experiment: &Experiment) -> Result<Prepared<Self::Inputs>>;
 
-    /// Computes the θ-dependent coefficients, validating θ (length n_θ).
+    /// Computes the θ-dependent coefficients, validating θ (length n_θ, model order, SI units).
     ///
     /// # Errors
-    /// [`crate::Error::InvalidParameter`] for a θ the model cannot simulate (e.g. `L ≤ 0`).
+    /// [`crate::Error::InvalidParameter`] for a θ the model cannot simulate (e.g. `L ≤ 0`);
+    /// [`crate::Error::InvalidOption`] for θ of the wrong length (built-in models).
     fn coefficients(&self, theta: &[f64], inputs: &Self::Inputs) -> Result<Self::Coefficients>;
 
     /// One sample period: `x_next = f(x, inputs[k], θ)` for `k < N − 1`.

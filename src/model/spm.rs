@@ -253,7 +253,12 @@ impl GreyBoxModel for PmsmSpm {
     }
 
     fn coefficients(&self, theta: &[f64], inputs: &SpmInputs) -> Result<SpmCoefficients> {
-        let (r, l, k_e) = (theta[0], theta[1], theta[2]);
+        let &[r, l, k_e] = theta else {
+            return Err(Error::InvalidOption {
+                option: "theta".into(),
+                reason: format!("{} values for the 3 parameters r_s, l_s, k_e", theta.len()),
+            });
+        };
         check_positive("r_s", r)?;
         check_positive("l_s", l)?;
         if !k_e.is_finite() {

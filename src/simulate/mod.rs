@@ -59,7 +59,8 @@ pub fn simulate_with<M: GreyBoxModel>(
 /// As [`simulate_with`], from the initial state `x0` (length n_x) instead of the measured one.
 ///
 /// # Errors
-/// As [`simulate_with`]; [`Error::InvalidOption`] for `x0` of the wrong length.
+/// As [`simulate_with`]; [`Error::InvalidOption`] for θ not of length n_θ, `x0` not of
+/// length n_x, or prepared data of inconsistent shape.
 pub fn simulate_from<M: GreyBoxModel>(
     model: &M,
     prep: &Prepared<M::Inputs>,
@@ -68,7 +69,7 @@ pub fn simulate_from<M: GreyBoxModel>(
     shooting: Shooting,
 ) -> Result<Vec<f64>> {
     check_shooting(model, shooting)?;
-    check_x0(model, x0)?;
+    check_inputs(model, prep, theta, x0)?;
     let (nx, ny) = (model.n_states(), model.n_outputs());
     let c = model.coefficients(theta, &prep.inputs)?;
     let mut yhat = vec![0.0; prep.n * ny];
@@ -140,7 +141,13 @@ where
     F: FnMut(usize, &[f64], &[f64], &[f64]),
 {
     check_shooting(model, shooting)?;
-    check_x0(model, x0)?;
+    check_inputs(model, prep, theta, x0)?;
+    if fd_scale.len() != theta.len() {
+        return Err(Error::InvalidOption {
+            option: "fd_scale".into(),
+            reason: format!("{} scales for {} parameters", fd_scale.len(), theta.len()),
+        });
+    }
     let (nx, ny, nth) = (model.n_states(), model.n_outputs(), theta.len());
     let c = model.coefficients(theta, &prep.inputs)?;
     let analytic = model.has_sensitivities();
@@ -208,12 +215,25 @@ where
     Ok(())
 }
 
-fn check_x0<M: GreyBoxModel>(model: &M, x0: &[f64]) -> Result<()> {
-    if x0.len() != model.n_states() {
-        return Err(Error::InvalidOption {
-            option: "x0".into(),
-            reason: format!("{} values for a model with {} states", x0.len(), model.n_states()),
-        });
+/// Checks the shapes a model and its prepared data must agree on, so that a wrong θ or a
+/// user model's inconsistent `prepare` gives an error instead of an index panic.
+pub(crate) fn check_inputs<M: GreyBoxModel>(model: &M, prep: &Prepared<M::Inputs>, theta: &[f64], x0: &[f64]) -> Result<()> {
+    let bad = |option: &str, reason: String| Err(Error::InvalidOption { option: option.into(), reason });
+    let (nx, ny, nth) = (model.n_states(), model.n_outputs(), model.parameters().len());
+    if theta.len() != nth {
+        return bad("theta", format!("{} values for model `{}` with {nth} parameters", theta.len(), model.name()));
+    }
+    if x0.len() != nx {
+        return bad("x0", format!("{} values for model `{}` with {nx} states", x0.len(), model.name()));
+    }
+    if prep.n < 2 || prep.y.len() != prep.n * ny {
+        return bad(
+            "prepared data",
+            format!("experiment `{}`: {} output values for {} samples of {ny} outputs (need N ≥ 2)", prep.name, prep.y.len(), prep.n),
+        );
+    }
+    if prep.x0.len() != nx {
+        return bad("prepared data", format!("experiment `{}`: initial state of length {}, model has {nx} states", prep.name, prep.x0.len()));
     }
     Ok(())
 }
