@@ -18,6 +18,14 @@ pub enum Error {
         /// The operating system's reason.
         source: std::io::Error,
     },
+    /// A file (e.g. the JSON report) could not be written.
+    #[error("cannot write {path}: {source}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
     /// A CSV file is malformed (bad field, ragged row, unparsable number).
     #[error("{path}: line {line}: {message}")]
     Csv {

@@ -6,7 +6,7 @@
 //! The library does the work; this file only maps flags to options and prints.
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use greybox::data::csv::{ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
+use greybox::data::csv::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
 use greybox::estimate::linear::{LinearOptions, MotorKind, weighted_least_squares};
 use greybox::estimate::weighting::SpeedShape;
 use greybox::estimate::{PemOptions, ScalingKind, SolverKind, Tolerances, WeightingKind};
@@ -46,7 +46,7 @@ struct FitArgs {
     /// Voltage hold between samples: auto picks the one with the lower loss.
     #[arg(long, value_enum, default_value_t = HoldArg::Auto)]
     hold: HoldArg,
-    /// Write the JSON report to this file ("-" for stdout).
+    /// Write the JSON report to this file ("-" for stdout, which suppresses the table).
     #[arg(long)]
     json: Option<PathBuf>,
     /// Start values in model order, comma separated, SI units (default: linear least squares).
@@ -72,8 +72,14 @@ struct FitArgs {
     #[arg(long, default_value = "uniform", value_parser = parse_weighting)]
     weighting: WeightingKind,
     /// Robust fit with Huber's loss; the value is c in δ = c·σ̂ (default 1.345 when given without value).
-    #[arg(long, num_args = 0..=1, default_missing_value = "1.345")]
+    #[arg(long, num_args = 0..=1, require_equals = true, default_missing_value = "1.345")]
     huber: Option<f64>,
+    /// Output weights Λ for i_d, i_q, comma separated (default 1,1).
+    #[arg(long, value_delimiter = ',')]
+    output_weights: Option<Vec<f64>>,
+    /// Bounds of a parameter, NAME:LO:HI in SI units (repeatable), e.g. r_s:0.1:5.
+    #[arg(long, value_parser = parse_bounds)]
+    bounds: Vec<(String, f64, f64)>,
     /// Take the first measured currents as the exact initial state instead of estimating it.
     #[arg(long)]
     fixed_x0: bool,
@@ -142,6 +148,9 @@ struct ColumnArgs {
     /// Unit of the speed column.
     #[arg(long, value_enum, default_value_t = SpeedUnitArg::RadS)]
     speed_unit: SpeedUnitArg,
+    /// Unit of the angle column.
+    #[arg(long, value_enum, default_value_t = AngleUnitArg::Rad)]
+    angle_unit: AngleUnitArg,
     /// Whether the speed and angle columns are mechanical or electrical.
     #[arg(long, value_enum, default_value_t = FrameArg::Mechanical)]
     speed_frame: FrameArg,
@@ -191,6 +200,11 @@ enum SpeedUnitArg {
     Rpm,
 }
 #[derive(Clone, Copy, Debug, ValueEnum)]
+enum AngleUnitArg {
+    Rad,
+    Deg,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
 enum FrameArg {
     Mechanical,
     Electrical,
@@ -233,12 +247,24 @@ impl ColumnArgs {
                 FrameArg::Mechanical => Frame::Mechanical,
                 FrameArg::Electrical => Frame::Electrical,
             },
+            angle_unit: match self.angle_unit {
+                AngleUnitArg::Rad => AngleUnit::Rad,
+                AngleUnitArg::Deg => AngleUnit::Deg,
+            },
             current_scale: scale(self.current_scale),
             voltage_scale: scale(self.voltage_scale),
             source: if self.dq_from_phases { DqSource::Phases } else { DqSource::Dq },
             ..CsvOptions::default()
         }
     }
+}
+
+/// Parses `NAME:LO:HI`.
+fn parse_bounds(s: &str) -> Result<(String, f64, f64), String> {
+    let parts: Vec<&str> = s.split(':').collect();
+    let [name, lo, hi] = parts[..] else { return Err(format!("`{s}`: expected NAME:LO:HI")) };
+    let num = |v: &str| v.parse::<f64>().map_err(|e| format!("`{s}`: {e}"));
+    Ok((name.to_string(), num(lo)?, num(hi)?))
 }
 
 /// Parses `uniform`, `low-speed:W0`, `high-speed:W0`, `band:LO:HI[:FLOOR]`.
@@ -270,6 +296,11 @@ fn parse_weighting(s: &str) -> Result<WeightingKind, String> {
 
 fn run_fit(a: &FitArgs) -> greybox::Result<()> {
     let t0 = Instant::now();
+    // Fail before the fit, not after it, when the report cannot be written.
+    if let Some(path) = a.json.as_ref().filter(|p| p.as_os_str() != "-") {
+        std::fs::File::create(path).map_err(|source| greybox::Error::Write { path: path.clone(), source })?;
+    }
+    let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
     let csv = a.columns.options();
     let logs = a
         .logs
@@ -285,7 +316,7 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
         let rule = a.weighting.rule()?;
         let opts = LinearOptions { prefilter: a.prefilter, ..LinearOptions::default() };
         let ls = weighted_least_squares(&logs, kind, rule.as_ref(), &opts)?;
-        if !a.quiet {
+        if !quiet {
             print!("{ls}");
         }
         return write_json(a, serde_json::to_string_pretty(&ls).unwrap_or_default());
@@ -299,7 +330,7 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
         },
         start: a.start.clone(),
         fixed: a.fix.clone(),
-        bounds: Vec::new(),
+        bounds: a.bounds.clone(),
         pem: PemOptions {
             solver: match a.solver {
                 SolverArg::Lm => SolverKind::Lm,
@@ -318,6 +349,7 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
             huber: a.huber,
             estimate_x0: !a.fixed_x0,
             prefilter: a.prefilter,
+            output_weights: a.output_weights.clone(),
             progress: true,
             ..PemOptions::default()
         },
@@ -325,7 +357,7 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
     let mut result = fit_pmsm(&logs, &options)?;
     result.timing.read_s = read_s;
     result.timing.total_s = t0.elapsed().as_secs_f64();
-    if !a.quiet {
+    if !quiet {
         print!("{result}");
     }
     write_json(a, result.to_json())?;

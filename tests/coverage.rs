@@ -134,7 +134,8 @@ fn ci95_coverage_with_noisy_initial_state() {
 }
 
 /// With a residual prefilter L(q) the filtered residuals are coloured; the reported
-/// covariance (Newey-West over the filter's memory) must still cover the truth.
+/// covariance (the time-reversed filter applied to the weighted Jacobian) must still
+/// cover the truth.
 #[test]
 fn ci95_coverage_with_residual_prefilter() {
     let clean = clean_record();

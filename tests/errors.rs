@@ -273,10 +273,13 @@ fn a_sample_dropped_late_in_a_long_log_is_named_by_its_row() {
     let mut t: Vec<f64> = (0..=n).map(|k| k as f64 * 1e-4).collect();
     t.remove(15_000);
     let s = |v: f64| vec![v; n];
-    let signals = Signals { u_d: s(1.0), u_q: s(1.0), i_d: s(0.0), i_q: s(0.0), w_m: s(0.0), ..Default::default() };
+    let signals =
+        Signals { u_d: s(1.0), u_q: s(1.0), i_d: s(0.0), i_q: s(0.0), w_m: s(0.0), ..Default::default() };
     let err = Experiment::try_from_time("dropped", &t, 4, signals.clone()).unwrap_err();
     match &err {
-        Error::NonUniformTime { row, column, .. } => assert_eq!((*row, column.as_str()), (15_000, "t"), "{err}"),
+        Error::NonUniformTime { row, column, .. } => {
+            assert_eq!((*row, column.as_str()), (15_000, "t"), "{err}")
+        }
         other => panic!("{other:?}"),
     }
     // A decreasing time stamp is named too.

@@ -116,7 +116,12 @@ fn pwm_log_flags_an_ambiguous_hold_and_the_stator_hold_is_close() {
     let opts = PmsmFitOptions { hold: greybox::pmsm::HoldChoice::Stator, ..Default::default() };
     let stator = fit_pmsm(&[e], &opts).unwrap();
     let err = |n: &str, truth: f64| rel(stator.parameter(n).unwrap().value, truth);
-    eprintln!("PWM, stator hold: r_s {:.2e}, l_s {:.2e}, k_e {:.2e}", err("r_s", t.r_s), err("l_s", t.l_d), err("k_e", t.k_e));
+    eprintln!(
+        "PWM, stator hold: r_s {:.2e}, l_s {:.2e}, k_e {:.2e}",
+        err("r_s", t.r_s),
+        err("l_s", t.l_d),
+        err("k_e", t.k_e)
+    );
     assert!(err("l_s", t.l_d) < 1.5e-3);
     assert!(err("r_s", t.r_s) < 2e-4);
     assert!(err("k_e", t.k_e) < 1e-4);

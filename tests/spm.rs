@@ -109,7 +109,8 @@ fn holds_differ_at_second_order_in_phi() {
 }
 
 /// Analytic output sensitivities over a trajectory against central differences of the
-/// whole simulation.
+/// whole simulation. The error of each entry is measured relative to the RMS of its
+/// parameter's column (entries that pass through zero have no relative error of their own).
 #[test]
 fn sensitivities_match_central_differences() {
     let th = [0.9, 4.5e-3, 0.5389];

@@ -133,7 +133,8 @@ pub enum Scale {
     /// gives `|x_dq| = X̂`.
     #[default]
     Peak,
-    /// RMS (power-invariant-per-phase) values: multiplied by `√2` on reading.
+    /// RMS-scaled values (`|x_dq|` = phase RMS, as some drives log): multiplied by `√2` on
+    /// reading. Power-invariant dq scaling (`|x_dq| = √(3/2)` × phase peak) is not this.
     Rms,
 }
 

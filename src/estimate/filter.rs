@@ -120,7 +120,7 @@ impl Butterworth {
             return Err(Error::InvalidOption {
                 option: "cutoff".into(),
                 reason: format!(
-                    "cutoff must lie in (0, {nyquist} Hz) (the Nyquist frequency for h = {h:e} s), got {cutoff} Hz"
+                    "cutoff must lie in (0, {nyquist:.1} Hz) (the Nyquist frequency for h = {h:.6e} s), got {cutoff} Hz"
                 ),
             });
         }

@@ -175,7 +175,15 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
             None => Vec::new(),
             Some(fc) => experiments
                 .iter()
-                .map(|e| filter::Butterworth::try_new(filter::DEFAULT_ORDER, fc, e.h()))
+                .map(|e| {
+                    filter::Butterworth::try_new(filter::DEFAULT_ORDER, fc, e.h()).map_err(|err| match err {
+                        Error::InvalidOption { reason, .. } => Error::InvalidOption {
+                            option: "prefilter".into(),
+                            reason: format!("{reason} (experiment `{}`)", e.name()),
+                        },
+                        other => other,
+                    })
+                })
                 .collect::<Result<_>>()?,
         },
     };
@@ -410,6 +418,15 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         dof,
     };
     let mut notes = Vec::new();
+    let mut diagnostics = diagnostics;
+    for (name, f) in fit.outputs.iter().zip(&fit.fit_percent) {
+        if *f < 80.0 {
+            diagnostics.advice.push(format!(
+                "poor fit of {name} ({f:.1} %): check the pole pairs, the units and frames of the columns, \
+                 the voltage hold, and that all logs come from one motor"
+            ));
+        }
+    }
     if info_inv.is_none() || bread_inv.is_none() {
         notes.push(
             "information matrix JᵀWJ is singular: some parameters are not identifiable from these data"

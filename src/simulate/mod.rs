@@ -217,11 +217,19 @@ where
 
 /// Checks the shapes a model and its prepared data must agree on, so that a wrong θ or a
 /// user model's inconsistent `prepare` gives an error instead of an index panic.
-pub(crate) fn check_inputs<M: GreyBoxModel>(model: &M, prep: &Prepared<M::Inputs>, theta: &[f64], x0: &[f64]) -> Result<()> {
+pub(crate) fn check_inputs<M: GreyBoxModel>(
+    model: &M,
+    prep: &Prepared<M::Inputs>,
+    theta: &[f64],
+    x0: &[f64],
+) -> Result<()> {
     let bad = |option: &str, reason: String| Err(Error::InvalidOption { option: option.into(), reason });
     let (nx, ny, nth) = (model.n_states(), model.n_outputs(), model.parameters().len());
     if theta.len() != nth {
-        return bad("theta", format!("{} values for model `{}` with {nth} parameters", theta.len(), model.name()));
+        return bad(
+            "theta",
+            format!("{} values for model `{}` with {nth} parameters", theta.len(), model.name()),
+        );
     }
     if x0.len() != nx {
         return bad("x0", format!("{} values for model `{}` with {nx} states", x0.len(), model.name()));
@@ -229,11 +237,23 @@ pub(crate) fn check_inputs<M: GreyBoxModel>(model: &M, prep: &Prepared<M::Inputs
     if prep.n < 2 || prep.y.len() != prep.n * ny {
         return bad(
             "prepared data",
-            format!("experiment `{}`: {} output values for {} samples of {ny} outputs (need N ≥ 2)", prep.name, prep.y.len(), prep.n),
+            format!(
+                "experiment `{}`: {} output values for {} samples of {ny} outputs (need N ≥ 2)",
+                prep.name,
+                prep.y.len(),
+                prep.n
+            ),
         );
     }
     if prep.x0.len() != nx {
-        return bad("prepared data", format!("experiment `{}`: initial state of length {}, model has {nx} states", prep.name, prep.x0.len()));
+        return bad(
+            "prepared data",
+            format!(
+                "experiment `{}`: initial state of length {}, model has {nx} states",
+                prep.name,
+                prep.x0.len()
+            ),
+        );
     }
     Ok(())
 }

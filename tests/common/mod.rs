@@ -23,7 +23,10 @@ pub struct Truth {
 }
 
 pub fn truth(stem: &str) -> Truth {
-    let text = std::fs::read_to_string(data(&format!("{stem}.json"))).expect("truth JSON");
+    let path = data(&format!("{stem}.json"));
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| {
+        panic!("{}: {e}; the data-driven tests need the development logs in ../shared/data beside the repository", path.display())
+    });
     let v: serde_json::Value = serde_json::from_str(&text).expect("valid JSON");
     let f = |k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{stem}.json: {k}"));
     let (l_d, l_q) = (f("Ld_H"), f("Lq_H"));
