@@ -217,7 +217,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
 fn hold_ambiguity(best: &FitResult, others: &[FitResult], names: &[&str]) -> Option<String> {
     let other = others.first()?;
     let ratio = other.fit.loss / best.fit.loss;
-    if !(ratio < 2.0) {
+    if ratio.is_nan() || ratio >= 2.0 {
         return None;
     }
     let (name, z) = names

@@ -28,7 +28,7 @@ pub struct Shooting {
 impl Shooting {
     /// Whether the state is reset to the measurement after the output at sample k.
     pub(crate) fn restarts_at(&self, k: usize) -> bool {
-        matches!(self.horizon, Some(h) if k % h == 0)
+        matches!(self.horizon, Some(h) if k.is_multiple_of(h))
     }
 }
 
