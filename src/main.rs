@@ -254,7 +254,6 @@ impl ColumnArgs {
             current_scale: scale(self.current_scale),
             voltage_scale: scale(self.voltage_scale),
             source: if self.dq_from_phases { DqSource::Phases } else { DqSource::Dq },
-            ..CsvOptions::default()
         }
     }
 }
