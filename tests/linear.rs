@@ -315,7 +315,7 @@ fn display_and_serde() {
     let (e, _) = load("ipm_moves_idinj");
     let ls = least_squares(&[e], MotorKind::Ipm).unwrap();
     let text = ls.to_string();
-    for s in ["r_s", "l_d", "l_q", "k_e", "Ω", "V s/rad", "error index", "std error", "uniform"] {
+    for s in ["r_s", "l_d", "l_q", "k_e", "ohm", "V s/rad", "error index", "std error", "uniform"] {
         assert!(text.contains(s), "missing `{s}` in\n{text}");
     }
     let json = serde_json::to_string(&ls).unwrap();

@@ -56,8 +56,8 @@ impl MotorKind {
     /// Parameter units in order (`Ω`, `H`, `V s/rad`; K_e per mechanical rad/s).
     pub fn parameter_units(self) -> &'static [&'static str] {
         match self {
-            Self::Spm => &["Ω", "H", "V s/rad"],
-            Self::Ipm => &["Ω", "H", "H", "V s/rad"],
+            Self::Spm => &["ohm", "H", "V s/rad"],
+            Self::Ipm => &["ohm", "H", "H", "V s/rad"],
         }
     }
 }
@@ -92,7 +92,7 @@ pub struct LinearEstimate {
     pub kind: MotorKind,
     /// Parameter names, e.g. `["r_s", "l_s", "k_e"]`, length n_θ.
     pub names: Vec<String>,
-    /// Parameter units, e.g. `["Ω", "H", "V s/rad"]`, length n_θ.
+    /// Parameter units, e.g. `["ohm", "H", "V s/rad"]` (as in the fit report), length n_θ.
     pub units: Vec<String>,
     /// Estimates θ̂ in SI units (Ω, H, V s/rad), length n_θ.
     pub theta: Vec<f64>,
