@@ -13,16 +13,32 @@ fn log(stem: &str, n_p: u32) -> greybox::Experiment {
 }
 
 fn pass<M: GreyBoxModel>(c: &mut Criterion, name: &str, model: &M, e: &greybox::Experiment, start: &[f64]) {
+    for estimate_x0 in [false, true] {
+        let name = format!("{name}{}", if estimate_x0 { ", x0 estimated" } else { "" });
+        pass_with(c, &name, model, e, start, estimate_x0);
+    }
+}
+
+fn pass_with<M: GreyBoxModel>(
+    c: &mut Criterion,
+    name: &str,
+    model: &M,
+    e: &greybox::Experiment,
+    start: &[f64],
+    estimate_x0: bool,
+) {
     let prep = model.prepare(e).unwrap();
-    let problem =
-        PemProblem::new(model, vec![(prep, None)], start, &NominalScaling, &ProblemOptions::default())
-            .unwrap();
+    let opts = ProblemOptions { estimate_x0, ..Default::default() };
+    let problem = PemProblem::new(model, vec![(prep, None)], start, &NominalScaling, &opts).unwrap();
     let p = problem.start_vector(start);
     c.bench_function(&format!("{name}: normal equations, {} samples", e.len()), |b| {
         b.iter(|| black_box(problem.normal_equations(black_box(&p)).unwrap()))
     });
     c.bench_function(&format!("{name}: cost only, {} samples", e.len()), |b| {
         b.iter(|| black_box(problem.cost(black_box(&p)).unwrap()))
+    });
+    c.bench_function(&format!("{name}: statistics pass, {} samples", e.len()), |b| {
+        b.iter(|| black_box(problem.sums(black_box(&p)).unwrap()))
     });
 }
 
