@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 use crate::estimate::diagnostics::StartComparison;
 use crate::estimate::linear::{MotorKind, least_squares};
 use crate::estimate::{DerivedEstimate, FitResult, PemOptions, fit};
-use crate::model::{GreyBoxModel, PmsmIpm, PmsmSpm, VoltageHold};
+use crate::model::{PmsmIpm, PmsmSpm, VoltageHold};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -152,12 +152,12 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             MotorKind::Spm => {
                 let mut m = PmsmSpm::new(hold);
                 configure(m.parameters_mut(), options)?;
-                fit_model(&m, experiments, &s, &options.pem)
+                fit(&m, experiments, &s, &options.pem)
             }
             MotorKind::Ipm => {
                 let mut m = PmsmIpm::new(hold);
                 configure(m.parameters_mut(), options)?;
-                fit_model(&m, experiments, &s, &options.pem)
+                fit(&m, experiments, &s, &options.pem)
             }
         };
         let mut r = r?;
@@ -237,15 +237,6 @@ fn hold_ambiguity(best: &FitResult, others: &[FitResult], names: &[&str]) -> Opt
             best.hold.map(|h| h.to_string()).unwrap_or_default(),
         )
     })
-}
-
-fn fit_model<M: GreyBoxModel>(
-    m: &M,
-    experiments: &[Experiment],
-    start: &[f64],
-    pem: &PemOptions,
-) -> Result<FitResult> {
-    fit(m, experiments, start, pem)
 }
 
 /// Applies the fixed flags and bounds of `options` to the model's parameter metadata.

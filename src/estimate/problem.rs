@@ -454,10 +454,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         let mut w = vec![0.0; ny];
         let nth = theta.len();
         let first = usize::from(term.x0_free.is_none());
-        let filter = if filtered { self.prefilters.get(e) } else { None };
-        let sections = filter.map_or(0, |f| f.sections().len());
-        let mut z_eps = vec![vec![[0.0; 2]; sections]; ny];
-        let mut z_jac = vec![vec![[0.0; 2]; sections]; ny * np];
+        let mut filter = self.prefilters.get(e).filter(|_| filtered).map(|l| ResidualFilter::new(l, ny, np));
         let visit = |k: usize, yhat: &[f64], dy: &[f64], dy0: &[f64]| {
             if k < first {
                 return;
@@ -476,11 +473,8 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                 for (m, &(g, d)) in x0_chain.iter().enumerate() {
                     jac[i * np + g] += dy0[i * nx + m] * d;
                 }
-                if let Some(l) = filter {
-                    eps[i] = l.step(&mut z_eps[i], eps[i]);
-                    for a in 0..np {
-                        jac[i * np + a] = l.step(&mut z_jac[i * np + a], jac[i * np + a]);
-                    }
+                if let Some(l) = filter.as_mut() {
+                    l.apply(i, &mut eps[i], &mut jac[i * np..(i + 1) * np]);
                 }
             }
             f(k, &eps, &w, &jac);
@@ -555,15 +549,14 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                 let yhat =
                     simulate_from(self.model, &term.prep, &self.theta(e, p), &self.x0(e, p), self.shooting)?;
                 let first = usize::from(term.x0_free.is_none());
-                let filter = self.prefilters.get(e);
-                let mut z = vec![vec![[0.0; 2]; filter.map_or(0, |f| f.sections().len())]; ny];
+                let mut filter = self.prefilters.get(e).map(|l| ResidualFilter::new(l, ny, 0));
                 let mut cost = 0.0;
                 for k in first..term.prep.n {
                     let beta = term.weights.as_ref().map_or(1.0, |b| b[k]);
                     for i in 0..ny {
                         let mut eps = term.prep.y[k * ny + i] - yhat[k * ny + i];
-                        if let Some(l) = filter {
-                            eps = l.step(&mut z[i], eps);
+                        if let Some(l) = filter.as_mut() {
+                            l.apply(i, &mut eps, &mut []);
                         }
                         cost += beta * self.output_weights[i] * self.loss.eval(i, eps).0;
                     }
@@ -629,16 +622,12 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                         raw.push((k, eps.to_vec(), w.to_vec(), jac.to_vec()))
                     })?;
                     let sections = l.sections().len();
-                    let mut z_eps = vec![vec![[0.0; 2]; sections]; ny];
-                    let mut z_jac = vec![vec![[0.0; 2]; sections]; ny * np];
+                    let mut filter = ResidualFilter::new(l, ny, np);
                     let mut weighted = vec![vec![0.0; raw.len()]; ny * np];
                     for (n, (k, eps, w, jac)) in raw.iter_mut().enumerate() {
                         let mut eps_f = eps.clone();
                         for i in 0..ny {
-                            eps_f[i] = l.step(&mut z_eps[i], eps[i]);
-                            for a in 0..np {
-                                jac[i * np + a] = l.step(&mut z_jac[i * np + a], jac[i * np + a]);
-                            }
+                            filter.apply(i, &mut eps_f[i], &mut jac[i * np..(i + 1) * np]);
                         }
                         acc.sample(&self.loss, term.prep.y_at(*k, ny), &eps_f, eps, w, jac);
                         for i in 0..ny {
@@ -670,7 +659,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             }
             acc.end_experiment();
         }
-        Ok(acc.finish(&self.loss, np, !self.prefilters.is_empty()))
+        Ok(acc.finish(&self.loss, !self.prefilters.is_empty()))
     }
 
     /// Robust scale `1.4826 × MAD` of each output's residuals at p (length n_y), the
@@ -713,6 +702,32 @@ fn mad(mut v: Vec<f64>) -> f64 {
         *x = (*x - med).abs();
     }
     median(&mut v)
+}
+
+/// The residual prefilter L(q) run sample by sample over each output's residual and its
+/// Jacobian row (one filter state per channel, from rest).
+struct ResidualFilter<'f> {
+    l: &'f Butterworth,
+    eps: Vec<Vec<[f64; 2]>>,
+    jac: Vec<Vec<[f64; 2]>>,
+    np: usize,
+}
+
+impl<'f> ResidualFilter<'f> {
+    /// States for `ny` residuals and `ny × np` Jacobian entries.
+    fn new(l: &'f Butterworth, ny: usize, np: usize) -> Self {
+        let sections = l.sections().len();
+        Self { l, eps: vec![vec![[0.0; 2]; sections]; ny], jac: vec![vec![[0.0; 2]; sections]; ny * np], np }
+    }
+
+    /// Filters output i's residual and its Jacobian row (length n_p, or empty) in place.
+    #[inline]
+    fn apply(&mut self, i: usize, eps: &mut f64, row: &mut [f64]) {
+        *eps = self.l.step(&mut self.eps[i], *eps);
+        for (a, v) in row.iter_mut().enumerate() {
+            *v = self.l.step(&mut self.jac[i * self.np + a], *v);
+        }
+    }
 }
 
 /// One unfiltered sample of a pass: `(k, ε, w, J)`.
@@ -820,8 +835,8 @@ impl Accumulator {
         }
     }
 
-    fn finish(mut self, loss: &Loss, np: usize, prefiltered: bool) -> Sums {
-        let (ny, n) = (self.ny, self.count as f64);
+    fn finish(mut self, loss: &Loss, prefiltered: bool) -> Sums {
+        let (ny, np, n) = (self.ny, self.np, self.count as f64);
         let sst = (0..ny).map(|i| (self.sum_y2[i] - self.sum_y[i] * self.sum_y[i] / n).max(0.0)).collect();
         let mut meat = DMatrix::zeros(np, np);
         for (i, mi) in self.meat_i.iter().enumerate() {
