@@ -46,6 +46,24 @@ pub enum Error {
         /// The header's column names, comma separated.
         available: String,
     },
+    /// An experiment lacks a channel that a model or view reads.
+    #[error("experiment `{experiment}` has no channel `{channel}` (it has: {available})")]
+    MissingChannel {
+        /// Experiment name.
+        experiment: String,
+        /// The channel that was looked for.
+        channel: String,
+        /// The experiment's channel names, comma separated.
+        available: String,
+    },
+    /// Two channels of one experiment share a name.
+    #[error("experiment `{experiment}` has two channels named `{channel}`")]
+    DuplicateChannel {
+        /// Experiment name.
+        experiment: String,
+        /// The repeated channel name.
+        channel: String,
+    },
     /// A signal holds NaN or ±Inf.
     #[error("signal `{column}` is not finite at row {row} (value {value})")]
     NonFinite {

@@ -5,23 +5,24 @@
 //! `l_q`) [H] and back-EMF constant `k_e` [V s/rad], hence torque constant `k_t` [N m/A]
 //! and magnet flux `psi_f` [V s].
 //!
-//! Data flow: [`data`] (an [`Experiment`] read from a CSV log) → [`model`] (the
-//! [`model::GreyBoxModel`] trait; [`model::PmsmSpm`], [`model::PmsmIpm`] with exact
-//! sampled-data steps) → [`simulate`] (single shooting with forward sensitivities) →
-//! [`estimate`] (prediction-error fit by Levenberg-Marquardt, linear least squares,
-//! statistics) → [`estimate::FitResult`] (table and JSON). [`pmsm::fit_pmsm`] does it all
-//! in one call. Physics and conventions: Tenerz (2011), *Parameter estimation in a
+//! Data flow: [`data`] (an [`Experiment`]: named channels read from a CSV log) →
+//! [`model`] (the [`model::GreyBoxModel`] trait) → [`simulate`] (single shooting with
+//! forward sensitivities) → [`estimate`] (prediction-error fit by Levenberg-Marquardt or
+//! Gauss-Newton, linear least squares, statistics) → [`estimate::FitResult`] (table and
+//! JSON). All motor knowledge lives in [`pmsm`]: the dq view of a log, the exact
+//! [`pmsm::PmsmSpm`] and [`pmsm::PmsmIpm`] models, the least-squares start, and
+//! [`pmsm::fit_pmsm`], which does it all in one call. Physics and conventions: Tenerz (2011), *Parameter estimation in a
 //! permanent magnet synchronous motor*, chapters 3 and 5; dq quantities are
 //! amplitude-invariant, speeds and angles mechanical unless a name says `_e`.
 //!
 //! # Example
 //! ```
-//! use greybox::pmsm::{fit_pmsm, PmsmFitOptions};
+//! use greybox::pmsm::{fit_pmsm, read_log, PmsmFitOptions};
 //!
 //! # fn main() -> greybox::Result<()> {
 //! // A 2 s log of a servo motor with 4 pole pairs, shipped in the repository.
-//! let log = greybox::read_csv("data/sample.csv.gz", 4, &Default::default())?;
-//! let fit = fit_pmsm(&[log], &PmsmFitOptions::default())?;
+//! let log = read_log("data/sample.csv.gz", &Default::default())?;
+//! let fit = fit_pmsm(&[log], &PmsmFitOptions { pole_pairs: 4, ..Default::default() })?;
 //! assert!(fit.solver.success);
 //! let r_s = fit.parameter("r_s").unwrap();
 //! println!("R_s = {:.6} ± {:.1e} Ω", r_s.value, r_s.std_error);
@@ -40,6 +41,5 @@ pub mod model;
 pub mod pmsm;
 pub mod simulate;
 
-pub use data::csv::{CsvOptions, read_csv};
-pub use data::{Experiment, Signals};
+pub use data::{Channel, Experiment};
 pub use error::{Error, Result};

@@ -6,10 +6,10 @@
 //! The library does the work; this file only maps flags to options and prints.
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use greybox::data::csv::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
-use greybox::estimate::linear::{LinearOptions, MotorKind, weighted_least_squares};
+use greybox::pmsm::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
+use greybox::pmsm::{LinearOptions, MotorKind, PmsmFit, weighted_least_squares};
 use greybox::estimate::weighting::SpeedShape;
-use greybox::estimate::{PemOptions, ScalingKind, SolverKind, Tolerances, WeightingKind};
+use greybox::estimate::{FitResult, PemOptions, ScalingKind, SolverKind, Timing, Tolerances, WeightingKind};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -222,6 +222,7 @@ impl ColumnArgs {
             ScaleArg::Rms => Scale::Rms,
         };
         CsvOptions {
+            pole_pairs: None,
             columns: ColumnNames {
                 t: self.col_t.clone(),
                 u_d: self.col_ud.clone(),
@@ -289,8 +290,9 @@ fn parse_weighting(s: &str) -> Result<WeightingKind, String> {
             ));
         }
     };
-    greybox::estimate::weighting::SpeedWeighting::try_new(shape).map_err(|e| e.to_string())?;
-    Ok(WeightingKind::Speed { shape })
+    let channel = greybox::pmsm::channel::W_M;
+    greybox::estimate::weighting::SpeedWeighting::try_new(channel, shape).map_err(|e| e.to_string())?;
+    Ok(WeightingKind::Speed { channel: channel.into(), shape })
 }
 
 fn run_fit(a: &FitArgs) -> greybox::Result<()> {
@@ -300,12 +302,8 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
         std::fs::File::create(path).map_err(|source| greybox::Error::Write { path: path.clone(), source })?;
     }
     let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
-    let csv = a.columns.options();
-    let logs = a
-        .logs
-        .iter()
-        .map(|p| greybox::read_csv(p, a.pole_pairs, &csv))
-        .collect::<greybox::Result<Vec<_>>>()?;
+    let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
+    let logs = a.logs.iter().map(|p| greybox::pmsm::read_log(p, &csv)).collect::<greybox::Result<Vec<_>>>()?;
     let read_s = t0.elapsed().as_secs_f64();
     let kind = match a.model {
         ModelArg::Spm => MotorKind::Spm,
@@ -314,13 +312,14 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
     if let MethodArg::Ls = a.method {
         let rule = a.weighting.rule()?;
         let opts = LinearOptions { prefilter: a.prefilter, ..LinearOptions::default() };
-        let ls = weighted_least_squares(&logs, kind, rule.as_ref(), &opts)?;
+        let ls = weighted_least_squares(&logs, a.pole_pairs, kind, rule.as_ref(), &opts)?;
         if !quiet {
             print!("{ls}");
         }
         return write_json(a, serde_json::to_string_pretty(&ls).unwrap_or_default());
     }
     let options = PmsmFitOptions {
+        pole_pairs: a.pole_pairs,
         model: kind,
         hold: match a.hold {
             HoldArg::Auto => HoldChoice::Auto,
@@ -344,7 +343,7 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
             },
             horizon: a.horizon,
             per_experiment: a.per_log.clone(),
-            weighting: a.weighting,
+            weighting: a.weighting.clone(),
             huber: a.huber,
             estimate_x0: !a.fixed_x0,
             prefilter: a.prefilter,
@@ -353,9 +352,9 @@ fn run_fit(a: &FitArgs) -> greybox::Result<()> {
             ..PemOptions::default()
         },
     };
-    let mut result = fit_pmsm(&logs, &options)?;
-    result.timing.read_s = read_s;
-    result.timing.total_s = t0.elapsed().as_secs_f64();
+    let fit = fit_pmsm(&logs, &options)?;
+    let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..fit.report.timing.clone() };
+    let result = PmsmFit { report: FitResult { timing, ..fit.report }, ..fit };
     if !quiet {
         print!("{result}");
     }

@@ -5,10 +5,8 @@
 //! `M = diag(θ̂) JᵀWJ diag(θ̂)` (the sensitivity to a relative change of each parameter),
 //! the singular values and condition number say how many parameter combinations the
 //! data pin down; the parametric error index (thesis 5.3) and the correlation matrix name
-//! the parameters that are poorly determined or confounded. The advice follows MODEL.md
-//! §6 (thesis 5.1.1, 6.3): `K_e` needs speed, `R_s` current at low speed or a d-current
-//! injection, `L` current transients or `i_d ≠ 0` at speed; `R_s`, cable resistance and a
-//! dead-time voltage separate only through current reversals and different levels.
+//! the parameters that are poorly determined or confounded. What data would help is the
+//! model's knowledge ([`crate::model::GreyBoxModel::advice`]); this module only asks.
 
 use serde::{Deserialize, Serialize};
 
@@ -89,12 +87,17 @@ pub struct Diagnostics {
 /// Builds the diagnostics from the relative information matrix `m` (n × n, symmetric),
 /// the parameter names (length n), error indices [%] (length n) and correlation matrix
 /// (n × n) of the same parameters; shorter inputs are read as far as they go.
+///
+/// `advice(name)` and `pair_advice(a, b)` give the domain's advice for a poorly determined
+/// parameter and a correlated pair (`None`: a generic text).
 pub fn diagnose(
     m: &nalgebra::DMatrix<f64>,
     names: &[String],
     error_index: &[f64],
     correlation: &[Vec<f64>],
     thresholds: &DiagnosticThresholds,
+    advice: &dyn Fn(&str) -> Option<String>,
+    pair_advice: &dyn Fn(&str, &str) -> Option<String>,
 ) -> Diagnostics {
     let mut singular_values: Vec<f64> = if m.iter().all(|v| v.is_finite()) && m.nrows() > 0 {
         m.clone().svd(false, false).singular_values.iter().copied().collect()
@@ -121,19 +124,26 @@ pub fn diagnose(
             }
         }
     }
-    let mut advice: Vec<String> = poorly_determined
+    let mut texts: Vec<String> = poorly_determined
         .iter()
-        .map(|p| format!("{} (error index {:.3} %)", advice_for(&p.name), p.error_index_percent))
+        .map(|p| {
+            let a = advice(&p.name).unwrap_or_else(|| {
+                format!("{} poorly determined: the data carry little information about it", p.name)
+            });
+            format!("{a} (error index {:.3} %)", p.error_index_percent)
+        })
         .collect();
     for c in &correlated {
-        advice.push(format!(
+        texts.push(format!(
             "{} and {} are strongly correlated (ρ = {:+.3}): the data hardly separate them; {}",
             c.a,
             c.b,
             c.correlation,
             pair_advice(&c.a, &c.b)
+                .unwrap_or_else(|| "add excitation that moves them differently, or fix one of them".into())
         ));
     }
+    let mut advice = texts;
     if !names.is_empty() && condition_number > thresholds.condition_number {
         advice.push(format!(
             "the information matrix is ill-conditioned (condition number {condition_number:.2e}): \
@@ -147,36 +157,5 @@ pub fn diagnose(
         correlated,
         start_comparison: Vec::new(),
         advice,
-    }
-}
-
-fn base(name: &str) -> &str {
-    name.split('[').next().unwrap_or(name)
-}
-
-fn advice_for(name: &str) -> String {
-    match base(name) {
-        "r_s" => {
-            format!("{name} poorly determined: add low-speed data with current, or a d-current injection")
-        }
-        "k_e" => format!("{name} poorly determined: add data at higher speed"),
-        "l_s" | "l_d" | "l_q" => {
-            format!(
-                "{name} poorly determined: add current transients (steps of the current reference) or i_d ≠ 0 at speed"
-            )
-        }
-        _ => format!("{name} poorly determined: the data carry little information about it"),
-    }
-}
-
-fn pair_advice(a: &str, b: &str) -> &'static str {
-    let mut pair = [base(a), base(b)];
-    pair.sort_unstable();
-    match pair {
-        ["k_e", "r_s"] => "add low-speed data with current, where R_s acts without back-EMF",
-        ["l_s", "r_s"] | ["l_d", "r_s"] | ["l_q", "r_s"] => {
-            "add current steps of both signs and several levels"
-        }
-        _ => "add excitation that moves them differently, or fix one of them",
     }
 }

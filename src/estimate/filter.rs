@@ -22,7 +22,7 @@
 //!   forward-backward filtering", IEEE Trans. Signal Processing 44(4), 1996). The
 //!   magnitude response is `|H|²`, the phase is zero.
 
-use crate::data::{Experiment, Signals};
+use crate::data::{Channel, Experiment};
 use crate::error::{Error, Result};
 use nalgebra::Complex;
 use serde::{Deserialize, Serialize};
@@ -223,13 +223,13 @@ impl Butterworth {
         ext[p..p + n].to_vec()
     }
 
-    /// The experiment with its voltages, currents, speed and voltage references filtered by
-    /// [`Butterworth::filtfilt`]; the angle `theta_m` (wrapped) is passed through unchanged.
+    /// The experiment with every channel filtered by [`Butterworth::filtfilt`] except
+    /// those named in `keep` (e.g. a wrapped angle), which pass through unchanged.
     ///
     /// # Errors
     /// [`Error::InvalidOption`] (option `sample time`) when the filter was designed for a
     /// sample time other than the experiment's (relative difference above 10⁻⁹).
-    pub fn filtfilt_experiment(&self, e: &Experiment) -> Result<Experiment> {
+    pub fn filtfilt_experiment(&self, e: &Experiment, keep: &[&str]) -> Result<Experiment> {
         if (e.h() - self.h).abs() > 1e-9 * self.h {
             return Err(Error::InvalidOption {
                 option: "sample time".into(),
@@ -241,19 +241,15 @@ impl Butterworth {
                 ),
             });
         }
-        let s = e.signals();
-        let f = |v: &Vec<f64>| self.filtfilt(v);
-        let signals = Signals {
-            u_d: f(&s.u_d),
-            u_q: f(&s.u_q),
-            i_d: f(&s.i_d),
-            i_q: f(&s.i_q),
-            w_m: f(&s.w_m),
-            theta_m: s.theta_m.clone(),
-            u_d_ref: s.u_d_ref.as_ref().map(f),
-            u_q_ref: s.u_q_ref.as_ref().map(f),
-        };
-        Experiment::try_new(e.name(), e.h(), e.n_p(), signals)
+        let channels = e
+            .channels()
+            .iter()
+            .map(|c| {
+                let values = if keep.contains(&c.name.as_str()) { c.values.clone() } else { self.filtfilt(&c.values) };
+                Channel::new(c.name.clone(), c.unit.clone(), values)
+            })
+            .collect();
+        Experiment::try_new(e.name(), e.h(), channels)
     }
 
     /// Initial states per section for a constant input 1 through the whole cascade

@@ -1,10 +1,10 @@
-//! Estimation: the prediction-error fit of any [`GreyBoxModel`], the linear
-//! least-squares start, parameter scaling and the solvers.
+//! Estimation: the prediction-error fit of any [`GreyBoxModel`], weighted linear least
+//! squares, parameter scaling and the solvers.
 //!
 //! [`fit`] is the generic entry point: it builds a [`PemProblem`] over one or more
 //! experiments, runs the chosen argmin solver from a given start and computes the
-//! statistics of the estimate. The PMSM-specific layer (least-squares start, voltage-hold
-//! selection, derived `K_t`, `ψ_f`) is [`crate::pmsm`].
+//! statistics of the estimate. Domain workflows (e.g. [`crate::pmsm::fit_pmsm`]) build on
+//! it.
 
 pub mod diagnostics;
 pub mod filter;
@@ -28,8 +28,7 @@ pub use weighting::{Weighting, WeightingKind};
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::model::GreyBoxModel;
-use crate::simulate::Shooting;
+use crate::model::{GreyBoxModel, Prepared};
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Executor, Solver, State, TerminationReason};
 use diagnostics::{DiagnosticThresholds, diagnose};
@@ -119,10 +118,10 @@ impl Default for PemOptions {
 ///
 /// # Example
 /// ```no_run
-/// use greybox::{estimate, model::{PmsmSpm, VoltageHold}};
+/// use greybox::{estimate, pmsm::{PmsmSpm, VoltageHold}};
 /// # fn main() -> greybox::Result<()> {
-/// let log = greybox::read_csv("data/sample.csv.gz", 4, &Default::default())?;
-/// let model = PmsmSpm::new(VoltageHold::Stator);
+/// let log = greybox::pmsm::read_log("data/sample.csv.gz", &Default::default())?;
+/// let model = PmsmSpm::new(4, VoltageHold::Stator);
 /// let fit = estimate::fit(&model, &[log], &[1.0, 5e-3, 0.5], &Default::default())?;
 /// println!("{fit}");
 /// # Ok(()) }
@@ -154,7 +153,7 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
     let uniform = weighting.is_uniform();
     let preps = experiments
         .iter()
-        .map(|e| Ok((model.prepare(e)?, if uniform { None } else { Some(weighting.weights(e)?) })))
+        .map(|e| Ok((Prepared::new(model, e)?, if uniform { None } else { Some(weighting.weights(e)?) })))
         .collect::<Result<Vec<_>>>()?;
     if let Some(c) = options.huber
         && !(c.is_finite() && c > 0.0)
@@ -167,7 +166,7 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
     let scaling = options.scaling.rule();
     let mut popts = ProblemOptions {
         per_experiment: options.per_experiment.clone(),
-        shooting: Shooting { horizon: options.horizon },
+        horizon: options.horizon,
         output_weights: options.output_weights.clone().or_else(|| weighting.output_weights()),
         loss: Loss::Quadratic,
         estimate_x0: options.estimate_x0,
@@ -316,11 +315,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     });
     let tq = t_quantile_975(dof);
     let names = problem.terms().iter().map(|t| t.prep.name.clone()).collect::<Vec<_>>();
-    let state_names: Vec<String> = if model.n_states() == ny {
-        model.output_names().iter().map(|n| format!("x0_{n}")).collect()
-    } else {
-        (0..model.n_states()).map(|i| format!("x0[{i}]")).collect()
-    };
+    let states = model.states();
     let estimate = |g: usize, name: String, unit: String, start: f64| {
         let f = &problem.free()[g];
         let value = f.transform.to_theta(p[g]);
@@ -372,7 +367,8 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     for (g, f) in problem.free().iter().enumerate() {
         if let (FreeKind::InitialState(i), Some(e)) = (f.kind, f.experiment) {
             let x0 = problem.terms()[e].prep.x0[i];
-            initial_states.push(estimate(g, state_names[i].clone(), model.state_unit(i), x0));
+            let s = &states[i];
+            initial_states.push(estimate(g, format!("x0_{}", s.name), s.unit.clone(), x0));
         }
     }
     let correlation = match &cov_theta {
@@ -400,9 +396,17 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     });
     let free_index: Vec<f64> =
         parameters.iter().filter(|q| !q.fixed).map(|q| q.error_index_percent).collect();
-    let diagnostics = diagnose(&info_rel, &diag_names, &free_index, &correlation, thresholds);
+    let diagnostics = diagnose(
+        &info_rel,
+        &diag_names,
+        &free_index,
+        &correlation,
+        thresholds,
+        &|n| model.advice(n),
+        &|a, b| model.pair_advice(a, b),
+    );
     let fit = FitStatistics {
-        outputs: model.output_names(),
+        outputs: model.outputs().into_iter().map(|o| o.name).collect(),
         fit_percent: sums
             .sse
             .iter()
@@ -421,10 +425,8 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     let mut diagnostics = diagnostics;
     for (name, f) in fit.outputs.iter().zip(&fit.fit_percent) {
         if *f < 80.0 {
-            diagnostics.advice.push(format!(
-                "poor fit of {name} ({f:.1} %): check the pole pairs, the units and frames of the columns, \
-                 the voltage hold, and that all logs come from one motor"
-            ));
+            let what = model.poor_fit_advice().map(|a| format!(": {a}")).unwrap_or_default();
+            diagnostics.advice.push(format!("poor fit of {name} ({f:.1} %){what}"));
         }
     }
     if info_inv.is_none() || bread_inv.is_none() {
@@ -433,13 +435,13 @@ pub(crate) fn assemble<M: GreyBoxModel>(
                 .into(),
         );
     }
+    let derived = derived(model, &parameters, &names);
     Ok(FitResult {
         model: model.name().to_string(),
-        hold: None,
         experiments: names,
         parameters,
         initial_states,
-        derived: Vec::new(),
+        derived,
         diagnostics,
         fit,
         correlation,
@@ -447,6 +449,37 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         timing: Timing::default(),
         notes,
     })
+}
+
+/// The model's derived quantities per experiment's θ, once when every experiment gives the
+/// same (no per-experiment parameter they depend on).
+fn derived<M: GreyBoxModel>(model: &M, parameters: &[ParameterEstimate], names: &[String]) -> Vec<DerivedEstimate> {
+    let n_theta = model.parameters().len();
+    let per_experiment: Vec<Vec<DerivedEstimate>> = names
+        .iter()
+        .map(|e| {
+            let mut theta = vec![f64::NAN; n_theta];
+            let mut se = vec![f64::NAN; n_theta];
+            for (j, prm) in model.parameters().iter().enumerate() {
+                let pick = parameters
+                    .iter()
+                    .find(|q| q.name == prm.name && q.experiment.as_deref() == Some(e.as_str()))
+                    .or_else(|| parameters.iter().find(|q| q.name == prm.name && q.experiment.is_none()));
+                if let Some(q) = pick {
+                    (theta[j], se[j]) = (q.value, q.std_error);
+                }
+            }
+            model.derived(&theta, &se)
+        })
+        .collect();
+    match per_experiment.split_first() {
+        Some((first, rest)) if rest.iter().all(|d| d == first) => first.clone(),
+        _ => per_experiment
+            .into_iter()
+            .zip(names)
+            .flat_map(|(d, e)| d.into_iter().map(|q| DerivedEstimate { experiment: Some(e.clone()), ..q }))
+            .collect(),
+    }
 }
 
 /// Inverse of a symmetric positive semi-definite matrix on the rows/columns with a

@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 use crate::estimate::filter::Butterworth;
 use crate::estimate::scaling::{ParameterScaling, Transform};
 use crate::model::{GreyBoxModel, Prepared};
-use crate::simulate::{Shooting, simulate_from, visit_sensitivities_from};
+use crate::simulate::{SimOptions, simulate, visit_sensitivities};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -61,8 +61,8 @@ impl Loss {
 pub struct ProblemOptions {
     /// Parameters estimated separately for each experiment, by name.
     pub per_experiment: Vec<String>,
-    /// Simulation or k-step-ahead prediction.
-    pub shooting: Shooting,
+    /// k-step-ahead prediction horizon; `None` = simulation (output error).
+    pub horizon: Option<usize>,
     /// Output weights Λ (length n_y), `None` = 1.
     pub output_weights: Option<Vec<f64>>,
     /// Residual loss.
@@ -160,7 +160,7 @@ pub struct PemProblem<'m, M: GreyBoxModel> {
     model: &'m M,
     terms: Vec<Term<M::Inputs>>,
     free: Vec<FreeParameter>,
-    shooting: Shooting,
+    horizon: Option<usize>,
     output_weights: Vec<f64>,
     loss: Loss,
     prefilters: Vec<Butterworth>,
@@ -280,7 +280,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                     ));
                 }
             }
-            let x0_free = options.estimate_x0.then(|| {
+            let x0_free = (options.estimate_x0 && !prep.x0.is_empty()).then(|| {
                 let g = free.len();
                 // Scale of the state: its RMS over the record (outputs are states for the PMSM).
                 let rms = (prep.y.iter().map(|v| v * v).sum::<f64>() / prep.y.len() as f64).sqrt();
@@ -305,7 +305,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             model,
             terms,
             free,
-            shooting: options.shooting,
+            horizon: options.horizon,
             output_weights,
             loss: options.loss.clone(),
             prefilters: options.prefilters.clone(),
@@ -348,9 +348,9 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
     pub fn n_free(&self) -> usize {
         self.free.len()
     }
-    /// The shooting (simulation or k-step prediction).
-    pub fn shooting(&self) -> Shooting {
-        self.shooting
+    /// The k-step prediction horizon (`None`: simulation).
+    pub fn horizon(&self) -> Option<usize> {
+        self.horizon
     }
     /// The residual loss.
     pub fn loss(&self) -> &Loss {
@@ -397,6 +397,13 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             }
             None => term.prep.x0.clone(),
         }
+    }
+
+    /// First sample of experiment e that counts: 1 when a dynamic model starts from the
+    /// measured first state (its residual is zero by construction), 0 otherwise (estimated
+    /// initial state, or a static model).
+    pub fn first_sample(&self, e: usize) -> usize {
+        usize::from(self.terms[e].x0_free.is_none() && self.model.n_states() > 0)
     }
 
     /// Projects p onto the bounds (componentwise clamp in scaled space).
@@ -453,7 +460,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         let mut jac = vec![0.0; ny * np];
         let mut w = vec![0.0; ny];
         let nth = theta.len();
-        let first = usize::from(term.x0_free.is_none());
+        let first = self.first_sample(e);
         let mut filter = self.prefilters.get(e).filter(|_| filtered).map(|l| ResidualFilter::new(l, ny, np));
         let visit = |k: usize, yhat: &[f64], dy: &[f64], dy0: &[f64]| {
             if k < first {
@@ -479,16 +486,13 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             }
             f(k, &eps, &w, &jac);
         };
-        visit_sensitivities_from(
-            self.model,
-            &term.prep,
-            &theta,
-            &x0,
-            term.x0_free.is_some(),
-            &scale,
-            self.shooting,
-            visit,
-        )
+        let options = SimOptions {
+            horizon: self.horizon,
+            x0: Some(&x0),
+            x0_sensitivity: term.x0_free.is_some(),
+            fd_scale: Some(&scale),
+        };
+        visit_sensitivities(self.model, &term.prep, &theta, &options, visit)
     }
 
     /// Cost `V(p)` and normal equations `JᵀWJ`, `JᵀWψ` in one pass per experiment
@@ -546,9 +550,10 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             .into_par_iter()
             .map(|e| {
                 let term = &self.terms[e];
-                let yhat =
-                    simulate_from(self.model, &term.prep, &self.theta(e, p), &self.x0(e, p), self.shooting)?;
-                let first = usize::from(term.x0_free.is_none());
+                let x0 = self.x0(e, p);
+                let options = SimOptions { horizon: self.horizon, x0: Some(&x0), ..Default::default() };
+                let yhat = simulate(self.model, &term.prep, &self.theta(e, p), &options)?;
+                let first = self.first_sample(e);
                 let mut filter = self.prefilters.get(e).map(|l| ResidualFilter::new(l, ny, 0));
                 let mut cost = 0.0;
                 for k in first..term.prep.n {
@@ -671,9 +676,10 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         let ny = self.model.n_outputs();
         let mut res: Vec<Vec<f64>> = vec![Vec::new(); ny];
         for (e, term) in self.terms.iter().enumerate() {
-            let yhat =
-                simulate_from(self.model, &term.prep, &self.theta(e, p), &self.x0(e, p), self.shooting)?;
-            for k in usize::from(term.x0_free.is_none())..term.prep.n {
+            let x0 = self.x0(e, p);
+            let options = SimOptions { horizon: self.horizon, x0: Some(&x0), ..Default::default() };
+            let yhat = simulate(self.model, &term.prep, &self.theta(e, p), &options)?;
+            for k in self.first_sample(e)..term.prep.n {
                 for (i, r) in res.iter_mut().enumerate() {
                     r.push(term.prep.y[k * ny + i] - yhat[k * ny + i]);
                 }

@@ -14,7 +14,6 @@
 
 use crate::estimate::diagnostics::Diagnostics;
 use crate::estimate::solver::Termination;
-use crate::model::VoltageHold;
 use serde::{Deserialize, Serialize};
 
 /// One estimated (or fixed) parameter.
@@ -41,21 +40,7 @@ pub struct ParameterEstimate {
     pub start: f64,
 }
 
-/// A quantity derived from the estimates (e.g. `k_t`, `psi_f`), with propagated uncertainty.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct DerivedEstimate {
-    /// Symbol, e.g. `k_t`.
-    pub name: String,
-    /// Unit, e.g. `N m/A`.
-    pub unit: String,
-    /// Value [unit].
-    pub value: f64,
-    /// Standard error [unit].
-    pub std_error: f64,
-    /// Experiment, for quantities derived from per-experiment parameters.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub experiment: Option<String>,
-}
+pub use crate::model::DerivedEstimate;
 
 /// Goodness of fit.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -116,17 +101,14 @@ pub struct Timing {
 pub struct FitResult {
     /// Model name, e.g. `pmsm_spm`.
     pub model: String,
-    /// Voltage hold the model used, for the PMSM models.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub hold: Option<VoltageHold>,
     /// Names of the experiments fitted.
     pub experiments: Vec<String>,
     /// Estimates, model parameter order (per-experiment copies follow each other).
     pub parameters: Vec<ParameterEstimate>,
-    /// Estimated initial states (`x0_i_d`, `x0_i_q` for the PMSM), one set per experiment;
+    /// Estimated initial states (`x0_<state>`), one set per experiment;
     /// empty when the first measurement is taken as the initial state.
     pub initial_states: Vec<ParameterEstimate>,
-    /// Derived quantities.
+    /// Quantities the model derives from its parameters ([`crate::model::GreyBoxModel::derived`]).
     pub derived: Vec<DerivedEstimate>,
     /// Identifiability diagnostics and advice.
     pub diagnostics: Diagnostics,
@@ -161,10 +143,9 @@ impl FitResult {
 
 impl std::fmt::Display for FitResult {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let hold = self.hold.map(|h| format!(", {h} voltage hold")).unwrap_or_default();
         writeln!(
             f,
-            "model {}{hold}; {} experiment(s): {}",
+            "model {}; {} experiment(s): {}",
             self.model,
             self.experiments.len(),
             self.experiments.join(", ")

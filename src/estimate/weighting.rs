@@ -1,8 +1,8 @@
 //! Sample and output weighting: `V(θ) = ½ Σ_k β_k ε_kᵀ Λ ε_k` (thesis eq. 5.11, MODEL.md §5).
 //!
-//! The per-sample weight β_k is a function of the sample, above all of the speed: the
-//! back-EMF constant `K_e` is seen at high speed, the resistance `R_s` at low speed with
-//! current (thesis 5.2.2, MODEL.md §6). Weighting shifts what the fit listens to; the
+//! The per-sample weight β_k is a function of the sample, above all of a speed: in a motor
+//! log some parameters are seen only at high speed, others only at low speed (thesis
+//! 5.2.2, MODEL.md §6). Weighting shifts what the fit listens to; the
 //! parametric error index shows the effect.
 
 use crate::data::Experiment;
@@ -24,11 +24,19 @@ pub trait Weighting: Send + Sync + std::fmt::Debug {
     fn output_weights(&self) -> Option<Vec<f64>> {
         None
     }
+    /// Checks that `e` holds what the rule reads (called before the weights).
+    ///
+    /// # Errors
+    /// [`Error::MissingChannel`] for a channel the rule reads.
+    fn check(&self, _e: &Experiment) -> Result<()> {
+        Ok(())
+    }
     /// All sample weights of an experiment, length N.
     ///
     /// # Errors
     /// [`Error::InvalidOption`] when a weight is negative or not finite, or all are zero.
     fn weights(&self, e: &Experiment) -> Result<Vec<f64>> {
+        self.check(e)?;
         let w: Vec<f64> = (0..e.len()).map(|k| self.sample_weight(e, k)).collect();
         if let Some((k, v)) = w.iter().enumerate().find(|(_, v)| !(v.is_finite() && **v >= 0.0)) {
             return Err(Error::InvalidOption {
@@ -70,12 +78,12 @@ impl Weighting for Uniform {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "shape", rename_all = "snake_case")]
 pub enum SpeedShape {
-    /// `β = 1/(1 + (|ω_m|/w0)²)`: emphasises low speed (R_s).
+    /// `β = 1/(1 + (|ω_m|/w0)²)`: emphasises low speed.
     LowSpeed {
         /// Corner speed [rad/s, mechanical], > 0.
         w0: f64,
     },
-    /// `β = (|ω_m|/w0)²/(1 + (|ω_m|/w0)²)`: emphasises high speed (K_e).
+    /// `β = (|ω_m|/w0)²/(1 + (|ω_m|/w0)²)`: emphasises high speed.
     HighSpeed {
         /// Corner speed [rad/s, mechanical], > 0.
         w0: f64,
@@ -91,19 +99,22 @@ pub enum SpeedShape {
     },
 }
 
-/// Speed-based sample weighting β(ω) (thesis eq. 5.11) on the interval-mean mechanical speed.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// Speed-based sample weighting β(ω) (thesis eq. 5.11) on the interval mean of a speed
+/// channel (for a motor log, the mechanical speed).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SpeedWeighting {
+    channel: String,
     shape: SpeedShape,
 }
 
 impl SpeedWeighting {
-    /// Checks the shape's parameters.
+    /// Weighting by the speed in `channel` [rad/s] with the given shape; checks the
+    /// shape's parameters.
     ///
     /// # Errors
     /// [`Error::InvalidOption`] for a non-positive or non-finite corner speed, an empty band
     /// or a floor outside [0, 1].
-    pub fn try_new(shape: SpeedShape) -> Result<Self> {
+    pub fn try_new(channel: &str, shape: SpeedShape) -> Result<Self> {
         let bad = |reason: String| Err(Error::InvalidOption { option: "weighting".into(), reason });
         match shape {
             SpeedShape::LowSpeed { w0 } | SpeedShape::HighSpeed { w0 } if !(w0.is_finite() && w0 > 0.0) => {
@@ -118,7 +129,7 @@ impl SpeedWeighting {
             }
             _ => {}
         }
-        Ok(Self { shape })
+        Ok(Self { channel: channel.into(), shape })
     }
     /// The shape.
     pub fn shape(&self) -> SpeedShape {
@@ -154,9 +165,12 @@ impl Weighting for SpeedWeighting {
     }
     fn sample_weight(&self, e: &Experiment, k: usize) -> f64 {
         // Sample k's residual is the end of interval k−1: weight by that interval's mean speed.
-        let w = e.w_m();
+        let Ok(w) = e.channel(&self.channel) else { return f64::NAN };
         let wm = if k == 0 { w[0] } else { 0.5 * (w[k - 1] + w[k]) };
         self.beta(wm)
+    }
+    fn check(&self, e: &Experiment) -> Result<()> {
+        e.channel(&self.channel).map(|_| ())
     }
 }
 
@@ -205,7 +219,7 @@ impl Weighting for CustomWeighting {
 }
 
 /// The built-in weightings as plain data, for options files and the command line.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum WeightingKind {
     /// [`Uniform`].
@@ -213,7 +227,9 @@ pub enum WeightingKind {
     Uniform,
     /// [`SpeedWeighting`] with this shape.
     Speed {
-        /// The shape β(|ω_m|).
+        /// The speed channel the weight reads [rad/s].
+        channel: String,
+        /// The shape β(|ω|).
         shape: SpeedShape,
     },
 }
@@ -223,10 +239,10 @@ impl WeightingKind {
     ///
     /// # Errors
     /// Those of [`SpeedWeighting::try_new`].
-    pub fn rule(self) -> Result<Box<dyn Weighting>> {
+    pub fn rule(&self) -> Result<Box<dyn Weighting>> {
         Ok(match self {
             Self::Uniform => Box::new(Uniform),
-            Self::Speed { shape } => Box::new(SpeedWeighting::try_new(shape)?),
+            Self::Speed { channel, shape } => Box::new(SpeedWeighting::try_new(channel, *shape)?),
         })
     }
 }

@@ -1,56 +1,52 @@
-//! Grey-box models: the [`GreyBoxModel`] trait and the PMSM models.
+//! Grey-box models: the [`GreyBoxModel`] trait, parameter metadata and the data a model
+//! is fitted on ([`Prepared`]).
 //!
 //! A model is a discrete-time state-space system over one sample period,
 //! `x[k+1] = f(x[k], inputs[k], θ)`, `ŷ[k] = g(x[k], inputs[k], θ)`, whose parameters θ
-//! carry physical meaning. The estimator drives [`GreyBoxModel::step`] sample by sample;
-//! nothing else (simulation, estimation, reports) depends on the model type.
+//! carry physical meaning. A model declares the channels it predicts
+//! ([`GreyBoxModel::outputs`]); the framework reads them from an
+//! [`Experiment`](crate::data::Experiment) into the measured `y` and, for a dynamic model,
+//! the initial state. A static model (`n_x = 0`, e.g. a regression `y = f(x, θ)`) has no
+//! state: every sample counts and nothing is padded. The estimator drives
+//! [`GreyBoxModel::step`] sample by sample; nothing else (simulation, estimation, reports)
+//! depends on the model type.
 //!
 //! Two kinds of per-sample work are kept apart so that the inner loop stays short:
-//! quantities that depend on the data only (interval-mean speed, the rotation
-//! `e^{−jω_e h}`, the held voltage) are computed once per experiment by
-//! [`GreyBoxModel::prepare`]; quantities that depend on θ only (`e^{−R_s h/L_s}`, `1/L_s`)
-//! once per parameter vector by [`GreyBoxModel::coefficients`].
+//! quantities that depend on the data only are computed once per experiment by
+//! [`GreyBoxModel::prepare`]; quantities that depend on θ only once per parameter vector by
+//! [`GreyBoxModel::coefficients`]. Analytic forward sensitivities are a separate trait,
+//! [`Sensitivities`], offered through [`GreyBoxModel::sensitivities`]: a model either
+//! implements them or gets finite differences, never a silent zero Jacobian.
 
-pub mod ipm;
 pub mod params;
-pub mod spm;
 
-pub use ipm::PmsmIpm;
-pub use params::Parameter;
-pub use spm::PmsmSpm;
+pub use params::{DerivedEstimate, Parameter};
 
 use crate::data::Experiment;
 use crate::error::Result;
 use serde::{Deserialize, Serialize};
 
-/// How the voltage is held between samples (MODEL.md §4).
-///
-/// An inverter holds its output constant in the **stator** frame over a period, so in dq
-/// it rotates backwards by `φ = ω_e h`; some simulators hold the **dq** voltage constant.
-/// Each is exact for its source and wrong at second order in φ for the other.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum VoltageHold {
-    /// `u_dq` constant over `[t_k, t_k + h)`.
-    Dq,
-    /// `u_αβ` constant over the period; `u[k]` is the period mean of the rotating dq voltage.
-    #[default]
-    Stator,
+/// A signal a model predicts (or a state it carries): channel name and SI unit.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Signal {
+    /// Channel name in the experiment, e.g. `id`, `T_w`.
+    pub name: String,
+    /// SI unit, e.g. `A`, `K`.
+    pub unit: String,
 }
 
-impl std::fmt::Display for VoltageHold {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Self::Dq => "dq",
-            Self::Stator => "stator",
-        })
+impl Signal {
+    /// The signal `name` in `unit`.
+    pub fn new(name: &str, unit: &str) -> Self {
+        Self { name: name.into(), unit: unit.into() }
     }
 }
 
-/// The data a model needs from one experiment, prepared once before fitting.
+/// The data a model is fitted on, prepared once per experiment by [`Prepared::new`].
 ///
 /// `y` holds the measured outputs row-major, `y[k n_y + i]` = output i at sample k,
-/// length `N n_y`; `x0` the initial state taken from the measurement at k = 0 (length n_x).
+/// length `N n_y`; `x0` the initial state from the measurement at k = 0 (length n_x,
+/// empty for a static model).
 #[derive(Clone, Debug)]
 pub struct Prepared<I> {
     /// Experiment name (for error messages and reports).
@@ -66,6 +62,26 @@ pub struct Prepared<I> {
 }
 
 impl<I> Prepared<I> {
+    /// Reads the model's declared output channels from `e` into `y`, the initial state
+    /// from the first sample ([`GreyBoxModel::initial_state`]) and the model's inputs
+    /// ([`GreyBoxModel::prepare`]).
+    ///
+    /// # Errors
+    /// [`crate::Error::MissingChannel`] naming an output channel `e` lacks; those of
+    /// [`GreyBoxModel::prepare`].
+    pub fn new<M: GreyBoxModel<Inputs = I> + ?Sized>(model: &M, e: &Experiment) -> Result<Self> {
+        let outputs = model.outputs();
+        let cols = outputs.iter().map(|o| e.channel(&o.name)).collect::<Result<Vec<_>>>()?;
+        let n = e.len();
+        let mut y = Vec::with_capacity(n * cols.len());
+        for k in 0..n {
+            y.extend(cols.iter().map(|c| c[k]));
+        }
+        let mut x0 = vec![0.0; model.n_states()];
+        model.initial_state(&y[..cols.len()], &mut x0);
+        Ok(Self { name: e.name().into(), n, y, x0, inputs: model.prepare(e)? })
+    }
+
     /// Measured output vector at sample k, length n_y.
     ///
     /// # Panics
@@ -77,33 +93,32 @@ impl<I> Prepared<I> {
 
 /// A discrete-time grey-box model with physical parameters.
 ///
-/// Shapes: state `x` has length [`n_states`](Self::n_states) = n_x, output `y` length
-/// [`n_outputs`](Self::n_outputs) = n_y, parameters θ length `parameters().len()` = n_θ.
-/// Sensitivities `s = ∂x/∂θ` are row-major `n_x × n_θ` (`s[i n_θ + j] = ∂x_i/∂θ_j`).
+/// Shapes: state `x` has length [`n_states`](Self::n_states) = n_x (0 for a static model),
+/// output `y` length n_y = `outputs().len()`, parameters θ length `parameters().len()` =
+/// n_θ. Sensitivities `s = ∂x/∂θ` are row-major `n_x × n_θ` (`s[i n_θ + j] = ∂x_i/∂θ_j`).
 ///
 /// Implementors must not panic on any θ within the parameters' bounds; invalid θ is
 /// reported by [`coefficients`](Self::coefficients). A model without analytic
-/// sensitivities returns `false` from [`has_sensitivities`](Self::has_sensitivities) and
-/// the estimator falls back to central finite differences of [`step`](Self::step)
-/// (through `finitediff`, steps relative to the scaled parameter).
+/// sensitivities returns `None` from [`sensitivities`](Self::sensitivities) (the default)
+/// and the estimator uses central finite differences of [`step`](Self::step) and
+/// [`output`](Self::output) (through `finitediff`, steps relative to the scaled parameter).
 ///
-/// # Example: a first-order RL circuit (dq hold, speed ignored)
+/// # Example: a first-order RL circuit
 /// ```
-/// use greybox::model::{GreyBoxModel, Parameter, Prepared};
+/// use greybox::model::{GreyBoxModel, Parameter, Signal};
 /// use greybox::{Experiment, Result};
 ///
 /// struct Rl { p: Vec<Parameter> }
 /// impl GreyBoxModel for Rl {
-///     type Inputs = (f64, Vec<f64>);       // (h, u_d)
+///     type Inputs = (f64, Vec<f64>);       // (h, u)
 ///     type Coefficients = (f64, f64);      // (a, b)
 ///     fn name(&self) -> &str { "rl" }
 ///     fn n_states(&self) -> usize { 1 }
-///     fn n_outputs(&self) -> usize { 1 }
-///     fn output_names(&self) -> Vec<String> { vec!["i_d".into()] }
+///     fn outputs(&self) -> Vec<Signal> { vec![Signal::new("i", "A")] }
+///     fn input_channels(&self) -> Vec<String> { vec!["u".into()] }
 ///     fn parameters(&self) -> &[Parameter] { &self.p }
-///     fn prepare(&self, e: &Experiment) -> Result<Prepared<Self::Inputs>> {
-///         Ok(Prepared { name: e.name().into(), n: e.len(), y: e.i_d().to_vec(),
-///                       x0: vec![e.i_d()[0]], inputs: (e.h(), e.u_d().to_vec()) })
+///     fn prepare(&self, e: &Experiment) -> Result<Self::Inputs> {
+///         Ok((e.h(), e.channel("u")?.to_vec()))
 ///     }
 ///     fn coefficients(&self, th: &[f64], inp: &Self::Inputs) -> Result<Self::Coefficients> {
 ///         let a = (-th[0] * inp.0 / th[1]).exp();
@@ -124,24 +139,67 @@ pub trait GreyBoxModel: Sync {
 
     /// Short identifier used in reports, e.g. `pmsm_spm`.
     fn name(&self) -> &str;
-    /// State dimension n_x.
+    /// State dimension n_x; 0 for a static model.
     fn n_states(&self) -> usize;
-    /// Output dimension n_y.
-    fn n_outputs(&self) -> usize;
-    /// Output names, length n_y, e.g. `["i_d", "i_q"]`.
-    fn output_names(&self) -> Vec<String>;
+    /// The channels the model predicts, length n_y; the measured `y` is read from them.
+    fn outputs(&self) -> Vec<Signal>;
+    /// The channels [`prepare`](Self::prepare) reads (for documentation and reports).
+    fn input_channels(&self) -> Vec<String>;
     /// Parameter metadata (name, unit, nominal value, bounds, fixed flag), length n_θ.
     fn parameters(&self) -> &[Parameter];
-    /// Unit of state i, for reports (default: empty).
-    fn state_unit(&self, _i: usize) -> String {
-        String::new()
+
+    /// Output dimension n_y (the length of [`outputs`](Self::outputs)).
+    fn n_outputs(&self) -> usize {
+        self.outputs().len()
+    }
+    /// The states, length n_x (names of the initial states in reports); the default names
+    /// state i after output i when the state is the output, `x[i]` otherwise.
+    fn states(&self) -> Vec<Signal> {
+        let outputs = self.outputs();
+        (0..self.n_states())
+            .map(|i| match outputs.get(i) {
+                Some(o) if self.n_states() == outputs.len() => o.clone(),
+                _ => Signal::new(&format!("x[{i}]"), ""),
+            })
+            .collect()
+    }
+    /// The initial state implied by the first measured output `y0` (length n_y) into `x0`
+    /// (length n_x). The default copies the first outputs and zeroes the rest: right for a
+    /// model whose state is its output.
+    fn initial_state(&self, y0: &[f64], x0: &mut [f64]) {
+        x0.fill(0.0);
+        for (x, y) in x0.iter_mut().zip(y0) {
+            *x = *y;
+        }
     }
 
-    /// Extracts inputs, measured outputs and the initial state from an experiment.
+    /// Advice when parameter `name` (with `[experiment]` for a per-experiment copy) is
+    /// poorly determined: what data would excite it. `None` (the default) gives a generic
+    /// text.
+    fn advice(&self, _name: &str) -> Option<String> {
+        None
+    }
+    /// Advice when parameters `a` and `b` are strongly correlated; `None` (the default)
+    /// gives a generic text.
+    fn pair_advice(&self, _a: &str, _b: &str) -> Option<String> {
+        None
+    }
+    /// What to check when an output fits poorly; `None` (the default) gives none.
+    fn poor_fit_advice(&self) -> Option<String> {
+        None
+    }
+    /// Quantities derived from the parameters θ (length n_θ) with their standard errors
+    /// (length n_θ; first-order propagation), e.g. a torque constant from a back-EMF
+    /// constant. The default derives nothing.
+    fn derived(&self, _theta: &[f64], _std_error: &[f64]) -> Vec<DerivedEstimate> {
+        Vec::new()
+    }
+
+    /// Extracts the θ-independent inputs from an experiment.
     ///
     /// # Errors
-    /// Model-specific: e.g. a missing optional signal the model needs.
-    fn prepare(&self, experiment: &Experiment) -> Result<Prepared<Self::Inputs>>;
+    /// [`crate::Error::MissingChannel`] for a channel the model reads, or model-specific.
+    fn prepare(&self, experiment: &Experiment) -> Result<Self::Inputs>;
 
     /// Computes the θ-dependent coefficients, validating θ (length n_θ, model order, SI units).
     ///
@@ -150,62 +208,27 @@ pub trait GreyBoxModel: Sync {
     /// [`crate::Error::InvalidOption`] for θ of the wrong length (built-in models).
     fn coefficients(&self, theta: &[f64], inputs: &Self::Inputs) -> Result<Self::Coefficients>;
 
-    /// One sample period: `x_next = f(x, inputs[k], θ)` for `k < N − 1`.
+    /// One sample period: `x_next = f(x, inputs[k], θ)` for `k < N − 1` (nothing to do for
+    /// a static model).
     fn step(&self, c: &Self::Coefficients, inputs: &Self::Inputs, k: usize, x: &[f64], x_next: &mut [f64]);
 
-    /// Output map `y = g(x)`; the default takes the first n_y states.
+    /// Output map `y = g(x, inputs[k], θ)`; the default takes the first n_y states (a
+    /// static model must override it).
     fn output(&self, _c: &Self::Coefficients, _inputs: &Self::Inputs, _k: usize, x: &[f64], y: &mut [f64]) {
-        let n = y.len();
-        y.copy_from_slice(&x[..n]);
+        let n = y.len().min(x.len());
+        y[..n].copy_from_slice(&x[..n]);
     }
 
-    /// Whether [`step_sensitivity`](Self::step_sensitivity) and
-    /// [`output_sensitivity`](Self::output_sensitivity) are implemented analytically.
-    fn has_sensitivities(&self) -> bool {
-        false
-    }
-
-    /// One period with forward sensitivities: `x_next` as [`step`](Self::step) and
-    /// `s_next = ∂x_next/∂x · s + ∂x_next/∂θ` (row-major `n_x × n_θ`).
-    ///
-    /// Only called when [`has_sensitivities`](Self::has_sensitivities) is true; the
-    /// default falls back to [`step`](Self::step) with `s_next = 0`, which the estimator
-    /// never relies on.
-    #[allow(clippy::too_many_arguments)]
-    fn step_sensitivity(
-        &self,
-        c: &Self::Coefficients,
-        inputs: &Self::Inputs,
-        k: usize,
-        x: &[f64],
-        _s: &[f64],
-        x_next: &mut [f64],
-        s_next: &mut [f64],
-    ) {
-        self.step(c, inputs, k, x, x_next);
-        s_next.fill(0.0);
-    }
-
-    /// Output sensitivity `∂y/∂θ = ∂g/∂x · s + ∂g/∂θ` (row-major `n_y × n_θ`); the default
-    /// (for `y` = first n_y states) copies the first n_y rows of `s`.
-    fn output_sensitivity(
-        &self,
-        _c: &Self::Coefficients,
-        _inputs: &Self::Inputs,
-        _k: usize,
-        _x: &[f64],
-        s: &[f64],
-        dy: &mut [f64],
-    ) {
-        let n = dy.len();
-        dy.copy_from_slice(&s[..n]);
+    /// The analytic forward sensitivities, when the model has them; `None` (the default)
+    /// makes the estimator use finite differences.
+    fn sensitivities(&self) -> Option<&dyn Sensitivities<Self::Inputs, Self::Coefficients>> {
+        None
     }
 
     /// Directional derivative of the step with respect to the state,
     /// `out = ∂x_next/∂x · v` (lengths n_x); propagates the sensitivity to an estimated
     /// initial state. The default is a central difference with step
     /// `1e-4 (1 + |x|)/|v|`, exact to rounding for models affine in the state (as the PMSM).
-    #[allow(clippy::too_many_arguments)]
     fn step_state_derivative(
         &self,
         c: &Self::Coefficients,
@@ -231,6 +254,19 @@ pub trait GreyBoxModel: Sync {
     ) {
         directional_difference(x, v, out, |xs, o| self.output(c, inputs, k, xs, o));
     }
+}
+
+/// Analytic forward sensitivities of a [`GreyBoxModel`] with inputs `I` and coefficients
+/// `C` (Ljung, *System Identification*, 2nd ed., 10.3: the sensitivity recursion).
+pub trait Sensitivities<I, C>: Sync {
+    /// One period with forward sensitivities: `x_next` as [`GreyBoxModel::step`] and
+    /// `s_next = ∂x_next/∂x · s + ∂x_next/∂θ` (row-major `n_x × n_θ`).
+    #[allow(clippy::too_many_arguments)]
+    fn step_sensitivity(&self, c: &C, inputs: &I, k: usize, x: &[f64], s: &[f64], x_next: &mut [f64], s_next: &mut [f64]);
+
+    /// Output sensitivity `∂y/∂θ = ∂g/∂x · s + ∂g/∂θ` (row-major `n_y × n_θ`). For a
+    /// model whose output is its first n_y states this copies the first n_y rows of `s`.
+    fn output_sensitivity(&self, c: &C, inputs: &I, k: usize, x: &[f64], s: &[f64], dy: &mut [f64]);
 }
 
 /// Central difference of `f` at x along direction v, step `1e-4 (1 + ‖x‖)/‖v‖`:

@@ -96,3 +96,20 @@ impl Parameter {
         Ok(())
     }
 }
+
+/// A quantity derived from the estimates (e.g. a torque constant), with propagated
+/// uncertainty.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DerivedEstimate {
+    /// Symbol, e.g. `k_t`.
+    pub name: String,
+    /// Unit, e.g. `N m/A`.
+    pub unit: String,
+    /// Value [unit].
+    pub value: f64,
+    /// Standard error [unit].
+    pub std_error: f64,
+    /// Experiment, for quantities derived from per-experiment parameters.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub experiment: Option<String>,
+}

@@ -1,8 +1,9 @@
-//! Simulation of a [`GreyBoxModel`]: single shooting from the measured first state, with
-//! forward sensitivities, streamed sample by sample.
+//! Simulation of a [`GreyBoxModel`]: single shooting from the measured (or a given) first
+//! state, with forward sensitivities, streamed sample by sample; one [`SimOptions`] says
+//! how.
 //!
 //! [`simulate`] returns the predicted outputs; [`visit_sensitivities`] calls a closure with
-//! `ŷ_k` and `∂ŷ_k/∂θ` at every sample, so that an estimator can accumulate the normal
+//! `ŷ_k`, `∂ŷ_k/∂θ` and optionally `∂ŷ_k/∂x₀` at every sample, so that an estimator can accumulate the normal
 //! equations `JᵀJ`, `Jᵀε` in one pass without ever storing the `N n_y × n_θ` Jacobian.
 //! Models without analytic sensitivities get them from central finite differences of
 //! their step (crate `finitediff`), with steps relative to each parameter's scale.
@@ -13,62 +14,47 @@
 use crate::error::{Error, Result};
 use crate::model::{GreyBoxModel, Prepared, describe};
 
-/// How the simulation is restarted from measured data (prediction criteria).
-///
-/// `horizon = None` is pure simulation (output error) from the measured first state;
-/// `Some(k)` restarts the state from the measured output every k samples
-/// (k-step-ahead prediction; `k = 1` is one-step-ahead prediction, i.e. equation error). Restarting needs a model whose
-/// state is its output (`n_x = n_y`, output = state), as the PMSM models.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Shooting {
-    /// Restart period in samples; `None` = simulate the whole record.
+/// How a simulation runs: restarts, initial state, sensitivities. Plain data with
+/// defaults (pure simulation from the measured first state).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SimOptions<'a> {
+    /// Restart period in samples: `None` simulates the whole record (output error);
+    /// `Some(k)` restarts the state from the measured output every k samples (k-step-ahead
+    /// prediction; `k = 1` is one-step-ahead prediction, i.e. equation error). Restarting
+    /// needs a model whose state is its output (`n_x = n_y`).
     pub horizon: Option<usize>,
+    /// Initial state (length n_x); `None` = the measured one ([`Prepared::x0`]).
+    pub x0: Option<&'a [f64]>,
+    /// Also give `∂ŷ_k/∂x₀` to [`visit_sensitivities`]'s closure.
+    pub x0_sensitivity: bool,
+    /// Each parameter's scale (length n_θ, positive): sets the finite-difference step
+    /// (`∛ε × scale`) for models without analytic sensitivities; `None` = `|θ|` (1 where θ = 0).
+    pub fd_scale: Option<&'a [f64]>,
 }
 
-impl Shooting {
+impl SimOptions<'_> {
     /// Whether the state is reset to the measurement after the output at sample k.
     pub(crate) fn restarts_at(&self, k: usize) -> bool {
         matches!(self.horizon, Some(h) if k.is_multiple_of(h))
     }
 }
 
-/// Simulated outputs `ŷ`, row-major `N × n_y`, from the experiment's first state.
+/// Simulated outputs `ŷ`, row-major `N × n_y`.
 ///
 /// # Errors
-/// Those of [`GreyBoxModel::coefficients`] for an invalid θ, and
+/// Those of [`GreyBoxModel::coefficients`] for an invalid θ;
 /// [`Error::SimulationDiverged`] naming the experiment, the sample and θ when the state
-/// stops being finite.
-pub fn simulate<M: GreyBoxModel>(model: &M, prep: &Prepared<M::Inputs>, theta: &[f64]) -> Result<Vec<f64>> {
-    simulate_with(model, prep, theta, Shooting::default())
-}
-
-/// As [`simulate`], with restarts from the measurement every `shooting.horizon` samples.
-///
-/// # Errors
-/// As [`simulate`]; [`Error::InvalidOption`] for a zero horizon or a model whose state is
-/// not its output.
-pub fn simulate_with<M: GreyBoxModel>(
+/// stops being finite; [`Error::InvalidOption`] for θ not of length n_θ, an `x0` not of
+/// length n_x, prepared data of inconsistent shape, a zero horizon or a horizon on a
+/// model whose state is not its output.
+pub fn simulate<M: GreyBoxModel>(
     model: &M,
     prep: &Prepared<M::Inputs>,
     theta: &[f64],
-    shooting: Shooting,
+    options: &SimOptions<'_>,
 ) -> Result<Vec<f64>> {
-    simulate_from(model, prep, theta, &prep.x0, shooting)
-}
-
-/// As [`simulate_with`], from the initial state `x0` (length n_x) instead of the measured one.
-///
-/// # Errors
-/// As [`simulate_with`]; [`Error::InvalidOption`] for θ not of length n_θ, `x0` not of
-/// length n_x, or prepared data of inconsistent shape.
-pub fn simulate_from<M: GreyBoxModel>(
-    model: &M,
-    prep: &Prepared<M::Inputs>,
-    theta: &[f64],
-    x0: &[f64],
-    shooting: Shooting,
-) -> Result<Vec<f64>> {
-    check_shooting(model, shooting)?;
+    let x0 = options.x0.unwrap_or(&prep.x0);
+    check_shooting(model, options.horizon)?;
     check_inputs(model, prep, theta, x0)?;
     let (nx, ny) = (model.n_states(), model.n_outputs());
     let c = model.coefficients(theta, &prep.inputs)?;
@@ -77,10 +63,10 @@ pub fn simulate_from<M: GreyBoxModel>(
     let mut xn = vec![0.0; nx];
     for k in 0..prep.n {
         model.output(&c, &prep.inputs, k, &x, &mut yhat[k * ny..(k + 1) * ny]);
-        if shooting.restarts_at(k) {
+        if options.restarts_at(k) {
             x.copy_from_slice(prep.y_at(k, ny));
         }
-        if k + 1 < prep.n {
+        if k + 1 < prep.n && nx > 0 {
             model.step(&c, &prep.inputs, k, &x, &mut xn);
             if !xn.iter().all(|v| v.is_finite()) {
                 return Err(diverged(model, prep, theta, k + 1));
@@ -88,60 +74,44 @@ pub fn simulate_from<M: GreyBoxModel>(
             std::mem::swap(&mut x, &mut xn);
         }
     }
+    if let Some(k) = yhat.iter().position(|v| !v.is_finite()) {
+        return Err(diverged(model, prep, theta, k / ny.max(1)));
+    }
     Ok(yhat)
 }
 
-/// Calls `visit(k, ŷ_k, ∂ŷ_k/∂θ)` for every sample `k = 0..N`, with `ŷ_k` of length n_y
-/// and `∂ŷ_k/∂θ` row-major `n_y × n_θ`.
+/// Calls `visit(k, ŷ_k, ∂ŷ_k/∂θ, ∂ŷ_k/∂x₀)` for every sample `k = 0..N`, with `ŷ_k` of
+/// length n_y, `∂ŷ_k/∂θ` row-major `n_y × n_θ` and `∂ŷ_k/∂x₀` row-major `n_y × n_x` when
+/// `options.x0_sensitivity` (empty otherwise).
 ///
-/// `fd_scale` (length n_θ, positive) is each parameter's scale; it sets the
-/// finite-difference step (`∛ε × scale`) for models without analytic sensitivities and is
-/// ignored otherwise. The state and its sensitivity start at the measured first state
-/// (sensitivity zero) and restart likewise every `shooting.horizon` samples.
+/// The state sensitivity starts at zero and restarts likewise every `options.horizon`
+/// samples; after a restart the state no longer depends on x₀ and that sensitivity is
+/// zero.
 ///
 /// # Errors
-/// As [`simulate_with`].
+/// As [`simulate`]; [`Error::InvalidOption`] for `fd_scale` of the wrong length.
 pub fn visit_sensitivities<M, F>(
     model: &M,
     prep: &Prepared<M::Inputs>,
     theta: &[f64],
-    fd_scale: &[f64],
-    shooting: Shooting,
-    mut visit: F,
-) -> Result<()>
-where
-    M: GreyBoxModel,
-    F: FnMut(usize, &[f64], &[f64]),
-{
-    visit_sensitivities_from(model, prep, theta, &prep.x0, false, fd_scale, shooting, |k, y, dy, _| {
-        visit(k, y, dy)
-    })
-}
-
-/// As [`visit_sensitivities`], from the initial state `x0` (length n_x), and, when
-/// `x0_sensitivity` is true, also with `∂ŷ_k/∂x₀` (row-major `n_y × n_x`, the fourth
-/// argument of `visit`; empty otherwise). After a restart (k-step prediction) the state no
-/// longer depends on x₀ and that sensitivity is zero.
-///
-/// # Errors
-/// As [`simulate_with`]; [`Error::InvalidOption`] for `x0` of the wrong length.
-#[allow(clippy::too_many_arguments)]
-pub fn visit_sensitivities_from<M, F>(
-    model: &M,
-    prep: &Prepared<M::Inputs>,
-    theta: &[f64],
-    x0: &[f64],
-    x0_sensitivity: bool,
-    fd_scale: &[f64],
-    shooting: Shooting,
+    options: &SimOptions<'_>,
     mut visit: F,
 ) -> Result<()>
 where
     M: GreyBoxModel,
     F: FnMut(usize, &[f64], &[f64], &[f64]),
 {
-    check_shooting(model, shooting)?;
+    let x0 = options.x0.unwrap_or(&prep.x0);
+    check_shooting(model, options.horizon)?;
     check_inputs(model, prep, theta, x0)?;
+    let default_scale: Vec<f64>;
+    let fd_scale = match options.fd_scale {
+        Some(s) => s,
+        None => {
+            default_scale = theta.iter().map(|t| if *t != 0.0 { t.abs() } else { 1.0 }).collect();
+            &default_scale
+        }
+    };
     if fd_scale.len() != theta.len() {
         return Err(Error::InvalidOption {
             option: "fd_scale".into(),
@@ -150,7 +120,7 @@ where
     }
     let (nx, ny, nth) = (model.n_states(), model.n_outputs(), theta.len());
     let c = model.coefficients(theta, &prep.inputs)?;
-    let analytic = model.has_sensitivities();
+    let analytic = model.sensitivities();
     let mut x = x0.to_vec();
     let mut xn = vec![0.0; nx];
     let mut s = vec![0.0; nx * nth];
@@ -158,21 +128,23 @@ where
     let mut y = vec![0.0; ny];
     let mut dy = vec![0.0; ny * nth];
     // ∂x/∂x₀ kept column by column (column m = direction e_m at k = 0).
-    let n0 = if x0_sensitivity { nx } else { 0 };
+    let n0 = if options.x0_sensitivity { nx } else { 0 };
     let mut s0: Vec<Vec<f64>> =
         (0..n0).map(|m| (0..nx).map(|i| f64::from(u8::from(i == m))).collect()).collect();
     let mut s0n = vec![0.0; nx];
     let mut col = vec![0.0; ny];
     let mut dy0 = vec![0.0; ny * n0];
-    let mut live0 = x0_sensitivity;
+    let mut live0 = options.x0_sensitivity;
     for k in 0..prep.n {
         model.output(&c, &prep.inputs, k, &x, &mut y);
-        if analytic {
-            model.output_sensitivity(&c, &prep.inputs, k, &x, &s, &mut dy);
-        } else {
-            fd_sensitivity(model, prep, theta, fd_scale, &x, &s, &mut dy, ny, |c, xv, o| {
+        match analytic {
+            Some(a) => a.output_sensitivity(&c, &prep.inputs, k, &x, &s, &mut dy),
+            None => fd_sensitivity(model, prep, theta, fd_scale, &x, &s, &mut dy, ny, |c, xv, o| {
                 model.output(c, &prep.inputs, k, xv, o)
-            })?;
+            })?,
+        }
+        if !y.iter().chain(dy.iter()).all(|v| v.is_finite()) {
+            return Err(diverged(model, prep, theta, k));
         }
         for (m, v) in s0.iter().enumerate() {
             if live0 {
@@ -185,12 +157,12 @@ where
             }
         }
         visit(k, &y, &dy, &dy0);
-        if shooting.restarts_at(k) {
+        if options.restarts_at(k) {
             x.copy_from_slice(prep.y_at(k, ny));
             s.fill(0.0);
             live0 = false;
         }
-        if k + 1 < prep.n {
+        if k + 1 < prep.n && nx > 0 {
             if live0 {
                 for v in s0.iter_mut() {
                     model.step_state_derivative(&c, &prep.inputs, k, &x, v, &mut s0n);
@@ -203,13 +175,14 @@ where
                     live0 = false;
                 }
             }
-            if analytic {
-                model.step_sensitivity(&c, &prep.inputs, k, &x, &s, &mut xn, &mut sn);
-            } else {
-                model.step(&c, &prep.inputs, k, &x, &mut xn);
-                fd_sensitivity(model, prep, theta, fd_scale, &x, &s, &mut sn, nx, |c, xv, o| {
-                    model.step(c, &prep.inputs, k, xv, o)
-                })?;
+            match analytic {
+                Some(a) => a.step_sensitivity(&c, &prep.inputs, k, &x, &s, &mut xn, &mut sn),
+                None => {
+                    model.step(&c, &prep.inputs, k, &x, &mut xn);
+                    fd_sensitivity(model, prep, theta, fd_scale, &x, &s, &mut sn, nx, |c, xv, o| {
+                        model.step(c, &prep.inputs, k, xv, o)
+                    })?;
+                }
             }
             if !xn.iter().chain(sn.iter()).all(|v| v.is_finite()) {
                 return Err(diverged(model, prep, theta, k + 1));
@@ -240,11 +213,12 @@ pub(crate) fn check_inputs<M: GreyBoxModel>(
     if x0.len() != nx {
         return bad("x0", format!("{} values for model `{}` with {nx} states", x0.len(), model.name()));
     }
-    if prep.n < 2 || prep.y.len() != prep.n * ny {
+    let min = if nx > 0 { 2 } else { 1 };
+    if prep.n < min || prep.y.len() != prep.n * ny {
         return bad(
             "prepared data",
             format!(
-                "experiment `{}`: {} output values for {} samples of {ny} outputs (need N ≥ 2)",
+                "experiment `{}`: {} output values for {} samples of {ny} outputs (need N ≥ {min})",
                 prep.name,
                 prep.y.len(),
                 prep.n
@@ -264,8 +238,8 @@ pub(crate) fn check_inputs<M: GreyBoxModel>(
     Ok(())
 }
 
-fn check_shooting<M: GreyBoxModel>(model: &M, shooting: Shooting) -> Result<()> {
-    match shooting.horizon {
+fn check_shooting<M: GreyBoxModel>(model: &M, horizon: Option<usize>) -> Result<()> {
+    match horizon {
         Some(0) => {
             Err(Error::InvalidOption { option: "horizon".into(), reason: "must be at least 1".into() })
         }

@@ -1,20 +1,23 @@
 //! PMSM fits in one call: least-squares start, voltage-hold selection, prediction-error
-//! fit, derived torque constant and magnet flux.
+//! fit; the result is the generic report wrapped with what only a motor has.
 //!
 //! This is what the command line runs. The steps (MODEL.md §4–5):
 //! 1. start from the linear least-squares estimate (thesis 5.2.1) unless a start is given;
 //! 2. fit with the chosen voltage hold; with [`HoldChoice::Auto`] fit both holds (the
 //!    second from the first's estimate) and keep the one with the lower loss — the holds
 //!    differ at second order in `ω_e h`, which decides between 10⁻⁴ and 10⁻⁷ accuracy;
-//! 3. derive `K_t = √(3/2) K_e` [N m/A] and `ψ_f = √(2/3) K_e / n_p` [V s] with their
-//!    standard errors (MODEL.md §2).
+//! 3. the model derives `K_t = √(3/2) K_e` [N m/A] and `ψ_f = √(2/3) K_e / n_p` [V s] with
+//!    their standard errors (MODEL.md §2).
 
+use super::interval::VoltageHold;
+use super::kind::MotorKind;
+use super::linear::least_squares;
+use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::diagnostics::StartComparison;
-use crate::estimate::linear::{MotorKind, least_squares};
-use crate::estimate::{DerivedEstimate, FitResult, PemOptions, fit};
-use crate::model::{PmsmIpm, PmsmSpm, VoltageHold};
+use crate::estimate::{FitResult, PemOptions, Timing, fit};
+use crate::model::Parameter;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -35,6 +38,8 @@ pub enum HoldChoice {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct PmsmFitOptions {
+    /// Pole pairs n_p of the motor (`ω_e = n_p ω_m`); required (0 is an error).
+    pub pole_pairs: u32,
     /// Surface (`spm`) or interior (`ipm`) magnets.
     pub model: MotorKind,
     /// Voltage hold.
@@ -50,12 +55,73 @@ pub struct PmsmFitOptions {
     pub pem: PemOptions,
 }
 
+/// A PMSM fit: the generic report (flattened into the same JSON object) and what only a
+/// motor fit has: pole pairs, the voltage hold and how it was chosen, the least-squares
+/// start against the estimate.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PmsmFit {
+    /// The prediction-error fit with the chosen hold.
+    #[serde(flatten)]
+    pub report: FitResult,
+    /// Pole pairs n_p.
+    pub pole_pairs: u32,
+    /// The voltage hold of the reported fit.
+    pub hold: VoltageHold,
+    /// Loss of every hold fitted, in fitting order.
+    pub hold_losses: Vec<(VoltageHold, f64)>,
+    /// The least-squares start against the estimate, when the fit started from LS.
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub start_comparison: Vec<StartComparison>,
+    /// Motor-specific advice (e.g. an ambiguous voltage hold).
+    pub pmsm_advice: Vec<String>,
+    /// Motor-specific remarks (start, hold selection).
+    pub pmsm_notes: Vec<String>,
+}
+
+impl std::ops::Deref for PmsmFit {
+    type Target = FitResult;
+    fn deref(&self) -> &FitResult {
+        &self.report
+    }
+}
+
+impl PmsmFit {
+    /// The JSON report (pretty-printed; non-finite numbers as `null`).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+    }
+}
+
+impl std::fmt::Display for PmsmFit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "PMSM with {} pole pairs, {} voltage hold", self.pole_pairs, self.hold)?;
+        write!(f, "{}", self.report)?;
+        if !self.start_comparison.is_empty() {
+            let parts: Vec<String> = self
+                .start_comparison
+                .iter()
+                .map(|c| format!("{} {:+.4} %", c.name, c.difference_percent))
+                .collect();
+            writeln!(f, "least-squares start vs estimate (LS bias if the fit is right): {}", parts.join(", "))?;
+        }
+        for a in &self.pmsm_advice {
+            writeln!(f, "advice: {a}")?;
+        }
+        for n in &self.pmsm_notes {
+            writeln!(f, "note: {n}")?;
+        }
+        Ok(())
+    }
+}
+
 /// Fits a PMSM model to one or more logs of one motor (parameters shared unless listed in
 /// `options.pem.per_experiment`).
 ///
 /// # Errors
-/// [`Error::InvalidOption`] for no experiments, experiments with different pole-pair
-/// numbers, a start of the wrong length, an unknown parameter name in `fixed`/`bounds`;
+/// [`Error::InvalidPolePairs`] for `options.pole_pairs = 0`; [`Error::MissingChannel`]
+/// for a log without `ud, uq, id, iq, w_m`;
+/// [`Error::InvalidOption`] for no experiments, a start of the wrong length, an unknown
+/// parameter name in `fixed`/`bounds`;
 /// [`Error::Numerical`] when the least-squares start cannot be computed (no excitation)
 /// or gives a non-positive `R_s`/`L`; and every error of [`crate::estimate::fit`].
 ///
@@ -63,29 +129,18 @@ pub struct PmsmFitOptions {
 /// ```no_run
 /// use greybox::pmsm::{fit_pmsm, PmsmFitOptions};
 /// # fn main() -> greybox::Result<()> {
-/// let log = greybox::read_csv("data/sample.csv.gz", 4, &Default::default())?;
-/// let fit = fit_pmsm(&[log], &PmsmFitOptions::default())?;
+/// let log = greybox::pmsm::read_log("data/sample.csv.gz", &Default::default())?;
+/// let fit = fit_pmsm(&[log], &PmsmFitOptions { pole_pairs: 4, ..Default::default() })?;
 /// println!("{fit}");
 /// println!("K_t = {:.5} N m/A", fit.derived("k_t").unwrap().value);
 /// # Ok(()) }
 /// ```
-pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<FitResult> {
+pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<PmsmFit> {
     let t0 = Instant::now();
-    let first = experiments.first().ok_or_else(|| Error::InvalidOption {
-        option: "experiments".into(),
-        reason: "no log given".into(),
-    })?;
-    if let Some(e) = experiments.iter().find(|e| e.n_p() != first.n_p()) {
-        return Err(Error::InvalidOption {
-            option: "pole pairs".into(),
-            reason: format!(
-                "`{}` has n_p = {} but `{}` has n_p = {}: a joint fit needs one motor",
-                e.name(),
-                e.n_p(),
-                first.name(),
-                first.n_p()
-            ),
-        });
+    let n_p = options.pole_pairs;
+    super::interval::check_pole_pairs(n_p)?;
+    if experiments.is_empty() {
+        return Err(Error::InvalidOption { option: "experiments".into(), reason: "no log given".into() });
     }
     let names = options.model.parameter_names();
     let mut notes = Vec::new();
@@ -108,7 +163,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             s.clone()
         }
         None => {
-            let ls = least_squares(experiments, options.model)?;
+            let ls = least_squares(experiments, n_p, options.model)?;
             for (n, v) in ls.names.iter().zip(&ls.theta) {
                 if n != "k_e" && *v <= 0.0 {
                     return Err(Error::Numerical {
@@ -135,13 +190,13 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         HoldChoice::Stator => &[VoltageHold::Stator],
         HoldChoice::Auto => &[VoltageHold::Stator, VoltageHold::Dq],
     };
-    let mut best: Option<FitResult> = None;
+    let mut best: Option<(VoltageHold, FitResult)> = None;
     let mut losses = Vec::new();
-    let mut others: Vec<FitResult> = Vec::new();
+    let mut others: Vec<(VoltageHold, FitResult)> = Vec::new();
     for &hold in holds {
         // The second hold starts from the first's estimate: it converges in a few steps.
         let s = match &best {
-            Some(b) if b.solver.success => names
+            Some((_, b)) if b.solver.success => names
                 .iter()
                 .map(|n| b.parameter(n).map(|p| p.value))
                 .collect::<Option<Vec<f64>>>()
@@ -150,51 +205,50 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         };
         let r = match options.model {
             MotorKind::Spm => {
-                let mut m = PmsmSpm::new(hold);
+                let mut m = PmsmSpm::new(n_p, hold);
                 configure(m.parameters_mut(), options)?;
                 fit(&m, experiments, &s, &options.pem)
             }
             MotorKind::Ipm => {
-                let mut m = PmsmIpm::new(hold);
+                let mut m = PmsmIpm::new(n_p, hold);
                 configure(m.parameters_mut(), options)?;
                 fit(&m, experiments, &s, &options.pem)
             }
         };
-        let mut r = r?;
-        r.hold = Some(hold);
+        let r = r?;
         losses.push((hold, r.fit.loss, r.solver.success));
         let better = match &best {
             None => true,
-            Some(b) => {
+            Some((_, b)) => {
                 (r.solver.success && !b.solver.success)
                     || (r.solver.success == b.solver.success && r.fit.loss < b.fit.loss)
             }
         };
         if better {
-            if let Some(b) = best.replace(r) {
+            if let Some(b) = best.replace((hold, r)) {
                 others.push(b);
             }
         } else {
-            others.push(r);
+            others.push((hold, r));
         }
     }
-    let mut result = best.expect("at least one hold is fitted");
-    if let Some(a) = hold_ambiguity(&result, &others, names) {
-        result.diagnostics.advice.push(a);
-    }
+    let Some((hold, best)) = best else {
+        return Err(Error::InvalidOption { option: "hold".into(), reason: "no hold fitted".into() });
+    };
+    let pmsm_advice = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
     if losses.len() > 1 {
         notes.push(format!(
             "voltage hold chosen automatically by the lower loss: {}",
             losses.iter().map(|(h, l, _)| format!("{h} {l:.6e}")).collect::<Vec<_>>().join(", ")
         ));
     }
-    result.derived = derived(&result, first.n_p());
-    if let Some(ls) = ls_theta {
-        result.diagnostics.start_comparison = names
+    let start_comparison = match ls_theta {
+        None => Vec::new(),
+        Some(ls) => names
             .iter()
             .zip(&ls)
             .filter_map(|(n, &l)| {
-                let p = result.parameter(n)?;
+                let p = best.parameter(n)?;
                 (!p.fixed).then(|| StartComparison {
                     name: n.to_string(),
                     least_squares: l,
@@ -202,20 +256,30 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                     difference_percent: 100.0 * (l - p.value) / p.value,
                 })
             })
-            .collect();
-    }
-    notes.append(&mut result.notes);
-    result.notes = notes;
-    result.timing.fit_s = t0.elapsed().as_secs_f64();
-    result.timing.total_s = result.timing.fit_s;
-    Ok(result)
+            .collect(),
+    };
+    let fit_s = t0.elapsed().as_secs_f64();
+    Ok(PmsmFit {
+        report: FitResult { timing: Timing { fit_s, total_s: fit_s, ..best.timing.clone() }, ..best },
+        pole_pairs: n_p,
+        hold,
+        hold_losses: losses.iter().map(|(h, l, _)| (*h, *l)).collect(),
+        start_comparison,
+        pmsm_advice,
+        pmsm_notes: notes,
+    })
 }
 
 /// Advice when the losses of the two holds are close (ratio below 2) but their estimates
 /// differ by more than 3 standard errors: the data do not clearly say how the voltage was
 /// held (PWM ripple, dead time, or a voltage column that is not a period mean).
-fn hold_ambiguity(best: &FitResult, others: &[FitResult], names: &[&str]) -> Option<String> {
-    let other = others.first()?;
+fn hold_ambiguity(
+    best: &FitResult,
+    hold: VoltageHold,
+    others: &[(VoltageHold, FitResult)],
+    names: &[&str],
+) -> Option<String> {
+    let (other_hold, other) = others.first()?;
     let ratio = other.fit.loss / best.fit.loss;
     if ratio.is_nan() || ratio >= 2.0 {
         return None;
@@ -229,18 +293,15 @@ fn hold_ambiguity(best: &FitResult, others: &[FitResult], names: &[&str]) -> Opt
         .max_by(|a, b| a.1.total_cmp(&b.1))?;
     (z > 3.0).then(|| {
         format!(
-            "the {} and {} voltage holds fit almost equally well (loss ratio {ratio:.3}) but their {name} \
+            "the {hold} and {other_hold} voltage holds fit almost equally well (loss ratio {ratio:.3}) but their {name} \
              differs by {z:.0} standard errors: the log does not say how the voltage was held; a real \
-             inverter holds it in the stator frame (--hold stator); this fit used the {} hold",
-            best.hold.map(|h| h.to_string()).unwrap_or_default(),
-            other.hold.map(|h| h.to_string()).unwrap_or_default(),
-            best.hold.map(|h| h.to_string()).unwrap_or_default(),
+             inverter holds it in the stator frame (--hold stator); this fit used the {hold} hold"
         )
     })
 }
 
 /// Applies the fixed flags and bounds of `options` to the model's parameter metadata.
-fn configure(params: &mut [crate::model::Parameter], options: &PmsmFitOptions) -> Result<()> {
+fn configure(params: &mut [Parameter], options: &PmsmFitOptions) -> Result<()> {
     let unknown = |n: &str, what: &str| Error::InvalidOption {
         option: what.into(),
         reason: format!("no parameter `{n}`; the model has {}", params_list(options.model)),
@@ -260,32 +321,4 @@ fn configure(params: &mut [crate::model::Parameter], options: &PmsmFitOptions) -
 
 fn params_list(kind: MotorKind) -> String {
     kind.parameter_names().join(", ")
-}
-
-/// `k_t` [N m/A] and `psi_f` [V s] from every `k_e` estimate (MODEL.md §2).
-fn derived(r: &FitResult, n_p: u32) -> Vec<DerivedEstimate> {
-    let kt = (1.5f64).sqrt();
-    let psi = (2.0f64 / 3.0).sqrt() / f64::from(n_p);
-    r.parameters
-        .iter()
-        .filter(|p| p.name == "k_e")
-        .flat_map(|p| {
-            [
-                DerivedEstimate {
-                    name: "k_t".into(),
-                    unit: "N m/A".into(),
-                    value: kt * p.value,
-                    std_error: kt * p.std_error,
-                    experiment: p.experiment.clone(),
-                },
-                DerivedEstimate {
-                    name: "psi_f".into(),
-                    unit: "V s".into(),
-                    value: psi * p.value,
-                    std_error: psi * p.std_error,
-                    experiment: p.experiment.clone(),
-                },
-            ]
-        })
-        .collect()
 }

@@ -21,15 +21,14 @@
 //! θ only and is computed once per θ. Sensitivities differentiate this recursion
 //! (forward sensitivity), so one pass gives residuals and gradients.
 
-use super::{GreyBoxModel, Parameter, Prepared, VoltageHold};
+use super::interval::{C64, VoltageHold, check_pole_pairs, check_positive, intervals};
+use super::kind::{MotorKind, POOR_FIT_ADVICE, derived};
+
+const KIND: MotorKind = MotorKind::Spm;
+use super::signals::{DqView, channel};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use nalgebra::Complex;
-
-pub(crate) type C64 = Complex<f64>;
-
-/// `√(2/3)`: back-EMF per K_e and mechanical speed (MODEL.md §2).
-pub const SQRT_2_3: f64 = 0.816_496_580_927_726;
+use crate::model::{DerivedEstimate, GreyBoxModel, Parameter, Sensitivities, Signal};
 
 /// Per-interval data of the SPM step, independent of θ (index k = 0..N−2).
 #[derive(Clone, Debug)]
@@ -72,14 +71,21 @@ pub struct SpmCoefficients {
 /// Source: thesis eq. 5.1 and section 5.2 (Tenerz 2011); MODEL.md §2, §4.
 #[derive(Clone, Debug)]
 pub struct PmsmSpm {
+    n_p: u32,
     hold: VoltageHold,
     params: Vec<Parameter>,
 }
 
 impl PmsmSpm {
-    /// SPM model with the given voltage hold and default parameter metadata.
-    pub fn new(hold: VoltageHold) -> Self {
-        Self { hold, params: spm_parameters() }
+    /// SPM model of a machine with `n_p` pole pairs (`ω_e = n_p ω_m`), the given voltage
+    /// hold and default parameter metadata. `n_p = 0` is reported by
+    /// [`GreyBoxModel::prepare`] as [`Error::InvalidPolePairs`].
+    pub fn new(n_p: u32, hold: VoltageHold) -> Self {
+        Self { n_p, hold, params: KIND.parameters() }
+    }
+    /// Pole pairs n_p.
+    pub fn n_p(&self) -> u32 {
+        self.n_p
     }
     /// The voltage hold this model assumes.
     pub fn hold(&self) -> VoltageHold {
@@ -91,88 +97,9 @@ impl PmsmSpm {
     }
 }
 
-impl Default for PmsmSpm {
-    fn default() -> Self {
-        Self::new(VoltageHold::default())
-    }
-}
-
-pub(crate) fn positive_param(name: &str, unit: &str) -> Parameter {
-    Parameter {
-        name: name.into(),
-        unit: unit.into(),
-        nominal: None,
-        lower: 1e-12,
-        upper: f64::INFINITY,
-        fixed: false,
-    }
-}
-
-pub(crate) fn k_e_param() -> Parameter {
-    Parameter {
-        name: "k_e".into(),
-        unit: "V s/rad".into(),
-        nominal: None,
-        lower: f64::NEG_INFINITY,
-        upper: f64::INFINITY,
-        fixed: false,
-    }
-}
-
-fn spm_parameters() -> Vec<Parameter> {
-    vec![positive_param("r_s", "ohm"), positive_param("l_s", "H"), k_e_param()]
-}
-
-/// `e^{w} − 1` for complex w without cancellation near 0.
-pub(crate) fn cexpm1(w: C64) -> C64 {
-    let (s, c) = w.im.sin_cos();
-    let half = (0.5 * w.im).sin();
-    C64::new(w.re.exp_m1() * c - 2.0 * half * half, w.re.exp() * s)
-}
-
-/// Data-only quantities of one sample interval, shared by the SPM and IPM models.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Interval {
-    /// Interval-mean electrical speed ω_e [rad/s].
-    pub w_e: f64,
-    /// `√(2/3)` × interval-mean mechanical speed [rad/s]: back-EMF per unit K_e.
-    pub emf: f64,
-    /// Rotation of the dq frame over the period, `e^{−jφ}`, `φ = ω_e h`.
-    pub rot: C64,
-    /// `1 − cos φ`, free of cancellation near 0.
-    pub vers: f64,
-    /// dq voltage at the start of the period [V]: `u[k]` (dq hold) or `u₀` (stator hold).
-    pub u0: C64,
-}
-
-/// The intervals `k = 0..N−2` of an experiment: interval-mean speed, rotation and the
-/// start-of-period voltage for the given hold (MODEL.md §4).
-pub(crate) fn intervals(e: &Experiment, hold: VoltageHold) -> impl Iterator<Item = Interval> + '_ {
-    let h = e.h();
-    let np = f64::from(e.n_p());
-    let wm = e.w_m();
-    (0..e.len() - 1).map(move |k| {
-        let w_m = 0.5 * (wm[k] + wm[k + 1]);
-        let w_e = np * w_m;
-        let phi = w_e * h;
-        let uk = C64::new(e.u_d()[k], e.u_q()[k]);
-        let half = (0.5 * phi).sin();
-        Interval {
-            w_e,
-            emf: SQRT_2_3 * w_m,
-            rot: C64::new(phi.cos(), -phi.sin()),
-            vers: 2.0 * half * half,
-            u0: match hold {
-                VoltageHold::Dq => uk,
-                VoltageHold::Stator => stator_start(uk, phi),
-            },
-        }
-    })
-}
-
 /// Per-interval speed, rotation and held voltage term of the SPM step.
-pub(crate) fn interval_inputs(e: &Experiment, hold: VoltageHold) -> SpmInputs {
-    let n = e.len() - 1;
+fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold) -> SpmInputs {
+    let n = v.len() - 1;
     let (mut w_e, mut emf, mut rot, mut vers, mut u) = (
         Vec::with_capacity(n),
         Vec::with_capacity(n),
@@ -180,7 +107,7 @@ pub(crate) fn interval_inputs(e: &Experiment, hold: VoltageHold) -> SpmInputs {
         Vec::with_capacity(n),
         Vec::with_capacity(n),
     );
-    for iv in intervals(e, hold) {
+    for iv in intervals(v, n_p, hold) {
         w_e.push(iv.w_e);
         emf.push(iv.emf);
         rot.push(iv.rot);
@@ -191,37 +118,7 @@ pub(crate) fn interval_inputs(e: &Experiment, hold: VoltageHold) -> SpmInputs {
             VoltageHold::Stator => iv.u0 * iv.rot,
         });
     }
-    SpmInputs { h: e.h(), w_e, emf, rot, vers, u }
-}
-
-/// Start-of-period dq voltage `u₀ = ū jφ/(1 − e^{−jφ})` of a stator-held voltage whose
-/// dq period mean is `ū` (MODEL.md §4); the limit φ → 0 is `ū`.
-pub(crate) fn stator_start(mean: C64, phi: f64) -> C64 {
-    if phi.abs() < 1e-8 {
-        // jφ/(1 − e^{−jφ}) = 1 + jφ/2 − φ²/12 + O(φ⁴)
-        return mean * C64::new(1.0 - phi * phi / 12.0, 0.5 * phi);
-    }
-    let denom = -cexpm1(C64::new(0.0, -phi));
-    mean * C64::new(0.0, phi) / denom
-}
-
-/// Measured `(i_d, i_q)` rows and the first state, shared by the PMSM models.
-pub(crate) fn current_outputs(e: &Experiment) -> (Vec<f64>, Vec<f64>) {
-    let y: Vec<f64> = e.i_d().iter().zip(e.i_q()).flat_map(|(&d, &q)| [d, q]).collect();
-    let x0 = vec![e.i_d()[0], e.i_q()[0]];
-    (y, x0)
-}
-
-pub(crate) fn check_positive(name: &str, v: f64) -> Result<()> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(Error::InvalidParameter {
-            name: name.into(),
-            value: v,
-            reason: "must be positive and finite".into(),
-        })
-    }
+    SpmInputs { h: v.h(), w_e, emf, rot, vers, u }
 }
 
 impl GreyBoxModel for PmsmSpm {
@@ -229,27 +126,36 @@ impl GreyBoxModel for PmsmSpm {
     type Coefficients = SpmCoefficients;
 
     fn name(&self) -> &str {
-        "pmsm_spm"
+        KIND.model_name()
     }
     fn n_states(&self) -> usize {
         2
     }
-    fn n_outputs(&self) -> usize {
-        2
+    fn outputs(&self) -> Vec<Signal> {
+        super::current_outputs()
     }
-    fn output_names(&self) -> Vec<String> {
-        vec!["i_d".into(), "i_q".into()]
+    fn input_channels(&self) -> Vec<String> {
+        [channel::U_D, channel::U_Q, channel::W_M].map(String::from).to_vec()
     }
     fn parameters(&self) -> &[Parameter] {
         &self.params
     }
-    fn state_unit(&self, _i: usize) -> String {
-        "A".into()
+    fn advice(&self, name: &str) -> Option<String> {
+        KIND.advice(name)
+    }
+    fn pair_advice(&self, a: &str, b: &str) -> Option<String> {
+        KIND.pair_advice(a, b)
+    }
+    fn poor_fit_advice(&self) -> Option<String> {
+        Some(POOR_FIT_ADVICE.into())
+    }
+    fn derived(&self, theta: &[f64], std_error: &[f64]) -> Vec<DerivedEstimate> {
+        derived(KIND, self.n_p, theta, std_error)
     }
 
-    fn prepare(&self, e: &Experiment) -> Result<Prepared<SpmInputs>> {
-        let (y, x0) = current_outputs(e);
-        Ok(Prepared { name: e.name().into(), n: e.len(), y, x0, inputs: interval_inputs(e, self.hold) })
+    fn prepare(&self, e: &Experiment) -> Result<SpmInputs> {
+        check_pole_pairs(self.n_p)?;
+        Ok(interval_inputs(&DqView::try_new(e)?, self.n_p, self.hold))
     }
 
     fn coefficients(&self, theta: &[f64], inputs: &SpmInputs) -> Result<SpmCoefficients> {
@@ -300,8 +206,8 @@ impl GreyBoxModel for PmsmSpm {
         x_next[1] = n.im;
     }
 
-    fn has_sensitivities(&self) -> bool {
-        true
+    fn sensitivities(&self) -> Option<&dyn Sensitivities<SpmInputs, SpmCoefficients>> {
+        Some(self)
     }
 
     #[inline]
@@ -333,7 +239,9 @@ impl GreyBoxModel for PmsmSpm {
     ) {
         out.copy_from_slice(&v[..2]);
     }
+}
 
+impl Sensitivities<SpmInputs, SpmCoefficients> for PmsmSpm {
     #[inline]
     fn step_sensitivity(
         &self,
@@ -374,6 +282,11 @@ impl GreyBoxModel for PmsmSpm {
         s_next[3] = sr.im;
         s_next[4] = sl.im;
         s_next[5] = sk.im;
+    }
+
+    #[inline]
+    fn output_sensitivity(&self, _c: &SpmCoefficients, _inp: &SpmInputs, _k: usize, _x: &[f64], s: &[f64], dy: &mut [f64]) {
+        dy.copy_from_slice(&s[..6]);
     }
 }
 

@@ -1,0 +1,363 @@
+//! Reader for PMSM drive logs (CSV, plain or gzip) on top of [`crate::data::csv`].
+//!
+//! A log is a CSV file with a header line and one row per sample `t_k = k h`; the default
+//! column names are `t, ud, uq, id, iq, w_m, theta_m, ud_ref, uq_ref`. Units are converted
+//! to the library's SI conventions here, at the edge (MODEL.md §1): speeds mechanical
+//! [rad/s], angles mechanical [rad], currents and voltages amplitude-invariant dq peak
+//! values [A], [V]. The channels are named as in [`channel`](super::signals::channel).
+//!
+//! ```no_run
+//! use greybox::pmsm::{read_log, CsvOptions};
+//! let exp = read_log("data/sample.csv.gz", &CsvOptions::default())?;
+//! println!("{} samples", exp.len());
+//! # Ok::<(), greybox::Error>(())
+//! ```
+
+use std::path::Path;
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::signals::{DqSignals, DqView, MIN_SAMPLES};
+use super::transform::{currents_to_dq, stator_held_voltages_to_dq};
+use crate::data::Experiment;
+use crate::data::csv::read_table;
+use crate::error::{Error, Result};
+
+/// Header names of the columns a log may hold, one per signal; every name is remappable.
+///
+/// The defaults are the header names of the development logs in `../shared/data`.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ColumnNames {
+    /// Time `t_k` [s] (required). Default `t`.
+    pub t: String,
+    /// d-axis voltage, period mean over `[t_k, t_k + h)` (required for [`DqSource::Dq`]).
+    /// Default `ud`.
+    pub u_d: String,
+    /// q-axis voltage, period mean (required for [`DqSource::Dq`]). Default `uq`.
+    pub u_q: String,
+    /// d-axis current at `t_k` (required for [`DqSource::Dq`]). Default `id`.
+    pub i_d: String,
+    /// q-axis current at `t_k` (required for [`DqSource::Dq`]). Default `iq`.
+    pub i_q: String,
+    /// Rotor speed at `t_k` (required). Default `w_m`.
+    pub w_m: String,
+    /// Rotor angle at `t_k` (optional; required for [`DqSource::Phases`]). Default `theta_m`.
+    pub theta_m: String,
+    /// d-axis voltage reference computed at `t_k` (optional). Default `ud_ref`.
+    pub u_d_ref: String,
+    /// q-axis voltage reference computed at `t_k` (optional). Default `uq_ref`.
+    pub u_q_ref: String,
+    /// Phase-a current at `t_k` (required for [`DqSource::Phases`]). Default `ia`.
+    pub i_a: String,
+    /// Phase-b current at `t_k` (required for [`DqSource::Phases`]). Default `ib`.
+    pub i_b: String,
+    /// Phase-c current at `t_k` (required for [`DqSource::Phases`]). Default `ic`.
+    pub i_c: String,
+    /// Phase-a to neutral voltage, period mean (required for [`DqSource::Phases`]).
+    /// Default `ua`.
+    pub u_a: String,
+    /// Phase-b to neutral voltage, period mean (required for [`DqSource::Phases`]).
+    /// Default `ub`.
+    pub u_b: String,
+    /// Phase-c to neutral voltage, period mean (required for [`DqSource::Phases`]).
+    /// Default `uc`.
+    pub u_c: String,
+}
+
+impl Default for ColumnNames {
+    fn default() -> Self {
+        let s = |x: &str| x.to_string();
+        Self {
+            t: s("t"),
+            u_d: s("ud"),
+            u_q: s("uq"),
+            i_d: s("id"),
+            i_q: s("iq"),
+            w_m: s("w_m"),
+            theta_m: s("theta_m"),
+            u_d_ref: s("ud_ref"),
+            u_q_ref: s("uq_ref"),
+            i_a: s("ia"),
+            i_b: s("ib"),
+            i_c: s("ic"),
+            u_a: s("ua"),
+            u_b: s("ub"),
+            u_c: s("uc"),
+        }
+    }
+}
+
+/// Unit of the speed column.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SpeedUnit {
+    /// Radians per second (default).
+    #[default]
+    RadPerSec,
+    /// Revolutions per minute; multiplied by `2π/60` on reading.
+    Rpm,
+}
+
+/// Whether the speed and angle columns are mechanical or electrical quantities.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Frame {
+    /// Mechanical speed and angle (default): `w_m`, `θ_m`.
+    #[default]
+    Mechanical,
+    /// Electrical speed and angle `w_e = n_p w_m`, `θ_e = n_p θ_m`: divided by `n_p` on
+    /// reading. A wrapped `θ_e` gives a `θ_m` in `[−π/n_p, π/n_p)`, which is all that
+    /// matters for `θ_e = n_p θ_m`.
+    Electrical,
+}
+
+/// Unit of the angle column.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AngleUnit {
+    /// Radians (default).
+    #[default]
+    Rad,
+    /// Degrees; multiplied by `π/180` on reading.
+    Deg,
+}
+
+/// Scaling of current or voltage columns (MODEL.md §1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Scale {
+    /// Amplitude-invariant peak values (default), what the library uses: a phase peak `X̂`
+    /// gives `|x_dq| = X̂`.
+    #[default]
+    Peak,
+    /// RMS-scaled values (`|x_dq|` = phase RMS, as some drives log): multiplied by `√2` on
+    /// reading. Power-invariant dq scaling (`|x_dq| = √(3/2)` × phase peak) is not this.
+    Rms,
+}
+
+/// Where the dq currents and voltages come from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DqSource {
+    /// The dq columns `u_d, u_q, i_d, i_q` (default).
+    #[default]
+    Dq,
+    /// Computed from the phase columns and `theta_m`: currents by Clarke and Park at
+    /// `θ_e = n_p θ_m`, voltages as period means of a voltage held in the **stator** frame
+    /// ([`stator_held_voltages_to_dq`](super::transform::stator_held_voltages_to_dq),
+    /// MODEL.md §4). Phase voltages computed from a dq-held voltage (gym-electric-motor)
+    /// do not fit this model; read those logs with [`DqSource::Dq`].
+    Phases,
+}
+
+/// How to read a log: column names, units and the source of the dq signals.
+///
+/// `Default` reads the development logs in `../shared/data` as they are: SI units,
+/// mechanical speed and angle, peak scaling, dq columns.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct CsvOptions {
+    /// Pole pairs n_p, needed only to convert an electrical speed or angle
+    /// ([`Frame::Electrical`]) or phase quantities ([`DqSource::Phases`]); `None` otherwise.
+    pub pole_pairs: Option<u32>,
+    /// Header names of the columns.
+    pub columns: ColumnNames,
+    /// Unit of the speed column (default rad/s).
+    pub speed_unit: SpeedUnit,
+    /// Whether speed and angle are mechanical (default) or electrical.
+    pub speed_frame: Frame,
+    /// Unit of the angle column (default rad).
+    pub angle_unit: AngleUnit,
+    /// Scaling of the current columns, dq or phase (default peak).
+    pub current_scale: Scale,
+    /// Scaling of the voltage columns, dq, references or phase (default peak).
+    pub voltage_scale: Scale,
+    /// Source of the dq signals (default: the dq columns).
+    pub source: DqSource,
+}
+
+/// Reads one PMSM drive log into a validated [`Experiment`] of N samples whose channels
+/// are named as in [`channel`](super::signals::channel).
+///
+/// Gzip is detected by the magic bytes `1f 8b`, not by the extension. The experiment's
+/// name is the file name without `.csv.gz` / `.csv`. Only the needed columns are parsed;
+/// the others may hold anything. Fields may be surrounded by blanks; `nan` and `inf` parse
+/// as numbers and are then rejected by validation. The sample time h [s] is the mean step
+/// of the time column, which must be uniform ([`Experiment::try_from_time`]).
+///
+/// # Errors
+/// - [`Error::InvalidPolePairs`] for `pole_pairs = Some(0)`, or `None` when the speed is
+///   electrical or the dq signals come from phases (before the file is opened);
+/// - those of [`read_table`]: [`Error::Io`], [`Error::MissingColumn`] for a required
+///   column (`t, ud, uq, id, iq, w_m`; for [`DqSource::Phases`]
+///   `t, ia, ib, ic, ua, ub, uc, theta_m, w_m`, all under their configured names),
+///   [`Error::Csv`] with the line number;
+/// - [`Error::TooShort`] for an empty file or fewer than [`MIN_SAMPLES`] rows;
+/// - [`Error::NonFinite`] naming the column (as configured) and 0-based data row of a NaN
+///   or ±Inf; [`Error::NonUniformTime`] for a time column that is not uniform (a dropped or
+///   repeated sample), [`Error::InvalidSampleTime`] for a decreasing one.
+///
+/// Never panics. Source of the conventions: MODEL.md §1, §4.
+pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experiment> {
+    let path = path.as_ref();
+    let needs_n_p = options.speed_frame == Frame::Electrical || options.source == DqSource::Phases;
+    let n_p = match options.pole_pairs {
+        Some(0) => return Err(Error::InvalidPolePairs { n_p: 0 }),
+        None if needs_n_p => return Err(Error::InvalidPolePairs { n_p: 0 }),
+        p => p.unwrap_or(1),
+    };
+    let c = &options.columns;
+    let main: Vec<&String> = match options.source {
+        DqSource::Dq => vec![&c.u_d, &c.u_q, &c.i_d, &c.i_q],
+        DqSource::Phases => vec![&c.i_a, &c.i_b, &c.i_c, &c.u_a, &c.u_b, &c.u_c, &c.theta_m],
+    };
+    // Required columns in a fixed order: the error names the first one missing.
+    let mut wanted: Vec<(&str, bool)> = vec![(&c.t, true)];
+    wanted.extend(main.iter().map(|n| (n.as_str(), true)));
+    wanted.push((&c.w_m, true));
+    if options.source == DqSource::Dq {
+        wanted.push((&c.theta_m, false));
+    }
+    wanted.extend([(c.u_d_ref.as_str(), false), (c.u_q_ref.as_str(), false)]);
+    let table = match read_table(path, &wanted) {
+        Err(Error::TooShort { name, len, .. }) => return Err(Error::TooShort { name, len, min: MIN_SAMPLES }),
+        other => other?,
+    };
+    let rows = table.columns[0].as_ref().map_or(0, Vec::len);
+    if rows < MIN_SAMPLES {
+        return Err(Error::TooShort { name: table.name, len: rows, min: MIN_SAMPLES });
+    }
+    build(table.name, table.columns, n_p, options).map_err(|e| rename_columns(e, &options.columns))
+}
+
+/// Reads several logs with [`read_log`], in parallel, keeping the order of `paths`.
+///
+/// # Errors
+/// The first error, in the order of `paths`, that [`read_log`] returns for any of them.
+pub fn read_logs<P: AsRef<Path> + Sync>(paths: &[P], options: &CsvOptions) -> Result<Vec<Experiment>> {
+    let results: Vec<Result<Experiment>> = paths.par_iter().map(|p| read_log(p, options)).collect();
+    results.into_iter().collect()
+}
+
+/// Converts units, derives dq from phases if asked, and validates. `cols` are in the
+/// order of [`read_log`]'s request.
+fn build(name: String, cols: Vec<Option<Vec<f64>>>, n_p: u32, options: &CsvOptions) -> Result<Experiment> {
+    let phases = options.source == DqSource::Phases;
+    let mut cols = cols.into_iter();
+    let mut next = || cols.next().flatten();
+    let t = next().unwrap_or_default();
+    let main: Vec<Vec<f64>> = (0..if phases { 7 } else { 4 }).map(|_| next().unwrap_or_default()).collect();
+    let mut w_m = next().unwrap_or_default();
+    let mut theta_m = if phases { main.get(6).cloned() } else { next() };
+    let mut u_d_ref = next();
+    let mut u_q_ref = next();
+
+    let frame = match options.speed_frame {
+        Frame::Mechanical => 1.0,
+        Frame::Electrical => 1.0 / f64::from(n_p),
+    };
+    let speed = frame
+        * match options.speed_unit {
+            SpeedUnit::RadPerSec => 1.0,
+            SpeedUnit::Rpm => std::f64::consts::PI / 30.0,
+        };
+    let angle = frame
+        * match options.angle_unit {
+            AngleUnit::Rad => 1.0,
+            AngleUnit::Deg => std::f64::consts::PI / 180.0,
+        };
+    let scale = |s: Scale| match s {
+        Scale::Peak => 1.0,
+        Scale::Rms => std::f64::consts::SQRT_2,
+    };
+    let (i_scale, u_scale) = (scale(options.current_scale), scale(options.voltage_scale));
+    scale_in_place(&mut w_m, speed);
+    if let Some(v) = theta_m.as_mut() {
+        scale_in_place(v, angle);
+    }
+    for v in [u_d_ref.as_mut(), u_q_ref.as_mut()].into_iter().flatten() {
+        scale_in_place(v, u_scale);
+    }
+
+    let (u_d, u_q, i_d, i_q) = match main.as_slice() {
+        [u_d, u_q, i_d, i_q] => {
+            let (mut u_d, mut u_q, mut i_d, mut i_q) = (u_d.clone(), u_q.clone(), i_d.clone(), i_q.clone());
+            scale_in_place(&mut u_d, u_scale);
+            scale_in_place(&mut u_q, u_scale);
+            scale_in_place(&mut i_d, i_scale);
+            scale_in_place(&mut i_q, i_scale);
+            (u_d, u_q, i_d, i_q)
+        }
+        _ => {
+            let mut ph: Vec<Vec<f64>> = main.into_iter().take(6).collect();
+            for (k, v) in ph.iter_mut().enumerate() {
+                scale_in_place(v, if k < 3 { i_scale } else { u_scale });
+            }
+            let th = theta_m.as_deref().unwrap_or_default();
+            // The transforms mix columns and neighbouring rows, so a NaN would surface
+            // under a dq name: report the raw column instead.
+            let c = &options.columns;
+            let names = [&c.i_a, &c.i_b, &c.i_c, &c.u_a, &c.u_b, &c.u_c, &c.theta_m, &c.w_m];
+            let cols = ph.iter().map(Vec::as_slice).chain([th, &w_m[..]]);
+            for (col, v) in names.into_iter().zip(cols) {
+                if let Some((row, &value)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+                    return Err(Error::NonFinite { column: col.clone(), row, value });
+                }
+            }
+            let h = mean_step(&t);
+            let [i_a, i_b, i_c, u_a, u_b, u_c] = &ph[..] else {
+                return Err(Error::Numerical { context: "phase columns".into(), reason: "six expected".into() });
+            };
+            let (i_d, i_q) = currents_to_dq(i_a, i_b, i_c, th, n_p)?;
+            let (u_d, u_q) = stator_held_voltages_to_dq(u_a, u_b, u_c, th, &w_m, h, n_p)?;
+            (u_d, u_q, i_d, i_q)
+        }
+    };
+    let signals = DqSignals { u_d, u_q, i_d, i_q, w_m, theta_m, u_d_ref, u_q_ref };
+    let e = Experiment::try_from_time(name, "t", &t, signals.into_channels())?;
+    DqView::try_new(&e)?;
+    Ok(e)
+}
+
+fn scale_in_place(v: &mut [f64], f: f64) {
+    if f != 1.0 {
+        v.iter_mut().for_each(|x| *x *= f);
+    }
+}
+
+/// `(t[N−1] − t[0])/(N − 1)`, or NaN below two samples (validation then rejects the log).
+fn mean_step(t: &[f64]) -> f64 {
+    match t {
+        [first, .., last] => (last - first) / (t.len() - 1) as f64,
+        _ => f64::NAN,
+    }
+}
+
+/// Replaces the library's signal names in validation errors by the configured header names.
+fn rename_columns(e: Error, c: &ColumnNames) -> Error {
+    let map = |col: String| -> String {
+        let configured = match col.as_str() {
+            "t" => &c.t,
+            "ud" => &c.u_d,
+            "uq" => &c.u_q,
+            "id" => &c.i_d,
+            "iq" => &c.i_q,
+            "w_m" => &c.w_m,
+            "theta_m" => &c.theta_m,
+            "ud_ref" => &c.u_d_ref,
+            "uq_ref" => &c.u_q_ref,
+            _ => return col,
+        };
+        configured.clone()
+    };
+    match e {
+        Error::NonFinite { column, row, value } => Error::NonFinite { column: map(column), row, value },
+        Error::NonUniformTime { column, row, dt, expected, tolerance } => {
+            Error::NonUniformTime { column: map(column), row, dt, expected, tolerance }
+        }
+        other => other,
+    }
+}
+

@@ -1,0 +1,179 @@
+//! The PMSM view of an experiment: dq voltages and currents, speed and angle under their
+//! channel names, with typed access that names a missing channel.
+//!
+//! Conventions (MODEL.md §1, §4): currents and voltages are amplitude-invariant dq
+//! quantities (`|i_dq|` = phase peak), `u[k]` is the terminal voltage averaged over
+//! `[t_k, t_k + h)`, speeds and angles are **mechanical**.
+
+use crate::data::{Channel, Experiment};
+use crate::error::{Error, Result};
+
+/// Channel names of a PMSM log, as the CSV defaults and [`DqSignals`] write them.
+pub mod channel {
+    /// d-axis terminal voltage, period mean over `[t_k, t_k + h)` [V].
+    pub const U_D: &str = "ud";
+    /// q-axis terminal voltage, period mean [V].
+    pub const U_Q: &str = "uq";
+    /// d-axis current at `t_k` [A, peak].
+    pub const I_D: &str = "id";
+    /// q-axis current at `t_k` [A, peak].
+    pub const I_Q: &str = "iq";
+    /// Mechanical rotor speed at `t_k` [rad/s].
+    pub const W_M: &str = "w_m";
+    /// Mechanical rotor angle at `t_k` [rad].
+    pub const THETA_M: &str = "theta_m";
+    /// d-axis voltage reference computed at `t_k` [V].
+    pub const U_D_REF: &str = "ud_ref";
+    /// q-axis voltage reference computed at `t_k` [V].
+    pub const U_Q_REF: &str = "uq_ref";
+}
+
+/// Fewest samples of a PMSM log: below this a fit of 3–4 parameters and 2 initial
+/// states from two outputs has too few residuals to say anything.
+pub const MIN_SAMPLES: usize = 16;
+
+/// Raw signals of one PMSM log before validation; all vectors have one entry per sample.
+///
+/// Units: `u_d, u_q, u_d_ref, u_q_ref` [V], `i_d, i_q` [A, peak], `w_m` [rad/s, mechanical],
+/// `theta_m` [rad, mechanical].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DqSignals {
+    /// d-axis terminal voltage, period mean over `[t_k, t_k + h)` [V], length N.
+    pub u_d: Vec<f64>,
+    /// q-axis terminal voltage, period mean over `[t_k, t_k + h)` [V], length N.
+    pub u_q: Vec<f64>,
+    /// d-axis current at `t_k` [A, peak], length N.
+    pub i_d: Vec<f64>,
+    /// q-axis current at `t_k` [A, peak], length N.
+    pub i_q: Vec<f64>,
+    /// Mechanical rotor speed at `t_k` [rad/s], length N.
+    pub w_m: Vec<f64>,
+    /// Mechanical rotor angle at `t_k` [rad], length N, if logged.
+    pub theta_m: Option<Vec<f64>>,
+    /// d-axis voltage reference computed at `t_k` [V], length N, if logged.
+    pub u_d_ref: Option<Vec<f64>>,
+    /// q-axis voltage reference computed at `t_k` [V], length N, if logged.
+    pub u_q_ref: Option<Vec<f64>>,
+}
+
+impl DqSignals {
+    /// The signals as channels under the names of [`channel`], optional ones when present.
+    pub fn into_channels(self) -> Vec<Channel> {
+        let mut c = vec![
+            Channel::new(channel::U_D, "V", self.u_d),
+            Channel::new(channel::U_Q, "V", self.u_q),
+            Channel::new(channel::I_D, "A", self.i_d),
+            Channel::new(channel::I_Q, "A", self.i_q),
+            Channel::new(channel::W_M, "rad/s", self.w_m),
+        ];
+        let optional = [
+            (channel::THETA_M, "rad", self.theta_m),
+            (channel::U_D_REF, "V", self.u_d_ref),
+            (channel::U_Q_REF, "V", self.u_q_ref),
+        ];
+        c.extend(optional.into_iter().filter_map(|(n, u, v)| Some(Channel::new(n, u, v?))));
+        c
+    }
+
+    /// A validated PMSM experiment sampled every `h` [s].
+    ///
+    /// # Errors
+    /// Those of [`Experiment::try_new`] (naming the channel and row), and
+    /// [`Error::TooShort`] below [`MIN_SAMPLES`].
+    pub fn into_experiment(self, name: impl Into<String>, h: f64) -> Result<Experiment> {
+        let e = Experiment::try_new(name, h, self.into_channels())?;
+        DqView::try_new(&e)?;
+        Ok(e)
+    }
+}
+
+/// Typed, borrowed access to the PMSM channels of an [`Experiment`].
+#[derive(Clone, Copy, Debug)]
+pub struct DqView<'a> {
+    e: &'a Experiment,
+    u_d: &'a [f64],
+    u_q: &'a [f64],
+    i_d: &'a [f64],
+    i_q: &'a [f64],
+    w_m: &'a [f64],
+}
+
+impl<'a> DqView<'a> {
+    /// The view of `e`.
+    ///
+    /// # Errors
+    /// [`Error::MissingChannel`] naming the first of `ud, uq, id, iq, w_m` that `e` lacks;
+    /// [`Error::TooShort`] below [`MIN_SAMPLES`] samples.
+    pub fn try_new(e: &'a Experiment) -> Result<Self> {
+        let v = Self {
+            e,
+            u_d: e.channel(channel::U_D)?,
+            u_q: e.channel(channel::U_Q)?,
+            i_d: e.channel(channel::I_D)?,
+            i_q: e.channel(channel::I_Q)?,
+            w_m: e.channel(channel::W_M)?,
+        };
+        if e.len() < MIN_SAMPLES {
+            return Err(Error::TooShort { name: e.name().into(), len: e.len(), min: MIN_SAMPLES });
+        }
+        Ok(v)
+    }
+    /// The experiment viewed.
+    pub fn experiment(&self) -> &'a Experiment {
+        self.e
+    }
+    /// Sample time h [s].
+    pub fn h(&self) -> f64 {
+        self.e.h()
+    }
+    /// Number of samples N.
+    pub fn len(&self) -> usize {
+        self.e.len()
+    }
+    /// Always false: a view holds at least [`MIN_SAMPLES`] samples.
+    pub fn is_empty(&self) -> bool {
+        self.e.is_empty()
+    }
+    /// d-axis terminal voltage, period means [V], length N.
+    pub fn u_d(&self) -> &'a [f64] {
+        self.u_d
+    }
+    /// q-axis terminal voltage, period means [V], length N.
+    pub fn u_q(&self) -> &'a [f64] {
+        self.u_q
+    }
+    /// d-axis current at `t_k` [A, peak], length N.
+    pub fn i_d(&self) -> &'a [f64] {
+        self.i_d
+    }
+    /// q-axis current at `t_k` [A, peak], length N.
+    pub fn i_q(&self) -> &'a [f64] {
+        self.i_q
+    }
+    /// Mechanical speed at `t_k` [rad/s], length N.
+    pub fn w_m(&self) -> &'a [f64] {
+        self.w_m
+    }
+    /// Mechanical angle at `t_k` [rad], length N, if logged.
+    pub fn theta_m(&self) -> Option<&'a [f64]> {
+        self.e.get(channel::THETA_M).map(|c| c.values.as_slice())
+    }
+    /// d- and q-axis voltage references [V], length N each, if both are logged.
+    pub fn u_dq_ref(&self) -> Option<(&'a [f64], &'a [f64])> {
+        Some((&self.e.get(channel::U_D_REF)?.values, &self.e.get(channel::U_Q_REF)?.values))
+    }
+    /// The signals copied out (to edit and rebuild an experiment).
+    pub fn to_signals(&self) -> DqSignals {
+        let opt = |n: &str| self.e.get(n).map(|c| c.values.clone());
+        DqSignals {
+            u_d: self.u_d.to_vec(),
+            u_q: self.u_q.to_vec(),
+            i_d: self.i_d.to_vec(),
+            i_q: self.i_q.to_vec(),
+            w_m: self.w_m.to_vec(),
+            theta_m: opt(channel::THETA_M),
+            u_d_ref: opt(channel::U_D_REF),
+            u_q_ref: opt(channel::U_Q_REF),
+        }
+    }
+}
