@@ -1,0 +1,162 @@
+//! Running sums at the estimate from which the statistics of a fit follow.
+
+use super::Loss;
+use nalgebra::DMatrix;
+
+/// Sums at the estimate from which the statistics of a fit follow.
+#[derive(Clone, Debug)]
+pub struct Sums {
+    /// Cost `V`.
+    pub cost: f64,
+    /// Weighted residual sum of squares `Σ w ε²` (the E² of the error index).
+    pub e2_weighted: f64,
+    /// Unweighted residual sum of squares per output, length n_y.
+    pub sse: Vec<f64>,
+    /// Number of residual samples per output (same for every output).
+    pub count: usize,
+    /// `Σ (y − ȳ)²` per output, length n_y.
+    pub sst: Vec<f64>,
+    /// `JᵀWJ` (scaled space): the information matrix of the error index and diagnostics.
+    pub jtj: DMatrix<f64>,
+    /// Bread `A = Σ w ψ'(ε) JᵀJ` of the sandwich covariance `A⁻¹ B A⁻¹`.
+    pub bread: DMatrix<f64>,
+    /// Meat `B`: `Σ_i σ̂_i² Σ_k w² J_kiᵀJ_ki` (quadratic), `N/(N − n_p) Σ w² ψ² JᵀJ` (Huber);
+    /// with a residual prefilter L(q), `Σ_i σ̂_i² gᵢᵀgᵢ` with `gᵢ = Lᵀ(W J_f)` (the
+    /// time-reversed filter applied to the weighted filtered Jacobian) and σ̂ from the raw
+    /// residuals: exact for white raw residuals.
+    pub meat: DMatrix<f64>,
+}
+
+/// Running sums of [`PemProblem::sums`].
+pub(crate) struct Accumulator {
+    ny: usize,
+    np: usize,
+    cost: f64,
+    e2w: f64,
+    count: usize,
+    n_e: usize,
+    sse: Vec<f64>,
+    // Raw residuals of samples with non-zero weight: the noise estimate ignores weighted-out ones.
+    sse_live: Vec<f64>,
+    n_live: Vec<usize>,
+    y0: Vec<f64>,
+    ey: Vec<f64>,
+    ey2: Vec<f64>,
+    sum_y: Vec<f64>,
+    sum_y2: Vec<f64>,
+    jtj: DMatrix<f64>,
+    bread: DMatrix<f64>,
+    // Per output: Σ w² J_iᵀJ_i (quadratic), Σ w² ψ² J_iᵀJ_i (Huber) or gᵀg (prefilter).
+    meat_i: Vec<DMatrix<f64>>,
+}
+
+impl Accumulator {
+    pub(crate) fn new(ny: usize, np: usize) -> Self {
+        let z = DMatrix::zeros(np, np);
+        Self {
+            ny,
+            np,
+            cost: 0.0,
+            e2w: 0.0,
+            count: 0,
+            n_e: 0,
+            sse: vec![0.0; ny],
+            sse_live: vec![0.0; ny],
+            n_live: vec![0; ny],
+            y0: vec![0.0; ny],
+            ey: vec![0.0; ny],
+            ey2: vec![0.0; ny],
+            sum_y: vec![0.0; ny],
+            sum_y2: vec![0.0; ny],
+            jtj: z.clone(),
+            bread: z.clone(),
+            meat_i: vec![z; ny],
+        }
+    }
+
+    pub(crate) fn start_experiment(&mut self, y0: &[f64]) {
+        self.y0.copy_from_slice(y0);
+        self.ey.fill(0.0);
+        self.ey2.fill(0.0);
+        self.n_e = 0;
+    }
+
+    /// One sample: `eps` the residual the criterion sees (filtered or not), `raw` the
+    /// output error itself, `jac` the criterion's Jacobian (row-major n_y × n_p).
+    pub(crate) fn sample(&mut self, loss: &Loss, y: &[f64], eps: &[f64], raw: &[f64], w: &[f64], jac: &[f64]) {
+        let np = self.np;
+        self.n_e += 1;
+        for i in 0..self.ny {
+            let (rho, _, _, dpsi) = loss.eval(i, eps[i]);
+            self.cost += w[i] * rho;
+            self.e2w += w[i] * eps[i] * eps[i];
+            self.sse[i] += raw[i] * raw[i];
+            if w[i] > 0.0 {
+                self.sse_live[i] += raw[i] * raw[i];
+                self.n_live[i] += 1;
+            }
+            let d = y[i] - self.y0[i];
+            self.ey[i] += d;
+            self.ey2[i] += d * d;
+            let row = &jac[i * np..(i + 1) * np];
+            for a in 0..np {
+                for b in a..np {
+                    let jj = row[a] * row[b];
+                    self.jtj[(a, b)] += w[i] * jj;
+                    self.bread[(a, b)] += w[i] * dpsi * jj;
+                }
+            }
+        }
+    }
+
+    /// Adds `m · row rowᵀ` to the meat of output i (upper triangle).
+    pub(crate) fn add_meat(&mut self, i: usize, m: f64, row: &[f64]) {
+        for a in 0..self.np {
+            for b in a..self.np {
+                self.meat_i[i][(a, b)] += m * row[a] * row[b];
+            }
+        }
+    }
+
+    pub(crate) fn end_experiment(&mut self) {
+        let n = self.n_e as f64;
+        self.count += self.n_e;
+        for i in 0..self.ny {
+            // Pool about the grand mean over all experiments.
+            let y0 = self.y0[i];
+            self.sum_y[i] += self.ey[i] + n * y0;
+            self.sum_y2[i] += self.ey2[i] + 2.0 * y0 * self.ey[i] + n * y0 * y0;
+        }
+    }
+
+    pub(crate) fn finish(mut self, loss: &Loss, prefiltered: bool) -> Sums {
+        let (ny, np, n) = (self.ny, self.np, self.count as f64);
+        let sst = (0..ny).map(|i| (self.sum_y2[i] - self.sum_y[i] * self.sum_y[i] / n).max(0.0)).collect();
+        let mut meat = DMatrix::zeros(np, np);
+        for (i, mi) in self.meat_i.iter().enumerate() {
+            let live = self.n_live[i] as f64;
+            let dof = (live - np as f64 / ny as f64).max(1.0);
+            let factor = match loss {
+                // Huber without prefilter: ψ² is already in the meat.
+                Loss::Huber { .. } if !prefiltered => live / dof,
+                // σ̂_i² = E_i²/(N − n_p/n_y) of the raw residuals with non-zero weight.
+                _ => self.sse_live[i] / dof,
+            };
+            meat += mi * factor;
+        }
+        for m in [&mut self.jtj, &mut self.bread, &mut meat] {
+            m.fill_lower_triangle_with_upper_triangle();
+        }
+        Sums {
+            cost: self.cost,
+            e2_weighted: self.e2w,
+            sse: self.sse,
+            count: self.count,
+            sst,
+            jtj: self.jtj,
+            bread: self.bread,
+            meat,
+        }
+    }
+}
+

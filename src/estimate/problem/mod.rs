@@ -1,0 +1,377 @@
+//! The prediction-error problem: experiments, the map from the optimiser's scaled vector
+//! p to each experiment's θ (and, on request, initial state), and one-pass evaluation of
+//! the cost and normal equations.
+//!
+//! Criterion (MODEL.md §5; Ljung, *System Identification*, 2nd ed., ch. 7 and 15.2):
+//! `V(p) = Σ_e Σ_k β_ek Σ_i Λ_i ρ(ε_eki)`, `ε = y − ŷ(θ(p))`, with `ρ(ε) = ½ε²`
+//! (quadratic) or Huber's `ρ(ε) = ½ε²` for `|ε| ≤ δ`, `δ|ε| − ½δ²` beyond (Huber 1981,
+//! *Robust Statistics*, 7.8). The Jacobian is `J = ∂ŷ/∂p` (so `∂ε/∂p = −J`) and the
+//! Gauss-Newton step solves `JᵀWJ δ = JᵀWψ(ε)`; for Huber the weight of a residual
+//! beyond δ is `δ/|ε|` (iteratively reweighted least squares).
+
+
+mod accumulate;
+mod loss;
+mod pass;
+mod sums;
+
+pub use accumulate::Sums;
+pub use loss::Loss;
+pub use sums::NormalEquations;
+
+use crate::error::{Error, Result};
+use crate::estimate::filter::Butterworth;
+use crate::estimate::scaling::{ParameterScaling, Transform};
+use crate::model::{GreyBoxModel, Prepared};
+use nalgebra::DVector;
+
+/// One experiment's prepared data with optional per-sample weights β_k (length N).
+pub type WeightedData<I> = (Prepared<I>, Option<Vec<f64>>);
+
+/// Options of a [`PemProblem`] beyond the model, data and start.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ProblemOptions {
+    /// Parameters estimated separately for each experiment, by name.
+    pub per_experiment: Vec<String>,
+    /// k-step-ahead prediction horizon; `None` = simulation (output error).
+    pub horizon: Option<usize>,
+    /// Output weights Λ (length n_y), `None` = 1.
+    pub output_weights: Option<Vec<f64>>,
+    /// Residual loss.
+    pub loss: Loss,
+    /// Estimate each experiment's initial state x₀ (n_x extra parameters per experiment).
+    pub estimate_x0: bool,
+    /// Residual prefilter L(q), one per experiment (its sample time), or empty for none:
+    /// `ε_f = L(q) ε` and `J_f = L(q) J`, causal, from rest (MODEL.md §5).
+    pub prefilters: Vec<Butterworth>,
+}
+
+/// Where each model parameter of one experiment comes from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Slot {
+    /// Held at this value [parameter unit].
+    Fixed(f64),
+    /// The optimiser's free parameter with this index.
+    Free(usize),
+}
+
+/// What a free parameter of the optimisation is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FreeKind {
+    /// Model parameter with this index.
+    Parameter(usize),
+    /// Component of the initial state of one experiment.
+    InitialState(usize),
+}
+
+/// One free parameter of the optimisation.
+#[derive(Clone, Debug)]
+pub struct FreeParameter {
+    /// Model parameter or initial-state component.
+    pub kind: FreeKind,
+    /// Experiment index for a per-experiment parameter or initial state; `None` when shared.
+    pub experiment: Option<usize>,
+    /// θ ↔ p map.
+    pub transform: Transform,
+    /// Bounds in scaled space `[T⁻¹(lower), T⁻¹(upper)]`.
+    pub lower_p: f64,
+    /// Upper bound in scaled space.
+    pub upper_p: f64,
+}
+
+/// One experiment's data within a problem.
+#[derive(Debug)]
+pub struct Term<I> {
+    /// Prepared data.
+    pub prep: Prepared<I>,
+    /// Per-sample weights β_k (length N), `None` = 1.
+    pub weights: Option<Vec<f64>>,
+    /// Source of every model parameter for this experiment, length n_θ.
+    pub slots: Vec<Slot>,
+    /// Index of the first of n_x free initial-state parameters, when estimated.
+    pub x0_free: Option<usize>,
+}
+
+/// A prediction-error problem over one or more experiments of one model.
+pub struct PemProblem<'m, M: GreyBoxModel> {
+    model: &'m M,
+    terms: Vec<Term<M::Inputs>>,
+    free: Vec<FreeParameter>,
+    horizon: Option<usize>,
+    output_weights: Vec<f64>,
+    loss: Loss,
+    prefilters: Vec<Butterworth>,
+}
+
+impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
+    /// Builds the problem: `start` (length n_θ) are the model parameters' start values,
+    /// shared by all experiments; parameters named in `options.per_experiment` get one free
+    /// copy per experiment; fixed parameters (metadata flag) are held at their start; with
+    /// `options.estimate_x0` each experiment's initial state is free, starting from the
+    /// measured one.
+    ///
+    /// # Errors
+    /// [`Error::InvalidOption`] for a wrong `start` length, an unknown name in
+    /// `per_experiment`, wrong weight lengths, a non-positive output weight or Huber
+    /// threshold, no experiment; [`Error::InvalidBounds`], [`Error::StartOutsideBounds`],
+    /// [`Error::InvalidParameter`] for unusable bounds or starts; those of the scaling rule.
+    pub fn new(
+        model: &'m M,
+        preps: Vec<WeightedData<M::Inputs>>,
+        start: &[f64],
+        scaling: &dyn ParameterScaling,
+        options: &ProblemOptions,
+    ) -> Result<Self> {
+        let params = model.parameters();
+        let invalid = |option: &str, reason: String| Error::InvalidOption { option: option.into(), reason };
+        if start.len() != params.len() {
+            let reason = format!(
+                "{} values given, model `{}` has {} parameters",
+                start.len(),
+                model.name(),
+                params.len()
+            );
+            return Err(invalid("start", reason));
+        }
+        for name in &options.per_experiment {
+            if !params.iter().any(|p| &p.name == name) {
+                return Err(invalid(
+                    "per_experiment",
+                    format!("no parameter `{name}` in model `{}`", model.name()),
+                ));
+            }
+        }
+        for (p, &v) in params.iter().zip(start) {
+            p.check_bounds()?;
+            p.check_start(v)?;
+        }
+        for (prep, _) in &preps {
+            crate::simulate::check_inputs(model, prep, start, &prep.x0)?;
+        }
+        let ny = model.n_outputs();
+        let positive = |v: &[f64]| v.len() == ny && v.iter().all(|w| w.is_finite() && *w > 0.0);
+        let output_weights = options.output_weights.clone().unwrap_or_else(|| vec![1.0; ny]);
+        if !positive(&output_weights) {
+            return Err(invalid(
+                "output_weights",
+                format!("need {ny} positive finite weights, got {output_weights:?}"),
+            ));
+        }
+        if let Loss::Huber { delta } = &options.loss
+            && !positive(delta)
+        {
+            return Err(invalid("huber", format!("need {ny} positive finite thresholds, got {delta:?}")));
+        }
+        let n_exp = preps.len();
+        if n_exp == 0 {
+            return Err(invalid("experiments", "no experiment given".into()));
+        }
+        if !options.prefilters.is_empty() && options.prefilters.len() != n_exp {
+            return Err(invalid(
+                "prefilter",
+                format!("{} filters for {n_exp} experiments", options.prefilters.len()),
+            ));
+        }
+        let mut free = Vec::new();
+        let mut slots = vec![vec![Slot::Fixed(0.0); params.len()]; n_exp];
+        for (j, p) in params.iter().enumerate() {
+            if p.fixed {
+                slots.iter_mut().for_each(|s| s[j] = Slot::Fixed(start[j]));
+                continue;
+            }
+            let transform = scaling.transform(p, start[j], None)?;
+            let (lower_p, upper_p) = (transform.to_scaled(p.lower), transform.to_scaled(p.upper));
+            let copies: Vec<Option<usize>> = if options.per_experiment.contains(&p.name) {
+                (0..n_exp).map(Some).collect()
+            } else {
+                vec![None]
+            };
+            for e in copies {
+                let g = free.len();
+                free.push(FreeParameter {
+                    kind: FreeKind::Parameter(j),
+                    experiment: e,
+                    transform,
+                    lower_p,
+                    upper_p,
+                });
+                match e {
+                    Some(e) => slots[e][j] = Slot::Free(g),
+                    None => slots.iter_mut().for_each(|s| s[j] = Slot::Free(g)),
+                }
+            }
+        }
+        let mut terms = Vec::with_capacity(n_exp);
+        for (e, ((prep, weights), slots)) in preps.into_iter().zip(slots).enumerate() {
+            if let Some(w) = &weights {
+                if w.len() != prep.n {
+                    return Err(invalid(
+                        "weights",
+                        format!("experiment `{}`: {} weights for {} samples", prep.name, w.len(), prep.n),
+                    ));
+                }
+                if let Some((k, v)) = w.iter().enumerate().find(|(_, v)| !(v.is_finite() && **v >= 0.0)) {
+                    return Err(invalid(
+                        "weights",
+                        format!("experiment `{}`: weight {v} at sample {k} is not finite and ≥ 0", prep.name),
+                    ));
+                }
+            }
+            let x0_free = (options.estimate_x0 && !prep.x0.is_empty()).then(|| {
+                let g = free.len();
+                // Scale of the state: its RMS over the record (outputs are states for the PMSM).
+                let rms = (prep.y.iter().map(|v| v * v).sum::<f64>() / prep.y.len() as f64).sqrt();
+                let scale = if rms > 0.0 && rms.is_finite() { rms } else { 1.0 };
+                // An initial state the data barely see (its transient weighted out) must
+                // not wander off: bound it to ten times the largest measured output.
+                let bound = (10.0 * prep.y.iter().fold(0.0f64, |m, v| m.max(v.abs())) + 1.0) / scale;
+                for i in 0..prep.x0.len() {
+                    free.push(FreeParameter {
+                        kind: FreeKind::InitialState(i),
+                        experiment: Some(e),
+                        transform: Transform::Linear { scale },
+                        lower_p: -bound,
+                        upper_p: bound,
+                    });
+                }
+                g
+            });
+            terms.push(Term { prep, weights, slots, x0_free });
+        }
+        let mut problem = Self {
+            model,
+            terms,
+            free,
+            horizon: options.horizon,
+            output_weights,
+            loss: options.loss.clone(),
+            prefilters: options.prefilters.clone(),
+        };
+        if scaling.needs_column_norms() {
+            problem.rescale_by_column_norms(start, scaling)?;
+        }
+        Ok(problem)
+    }
+
+    fn rescale_by_column_norms(&mut self, start: &[f64], scaling: &dyn ParameterScaling) -> Result<()> {
+        let p0 = self.start_vector(start);
+        let ne = self.normal_equations(&p0)?;
+        let params = self.model.parameters();
+        for (g, fp) in self.free.iter_mut().enumerate() {
+            let FreeKind::Parameter(j) = fp.kind else { continue };
+            // Column norm in θ units: ‖∂ŷ/∂θ‖ = ‖∂ŷ/∂p‖ / (dθ/dp).
+            let norm = ne.jtj[(g, g)].sqrt() / fp.transform.dtheta_dp(p0[g]).abs();
+            let p = &params[j];
+            fp.transform = scaling.transform(p, start[j], Some(norm))?;
+            fp.lower_p = fp.transform.to_scaled(p.lower);
+            fp.upper_p = fp.transform.to_scaled(p.upper);
+        }
+        Ok(())
+    }
+
+    /// The model.
+    pub fn model(&self) -> &M {
+        self.model
+    }
+    /// The experiments' terms.
+    pub fn terms(&self) -> &[Term<M::Inputs>] {
+        &self.terms
+    }
+    /// The free parameters, in the order of the scaled vector p.
+    pub fn free(&self) -> &[FreeParameter] {
+        &self.free
+    }
+    /// Number of free parameters n_p.
+    pub fn n_free(&self) -> usize {
+        self.free.len()
+    }
+    /// The k-step prediction horizon (`None`: simulation).
+    pub fn horizon(&self) -> Option<usize> {
+        self.horizon
+    }
+    /// The residual loss.
+    pub fn loss(&self) -> &Loss {
+        &self.loss
+    }
+
+    /// Scaled start vector p₀ (length n_p) for model start values θ₀ (initial states from
+    /// the measurement).
+    ///
+    /// # Panics
+    /// If `start` has fewer than n_θ entries.
+    pub fn start_vector(&self, start: &[f64]) -> DVector<f64> {
+        DVector::from_iterator(
+            self.free.len(),
+            self.free.iter().map(|f| match (f.kind, f.experiment) {
+                (FreeKind::Parameter(j), _) => f.transform.to_scaled(start[j]),
+                (FreeKind::InitialState(i), Some(e)) => f.transform.to_scaled(self.terms[e].prep.x0[i]),
+                (FreeKind::InitialState(_), None) => 0.0,
+            }),
+        )
+    }
+
+    /// θ of experiment `e` at scaled point p (length n_p); returns length n_θ.
+    ///
+    /// # Panics
+    /// If `e` is not an experiment index or p is shorter than n_p.
+    pub fn theta(&self, e: usize, p: &DVector<f64>) -> Vec<f64> {
+        self.terms[e]
+            .slots
+            .iter()
+            .map(|s| match *s {
+                Slot::Fixed(v) => v,
+                Slot::Free(g) => self.free[g].transform.to_theta(p[g]),
+            })
+            .collect()
+    }
+
+    /// Initial state of experiment `e` at p (measured, or estimated).
+    pub fn x0(&self, e: usize, p: &DVector<f64>) -> Vec<f64> {
+        let term = &self.terms[e];
+        match term.x0_free {
+            Some(g) => {
+                (0..term.prep.x0.len()).map(|i| self.free[g + i].transform.to_theta(p[g + i])).collect()
+            }
+            None => term.prep.x0.clone(),
+        }
+    }
+
+    /// First sample of experiment e that counts: 1 when a dynamic model starts from the
+    /// measured first state (its residual is zero by construction), 0 otherwise (estimated
+    /// initial state, or a static model).
+    pub fn first_sample(&self, e: usize) -> usize {
+        usize::from(self.terms[e].x0_free.is_none() && self.model.n_states() > 0)
+    }
+
+    /// Projects p onto the bounds (componentwise clamp in scaled space).
+    pub fn project(&self, p: &mut DVector<f64>) {
+        for (g, f) in self.free.iter().enumerate() {
+            p[g] = p[g].clamp(f.lower_p, f.upper_p);
+        }
+    }
+
+    /// `dθ/dp` for every model parameter of experiment e, with its global index.
+    pub(crate) fn chain(&self, e: usize, p: &DVector<f64>) -> (Vec<Option<usize>>, Vec<f64>) {
+        self.terms[e]
+            .slots
+            .iter()
+            .map(|s| match *s {
+                Slot::Fixed(_) => (None, 0.0),
+                Slot::Free(g) => (Some(g), self.free[g].transform.dtheta_dp(p[g])),
+            })
+            .unzip()
+    }
+
+    pub(crate) fn fd_scale(&self, e: usize, p: &DVector<f64>) -> Vec<f64> {
+        let theta = self.theta(e, p);
+        let (_, d) = self.chain(e, p);
+        d.iter().zip(&theta).map(|(&d, &t)| if d != 0.0 { d.abs() } else { t.abs().max(1e-12) }).collect()
+    }
+
+    /// Runs `f(k, ε_k, w_k, J_k)` over every counted sample of experiment e, where
+    /// `J_k = ∂ŷ_k/∂p` is row-major `n_y × n_p` and `w_k[i] = β_k Λ_i`.
+    /// Gives the experiments' data back (to build a problem with other options).
+    pub fn into_data(self) -> Vec<WeightedData<M::Inputs>> {
+        self.terms.into_iter().map(|t| (t.prep, t.weights)).collect()
+    }
+}
