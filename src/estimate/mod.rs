@@ -201,11 +201,13 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
                 "Huber loss, thresholds {} (c = {c} × 1.4826 MAD of the quadratic fit's residuals)",
                 delta.iter().map(|d| format!("{d:.4e}")).collect::<Vec<_>>().join(", ")
             ));
-            let theta0 = problem.theta(0, &p_hat);
+            // Restart from the whole fitted vector: every per-experiment copy and every
+            // estimated initial state, not only experiment 0's parameters.
+            let values = problem.free_values(&p_hat);
             let terms = problem.into_data();
             popts.loss = Loss::Huber { delta };
-            let robust = PemProblem::new(model, terms, &theta0, scaling.as_ref(), &popts)?;
-            let p1 = robust.start_vector(&theta0);
+            let robust = PemProblem::new(model, terms, start, scaling.as_ref(), &popts)?;
+            let p1 = robust.point_from_values(&values);
             (p_hat, report) = run_solver(&robust, p1, options)?;
             robust
         }

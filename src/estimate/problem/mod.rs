@@ -310,6 +310,26 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         )
     }
 
+    /// Value of every free entry at p in its own unit (model parameters and initial
+    /// states), length n_p: the fitted vector in a form independent of the scaling.
+    pub fn free_values(&self, p: &DVector<f64>) -> Vec<f64> {
+        self.free.iter().enumerate().map(|(g, f)| f.transform.to_theta(p[g])).collect()
+    }
+
+    /// The scaled point (projected onto the bounds) whose free entries take `values`
+    /// ([`free_values`](Self::free_values) of a problem with the same layout).
+    ///
+    /// # Panics
+    /// If `values` is shorter than n_p.
+    pub fn point_from_values(&self, values: &[f64]) -> DVector<f64> {
+        let mut p = DVector::from_iterator(
+            self.free.len(),
+            self.free.iter().zip(values).map(|(f, &v)| f.transform.to_scaled(v)),
+        );
+        self.project(&mut p);
+        p
+    }
+
     /// θ of experiment `e` at scaled point p (length n_p); returns length n_θ.
     ///
     /// # Panics
