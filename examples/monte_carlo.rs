@@ -1,4 +1,4 @@
-//! Monte-Carlo study of the reported uncertainty (the long run behind `tests/coverage.rs`):
+//! Monte-Carlo study of the reported uncertainty (the long run behind `tests/it/coverage.rs`):
 //! `cargo run --release --example monte_carlo [-- REALISATIONS]` (default 2000).
 //!
 //! One simulated SPM record (R_s 0.9 Ω, L_s 4.5 mH, K_e 0.539 V s/rad, n_p 4, h 100 µs,
@@ -16,7 +16,7 @@
 //! - `transient out`: noise on every sample, the first 500 residuals (10 L/R) weighted 0,
 //!   first sample taken as exact.
 
-#[path = "../tests/common/mod.rs"]
+#[path = "../tests/it/common/mod.rs"]
 mod common;
 
 use common::{Rng, exciting_signals, simulate_into};

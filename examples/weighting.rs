@@ -10,7 +10,7 @@
 //! comparison only, the error against the log's ground truth. The error index does not
 //! change when every weight is scaled, so the rows compare directly.
 
-#[path = "../tests/common/mod.rs"]
+#[path = "../tests/it/common/mod.rs"]
 mod common;
 
 use common::{load, rel};
@@ -19,6 +19,7 @@ use greybox::estimate::{PemOptions, WeightingKind};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
 
 fn main() -> greybox::Result<()> {
+    common::require_shared!(Ok(()));
     let weightings = [
         ("uniform", WeightingKind::Uniform),
         ("low speed, w0 50", WeightingKind::Speed { shape: SpeedShape::LowSpeed { w0: 50.0 } }),

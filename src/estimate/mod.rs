@@ -29,6 +29,7 @@ pub use weighting::{Weighting, WeightingKind};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::model::{GreyBoxModel, Prepared};
+#[cfg(feature = "cli")]
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Executor, Solver, State, TerminationReason};
 use diagnostics::{DiagnosticThresholds, diagnose};
@@ -84,7 +85,8 @@ pub struct PemOptions {
     pub estimate_x0: bool,
     /// Thresholds of the identifiability diagnostics.
     pub diagnostics: DiagnosticThresholds,
-    /// Show a progress spinner on stderr (only when stderr is a terminal).
+    /// Show a progress spinner on stderr (only when stderr is a terminal). Has an effect
+    /// only with the `cli` feature (which brings in `indicatif`); ignored without it.
     pub progress: bool,
 }
 
@@ -260,8 +262,10 @@ where
     S: Solver<&'p O, LsState> + ReportsTermination,
 {
     let name = solver.name().to_string();
+    #[allow(unused_mut)] // only the `cli` feature adds an observer
     let mut exec = Executor::new(problem, solver)
         .configure(|s| s.param(p0).max_iters(options.tolerances.max_iters).counting(true));
+    #[cfg(feature = "cli")]
     if options.progress {
         exec = exec.add_observer(Progress::new(), ObserverMode::Always);
     }
@@ -507,10 +511,12 @@ fn inverse_on_support(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
 }
 
 /// A spinner on stderr showing iteration and cost (hidden when stderr is not a terminal).
+#[cfg(feature = "cli")]
 struct Progress {
     bar: indicatif::ProgressBar,
 }
 
+#[cfg(feature = "cli")]
 impl Progress {
     fn new() -> Self {
         let bar = indicatif::ProgressBar::new_spinner();
@@ -519,6 +525,7 @@ impl Progress {
     }
 }
 
+#[cfg(feature = "cli")]
 impl<I: State<Float = f64>> Observe<I> for Progress {
     fn observe_iter(
         &mut self,
@@ -534,6 +541,7 @@ impl<I: State<Float = f64>> Observe<I> for Progress {
     }
 }
 
+#[cfg(feature = "cli")]
 impl Drop for Progress {
     fn drop(&mut self) {
         self.bar.finish_and_clear();

@@ -3,9 +3,7 @@
 //! finite-difference fallback for models without analytic sensitivities, and determinism
 //! of multi-experiment fits.
 
-mod common;
-
-use common::{Rng, exciting_signals, rel, simulate_into};
+use crate::common::{Rng, exciting_signals, rel, simulate_into};
 use greybox::estimate::{PemOptions, PemProblem, ProblemOptions, ScalingKind, fit, scaling::NominalScaling};
 use greybox::model::{GreyBoxModel, Parameter, PmsmIpm, PmsmSpm, Prepared, VoltageHold};
 use greybox::{Experiment, Result};

@@ -1,9 +1,7 @@
 //! Robust fitting: gross outliers on 1 % of the current samples pull the quadratic fit
 //! off; the Huber fit stays within 0.1 % of the truth.
 
-mod common;
-
-use common::{Rng, exciting_signals, rel, simulate_into};
+use crate::common::{Rng, exciting_signals, rel, simulate_into};
 use greybox::estimate::PemOptions;
 use greybox::model::{PmsmSpm, VoltageHold};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};

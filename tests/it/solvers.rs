@@ -6,11 +6,9 @@
 //!   a problem with an infeasible region (failed line-search trials);
 //! - the cost never increases across iterations; bad options are errors.
 
-mod common;
-
+use crate::common::load;
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Executor, KV, State};
-use common::load;
 use greybox::estimate::linear::MotorKind;
 use greybox::estimate::lm::LsState;
 use greybox::estimate::problem::NormalEquations;
@@ -69,41 +67,49 @@ fn assert_lm_gn_agree(stem: &str) {
 
 #[test]
 fn lm_gn_agree_servo_spm_moves() {
+    crate::common::require_shared!();
     assert_lm_gn_agree("servo_spm_moves");
 }
 
 #[test]
 fn lm_gn_agree_servo_spm_moves_idinj() {
+    crate::common::require_shared!();
     assert_lm_gn_agree("servo_spm_moves_idinj");
 }
 
 #[test]
 fn lm_gn_agree_servo_spm_moves_idinj_noisy() {
+    crate::common::require_shared!();
     assert_lm_gn_agree("servo_spm_moves_idinj_noisy");
 }
 
 #[test]
 fn lm_gn_agree_servo_spm_pwm_deadtime_idinj() {
+    crate::common::require_shared!();
     assert_lm_gn_agree("servo_spm_pwm_deadtime_idinj");
 }
 
 #[test]
 fn lm_gn_agree_ipm_moves_idinj() {
+    crate::common::require_shared!();
     assert_lm_gn_agree("ipm_moves_idinj");
 }
 
 #[test]
 fn lm_gn_agree_gem_spm_moves_idinj() {
+    crate::common::require_shared!();
     assert_lm_gn_agree("gem_spm_moves_idinj");
 }
 
 #[test]
 fn lm_gn_agree_gem_ipm_moves_idinj() {
+    crate::common::require_shared!();
     assert_lm_gn_agree("gem_ipm_moves_idinj");
 }
 
 #[test]
 fn lm_gn_agree_gem_ipm_moves_idinj_noisy() {
+    crate::common::require_shared!();
     assert_lm_gn_agree("gem_ipm_moves_idinj_noisy");
 }
 

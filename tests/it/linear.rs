@@ -2,9 +2,7 @@
 //! noise-free logs, the errors-in-variables bias on the noisy ones against the
 //! prediction-error fit, sample weighting, the zero-phase prefilter, and bad input.
 
-mod common;
-
-use common::{Truth, load, rel};
+use crate::common::{Truth, load, rel};
 use greybox::estimate::linear::{
     LinearEstimate, LinearOptions, MotorKind, least_squares, weighted_least_squares,
 };
@@ -42,26 +40,31 @@ fn assert_ls_recovers(stem: &str, tol: f64) {
 
 #[test]
 fn ls_servo_spm_moves() {
+    crate::common::require_shared!();
     assert_ls_recovers("servo_spm_moves", 1e-3);
 }
 
 #[test]
 fn ls_servo_spm_moves_idinj() {
+    crate::common::require_shared!();
     assert_ls_recovers("servo_spm_moves_idinj", 1e-3);
 }
 
 #[test]
 fn ls_ipm_moves_idinj() {
+    crate::common::require_shared!();
     assert_ls_recovers("ipm_moves_idinj", 1e-3);
 }
 
 #[test]
 fn ls_gem_spm_moves_idinj() {
+    crate::common::require_shared!();
     assert_ls_recovers("gem_spm_moves_idinj", 1e-3);
 }
 
 #[test]
 fn ls_gem_ipm_moves_idinj() {
+    crate::common::require_shared!();
     assert_ls_recovers("gem_ipm_moves_idinj", 1e-3);
 }
 
@@ -95,11 +98,13 @@ fn ls_vs_pem(stem: &str, factor: f64) {
 
 #[test]
 fn ls_vs_pem_servo_noisy() {
+    crate::common::require_shared!();
     ls_vs_pem("servo_spm_moves_idinj_noisy", 50.0);
 }
 
 #[test]
 fn ls_vs_pem_gem_ipm_noisy() {
+    crate::common::require_shared!();
     ls_vs_pem("gem_ipm_moves_idinj_noisy", 50.0);
 }
 
@@ -107,6 +112,7 @@ fn ls_vs_pem_gem_ipm_noisy() {
 
 #[test]
 fn speed_weighting_changes_the_error_indices() {
+    crate::common::require_shared!();
     let (e, t) = load("servo_spm_moves_idinj_noisy");
     let low = SpeedWeighting::try_new(SpeedShape::LowSpeed { w0: 50.0 }).unwrap();
     let opts = LinearOptions::default();
@@ -132,6 +138,7 @@ fn speed_weighting_changes_the_error_indices() {
 
 #[test]
 fn constant_weights_equal_uniform() {
+    crate::common::require_shared!();
     // β = 3 everywhere (not flagged uniform) must give the LS estimate and error index:
     // both are invariant to a common scale of the weights.
     let (e, _) = load("servo_spm_moves_idinj");
@@ -149,6 +156,7 @@ fn constant_weights_equal_uniform() {
 
 #[test]
 fn weights_select_rows() {
+    crate::common::require_shared!();
     // Zero weight on the second half of a log = LS on the first half (rows of intervals
     // ending in samples with β = 0 drop out).
     let (e, t) = load("servo_spm_moves_idinj");
@@ -175,6 +183,7 @@ fn weights_select_rows() {
 
 #[test]
 fn prefilter_changes_the_noisy_estimate() {
+    crate::common::require_shared!();
     let (e, t) = load("servo_spm_moves_idinj_noisy");
     let ls = least_squares(std::slice::from_ref(&e), MotorKind::Spm).unwrap();
     let truth = [t.r_s, t.l_d, t.k_e];
@@ -197,6 +206,7 @@ fn prefilter_changes_the_noisy_estimate() {
 
 #[test]
 fn prefilter_keeps_noise_free_estimates_close() {
+    crate::common::require_shared!();
     // Filtering every signal alike commutes with the linear terms; only the products
     // ω·i do not commute exactly with the filter. Measure what that costs.
     let (e, t) = load("servo_spm_moves_idinj");
@@ -222,6 +232,7 @@ fn option_of<T: std::fmt::Debug>(r: Result<T>) -> String {
 
 #[test]
 fn bad_prefilter_options_are_errors() {
+    crate::common::require_shared!();
     let (e, _) = load("servo_spm_moves_idinj");
     let es = std::slice::from_ref(&e);
     for fc in [0.0, -10.0, 5000.0, 1e6, f64::NAN] {
@@ -312,6 +323,7 @@ impl Weighting for Short {
 
 #[test]
 fn display_and_serde() {
+    crate::common::require_shared!();
     let (e, _) = load("ipm_moves_idinj");
     let ls = least_squares(&[e], MotorKind::Ipm).unwrap();
     let text = ls.to_string();

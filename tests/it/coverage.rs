@@ -10,9 +10,7 @@
 //! tests check the fixed-x0 path where its assumption holds: with `i[0]` exact, and with
 //! the initial transient weighted out.
 
-mod common;
-
-use common::{Rng, exciting_signals, simulate_into};
+use crate::common::{Rng, exciting_signals, simulate_into};
 use greybox::estimate::linear::{MotorKind, least_squares};
 use greybox::estimate::weighting::CustomWeighting;
 use greybox::estimate::{FitResult, PemOptions, fit_with_weighting};

@@ -3,9 +3,7 @@
 //! estimate of the fit from the least-squares start (to 1e-6 relative) in ≥ 99 % of the
 //! starts. The truth is used only to centre the random starts, which is the point here.
 
-mod common;
-
-use common::{Rng, exciting_signals, load, rel, simulate_into};
+use crate::common::{Rng, exciting_signals, load, rel, simulate_into};
 use greybox::Experiment;
 use greybox::model::{PmsmSpm, VoltageHold};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
@@ -86,6 +84,7 @@ fn simulated_record_from_400_random_starts() {
 /// d-current injection (0.9–1.7 s).
 #[test]
 fn servo_log_from_200_random_starts() {
+    crate::common::require_shared!();
     let (log, t) = load("servo_spm_moves_idinj");
     let log = log.slice(0..25_000).expect("2.5 s of the log");
     let rate = success_rate("servo 0–2.5 s", &log, [t.r_s, t.l_d, t.k_e], 200, 54321);

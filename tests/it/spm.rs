@@ -1,8 +1,6 @@
 //! SPM model: exactness of the sampled-data step, sensitivities, recovery of known parameters.
 
-mod common;
-
-use common::{Rng, exciting_signals, rel, simulate_into};
+use crate::common::{Rng, exciting_signals, rel, simulate_into};
 use greybox::model::{GreyBoxModel, PmsmSpm, VoltageHold};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
 use greybox::simulate::{Shooting, visit_sensitivities};

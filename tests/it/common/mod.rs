@@ -5,9 +5,57 @@ use greybox::model::{GreyBoxModel, Prepared};
 use greybox::{Experiment, Signals};
 use std::path::PathBuf;
 
-/// Path of a log in ../shared/data.
+/// Folder of the development logs: `$GREYBOX_SHARED_DATA` if set, else `../shared/data`
+/// beside the repository. The logs are not part of the repository.
+pub fn shared_dir() -> PathBuf {
+    match std::env::var_os("GREYBOX_SHARED_DATA") {
+        Some(dir) => PathBuf::from(dir),
+        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"),
+    }
+}
+
+/// The folder of the development logs, if it exists.
+pub fn shared() -> Option<PathBuf> {
+    let dir = shared_dir();
+    dir.is_dir().then_some(dir)
+}
+
+/// Path of a file in the development logs' folder (see [`shared_dir`]), as a string.
+pub fn shared_file(name: &str) -> String {
+    shared_dir().join(name).to_string_lossy().into_owned()
+}
+
+/// First statement of a test that reads the development logs: without their folder it
+/// prints one line on stderr naming the test and returns, so the test passes as skipped.
+/// `require_shared!(value)` returns `value` instead of `()` (e.g. `Ok(())` in a `main`).
+#[allow(unused_macros)] // the examples that include this file need not use it
+macro_rules! require_shared {
+    () => {
+        $crate::common::require_shared!(())
+    };
+    ($ret:expr) => {
+        if $crate::common::shared().is_none() {
+            fn here() {}
+            let name = std::any::type_name_of_val(&here);
+            let name = name.strip_suffix("::here").unwrap_or(name);
+            // One write to the real stderr: `eprintln!` would be captured by the test harness.
+            let line = format!(
+                "skipped {name}: {} not found (development logs are not part of the repository; \
+                 set GREYBOX_SHARED_DATA to their folder)\n",
+                $crate::common::shared_dir().display()
+            );
+            let _ = std::io::Write::write_all(&mut std::io::stderr(), line.as_bytes());
+            return $ret;
+        }
+    };
+}
+#[allow(unused_imports)] // the examples that include this file need not use it
+pub(crate) use require_shared;
+
+/// Path of a log in the development logs' folder (../shared/data unless
+/// `GREYBOX_SHARED_DATA` says otherwise).
 pub fn data(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(name)
+    shared_dir().join(name)
 }
 
 /// Ground truth of a log, from its JSON.

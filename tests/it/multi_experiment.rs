@@ -3,9 +3,7 @@
 //! `R(T) = R0 (1 + α (T − T0))`, α = 0.00393 1/K. One R_s per log (`per_experiment`) must
 //! give back both resistances and the temperature difference; one R_s for both must not fit.
 
-mod common;
-
-use common::{Rng, exciting_signals, rel};
+use crate::common::{Rng, exciting_signals, rel};
 use greybox::estimate::{FitResult, PemOptions};
 use greybox::model::{GreyBoxModel, PmsmSpm, VoltageHold};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};

@@ -2,9 +2,7 @@
 //! the non-salient logs, IPM on the salient ones, actual voltage columns, least-squares
 //! start (never the truth), automatic voltage-hold choice.
 
-mod common;
-
-use common::{Truth, load, rel};
+use crate::common::{Truth, load, rel};
 use greybox::estimate::FitResult;
 use greybox::estimate::linear::MotorKind;
 use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
@@ -40,26 +38,31 @@ fn assert_within(stem: &str, tol: f64) {
 
 #[test]
 fn servo_spm_moves() {
+    crate::common::require_shared!();
     assert_within("servo_spm_moves", 1e-4);
 }
 
 #[test]
 fn servo_spm_moves_idinj() {
+    crate::common::require_shared!();
     assert_within("servo_spm_moves_idinj", 1e-4);
 }
 
 #[test]
 fn ipm_moves_idinj() {
+    crate::common::require_shared!();
     assert_within("ipm_moves_idinj", 1e-4);
 }
 
 #[test]
 fn gem_spm_moves_idinj() {
+    crate::common::require_shared!();
     assert_within("gem_spm_moves_idinj", 1e-4);
 }
 
 #[test]
 fn gem_ipm_moves_idinj() {
+    crate::common::require_shared!();
     assert_within("gem_ipm_moves_idinj", 1e-4);
 }
 
@@ -67,6 +70,7 @@ fn gem_ipm_moves_idinj() {
 /// choice must find that from the data alone.
 #[test]
 fn automatic_hold_matches_the_simulator() {
+    crate::common::require_shared!();
     use greybox::model::VoltageHold;
     for (stem, hold) in
         [("servo_spm_moves_idinj", VoltageHold::Stator), ("gem_spm_moves_idinj", VoltageHold::Dq)]
@@ -92,11 +96,13 @@ fn assert_noisy(stem: &str) {
 
 #[test]
 fn servo_spm_moves_idinj_noisy() {
+    crate::common::require_shared!();
     assert_noisy("servo_spm_moves_idinj_noisy");
 }
 
 #[test]
 fn gem_ipm_moves_idinj_noisy() {
+    crate::common::require_shared!();
     assert_noisy("gem_ipm_moves_idinj_noisy");
 }
 
@@ -106,6 +112,7 @@ fn gem_ipm_moves_idinj_noisy() {
 /// 0.15 %, R_s and K_e within ≈ 1e-4).
 #[test]
 fn pwm_log_flags_an_ambiguous_hold_and_the_stator_hold_is_close() {
+    crate::common::require_shared!();
     let (e, t) = load("servo_spm_pwm_deadtime_idinj");
     let auto = fit_pmsm(std::slice::from_ref(&e), &PmsmFitOptions::default()).unwrap();
     assert!(

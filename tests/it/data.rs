@@ -3,8 +3,10 @@
 
 use std::f64::consts::{PI, SQRT_2};
 use std::path::{Path, PathBuf};
+use std::sync::LazyLock;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+use crate::common::shared_file;
 use approx::assert_relative_eq;
 use greybox::Error;
 use greybox::data::csv::{AngleUnit, CsvOptions, DqSource, Frame, Scale, SpeedUnit, read_csv, read_csv_many};
@@ -15,10 +17,10 @@ use greybox::data::transform::{
 use greybox::data::{Experiment, MIN_SAMPLES, Signals};
 use proptest::prelude::*;
 
-const SERVO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/servo_spm_moves_idinj.csv.gz");
-const GEM: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/gem_spm_moves_idinj.csv.gz");
-const GEM_NOISY: &str =
-    concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/gem_ipm_moves_idinj_noisy.csv.gz");
+// Development logs (../shared/data, or $GREYBOX_SHARED_DATA; see `common::shared_dir`).
+static SERVO: LazyLock<String> = LazyLock::new(|| shared_file("servo_spm_moves_idinj.csv.gz"));
+static GEM: LazyLock<String> = LazyLock::new(|| shared_file("gem_spm_moves_idinj.csv.gz"));
+static GEM_NOISY: LazyLock<String> = LazyLock::new(|| shared_file("gem_ipm_moves_idinj_noisy.csv.gz"));
 const SAMPLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz");
 
 /// A fresh file path under the system temp dir, unique per process and call.
@@ -53,7 +55,8 @@ fn read_default(p: &Path) -> greybox::Result<Experiment> {
 
 #[test]
 fn reads_motulator_log() {
-    let e = read_csv(SERVO, 4, &CsvOptions::default()).unwrap();
+    crate::common::require_shared!();
+    let e = read_csv(&*SERVO, 4, &CsvOptions::default()).unwrap();
     assert_eq!(e.name(), "servo_spm_moves_idinj");
     assert_eq!(e.len(), 72_000);
     assert_eq!(e.n_p(), 4);
@@ -72,7 +75,8 @@ fn reads_motulator_log() {
 
 #[test]
 fn reads_gem_log_without_references() {
-    let e = read_csv(GEM, 4, &CsvOptions::default()).unwrap();
+    crate::common::require_shared!();
+    let e = read_csv(&*GEM, 4, &CsvOptions::default()).unwrap();
     assert_eq!(e.name(), "gem_spm_moves_idinj");
     assert_eq!(e.len(), 58_400);
     assert!((e.h() - 1.25e-4).abs() < 1e-12, "h = {}", e.h());
@@ -83,19 +87,21 @@ fn reads_gem_log_without_references() {
 
 #[test]
 fn reads_many_in_order() {
-    let v = read_csv_many(&[GEM, SERVO], 4, &CsvOptions::default()).unwrap();
+    crate::common::require_shared!();
+    let v = read_csv_many(&[&*GEM, &*SERVO], 4, &CsvOptions::default()).unwrap();
     assert_eq!(v.len(), 2);
     assert_eq!(v[0].name(), "gem_spm_moves_idinj");
     assert_eq!(v[1].name(), "servo_spm_moves_idinj");
     let missing = temp_path("many-missing", "csv");
-    let err = read_csv_many(&[Path::new(GEM), &missing], 4, &CsvOptions::default()).unwrap_err();
+    let err = read_csv_many(&[Path::new(&*GEM), &missing], 4, &CsvOptions::default()).unwrap_err();
     assert!(matches!(err, Error::Io { .. }), "{err:?}");
 }
 
 #[test]
 fn sample_log_is_a_verbatim_cut_of_the_servo_log() {
+    crate::common::require_shared!();
     let sample = read_csv(SAMPLE, 4, &CsvOptions::default()).unwrap();
-    let full = read_csv(SERVO, 4, &CsvOptions::default()).unwrap();
+    let full = read_csv(&*SERVO, 4, &CsvOptions::default()).unwrap();
     assert_eq!(sample.name(), "sample");
     assert_eq!(sample.len(), 20_000);
     assert!((sample.h() - 1e-4).abs() < 1e-12);
@@ -154,13 +160,14 @@ fn dq_error(
 
 #[test]
 fn phases_reproduce_motulator_dq_signals() {
-    let dq = read_csv(SERVO, 4, &CsvOptions::default()).unwrap();
+    crate::common::require_shared!();
+    let dq = read_csv(&*SERVO, 4, &CsvOptions::default()).unwrap();
     let opts = CsvOptions { source: DqSource::Phases, ..CsvOptions::default() };
-    let ph = read_csv(SERVO, 4, &opts).unwrap();
+    let ph = read_csv(&*SERVO, 4, &opts).unwrap();
     assert_eq!(ph.len(), dq.len());
     let n = dq.len();
     let th = dq.theta_m().unwrap();
-    let raw = raw_columns(SERVO, &["ia", "ib", "ic", "ua", "ub", "uc"]);
+    let raw = raw_columns(&SERVO, &["ia", "ib", "ic", "ua", "ub", "uc"]);
     let (i_abc, u_abc) = raw.split_at(3);
     let (e_i, r_i) = dq_error((ph.i_d(), ph.i_q()), (dq.i_d(), dq.i_q()), i_abc, th, None, 4.0, 0..n);
     // The last row has no w_m[k+1]: its period speed is w_m[k]; compare the others.
@@ -200,12 +207,13 @@ fn phases_reproduce_motulator_dq_signals() {
 
 #[test]
 fn phases_reproduce_gem_noisy_currents() {
+    crate::common::require_shared!();
     // GEM's phase voltages come from a dq-held voltage, so only the currents are compared.
-    let dq = read_csv(GEM_NOISY, 4, &CsvOptions::default()).unwrap();
+    let dq = read_csv(&*GEM_NOISY, 4, &CsvOptions::default()).unwrap();
     let ph =
-        read_csv(GEM_NOISY, 4, &CsvOptions { source: DqSource::Phases, ..CsvOptions::default() }).unwrap();
+        read_csv(&*GEM_NOISY, 4, &CsvOptions { source: DqSource::Phases, ..CsvOptions::default() }).unwrap();
     let th = dq.theta_m().unwrap();
-    let mut raw = raw_columns(GEM_NOISY, &["ia", "ib", "ic", "theta_e"]);
+    let mut raw = raw_columns(&GEM_NOISY, &["ia", "ib", "ic", "theta_e"]);
     let theta_e = raw.pop().unwrap();
     let (e_i, r_i) =
         dq_error((ph.i_d(), ph.i_q()), (dq.i_d(), dq.i_q()), &raw, th, Some(&theta_e), 4.0, 0..dq.len());

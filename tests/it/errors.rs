@@ -1,11 +1,10 @@
 //! Bad input to the estimator and the command line: clear errors naming the culprit, no panic.
 
-mod common;
-
 use greybox::estimate::{PemOptions, Tolerances, fit};
 use greybox::model::{GreyBoxModel, Parameter, PmsmSpm, Prepared, VoltageHold};
 use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
 use greybox::{Error, Experiment, Result, Signals};
+#[cfg(feature = "cli")] // the `greybox` binary needs the `cli` feature
 use std::process::Command;
 
 fn sample() -> Experiment {
@@ -206,6 +205,7 @@ fn model_rejects_invalid_parameter_values_by_name() {
     assert!(err.to_string().contains("l_s"), "{err}");
 }
 
+#[cfg(feature = "cli")]
 fn greybox(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_greybox"))
         .args(args)
@@ -215,6 +215,7 @@ fn greybox(args: &[&str]) -> std::process::Output {
 }
 
 #[test]
+#[cfg(feature = "cli")]
 fn cli_reports_bad_input_without_panicking() {
     for (args, culprit) in [
         (vec!["fit", "no/such/file.csv", "-p", "4"], "no/such/file.csv"),
@@ -232,6 +233,7 @@ fn cli_reports_bad_input_without_panicking() {
 }
 
 #[test]
+#[cfg(feature = "cli")]
 fn cli_fit_prints_a_table_and_writes_the_json_report() {
     let json = std::env::temp_dir().join(format!("greybox-cli-{}.json", std::process::id()));
     let out = greybox(&["fit", "data/sample.csv.gz", "-p", "4", "--json", json.to_str().unwrap()]);

@@ -1,0 +1,20 @@
+//! The integration tests, one module per topic, in one test binary (`it`): one link
+//! instead of one per file. Tests that read the development logs in `../shared/data`
+//! (not part of the repository) skip with one line on stderr when the folder is absent;
+//! see `common::require_shared!`.
+
+mod common;
+
+mod coverage;
+mod criteria;
+mod data;
+mod errors;
+mod filter;
+mod ipm;
+mod linear;
+mod multi_experiment;
+mod random_starts;
+mod recovery;
+mod robust;
+mod solvers;
+mod spm;
