@@ -39,6 +39,7 @@ pub mod error;
 pub mod estimate;
 pub mod model;
 pub mod pmsm;
+pub mod report;
 pub mod simulate;
 
 pub use data::{Channel, Experiment};

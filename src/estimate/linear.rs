@@ -24,6 +24,10 @@ pub struct LinearSolution {
     pub error_index_percent: Vec<f64>,
     /// Weighted squared residual `E² = Σ w r²` at θ̂.
     pub e2: f64,
+    /// `(ΦᵀWΦ)⁻¹`, n_θ × n_θ (rows): times `σ̂²` the covariance of θ̂.
+    pub inverse: Vec<Vec<f64>>,
+    /// Degrees of freedom `rows_w − n_θ` (0 when none).
+    pub dof: usize,
 }
 
 /// Solves the weighted least-squares problem with regressors `phi` (rows × n_θ,
@@ -102,6 +106,9 @@ pub fn solve_weighted(names: &[String], phi: &[f64], y: &[f64], sqrt_w: &[f64]) 
             reason: "triangular factor R is singular".into(),
         })?;
     let inv_diag: Vec<f64> = (0..cols).map(|j| r_inv.row(j).norm_squared() / norms[j].powi(2)).collect();
+    let inverse: Vec<Vec<f64>> = (0..cols)
+        .map(|i| (0..cols).map(|j| r_inv.row(i).dot(&r_inv.row(j)) / (norms[i] * norms[j])).collect())
+        .collect();
     let rows_w = sw.iter().filter(|w| **w > 0.0).count();
     let sigma2 = if rows_w > cols { e2 / (rows_w - cols) as f64 } else { f64::NAN };
     Ok(LinearSolution {
@@ -109,5 +116,7 @@ pub fn solve_weighted(names: &[String], phi: &[f64], y: &[f64], sqrt_w: &[f64]) 
         error_index_percent: inv_diag.iter().zip(&theta).map(|(d, t)| 100.0 * (e2 * d).sqrt() / t.abs()).collect(),
         theta,
         e2,
+        inverse,
+        dof: rows_w.saturating_sub(cols),
     })
 }

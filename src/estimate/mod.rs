@@ -8,48 +8,31 @@
 
 pub mod diagnostics;
 pub mod filter;
-pub mod gn;
 pub mod linear;
-pub mod lm;
 pub mod problem;
 pub mod result;
 pub mod scaling;
 pub mod solver;
 pub mod weighting;
 
-pub use gn::GaussNewton;
-pub use lm::LevenbergMarquardt;
 pub use problem::{Loss, PemProblem, ProblemOptions};
 pub use result::{DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing};
 pub use scaling::{ParameterScaling, ScalingKind, Transform};
-pub use solver::ReportsTermination;
-pub use solver::{LeastSquares, Termination, Tolerances};
+pub use solver::gn::{self, GaussNewton};
+pub use solver::lm::{self, LevenbergMarquardt};
+pub use solver::run::{RunOptions, SolverKind, run_solver};
+pub use solver::{LeastSquares, LsState, NormalEquations, ReportsTermination, Termination, Tolerances};
 pub use weighting::{Weighting, WeightingKind};
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::model::{GreyBoxModel, Prepared};
-#[cfg(feature = "cli")]
-use argmin::core::observers::{Observe, ObserverMode};
-use argmin::core::{Executor, Solver, State, TerminationReason};
 use diagnostics::{DiagnosticThresholds, diagnose};
-use lm::LsState;
 use nalgebra::{DMatrix, DVector};
 use problem::FreeKind;
 use result::t_quantile_975;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
-
-/// Which optimiser runs the prediction-error fit.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum SolverKind {
-    /// Levenberg-Marquardt ([`LevenbergMarquardt`]).
-    #[default]
-    Lm,
-    /// Damped Gauss-Newton with an Armijo backtracking line search ([`GaussNewton`]).
-    Gn,
-}
 
 /// Options of a prediction-error fit. Plain data with defaults; serialisable.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -88,6 +71,13 @@ pub struct PemOptions {
     /// Show a progress spinner on stderr (only when stderr is a terminal). Has an effect
     /// only with the `cli` feature (which brings in `indicatif`); ignored without it.
     pub progress: bool,
+}
+
+impl PemOptions {
+    /// The options of the solver run.
+    pub fn run_options(&self) -> RunOptions {
+        RunOptions { solver: self.solver, tolerances: self.tolerances, progress: self.progress }
+    }
 }
 
 impl Default for PemOptions {
@@ -190,7 +180,7 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
     };
     let problem = PemProblem::new(model, preps, start, scaling.as_ref(), &popts)?;
     let p0 = problem.start_vector(start);
-    let (mut p_hat, mut report) = run_solver(&problem, p0, options)?;
+    let (mut p_hat, mut report) = run_solver(&problem, p0, &options.run_options())?;
     let mut notes = Vec::new();
     let problem = match options.huber {
         None => problem,
@@ -210,7 +200,7 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
             popts.loss = Loss::Huber { delta };
             let robust = PemProblem::new(model, terms, start, scaling.as_ref(), &popts)?;
             let p1 = robust.point_from_values(&values);
-            (p_hat, report) = run_solver(&robust, p1, options)?;
+            (p_hat, report) = run_solver(&robust, p1, &options.run_options())?;
             robust
         }
     };
@@ -222,73 +212,6 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
     result.timing.fit_s = t0.elapsed().as_secs_f64();
     result.timing.total_s = result.timing.fit_s;
     Ok(result)
-}
-
-/// Runs the chosen solver through argmin's executor; returns p̂ and the report.
-pub(crate) fn run_solver<O: LeastSquares>(
-    problem: &O,
-    p0: DVector<f64>,
-    options: &PemOptions,
-) -> Result<(DVector<f64>, SolverReport)> {
-    if p0.is_empty() {
-        // Everything fixed: nothing to optimise.
-        return Ok((
-            p0,
-            SolverReport {
-                name: "none".into(),
-                iterations: 0,
-                termination: "all parameters fixed".into(),
-                reason: Termination::StepTolerance,
-                success: true,
-                evaluations: 0,
-            },
-        ));
-    }
-    match options.solver {
-        SolverKind::Lm => execute(problem, LevenbergMarquardt::new(options.tolerances), p0, options),
-        SolverKind::Gn => execute(problem, GaussNewton::new(options.tolerances), p0, options),
-    }
-}
-
-/// Runs `solver` from `p0` through argmin's executor and reports how it stopped.
-fn execute<'p, O, S>(
-    problem: &'p O,
-    solver: S,
-    p0: DVector<f64>,
-    options: &PemOptions,
-) -> Result<(DVector<f64>, SolverReport)>
-where
-    O: LeastSquares,
-    S: Solver<&'p O, LsState> + ReportsTermination,
-{
-    let name = solver.name().to_string();
-    #[allow(unused_mut)] // only the `cli` feature adds an observer
-    let mut exec = Executor::new(problem, solver)
-        .configure(|s| s.param(p0).max_iters(options.tolerances.max_iters).counting(true));
-    #[cfg(feature = "cli")]
-    if options.progress {
-        exec = exec.add_observer(Progress::new(), ObserverMode::Always);
-    }
-    let res = exec.run().map_err(Error::from_argmin)?;
-    let counts = res.state.get_func_counts();
-    let evaluations = ["normal_equations_count", "cost_count"].iter().filter_map(|k| counts.get(*k)).sum();
-    let reason = match (res.solver.termination(), res.state.get_termination_reason()) {
-        (Some(t), _) => t.clone(),
-        (None, Some(TerminationReason::MaxItersReached)) => Termination::MaxIterations,
-        (None, r) => Termination::Stopped(r.map(|r| r.text().to_string()).unwrap_or_default()),
-    };
-    let p = res.state.get_best_param().cloned().ok_or_else(|| Error::Solver("no estimate".into()))?;
-    Ok((
-        p,
-        SolverReport {
-            name,
-            iterations: res.state.get_iter(),
-            termination: reason.to_string(),
-            success: reason.success(),
-            reason,
-            evaluations,
-        },
-    ))
 }
 
 /// Computes the statistics at p̂ and fills a [`FitResult`].
@@ -508,42 +431,4 @@ fn inverse_on_support(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
         }
     }
     Some(out)
-}
-
-/// A spinner on stderr showing iteration and cost (hidden when stderr is not a terminal).
-#[cfg(feature = "cli")]
-struct Progress {
-    bar: indicatif::ProgressBar,
-}
-
-#[cfg(feature = "cli")]
-impl Progress {
-    fn new() -> Self {
-        let bar = indicatif::ProgressBar::new_spinner();
-        bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
-        Self { bar }
-    }
-}
-
-#[cfg(feature = "cli")]
-impl<I: State<Float = f64>> Observe<I> for Progress {
-    fn observe_iter(
-        &mut self,
-        state: &I,
-        _kv: &argmin::core::KV,
-    ) -> std::result::Result<(), argmin::core::Error> {
-        self.bar.set_message(format!("iteration {}: cost {:.6e}", state.get_iter(), state.get_best_cost()));
-        self.bar.tick();
-        if state.terminated() {
-            self.bar.finish_and_clear();
-        }
-        Ok(())
-    }
-}
-
-#[cfg(feature = "cli")]
-impl Drop for Progress {
-    fn drop(&mut self) {
-        self.bar.finish_and_clear();
-    }
 }

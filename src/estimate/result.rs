@@ -83,6 +83,10 @@ pub struct SolverReport {
     pub success: bool,
     /// Cost and normal-equation evaluations.
     pub evaluations: u64,
+    /// Iterations whose step was accepted (the cost decreased); `iterations` also counts
+    /// rejected trial steps.
+    #[serde(default)]
+    pub accepted_iterations: u64,
 }
 
 /// Wall-clock timing [s].

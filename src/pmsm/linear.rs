@@ -83,6 +83,12 @@ pub struct LinearEstimate {
     pub weighting: String,
     /// The options used.
     pub options: LinearOptions,
+    /// Degrees of freedom of the standard errors (rows of positive weight − n_θ).
+    pub dof: usize,
+    /// `(ΦᵀWΦ)⁻¹` (n_θ × n_θ): the correlation of the estimates.
+    pub inverse: Vec<Vec<f64>>,
+    /// NRMSE fit of the d and q voltage equations [%]: `100 (1 − ‖u − Φθ̂‖/‖u − ū‖)`.
+    pub fit_percent: [f64; 2],
 }
 
 impl LinearEstimate {
@@ -247,6 +253,11 @@ pub fn weighted_least_squares(
     let names: Vec<String> = names.iter().map(|s| s.to_string()).collect();
     let sol = solve_weighted(&names, &phi, &y, &sw)?;
     let mut sse = [0.0; 2];
+    let mean = [0, 1].map(|c| y.iter().skip(c).step_by(2).sum::<f64>() / (rows / 2).max(1) as f64);
+    let mut sst = [0.0; 2];
+    for (i, v) in y.iter().enumerate() {
+        sst[i % 2] += (v - mean[i % 2]).powi(2);
+    }
     for i in 0..rows {
         let row = &phi[i * cols..(i + 1) * cols];
         let res = y[i] - row.iter().zip(&sol.theta).map(|(a, b)| a * b).sum::<f64>();
@@ -261,6 +272,9 @@ pub fn weighted_least_squares(
         error_index_percent: sol.error_index_percent,
         theta: sol.theta,
         e2: sol.e2,
+        dof: sol.dof,
+        inverse: sol.inverse,
+        fit_percent: [0, 1].map(|c| if sst[c] > 0.0 { 100.0 * (1.0 - (sse[c] / sst[c]).sqrt()) } else { f64::NAN }),
         rms_residual: [(sse[0] / half).sqrt(), (sse[1] / half).sqrt()],
         rows,
         weighting: weighting.name(),

@@ -17,7 +17,8 @@ mod sums;
 
 pub use accumulate::Sums;
 pub use loss::Loss;
-pub use sums::NormalEquations;
+pub use crate::estimate::solver::NormalEquations;
+use crate::estimate::solver::LeastSquares;
 
 use crate::error::{Error, Result};
 use crate::estimate::filter::Butterworth;
@@ -393,5 +394,20 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
     /// Gives the experiments' data back (to build a problem with other options).
     pub fn into_data(self) -> Vec<WeightedData<M::Inputs>> {
         self.terms.into_iter().map(|t| (t.prep, t.weights)).collect()
+    }
+}
+
+impl<M: GreyBoxModel> LeastSquares for PemProblem<'_, M> {
+    fn n_params(&self) -> usize {
+        self.n_free()
+    }
+    fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations> {
+        PemProblem::normal_equations(self, p)
+    }
+    fn cost(&self, p: &DVector<f64>) -> Result<f64> {
+        PemProblem::cost(self, p)
+    }
+    fn project(&self, p: &mut DVector<f64>) {
+        PemProblem::project(self, p)
     }
 }

@@ -3,7 +3,7 @@
 
 use super::accumulate::{Accumulator, Sums};
 use super::pass::{Pass, RawSample, ResidualFilter};
-use super::{Loss, PemProblem};
+use super::{Loss, NormalEquations, PemProblem};
 use crate::error::Result;
 use crate::model::GreyBoxModel;
 use nalgebra::{DMatrix, DVector};
@@ -11,18 +11,6 @@ use rayon::prelude::*;
 
 /// One experiment's share of the cost and normal equations (cost, `JᵀWJ` row-major, `JᵀWψ`).
 type Partial = (f64, Vec<f64>, Vec<f64>);
-
-/// Cost and normal equations at one point (scaled space, length n_p).
-#[derive(Clone, Debug)]
-pub struct NormalEquations {
-    /// `V = Σ w ρ(ε)`.
-    pub cost: f64,
-    /// `JᵀWJ` (IRLS-weighted for Huber), `n_p × n_p`.
-    pub jtj: DMatrix<f64>,
-    /// `JᵀWψ(ε)`, length n_p.
-    pub jtr: DVector<f64>,
-}
-
 
 impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// Cost `V(p)` and normal equations `JᵀWJ`, `JᵀWψ` in one pass per experiment

@@ -1,18 +1,56 @@
-//! What the least-squares solvers need from a problem, their tolerances and how they stop.
+//! Nonlinear least-squares solvers as argmin [`Solver`](argmin::core::Solver)s: what they
+//! need from a problem ([`LeastSquares`]), their tolerances, how they stop, and how a fit
+//! runs them ([`run::run_solver`]).
+//!
+//! This folder knows nothing of models, simulation or the prediction-error problem: the
+//! problem implements [`LeastSquares`] (`estimate::problem` imports this module, never the
+//! reverse), so any least-squares problem (a curve fit, the Moré-Garbow-Hillstrom test
+//! set) runs through the same code as a motor fit.
+//!
+//! Sign convention: `J = ∂ŷ/∂p` is the Jacobian of the model output and `ε = y − ŷ` the
+//! residual, so the gradient of the cost `V = ½ εᵀWε` is `∇V = −JᵀWε`.
+//! [`NormalEquations::jtr`] holds `JᵀWε` (the steepest-descent direction); argmin's
+//! gradient slot of the solvers' state ([`LsState`]) holds `∇V`, as argmin documents it.
+
+pub mod gn;
+pub mod lm;
+pub mod run;
+mod stopping;
+
+pub(crate) use stopping::{Monitor, damped_solve, init_state, missing, status};
 
 use crate::error::{Error, Result};
-use crate::estimate::lm::LsState;
-use crate::estimate::problem::{NormalEquations, PemProblem};
-use crate::model::GreyBoxModel;
-use argmin::core::{Problem, TerminationReason, TerminationStatus};
+use argmin::core::IterState;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
+
+/// argmin state of the greybox solvers: parameter `p` (scaled space, length n_p), gradient
+/// `∇V = −JᵀWε` (length n_p), "Hessian" `JᵀWJ` (n_p × n_p), cost `V`.
+pub type LsState = IterState<DVector<f64>, DVector<f64>, (), DMatrix<f64>, (), f64>;
+
+/// Cost and normal equations at one point (scaled space, length n_p).
+#[derive(Clone, Debug)]
+pub struct NormalEquations {
+    /// `V = Σ w ρ(ε)` (`½ εᵀWε` for the quadratic loss).
+    pub cost: f64,
+    /// `JᵀWJ` (IRLS-weighted for a robust loss), `n_p × n_p`.
+    pub jtj: DMatrix<f64>,
+    /// `JᵀWψ(ε)` (`JᵀWε` for the quadratic loss), length n_p: the negative gradient `−∇V`.
+    pub jtr: DVector<f64>,
+}
+
+impl NormalEquations {
+    /// Gradient of the cost `∇V = −JᵀWψ(ε)`, length n_p.
+    pub fn gradient(&self) -> DVector<f64> {
+        -&self.jtr
+    }
+}
 
 /// A nonlinear least-squares problem in scaled variables p, as the solvers see it.
 pub trait LeastSquares {
     /// Number of free parameters n_p.
     fn n_params(&self) -> usize;
-    /// Cost `V(p) = ½ εᵀWε` with `JᵀWJ` and `JᵀWε` (`J = ∂ŷ/∂p`).
+    /// Cost `V(p) = ½ εᵀWε` with `JᵀWJ` and `JᵀWε` (`J = ∂ŷ/∂p`, `ε = y − ŷ`).
     ///
     /// # Errors
     /// [`Error::SimulationDiverged`] or [`Error::InvalidParameter`] at a point the model
@@ -28,18 +66,18 @@ pub trait LeastSquares {
     fn project(&self, p: &mut DVector<f64>);
 }
 
-impl<M: GreyBoxModel> LeastSquares for PemProblem<'_, M> {
+impl<T: LeastSquares + ?Sized> LeastSquares for &T {
     fn n_params(&self) -> usize {
-        self.n_free()
+        (**self).n_params()
     }
     fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations> {
-        PemProblem::normal_equations(self, p)
+        (**self).normal_equations(p)
     }
     fn cost(&self, p: &DVector<f64>) -> Result<f64> {
-        PemProblem::cost(self, p)
+        (**self).cost(p)
     }
     fn project(&self, p: &mut DVector<f64>) {
-        PemProblem::project(self, p)
+        (**self).project(p)
     }
 }
 
@@ -48,13 +86,19 @@ pub(crate) fn is_infeasible(e: &Error) -> bool {
     matches!(e, Error::SimulationDiverged { .. } | Error::InvalidParameter { .. })
 }
 
-/// Stopping tolerances shared by the solvers (MINPACK conventions, Moré et al. 1980).
+/// Stopping tolerances shared by the solvers (MINPACK's `lmder`; Moré, Garbow & Hillstrom,
+/// *User guide for MINPACK-1*, ANL-80-74, 1980; Moré 1978).
+///
+/// Norms are scaled by `D = diag(d_j)`, `d_j` the largest `‖J_j‖²` (column j of `√W J`)
+/// met so far (1 for a column never non-zero): `‖x‖_D = √(Σ d_j x_j²)`, MINPACK's
+/// `‖diag ∘ x‖` with its `mode = 1` scaling.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Tolerances {
-    /// Stop when an accepted step lowers the cost by at most `ftol × cost` (relative).
+    /// Stop when both the actual and the predicted relative reduction of the cost by a
+    /// step are at most `ftol` (and the actual is at most twice the predicted).
     pub ftol: f64,
-    /// Stop when the step satisfies `‖δ‖ ≤ xtol (‖p‖ + xtol)` (scaled space).
+    /// Stop when the next step satisfies `‖δ‖_D ≤ xtol ‖p‖_D`.
     pub xtol: f64,
     /// Stop when `max_j |J_jᵀWε| / (‖J_j‖ ‖√W ε‖) ≤ gtol` (cosine of residual and columns).
     pub gtol: f64,
@@ -108,6 +152,10 @@ pub enum Termination {
     MaxIterations,
     /// No step along the search direction lowers the cost (line search failed).
     NoDescent,
+    /// Every column of the Jacobian vanished (`‖J_j‖² ≤ ε_mach` × its largest value met)
+    /// while the cost is far from zero (above `ε_mach V₀`): no step is defined and a
+    /// convergence test passing there certifies nothing.
+    ZeroJacobian,
     /// argmin stopped the run (timeout, interrupt, target cost).
     Stopped(String),
 }
@@ -131,95 +179,19 @@ impl std::fmt::Display for Termination {
             Self::ZeroResidual => f.write_str("converged: zero residual"),
             Self::MaxIterations => f.write_str("not converged: maximum number of iterations reached"),
             Self::NoDescent => f.write_str("not converged: no descent along the search direction"),
+            Self::ZeroJacobian => f.write_str("not converged: the Jacobian vanished at a non-zero residual"),
             Self::Stopped(s) => write!(f, "not converged: stopped by the executor ({s})"),
         }
     }
 }
 
-/// A solver that records why it stopped, so that the fit report can say so.
+/// A solver that records why it stopped and how many of its steps it accepted, so that
+/// the fit report can say so.
 pub trait ReportsTermination {
     /// Why the solver stopped, once it has; `None` while running or when argmin stopped it
     /// (iteration limit, timeout, interrupt).
     fn termination(&self) -> Option<&Termination>;
-}
-
-/// argmin's status for a solver's own termination reason (`None` = keep going).
-pub(crate) fn status(t: Option<&Termination>) -> TerminationStatus {
-    match t {
-        Some(t) if t.success() => TerminationStatus::Terminated(TerminationReason::SolverConverged),
-        Some(t) => TerminationStatus::Terminated(TerminationReason::SolverExit(t.to_string())),
-        None => TerminationStatus::NotTerminated,
-    }
-}
-
-/// The common start of the solvers: projects the start vector, evaluates the normal
-/// equations there and fills the state (`p`, cost, `JᵀWε`, `JᵀWJ`, `max_iters`). Returns
-/// the state and a termination when the start is already a solution (zero residual or
-/// gradient within `gtol`).
-///
-/// # Errors
-/// No start vector in the state; a non-finite cost at the start; every error of
-/// [`LeastSquares::normal_equations`] (at the start, infeasibility is an error).
-pub(crate) fn init_state<O: LeastSquares>(
-    problem: &mut Problem<O>,
-    mut state: LsState,
-    tol: &Tolerances,
-) -> std::result::Result<(LsState, Option<Termination>), argmin::core::Error> {
-    let mut p = state.take_param().ok_or_else(|| Error::Solver("no start vector".into()))?;
-    problem.problem("project_count", |o| {
-        o.project(&mut p);
-        Ok(())
-    })?;
-    let ne = problem.problem("normal_equations_count", |o| Ok(o.normal_equations(&p)?))?;
-    if !ne.cost.is_finite() {
-        return Err(Error::Solver(format!("cost at the start is {}", ne.cost)).into());
-    }
-    let t = if ne.cost == 0.0 {
-        Some(Termination::ZeroResidual)
-    } else if scaled_gradient(&ne.jtj, &ne.jtr, ne.cost) <= tol.gtol {
-        Some(Termination::GradientTolerance)
-    } else {
-        None
-    };
-    Ok((state.param(p).cost(ne.cost).gradient(ne.jtr).hessian(ne.jtj).max_iters(tol.max_iters), t))
-}
-
-/// MINPACK's scaled gradient norm: `max_j |g_j| / (√H_jj ‖r‖)`, with `‖r‖² = 2 cost`.
-pub(crate) fn scaled_gradient(jtj: &DMatrix<f64>, jtr: &DVector<f64>, cost: f64) -> f64 {
-    let rnorm = (2.0 * cost).sqrt();
-    (0..jtr.len())
-        .map(|j| {
-            let c = jtj[(j, j)].sqrt();
-            if c > 0.0 && rnorm > 0.0 { jtr[j].abs() / (c * rnorm) } else { 0.0 }
-        })
-        .fold(0.0, f64::max)
-}
-
-/// Solves `(H + λ D) δ = g` by Cholesky; `None` when the matrix is not positive definite.
-pub(crate) fn damped_solve(
-    h: &DMatrix<f64>,
-    d: &DVector<f64>,
-    lambda: f64,
-    g: &DVector<f64>,
-) -> Option<DVector<f64>> {
-    let mut a = h.clone();
-    for j in 0..a.nrows() {
-        a[(j, j)] += lambda * d[j];
-    }
-    a.cholesky().map(|c| c.solve(g))
-}
-
-impl<T: LeastSquares + ?Sized> LeastSquares for &T {
-    fn n_params(&self) -> usize {
-        (**self).n_params()
-    }
-    fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations> {
-        (**self).normal_equations(p)
-    }
-    fn cost(&self, p: &DVector<f64>) -> Result<f64> {
-        (**self).cost(p)
-    }
-    fn project(&self, p: &mut DVector<f64>) {
-        (**self).project(p)
-    }
+    /// Iterations whose step was accepted (the cost decreased); the others were rejected
+    /// trial steps. Evaluations are counted apart, by argmin's function counts.
+    fn accepted_iterations(&self) -> u64;
 }

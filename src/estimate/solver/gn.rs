@@ -1,6 +1,6 @@
 //! Damped Gauss-Newton with a backtracking (Armijo) line search, as an argmin [`Solver`].
 //!
-//! Each iteration solves the Gauss-Newton normal equations `JᵀWJ δ = JᵀWε` by Cholesky
+//! Each iteration solves the Gauss-Newton normal equations `JᵀWJ δ = −∇V = JᵀWε` by Cholesky
 //! (no inverse). When `JᵀWJ` is not positive definite (a parameter the data do not
 //! determine), a Levenberg-style shift `μ D`, `D = diag(JᵀWJ)`, is added with μ growing
 //! ×10 from 1e-12 until the factorisation succeeds; the KV entry `shift` reports μ.
@@ -9,18 +9,21 @@
 //!
 //! The step length α starts at 1 and shrinks by the backtracking factor (½) until the
 //! projected trial point `p_α = P(p + α δ)` meets the sufficient-decrease (Armijo)
-//! condition `V(p_α) ≤ V(p) − c₁ (JᵀWε)ᵀ(p_α − p)` (the gradient of V is `−JᵀWε`) and lowers
+//! condition `V(p_α) ≤ V(p) + c₁ ∇Vᵀ(p_α − p)` (`∇V = −JᵀWε`) and lowers
 //! the cost: a cost increase is never accepted. The search evaluates the cost alone
 //! ([`LeastSquares::cost`]); the normal equations are evaluated once, at the accepted
 //! point. Trial points where the model cannot be simulated count as failed trials.
 //!
-//! Stopping follows the Levenberg-Marquardt solver ([`crate::estimate::LevenbergMarquardt`],
-//! MINPACK conventions, [`Tolerances`]): `gtol` on the scaled gradient, `xtol` on the full
-//! projected Gauss-Newton step (α = 1), `ftol` on the relative decrease of an accepted
-//! step, and [`Termination::NoDescent`] when α falls below its minimum (1e-10). When the
-//! full step fails but both its predicted and its actual relative change of the cost are
-//! at most `ftol`, the cost sits at its rounding floor and the fit stops with
-//! [`Termination::CostTolerance`] (MINPACK's `info = 1` test, Moré et al. 1980).
+//! Stopping uses the tests of the Levenberg-Marquardt solver
+//! ([`crate::estimate::LevenbergMarquardt`], MINPACK's, [`Tolerances`]): `gtol` on the
+//! scaled gradient at every accepted point, `xtol` on the full projected Gauss-Newton step
+//! (α = 1) in the D-scaled norm, `ftol` on the actual and predicted relative reductions of
+//! the accepted step and of a failed full step (a failed full step whose reductions are
+//! both below `ftol` means the cost sits at its rounding floor: MINPACK's `info = 1` on a
+//! rejected step), and [`Termination::NoDescent`] when α falls below its minimum (1e-10).
+//! A test passing where the Jacobian has vanished at a cost far from zero gives
+//! [`Termination::ZeroJacobian`]: with `JᵀWJ = 0` the step is undefined and a zero
+//! gradient certifies nothing.
 //!
 //! Sources: Dennis & Schnabel, *Numerical Methods for Unconstrained Optimization and
 //! Nonlinear Equations*, 1983, section 6.3 (backtracking line search) and 10.2 (damped
@@ -28,10 +31,9 @@
 //! (Armijo condition, backtracking) and 10.3 (Gauss-Newton); Björck, *Numerical Methods
 //! for Least Squares Problems*, 1996, section 9.2 (damped Gauss-Newton) and 5.2 (bounds).
 
-use crate::estimate::lm::LsState;
-use crate::estimate::solver::{
-    LeastSquares, ReportsTermination, Termination, Tolerances, damped_solve, init_state, is_infeasible,
-    scaled_gradient, status,
+use super::{
+    LeastSquares, LsState, Monitor, ReportsTermination, Termination, Tolerances, damped_solve, init_state,
+    is_infeasible, missing, status,
 };
 use argmin::core::{KV, Problem, Solver, TerminationStatus};
 use nalgebra::{DMatrix, DVector};
@@ -53,13 +55,23 @@ pub struct GaussNewton {
     c1: f64,
     factor: f64,
     alpha_min: f64,
+    monitor: Monitor,
+    accepted: u64,
     termination: Option<Termination>,
 }
 
 impl GaussNewton {
     /// A solver with the given tolerances and the default line-search settings.
     pub fn new(tol: Tolerances) -> Self {
-        Self { tol, c1: 1e-4, factor: 0.5, alpha_min: 1e-10, termination: None }
+        Self {
+            tol,
+            c1: 1e-4,
+            factor: 0.5,
+            alpha_min: 1e-10,
+            monitor: Monitor::default(),
+            accepted: 0,
+            termination: None,
+        }
     }
 
     /// Sets the sufficient-decrease (Armijo) constant c₁ (dimensionless, in (0, 1)).
@@ -209,6 +221,9 @@ impl ReportsTermination for GaussNewton {
     fn termination(&self) -> Option<&Termination> {
         self.termination.as_ref()
     }
+    fn accepted_iterations(&self) -> u64 {
+        self.accepted
+    }
 }
 
 impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
@@ -221,7 +236,8 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
         problem: &mut Problem<O>,
         state: LsState,
     ) -> Result<(LsState, Option<KV>), argmin::core::Error> {
-        let (state, t) = init_state(problem, state, &self.tol)?;
+        self.accepted = 0;
+        let (state, t) = init_state(problem, state, &self.tol, &mut self.monitor)?;
         self.termination = t;
         let kv = argmin::kv!("c1" => self.c1; "backtracking_factor" => self.factor; "min_alpha" => self.alpha_min;);
         Ok((state, Some(kv)))
@@ -232,12 +248,15 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
         problem: &mut Problem<O>,
         mut state: LsState,
     ) -> Result<(LsState, Option<KV>), argmin::core::Error> {
-        let p = state.take_param().ok_or_else(|| crate::Error::Solver("GN: no parameter in state".into()))?;
-        let jtr = state.take_gradient().ok_or_else(|| crate::Error::Solver("GN: no JᵀWε in state".into()))?;
-        let jtj = state.take_hessian().ok_or_else(|| crate::Error::Solver("GN: no JᵀWJ in state".into()))?;
+        let p = state.take_param().ok_or_else(|| missing("gn", "parameter"))?;
+        let grad = state.take_gradient().ok_or_else(|| missing("gn", "gradient"))?;
+        let jtj = state.take_hessian().ok_or_else(|| missing("gn", "JᵀWJ"))?;
         let cost = state.get_cost();
-        let keep =
-            |state: LsState, p: DVector<f64>, jtr, jtj| state.param(p).cost(cost).gradient(jtr).hessian(jtj);
+        self.monitor.observe(&jtj);
+        let jtr = -&grad;
+        let keep = |state: LsState, p: DVector<f64>, grad, jtj| {
+            state.param(p).cost(cost).gradient(grad).hessian(jtj)
+        };
 
         let Some(Direction { delta, shift, held }) = Self::direction(problem, &p, &jtj, &jtr)? else {
             // Only non-finite entries defeat every shift.
@@ -245,7 +264,7 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
             let kv = argmin::kv!(
                 "alpha" => 0.0; "shift" => f64::INFINITY; "held" => 0u64; "trials" => 0u64; "accepted" => false;
             );
-            return Ok((keep(state, p, jtr, jtj), Some(kv)));
+            return Ok((keep(state, p, grad, jtj), Some(kv)));
         };
         let held = held as u64;
         let project = |problem: &mut Problem<O>, mut x: DVector<f64>| {
@@ -255,18 +274,18 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
             })?;
             Ok::<_, argmin::core::Error>(x)
         };
+        // Decrease of the quadratic model along a step.
+        let predicted = |step: &DVector<f64>| step.dot(&jtr) - 0.5 * step.dot(&(&jtj * step));
 
         let full = project(problem, &p + &delta)?;
         let full_step = &full - &p;
-        if full_step.norm() <= self.tol.xtol * (p.norm() + self.tol.xtol) {
-            self.stop(Termination::StepTolerance);
+        if self.monitor.small_step(&self.tol, &full_step, &p) {
+            self.stop(self.monitor.certify(Termination::StepTolerance, &jtj, cost));
             let kv = argmin::kv!(
                 "alpha" => 1.0; "shift" => shift; "held" => held; "trials" => 0u64; "accepted" => false;
             );
-            return Ok((keep(state, p, jtr, jtj), Some(kv)));
+            return Ok((keep(state, p, grad, jtj), Some(kv)));
         }
-        // Decrease of the quadratic model for the full projected step.
-        let predicted = full_step.dot(&jtr) - 0.5 * full_step.dot(&(&jtj * &full_step));
 
         let mut alpha = 1.0;
         let mut trials = 0u64;
@@ -289,26 +308,33 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
                 // The two evaluations agree to rounding; the state keeps the normal
                 // equations' cost, which must also be a decrease.
                 if let Some(ne) = ne.filter(|ne| ne.cost.is_finite() && ne.cost < cost) {
-                    let actual = cost - ne.cost;
+                    self.accepted += 1;
+                    self.monitor.observe(&ne.jtj);
+                    let r = Monitor::reductions(cost, Some(ne.cost), predicted(&step));
                     if ne.cost == 0.0 {
                         self.stop(Termination::ZeroResidual);
-                    } else if actual <= self.tol.ftol * cost {
-                        self.stop(Termination::CostTolerance);
-                    } else if scaled_gradient(&ne.jtj, &ne.jtr, ne.cost) <= self.tol.gtol {
-                        self.stop(Termination::GradientTolerance);
+                    } else if Monitor::cost_converged(&self.tol, &r) {
+                        self.stop(self.monitor.certify(Termination::CostTolerance, &ne.jtj, ne.cost));
+                    } else if Monitor::gradient_converged(&self.tol, &ne.jtj, &ne.jtr, ne.cost) {
+                        self.stop(self.monitor.certify(Termination::GradientTolerance, &ne.jtj, ne.cost));
                     }
                     let kv = argmin::kv!(
                         "alpha" => alpha; "shift" => shift; "held" => held; "trials" => trials;
                         "accepted" => true; "cost_search" => c;
                     );
-                    return Ok((state.param(trial).cost(ne.cost).gradient(ne.jtr).hessian(ne.jtj), Some(kv)));
+                    let gradient = ne.gradient();
+                    return Ok((
+                        state.param(trial).cost(ne.cost).gradient(gradient).hessian(ne.jtj),
+                        Some(kv),
+                    ));
                 }
             }
-            let negligible = |d: f64| d.abs() <= self.tol.ftol * cost;
-            if trials == 1 && negligible(predicted) && c.is_some_and(|c| negligible(cost - c)) {
+            if trials == 1
+                && Monitor::cost_converged(&self.tol, &Monitor::reductions(cost, c, predicted(&step)))
+            {
                 // Even the full step cannot lower the cost by more than ftol: the cost is
                 // at its rounding floor and backtracking would only chase rounding noise.
-                self.stop(Termination::CostTolerance);
+                self.stop(self.monitor.certify(Termination::CostTolerance, &jtj, cost));
                 break;
             }
             alpha *= self.factor;
@@ -321,7 +347,7 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
         let kv = argmin::kv!(
             "alpha" => alpha; "shift" => shift; "held" => held; "trials" => trials; "accepted" => false;
         );
-        Ok((keep(state, p, jtr, jtj), Some(kv)))
+        Ok((keep(state, p, grad, jtj), Some(kv)))
     }
 
     fn terminate(&mut self, _state: &LsState) -> TerminationStatus {

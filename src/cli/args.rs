@@ -1,0 +1,271 @@
+//! Command-line arguments of `greybox fit` and their mapping to library options.
+
+use clap::{Args, ValueEnum};
+use greybox::estimate::{Tolerances, WeightingKind};
+use greybox::estimate::weighting::SpeedShape;
+use greybox::pmsm::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct FitArgs {
+    /// Drive logs (CSV, plain or gzip). Several logs are fitted jointly with shared parameters.
+    #[arg(required = true)]
+    pub logs: Vec<PathBuf>,
+    /// Number of pole pairs n_p of the motor.
+    #[arg(long, short = 'p')]
+    pub pole_pairs: u32,
+    /// Machine model: surface (spm: r_s, l_s, k_e) or interior magnets (ipm: r_s, l_d, l_q, k_e).
+    #[arg(long, value_enum, default_value_t = ModelArg::Spm)]
+    pub model: ModelArg,
+    /// Voltage hold between samples: auto picks the one with the lower loss.
+    #[arg(long, value_enum, default_value_t = HoldArg::Auto)]
+    pub hold: HoldArg,
+    /// Write the JSON report to this file ("-" for stdout, which suppresses the table).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Start values in model order, comma separated, SI units (default: linear least squares).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub start: Option<Vec<f64>>,
+    /// Parameters held at their start value, comma separated (e.g. r_s).
+    #[arg(long, value_delimiter = ',')]
+    pub fix: Vec<String>,
+    /// Parameters estimated separately per log, comma separated (e.g. r_s).
+    #[arg(long, value_delimiter = ',')]
+    pub per_log: Vec<String>,
+    /// Optimiser: Levenberg-Marquardt (lm) or damped Gauss-Newton with line search (gn).
+    #[arg(long, value_enum, default_value_t = SolverArg::Lm)]
+    pub solver: SolverArg,
+    /// Parameter scaling.
+    #[arg(long, value_enum, default_value_t = ScalingArg::Nominal)]
+    pub scaling: ScalingArg,
+    /// k-step-ahead prediction horizon in samples (default: output error, i.e. pure simulation).
+    #[arg(long)]
+    pub horizon: Option<usize>,
+    /// Sample weighting β(ω): uniform, low-speed:W0, high-speed:W0 or band:LO:HI[:FLOOR]
+    /// (speeds mechanical, rad/s; thesis eq. 5.11).
+    #[arg(long, default_value = "uniform", value_parser = parse_weighting)]
+    pub weighting: WeightingKind,
+    /// Robust fit with Huber's loss; the value is c in δ = c·σ̂ (default 1.345 when given without value).
+    #[arg(long, num_args = 0..=1, require_equals = true, default_missing_value = "1.345")]
+    pub huber: Option<f64>,
+    /// Output weights Λ for i_d, i_q, comma separated (default 1,1).
+    #[arg(long, value_delimiter = ',')]
+    pub output_weights: Option<Vec<f64>>,
+    /// Bounds of a parameter, NAME:LO:HI in SI units (repeatable), e.g. r_s:0.1:5.
+    #[arg(long, value_parser = parse_bounds)]
+    pub bounds: Vec<(String, f64, f64)>,
+    /// Take the first measured currents as the exact initial state instead of estimating it.
+    #[arg(long)]
+    pub fixed_x0: bool,
+    /// Low-pass prefilter cutoff [Hz], 4th-order Butterworth: on the residuals for pem
+    /// (causal L(q)), on every signal for ls (zero-phase, forward-backward).
+    #[arg(long)]
+    pub prefilter: Option<f64>,
+    /// Estimation method: prediction error (pem) or the linear least-squares regression of
+    /// the voltage equations (ls; weighted by --weighting, filtered by --prefilter).
+    #[arg(long, value_enum, default_value_t = MethodArg::Pem)]
+    pub method: MethodArg,
+    /// Maximum number of solver iterations.
+    #[arg(long, default_value_t = Tolerances::default().max_iters)]
+    pub max_iters: u64,
+    /// Relative cost-reduction tolerance.
+    #[arg(long, default_value_t = Tolerances::default().ftol)]
+    pub ftol: f64,
+    /// Step tolerance (scaled parameters).
+    #[arg(long, default_value_t = Tolerances::default().xtol)]
+    pub xtol: f64,
+    /// Gradient tolerance (cosine between residual and Jacobian columns).
+    #[arg(long, default_value_t = Tolerances::default().gtol)]
+    pub gtol: f64,
+    /// Do not print the table.
+    #[arg(long, short = 'q')]
+    pub quiet: bool,
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct ColumnArgs {
+    /// Time column [s].
+    #[arg(long, default_value = "t")]
+    pub col_t: String,
+    /// d-axis voltage column.
+    #[arg(long, default_value = "ud")]
+    pub col_ud: String,
+    /// q-axis voltage column.
+    #[arg(long, default_value = "uq")]
+    pub col_uq: String,
+    /// d-axis current column.
+    #[arg(long, default_value = "id")]
+    pub col_id: String,
+    /// q-axis current column.
+    #[arg(long, default_value = "iq")]
+    pub col_iq: String,
+    /// Speed column.
+    #[arg(long, default_value = "w_m")]
+    pub col_w: String,
+    /// Rotor angle column (optional; needed with --dq-from-phases).
+    #[arg(long, default_value = "theta_m")]
+    pub col_theta: String,
+    /// d-axis voltage reference column (optional).
+    #[arg(long, default_value = "ud_ref")]
+    pub col_ud_ref: String,
+    /// q-axis voltage reference column (optional).
+    #[arg(long, default_value = "uq_ref")]
+    pub col_uq_ref: String,
+    /// Phase current columns a,b,c (with --dq-from-phases).
+    #[arg(long, value_delimiter = ',', num_args = 3, default_values = ["ia", "ib", "ic"])]
+    pub col_i_abc: Vec<String>,
+    /// Phase voltage columns a,b,c (with --dq-from-phases).
+    #[arg(long, value_delimiter = ',', num_args = 3, default_values = ["ua", "ub", "uc"])]
+    pub col_u_abc: Vec<String>,
+    /// Unit of the speed column.
+    #[arg(long, value_enum, default_value_t = SpeedUnitArg::RadS)]
+    pub speed_unit: SpeedUnitArg,
+    /// Unit of the angle column.
+    #[arg(long, value_enum, default_value_t = AngleUnitArg::Rad)]
+    pub angle_unit: AngleUnitArg,
+    /// Whether the speed and angle columns are mechanical or electrical.
+    #[arg(long, value_enum, default_value_t = FrameArg::Mechanical)]
+    pub speed_frame: FrameArg,
+    /// Scaling of the current columns (peak: |i_dq| = phase peak; rms: |i_dq| = phase RMS).
+    #[arg(long, value_enum, default_value_t = ScaleArg::Peak)]
+    pub current_scale: ScaleArg,
+    /// Scaling of the voltage columns.
+    #[arg(long, value_enum, default_value_t = ScaleArg::Peak)]
+    pub voltage_scale: ScaleArg,
+    /// Compute dq currents and voltages from the phase columns and the rotor angle.
+    #[arg(long)]
+    pub dq_from_phases: bool,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum ModelArg {
+    Spm,
+    Ipm,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum MethodArg {
+    Pem,
+    Ls,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum HoldArg {
+    Auto,
+    Dq,
+    Stator,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum SolverArg {
+    Lm,
+    Gn,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum ScalingArg {
+    Nominal,
+    Log,
+    ColumnNorm,
+    Identity,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum SpeedUnitArg {
+    #[value(name = "rad/s", alias = "rad-s")]
+    RadS,
+    Rpm,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum AngleUnitArg {
+    Rad,
+    Deg,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum FrameArg {
+    Mechanical,
+    Electrical,
+}
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum ScaleArg {
+    Peak,
+    Rms,
+}
+
+impl ColumnArgs {
+    pub fn options(&self) -> CsvOptions {
+        let scale = |s: ScaleArg| match s {
+            ScaleArg::Peak => Scale::Peak,
+            ScaleArg::Rms => Scale::Rms,
+        };
+        CsvOptions {
+            pole_pairs: None,
+            columns: ColumnNames {
+                t: self.col_t.clone(),
+                u_d: self.col_ud.clone(),
+                u_q: self.col_uq.clone(),
+                i_d: self.col_id.clone(),
+                i_q: self.col_iq.clone(),
+                w_m: self.col_w.clone(),
+                theta_m: self.col_theta.clone(),
+                u_d_ref: self.col_ud_ref.clone(),
+                u_q_ref: self.col_uq_ref.clone(),
+                i_a: self.col_i_abc[0].clone(),
+                i_b: self.col_i_abc[1].clone(),
+                i_c: self.col_i_abc[2].clone(),
+                u_a: self.col_u_abc[0].clone(),
+                u_b: self.col_u_abc[1].clone(),
+                u_c: self.col_u_abc[2].clone(),
+            },
+            speed_unit: match self.speed_unit {
+                SpeedUnitArg::RadS => SpeedUnit::RadPerSec,
+                SpeedUnitArg::Rpm => SpeedUnit::Rpm,
+            },
+            speed_frame: match self.speed_frame {
+                FrameArg::Mechanical => Frame::Mechanical,
+                FrameArg::Electrical => Frame::Electrical,
+            },
+            angle_unit: match self.angle_unit {
+                AngleUnitArg::Rad => AngleUnit::Rad,
+                AngleUnitArg::Deg => AngleUnit::Deg,
+            },
+            current_scale: scale(self.current_scale),
+            voltage_scale: scale(self.voltage_scale),
+            source: if self.dq_from_phases { DqSource::Phases } else { DqSource::Dq },
+        }
+    }
+}
+
+/// Parses `NAME:LO:HI`.
+fn parse_bounds(s: &str) -> Result<(String, f64, f64), String> {
+    let parts: Vec<&str> = s.split(':').collect();
+    let [name, lo, hi] = parts[..] else { return Err(format!("`{s}`: expected NAME:LO:HI")) };
+    let num = |v: &str| v.parse::<f64>().map_err(|e| format!("`{s}`: {e}"));
+    Ok((name.to_string(), num(lo)?, num(hi)?))
+}
+
+/// Parses `uniform`, `low-speed:W0`, `high-speed:W0`, `band:LO:HI[:FLOOR]`.
+fn parse_weighting(s: &str) -> Result<WeightingKind, String> {
+    let parts: Vec<&str> = s.split(':').collect();
+    let num = |i: usize| -> Result<f64, String> {
+        parts
+            .get(i)
+            .ok_or_else(|| format!("`{s}`: missing number {i}"))?
+            .parse::<f64>()
+            .map_err(|e| format!("`{s}`: {e}"))
+    };
+    let shape = match parts[0] {
+        "uniform" if parts.len() == 1 => return Ok(WeightingKind::Uniform),
+        "low-speed" if parts.len() == 2 => SpeedShape::LowSpeed { w0: num(1)? },
+        "high-speed" if parts.len() == 2 => SpeedShape::HighSpeed { w0: num(1)? },
+        "band" if parts.len() == 3 || parts.len() == 4 => {
+            SpeedShape::Band { lo: num(1)?, hi: num(2)?, floor: if parts.len() == 4 { num(3)? } else { 0.0 } }
+        }
+        _ => {
+            return Err(format!(
+                "`{s}`: expected uniform, low-speed:W0, high-speed:W0 or band:LO:HI[:FLOOR]"
+            ));
+        }
+    };
+    let channel = greybox::pmsm::channel::W_M;
+    greybox::estimate::weighting::SpeedWeighting::try_new(channel, shape).map_err(|e| e.to_string())?;
+    Ok(WeightingKind::Speed { channel: channel.into(), shape })
+}
+

@@ -1,0 +1,91 @@
+//! `greybox fit`: read the logs, fit, print the table and write the JSON report.
+
+use super::args::{FitArgs, HoldArg, MethodArg, ModelArg, ScalingArg, SolverArg};
+use greybox::estimate::{FitResult, PemOptions, ScalingKind, SolverKind, Timing, Tolerances};
+use greybox::pmsm::{CsvOptions, HoldChoice, LinearOptions, MotorKind, PmsmFit, PmsmFitOptions, fit_pmsm};
+use greybox::pmsm::weighted_least_squares;
+use std::time::Instant;
+
+pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
+    let t0 = Instant::now();
+    // Fail before the fit, not after it, when the report cannot be written.
+    if let Some(path) = a.json.as_ref().filter(|p| p.as_os_str() != "-") {
+        std::fs::File::create(path).map_err(|source| greybox::Error::Write { path: path.clone(), source })?;
+    }
+    let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
+    let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
+    let logs = a.logs.iter().map(|p| greybox::pmsm::read_log(p, &csv)).collect::<greybox::Result<Vec<_>>>()?;
+    let read_s = t0.elapsed().as_secs_f64();
+    let kind = match a.model {
+        ModelArg::Spm => MotorKind::Spm,
+        ModelArg::Ipm => MotorKind::Ipm,
+    };
+    if let MethodArg::Ls = a.method {
+        let rule = a.weighting.rule()?;
+        let opts = LinearOptions { prefilter: a.prefilter, ..LinearOptions::default() };
+        let ls = weighted_least_squares(&logs, a.pole_pairs, kind, rule.as_ref(), &opts)?;
+        if !quiet {
+            print!("{ls}");
+        }
+        return write_json(a, serde_json::to_string_pretty(&ls).unwrap_or_default());
+    }
+    let options = PmsmFitOptions {
+        pole_pairs: a.pole_pairs,
+        model: kind,
+        hold: match a.hold {
+            HoldArg::Auto => HoldChoice::Auto,
+            HoldArg::Dq => HoldChoice::Dq,
+            HoldArg::Stator => HoldChoice::Stator,
+        },
+        start: a.start.clone(),
+        fixed: a.fix.clone(),
+        bounds: a.bounds.clone(),
+        pem: PemOptions {
+            solver: match a.solver {
+                SolverArg::Lm => SolverKind::Lm,
+                SolverArg::Gn => SolverKind::Gn,
+            },
+            tolerances: Tolerances { ftol: a.ftol, xtol: a.xtol, gtol: a.gtol, max_iters: a.max_iters },
+            scaling: match a.scaling {
+                ScalingArg::Nominal => ScalingKind::Nominal,
+                ScalingArg::Log => ScalingKind::Log,
+                ScalingArg::ColumnNorm => ScalingKind::ColumnNorm,
+                ScalingArg::Identity => ScalingKind::Identity,
+            },
+            horizon: a.horizon,
+            per_experiment: a.per_log.clone(),
+            weighting: a.weighting.clone(),
+            huber: a.huber,
+            estimate_x0: !a.fixed_x0,
+            prefilter: a.prefilter,
+            output_weights: a.output_weights.clone(),
+            progress: true,
+            ..PemOptions::default()
+        },
+    };
+    let fit = fit_pmsm(&logs, &options)?;
+    let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..fit.report.timing.clone() };
+    let result = PmsmFit { report: FitResult { timing, ..fit.report }, ..fit };
+    if !quiet {
+        print!("{result}");
+    }
+    write_json(a, result.to_json())?;
+    if !result.solver.success {
+        eprintln!("warning: the fit did not converge ({})", result.solver.termination);
+    }
+    Ok(())
+}
+
+/// Writes the JSON report where `--json` says ("-" = stdout).
+pub fn write_json(a: &FitArgs, json: String) -> greybox::Result<()> {
+    match &a.json {
+        None => Ok(()),
+        Some(path) if path.as_os_str() == "-" => {
+            println!("{json}");
+            Ok(())
+        }
+        Some(path) => std::fs::write(path, json + "\n")
+            .map_err(|source| greybox::Error::Io { path: path.clone(), source }),
+    }
+}
+

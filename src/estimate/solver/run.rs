@@ -1,0 +1,152 @@
+//! Running a solver on a [`LeastSquares`] problem through argmin's executor, as every fit
+//! does: the solver chosen by [`SolverKind`], its report as a [`SolverReport`].
+
+use super::gn::GaussNewton;
+use super::lm::LevenbergMarquardt;
+use super::{LeastSquares, LsState, ReportsTermination, Termination, Tolerances};
+use crate::error::{Error, Result};
+use crate::estimate::result::SolverReport;
+#[cfg(feature = "cli")]
+use argmin::core::observers::{Observe, ObserverMode};
+use argmin::core::{Executor, Solver, State, TerminationReason};
+use nalgebra::DVector;
+use serde::{Deserialize, Serialize};
+
+/// Which optimiser runs the fit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SolverKind {
+    /// Levenberg-Marquardt ([`LevenbergMarquardt`]).
+    #[default]
+    Lm,
+    /// Damped Gauss-Newton with an Armijo backtracking line search ([`GaussNewton`]).
+    Gn,
+}
+
+/// How [`run_solver`] runs: the solver, its tolerances, and whether to show progress.
+/// Plain data with defaults; serialisable.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct RunOptions {
+    /// The optimiser.
+    pub solver: SolverKind,
+    /// Stopping tolerances.
+    pub tolerances: Tolerances,
+    /// Show a progress spinner on stderr (only when stderr is a terminal).
+    pub progress: bool,
+}
+
+/// Runs the chosen solver from `p0` (length n_p) through argmin's executor; returns p̂
+/// (the best point met) and the report. With n_p = 0 there is nothing to optimise: p̂ is
+/// empty and the report says "all parameters fixed".
+///
+/// A run that stops without converging is not an error: [`SolverReport::success`] is
+/// false and [`SolverReport::reason`] says why.
+///
+/// # Errors
+/// [`Error::InvalidOption`] for invalid tolerances; those of
+/// [`LeastSquares::normal_equations`] at the start; every error other than an unusable
+/// trial point during the run.
+pub fn run_solver<O: LeastSquares>(
+    problem: &O,
+    p0: DVector<f64>,
+    options: &RunOptions,
+) -> Result<(DVector<f64>, SolverReport)> {
+    options.tolerances.validate()?;
+    if p0.is_empty() {
+        return Ok((
+            p0,
+            SolverReport {
+                name: "none".into(),
+                iterations: 0,
+                termination: "all parameters fixed".into(),
+                reason: Termination::StepTolerance,
+                success: true,
+                evaluations: 0,
+                accepted_iterations: 0,
+            },
+        ));
+    }
+    match options.solver {
+        SolverKind::Lm => execute(problem, LevenbergMarquardt::new(options.tolerances), p0, options),
+        SolverKind::Gn => execute(problem, GaussNewton::new(options.tolerances), p0, options),
+    }
+}
+
+/// Runs `solver` from `p0` through argmin's executor and reports how it stopped.
+fn execute<'p, O, S>(
+    problem: &'p O,
+    solver: S,
+    p0: DVector<f64>,
+    options: &RunOptions,
+) -> Result<(DVector<f64>, SolverReport)>
+where
+    O: LeastSquares,
+    S: Solver<&'p O, LsState> + ReportsTermination,
+{
+    let name = solver.name().to_string();
+    let exec = Executor::new(problem, solver)
+        .configure(|s| s.param(p0).max_iters(options.tolerances.max_iters).counting(true));
+    // The spinner needs the `cli` feature (indicatif); without it `progress` has no effect.
+    #[cfg(feature = "cli")]
+    let exec = if options.progress { exec.add_observer(Progress::new(), ObserverMode::Always) } else { exec };
+    let res = exec.run().map_err(Error::from_argmin)?;
+    let counts = res.state.get_func_counts();
+    let evaluations = ["normal_equations_count", "cost_count"].iter().filter_map(|k| counts.get(*k)).sum();
+    let reason = match (res.solver.termination(), res.state.get_termination_reason()) {
+        (Some(t), _) => t.clone(),
+        (None, Some(TerminationReason::MaxItersReached)) => Termination::MaxIterations,
+        (None, r) => Termination::Stopped(r.map(|r| r.text().to_string()).unwrap_or_default()),
+    };
+    let p = res.state.get_best_param().cloned().ok_or_else(|| Error::Solver("no estimate".into()))?;
+    Ok((
+        p,
+        SolverReport {
+            name,
+            iterations: res.state.get_iter(),
+            termination: reason.to_string(),
+            success: reason.success(),
+            reason,
+            evaluations,
+            accepted_iterations: res.solver.accepted_iterations(),
+        },
+    ))
+}
+
+/// A spinner on stderr showing iteration and cost (hidden when stderr is not a terminal).
+#[cfg(feature = "cli")]
+struct Progress {
+    bar: indicatif::ProgressBar,
+}
+
+#[cfg(feature = "cli")]
+impl Progress {
+    fn new() -> Self {
+        let bar = indicatif::ProgressBar::new_spinner();
+        bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+        Self { bar }
+    }
+}
+
+#[cfg(feature = "cli")]
+impl<I: State<Float = f64>> Observe<I> for Progress {
+    fn observe_iter(
+        &mut self,
+        state: &I,
+        _kv: &argmin::core::KV,
+    ) -> std::result::Result<(), argmin::core::Error> {
+        self.bar.set_message(format!("iteration {}: cost {:.6e}", state.get_iter(), state.get_best_cost()));
+        self.bar.tick();
+        if state.terminated() {
+            self.bar.finish_and_clear();
+        }
+        Ok(())
+    }
+}
+
+#[cfg(feature = "cli")]
+impl Drop for Progress {
+    fn drop(&mut self) {
+        self.bar.finish_and_clear();
+    }
+}

@@ -1,0 +1,146 @@
+//! Goodness-of-fit metrics of simulated against measured outputs.
+//!
+//! Sources: Ljung, *System Identification*, 2nd ed.: NRMSE fit (as MATLAB's `compare`),
+//! 16.4 (FPE, AIC; Akaike 1969, 1974), BIC (Schwarz 1978), 16.6 (residual whiteness: the
+//! normalised autocorrelation `r(τ)` lies within `±1.96/√N` for white residuals at the 95 %
+//! level).
+//!
+//! Outputs are row-major `N × n_y` (`y[k n_y + i]` = output i at sample k), as the
+//! estimator and [`crate::simulate::simulate`] give them.
+
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// Residual whiteness of one output: normalised autocorrelation at lags `1..=max_lag`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Whiteness {
+    /// `r(τ) = Σ_k e_k e_{k+τ} / Σ_k e_k²` for τ = 1..=max_lag, length max_lag.
+    pub autocorrelation: Vec<f64>,
+    /// 95 % bound `1.96/√N` for white residuals.
+    pub bound: f64,
+    /// Fraction of lags with `|r(τ)|` beyond the bound (about 0.05 for white residuals).
+    pub fraction_outside: f64,
+}
+
+/// Metrics of one comparison of simulated against measured outputs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Metrics {
+    /// Output names, length n_y.
+    pub outputs: Vec<String>,
+    /// NRMSE fit per output `100 (1 − ‖y − ŷ‖/‖y − ȳ‖)` [%], length n_y.
+    pub fit_percent: Vec<f64>,
+    /// RMS residual per output [output unit], length n_y.
+    pub rms_residual: Vec<f64>,
+    /// Mean squared residual over all outputs, `E²/(N n_y)`.
+    pub mse: f64,
+    /// Akaike's final prediction error `V (1 + d/M)/(1 − d/M)` with `V = E²/M`,
+    /// `M = N n_y` residuals and d parameters (∞ when d ≥ M).
+    pub fpe: f64,
+    /// `M ln(E²/M) + 2d`.
+    pub aic: f64,
+    /// `M ln(E²/M) + d ln M`.
+    pub bic: f64,
+    /// Residual whiteness per output, length n_y.
+    pub whiteness: Vec<Whiteness>,
+    /// Samples per output N.
+    pub samples: usize,
+}
+
+/// Metrics of `y_hat` against `y` (both row-major `N × n_y`, n_y = `outputs.len()`), for a
+/// model with `n_params` estimated parameters; whiteness up to lag `max_lag` (clipped to
+/// N − 1).
+///
+/// # Errors
+/// [`Error::InvalidOption`] when the lengths disagree or are zero, or a value is not
+/// finite.
+pub fn metrics(outputs: &[String], y: &[f64], y_hat: &[f64], n_params: usize, max_lag: usize) -> Result<Metrics> {
+    let ny = outputs.len();
+    let bad = |reason: String| Error::InvalidOption { option: "outputs".into(), reason };
+    if ny == 0 || y.is_empty() || y.len() != y_hat.len() || !y.len().is_multiple_of(ny) {
+        return Err(bad(format!(
+            "{} measured and {} simulated values for {ny} outputs",
+            y.len(),
+            y_hat.len()
+        )));
+    }
+    if let Some(k) = y.iter().chain(y_hat).position(|v| !v.is_finite()) {
+        return Err(bad(format!("value {k} of the outputs is not finite")));
+    }
+    let n = y.len() / ny;
+    let column = |v: &[f64], i: usize| (0..n).map(|k| v[k * ny + i]).collect::<Vec<f64>>();
+    let (mut fit_percent, mut rms_residual, mut whiteness) = (Vec::new(), Vec::new(), Vec::new());
+    let mut sse_total = 0.0;
+    for i in 0..ny {
+        let (yi, hi) = (column(y, i), column(y_hat, i));
+        let e: Vec<f64> = yi.iter().zip(&hi).map(|(a, b)| a - b).collect();
+        let sse: f64 = e.iter().map(|v| v * v).sum();
+        let mean = yi.iter().sum::<f64>() / n as f64;
+        let sst: f64 = yi.iter().map(|v| (v - mean).powi(2)).sum();
+        fit_percent.push(if sst > 0.0 { 100.0 * (1.0 - (sse / sst).sqrt()) } else { f64::NAN });
+        rms_residual.push((sse / n as f64).sqrt());
+        whiteness.push(whiteness_of(&e, max_lag));
+        sse_total += sse;
+    }
+    let m = (n * ny) as f64;
+    let d = n_params as f64;
+    let v = sse_total / m;
+    Ok(Metrics {
+        outputs: outputs.to_vec(),
+        fit_percent,
+        rms_residual,
+        mse: v,
+        fpe: if d < m { v * (1.0 + d / m) / (1.0 - d / m) } else { f64::INFINITY },
+        aic: m * v.ln() + 2.0 * d,
+        bic: m * v.ln() + d * m.ln(),
+        whiteness,
+        samples: n,
+    })
+}
+
+/// Normalised autocorrelation of `e` at lags `1..=max_lag` (clipped to N − 1) and its
+/// 95 % whiteness bound.
+fn whiteness_of(e: &[f64], max_lag: usize) -> Whiteness {
+    let n = e.len();
+    let mean = e.iter().sum::<f64>() / n.max(1) as f64;
+    let c: Vec<f64> = e.iter().map(|v| v - mean).collect();
+    let r0: f64 = c.iter().map(|v| v * v).sum();
+    let lags = max_lag.min(n.saturating_sub(1));
+    let autocorrelation: Vec<f64> = (1..=lags)
+        .map(|tau| if r0 > 0.0 { c.iter().zip(&c[tau..]).map(|(a, b)| a * b).sum::<f64>() / r0 } else { 0.0 })
+        .collect();
+    let bound = 1.96 / (n as f64).sqrt();
+    let outside = autocorrelation.iter().filter(|r| r.abs() > bound).count();
+    Whiteness {
+        fraction_outside: if lags > 0 { outside as f64 / lags as f64 } else { 0.0 },
+        autocorrelation,
+        bound,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn perfect_fit_and_known_values() {
+        let names = vec!["a".to_string()];
+        let y = [1.0, 2.0, 3.0, 4.0];
+        let m = metrics(&names, &y, &y, 1, 2).unwrap();
+        assert_eq!(m.fit_percent, vec![100.0]);
+        assert_eq!(m.mse, 0.0);
+        // ŷ = ȳ gives a fit of 0 %.
+        let m = metrics(&names, &y, &[2.5; 4], 1, 2).unwrap();
+        assert!(m.fit_percent[0].abs() < 1e-12);
+        assert!((m.mse - 1.25).abs() < 1e-12);
+        assert!((m.fpe - 1.25 * (1.0 + 0.25) / (1.0 - 0.25)).abs() < 1e-12);
+        assert!(metrics(&names, &y, &[1.0; 3], 1, 2).is_err());
+    }
+
+    #[test]
+    fn alternating_residuals_are_not_white() {
+        let e: Vec<f64> = (0..200).map(|k| if k % 2 == 0 { 1.0 } else { -1.0 }).collect();
+        let w = whiteness_of(&e, 10);
+        assert!((w.autocorrelation[0] + 1.0).abs() < 0.01);
+        assert_eq!(w.fraction_outside, 1.0);
+    }
+}
