@@ -21,13 +21,19 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
         ModelArg::Ipm => MotorKind::Ipm,
     };
     if let MethodArg::Ls = a.method {
+        ls_only(a)?;
+        let t1 = Instant::now();
         let rule = a.weighting.rule()?;
         let opts = LinearOptions { prefilter: a.prefilter, ..LinearOptions::default() };
         let ls = weighted_least_squares(&logs, a.pole_pairs, kind, rule.as_ref(), &opts)?;
+        let names: Vec<String> = logs.iter().map(|e| e.name().to_string()).collect();
+        let report = ls.report(&names, a.pole_pairs, t1.elapsed().as_secs_f64());
+        let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..report.timing.clone() };
+        let report = FitResult { timing, ..report };
         if !quiet {
             print!("{ls}");
         }
-        return write_json(a, serde_json::to_string_pretty(&ls).unwrap_or_default());
+        return write_json(a, report.to_json());
     }
     let options = PmsmFitOptions {
         pole_pairs: a.pole_pairs,
@@ -74,6 +80,36 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
         eprintln!("warning: the fit did not converge ({})", result.solver.termination);
     }
     Ok(())
+}
+
+/// Refuses the options that linear least squares cannot honour, naming them.
+fn ls_only(a: &FitArgs) -> greybox::Result<()> {
+    let mut bad = Vec::new();
+    let given = [
+        ("--start", a.start.is_some()),
+        ("--fix", !a.fix.is_empty()),
+        ("--per-log", !a.per_log.is_empty()),
+        ("--hold", !matches!(a.hold, HoldArg::Auto)),
+        ("--horizon", a.horizon.is_some()),
+        ("--huber", a.huber.is_some()),
+        ("--output-weights", a.output_weights.is_some()),
+        ("--bounds", !a.bounds.is_empty()),
+        ("--fixed-x0", a.fixed_x0),
+        ("--solver", !matches!(a.solver, SolverArg::Lm)),
+    ];
+    for (flag, set) in given {
+        if set {
+            bad.push(flag);
+        }
+    }
+    if bad.is_empty() {
+        Ok(())
+    } else {
+        Err(greybox::Error::InvalidOption {
+            option: "method".into(),
+            reason: format!("--method ls cannot honour {}: drop them or use --method pem", bad.join(", ")),
+        })
+    }
 }
 
 /// Writes the JSON report where `--json` says ("-" = stdout).

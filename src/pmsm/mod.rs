@@ -19,6 +19,7 @@ pub mod interval;
 pub mod ipm;
 pub mod kind;
 pub mod linear;
+pub mod linear_report;
 pub mod log;
 pub mod signals;
 pub mod spm;

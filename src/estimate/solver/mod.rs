@@ -156,6 +156,8 @@ pub enum Termination {
     /// while the cost is far from zero (above `ε_mach V₀`): no step is defined and a
     /// convergence test passing there certifies nothing.
     ZeroJacobian,
+    /// A linear problem solved in closed form (no iteration).
+    ClosedForm,
     /// argmin stopped the run (timeout, interrupt, target cost).
     Stopped(String),
 }
@@ -165,7 +167,7 @@ impl Termination {
     pub fn success(&self) -> bool {
         matches!(
             self,
-            Self::GradientTolerance | Self::StepTolerance | Self::CostTolerance | Self::ZeroResidual
+            Self::GradientTolerance | Self::StepTolerance | Self::CostTolerance | Self::ZeroResidual | Self::ClosedForm
         )
     }
 }
@@ -180,6 +182,7 @@ impl std::fmt::Display for Termination {
             Self::MaxIterations => f.write_str("not converged: maximum number of iterations reached"),
             Self::NoDescent => f.write_str("not converged: no descent along the search direction"),
             Self::ZeroJacobian => f.write_str("not converged: the Jacobian vanished at a non-zero residual"),
+            Self::ClosedForm => f.write_str("solved in closed form (linear least squares)"),
             Self::Stopped(s) => write!(f, "not converged: stopped by the executor ({s})"),
         }
     }

@@ -1,0 +1,97 @@
+//! The least-squares estimate as the same report a prediction-error fit gives
+//! ([`FitResult`]): `parameters[]` with 95 % intervals, `derived`, `fit`, `diagnostics`,
+//! `timing`, so that scripts read one format whatever the method.
+//!
+//! The "outputs" of the regression are the d and q voltage equations; intervals use
+//! Student's t with the regression's degrees of freedom (thesis 5.2.1, 5.3).
+
+use super::kind::derived;
+use super::linear::LinearEstimate;
+use crate::estimate::diagnostics::{DiagnosticThresholds, diagnose};
+use crate::estimate::result::t_quantile_975;
+use crate::estimate::{FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing};
+use nalgebra::DMatrix;
+
+impl LinearEstimate {
+    /// The estimate as a [`FitResult`] for `experiments` (names) on a machine with `n_p`
+    /// pole pairs; `fit_s` [s] is the time the estimate took.
+    pub fn report(&self, experiments: &[String], n_p: u32, fit_s: f64) -> FitResult {
+        let n = self.theta.len();
+        let tq = t_quantile_975(self.dof);
+        let parameters: Vec<ParameterEstimate> = (0..n)
+            .map(|j| {
+                let (v, se) = (self.theta[j], self.std_error[j]);
+                ParameterEstimate {
+                    name: self.names[j].clone(),
+                    unit: self.units[j].clone(),
+                    value: v,
+                    std_error: se,
+                    ci95: [v - tq * se, v + tq * se],
+                    error_index_percent: self.error_index_percent[j],
+                    fixed: false,
+                    experiment: None,
+                    start: v,
+                }
+            })
+            .collect();
+        let inv = DMatrix::from_fn(n, n, |i, j| self.inverse[i][j]);
+        let correlation: Vec<Vec<f64>> =
+            (0..n).map(|i| (0..n).map(|j| inv[(i, j)] / (inv[(i, i)] * inv[(j, j)]).sqrt()).collect()).collect();
+        let info_rel = inv
+            .clone()
+            .try_inverse()
+            .map(|a| DMatrix::from_fn(n, n, |i, j| a[(i, j)] * self.theta[i] * self.theta[j]))
+            .unwrap_or_else(|| DMatrix::from_element(n, n, f64::NAN));
+        let kind = self.kind;
+        let diagnostics = diagnose(
+            &info_rel,
+            &self.names,
+            &self.error_index_percent,
+            &correlation,
+            &DiagnosticThresholds::default(),
+            &|name| kind.advice(name),
+            &|a, b| kind.pair_advice(a, b),
+        );
+        let rows = self.rows as f64;
+        let sse = self.rms_residual.iter().map(|r| r * r * rows / 2.0).sum::<f64>();
+        let d = n as f64;
+        let fit = FitStatistics {
+            outputs: vec!["ud".into(), "uq".into()],
+            fit_percent: self.fit_percent.to_vec(),
+            rms_residual: self.rms_residual.to_vec(),
+            loss: 0.5 * self.e2,
+            mse: sse / rows,
+            aic: rows * (sse / rows).ln() + 2.0 * d,
+            bic: rows * (sse / rows).ln() + d * rows.ln(),
+            samples: self.rows / 2,
+            dof: self.dof,
+        };
+        let reason = Termination::ClosedForm;
+        FitResult {
+            model: format!("{}_least_squares", kind.model_name()),
+            experiments: experiments.to_vec(),
+            derived: derived(kind, n_p, &self.theta, &self.std_error),
+            parameters,
+            initial_states: Vec::new(),
+            diagnostics,
+            fit,
+            correlation,
+            solver: SolverReport {
+                name: "ls".into(),
+                iterations: 0,
+                termination: reason.to_string(),
+                success: true,
+                reason,
+                evaluations: 1,
+                accepted_iterations: 0,
+            },
+            timing: Timing { read_s: 0.0, fit_s, total_s: fit_s },
+            notes: vec![format!(
+                "linear least squares on the voltage equations (weighting {}; prefilter {}); standard errors \
+                 assume white equation errors",
+                self.weighting,
+                self.options.prefilter.map_or("none".into(), |f| format!("{f} Hz"))
+            )],
+        }
+    }
+}
