@@ -8,14 +8,17 @@
 //! Run: `cargo run --release --example custom_model`
 
 use greybox::estimate::{PemOptions, fit};
-use greybox::model::{GreyBoxModel, Parameter, PmsmSpm, Prepared, VoltageHold};
+use greybox::model::{GreyBoxModel, Parameter, Signal};
+use greybox::pmsm::interval::C64;
+use greybox::pmsm::{
+    DqView, PmsmSpm, VoltageHold, channel, interval_mean_speed, read_log, rotation, stator_hold_start,
+};
 use greybox::{Experiment, Result};
-use nalgebra::Complex;
-
-type C = Complex<f64>;
 
 /// θ = (r_s [Ω], l_s [H], psi_f [V s]); state and output (i_d, i_q) [A].
 struct FluxSpm {
+    /// Pole pairs n_p.
+    n_p: u32,
     params: Vec<Parameter>,
 }
 
@@ -23,8 +26,8 @@ struct FluxSpm {
 struct Inputs {
     h: f64,
     w_e: Vec<f64>,
-    rot: Vec<C>,
-    u_end: Vec<C>,
+    rot: Vec<C64>,
+    u_end: Vec<C64>,
 }
 
 impl GreyBoxModel for FluxSpm {
@@ -37,32 +40,31 @@ impl GreyBoxModel for FluxSpm {
     fn n_states(&self) -> usize {
         2
     }
-    fn n_outputs(&self) -> usize {
-        2
+    fn outputs(&self) -> Vec<Signal> {
+        vec![Signal::new(channel::I_D, "A"), Signal::new(channel::I_Q, "A")]
     }
-    fn output_names(&self) -> Vec<String> {
-        vec!["i_d".into(), "i_q".into()]
+    fn input_channels(&self) -> Vec<String> {
+        vec![channel::U_D.into(), channel::U_Q.into(), channel::W_M.into()]
     }
     fn parameters(&self) -> &[Parameter] {
         &self.params
     }
 
-    fn prepare(&self, e: &Experiment) -> Result<Prepared<Inputs>> {
-        let h = e.h();
+    fn prepare(&self, e: &Experiment) -> Result<Inputs> {
+        let v = DqView::try_new(e)?;
+        let h = v.h();
         let mut inputs = Inputs { h, w_e: vec![], rot: vec![], u_end: vec![] };
-        for k in 0..e.len() - 1 {
-            let w_e = e.w_e_interval(k);
+        for (k, w_m) in interval_mean_speed(v.w_m()).into_iter().enumerate() {
+            let w_e = f64::from(self.n_p) * w_m;
             let phi = w_e * h;
-            let rot = C::new(0.0, -phi).exp();
-            let mean = C::new(e.u_d()[k], e.u_q()[k]);
+            let rot = rotation(phi);
             // Start-of-period voltage u₀ = ū jφ/(1 − e^{−jφ}) (→ ū as φ → 0).
-            let u0 = if phi.abs() < 1e-9 { mean } else { mean * C::new(0.0, phi) / (1.0 - rot) };
+            let u0 = stator_hold_start(C64::new(v.u_d()[k], v.u_q()[k]), phi);
             inputs.w_e.push(w_e);
             inputs.rot.push(rot);
             inputs.u_end.push(u0 * rot);
         }
-        let y = e.i_d().iter().zip(e.i_q()).flat_map(|(d, q)| [*d, *q]).collect();
-        Ok(Prepared { name: e.name().into(), n: e.len(), y, x0: vec![e.i_d()[0], e.i_q()[0]], inputs })
+        Ok(inputs)
     }
 
     fn coefficients(&self, theta: &[f64], _: &Inputs) -> Result<[f64; 3]> {
@@ -81,11 +83,11 @@ impl GreyBoxModel for FluxSpm {
     fn step(&self, c: &[f64; 3], inp: &Inputs, k: usize, x: &[f64], x_next: &mut [f64]) {
         let [r, l, psi] = *c;
         let w = inp.w_e[k];
-        let z = C::new(r, w * l);
+        let z = C64::new(r, w * l);
         let a = (-z * inp.h / l).exp();
         let decay = (-r * inp.h / l).exp();
-        let i = C::new(x[0], x[1]);
-        let n = a * i + inp.u_end[k] * ((1.0 - decay) / r) - (1.0 - a) / z * C::new(0.0, w * psi);
+        let i = C64::new(x[0], x[1]);
+        let n = a * i + inp.u_end[k] * ((1.0 - decay) / r) - (1.0 - a) / z * C64::new(0.0, w * psi);
         x_next[0] = n.re;
         x_next[1] = n.im;
     }
@@ -93,10 +95,12 @@ impl GreyBoxModel for FluxSpm {
 
 fn main() -> Result<()> {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz");
-    let log = greybox::read_csv(path, 4, &Default::default())?;
+    let log = read_log(path, &Default::default())?;
     let positive = |name: &str, unit: &str| Parameter { lower: 1e-12, ..Parameter::free(name, unit, 1.0) };
-    let model =
-        FluxSpm { params: vec![positive("r_s", "ohm"), positive("l_s", "H"), positive("psi_f", "V s")] };
+    let model = FluxSpm {
+        n_p: 4,
+        params: vec![positive("r_s", "ohm"), positive("l_s", "H"), positive("psi_f", "V s")],
+    };
 
     // A rough start, as a user would have from a data sheet.
     let start = [1.2, 3.5e-3, 0.09];
@@ -104,7 +108,8 @@ fn main() -> Result<()> {
     println!("user-defined model (finite-difference sensitivities):\n{custom}");
 
     let builtin_start = [start[0], start[1], start[2] * 4.0 * (1.5f64).sqrt()];
-    let builtin = fit(&PmsmSpm::new(VoltageHold::Stator), &[log], &builtin_start, &PemOptions::default())?;
+    let builtin =
+        fit(&PmsmSpm::new(model.n_p, VoltageHold::Stator), &[log], &builtin_start, &PemOptions::default())?;
     let psi_builtin =
         builtin.parameter("k_e").map(|p| p.value * (2.0f64 / 3.0).sqrt() / 4.0).unwrap_or(f64::NAN);
     for (name, a, b) in [

@@ -10,29 +10,26 @@
 //! comparison only, the error against the log's ground truth. The error index does not
 //! change when every weight is scaled, so the rows compare directly.
 
-#[path = "../tests/it/common/mod.rs"]
 mod common;
 
 use common::{load, rel};
 use greybox::estimate::weighting::SpeedShape;
 use greybox::estimate::{PemOptions, WeightingKind};
-use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
+use greybox::pmsm::{HoldChoice, PmsmFitOptions, channel, fit_pmsm};
 
 fn main() -> greybox::Result<()> {
     common::require_shared!(Ok(()));
+    let speed = |shape| WeightingKind::Speed { channel: channel::W_M.into(), shape };
     let weightings = [
         ("uniform", WeightingKind::Uniform),
-        ("low speed, w0 50", WeightingKind::Speed { shape: SpeedShape::LowSpeed { w0: 50.0 } }),
-        ("high speed, w0 150", WeightingKind::Speed { shape: SpeedShape::HighSpeed { w0: 150.0 } }),
-        (
-            "band 150-300, 0.05",
-            WeightingKind::Speed { shape: SpeedShape::Band { lo: 150.0, hi: 300.0, floor: 0.05 } },
-        ),
+        ("low speed, w0 50", speed(SpeedShape::LowSpeed { w0: 50.0 })),
+        ("high speed, w0 150", speed(SpeedShape::HighSpeed { w0: 150.0 })),
+        ("band 150-300, 0.05", speed(SpeedShape::Band { lo: 150.0, hi: 300.0, floor: 0.05 })),
     ];
     for stem in ["servo_spm_moves_idinj", "servo_spm_moves_idinj_noisy"] {
-        let (log, truth) = load(stem);
+        let (log, truth) = load(stem)?;
         let truths = [truth.r_s, truth.l_d, truth.k_e];
-        println!("\n{stem}: {} samples, h = {} s, n_p = {}", log.len(), log.h(), log.n_p());
+        println!("\n{stem}: {} samples, h = {} s, n_p = {}", log.len(), log.h(), truth.n_p);
         println!(
             "{:<19} | {:>12} {:>9} {:>9} | {:>12} {:>9} {:>9} | {:>12} {:>9} {:>9} | {:>4}",
             "weighting",
@@ -47,8 +44,9 @@ fn main() -> greybox::Result<()> {
             "rel err",
             "iter"
         );
-        for (label, weighting) in weightings {
+        for (label, weighting) in weightings.clone() {
             let opts = PmsmFitOptions {
+                pole_pairs: truth.n_p,
                 hold: HoldChoice::Stator,
                 pem: PemOptions { weighting, ..Default::default() },
                 ..Default::default()

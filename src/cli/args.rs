@@ -1,8 +1,8 @@
 //! Command-line arguments of `greybox fit` and their mapping to library options.
 
 use clap::{Args, ValueEnum};
-use greybox::estimate::{Tolerances, WeightingKind};
 use greybox::estimate::weighting::SpeedShape;
+use greybox::estimate::{Tolerances, WeightingKind};
 use greybox::pmsm::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
 use std::path::PathBuf;
 
@@ -268,4 +268,3 @@ fn parse_weighting(s: &str) -> Result<WeightingKind, String> {
     greybox::estimate::weighting::SpeedWeighting::try_new(channel, shape).map_err(|e| e.to_string())?;
     Ok(WeightingKind::Speed { channel: channel.into(), shape })
 }
-

@@ -2,8 +2,8 @@
 
 use super::args::{FitArgs, HoldArg, MethodArg, ModelArg, ScalingArg, SolverArg};
 use greybox::estimate::{FitResult, PemOptions, ScalingKind, SolverKind, Timing, Tolerances};
-use greybox::pmsm::{CsvOptions, HoldChoice, LinearOptions, MotorKind, PmsmFit, PmsmFitOptions, fit_pmsm};
 use greybox::pmsm::weighted_least_squares;
+use greybox::pmsm::{CsvOptions, HoldChoice, LinearOptions, MotorKind, PmsmFit, PmsmFitOptions, fit_pmsm};
 use std::time::Instant;
 
 pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
@@ -14,7 +14,8 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
     }
     let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
     let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
-    let logs = a.logs.iter().map(|p| greybox::pmsm::read_log(p, &csv)).collect::<greybox::Result<Vec<_>>>()?;
+    let logs =
+        a.logs.iter().map(|p| greybox::pmsm::read_log(p, &csv)).collect::<greybox::Result<Vec<_>>>()?;
     let read_s = t0.elapsed().as_secs_f64();
     let kind = match a.model {
         ModelArg::Spm => MotorKind::Spm,
@@ -124,4 +125,3 @@ pub fn write_json(a: &FitArgs, json: String) -> greybox::Result<()> {
             .map_err(|source| greybox::Error::Io { path: path.clone(), source }),
     }
 }
-

@@ -123,7 +123,8 @@ pub fn read_csv(path: impl AsRef<Path>, spec: &CsvSpec) -> Result<Experiment> {
         .collect();
     Experiment::try_from_time(table.name, &spec.time, &t, channels).map_err(|e| match e {
         Error::NonFinite { column, row, value } => {
-            let column = spec.columns.iter().find(|c| c.channel == column).map_or(column, |c| c.column.clone());
+            let column =
+                spec.columns.iter().find(|c| c.channel == column).map_or(column, |c| c.column.clone());
             Error::NonFinite { column, row, value }
         }
         other => other,

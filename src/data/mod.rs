@@ -69,7 +69,11 @@ impl Experiment {
                 return Err(Error::DuplicateChannel { experiment: name, channel: c.name.clone() });
             }
             if c.values.len() != n {
-                return Err(Error::LengthMismatch { column: c.name.clone(), expected: n, found: c.values.len() });
+                return Err(Error::LengthMismatch {
+                    column: c.name.clone(),
+                    expected: n,
+                    found: c.values.len(),
+                });
             }
         }
         if n < MIN_SAMPLES {
@@ -102,7 +106,11 @@ impl Experiment {
     ) -> Result<Self> {
         let name = name.into();
         if let Some(c) = channels.iter().find(|c| c.values.len() != t.len()) {
-            return Err(Error::LengthMismatch { column: c.name.clone(), expected: t.len(), found: c.values.len() });
+            return Err(Error::LengthMismatch {
+                column: c.name.clone(),
+                expected: t.len(),
+                found: c.values.len(),
+            });
         }
         if t.len() < 2 {
             return Err(Error::TooShort { name, len: t.len(), min: 2 });

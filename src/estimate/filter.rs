@@ -245,7 +245,8 @@ impl Butterworth {
             .channels()
             .iter()
             .map(|c| {
-                let values = if keep.contains(&c.name.as_str()) { c.values.clone() } else { self.filtfilt(&c.values) };
+                let values =
+                    if keep.contains(&c.name.as_str()) { c.values.clone() } else { self.filtfilt(&c.values) };
                 Channel::new(c.name.clone(), c.unit.clone(), values)
             })
             .collect();

@@ -113,7 +113,11 @@ pub fn solve_weighted(names: &[String], phi: &[f64], y: &[f64], sqrt_w: &[f64]) 
     let sigma2 = if rows_w > cols { e2 / (rows_w - cols) as f64 } else { f64::NAN };
     Ok(LinearSolution {
         std_error: inv_diag.iter().map(|d| (sigma2 * d).sqrt()).collect(),
-        error_index_percent: inv_diag.iter().zip(&theta).map(|(d, t)| 100.0 * (e2 * d).sqrt() / t.abs()).collect(),
+        error_index_percent: inv_diag
+            .iter()
+            .zip(&theta)
+            .map(|(d, t)| 100.0 * (e2 * d).sqrt() / t.abs())
+            .collect(),
         theta,
         e2,
         inverse,

@@ -382,7 +382,11 @@ pub(crate) fn assemble<M: GreyBoxModel>(
 
 /// The model's derived quantities per experiment's θ, once when every experiment gives the
 /// same (no per-experiment parameter they depend on).
-fn derived<M: GreyBoxModel>(model: &M, parameters: &[ParameterEstimate], names: &[String]) -> Vec<DerivedEstimate> {
+fn derived<M: GreyBoxModel>(
+    model: &M,
+    parameters: &[ParameterEstimate],
+    names: &[String],
+) -> Vec<DerivedEstimate> {
     let n_theta = model.parameters().len();
     let per_experiment: Vec<Vec<DerivedEstimate>> = names
         .iter()

@@ -262,7 +262,16 @@ pub trait Sensitivities<I, C>: Sync {
     /// One period with forward sensitivities: `x_next` as [`GreyBoxModel::step`] and
     /// `s_next = ∂x_next/∂x · s + ∂x_next/∂θ` (row-major `n_x × n_θ`).
     #[allow(clippy::too_many_arguments)]
-    fn step_sensitivity(&self, c: &C, inputs: &I, k: usize, x: &[f64], s: &[f64], x_next: &mut [f64], s_next: &mut [f64]);
+    fn step_sensitivity(
+        &self,
+        c: &C,
+        inputs: &I,
+        k: usize,
+        x: &[f64],
+        s: &[f64],
+        x_next: &mut [f64],
+        s_next: &mut [f64],
+    );
 
     /// Output sensitivity `∂y/∂θ = ∂g/∂x · s + ∂g/∂θ` (row-major `n_y × n_θ`). For a
     /// model whose output is its first n_y states this copies the first n_y rows of `s`.

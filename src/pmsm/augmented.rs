@@ -205,7 +205,13 @@ impl Sub {
 
 /// `z ← e^{hM} z`, choosing substeps or scaling and squaring from the spectral scale;
 /// `one` is the constant component of z (see [`Sub::propagate`]).
-pub(crate) fn advance<const SENS: bool>(c: &IpmCoefficients, inp: &IpmInputs, k: usize, z: &mut Aug, one: f64) {
+pub(crate) fn advance<const SENS: bool>(
+    c: &IpmCoefficients,
+    inp: &IpmInputs,
+    k: usize,
+    z: &mut Aug,
+    one: f64,
+) {
     let w_e = inp.w_e[k];
     let w_v = match inp.hold {
         VoltageHold::Stator => w_e,
@@ -254,8 +260,8 @@ pub(crate) fn advance<const SENS: bool>(c: &IpmCoefficients, inp: &IpmInputs, k:
 mod tests {
     use super::*;
     use crate::model::GreyBoxModel;
-    use crate::pmsm::SQRT_2_3;
     use crate::pmsm::PmsmIpm;
+    use crate::pmsm::SQRT_2_3;
 
     fn coefficients() -> IpmCoefficients {
         let inp = IpmInputs { h: 2e-4, hold: VoltageHold::Stator, w_e: vec![], emf: vec![], u0: vec![] };

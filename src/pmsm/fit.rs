@@ -102,7 +102,11 @@ impl std::fmt::Display for PmsmFit {
                 .iter()
                 .map(|c| format!("{} {:+.4} %", c.name, c.difference_percent))
                 .collect();
-            writeln!(f, "least-squares start vs estimate (LS bias if the fit is right): {}", parts.join(", "))?;
+            writeln!(
+                f,
+                "least-squares start vs estimate (LS bias if the fit is right): {}",
+                parts.join(", ")
+            )?;
         }
         for a in &self.pmsm_advice {
             writeln!(f, "advice: {a}")?;

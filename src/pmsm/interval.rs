@@ -129,4 +129,3 @@ pub(crate) fn cexpm1(w: C64) -> C64 {
     let half = (0.5 * w.im).sin();
     C64::new(w.re.exp_m1() * c - 2.0 * half * half, w.re.exp() * s)
 }
-

@@ -268,7 +268,15 @@ impl Sensitivities<IpmInputs, IpmCoefficients> for PmsmIpm {
     }
 
     #[inline]
-    fn output_sensitivity(&self, _c: &IpmCoefficients, _inp: &IpmInputs, _k: usize, _x: &[f64], s: &[f64], dy: &mut [f64]) {
+    fn output_sensitivity(
+        &self,
+        _c: &IpmCoefficients,
+        _inp: &IpmInputs,
+        _k: usize,
+        _x: &[f64],
+        s: &[f64],
+        dy: &mut [f64],
+    ) {
         dy.copy_from_slice(&s[..8]);
     }
 }

@@ -274,7 +274,8 @@ pub fn weighted_least_squares(
         e2: sol.e2,
         dof: sol.dof,
         inverse: sol.inverse,
-        fit_percent: [0, 1].map(|c| if sst[c] > 0.0 { 100.0 * (1.0 - (sse[c] / sst[c]).sqrt()) } else { f64::NAN }),
+        fit_percent: [0, 1]
+            .map(|c| if sst[c] > 0.0 { 100.0 * (1.0 - (sse[c] / sst[c]).sqrt()) } else { f64::NAN }),
         rms_residual: [(sse[0] / half).sqrt(), (sse[1] / half).sqrt()],
         rows,
         weighting: weighting.name(),

@@ -35,8 +35,9 @@ impl LinearEstimate {
             })
             .collect();
         let inv = DMatrix::from_fn(n, n, |i, j| self.inverse[i][j]);
-        let correlation: Vec<Vec<f64>> =
-            (0..n).map(|i| (0..n).map(|j| inv[(i, j)] / (inv[(i, i)] * inv[(j, j)]).sqrt()).collect()).collect();
+        let correlation: Vec<Vec<f64>> = (0..n)
+            .map(|i| (0..n).map(|j| inv[(i, j)] / (inv[(i, i)] * inv[(j, j)]).sqrt()).collect())
+            .collect();
         let info_rel = inv
             .clone()
             .try_inverse()

@@ -222,7 +222,9 @@ pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experime
     }
     wanted.extend([(c.u_d_ref.as_str(), false), (c.u_q_ref.as_str(), false)]);
     let table = match read_table(path, &wanted) {
-        Err(Error::TooShort { name, len, .. }) => return Err(Error::TooShort { name, len, min: MIN_SAMPLES }),
+        Err(Error::TooShort { name, len, .. }) => {
+            return Err(Error::TooShort { name, len, min: MIN_SAMPLES });
+        }
         other => other?,
     };
     let rows = table.columns[0].as_ref().map_or(0, Vec::len);
@@ -308,7 +310,10 @@ fn build(name: String, cols: Vec<Option<Vec<f64>>>, n_p: u32, options: &CsvOptio
             }
             let h = mean_step(&t);
             let [i_a, i_b, i_c, u_a, u_b, u_c] = &ph[..] else {
-                return Err(Error::Numerical { context: "phase columns".into(), reason: "six expected".into() });
+                return Err(Error::Numerical {
+                    context: "phase columns".into(),
+                    reason: "six expected".into(),
+                });
             };
             let (i_d, i_q) = currents_to_dq(i_a, i_b, i_c, th, n_p)?;
             let (u_d, u_q) = stator_held_voltages_to_dq(u_a, u_b, u_c, th, &w_m, h, n_p)?;
@@ -360,4 +365,3 @@ fn rename_columns(e: Error, c: &ColumnNames) -> Error {
         other => other,
     }
 }
-

@@ -285,7 +285,15 @@ impl Sensitivities<SpmInputs, SpmCoefficients> for PmsmSpm {
     }
 
     #[inline]
-    fn output_sensitivity(&self, _c: &SpmCoefficients, _inp: &SpmInputs, _k: usize, _x: &[f64], s: &[f64], dy: &mut [f64]) {
+    fn output_sensitivity(
+        &self,
+        _c: &SpmCoefficients,
+        _inp: &SpmInputs,
+        _k: usize,
+        _x: &[f64],
+        s: &[f64],
+        dy: &mut [f64],
+    ) {
         dy.copy_from_slice(&s[..6]);
     }
 }

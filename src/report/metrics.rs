@@ -53,7 +53,13 @@ pub struct Metrics {
 /// # Errors
 /// [`Error::InvalidOption`] when the lengths disagree or are zero, or a value is not
 /// finite.
-pub fn metrics(outputs: &[String], y: &[f64], y_hat: &[f64], n_params: usize, max_lag: usize) -> Result<Metrics> {
+pub fn metrics(
+    outputs: &[String],
+    y: &[f64],
+    y_hat: &[f64],
+    n_params: usize,
+    max_lag: usize,
+) -> Result<Metrics> {
     let ny = outputs.len();
     let bad = |reason: String| Error::InvalidOption { option: "outputs".into(), reason };
     if ny == 0 || y.is_empty() || y.len() != y_hat.len() || !y.len().is_multiple_of(ny) {

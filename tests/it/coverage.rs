@@ -10,13 +10,13 @@
 //! tests check the fixed-x0 path where its assumption holds: with `i[0]` exact, and with
 //! the initial transient weighted out.
 
-use crate::common::{Rng, exciting_signals, simulate_into};
-use greybox::estimate::linear::{MotorKind, least_squares};
+use crate::common::{Rng, Signals, exciting_signals, experiment, pmsm_options, simulate_into};
+use greybox::Experiment;
 use greybox::estimate::weighting::CustomWeighting;
 use greybox::estimate::{FitResult, PemOptions, fit_with_weighting};
-use greybox::model::{PmsmSpm, VoltageHold};
-use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
-use greybox::{Experiment, Signals};
+use greybox::pmsm::{
+    DqView, HoldChoice, MotorKind, PmsmFitOptions, PmsmSpm, VoltageHold, fit_pmsm, least_squares,
+};
 
 /// Truth `(r_s [Ω], l_s [H], k_e [V s/rad])`, pole pairs, sample time [s].
 const THETA: [f64; 3] = [0.9, 4.5e-3, 0.539];
@@ -37,17 +37,17 @@ const TRANSIENT: usize = 500;
 fn clean_record() -> Experiment {
     let mut rng = Rng(0x5eed_c0de);
     let signals = exciting_signals(N, H, 250.0, 60.0, THETA[2], &mut rng);
-    simulate_into(&PmsmSpm::new(VoltageHold::Stator), &THETA, H, N_P, signals)
+    simulate_into(&PmsmSpm::new(N_P, VoltageHold::Stator), &THETA, H, signals)
 }
 
 /// `clean` with white Gaussian noise of σ [A] on i_d and i_q only, from sample `first` on.
 fn noisy(clean: &Experiment, seed: u64, first: usize) -> Experiment {
     let mut rng = Rng(seed);
-    let mut s: Signals = clean.signals().clone();
+    let mut s: Signals = DqView::try_new(clean).expect("PMSM channels").to_signals();
     for v in s.i_d[first..].iter_mut().chain(s.i_q[first..].iter_mut()) {
         *v += SIGMA * rng.normal();
     }
-    Experiment::try_new(format!("noisy-{seed}"), clean.h(), clean.n_p(), s).expect("valid signals")
+    experiment(&format!("noisy-{seed}"), clean.h(), s)
 }
 
 /// Seed of realisation r (non-zero and far apart; xorshift needs a non-zero state).
@@ -100,8 +100,8 @@ fn assert_band(label: &str, cov: [f64; 3]) {
 fn ci95_coverage_with_exact_initial_state() {
     let clean = clean_record();
     let pem = PemOptions { estimate_x0: false, ..Default::default() };
-    let opts = PmsmFitOptions { hold: HoldChoice::Stator, pem, ..Default::default() };
-    let cov = coverage(|r| fit_pmsm(&[noisy(&clean, seed(r), 1)], &opts).expect("fit runs"));
+    let opts = PmsmFitOptions { hold: HoldChoice::Stator, pem, ..pmsm_options(N_P) };
+    let cov = coverage(|r| fit_pmsm(&[noisy(&clean, seed(r), 1)], &opts).expect("fit runs").report);
     assert_band("exact i[0]", cov);
 }
 
@@ -110,11 +110,11 @@ fn ci95_coverage_with_exact_initial_state() {
 #[test]
 fn ci95_coverage_with_initial_transient_weighted_out() {
     let clean = clean_record();
-    let model = PmsmSpm::new(VoltageHold::Stator);
+    let model = PmsmSpm::new(N_P, VoltageHold::Stator);
     let skip = CustomWeighting::new("skip initial transient", |_, k| if k < TRANSIENT { 0.0 } else { 1.0 });
     let cov = coverage(|r| {
         let e = noisy(&clean, seed(r), 0);
-        let start = least_squares(std::slice::from_ref(&e), MotorKind::Spm).expect("LS start").theta;
+        let start = least_squares(std::slice::from_ref(&e), N_P, MotorKind::Spm).expect("LS start").theta;
         let pem = PemOptions { estimate_x0: false, ..Default::default() };
         fit_with_weighting(&model, &[e], &start, &pem, &skip).expect("fit runs")
     });
@@ -126,8 +126,8 @@ fn ci95_coverage_with_initial_transient_weighted_out() {
 #[test]
 fn ci95_coverage_with_noisy_initial_state() {
     let clean = clean_record();
-    let opts = PmsmFitOptions { hold: HoldChoice::Stator, ..Default::default() };
-    let cov = coverage(|r| fit_pmsm(&[noisy(&clean, seed(r), 0)], &opts).expect("fit runs"));
+    let opts = PmsmFitOptions { hold: HoldChoice::Stator, ..pmsm_options(N_P) };
+    let cov = coverage(|r| fit_pmsm(&[noisy(&clean, seed(r), 0)], &opts).expect("fit runs").report);
     assert_band("noisy i[0]", cov);
 }
 
@@ -138,7 +138,7 @@ fn ci95_coverage_with_noisy_initial_state() {
 fn ci95_coverage_with_residual_prefilter() {
     let clean = clean_record();
     let pem = PemOptions { prefilter: Some(1000.0), ..Default::default() };
-    let opts = PmsmFitOptions { hold: HoldChoice::Stator, pem, ..Default::default() };
-    let cov = coverage(|r| fit_pmsm(&[noisy(&clean, seed(r), 0)], &opts).expect("fit runs"));
+    let opts = PmsmFitOptions { hold: HoldChoice::Stator, pem, ..pmsm_options(N_P) };
+    let cov = coverage(|r| fit_pmsm(&[noisy(&clean, seed(r), 0)], &opts).expect("fit runs").report);
     assert_band("prefilter 1 kHz", cov);
 }

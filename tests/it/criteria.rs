@@ -3,9 +3,10 @@
 //! finite-difference fallback for models without analytic sensitivities, and determinism
 //! of multi-experiment fits.
 
-use crate::common::{Rng, exciting_signals, rel, simulate_into};
+use crate::common::{Rng, exciting_signals, rel, sim, simulate_into};
 use greybox::estimate::{PemOptions, PemProblem, ProblemOptions, ScalingKind, fit, scaling::NominalScaling};
-use greybox::model::{GreyBoxModel, Parameter, PmsmIpm, PmsmSpm, Prepared, VoltageHold};
+use greybox::model::{GreyBoxModel, Parameter, Prepared, Signal};
+use greybox::pmsm::{DqView, PmsmIpm, PmsmSpm, VoltageHold};
 use greybox::{Experiment, Result};
 
 const THETA: [f64; 3] = [0.9, 4.5e-3, 0.539];
@@ -14,17 +15,16 @@ fn record(seed: u64, n: usize) -> Experiment {
     let h = 1e-4;
     let mut rng = Rng(seed);
     simulate_into(
-        &PmsmSpm::new(VoltageHold::Stator),
+        &PmsmSpm::new(4, VoltageHold::Stator),
         &THETA,
         h,
-        4,
         exciting_signals(n, h, 250.0, 60.0, THETA[2], &mut rng),
     )
 }
 
 fn assert_recovers(opts: &PemOptions, start: &[f64], tol: f64, label: &str) {
     let e = record(3, 4000);
-    let r = fit(&PmsmSpm::new(VoltageHold::Stator), &[e], start, opts).unwrap();
+    let r = fit(&PmsmSpm::new(4, VoltageHold::Stator), &[e], start, opts).unwrap();
     assert!(r.solver.success, "{label}: {}", r.solver.termination);
     for (n, t) in ["r_s", "l_s", "k_e"].iter().zip(THETA) {
         let v = r.parameter(n).unwrap().value;
@@ -69,12 +69,13 @@ fn initial_state_is_estimated_when_the_first_sample_is_wrong() {
     // the parameters; estimated, it is one residual among 8000 and x0 comes back close to
     // the true first state.
     let e = record(4, 4000);
-    let true_first = [e.i_d()[0], e.i_q()[0]];
-    let mut s = e.signals().clone();
+    let v = DqView::try_new(&e).unwrap();
+    let true_first = [v.i_d()[0], v.i_q()[0]];
+    let mut s = v.to_signals();
     s.i_d[0] += 1.0;
     s.i_q[0] -= 1.0;
-    let bad = Experiment::try_new("bad-first", e.h(), e.n_p(), s).unwrap();
-    let m = PmsmSpm::new(VoltageHold::Stator);
+    let bad = s.into_experiment("bad-first", e.h()).unwrap();
+    let m = PmsmSpm::new(4, VoltageHold::Stator);
     let worst = |r: &greybox::estimate::FitResult| {
         ["r_s", "l_s", "k_e"]
             .iter()
@@ -110,16 +111,22 @@ impl<M: GreyBoxModel> GreyBoxModel for NoSensitivities<M> {
     fn n_states(&self) -> usize {
         self.0.n_states()
     }
-    fn n_outputs(&self) -> usize {
-        self.0.n_outputs()
+    fn outputs(&self) -> Vec<Signal> {
+        self.0.outputs()
     }
-    fn output_names(&self) -> Vec<String> {
-        self.0.output_names()
+    fn input_channels(&self) -> Vec<String> {
+        self.0.input_channels()
+    }
+    fn states(&self) -> Vec<Signal> {
+        self.0.states()
+    }
+    fn initial_state(&self, y0: &[f64], x0: &mut [f64]) {
+        self.0.initial_state(y0, x0)
     }
     fn parameters(&self) -> &[Parameter] {
         self.0.parameters()
     }
-    fn prepare(&self, e: &Experiment) -> Result<Prepared<M::Inputs>> {
+    fn prepare(&self, e: &Experiment) -> Result<M::Inputs> {
         self.0.prepare(e)
     }
     fn coefficients(&self, theta: &[f64], inputs: &M::Inputs) -> Result<M::Coefficients> {
@@ -128,6 +135,10 @@ impl<M: GreyBoxModel> GreyBoxModel for NoSensitivities<M> {
     fn step(&self, c: &M::Coefficients, inputs: &M::Inputs, k: usize, x: &[f64], xn: &mut [f64]) {
         self.0.step(c, inputs, k, x, xn)
     }
+    fn output(&self, c: &M::Coefficients, inputs: &M::Inputs, k: usize, x: &[f64], y: &mut [f64]) {
+        self.0.output(c, inputs, k, x, y)
+    }
+    // `sensitivities` keeps its default, `None`: the estimator uses finite differences.
 }
 
 fn normal_equations<M: GreyBoxModel>(
@@ -136,7 +147,7 @@ fn normal_equations<M: GreyBoxModel>(
     theta: &[f64],
     x0: bool,
 ) -> (nalgebra::DMatrix<f64>, nalgebra::DVector<f64>) {
-    let prep = m.prepare(e).unwrap();
+    let prep = Prepared::new(m, e).unwrap();
     let opts = ProblemOptions { estimate_x0: x0, ..Default::default() };
     let p = PemProblem::new(m, vec![(prep, None)], theta, &NominalScaling, &opts).unwrap();
     let ne = p.normal_equations(&p.start_vector(theta)).unwrap();
@@ -148,9 +159,9 @@ fn finite_difference_fallback_matches_analytic_sensitivities() {
     let e = record(8, 1500);
     let theta = [1.1, 4.0e-3, 0.55];
     for x0 in [false, true] {
-        let (a_jtj, a_jtr) = normal_equations(&PmsmSpm::new(VoltageHold::Stator), &e, &theta, x0);
+        let (a_jtj, a_jtr) = normal_equations(&PmsmSpm::new(4, VoltageHold::Stator), &e, &theta, x0);
         let (f_jtj, f_jtr) =
-            normal_equations(&NoSensitivities(PmsmSpm::new(VoltageHold::Stator)), &e, &theta, x0);
+            normal_equations(&NoSensitivities(PmsmSpm::new(4, VoltageHold::Stator)), &e, &theta, x0);
         let dj = (&a_jtj - &f_jtj).norm() / a_jtj.norm();
         let dr = (&a_jtr - &f_jtr).norm() / a_jtr.norm();
         eprintln!("x0 {x0}: JᵀJ {dj:.2e}, Jᵀε {dr:.2e}");
@@ -159,12 +170,12 @@ fn finite_difference_fallback_matches_analytic_sensitivities() {
     let h = 2e-4;
     let mut rng = Rng(9);
     let th = [0.35, 3.2e-3, 7.5e-3, 0.4164];
-    let ipm = PmsmIpm::new(VoltageHold::Stator);
-    let e = simulate_into(&ipm, &th, h, 2, exciting_signals(1500, h, 200.0, 40.0, th[3], &mut rng));
+    let ipm = PmsmIpm::new(2, VoltageHold::Stator);
+    let e = simulate_into(&ipm, &th, h, exciting_signals(1500, h, 200.0, 40.0, th[3], &mut rng));
     let start = [0.4, 3.0e-3, 7.0e-3, 0.4];
     let (a_jtj, a_jtr) = normal_equations(&ipm, &e, &start, true);
     let (f_jtj, f_jtr) =
-        normal_equations(&NoSensitivities(PmsmIpm::new(VoltageHold::Stator)), &e, &start, true);
+        normal_equations(&NoSensitivities(PmsmIpm::new(2, VoltageHold::Stator)), &e, &start, true);
     let dj = (&a_jtj - &f_jtj).norm() / a_jtj.norm();
     let dr = (&a_jtr - &f_jtr).norm() / a_jtr.norm();
     eprintln!("IPM: JᵀJ {dj:.2e}, Jᵀε {dr:.2e}");
@@ -177,7 +188,7 @@ fn multi_experiment_results_do_not_depend_on_the_thread_count() {
     let opts = PemOptions { per_experiment: vec!["r_s".into()], ..Default::default() };
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| fit(&PmsmSpm::new(VoltageHold::Stator), &logs, &START, &opts).unwrap())
+        pool.install(|| fit(&PmsmSpm::new(4, VoltageHold::Stator), &logs, &START, &opts).unwrap())
     };
     let (one, four) = (run(1), run(4));
     for (a, b) in one.parameters.iter().zip(&four.parameters) {
@@ -189,10 +200,10 @@ fn multi_experiment_results_do_not_depend_on_the_thread_count() {
 #[test]
 fn full_residuals_and_jacobian_agree_with_the_streamed_normal_equations() {
     let e = record(31, 1200);
-    let m = PmsmSpm::new(VoltageHold::Stator);
+    let m = PmsmSpm::new(4, VoltageHold::Stator);
     let start = [1.1, 4.0e-3, 0.55];
     for x0 in [false, true] {
-        let prep = m.prepare(&e).unwrap();
+        let prep = Prepared::new(&m, &e).unwrap();
         let opts = ProblemOptions { estimate_x0: x0, ..Default::default() };
         let p = PemProblem::new(&m, vec![(prep, None)], &start, &NominalScaling, &opts).unwrap();
         let p0 = p.start_vector(&start);
@@ -209,9 +220,9 @@ fn full_residuals_and_jacobian_agree_with_the_streamed_normal_equations() {
 #[test]
 fn wrong_parameter_count_is_an_error_not_a_panic() {
     let e = record(32, 100);
-    let m = PmsmSpm::new(VoltageHold::Stator);
-    let prep = m.prepare(&e).unwrap();
-    let err = greybox::simulate::simulate(&m, &prep, &[0.9, 4.5e-3]).unwrap_err();
+    let m = PmsmSpm::new(4, VoltageHold::Stator);
+    let prep = Prepared::new(&m, &e).unwrap();
+    let err = sim(&m, &prep, &[0.9, 4.5e-3]).unwrap_err();
     assert!(err.to_string().contains("theta"), "{err}");
     let err = fit(&m, &[e], &[0.9], &PemOptions::default()).unwrap_err();
     assert!(err.to_string().contains("start"), "{err}");

@@ -6,15 +6,18 @@ use std::path::{Path, PathBuf};
 use std::sync::LazyLock;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use crate::common::shared_file;
+use crate::common::{Signals, read as read_csv, shared_file};
 use approx::assert_relative_eq;
 use greybox::Error;
-use greybox::data::csv::{AngleUnit, CsvOptions, DqSource, Frame, Scale, SpeedUnit, read_csv, read_csv_many};
-use greybox::data::transform::{
+use greybox::data::csv::{ColumnMap, CsvSpec};
+use greybox::data::{Channel, Experiment};
+use greybox::pmsm::transform::{
     clarke, currents_to_dq, inverse_clarke, inverse_park, park, stator_held_voltages_to_dq,
     stator_hold_mean_factor,
 };
-use greybox::data::{Experiment, MIN_SAMPLES, Signals};
+use greybox::pmsm::{
+    AngleUnit, CsvOptions, DqSource, DqView, Frame, MIN_SAMPLES, Scale, SpeedUnit, read_logs,
+};
 use proptest::prelude::*;
 
 // Development logs (../shared/data, or $GREYBOX_SHARED_DATA; see `common::shared_dir`).
@@ -59,17 +62,20 @@ fn reads_motulator_log() {
     let e = read_csv(&*SERVO, 4, &CsvOptions::default()).unwrap();
     assert_eq!(e.name(), "servo_spm_moves_idinj");
     assert_eq!(e.len(), 72_000);
-    assert_eq!(e.n_p(), 4);
+    // The experiment no longer carries n_p (the model does): check its channels instead.
+    let names: Vec<&str> = e.channels().iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["ud", "uq", "id", "iq", "w_m", "theta_m", "ud_ref", "uq_ref"]);
     assert!((e.h() - 1e-4).abs() < 1e-12, "h = {}", e.h());
-    let s = e.signals();
+    let v = DqView::try_new(&e).unwrap();
+    let s = v.to_signals();
     assert_eq!(s.theta_m.as_ref().map(Vec::len), Some(72_000));
     assert_eq!(s.u_d_ref.as_ref().map(Vec::len), Some(72_000));
     assert_eq!(s.u_q_ref.as_ref().map(Vec::len), Some(72_000));
     // Row 1 of the file: 0.000100,0,0,-5.363765e-10,0.0001616121,-0.03324986,-1.663893e-06,...
-    assert_eq!(e.i_d()[1], -5.363765e-10);
-    assert_eq!(e.i_q()[1], 0.0001616121);
-    assert_eq!(e.w_m()[1], -0.03324986);
-    assert_eq!(e.theta_m().unwrap()[1], -1.663893e-06);
+    assert_eq!(v.i_d()[1], -5.363765e-10);
+    assert_eq!(v.i_q()[1], 0.0001616121);
+    assert_eq!(v.w_m()[1], -0.03324986);
+    assert_eq!(v.theta_m().unwrap()[1], -1.663893e-06);
     assert_eq!(s.u_q_ref.as_ref().unwrap()[1], -0.001827789);
 }
 
@@ -80,20 +86,21 @@ fn reads_gem_log_without_references() {
     assert_eq!(e.name(), "gem_spm_moves_idinj");
     assert_eq!(e.len(), 58_400);
     assert!((e.h() - 1.25e-4).abs() < 1e-12, "h = {}", e.h());
-    assert!(e.theta_m().is_some());
-    assert!(e.signals().u_d_ref.is_none());
-    assert!(e.signals().u_q_ref.is_none());
+    let v = DqView::try_new(&e).unwrap();
+    assert!(v.theta_m().is_some());
+    assert!(v.to_signals().u_d_ref.is_none());
+    assert!(v.to_signals().u_q_ref.is_none());
 }
 
 #[test]
 fn reads_many_in_order() {
     crate::common::require_shared!();
-    let v = read_csv_many(&[&*GEM, &*SERVO], 4, &CsvOptions::default()).unwrap();
+    let v = read_logs(&[&*GEM, &*SERVO], &CsvOptions::default()).unwrap();
     assert_eq!(v.len(), 2);
     assert_eq!(v[0].name(), "gem_spm_moves_idinj");
     assert_eq!(v[1].name(), "servo_spm_moves_idinj");
     let missing = temp_path("many-missing", "csv");
-    let err = read_csv_many(&[Path::new(&*GEM), &missing], 4, &CsvOptions::default()).unwrap_err();
+    let err = read_logs(&[Path::new(&*GEM), &missing], &CsvOptions::default()).unwrap_err();
     assert!(matches!(err, Error::Io { .. }), "{err:?}");
 }
 
@@ -107,7 +114,7 @@ fn sample_log_is_a_verbatim_cut_of_the_servo_log() {
     assert!((sample.h() - 1e-4).abs() < 1e-12);
     // t = 0.6 s is row 6000 of the full log.
     let cut = full.slice(6_000..26_000).unwrap();
-    assert_eq!(sample.signals(), cut.signals());
+    assert_eq!(DqView::try_new(&sample).unwrap().to_signals(), DqView::try_new(&cut).unwrap().to_signals());
 }
 
 /// Half a unit in the 7th significant digit of `x`: the rounding of a `%.7g` field.
@@ -165,6 +172,7 @@ fn phases_reproduce_motulator_dq_signals() {
     let opts = CsvOptions { source: DqSource::Phases, ..CsvOptions::default() };
     let ph = read_csv(&*SERVO, 4, &opts).unwrap();
     assert_eq!(ph.len(), dq.len());
+    let (dq, ph) = (DqView::try_new(&dq).unwrap(), DqView::try_new(&ph).unwrap());
     let n = dq.len();
     let th = dq.theta_m().unwrap();
     let raw = raw_columns(&SERVO, &["ia", "ib", "ic", "ua", "ub", "uc"]);
@@ -212,6 +220,7 @@ fn phases_reproduce_gem_noisy_currents() {
     let dq = read_csv(&*GEM_NOISY, 4, &CsvOptions::default()).unwrap();
     let ph =
         read_csv(&*GEM_NOISY, 4, &CsvOptions { source: DqSource::Phases, ..CsvOptions::default() }).unwrap();
+    let (dq, ph) = (DqView::try_new(&dq).unwrap(), DqView::try_new(&ph).unwrap());
     let th = dq.theta_m().unwrap();
     let mut raw = raw_columns(&GEM_NOISY, &["ia", "ib", "ic", "theta_e"]);
     let theta_e = raw.pop().unwrap();
@@ -251,6 +260,7 @@ fn unit_options_convert_to_si() {
     (c.w_m, c.theta_m, c.u_d_ref, c.u_q_ref) =
         ("speed_rpm".into(), "angle_deg".into(), "Vd_ref".into(), "Vq_ref".into());
     let e = read_csv(&p, n_p, &opts).unwrap();
+    let e = DqView::try_new(&e).unwrap();
     assert_eq!(e.len(), n);
     assert_relative_eq!(e.h(), 2.5e-4, max_relative = 1e-12);
     // 3000 rpm electrical = 100π rad/s electrical = 100π/3 rad/s mechanical.
@@ -260,14 +270,14 @@ fn unit_options_convert_to_si() {
     assert_relative_eq!(e.u_q()[0], -20.0 * SQRT_2, max_relative = 1e-12);
     assert_relative_eq!(e.i_d()[0], SQRT_2, max_relative = 1e-12);
     assert_relative_eq!(e.i_q()[0], 2.0 * SQRT_2, max_relative = 1e-12);
-    assert_relative_eq!(e.signals().u_q_ref.as_ref().unwrap()[0], 6.0 * SQRT_2, max_relative = 1e-12);
+    assert_relative_eq!(e.u_dq_ref().unwrap().1[0], 6.0 * SQRT_2, max_relative = 1e-12);
     // Plain and gzip give the same; the gzip file has no `.gz` name: detection is by content.
     let gz = temp_path("units-gz", "csv");
     let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
     std::io::Write::write_all(&mut enc, s.as_bytes()).unwrap();
     std::fs::write(&gz, enc.finish().unwrap()).unwrap();
     let e_gz = read_csv(&gz, n_p, &opts).unwrap();
-    assert_eq!(e_gz.signals(), e.signals());
+    assert_eq!(DqView::try_new(&e_gz).unwrap().to_signals(), e.to_signals());
     std::fs::remove_file(p).ok();
     std::fs::remove_file(gz).ok();
 }
@@ -357,8 +367,13 @@ proptest! {
             theta_m: opt.map(mk), u_d_ref: None, u_q_ref: opt.map(mk),
         };
         let t: Vec<f64> = (0..lens[0]).map(|k| k as f64 * 1e-3).collect();
-        let _ = Experiment::try_new("garbage", h, n_p, s.clone());
-        let _ = Experiment::try_from_time("garbage", &t, n_p, s);
+        let _ = Experiment::try_new("garbage", h, s.clone().into_channels());
+        let _ = s.clone().into_experiment("garbage", h);
+        if let Ok(e) = Experiment::try_from_time("garbage", "t", &t, s.into_channels()) {
+            // n_p now lives in the model: preparing never panics either (n_p = 0 is an error).
+            let m = greybox::pmsm::PmsmSpm::new(n_p, greybox::pmsm::VoltageHold::Stator);
+            let _ = greybox::model::GreyBoxModel::prepare(&m, &e);
+        }
     }
 
     #[test]
@@ -596,7 +611,7 @@ fn signals(n: usize) -> Signals {
 fn error_try_new_length_mismatch() {
     let mut s = signals(20);
     s.i_q.pop();
-    let err = Experiment::try_new("x", 1e-4, 4, s).unwrap_err();
+    let err = s.into_experiment("x", 1e-4).unwrap_err();
     assert!(
         matches!(&err, Error::LengthMismatch { column, expected: 20, found: 19 } if column == "iq"),
         "{err:?}"
@@ -604,15 +619,141 @@ fn error_try_new_length_mismatch() {
     assert!(err.to_string().contains("`iq`"), "{err}");
     let mut s = signals(20);
     s.theta_m = Some(vec![0.0; 21]);
-    let err = Experiment::try_new("x", 1e-4, 4, s).unwrap_err();
+    let err = s.into_experiment("x", 1e-4).unwrap_err();
     assert!(matches!(&err, Error::LengthMismatch { column, .. } if column == "theta_m"), "{err:?}");
 }
 
 #[test]
 fn error_try_new_bad_sample_time() {
     for h in [0.0, -1e-4, f64::NAN, f64::INFINITY] {
-        let err = Experiment::try_new("x", h, 4, signals(20)).unwrap_err();
+        let err = signals(20).into_experiment("x", h).unwrap_err();
         assert!(matches!(err, Error::InvalidSampleTime { .. }), "{err:?}");
         assert!(err.to_string().contains("sample time h"), "{err}");
     }
+}
+
+// ---------------------------------------------------------------- generic data layer
+
+#[test]
+fn generic_minimum_is_one_sample_pmsm_minimum_is_sixteen() {
+    // A generic experiment needs one sample; none is TooShort with min 1.
+    let e = Experiment::try_new("one", 1e-3, vec![Channel::new("x", "", vec![1.0])]).unwrap();
+    assert_eq!(e.len(), 1);
+    assert_eq!(greybox::data::MIN_SAMPLES, 1);
+    let err = Experiment::try_new("none", 1e-3, vec![Channel::new("x", "", vec![])]).unwrap_err();
+    assert!(matches!(&err, Error::TooShort { name, len: 0, min: 1 } if name == "none"), "{err:?}");
+    let err = Experiment::try_new("no-channel", 1e-3, vec![]).unwrap_err();
+    assert!(matches!(err, Error::TooShort { len: 0, min: 1, .. }), "{err:?}");
+    // The PMSM view still wants MIN_SAMPLES = 16.
+    let short = Experiment::try_new("short", 1e-3, signals(MIN_SAMPLES - 1).into_channels()).unwrap();
+    let err = DqView::try_new(&short).unwrap_err();
+    assert!(
+        matches!(&err, Error::TooShort { name, len, min } if name == "short" && *len == MIN_SAMPLES - 1 && *min == MIN_SAMPLES),
+        "{err:?}"
+    );
+    let err = signals(MIN_SAMPLES - 1).into_experiment("short", 1e-3).unwrap_err();
+    assert!(matches!(err, Error::TooShort { min: 16, .. }), "{err:?}");
+}
+
+#[test]
+fn missing_channel_names_the_channel_and_the_experiment() {
+    let e = Experiment::try_new(
+        "bench",
+        1e-3,
+        vec![Channel::new("u", "V", vec![1.0, 2.0]), Channel::new("i", "A", vec![0.1, 0.2])],
+    )
+    .unwrap();
+    assert_eq!(e.channel("u").unwrap(), [1.0, 2.0]);
+    assert!(e.get("temperature").is_none());
+    let err = e.channel("temperature").unwrap_err();
+    match &err {
+        Error::MissingChannel { experiment, channel, available } => {
+            assert_eq!(experiment, "bench");
+            assert_eq!(channel, "temperature");
+            assert_eq!(available, "u, i");
+        }
+        other => panic!("expected MissingChannel, got {other:?}"),
+    }
+    let msg = err.to_string();
+    assert!(msg.contains("`bench`") && msg.contains("`temperature`") && msg.contains("u, i"), "{msg}");
+}
+
+#[test]
+fn duplicate_channel_is_an_error() {
+    let err = Experiment::try_new(
+        "dup",
+        1e-3,
+        vec![
+            Channel::new("u", "V", vec![1.0, 2.0]),
+            Channel::new("i", "A", vec![0.1, 0.2]),
+            Channel::new("u", "V", vec![3.0, 4.0]),
+        ],
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&err, Error::DuplicateChannel { experiment, channel } if experiment == "dup" && channel == "u"),
+        "{err:?}"
+    );
+    let msg = err.to_string();
+    assert!(msg.contains("`dup`") && msg.contains("`u`"), "{msg}");
+    // `with_channel` replaces a channel of the same name instead.
+    let e = Experiment::try_new("dup", 1e-3, vec![Channel::new("u", "V", vec![1.0, 2.0])]).unwrap();
+    let e = e.with_channel(Channel::new("u", "V", vec![5.0, 6.0])).unwrap();
+    assert_eq!(e.channels().len(), 1);
+    assert_eq!(e.channel("u").unwrap(), [5.0, 6.0]);
+}
+
+#[test]
+fn generic_csv_reads_a_non_motor_experiment() {
+    // A thermal bench log: time in ms, heater power in kW (scaled to W), a temperature
+    // read as it is, a column the spec ignores and an optional one the file lacks.
+    let mut text = String::from("time_ms,P_kW,T_C,comment\n");
+    for k in 0..5 {
+        text.push_str(&format!("{},{},{},note{k}\n", 10 * k, 0.5 * k as f64, 20.0 + k as f64));
+    }
+    let p = temp_file("thermal", text.as_bytes());
+    let mut humidity = ColumnMap::new("RH", "humidity", "");
+    humidity.required = false;
+    let mut power = ColumnMap::new("P_kW", "p", "W");
+    power.scale = 1e3;
+    let spec = CsvSpec {
+        time: "time_ms".into(),
+        time_scale: 1e-3,
+        columns: vec![power, ColumnMap::new("T_C", "temperature", "degC"), humidity],
+    };
+    let e = greybox::data::csv::read_csv(&p, &spec).unwrap();
+    let stem = p.file_stem().unwrap().to_string_lossy().into_owned();
+    assert_eq!(e.name(), stem);
+    assert_eq!(e.len(), 5);
+    assert_relative_eq!(e.h(), 1e-2, max_relative = 1e-12);
+    let names: Vec<&str> = e.channels().iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(names, ["p", "temperature"]);
+    assert_eq!(e.get("p").unwrap().unit, "W");
+    assert_eq!(e.channel("p").unwrap(), [0.0, 500.0, 1000.0, 1500.0, 2000.0]);
+    assert_eq!(e.channel("temperature").unwrap(), [20.0, 21.0, 22.0, 23.0, 24.0]);
+    // Not a motor log: the PMSM view names the first dq channel it lacks.
+    let err = DqView::try_new(&e).unwrap_err();
+    assert!(matches!(&err, Error::MissingChannel { channel, .. } if channel == "ud"), "{err:?}");
+    // A required column missing from the header is named.
+    let spec = CsvSpec { columns: vec![ColumnMap::new("flow", "flow", "m3/s")], ..spec };
+    let err = greybox::data::csv::read_csv(&p, &spec).unwrap_err();
+    assert!(matches!(&err, Error::MissingColumn { column, .. } if column == "flow"), "{err:?}");
+    std::fs::remove_file(p).ok();
+}
+
+#[test]
+fn dq_view_without_iq_is_a_missing_channel() {
+    let mut channels = signals(20).into_channels();
+    channels.retain(|c| c.name != "iq");
+    let e = Experiment::try_new("no-iq", 1e-4, channels).unwrap();
+    let err = DqView::try_new(&e).unwrap_err();
+    match &err {
+        Error::MissingChannel { experiment, channel, available } => {
+            assert_eq!(experiment, "no-iq");
+            assert_eq!(channel, "iq");
+            assert_eq!(available, "ud, uq, id, w_m");
+        }
+        other => panic!("expected MissingChannel, got {other:?}"),
+    }
+    assert!(err.to_string().contains("`iq`"), "{err}");
 }

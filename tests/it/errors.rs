@@ -1,14 +1,16 @@
 //! Bad input to the estimator and the command line: clear errors naming the culprit, no panic.
 
+use crate::common::{Signals, pmsm_options};
+use greybox::data::Channel;
 use greybox::estimate::{PemOptions, Tolerances, fit};
-use greybox::model::{GreyBoxModel, Parameter, PmsmSpm, Prepared, VoltageHold};
-use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
-use greybox::{Error, Experiment, Result, Signals};
+use greybox::model::{GreyBoxModel, Parameter, Signal};
+use greybox::pmsm::{PmsmFitOptions, PmsmSpm, VoltageHold, fit_pmsm};
+use greybox::{Error, Experiment, Result};
 #[cfg(feature = "cli")] // the `greybox` binary needs the `cli` feature
 use std::process::Command;
 
 fn sample() -> Experiment {
-    greybox::read_csv(concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz"), 4, &Default::default())
+    crate::common::read(concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz"), 4, &Default::default())
         .unwrap()
 }
 
@@ -25,23 +27,17 @@ impl GreyBoxModel for Scalar {
     fn n_states(&self) -> usize {
         1
     }
-    fn n_outputs(&self) -> usize {
-        1
+    fn outputs(&self) -> Vec<Signal> {
+        vec![Signal::new("y", "-")]
     }
-    fn output_names(&self) -> Vec<String> {
-        vec!["y".into()]
+    fn input_channels(&self) -> Vec<String> {
+        vec!["u".into()]
     }
     fn parameters(&self) -> &[Parameter] {
         &self.p
     }
-    fn prepare(&self, e: &Experiment) -> Result<Prepared<Vec<f64>>> {
-        Ok(Prepared {
-            name: e.name().into(),
-            n: e.len(),
-            y: e.i_d().to_vec(),
-            x0: vec![e.i_d()[0]],
-            inputs: e.u_d().to_vec(),
-        })
+    fn prepare(&self, e: &Experiment) -> Result<Vec<f64>> {
+        Ok(e.channel("u")?.to_vec())
     }
     fn coefficients(&self, th: &[f64], _: &Vec<f64>) -> Result<f64> {
         Ok(th[0])
@@ -57,15 +53,7 @@ fn scalar_experiment(a: f64, n: usize) -> Experiment {
     for k in 1..n {
         x[k] = a * x[k - 1] + u[k - 1];
     }
-    let s = Signals {
-        u_d: u,
-        u_q: vec![0.0; n],
-        i_d: x,
-        i_q: vec![0.0; n],
-        w_m: vec![0.0; n],
-        ..Default::default()
-    };
-    Experiment::try_new("scalar", 1e-3, 1, s).unwrap()
+    Experiment::try_new("scalar", 1e-3, vec![Channel::new("u", "-", u), Channel::new("y", "-", x)]).unwrap()
 }
 
 #[test]
@@ -94,7 +82,7 @@ fn bounds_that_exclude_the_start_are_named() {
     let opts = PmsmFitOptions {
         start: Some(vec![0.9, 4.5e-3, 0.54]),
         bounds: vec![("r_s".into(), 1.0, 2.0)],
-        ..Default::default()
+        ..pmsm_options(4)
     };
     let err = fit_pmsm(&[sample()], &opts).unwrap_err();
     assert!(matches!(err, Error::StartOutsideBounds { .. }), "{err:?}");
@@ -104,7 +92,7 @@ fn bounds_that_exclude_the_start_are_named() {
 #[test]
 fn empty_or_reversed_bounds_are_named() {
     for (lo, hi) in [(2.0, 1.0), (1.0, 1.0), (f64::NAN, 1.0)] {
-        let opts = PmsmFitOptions { bounds: vec![("l_s".into(), lo, hi)], ..Default::default() };
+        let opts = PmsmFitOptions { bounds: vec![("l_s".into(), lo, hi)], ..pmsm_options(4) };
         let err = fit_pmsm(&[sample()], &opts).unwrap_err();
         assert!(matches!(err, Error::InvalidBounds { .. }), "{err:?}");
         assert!(err.to_string().contains("l_s"), "{err}");
@@ -113,7 +101,7 @@ fn empty_or_reversed_bounds_are_named() {
 
 #[test]
 fn non_positive_start_of_a_positive_parameter_is_named() {
-    let opts = PmsmFitOptions { start: Some(vec![0.9, -4.5e-3, 0.54]), ..Default::default() };
+    let opts = PmsmFitOptions { start: Some(vec![0.9, -4.5e-3, 0.54]), ..pmsm_options(4) };
     let err = fit_pmsm(&[sample()], &opts).unwrap_err();
     assert!(err.to_string().contains("l_s"), "{err}");
 }
@@ -122,27 +110,21 @@ fn non_positive_start_of_a_positive_parameter_is_named() {
 fn option_errors_name_the_option() {
     let e = sample();
     let cases: Vec<(PmsmFitOptions, &str)> = vec![
-        (PmsmFitOptions { start: Some(vec![1.0, 2.0]), ..Default::default() }, "start"),
-        (PmsmFitOptions { fixed: vec!["nope".into()], ..Default::default() }, "nope"),
+        (PmsmFitOptions { start: Some(vec![1.0, 2.0]), ..pmsm_options(4) }, "start"),
+        (PmsmFitOptions { fixed: vec!["nope".into()], ..pmsm_options(4) }, "nope"),
         (
             PmsmFitOptions {
                 pem: PemOptions { per_experiment: vec!["x".into()], ..Default::default() },
-                ..Default::default()
+                ..pmsm_options(4)
             },
             "`x`",
         ),
         (
-            PmsmFitOptions {
-                pem: PemOptions { horizon: Some(0), ..Default::default() },
-                ..Default::default()
-            },
+            PmsmFitOptions { pem: PemOptions { horizon: Some(0), ..Default::default() }, ..pmsm_options(4) },
             "horizon",
         ),
         (
-            PmsmFitOptions {
-                pem: PemOptions { huber: Some(-1.0), ..Default::default() },
-                ..Default::default()
-            },
+            PmsmFitOptions { pem: PemOptions { huber: Some(-1.0), ..Default::default() }, ..pmsm_options(4) },
             "huber",
         ),
         (
@@ -151,14 +133,14 @@ fn option_errors_name_the_option() {
                     tolerances: Tolerances { ftol: f64::NAN, ..Default::default() },
                     ..Default::default()
                 },
-                ..Default::default()
+                ..pmsm_options(4)
             },
             "ftol",
         ),
         (
             PmsmFitOptions {
                 pem: PemOptions { output_weights: Some(vec![1.0, 0.0]), ..Default::default() },
-                ..Default::default()
+                ..pmsm_options(4)
             },
             "output_weights",
         ),
@@ -167,17 +149,17 @@ fn option_errors_name_the_option() {
         let err = fit_pmsm(std::slice::from_ref(&e), &opts).unwrap_err();
         assert!(err.to_string().contains(culprit), "expected `{culprit}` in: {err}");
     }
-    let err = fit_pmsm(&[], &PmsmFitOptions::default()).unwrap_err();
+    let err = fit_pmsm(&[], &pmsm_options(4)).unwrap_err();
     assert!(err.to_string().contains("no log"), "{err}");
 }
 
 #[test]
 fn logs_of_different_motors_cannot_be_fitted_jointly() {
-    let a = sample();
-    let b =
-        greybox::read_csv(concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz"), 2, &Default::default())
-            .unwrap();
+    // Logs no longer carry n_p: a joint fit is of one motor by construction, with one
+    // `pole_pairs` option. Leaving it unset (0) is the error naming n_p.
+    let (a, b) = (sample(), sample().renamed("second"));
     let err = fit_pmsm(&[a, b], &PmsmFitOptions::default()).unwrap_err();
+    assert!(matches!(err, Error::InvalidPolePairs { n_p: 0 }), "{err:?}");
     assert!(err.to_string().contains("n_p"), "{err}");
 }
 
@@ -192,16 +174,16 @@ fn no_speed_makes_the_least_squares_start_fail_clearly() {
         w_m: vec![0.0; n],
         ..Default::default()
     };
-    let e = Experiment::try_new("standstill", 1e-4, 4, s).unwrap();
-    let err = fit_pmsm(&[e], &PmsmFitOptions::default()).unwrap_err();
+    let e = s.into_experiment("standstill", 1e-4).unwrap();
+    let err = fit_pmsm(&[e], &pmsm_options(4)).unwrap_err();
     assert!(err.to_string().contains("k_e"), "{err}");
 }
 
 #[test]
 fn model_rejects_invalid_parameter_values_by_name() {
-    let m = PmsmSpm::new(VoltageHold::Dq);
-    let prep = m.prepare(&sample()).unwrap();
-    let err = m.coefficients(&[0.9, 0.0, 0.5], &prep.inputs).unwrap_err();
+    let m = PmsmSpm::new(4, VoltageHold::Dq);
+    let inputs = m.prepare(&sample()).unwrap();
+    let err = m.coefficients(&[0.9, 0.0, 0.5], &inputs).unwrap_err();
     assert!(err.to_string().contains("l_s"), "{err}");
 }
 
@@ -277,7 +259,7 @@ fn a_sample_dropped_late_in_a_long_log_is_named_by_its_row() {
     let s = |v: f64| vec![v; n];
     let signals =
         Signals { u_d: s(1.0), u_q: s(1.0), i_d: s(0.0), i_q: s(0.0), w_m: s(0.0), ..Default::default() };
-    let err = Experiment::try_from_time("dropped", &t, 4, signals.clone()).unwrap_err();
+    let err = Experiment::try_from_time("dropped", "t", &t, signals.clone().into_channels()).unwrap_err();
     match &err {
         Error::NonUniformTime { row, column, .. } => {
             assert_eq!((*row, column.as_str()), (15_000, "t"), "{err}")
@@ -287,6 +269,6 @@ fn a_sample_dropped_late_in_a_long_log_is_named_by_its_row() {
     // A decreasing time stamp is named too.
     let mut t2: Vec<f64> = (0..n).map(|k| k as f64 * 1e-4).collect();
     t2[700] = t2[698];
-    let err = Experiment::try_from_time("backwards", &t2, 4, signals).unwrap_err();
+    let err = Experiment::try_from_time("backwards", "t", &t2, signals.into_channels()).unwrap_err();
     assert!(matches!(err, Error::NonUniformTime { row: 700, .. }), "{err:?}");
 }

@@ -202,7 +202,7 @@ fn bad_options_are_errors() {
         assert!(matches!(Butterworth::try_new(4, 500.0, h), Err(Error::InvalidSampleTime { .. })));
     }
     // A filter for 10 kHz refuses an 8 kHz log.
-    let s = greybox::Signals {
+    let s = greybox::pmsm::DqSignals {
         u_d: vec![0.0; 32],
         u_q: vec![0.0; 32],
         i_d: vec![0.0; 32],
@@ -210,7 +210,7 @@ fn bad_options_are_errors() {
         w_m: vec![0.0; 32],
         ..Default::default()
     };
-    let e = greybox::Experiment::try_new("x", 1.25e-4, 4, s).unwrap();
+    let e = s.into_experiment("x", 1.25e-4).unwrap();
     let bw = Butterworth::try_new(4, 500.0, H).unwrap();
-    assert_eq!(option_of(bw.filtfilt_experiment(&e).unwrap_err()), "sample time");
+    assert_eq!(option_of(bw.filtfilt_experiment(&e, &["theta_m"]).unwrap_err()), "sample time");
 }

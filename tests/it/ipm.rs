@@ -2,8 +2,10 @@
 //! against the SPM closed form at `L_d = L_q`, and its sensitivities against central
 //! finite differences of a whole simulation.
 
-use greybox::model::{GreyBoxModel, PmsmIpm, PmsmSpm, VoltageHold};
-use greybox::{Error, Experiment, Signals};
+use crate::common::{Signals, experiment};
+use greybox::model::{GreyBoxModel, Prepared};
+use greybox::pmsm::{DqView, PmsmIpm, PmsmSpm, VoltageHold};
+use greybox::{Error, Experiment};
 
 const H: f64 = 2e-4;
 const N_P: u32 = 2;
@@ -100,7 +102,7 @@ fn trajectory(
         w_m: wm,
         ..Signals::default()
     };
-    (Experiment::try_new("ipm_test", H, N_P, signals).unwrap(), x)
+    (experiment("ipm_test", H, signals), x)
 }
 
 /// Simulates from the measured `x0`; returns states and (if `sens`) sensitivities 2 × n_θ.
@@ -110,7 +112,7 @@ fn simulate<M: GreyBoxModel>(
     th: &[f64],
     sens: bool,
 ) -> (Vec<[f64; 2]>, Vec<Vec<f64>>) {
-    let p = m.prepare(e).unwrap();
+    let p = Prepared::new(m, e).unwrap();
     let c = m.coefficients(th, &p.inputs).unwrap();
     let nt = th.len();
     let mut x = vec![[p.x0[0], p.x0[1]]];
@@ -119,7 +121,8 @@ fn simulate<M: GreyBoxModel>(
         let mut xn = [0.0; 2];
         if sens {
             let mut sn = vec![0.0; 2 * nt];
-            m.step_sensitivity(&c, &p.inputs, k, &x[k], &s[k], &mut xn, &mut sn);
+            let analytic = m.sensitivities().expect("analytic sensitivities");
+            analytic.step_sensitivity(&c, &p.inputs, k, &x[k], &s[k], &mut xn, &mut sn);
             s.push(sn);
         } else {
             m.step(&c, &p.inputs, k, &x[k], &mut xn);
@@ -161,7 +164,7 @@ fn one_step_matches_rk4() {
     for hold in HOLDS {
         for w_m in [0.0, 37.0, -250.0, 250.0] {
             let (e, x) = trajectory(hold, 16, |_| w_m, 4000);
-            let (xs, _) = simulate(&PmsmIpm::new(hold), &e, &THETA, false);
+            let (xs, _) = simulate(&PmsmIpm::new(N_P, hold), &e, &THETA, false);
             let err = max_rel(&xs[..2], &x[..2]);
             println!("one step {hold} w_m = {w_m}: max rel err vs RK4 {err:.2e}");
             assert!(err <= 1e-9, "{hold} w_m = {w_m}: {err:e}");
@@ -173,8 +176,8 @@ fn one_step_matches_rk4() {
 fn trajectory_matches_rk4() {
     for hold in HOLDS {
         let (e, x) = trajectory(hold, 201, varying_speed, 2000);
-        let (xs, _) = simulate(&PmsmIpm::new(hold), &e, &THETA, false);
-        let (xs_s, _) = simulate(&PmsmIpm::new(hold), &e, &THETA, true);
+        let (xs, _) = simulate(&PmsmIpm::new(N_P, hold), &e, &THETA, false);
+        let (xs_s, _) = simulate(&PmsmIpm::new(N_P, hold), &e, &THETA, true);
         let err = max_rel(&xs, &x);
         println!("200 steps {hold}: max rel err vs RK4 {err:.2e}");
         assert!(err <= 1e-9, "{hold}: {err:e}");
@@ -187,7 +190,7 @@ fn trajectory_matches_rk4() {
 fn wrong_hold_is_detectably_wrong() {
     // guards the tests above against a hold that is silently ignored
     let (e, x) = trajectory(VoltageHold::Stator, 201, varying_speed, 200);
-    let (xs, _) = simulate(&PmsmIpm::new(VoltageHold::Dq), &e, &THETA, false);
+    let (xs, _) = simulate(&PmsmIpm::new(N_P, VoltageHold::Dq), &e, &THETA, false);
     assert!(max_rel(&xs, &x) > 1e-4);
 }
 
@@ -200,7 +203,7 @@ fn high_speed_matches_rk4() {
         {
             let w_m = phi / (f64::from(N_P) * H);
             let (e, x) = trajectory(hold, 40, |k| w_m * (1.0 - 0.002 * k as f64), rk4_n);
-            let (xs, s) = simulate(&PmsmIpm::new(hold), &e, &THETA, true);
+            let (xs, s) = simulate(&PmsmIpm::new(N_P, hold), &e, &THETA, true);
             let err = max_rel(&xs, &x);
             println!("{hold} φ = {phi}: max rel err vs RK4 {err:.2e}");
             assert!(err <= 1e-9, "{hold} φ = {phi}: {err:e}");
@@ -215,12 +218,13 @@ fn stiff_parameters_match_rk4() {
     let th = [0.35, 1.4e-6, 7.5e-3, 0.4164];
     for hold in HOLDS {
         let e = trajectory(hold, 16, |_| 100.0, 10).0;
-        let p = PmsmIpm::new(hold).prepare(&e).unwrap();
+        let p = Prepared::new(&PmsmIpm::new(N_P, hold), &e).unwrap();
+        let w = DqView::try_new(&e).unwrap().w_m();
         let mut x = [p.x0[0], p.x0[1]];
-        let (xs, _) = simulate(&PmsmIpm::new(hold), &e, &th, false);
+        let (xs, _) = simulate(&PmsmIpm::new(N_P, hold), &e, &th, false);
         let mut worst: f64 = 0.0;
         for k in 0..10 {
-            let w_m = 0.5 * (e.w_m()[k] + e.w_m()[k + 1]);
+            let w_m = 0.5 * (w[k] + w[k + 1]);
             let u0 = [p.inputs.u0[k].re, p.inputs.u0[k].im];
             x = rk4_period(th, hold, w_m, u0, x, 50_000);
             let err = norm([xs[k + 1][0] - x[0], xs[k + 1][1] - x[1]]) / norm(x);
@@ -239,8 +243,8 @@ fn equals_spm_when_not_salient() {
     for hold in HOLDS {
         for (n, label) in [(2, "one step"), (201, "200 steps")] {
             let e = trajectory(hold, n.max(16), varying_speed, 10).0;
-            let (xi, si) = simulate(&PmsmIpm::new(hold), &e, &th_ipm, true);
-            let (xs, ss) = simulate(&PmsmSpm::new(hold), &e, &th_spm, true);
+            let (xi, si) = simulate(&PmsmIpm::new(N_P, hold), &e, &th_ipm, true);
+            let (xs, ss) = simulate(&PmsmSpm::new(N_P, hold), &e, &th_spm, true);
             let n_cmp = n.min(xi.len());
             let err = max_rel(&xi[..n_cmp], &xs[..n_cmp]);
             // SPM's ∂/∂l_s is ∂/∂l_d + ∂/∂l_q of the IPM
@@ -258,7 +262,7 @@ fn equals_spm_when_not_salient() {
 fn sensitivities_match_finite_differences() {
     for hold in HOLDS {
         let e = trajectory(hold, 501, varying_speed, 10).0;
-        let m = PmsmIpm::new(hold);
+        let m = PmsmIpm::new(N_P, hold);
         // away from the data-generating θ so that the currents are not at a special point
         let th = [0.41, 2.9e-3, 8.1e-3, 0.40];
         let (_, s) = simulate(&m, &e, &th, true);
@@ -285,8 +289,8 @@ fn sensitivities_match_finite_differences() {
 #[test]
 fn invalid_parameters_are_named() {
     let e = trajectory(VoltageHold::Stator, 16, |_| 100.0, 10).0;
-    let m = PmsmIpm::default();
-    let p = m.prepare(&e).unwrap();
+    let m = PmsmIpm::new(N_P, VoltageHold::Stator);
+    let p = Prepared::new(&m, &e).unwrap();
     let cases = [
         ([0.0, 3e-3, 7e-3, 0.4], "r_s"),
         ([-0.3, 3e-3, 7e-3, 0.4], "r_s"),
@@ -312,7 +316,7 @@ fn invalid_parameters_are_named() {
 fn extreme_parameters_within_bounds_do_not_panic() {
     let e = trajectory(VoltageHold::Stator, 16, |_| 250.0, 10).0;
     for hold in HOLDS {
-        let m = PmsmIpm::new(hold);
+        let m = PmsmIpm::new(N_P, hold);
         for lower in m.parameters().iter().map(|p| p.lower) {
             assert!(lower > 0.0 || lower == f64::NEG_INFINITY);
         }
@@ -331,15 +335,17 @@ fn extreme_parameters_within_bounds_do_not_panic() {
 
 #[test]
 fn metadata() {
-    let m = PmsmIpm::default();
+    let m = PmsmIpm::new(N_P, VoltageHold::Stator);
     assert_eq!(m.hold(), VoltageHold::Stator);
+    assert_eq!(m.n_p(), N_P);
     assert_eq!(m.name(), "pmsm_ipm");
-    assert_eq!(m.output_names(), ["i_d", "i_q"]);
+    let outputs: Vec<String> = m.outputs().into_iter().map(|o| o.name).collect();
+    assert_eq!(outputs, ["id", "iq"]);
     let names: Vec<&str> = m.parameters().iter().map(|p| p.name.as_str()).collect();
     assert_eq!(names, ["r_s", "l_d", "l_q", "k_e"]);
-    assert!(m.has_sensitivities());
+    assert!(m.sensitivities().is_some());
     assert_eq!((m.n_states(), m.n_outputs()), (2, 2));
-    let mut m = PmsmIpm::new(VoltageHold::Dq);
+    let mut m = PmsmIpm::new(N_P, VoltageHold::Dq);
     m.parameters_mut()[3].fixed = true;
     assert!(m.parameters()[3].fixed);
     assert_eq!(m.hold(), VoltageHold::Dq);

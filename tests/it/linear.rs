@@ -2,13 +2,12 @@
 //! noise-free logs, the errors-in-variables bias on the noisy ones against the
 //! prediction-error fit, sample weighting, the zero-phase prefilter, and bad input.
 
-use crate::common::{Truth, load, rel};
-use greybox::estimate::linear::{
-    LinearEstimate, LinearOptions, MotorKind, least_squares, weighted_least_squares,
-};
+use crate::common::{Signals, Truth, load, pmsm_options, rel};
 use greybox::estimate::weighting::{CustomWeighting, SpeedShape, SpeedWeighting, Uniform, Weighting};
-use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
-use greybox::{Error, Experiment, Result, Signals};
+use greybox::pmsm::{
+    LinearEstimate, LinearOptions, MotorKind, PmsmFitOptions, fit_pmsm, least_squares, weighted_least_squares,
+};
+use greybox::{Error, Experiment, Result};
 
 fn kind_of(t: &Truth) -> MotorKind {
     if t.salient { MotorKind::Ipm } else { MotorKind::Spm }
@@ -27,7 +26,7 @@ fn truths(t: &Truth) -> Vec<(&'static str, f64)> {
 /// LS on a noise-free log: every parameter within `tol` (relative) of the truth.
 fn assert_ls_recovers(stem: &str, tol: f64) {
     let (e, t) = load(stem);
-    let ls = least_squares(&[e], kind_of(&t)).expect("LS runs");
+    let ls = least_squares(&[e], t.n_p, kind_of(&t)).expect("LS runs");
     eprintln!("{stem}:\n{ls}");
     for (name, truth) in truths(&t) {
         let est = ls.value(name).unwrap();
@@ -75,8 +74,8 @@ fn ls_gem_ipm_moves_idinj() {
 fn ls_vs_pem(stem: &str, factor: f64) {
     let (e, t) = load(stem);
     let kind = kind_of(&t);
-    let ls = least_squares(std::slice::from_ref(&e), kind).expect("LS runs");
-    let pem = fit_pmsm(&[e], &PmsmFitOptions { model: kind, ..Default::default() }).expect("PEM runs");
+    let ls = least_squares(std::slice::from_ref(&e), t.n_p, kind).expect("LS runs");
+    let pem = fit_pmsm(&[e], &PmsmFitOptions { model: kind, ..pmsm_options(t.n_p) }).expect("PEM runs");
     assert!(pem.solver.success, "{stem}: {}", pem.solver.termination);
     eprintln!("LS vs PEM bias, {stem} ({kind:?} model)");
     eprintln!("| parameter | truth | LS | PEM | LS error % | PEM error % |");
@@ -114,10 +113,11 @@ fn ls_vs_pem_gem_ipm_noisy() {
 fn speed_weighting_changes_the_error_indices() {
     crate::common::require_shared!();
     let (e, t) = load("servo_spm_moves_idinj_noisy");
-    let low = SpeedWeighting::try_new(SpeedShape::LowSpeed { w0: 50.0 }).unwrap();
+    let low = SpeedWeighting::try_new("w_m", SpeedShape::LowSpeed { w0: 50.0 }).unwrap();
     let opts = LinearOptions::default();
-    let uni = weighted_least_squares(std::slice::from_ref(&e), MotorKind::Spm, &Uniform, &opts).unwrap();
-    let wls = weighted_least_squares(std::slice::from_ref(&e), MotorKind::Spm, &low, &opts).unwrap();
+    let uni =
+        weighted_least_squares(std::slice::from_ref(&e), t.n_p, MotorKind::Spm, &Uniform, &opts).unwrap();
+    let wls = weighted_least_squares(std::slice::from_ref(&e), t.n_p, MotorKind::Spm, &low, &opts).unwrap();
     eprintln!("uniform:\n{uni}\nlow-speed weighting:\n{wls}");
     assert!(wls.weighting.contains("low_speed"));
     for i in 0..3 {
@@ -141,11 +141,11 @@ fn constant_weights_equal_uniform() {
     crate::common::require_shared!();
     // β = 3 everywhere (not flagged uniform) must give the LS estimate and error index:
     // both are invariant to a common scale of the weights.
-    let (e, _) = load("servo_spm_moves_idinj");
+    let (e, t) = load("servo_spm_moves_idinj");
     let three = CustomWeighting::new("three", |_, _| 3.0);
     let opts = LinearOptions::default();
-    let a = weighted_least_squares(std::slice::from_ref(&e), MotorKind::Spm, &Uniform, &opts).unwrap();
-    let b = weighted_least_squares(std::slice::from_ref(&e), MotorKind::Spm, &three, &opts).unwrap();
+    let a = weighted_least_squares(std::slice::from_ref(&e), t.n_p, MotorKind::Spm, &Uniform, &opts).unwrap();
+    let b = weighted_least_squares(std::slice::from_ref(&e), t.n_p, MotorKind::Spm, &three, &opts).unwrap();
     for i in 0..3 {
         assert!(rel(b.theta[i], a.theta[i]) < 1e-10, "{}", a.names[i]);
         assert!(rel(b.error_index_percent[i], a.error_index_percent[i]) < 1e-8);
@@ -162,10 +162,15 @@ fn weights_select_rows() {
     let (e, t) = load("servo_spm_moves_idinj");
     let cut = e.len() / 2;
     let w = CustomWeighting::new("first half", move |_, k| if k < cut { 1.0 } else { 0.0 });
-    let whole =
-        weighted_least_squares(std::slice::from_ref(&e), MotorKind::Spm, &w, &LinearOptions::default())
-            .unwrap();
-    let half = least_squares(&[e.slice(0..cut).unwrap()], MotorKind::Spm).unwrap();
+    let whole = weighted_least_squares(
+        std::slice::from_ref(&e),
+        t.n_p,
+        MotorKind::Spm,
+        &w,
+        &LinearOptions::default(),
+    )
+    .unwrap();
+    let half = least_squares(&[e.slice(0..cut).unwrap()], t.n_p, MotorKind::Spm).unwrap();
     for i in 0..3 {
         assert!(
             rel(whole.theta[i], half.theta[i]) < 1e-9,
@@ -185,7 +190,7 @@ fn weights_select_rows() {
 fn prefilter_changes_the_noisy_estimate() {
     crate::common::require_shared!();
     let (e, t) = load("servo_spm_moves_idinj_noisy");
-    let ls = least_squares(std::slice::from_ref(&e), MotorKind::Spm).unwrap();
+    let ls = least_squares(std::slice::from_ref(&e), t.n_p, MotorKind::Spm).unwrap();
     let truth = [t.r_s, t.l_d, t.k_e];
     let pct = |x: &LinearEstimate| -> Vec<String> {
         x.theta.iter().zip(&truth).map(|(v, t)| format!("{:+.3} %", 100.0 * (v - t) / t)).collect()
@@ -193,7 +198,8 @@ fn prefilter_changes_the_noisy_estimate() {
     eprintln!("no prefilter: {:?} errors {:?}", ls.theta, pct(&ls));
     for fc in [2000.0, 1000.0, 500.0, 200.0] {
         let opts = LinearOptions { prefilter: Some(fc), ..Default::default() };
-        let f = weighted_least_squares(std::slice::from_ref(&e), MotorKind::Spm, &Uniform, &opts).unwrap();
+        let f =
+            weighted_least_squares(std::slice::from_ref(&e), t.n_p, MotorKind::Spm, &Uniform, &opts).unwrap();
         eprintln!("prefilter {fc} Hz: {:?} errors (r_s, l_s, k_e) {:?}", f.theta, pct(&f));
         assert!(f.theta.iter().chain(&f.std_error).chain(&f.error_index_percent).all(|v| v.is_finite()));
         assert_eq!(f.options, opts);
@@ -212,7 +218,8 @@ fn prefilter_keeps_noise_free_estimates_close() {
     let (e, t) = load("servo_spm_moves_idinj");
     for fc in [2000.0, 500.0] {
         let opts = LinearOptions { prefilter: Some(fc), ..Default::default() };
-        let f = weighted_least_squares(std::slice::from_ref(&e), MotorKind::Spm, &Uniform, &opts).unwrap();
+        let f =
+            weighted_least_squares(std::slice::from_ref(&e), t.n_p, MotorKind::Spm, &Uniform, &opts).unwrap();
         let errs: Vec<f64> = f.theta.iter().zip([t.r_s, t.l_d, t.k_e]).map(|(v, t)| rel(*v, t)).collect();
         let shown: Vec<String> = errs.iter().map(|e| format!("{e:.3e}")).collect();
         eprintln!("noise-free, prefilter {fc} Hz: relative errors (r_s, l_s, k_e) {shown:?}");
@@ -233,27 +240,36 @@ fn option_of<T: std::fmt::Debug>(r: Result<T>) -> String {
 #[test]
 fn bad_prefilter_options_are_errors() {
     crate::common::require_shared!();
-    let (e, _) = load("servo_spm_moves_idinj");
+    let (e, t) = load("servo_spm_moves_idinj");
     let es = std::slice::from_ref(&e);
     for fc in [0.0, -10.0, 5000.0, 1e6, f64::NAN] {
         let opts = LinearOptions { prefilter: Some(fc), ..Default::default() };
-        assert_eq!(option_of(weighted_least_squares(es, MotorKind::Spm, &Uniform, &opts)), "prefilter");
+        assert_eq!(
+            option_of(weighted_least_squares(es, t.n_p, MotorKind::Spm, &Uniform, &opts)),
+            "prefilter"
+        );
     }
     for order in [0, 3, 7, 1000] {
         let opts = LinearOptions { prefilter: Some(500.0), filter_order: order };
-        assert_eq!(option_of(weighted_least_squares(es, MotorKind::Spm, &Uniform, &opts)), "filter_order");
+        assert_eq!(
+            option_of(weighted_least_squares(es, t.n_p, MotorKind::Spm, &Uniform, &opts)),
+            "filter_order"
+        );
         let opts = LinearOptions { prefilter: None, filter_order: order };
-        assert_eq!(option_of(weighted_least_squares(es, MotorKind::Spm, &Uniform, &opts)), "filter_order");
+        assert_eq!(
+            option_of(weighted_least_squares(es, t.n_p, MotorKind::Spm, &Uniform, &opts)),
+            "filter_order"
+        );
     }
     // The error names the experiment whose Nyquist frequency the cutoff exceeds.
     let opts = LinearOptions { prefilter: Some(5000.0), ..Default::default() };
-    let msg = weighted_least_squares(es, MotorKind::Spm, &Uniform, &opts).unwrap_err().to_string();
+    let msg = weighted_least_squares(es, t.n_p, MotorKind::Spm, &Uniform, &opts).unwrap_err().to_string();
     assert!(msg.contains("servo_spm_moves_idinj"), "{msg}");
 }
 
 // ---------------------------------------------------------------- robustness
 
-fn synthetic(n_p: u32, f: impl Fn(usize) -> (f64, f64, f64, f64, f64)) -> Experiment {
+fn synthetic(f: impl Fn(usize) -> (f64, f64, f64, f64, f64)) -> Experiment {
     let mut s = Signals::default();
     for k in 0..200 {
         let (ud, uq, id, iq, w) = f(k);
@@ -263,7 +279,7 @@ fn synthetic(n_p: u32, f: impl Fn(usize) -> (f64, f64, f64, f64, f64)) -> Experi
         s.i_q.push(iq);
         s.w_m.push(w);
     }
-    Experiment::try_new("synthetic", 1e-4, n_p, s).unwrap()
+    s.into_experiment("synthetic", 1e-4).unwrap()
 }
 
 fn numerical_reason<T: std::fmt::Debug>(r: Result<T>) -> String {
@@ -278,32 +294,34 @@ fn numerical_reason<T: std::fmt::Debug>(r: Result<T>) -> String {
 
 #[test]
 fn bad_input_is_a_clear_error() {
-    assert_eq!(option_of(least_squares(&[], MotorKind::Spm)), "experiments");
-    let a = synthetic(4, |k| ((k as f64).sin(), (k as f64).cos(), (0.3 * k as f64).sin(), 1.0, 10.0));
-    let b = synthetic(3, |k| ((k as f64).sin(), (k as f64).cos(), (0.3 * k as f64).sin(), 1.0, 10.0));
-    assert_eq!(option_of(least_squares(&[a.clone(), b], MotorKind::Spm)), "pole pairs");
+    assert_eq!(option_of(least_squares(&[], 4, MotorKind::Spm)), "experiments");
+    let a = synthetic(|k| ((k as f64).sin(), (k as f64).cos(), (0.3 * k as f64).sin(), 1.0, 10.0));
+    // Experiments no longer carry n_p (one argument for all, so logs of motors with
+    // different pole pairs cannot be mixed); n_p = 0 is the error.
+    let err = least_squares(std::slice::from_ref(&a), 0, MotorKind::Spm).unwrap_err();
+    assert!(matches!(err, Error::InvalidPolePairs { n_p: 0 }), "{err:?}");
     // No speed: K_e is not excited.
-    let still = synthetic(4, |k| ((k as f64).sin(), (k as f64).cos(), (0.3 * k as f64).sin(), 1.0, 0.0));
-    assert!(numerical_reason(least_squares(&[still], MotorKind::Spm)).contains("`k_e`"));
+    let still = synthetic(|k| ((k as f64).sin(), (k as f64).cos(), (0.3 * k as f64).sin(), 1.0, 0.0));
+    assert!(numerical_reason(least_squares(&[still], 4, MotorKind::Spm)).contains("`k_e`"));
     // Constant i_q, i_d = 0, constant speed: K_e's column is R_s's, scaled.
-    let flat = synthetic(4, |k| ((k as f64).sin(), (k as f64).cos(), 0.0, 2.0, 30.0));
-    let reason = numerical_reason(least_squares(std::slice::from_ref(&flat), MotorKind::Spm));
+    let flat = synthetic(|k| ((k as f64).sin(), (k as f64).cos(), 0.0, 2.0, 30.0));
+    let reason = numerical_reason(least_squares(std::slice::from_ref(&flat), 4, MotorKind::Spm));
     assert!(reason.contains("rank deficient") && reason.contains("`k_e`"), "{reason}");
     // In the IPM model L_d's column (di_d/dt) is zero there.
-    assert!(numerical_reason(least_squares(&[flat], MotorKind::Ipm)).contains("`l_d`"));
+    assert!(numerical_reason(least_squares(&[flat], 4, MotorKind::Ipm)).contains("`l_d`"));
     // Weights: all zero, negative, wrong length.
     let zero = CustomWeighting::new("zero", |_, _| 0.0);
     let opts = LinearOptions::default();
     assert_eq!(
-        option_of(weighted_least_squares(std::slice::from_ref(&a), MotorKind::Spm, &zero, &opts)),
+        option_of(weighted_least_squares(std::slice::from_ref(&a), 4, MotorKind::Spm, &zero, &opts)),
         "weighting"
     );
     let neg = CustomWeighting::new("neg", |_, k| if k == 7 { -1.0 } else { 1.0 });
     assert_eq!(
-        option_of(weighted_least_squares(std::slice::from_ref(&a), MotorKind::Spm, &neg, &opts)),
+        option_of(weighted_least_squares(std::slice::from_ref(&a), 4, MotorKind::Spm, &neg, &opts)),
         "weighting"
     );
-    assert_eq!(option_of(weighted_least_squares(&[a], MotorKind::Spm, &Short, &opts)), "weighting");
+    assert_eq!(option_of(weighted_least_squares(&[a], 4, MotorKind::Spm, &Short, &opts)), "weighting");
 }
 
 /// A weighting that returns one weight too few.
@@ -324,8 +342,8 @@ impl Weighting for Short {
 #[test]
 fn display_and_serde() {
     crate::common::require_shared!();
-    let (e, _) = load("ipm_moves_idinj");
-    let ls = least_squares(&[e], MotorKind::Ipm).unwrap();
+    let (e, t) = load("ipm_moves_idinj");
+    let ls = least_squares(&[e], t.n_p, MotorKind::Ipm).unwrap();
     let text = ls.to_string();
     for s in ["r_s", "l_d", "l_q", "k_e", "ohm", "V s/rad", "error index", "std error", "uniform"] {
         assert!(text.contains(s), "missing `{s}` in\n{text}");

@@ -3,10 +3,10 @@
 //! `R(T) = R0 (1 + α (T − T0))`, α = 0.00393 1/K. One R_s per log (`per_experiment`) must
 //! give back both resistances and the temperature difference; one R_s for both must not fit.
 
-use crate::common::{Rng, exciting_signals, rel};
+use crate::common::{Rng, exciting_signals, experiment, pmsm_options, rel, sim};
 use greybox::estimate::{FitResult, PemOptions};
-use greybox::model::{GreyBoxModel, PmsmSpm, VoltageHold};
-use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
+use greybox::model::Prepared;
+use greybox::pmsm::{HoldChoice, PmsmFitOptions, PmsmSpm, VoltageHold, fit_pmsm};
 use greybox::{Error, Experiment};
 
 const R0: f64 = 0.9;
@@ -29,17 +29,17 @@ fn r_at(dt: f64) -> f64 {
 /// A stator-held SPM record named `name` with resistance `r_s`, simulated from rest with
 /// its own random exciting input; white noise σ [A] on i_d, i_q when `sigma > 0`.
 fn record(name: &str, r_s: f64, input_seed: u64, sigma: f64) -> Experiment {
-    let model = PmsmSpm::new(VoltageHold::Stator);
+    let model = PmsmSpm::new(N_P, VoltageHold::Stator);
     let theta = [r_s, L_S, K_E];
     let mut rng = Rng(input_seed);
     let mut s = exciting_signals(N, H, 250.0, 60.0, K_E, &mut rng);
-    let e = Experiment::try_new(name, H, N_P, s.clone()).expect("valid signals");
-    let prep = model.prepare(&e).expect("prepare");
-    let y = greybox::simulate::simulate(&model, &prep, &theta).expect("simulate");
+    let e = experiment(name, H, s.clone());
+    let prep = Prepared::new(&model, &e).expect("prepare");
+    let y = sim(&model, &prep, &theta).expect("simulate");
     let mut noise = Rng(input_seed ^ 0xdead_beef_cafe_f00d);
     s.i_d = (0..N).map(|k| y[2 * k] + sigma * noise.normal()).collect();
     s.i_q = (0..N).map(|k| y[2 * k + 1] + sigma * noise.normal()).collect();
-    Experiment::try_new(name, H, N_P, s).expect("valid signals")
+    experiment(name, H, s)
 }
 
 fn logs(sigma: f64) -> [Experiment; 2] {
@@ -53,12 +53,12 @@ fn joint(logs: &[Experiment], per_experiment: &[&str]) -> FitResult {
             per_experiment: per_experiment.iter().map(|s| s.to_string()).collect(),
             ..Default::default()
         },
-        ..Default::default()
+        ..pmsm_options(N_P)
     };
     let fit = fit_pmsm(logs, &opts).expect("fit runs");
     eprintln!("{fit}");
     assert!(fit.solver.success, "{}", fit.solver.termination);
-    fit
+    fit.report
 }
 
 /// The `r_s` estimate of experiment `name`.
@@ -143,18 +143,21 @@ fn unknown_per_experiment_name_is_an_error() {
     let opts = PmsmFitOptions {
         hold: HoldChoice::Stator,
         pem: PemOptions { per_experiment: vec!["r_x".into()], ..Default::default() },
-        ..Default::default()
+        ..pmsm_options(N_P)
     };
     let err = fit_pmsm(&logs(0.0), &opts).unwrap_err();
     assert!(matches!(err, Error::InvalidOption { .. }), "{err}");
     assert!(err.to_string().contains("r_x"), "{err}");
 }
 
+/// The pole-pair number is one property of the motor, given once for all the logs of a
+/// joint fit (`PmsmFitOptions::pole_pairs`; logs no longer carry one): a joint fit without
+/// it is refused, naming n_p.
 #[test]
-fn logs_of_different_motors_are_refused() {
+fn joint_fit_without_pole_pairs_is_refused() {
     let [a, b] = logs(0.0);
-    let b = Experiment::try_new("other", H, N_P + 1, b.signals().clone()).unwrap();
-    let err =
-        fit_pmsm(&[a, b], &PmsmFitOptions { hold: HoldChoice::Stator, ..Default::default() }).unwrap_err();
+    let opts = PmsmFitOptions { hold: HoldChoice::Stator, ..pmsm_options(0) };
+    let err = fit_pmsm(&[a, b], &opts).unwrap_err();
+    assert!(matches!(err, Error::InvalidPolePairs { n_p: 0 }), "{err:?}");
     assert!(err.to_string().contains("n_p"), "{err}");
 }

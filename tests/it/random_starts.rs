@@ -3,10 +3,9 @@
 //! estimate of the fit from the least-squares start (to 1e-6 relative) in ≥ 99 % of the
 //! starts. The truth is used only to centre the random starts, which is the point here.
 
-use crate::common::{Rng, exciting_signals, load, rel, simulate_into};
+use crate::common::{Rng, exciting_signals, experiment, load, pmsm_options, rel, simulate_into};
 use greybox::Experiment;
-use greybox::model::{PmsmSpm, VoltageHold};
-use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
+use greybox::pmsm::{DqView, HoldChoice, PmsmFitOptions, PmsmSpm, VoltageHold, fit_pmsm};
 
 const NAMES: [&str; 3] = ["r_s", "l_s", "k_e"];
 /// Starts lie in `[truth / SPAN, truth × SPAN]`, log-uniform.
@@ -22,8 +21,8 @@ fn show(v: &[f64]) -> String {
 
 /// Fits `log` from `starts` random starts around `truth`; returns the fraction [%] that
 /// reach the least-squares-start estimate, printing every start that does not.
-fn success_rate(label: &str, log: &Experiment, truth: [f64; 3], starts: usize, seed: u64) -> f64 {
-    let opts = PmsmFitOptions { hold: HoldChoice::Stator, ..Default::default() };
+fn success_rate(label: &str, log: &Experiment, n_p: u32, truth: [f64; 3], starts: usize, seed: u64) -> f64 {
+    let opts = PmsmFitOptions { hold: HoldChoice::Stator, ..pmsm_options(n_p) };
     let reference = fit_pmsm(std::slice::from_ref(log), &opts).expect("fit from the LS start");
     assert!(reference.solver.success, "{label}: LS-start fit: {}", reference.solver.termination);
     let best = estimate(&reference);
@@ -69,14 +68,14 @@ fn simulated_record_from_400_random_starts() {
     let truth = [0.9, 4.5e-3, 0.539];
     let mut rng = Rng(77);
     let signals = exciting_signals(3000, 1e-4, 250.0, 60.0, truth[2], &mut rng);
-    let clean = simulate_into(&PmsmSpm::new(VoltageHold::Stator), &truth, 1e-4, 4, signals);
-    let mut s = clean.signals().clone();
+    let clean = simulate_into(&PmsmSpm::new(4, VoltageHold::Stator), &truth, 1e-4, signals);
+    let mut s = DqView::try_new(&clean).expect("PMSM channels").to_signals();
     let mut noise = Rng(99);
     for v in s.i_d.iter_mut().chain(s.i_q.iter_mut()) {
         *v += 0.05 * noise.normal();
     }
-    let log = Experiment::try_new("simulated", 1e-4, 4, s).expect("valid signals");
-    let rate = success_rate("simulated", &log, truth, 400, 12345);
+    let log = experiment("simulated", 1e-4, s);
+    let rate = success_rate("simulated", &log, 4, truth, 400, 12345);
     assert!(rate >= 99.0, "simulated record: only {rate:.1} % of the random starts reach the minimum");
 }
 
@@ -87,6 +86,6 @@ fn servo_log_from_200_random_starts() {
     crate::common::require_shared!();
     let (log, t) = load("servo_spm_moves_idinj");
     let log = log.slice(0..25_000).expect("2.5 s of the log");
-    let rate = success_rate("servo 0–2.5 s", &log, [t.r_s, t.l_d, t.k_e], 200, 54321);
+    let rate = success_rate("servo 0–2.5 s", &log, t.n_p, [t.r_s, t.l_d, t.k_e], 200, 54321);
     assert!(rate >= 99.0, "servo log: only {rate:.1} % of the random starts reach the minimum");
 }

@@ -2,15 +2,13 @@
 //! the non-salient logs, IPM on the salient ones, actual voltage columns, least-squares
 //! start (never the truth), automatic voltage-hold choice.
 
-use crate::common::{Truth, load, rel};
-use greybox::estimate::FitResult;
-use greybox::estimate::linear::MotorKind;
-use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
+use crate::common::{Truth, load, pmsm_options, rel};
+use greybox::pmsm::{MotorKind, PmsmFit, PmsmFitOptions, fit_pmsm};
 
-fn fit_log(stem: &str) -> (FitResult, Truth) {
+fn fit_log(stem: &str) -> (PmsmFit, Truth) {
     let (e, t) = load(stem);
     let model = if t.salient { MotorKind::Ipm } else { MotorKind::Spm };
-    let fit = fit_pmsm(&[e], &PmsmFitOptions { model, ..Default::default() }).expect("fit runs");
+    let fit = fit_pmsm(&[e], &PmsmFitOptions { model, ..pmsm_options(t.n_p) }).expect("fit runs");
     eprintln!("{stem}:\n{fit}");
     (fit, t)
 }
@@ -71,12 +69,12 @@ fn gem_ipm_moves_idinj() {
 #[test]
 fn automatic_hold_matches_the_simulator() {
     crate::common::require_shared!();
-    use greybox::model::VoltageHold;
+    use greybox::pmsm::VoltageHold;
     for (stem, hold) in
         [("servo_spm_moves_idinj", VoltageHold::Stator), ("gem_spm_moves_idinj", VoltageHold::Dq)]
     {
         let (fit, _) = fit_log(stem);
-        assert_eq!(fit.hold, Some(hold), "{stem}");
+        assert_eq!(fit.hold, hold, "{stem}");
     }
 }
 
@@ -114,13 +112,13 @@ fn gem_ipm_moves_idinj_noisy() {
 fn pwm_log_flags_an_ambiguous_hold_and_the_stator_hold_is_close() {
     crate::common::require_shared!();
     let (e, t) = load("servo_spm_pwm_deadtime_idinj");
-    let auto = fit_pmsm(std::slice::from_ref(&e), &PmsmFitOptions::default()).unwrap();
+    let auto = fit_pmsm(std::slice::from_ref(&e), &pmsm_options(t.n_p)).unwrap();
     assert!(
-        auto.diagnostics.advice.iter().any(|a| a.contains("voltage holds fit almost equally well")),
+        auto.pmsm_advice.iter().any(|a| a.contains("voltage holds fit almost equally well")),
         "{:?}",
-        auto.diagnostics.advice
+        auto.pmsm_advice
     );
-    let opts = PmsmFitOptions { hold: greybox::pmsm::HoldChoice::Stator, ..Default::default() };
+    let opts = PmsmFitOptions { hold: greybox::pmsm::HoldChoice::Stator, ..pmsm_options(t.n_p) };
     let stator = fit_pmsm(&[e], &opts).unwrap();
     let err = |n: &str, truth: f64| rel(stator.parameter(n).unwrap().value, truth);
     eprintln!(

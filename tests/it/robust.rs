@@ -1,11 +1,12 @@
 //! Robust fitting: gross outliers on 1 % of the current samples pull the quadratic fit
 //! off; the Huber fit stays within 0.1 % of the truth.
 
-use crate::common::{Rng, exciting_signals, rel, simulate_into};
+use crate::common::{Rng, Signals, exciting_signals, experiment, pmsm_options, rel, simulate_into};
+use greybox::Experiment;
 use greybox::estimate::PemOptions;
-use greybox::model::{PmsmSpm, VoltageHold};
-use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
-use greybox::{Experiment, Signals};
+use greybox::pmsm::{DqView, HoldChoice, PmsmFitOptions, PmsmSpm, VoltageHold, fit_pmsm};
+
+const N_P: u32 = 4;
 
 const THETA: [f64; 3] = [0.9, 4.5e-3, 0.539];
 const NAMES: [&str; 3] = ["r_s", "l_s", "k_e"];
@@ -17,13 +18,12 @@ fn record_with_outliers(seed: u64) -> Experiment {
     let h = 1e-4;
     let mut rng = Rng(seed);
     let clean = simulate_into(
-        &PmsmSpm::new(VoltageHold::Stator),
+        &PmsmSpm::new(N_P, VoltageHold::Stator),
         &THETA,
         h,
-        4,
         exciting_signals(6000, h, 250.0, 60.0, THETA[2], &mut rng),
     );
-    let mut s: Signals = clean.signals().clone();
+    let mut s: Signals = DqView::try_new(&clean).expect("PMSM channels").to_signals();
     let mut outliers = 0;
     for k in 0..s.i_d.len() {
         s.i_d[k] += 0.02 * rng.normal();
@@ -39,7 +39,7 @@ fn record_with_outliers(seed: u64) -> Experiment {
         }
     }
     assert!(outliers > 30, "only {outliers} outliers");
-    Experiment::try_new("outliers", h, 4, s).unwrap()
+    experiment("outliers", h, s)
 }
 
 #[test]
@@ -48,12 +48,12 @@ fn huber_fit_resists_one_percent_gross_outliers() {
         let e = record_with_outliers(seed);
         let quadratic = fit_pmsm(
             std::slice::from_ref(&e),
-            &PmsmFitOptions { hold: HoldChoice::Stator, ..Default::default() },
+            &PmsmFitOptions { hold: HoldChoice::Stator, ..pmsm_options(N_P) },
         )
         .unwrap();
         let pem = PemOptions { huber: Some(1.345), ..Default::default() };
         let huber =
-            fit_pmsm(&[e], &PmsmFitOptions { hold: HoldChoice::Stator, pem, ..Default::default() }).unwrap();
+            fit_pmsm(&[e], &PmsmFitOptions { hold: HoldChoice::Stator, pem, ..pmsm_options(N_P) }).unwrap();
         assert!(huber.solver.success, "{}", huber.solver.termination);
         let worst = |f: &greybox::estimate::FitResult| {
             NAMES.iter().zip(THETA).map(|(n, t)| rel(f.parameter(n).unwrap().value, t)).fold(0.0, f64::max)
@@ -79,25 +79,22 @@ fn huber_fit_equals_quadratic_fit_without_outliers() {
     let h = 1e-4;
     let mut rng = Rng(5);
     let clean = simulate_into(
-        &PmsmSpm::new(VoltageHold::Stator),
+        &PmsmSpm::new(N_P, VoltageHold::Stator),
         &THETA,
         h,
-        4,
         exciting_signals(4000, h, 250.0, 60.0, THETA[2], &mut rng),
     );
-    let mut s = clean.signals().clone();
+    let mut s = DqView::try_new(&clean).expect("PMSM channels").to_signals();
     for k in 0..s.i_d.len() {
         s.i_d[k] += 0.02 * rng.normal();
         s.i_q[k] += 0.02 * rng.normal();
     }
-    let e = Experiment::try_new("clean", h, 4, s).unwrap();
-    let q = fit_pmsm(
-        std::slice::from_ref(&e),
-        &PmsmFitOptions { hold: HoldChoice::Stator, ..Default::default() },
-    )
-    .unwrap();
+    let e = experiment("clean", h, s);
+    let q =
+        fit_pmsm(std::slice::from_ref(&e), &PmsmFitOptions { hold: HoldChoice::Stator, ..pmsm_options(N_P) })
+            .unwrap();
     let pem = PemOptions { huber: Some(1.345), ..Default::default() };
-    let hb = fit_pmsm(&[e], &PmsmFitOptions { hold: HoldChoice::Stator, pem, ..Default::default() }).unwrap();
+    let hb = fit_pmsm(&[e], &PmsmFitOptions { hold: HoldChoice::Stator, pem, ..pmsm_options(N_P) }).unwrap();
     for n in NAMES {
         let (a, b) = (q.parameter(n).unwrap(), hb.parameter(n).unwrap());
         assert!(((a.value - b.value) / a.std_error).abs() < 0.5, "{n}: {} vs {}", a.value, b.value);

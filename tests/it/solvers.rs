@@ -6,28 +6,27 @@
 //!   a problem with an infeasible region (failed line-search trials);
 //! - the cost never increases across iterations; bad options are errors.
 
-use crate::common::load;
+use crate::common::{load, pmsm_options};
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Executor, KV, State};
-use greybox::estimate::linear::MotorKind;
 use greybox::estimate::lm::LsState;
 use greybox::estimate::problem::NormalEquations;
 use greybox::estimate::{
-    FitResult, GaussNewton, LeastSquares, LevenbergMarquardt, PemOptions, ReportsTermination, SolverKind,
-    Termination, Tolerances,
+    GaussNewton, LeastSquares, LevenbergMarquardt, PemOptions, ReportsTermination, SolverKind, Termination,
+    Tolerances,
 };
-use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
+use greybox::pmsm::{MotorKind, PmsmFit, PmsmFitOptions, fit_pmsm};
 use nalgebra::{DMatrix, DVector};
 use std::sync::{Arc, Mutex};
 
 // ---------------------------------------------------------------------------------------
 // LM against GN on the development logs
 
-fn fit(stem: &str, solver: SolverKind) -> FitResult {
+fn fit(stem: &str, solver: SolverKind) -> PmsmFit {
     let (e, t) = load(stem);
     let model = if t.salient { MotorKind::Ipm } else { MotorKind::Spm };
     let options =
-        PmsmFitOptions { model, pem: PemOptions { solver, ..Default::default() }, ..Default::default() };
+        PmsmFitOptions { model, pem: PemOptions { solver, ..Default::default() }, ..pmsm_options(t.n_p) };
     fit_pmsm(&[e], &options).expect("fit runs")
 }
 

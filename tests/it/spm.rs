@@ -1,10 +1,10 @@
 //! SPM model: exactness of the sampled-data step, sensitivities, recovery of known parameters.
 
-use crate::common::{Rng, exciting_signals, rel, simulate_into};
-use greybox::model::{GreyBoxModel, PmsmSpm, VoltageHold};
-use greybox::pmsm::{HoldChoice, PmsmFitOptions, fit_pmsm};
-use greybox::simulate::{Shooting, visit_sensitivities};
-use greybox::{Experiment, Signals};
+use crate::common::{Rng, Signals, exciting_signals, experiment, pmsm_options, rel, sim, simulate_into};
+use greybox::Experiment;
+use greybox::model::{GreyBoxModel, Prepared};
+use greybox::pmsm::{HoldChoice, PmsmFitOptions, PmsmSpm, VoltageHold, fit_pmsm};
+use greybox::simulate::{SimOptions, visit_sensitivities};
 use nalgebra::Complex;
 use proptest::prelude::*;
 
@@ -51,7 +51,7 @@ fn rk4_period(
     i
 }
 
-fn two_sample_experiment(u: C, w0: f64, w1: f64, h: f64, n_p: u32) -> Experiment {
+fn two_sample_experiment(u: C, w0: f64, w1: f64, h: f64) -> Experiment {
     let n = 16;
     let mut s = Signals {
         u_d: vec![u.re; n],
@@ -62,7 +62,7 @@ fn two_sample_experiment(u: C, w0: f64, w1: f64, h: f64, n_p: u32) -> Experiment
     };
     s.w_m = vec![w1; n];
     s.w_m[0] = w0;
-    Experiment::try_new("one-step", h, n_p, s).unwrap()
+    experiment("one-step", h, s)
 }
 
 #[test]
@@ -73,13 +73,13 @@ fn exact_step_matches_fine_rk4() {
     for hold in [VoltageHold::Dq, VoltageHold::Stator] {
         for &(w0, w1) in &[(0.0, 0.0), (280.0, 281.0), (-150.0, -149.0), (1000.0, 1000.0)] {
             let u = C::new(-37.0, 152.0);
-            let e = two_sample_experiment(u, w0, w1, h, 4);
-            let m = PmsmSpm::new(hold);
-            let prep = m.prepare(&e).unwrap();
-            let c = m.coefficients(&th, &prep.inputs).unwrap();
+            let e = two_sample_experiment(u, w0, w1, h);
+            let m = PmsmSpm::new(4, hold);
+            let inputs = m.prepare(&e).unwrap();
+            let c = m.coefficients(&th, &inputs).unwrap();
             let x = [3.2, -7.5];
             let mut xn = [0.0; 2];
-            m.step(&c, &prep.inputs, 0, &x, &mut xn);
+            m.step(&c, &inputs, 0, &x, &mut xn);
             let reference = rk4_period(C::new(x[0], x[1]), u, 0.5 * (w0 + w1), 4.0, th, h, hold, 4000);
             let err = (C::new(xn[0], xn[1]) - reference).norm() / reference.norm();
             worst = worst.max(err);
@@ -93,13 +93,13 @@ fn exact_step_matches_fine_rk4() {
 fn holds_differ_at_second_order_in_phi() {
     // Guards against a hold silently ignored: at φ = 0.11 rad the two steps differ.
     let th = [0.9, 4.5e-3, 0.5389];
-    let e = two_sample_experiment(C::new(10.0, 150.0), 275.0, 275.0, 1e-4, 4);
+    let e = two_sample_experiment(C::new(10.0, 150.0), 275.0, 275.0, 1e-4);
     let step = |hold| {
-        let m = PmsmSpm::new(hold);
-        let prep = m.prepare(&e).unwrap();
-        let c = m.coefficients(&th, &prep.inputs).unwrap();
+        let m = PmsmSpm::new(4, hold);
+        let inputs = m.prepare(&e).unwrap();
+        let c = m.coefficients(&th, &inputs).unwrap();
         let mut xn = [0.0; 2];
-        m.step(&c, &prep.inputs, 0, &[1.0, 2.0], &mut xn);
+        m.step(&c, &inputs, 0, &[1.0, 2.0], &mut xn);
         C::new(xn[0], xn[1])
     };
     let d = (step(VoltageHold::Dq) - step(VoltageHold::Stator)).norm();
@@ -115,11 +115,14 @@ fn sensitivities_match_central_differences() {
     let h = 1e-4;
     let mut rng = Rng(7);
     for hold in [VoltageHold::Dq, VoltageHold::Stator] {
-        let m = PmsmSpm::new(hold);
-        let e = simulate_into(&m, &th, h, 4, exciting_signals(600, h, 250.0, 60.0, th[2], &mut rng));
-        let prep = m.prepare(&e).unwrap();
+        let m = PmsmSpm::new(4, hold);
+        // the analytic path, not finite differences of the step
+        assert!(m.sensitivities().is_some(), "the SPM model offers analytic sensitivities");
+        let e = simulate_into(&m, &th, h, exciting_signals(600, h, 250.0, 60.0, th[2], &mut rng));
+        let prep = Prepared::new(&m, &e).unwrap();
         let mut analytic = vec![0.0; 600 * 2 * 3];
-        visit_sensitivities(&m, &prep, &th, &[1.0; 3], Shooting::default(), |k, _, dy| {
+        let opts = SimOptions { fd_scale: Some(&[1.0; 3]), ..Default::default() };
+        visit_sensitivities(&m, &prep, &th, &opts, |k, _, dy, _| {
             analytic[k * 6..(k + 1) * 6].copy_from_slice(dy);
         })
         .unwrap();
@@ -129,8 +132,8 @@ fn sensitivities_match_central_differences() {
             let (mut tp, mut tm) = (th, th);
             tp[j] += d;
             tm[j] -= d;
-            let yp = greybox::simulate::simulate(&m, &prep, &tp).unwrap();
-            let ym = greybox::simulate::simulate(&m, &prep, &tm).unwrap();
+            let yp = sim(&m, &prep, &tp).unwrap();
+            let ym = sim(&m, &prep, &tm).unwrap();
             let col_norm = (0..600 * 2).map(|r| ((yp[r] - ym[r]) / (2.0 * d)).powi(2)).sum::<f64>().sqrt();
             for k in 0..600 {
                 for i in 0..2 {
@@ -148,12 +151,12 @@ fn sensitivities_match_central_differences() {
 
 #[test]
 fn invalid_parameters_are_named() {
-    let m = PmsmSpm::default();
-    let e = two_sample_experiment(C::new(1.0, 1.0), 1.0, 1.0, 1e-4, 2);
-    let prep = m.prepare(&e).unwrap();
+    let m = PmsmSpm::new(2, VoltageHold::Stator);
+    let e = two_sample_experiment(C::new(1.0, 1.0), 1.0, 1.0, 1e-4);
+    let inputs = m.prepare(&e).unwrap();
     for (th, name) in [([0.0, 1e-3, 0.1], "r_s"), ([1.0, -1e-3, 0.1], "l_s"), ([1.0, 1e-3, f64::NAN], "k_e")]
     {
-        let err = m.coefficients(&th, &prep.inputs).unwrap_err().to_string();
+        let err = m.coefficients(&th, &inputs).unwrap_err().to_string();
         assert!(err.contains(name), "{err}");
     }
 }
@@ -171,9 +174,9 @@ proptest! {
         let th = [r_s, l_s, k_e];
         // Keep ω_e h below ~0.3 rad and the voltage comparable to the back-EMF.
         let w_max = (0.25 / (n_p as f64 * h)).min(300.0);
-        let m = PmsmSpm::new(hold);
-        let e = simulate_into(&m, &th, h, n_p, exciting_signals(4000, h, w_max, 30.0 + 50.0 * r_s, k_e, &mut rng));
-        let opts = PmsmFitOptions { hold: if stator { HoldChoice::Stator } else { HoldChoice::Dq }, ..Default::default() };
+        let m = PmsmSpm::new(n_p, hold);
+        let e = simulate_into(&m, &th, h, exciting_signals(4000, h, w_max, 30.0 + 50.0 * r_s, k_e, &mut rng));
+        let opts = PmsmFitOptions { hold: if stator { HoldChoice::Stator } else { HoldChoice::Dq }, ..pmsm_options(n_p) };
         let fit = fit_pmsm(&[e], &opts).unwrap();
         prop_assert!(fit.solver.success, "{}", fit.solver.termination);
         for (name, truth) in [("r_s", r_s), ("l_s", l_s), ("k_e", k_e)] {

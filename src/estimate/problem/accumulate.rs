@@ -83,7 +83,15 @@ impl Accumulator {
 
     /// One sample: `eps` the residual the criterion sees (filtered or not), `raw` the
     /// output error itself, `jac` the criterion's Jacobian (row-major n_y × n_p).
-    pub(crate) fn sample(&mut self, loss: &Loss, y: &[f64], eps: &[f64], raw: &[f64], w: &[f64], jac: &[f64]) {
+    pub(crate) fn sample(
+        &mut self,
+        loss: &Loss,
+        y: &[f64],
+        eps: &[f64],
+        raw: &[f64],
+        w: &[f64],
+        jac: &[f64],
+    ) {
         let np = self.np;
         self.n_e += 1;
         for i in 0..self.ny {
@@ -159,4 +167,3 @@ impl Accumulator {
         }
     }
 }
-

@@ -9,16 +9,15 @@
 //! Gauss-Newton step solves `JᵀWJ δ = JᵀWψ(ε)`; for Huber the weight of a residual
 //! beyond δ is `δ/|ε|` (iteratively reweighted least squares).
 
-
 mod accumulate;
 mod loss;
 mod pass;
 mod sums;
 
+use crate::estimate::solver::LeastSquares;
+pub use crate::estimate::solver::NormalEquations;
 pub use accumulate::Sums;
 pub use loss::Loss;
-pub use crate::estimate::solver::NormalEquations;
-use crate::estimate::solver::LeastSquares;
 
 use crate::error::{Error, Result};
 use crate::estimate::filter::Butterworth;

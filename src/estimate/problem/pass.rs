@@ -130,4 +130,3 @@ impl<'f> ResidualFilter<'f> {
 
 /// One unfiltered sample of a pass: `(k, ε, w, J)`.
 pub(crate) type RawSample = (usize, Vec<f64>, Vec<f64>, Vec<f64>);
-

@@ -207,4 +207,3 @@ fn mad(mut v: Vec<f64>) -> f64 {
     }
     median(&mut v)
 }
-

@@ -167,7 +167,11 @@ impl Termination {
     pub fn success(&self) -> bool {
         matches!(
             self,
-            Self::GradientTolerance | Self::StepTolerance | Self::CostTolerance | Self::ZeroResidual | Self::ClosedForm
+            Self::GradientTolerance
+                | Self::StepTolerance
+                | Self::CostTolerance
+                | Self::ZeroResidual
+                | Self::ClosedForm
         )
     }
 }

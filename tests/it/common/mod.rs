@@ -1,8 +1,11 @@
 //! Shared test helpers: the development logs and their ground truth, synthetic records.
 #![allow(dead_code)]
 
+use greybox::Experiment;
 use greybox::model::{GreyBoxModel, Prepared};
-use greybox::{Experiment, Signals};
+pub use greybox::pmsm::DqSignals as Signals;
+use greybox::pmsm::{CsvOptions, PmsmFitOptions};
+use greybox::simulate::SimOptions;
 use std::path::PathBuf;
 
 /// Folder of the development logs: `$GREYBOX_SHARED_DATA` if set, else `../shared/data`
@@ -93,8 +96,37 @@ pub fn truth(stem: &str) -> Truth {
 pub fn load(stem: &str) -> (Experiment, Truth) {
     let t = truth(stem);
     let e =
-        greybox::read_csv(data(&format!("{stem}.csv.gz")), t.n_p, &Default::default()).expect("log reads");
+        greybox::pmsm::read_log(data(&format!("{stem}.csv.gz")), &CsvOptions::default()).expect("log reads");
     (e, t)
+}
+
+/// A PMSM experiment from dq signals sampled every h [s].
+pub fn experiment(name: &str, h: f64, signals: Signals) -> Experiment {
+    signals.into_experiment(name, h).expect("valid signals")
+}
+
+/// Reads a PMSM log with `n_p` pole pairs and the given options (any log, not only the
+/// development ones).
+pub fn read(
+    path: impl AsRef<std::path::Path>,
+    n_p: u32,
+    options: &CsvOptions,
+) -> greybox::Result<Experiment> {
+    greybox::pmsm::read_log(path, &CsvOptions { pole_pairs: Some(n_p), ..options.clone() })
+}
+
+/// Default PMSM fit options for a motor with `n_p` pole pairs.
+pub fn pmsm_options(n_p: u32) -> PmsmFitOptions {
+    PmsmFitOptions { pole_pairs: n_p, ..Default::default() }
+}
+
+/// Simulated outputs with the default options.
+pub fn sim<M: GreyBoxModel>(
+    model: &M,
+    prep: &Prepared<M::Inputs>,
+    theta: &[f64],
+) -> greybox::Result<Vec<f64>> {
+    greybox::simulate::simulate(model, prep, theta, &SimOptions::default())
 }
 
 /// Relative error.
@@ -146,18 +178,12 @@ pub fn exciting_signals(n: usize, h: f64, w_max: f64, u_amp: f64, k_e: f64, rng:
 }
 
 /// Replaces the currents of `signals` by the model's own simulation at θ from rest.
-pub fn simulate_into<M: GreyBoxModel>(
-    model: &M,
-    theta: &[f64],
-    h: f64,
-    n_p: u32,
-    mut signals: Signals,
-) -> Experiment {
-    let e = Experiment::try_new("synthetic", h, n_p, signals.clone()).expect("valid signals");
-    let prep: Prepared<M::Inputs> = model.prepare(&e).expect("prepare");
-    let y = greybox::simulate::simulate(model, &prep, theta).expect("simulate");
+pub fn simulate_into<M: GreyBoxModel>(model: &M, theta: &[f64], h: f64, mut signals: Signals) -> Experiment {
+    let e = experiment("synthetic", h, signals.clone());
+    let prep: Prepared<M::Inputs> = Prepared::new(model, &e).expect("prepare");
+    let y = sim(model, &prep, theta).expect("simulate");
     let ny = model.n_outputs();
     signals.i_d = (0..e.len()).map(|k| y[k * ny]).collect();
     signals.i_q = (0..e.len()).map(|k| y[k * ny + 1]).collect();
-    Experiment::try_new("synthetic", h, n_p, signals).expect("valid signals")
+    experiment("synthetic", h, signals)
 }
