@@ -1,0 +1,234 @@
+//! The statistics of a fit at its estimate, assembled once into a [`FitResult`]: sandwich
+//! covariance, intervals, error index, correlation, diagnostics, fit statistics and the
+//! model's derived quantities (MODEL.md §5; Ljung 9.3, 16.4; thesis 5.3).
+
+use super::diagnostics::{DiagnosticThresholds, diagnose};
+use super::problem::{FreeKind, PemProblem};
+use super::result::t_quantile_975;
+use super::{DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing};
+use crate::error::Result;
+use crate::model::GreyBoxModel;
+use nalgebra::{DMatrix, DVector};
+
+/// Computes the statistics at p̂ and fills a [`FitResult`].
+pub(crate) fn assemble<M: GreyBoxModel>(
+    problem: &PemProblem<'_, M>,
+    p: &DVector<f64>,
+    start: &[f64],
+    solver: SolverReport,
+    thresholds: &DiagnosticThresholds,
+) -> Result<FitResult> {
+    let model = problem.model();
+    let params = model.parameters();
+    let (ny, np) = (model.n_outputs(), problem.n_free());
+    let sums = problem.sums(p)?;
+    let n = sums.count;
+    let n_res = n * ny;
+    let dof = n_res.saturating_sub(np);
+    let sse_total: f64 = sums.sse.iter().sum();
+    // Inverses for the reported covariance and error index (the one explicit inverse,
+    // STYLE.md rule 7): bread⁻¹ meat bread⁻¹ (sandwich) and (JᵀWJ)⁻¹.
+    // Parameters the data do not see at all (a zero column, e.g. an initial state whose
+    // transient is weighted out) are left out of the inversion and get an infinite error.
+    let info_inv = inverse_on_support(&sums.jtj);
+    let bread_inv = inverse_on_support(&sums.bread);
+    let dtheta: Vec<f64> =
+        problem.free().iter().enumerate().map(|(g, f)| f.transform.dtheta_dp(p[g])).collect();
+    let cov_theta = bread_inv.as_ref().map(|ai| {
+        let cov_p = ai * &sums.meat * ai;
+        DMatrix::from_fn(np, np, |i, j| cov_p[(i, j)] * dtheta[i] * dtheta[j])
+    });
+    let tq = t_quantile_975(dof);
+    let names = problem.terms().iter().map(|t| t.prep.name.clone()).collect::<Vec<_>>();
+    let states = model.states();
+    let estimate = |g: usize, name: String, unit: String, start: f64| {
+        let f = &problem.free()[g];
+        let value = f.transform.to_theta(p[g]);
+        let unseen = sums.bread[(g, g)].is_nan() || sums.bread[(g, g)] <= 0.0;
+        let se = match &cov_theta {
+            Some(c) if !unseen => c[(g, g)].max(0.0).sqrt(),
+            _ => f64::INFINITY,
+        };
+        let idx = info_inv.as_ref().map_or(f64::INFINITY, |ai| {
+            100.0 * (sums.e2_weighted * ai[(g, g)]).max(0.0).sqrt() * dtheta[g].abs() / value.abs()
+        });
+        ParameterEstimate {
+            name,
+            unit,
+            value,
+            std_error: se,
+            ci95: [value - tq * se, value + tq * se],
+            error_index_percent: idx,
+            fixed: false,
+            experiment: f.experiment.map(|e| names[e].clone()),
+            start,
+        }
+    };
+    let mut parameters = Vec::new();
+    // Free entries of `parameters`, in order, are the free indices in `order`.
+    let mut order = Vec::new();
+    for (j, prm) in params.iter().enumerate() {
+        let copies: Vec<usize> =
+            (0..np).filter(|&g| problem.free()[g].kind == FreeKind::Parameter(j)).collect();
+        if copies.is_empty() {
+            parameters.push(ParameterEstimate {
+                name: prm.name.clone(),
+                unit: prm.unit.clone(),
+                value: start[j],
+                std_error: 0.0,
+                ci95: [start[j], start[j]],
+                error_index_percent: 0.0,
+                fixed: true,
+                experiment: None,
+                start: start[j],
+            });
+        }
+        for g in copies {
+            parameters.push(estimate(g, prm.name.clone(), prm.unit.clone(), start[j]));
+            order.push(g);
+        }
+    }
+    let mut initial_states = Vec::new();
+    for (g, f) in problem.free().iter().enumerate() {
+        if let (FreeKind::InitialState(i), Some(e)) = (f.kind, f.experiment) {
+            let x0 = problem.terms()[e].prep.x0[i];
+            let s = &states[i];
+            initial_states.push(estimate(g, format!("x0_{}", s.name), s.unit.clone(), x0));
+        }
+    }
+    let correlation = match &cov_theta {
+        Some(c) => order
+            .iter()
+            .map(|&a| order.iter().map(|&b| c[(a, b)] / (c[(a, a)] * c[(b, b)]).sqrt()).collect())
+            .collect(),
+        None => vec![vec![f64::NAN; order.len()]; order.len()],
+    };
+    let diag_names: Vec<String> = order
+        .iter()
+        .map(|&g| {
+            let f = &problem.free()[g];
+            let FreeKind::Parameter(j) = f.kind else { unreachable!("order holds model parameters only") };
+            match f.experiment {
+                Some(e) => format!("{}[{}]", params[j].name, names[e]),
+                None => params[j].name.clone(),
+            }
+        })
+        .collect();
+    let rel = |g: usize| problem.free()[g].transform.to_theta(p[g]) / dtheta[g];
+    let info_rel = DMatrix::from_fn(order.len(), order.len(), |a, b| {
+        let (ga, gb) = (order[a], order[b]);
+        sums.jtj[(ga, gb)] * rel(ga) * rel(gb)
+    });
+    let free_index: Vec<f64> =
+        parameters.iter().filter(|q| !q.fixed).map(|q| q.error_index_percent).collect();
+    let diagnostics = diagnose(
+        &info_rel,
+        &diag_names,
+        &free_index,
+        &correlation,
+        thresholds,
+        &|n| model.advice(n),
+        &|a, b| model.pair_advice(a, b),
+    );
+    let fit = FitStatistics {
+        outputs: model.outputs().into_iter().map(|o| o.name).collect(),
+        fit_percent: sums
+            .sse
+            .iter()
+            .zip(&sums.sst)
+            .map(|(e, t)| if *t > 0.0 { 100.0 * (1.0 - (e / t).sqrt()) } else { f64::NAN })
+            .collect(),
+        rms_residual: sums.sse.iter().map(|e| (e / n as f64).sqrt()).collect(),
+        loss: sums.cost,
+        mse: sse_total / n_res as f64,
+        aic: n_res as f64 * (sse_total / n_res as f64).ln() + 2.0 * np as f64,
+        bic: n_res as f64 * (sse_total / n_res as f64).ln() + np as f64 * (n_res as f64).ln(),
+        samples: n,
+        dof,
+    };
+    let mut notes = Vec::new();
+    let mut diagnostics = diagnostics;
+    for (name, f) in fit.outputs.iter().zip(&fit.fit_percent) {
+        if *f < 80.0 {
+            let what = model.poor_fit_advice().map(|a| format!(": {a}")).unwrap_or_default();
+            diagnostics.advice.push(format!("poor fit of {name} ({f:.1} %){what}"));
+        }
+    }
+    if info_inv.is_none() || bread_inv.is_none() {
+        notes.push(
+            "information matrix JᵀWJ is singular: some parameters are not identifiable from these data"
+                .into(),
+        );
+    }
+    let derived = derived(model, &parameters, &names);
+    Ok(FitResult {
+        model: model.name().to_string(),
+        experiments: names,
+        parameters,
+        initial_states,
+        derived,
+        diagnostics,
+        fit,
+        correlation,
+        solver,
+        timing: Timing::default(),
+        notes,
+    })
+}
+
+/// The model's derived quantities per experiment's θ, once when every experiment gives the
+/// same (no per-experiment parameter they depend on).
+fn derived<M: GreyBoxModel>(
+    model: &M,
+    parameters: &[ParameterEstimate],
+    names: &[String],
+) -> Vec<DerivedEstimate> {
+    let n_theta = model.parameters().len();
+    let per_experiment: Vec<Vec<DerivedEstimate>> = names
+        .iter()
+        .map(|e| {
+            let mut theta = vec![f64::NAN; n_theta];
+            let mut se = vec![f64::NAN; n_theta];
+            for (j, prm) in model.parameters().iter().enumerate() {
+                let pick = parameters
+                    .iter()
+                    .find(|q| q.name == prm.name && q.experiment.as_deref() == Some(e.as_str()))
+                    .or_else(|| parameters.iter().find(|q| q.name == prm.name && q.experiment.is_none()));
+                if let Some(q) = pick {
+                    (theta[j], se[j]) = (q.value, q.std_error);
+                }
+            }
+            model.derived(&theta, &se)
+        })
+        .collect();
+    match per_experiment.split_first() {
+        Some((first, rest)) if rest.iter().all(|d| d == first) => first.clone(),
+        _ => per_experiment
+            .into_iter()
+            .zip(names)
+            .flat_map(|(d, e)| d.into_iter().map(|q| DerivedEstimate { experiment: Some(e.clone()), ..q }))
+            .collect(),
+    }
+}
+
+/// Inverse of a symmetric positive semi-definite matrix on the rows/columns with a
+/// non-zero diagonal (Cholesky); the others get ∞ on the diagonal and 0 elsewhere. `None`
+/// when the supported block is not positive definite.
+fn inverse_on_support(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let n = a.nrows();
+    let live: Vec<usize> = (0..n).filter(|&i| a[(i, i)] > 0.0).collect();
+    let sub = DMatrix::from_fn(live.len(), live.len(), |i, j| a[(live[i], live[j])]);
+    let inv = sub.cholesky()?.inverse();
+    let mut out = DMatrix::zeros(n, n);
+    for i in 0..n {
+        if a[(i, i)] <= 0.0 {
+            out[(i, i)] = f64::INFINITY;
+        }
+    }
+    for (i, &r) in live.iter().enumerate() {
+        for (j, &c) in live.iter().enumerate() {
+            out[(r, c)] = inv[(i, j)];
+        }
+    }
+    Some(out)
+}
