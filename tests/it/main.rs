@@ -12,6 +12,8 @@ mod errors;
 mod filter;
 mod ipm;
 mod linear;
+mod mgh;
+mod mgh_problems;
 mod multi_experiment;
 mod random_starts;
 mod recovery;

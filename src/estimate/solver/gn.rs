@@ -15,9 +15,9 @@
 //! point. Trial points where the model cannot be simulated count as failed trials.
 //!
 //! Stopping uses the tests of the Levenberg-Marquardt solver
-//! ([`crate::estimate::LevenbergMarquardt`], MINPACK's, [`Tolerances`]): `gtol` on the
+//! ([`super::lm::LevenbergMarquardt`], MINPACK's, [`Tolerances`]): `gtol` on the
 //! scaled gradient at every accepted point, `xtol` on the full projected Gauss-Newton step
-//! (α = 1) in the D-scaled norm, `ftol` on the actual and predicted relative reductions of
+//! (α = 1) in the D-scaled norm, tried first (taken if it lowers the cost), `ftol` on the actual and predicted relative reductions of
 //! the accepted step and of a failed full step (a failed full step whose reductions are
 //! both below `ftol` means the cost sits at its rounding floor: MINPACK's `info = 1` on a
 //! rejected step), and [`Termination::NoDescent`] when α falls below its minimum (1e-10).
@@ -278,15 +278,6 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
         let predicted = |step: &DVector<f64>| step.dot(&jtr) - 0.5 * step.dot(&(&jtj * step));
 
         let full = project(problem, &p + &delta)?;
-        let full_step = &full - &p;
-        if self.monitor.small_step(&self.tol, &full_step, &p) {
-            self.stop(self.monitor.certify(Termination::StepTolerance, &jtj, cost));
-            let kv = argmin::kv!(
-                "alpha" => 1.0; "shift" => shift; "held" => held; "trials" => 0u64; "accepted" => false;
-            );
-            return Ok((keep(state, p, grad, jtj), Some(kv)));
-        }
-
         let mut alpha = 1.0;
         let mut trials = 0u64;
         let mut trial = full;
@@ -315,6 +306,8 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
                         self.stop(Termination::ZeroResidual);
                     } else if Monitor::cost_converged(&self.tol, &r) {
                         self.stop(self.monitor.certify(Termination::CostTolerance, &ne.jtj, ne.cost));
+                    } else if trials == 1 && self.monitor.small_step(&self.tol, &step, &trial) {
+                        self.stop(self.monitor.certify(Termination::StepTolerance, &ne.jtj, ne.cost));
                     } else if Monitor::gradient_converged(&self.tol, &ne.jtj, &ne.jtr, ne.cost) {
                         self.stop(self.monitor.certify(Termination::GradientTolerance, &ne.jtj, ne.cost));
                     }
@@ -328,6 +321,11 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
                         Some(kv),
                     ));
                 }
+            }
+            if trials == 1 && self.monitor.small_step(&self.tol, &step, &p) {
+                // A full step below xtol that fails: backtracking cannot resolve more.
+                self.stop(self.monitor.certify(Termination::StepTolerance, &jtj, cost));
+                break;
             }
             if trials == 1
                 && Monitor::cost_converged(&self.tol, &Monitor::reductions(cost, c, predicted(&step)))

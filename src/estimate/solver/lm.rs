@@ -10,8 +10,9 @@
 //!
 //! The damping differs from MINPACK's trust region; the stopping tests are MINPACK's
 //! (`lmder`; see [`Tolerances`] and the `stopping` module): `ftol` on both the actual and
-//! the predicted relative reduction of every accepted step, `xtol` on the next step in the
-//! D-scaled norm (checked before it is evaluated), `gtol` on the scaled gradient at every
+//! the predicted relative reduction of every accepted step, `xtol` on every trial step in
+//! the D-scaled norm (after it is evaluated and, if it lowers the cost, taken: near a zero
+//! residual that last step squares the residual), `gtol` on the scaled gradient at every
 //! accepted point, and [`Termination::NoDescent`] when λ exceeds 1e32. One difference:
 //! MINPACK also applies the `ftol` test after a rejected step; here a rejected step only
 //! raises λ (see the comment in `next_iter`). A test passing where the Jacobian has
@@ -128,12 +129,6 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
             Ok(())
         })?;
         let step = &trial - &p;
-        if self.monitor.small_step(&self.tol, &step, &p) {
-            let t = self.monitor.certify(Termination::StepTolerance, &jtj, cost);
-            self.stop(t);
-            let kv = argmin::kv!("lambda" => self.lambda; "accepted" => false;);
-            return Ok((keep(state, p, grad, jtj), Some(kv)));
-        }
         let eval = problem.problem("normal_equations_count", |o| match o.normal_equations(&trial) {
             Ok(ne) => Ok(Some(ne)),
             Err(e) if is_infeasible(&e) => Ok(None),
@@ -153,6 +148,8 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
                     self.stop(Termination::ZeroResidual);
                 } else if Monitor::cost_converged(&self.tol, &r) {
                     self.stop(self.monitor.certify(Termination::CostTolerance, &ne.jtj, ne.cost));
+                } else if self.monitor.small_step(&self.tol, &step, &trial) {
+                    self.stop(self.monitor.certify(Termination::StepTolerance, &ne.jtj, ne.cost));
                 } else if Monitor::gradient_converged(&self.tol, &ne.jtj, &ne.jtr, ne.cost) {
                     self.stop(self.monitor.certify(Termination::GradientTolerance, &ne.jtj, ne.cost));
                 }
@@ -168,6 +165,9 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
                 // near a flat valley the damped step understates what an undamped one
                 // still gains in the parameters (Misra1a: 6e-9 short of the certified
                 // values); a rejected step only raises λ, and xtol ends the run.
+                if self.monitor.small_step(&self.tol, &step, &p) {
+                    self.stop(self.monitor.certify(Termination::StepTolerance, &jtj, cost));
+                }
                 self.reject();
                 let kv = argmin::kv!(
                     "lambda" => self.lambda; "rho" => r.ratio; "actred" => r.actred; "prered" => r.prered;

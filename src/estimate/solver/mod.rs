@@ -98,7 +98,7 @@ pub struct Tolerances {
     /// Stop when both the actual and the predicted relative reduction of the cost by a
     /// step are at most `ftol` (and the actual is at most twice the predicted).
     pub ftol: f64,
-    /// Stop when the next step satisfies `‖δ‖_D ≤ xtol ‖p‖_D`.
+    /// Stop when a trial step δ satisfies `‖δ‖_D ≤ xtol ‖p‖_D` (p the point after it).
     pub xtol: f64,
     /// Stop when `max_j |J_jᵀWε| / (‖J_j‖ ‖√W ε‖) ≤ gtol` (cosine of residual and columns).
     pub gtol: f64,

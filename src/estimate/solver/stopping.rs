@@ -8,9 +8,9 @@
 //!   by the quadratic model `prered = (−∇Vᵀδ − ½ δᵀJᵀWJδ)/V` and `ρ = actred/prered`;
 //!   MINPACK tests it after every trial step, accepted or not; the solvers here test it
 //!   after accepted steps (and Gauss-Newton after a failed full step).
-//! - `xtol`: `‖δ‖_D ≤ xtol ‖p‖_D` for the next step δ (MINPACK tests the trust radius
-//!   Δ ≥ ‖δ‖_D that bounds the next step; these solvers have the step itself at hand and
-//!   stop before evaluating it).
+//! - `xtol`: `‖δ‖_D ≤ xtol ‖p‖_D` for the step δ just tried, p the point after it (MINPACK
+//!   tests its trust radius Δ, which after the step is of the order of `‖δ‖_D`: at most
+//!   `2‖δ‖_D` after a good step, less after a poor one).
 //! - `gtol`: the cosine `max_j |J_jᵀWε| / (‖J_j‖ ‖√W ε‖) ≤ gtol`, columns with `J_j = 0`
 //!   left out, at every accepted point.
 //!
