@@ -3,7 +3,7 @@
 //!
 //! The model below is the exact zero-order-hold step of a surface-magnet machine with a
 //! voltage held in the stator frame (MODEL.md §4), built only from the public PMSM helpers
-//! (`DqView`, `interval_mean_speed`, `rotation`, `stator_hold_start`, `SQRT_2_3`) and
+//! (`DqView`, `intervals`) and
 //! without analytic sensitivities (the estimator takes finite differences of the step).
 //! On the shipped log `data/sample.csv.gz` (servo motor, 4 pole pairs, stator hold) the
 //! example
@@ -13,49 +13,48 @@
 //! 2. fits both with `estimate::fit` from the same least-squares start and prints the two
 //!    estimates side by side.
 //!
-//! The model code (between the `model code` comments, 30 lines counting its doc comments
-//! and attribute) is exempt from rustfmt so that the one-line trait methods stay on one
-//! line; in rustfmt's layout the same code takes 41 lines.
+//! The model code (between the `model code` comments) is 30 lines of rustfmt-formatted
+//! code plus a one-line doc comment; the data-side work (interval-mean speed, rotation,
+//! stator-hold voltage) comes from the public [`greybox::pmsm::intervals`].
 
 use greybox::estimate::{PemOptions, fit};
 use greybox::model::{GreyBoxModel, Parameter, Prepared, Signal};
-use greybox::pmsm::interval::C64;
 use greybox::pmsm::{
-    DqView, MotorKind, PmsmSpm, SQRT_2_3, VoltageHold, interval_mean_speed, least_squares, read_log,
-    rotation, stator_hold_start,
+    C64, DqView, Interval, MotorKind, PmsmSpm, VoltageHold, intervals, least_squares, read_log,
 };
 use greybox::simulate::{SimOptions, simulate};
 use greybox::{Experiment, Result};
 
-// --- model code (30 lines) ---
-/// θ = (r_s [Ω], l_s [H], k_e [V s/rad]); state = output = (i_d, i_q) [A]. Field 0: pole pairs.
-struct UserSpm(f64, Vec<Parameter>);
-/// h [s]; per interval ω_e [rad/s], √(2/3) ω_m [rad/s], e^{−jω_e h}, held voltage u₀ e^{−jω_e h} [V].
-struct Intervals(f64, Vec<(f64, f64, C64, C64)>);
-#[rustfmt::skip]
+// --- model code (30 lines of code and one doc comment) ---
+/// θ = (r_s [Ω], l_s [H], k_e [V s/rad]); state = output = (i_d, i_q) [A]; pole pairs n_p.
+struct UserSpm(u32, Vec<Parameter>);
 impl GreyBoxModel for UserSpm {
-    type Inputs = Intervals;
+    type Inputs = (f64, Vec<Interval>); // h [s] and the data of every sample interval
     type Coefficients = [f64; 3];
-    fn name(&self) -> &str { "user_spm" }
-    fn n_states(&self) -> usize { 2 }
-    fn outputs(&self) -> Vec<Signal> { vec![Signal::new("id", "A"), Signal::new("iq", "A")] }
-    fn input_channels(&self) -> Vec<String> { vec!["ud".into(), "uq".into(), "w_m".into()] }
-    fn parameters(&self) -> &[Parameter] { &self.1 }
-    fn prepare(&self, e: &Experiment) -> Result<Intervals> {
-        let (v, h) = (DqView::try_new(e)?, e.h());
-        let interval = |(k, w_m): (usize, f64)| {
-            let (phi, u) = (self.0 * w_m * h, C64::new(v.u_d()[k], v.u_q()[k]));
-            (self.0 * w_m, SQRT_2_3 * w_m, rotation(phi), stator_hold_start(u, phi) * rotation(phi))
-        };
-        Ok(Intervals(h, interval_mean_speed(v.w_m()).into_iter().enumerate().map(interval).collect()))
+    fn n_states(&self) -> usize {
+        2
     }
-    fn coefficients(&self, th: &[f64], _: &Intervals) -> Result<[f64; 3]> { Ok([th[0], th[1], th[2]]) }
-    fn step(&self, &[r, l, k_e]: &[f64; 3], inp: &Intervals, k: usize, x: &[f64], x_next: &mut [f64]) {
-        let (h, (w_e, emf, rot, u)) = (inp.0, inp.1[k]);
-        let (z, d) = (C64::new(r, w_e * l), (-r * h / l).exp());
-        let a = rot * d;
-        let i = a * C64::new(x[0], x[1]) + u * ((1.0 - d) / r) - (1.0 - a) / z * C64::new(0.0, k_e * emf);
-        (x_next[0], x_next[1]) = (i.re, i.im);
+    fn outputs(&self) -> Vec<Signal> {
+        vec![Signal::new("id", "A"), Signal::new("iq", "A")]
+    }
+    fn input_channels(&self) -> Vec<String> {
+        vec!["ud".into(), "uq".into(), "w_m".into()]
+    }
+    fn parameters(&self) -> &[Parameter] {
+        &self.1
+    }
+    fn prepare(&self, e: &Experiment) -> Result<Self::Inputs> {
+        Ok((e.h(), intervals(&DqView::try_new(e)?, self.0, VoltageHold::Stator).collect()))
+    }
+    fn coefficients(&self, th: &[f64], _: &Self::Inputs) -> Result<[f64; 3]> {
+        Ok([th[0], th[1], th[2]])
+    }
+    fn step(&self, &[r, l, k_e]: &[f64; 3], (h, iv): &Self::Inputs, k: usize, x: &[f64], xn: &mut [f64]) {
+        let (Interval { w_e, emf, rot, u0, .. }, d) = (iv[k], (-r * h / l).exp());
+        let (a, z) = (rot * d, C64::new(r, w_e * l)); // MODEL.md §4, stator hold
+        let i =
+            a * C64::new(x[0], x[1]) + u0 * rot * ((1.0 - d) / r) - (1.0 - a) / z * C64::new(0.0, k_e * emf);
+        (xn[0], xn[1]) = (i.re, i.im);
     }
 }
 // --- end of model code ---
@@ -64,7 +63,7 @@ fn main() -> Result<()> {
     const N_P: u32 = 4;
     let log = read_log(concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz"), &Default::default())?;
     let builtin = PmsmSpm::new(N_P, VoltageHold::Stator);
-    let user = UserSpm(f64::from(N_P), builtin.parameters().to_vec());
+    let user = UserSpm(N_P, builtin.parameters().to_vec());
     let start = least_squares(std::slice::from_ref(&log), N_P, MotorKind::Spm)?.theta;
 
     // 1. Simulated outputs of both models from the measured first current.

@@ -13,7 +13,6 @@
 //!   residuals (Gaussian likelihood, constants dropped).
 
 use crate::estimate::diagnostics::Diagnostics;
-use crate::estimate::solver::Termination;
 use serde::{Deserialize, Serialize};
 
 /// One estimated (or fixed) parameter.
@@ -68,26 +67,7 @@ pub struct FitStatistics {
     pub dof: usize,
 }
 
-/// How the solver ran.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SolverReport {
-    /// `lm` or `gn`.
-    pub name: String,
-    /// Iterations (trial steps).
-    pub iterations: u64,
-    /// Human-readable termination reason.
-    pub termination: String,
-    /// Machine-readable termination reason.
-    pub reason: Termination,
-    /// Whether the fit converged.
-    pub success: bool,
-    /// Cost and normal-equation evaluations.
-    pub evaluations: u64,
-    /// Iterations whose step was accepted (the cost decreased); `iterations` also counts
-    /// rejected trial steps.
-    #[serde(default)]
-    pub accepted_iterations: u64,
-}
+pub use crate::estimate::solver::SolverReport;
 
 /// Wall-clock timing [s].
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]

@@ -137,8 +137,13 @@ pub trait GreyBoxModel: Sync {
     /// θ-dependent, sample-independent coefficients (computed once per θ).
     type Coefficients: Send + Sync;
 
-    /// Short identifier used in reports, e.g. `pmsm_spm`.
-    fn name(&self) -> &str;
+    /// Short identifier used in reports, e.g. `pmsm_spm`; the default is the type's name
+    /// without its module path.
+    fn name(&self) -> &str {
+        let full = std::any::type_name::<Self>();
+        let base = full.split('<').next().unwrap_or(full);
+        base.rsplit("::").next().unwrap_or(base)
+    }
     /// State dimension n_x; 0 for a static model.
     fn n_states(&self) -> usize;
     /// The channels the model predicts, length n_y; the measured `y` is read from them.

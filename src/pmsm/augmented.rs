@@ -8,8 +8,24 @@
 //! compute the exponential of a matrix, twenty-five years later", SIAM Review 45(1)).
 
 use super::interval::VoltageHold;
-use super::ipm::IpmInputs;
+use nalgebra::Complex;
 use nalgebra::SMatrix;
+
+/// Per-interval data of the IPM step, independent of θ (index k = 0..N−2).
+#[derive(Clone, Debug)]
+pub struct IpmInputs {
+    /// Sample time h [s].
+    pub h: f64,
+    /// The voltage hold that `u0` refers to.
+    pub hold: VoltageHold,
+    /// Interval-mean electrical speed ω_e [rad/s], length N−1.
+    pub w_e: Vec<f64>,
+    /// `√(2/3)` × interval-mean mechanical speed [rad/s], length N−1: back-EMF per unit K_e.
+    pub emf: Vec<f64>,
+    /// dq voltage at the start of the period [V], length N−1: `u[k]` (dq hold) or
+    /// `u₀ = u[k] jφ/(1 − e^{−jφ})` (stator hold).
+    pub u0: Vec<Complex<f64>>,
+}
 
 /// θ-dependent coefficients of the IPM step (ratios precomputed once per θ).
 #[derive(Clone, Debug)]

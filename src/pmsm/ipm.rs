@@ -38,7 +38,8 @@
 //! stiff θ or a huge speed) the 13 × 13 matrix `e^{Mh}` is formed by scaling and squaring
 //! instead, so the cost grows with `log ρ`, not `ρ`.
 
-use super::augmented::{Aug, IpmCoefficients, advance};
+pub use super::augmented::{IpmCoefficients, IpmInputs};
+use super::augmented::{Aug, advance};
 use super::interval::{VoltageHold, check_pole_pairs, check_positive, intervals};
 use super::kind::{MotorKind, POOR_FIT_ADVICE, derived};
 
@@ -47,23 +48,6 @@ use super::signals::{DqView, channel};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::model::{DerivedEstimate, GreyBoxModel, Parameter, Sensitivities, Signal};
-use nalgebra::Complex;
-
-/// Per-interval data of the IPM step, independent of θ (index k = 0..N−2).
-#[derive(Clone, Debug)]
-pub struct IpmInputs {
-    /// Sample time h [s].
-    pub h: f64,
-    /// The voltage hold that `u0` refers to.
-    pub hold: VoltageHold,
-    /// Interval-mean electrical speed ω_e [rad/s], length N−1.
-    pub w_e: Vec<f64>,
-    /// `√(2/3)` × interval-mean mechanical speed [rad/s], length N−1: back-EMF per unit K_e.
-    pub emf: Vec<f64>,
-    /// dq voltage at the start of the period [V], length N−1: `u[k]` (dq hold) or
-    /// `u₀ = u[k] jφ/(1 − e^{−jφ})` (stator hold).
-    pub u0: Vec<Complex<f64>>,
-}
 
 /// Interior-magnet PMSM model with exact sampled-data step and exact forward sensitivities.
 ///

@@ -202,3 +202,24 @@ pub trait ReportsTermination {
     /// trial steps. Evaluations are counted apart, by argmin's function counts.
     fn accepted_iterations(&self) -> u64;
 }
+
+/// How the solver ran.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SolverReport {
+    /// `lm` or `gn`.
+    pub name: String,
+    /// Iterations (trial steps).
+    pub iterations: u64,
+    /// Human-readable termination reason.
+    pub termination: String,
+    /// Machine-readable termination reason.
+    pub reason: Termination,
+    /// Whether the fit converged.
+    pub success: bool,
+    /// Cost and normal-equation evaluations.
+    pub evaluations: u64,
+    /// Iterations whose step was accepted (the cost decreased); `iterations` also counts
+    /// rejected trial steps.
+    #[serde(default)]
+    pub accepted_iterations: u64,
+}

@@ -5,7 +5,7 @@ use super::gn::GaussNewton;
 use super::lm::LevenbergMarquardt;
 use super::{LeastSquares, LsState, ReportsTermination, Termination, Tolerances};
 use crate::error::{Error, Result};
-use crate::estimate::result::SolverReport;
+use super::SolverReport;
 #[cfg(feature = "cli")]
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Executor, Solver, State, TerminationReason};
