@@ -45,8 +45,9 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         let f = &problem.free()[g];
         let value = f.transform.to_theta(p[g]);
         let unseen = sums.bread[(g, g)].is_nan() || sums.bread[(g, g)] <= 0.0;
+        // Without degrees of freedom there is no noise estimate, hence no standard error.
         let se = match &cov_theta {
-            Some(c) if !unseen => c[(g, g)].max(0.0).sqrt(),
+            Some(c) if !unseen && dof > 0 => c[(g, g)].max(0.0).sqrt(),
             _ => f64::INFINITY,
         };
         let idx = info_inv.as_ref().map_or(f64::INFINITY, |ai| {
@@ -153,6 +154,12 @@ pub(crate) fn assemble<M: GreyBoxModel>(
             let what = model.poor_fit_advice().map(|a| format!(": {a}")).unwrap_or_default();
             diagnostics.advice.push(format!("poor fit of {name} ({f:.1} %){what}"));
         }
+    }
+    if dof == 0 {
+        notes.push(format!(
+            "no degrees of freedom ({n_res} residuals, {np} free parameters): the residuals carry no noise \
+             estimate, so standard errors and intervals are unknown (∞); add samples"
+        ));
     }
     if info_inv.is_none() || bread_inv.is_none() {
         notes.push(

@@ -38,8 +38,8 @@
 //! stiff θ or a huge speed) the 13 × 13 matrix `e^{Mh}` is formed by scaling and squaring
 //! instead, so the cost grows with `log ρ`, not `ρ`.
 
-pub use super::augmented::{IpmCoefficients, IpmInputs};
 use super::augmented::{Aug, advance};
+pub use super::augmented::{IpmCoefficients, IpmInputs};
 use super::interval::{VoltageHold, check_pole_pairs, check_positive, intervals};
 use super::kind::{MotorKind, POOR_FIT_ADVICE, derived};
 

@@ -26,7 +26,9 @@ pub mod spm;
 pub mod transform;
 
 pub use fit::{HoldChoice, PmsmFit, PmsmFitOptions, fit_pmsm};
-pub use interval::{C64, Interval, SQRT_2_3, VoltageHold, interval_mean_speed, intervals, rotation, stator_hold_start};
+pub use interval::{
+    C64, Interval, SQRT_2_3, VoltageHold, interval_mean_speed, intervals, rotation, stator_hold_start,
+};
 pub use ipm::PmsmIpm;
 pub use kind::{MotorKind, derived};
 pub use linear::{LinearEstimate, LinearOptions, least_squares, regressors, weighted_least_squares};

@@ -275,12 +275,28 @@ where
     G: Fn(&[f64], &[f64]) -> Result<Vec<f64>>,
 {
     let nth = theta.len();
-    let v0: Vec<f64> = x.iter().copied().chain(theta.iter().zip(scale).map(|(t, s)| t / s)).collect();
+    // finitediff steps every variable by an absolute ∛ε: scale the states by their own size
+    // (1 + |x_i|, as the directional differences) as θ is scaled by `scale`, so that a state
+    // of 400 K or of 1e-6 A is differenced at the same relative precision.
+    let x_scale: Vec<f64> = x.iter().map(|v| 1.0 + v.abs()).collect();
+    let v0: Vec<f64> = x
+        .iter()
+        .zip(&x_scale)
+        .map(|(v, s)| v / s)
+        .chain(theta.iter().zip(scale).map(|(t, s)| t / s))
+        .collect();
     let f = |v: &Vec<f64>| -> std::result::Result<Vec<f64>, argmin::core::Error> {
+        let xs: Vec<f64> = (0..nx).map(|i| v[i] * x_scale[i]).collect();
         let th: Vec<f64> = (0..nth).map(|j| v[nx + j] * scale[j]).collect();
-        Ok(g(&v[..nx], &th)?)
+        Ok(g(&xs, &th)?)
     };
-    finitediff::vec::central_jacobian(&f)(&v0).map_err(Error::from_argmin)
+    let mut jac = finitediff::vec::central_jacobian(&f)(&v0).map_err(Error::from_argmin)?;
+    for row in jac.iter_mut() {
+        for (d, s) in row.iter_mut().zip(&x_scale) {
+            *d /= s;
+        }
+    }
+    Ok(jac)
 }
 
 /// Sensitivity of `g(x, θ)` from finite differences, chained with the state sensitivity:

@@ -101,5 +101,4 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         let (_, d) = self.chain(e, p);
         d.iter().zip(&theta).map(|(&d, &t)| if d != 0.0 { d.abs() } else { t.abs().max(1e-12) }).collect()
     }
-
 }

@@ -10,8 +10,8 @@
 //! beyond δ is `δ/|ε|` (iteratively reweighted least squares).
 
 mod accumulate;
-mod map;
 mod loss;
+mod map;
 mod pass;
 mod sums;
 
@@ -238,6 +238,21 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                 g
             });
             terms.push(Term { prep, weights, slots, x0_free });
+        }
+        let ny = model.n_outputs();
+        let residuals: usize = terms
+            .iter()
+            .map(|t| ny * (t.prep.n - usize::from(t.x0_free.is_none() && model.n_states() > 0)))
+            .sum();
+        if residuals < free.len() {
+            return Err(invalid(
+                "experiments",
+                format!(
+                    "{residuals} residuals for {} free parameters (model parameters and initial states): \
+                     at least as many residuals as parameters are needed, one more for a noise estimate",
+                    free.len()
+                ),
+            ));
         }
         let mut problem = Self {
             model,

@@ -1,11 +1,11 @@
 //! Running a solver on a [`LeastSquares`] problem through argmin's executor, as every fit
 //! does: the solver chosen by [`SolverKind`], its report as a [`SolverReport`].
 
+use super::SolverReport;
 use super::gn::GaussNewton;
 use super::lm::LevenbergMarquardt;
 use super::{LeastSquares, LsState, ReportsTermination, Termination, Tolerances};
 use crate::error::{Error, Result};
-use super::SolverReport;
 #[cfg(feature = "cli")]
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Executor, Solver, State, TerminationReason};
