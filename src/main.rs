@@ -2,6 +2,7 @@
 //!
 //! ```text
 //! greybox fit LOG... --pole-pairs N [--model spm|ipm] [--hold auto|dq|stator] [--solver lm|gn] [--json PATH]
+//! greybox validate LOG... --params REPORT.json [--json PATH] [--compare-dir DIR]
 //! ```
 //! The library does the work; this file only maps flags to options and prints.
 
@@ -26,12 +27,15 @@ struct Cli {
 enum Command {
     /// Fit a PMSM model to one or more logs (jointly, shared parameters) by the prediction-error method.
     Fit(FitArgs),
+    /// Compare a saved fit (`--params REPORT.json`) with logs it was not fitted on: fit %, residual statistics, and the measured and simulated outputs for plotting.
+    Validate(cli::validate::ValidateArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match &cli.command {
         Command::Fit(a) => cli::fit::run_fit(a),
+        Command::Validate(a) => cli::validate::run_validate(a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,6 +1,7 @@
 //! `greybox fit`: read the logs, fit, print the table and write the JSON report.
 
 use super::args::{FitArgs, HoldArg, MethodArg, ModelArg, ScalingArg, SolverArg};
+use super::output;
 use greybox::estimate::{FitResult, PemOptions, ScalingKind, SolverKind, Timing, Tolerances};
 use greybox::pmsm::weighted_least_squares;
 use greybox::pmsm::{CsvOptions, HoldChoice, LinearOptions, MotorKind, PmsmFit, PmsmFitOptions, fit_pmsm};
@@ -9,8 +10,8 @@ use std::time::Instant;
 pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
     let t0 = Instant::now();
     // Fail before the fit, not after it, when the report cannot be written.
-    if let Some(path) = a.json.as_ref().filter(|p| p.as_os_str() != "-") {
-        std::fs::File::create(path).map_err(|source| greybox::Error::Write { path: path.clone(), source })?;
+    if let Some(path) = &a.json {
+        output::check(path, &a.logs)?;
     }
     let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
     let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
@@ -113,15 +114,10 @@ fn ls_only(a: &FitArgs) -> greybox::Result<()> {
     }
 }
 
-/// Writes the JSON report where `--json` says ("-" = stdout).
+/// Writes the JSON report where `--json` says ("-" = stdout), atomically.
 pub fn write_json(a: &FitArgs, json: String) -> greybox::Result<()> {
     match &a.json {
         None => Ok(()),
-        Some(path) if path.as_os_str() == "-" => {
-            println!("{json}");
-            Ok(())
-        }
-        Some(path) => std::fs::write(path, json + "\n")
-            .map_err(|source| greybox::Error::Io { path: path.clone(), source }),
+        Some(path) => output::write(path, &json),
     }
 }

@@ -1,4 +1,6 @@
-//! The command-line tool's modules: arguments, `fit`, `validate`.
+//! The command-line tool's modules: arguments, `fit`, `validate`, report files.
 
 pub mod args;
 pub mod fit;
+pub mod output;
+pub mod validate;

@@ -24,6 +24,7 @@ pub mod log;
 pub mod signals;
 pub mod spm;
 pub mod transform;
+pub mod validate;
 
 pub use fit::{HoldChoice, PmsmFit, PmsmFitOptions, fit_pmsm};
 pub use interval::{
@@ -35,6 +36,7 @@ pub use linear::{LinearEstimate, LinearOptions, least_squares, regressors, weigh
 pub use log::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit, read_log, read_logs};
 pub use signals::{DqSignals, DqView, MIN_SAMPLES, channel};
 pub use spm::PmsmSpm;
+pub use validate::SavedModel;
 
 use crate::model::Signal;
 

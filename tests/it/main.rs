@@ -17,6 +17,7 @@ mod mgh_problems;
 mod multi_experiment;
 mod random_starts;
 mod recovery;
+mod reports;
 mod robust;
 mod solvers;
 mod spm;

@@ -1,0 +1,114 @@
+//! `greybox validate`: a saved fit against logs it was not fitted on (MATLAB's `compare`).
+
+use super::args::ColumnArgs;
+use super::output;
+use clap::{Args, ValueEnum};
+use greybox::pmsm::{CsvOptions, SavedModel, VoltageHold, read_log};
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct ValidateArgs {
+    /// Drive logs to validate on (CSV, plain or gzip), each compared on its own.
+    #[arg(required = true)]
+    pub logs: Vec<PathBuf>,
+    /// The JSON report of a fit (`greybox fit --json`).
+    #[arg(long)]
+    pub params: PathBuf,
+    /// Pole pairs, when the report does not give them (a least-squares report).
+    #[arg(long, short = 'p')]
+    pub pole_pairs: Option<u32>,
+    /// Voltage hold, overriding the report's.
+    #[arg(long, value_enum)]
+    pub hold: Option<ValidateHold>,
+    /// Write the comparison (metrics per log) as JSON to this file ("-" for stdout).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write measured and simulated outputs of each log as CSV into this folder
+    /// (`<log>.compare.csv`: t, id, id_sim, iq, iq_sim), for plotting.
+    #[arg(long)]
+    pub compare_dir: Option<PathBuf>,
+    /// Print nothing but errors.
+    #[arg(long, short = 'q')]
+    pub quiet: bool,
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum ValidateHold {
+    Dq,
+    Stator,
+}
+
+pub fn run_validate(a: &ValidateArgs) -> greybox::Result<()> {
+    if let Some(path) = &a.json {
+        output::check(path, &a.logs)?;
+    }
+    if let Some(dir) = a.compare_dir.as_ref().filter(|d| !d.is_dir()) {
+        return Err(greybox::Error::InvalidOption {
+            option: "compare-dir".into(),
+            reason: format!("{} is not a folder", dir.display()),
+        });
+    }
+    let text = std::fs::read_to_string(&a.params)
+        .map_err(|source| greybox::Error::Io { path: a.params.clone(), source })?;
+    let hold = a.hold.map(|h| match h {
+        ValidateHold::Dq => VoltageHold::Dq,
+        ValidateHold::Stator => VoltageHold::Stator,
+    });
+    let saved = SavedModel::from_json(&text, a.pole_pairs, hold)?;
+    let csv = CsvOptions { pole_pairs: Some(saved.pole_pairs), ..a.columns.options() };
+    let logs = a.logs.iter().map(|p| read_log(p, &csv)).collect::<greybox::Result<Vec<_>>>()?;
+    let comparisons = saved.validate(&logs)?;
+    let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
+    if !quiet {
+        println!(
+            "model {} with {} pole pairs, {} hold, θ = {:?}",
+            saved.kind.model_name(),
+            saved.pole_pairs,
+            saved.hold,
+            saved.theta
+        );
+        for c in &comparisons {
+            let m = &c.metrics;
+            let per = |v: &[f64], d: usize| {
+                m.outputs.iter().zip(v).map(|(n, x)| format!("{n} {x:.d$}")).collect::<Vec<_>>().join(", ")
+            };
+            let white: Vec<String> = m
+                .outputs
+                .iter()
+                .zip(&m.whiteness)
+                .map(|(n, w)| format!("{n} {:.0} %", 100.0 * w.fraction_outside))
+                .collect();
+            println!(
+                "{}: fit [%] {}; rms residual {}; FPE {:.4e}, AIC {:.1}; lags outside the whiteness bound: {}",
+                c.experiment,
+                per(&m.fit_percent, 4),
+                per(&m.rms_residual, 6),
+                m.fpe,
+                m.aic,
+                white.join(", ")
+            );
+        }
+    }
+    if let Some(dir) = &a.compare_dir {
+        for c in &comparisons {
+            output::write(&dir.join(format!("{}.compare.csv", c.experiment)), c.to_csv().trim_end())?;
+        }
+    }
+    if let Some(path) = &a.json {
+        let metrics: Vec<serde_json::Value> = comparisons
+            .iter()
+            .map(|c| serde_json::json!({ "experiment": c.experiment, "metrics": c.metrics }))
+            .collect();
+        let report = serde_json::json!({
+            "model": saved.kind.model_name(),
+            "pole_pairs": saved.pole_pairs,
+            "hold": saved.hold,
+            "theta": saved.theta,
+            "comparisons": metrics,
+        });
+        output::write(path, &serde_json::to_string_pretty(&report).unwrap_or_default())?;
+    }
+    Ok(())
+}

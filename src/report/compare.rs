@@ -1,0 +1,70 @@
+//! Simulated against measured outputs of a model at given parameters, on any experiment:
+//! the data of MATLAB's `compare` (Ljung, *System Identification*, 16.5: validation on data
+//! not used in the fit).
+
+use super::metrics::{Metrics, metrics};
+use crate::data::Experiment;
+use crate::error::Result;
+use crate::model::{GreyBoxModel, Prepared};
+use crate::simulate::{SimOptions, simulate};
+use serde::{Deserialize, Serialize};
+
+/// Lags of the residual whiteness test in a comparison.
+pub const WHITENESS_LAGS: usize = 25;
+
+/// One experiment simulated at θ from its measured first state, against its measurement.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Comparison {
+    /// Experiment name.
+    pub experiment: String,
+    /// Sample time h [s].
+    pub h: f64,
+    /// Output names (channels), length n_y.
+    pub outputs: Vec<String>,
+    /// Measured outputs, row-major `N × n_y`.
+    pub y: Vec<f64>,
+    /// Simulated outputs, row-major `N × n_y`.
+    pub y_hat: Vec<f64>,
+    /// Fit statistics of the comparison.
+    pub metrics: Metrics,
+}
+
+impl Comparison {
+    /// The comparison as CSV text: `t, <output>, <output>_sim, …` [s, output units].
+    pub fn to_csv(&self) -> String {
+        let ny = self.outputs.len();
+        let mut out = String::from("t");
+        for o in &self.outputs {
+            out.push_str(&format!(",{o},{o}_sim"));
+        }
+        out.push('\n');
+        for k in 0..self.y.len() / ny.max(1) {
+            out.push_str(&format!("{}", k as f64 * self.h));
+            for i in 0..ny {
+                out.push_str(&format!(",{},{}", self.y[k * ny + i], self.y_hat[k * ny + i]));
+            }
+            out.push('\n');
+        }
+        out
+    }
+}
+
+/// Simulates `model` at `theta` (length n_θ) on `experiment` from the measured first state
+/// and compares with the measured outputs; `n_params` is the number of estimated
+/// parameters (for FPE, AIC, BIC).
+///
+/// # Errors
+/// Those of [`Prepared::new`] (a missing channel) and of [`simulate`] (θ of the wrong
+/// length, an invalid θ, a diverging simulation).
+pub fn compare<M: GreyBoxModel>(
+    model: &M,
+    experiment: &Experiment,
+    theta: &[f64],
+    n_params: usize,
+) -> Result<Comparison> {
+    let prep = Prepared::new(model, experiment)?;
+    let y_hat = simulate(model, &prep, theta, &SimOptions::default())?;
+    let outputs: Vec<String> = model.outputs().into_iter().map(|o| o.name).collect();
+    let metrics = metrics(&outputs, &prep.y, &y_hat, n_params, WHITENESS_LAGS)?;
+    Ok(Comparison { experiment: prep.name, h: experiment.h(), outputs, y: prep.y, y_hat, metrics })
+}
