@@ -28,7 +28,7 @@ enum Command {
     /// Fit a PMSM model to one or more logs (jointly, shared parameters) by the prediction-error method.
     Fit(Box<FitArgs>),
     /// Compare a saved fit (`--params REPORT.json`) with logs it was not fitted on: fit %, residual statistics, and the measured and simulated outputs for plotting.
-    Validate(cli::validate::ValidateArgs),
+    Validate(Box<cli::validate::ValidateArgs>),
 }
 
 fn main() -> ExitCode {
