@@ -26,7 +26,7 @@
 //!    that each estimate lies within 3 reported standard errors of the truth (z-scores).
 
 use greybox::estimate::{FitResult, PemOptions, fit};
-use greybox::model::{GreyBoxModel, Parameter, Prepared, Sensitivities, Signal};
+use greybox::model::{DerivedEstimate, GreyBoxModel, Parameter, Prepared, Sensitivities, Signal};
 use greybox::simulate::{SimOptions, simulate, visit_sensitivities};
 use greybox::{Channel, Experiment, Result};
 
@@ -117,6 +117,18 @@ impl GreyBoxModel for Thermal {
     }
     fn sensitivities(&self) -> Option<&dyn Sensitivities<Inputs, Coefficients>> {
         if self.analytic { Some(self) } else { None }
+    }
+    /// Thermal time constant `τ = R_th C_th` [s], `σ_τ² = C² σ_R² + R² σ_C² + 2 R C cov(R, C)`.
+    fn derived(&self, th: &[f64], cov: &[Vec<f64>]) -> Vec<DerivedEstimate> {
+        let (r, c) = (th[0], th[1]);
+        let var = c * c * cov[0][0] + r * r * cov[1][1] + 2.0 * r * c * cov[0][1];
+        vec![DerivedEstimate {
+            name: "tau".into(),
+            unit: "s".into(),
+            value: r * c,
+            std_error: var.sqrt(),
+            experiment: None,
+        }]
     }
 }
 
@@ -321,6 +333,20 @@ fn main() -> Result<()> {
     let est = fit(&model, std::slice::from_ref(&noisy), &start, &options)?;
     let (_, z) = report(&format!("\nfit with σ = {SIGMA} K noise"), &est, true);
     println!("  rms residual {:.4} K (σ = {SIGMA} K)", est.fit.rms_residual[0]);
+    // The time constant R_th C_th: its standard error needs the covariance (R and C are
+    // strongly correlated from a temperature record), not the two standard errors alone.
+    let tau = est.derived("tau").expect("the model derives tau");
+    let z_tau = (tau.value - R_TH * C_TH) / tau.std_error;
+    let naive = tau.value
+        * ((est.parameters[0].std_error / R_TH).powi(2) + (est.parameters[1].std_error / C_TH).powi(2))
+            .sqrt();
+    println!(
+        "  tau = {:.3} ± {:.3} s (truth {}), z = {z_tau:+.2}; ignoring the correlation would give ± {naive:.3} s",
+        tau.value,
+        tau.std_error,
+        R_TH * C_TH
+    );
+    assert!(z_tau.abs() <= 3.0, "tau beyond 3 standard errors: z = {z_tau}");
     assert!(z.iter().all(|z| z.abs() <= 3.0), "estimates beyond 3 standard errors: z = {z:?}");
     println!("\n{est}");
     Ok(())

@@ -3,7 +3,7 @@
 //! model's derived quantities (MODEL.md §5; Ljung 9.3, 16.4; thesis 5.3).
 
 use super::diagnostics::{DiagnosticThresholds, diagnose};
-use super::problem::{FreeKind, PemProblem};
+use super::problem::{FreeKind, PemProblem, Slot};
 use super::result::t_quantile_975;
 use super::{DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing};
 use crate::error::Result;
@@ -41,15 +41,21 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     let tq = t_quantile_975(dof);
     let names = problem.terms().iter().map(|t| t.prep.name.clone()).collect::<Vec<_>>();
     let states = model.states();
+    // Standard error of every free entry; without degrees of freedom there is no noise
+    // estimate, hence no standard error.
+    let se_free: Vec<f64> = (0..np)
+        .map(|g| {
+            let unseen = sums.bread[(g, g)].is_nan() || sums.bread[(g, g)] <= 0.0;
+            match &cov_theta {
+                Some(c) if !unseen && dof > 0 => c[(g, g)].max(0.0).sqrt(),
+                _ => f64::INFINITY,
+            }
+        })
+        .collect();
     let estimate = |g: usize, name: String, unit: String, start: f64| {
         let f = &problem.free()[g];
         let value = f.transform.to_theta(p[g]);
-        let unseen = sums.bread[(g, g)].is_nan() || sums.bread[(g, g)] <= 0.0;
-        // Without degrees of freedom there is no noise estimate, hence no standard error.
-        let se = match &cov_theta {
-            Some(c) if !unseen && dof > 0 => c[(g, g)].max(0.0).sqrt(),
-            _ => f64::INFINITY,
-        };
+        let se = se_free[g];
         let idx = info_inv.as_ref().map_or(f64::INFINITY, |ai| {
             100.0 * (sums.e2_weighted * ai[(g, g)]).max(0.0).sqrt() * dtheta[g].abs() / value.abs()
         });
@@ -167,7 +173,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
                 .into(),
         );
     }
-    let derived = derived(model, &parameters, &names);
+    let derived = derived(problem, p, cov_theta.as_ref(), &se_free, &names);
     Ok(FitResult {
         model: model.name().to_string(),
         experiments: names,
@@ -183,29 +189,40 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     })
 }
 
-/// The model's derived quantities per experiment's θ, once when every experiment gives the
-/// same (no per-experiment parameter they depend on).
+/// The model's derived quantities per experiment's θ and θ-covariance (n_θ × n_θ: the
+/// sandwich covariance of the free entries, 0 for fixed ones, the reported standard error
+/// squared on the diagonal), once when every experiment gives the same.
 fn derived<M: GreyBoxModel>(
-    model: &M,
-    parameters: &[ParameterEstimate],
+    problem: &PemProblem<'_, M>,
+    p: &DVector<f64>,
+    cov: Option<&DMatrix<f64>>,
+    se: &[f64],
     names: &[String],
 ) -> Vec<DerivedEstimate> {
-    let n_theta = model.parameters().len();
-    let per_experiment: Vec<Vec<DerivedEstimate>> = names
-        .iter()
+    let model = problem.model();
+    let per_experiment: Vec<Vec<DerivedEstimate>> = (0..names.len())
         .map(|e| {
-            let mut theta = vec![f64::NAN; n_theta];
-            let mut se = vec![f64::NAN; n_theta];
-            for (j, prm) in model.parameters().iter().enumerate() {
-                let pick = parameters
-                    .iter()
-                    .find(|q| q.name == prm.name && q.experiment.as_deref() == Some(e.as_str()))
-                    .or_else(|| parameters.iter().find(|q| q.name == prm.name && q.experiment.is_none()));
-                if let Some(q) = pick {
-                    (theta[j], se[j]) = (q.value, q.std_error);
-                }
-            }
-            model.derived(&theta, &se)
+            let theta = problem.theta(e, p);
+            let slots = &problem.terms()[e].slots;
+            let free = |j: usize| match slots[j] {
+                Slot::Free(g) => Some(g),
+                Slot::Fixed(_) => None,
+            };
+            let c: Vec<Vec<f64>> = (0..theta.len())
+                .map(|i| {
+                    (0..theta.len())
+                        .map(|j| match (free(i), free(j)) {
+                            (Some(g), Some(_)) if i == j => se[g] * se[g],
+                            (Some(g), Some(h)) if se[g].is_finite() && se[h].is_finite() => {
+                                cov.map_or(f64::NAN, |c| c[(g, h)])
+                            }
+                            (Some(_), Some(_)) => f64::NAN,
+                            _ => 0.0,
+                        })
+                        .collect()
+                })
+                .collect();
+            model.derived(&theta, &c)
         })
         .collect();
     match per_experiment.split_first() {

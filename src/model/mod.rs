@@ -193,10 +193,12 @@ pub trait GreyBoxModel: Sync {
     fn poor_fit_advice(&self) -> Option<String> {
         None
     }
-    /// Quantities derived from the parameters θ (length n_θ) with their standard errors
-    /// (length n_θ; first-order propagation), e.g. a torque constant from a back-EMF
-    /// constant. The default derives nothing.
-    fn derived(&self, _theta: &[f64], _std_error: &[f64]) -> Vec<DerivedEstimate> {
+    /// Quantities derived from the parameters θ (length n_θ) with standard errors from
+    /// their covariance (n_θ × n_θ rows, θ units; 0 for fixed parameters, ∞ on the diagonal
+    /// of an unidentified one) by first-order propagation, `σ_f² = ∇fᵀ C ∇f` (e.g. a torque
+    /// constant from a back-EMF constant, a time constant from a product). The default
+    /// derives nothing.
+    fn derived(&self, _theta: &[f64], _covariance: &[Vec<f64>]) -> Vec<DerivedEstimate> {
         Vec::new()
     }
 

@@ -111,8 +111,9 @@ impl GreyBoxModel for PmsmIpm {
     fn poor_fit_advice(&self) -> Option<String> {
         Some(POOR_FIT_ADVICE.into())
     }
-    fn derived(&self, theta: &[f64], std_error: &[f64]) -> Vec<DerivedEstimate> {
-        derived(KIND, self.n_p, theta, std_error)
+    fn derived(&self, theta: &[f64], covariance: &[Vec<f64>]) -> Vec<DerivedEstimate> {
+        let se: Vec<f64> = (0..theta.len()).map(|j| covariance[j][j].sqrt()).collect();
+        derived(KIND, self.n_p, theta, &se)
     }
 
     fn prepare(&self, e: &Experiment) -> Result<IpmInputs> {
