@@ -10,6 +10,7 @@
 //! comparison only, the error against the log's ground truth. The error index does not
 //! change when every weight is scaled, so the rows compare directly.
 
+#[path = "../tests/it/common/mod.rs"]
 mod common;
 
 use common::{load, rel};
@@ -27,7 +28,7 @@ fn main() -> greybox::Result<()> {
         ("band 150-300, 0.05", speed(SpeedShape::Band { lo: 150.0, hi: 300.0, floor: 0.05 })),
     ];
     for stem in ["servo_spm_moves_idinj", "servo_spm_moves_idinj_noisy"] {
-        let (log, truth) = load(stem)?;
+        let (log, truth) = load(stem);
         let truths = [truth.r_s, truth.l_d, truth.k_e];
         println!("\n{stem}: {} samples, h = {} s, n_p = {}", log.len(), log.h(), truth.n_p);
         println!(

@@ -44,3 +44,8 @@ pub mod simulate;
 
 pub use data::{Channel, Experiment};
 pub use error::{Error, Result};
+
+/// The README's code examples, compiled as doctests so that they stay true.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;

@@ -53,19 +53,6 @@ pub struct Correlated {
     pub correlation: f64,
 }
 
-/// The least-squares start against the prediction-error estimate of one parameter.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct StartComparison {
-    /// Parameter name.
-    pub name: String,
-    /// Least-squares estimate [unit].
-    pub least_squares: f64,
-    /// Prediction-error estimate [unit].
-    pub pem: f64,
-    /// `100 (LS − PEM)/PEM` [%]: the bias of LS if PEM is right.
-    pub difference_percent: f64,
-}
-
 /// Diagnostics of a fit (JSON key `diagnostics`).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Diagnostics {
@@ -77,9 +64,6 @@ pub struct Diagnostics {
     pub poorly_determined: Vec<PoorlyDetermined>,
     /// Parameter pairs whose |correlation| exceeds the threshold.
     pub correlated: Vec<Correlated>,
-    /// The least-squares start against the estimate, when the fit started from LS.
-    #[serde(skip_serializing_if = "Vec::is_empty", default)]
-    pub start_comparison: Vec<StartComparison>,
     /// Plain-language advice.
     pub advice: Vec<String>,
 }
@@ -150,12 +134,5 @@ pub fn diagnose(
              some parameter combination is not determined; fix a parameter or add excitation"
         ));
     }
-    Diagnostics {
-        singular_values,
-        condition_number,
-        poorly_determined,
-        correlated,
-        start_comparison: Vec::new(),
-        advice,
-    }
+    Diagnostics { singular_values, condition_number, poorly_determined, correlated, advice }
 }

@@ -197,18 +197,6 @@ impl std::fmt::Display for FitResult {
             d.singular_values.iter().map(|v| format!("{v:.3e}")).collect::<Vec<_>>().join(", "),
             d.condition_number
         )?;
-        if !d.start_comparison.is_empty() {
-            let parts: Vec<String> = d
-                .start_comparison
-                .iter()
-                .map(|c| format!("{} {:+.4} %", c.name, c.difference_percent))
-                .collect();
-            writeln!(
-                f,
-                "least-squares start vs estimate (LS bias if the fit is right): {}",
-                parts.join(", ")
-            )?;
-        }
         for a in &d.advice {
             writeln!(f, "advice: {a}")?;
         }

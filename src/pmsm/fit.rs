@@ -15,7 +15,6 @@ use super::linear::least_squares;
 use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::diagnostics::StartComparison;
 use crate::estimate::{FitResult, PemOptions, Timing, fit};
 use crate::model::Parameter;
 use serde::{Deserialize, Serialize};
@@ -53,6 +52,19 @@ pub struct PmsmFitOptions {
     pub bounds: Vec<(String, f64, f64)>,
     /// Options of the prediction-error fit.
     pub pem: PemOptions,
+}
+
+/// The least-squares start against the prediction-error estimate of one parameter.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StartComparison {
+    /// Parameter name.
+    pub name: String,
+    /// Least-squares estimate [unit].
+    pub least_squares: f64,
+    /// Prediction-error estimate [unit].
+    pub pem: f64,
+    /// `100 (LS − PEM)/PEM` [%]: the bias of LS if PEM is right.
+    pub difference_percent: f64,
 }
 
 /// A PMSM fit: the generic report (flattened into the same JSON object) and what only a

@@ -41,13 +41,13 @@
 use super::augmented::{Aug, advance};
 pub use super::augmented::{IpmCoefficients, IpmInputs};
 use super::interval::{VoltageHold, check_pole_pairs, check_positive, intervals};
-use super::kind::{MotorKind, POOR_FIT_ADVICE, derived};
+use super::kind::MotorKind;
 
 const KIND: MotorKind = MotorKind::Ipm;
-use super::signals::{DqView, channel};
+use super::signals::DqView;
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::model::{DerivedEstimate, GreyBoxModel, Parameter, Sensitivities, Signal};
+use crate::model::{GreyBoxModel, Parameter, Sensitivities};
 
 /// Interior-magnet PMSM model with exact sampled-data step and exact forward sensitivities.
 ///
@@ -87,34 +87,7 @@ impl GreyBoxModel for PmsmIpm {
     type Inputs = IpmInputs;
     type Coefficients = IpmCoefficients;
 
-    fn name(&self) -> &str {
-        KIND.model_name()
-    }
-    fn n_states(&self) -> usize {
-        2
-    }
-    fn outputs(&self) -> Vec<Signal> {
-        super::current_outputs()
-    }
-    fn input_channels(&self) -> Vec<String> {
-        [channel::U_D, channel::U_Q, channel::W_M].map(String::from).to_vec()
-    }
-    fn parameters(&self) -> &[Parameter] {
-        &self.params
-    }
-    fn advice(&self, name: &str) -> Option<String> {
-        KIND.advice(name)
-    }
-    fn pair_advice(&self, a: &str, b: &str) -> Option<String> {
-        KIND.pair_advice(a, b)
-    }
-    fn poor_fit_advice(&self) -> Option<String> {
-        Some(POOR_FIT_ADVICE.into())
-    }
-    fn derived(&self, theta: &[f64], covariance: &[Vec<f64>]) -> Vec<DerivedEstimate> {
-        let se: Vec<f64> = (0..theta.len()).map(|j| covariance[j][j].sqrt()).collect();
-        derived(KIND, self.n_p, theta, &se)
-    }
+    super::pmsm_model_metadata!(KIND);
 
     fn prepare(&self, e: &Experiment) -> Result<IpmInputs> {
         check_pole_pairs(self.n_p)?;

@@ -26,7 +26,7 @@ pub mod spm;
 pub mod transform;
 pub mod validate;
 
-pub use fit::{HoldChoice, PmsmFit, PmsmFitOptions, fit_pmsm};
+pub use fit::{HoldChoice, PmsmFit, PmsmFitOptions, StartComparison, fit_pmsm};
 pub use interval::{
     C64, Interval, SQRT_2_3, VoltageHold, interval_mean_speed, intervals, rotation, stator_hold_start,
 };
@@ -38,9 +38,42 @@ pub use signals::{DqSignals, DqView, MIN_SAMPLES, channel};
 pub use spm::PmsmSpm;
 pub use validate::SavedModel;
 
-use crate::model::Signal;
-
-/// The outputs of every PMSM model: the dq currents `id`, `iq` [A].
-pub(crate) fn current_outputs() -> Vec<Signal> {
-    vec![Signal::new(channel::I_D, "A"), Signal::new(channel::I_Q, "A")]
+/// The part of [`crate::model::GreyBoxModel`] every PMSM model shares, from its motor
+/// kind's table: name, the dq current state and outputs `id`, `iq` [A], the channels read
+/// (`ud`, `uq`, `w_m`), parameter metadata (`self.params`), advice, and `k_t`, `psi_f`
+/// derived with `self.n_p` pole pairs.
+macro_rules! pmsm_model_metadata {
+    ($kind:expr) => {
+        fn name(&self) -> &str {
+            $kind.model_name()
+        }
+        fn n_states(&self) -> usize {
+            2
+        }
+        fn outputs(&self) -> Vec<$crate::model::Signal> {
+            use $crate::pmsm::channel;
+            vec![$crate::model::Signal::new(channel::I_D, "A"), $crate::model::Signal::new(channel::I_Q, "A")]
+        }
+        fn input_channels(&self) -> Vec<String> {
+            use $crate::pmsm::channel;
+            [channel::U_D, channel::U_Q, channel::W_M].map(String::from).to_vec()
+        }
+        fn parameters(&self) -> &[$crate::model::Parameter] {
+            &self.params
+        }
+        fn advice(&self, name: &str) -> Option<String> {
+            $kind.advice(name)
+        }
+        fn pair_advice(&self, a: &str, b: &str) -> Option<String> {
+            $kind.pair_advice(a, b)
+        }
+        fn poor_fit_advice(&self) -> Option<String> {
+            Some($crate::pmsm::kind::POOR_FIT_ADVICE.into())
+        }
+        fn derived(&self, theta: &[f64], covariance: &[Vec<f64>]) -> Vec<$crate::model::DerivedEstimate> {
+            let se: Vec<f64> = (0..theta.len()).map(|j| covariance[j][j].sqrt()).collect();
+            $crate::pmsm::kind::derived($kind, self.n_p, theta, &se)
+        }
+    };
 }
+pub(crate) use pmsm_model_metadata;

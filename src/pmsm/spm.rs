@@ -22,13 +22,13 @@
 //! (forward sensitivity), so one pass gives residuals and gradients.
 
 use super::interval::{C64, VoltageHold, check_pole_pairs, check_positive, intervals};
-use super::kind::{MotorKind, POOR_FIT_ADVICE, derived};
+use super::kind::MotorKind;
 
 const KIND: MotorKind = MotorKind::Spm;
-use super::signals::{DqView, channel};
+use super::signals::DqView;
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::model::{DerivedEstimate, GreyBoxModel, Parameter, Sensitivities, Signal};
+use crate::model::{GreyBoxModel, Parameter, Sensitivities};
 
 /// Per-interval data of the SPM step, independent of θ (index k = 0..N−2).
 #[derive(Clone, Debug)]
@@ -125,34 +125,7 @@ impl GreyBoxModel for PmsmSpm {
     type Inputs = SpmInputs;
     type Coefficients = SpmCoefficients;
 
-    fn name(&self) -> &str {
-        KIND.model_name()
-    }
-    fn n_states(&self) -> usize {
-        2
-    }
-    fn outputs(&self) -> Vec<Signal> {
-        super::current_outputs()
-    }
-    fn input_channels(&self) -> Vec<String> {
-        [channel::U_D, channel::U_Q, channel::W_M].map(String::from).to_vec()
-    }
-    fn parameters(&self) -> &[Parameter] {
-        &self.params
-    }
-    fn advice(&self, name: &str) -> Option<String> {
-        KIND.advice(name)
-    }
-    fn pair_advice(&self, a: &str, b: &str) -> Option<String> {
-        KIND.pair_advice(a, b)
-    }
-    fn poor_fit_advice(&self) -> Option<String> {
-        Some(POOR_FIT_ADVICE.into())
-    }
-    fn derived(&self, theta: &[f64], covariance: &[Vec<f64>]) -> Vec<DerivedEstimate> {
-        let se: Vec<f64> = (0..theta.len()).map(|j| covariance[j][j].sqrt()).collect();
-        derived(KIND, self.n_p, theta, &se)
-    }
+    super::pmsm_model_metadata!(KIND);
 
     fn prepare(&self, e: &Experiment) -> Result<SpmInputs> {
         check_pole_pairs(self.n_p)?;

@@ -187,8 +187,9 @@ fn model_rejects_invalid_parameter_values_by_name() {
     assert!(err.to_string().contains("l_s"), "{err}");
 }
 
+/// Runs the `greybox` binary from the repository root.
 #[cfg(feature = "cli")]
-fn greybox(args: &[&str]) -> std::process::Output {
+pub(crate) fn greybox(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_greybox"))
         .args(args)
         .current_dir(env!("CARGO_MANIFEST_DIR"))

@@ -90,15 +90,7 @@ fn least_squares_and_pem_reports_share_their_keys() {
 
 #[cfg(feature = "cli")]
 mod cli {
-    use std::process::Command;
-
-    fn greybox(args: &[&str]) -> std::process::Output {
-        Command::new(env!("CARGO_BIN_EXE_greybox"))
-            .args(args)
-            .current_dir(env!("CARGO_MANIFEST_DIR"))
-            .output()
-            .unwrap()
-    }
+    use crate::errors::greybox;
 
     fn temp(name: &str) -> std::path::PathBuf {
         std::env::temp_dir().join(format!("greybox-reports-{}-{name}", std::process::id()))
