@@ -351,3 +351,10 @@ fn main() -> Result<()> {
     println!("\n{est}");
     Ok(())
 }
+
+/// The example is also a test (`tests/it/examples.rs`): its assertions must hold.
+#[cfg(test)]
+#[test]
+fn example_runs() {
+    main().expect("the example runs");
+}

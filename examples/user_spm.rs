@@ -113,3 +113,10 @@ fn main() -> Result<()> {
     );
     Ok(())
 }
+
+/// The example is also a test (`tests/it/examples.rs`): its assertions must hold.
+#[cfg(test)]
+#[test]
+fn example_runs() {
+    main().expect("the example runs");
+}

@@ -9,6 +9,7 @@ mod coverage;
 mod criteria;
 mod data;
 mod errors;
+mod examples;
 mod filter;
 mod ipm;
 mod linear;
