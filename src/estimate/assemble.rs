@@ -3,11 +3,13 @@
 //! model's derived quantities (MODEL.md §5; Ljung 9.3, 16.4; thesis 5.3).
 
 use super::diagnostics::{DiagnosticThresholds, diagnose};
-use super::problem::{FreeKind, PemProblem, Slot};
+use super::problem::{FreeKind, Pass, PemProblem, Slot};
 use super::result::t_quantile_975;
 use super::{DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing};
 use crate::error::Result;
 use crate::model::GreyBoxModel;
+use crate::report::compare::WHITENESS_LAGS;
+use crate::report::metrics;
 use nalgebra::{DMatrix, DVector};
 
 /// Computes the statistics at p̂ and fills a [`FitResult`].
@@ -137,19 +139,36 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         &|n| model.advice(n),
         &|a, b| model.pair_advice(a, b),
     );
+    // Residual whiteness from the raw output errors of every experiment (one more
+    // simulation, no sensitivities), lags kept within each experiment.
+    let mut residuals: Vec<Vec<Vec<f64>>> = vec![Vec::new(); ny];
+    for e in 0..problem.terms().len() {
+        let mut per: Vec<Vec<f64>> = vec![Vec::new(); ny];
+        problem.pass(e, p, Pass::RAW_RESIDUALS, |_, eps, _, _| {
+            for (r, &v) in per.iter_mut().zip(eps) {
+                r.push(v);
+            }
+        })?;
+        for (all, r) in residuals.iter_mut().zip(per) {
+            all.push(r);
+        }
+    }
+    let whiteness = residuals
+        .iter()
+        .map(|segments| {
+            metrics::whiteness(&segments.iter().map(Vec::as_slice).collect::<Vec<_>>(), WHITENESS_LAGS)
+        })
+        .collect();
     let fit = FitStatistics {
         outputs: model.outputs().into_iter().map(|o| o.name).collect(),
-        fit_percent: sums
-            .sse
-            .iter()
-            .zip(&sums.sst)
-            .map(|(e, t)| if *t > 0.0 { 100.0 * (1.0 - (e / t).sqrt()) } else { f64::NAN })
-            .collect(),
+        fit_percent: sums.sse.iter().zip(&sums.sst).map(|(e, t)| metrics::fit_percent(*e, *t)).collect(),
         rms_residual: sums.sse.iter().map(|e| (e / n as f64).sqrt()).collect(),
         loss: sums.cost,
         mse: sse_total / n_res as f64,
-        aic: n_res as f64 * (sse_total / n_res as f64).ln() + 2.0 * np as f64,
-        bic: n_res as f64 * (sse_total / n_res as f64).ln() + np as f64 * (n_res as f64).ln(),
+        fpe: metrics::fpe(sse_total, n_res, np),
+        aic: metrics::aic(sse_total, n_res, np),
+        bic: metrics::bic(sse_total, n_res, np),
+        whiteness,
         samples: n,
         dof,
     };

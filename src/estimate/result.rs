@@ -61,6 +61,14 @@ pub struct FitStatistics {
     pub aic: f64,
     /// Bayesian information criterion `N ln(E²/N) + n_p ln N` (as `aic`; Schwarz 1978).
     pub bic: f64,
+    /// Akaike's final prediction error `(E²/N)(1 + n_p/N)/(1 − n_p/N)` over all `N = N_k n_y`
+    /// residuals (Ljung 16.4).
+    #[serde(default)]
+    pub fpe: f64,
+    /// Residual whiteness per output (normalised autocorrelation at lags 1–25 and its 95 %
+    /// bound; Ljung 16.6), length n_y.
+    #[serde(default)]
+    pub whiteness: Vec<crate::report::Whiteness>,
     /// Residual samples per output N (first samples excluded).
     pub samples: usize,
     /// Degrees of freedom `N n_y − n_p`.
@@ -178,9 +186,22 @@ impl std::fmt::Display for FitResult {
         writeln!(f, "fit [%]: {};  rms residual: {}", per(&s.fit_percent, 4), per(&s.rms_residual, 6))?;
         writeln!(
             f,
-            "loss {:.6e}, mse {:.6e}, AIC {:.1}, BIC {:.1}, N {} per output",
-            s.loss, s.mse, s.aic, s.bic, s.samples
+            "loss {:.6e}, mse {:.6e}, FPE {:.6e}, AIC {:.1}, BIC {:.1}, N {} per output",
+            s.loss, s.mse, s.fpe, s.aic, s.bic, s.samples
         )?;
+        if !s.whiteness.is_empty() {
+            let w: Vec<String> = s
+                .outputs
+                .iter()
+                .zip(&s.whiteness)
+                .map(|(n, w)| format!("{n} {:.0} %", 100.0 * w.fraction_outside))
+                .collect();
+            writeln!(
+                f,
+                "residual autocorrelation beyond the 95 % whiteness bound (lags 1–25): {}",
+                w.join(", ")
+            )?;
+        }
         writeln!(
             f,
             "solver {}: {} after {} iterations ({} evaluations); fit {:.3} s",

@@ -85,6 +85,8 @@ pub struct LinearEstimate {
     pub options: LinearOptions,
     /// Degrees of freedom of the standard errors (rows of positive weight − n_θ).
     pub dof: usize,
+    /// Whiteness of the d and q equation errors (Ljung 16.6).
+    pub whiteness: Vec<crate::report::Whiteness>,
     /// `(ΦᵀWΦ)⁻¹` (n_θ × n_θ): the correlation of the estimates.
     pub inverse: Vec<Vec<f64>>,
     /// NRMSE fit of the d and q voltage equations [%]: `100 (1 − ‖u − Φθ̂‖/‖u − ū‖)`.
@@ -215,6 +217,8 @@ pub fn weighted_least_squares(
     let cols = names.len();
     // Unweighted rows, and √β per row.
     let (mut phi, mut y, mut sw) = (Vec::new(), Vec::new(), Vec::new());
+    // Intervals per experiment (each gives a d and a q row).
+    let mut segments = Vec::with_capacity(experiments.len());
     for e in experiments {
         let filtered;
         let data = match options.prefilter {
@@ -246,6 +250,7 @@ pub fn weighted_least_squares(
             // Interval k ends in sample k + 1: both its rows take β_{k+1}.
             sw.extend(beta[1..].iter().flat_map(|b| [b.sqrt(), b.sqrt()]));
         }
+        segments.push(v.len() / 2);
         phi.extend(p);
         y.extend(v);
     }
@@ -258,11 +263,26 @@ pub fn weighted_least_squares(
     for (i, v) in y.iter().enumerate() {
         sst[i % 2] += (v - mean[i % 2]).powi(2);
     }
+    let mut res = [Vec::with_capacity(rows / 2), Vec::with_capacity(rows / 2)];
     for i in 0..rows {
         let row = &phi[i * cols..(i + 1) * cols];
-        let res = y[i] - row.iter().zip(&sol.theta).map(|(a, b)| a * b).sum::<f64>();
-        sse[i % 2] += res * res;
+        let r = y[i] - row.iter().zip(&sol.theta).map(|(a, b)| a * b).sum::<f64>();
+        sse[i % 2] += r * r;
+        res[i % 2].push(r);
     }
+    // Whiteness of the d and q equation errors, lags within each experiment.
+    let whiteness = res
+        .iter()
+        .map(|r| {
+            let mut parts = Vec::with_capacity(segments.len());
+            let mut at = 0;
+            for &len in &segments {
+                parts.push(&r[at..at + len]);
+                at += len;
+            }
+            crate::report::metrics::whiteness(&parts, crate::report::compare::WHITENESS_LAGS)
+        })
+        .collect();
     let half = (rows / 2) as f64;
     Ok(LinearEstimate {
         kind,
@@ -272,6 +292,7 @@ pub fn weighted_least_squares(
         error_index_percent: sol.error_index_percent,
         theta: sol.theta,
         e2: sol.e2,
+        whiteness,
         dof: sol.dof,
         inverse: sol.inverse,
         fit_percent: [0, 1]

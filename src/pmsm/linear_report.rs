@@ -10,6 +10,7 @@ use super::linear::LinearEstimate;
 use crate::estimate::diagnostics::{DiagnosticThresholds, diagnose};
 use crate::estimate::result::t_quantile_975;
 use crate::estimate::{FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing};
+use crate::report::metrics;
 use nalgebra::DMatrix;
 
 impl LinearEstimate {
@@ -55,15 +56,16 @@ impl LinearEstimate {
         );
         let rows = self.rows as f64;
         let sse = self.rms_residual.iter().map(|r| r * r * rows / 2.0).sum::<f64>();
-        let d = n as f64;
         let fit = FitStatistics {
             outputs: vec!["ud".into(), "uq".into()],
             fit_percent: self.fit_percent.to_vec(),
             rms_residual: self.rms_residual.to_vec(),
             loss: 0.5 * self.e2,
             mse: sse / rows,
-            aic: rows * (sse / rows).ln() + 2.0 * d,
-            bic: rows * (sse / rows).ln() + d * rows.ln(),
+            aic: metrics::aic(sse, self.rows, n),
+            bic: metrics::bic(sse, self.rows, n),
+            fpe: metrics::fpe(sse, self.rows, n),
+            whiteness: self.whiteness.clone(),
             samples: self.rows / 2,
             dof: self.dof,
         };

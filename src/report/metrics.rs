@@ -46,6 +46,29 @@ pub struct Metrics {
     pub samples: usize,
 }
 
+/// NRMSE fit `100 (1 − √(SSE/SST))` [%] from the residual sum of squares and the sum of
+/// squares about the mean; NaN for a constant output (SST = 0).
+pub fn fit_percent(sse: f64, sst: f64) -> f64 {
+    if sst > 0.0 { 100.0 * (1.0 - (sse / sst).sqrt()) } else { f64::NAN }
+}
+
+/// Akaike's final prediction error `V (1 + d/M)/(1 − d/M)`, `V = SSE/M`, for M residuals
+/// and d parameters (∞ when d ≥ M).
+pub fn fpe(sse: f64, m: usize, d: usize) -> f64 {
+    let (m, d, v) = (m as f64, d as f64, sse / m as f64);
+    if d < m { v * (1.0 + d / m) / (1.0 - d / m) } else { f64::INFINITY }
+}
+
+/// Akaike's information criterion `M ln(SSE/M) + 2d` (Gaussian, constants dropped).
+pub fn aic(sse: f64, m: usize, d: usize) -> f64 {
+    m as f64 * (sse / m as f64).ln() + 2.0 * d as f64
+}
+
+/// Schwarz's Bayesian information criterion `M ln(SSE/M) + d ln M`.
+pub fn bic(sse: f64, m: usize, d: usize) -> f64 {
+    m as f64 * (sse / m as f64).ln() + d as f64 * (m as f64).ln()
+}
+
 /// Metrics of `y_hat` against `y` (both row-major `N × n_y`, n_y = `outputs.len()`), for a
 /// model with `n_params` estimated parameters; whiteness up to lag `max_lag` (clipped to
 /// N − 1).
@@ -82,37 +105,44 @@ pub fn metrics(
         let sse: f64 = e.iter().map(|v| v * v).sum();
         let mean = yi.iter().sum::<f64>() / n as f64;
         let sst: f64 = yi.iter().map(|v| (v - mean).powi(2)).sum();
-        fit_percent.push(if sst > 0.0 { 100.0 * (1.0 - (sse / sst).sqrt()) } else { f64::NAN });
+        fit_percent.push(self::fit_percent(sse, sst));
         rms_residual.push((sse / n as f64).sqrt());
-        whiteness.push(whiteness_of(&e, max_lag));
+        whiteness.push(self::whiteness(&[&e], max_lag));
         sse_total += sse;
     }
-    let m = (n * ny) as f64;
-    let d = n_params as f64;
-    let v = sse_total / m;
+    let m = n * ny;
     Ok(Metrics {
         outputs: outputs.to_vec(),
         fit_percent,
         rms_residual,
-        mse: v,
-        fpe: if d < m { v * (1.0 + d / m) / (1.0 - d / m) } else { f64::INFINITY },
-        aic: m * v.ln() + 2.0 * d,
-        bic: m * v.ln() + d * m.ln(),
+        mse: sse_total / m as f64,
+        fpe: fpe(sse_total, m, n_params),
+        aic: aic(sse_total, m, n_params),
+        bic: bic(sse_total, m, n_params),
         whiteness,
         samples: n,
     })
 }
 
-/// Normalised autocorrelation of `e` at lags `1..=max_lag` (clipped to N − 1) and its
-/// 95 % whiteness bound.
-fn whiteness_of(e: &[f64], max_lag: usize) -> Whiteness {
-    let n = e.len();
-    let mean = e.iter().sum::<f64>() / n.max(1) as f64;
-    let c: Vec<f64> = e.iter().map(|v| v - mean).collect();
-    let r0: f64 = c.iter().map(|v| v * v).sum();
-    let lags = max_lag.min(n.saturating_sub(1));
+/// Normalised autocorrelation at lags `1..=max_lag` of residuals recorded in `segments`
+/// (one per experiment; lags never cross from one segment to the next), about their pooled
+/// mean, with the 95 % whiteness bound `1.96/√N` (N: all samples; max_lag clipped to the
+/// longest segment − 1).
+pub fn whiteness(segments: &[&[f64]], max_lag: usize) -> Whiteness {
+    let n: usize = segments.iter().map(|s| s.len()).sum();
+    let mean = segments.iter().flat_map(|s| s.iter()).sum::<f64>() / n.max(1) as f64;
+    let c: Vec<Vec<f64>> = segments.iter().map(|s| s.iter().map(|v| v - mean).collect()).collect();
+    let r0: f64 = c.iter().flatten().map(|v| v * v).sum();
+    let lags = max_lag.min(segments.iter().map(|s| s.len()).max().unwrap_or(0).saturating_sub(1));
     let autocorrelation: Vec<f64> = (1..=lags)
-        .map(|tau| if r0 > 0.0 { c.iter().zip(&c[tau..]).map(|(a, b)| a * b).sum::<f64>() / r0 } else { 0.0 })
+        .map(|tau| {
+            let r: f64 = c
+                .iter()
+                .filter(|s| s.len() > tau)
+                .map(|s| s.iter().zip(&s[tau..]).map(|(a, b)| a * b).sum::<f64>())
+                .sum();
+            if r0 > 0.0 { r / r0 } else { 0.0 }
+        })
         .collect();
     let bound = 1.96 / (n as f64).sqrt();
     let outside = autocorrelation.iter().filter(|r| r.abs() > bound).count();
@@ -145,8 +175,11 @@ mod tests {
     #[test]
     fn alternating_residuals_are_not_white() {
         let e: Vec<f64> = (0..200).map(|k| if k % 2 == 0 { 1.0 } else { -1.0 }).collect();
-        let w = whiteness_of(&e, 10);
+        let w = whiteness(&[&e], 10);
         assert!((w.autocorrelation[0] + 1.0).abs() < 0.01);
         assert_eq!(w.fraction_outside, 1.0);
+        // Split in two segments, the lag-1 products across the cut are left out.
+        let w2 = whiteness(&[&e[..100], &e[100..]], 10);
+        assert!((w2.autocorrelation[0] + 198.0 / 200.0).abs() < 1e-12, "{}", w2.autocorrelation[0]);
     }
 }

@@ -148,3 +148,36 @@ mod cli {
         let _ = std::fs::remove_file(&report);
     }
 }
+
+/// With white measurement noise and the right model, the residuals of the fit are white:
+/// the fraction of the 25 lags beyond the 95 % bound stays near 5 % (at most 5 of 25, a
+/// binomial tail of 1 %); the same residuals shifted by a slow drift (a model error) are
+/// not white.
+#[test]
+fn fit_residuals_are_white_under_white_noise() {
+    use crate::common::{Rng, exciting_signals, simulate_into};
+    use greybox::pmsm::DqView;
+    let (theta, h, n) = ([0.9, 4.5e-3, 0.539], 1e-4, 4000);
+    let mut rng = Rng(7);
+    let clean = simulate_into(
+        &PmsmSpm::new(N_P, VoltageHold::Stator),
+        &theta,
+        h,
+        exciting_signals(n, h, 250.0, 60.0, theta[2], &mut rng),
+    );
+    let mut s = DqView::try_new(&clean).unwrap().to_signals();
+    for v in s.i_d.iter_mut().chain(s.i_q.iter_mut()) {
+        *v += 0.05 * rng.normal();
+    }
+    let noisy = s.clone().into_experiment("noisy", h).unwrap();
+    let options =
+        greybox::pmsm::PmsmFitOptions { hold: greybox::pmsm::HoldChoice::Stator, ..pmsm_options(N_P) };
+    let fit = fit_pmsm(&[noisy], &options).unwrap();
+    for w in &fit.fit.whiteness {
+        assert_eq!(w.autocorrelation.len(), 25);
+        assert!(w.fraction_outside <= 0.2, "{:?}", w.autocorrelation);
+    }
+    let drift: Vec<f64> = (0..n).map(|k| 0.05 * rng.normal() + 0.05 * (k as f64 / 300.0).sin()).collect();
+    let w = greybox::report::metrics::whiteness(&[&drift], 25);
+    assert!(w.fraction_outside > 0.9, "{:?}", w.autocorrelation);
+}

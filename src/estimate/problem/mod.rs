@@ -19,6 +19,7 @@ use crate::estimate::solver::LeastSquares;
 pub use crate::estimate::solver::NormalEquations;
 pub use accumulate::Sums;
 pub use loss::Loss;
+pub(crate) use pass::Pass;
 
 use crate::error::{Error, Result};
 use crate::estimate::filter::Butterworth;
