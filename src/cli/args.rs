@@ -20,6 +20,23 @@ pub struct FitArgs {
     /// Voltage hold between samples: auto picks the one with the lower loss.
     #[arg(long, value_enum, default_value_t = HoldArg::Auto)]
     pub hold: HoldArg,
+    /// Voltage that drives the model: the measured terminal voltage (actual: columns ud, uq)
+    /// or the controller's reference (reference: ud_ref, uq_ref, applied --delay samples later
+    /// with an angle advance of --advance ω_e h, stator hold).
+    #[arg(long, value_enum, default_value_t = VoltageArg::Actual)]
+    pub voltage: VoltageArg,
+    /// Computational delay of the reference [samples], or `estimate` (integer search 0–3 by
+    /// the lowest loss).
+    #[arg(long, default_value = "1", value_parser = parse_delay)]
+    pub delay: Delay,
+    /// Modulator angle advance of the reference, in units of ω_e h.
+    #[arg(long, default_value_t = 1.5)]
+    pub advance: f64,
+    /// The controller advances the reference with a speed estimated from theta_m by a
+    /// phase-locked loop of this bandwidth [rad/s], or `estimate` (search by the lowest loss);
+    /// default: the logged speed.
+    #[arg(long, value_parser = parse_pll)]
+    pub speed_pll: Option<Pll>,
     /// Write the JSON report to this file ("-" for stdout, which suppresses the table).
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -230,6 +247,51 @@ impl ColumnArgs {
             voltage_scale: scale(self.voltage_scale),
             source: if self.dq_from_phases { DqSource::Phases } else { DqSource::Dq },
         }
+    }
+}
+
+/// Which voltage drives the model.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum VoltageArg {
+    Actual,
+    Reference,
+}
+
+/// A delay in samples, or to be estimated.
+#[derive(Clone, Copy, Debug)]
+pub enum Delay {
+    Samples(usize),
+    Estimate,
+}
+
+/// A speed-estimator bandwidth [rad/s], or to be estimated.
+#[derive(Clone, Copy, Debug)]
+pub enum Pll {
+    Bandwidth(f64),
+    Estimate,
+}
+
+/// Parses a bandwidth or `estimate`.
+fn parse_pll(s: &str) -> Result<Pll, String> {
+    match s {
+        "estimate" => Ok(Pll::Estimate),
+        _ => s
+            .parse()
+            .ok()
+            .filter(|a: &f64| a.is_finite() && *a > 0.0)
+            .map(Pll::Bandwidth)
+            .ok_or_else(|| format!("`{s}`: expected a positive bandwidth in rad/s or `estimate`")),
+    }
+}
+
+/// Parses `N` or `estimate`.
+fn parse_delay(s: &str) -> Result<Delay, String> {
+    match s {
+        "estimate" => Ok(Delay::Estimate),
+        _ => s
+            .parse()
+            .map(Delay::Samples)
+            .map_err(|_| format!("`{s}`: expected a number of samples or `estimate`")),
     }
 }
 

@@ -1,10 +1,13 @@
 //! `greybox fit`: read the logs, fit, print the table and write the JSON report.
 
-use super::args::{FitArgs, HoldArg, MethodArg, ModelArg, ScalingArg, SolverArg};
+use super::args::{Delay, FitArgs, HoldArg, MethodArg, ModelArg, Pll, ScalingArg, SolverArg, VoltageArg};
 use super::output;
 use greybox::estimate::{FitResult, PemOptions, ScalingKind, SolverKind, Timing, Tolerances};
 use greybox::pmsm::weighted_least_squares;
-use greybox::pmsm::{CsvOptions, HoldChoice, LinearOptions, MotorKind, PmsmFit, PmsmFitOptions, fit_pmsm};
+use greybox::pmsm::{
+    CsvOptions, HoldChoice, InputSearch, LinearOptions, MotorKind, PmsmFit, PmsmFitOptions, VoltageInput,
+    fit_estimating_input, fit_pmsm,
+};
 use std::time::Instant;
 
 pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
@@ -37,8 +40,33 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
         }
         return write_json(a, report.to_json());
     }
+    let speed_pll = match a.speed_pll {
+        Some(Pll::Bandwidth(b)) => Some(b),
+        _ => None,
+    };
+    let input = match (a.voltage, a.delay) {
+        (VoltageArg::Actual, _) => VoltageInput::Terminal,
+        (VoltageArg::Reference, Delay::Samples(delay)) => {
+            VoltageInput::Reference { delay, advance: a.advance, speed_pll }
+        }
+        (VoltageArg::Reference, Delay::Estimate) => {
+            VoltageInput::Reference { delay: 1, advance: a.advance, speed_pll }
+        }
+    };
+    let search = InputSearch {
+        delay: matches!(a.delay, Delay::Estimate),
+        speed_pll: matches!(a.speed_pll, Some(Pll::Estimate)),
+    };
+    if matches!(a.voltage, VoltageArg::Actual) && (search.delay || search.speed_pll || a.speed_pll.is_some())
+    {
+        return Err(greybox::Error::InvalidOption {
+            option: "voltage".into(),
+            reason: "--delay estimate and --speed-pll apply to --voltage reference".into(),
+        });
+    }
     let options = PmsmFitOptions {
         pole_pairs: a.pole_pairs,
+        input,
         model: kind,
         hold: match a.hold {
             HoldArg::Auto => HoldChoice::Auto,
@@ -71,7 +99,11 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
             ..PemOptions::default()
         },
     };
-    let fit = fit_pmsm(&logs, &options)?;
+    let fit = if search.delay || search.speed_pll {
+        fit_estimating_input(&logs, &options, search)?
+    } else {
+        fit_pmsm(&logs, &options)?
+    };
     let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..fit.report.timing.clone() };
     let result = PmsmFit { report: FitResult { timing, ..fit.report }, ..fit };
     if !quiet {
@@ -98,6 +130,7 @@ fn ls_only(a: &FitArgs) -> greybox::Result<()> {
         ("--bounds", !a.bounds.is_empty()),
         ("--fixed-x0", a.fixed_x0),
         ("--solver", !matches!(a.solver, SolverArg::Lm)),
+        ("--voltage reference", matches!(a.voltage, VoltageArg::Reference)),
     ];
     for (flag, set) in given {
         if set {

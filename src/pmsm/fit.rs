@@ -9,9 +9,10 @@
 //! 3. the model derives `K_t = √(3/2) K_e` [N m/A] and `ψ_f = √(2/3) K_e / n_p` [V s] with
 //!    their standard errors (MODEL.md §2).
 
-use super::interval::VoltageHold;
+use super::interval::{VoltageHold, VoltageInput, applied_voltage};
 use super::kind::MotorKind;
 use super::linear::least_squares;
+use super::signals::{DqSignals, DqView};
 use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
@@ -43,6 +44,9 @@ pub struct PmsmFitOptions {
     pub model: MotorKind,
     /// Voltage hold.
     pub hold: HoldChoice,
+    /// The voltage that drives the model: the measured terminal voltage (default) or the
+    /// controller's reference with its delay and angle advance (stator hold only).
+    pub input: VoltageInput,
     /// Start values in model order (`r_s, l_s, k_e` or `r_s, l_d, l_q, k_e`); `None` =
     /// linear least-squares estimate.
     pub start: Option<Vec<f64>>,
@@ -79,6 +83,8 @@ pub struct PmsmFit {
     pub pole_pairs: u32,
     /// The voltage hold of the reported fit.
     pub hold: VoltageHold,
+    /// The voltage that drove the model.
+    pub input: VoltageInput,
     /// Loss of every hold fitted, in fitting order.
     pub hold_losses: Vec<(VoltageHold, f64)>,
     /// The least-squares start against the estimate, when the fit started from LS.
@@ -106,7 +112,11 @@ impl PmsmFit {
 
 impl std::fmt::Display for PmsmFit {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(f, "PMSM with {} pole pairs, {} voltage hold", self.pole_pairs, self.hold)?;
+        writeln!(
+            f,
+            "PMSM with {} pole pairs, {} voltage hold, driven by the {}",
+            self.pole_pairs, self.hold, self.input
+        )?;
         write!(f, "{}", self.report)?;
         if !self.start_comparison.is_empty() {
             let parts: Vec<String> = self
@@ -179,7 +189,8 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             s.clone()
         }
         None => {
-            let ls = least_squares(experiments, n_p, options.model)?;
+            let applied = applied_experiments(experiments, n_p, options.input)?;
+            let ls = least_squares(applied.as_deref().unwrap_or(experiments), n_p, options.model)?;
             for (n, v) in ls.names.iter().zip(&ls.theta) {
                 if n != "k_e" && *v <= 0.0 {
                     return Err(Error::Numerical {
@@ -201,9 +212,21 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             ls.theta
         }
     };
+    let reference = options.input != VoltageInput::Terminal;
     let holds: &[VoltageHold] = match options.hold {
+        HoldChoice::Dq if reference => {
+            return Err(Error::InvalidOption {
+                option: "hold".into(),
+                reason: "a reference voltage is applied by a modulator, which holds it in the stator frame"
+                    .into(),
+            });
+        }
         HoldChoice::Dq => &[VoltageHold::Dq],
         HoldChoice::Stator => &[VoltageHold::Stator],
+        HoldChoice::Auto if reference => {
+            notes.push("reference voltage: the modulator holds it in the stator frame (stator hold)".into());
+            &[VoltageHold::Stator]
+        }
         HoldChoice::Auto => &[VoltageHold::Stator, VoltageHold::Dq],
     };
     let mut best: Option<(VoltageHold, FitResult)> = None;
@@ -221,12 +244,12 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         };
         let r = match options.model {
             MotorKind::Spm => {
-                let mut m = PmsmSpm::new(n_p, hold);
+                let mut m = PmsmSpm::new(n_p, hold).with_input(options.input);
                 configure(m.parameters_mut(), options)?;
                 fit(&m, experiments, &s, &options.pem)
             }
             MotorKind::Ipm => {
-                let mut m = PmsmIpm::new(n_p, hold);
+                let mut m = PmsmIpm::new(n_p, hold).with_input(options.input);
                 configure(m.parameters_mut(), options)?;
                 fit(&m, experiments, &s, &options.pem)
             }
@@ -279,11 +302,33 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         report: FitResult { timing: Timing { fit_s, total_s: fit_s, ..best.timing.clone() }, ..best },
         pole_pairs: n_p,
         hold,
+        input: options.input,
         hold_losses: losses.iter().map(|(h, l, _)| (*h, *l)).collect(),
         start_comparison,
         pmsm_advice,
         pmsm_notes: notes,
     })
+}
+
+/// With a reference input, the experiments with their `ud, uq` replaced by the applied
+/// period-mean voltage (for the linear least-squares start); `None` for the terminal input.
+fn applied_experiments(
+    experiments: &[Experiment],
+    n_p: u32,
+    input: VoltageInput,
+) -> Result<Option<Vec<Experiment>>> {
+    if input == VoltageInput::Terminal {
+        return Ok(None);
+    }
+    experiments
+        .iter()
+        .map(|e| {
+            let v = DqView::try_new(e)?;
+            let (u_d, u_q) = applied_voltage(&v, n_p, input)?;
+            DqSignals { u_d, u_q, ..v.to_signals() }.into_experiment(e.name(), e.h())
+        })
+        .collect::<Result<Vec<_>>>()
+        .map(Some)
 }
 
 /// Advice when the losses of the two holds are close (ratio below 2) but their estimates

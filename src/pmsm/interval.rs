@@ -115,6 +115,174 @@ pub fn intervals<'a>(v: &DqView<'a>, n_p: u32, hold: VoltageHold) -> impl Iterat
     })
 }
 
+/// Which voltage drives the model (MODEL.md §4, "Reference versus actual voltage").
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum VoltageInput {
+    /// The measured terminal voltage `ud, uq`: the period mean over `[t_k, t_k + h)`.
+    #[default]
+    Terminal,
+    /// The controller's reference `ud_ref, uq_ref` computed at `t_k`, applied `delay`
+    /// samples later with a modulator angle advance of `advance · ω_e h` and held in the
+    /// stator frame (an inverter). It lacks the inverter's own voltage error.
+    Reference {
+        /// Computational delay d [samples]; 1 for a drive that computes at `t_k` and
+        /// applies over `[t_{k+1}, t_{k+2})`.
+        delay: usize,
+        /// Modulator angle advance in units of `ω_e h` (1.5 compensates the delay and the
+        /// half-period mean).
+        advance: f64,
+        /// Bandwidth α_o [rad/s] of the phase-locked loop by which the controller estimates
+        /// the speed it advances with, from the logged angle `theta_m`
+        /// (`ω̂ += h α_o² e`, `θ̂ += h (ω̂ + 2 α_o e)`, `e = θ_e − θ̂`); `None`: the logged speed.
+        #[serde(default)]
+        speed_pll: Option<f64>,
+    },
+}
+
+impl VoltageInput {
+    /// The usual drive: reference applied one sample late with a 1.5 ω_e h advance.
+    pub const REFERENCE: Self = Self::Reference { delay: 1, advance: 1.5, speed_pll: None };
+
+    /// Samples at the start of a log whose applied voltage precedes the log (the first
+    /// `delay` intervals): their step uses the first reference, so a fit weights out the
+    /// residuals up to sample `delay`.
+    pub fn unknown_start(&self) -> usize {
+        match self {
+            Self::Terminal => 0,
+            Self::Reference { delay, .. } => *delay,
+        }
+    }
+}
+
+impl std::fmt::Display for VoltageInput {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Terminal => f.write_str("terminal voltage"),
+            Self::Reference { delay, advance, speed_pll } => {
+                write!(f, "reference voltage, delay {delay} sample(s), advance {advance} ω_e h")?;
+                match speed_pll {
+                    Some(a) => write!(f, " at the speed of a {a:.1} rad/s phase-locked loop"),
+                    None => Ok(()),
+                }
+            }
+        }
+    }
+}
+
+/// The intervals `k = 0..N−2` of a log driven by the voltage *reference* (channels
+/// `ud_ref`, `uq_ref`): the reference computed at `t_j`, `j = k − d`, in the dq frame of
+/// `θ_e(t_j)`, advanced by `a ω_e(t_j) h`, held in the stator frame; at the start of
+/// interval k the frame has turned by `Σ_{i=j}^{k−1} φ_i` (interval-mean speeds), so
+/// `u₀ = u_ref[j] e^{j(a φ(t_j) − Σ φ_i)}` (with d = 1, a = 1.5 at constant speed:
+/// `u_ref[k−1] e^{jφ/2}`, MODEL.md §4). Intervals `k < d` use the first reference.
+///
+/// # Errors
+/// [`Error::MissingChannel`] when the log has no `ud_ref`/`uq_ref`; [`Error::InvalidOption`]
+/// for a non-finite advance or a delay not shorter than the log.
+pub fn reference_intervals(
+    v: &DqView<'_>,
+    n_p: u32,
+    delay: usize,
+    advance: f64,
+    speed_pll: Option<f64>,
+) -> Result<Vec<Interval>> {
+    let e = v.experiment();
+    let (ud, uq) = (e.channel(super::channel::U_D_REF)?, e.channel(super::channel::U_Q_REF)?);
+    if !advance.is_finite() || delay + 1 >= v.len() {
+        return Err(Error::InvalidOption {
+            option: "voltage".into(),
+            reason: format!("reference delay {delay} and advance {advance} for a log of {} samples", v.len()),
+        });
+    }
+    let (h, np) = (v.h(), f64::from(n_p));
+    let w_adv: Vec<f64> = match speed_pll {
+        None => v.w_m().iter().map(|w| np * w).collect(),
+        Some(a) => {
+            let theta = v.theta_m().ok_or_else(|| Error::MissingChannel {
+                experiment: e.name().into(),
+                channel: super::channel::THETA_M.into(),
+                available: e.channels().iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", "),
+            })?;
+            speed_pll_estimate(theta, v.w_m(), n_p, h, a)
+        }
+    };
+    let mut out: Vec<Interval> = intervals(v, n_p, VoltageHold::Stator).collect();
+    let phis: Vec<f64> = out.iter().map(|iv| iv.w_e * h).collect();
+    for (k, iv) in out.iter_mut().enumerate() {
+        let j = k.saturating_sub(delay);
+        let turned: f64 = phis[j..k].iter().sum();
+        let angle = advance * w_adv[j] * h - turned;
+        iv.u0 = C64::new(ud[j], uq[j]) * C64::new(angle.cos(), angle.sin());
+    }
+    Ok(out)
+}
+
+/// The intervals of a log for the given hold and voltage input: [`intervals`] for the
+/// terminal voltage, [`reference_intervals`] for the reference (which a modulator holds in
+/// the stator frame).
+///
+/// # Errors
+/// Those of [`reference_intervals`]; [`Error::InvalidOption`] for a reference voltage with
+/// the dq hold.
+pub fn model_intervals(
+    v: &DqView<'_>,
+    n_p: u32,
+    hold: VoltageHold,
+    input: VoltageInput,
+) -> Result<Vec<Interval>> {
+    match input {
+        VoltageInput::Terminal => Ok(intervals(v, n_p, hold).collect()),
+        VoltageInput::Reference { .. } if hold == VoltageHold::Dq => Err(Error::InvalidOption {
+            option: "hold".into(),
+            reason: "a reference voltage is applied by a modulator, which holds it in the stator frame"
+                .into(),
+        }),
+        VoltageInput::Reference { delay, advance, speed_pll } => {
+            reference_intervals(v, n_p, delay, advance, speed_pll)
+        }
+    }
+}
+
+/// The dq voltage applied over each interval as its period mean [V], `(u_d, u_q)` of
+/// length N (the last sample repeats the last interval): the terminal voltage itself, or
+/// the reference after its delay and advance (`mean = u₀ (1 − e^{−jφ})/(jφ)`, the inverse
+/// of [`stator_hold_start`]). This is what the linear least-squares start regresses on.
+///
+/// # Errors
+/// Those of [`model_intervals`].
+pub fn applied_voltage(v: &DqView<'_>, n_p: u32, input: VoltageInput) -> Result<(Vec<f64>, Vec<f64>)> {
+    if input == VoltageInput::Terminal {
+        return Ok((v.u_d().to_vec(), v.u_q().to_vec()));
+    }
+    let ivs = model_intervals(v, n_p, VoltageHold::Stator, input)?;
+    let h = v.h();
+    let mut mean: Vec<C64> =
+        ivs.iter().map(|iv| iv.u0 / stator_hold_start(C64::new(1.0, 0.0), iv.w_e * h)).collect();
+    mean.push(mean.last().copied().unwrap_or_default());
+    Ok((mean.iter().map(|u| u.re).collect(), mean.iter().map(|u| u.im).collect()))
+}
+
+/// Electrical speed [rad/s] at every sample as a phase-locked loop of bandwidth `alpha`
+/// [rad/s] estimates it from the mechanical angle `theta_m` (a drive's usual speed
+/// estimate; critically damped, started at the logged speed), length N.
+pub fn speed_pll_estimate(theta_m: &[f64], w_m: &[f64], n_p: u32, h: f64, alpha: f64) -> Vec<f64> {
+    let np = f64::from(n_p);
+    let (mut theta, mut w) =
+        (np * theta_m.first().copied().unwrap_or(0.0), np * w_m.first().copied().unwrap_or(0.0));
+    theta_m
+        .iter()
+        .map(|&t| {
+            let out = w;
+            let d = np * t - theta;
+            let err = d.sin().atan2(d.cos());
+            w += h * alpha * alpha * err;
+            theta += h * (w + 2.0 * alpha * err);
+            out
+        })
+        .collect()
+}
+
 /// Checks a pole-pair number.
 ///
 /// # Errors

@@ -40,7 +40,7 @@
 
 use super::augmented::{Aug, advance};
 pub use super::augmented::{IpmCoefficients, IpmInputs};
-use super::interval::{VoltageHold, check_pole_pairs, check_positive, intervals};
+use super::interval::{VoltageHold, VoltageInput, check_pole_pairs, check_positive, model_intervals};
 use super::kind::MotorKind;
 
 const KIND: MotorKind = MotorKind::Ipm;
@@ -59,6 +59,7 @@ use crate::model::{GreyBoxModel, Parameter, Sensitivities};
 pub struct PmsmIpm {
     n_p: u32,
     hold: VoltageHold,
+    input: VoltageInput,
     params: Vec<Parameter>,
 }
 
@@ -67,7 +68,17 @@ impl PmsmIpm {
     /// hold and default parameter metadata. `n_p = 0` is reported by
     /// [`GreyBoxModel::prepare`] as [`Error::InvalidPolePairs`].
     pub fn new(n_p: u32, hold: VoltageHold) -> Self {
-        Self { n_p, hold, params: KIND.parameters() }
+        Self { n_p, hold, input: VoltageInput::Terminal, params: KIND.parameters() }
+    }
+    /// The same model driven by `input` (terminal voltage, or the reference with its delay
+    /// and angle advance).
+    pub fn with_input(mut self, input: VoltageInput) -> Self {
+        self.input = input;
+        self
+    }
+    /// The voltage that drives the model.
+    pub fn input(&self) -> VoltageInput {
+        self.input
     }
     /// Pole pairs n_p.
     pub fn n_p(&self) -> u32 {
@@ -100,7 +111,7 @@ impl GreyBoxModel for PmsmIpm {
             emf: Vec::with_capacity(n),
             u0: Vec::with_capacity(n),
         };
-        for iv in intervals(&v, self.n_p, self.hold) {
+        for iv in model_intervals(&v, self.n_p, self.hold, self.input)? {
             inputs.w_e.push(iv.w_e);
             inputs.emf.push(iv.emf);
             inputs.u0.push(iv.u0);

@@ -14,6 +14,7 @@
 //! speeds and angles mechanical unless a name says `_e`.
 
 pub mod augmented;
+pub mod delay;
 pub mod fit;
 pub mod interval;
 pub mod ipm;
@@ -26,9 +27,11 @@ pub mod spm;
 pub mod transform;
 pub mod validate;
 
+pub use delay::{InputSearch, fit_estimating_input};
 pub use fit::{HoldChoice, PmsmFit, PmsmFitOptions, StartComparison, fit_pmsm};
 pub use interval::{
-    C64, Interval, SQRT_2_3, VoltageHold, interval_mean_speed, intervals, rotation, stator_hold_start,
+    C64, Interval, SQRT_2_3, VoltageHold, VoltageInput, applied_voltage, interval_mean_speed, intervals,
+    model_intervals, reference_intervals, rotation, stator_hold_start,
 };
 pub use ipm::PmsmIpm;
 pub use kind::{MotorKind, derived};

@@ -21,7 +21,7 @@
 //! θ only and is computed once per θ. Sensitivities differentiate this recursion
 //! (forward sensitivity), so one pass gives residuals and gradients.
 
-use super::interval::{C64, VoltageHold, check_pole_pairs, check_positive, intervals};
+use super::interval::{C64, VoltageHold, VoltageInput, check_pole_pairs, check_positive, model_intervals};
 use super::kind::MotorKind;
 
 const KIND: MotorKind = MotorKind::Spm;
@@ -73,6 +73,7 @@ pub struct SpmCoefficients {
 pub struct PmsmSpm {
     n_p: u32,
     hold: VoltageHold,
+    input: VoltageInput,
     params: Vec<Parameter>,
 }
 
@@ -81,7 +82,17 @@ impl PmsmSpm {
     /// hold and default parameter metadata. `n_p = 0` is reported by
     /// [`GreyBoxModel::prepare`] as [`Error::InvalidPolePairs`].
     pub fn new(n_p: u32, hold: VoltageHold) -> Self {
-        Self { n_p, hold, params: KIND.parameters() }
+        Self { n_p, hold, input: VoltageInput::Terminal, params: KIND.parameters() }
+    }
+    /// The same model driven by `input` (terminal voltage, or the reference with its delay
+    /// and angle advance).
+    pub fn with_input(mut self, input: VoltageInput) -> Self {
+        self.input = input;
+        self
+    }
+    /// The voltage that drives the model.
+    pub fn input(&self) -> VoltageInput {
+        self.input
     }
     /// Pole pairs n_p.
     pub fn n_p(&self) -> u32 {
@@ -98,7 +109,7 @@ impl PmsmSpm {
 }
 
 /// Per-interval speed, rotation and held voltage term of the SPM step.
-fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold) -> SpmInputs {
+fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold, input: VoltageInput) -> Result<SpmInputs> {
     let n = v.len() - 1;
     let (mut w_e, mut emf, mut rot, mut vers, mut u) = (
         Vec::with_capacity(n),
@@ -107,7 +118,7 @@ fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold) -> SpmInputs {
         Vec::with_capacity(n),
         Vec::with_capacity(n),
     );
-    for iv in intervals(v, n_p, hold) {
+    for iv in model_intervals(v, n_p, hold, input)? {
         w_e.push(iv.w_e);
         emf.push(iv.emf);
         rot.push(iv.rot);
@@ -118,7 +129,7 @@ fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold) -> SpmInputs {
             VoltageHold::Stator => iv.u0 * iv.rot,
         });
     }
-    SpmInputs { h: v.h(), w_e, emf, rot, vers, u }
+    Ok(SpmInputs { h: v.h(), w_e, emf, rot, vers, u })
 }
 
 impl GreyBoxModel for PmsmSpm {
@@ -129,7 +140,7 @@ impl GreyBoxModel for PmsmSpm {
 
     fn prepare(&self, e: &Experiment) -> Result<SpmInputs> {
         check_pole_pairs(self.n_p)?;
-        Ok(interval_inputs(&DqView::try_new(e)?, self.n_p, self.hold))
+        interval_inputs(&DqView::try_new(e)?, self.n_p, self.hold, self.input)
     }
 
     fn coefficients(&self, theta: &[f64], inputs: &SpmInputs) -> Result<SpmCoefficients> {

@@ -2,7 +2,7 @@
 //! are read back from the JSON report of [`super::fit_pmsm`] (or of the command line's
 //! `greybox fit --json`) and compared with each log by [`crate::report::compare`].
 
-use super::interval::VoltageHold;
+use super::interval::{VoltageHold, VoltageInput};
 use super::kind::MotorKind;
 use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
@@ -19,6 +19,8 @@ pub struct SavedModel {
     pub pole_pairs: u32,
     /// The voltage hold of the fit.
     pub hold: VoltageHold,
+    /// The voltage that drove the model (terminal, or the reference with its delay).
+    pub input: VoltageInput,
     /// Parameter values, model order of `kind` (SI units).
     pub theta: Vec<f64>,
     /// Number of estimated (not fixed) parameters.
@@ -30,6 +32,8 @@ struct Report {
     model: String,
     pole_pairs: Option<u32>,
     hold: Option<VoltageHold>,
+    #[serde(default)]
+    input: VoltageInput,
     parameters: Vec<Saved>,
 }
 
@@ -86,6 +90,7 @@ impl SavedModel {
             kind,
             pole_pairs,
             hold: hold.or(r.hold).unwrap_or_default(),
+            input: r.input,
             theta,
             n_estimated: r.parameters.iter().filter(|p| !p.fixed).count(),
         })

@@ -18,6 +18,7 @@ mod mgh_problems;
 mod multi_experiment;
 mod random_starts;
 mod recovery;
+mod reference;
 mod reports;
 mod robust;
 mod solvers;

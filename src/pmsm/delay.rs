@@ -1,0 +1,147 @@
+//! The nuisance parameters of a reference-voltage input, estimated by search around the
+//! fit: the computational delay (integer, 0–3 samples) and the bandwidth of the
+//! phase-locked loop whose speed the controller advances the reference with (golden-section
+//! search on its logarithm). Each candidate is a whole fit; the lowest loss wins (MODEL.md
+//! §4: the delay and the controller's angle are properties of the drive, not of the motor).
+
+use super::fit::{PmsmFit, PmsmFitOptions, fit_pmsm};
+use super::interval::VoltageInput;
+use crate::data::Experiment;
+use crate::error::{Error, Result};
+
+/// Delays tried [samples].
+pub const DELAYS: std::ops::RangeInclusive<usize> = 0..=3;
+/// Range of the speed-estimator bandwidth searched [rad/s]: 2π·10 Hz to 2π·2 kHz.
+pub const SPEED_PLL_RANGE: (f64, f64) = (62.83185307179586, 12_566.370614359172);
+/// Log-spaced bandwidths of the coarse scan before the golden-section refinement.
+const COARSE: usize = 16;
+/// Golden-section steps (each shrinks the bracket by 0.618: 24 steps ≈ 1e-5 in ln α).
+const GOLDEN_STEPS: usize = 24;
+
+/// What to estimate besides the motor's parameters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct InputSearch {
+    /// The computational delay, 0–3 samples.
+    pub delay: bool,
+    /// The bandwidth of the controller's speed estimate (needs `theta_m`).
+    pub speed_pll: bool,
+}
+
+/// Fits with the reference voltage of `options.input` (1 sample, 1.5 ω_e h if it is the
+/// terminal voltage), estimating what `search` asks for, and returns the fit with the lowest
+/// loss among those that converged; its notes give the search.
+///
+/// # Errors
+/// Those of [`fit_pmsm`]; [`Error::Numerical`] when no candidate converges.
+pub fn fit_estimating_input(
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+    search: InputSearch,
+) -> Result<PmsmFit> {
+    let (delay0, advance, pll0) = match options.input {
+        VoltageInput::Reference { delay, advance, speed_pll } => (delay, advance, speed_pll),
+        VoltageInput::Terminal => (1, 1.5, None),
+    };
+    // Every candidate starts from the fit at the given input (a least-squares start at a
+    // wrong delay can be unusable, e.g. a negative resistance).
+    let first = fit_pmsm(
+        experiments,
+        &PmsmFitOptions {
+            input: VoltageInput::Reference { delay: delay0, advance, speed_pll: pll0 },
+            ..options.clone()
+        },
+    )?;
+    let start: Vec<f64> = options
+        .model
+        .parameter_names()
+        .iter()
+        .map(|n| first.parameter(n).map_or(f64::NAN, |p| p.value))
+        .collect();
+    let fit_at = |delay: usize, speed_pll: Option<f64>| {
+        let input = VoltageInput::Reference { delay, advance, speed_pll };
+        fit_pmsm(experiments, &PmsmFitOptions { input, start: Some(start.clone()), ..options.clone() })
+    };
+    // A candidate that cannot be fitted (diverging simulation, no convergence) loses.
+    let loss = |f: Result<PmsmFit>| match f {
+        Ok(f) if f.solver.success => Ok(f.fit.loss),
+        Ok(_)
+        | Err(Error::Numerical { .. } | Error::SimulationDiverged { .. } | Error::InvalidParameter { .. }) => {
+            Ok(f64::INFINITY)
+        }
+        Err(e) => Err(e),
+    };
+    let mut notes = Vec::new();
+    let delay = if search.delay {
+        let mut tried = Vec::new();
+        for d in DELAYS {
+            tried.push((d, loss(fit_at(d, pll0))?));
+        }
+        let best = tried.iter().min_by(|a, b| a.1.total_cmp(&b.1)).map_or(delay0, |t| t.0);
+        let text: Vec<String> = tried.iter().map(|(d, l)| format!("{d}: {l:.6e}")).collect();
+        notes.push(format!(
+            "computational delay estimated as {best} sample(s) by the lowest loss ({})",
+            text.join(", ")
+        ));
+        best
+    } else {
+        delay0
+    };
+    let speed_pll = if search.speed_pll {
+        let alpha = golden_search(|a| loss(fit_at(delay, Some(a))))?;
+        notes.push(format!(
+            "speed estimate of the angle advance: phase-locked loop of {alpha:.1} rad/s ({:.1} Hz), by the \
+             lowest loss",
+            alpha / std::f64::consts::TAU
+        ));
+        Some(alpha)
+    } else {
+        pll0
+    };
+    let best = fit_at(delay, speed_pll)?;
+    if !best.solver.success && (search.delay || search.speed_pll) {
+        return Err(Error::Numerical {
+            context: "input estimate".into(),
+            reason: format!(
+                "the fit at the best delay {delay} does not converge: {}",
+                best.solver.termination
+            ),
+        });
+    }
+    let mut pmsm_notes = best.pmsm_notes.clone();
+    pmsm_notes.append(&mut notes);
+    Ok(PmsmFit { pmsm_notes, ..best })
+}
+
+/// The bandwidth in [`SPEED_PLL_RANGE`] with the lowest `loss`: a log-spaced scan, then a
+/// golden-section search on ln α in the bracket around the best point.
+fn golden_search(mut loss: impl FnMut(f64) -> Result<f64>) -> Result<f64> {
+    let (lo, hi) = (SPEED_PLL_RANGE.0.ln(), SPEED_PLL_RANGE.1.ln());
+    let grid: Vec<f64> = (0..COARSE).map(|i| lo + (hi - lo) * i as f64 / (COARSE - 1) as f64).collect();
+    let mut values = Vec::with_capacity(COARSE);
+    for &x in &grid {
+        values.push(loss(x.exp())?);
+    }
+    let i = (0..COARSE).min_by(|&a, &b| values[a].total_cmp(&values[b])).unwrap_or(0);
+    if !values[i].is_finite() {
+        return Err(Error::Numerical {
+            context: "speed estimate search".into(),
+            reason: "no bandwidth gives a converged fit".into(),
+        });
+    }
+    let (mut a, mut b) = (grid[i.saturating_sub(1)], grid[(i + 1).min(COARSE - 1)]);
+    let r = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut c, mut d) = (b - r * (b - a), a + r * (b - a));
+    let (mut fc, mut fd) = (loss(c.exp())?, loss(d.exp())?);
+    for _ in 0..GOLDEN_STEPS {
+        if fc <= fd {
+            (b, d, fd) = (d, c, fc);
+            c = b - r * (b - a);
+            fc = loss(c.exp())?;
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + r * (b - a);
+            fd = loss(d.exp())?;
+        }
+    }
+    Ok(if fc <= fd { c } else { d }.exp())
+}

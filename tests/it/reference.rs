@@ -1,0 +1,115 @@
+//! Fits driven by the controller's voltage reference (MODEL.md §4): the reference applied
+//! `d` samples late with a modulator angle advance, the delay and the controller's speed
+//! estimate found by search; and the errors a user gets when the log cannot support it.
+
+use crate::common::{Rng, Signals, exciting_signals, pmsm_options, rel, simulate_into};
+use greybox::Error;
+use greybox::model::{GreyBoxModel, Prepared};
+use greybox::pmsm::{
+    DqView, HoldChoice, InputSearch, PmsmFitOptions, PmsmSpm, VoltageHold, VoltageInput,
+    fit_estimating_input, fit_pmsm,
+};
+use greybox::simulate::{SimOptions, simulate};
+
+const THETA: [f64; 3] = [0.9, 4.5e-3, 0.539];
+const N_P: u32 = 4;
+const H: f64 = 1e-4;
+
+/// A record whose currents are simulated from a voltage reference applied with `delay`
+/// samples and a 1.5 ω_e h advance: the logged `ud_ref, uq_ref` are the random steps, the
+/// terminal columns hold the applied period means.
+fn reference_record(delay: usize) -> greybox::Experiment {
+    let mut rng = Rng(3);
+    let s = exciting_signals(6000, H, 250.0, 60.0, THETA[2], &mut rng);
+    let refs = Signals { u_d_ref: Some(s.u_d.clone()), u_q_ref: Some(s.u_q.clone()), ..s.clone() };
+    let e = refs.clone().into_experiment("reference", H).unwrap();
+    let input = VoltageInput::Reference { delay, advance: 1.5, speed_pll: None };
+    let (u_d, u_q) = greybox::pmsm::applied_voltage(&DqView::try_new(&e).unwrap(), N_P, input).unwrap();
+    let model = PmsmSpm::new(N_P, VoltageHold::Stator).with_input(input);
+    simulate_into(&model, &THETA, H, Signals { u_d, u_q, ..refs })
+}
+
+/// The model driven by the reference reproduces the terminal-voltage model on the applied
+/// voltage it implies (same currents to rounding), and a fit from the reference recovers
+/// the parameters and the delay.
+#[test]
+fn a_delayed_reference_is_recovered_with_its_delay() {
+    let e = reference_record(2);
+    let input = VoltageInput::Reference { delay: 2, advance: 1.5, speed_pll: None };
+    let by_ref = PmsmSpm::new(N_P, VoltageHold::Stator).with_input(input);
+    let by_terminal = PmsmSpm::new(N_P, VoltageHold::Stator);
+    let y_ref =
+        simulate(&by_ref, &Prepared::new(&by_ref, &e).unwrap(), &THETA, &SimOptions::default()).unwrap();
+    let y_term =
+        simulate(&by_terminal, &Prepared::new(&by_terminal, &e).unwrap(), &THETA, &SimOptions::default())
+            .unwrap();
+    // Identical but for the last interval, whose applied mean repeats the one before it
+    // (the terminal columns are one sample longer than the intervals).
+    let scale = y_term.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let worst = y_ref.iter().zip(&y_term).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(worst <= 1e-9 * scale, "{worst:e} of {scale}");
+
+    let options = PmsmFitOptions { input: VoltageInput::REFERENCE, ..pmsm_options(N_P) };
+    let fit = fit_estimating_input(&[e], &options, InputSearch { delay: true, speed_pll: false }).unwrap();
+    assert_eq!(fit.input, input, "{:?}", fit.pmsm_notes);
+    for (j, name) in ["r_s", "l_s", "k_e"].iter().enumerate() {
+        let p = fit.parameter(name).unwrap();
+        assert!(rel(p.value, THETA[j]) < 1e-7, "{name}: {:e}", rel(p.value, THETA[j]));
+    }
+}
+
+#[test]
+fn reference_input_errors_name_the_culprit() {
+    let mut rng = Rng(5);
+    let clean = simulate_into(
+        &PmsmSpm::new(N_P, VoltageHold::Stator),
+        &THETA,
+        H,
+        exciting_signals(500, H, 250.0, 60.0, THETA[2], &mut rng),
+    );
+    // No reference columns in the log.
+    let options = PmsmFitOptions { input: VoltageInput::REFERENCE, ..pmsm_options(N_P) };
+    match fit_pmsm(std::slice::from_ref(&clean), &options).unwrap_err() {
+        Error::MissingChannel { channel, .. } => assert_eq!(channel, "ud_ref"),
+        other => panic!("{other}"),
+    }
+    // A reference cannot be held in dq.
+    let e = reference_record(1);
+    let dq = PmsmFitOptions { hold: HoldChoice::Dq, ..options.clone() };
+    let err = fit_pmsm(std::slice::from_ref(&e), &dq).unwrap_err();
+    assert!(err.to_string().contains("stator frame"), "{err}");
+    // The speed estimate of the advance needs the angle.
+    let pll = VoltageInput::Reference { delay: 1, advance: 1.5, speed_pll: Some(1000.0) };
+    let m = PmsmSpm::new(N_P, VoltageHold::Stator).with_input(pll);
+    match m.prepare(&e).unwrap_err() {
+        Error::MissingChannel { channel, .. } => assert_eq!(channel, "theta_m"),
+        other => panic!("{other}"),
+    }
+}
+
+/// The motulator logs fitted from their reference voltage, delay and the controller's speed
+/// estimate found by search: delay 1 on every log, every parameter within 0.05 % of truth.
+#[test]
+fn motulator_logs_from_the_reference_voltage() {
+    crate::common::require_shared!();
+    for stem in ["servo_spm_moves", "servo_spm_moves_idinj", "ipm_moves_idinj"] {
+        let (e, t) = crate::common::load(stem);
+        let model = if t.salient { greybox::pmsm::MotorKind::Ipm } else { greybox::pmsm::MotorKind::Spm };
+        let options = PmsmFitOptions { model, input: VoltageInput::REFERENCE, ..pmsm_options(t.n_p) };
+        let fit = fit_estimating_input(&[e], &options, InputSearch { delay: true, speed_pll: true }).unwrap();
+        let VoltageInput::Reference { delay, speed_pll, .. } = fit.input else {
+            panic!("{stem}: terminal input")
+        };
+        assert_eq!(delay, 1, "{stem}: {:?}", fit.pmsm_notes);
+        let truth = [("r_s", t.r_s), ("l_s", t.l_d), ("l_d", t.l_d), ("l_q", t.l_q), ("k_e", t.k_e)];
+        for p in &fit.parameters {
+            let (_, v) = truth.iter().find(|(n, _)| *n == p.name).unwrap();
+            let err = rel(p.value, *v);
+            eprintln!(
+                "{stem} from the reference: {} relative error {err:.2e} (speed estimate {speed_pll:?} rad/s)",
+                p.name
+            );
+            assert!(err < 5e-4, "{stem} {}: {err:e}", p.name);
+        }
+    }
+}
