@@ -37,6 +37,20 @@ pub struct FitArgs {
     /// default: the logged speed.
     #[arg(long, value_parser = parse_pll)]
     pub speed_pll: Option<Pll>,
+    /// Known resistance in series with the winding (cable, connectors) [Ω]: subtracted, so
+    /// r_s is the motor's alone.
+    #[arg(long, default_value_t = 0.0)]
+    pub cable_resistance: f64,
+    /// Reference temperature T_0 [°C] of --r-s0 and --psi-f0: the report then derives the
+    /// winding temperature (copper) and the magnet temperature (NdFeB).
+    #[arg(long)]
+    pub t0: Option<f64>,
+    /// Winding resistance at T_0 [Ω] (with --t0).
+    #[arg(long)]
+    pub r_s0: Option<f64>,
+    /// Magnet flux ψ_f at T_0 [V s] (with --t0).
+    #[arg(long)]
+    pub psi_f0: Option<f64>,
     /// Write the JSON report to this file ("-" for stdout, which suppresses the table).
     #[arg(long)]
     pub json: Option<PathBuf>,

@@ -5,8 +5,8 @@ use super::output;
 use greybox::estimate::{FitResult, PemOptions, ScalingKind, SolverKind, Timing, Tolerances};
 use greybox::pmsm::weighted_least_squares;
 use greybox::pmsm::{
-    CsvOptions, HoldChoice, InputSearch, LinearOptions, MotorKind, PmsmFit, PmsmFitOptions, VoltageInput,
-    fit_estimating_input, fit_pmsm,
+    CsvOptions, HoldChoice, InputSearch, LinearOptions, MotorKind, PmsmFit, PmsmFitOptions, ThermalReference,
+    VoltageInput, fit_estimating_input, fit_pmsm,
 };
 use std::time::Instant;
 
@@ -64,9 +64,21 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
             reason: "--delay estimate and --speed-pll apply to --voltage reference".into(),
         });
     }
+    let thermal = match (a.t0, a.r_s0, a.psi_f0) {
+        (None, None, None) => None,
+        (Some(t0), r_s0, psi_f0) => Some(ThermalReference::try_new(t0, r_s0, psi_f0)?),
+        (None, _, _) => {
+            return Err(greybox::Error::InvalidOption {
+                option: "t0".into(),
+                reason: "--r-s0 and --psi-f0 are values at a reference temperature: give it with --t0".into(),
+            });
+        }
+    };
     let options = PmsmFitOptions {
         pole_pairs: a.pole_pairs,
         input,
+        cable_resistance: a.cable_resistance,
+        thermal,
         model: kind,
         hold: match a.hold {
             HoldArg::Auto => HoldChoice::Auto,
@@ -131,6 +143,8 @@ fn ls_only(a: &FitArgs) -> greybox::Result<()> {
         ("--fixed-x0", a.fixed_x0),
         ("--solver", !matches!(a.solver, SolverArg::Lm)),
         ("--voltage reference", matches!(a.voltage, VoltageArg::Reference)),
+        ("--cable-resistance", a.cable_resistance != 0.0),
+        ("--t0", a.t0.is_some()),
     ];
     for (flag, set) in given {
         if set {

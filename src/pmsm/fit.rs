@@ -12,7 +12,9 @@
 use super::interval::{VoltageHold, VoltageInput, applied_voltage};
 use super::kind::MotorKind;
 use super::linear::least_squares;
+pub use super::report::{PmsmFit, StartComparison};
 use super::signals::{DqSignals, DqView};
+use super::temperature::ThermalReference;
 use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
@@ -54,90 +56,13 @@ pub struct PmsmFitOptions {
     pub fixed: Vec<String>,
     /// Bounds `(name, lower, upper)` replacing the model's defaults.
     pub bounds: Vec<(String, f64, f64)>,
+    /// Known resistance in series with the winding (cable) [Ω], subtracted: `r_s` is the
+    /// motor's alone, and the report gives the cable apart.
+    pub cable_resistance: f64,
+    /// Reference point of the winding and magnet temperatures derived from `r_s` and `psi_f`.
+    pub thermal: Option<ThermalReference>,
     /// Options of the prediction-error fit.
     pub pem: PemOptions,
-}
-
-/// The least-squares start against the prediction-error estimate of one parameter.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct StartComparison {
-    /// Parameter name.
-    pub name: String,
-    /// Least-squares estimate [unit].
-    pub least_squares: f64,
-    /// Prediction-error estimate [unit].
-    pub pem: f64,
-    /// `100 (LS − PEM)/PEM` [%]: the bias of LS if PEM is right.
-    pub difference_percent: f64,
-}
-
-/// A PMSM fit: the generic report (flattened into the same JSON object) and what only a
-/// motor fit has: pole pairs, the voltage hold and how it was chosen, the least-squares
-/// start against the estimate.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct PmsmFit {
-    /// The prediction-error fit with the chosen hold.
-    #[serde(flatten)]
-    pub report: FitResult,
-    /// Pole pairs n_p.
-    pub pole_pairs: u32,
-    /// The voltage hold of the reported fit.
-    pub hold: VoltageHold,
-    /// The voltage that drove the model.
-    pub input: VoltageInput,
-    /// Loss of every hold fitted, in fitting order.
-    pub hold_losses: Vec<(VoltageHold, f64)>,
-    /// The least-squares start against the estimate, when the fit started from LS.
-    #[serde(skip_serializing_if = "Vec::is_empty", default)]
-    pub start_comparison: Vec<StartComparison>,
-    /// Motor-specific advice (e.g. an ambiguous voltage hold).
-    pub pmsm_advice: Vec<String>,
-    /// Motor-specific remarks (start, hold selection).
-    pub pmsm_notes: Vec<String>,
-}
-
-impl std::ops::Deref for PmsmFit {
-    type Target = FitResult;
-    fn deref(&self) -> &FitResult {
-        &self.report
-    }
-}
-
-impl PmsmFit {
-    /// The JSON report (pretty-printed; non-finite numbers as `null`).
-    pub fn to_json(&self) -> String {
-        serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
-    }
-}
-
-impl std::fmt::Display for PmsmFit {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(
-            f,
-            "PMSM with {} pole pairs, {} voltage hold, driven by the {}",
-            self.pole_pairs, self.hold, self.input
-        )?;
-        write!(f, "{}", self.report)?;
-        if !self.start_comparison.is_empty() {
-            let parts: Vec<String> = self
-                .start_comparison
-                .iter()
-                .map(|c| format!("{} {:+.4} %", c.name, c.difference_percent))
-                .collect();
-            writeln!(
-                f,
-                "least-squares start vs estimate (LS bias if the fit is right): {}",
-                parts.join(", ")
-            )?;
-        }
-        for a in &self.pmsm_advice {
-            writeln!(f, "advice: {a}")?;
-        }
-        for n in &self.pmsm_notes {
-            writeln!(f, "note: {n}")?;
-        }
-        Ok(())
-    }
 }
 
 /// Fits a PMSM model to one or more logs of one motor (parameters shared unless listed in
@@ -190,7 +115,9 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         }
         None => {
             let applied = applied_experiments(experiments, n_p, options.input)?;
-            let ls = least_squares(applied.as_deref().unwrap_or(experiments), n_p, options.model)?;
+            let mut ls = least_squares(applied.as_deref().unwrap_or(experiments), n_p, options.model)?;
+            // The regression sees the whole series resistance; the model adds the cable.
+            ls.theta[0] -= options.cable_resistance;
             for (n, v) in ls.names.iter().zip(&ls.theta) {
                 if n != "k_e" && *v <= 0.0 {
                     return Err(Error::Numerical {
@@ -244,12 +171,22 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         };
         let r = match options.model {
             MotorKind::Spm => {
-                let mut m = PmsmSpm::new(n_p, hold).with_input(options.input);
+                let mut m = PmsmSpm::new(n_p, hold)
+                    .with_input(options.input)
+                    .with_cable_resistance(options.cable_resistance);
+                if let Some(t) = options.thermal {
+                    m = m.with_thermal(t);
+                }
                 configure(m.parameters_mut(), options)?;
                 fit(&m, experiments, &s, &options.pem)
             }
             MotorKind::Ipm => {
-                let mut m = PmsmIpm::new(n_p, hold).with_input(options.input);
+                let mut m = PmsmIpm::new(n_p, hold)
+                    .with_input(options.input)
+                    .with_cable_resistance(options.cable_resistance);
+                if let Some(t) = options.thermal {
+                    m = m.with_thermal(t);
+                }
                 configure(m.parameters_mut(), options)?;
                 fit(&m, experiments, &s, &options.pem)
             }
@@ -303,6 +240,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         pole_pairs: n_p,
         hold,
         input: options.input,
+        cable_resistance: options.cable_resistance,
         hold_losses: losses.iter().map(|(h, l, _)| (*h, *l)).collect(),
         start_comparison,
         pmsm_advice,

@@ -40,8 +40,9 @@
 
 use super::augmented::{Aug, advance};
 pub use super::augmented::{IpmCoefficients, IpmInputs};
-use super::interval::{VoltageHold, VoltageInput, check_pole_pairs, check_positive, model_intervals};
+use super::interval::{VoltageHold, check_pole_pairs, check_positive, model_intervals};
 use super::kind::MotorKind;
+use super::setup::PmsmSetup;
 
 const KIND: MotorKind = MotorKind::Ipm;
 use super::signals::DqView;
@@ -57,41 +58,19 @@ use crate::model::{GreyBoxModel, Parameter, Sensitivities};
 /// MODEL.md §2, §4; the method is described in the [module docs](self).
 #[derive(Clone, Debug)]
 pub struct PmsmIpm {
-    n_p: u32,
-    hold: VoltageHold,
-    input: VoltageInput,
+    setup: PmsmSetup,
     params: Vec<Parameter>,
 }
 
 impl PmsmIpm {
     /// IPM model of a machine with `n_p` pole pairs (`ω_e = n_p ω_m`), the given voltage
-    /// hold and default parameter metadata. `n_p = 0` is reported by
-    /// [`GreyBoxModel::prepare`] as [`Error::InvalidPolePairs`].
+    /// hold and default parameter metadata, driven by the terminal voltage. `n_p = 0` is
+    /// reported by [`GreyBoxModel::prepare`] as [`Error::InvalidPolePairs`].
     pub fn new(n_p: u32, hold: VoltageHold) -> Self {
-        Self { n_p, hold, input: VoltageInput::Terminal, params: KIND.parameters() }
+        Self { setup: PmsmSetup::new(n_p, hold), params: KIND.parameters() }
     }
-    /// The same model driven by `input` (terminal voltage, or the reference with its delay
-    /// and angle advance).
-    pub fn with_input(mut self, input: VoltageInput) -> Self {
-        self.input = input;
-        self
-    }
-    /// The voltage that drives the model.
-    pub fn input(&self) -> VoltageInput {
-        self.input
-    }
-    /// Pole pairs n_p.
-    pub fn n_p(&self) -> u32 {
-        self.n_p
-    }
-    /// The voltage hold this model assumes.
-    pub fn hold(&self) -> VoltageHold {
-        self.hold
-    }
-    /// Mutable parameter metadata (bounds, fixed flags, nominal values), length 4.
-    pub fn parameters_mut(&mut self) -> &mut [Parameter] {
-        &mut self.params
-    }
+
+    super::setup::pmsm_model_setup!();
 }
 
 impl GreyBoxModel for PmsmIpm {
@@ -101,17 +80,17 @@ impl GreyBoxModel for PmsmIpm {
     super::pmsm_model_metadata!(KIND);
 
     fn prepare(&self, e: &Experiment) -> Result<IpmInputs> {
-        check_pole_pairs(self.n_p)?;
+        check_pole_pairs(self.setup.n_p)?;
         let v = DqView::try_new(e)?;
         let n = v.len() - 1;
         let mut inputs = IpmInputs {
             h: v.h(),
-            hold: self.hold,
+            hold: self.setup.hold,
             w_e: Vec::with_capacity(n),
             emf: Vec::with_capacity(n),
             u0: Vec::with_capacity(n),
         };
-        for iv in model_intervals(&v, self.n_p, self.hold, self.input)? {
+        for iv in model_intervals(&v, self.setup.n_p, self.setup.hold, self.setup.input)? {
             inputs.w_e.push(iv.w_e);
             inputs.emf.push(iv.emf);
             inputs.u0.push(iv.u0);
@@ -133,6 +112,14 @@ impl GreyBoxModel for PmsmIpm {
             });
         };
         check_positive("r_s", r)?;
+        let r = r + self.setup.cable_resistance;
+        if !(self.setup.cable_resistance.is_finite() && self.setup.cable_resistance >= 0.0) {
+            return Err(Error::InvalidParameter {
+                name: "cable_resistance".into(),
+                value: self.setup.cable_resistance,
+                reason: "must be finite and not negative".into(),
+            });
+        }
         check_positive("l_d", l_d)?;
         check_positive("l_q", l_q)?;
         if !k_e.is_finite() {

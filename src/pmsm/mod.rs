@@ -22,8 +22,11 @@ pub mod kind;
 pub mod linear;
 pub mod linear_report;
 pub mod log;
+pub mod report;
+pub mod setup;
 pub mod signals;
 pub mod spm;
+pub mod temperature;
 pub mod transform;
 pub mod validate;
 
@@ -37,8 +40,10 @@ pub use ipm::PmsmIpm;
 pub use kind::{MotorKind, derived};
 pub use linear::{LinearEstimate, LinearOptions, least_squares, regressors, weighted_least_squares};
 pub use log::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit, read_log, read_logs};
+pub use setup::PmsmSetup;
 pub use signals::{DqSignals, DqView, MIN_SAMPLES, channel};
 pub use spm::PmsmSpm;
+pub use temperature::{ALPHA_COPPER, BETA_NDFEB, ThermalReference};
 pub use validate::SavedModel;
 
 /// The part of [`crate::model::GreyBoxModel`] every PMSM model shares, from its motor
@@ -75,7 +80,12 @@ macro_rules! pmsm_model_metadata {
         }
         fn derived(&self, theta: &[f64], covariance: &[Vec<f64>]) -> Vec<$crate::model::DerivedEstimate> {
             let se: Vec<f64> = (0..theta.len()).map(|j| covariance[j][j].sqrt()).collect();
-            $crate::pmsm::kind::derived($kind, self.n_p, theta, &se)
+            let mut d = $crate::pmsm::kind::derived($kind, self.setup.n_p, theta, &se);
+            let psi = d.iter().find(|q| q.name == "psi_f").map(|q| (q.value, q.std_error));
+            if let (Some(t), Some((psi_f, se_psi))) = (&self.setup.thermal, psi) {
+                d.extend(t.temperatures(theta[0], se[0], psi_f, se_psi));
+            }
+            d
         }
     };
 }

@@ -23,6 +23,7 @@
 
 use super::interval::{C64, VoltageHold, VoltageInput, check_pole_pairs, check_positive, model_intervals};
 use super::kind::MotorKind;
+use super::setup::PmsmSetup;
 
 const KIND: MotorKind = MotorKind::Spm;
 use super::signals::DqView;
@@ -71,41 +72,19 @@ pub struct SpmCoefficients {
 /// Source: thesis eq. 5.1 and section 5.2 (Tenerz 2011); MODEL.md §2, §4.
 #[derive(Clone, Debug)]
 pub struct PmsmSpm {
-    n_p: u32,
-    hold: VoltageHold,
-    input: VoltageInput,
+    setup: PmsmSetup,
     params: Vec<Parameter>,
 }
 
 impl PmsmSpm {
     /// SPM model of a machine with `n_p` pole pairs (`ω_e = n_p ω_m`), the given voltage
-    /// hold and default parameter metadata. `n_p = 0` is reported by
-    /// [`GreyBoxModel::prepare`] as [`Error::InvalidPolePairs`].
+    /// hold and default parameter metadata, driven by the terminal voltage. `n_p = 0` is
+    /// reported by [`GreyBoxModel::prepare`] as [`Error::InvalidPolePairs`].
     pub fn new(n_p: u32, hold: VoltageHold) -> Self {
-        Self { n_p, hold, input: VoltageInput::Terminal, params: KIND.parameters() }
+        Self { setup: PmsmSetup::new(n_p, hold), params: KIND.parameters() }
     }
-    /// The same model driven by `input` (terminal voltage, or the reference with its delay
-    /// and angle advance).
-    pub fn with_input(mut self, input: VoltageInput) -> Self {
-        self.input = input;
-        self
-    }
-    /// The voltage that drives the model.
-    pub fn input(&self) -> VoltageInput {
-        self.input
-    }
-    /// Pole pairs n_p.
-    pub fn n_p(&self) -> u32 {
-        self.n_p
-    }
-    /// The voltage hold this model assumes.
-    pub fn hold(&self) -> VoltageHold {
-        self.hold
-    }
-    /// Mutable parameter metadata (bounds, fixed flags, nominal values).
-    pub fn parameters_mut(&mut self) -> &mut [Parameter] {
-        &mut self.params
-    }
+
+    super::setup::pmsm_model_setup!();
 }
 
 /// Per-interval speed, rotation and held voltage term of the SPM step.
@@ -139,8 +118,8 @@ impl GreyBoxModel for PmsmSpm {
     super::pmsm_model_metadata!(KIND);
 
     fn prepare(&self, e: &Experiment) -> Result<SpmInputs> {
-        check_pole_pairs(self.n_p)?;
-        interval_inputs(&DqView::try_new(e)?, self.n_p, self.hold, self.input)
+        check_pole_pairs(self.setup.n_p)?;
+        interval_inputs(&DqView::try_new(e)?, self.setup.n_p, self.setup.hold, self.setup.input)
     }
 
     fn coefficients(&self, theta: &[f64], inputs: &SpmInputs) -> Result<SpmCoefficients> {
@@ -151,6 +130,14 @@ impl GreyBoxModel for PmsmSpm {
             });
         };
         check_positive("r_s", r)?;
+        let r = r + self.setup.cable_resistance;
+        if !(self.setup.cable_resistance.is_finite() && self.setup.cable_resistance >= 0.0) {
+            return Err(Error::InvalidParameter {
+                name: "cable_resistance".into(),
+                value: self.setup.cable_resistance,
+                reason: "must be finite and not negative".into(),
+            });
+        }
         check_positive("l_s", l)?;
         if !k_e.is_finite() {
             return Err(Error::InvalidParameter {
@@ -182,7 +169,7 @@ impl GreyBoxModel for PmsmSpm {
         let (a, b) = self.ab(c, inp, k);
         let i = C64::new(x[0], x[1]);
         let je = C64::new(0.0, c.k_e * inp.emf[k]);
-        let forced = match self.hold {
+        let forced = match self.setup.hold {
             VoltageHold::Dq => b * (inp.u[k] - je),
             VoltageHold::Stator => inp.u[k] * c.g - b * je,
         };
@@ -250,7 +237,7 @@ impl Sensitivities<SpmInputs, SpmCoefficients> for PmsmSpm {
         let emf = inp.emf[k];
         let je = C64::new(0.0, c.k_e * emf);
         let u = inp.u[k];
-        let (forced, f_r, f_l) = match self.hold {
+        let (forced, f_r, f_l) = match self.setup.hold {
             VoltageHold::Dq => (b * (u - je), b_r * (u - je), b_l * (u - je)),
             VoltageHold::Stator => (u * c.g - b * je, u * c.g_r - b_r * je, u * c.g_l - b_l * je),
         };

@@ -23,3 +23,4 @@ mod reports;
 mod robust;
 mod solvers;
 mod spm;
+mod thermal;

@@ -1,0 +1,75 @@
+//! What a PMSM model knows besides its parameters: pole pairs, voltage hold and input, a
+//! known cable resistance in series, and the reference point of the temperature estimates.
+//! Shared by [`super::PmsmSpm`] and [`super::PmsmIpm`].
+
+use super::interval::{VoltageHold, VoltageInput};
+use super::temperature::ThermalReference;
+use serde::{Deserialize, Serialize};
+
+/// The setup of a PMSM model.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PmsmSetup {
+    /// Pole pairs n_p (`ω_e = n_p ω_m`).
+    pub n_p: u32,
+    /// How the voltage is held over a period.
+    pub hold: VoltageHold,
+    /// The voltage that drives the model.
+    pub input: VoltageInput,
+    /// Known resistance in series with the winding (cable, connectors) [Ω]: the circuit
+    /// sees `R_s + R_cable`, and the estimated `r_s` is the motor's alone (MODEL.md §4).
+    pub cable_resistance: f64,
+    /// Reference point of the winding and magnet temperature estimates, if known.
+    pub thermal: Option<ThermalReference>,
+}
+
+impl PmsmSetup {
+    /// `n_p` pole pairs and the given hold; terminal voltage, no cable, no thermal reference.
+    pub fn new(n_p: u32, hold: VoltageHold) -> Self {
+        Self { n_p, hold, input: VoltageInput::Terminal, cable_resistance: 0.0, thermal: None }
+    }
+}
+
+/// Builder methods and accessors of a PMSM model with fields `setup` and `params`.
+macro_rules! pmsm_model_setup {
+    () => {
+        /// The same model driven by `input` (terminal voltage, or the reference with its
+        /// delay and angle advance).
+        pub fn with_input(mut self, input: $crate::pmsm::VoltageInput) -> Self {
+            self.setup.input = input;
+            self
+        }
+        /// The same model with a known series (cable) resistance [Ω]: the estimated `r_s`
+        /// is then the motor's alone. A negative or non-finite value is reported by
+        /// [`GreyBoxModel::coefficients`].
+        pub fn with_cable_resistance(mut self, ohm: f64) -> Self {
+            self.setup.cable_resistance = ohm;
+            self
+        }
+        /// The same model deriving winding and magnet temperatures from `reference`.
+        pub fn with_thermal(mut self, reference: $crate::pmsm::ThermalReference) -> Self {
+            self.setup.thermal = Some(reference);
+            self
+        }
+        /// The setup (pole pairs, hold, input, cable, thermal reference).
+        pub fn setup(&self) -> &$crate::pmsm::PmsmSetup {
+            &self.setup
+        }
+        /// Pole pairs n_p.
+        pub fn n_p(&self) -> u32 {
+            self.setup.n_p
+        }
+        /// The voltage hold this model assumes.
+        pub fn hold(&self) -> $crate::pmsm::VoltageHold {
+            self.setup.hold
+        }
+        /// The voltage that drives the model.
+        pub fn input(&self) -> $crate::pmsm::VoltageInput {
+            self.setup.input
+        }
+        /// Mutable parameter metadata (bounds, fixed flags, nominal values).
+        pub fn parameters_mut(&mut self) -> &mut [$crate::model::Parameter] {
+            &mut self.params
+        }
+    };
+}
+pub(crate) use pmsm_model_setup;
