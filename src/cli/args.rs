@@ -37,6 +37,14 @@ pub struct FitArgs {
     /// default: the logged speed.
     #[arg(long, value_parser = parse_pll)]
     pub speed_pll: Option<Pll>,
+    /// The inverter's dead-time and device-drop voltage as a nuisance parameter v_dt (per
+    /// phase −v_dt·sign(i_x); needs theta_m and --voltage reference): `none`, `estimate`, or
+    /// a known value in volts.
+    #[arg(long, default_value = "none", value_parser = parse_dead_time)]
+    pub dead_time: DeadTime,
+    /// Width of the smooth sign of the dead-time model [A] (default 2 % of the peak current).
+    #[arg(long)]
+    pub dead_time_width: Option<f64>,
     /// Known resistance in series with the winding (cable, connectors) [Ω]: subtracted, so
     /// r_s is the motor's alone.
     #[arg(long, default_value_t = 0.0)]
@@ -276,6 +284,28 @@ pub enum VoltageArg {
 pub enum Delay {
     Samples(usize),
     Estimate,
+}
+
+/// The dead-time model: off, estimated, or known [V].
+#[derive(Clone, Copy, Debug)]
+pub enum DeadTime {
+    None,
+    Estimate,
+    Volts(f64),
+}
+
+/// Parses `none`, `estimate` or a voltage.
+fn parse_dead_time(s: &str) -> Result<DeadTime, String> {
+    match s {
+        "none" => Ok(DeadTime::None),
+        "estimate" => Ok(DeadTime::Estimate),
+        _ => s
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite() && *v >= 0.0)
+            .map(DeadTime::Volts)
+            .ok_or_else(|| format!("`{s}`: expected none, estimate or a voltage ≥ 0")),
+    }
 }
 
 /// A speed-estimator bandwidth [rad/s], or to be estimated.

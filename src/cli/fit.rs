@@ -1,12 +1,14 @@
 //! `greybox fit`: read the logs, fit, print the table and write the JSON report.
 
-use super::args::{Delay, FitArgs, HoldArg, MethodArg, ModelArg, Pll, ScalingArg, SolverArg, VoltageArg};
+use super::args::{
+    DeadTime, Delay, FitArgs, HoldArg, MethodArg, ModelArg, Pll, ScalingArg, SolverArg, VoltageArg,
+};
 use super::output;
 use greybox::estimate::{FitResult, PemOptions, ScalingKind, SolverKind, Timing, Tolerances};
 use greybox::pmsm::weighted_least_squares;
 use greybox::pmsm::{
-    CsvOptions, HoldChoice, InputSearch, LinearOptions, MotorKind, PmsmFit, PmsmFitOptions, ThermalReference,
-    VoltageInput, fit_estimating_input, fit_pmsm,
+    CsvOptions, HoldChoice, InputSearch, InverterModel, LinearOptions, MotorKind, PmsmFit, PmsmFitOptions,
+    ThermalReference, VoltageInput, fit_estimating_input, fit_pmsm,
 };
 use std::time::Instant;
 
@@ -74,9 +76,23 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
             });
         }
     };
+    let inverter = match a.dead_time {
+        DeadTime::None => None,
+        DeadTime::Estimate => Some(InverterModel { width: a.dead_time_width, known: None }),
+        DeadTime::Volts(v) => Some(InverterModel { width: a.dead_time_width, known: Some(v) }),
+    };
+    if inverter.is_some() && matches!(a.voltage, VoltageArg::Actual) {
+        return Err(greybox::Error::InvalidOption {
+            option: "dead-time".into(),
+            reason:
+                "the measured terminal voltage already contains the inverter's error: use --voltage reference"
+                    .into(),
+        });
+    }
     let options = PmsmFitOptions {
         pole_pairs: a.pole_pairs,
         input,
+        inverter,
         cable_resistance: a.cable_resistance,
         thermal,
         model: kind,
@@ -144,6 +160,7 @@ fn ls_only(a: &FitArgs) -> greybox::Result<()> {
         ("--solver", !matches!(a.solver, SolverArg::Lm)),
         ("--voltage reference", matches!(a.voltage, VoltageArg::Reference)),
         ("--cable-resistance", a.cable_resistance != 0.0),
+        ("--dead-time", !matches!(a.dead_time, DeadTime::None)),
         ("--t0", a.t0.is_some()),
     ];
     for (flag, set) in given {

@@ -69,6 +69,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
             ci95: [value - tq * se, value + tq * se],
             error_index_percent: idx,
             fixed: false,
+            nuisance: false,
             experiment: f.experiment.map(|e| names[e].clone()),
             start,
         }
@@ -88,12 +89,14 @@ pub(crate) fn assemble<M: GreyBoxModel>(
                 ci95: [start[j], start[j]],
                 error_index_percent: 0.0,
                 fixed: true,
+                nuisance: prm.nuisance,
                 experiment: None,
                 start: start[j],
             });
         }
         for g in copies {
-            parameters.push(estimate(g, prm.name.clone(), prm.unit.clone(), start[j]));
+            let e = estimate(g, prm.name.clone(), prm.unit.clone(), start[j]);
+            parameters.push(ParameterEstimate { nuisance: prm.nuisance, ..e });
             order.push(g);
         }
     }

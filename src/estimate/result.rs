@@ -32,6 +32,9 @@ pub struct ParameterEstimate {
     pub error_index_percent: f64,
     /// Held fixed during the fit.
     pub fixed: bool,
+    /// A nuisance parameter of the model (not a property of the system itself).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub nuisance: bool,
     /// Experiment this value belongs to, for per-experiment parameters; `None` when shared.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub experiment: Option<String>,

@@ -22,6 +22,10 @@ pub struct Parameter {
     pub upper: f64,
     /// Held at its start value during estimation.
     pub fixed: bool,
+    /// A nuisance parameter: needed to explain the data (an inverter's voltage error, a
+    /// delay) but not a property of the system the model describes; reports flag it.
+    #[serde(default)]
+    pub nuisance: bool,
 }
 
 impl Parameter {
@@ -34,6 +38,7 @@ impl Parameter {
             lower: 1e-9 * nominal.abs(),
             upper: f64::INFINITY,
             fixed: false,
+            nuisance: false,
         }
     }
 
@@ -46,6 +51,7 @@ impl Parameter {
             lower: f64::NEG_INFINITY,
             upper: f64::INFINITY,
             fixed: false,
+            nuisance: false,
         }
     }
 

@@ -51,10 +51,13 @@ pub fn fit_estimating_input(
             ..options.clone()
         },
     )?;
+    let nuisance = options.inverter.map(|_| "v_dt");
     let start: Vec<f64> = options
         .model
         .parameter_names()
         .iter()
+        .copied()
+        .chain(nuisance)
         .map(|n| first.parameter(n).map_or(f64::NAN, |p| p.value))
         .collect();
     let fit_at = |delay: usize, speed_pll: Option<f64>| {

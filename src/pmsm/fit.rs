@@ -10,6 +10,7 @@
 //!    their standard errors (MODEL.md §2).
 
 use super::interval::{VoltageHold, VoltageInput, applied_voltage};
+use super::inverter::InverterModel;
 use super::kind::MotorKind;
 use super::linear::least_squares;
 pub use super::report::{PmsmFit, StartComparison};
@@ -61,6 +62,9 @@ pub struct PmsmFitOptions {
     pub cable_resistance: f64,
     /// Reference point of the winding and magnet temperatures derived from `r_s` and `psi_f`.
     pub thermal: Option<ThermalReference>,
+    /// The inverter's voltage error as a nuisance input (`v_dt`, estimated or known); for a
+    /// fit driven by the reference voltage.
+    pub inverter: Option<InverterModel>,
     /// Options of the prediction-error fit.
     pub pem: PemOptions,
 }
@@ -93,11 +97,21 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     if experiments.is_empty() {
         return Err(Error::InvalidOption { option: "experiments".into(), reason: "no log given".into() });
     }
-    let names = options.model.parameter_names();
+    let mut names: Vec<&str> = options.model.parameter_names().to_vec();
+    if options.inverter.is_some() {
+        names.push("v_dt");
+    }
+    let names = &names[..];
+    // The start of v_dt when the start comes from elsewhere: the known value, or 0.
+    let v_dt0 = options.inverter.map(|i| i.known.unwrap_or(0.0));
     let mut notes = Vec::new();
     let mut ls_theta = None;
     let start = match &options.start {
         Some(s) => {
+            let s: Vec<f64> = match v_dt0 {
+                Some(v) if s.len() + 1 == names.len() => s.iter().copied().chain([v]).collect(),
+                _ => s.clone(),
+            };
             if s.len() != names.len() {
                 return Err(Error::InvalidOption {
                     option: "start".into(),
@@ -111,7 +125,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                 });
             }
             notes.push("start given by the user".to_string());
-            s.clone()
+            s
         }
         None => {
             let applied = applied_experiments(experiments, n_p, options.input)?;
@@ -136,7 +150,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                     .join(", ")
             ));
             ls_theta = Some(ls.theta.clone());
-            ls.theta
+            ls.theta.into_iter().chain(v_dt0).collect()
         }
     };
     let reference = options.input != VoltageInput::Terminal;
@@ -177,6 +191,12 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                 if let Some(t) = options.thermal {
                     m = m.with_thermal(t);
                 }
+                if let Some(inv) = options.inverter {
+                    m = m.with_inverter(inv);
+                    if inv.known.is_some() {
+                        fix_named(m.parameters_mut(), "v_dt");
+                    }
+                }
                 configure(m.parameters_mut(), options)?;
                 fit(&m, experiments, &s, &options.pem)
             }
@@ -186,6 +206,12 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                     .with_cable_resistance(options.cable_resistance);
                 if let Some(t) = options.thermal {
                     m = m.with_thermal(t);
+                }
+                if let Some(inv) = options.inverter {
+                    m = m.with_inverter(inv);
+                    if inv.known.is_some() {
+                        fix_named(m.parameters_mut(), "v_dt");
+                    }
                 }
                 configure(m.parameters_mut(), options)?;
                 fit(&m, experiments, &s, &options.pem)
@@ -297,6 +323,11 @@ fn hold_ambiguity(
              inverter holds it in the stator frame (--hold stator); this fit used the {hold} hold"
         )
     })
+}
+
+/// Holds the parameter called `name` fixed at its start.
+fn fix_named(params: &mut [Parameter], name: &str) {
+    params.iter_mut().filter(|p| p.name == name).for_each(|p| p.fixed = true);
 }
 
 /// Applies the fixed flags and bounds of `options` to the model's parameter metadata.

@@ -81,6 +81,13 @@ impl GreyBoxModel for PmsmIpm {
 
     fn prepare(&self, e: &Experiment) -> Result<IpmInputs> {
         check_pole_pairs(self.setup.n_p)?;
+        if self.setup.inverter.is_some() {
+            return Err(Error::InvalidOption {
+                option: "dead-time".into(),
+                reason: "the inverter model is available for the surface-magnet model (spm) only, so far"
+                    .into(),
+            });
+        }
         let v = DqView::try_new(e)?;
         let n = v.len() - 1;
         let mut inputs = IpmInputs {

@@ -106,6 +106,7 @@ impl MotorKind {
                 lower: if p.positive { 1e-12 } else { f64::NEG_INFINITY },
                 upper: f64::INFINITY,
                 fixed: false,
+                nuisance: false,
             })
             .collect()
     }

@@ -30,6 +30,7 @@ impl LinearEstimate {
                     ci95: [v - tq * se, v + tq * se],
                     error_index_percent: self.error_index_percent[j],
                     fixed: false,
+                    nuisance: false,
                     experiment: None,
                     start: v,
                 }

@@ -17,6 +17,7 @@ pub mod augmented;
 pub mod delay;
 pub mod fit;
 pub mod interval;
+pub mod inverter;
 pub mod ipm;
 pub mod kind;
 pub mod linear;
@@ -36,6 +37,7 @@ pub use interval::{
     C64, Interval, SQRT_2_3, VoltageHold, VoltageInput, applied_voltage, interval_mean_speed, intervals,
     model_intervals, reference_intervals, rotation, stator_hold_start,
 };
+pub use inverter::InverterModel;
 pub use ipm::PmsmIpm;
 pub use kind::{MotorKind, derived};
 pub use linear::{LinearEstimate, LinearOptions, least_squares, regressors, weighted_least_squares};

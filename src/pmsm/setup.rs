@@ -3,6 +3,7 @@
 //! Shared by [`super::PmsmSpm`] and [`super::PmsmIpm`].
 
 use super::interval::{VoltageHold, VoltageInput};
+use super::inverter::InverterModel;
 use super::temperature::ThermalReference;
 use serde::{Deserialize, Serialize};
 
@@ -20,12 +21,22 @@ pub struct PmsmSetup {
     pub cable_resistance: f64,
     /// Reference point of the winding and magnet temperature estimates, if known.
     pub thermal: Option<ThermalReference>,
+    /// The inverter's voltage error as a nuisance input (adds the parameter `v_dt`), for a
+    /// model driven by the reference voltage.
+    pub inverter: Option<InverterModel>,
 }
 
 impl PmsmSetup {
     /// `n_p` pole pairs and the given hold; terminal voltage, no cable, no thermal reference.
     pub fn new(n_p: u32, hold: VoltageHold) -> Self {
-        Self { n_p, hold, input: VoltageInput::Terminal, cable_resistance: 0.0, thermal: None }
+        Self {
+            n_p,
+            hold,
+            input: VoltageInput::Terminal,
+            cable_resistance: 0.0,
+            thermal: None,
+            inverter: None,
+        }
     }
 }
 
@@ -50,7 +61,16 @@ macro_rules! pmsm_model_setup {
             self.setup.thermal = Some(reference);
             self
         }
-        /// The setup (pole pairs, hold, input, cable, thermal reference).
+        /// The same model with the inverter's voltage error `−v_dt tanh(i_x/w)` per phase
+        /// as a nuisance input: the parameter `v_dt` [V] is appended to θ.
+        pub fn with_inverter(mut self, model: $crate::pmsm::InverterModel) -> Self {
+            if self.setup.inverter.is_none() {
+                self.params.push($crate::pmsm::inverter::v_dt_parameter());
+            }
+            self.setup.inverter = Some(model);
+            self
+        }
+        /// The setup (pole pairs, hold, input, cable, thermal reference, inverter).
         pub fn setup(&self) -> &$crate::pmsm::PmsmSetup {
             &self.setup
         }

@@ -22,6 +22,7 @@
 //! (forward sensitivity), so one pass gives residuals and gradients.
 
 use super::interval::{C64, VoltageHold, VoltageInput, check_pole_pairs, check_positive, model_intervals};
+use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
 use super::setup::PmsmSetup;
 
@@ -46,11 +47,18 @@ pub struct SpmInputs {
     pub vers: Vec<f64>,
     /// Voltage term of the step [V]: `u[k]` (dq hold) or `u₀ e^{−jφ}` (stator hold).
     pub u: Vec<C64>,
+    /// The inverter's voltage error per unit `v_dt`, in the convention of `u` (empty
+    /// without the inverter model).
+    pub dt: Vec<C64>,
 }
 
 /// θ-dependent coefficients of the SPM step.
 #[derive(Clone, Debug)]
 pub struct SpmCoefficients {
+    /// Number of parameters n_θ (3, or 4 with `v_dt`).
+    nth: usize,
+    /// Inverter voltage error `v_dt` [V] (0 without the inverter model).
+    v_dt: f64,
     r: f64,
     l: f64,
     k_e: f64,
@@ -108,7 +116,7 @@ fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold, input: VoltageIn
             VoltageHold::Stator => iv.u0 * iv.rot,
         });
     }
-    Ok(SpmInputs { h: v.h(), w_e, emf, rot, vers, u })
+    Ok(SpmInputs { h: v.h(), w_e, emf, rot, vers, u, dt: Vec::new() })
 }
 
 impl GreyBoxModel for PmsmSpm {
@@ -119,16 +127,38 @@ impl GreyBoxModel for PmsmSpm {
 
     fn prepare(&self, e: &Experiment) -> Result<SpmInputs> {
         check_pole_pairs(self.setup.n_p)?;
-        interval_inputs(&DqView::try_new(e)?, self.setup.n_p, self.setup.hold, self.setup.input)
+        let v = DqView::try_new(e)?;
+        let mut inputs = interval_inputs(&v, self.setup.n_p, self.setup.hold, self.setup.input)?;
+        if let Some(inv) = &self.setup.inverter {
+            let dirs = dead_time_directions(&v, self.setup.n_p, inv)?;
+            inputs.dt = match self.setup.hold {
+                VoltageHold::Dq => dirs,
+                // Rotated to the end of the period, as the stator-held voltage.
+                VoltageHold::Stator => dirs.iter().zip(&inputs.rot).map(|(d, r)| d * r).collect(),
+            };
+        }
+        Ok(inputs)
     }
 
     fn coefficients(&self, theta: &[f64], inputs: &SpmInputs) -> Result<SpmCoefficients> {
-        let &[r, l, k_e] = theta else {
-            return Err(Error::InvalidOption {
-                option: "theta".into(),
-                reason: format!("{} values for the 3 parameters r_s, l_s, k_e", theta.len()),
-            });
+        let nth = self.params.len();
+        let (r, l, k_e, v_dt) = match *theta {
+            [r, l, k_e] if nth == 3 => (r, l, k_e, 0.0),
+            [r, l, k_e, v_dt] if nth == 4 => (r, l, k_e, v_dt),
+            _ => {
+                return Err(Error::InvalidOption {
+                    option: "theta".into(),
+                    reason: format!("{} values for the {nth} parameters of `{}`", theta.len(), self.name()),
+                });
+            }
         };
+        if !v_dt.is_finite() {
+            return Err(Error::InvalidParameter {
+                name: "v_dt".into(),
+                value: v_dt,
+                reason: "must be finite".into(),
+            });
+        }
         check_positive("r_s", r)?;
         let r = r + self.setup.cable_resistance;
         if !(self.setup.cable_resistance.is_finite() && self.setup.cable_resistance >= 0.0) {
@@ -152,6 +182,8 @@ impl GreyBoxModel for PmsmSpm {
         let one_minus_d = -(-x).exp_m1();
         let g = one_minus_d / r;
         Ok(SpmCoefficients {
+            nth,
+            v_dt,
             r,
             l,
             k_e,
@@ -169,9 +201,10 @@ impl GreyBoxModel for PmsmSpm {
         let (a, b) = self.ab(c, inp, k);
         let i = C64::new(x[0], x[1]);
         let je = C64::new(0.0, c.k_e * inp.emf[k]);
+        let u = self.voltage(c, inp, k);
         let forced = match self.setup.hold {
-            VoltageHold::Dq => b * (inp.u[k] - je),
-            VoltageHold::Stator => inp.u[k] * c.g - b * je,
+            VoltageHold::Dq => b * (u - je),
+            VoltageHold::Stator => u * c.g - b * je,
         };
         let n = a * i + forced;
         x_next[0] = n.re;
@@ -236,7 +269,7 @@ impl Sensitivities<SpmInputs, SpmCoefficients> for PmsmSpm {
         let i = C64::new(x[0], x[1]);
         let emf = inp.emf[k];
         let je = C64::new(0.0, c.k_e * emf);
-        let u = inp.u[k];
+        let u = self.voltage(c, inp, k);
         let (forced, f_r, f_l) = match self.setup.hold {
             VoltageHold::Dq => (b * (u - je), b_r * (u - je), b_l * (u - je)),
             VoltageHold::Stator => (u * c.g - b * je, u * c.g_r - b_r * je, u * c.g_l - b_l * je),
@@ -245,15 +278,24 @@ impl Sensitivities<SpmInputs, SpmCoefficients> for PmsmSpm {
         let n = a * i + forced;
         x_next[0] = n.re;
         x_next[1] = n.im;
-        let sr = a * C64::new(s[0], s[3]) + a_r * i + f_r;
-        let sl = a * C64::new(s[1], s[4]) + a_l * i + f_l;
-        let sk = a * C64::new(s[2], s[5]) + f_k;
-        s_next[0] = sr.re;
-        s_next[1] = sl.re;
-        s_next[2] = sk.re;
-        s_next[3] = sr.im;
-        s_next[4] = sl.im;
-        s_next[5] = sk.im;
+        // Row-major 2 × n_θ: s[j] = ∂i_d/∂θ_j, s[n_θ + j] = ∂i_q/∂θ_j.
+        let m = c.nth;
+        let col = |j: usize| C64::new(s[j], s[m + j]);
+        let mut put = |j: usize, v: C64| {
+            s_next[j] = v.re;
+            s_next[m + j] = v.im;
+        };
+        put(0, a * col(0) + a_r * i + f_r);
+        put(1, a * col(1) + a_l * i + f_l);
+        put(2, a * col(2) + f_k);
+        if m == 4 {
+            // ∂/∂v_dt: the error direction through the voltage term of the step.
+            let f_v = match self.setup.hold {
+                VoltageHold::Dq => b * inp.dt[k],
+                VoltageHold::Stator => inp.dt[k] * c.g,
+            };
+            put(3, a * col(3) + f_v);
+        }
     }
 
     #[inline]
@@ -266,11 +308,18 @@ impl Sensitivities<SpmInputs, SpmCoefficients> for PmsmSpm {
         s: &[f64],
         dy: &mut [f64],
     ) {
-        dy.copy_from_slice(&s[..6]);
+        let n = dy.len();
+        dy.copy_from_slice(&s[..n]);
     }
 }
 
 impl PmsmSpm {
+    /// The voltage term of interval k with the inverter's error: `u[k] + v_dt dt[k]`.
+    #[inline(always)]
+    fn voltage(&self, c: &SpmCoefficients, inp: &SpmInputs, k: usize) -> C64 {
+        if c.nth == 4 { inp.u[k] + inp.dt[k] * c.v_dt } else { inp.u[k] }
+    }
+
     /// `a = e^{−z h/L}` and `b = (1 − a)/z` for interval k.
     #[inline(always)]
     fn ab(&self, c: &SpmCoefficients, inp: &SpmInputs, k: usize) -> (C64, C64) {

@@ -11,6 +11,7 @@ mod data;
 mod errors;
 mod examples;
 mod filter;
+mod inverter;
 mod ipm;
 mod linear;
 mod mgh;

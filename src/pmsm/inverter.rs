@@ -1,0 +1,94 @@
+//! The inverter's voltage error as a nuisance input (MODEL.md §4): dead time and device
+//! on-state drop make each phase voltage fall short of the reference by about
+//! `V_dt sign(i_x)`, `x = a, b, c` (`V_dt ≈ t_d f_sw U_dc + V_on`). Per unit `V_dt` the error
+//! is a data-only dq vector per interval; the models scale it by the estimated `v_dt`.
+//!
+//! Sign near zero current: `tanh(i_x / w)` with width `w` [A] (the ripple and the
+//! parasitic capacitances blur the switch-over). The error is held in the stator frame over
+//! the period, like the voltage the modulator applies, so the exact stator-hold step stays
+//! exact with it.
+
+use super::interval::C64;
+use super::signals::DqView;
+use super::transform::{clarke, inverse_clarke, inverse_park, park};
+use crate::error::{Error, Result};
+use crate::model::Parameter;
+use serde::{Deserialize, Serialize};
+
+/// Default sign width, relative to the largest current magnitude of the log.
+pub const DEFAULT_RELATIVE_WIDTH: f64 = 0.02;
+
+/// The inverter error model: per-phase `−V_dt tanh(i_x/w)`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Default)]
+pub struct InverterModel {
+    /// Width w of the smooth sign [A]; `None`: [`DEFAULT_RELATIVE_WIDTH`] × the largest
+    /// `|i_dq|` of the log.
+    pub width: Option<f64>,
+    /// A known `V_dt` [V], held fixed; `None`: estimated (from 0).
+    pub known: Option<f64>,
+}
+
+/// The nuisance parameter `v_dt` [V]: the per-phase voltage error, non-negative.
+pub fn v_dt_parameter() -> Parameter {
+    Parameter { lower: 0.0, nuisance: true, ..Parameter::free("v_dt", "V", 1.0) }
+}
+
+/// Per interval `k = 0..N−2`, the dq voltage error per unit `V_dt` at the start of the
+/// period [V/V]: `−park(clarke(tanh(ī_a/w), tanh(ī_b/w), tanh(ī_c/w)), θ_e[k])` with `ī_x`
+/// the interval mean of the phase currents (each sample's dq current rotated by its own
+/// `θ_e = n_p θ_m`).
+///
+/// # Errors
+/// [`Error::MissingChannel`] when the log has no `theta_m`; [`Error::InvalidOption`] for a
+/// width that is not positive and finite; [`Error::Numerical`] naming the phase whose
+/// current never changes sign (its error is then a constant offset, not separable from the
+/// other parameters: `V_dt` unidentifiable).
+pub fn dead_time_directions(v: &DqView<'_>, n_p: u32, model: &InverterModel) -> Result<Vec<C64>> {
+    let e = v.experiment();
+    let theta_m = v.theta_m().ok_or_else(|| Error::MissingChannel {
+        experiment: e.name().into(),
+        channel: super::channel::THETA_M.into(),
+        available: e.channels().iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", "),
+    })?;
+    let (id, iq) = (v.i_d(), v.i_q());
+    let peak = id.iter().zip(iq).map(|(d, q)| d.hypot(*q)).fold(0.0, f64::max);
+    let width = model.width.unwrap_or(DEFAULT_RELATIVE_WIDTH * peak);
+    if !(width.is_finite() && width > 0.0) {
+        return Err(Error::InvalidOption {
+            option: "dead-time width".into(),
+            reason: format!("{width} A must be positive and finite (all-zero currents?)"),
+        });
+    }
+    let np = f64::from(n_p);
+    let phases: Vec<(f64, f64, f64)> = (0..v.len())
+        .map(|k| {
+            let (a, b) = inverse_park(id[k], iq[k], np * theta_m[k]);
+            inverse_clarke(a, b)
+        })
+        .collect();
+    for (x, name) in [0, 1, 2].into_iter().zip(["a", "b", "c"]) {
+        let get = |p: &(f64, f64, f64)| [p.0, p.1, p.2][x];
+        let lo = phases.iter().map(get).fold(f64::INFINITY, f64::min);
+        let hi = phases.iter().map(get).fold(f64::NEG_INFINITY, f64::max);
+        if !(hi > width && lo < -width) {
+            return Err(Error::Numerical {
+                context: "dead-time model".into(),
+                reason: format!(
+                    "the current of phase {name} (range [{lo:.3e}, {hi:.3e}] A) never crosses zero by more than \
+                     {width:.3e} A: the dead-time \
+                     voltage is then a constant offset the data cannot separate from the motor's parameters \
+                     (fix v_dt, or use a log with current reversals)"
+                ),
+            });
+        }
+    }
+    Ok((0..v.len() - 1)
+        .map(|k| {
+            let s = |x: f64, y: f64| -((0.5 * (x + y)) / width).tanh();
+            let (p, q) = (phases[k], phases[k + 1]);
+            let (alpha, beta) = clarke(s(p.0, q.0), s(p.1, q.1), s(p.2, q.2));
+            let (d, qq) = park(alpha, beta, np * theta_m[k]);
+            C64::new(d, qq)
+        })
+        .collect())
+}

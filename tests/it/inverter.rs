@@ -1,0 +1,157 @@
+//! The inverter's voltage error as a nuisance input (MODEL.md §4): per phase
+//! `−v_dt tanh(i_x/w)`, held in the stator frame, estimated beside the motor's parameters
+//! from the reference voltage.
+
+use crate::common::{Rng, Signals, exciting_signals, pmsm_options, rel, simulate_into};
+use greybox::Error;
+use greybox::model::{GreyBoxModel, Prepared};
+use greybox::pmsm::{
+    DqView, InverterModel, PmsmFitOptions, PmsmIpm, PmsmSpm, VoltageHold, VoltageInput, fit_pmsm,
+};
+use greybox::simulate::{SimOptions, visit_sensitivities};
+
+const THETA: [f64; 4] = [0.9, 4.5e-3, 0.539, 6.0];
+const N_P: u32 = 4;
+const H: f64 = 1e-4;
+const INVERTER: InverterModel = InverterModel { width: Some(1.0), known: None };
+
+fn model() -> PmsmSpm {
+    PmsmSpm::new(N_P, VoltageHold::Stator).with_input(VoltageInput::REFERENCE).with_inverter(INVERTER)
+}
+
+/// Reference steps, the angle integrated from the speed, and currents simulated with the
+/// inverter's error of `THETA[3]` volts. The error depends on the currents it drives, so
+/// the record is the fixed point of "simulate with the error of the last currents", started
+/// from the currents without it (converged to 1e-13 A).
+fn record(seed: u64) -> greybox::Experiment {
+    let mut rng = Rng(seed);
+    let s = exciting_signals(8000, H, 250.0, 60.0, THETA[2], &mut rng);
+    let mut theta = 0.0;
+    let theta_m: Vec<f64> = s
+        .w_m
+        .iter()
+        .map(|w| {
+            let t = theta;
+            theta += w * H;
+            t
+        })
+        .collect();
+    let refs =
+        Signals { u_d_ref: Some(s.u_d.clone()), u_q_ref: Some(s.u_q.clone()), theta_m: Some(theta_m), ..s };
+    let plain = PmsmSpm::new(N_P, VoltageHold::Stator).with_input(VoltageInput::REFERENCE);
+    let mut e = simulate_into(&plain, &THETA[..3], H, refs);
+    for _ in 0..200 {
+        let next = simulate_into(&model(), &THETA, H, DqView::try_new(&e).unwrap().to_signals());
+        let (a, b) = (DqView::try_new(&e).unwrap(), DqView::try_new(&next).unwrap());
+        let change =
+            a.i_d().iter().chain(a.i_q()).zip(b.i_d().iter().chain(b.i_q())).map(|(x, y)| (x - y).abs());
+        let done = change.fold(0.0, f64::max) < 1e-13;
+        e = next;
+        if done {
+            return e;
+        }
+    }
+    panic!("the record with the inverter error does not settle");
+}
+
+/// The analytic sensitivity to v_dt (and to the others) matches central differences.
+#[test]
+fn dead_time_sensitivities_match_central_differences() {
+    let e = record(1);
+    let m = model();
+    let prep = Prepared::new(&m, &e).unwrap();
+    let mut analytic = Vec::new();
+    visit_sensitivities(&m, &prep, &THETA, &SimOptions::default(), |_, _, dy, _| {
+        analytic.extend_from_slice(dy)
+    })
+    .unwrap();
+    let sim = |th: &[f64]| greybox::simulate::simulate(&m, &prep, th, &SimOptions::default()).unwrap();
+    for j in 0..4 {
+        let d = 1e-6 * THETA[j];
+        let (mut p, mut q) = (THETA, THETA);
+        p[j] += d;
+        q[j] -= d;
+        let (yp, yq) = (sim(&p), sim(&q));
+        let scale = (0..yp.len()).map(|r| analytic[r * 4 + j].abs()).fold(0.0, f64::max);
+        let worst = (0..yp.len())
+            .map(|r| ((yp[r] - yq[r]) / (2.0 * d) - analytic[r * 4 + j]).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-5 * scale, "parameter {j}: {worst:e} of {scale:e}");
+    }
+}
+
+/// Noise-free, the motor's parameters and v_dt come back from the reference voltage; the
+/// report flags v_dt as a nuisance parameter.
+#[test]
+fn dead_time_voltage_is_recovered() {
+    let options =
+        PmsmFitOptions { input: VoltageInput::REFERENCE, inverter: Some(INVERTER), ..pmsm_options(N_P) };
+    let fit = fit_pmsm(&[record(2)], &options).unwrap();
+    for (j, name) in ["r_s", "l_s", "k_e", "v_dt"].iter().enumerate() {
+        let p = fit.parameter(name).unwrap();
+        assert!(rel(p.value, THETA[j]) < 1e-6, "{name}: {:e}", rel(p.value, THETA[j]));
+        assert_eq!(p.nuisance, *name == "v_dt");
+    }
+    assert!(fit.to_json().contains("\"nuisance\": true"));
+    // A known v_dt is held fixed.
+    let known = PmsmFitOptions { inverter: Some(InverterModel { known: Some(6.0), ..INVERTER }), ..options };
+    let fit = fit_pmsm(&[record(2)], &known).unwrap();
+    let v = fit.parameter("v_dt").unwrap();
+    assert!(v.fixed && v.value == 6.0);
+}
+
+#[test]
+fn dead_time_errors_name_the_culprit() {
+    // No angle: the phase currents are unknown.
+    let mut s = DqView::try_new(&record(2)).unwrap().to_signals();
+    s.theta_m = None;
+    let e = s.into_experiment("no angle", H).unwrap();
+    match model().prepare(&e).unwrap_err() {
+        Error::MissingChannel { channel, .. } => assert_eq!(channel, "theta_m"),
+        other => panic!("{other}"),
+    }
+    // Currents that never reverse in a phase: v_dt is not identifiable.
+    let mut s = DqView::try_new(&record(2)).unwrap().to_signals();
+    s.i_d = vec![5.0; s.i_d.len()];
+    s.i_q = vec![0.0; s.i_q.len()];
+    s.theta_m = Some(vec![0.0; s.i_d.len()]);
+    let e = s.into_experiment("one direction", H).unwrap();
+    let err = model().prepare(&e).unwrap_err();
+    assert!(err.to_string().contains("never crosses zero"), "{err}");
+    // Not yet for the interior-magnet model.
+    let ipm =
+        PmsmIpm::new(N_P, VoltageHold::Stator).with_input(VoltageInput::REFERENCE).with_inverter(INVERTER);
+    assert!(ipm.prepare(&record(2)).unwrap_err().to_string().contains("spm"));
+}
+
+/// The PWM log with 3 µs dead time and 0.8 V device drop, fitted from its reference voltage:
+/// the inverter model takes most of the error out of R_s and finds v_dt near
+/// t_d f_sw U_dc + V_on. Measured (not yet the 1 % the inverter issue asks for): without
+/// the model r_s 4.41 Ω, with it 1.41 Ω (truth 0.9), v_dt 7.98 V (expected 9.2 V).
+#[test]
+fn pwm_log_from_the_reference_voltage() {
+    crate::common::require_shared!();
+    let (e, t) = crate::common::load("servo_spm_pwm_deadtime_idinj");
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(crate::common::data("servo_spm_pwm_deadtime_idinj.json")).unwrap(),
+    )
+    .unwrap();
+    let f = |k: &str| json[k].as_f64().unwrap();
+    let expected =
+        f("dead_time_s") * f("switching_frequency_Hz") * f("u_dc_V") + f("device_threshold_voltage_V");
+    let options = PmsmFitOptions { input: VoltageInput::REFERENCE, ..pmsm_options(t.n_p) };
+    let naive = fit_pmsm(std::slice::from_ref(&e), &options).unwrap();
+    let with =
+        fit_pmsm(&[e], &PmsmFitOptions { inverter: Some(InverterModel::default()), ..options }).unwrap();
+    let r = |f: &greybox::pmsm::PmsmFit| f.parameter("r_s").unwrap().value;
+    let v_dt = with.parameter("v_dt").unwrap().value;
+    eprintln!(
+        "PWM log from the reference: r_s {:.4} Ω without the inverter model, {:.4} Ω with it (truth {}); v_dt {v_dt:.3} V \
+         (t_d f_sw U_dc + V_on = {expected:.3} V)",
+        r(&naive),
+        r(&with),
+        t.r_s
+    );
+    assert!((r(&with) - t.r_s).abs() < 0.25 * (r(&naive) - t.r_s).abs());
+    assert!((v_dt - expected).abs() < 0.2 * expected, "v_dt {v_dt}");
+}
