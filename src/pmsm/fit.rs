@@ -14,7 +14,7 @@ use super::inverter::InverterModel;
 use super::kind::MotorKind;
 use super::linear::least_squares;
 pub use super::report::{PmsmFit, StartComparison};
-use super::signals::{DqSignals, DqView};
+use super::signals::{DqSignals, DqView, channel};
 use super::temperature::ThermalReference;
 use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
@@ -170,6 +170,8 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         }
         HoldChoice::Auto => &[VoltageHold::Stator, VoltageHold::Dq],
     };
+    let modulator =
+        experiments.iter().all(|e| e.get(channel::U_D_REF).is_some() && e.get(channel::U_Q_REF).is_some());
     let mut best: Option<(VoltageHold, FitResult)> = None;
     let mut losses = Vec::new();
     let mut others: Vec<(VoltageHold, FitResult)> = Vec::new();
@@ -219,11 +221,19 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         };
         let r = r?;
         losses.push((hold, r.fit.loss, r.solver.success));
+        // A log that carries a modulator's reference comes from an inverter, which holds its
+        // output in the stator frame: there the dq hold must fit decisively better to be
+        // chosen (switching ripple alone makes it fit a PWM log slightly better). Without a
+        // reference (a simulator may hold dq voltages) the lower loss decides.
+        let weighed = |h: VoltageHold, loss: f64| {
+            if h == VoltageHold::Dq && modulator { DQ_DECISIVE * loss } else { loss }
+        };
         let better = match &best {
             None => true,
-            Some((_, b)) => {
+            Some((bh, b)) => {
                 (r.solver.success && !b.solver.success)
-                    || (r.solver.success == b.solver.success && r.fit.loss < b.fit.loss)
+                    || (r.solver.success == b.solver.success
+                        && weighed(hold, r.fit.loss) < weighed(*bh, b.fit.loss))
             }
         };
         if better {
@@ -239,8 +249,19 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     };
     let pmsm_advice = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
     if losses.len() > 1 {
+        let why = match (hold, modulator) {
+            (VoltageHold::Stator, true) => format!(
+                "the stator hold: the log carries a modulator's reference, and a modulator holds its output in \
+                 the stator frame; the dq hold's loss is not {DQ_DECISIVE} times lower"
+            ),
+            (VoltageHold::Dq, true) => format!(
+                "the dq hold, whose loss is more than {DQ_DECISIVE} times lower than the stator hold's although the \
+                 log carries a modulator's reference"
+            ),
+            (h, false) => format!("the {h} hold by the lower loss (no modulator reference in the log)"),
+        };
         notes.push(format!(
-            "voltage hold chosen automatically by the lower loss: {}",
+            "voltage hold chosen automatically: {why} (losses {})",
             losses.iter().map(|(h, l, _)| format!("{h} {l:.6e}")).collect::<Vec<_>>().join(", ")
         ));
     }
@@ -295,9 +316,14 @@ fn applied_experiments(
         .map(Some)
 }
 
-/// Advice when the losses of the two holds are close (ratio below 2) but their estimates
-/// differ by more than 3 standard errors: the data do not clearly say how the voltage was
-/// held (PWM ripple, dead time, or a voltage column that is not a period mean).
+/// Advice when the losses of the two holds are close (ratio within [`DQ_DECISIVE`]) but
+/// their estimates differ by more than 3 combined standard errors: the data do not clearly
+/// say how the voltage was held (PWM ripple, dead time, or a voltage column that is not a
+/// period mean).
+/// Factor by which the dq hold's loss must be lower than the stator hold's for
+/// [`HoldChoice::Auto`] to choose it.
+pub const DQ_DECISIVE: f64 = 2.0;
+
 fn hold_ambiguity(
     best: &FitResult,
     hold: VoltageHold,
@@ -306,14 +332,15 @@ fn hold_ambiguity(
 ) -> Option<String> {
     let (other_hold, other) = others.first()?;
     let ratio = other.fit.loss / best.fit.loss;
-    if ratio.is_nan() || ratio >= 2.0 {
+    if ratio.is_nan() || !(1.0 / DQ_DECISIVE..DQ_DECISIVE).contains(&ratio) {
         return None;
     }
+    // Differ by more than their joint uncertainty (3 combined standard errors).
     let (name, z) = names
         .iter()
         .filter_map(|n| {
             let (a, b) = (best.parameter(n)?, other.parameter(n)?);
-            Some((*n, ((a.value - b.value) / a.std_error).abs()))
+            Some((*n, ((a.value - b.value) / a.std_error.hypot(b.std_error)).abs()))
         })
         .max_by(|a, b| a.1.total_cmp(&b.1))?;
     (z > 3.0).then(|| {
