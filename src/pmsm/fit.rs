@@ -247,7 +247,24 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     let Some((hold, best)) = best else {
         return Err(Error::InvalidOption { option: "hold".into(), reason: "no hold fitted".into() });
     };
-    let pmsm_advice = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
+    let mut pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
+    // The regression sees the whole series resistance.
+    let motor: Vec<f64> = options
+        .model
+        .parameter_names()
+        .iter()
+        .filter_map(|n| {
+            best.parameter(n).map(|p| p.value + if *n == "r_s" { options.cable_resistance } else { 0.0 })
+        })
+        .collect();
+    pmsm_advice.extend(super::checks::advice(
+        experiments,
+        n_p,
+        options.model,
+        options.input,
+        &motor,
+        options.inverter.is_some(),
+    ));
     if losses.len() > 1 {
         let why = match (hold, modulator) {
             (VoltageHold::Stator, true) => format!(

@@ -113,6 +113,12 @@ impl MotorKind {
     /// Advice for a poorly determined parameter `name` (with or without `[experiment]`).
     pub fn advice(self, name: &str) -> Option<String> {
         let base = name.split('[').next().unwrap_or(name);
+        if base == "v_dt" {
+            return Some(format!(
+                "{name} poorly determined: add current reversals at several current levels and low speed, where \
+                 the dead-time voltage is a large part of the voltage"
+            ));
+        }
         let p = self.table().iter().find(|p| p.name == base)?;
         Some(format!("{name} poorly determined: {}", p.excited_by))
     }

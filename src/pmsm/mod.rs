@@ -14,6 +14,7 @@
 //! speeds and angles mechanical unless a name says `_e`.
 
 pub mod augmented;
+pub mod checks;
 pub mod delay;
 pub mod fit;
 pub mod interval;

@@ -113,3 +113,40 @@ fn motulator_logs_from_the_reference_voltage() {
         }
     }
 }
+
+/// A reference logged as if it were the terminal voltage: the residual check says the
+/// voltage acts later than the model assumes; the right input silences it.
+#[test]
+fn a_late_voltage_is_pointed_out() {
+    let e = reference_record(1);
+    let mut s = DqView::try_new(&e).unwrap().to_signals();
+    (s.u_d, s.u_q) = (s.u_d_ref.clone().unwrap(), s.u_q_ref.clone().unwrap());
+    let naive = s.into_experiment("naive", H).unwrap();
+    let hold = PmsmFitOptions { hold: HoldChoice::Stator, ..pmsm_options(N_P) };
+    let fit = fit_pmsm(std::slice::from_ref(&naive), &hold).unwrap();
+    assert!(fit.pmsm_advice.iter().any(|a| a.contains("acts later")), "{:?}", fit.pmsm_advice);
+    let right = fit_pmsm(&[naive], &PmsmFitOptions { input: VoltageInput::REFERENCE, ..hold }).unwrap();
+    assert!(!right.pmsm_advice.iter().any(|a| a.contains("acts later")), "{:?}", right.pmsm_advice);
+}
+
+/// On the development logs: the PWM log fitted from its reference without the inverter
+/// model is told about the dead time, and not with it; the averaged log is told nothing.
+#[test]
+fn residual_checks_on_the_development_logs() {
+    crate::common::require_shared!();
+    let (pwm, t) = crate::common::load("servo_spm_pwm_deadtime_idinj");
+    let options = PmsmFitOptions { input: VoltageInput::REFERENCE, ..pmsm_options(t.n_p) };
+    let dead = |f: &greybox::pmsm::PmsmFit| f.pmsm_advice.iter().any(|a| a.contains("dead-time"));
+    let without = fit_pmsm(std::slice::from_ref(&pwm), &options).unwrap();
+    assert!(dead(&without), "{:?}", without.pmsm_advice);
+    let inverter = Some(greybox::pmsm::InverterModel::default());
+    let with = fit_pmsm(&[pwm], &PmsmFitOptions { inverter, ..options.clone() }).unwrap();
+    assert!(!dead(&with), "{:?}", with.pmsm_advice);
+    let (clean, _) = crate::common::load("servo_spm_moves_idinj");
+    let fit = fit_pmsm(&[clean], &options).unwrap();
+    assert!(
+        !fit.pmsm_advice.iter().any(|a| a.contains("dead-time") || a.contains("acts later")),
+        "{:?}",
+        fit.pmsm_advice
+    );
+}
