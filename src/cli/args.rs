@@ -45,6 +45,10 @@ pub struct FitArgs {
     /// Width of the smooth sign of the dead-time model [A] (default 2 % of the peak current).
     #[arg(long)]
     pub dead_time_width: Option<f64>,
+    /// DC-link voltage [V]: with --voltage reference, samples driven by a reference at the
+    /// modulator's limit U_dc/√3 are weighted out.
+    #[arg(long)]
+    pub u_dc: Option<f64>,
     /// Known resistance in series with the winding (cable, connectors) [Ω]: subtracted, so
     /// r_s is the motor's alone.
     #[arg(long, default_value_t = 0.0)]

@@ -93,6 +93,7 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
         pole_pairs: a.pole_pairs,
         input,
         inverter,
+        voltage_limit: a.u_dc.map(|u| u / 3f64.sqrt()),
         cable_resistance: a.cable_resistance,
         thermal,
         model: kind,
@@ -161,6 +162,7 @@ fn ls_only(a: &FitArgs) -> greybox::Result<()> {
         ("--voltage reference", matches!(a.voltage, VoltageArg::Reference)),
         ("--cable-resistance", a.cable_resistance != 0.0),
         ("--dead-time", !matches!(a.dead_time, DeadTime::None)),
+        ("--u-dc", a.u_dc.is_some()),
         ("--t0", a.t0.is_some()),
     ];
     for (flag, set) in given {

@@ -9,9 +9,11 @@
 //! 3. the model derives `K_t = √(3/2) K_e` [N m/A] and `ψ_f = √(2/3) K_e / n_p` [V s] with
 //!    their standard errors (MODEL.md §2).
 
+use super::hold::{DQ_DECISIVE, hold_ambiguity};
 use super::interval::{VoltageHold, VoltageInput, applied_voltage};
 use super::inverter::InverterModel;
 use super::kind::MotorKind;
+use super::limit::{VoltageLimitWeighting, delay_of};
 use super::linear::least_squares;
 pub use super::report::{PmsmFit, StartComparison};
 use super::signals::{DqSignals, DqView, channel};
@@ -19,7 +21,7 @@ use super::temperature::ThermalReference;
 use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::{FitResult, PemOptions, Timing, fit};
+use crate::estimate::{FitResult, PemOptions, Timing, Weighting, fit_with_weighting};
 use crate::model::Parameter;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -65,6 +67,9 @@ pub struct PmsmFitOptions {
     /// The inverter's voltage error as a nuisance input (`v_dt`, estimated or known); for a
     /// fit driven by the reference voltage.
     pub inverter: Option<InverterModel>,
+    /// The modulator's voltage limit [V] (`U_dc/√3`): with the reference input, samples
+    /// driven by a reference at the limit are weighted out. `None`: not checked.
+    pub voltage_limit: Option<f64>,
     /// Options of the prediction-error fit.
     pub pem: PemOptions,
 }
@@ -170,6 +175,28 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         }
         HoldChoice::Auto => &[VoltageHold::Stator, VoltageHold::Dq],
     };
+    if let Some(l) = options.voltage_limit.filter(|l| !(l.is_finite() && *l > 0.0)) {
+        return Err(Error::InvalidOption {
+            option: "voltage_limit".into(),
+            reason: format!("{l} V must be positive and finite (U_dc/√3)"),
+        });
+    }
+    let inner = options.pem.weighting.rule()?;
+    let limited = options
+        .voltage_limit
+        .filter(|_| options.input != VoltageInput::Terminal)
+        .map(|limit| VoltageLimitWeighting { inner: inner.as_ref(), limit, delay: delay_of(options.input) });
+    let weighting: &dyn Weighting = match &limited {
+        Some(l) => l,
+        None => inner.as_ref(),
+    };
+    if let Some(l) = &limited {
+        let n: usize = experiments.iter().map(|e| l.count(e)).sum();
+        notes.push(format!(
+            "{n} samples driven by a reference at the voltage limit {:.1} V weighted out",
+            l.limit
+        ));
+    }
     let modulator =
         experiments.iter().all(|e| e.get(channel::U_D_REF).is_some() && e.get(channel::U_Q_REF).is_some());
     let mut best: Option<(VoltageHold, FitResult)> = None;
@@ -200,7 +227,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                     }
                 }
                 configure(m.parameters_mut(), options)?;
-                fit(&m, experiments, &s, &options.pem)
+                fit_with_weighting(&m, experiments, &s, &options.pem, weighting)
             }
             MotorKind::Ipm => {
                 let mut m = PmsmIpm::new(n_p, hold)
@@ -216,7 +243,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                     }
                 }
                 configure(m.parameters_mut(), options)?;
-                fit(&m, experiments, &s, &options.pem)
+                fit_with_weighting(&m, experiments, &s, &options.pem, weighting)
             }
         };
         let r = r?;
@@ -337,38 +364,6 @@ fn applied_experiments(
 /// their estimates differ by more than 3 combined standard errors: the data do not clearly
 /// say how the voltage was held (PWM ripple, dead time, or a voltage column that is not a
 /// period mean).
-/// Factor by which the dq hold's loss must be lower than the stator hold's for
-/// [`HoldChoice::Auto`] to choose it.
-pub const DQ_DECISIVE: f64 = 2.0;
-
-fn hold_ambiguity(
-    best: &FitResult,
-    hold: VoltageHold,
-    others: &[(VoltageHold, FitResult)],
-    names: &[&str],
-) -> Option<String> {
-    let (other_hold, other) = others.first()?;
-    let ratio = other.fit.loss / best.fit.loss;
-    if ratio.is_nan() || !(1.0 / DQ_DECISIVE..DQ_DECISIVE).contains(&ratio) {
-        return None;
-    }
-    // Differ by more than their joint uncertainty (3 combined standard errors).
-    let (name, z) = names
-        .iter()
-        .filter_map(|n| {
-            let (a, b) = (best.parameter(n)?, other.parameter(n)?);
-            Some((*n, ((a.value - b.value) / a.std_error.hypot(b.std_error)).abs()))
-        })
-        .max_by(|a, b| a.1.total_cmp(&b.1))?;
-    (z > 3.0).then(|| {
-        format!(
-            "the {hold} and {other_hold} voltage holds fit almost equally well (loss ratio {ratio:.3}) but their {name} \
-             differs by {z:.0} standard errors: the log does not say how the voltage was held; a real \
-             inverter holds it in the stator frame (--hold stator); this fit used the {hold} hold"
-        )
-    })
-}
-
 /// Holds the parameter called `name` fixed at its start.
 fn fix_named(params: &mut [Parameter], name: &str) {
     params.iter_mut().filter(|p| p.name == name).for_each(|p| p.fixed = true);

@@ -150,3 +150,28 @@ fn residual_checks_on_the_development_logs() {
         fit.pmsm_advice
     );
 }
+
+/// Samples driven by a reference at the modulator's limit are weighted out and counted; the
+/// others still give the exact parameters. A limit that is not a positive voltage is an
+/// error.
+#[test]
+fn samples_at_the_voltage_limit_are_weighted_out() {
+    let e = reference_record(1);
+    let v = DqView::try_new(&e).unwrap();
+    let (ud, uq) = v.u_dq_ref().unwrap();
+    let peak = ud.iter().zip(uq).map(|(d, q)| d.hypot(*q)).fold(0.0, f64::max);
+    let options = PmsmFitOptions {
+        input: VoltageInput::REFERENCE,
+        voltage_limit: Some(0.8 * peak),
+        ..pmsm_options(N_P)
+    };
+    let fit = fit_pmsm(std::slice::from_ref(&e), &options).unwrap();
+    let note = fit.pmsm_notes.iter().find(|n| n.contains("voltage limit")).expect("a note on the limit");
+    let n: usize = note.split_whitespace().next().unwrap().parse().unwrap();
+    assert!(n > 0 && n < e.len() / 2, "{note}");
+    for (j, name) in ["r_s", "l_s", "k_e"].iter().enumerate() {
+        assert!(rel(fit.parameter(name).unwrap().value, THETA[j]) < 1e-7, "{name}");
+    }
+    let bad = PmsmFitOptions { voltage_limit: Some(-1.0), ..options };
+    assert!(fit_pmsm(&[e], &bad).unwrap_err().to_string().contains("voltage_limit"));
+}
