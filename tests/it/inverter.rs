@@ -126,8 +126,10 @@ fn dead_time_errors_name_the_culprit() {
 
 /// The PWM log with 3 µs dead time and 0.8 V device drop, fitted from its reference voltage:
 /// the inverter model takes most of the error out of R_s and finds v_dt near
-/// t_d f_sw U_dc + V_on. Measured (not yet the 1 % the inverter issue asks for): without
-/// the model r_s 4.41 Ω, with it 1.41 Ω (truth 0.9), v_dt 7.98 V (expected 9.2 V).
+/// t_d f_sw U_dc + V_on. Measured (not yet the 1 % / 0.1 % the inverter issue asks for of
+/// every parameter): output error without the model r_s 4.41 Ω, with it 1.41 Ω (truth 0.9),
+/// v_dt 7.98 V (expected 9.2 V); one-step prediction with the controller's speed estimate
+/// and a 0.45 A sign width: r_s +1.6 %, l_s +7.7 %, k_e +0.65 %, v_dt 9.17 V.
 #[test]
 fn pwm_log_from_the_reference_voltage() {
     crate::common::require_shared!();
@@ -154,4 +156,21 @@ fn pwm_log_from_the_reference_voltage() {
     );
     assert!((r(&with) - t.r_s).abs() < 0.25 * (r(&naive) - t.r_s).abs());
     assert!((v_dt - expected).abs() < 0.2 * expected, "v_dt {v_dt}");
+    // One-step-ahead prediction, the controller's speed estimate and a sign width near the
+    // current ripple: v_dt within 1 % of t_d f_sw U_dc + V_on, r_s within 2 %.
+    let (e, _) = crate::common::load("servo_spm_pwm_deadtime_idinj");
+    let input = VoltageInput::Reference { delay: 1, advance: 1.5, speed_pll: Some(1600.0) };
+    let pem = greybox::estimate::PemOptions { horizon: Some(1), ..Default::default() };
+    let inverter = Some(InverterModel { width: Some(0.45), known: None });
+    let best = fit_pmsm(&[e], &PmsmFitOptions { input, inverter, pem, ..pmsm_options(t.n_p) }).unwrap();
+    let v_dt = best.parameter("v_dt").unwrap().value;
+    let err = |n: &str, truth: f64| rel(best.parameter(n).unwrap().value, truth);
+    eprintln!(
+        "PWM log, one-step prediction: r_s {:.2e}, l_s {:.2e}, k_e {:.2e} relative error, v_dt {v_dt:.3} V",
+        err("r_s", t.r_s),
+        err("l_s", t.l_d),
+        err("k_e", t.k_e)
+    );
+    assert!(rel(v_dt, expected) < 0.01, "v_dt {v_dt}");
+    assert!(err("r_s", t.r_s) < 0.02);
 }
