@@ -5,7 +5,7 @@
 //! `x[k+1] = f(x[k], inputs[k], θ)`, `ŷ[k] = g(x[k], inputs[k], θ)`, whose parameters θ
 //! carry physical meaning. A model declares the channels it predicts
 //! ([`GreyBoxModel::outputs`]); the framework reads them from an
-//! [`Experiment`](crate::data::Experiment) into the measured `y` and, for a dynamic model,
+//! [`Experiment`] into the measured `y` and, for a dynamic model,
 //! the initial state. A static model (`n_x = 0`, e.g. a regression `y = f(x, θ)`) has no
 //! state: every sample counts and nothing is padded. The estimator drives
 //! [`GreyBoxModel::step`] sample by sample; nothing else (simulation, estimation, reports)

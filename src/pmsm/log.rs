@@ -146,7 +146,7 @@ pub enum DqSource {
     Dq,
     /// Computed from the phase columns and `theta_m`: currents by Clarke and Park at
     /// `θ_e = n_p θ_m`, voltages as period means of a voltage held in the **stator** frame
-    /// ([`stator_held_voltages_to_dq`](super::transform::stator_held_voltages_to_dq),
+    /// ([`stator_held_voltages_to_dq`],
     /// MODEL.md §4). Phase voltages computed from a dq-held voltage (gym-electric-motor)
     /// do not fit this model; read those logs with [`DqSource::Dq`].
     Phases,
