@@ -212,39 +212,28 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                 .unwrap_or_else(|| start.clone()),
             _ => start.clone(),
         };
+        // The same setup for either model type.
+        macro_rules! fit_as {
+            ($model:ident) => {{
+                let mut m = $model::new(n_p, hold)
+                    .with_input(options.input)
+                    .with_cable_resistance(options.cable_resistance);
+                if let Some(t) = options.thermal {
+                    m = m.with_thermal(t);
+                }
+                if let Some(inv) = options.inverter {
+                    m = m.with_inverter(inv);
+                    if inv.known.is_some() {
+                        fix_named(m.parameters_mut(), "v_dt");
+                    }
+                }
+                configure(m.parameters_mut(), options)?;
+                fit_with_weighting(&m, experiments, &s, &options.pem, weighting)
+            }};
+        }
         let r = match options.model {
-            MotorKind::Spm => {
-                let mut m = PmsmSpm::new(n_p, hold)
-                    .with_input(options.input)
-                    .with_cable_resistance(options.cable_resistance);
-                if let Some(t) = options.thermal {
-                    m = m.with_thermal(t);
-                }
-                if let Some(inv) = options.inverter {
-                    m = m.with_inverter(inv);
-                    if inv.known.is_some() {
-                        fix_named(m.parameters_mut(), "v_dt");
-                    }
-                }
-                configure(m.parameters_mut(), options)?;
-                fit_with_weighting(&m, experiments, &s, &options.pem, weighting)
-            }
-            MotorKind::Ipm => {
-                let mut m = PmsmIpm::new(n_p, hold)
-                    .with_input(options.input)
-                    .with_cable_resistance(options.cable_resistance);
-                if let Some(t) = options.thermal {
-                    m = m.with_thermal(t);
-                }
-                if let Some(inv) = options.inverter {
-                    m = m.with_inverter(inv);
-                    if inv.known.is_some() {
-                        fix_named(m.parameters_mut(), "v_dt");
-                    }
-                }
-                configure(m.parameters_mut(), options)?;
-                fit_with_weighting(&m, experiments, &s, &options.pem, weighting)
-            }
+            MotorKind::Spm => fit_as!(PmsmSpm),
+            MotorKind::Ipm => fit_as!(PmsmIpm),
         };
         let r = r?;
         losses.push((hold, r.fit.loss, r.solver.success));

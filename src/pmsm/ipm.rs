@@ -118,15 +118,7 @@ impl GreyBoxModel for PmsmIpm {
                 reason: format!("expected 4 values (r_s, l_d, l_q, k_e), got {}", theta.len()),
             });
         };
-        check_positive("r_s", r)?;
-        let r = r + self.setup.cable_resistance;
-        if !(self.setup.cable_resistance.is_finite() && self.setup.cable_resistance >= 0.0) {
-            return Err(Error::InvalidParameter {
-                name: "cable_resistance".into(),
-                value: self.setup.cable_resistance,
-                reason: "must be finite and not negative".into(),
-            });
-        }
+        let r = self.setup.series_resistance(r)?;
         check_positive("l_d", l_d)?;
         check_positive("l_q", l_q)?;
         if !k_e.is_finite() {

@@ -5,6 +5,7 @@
 use super::interval::{VoltageHold, VoltageInput};
 use super::inverter::InverterModel;
 use super::temperature::ThermalReference;
+use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
 /// The setup of a PMSM model.
@@ -37,6 +38,26 @@ impl PmsmSetup {
             thermal: None,
             inverter: None,
         }
+    }
+}
+
+impl PmsmSetup {
+    /// The resistance the circuit sees, `R_s + R_cable` [Ω], for the motor's `r_s`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `r_s` when it is not positive and finite, or
+    /// `cable_resistance` when it is negative or not finite.
+    pub fn series_resistance(&self, r_s: f64) -> Result<f64> {
+        super::interval::check_positive("r_s", r_s)?;
+        let cable = self.cable_resistance;
+        if !(cable.is_finite() && cable >= 0.0) {
+            return Err(Error::InvalidParameter {
+                name: "cable_resistance".into(),
+                value: cable,
+                reason: "must be finite and not negative".into(),
+            });
+        }
+        Ok(r_s + cable)
     }
 }
 

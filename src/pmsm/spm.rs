@@ -159,15 +159,7 @@ impl GreyBoxModel for PmsmSpm {
                 reason: "must be finite".into(),
             });
         }
-        check_positive("r_s", r)?;
-        let r = r + self.setup.cable_resistance;
-        if !(self.setup.cable_resistance.is_finite() && self.setup.cable_resistance >= 0.0) {
-            return Err(Error::InvalidParameter {
-                name: "cable_resistance".into(),
-                value: self.setup.cable_resistance,
-                reason: "must be finite and not negative".into(),
-            });
-        }
+        let r = self.setup.series_resistance(r)?;
         check_positive("l_s", l)?;
         if !k_e.is_finite() {
             return Err(Error::InvalidParameter {
