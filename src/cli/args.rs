@@ -42,9 +42,10 @@ pub struct FitArgs {
     /// a known value in volts.
     #[arg(long, default_value = "none", value_parser = parse_dead_time)]
     pub dead_time: DeadTime,
-    /// Width of the smooth sign of the dead-time model [A] (default 2 % of the peak current).
-    #[arg(long)]
-    pub dead_time_width: Option<f64>,
+    /// Width of the smooth sign of the dead-time model [A] (default 2 % of the peak current),
+    /// or `estimate` (search by the lowest loss).
+    #[arg(long, value_parser = parse_pll)]
+    pub dead_time_width: Option<Pll>,
     /// DC-link voltage [V]: with --voltage reference, samples driven by a reference at the
     /// modulator's limit U_dc/√3 are weighted out.
     #[arg(long)]

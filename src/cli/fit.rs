@@ -58,6 +58,7 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
     let search = InputSearch {
         delay: matches!(a.delay, Delay::Estimate),
         speed_pll: matches!(a.speed_pll, Some(Pll::Estimate)),
+        dead_time_width: matches!(a.dead_time_width, Some(Pll::Estimate)),
     };
     if matches!(a.voltage, VoltageArg::Actual) && (search.delay || search.speed_pll || a.speed_pll.is_some())
     {
@@ -76,10 +77,14 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
             });
         }
     };
+    let width = match a.dead_time_width {
+        Some(Pll::Bandwidth(w)) => Some(w),
+        _ => None,
+    };
     let inverter = match a.dead_time {
         DeadTime::None => None,
-        DeadTime::Estimate => Some(InverterModel { width: a.dead_time_width, known: None }),
-        DeadTime::Volts(v) => Some(InverterModel { width: a.dead_time_width, known: Some(v) }),
+        DeadTime::Estimate => Some(InverterModel { width, known: None }),
+        DeadTime::Volts(v) => Some(InverterModel { width, known: Some(v) }),
     };
     if inverter.is_some() && matches!(a.voltage, VoltageArg::Actual) {
         return Err(greybox::Error::InvalidOption {
@@ -128,7 +133,7 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
             ..PemOptions::default()
         },
     };
-    let fit = if search.delay || search.speed_pll {
+    let fit = if search.delay || search.speed_pll || search.dead_time_width {
         fit_estimating_input(&logs, &options, search)?
     } else {
         fit_pmsm(&logs, &options)?

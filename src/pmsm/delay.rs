@@ -1,11 +1,13 @@
 //! The nuisance parameters of a reference-voltage input, estimated by search around the
-//! fit: the computational delay (integer, 0–3 samples) and the bandwidth of the
-//! phase-locked loop whose speed the controller advances the reference with (golden-section
-//! search on its logarithm). Each candidate is a whole fit; the lowest loss wins (MODEL.md
+//! fit: the computational delay (integer, 0–3 samples), the bandwidth of the phase-locked
+//! loop whose speed the controller advances the reference with, and the width of the
+//! dead-time model's smooth sign (golden-section search on their logarithms). Each candidate is a whole fit; the lowest loss wins (MODEL.md
 //! §4: the delay and the controller's angle are properties of the drive, not of the motor).
 
 use super::fit::{PmsmFit, PmsmFitOptions, fit_pmsm};
 use super::interval::VoltageInput;
+use super::inverter::InverterModel;
+use super::signals::DqView;
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 
@@ -25,6 +27,9 @@ pub struct InputSearch {
     pub delay: bool,
     /// The bandwidth of the controller's speed estimate (needs `theta_m`).
     pub speed_pll: bool,
+    /// The width of the dead-time model's smooth sign (with `options.inverter`): the
+    /// current ripple blurs the switch-over, by an amount the log does not say.
+    pub dead_time_width: bool,
 }
 
 /// Fits with the reference voltage of `options.input` (1 sample, 1.5 ω_e h if it is the
@@ -60,10 +65,15 @@ pub fn fit_estimating_input(
         .chain(nuisance)
         .map(|n| first.parameter(n).map_or(f64::NAN, |p| p.value))
         .collect();
-    let fit_at = |delay: usize, speed_pll: Option<f64>| {
+    let fit_with = |delay: usize, speed_pll: Option<f64>, width: Option<f64>| {
         let input = VoltageInput::Reference { delay, advance, speed_pll };
-        fit_pmsm(experiments, &PmsmFitOptions { input, start: Some(start.clone()), ..options.clone() })
+        let inverter = options.inverter.map(|i| InverterModel { width: width.or(i.width), ..i });
+        fit_pmsm(
+            experiments,
+            &PmsmFitOptions { input, inverter, start: Some(start.clone()), ..options.clone() },
+        )
     };
+    let fit_at = |delay: usize, speed_pll: Option<f64>| fit_with(delay, speed_pll, None);
     // A candidate that cannot be fitted (diverging simulation, no convergence) loses.
     let loss = |f: Result<PmsmFit>| match f {
         Ok(f) if f.solver.success => Ok(f.fit.loss),
@@ -90,7 +100,7 @@ pub fn fit_estimating_input(
         delay0
     };
     let speed_pll = if search.speed_pll {
-        let alpha = golden_search(|a| loss(fit_at(delay, Some(a))))?;
+        let alpha = golden_search(SPEED_PLL_RANGE, |a| loss(fit_at(delay, Some(a))))?;
         notes.push(format!(
             "speed estimate of the angle advance: phase-locked loop of {alpha:.1} rad/s ({:.1} Hz), by the \
              lowest loss",
@@ -100,8 +110,28 @@ pub fn fit_estimating_input(
     } else {
         pll0
     };
-    let best = fit_at(delay, speed_pll)?;
-    if !best.solver.success && (search.delay || search.speed_pll) {
+    let width = match (search.dead_time_width, options.inverter) {
+        (true, Some(_)) => {
+            let peak = experiments
+                .iter()
+                .filter_map(|e| DqView::try_new(e).ok())
+                .flat_map(|v| v.i_d().iter().zip(v.i_q()).map(|(d, q)| d.hypot(*q)).collect::<Vec<_>>())
+                .fold(0.0, f64::max);
+            let range = (1e-3 * peak, 0.3 * peak);
+            let w = golden_search(range, |w| loss(fit_with(delay, speed_pll, Some(w))))?;
+            notes.push(format!("dead-time sign width estimated as {w:.4} A by the lowest loss"));
+            Some(w)
+        }
+        (true, None) => {
+            return Err(Error::InvalidOption {
+                option: "dead-time width".into(),
+                reason: "estimating the width needs the inverter model".into(),
+            });
+        }
+        (false, _) => None,
+    };
+    let best = fit_with(delay, speed_pll, width)?;
+    if !best.solver.success && (search.delay || search.speed_pll || search.dead_time_width) {
         return Err(Error::Numerical {
             context: "input estimate".into(),
             reason: format!(
@@ -115,10 +145,10 @@ pub fn fit_estimating_input(
     Ok(PmsmFit { pmsm_notes, ..best })
 }
 
-/// The bandwidth in [`SPEED_PLL_RANGE`] with the lowest `loss`: a log-spaced scan, then a
-/// golden-section search on ln α in the bracket around the best point.
-fn golden_search(mut loss: impl FnMut(f64) -> Result<f64>) -> Result<f64> {
-    let (lo, hi) = (SPEED_PLL_RANGE.0.ln(), SPEED_PLL_RANGE.1.ln());
+/// The value in `range` (positive) with the lowest `loss`: a log-spaced scan, then a
+/// golden-section search on the logarithm in the bracket around the best point.
+fn golden_search(range: (f64, f64), mut loss: impl FnMut(f64) -> Result<f64>) -> Result<f64> {
+    let (lo, hi) = (range.0.ln(), range.1.ln());
     let grid: Vec<f64> = (0..COARSE).map(|i| lo + (hi - lo) * i as f64 / (COARSE - 1) as f64).collect();
     let mut values = Vec::with_capacity(COARSE);
     for &x in &grid {
@@ -127,8 +157,8 @@ fn golden_search(mut loss: impl FnMut(f64) -> Result<f64>) -> Result<f64> {
     let i = (0..COARSE).min_by(|&a, &b| values[a].total_cmp(&values[b])).unwrap_or(0);
     if !values[i].is_finite() {
         return Err(Error::Numerical {
-            context: "speed estimate search".into(),
-            reason: "no bandwidth gives a converged fit".into(),
+            context: "nuisance search".into(),
+            reason: format!("no value in [{:.3e}, {:.3e}] gives a converged fit", range.0, range.1),
         });
     }
     let (mut a, mut b) = (grid[i.saturating_sub(1)], grid[(i + 1).min(COARSE - 1)]);

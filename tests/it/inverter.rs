@@ -162,7 +162,8 @@ fn pwm_log_from_the_reference_voltage() {
     let input = VoltageInput::Reference { delay: 1, advance: 1.5, speed_pll: Some(1600.0) };
     let pem = greybox::estimate::PemOptions { horizon: Some(1), ..Default::default() };
     let inverter = Some(InverterModel { width: Some(0.45), known: None });
-    let best = fit_pmsm(&[e], &PmsmFitOptions { input, inverter, pem, ..pmsm_options(t.n_p) }).unwrap();
+    let best_options = PmsmFitOptions { input, inverter, pem, ..pmsm_options(t.n_p) };
+    let best = fit_pmsm(&[e], &best_options).unwrap();
     let v_dt = best.parameter("v_dt").unwrap().value;
     let err = |n: &str, truth: f64| rel(best.parameter(n).unwrap().value, truth);
     eprintln!(
@@ -173,4 +174,15 @@ fn pwm_log_from_the_reference_voltage() {
     );
     assert!(rel(v_dt, expected) < 0.01, "v_dt {v_dt}");
     assert!(err("r_s", t.r_s) < 0.02);
+    // The sign width found by search is the one the voltage equation prefers (≈ 0.45 A,
+    // the current ripple), and v_dt stays within 1 %.
+    let (e, _) = crate::common::load("servo_spm_pwm_deadtime_idinj");
+    let options = PmsmFitOptions { inverter: Some(InverterModel::default()), ..best_options };
+    let search = greybox::pmsm::InputSearch { dead_time_width: true, ..Default::default() };
+    let found = greybox::pmsm::fit_estimating_input(&[e], &options, search).unwrap();
+    let note = found.pmsm_notes.iter().find(|n| n.contains("sign width")).unwrap();
+    let w: f64 = note.split_whitespace().find_map(|x| x.parse().ok()).unwrap();
+    eprintln!("PWM log: {note}; v_dt {:.3} V", found.parameter("v_dt").unwrap().value);
+    assert!((0.3..0.6).contains(&w), "{note}");
+    assert!(rel(found.parameter("v_dt").unwrap().value, expected) < 0.01);
 }

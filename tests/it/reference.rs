@@ -50,7 +50,8 @@ fn a_delayed_reference_is_recovered_with_its_delay() {
     assert!(worst <= 1e-9 * scale, "{worst:e} of {scale}");
 
     let options = PmsmFitOptions { input: VoltageInput::REFERENCE, ..pmsm_options(N_P) };
-    let fit = fit_estimating_input(&[e], &options, InputSearch { delay: true, speed_pll: false }).unwrap();
+    let fit =
+        fit_estimating_input(&[e], &options, InputSearch { delay: true, ..Default::default() }).unwrap();
     assert_eq!(fit.input, input, "{:?}", fit.pmsm_notes);
     for (j, name) in ["r_s", "l_s", "k_e"].iter().enumerate() {
         let p = fit.parameter(name).unwrap();
@@ -96,7 +97,12 @@ fn motulator_logs_from_the_reference_voltage() {
         let (e, t) = crate::common::load(stem);
         let model = if t.salient { greybox::pmsm::MotorKind::Ipm } else { greybox::pmsm::MotorKind::Spm };
         let options = PmsmFitOptions { model, input: VoltageInput::REFERENCE, ..pmsm_options(t.n_p) };
-        let fit = fit_estimating_input(&[e], &options, InputSearch { delay: true, speed_pll: true }).unwrap();
+        let fit = fit_estimating_input(
+            &[e],
+            &options,
+            InputSearch { delay: true, speed_pll: true, ..Default::default() },
+        )
+        .unwrap();
         let VoltageInput::Reference { delay, speed_pll, .. } = fit.input else {
             panic!("{stem}: terminal input")
         };
