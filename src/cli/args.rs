@@ -44,7 +44,7 @@ pub struct FitArgs {
     pub dead_time: DeadTime,
     /// Width of the smooth sign of the dead-time model [A] (default 2 % of the peak current),
     /// or `estimate` (search by the lowest loss).
-    #[arg(long, value_parser = parse_pll)]
+    #[arg(long, value_parser = parse_width)]
     pub dead_time_width: Option<Pll>,
     /// DC-link voltage [V]: with --voltage reference, samples driven by a reference at the
     /// modulator's limit U_dc/√3 are weighted out.
@@ -313,7 +313,8 @@ fn parse_dead_time(s: &str) -> Result<DeadTime, String> {
     }
 }
 
-/// A speed-estimator bandwidth [rad/s], or to be estimated.
+/// A positive value (a speed-estimator bandwidth [rad/s], a sign width [A]), or to be
+/// estimated.
 #[derive(Clone, Copy, Debug)]
 pub enum Pll {
     Bandwidth(f64),
@@ -331,6 +332,11 @@ fn parse_pll(s: &str) -> Result<Pll, String> {
             .map(Pll::Bandwidth)
             .ok_or_else(|| format!("`{s}`: expected a positive bandwidth in rad/s or `estimate`")),
     }
+}
+
+/// Parses a sign width [A] or `estimate`.
+fn parse_width(s: &str) -> Result<Pll, String> {
+    parse_pll(s).map_err(|_| format!("`{s}`: expected a positive width in A or `estimate`"))
 }
 
 /// Parses `N` or `estimate`.
