@@ -181,3 +181,20 @@ fn samples_at_the_voltage_limit_are_weighted_out() {
     let bad = PmsmFitOptions { voltage_limit: Some(-1.0), ..options };
     assert!(fit_pmsm(&[e], &bad).unwrap_err().to_string().contains("voltage_limit"));
 }
+
+/// The delay search finds 1 sample on the noisy and the PWM motulator logs too (the PWM log
+/// with the inverter model), so on every motulator log.
+#[test]
+fn delay_is_one_sample_on_every_motulator_log() {
+    crate::common::require_shared!();
+    for (stem, inverter) in
+        [("servo_spm_moves_idinj_noisy", None), ("servo_spm_pwm_deadtime_idinj", Some(Default::default()))]
+    {
+        let (e, t) = crate::common::load(stem);
+        let options = PmsmFitOptions { input: VoltageInput::REFERENCE, inverter, ..pmsm_options(t.n_p) };
+        let fit =
+            fit_estimating_input(&[e], &options, InputSearch { delay: true, ..Default::default() }).unwrap();
+        let VoltageInput::Reference { delay, .. } = fit.input else { panic!("{stem}") };
+        assert_eq!(delay, 1, "{stem}: {:?}", fit.pmsm_notes);
+    }
+}
