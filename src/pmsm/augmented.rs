@@ -25,11 +25,18 @@ pub struct IpmInputs {
     /// dq voltage at the start of the period [V], length N−1: `u[k]` (dq hold) or
     /// `u₀ = u[k] jφ/(1 − e^{−jφ})` (stator hold).
     pub u0: Vec<Complex<f64>>,
+    /// The inverter's voltage error per unit `v_dt` at the start of the period, held like
+    /// `u0` (empty without the inverter model), length N−1.
+    pub dt: Vec<Complex<f64>>,
 }
 
 /// θ-dependent coefficients of the IPM step (ratios precomputed once per θ).
 #[derive(Clone, Debug)]
 pub struct IpmCoefficients {
+    /// Number of parameters n_θ (4, or 5 with `v_dt`).
+    pub(crate) nth: usize,
+    /// Inverter voltage error `v_dt` [V] (0 without the inverter model).
+    pub(crate) v_dt: f64,
     pub(crate) h: f64,
     pub(crate) k_e: f64,
     /// `1/L_d`, `1/L_q` [1/H].
@@ -280,7 +287,14 @@ mod tests {
     use crate::pmsm::SQRT_2_3;
 
     fn coefficients() -> IpmCoefficients {
-        let inp = IpmInputs { h: 2e-4, hold: VoltageHold::Stator, w_e: vec![], emf: vec![], u0: vec![] };
+        let inp = IpmInputs {
+            h: 2e-4,
+            hold: VoltageHold::Stator,
+            w_e: vec![],
+            emf: vec![],
+            u0: vec![],
+            dt: vec![],
+        };
         PmsmIpm::new(4, VoltageHold::Stator).coefficients(&[0.35, 3.2e-3, 7.5e-3, 0.4164], &inp).unwrap()
     }
 

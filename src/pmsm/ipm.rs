@@ -41,6 +41,7 @@
 use super::augmented::{Aug, advance};
 pub use super::augmented::{IpmCoefficients, IpmInputs};
 use super::interval::{VoltageHold, check_pole_pairs, check_positive, model_intervals};
+use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
 use super::setup::PmsmSetup;
 
@@ -49,6 +50,7 @@ use super::signals::DqView;
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::model::{GreyBoxModel, Parameter, Sensitivities};
+use nalgebra::Complex;
 
 /// Interior-magnet PMSM model with exact sampled-data step and exact forward sensitivities.
 ///
@@ -81,13 +83,6 @@ impl GreyBoxModel for PmsmIpm {
 
     fn prepare(&self, e: &Experiment) -> Result<IpmInputs> {
         check_pole_pairs(self.setup.n_p)?;
-        if self.setup.inverter.is_some() {
-            return Err(Error::InvalidOption {
-                option: "dead-time".into(),
-                reason: "the inverter model is available for the surface-magnet model (spm) only, so far"
-                    .into(),
-            });
-        }
         let v = DqView::try_new(e)?;
         let n = v.len() - 1;
         let mut inputs = IpmInputs {
@@ -96,11 +91,15 @@ impl GreyBoxModel for PmsmIpm {
             w_e: Vec::with_capacity(n),
             emf: Vec::with_capacity(n),
             u0: Vec::with_capacity(n),
+            dt: Vec::new(),
         };
         for iv in model_intervals(&v, self.setup.n_p, self.setup.hold, self.setup.input)? {
             inputs.w_e.push(iv.w_e);
             inputs.emf.push(iv.emf);
             inputs.u0.push(iv.u0);
+        }
+        if let Some(inv) = &self.setup.inverter {
+            inputs.dt = dead_time_directions(&v, self.setup.n_p, inv)?;
         }
         Ok(inputs)
     }
@@ -112,12 +111,27 @@ impl GreyBoxModel for PmsmIpm {
     /// finite, `k_e` when not finite, and the smaller inductance when `R_s/L` or
     /// `L_q/L_d` overflows; [`Error::InvalidOption`] when θ does not have length 4.
     fn coefficients(&self, theta: &[f64], inputs: &IpmInputs) -> Result<IpmCoefficients> {
-        let &[r, l_d, l_q, k_e] = theta else {
-            return Err(Error::InvalidOption {
-                option: "theta".into(),
-                reason: format!("expected 4 values (r_s, l_d, l_q, k_e), got {}", theta.len()),
-            });
+        let nth = self.params.len();
+        let (r, l_d, l_q, k_e, v_dt) = match *theta {
+            [r, l_d, l_q, k_e] if nth == 4 => (r, l_d, l_q, k_e, 0.0),
+            [r, l_d, l_q, k_e, v_dt] if nth == 5 => (r, l_d, l_q, k_e, v_dt),
+            _ => {
+                return Err(Error::InvalidOption {
+                    option: "theta".into(),
+                    reason: format!(
+                        "expected {nth} values (r_s, l_d, l_q, k_e[, v_dt]), got {}",
+                        theta.len()
+                    ),
+                });
+            }
         };
+        if !v_dt.is_finite() {
+            return Err(Error::InvalidParameter {
+                name: "v_dt".into(),
+                value: v_dt,
+                reason: "must be finite".into(),
+            });
+        }
         let r = self.setup.series_resistance(r)?;
         check_positive("l_d", l_d)?;
         check_positive("l_q", l_q)?;
@@ -129,6 +143,8 @@ impl GreyBoxModel for PmsmIpm {
             });
         }
         let c = IpmCoefficients {
+            nth,
+            v_dt,
             h: inputs.h,
             k_e,
             inv_l_d: 1.0 / l_d,
@@ -153,7 +169,7 @@ impl GreyBoxModel for PmsmIpm {
 
     #[inline]
     fn step(&self, c: &IpmCoefficients, inp: &IpmInputs, k: usize, x: &[f64], x_next: &mut [f64]) {
-        let u = inp.u0[k];
+        let u = voltage(c, inp, k);
         let mut z = Aug { x: [x[0], x[1]], v: [u.re, u.im], ..Aug::default() };
         advance::<false>(c, inp, k, &mut z, 1.0);
         x_next.copy_from_slice(&z.x);
@@ -208,17 +224,28 @@ impl Sensitivities<IpmInputs, IpmCoefficients> for PmsmIpm {
         x_next: &mut [f64],
         s_next: &mut [f64],
     ) {
-        let u = inp.u0[k];
+        let u = voltage(c, inp, k);
+        let m = c.nth;
         let mut z = Aug {
             x: [x[0], x[1]],
-            s: [[s[0], s[4]], [s[1], s[5]], [s[2], s[6]], [s[3], s[7]]],
+            s: [[s[0], s[m]], [s[1], s[m + 1]], [s[2], s[m + 2]], [s[3], s[m + 3]]],
             v: [u.re, u.im],
         };
         advance::<true>(c, inp, k, &mut z, 1.0);
         x_next.copy_from_slice(&z.x);
         for j in 0..4 {
             s_next[j] = z.s[j][0];
-            s_next[4 + j] = z.s[j][1];
+            s_next[m + j] = z.s[j][1];
+        }
+        if m == 5 {
+            // The step is linear in the held voltage: ∂x⁺/∂v_dt = Φ s_v + Γ(dt), the
+            // homogeneous propagation of the previous sensitivity driven by the error
+            // direction alone (no back-EMF, no constant term).
+            let w = inp.dt[k];
+            let mut zv = Aug { x: [s[4], s[9]], v: [w.re, w.im], ..Aug::default() };
+            advance::<false>(c, inp, k, &mut zv, 0.0);
+            s_next[4] = zv.x[0];
+            s_next[9] = zv.x[1];
         }
     }
 
@@ -232,6 +259,13 @@ impl Sensitivities<IpmInputs, IpmCoefficients> for PmsmIpm {
         s: &[f64],
         dy: &mut [f64],
     ) {
-        dy.copy_from_slice(&s[..8]);
+        let n = dy.len();
+        dy.copy_from_slice(&s[..n]);
     }
+}
+
+/// The held voltage of interval k with the inverter's error: `u0[k] + v_dt dt[k]`.
+#[inline(always)]
+fn voltage(c: &IpmCoefficients, inp: &IpmInputs, k: usize) -> Complex<f64> {
+    if c.nth == 5 { inp.u0[k] + inp.dt[k] * c.v_dt } else { inp.u0[k] }
 }
