@@ -115,7 +115,7 @@ pub fn fit_estimating_input(
             let peak = experiments
                 .iter()
                 .filter_map(|e| DqView::try_new(e).ok())
-                .flat_map(|v| v.i_d().iter().zip(v.i_q()).map(|(d, q)| d.hypot(*q)).collect::<Vec<_>>())
+                .map(|v| v.peak_current())
                 .fold(0.0, f64::max);
             let range = (1e-3 * peak, 0.3 * peak);
             let w = golden_search(range, |w| loss(fit_with(delay, speed_pll, Some(w))))?;

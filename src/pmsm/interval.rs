@@ -75,6 +75,14 @@ pub(crate) fn check_positive(name: &str, v: f64) -> Result<()> {
     }
 }
 
+pub(crate) fn check_finite(name: &str, v: f64) -> Result<()> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(Error::InvalidParameter { name: name.into(), value: v, reason: "must be finite".into() })
+    }
+}
+
 /// Data-only quantities of one sample interval, shared by the SPM and IPM models.
 #[derive(Clone, Copy, Debug)]
 pub struct Interval {
@@ -198,14 +206,7 @@ pub fn reference_intervals(
     let (h, np) = (v.h(), f64::from(n_p));
     let w_adv: Vec<f64> = match speed_pll {
         None => v.w_m().iter().map(|w| np * w).collect(),
-        Some(a) => {
-            let theta = v.theta_m().ok_or_else(|| Error::MissingChannel {
-                experiment: e.name().into(),
-                channel: super::channel::THETA_M.into(),
-                available: e.channels().iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", "),
-            })?;
-            speed_pll_estimate(theta, v.w_m(), n_p, h, a)
-        }
+        Some(a) => speed_pll_estimate(e.channel(super::channel::THETA_M)?, v.w_m(), n_p, h, a),
     };
     let mut out: Vec<Interval> = intervals(v, n_p, VoltageHold::Stator).collect();
     let phis: Vec<f64> = out.iter().map(|iv| iv.w_e * h).collect();

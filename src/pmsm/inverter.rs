@@ -44,15 +44,9 @@ pub fn v_dt_parameter() -> Parameter {
 /// current never changes sign (its error is then a constant offset, not separable from the
 /// other parameters: `V_dt` unidentifiable).
 pub fn dead_time_directions(v: &DqView<'_>, n_p: u32, model: &InverterModel) -> Result<Vec<C64>> {
-    let e = v.experiment();
-    let theta_m = v.theta_m().ok_or_else(|| Error::MissingChannel {
-        experiment: e.name().into(),
-        channel: super::channel::THETA_M.into(),
-        available: e.channels().iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", "),
-    })?;
+    let theta_m = v.experiment().channel(super::channel::THETA_M)?;
     let (id, iq) = (v.i_d(), v.i_q());
-    let peak = id.iter().zip(iq).map(|(d, q)| d.hypot(*q)).fold(0.0, f64::max);
-    let width = model.width.unwrap_or(DEFAULT_RELATIVE_WIDTH * peak);
+    let width = model.width.unwrap_or(DEFAULT_RELATIVE_WIDTH * v.peak_current());
     if !(width.is_finite() && width > 0.0) {
         return Err(Error::InvalidOption {
             option: "dead-time width".into(),

@@ -40,7 +40,7 @@
 
 use super::augmented::{Aug, advance};
 pub use super::augmented::{IpmCoefficients, IpmInputs};
-use super::interval::{VoltageHold, check_pole_pairs, check_positive, model_intervals};
+use super::interval::{VoltageHold, check_finite, check_pole_pairs, check_positive, model_intervals};
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
 use super::setup::PmsmSetup;
@@ -125,23 +125,11 @@ impl GreyBoxModel for PmsmIpm {
                 });
             }
         };
-        if !v_dt.is_finite() {
-            return Err(Error::InvalidParameter {
-                name: "v_dt".into(),
-                value: v_dt,
-                reason: "must be finite".into(),
-            });
-        }
+        check_finite("v_dt", v_dt)?;
         let r = self.setup.series_resistance(r)?;
         check_positive("l_d", l_d)?;
         check_positive("l_q", l_q)?;
-        if !k_e.is_finite() {
-            return Err(Error::InvalidParameter {
-                name: "k_e".into(),
-                value: k_e,
-                reason: "must be finite".into(),
-            });
-        }
+        check_finite("k_e", k_e)?;
         let c = IpmCoefficients {
             nth,
             v_dt,

@@ -170,6 +170,10 @@ impl<'a> DqView<'a> {
     pub fn w_m(&self) -> &'a [f64] {
         self.w_m
     }
+    /// Largest current magnitude `max_k |i_dq[k]|` [A, peak].
+    pub fn peak_current(&self) -> f64 {
+        self.i_d.iter().zip(self.i_q).map(|(d, q)| d.hypot(*q)).fold(0.0, f64::max)
+    }
     /// Mechanical angle at `t_k` [rad], length N, if logged.
     pub fn theta_m(&self) -> Option<&'a [f64]> {
         self.e.get(channel::THETA_M).map(|c| c.values.as_slice())

@@ -21,7 +21,9 @@
 //! θ only and is computed once per θ. Sensitivities differentiate this recursion
 //! (forward sensitivity), so one pass gives residuals and gradients.
 
-use super::interval::{C64, VoltageHold, VoltageInput, check_pole_pairs, check_positive, model_intervals};
+use super::interval::{
+    C64, VoltageHold, VoltageInput, check_finite, check_pole_pairs, check_positive, model_intervals,
+};
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
 use super::setup::PmsmSetup;
@@ -152,22 +154,10 @@ impl GreyBoxModel for PmsmSpm {
                 });
             }
         };
-        if !v_dt.is_finite() {
-            return Err(Error::InvalidParameter {
-                name: "v_dt".into(),
-                value: v_dt,
-                reason: "must be finite".into(),
-            });
-        }
+        check_finite("v_dt", v_dt)?;
         let r = self.setup.series_resistance(r)?;
         check_positive("l_s", l)?;
-        if !k_e.is_finite() {
-            return Err(Error::InvalidParameter {
-                name: "k_e".into(),
-                value: k_e,
-                reason: "must be finite".into(),
-            });
-        }
+        check_finite("k_e", k_e)?;
         let h = inputs.h;
         let x = r * h / l;
         let d = (-x).exp();
