@@ -6,11 +6,11 @@
 //! - the change of the voltage from one sample to the next: a voltage that acts one sample
 //!   later than the model assumes (a reference logged as if it were the terminal voltage).
 
-use super::interval::{VoltageInput, applied_voltage};
+use super::interval::{VoltageInput, applied_experiment};
 use super::inverter::{InverterModel, dead_time_directions};
 use super::kind::MotorKind;
 use super::linear::regressors;
-use super::signals::{DqSignals, DqView};
+use super::signals::DqView;
 use crate::data::Experiment;
 use crate::estimate::linear::solve_weighted;
 
@@ -62,10 +62,7 @@ pub fn advice(
     let mut out = Vec::new();
     for e in experiments {
         let Ok(v) = DqView::try_new(e) else { continue };
-        let Ok((u_d, u_q)) = applied_voltage(&v, n_p, input) else { continue };
-        let Ok(applied) = (DqSignals { u_d, u_q, ..v.to_signals() }).into_experiment(e.name(), e.h()) else {
-            continue;
-        };
+        let Ok(applied) = applied_experiment(e, n_p, input) else { continue };
         let Ok(av) = DqView::try_new(&applied) else { continue };
         let (phi, y) = regressors(&av, n_p, kind);
         let cols = theta.len();

@@ -10,13 +10,13 @@
 //!    their standard errors (MODEL.md §2).
 
 use super::hold::{DQ_DECISIVE, hold_ambiguity};
-use super::interval::{VoltageHold, VoltageInput, applied_voltage};
+use super::interval::{VoltageHold, VoltageInput, applied_experiment};
 use super::inverter::InverterModel;
 use super::kind::MotorKind;
 use super::limit::{VoltageLimitWeighting, delay_of};
 use super::linear::least_squares;
 pub use super::report::{PmsmFit, StartComparison};
-use super::signals::{DqSignals, DqView, channel};
+use super::signals::channel;
 use super::temperature::ThermalReference;
 use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
@@ -338,15 +338,7 @@ fn applied_experiments(
     if input == VoltageInput::Terminal {
         return Ok(None);
     }
-    experiments
-        .iter()
-        .map(|e| {
-            let v = DqView::try_new(e)?;
-            let (u_d, u_q) = applied_voltage(&v, n_p, input)?;
-            DqSignals { u_d, u_q, ..v.to_signals() }.into_experiment(e.name(), e.h())
-        })
-        .collect::<Result<Vec<_>>>()
-        .map(Some)
+    experiments.iter().map(|e| applied_experiment(e, n_p, input)).collect::<Result<Vec<_>>>().map(Some)
 }
 
 /// Advice when the losses of the two holds are close (ratio within [`DQ_DECISIVE`]) but

@@ -6,7 +6,8 @@
 //! `ω_m = (ω_m[k] + ω_m[k+1])/2`, so the current equation is linear and time-invariant over
 //! the period and has an exact discretisation (thesis 5.2; MODEL.md §4).
 
-use super::signals::DqView;
+use super::signals::{DqSignals, DqView};
+use crate::data::Experiment;
 use crate::error::{Error, Result};
 use nalgebra::Complex;
 use serde::{Deserialize, Serialize};
@@ -282,6 +283,17 @@ pub fn speed_pll_estimate(theta_m: &[f64], w_m: &[f64], n_p: u32, h: f64, alpha:
             out
         })
         .collect()
+}
+
+/// The experiment with its `ud, uq` replaced by the applied period-mean voltage of
+/// [`applied_voltage`] (for a regression on the voltage equations).
+///
+/// # Errors
+/// Those of [`DqView::try_new`] and [`applied_voltage`].
+pub fn applied_experiment(e: &Experiment, n_p: u32, input: VoltageInput) -> Result<Experiment> {
+    let v = DqView::try_new(e)?;
+    let (u_d, u_q) = applied_voltage(&v, n_p, input)?;
+    DqSignals { u_d, u_q, ..v.to_signals() }.into_experiment(e.name(), e.h())
 }
 
 /// Checks a pole-pair number.

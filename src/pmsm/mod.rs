@@ -37,8 +37,8 @@ pub mod validate;
 pub use delay::{InputSearch, fit_estimating_input};
 pub use fit::{HoldChoice, PmsmFit, PmsmFitOptions, StartComparison, fit_pmsm};
 pub use interval::{
-    C64, Interval, SQRT_2_3, VoltageHold, VoltageInput, applied_voltage, interval_mean_speed, intervals,
-    model_intervals, reference_intervals, rotation, stator_hold_start,
+    C64, Interval, SQRT_2_3, VoltageHold, VoltageInput, applied_experiment, applied_voltage,
+    interval_mean_speed, intervals, model_intervals, reference_intervals, rotation, stator_hold_start,
 };
 pub use inverter::InverterModel;
 pub use ipm::PmsmIpm;

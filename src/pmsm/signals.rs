@@ -118,22 +118,6 @@ impl<'a> DqView<'a> {
         }
         Ok(v)
     }
-    /// The view of `e` whose voltage (`u_d()`, `u_q()`) is the one `input` names: the
-    /// terminal voltage `ud, uq`, or the reference `ud_ref, uq_ref` (as logged, before its
-    /// delay and angle advance are applied by the model).
-    ///
-    /// # Errors
-    /// As [`DqView::try_new`], naming `ud_ref`/`uq_ref` when the reference is asked for and
-    /// absent.
-    pub fn with_input(e: &'a Experiment, input: super::VoltageInput) -> Result<Self> {
-        let v = Self::try_new(e)?;
-        Ok(match input {
-            super::VoltageInput::Terminal => v,
-            super::VoltageInput::Reference { .. } => {
-                Self { u_d: e.channel(channel::U_D_REF)?, u_q: e.channel(channel::U_Q_REF)?, ..v }
-            }
-        })
-    }
     /// The experiment viewed.
     pub fn experiment(&self) -> &'a Experiment {
         self.e
