@@ -16,6 +16,7 @@ use super::kind::MotorKind;
 use super::limit::{VoltageLimitWeighting, delay_of};
 use super::linear::least_squares;
 pub use super::report::{PmsmFit, StartComparison};
+use super::setup::PmsmSetup;
 use super::signals::channel;
 use super::temperature::ThermalReference;
 use super::{PmsmIpm, PmsmSpm};
@@ -212,28 +213,25 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                 .unwrap_or_else(|| start.clone()),
             _ => start.clone(),
         };
-        // The same setup for either model type.
-        macro_rules! fit_as {
-            ($model:ident) => {{
-                let mut m = $model::new(n_p, hold)
-                    .with_input(options.input)
-                    .with_cable_resistance(options.cable_resistance);
-                if let Some(t) = options.thermal {
-                    m = m.with_thermal(t);
-                }
-                if let Some(inv) = options.inverter {
-                    m = m.with_inverter(inv);
-                    if inv.known.is_some() {
-                        fix_named(m.parameters_mut(), "v_dt");
-                    }
-                }
+        let setup = PmsmSetup {
+            n_p,
+            hold,
+            input: options.input,
+            cable_resistance: options.cable_resistance,
+            thermal: options.thermal,
+            inverter: options.inverter,
+        };
+        let r = match options.model {
+            MotorKind::Spm => {
+                let mut m = PmsmSpm::from_setup(setup);
                 configure(m.parameters_mut(), options)?;
                 fit_with_weighting(&m, experiments, &s, &options.pem, weighting)
-            }};
-        }
-        let r = match options.model {
-            MotorKind::Spm => fit_as!(PmsmSpm),
-            MotorKind::Ipm => fit_as!(PmsmIpm),
+            }
+            MotorKind::Ipm => {
+                let mut m = PmsmIpm::from_setup(setup);
+                configure(m.parameters_mut(), options)?;
+                fit_with_weighting(&m, experiments, &s, &options.pem, weighting)
+            }
         };
         let r = r?;
         losses.push((hold, r.fit.loss, r.solver.success));
@@ -321,6 +319,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         hold,
         input: options.input,
         cable_resistance: options.cable_resistance,
+        inverter: options.inverter,
         hold_losses: losses.iter().map(|(h, l, _)| (*h, *l)).collect(),
         start_comparison,
         pmsm_advice,
@@ -345,11 +344,6 @@ fn applied_experiments(
 /// their estimates differ by more than 3 combined standard errors: the data do not clearly
 /// say how the voltage was held (PWM ripple, dead time, or a voltage column that is not a
 /// period mean).
-/// Holds the parameter called `name` fixed at its start.
-fn fix_named(params: &mut [Parameter], name: &str) {
-    params.iter_mut().filter(|p| p.name == name).for_each(|p| p.fixed = true);
-}
-
 /// Applies the fixed flags and bounds of `options` to the model's parameter metadata.
 fn configure(params: &mut [Parameter], options: &PmsmFitOptions) -> Result<()> {
     let unknown = |n: &str, what: &str| Error::InvalidOption {

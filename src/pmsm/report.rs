@@ -3,6 +3,7 @@
 //! start against the estimate, motor-specific advice).
 
 use super::interval::{VoltageHold, VoltageInput};
+use super::inverter::InverterModel;
 use crate::estimate::FitResult;
 use serde::{Deserialize, Serialize};
 
@@ -35,6 +36,9 @@ pub struct PmsmFit {
     pub input: VoltageInput,
     /// The known series (cable) resistance taken out of `r_s` [Ω].
     pub cable_resistance: f64,
+    /// The inverter model the fit used (its `v_dt` is among the parameters).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inverter: Option<InverterModel>,
     /// Loss of every hold fitted, in fitting order.
     pub hold_losses: Vec<(VoltageHold, f64)>,
     /// The least-squares start against the estimate, when the fit started from LS.

@@ -64,6 +64,19 @@ impl PmsmSetup {
 /// Builder methods and accessors of a PMSM model with fields `setup` and `params`.
 macro_rules! pmsm_model_setup {
     () => {
+        /// The model for `setup` with default parameter metadata; with the inverter model
+        /// the nuisance parameter `v_dt` [V] follows the motor's, held fixed when its value
+        /// is known.
+        pub fn from_setup(setup: $crate::pmsm::PmsmSetup) -> Self {
+            let mut model = Self {
+                setup: $crate::pmsm::PmsmSetup { inverter: None, ..setup },
+                params: KIND.parameters(),
+            };
+            if let Some(inverter) = setup.inverter {
+                model = model.with_inverter(inverter);
+            }
+            model
+        }
         /// The same model driven by `input` (terminal voltage, or the reference with its
         /// delay and angle advance).
         pub fn with_input(mut self, input: $crate::pmsm::VoltageInput) -> Self {
@@ -83,10 +96,14 @@ macro_rules! pmsm_model_setup {
             self
         }
         /// The same model with the inverter's voltage error `−v_dt tanh(i_x/w)` per phase
-        /// as a nuisance input: the parameter `v_dt` [V] is appended to θ.
+        /// as a nuisance input: the parameter `v_dt` [V] is appended to θ, held fixed when
+        /// `model.known` gives its value.
         pub fn with_inverter(mut self, model: $crate::pmsm::InverterModel) -> Self {
             if self.setup.inverter.is_none() {
                 self.params.push($crate::pmsm::inverter::v_dt_parameter());
+            }
+            if let Some(p) = self.params.iter_mut().find(|p| p.name == "v_dt") {
+                p.fixed = model.known.is_some();
             }
             self.setup.inverter = Some(model);
             self

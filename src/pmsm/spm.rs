@@ -91,7 +91,7 @@ impl PmsmSpm {
     /// hold and default parameter metadata, driven by the terminal voltage. `n_p = 0` is
     /// reported by [`GreyBoxModel::prepare`] as [`Error::InvalidPolePairs`].
     pub fn new(n_p: u32, hold: VoltageHold) -> Self {
-        Self { setup: PmsmSetup::new(n_p, hold), params: KIND.parameters() }
+        Self::from_setup(PmsmSetup::new(n_p, hold))
     }
 
     super::setup::pmsm_model_setup!();
