@@ -3,7 +3,9 @@
 //! `greybox fit --json`) and compared with each log by [`crate::report::compare`].
 
 use super::interval::{VoltageHold, VoltageInput};
+use super::inverter::InverterModel;
 use super::kind::MotorKind;
+use super::setup::PmsmSetup;
 use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
@@ -21,7 +23,12 @@ pub struct SavedModel {
     pub hold: VoltageHold,
     /// The voltage that drove the model (terminal, or the reference with its delay).
     pub input: VoltageInput,
-    /// Parameter values, model order of `kind` (SI units).
+    /// The known series (cable) resistance the fit took out of `r_s` [Ω].
+    pub cable_resistance: f64,
+    /// The inverter model of the fit, if it had one.
+    pub inverter: Option<InverterModel>,
+    /// Parameter values, model order of `kind`, then `v_dt` with the inverter model (SI
+    /// units).
     pub theta: Vec<f64>,
     /// Number of estimated (not fixed) parameters.
     pub n_estimated: usize,
@@ -34,6 +41,10 @@ struct Report {
     hold: Option<VoltageHold>,
     #[serde(default)]
     input: VoltageInput,
+    #[serde(default)]
+    cable_resistance: f64,
+    #[serde(default)]
+    inverter: Option<InverterModel>,
     parameters: Vec<Saved>,
 }
 
@@ -71,9 +82,11 @@ impl SavedModel {
                 p.name
             )));
         }
+        let nuisance = r.inverter.map(|_| "v_dt");
         let theta = kind
             .parameter_names()
             .iter()
+            .chain(nuisance.iter())
             .map(|n| {
                 r.parameters
                     .iter()
@@ -91,25 +104,36 @@ impl SavedModel {
             pole_pairs,
             hold: hold.or(r.hold).unwrap_or_default(),
             input: r.input,
+            cable_resistance: r.cable_resistance,
+            inverter: r.inverter,
             theta,
             n_estimated: r.parameters.iter().filter(|p| !p.fixed).count(),
         })
     }
 
-    /// Compares the model with each experiment (simulated from its measured first current).
+    /// The setup of the saved model: pole pairs, hold, voltage input, cable, inverter.
+    pub fn setup(&self) -> PmsmSetup {
+        PmsmSetup {
+            input: self.input,
+            cable_resistance: self.cable_resistance,
+            inverter: self.inverter,
+            ..PmsmSetup::new(self.pole_pairs, self.hold)
+        }
+    }
+
+    /// Compares the model, as the fit had it (voltage input, cable, inverter), with each
+    /// experiment, simulated from its measured first current.
     ///
     /// # Errors
-    /// Those of [`compare`]: a log without the PMSM channels, a diverging simulation.
+    /// Those of [`compare`]: a log without the channels the model reads, a diverging
+    /// simulation.
     pub fn validate(&self, experiments: &[Experiment]) -> Result<Vec<Comparison>> {
+        let setup = self.setup();
         experiments
             .iter()
             .map(|e| match self.kind {
-                MotorKind::Spm => {
-                    compare(&PmsmSpm::new(self.pole_pairs, self.hold), e, &self.theta, self.n_estimated)
-                }
-                MotorKind::Ipm => {
-                    compare(&PmsmIpm::new(self.pole_pairs, self.hold), e, &self.theta, self.n_estimated)
-                }
+                MotorKind::Spm => compare(&PmsmSpm::from_setup(setup), e, &self.theta, self.n_estimated),
+                MotorKind::Ipm => compare(&PmsmIpm::from_setup(setup), e, &self.theta, self.n_estimated),
             })
             .collect()
     }

@@ -242,3 +242,27 @@ fn pwm_log_from_the_reference_voltage() {
     assert!((0.3..0.6).contains(&w), "{note}");
     assert!(rel(found.parameter("v_dt").unwrap().value, expected) < 0.01);
 }
+
+/// A saved fit with the reference input, the inverter model and a cable validates as the
+/// fit had it: reading the report back keeps all three, and the noise-free record is
+/// reproduced (before, validation silently simulated the terminal voltage without cable or
+/// inverter).
+#[test]
+fn saved_fit_with_reference_inverter_and_cable_validates() {
+    let e = record(2);
+    let options = PmsmFitOptions {
+        input: VoltageInput::REFERENCE,
+        inverter: Some(INVERTER),
+        cable_resistance: 0.2,
+        ..pmsm_options(N_P)
+    };
+    let fit = fit_pmsm(std::slice::from_ref(&e), &options).unwrap();
+    let saved = greybox::pmsm::SavedModel::from_json(&fit.to_json(), None, None).unwrap();
+    assert_eq!(
+        (saved.input, saved.inverter, saved.cable_resistance),
+        (VoltageInput::REFERENCE, Some(INVERTER), 0.2)
+    );
+    assert_eq!(saved.theta.len(), 4);
+    let c = &saved.validate(&[e]).unwrap()[0];
+    assert!(c.metrics.fit_percent.iter().all(|f| *f > 99.999), "{:?}", c.metrics.fit_percent);
+}
