@@ -168,6 +168,11 @@ fn ls_only(a: &FitArgs) -> greybox::Result<()> {
         ("--cable-resistance", a.cable_resistance != 0.0),
         ("--dead-time", !matches!(a.dead_time, DeadTime::None)),
         ("--u-dc", a.u_dc.is_some()),
+        ("--speed-pll", a.speed_pll.is_some()),
+        ("--dead-time-width", a.dead_time_width.is_some()),
+        ("--delay estimate", matches!(a.delay, Delay::Estimate)),
+        ("--r-s0", a.r_s0.is_some()),
+        ("--psi-f0", a.psi_f0.is_some()),
         ("--t0", a.t0.is_some()),
     ];
     for (flag, set) in given {
