@@ -15,9 +15,9 @@
 
 pub mod augmented;
 pub mod checks;
-pub mod delay;
 pub mod fit;
 pub mod hold;
+pub mod input_search;
 pub mod interval;
 pub mod inverter;
 pub mod ipm;
@@ -34,8 +34,8 @@ pub mod temperature;
 pub mod transform;
 pub mod validate;
 
-pub use delay::{InputSearch, fit_estimating_input};
 pub use fit::{HoldChoice, PmsmFit, PmsmFitOptions, StartComparison, fit_pmsm};
+pub use input_search::{InputSearch, fit_estimating_input};
 pub use interval::{
     C64, Interval, SQRT_2_3, VoltageHold, VoltageInput, applied_experiment, applied_voltage,
     interval_mean_speed, intervals, model_intervals, reference_intervals, rotation, stator_hold_start,
