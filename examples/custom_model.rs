@@ -53,13 +53,14 @@ impl GreyBoxModel for FluxSpm {
     fn prepare(&self, e: &Experiment) -> Result<Inputs> {
         let v = DqView::try_new(e)?;
         let h = v.h();
+        let (u_d, u_q) = v.terminal_voltage()?;
         let mut inputs = Inputs { h, w_e: vec![], rot: vec![], u_end: vec![] };
         for (k, w_m) in interval_mean_speed(v.w_m()).into_iter().enumerate() {
             let w_e = f64::from(self.n_p) * w_m;
             let phi = w_e * h;
             let rot = rotation(phi);
             // Start-of-period voltage u₀ = ū jφ/(1 − e^{−jφ}) (→ ū as φ → 0).
-            let u0 = stator_hold_start(C64::new(v.u_d()[k], v.u_q()[k]), phi);
+            let u0 = stator_hold_start(C64::new(u_d[k], u_q[k]), phi);
             inputs.w_e.push(w_e);
             inputs.rot.push(rot);
             inputs.u_end.push(u0 * rot);

@@ -44,7 +44,7 @@ impl GreyBoxModel for UserSpm {
         &self.1
     }
     fn prepare(&self, e: &Experiment) -> Result<Self::Inputs> {
-        Ok((e.h(), intervals(&DqView::try_new(e)?, self.0, VoltageHold::Stator).collect()))
+        Ok((e.h(), intervals(&DqView::try_new(e)?, self.0, VoltageHold::Stator)?.collect()))
     }
     fn coefficients(&self, th: &[f64], _: &Self::Inputs) -> Result<[f64; 3]> {
         Ok([th[0], th[1], th[2]])

@@ -46,6 +46,12 @@ pub struct FitArgs {
     /// or `estimate` (search by the lowest loss).
     #[arg(long, value_parser = parse_width)]
     pub dead_time_width: Option<Pll>,
+    /// Weight out the periods in which a phase current comes within this many amperes of
+    /// zero (where the switching ripple decides the dead-time voltage's sign), or `auto`
+    /// (4 h v_dt / L from the fit); implies --horizon 1 unless a horizon is given. Needs
+    /// --dead-time.
+    #[arg(long, value_parser = parse_mask)]
+    pub dead_time_mask: Option<greybox::pmsm::DeadTimeMask>,
     /// DC-link voltage [V]: with --voltage reference, samples driven by a reference at the
     /// modulator's limit U_dc/√3 are weighted out.
     #[arg(long)]
@@ -310,6 +316,19 @@ fn parse_dead_time(s: &str) -> Result<DeadTime, String> {
             .filter(|v: &f64| v.is_finite() && *v >= 0.0)
             .map(DeadTime::Volts)
             .ok_or_else(|| format!("`{s}`: expected none, estimate or a voltage ≥ 0")),
+    }
+}
+
+/// Parses `auto` or a current ≥ 0 [A].
+fn parse_mask(s: &str) -> Result<greybox::pmsm::DeadTimeMask, String> {
+    match s {
+        "auto" => Ok(greybox::pmsm::DeadTimeMask::Auto),
+        _ => s
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite() && *v >= 0.0)
+            .map(greybox::pmsm::DeadTimeMask::Current)
+            .ok_or_else(|| format!("`{s}`: expected auto or a current ≥ 0 in amperes")),
     }
 }
 

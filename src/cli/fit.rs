@@ -83,9 +83,16 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
     };
     let inverter = match a.dead_time {
         DeadTime::None => None,
-        DeadTime::Estimate => Some(InverterModel { width, known: None }),
-        DeadTime::Volts(v) => Some(InverterModel { width, known: Some(v) }),
+        DeadTime::Estimate => Some(InverterModel { width, known: None, mask: a.dead_time_mask }),
+        DeadTime::Volts(v) => Some(InverterModel { width, known: Some(v), mask: a.dead_time_mask }),
     };
+    if inverter.is_none() && a.dead_time_mask.is_some() {
+        return Err(greybox::Error::InvalidOption {
+            option: "dead-time-mask".into(),
+            reason: "the mask belongs to the dead-time model: add --dead-time estimate (or a known voltage)"
+                .into(),
+        });
+    }
     if inverter.is_some() && matches!(a.voltage, VoltageArg::Actual) {
         return Err(greybox::Error::InvalidOption {
             option: "dead-time".into(),
@@ -170,6 +177,7 @@ fn ls_only(a: &FitArgs) -> greybox::Result<()> {
         ("--u-dc", a.u_dc.is_some()),
         ("--speed-pll", a.speed_pll.is_some()),
         ("--dead-time-width", a.dead_time_width.is_some()),
+        ("--dead-time-mask", a.dead_time_mask.is_some()),
         ("--delay estimate", matches!(a.delay, Delay::Estimate)),
         ("--r-s0", a.r_s0.is_some()),
         ("--psi-f0", a.psi_f0.is_some()),

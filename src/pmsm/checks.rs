@@ -64,7 +64,7 @@ pub fn advice(
         let Ok(v) = DqView::try_new(e) else { continue };
         let Ok(applied) = applied_experiment(e, n_p, input) else { continue };
         let Ok(av) = DqView::try_new(&applied) else { continue };
-        let (phi, y) = regressors(&av, n_p, kind);
+        let Ok((phi, y)) = regressors(&av, n_p, kind) else { continue };
         let cols = theta.len();
         let r: Vec<f64> = y
             .iter()
@@ -89,7 +89,7 @@ pub fn advice(
             }
         }
         // Interval k's voltage change u[k] − u[k−1], rows d, q as in the residual.
-        let (ud, uq) = (av.u_d(), av.u_q());
+        let Ok((ud, uq)) = av.terminal_voltage() else { continue };
         let du: Vec<f64> = (0..ud.len() - 1)
             .flat_map(|k| if k == 0 { [0.0, 0.0] } else { [ud[k] - ud[k - 1], uq[k] - uq[k - 1]] })
             .collect();

@@ -15,6 +15,8 @@ use super::inverter::InverterModel;
 use super::kind::MotorKind;
 use super::limit::{VoltageLimitWeighting, delay_of};
 use super::linear::least_squares;
+use super::mask::{DeadTimeMask, DeadTimeMaskWeighting, masked_pem};
+use super::report::delay_parameter;
 pub use super::report::{PmsmFit, StartComparison};
 use super::setup::PmsmSetup;
 use super::signals::channel;
@@ -102,6 +104,9 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     super::interval::check_pole_pairs(n_p)?;
     if experiments.is_empty() {
         return Err(Error::InvalidOption { option: "experiments".into(), reason: "no log given".into() });
+    }
+    if options.inverter.and_then(|i| i.mask) == Some(DeadTimeMask::Auto) {
+        return super::mask::fit_auto_mask(experiments, options);
     }
     let mut names: Vec<&str> = options.model.parameter_names().to_vec();
     if options.inverter.is_some() {
@@ -198,6 +203,26 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             l.limit
         ));
     }
+    let masked = match options.inverter.and_then(|i| i.mask) {
+        Some(DeadTimeMask::Current(threshold)) => {
+            Some(DeadTimeMaskWeighting { inner: weighting, n_p, threshold })
+        }
+        _ => None,
+    };
+    let weighting: &dyn Weighting = match &masked {
+        Some(m) => m,
+        None => weighting,
+    };
+    if let Some(m) = &masked {
+        let n: usize = experiments.iter().map(|e| m.count(e)).sum();
+        let total: usize = experiments.iter().map(Experiment::len).sum();
+        notes.push(format!(
+            "dead-time mask: {n} of {total} samples weighted out (a phase current within {:.4} A of zero)",
+            m.threshold
+        ));
+    }
+    let (pem, pem_note) = masked_pem(options.inverter.as_ref(), &options.pem);
+    notes.extend(pem_note);
     let modulator =
         experiments.iter().all(|e| e.get(channel::U_D_REF).is_some() && e.get(channel::U_Q_REF).is_some());
     let mut best: Option<(VoltageHold, FitResult)> = None;
@@ -225,12 +250,12 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             MotorKind::Spm => {
                 let mut m = PmsmSpm::from_setup(setup);
                 configure(m.parameters_mut(), options)?;
-                fit_with_weighting(&m, experiments, &s, &options.pem, weighting)
+                fit_with_weighting(&m, experiments, &s, &pem, weighting)
             }
             MotorKind::Ipm => {
                 let mut m = PmsmIpm::from_setup(setup);
                 configure(m.parameters_mut(), options)?;
-                fit_with_weighting(&m, experiments, &s, &options.pem, weighting)
+                fit_with_weighting(&m, experiments, &s, &pem, weighting)
             }
         };
         let r = r?;
@@ -313,8 +338,13 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             .collect(),
     };
     let fit_s = t0.elapsed().as_secs_f64();
+    let parameters = best.parameters.iter().cloned().chain(delay_parameter(options.input, None)).collect();
     Ok(PmsmFit {
-        report: FitResult { timing: Timing { fit_s, total_s: fit_s, ..best.timing.clone() }, ..best },
+        report: FitResult {
+            timing: Timing { fit_s, total_s: fit_s, ..best.timing.clone() },
+            parameters,
+            ..best
+        },
         pole_pairs: n_p,
         hold,
         input: options.input,

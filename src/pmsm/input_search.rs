@@ -7,9 +7,11 @@
 use super::fit::{PmsmFit, PmsmFitOptions, fit_pmsm};
 use super::interval::VoltageInput;
 use super::inverter::InverterModel;
+use super::report::delay_parameter;
 use super::signals::DqView;
 use crate::data::Experiment;
 use crate::error::{Error, Result};
+use crate::estimate::FitResult;
 
 /// Delays tried [samples].
 pub const DELAYS: std::ops::RangeInclusive<usize> = 0..=3;
@@ -84,6 +86,7 @@ pub fn fit_estimating_input(
         Err(e) => Err(e),
     };
     let mut notes = Vec::new();
+    let mut delays_tried: Vec<(usize, f64)> = Vec::new();
     let delay = if search.delay {
         let mut tried = Vec::new();
         for d in DELAYS {
@@ -95,6 +98,7 @@ pub fn fit_estimating_input(
             "computational delay estimated as {best} sample(s) by the lowest loss ({})",
             text.join(", ")
         ));
+        delays_tried = tried;
         best
     } else {
         delay0
@@ -140,9 +144,30 @@ pub fn fit_estimating_input(
             ),
         });
     }
-    let mut pmsm_notes = best.pmsm_notes.clone();
+    let estimated = (!delays_tried.is_empty()).then(|| delay_set(&delays_tried, delay, best.fit.dof));
+    let PmsmFit { report, mut pmsm_notes, .. } = best.clone();
     pmsm_notes.append(&mut notes);
-    Ok(PmsmFit { pmsm_notes, ..best })
+    let parameters = report
+        .parameters
+        .iter()
+        .filter(|p| p.name != "delay_samples")
+        .cloned()
+        .chain(delay_parameter(best.input, estimated))
+        .collect();
+    Ok(PmsmFit { report: FitResult { parameters, ..report }, pmsm_notes, ..best })
+}
+
+/// The 95 % set of delays `[lo, hi]` around `best`: those whose loss a likelihood-ratio
+/// test does not reject, `(V_d − V_min) dof / V_min < χ²₁(0.95) = 3.841` (Gaussian errors,
+/// `V = ½E²`, `σ̂² = E²/dof`; Ljung, *System Identification*, 16.4), widened to a contiguous
+/// range.
+fn delay_set(tried: &[(usize, f64)], best: usize, dof: usize) -> [usize; 2] {
+    let v_min = tried.iter().map(|t| t.1).fold(f64::INFINITY, f64::min);
+    let kept =
+        tried.iter().filter(|(_, v)| v_min > 0.0 && (v - v_min) * dof as f64 / v_min < 3.841).map(|t| t.0);
+    let lo = kept.clone().min().unwrap_or(best).min(best);
+    let hi = kept.max().unwrap_or(best).max(best);
+    [lo, hi]
 }
 
 /// The value in `range` (positive) with the lowest `loss`: a log-spaced scan, then a

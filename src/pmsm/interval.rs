@@ -100,26 +100,43 @@ pub struct Interval {
 }
 
 /// The intervals `k = 0..N−2` of a log on a machine with `n_p` pole pairs: interval-mean
-/// speed, rotation and the start-of-period voltage for the given hold (MODEL.md §4).
-pub fn intervals<'a>(v: &DqView<'a>, n_p: u32, hold: VoltageHold) -> impl Iterator<Item = Interval> + 'a {
+/// speed, rotation and the start-of-period terminal voltage for the given hold (MODEL.md §4).
+///
+/// # Errors
+/// [`Error::MissingChannel`] (`ud`) for a log that carries only the voltage reference.
+pub fn intervals<'a>(
+    v: &DqView<'a>,
+    n_p: u32,
+    hold: VoltageHold,
+) -> Result<impl Iterator<Item = Interval> + 'a> {
+    let (ud, uq) = v.terminal_voltage()?;
+    let h = v.h();
+    Ok(motion(v, n_p).enumerate().map(move |(k, iv)| {
+        let uk = C64::new(ud[k], uq[k]);
+        let u0 = match hold {
+            VoltageHold::Dq => uk,
+            VoltageHold::Stator => stator_hold_start(uk, iv.w_e * h),
+        };
+        Interval { u0, ..iv }
+    }))
+}
+
+/// The data-only part of the intervals (speed and rotation), with `u0 = 0`.
+fn motion<'a>(v: &DqView<'a>, n_p: u32) -> impl Iterator<Item = Interval> + 'a {
     let h = v.h();
     let np = f64::from(n_p);
-    let (wm, ud, uq) = (v.w_m(), v.u_d(), v.u_q());
+    let wm = v.w_m();
     (0..v.len() - 1).map(move |k| {
         let w_m = 0.5 * (wm[k] + wm[k + 1]);
         let w_e = np * w_m;
         let phi = w_e * h;
-        let uk = C64::new(ud[k], uq[k]);
         let half = (0.5 * phi).sin();
         Interval {
             w_e,
             emf: SQRT_2_3 * w_m,
             rot: rotation(phi),
             vers: 2.0 * half * half,
-            u0: match hold {
-                VoltageHold::Dq => uk,
-                VoltageHold::Stator => stator_hold_start(uk, phi),
-            },
+            u0: C64::new(0.0, 0.0),
         }
     })
 }
@@ -209,7 +226,7 @@ pub fn reference_intervals(
         None => v.w_m().iter().map(|w| np * w).collect(),
         Some(a) => speed_pll_estimate(e.channel(super::channel::THETA_M)?, v.w_m(), n_p, h, a),
     };
-    let mut out: Vec<Interval> = intervals(v, n_p, VoltageHold::Stator).collect();
+    let mut out: Vec<Interval> = motion(v, n_p).collect();
     let phis: Vec<f64> = out.iter().map(|iv| iv.w_e * h).collect();
     for (k, iv) in out.iter_mut().enumerate() {
         let j = k.saturating_sub(delay);
@@ -234,7 +251,7 @@ pub fn model_intervals(
     input: VoltageInput,
 ) -> Result<Vec<Interval>> {
     match input {
-        VoltageInput::Terminal => Ok(intervals(v, n_p, hold).collect()),
+        VoltageInput::Terminal => Ok(intervals(v, n_p, hold)?.collect()),
         VoltageInput::Reference { .. } if hold == VoltageHold::Dq => Err(Error::InvalidOption {
             option: "hold".into(),
             reason: "a reference voltage is applied by a modulator, which holds it in the stator frame"
@@ -255,7 +272,8 @@ pub fn model_intervals(
 /// Those of [`model_intervals`].
 pub fn applied_voltage(v: &DqView<'_>, n_p: u32, input: VoltageInput) -> Result<(Vec<f64>, Vec<f64>)> {
     if input == VoltageInput::Terminal {
-        return Ok((v.u_d().to_vec(), v.u_q().to_vec()));
+        let (u_d, u_q) = v.terminal_voltage()?;
+        return Ok((u_d.to_vec(), u_q.to_vec()));
     }
     let ivs = model_intervals(v, n_p, VoltageHold::Stator, input)?;
     let h = v.h();

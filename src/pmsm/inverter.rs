@@ -9,6 +9,7 @@
 //! exact with it.
 
 use super::interval::C64;
+pub use super::mask::DeadTimeMask;
 use super::signals::DqView;
 use super::transform::{clarke, inverse_clarke, inverse_park, park};
 use crate::error::{Error, Result};
@@ -22,10 +23,14 @@ pub const DEFAULT_RELATIVE_WIDTH: f64 = 0.02;
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Default)]
 pub struct InverterModel {
     /// Width w of the smooth sign [A]; `None`: [`DEFAULT_RELATIVE_WIDTH`] × the largest
-    /// `|i_dq|` of the log.
+    /// `|i_dq|` of the log, or a tenth of the [`DeadTimeMask`] threshold.
     pub width: Option<f64>,
     /// A known `V_dt` [V], held fixed; `None`: estimated (from 0).
     pub known: Option<f64>,
+    /// Periods with a phase current near zero weighted out ([`DeadTimeMask`]); `None`: all
+    /// periods kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mask: Option<DeadTimeMask>,
 }
 
 /// The nuisance parameter `v_dt` [V]: the per-phase voltage error, non-negative.
@@ -46,7 +51,12 @@ pub fn v_dt_parameter() -> Parameter {
 pub fn dead_time_directions(v: &DqView<'_>, n_p: u32, model: &InverterModel) -> Result<Vec<C64>> {
     let theta_m = v.experiment().channel(super::channel::THETA_M)?;
     let (id, iq) = (v.i_d(), v.i_q());
-    let width = model.width.unwrap_or(DEFAULT_RELATIVE_WIDTH * v.peak_current());
+    // With the mask, every kept period has its phase currents clear of zero: a sign 10 times
+    // sharper than the threshold is the sign there.
+    let width = model.width.unwrap_or(match model.mask {
+        Some(DeadTimeMask::Current(t)) if t > 0.0 => 0.1 * t,
+        _ => DEFAULT_RELATIVE_WIDTH * v.peak_current(),
+    });
     if !(width.is_finite() && width > 0.0) {
         return Err(Error::InvalidOption {
             option: "dead-time width".into(),

@@ -131,8 +131,13 @@ impl fmt::Display for LinearEstimate {
 /// rows) of one experiment, unfiltered and unweighted.
 ///
 /// Rows alternate d, q for every interval `k = 0..N−2` (see the module documentation).
-pub fn regressors(e: &DqView<'_>, n_p: u32, kind: MotorKind) -> (Vec<f64>, Vec<f64>) {
+///
+/// # Errors
+/// [`Error::MissingChannel`] (`ud`) for a log without the terminal voltage (regress on
+/// [`super::applied_experiment`]'s voltage instead).
+pub fn regressors(e: &DqView<'_>, n_p: u32, kind: MotorKind) -> Result<(Vec<f64>, Vec<f64>)> {
     let (h, np) = (e.h(), f64::from(n_p));
+    let (u_d, u_q) = e.terminal_voltage()?;
     let (id, iq, wm) = (e.i_d(), e.i_q(), e.w_m());
     let n = e.len() - 1;
     let cols = kind.parameter_names().len();
@@ -153,10 +158,10 @@ pub fn regressors(e: &DqView<'_>, n_p: u32, kind: MotorKind) -> (Vec<f64>, Vec<f
                 phi.extend_from_slice(&[iqm, w_e * idm, diq, SQRT_2_3 * w_m]);
             }
         }
-        y.push(e.u_d()[k]);
-        y.push(e.u_q()[k]);
+        y.push(u_d[k]);
+        y.push(u_q[k]);
     }
-    (phi, y)
+    Ok((phi, y))
 }
 
 /// Unweighted, unfiltered least-squares estimate of θ from one or more experiments of one
@@ -230,7 +235,7 @@ pub fn weighted_least_squares(
             }
             None => e,
         };
-        let (p, v) = regressors(&DqView::try_new(data)?, n_p, kind);
+        let (p, v) = regressors(&DqView::try_new(data)?, n_p, kind)?;
         if weighting.is_uniform() {
             sw.resize(sw.len() + v.len(), 1.0);
         } else {

@@ -191,7 +191,9 @@ pub struct CsvOptions {
 /// - [`Error::InvalidPolePairs`] for `pole_pairs = Some(0)`, or `None` when the speed is
 ///   electrical or the dq signals come from phases (before the file is opened);
 /// - those of [`read_table`]: [`Error::Io`], [`Error::MissingColumn`] for a required
-///   column (`t, ud, uq, id, iq, w_m`; for [`DqSource::Phases`]
+///   column (`t, ud, uq, id, iq, w_m`, where `ud, uq` may be absent when both `ud_ref,
+///   uq_ref` are logged: such a log can only be fitted from its reference; for
+///   [`DqSource::Phases`]
 ///   `t, ia, ib, ic, ua, ub, uc, theta_m, w_m`, all under their configured names),
 ///   [`Error::Csv`] with the line number;
 /// - [`Error::TooShort`] for an empty file or fewer than [`MIN_SAMPLES`] rows;
@@ -214,8 +216,10 @@ pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experime
         DqSource::Phases => vec![&c.i_a, &c.i_b, &c.i_c, &c.u_a, &c.u_b, &c.u_c, &c.theta_m],
     };
     // Required columns in a fixed order: the error names the first one missing.
+    // The terminal voltage may be absent when the reference is logged (checked below).
+    let dq = options.source == DqSource::Dq;
     let mut wanted: Vec<(&str, bool)> = vec![(&c.t, true)];
-    wanted.extend(main.iter().map(|n| (n.as_str(), true)));
+    wanted.extend(main.iter().enumerate().map(|(i, n)| (n.as_str(), !(dq && i < 2))));
     wanted.push((&c.w_m, true));
     if options.source == DqSource::Dq {
         wanted.push((&c.theta_m, false));
@@ -227,6 +231,19 @@ pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experime
         }
         other => other?,
     };
+    if dq {
+        let has = |i: usize| table.columns[i].is_some();
+        let n = table.columns.len();
+        let (terminal, reference) = (has(1) && has(2), has(n - 2) && has(n - 1));
+        if !terminal && (!reference || has(1) || has(2)) {
+            let missing = if has(1) { &c.u_q } else { &c.u_d };
+            return Err(Error::MissingColumn {
+                path: path.to_path_buf(),
+                column: missing.clone(),
+                available: table.header.join(", "),
+            });
+        }
+    }
     let rows = table.columns[0].as_ref().map_or(0, Vec::len);
     if rows < MIN_SAMPLES {
         return Err(Error::TooShort { name: table.name, len: rows, min: MIN_SAMPLES });

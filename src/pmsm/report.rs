@@ -5,6 +5,7 @@
 use super::interval::{VoltageHold, VoltageInput};
 use super::inverter::InverterModel;
 use crate::estimate::FitResult;
+use crate::estimate::ParameterEstimate;
 use serde::{Deserialize, Serialize};
 
 /// The least-squares start against the prediction-error estimate of one parameter.
@@ -95,4 +96,30 @@ impl std::fmt::Display for PmsmFit {
         }
         Ok(())
     }
+}
+
+/// The computational delay of a reference input as a nuisance entry of the report's
+/// parameters (`delay_samples` [samples]); `None` for the terminal voltage. Held fixed at the
+/// given delay unless `estimated` gives the 95 % set of delays `[lo, hi]` a likelihood-ratio
+/// test does not reject (see [`super::input_search`]); its standard error is then
+/// `(hi − lo)/3.92` (0 when the set is the delay alone) and its error index is not defined.
+pub(crate) fn delay_parameter(
+    input: VoltageInput,
+    estimated: Option<[usize; 2]>,
+) -> Option<ParameterEstimate> {
+    let VoltageInput::Reference { delay, .. } = input else { return None };
+    let d = delay as f64;
+    let ci = estimated.map_or([d, d], |[lo, hi]| [lo as f64, hi as f64]);
+    Some(ParameterEstimate {
+        name: "delay_samples".into(),
+        unit: "samples".into(),
+        value: d,
+        std_error: (ci[1] - ci[0]) / 3.92,
+        ci95: ci,
+        error_index_percent: f64::NAN,
+        fixed: estimated.is_none(),
+        nuisance: true,
+        experiment: None,
+        start: d,
+    })
 }

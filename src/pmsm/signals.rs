@@ -38,9 +38,11 @@ pub const MIN_SAMPLES: usize = 16;
 /// `theta_m` [rad, mechanical].
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DqSignals {
-    /// d-axis terminal voltage, period mean over `[t_k, t_k + h)` [V], length N.
+    /// d-axis terminal voltage, period mean over `[t_k, t_k + h)` [V], length N; empty when
+    /// the log carries only the voltage reference (`u_d_ref`, `u_q_ref`).
     pub u_d: Vec<f64>,
-    /// q-axis terminal voltage, period mean over `[t_k, t_k + h)` [V], length N.
+    /// q-axis terminal voltage, period mean over `[t_k, t_k + h)` [V], length N; empty as
+    /// `u_d`.
     pub u_q: Vec<f64>,
     /// d-axis current at `t_k` [A, peak], length N.
     pub i_d: Vec<f64>,
@@ -59,13 +61,17 @@ pub struct DqSignals {
 impl DqSignals {
     /// The signals as channels under the names of [`channel`], optional ones when present.
     pub fn into_channels(self) -> Vec<Channel> {
-        let mut c = vec![
-            Channel::new(channel::U_D, "V", self.u_d),
-            Channel::new(channel::U_Q, "V", self.u_q),
+        let terminal = !(self.u_d.is_empty() && self.u_q.is_empty());
+        let mut c: Vec<Channel> = terminal
+            .then(|| [Channel::new(channel::U_D, "V", self.u_d), Channel::new(channel::U_Q, "V", self.u_q)])
+            .into_iter()
+            .flatten()
+            .collect();
+        c.extend([
             Channel::new(channel::I_D, "A", self.i_d),
             Channel::new(channel::I_Q, "A", self.i_q),
             Channel::new(channel::W_M, "rad/s", self.w_m),
-        ];
+        ]);
         let optional = [
             (channel::THETA_M, "rad", self.theta_m),
             (channel::U_D_REF, "V", self.u_d_ref),
@@ -91,8 +97,7 @@ impl DqSignals {
 #[derive(Clone, Copy, Debug)]
 pub struct DqView<'a> {
     e: &'a Experiment,
-    u_d: &'a [f64],
-    u_q: &'a [f64],
+    terminal: Option<(&'a [f64], &'a [f64])>,
     i_d: &'a [f64],
     i_q: &'a [f64],
     w_m: &'a [f64],
@@ -102,13 +107,18 @@ impl<'a> DqView<'a> {
     /// The view of `e`.
     ///
     /// # Errors
-    /// [`Error::MissingChannel`] naming the first of `ud, uq, id, iq, w_m` that `e` lacks;
-    /// [`Error::TooShort`] below [`MIN_SAMPLES`] samples.
+    /// [`Error::MissingChannel`] naming the first of `id, iq, w_m` that `e` lacks, or `ud`
+    /// / `uq` when `e` has neither the terminal voltage nor the reference (`ud_ref`,
+    /// `uq_ref`); [`Error::TooShort`] below [`MIN_SAMPLES`] samples.
     pub fn try_new(e: &'a Experiment) -> Result<Self> {
+        let terminal = match (e.get(channel::U_D), e.get(channel::U_Q)) {
+            (Some(d), Some(q)) => Some((d.values.as_slice(), q.values.as_slice())),
+            _ if e.get(channel::U_D_REF).is_some() && e.get(channel::U_Q_REF).is_some() => None,
+            _ => Some((e.channel(channel::U_D)?, e.channel(channel::U_Q)?)),
+        };
         let v = Self {
             e,
-            u_d: e.channel(channel::U_D)?,
-            u_q: e.channel(channel::U_Q)?,
+            terminal,
             i_d: e.channel(channel::I_D)?,
             i_q: e.channel(channel::I_Q)?,
             w_m: e.channel(channel::W_M)?,
@@ -134,13 +144,19 @@ impl<'a> DqView<'a> {
     pub fn is_empty(&self) -> bool {
         self.e.is_empty()
     }
-    /// d-axis terminal voltage, period means [V], length N.
-    pub fn u_d(&self) -> &'a [f64] {
-        self.u_d
-    }
-    /// q-axis terminal voltage, period means [V], length N.
-    pub fn u_q(&self) -> &'a [f64] {
-        self.u_q
+    /// The terminal voltage `(u_d, u_q)`, period means [V], each of length N.
+    ///
+    /// # Errors
+    /// [`Error::MissingChannel`] (`ud`) for a log that carries only the voltage reference.
+    pub fn terminal_voltage(&self) -> Result<(&'a [f64], &'a [f64])> {
+        match self.terminal {
+            Some(u) => Ok(u),
+            None => Err(self.e.channel(channel::U_D).err().unwrap_or_else(|| Error::MissingChannel {
+                experiment: self.e.name().into(),
+                channel: channel::U_D.into(),
+                available: String::new(),
+            })),
+        }
     }
     /// d-axis current at `t_k` [A, peak], length N.
     pub fn i_d(&self) -> &'a [f64] {
@@ -170,8 +186,8 @@ impl<'a> DqView<'a> {
     pub fn to_signals(&self) -> DqSignals {
         let opt = |n: &str| self.e.get(n).map(|c| c.values.clone());
         DqSignals {
-            u_d: self.u_d.to_vec(),
-            u_q: self.u_q.to_vec(),
+            u_d: self.terminal.map(|u| u.0.to_vec()).unwrap_or_default(),
+            u_q: self.terminal.map(|u| u.1.to_vec()).unwrap_or_default(),
             i_d: self.i_d.to_vec(),
             i_q: self.i_q.to_vec(),
             w_m: self.w_m.to_vec(),

@@ -179,12 +179,26 @@ fn phases_reproduce_motulator_dq_signals() {
     let (i_abc, u_abc) = raw.split_at(3);
     let (e_i, r_i) = dq_error((ph.i_d(), ph.i_q()), (dq.i_d(), dq.i_q()), i_abc, th, None, 4.0, 0..n);
     // The last row has no w_m[k+1]: its period speed is w_m[k]; compare the others.
-    let (e_u, r_u) = dq_error((ph.u_d(), ph.u_q()), (dq.u_d(), dq.u_q()), u_abc, th, None, 4.0, 0..n - 1);
-    let u_mag: Vec<f64> = (0..n).map(|k| dq.u_d()[k].hypot(dq.u_q()[k])).collect();
+    let (e_u, r_u) = dq_error(
+        (ph.terminal_voltage().unwrap().0, ph.terminal_voltage().unwrap().1),
+        (dq.terminal_voltage().unwrap().0, dq.terminal_voltage().unwrap().1),
+        u_abc,
+        th,
+        None,
+        4.0,
+        0..n - 1,
+    );
+    let u_mag: Vec<f64> = (0..n)
+        .map(|k| dq.terminal_voltage().unwrap().0[k].hypot(dq.terminal_voltage().unwrap().1[k]))
+        .collect();
     let u_max = u_mag.iter().copied().fold(0.0, f64::max);
     let e_u_rel = (0..n - 1)
         .filter(|&k| u_mag[k] > 1.0)
-        .map(|k| (ph.u_d()[k] - dq.u_d()[k]).hypot(ph.u_q()[k] - dq.u_q()[k]) / u_mag[k])
+        .map(|k| {
+            (ph.terminal_voltage().unwrap().0[k] - dq.terminal_voltage().unwrap().0[k])
+                .hypot(ph.terminal_voltage().unwrap().1[k] - dq.terminal_voltage().unwrap().1[k])
+                / u_mag[k]
+        })
         .fold(0.0, f64::max);
     eprintln!(
         "phases -> dq (motulator): max |Δi_dq| = {e_i:.3e} A ({r_i:.3} of the rounding bound), \
@@ -202,11 +216,12 @@ fn phases_reproduce_motulator_dq_signals() {
         .filter(|&k| u_mag[k] > 1.0)
         .map(|k| {
             let (fr, fi) = stator_hold_mean_factor(4.0 * 0.5 * (dq.w_m()[k] + dq.w_m()[k + 1]) * 1e-4);
-            let (d, q) = (ph.u_d()[k], ph.u_q()[k]);
+            let (d, q) = (ph.terminal_voltage().unwrap().0[k], ph.terminal_voltage().unwrap().1[k]);
             // Undo the factor: divide by (fr + j fi).
             let m2 = fr * fr + fi * fi;
             let (d0, q0) = ((d * fr + q * fi) / m2, (q * fr - d * fi) / m2);
-            (d0 - dq.u_d()[k]).hypot(q0 - dq.u_q()[k]) / u_mag[k]
+            (d0 - dq.terminal_voltage().unwrap().0[k]).hypot(q0 - dq.terminal_voltage().unwrap().1[k])
+                / u_mag[k]
         })
         .fold(0.0, f64::max);
     eprintln!("without the stator-hold factor: max |Δu|/|u| = {worst:.3e}");
@@ -266,8 +281,8 @@ fn unit_options_convert_to_si() {
     // 3000 rpm electrical = 100π rad/s electrical = 100π/3 rad/s mechanical.
     assert_relative_eq!(e.w_m()[0], 100.0 * PI / 3.0, max_relative = 1e-12);
     assert_relative_eq!(e.theta_m().unwrap()[2], (92.0_f64).to_radians() / 3.0, max_relative = 1e-12);
-    assert_relative_eq!(e.u_d()[0], 10.0 * SQRT_2, max_relative = 1e-12);
-    assert_relative_eq!(e.u_q()[0], -20.0 * SQRT_2, max_relative = 1e-12);
+    assert_relative_eq!(e.terminal_voltage().unwrap().0[0], 10.0 * SQRT_2, max_relative = 1e-12);
+    assert_relative_eq!(e.terminal_voltage().unwrap().1[0], -20.0 * SQRT_2, max_relative = 1e-12);
     assert_relative_eq!(e.i_d()[0], SQRT_2, max_relative = 1e-12);
     assert_relative_eq!(e.i_q()[0], 2.0 * SQRT_2, max_relative = 1e-12);
     assert_relative_eq!(e.u_dq_ref().unwrap().1[0], 6.0 * SQRT_2, max_relative = 1e-12);

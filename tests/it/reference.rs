@@ -57,6 +57,17 @@ fn a_delayed_reference_is_recovered_with_its_delay() {
         let p = fit.parameter(name).unwrap();
         assert!(rel(p.value, THETA[j]) < 1e-7, "{name}: {:e}", rel(p.value, THETA[j]));
     }
+    // The delay is a nuisance entry of the report, estimated, its 95 % set the delay alone
+    // (a noise-free record rejects every other delay).
+    let d = fit.parameter("delay_samples").unwrap();
+    assert_eq!((d.value, d.ci95, d.fixed, d.nuisance), (2.0, [2.0, 2.0], false, true));
+    let json: serde_json::Value = serde_json::from_str(&fit.to_json()).unwrap();
+    let entry = json["parameters"].as_array().unwrap().iter().find(|p| p["name"] == "delay_samples").unwrap();
+    assert_eq!((entry["value"].as_f64(), entry["nuisance"].as_bool()), (Some(2.0), Some(true)));
+    // Given, not searched: the entry is there, held fixed.
+    let given = fit_pmsm(&[reference_record(2)], &PmsmFitOptions { input, ..pmsm_options(N_P) }).unwrap();
+    let d = given.parameter("delay_samples").unwrap();
+    assert!(d.fixed && d.nuisance && d.value == 2.0);
 }
 
 #[test]
@@ -108,7 +119,7 @@ fn motulator_logs_from_the_reference_voltage() {
         };
         assert_eq!(delay, 1, "{stem}: {:?}", fit.pmsm_notes);
         let truth = [("r_s", t.r_s), ("l_s", t.l_d), ("l_d", t.l_d), ("l_q", t.l_q), ("k_e", t.k_e)];
-        for p in &fit.parameters {
+        for p in fit.parameters.iter().filter(|p| !p.nuisance) {
             let (_, v) = truth.iter().find(|(n, _)| *n == p.name).unwrap();
             let err = rel(p.value, *v);
             eprintln!(
@@ -196,5 +207,47 @@ fn delay_is_one_sample_on_every_motulator_log() {
             fit_estimating_input(&[e], &options, InputSearch { delay: true, ..Default::default() }).unwrap();
         let VoltageInput::Reference { delay, .. } = fit.input else { panic!("{stem}") };
         assert_eq!(delay, 1, "{stem}: {:?}", fit.pmsm_notes);
+    }
+}
+
+/// A drive that logs only its voltage reference (no `ud, uq` columns): the reader takes it,
+/// the fit from the reference recovers the motor, a terminal-voltage fit names the missing
+/// column, and a log with neither voltage is refused naming `ud`.
+#[test]
+fn a_log_with_only_the_reference_is_read_and_fitted() {
+    let e = reference_record(1);
+    let names = ["t", "id", "iq", "w_m", "ud_ref", "uq_ref"];
+    let mut text = names.join(",") + "\n";
+    for k in 0..e.len() {
+        let t = k as f64 * e.h();
+        let row: Vec<String> = std::iter::once(t)
+            .chain(names[1..].iter().map(|n| e.get(n).unwrap().values[k]))
+            .map(|x| format!("{x:e}"))
+            .collect();
+        text.push_str(&(row.join(",") + "\n"));
+    }
+    let path = std::env::temp_dir().join(format!("greybox-refonly-{}.csv", std::process::id()));
+    std::fs::write(&path, &text).unwrap();
+    let log = greybox::pmsm::read_log(&path, &Default::default()).unwrap();
+    assert!(log.get("ud").is_none() && log.get("ud_ref").is_some());
+    let options = PmsmFitOptions { input: VoltageInput::REFERENCE, ..pmsm_options(N_P) };
+    let fit = fit_pmsm(std::slice::from_ref(&log), &options).unwrap();
+    for (j, name) in ["r_s", "l_s", "k_e"].iter().enumerate() {
+        let err = rel(fit.parameter(name).unwrap().value, THETA[j]);
+        assert!(err < 1e-6, "{name}: {err:e}");
+    }
+    match fit_pmsm(std::slice::from_ref(&log), &pmsm_options(N_P)).unwrap_err() {
+        Error::MissingChannel { channel, .. } => assert_eq!(channel, "ud"),
+        other => panic!("{other}"),
+    }
+    // Neither the terminal voltage nor the reference.
+    let stripped: String =
+        text.lines().map(|l| l.split(',').take(4).collect::<Vec<_>>().join(",") + "\n").collect();
+    std::fs::write(&path, stripped).unwrap();
+    let err = greybox::pmsm::read_log(&path, &Default::default()).unwrap_err();
+    let _ = std::fs::remove_file(&path);
+    match err {
+        Error::MissingColumn { column, .. } => assert_eq!(column, "ud"),
+        other => panic!("{other}"),
     }
 }
