@@ -29,9 +29,10 @@ pub struct FitArgs {
     /// the lowest loss).
     #[arg(long, default_value = "1", value_parser = parse_delay)]
     pub delay: Delay,
-    /// Modulator angle advance of the reference, in units of ω_e h.
-    #[arg(long, default_value_t = 1.5)]
-    pub advance: f64,
+    /// Modulator angle advance of the reference, in units of ω_e h, or `estimate`
+    /// (golden-section search in [-1, 4] by the lowest loss, after the delay).
+    #[arg(long, default_value = "1.5", value_parser = parse_advance)]
+    pub advance: Advance,
     /// The controller advances the reference with a speed estimated from theta_m by a
     /// phase-locked loop of this bandwidth [rad/s], or `estimate` (search by the lowest loss);
     /// default: the logged speed.
@@ -316,6 +317,26 @@ fn parse_dead_time(s: &str) -> Result<DeadTime, String> {
             .filter(|v: &f64| v.is_finite() && *v >= 0.0)
             .map(DeadTime::Volts)
             .ok_or_else(|| format!("`{s}`: expected none, estimate or a voltage ≥ 0")),
+    }
+}
+
+/// A modulator angle advance [ω_e h], or to be estimated.
+#[derive(Clone, Copy, Debug)]
+pub enum Advance {
+    Value(f64),
+    Estimate,
+}
+
+/// Parses a finite advance or `estimate`.
+fn parse_advance(s: &str) -> Result<Advance, String> {
+    match s {
+        "estimate" => Ok(Advance::Estimate),
+        _ => s
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite())
+            .map(Advance::Value)
+            .ok_or_else(|| format!("`{s}`: expected estimate or a number (units of ω_e h)")),
     }
 }
 

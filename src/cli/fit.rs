@@ -1,7 +1,7 @@
 //! `greybox fit`: read the logs, fit, print the table and write the JSON report.
 
 use super::args::{
-    DeadTime, Delay, FitArgs, HoldArg, MethodArg, ModelArg, Pll, ScalingArg, SolverArg, VoltageArg,
+    Advance, DeadTime, Delay, FitArgs, HoldArg, MethodArg, ModelArg, Pll, ScalingArg, SolverArg, VoltageArg,
 };
 use super::output;
 use greybox::estimate::{FitResult, PemOptions, ScalingKind, SolverKind, Timing, Tolerances};
@@ -46,25 +46,30 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
         Some(Pll::Bandwidth(b)) => Some(b),
         _ => None,
     };
+    let advance = match a.advance {
+        Advance::Value(v) => v,
+        Advance::Estimate => 1.5,
+    };
     let input = match (a.voltage, a.delay) {
         (VoltageArg::Actual, _) => VoltageInput::Terminal,
         (VoltageArg::Reference, Delay::Samples(delay)) => {
-            VoltageInput::Reference { delay, advance: a.advance, speed_pll }
+            VoltageInput::Reference { delay, advance, speed_pll }
         }
-        (VoltageArg::Reference, Delay::Estimate) => {
-            VoltageInput::Reference { delay: 1, advance: a.advance, speed_pll }
-        }
+        (VoltageArg::Reference, Delay::Estimate) => VoltageInput::Reference { delay: 1, advance, speed_pll },
     };
     let search = InputSearch {
         delay: matches!(a.delay, Delay::Estimate),
+        advance: matches!(a.advance, Advance::Estimate),
         speed_pll: matches!(a.speed_pll, Some(Pll::Estimate)),
         dead_time_width: matches!(a.dead_time_width, Some(Pll::Estimate)),
     };
-    if matches!(a.voltage, VoltageArg::Actual) && (search.delay || search.speed_pll || a.speed_pll.is_some())
+    if matches!(a.voltage, VoltageArg::Actual)
+        && (search.delay || search.advance || search.speed_pll || a.speed_pll.is_some())
     {
         return Err(greybox::Error::InvalidOption {
             option: "voltage".into(),
-            reason: "--delay estimate and --speed-pll apply to --voltage reference".into(),
+            reason: "--delay estimate, --advance estimate and --speed-pll apply to --voltage reference"
+                .into(),
         });
     }
     let thermal = match (a.t0, a.r_s0, a.psi_f0) {
@@ -140,7 +145,7 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
             ..PemOptions::default()
         },
     };
-    let fit = if search.delay || search.speed_pll || search.dead_time_width {
+    let fit = if search.delay || search.advance || search.speed_pll || search.dead_time_width {
         fit_estimating_input(&logs, &options, search)?
     } else {
         fit_pmsm(&logs, &options)?
@@ -179,6 +184,7 @@ fn ls_only(a: &FitArgs) -> greybox::Result<()> {
         ("--dead-time-width", a.dead_time_width.is_some()),
         ("--dead-time-mask", a.dead_time_mask.is_some()),
         ("--delay estimate", matches!(a.delay, Delay::Estimate)),
+        ("--advance estimate", matches!(a.advance, Advance::Estimate)),
         ("--r-s0", a.r_s0.is_some()),
         ("--psi-f0", a.psi_f0.is_some()),
         ("--t0", a.t0.is_some()),

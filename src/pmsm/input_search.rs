@@ -1,8 +1,10 @@
 //! The nuisance parameters of a reference-voltage input, estimated by search around the
-//! fit: the computational delay (integer, 0–3 samples), the bandwidth of the phase-locked
-//! loop whose speed the controller advances the reference with, and the width of the
-//! dead-time model's smooth sign (golden-section search on their logarithms). Each candidate is a whole fit; the lowest loss wins (MODEL.md
-//! §4: the delay and the controller's angle are properties of the drive, not of the motor).
+//! fit: the computational delay (integer, 0–3 samples), the modulator's angle advance
+//! (continuous, golden-section search), the bandwidth of the phase-locked loop whose speed
+//! the controller advances the reference with, and the width of the dead-time model's
+//! smooth sign (golden-section search on their logarithms). Each candidate is a whole fit;
+//! the lowest loss wins (MODEL.md §4: the delay and the controller's angle are properties of
+//! the drive, not of the motor).
 
 use super::fit::{PmsmFit, PmsmFitOptions, fit_pmsm};
 use super::interval::VoltageInput;
@@ -15,6 +17,8 @@ use crate::estimate::FitResult;
 
 /// Delays tried [samples].
 pub const DELAYS: std::ops::RangeInclusive<usize> = 0..=3;
+/// Range of the modulator angle advance searched [ω_e h].
+pub const ADVANCE_RANGE: (f64, f64) = (-1.0, 4.0);
 /// Range of the speed-estimator bandwidth searched [rad/s]: 2π·10 Hz to 2π·2 kHz.
 pub const SPEED_PLL_RANGE: (f64, f64) = (62.83185307179586, 12_566.370614359172);
 /// Log-spaced bandwidths of the coarse scan before the golden-section refinement.
@@ -27,6 +31,9 @@ const GOLDEN_STEPS: usize = 24;
 pub struct InputSearch {
     /// The computational delay, 0–3 samples.
     pub delay: bool,
+    /// The modulator's angle advance, in units of `ω_e h`, in [`ADVANCE_RANGE`] (after the
+    /// delay: the integer delay and the continuous advance together place the voltage).
+    pub advance: bool,
     /// The bandwidth of the controller's speed estimate (needs `theta_m`).
     pub speed_pll: bool,
     /// The width of the dead-time model's smooth sign (with `options.inverter`): the
@@ -67,7 +74,7 @@ pub fn fit_estimating_input(
         .chain(nuisance)
         .map(|n| first.parameter(n).map_or(f64::NAN, |p| p.value))
         .collect();
-    let fit_with = |delay: usize, speed_pll: Option<f64>, width: Option<f64>| {
+    let fit_with = |delay: usize, advance: f64, speed_pll: Option<f64>, width: Option<f64>| {
         let input = VoltageInput::Reference { delay, advance, speed_pll };
         let inverter = options.inverter.map(|i| InverterModel { width: width.or(i.width), ..i });
         fit_pmsm(
@@ -75,7 +82,7 @@ pub fn fit_estimating_input(
             &PmsmFitOptions { input, inverter, start: Some(start.clone()), ..options.clone() },
         )
     };
-    let fit_at = |delay: usize, speed_pll: Option<f64>| fit_with(delay, speed_pll, None);
+    let fit_at = |delay: usize, speed_pll: Option<f64>| fit_with(delay, advance, speed_pll, None);
     // A candidate that cannot be fitted (diverging simulation, no convergence) loses.
     let loss = |f: Result<PmsmFit>| match f {
         Ok(f) if f.solver.success => Ok(f.fit.loss),
@@ -103,8 +110,16 @@ pub fn fit_estimating_input(
     } else {
         delay0
     };
+    let advance = if search.advance {
+        let a = golden_search(ADVANCE_RANGE, false, |a| loss(fit_with(delay, a, pll0, None)))?;
+        notes.push(format!("modulator angle advance estimated as {a:.4} ω_e h by the lowest loss"));
+        a
+    } else {
+        advance
+    };
+    let fit_at = |delay: usize, speed_pll: Option<f64>| fit_with(delay, advance, speed_pll, None);
     let speed_pll = if search.speed_pll {
-        let alpha = golden_search(SPEED_PLL_RANGE, |a| loss(fit_at(delay, Some(a))))?;
+        let alpha = golden_search(SPEED_PLL_RANGE, true, |a| loss(fit_at(delay, Some(a))))?;
         notes.push(format!(
             "speed estimate of the angle advance: phase-locked loop of {alpha:.1} rad/s ({:.1} Hz), by the \
              lowest loss",
@@ -122,7 +137,7 @@ pub fn fit_estimating_input(
                 .map(|v| v.peak_current())
                 .fold(0.0, f64::max);
             let range = (1e-3 * peak, 0.3 * peak);
-            let w = golden_search(range, |w| loss(fit_with(delay, speed_pll, Some(w))))?;
+            let w = golden_search(range, true, |w| loss(fit_with(delay, advance, speed_pll, Some(w))))?;
             notes.push(format!("dead-time sign width estimated as {w:.4} A by the lowest loss"));
             Some(w)
         }
@@ -134,8 +149,9 @@ pub fn fit_estimating_input(
         }
         (false, _) => None,
     };
-    let best = fit_with(delay, speed_pll, width)?;
-    if !best.solver.success && (search.delay || search.speed_pll || search.dead_time_width) {
+    let best = fit_with(delay, advance, speed_pll, width)?;
+    if !best.solver.success && (search.delay || search.advance || search.speed_pll || search.dead_time_width)
+    {
         return Err(Error::Numerical {
             context: "input estimate".into(),
             reason: format!(
@@ -170,14 +186,18 @@ fn delay_set(tried: &[(usize, f64)], best: usize, dof: usize) -> [usize; 2] {
     [lo, hi]
 }
 
-/// The value in `range` (positive) with the lowest `loss`: a log-spaced scan, then a
-/// golden-section search on the logarithm in the bracket around the best point.
-fn golden_search(range: (f64, f64), mut loss: impl FnMut(f64) -> Result<f64>) -> Result<f64> {
-    let (lo, hi) = (range.0.ln(), range.1.ln());
+/// The value in `range` with the lowest `loss`: an evenly spaced scan, then a golden-section
+/// search in the bracket around the best point; on the logarithm when `log` (a positive
+/// range).
+fn golden_search(range: (f64, f64), log: bool, mut loss: impl FnMut(f64) -> Result<f64>) -> Result<f64> {
+    type Map = fn(f64) -> f64;
+    let (to, from): (Map, Map) = if log { (f64::ln, f64::exp) } else { (|x| x, |x| x) };
+    let mut loss = move |x: f64| loss(from(x));
+    let (lo, hi) = (to(range.0), to(range.1));
     let grid: Vec<f64> = (0..COARSE).map(|i| lo + (hi - lo) * i as f64 / (COARSE - 1) as f64).collect();
     let mut values = Vec::with_capacity(COARSE);
     for &x in &grid {
-        values.push(loss(x.exp())?);
+        values.push(loss(x)?);
     }
     let i = (0..COARSE).min_by(|&a, &b| values[a].total_cmp(&values[b])).unwrap_or(0);
     if !values[i].is_finite() {
@@ -189,17 +209,17 @@ fn golden_search(range: (f64, f64), mut loss: impl FnMut(f64) -> Result<f64>) ->
     let (mut a, mut b) = (grid[i.saturating_sub(1)], grid[(i + 1).min(COARSE - 1)]);
     let r = (5f64.sqrt() - 1.0) / 2.0;
     let (mut c, mut d) = (b - r * (b - a), a + r * (b - a));
-    let (mut fc, mut fd) = (loss(c.exp())?, loss(d.exp())?);
+    let (mut fc, mut fd) = (loss(c)?, loss(d)?);
     for _ in 0..GOLDEN_STEPS {
         if fc <= fd {
             (b, d, fd) = (d, c, fc);
             c = b - r * (b - a);
-            fc = loss(c.exp())?;
+            fc = loss(c)?;
         } else {
             (a, c, fc) = (c, d, fd);
             d = a + r * (b - a);
-            fd = loss(d.exp())?;
+            fd = loss(d)?;
         }
     }
-    Ok(if fc <= fd { c } else { d }.exp())
+    Ok(from(if fc <= fd { c } else { d }))
 }

@@ -3,6 +3,11 @@
 //! `V_dt sign(i_x)`, `x = a, b, c` (`V_dt ≈ t_d f_sw U_dc + V_on`). Per unit `V_dt` the error
 //! is a data-only dq vector per interval; the models scale it by the estimated `v_dt`.
 //!
+//! A current-dependent device drop `V_on + r_on |i_x|` adds `−r_on |i_x| sign(i_x) = −r_on i_x`
+//! per phase, which is `−r_on i_dq` in dq: exactly the form of `R_s`, so no log can separate
+//! `r_on` from the winding resistance. A known `r_on` is a series resistance: give it with
+//! the cable's (`cable_resistance`, `--cable-resistance`), and `r_s` is the motor's alone.
+//!
 //! Sign near zero current: `tanh(i_x / w)` with width `w` [A] (the ripple and the
 //! parasitic capacitances blur the switch-over). The error is held in the stator frame over
 //! the period, like the voltage the modulator applies, so the exact stator-hold step stays

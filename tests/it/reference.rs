@@ -64,6 +64,15 @@ fn a_delayed_reference_is_recovered_with_its_delay() {
     let json: serde_json::Value = serde_json::from_str(&fit.to_json()).unwrap();
     let entry = json["parameters"].as_array().unwrap().iter().find(|p| p["name"] == "delay_samples").unwrap();
     assert_eq!((entry["value"].as_f64(), entry["nuisance"].as_bool()), (Some(2.0), Some(true)));
+    // The continuous advance found by golden-section search after the delay.
+    let options = PmsmFitOptions {
+        input: VoltageInput::Reference { delay: 2, advance: 0.5, speed_pll: None },
+        ..pmsm_options(N_P)
+    };
+    let search = InputSearch { advance: true, ..Default::default() };
+    let fit = fit_estimating_input(&[reference_record(2)], &options, search).unwrap();
+    let VoltageInput::Reference { advance, .. } = fit.input else { panic!("terminal input") };
+    assert!((advance - 1.5).abs() < 1e-4, "advance {advance}: {:?}", fit.pmsm_notes);
     // Given, not searched: the entry is there, held fixed.
     let given = fit_pmsm(&[reference_record(2)], &PmsmFitOptions { input, ..pmsm_options(N_P) }).unwrap();
     let d = given.parameter("delay_samples").unwrap();
