@@ -16,5 +16,5 @@ pub mod track;
 
 pub use config::{Adaptation, MrasConfig};
 pub use injection::InjectionSchedule;
-pub use mras::{Estimates, Mras, Sample};
+pub use mras::{Estimates, Mras, MrasOutput, Sample};
 pub use track::{Trajectory, track};

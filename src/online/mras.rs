@@ -14,8 +14,13 @@
 //! The `R_s` law is the thesis' `γ_Rs e_d` (eq. 5.4) projected on the current direction:
 //! it equals `γ_Rs e_d` for a current along +d (the thesis' Exp 1, `i_d = 0.2 i_q > 0`), and
 //! it is the Lyapunov direction `−Re(ē i)` for any current. The thesis' literal law has the
-//! wrong sign for `i_d < 0`, and at speed `e_d` is dominated by `R̃ i_q ω_e` (the error
-//! rotates with the frame), which makes it unstable whenever `sign(i_d) i_q ω_e < 0`.
+//! wrong sign for `i_d < 0`: on `servo_spm_moves_idinj` (−4 A injection) it drove `R̂_s`
+//! to −6·10⁵ Ω within 0.4 s. With `sign(i_d)` added it converged there, but ended 0.2 % low
+//! in `R_s` (this law: 2·10⁻⁷), because at speed `e_d` also carries the resistance error
+//! of the q current rotated by the frame: quasi-statically
+//! `e ≈ −(R̃_s i + j emf K̃_e)/(L_s (σ + j ω_e))`, `σ = R_s/L_s + f`, so
+//! `e_d ∝ −R̃_s (i_d σ + i_q ω_e)`, whose sign follows `i_q ω_e` rather than `i_d` once
+//! `|i_q ω_e| > |i_d| σ`.
 //!
 //! # Discretisation (exact in the state, implicit in the parameters)
 //!
@@ -101,12 +106,36 @@ pub struct Estimates {
     pub r_s_active: bool,
 }
 
+/// What [`Mras::compute_output`] found for one sample: the estimates, and the
+/// observer's next state for [`Mras::advance`].
+#[derive(Clone, Copy, Debug)]
+pub struct MrasOutput {
+    /// The estimates after the adaptation at `t_k`.
+    pub estimates: Estimates,
+    /// Index of the sample this output belongs to.
+    sample: usize,
+    next: Next,
+}
+
+/// The observer's state after a sample.
+#[derive(Clone, Copy, Debug)]
+struct Next {
+    i_hat: C64,
+    phi_k: C64,
+    phi_r: C64,
+    psi_k: C64,
+    k_e: f64,
+    r_s: f64,
+}
+
 /// The MRAS observer (thesis 5.1): state `î` and parameters `(K̂_e, R̂_s)`; see the module
 /// documentation for the design and the discretisation.
 ///
-/// Split as motulator's observers: [`Mras::output`] reads the estimates without changing
-/// anything (compute output); [`Mras::update`] takes a [`Sample`], corrects and adapts at
-/// `t_k`, and propagates the observer to `t_{k+1}`. No allocation, no panic.
+/// [`Mras::update`] takes a [`Sample`], corrects and adapts at `t_k`, and propagates the
+/// observer to `t_{k+1}`. It is split as motulator's observers are: [`Mras::compute_output`]
+/// (`&self`: the estimates and the next state) and [`Mras::advance`] (commits them), so a
+/// controller can use the estimates before the state moves. [`Mras::output`] repeats the
+/// last estimates. No allocation, no panic.
 #[derive(Clone, Debug)]
 pub struct Mras {
     cfg: MrasConfig,
@@ -147,7 +176,7 @@ impl Mras {
             last: Estimates::default(),
             cfg: config,
         };
-        m.last = m.estimates(0.0, 0.0, false);
+        m.last = estimates(m.k_e, m.r_s, m.cfg.n_p, C64::default(), false);
         Ok(m)
     }
 
@@ -166,16 +195,29 @@ impl Mras {
         (self.i_hat.re, self.i_hat.im)
     }
 
-    /// Takes sample k: the error `e = i[k] − î[k]`, the implicit adaptation of K̂_e (and
-    /// of R̂_s while `|i_d|` exceeds the threshold), then the exact step of the observer to
-    /// `t_{k+1}` with `u[k]` and `ω_m`. The first sample only starts the observer at `i[0]`.
+    /// Takes sample k and moves the observer to `t_{k+1}`: [`Mras::compute_output`] then
+    /// [`Mras::advance`]. Returns the estimates after the adaptation at `t_k`.
+    ///
+    /// # Errors
+    /// Those of [`Mras::compute_output`]; the observer is then unchanged and may take the
+    /// next sample.
+    pub fn update(&mut self, s: &Sample) -> Result<Estimates> {
+        let out = self.compute_output(s)?;
+        self.advance(&out)?;
+        Ok(out.estimates)
+    }
+
+    /// Compute-output half of [`Mras::update`] (motulator's `compute_output`): the error
+    /// `e = i[k] − î[k]`, the implicit adaptation of K̂_e (and of R̂_s while `|i_d|`
+    /// exceeds the threshold), and the exact step of the observer to `t_{k+1}` with `u[k]`
+    /// and `ω_m`, without changing the observer. The first sample starts the observer at
+    /// `i[0]` and adapts nothing.
     ///
     /// # Errors
     /// [`Error::NonFinite`] naming the field (`i_d`, `i_q`, `u_d`, `u_q`, `w_m`) and the
-    /// sample's index when a value is NaN or infinite; the observer is then unchanged and
-    /// may take the next sample. [`Error::Numerical`] if the estimates stop being finite
-    /// (not expected; the observer is then unchanged as well).
-    pub fn update(&mut self, s: &Sample) -> Result<Estimates> {
+    /// sample's index when a value is NaN or infinite. [`Error::Numerical`] if the
+    /// estimates would stop being finite (not expected).
+    pub fn compute_output(&self, s: &Sample) -> Result<MrasOutput> {
         for (column, value) in
             [("i_d", s.i_d), ("i_q", s.i_q), ("u_d", s.u_d), ("u_q", s.u_q), ("w_m", s.w_m)]
         {
@@ -184,28 +226,50 @@ impl Mras {
             }
         }
         let i = C64::new(s.i_d, s.i_q);
-        if self.n == 0 {
-            self.i_hat = i;
-        }
-        let e = i - self.i_hat;
+        let i_hat = if self.n == 0 { i } else { self.i_hat };
+        let e = i - i_hat;
         let active = self.n > 0 && self.cfg.r_s_adapts(s.i_d);
         let (dk, dr) = self.adaptation(e, i, active)?;
         let (k_e, r_s) = (self.k_e + dk, (self.r_s + dr).max(0.0));
         // The last step re-taken with the new parameters (first order), then corrected.
-        let i_post = self.i_hat + self.phi_k * dk + self.phi_r * (r_s - self.r_s);
+        let i_post = i_hat + self.phi_k * dk + self.phi_r * (r_s - self.r_s);
         let x = i_post + (i - i_post) * self.kappa;
-        let step = self.step(x, k_e, r_s, s);
-        if !(step.0.re.is_finite() && step.0.im.is_finite() && k_e.is_finite() && r_s.is_finite()) {
+        let (i_next, phi_k, phi_r, psi_k) = self.step(x, k_e, r_s, s);
+        if !(i_next.re.is_finite() && i_next.im.is_finite() && k_e.is_finite() && r_s.is_finite()) {
             return Err(Error::Numerical {
                 context: format!("MRAS update at sample {}", self.n),
                 reason: format!("estimates not finite (k_e = {k_e}, r_s = {r_s})"),
             });
         }
-        (self.i_hat, self.phi_k, self.phi_r, self.psi_k) = step;
-        (self.k_e, self.r_s) = (k_e, r_s);
+        Ok(MrasOutput {
+            estimates: estimates(k_e, r_s, self.cfg.n_p, e, active),
+            sample: self.n,
+            next: Next { i_hat: i_next, phi_k, phi_r, psi_k, k_e, r_s },
+        })
+    }
+
+    /// Update half of [`Mras::update`] (motulator's `update`): commits an output of
+    /// [`Mras::compute_output`] computed at the observer's present state.
+    ///
+    /// # Errors
+    /// [`Error::InvalidOption`] (option `output`) when `out` was computed for another
+    /// sample than the observer's next one; the observer is then unchanged.
+    pub fn advance(&mut self, out: &MrasOutput) -> Result<()> {
+        if out.sample != self.n {
+            return Err(Error::InvalidOption {
+                option: "output".into(),
+                reason: format!(
+                    "computed for sample {}, but the observer is at sample {}",
+                    out.sample, self.n
+                ),
+            });
+        }
+        let nx = out.next;
+        (self.i_hat, self.phi_k, self.phi_r, self.psi_k, self.k_e, self.r_s) =
+            (nx.i_hat, nx.phi_k, nx.phi_r, nx.psi_k, nx.k_e, nx.r_s);
         self.n += 1;
-        self.last = self.estimates(e.re, e.im, active);
-        Ok(self.last)
+        self.last = out.estimates;
+        Ok(())
     }
 
     /// `(ΔK̂_e, ΔR̂_s)` from `(I + Γ Re(ΨᴴΦ)) Δθ = Γ Re(Ψᴴ e)` (module documentation).
@@ -265,17 +329,18 @@ impl Mras {
         let phi_r = a * (-hl) * x + forced_r;
         (i_next, phi_k, phi_r, psi_k)
     }
+}
 
-    fn estimates(&self, e_d: f64, e_q: f64, r_s_active: bool) -> Estimates {
-        Estimates {
-            k_e: self.k_e,
-            k_t: 1.5f64.sqrt() * self.k_e,
-            psi_f: SQRT_2_3 * self.k_e / f64::from(self.cfg.n_p),
-            r_s: self.r_s,
-            e_d,
-            e_q,
-            r_s_active,
-        }
+/// The estimates at `(k_e, r_s)` with the error `e` [A].
+fn estimates(k_e: f64, r_s: f64, n_p: u32, e: C64, r_s_active: bool) -> Estimates {
+    Estimates {
+        k_e,
+        k_t: 1.5f64.sqrt() * k_e,
+        psi_f: SQRT_2_3 * k_e / f64::from(n_p),
+        r_s,
+        e_d: e.re,
+        e_q: e.im,
+        r_s_active,
     }
 }
 

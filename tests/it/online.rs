@@ -119,6 +119,34 @@ fn tracks_a_step_in_k_e() {
     assert!(before < 5e-3 && after < 5e-3, "{before:e} {after:e}");
 }
 
+/// The thesis' K_e law by explicit Euler, `K̂ += γ h Dᵀ e[k]`, around the same exact
+/// observer step (dq hold, `R̂_s` fixed at the truth): the update the library's implicit
+/// form replaces. Returns the largest |K̂_e| reached (infinite once it overflows).
+fn explicit_euler_k_e(e: &greybox::Experiment, gamma_ke: f64, f: f64, k_e0: f64) -> f64 {
+    use nalgebra::Complex;
+    let v = DqView::try_new(e).unwrap();
+    let (h, w) = (e.h(), v.w_m());
+    let kappa = 1.0 - (-f * h).exp();
+    let (mut i_hat, mut k_e, mut worst) = (Complex::new(v.i_d()[0], v.i_q()[0]), k_e0, 0.0f64);
+    for k in 0..v.len() - 1 {
+        let i = Complex::new(v.i_d()[k], v.i_q()[k]);
+        let err = i - i_hat;
+        let w_m = 0.5 * (w[k] + w[k + 1]);
+        let emf = (2.0f64 / 3.0).sqrt() * w_m;
+        k_e += gamma_ke * h * (-emf / L_S) * err.im;
+        worst = worst.max(k_e.abs());
+        if !worst.is_finite() || worst > 1e6 {
+            return f64::INFINITY;
+        }
+        let z = Complex::new(R_S, f64::from(N_P) * w_m * L_S);
+        let a = (-z * h / L_S).exp();
+        let b = (Complex::new(1.0, 0.0) - a) / z;
+        let u = Complex::new(v.u_d()[k], v.u_q()[k]);
+        i_hat = a * (i_hat + err * kappa) + b * (u - Complex::new(0.0, emf * k_e));
+    }
+    worst
+}
+
 #[test]
 fn stable_where_an_explicit_update_diverges() {
     // h = 1 ms and γ_Ke = 0.01: the explicit update's self-coupling 1 − g has
@@ -127,14 +155,26 @@ fn stable_where_an_explicit_update_diverges() {
     let emf = (2.0f64 / 3.0).sqrt() * w_max;
     let g = gamma_ke * emf * emf * h * h / (L_S * L_S);
     assert!(g > 2.0, "{g}");
-    let e = plant(10_000, h, w_max, K_E, VoltageHold::Stator, 3);
-    let cfg = MrasConfig { gamma_ke, gamma_rs: -1000.0, ..config(h, VoltageHold::Stator) };
-    let tr = run(&e, &cfg);
-    let bounded = tr.k_e.iter().all(|k| k.abs() < 10.0 * K_E) && tr.r_s.iter().all(|r| *r < 10.0 * R_S);
-    let (ek, er) = tail_errors(&tr, 1_000, K_E, R_S);
-    eprintln!("h = 1 ms, g = {g:.1}: bounded {bounded}, last 1 s max rel. error K_e {ek:.2e}, R_s {er:.2e}");
-    assert!(bounded);
-    assert!(ek < 5e-3 && er < 2e-2, "{ek:e} {er:e}");
+    for hold in [VoltageHold::Dq, VoltageHold::Stator] {
+        let e = plant(10_000, h, w_max, K_E, hold, 3);
+        let cfg = MrasConfig { gamma_ke, gamma_rs: -1000.0, ..config(h, hold) };
+        let tr = run(&e, &cfg);
+        let bounded = tr.k_e.iter().all(|k| k.abs() < 10.0 * K_E) && tr.r_s.iter().all(|r| *r < 10.0 * R_S);
+        let (ek, er) = tail_errors(&tr, 1_000, K_E, R_S);
+        eprintln!(
+            "h = 1 ms, g = {g:.1}, {hold} hold: bounded {bounded}, last 1 s max rel. error K_e {ek:.2e}, R_s {er:.2e}"
+        );
+        assert!(bounded);
+        assert!(ek < 5e-3 && er < 2e-2, "{ek:e} {er:e}");
+    }
+    // The same gain by explicit Euler blows up; a gain 100 times smaller (g ≈ 0.13) does not.
+    let e = plant(10_000, h, w_max, K_E, VoltageHold::Dq, 3);
+    let (big, small) = (
+        explicit_euler_k_e(&e, gamma_ke, 100.0, 0.8 * K_E),
+        explicit_euler_k_e(&e, gamma_ke / 100.0, 100.0, 0.8 * K_E),
+    );
+    eprintln!("explicit Euler: max |K_e| {big:.3e} at g = {g:.1}, {small:.3e} at g = {:.2}", g / 100.0);
+    assert!(big > 1e6 && small < 2.0 * K_E, "{big:e} {small:e}");
 }
 
 #[test]
@@ -149,6 +189,12 @@ fn bad_samples_and_settings_are_errors() {
     }
     assert_eq!(m.output(), before);
     assert!(matches!(m.update(&Sample { w_m: f64::INFINITY, ..ok }), Err(Error::NonFinite { .. })));
+    // The compute-output / update split: computing changes nothing, a stale output is refused.
+    let out = m.compute_output(&Sample { i_q: 2.5, ..ok }).unwrap();
+    assert_eq!(m.output(), before);
+    m.advance(&out).unwrap();
+    assert_eq!(m.output(), out.estimates);
+    assert!(matches!(m.advance(&out), Err(Error::InvalidOption { .. })));
     m.update(&ok).unwrap();
 
     let field = |cfg: MrasConfig| match Mras::try_new(cfg) {
