@@ -271,3 +271,25 @@ fn servo_log_with_d_injection() {
     );
     assert!(ek < 5e-3, "K_e {ek:e}");
 }
+
+proptest::proptest! {
+    /// Garbage in: the observer answers with a value or an error, never a panic, and what it
+    /// answers is finite.
+    #[test]
+    fn garbage_never_panics(
+        l_s in proptest::num::f64::ANY, h in proptest::num::f64::ANY, f in proptest::num::f64::ANY,
+        gamma_ke in proptest::num::f64::ANY, gamma_rs in proptest::num::f64::ANY,
+        samples in proptest::collection::vec(proptest::array::uniform5(proptest::num::f64::ANY), 1..20),
+    ) {
+        let cfg = MrasConfig { n_p: 2, l_s, h, f, gamma_ke, gamma_rs, k_e0: 0.1, r_s0: 0.5, ..Default::default() };
+        let good = MrasConfig { gamma_ke: 10.0, ..config(1e-4, VoltageHold::Stator) };
+        for cfg in [cfg, good] {
+            let Ok(mut m) = Mras::try_new(cfg) else { continue };
+            for &[i_d, i_q, u_d, u_q, w_m] in &samples {
+                if let Ok(est) = m.update(&Sample { i_d, i_q, u_d, u_q, w_m }) {
+                    proptest::prop_assert!(est.k_e.is_finite() && est.r_s.is_finite() && est.r_s >= 0.0);
+                }
+            }
+        }
+    }
+}
