@@ -56,13 +56,15 @@
 //! (I + Γ Re(ΨᴴΦ)) Δθ = Γ Re(Ψᴴ e)
 //! ```
 //!
-//! `Γ Re(ΨᴴΦ)` is a non-negative diagonal times a positive semi-definite matrix, so its
-//! eigenvalues are real and ≥ 0, the system is always solvable (determinant ≥ 1) and the
-//! self-coupling becomes `1/(1 + g) ∈ (0, 1]`: contractive for every `γ h`. This is the
-//! normalised (projection) gradient law of discrete adaptive control (Goodwin & Sin,
-//! *Adaptive Filtering, Prediction and Control*, 1984, §3.3; Ioannou & Sun, *Robust
-//! Adaptive Control*, 1996, §4.11 discrete-time adaptive laws, normalisation
-//! `m² = 1 + γ φᵀφ`). `R̂_s` is projected onto `R̂_s ≥ 0` (Ioannou & Sun §4.4).
+//! `Ψ = Φ diag(c)` with `c ≥ 0` (`c_K = 1`, relay `1/|ω_m|`; `c_R = 1`), so
+//! `Γ Re(ΨᴴΦ)` is a non-negative diagonal times a positive semi-definite matrix: its
+//! eigenvalues are real and ≥ 0, the system is always solvable (determinant ≥ 1; also for
+//! the relay at `ω_m = 0`, where `φ_K = 0`) and the self-coupling becomes
+//! `1/(1 + g) ∈ (0, 1]`: contractive for every `γ h`. This is the normalised gradient
+//! ("projection") algorithm of discrete-time parameter estimation, `Δθ = Γ φ ε/(1 + φᵀΓφ)`
+//! (Goodwin & Sin, *Adaptive Filtering, Prediction and Control*, 1984, ch. 3; Ioannou &
+//! Sun, *Robust Adaptive Control*, 1996, ch. 4 on normalised adaptive laws and parameter
+//! projection). `R̂_s` is projected onto `R̂_s ≥ 0`.
 
 use super::config::{Adaptation, MrasConfig};
 use crate::error::{Error, Result};
