@@ -15,6 +15,9 @@
 //! permanent magnet synchronous motor*, chapters 3 and 5; dq quantities are
 //! amplitude-invariant, speeds and angles mechanical unless a name says `_e`.
 //!
+//! [`online`] estimates `k_e` and `r_s` sample by sample with the MRAS observer of thesis
+//! 5.1 ([`online::Mras`]; a whole log with [`online::track`]).
+//!
 //! # Example
 //! ```
 //! use greybox::pmsm::{fit_pmsm, read_log, PmsmFitOptions};
@@ -38,6 +41,7 @@ pub mod data;
 pub mod error;
 pub mod estimate;
 pub mod model;
+pub mod online;
 pub mod pmsm;
 pub mod report;
 pub mod simulate;

@@ -17,6 +17,7 @@ mod linear;
 mod mgh;
 mod mgh_problems;
 mod multi_experiment;
+mod online;
 mod random_starts;
 mod recovery;
 mod reference;

@@ -1,0 +1,127 @@
+//! Configuration of the MRAS observer (thesis 5.1, MODEL.md §7).
+
+use crate::error::{Error, Result};
+use crate::pmsm::VoltageHold;
+use serde::{Deserialize, Serialize};
+
+/// How the `K_e` adaptation law scales with speed (thesis 5.1.1 and 5.1.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Adaptation {
+    /// `dK̂_e/dt = γ_Ke Dᵀ e`, `D = [0, −√(2/3) ω_m/L_s]ᵀ`: the gain grows with the
+    /// mechanical speed ω_m (thesis eq. 5.3, design by Lyapunov theory).
+    #[default]
+    Lyapunov,
+    /// `ω_m` in the adaptation's `D` replaced by `sign(ω_m)` (+1 at ω_m = 0): a gain that
+    /// does not depend on the speed's size; needs a larger `γ_Ke` (thesis 5.1.2).
+    Relay,
+}
+
+/// Settings of [`super::Mras`]; plain data with serde and thesis defaults.
+///
+/// The known quantities (`n_p`, `l_s`, `h`) have no meaningful default: `Default` leaves
+/// them at 0, which [`MrasConfig::validate`] rejects until they are set. Defaults of the
+/// observer gains are the thesis' Exp 1 values (thesis 5.1.1, MODEL.md §7):
+/// `f = 100 1/s`, `γ_Ke = 0.001`, `γ_Rs = −10`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct MrasConfig {
+    /// Pole pairs n_p (`ω_e = n_p ω_m`), at least 1.
+    pub n_p: u32,
+    /// Known stator inductance L_s [H], positive.
+    pub l_s: f64,
+    /// Sample time h [s], positive; [`super::track`] takes it from the log.
+    pub h: f64,
+    /// Observer feedback gain f [1/s] per axis, `F = diag(f, f)`, at least 0 (thesis 100).
+    pub f: f64,
+    /// Adaptation gain γ_Ke of `K_e`, at least 0 (thesis 0.001; units such that
+    /// `dK̂_e/dt = γ_Ke Dᵀ e` is in V s/rad per s). With [`Adaptation::Relay`] use a larger one.
+    /// The gain is motor specific: at a steady operating point `K̂_e` converges at the rate
+    /// `γ_Ke emf² σ / (L_s² |σ + jω_e|²)` [1/s], `emf = √(2/3) ω_m`, `σ = R_s/L_s + f`
+    /// (quasi-static error of the observer), so a small `L_s` needs a much smaller `γ_Ke`.
+    pub gamma_ke: f64,
+    /// Adaptation gain γ_Rs [Ω/(A s)] of `R_s`, at most 0: thesis sign convention
+    /// `dR̂_s/dt = γ_Rs e_d` with `e = x − x̂` and `i_d > 0` (thesis eq. 5.4, γ_Rs = −10).
+    pub gamma_rs: f64,
+    /// Speed scaling of the `K_e` law.
+    pub adaptation: Adaptation,
+    /// `R_s` adapts only while `|i_d|` exceeds this [A] (d-current injection, thesis
+    /// 5.1.1); at least 0. Default 0.5 A (our choice; the thesis names none).
+    pub i_d_threshold: f64,
+    /// Initial estimate of K_e [V s/rad], finite.
+    pub k_e0: f64,
+    /// Initial estimate of R_s [Ω], at least 0.
+    pub r_s0: f64,
+    /// How the voltage is held over a period (MODEL.md §4); the observer's step is exact
+    /// for this hold.
+    pub hold: VoltageHold,
+}
+
+impl Default for MrasConfig {
+    fn default() -> Self {
+        Self {
+            n_p: 0,
+            l_s: 0.0,
+            h: 0.0,
+            f: 100.0,
+            gamma_ke: 0.001,
+            gamma_rs: -10.0,
+            adaptation: Adaptation::Lyapunov,
+            i_d_threshold: 0.5,
+            k_e0: 0.0,
+            r_s0: 0.0,
+            hold: VoltageHold::Stator,
+        }
+    }
+}
+
+impl MrasConfig {
+    /// Checks every field.
+    ///
+    /// # Errors
+    /// [`Error::InvalidOption`] naming the first bad field: `n_p` = 0, `l_s` or `h` not
+    /// positive and finite, `f`, `gamma_ke`, `i_d_threshold` or `r_s0` negative or not
+    /// finite, `gamma_rs` positive (the thesis' sign: it must be ≤ 0) or not finite,
+    /// `k_e0` not finite.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |option: &str, reason: String| Err(Error::InvalidOption { option: option.into(), reason });
+        if self.n_p == 0 {
+            return bad("n_p", "the number of pole pairs must be at least 1".into());
+        }
+        for (name, v) in [("l_s", self.l_s), ("h", self.h)] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(name, format!("must be positive and finite, got {v}"));
+            }
+        }
+        for (name, v) in [
+            ("f", self.f),
+            ("gamma_ke", self.gamma_ke),
+            ("i_d_threshold", self.i_d_threshold),
+            ("r_s0", self.r_s0),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(name, format!("must be finite and at least 0, got {v}"));
+            }
+        }
+        if !(self.gamma_rs.is_finite() && self.gamma_rs <= 0.0) {
+            return bad(
+                "gamma_rs",
+                format!(
+                    "must be finite and at most 0 (thesis convention dR_s/dt = gamma_rs e_d, e = x − x̂), got {}",
+                    self.gamma_rs
+                ),
+            );
+        }
+        if !self.k_e0.is_finite() {
+            return bad("k_e0", format!("must be finite, got {}", self.k_e0));
+        }
+        Ok(())
+    }
+
+    /// Whether `R_s` adapts at a d-current `i_d` [A]: `|i_d| > i_d_threshold` and
+    /// `γ_Rs ≠ 0` (thesis 5.1.1: without d current the d equation carries no information
+    /// on `R_s`). False for a non-finite `i_d`.
+    pub fn r_s_adapts(&self, i_d: f64) -> bool {
+        i_d.abs() > self.i_d_threshold && self.gamma_rs != 0.0
+    }
+}

@@ -1,0 +1,39 @@
+//! Online estimation of `K_e` and `R_s`, sample by sample: the model reference adaptive
+//! system (MRAS) of thesis 5.1 (Tenerz 2011; MODEL.md §7).
+//!
+//! - [`MrasConfig`] (with [`Adaptation`]): known `n_p`, `l_s`, sample time, gains;
+//! - [`Mras`]: the observer, [`Mras::update`] per [`Sample`] giving [`Estimates`]; exact
+//!   in the state for any sample time and implicit in the parameters (see [`mras`]);
+//! - [`InjectionSchedule`]: the periodic d-current pulse that lets `R_s` adapt;
+//! - [`track`]: the observer over a whole log, a [`Trajectory`].
+//!
+//! Speeds are mechanical (`w_m` [rad/s]); `ω_e = n_p w_m`. Choose the voltage hold of the
+//! log's source (MODEL.md §4): on a dq-held log (gym-electric-motor) the default stator
+//! hold biases `K̂_e` by percents.
+//!
+//! # Example
+//! ```
+//! use greybox::online::{MrasConfig, track};
+//! use greybox::pmsm::read_log;
+//!
+//! # fn main() -> greybox::Result<()> {
+//! // The 2 s servo log shipped in the repository: 4 pole pairs, L_s = 4.5 mH known.
+//! let log = read_log("data/sample.csv.gz", &Default::default())?;
+//! let config = MrasConfig { n_p: 4, l_s: 4.5e-3, k_e0: 0.45, r_s0: 0.7, ..Default::default() };
+//! let trajectory = track(&log, &config)?;
+//! let last = trajectory.final_estimate;
+//! println!("K_e = {:.4} V s/rad, K_t = {:.4} N m/A, R_s = {:.3} Ω", last.k_e, last.k_t, last.r_s);
+//! let plot = trajectory.decimate(500); // at most 500 points for a figure
+//! assert!(plot.t.len() <= 500);
+//! # Ok(()) }
+//! ```
+
+pub mod config;
+pub mod injection;
+pub mod mras;
+pub mod track;
+
+pub use config::{Adaptation, MrasConfig};
+pub use injection::InjectionSchedule;
+pub use mras::{Estimates, Mras, MrasOutput, Sample};
+pub use track::{Trajectory, track};

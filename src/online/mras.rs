@@ -1,0 +1,390 @@
+//! The sampled MRAS observer of `K_e` and `R_s` (thesis 5.1, MODEL.md §7), one sample at
+//! a time, without allocation.
+//!
+//! # Continuous design (thesis eqs. 5.1–5.4)
+//!
+//! With `i = i_d + j i_q`, `e = i − î`, `emf = √(2/3) ω_m`:
+//!
+//! ```text
+//! L_s dî/dt = u − (R̂_s + j ω_e L_s) î − j emf K̂_e + f L_s e     (observer, F = diag(f, f))
+//! dK̂_e/dt = γ_Ke Dᵀ e = −γ_Ke (emf/L_s) e_q                      (Lyapunov; relay: sign(ω_m))
+//! dR̂_s/dt = γ_Rs Re(ē i)/|i|   while |i_d| > threshold           (γ_Rs < 0)
+//! ```
+//!
+//! The `R_s` law is the thesis' `γ_Rs e_d` (eq. 5.4) projected on the current direction:
+//! it equals `γ_Rs e_d` for a current along +d (the thesis' Exp 1, `i_d = 0.2 i_q > 0`), and
+//! it is the Lyapunov direction `−Re(ē i)` for any current. The thesis' literal law has the
+//! wrong sign for `i_d < 0`: on `servo_spm_moves_idinj` (−4 A injection) it drove `R̂_s`
+//! to −6·10⁵ Ω within 0.4 s. With `sign(i_d)` added it converged there, but ended 0.2 % low
+//! in `R_s` (this law: 2·10⁻⁷), because at speed `e_d` also carries the resistance error
+//! of the q current rotated by the frame: quasi-statically
+//! `e ≈ −(R̃_s i + j emf K̃_e)/(L_s (σ + j ω_e))`, `σ = R_s/L_s + f`, so
+//! `e_d ∝ −R̃_s (i_d σ + i_q ω_e)`, whose sign follows `i_q ω_e` rather than `i_d` once
+//! `|i_q ω_e| > |i_d| σ`.
+//!
+//! # Discretisation (exact in the state, implicit in the parameters)
+//!
+//! **Observer.** Holding the measured error over the period, the observer is the SPM
+//! itself plus a correction; we take the exact zero-order-hold step of MODEL.md §4 for the
+//! SPM at `(R̂_s, K̂_e)` from the corrected state:
+//!
+//! ```text
+//! î[k+1] = a (î[k] + κ e[k]) + b (u[k] − j emf K̂_e)      (dq hold; stator hold as in pmsm::spm)
+//! a = e^{−z h/L_s},  z = R̂_s + j ω_e L_s,  b = (1 − a)/z,  κ = 1 − e^{−f h}
+//! ```
+//!
+//! At the true parameters the error then obeys `e[k+1] = e^{−(R_s/L_s + f + jω_e) h} e[k]`:
+//! the continuous observer's error dynamics sampled exactly, stable for every `h` and `f`,
+//! and `e = 0` reproduces the plant's exact step (so the observer adds no bias of its
+//! own). The alternative of treating the feedback as a resistance `R̂_s + f L_s` driven by
+//! `u + f L_s i[k]` is also exact-stable, but its held `i[k]` differs from the plant's
+//! moving current within the period, which leaves an error of order `f h Δi` at the true
+//! parameters, and that error would bias the adapted `K̂_e`.
+//!
+//! **Adaptation.** With `φ_K = ∂î[k]/∂K̂_e`, `φ_R = ∂î[k]/∂R̂_s` over the last step
+//! (`φ_K = −j b emf`, `φ_R` by differentiating the step), the explicit (Euler) law is
+//! `Δθ = Γ Re(Ψᴴ e[k])` with `ψ_K = φ_K ≈ h D` (Lyapunov; relay: `φ_K/|ω_m|`),
+//! `ψ_R = φ_R`, `Γ = diag(γ_Ke, −γ_Rs L_s/|i|)`, which is the continuous law times h to
+//! first order in h. Its error dynamics: a change `Δθ` changes the a-posteriori error by
+//! `−Φ Δθ`, so `K̃⁺ = (1 − g) K̃ + …`, `g = γ_Ke Re(ψ̄_K φ_K) ≈ γ_Ke emf² h²/L_s²`: the
+//! explicit step diverges once `g > 2` (e.g. the thesis' `γ_Ke = 0.001` at `h = 1 ms`,
+//! 280 rad/s and `L_s = 4.5 mH`: g ≈ 2.6). We solve the law on the a-posteriori error
+//! instead (backward Euler in the parameters: the last step re-taken with the new
+//! parameters), `Δθ = Γ Re(Ψᴴ (e − Φ Δθ))`, i.e. the 2 × 2 system
+//!
+//! ```text
+//! (I + Γ Re(ΨᴴΦ)) Δθ = Γ Re(Ψᴴ e)
+//! ```
+//!
+//! `Ψ = Φ diag(c)` with `c ≥ 0` (`c_K = 1`, relay `1/|ω_m|`; `c_R = 1`), so
+//! `Γ Re(ΨᴴΦ)` is a non-negative diagonal times a positive semi-definite matrix: its
+//! eigenvalues are real and ≥ 0, the system is always solvable (determinant ≥ 1; also for
+//! the relay at `ω_m = 0`, where `φ_K = 0`) and the self-coupling becomes
+//! `1/(1 + g) ∈ (0, 1]`: contractive for every `γ h`. This is the normalised gradient
+//! ("projection") algorithm of discrete-time parameter estimation, `Δθ = Γ φ ε/(1 + φᵀΓφ)`
+//! (Goodwin & Sin, *Adaptive Filtering, Prediction and Control*, 1984, ch. 3; Ioannou &
+//! Sun, *Robust Adaptive Control*, 1996, ch. 4 on normalised adaptive laws and parameter
+//! projection). `R̂_s` is projected onto `R̂_s ≥ 0`.
+
+use super::config::{Adaptation, MrasConfig};
+use crate::error::{Error, Result};
+use crate::pmsm::interval::cexpm1;
+use crate::pmsm::{C64, SQRT_2_3, VoltageHold, rotation, stator_hold_start};
+use serde::{Deserialize, Serialize};
+
+/// One sample of a drive: the currents measured at `t_k` and the voltage applied over
+/// the coming period `[t_k, t_k + h)` (MODEL.md §4).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Sample {
+    /// d-axis current at `t_k` [A, peak dq].
+    pub i_d: f64,
+    /// q-axis current at `t_k` [A, peak dq].
+    pub i_q: f64,
+    /// d-axis voltage over `[t_k, t_k + h)` [V], its period mean.
+    pub u_d: f64,
+    /// q-axis voltage over `[t_k, t_k + h)` [V], its period mean.
+    pub u_q: f64,
+    /// Mechanical speed over the coming period [rad/s] (the interval mean
+    /// `(ω_m[k] + ω_m[k+1])/2` when known, as [`super::track`] passes it; else ω_m[k]).
+    pub w_m: f64,
+}
+
+/// What the observer knows after a sample.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Estimates {
+    /// Back-EMF constant K̂_e [V s/rad] (line-to-line RMS per mechanical rad/s).
+    pub k_e: f64,
+    /// Torque constant `K̂_t = √(3/2) K̂_e` [N m/A, peak dq current] (MODEL.md §2).
+    pub k_t: f64,
+    /// Magnet flux linkage `ψ̂_f = √(2/3) K̂_e / n_p` [V s] (MODEL.md §2).
+    pub psi_f: f64,
+    /// Stator resistance R̂_s [Ω].
+    pub r_s: f64,
+    /// d-axis observer error `i_d − î_d` at `t_k` before adaptation [A].
+    pub e_d: f64,
+    /// q-axis observer error `i_q − î_q` at `t_k` before adaptation [A].
+    pub e_q: f64,
+    /// Whether `R̂_s` adapted at this sample (see [`MrasConfig::r_s_adapts`]).
+    pub r_s_active: bool,
+}
+
+/// What [`Mras::compute_output`] found for one sample: the estimates, and the
+/// observer's next state for [`Mras::advance`].
+#[derive(Clone, Copy, Debug)]
+pub struct MrasOutput {
+    /// The estimates after the adaptation at `t_k`.
+    pub estimates: Estimates,
+    /// Index of the sample this output belongs to.
+    sample: usize,
+    next: Next,
+}
+
+/// The observer's state after a sample.
+#[derive(Clone, Copy, Debug)]
+struct Next {
+    i_hat: C64,
+    phi_k: C64,
+    phi_r: C64,
+    psi_k: C64,
+    k_e: f64,
+    r_s: f64,
+}
+
+/// The MRAS observer (thesis 5.1): state `î` and parameters `(K̂_e, R̂_s)`; see the module
+/// documentation for the design and the discretisation.
+///
+/// [`Mras::update`] takes a [`Sample`], corrects and adapts at `t_k`, and propagates the
+/// observer to `t_{k+1}`. It is split as motulator's observers are: [`Mras::compute_output`]
+/// (`&self`: the estimates and the next state) and [`Mras::advance`] (commits them), so a
+/// controller can use the estimates before the state moves. [`Mras::output`] repeats the
+/// last estimates. No allocation, no panic.
+#[derive(Clone, Debug)]
+pub struct Mras {
+    cfg: MrasConfig,
+    /// `1 − e^{−f h}`: the share of the error the observer takes per period.
+    kappa: f64,
+    k_e: f64,
+    r_s: f64,
+    /// Observer prediction of the current at the next sample [A].
+    i_hat: C64,
+    /// Sensitivities of `i_hat` to K̂_e and R̂_s over the last step, and the K_e law's
+    /// direction (φ_K, or φ_K/|ω_m| for the relay).
+    phi_k: C64,
+    phi_r: C64,
+    psi_k: C64,
+    /// Samples consumed; 0 means the observer starts at the next measurement.
+    n: usize,
+    last: Estimates,
+}
+
+impl Mras {
+    /// An observer with the given settings, started at `k_e0`, `r_s0` and, at the first
+    /// sample, at the measured current.
+    ///
+    /// # Errors
+    /// Those of [`MrasConfig::validate`] ([`Error::InvalidOption`] naming the field).
+    pub fn try_new(config: MrasConfig) -> Result<Self> {
+        config.validate()?;
+        let kappa = -(-config.f * config.h).exp_m1();
+        let mut m = Self {
+            kappa,
+            k_e: config.k_e0,
+            r_s: config.r_s0,
+            i_hat: C64::default(),
+            phi_k: C64::default(),
+            phi_r: C64::default(),
+            psi_k: C64::default(),
+            n: 0,
+            last: Estimates::default(),
+            cfg: config,
+        };
+        m.last = estimates(m.k_e, m.r_s, m.cfg.n_p, C64::default(), false);
+        Ok(m)
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &MrasConfig {
+        &self.cfg
+    }
+
+    /// The estimates after the last [`Mras::update`] (the initial ones before any).
+    pub fn output(&self) -> Estimates {
+        self.last
+    }
+
+    /// The observer's prediction `(î_d, î_q)` [A] of the current at the next sample.
+    pub fn predicted_current(&self) -> (f64, f64) {
+        (self.i_hat.re, self.i_hat.im)
+    }
+
+    /// Takes sample k and moves the observer to `t_{k+1}`: [`Mras::compute_output`] then
+    /// [`Mras::advance`]. Returns the estimates after the adaptation at `t_k`.
+    ///
+    /// # Errors
+    /// Those of [`Mras::compute_output`]; the observer is then unchanged and may take the
+    /// next sample.
+    pub fn update(&mut self, s: &Sample) -> Result<Estimates> {
+        let out = self.compute_output(s)?;
+        self.advance(&out)?;
+        Ok(out.estimates)
+    }
+
+    /// Compute-output half of [`Mras::update`] (motulator's `compute_output`): the error
+    /// `e = i[k] − î[k]`, the implicit adaptation of K̂_e (and of R̂_s while `|i_d|`
+    /// exceeds the threshold), and the exact step of the observer to `t_{k+1}` with `u[k]`
+    /// and `ω_m`, without changing the observer. The first sample starts the observer at
+    /// `i[0]` and adapts nothing.
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] naming the field (`i_d`, `i_q`, `u_d`, `u_q`, `w_m`) and the
+    /// sample's index when a value is NaN or infinite. [`Error::Numerical`] if the
+    /// estimates would stop being finite (not expected).
+    pub fn compute_output(&self, s: &Sample) -> Result<MrasOutput> {
+        for (column, value) in
+            [("i_d", s.i_d), ("i_q", s.i_q), ("u_d", s.u_d), ("u_q", s.u_q), ("w_m", s.w_m)]
+        {
+            if !value.is_finite() {
+                return Err(Error::NonFinite { column: column.into(), row: self.n, value });
+            }
+        }
+        let i = C64::new(s.i_d, s.i_q);
+        let i_hat = if self.n == 0 { i } else { self.i_hat };
+        let e = i - i_hat;
+        let active = self.n > 0 && self.cfg.r_s_adapts(s.i_d);
+        let (dk, dr) = self.adaptation(e, i, active)?;
+        let (k_e, r_s) = (self.k_e + dk, (self.r_s + dr).max(0.0));
+        // The last step re-taken with the new parameters (first order), then corrected.
+        let i_post = i_hat + self.phi_k * dk + self.phi_r * (r_s - self.r_s);
+        let x = i_post + (i - i_post) * self.kappa;
+        let (i_next, phi_k, phi_r, psi_k) = self.step(x, k_e, r_s, s);
+        if !(i_next.re.is_finite() && i_next.im.is_finite() && k_e.is_finite() && r_s.is_finite()) {
+            return Err(Error::Numerical {
+                context: format!("MRAS update at sample {}", self.n),
+                reason: format!("estimates not finite (k_e = {k_e}, r_s = {r_s})"),
+            });
+        }
+        Ok(MrasOutput {
+            estimates: estimates(k_e, r_s, self.cfg.n_p, e, active),
+            sample: self.n,
+            next: Next { i_hat: i_next, phi_k, phi_r, psi_k, k_e, r_s },
+        })
+    }
+
+    /// Update half of [`Mras::update`] (motulator's `update`): commits an output of
+    /// [`Mras::compute_output`] computed at the observer's present state.
+    ///
+    /// # Errors
+    /// [`Error::InvalidOption`] (option `output`) when `out` was computed for another
+    /// sample than the observer's next one; the observer is then unchanged.
+    pub fn advance(&mut self, out: &MrasOutput) -> Result<()> {
+        if out.sample != self.n {
+            return Err(Error::InvalidOption {
+                option: "output".into(),
+                reason: format!(
+                    "computed for sample {}, but the observer is at sample {}",
+                    out.sample, self.n
+                ),
+            });
+        }
+        let nx = out.next;
+        (self.i_hat, self.phi_k, self.phi_r, self.psi_k, self.k_e, self.r_s) =
+            (nx.i_hat, nx.phi_k, nx.phi_r, nx.psi_k, nx.k_e, nx.r_s);
+        self.n += 1;
+        self.last = out.estimates;
+        Ok(())
+    }
+
+    /// `(ΔK̂_e, ΔR̂_s)` from `(I + Γ Re(ΨᴴΦ)) Δθ = Γ Re(Ψᴴ e)` (module documentation).
+    fn adaptation(&self, e: C64, i: C64, r_active: bool) -> Result<(f64, f64)> {
+        let dot = |a: C64, b: C64| a.re * b.re + a.im * b.im; // Re(ā b)
+        let g_k = self.cfg.gamma_ke;
+        // −γ_Rs L_s/|i| maps the thesis' gain onto the sensitivity φ_R ≈ −h i/L_s; |i| > 0
+        // whenever |i_d| exceeds the threshold.
+        let g_r = if r_active { -self.cfg.gamma_rs * self.cfg.l_s / i.norm() } else { 0.0 };
+        let (psi_k, phi_k, phi_r) = (self.psi_k, self.phi_k, self.phi_r);
+        let m = [
+            [g_k * dot(psi_k, phi_k), g_k * dot(psi_k, phi_r)],
+            [g_r * dot(phi_r, phi_k), g_r * dot(phi_r, phi_r)],
+        ];
+        let rhs = [g_k * dot(psi_k, e), g_r * dot(phi_r, e)];
+        let det = (1.0 + m[0][0]) * (1.0 + m[1][1]) - m[0][1] * m[1][0];
+        if !(det.is_finite() && det > 0.0) {
+            return Err(Error::Numerical {
+                context: format!("MRAS adaptation at sample {}", self.n),
+                reason: format!("implicit adaptation matrix has determinant {det}"),
+            });
+        }
+        let dk = (rhs[0] * (1.0 + m[1][1]) - m[0][1] * rhs[1]) / det;
+        let dr = ((1.0 + m[0][0]) * rhs[1] - m[1][0] * rhs[0]) / det;
+        Ok((dk, dr))
+    }
+
+    /// The exact SPM step from the corrected state `x` at `(k_e, r_s)`: the next
+    /// prediction and its sensitivities `(î, φ_K, φ_R, ψ_K)`.
+    fn step(&self, x: C64, k_e: f64, r_s: f64, s: &Sample) -> (C64, C64, C64, C64) {
+        let (l, h) = (self.cfg.l_s, self.cfg.h);
+        let hl = h / l;
+        let w_e = f64::from(self.cfg.n_p) * s.w_m;
+        let rot = rotation(w_e * h);
+        let d = (-r_s * hl).exp();
+        let a = rot * d;
+        let w = C64::new(r_s, w_e * l) * hl;
+        let b = phi1(w) * hl;
+        let b_r = phi1_prime(w) * (hl * hl);
+        let je = C64::new(0.0, SQRT_2_3 * s.w_m * k_e);
+        let u = C64::new(s.u_d, s.u_q);
+        let (forced, forced_r) = match self.cfg.hold {
+            VoltageHold::Dq => (b * (u - je), b_r * (u - je)),
+            VoltageHold::Stator => {
+                // u₀ e^{−jφ} (1 − e^{−R h/L})/R, the exact stator-hold term (MODEL.md §4).
+                let u_s = stator_hold_start(u, w_e * h) * rot;
+                let xr = C64::new(r_s * hl, 0.0);
+                (u_s * (phi1(xr).re * hl) - b * je, u_s * (phi1_prime(xr).re * hl * hl) - b_r * je)
+            }
+        };
+        let i_next = a * x + forced;
+        let phi_k = -b * C64::new(0.0, SQRT_2_3 * s.w_m);
+        let psi_k = match self.cfg.adaptation {
+            Adaptation::Lyapunov => phi_k,
+            Adaptation::Relay => -b * C64::new(0.0, SQRT_2_3 * if s.w_m < 0.0 { -1.0 } else { 1.0 }),
+        };
+        let phi_r = a * (-hl) * x + forced_r;
+        (i_next, phi_k, phi_r, psi_k)
+    }
+}
+
+/// The estimates at `(k_e, r_s)` with the error `e` [A].
+fn estimates(k_e: f64, r_s: f64, n_p: u32, e: C64, r_s_active: bool) -> Estimates {
+    Estimates {
+        k_e,
+        k_t: 1.5f64.sqrt() * k_e,
+        psi_f: SQRT_2_3 * k_e / f64::from(n_p),
+        r_s,
+        e_d: e.re,
+        e_q: e.im,
+        r_s_active,
+    }
+}
+
+/// `(1 − e^{−w})/w`, with its limit 1 at w = 0 and no cancellation near it.
+fn phi1(w: C64) -> C64 {
+    if w.norm() < 1e-3 {
+        // 1 − w/2 + w²/6 − w³/24 + w⁴/120, error below |w|⁵/720.
+        return C64::new(1.0, 0.0) + w * (-0.5 + w * (1.0 / 6.0 + w * (-1.0 / 24.0 + w / 120.0)));
+    }
+    -cexpm1(-w) / w
+}
+
+/// `d/dw (1 − e^{−w})/w = ((1 + w) e^{−w} − 1)/w²`, limit −1/2 at w = 0.
+fn phi1_prime(w: C64) -> C64 {
+    if w.norm() < 1e-2 {
+        // −1/2 + w/3 − w²/8 + w³/30 − w⁴/144 + w⁵/840, error below |w|⁶/5760.
+        return C64::new(-0.5, 0.0)
+            + w * (1.0 / 3.0 + w * (-1.0 / 8.0 + w * (1.0 / 30.0 + w * (-1.0 / 144.0 + w / 840.0))));
+    }
+    (cexpm1(-w) * (w + 1.0) + w) / (w * w)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn series_meet_closed_forms_at_their_switch() {
+        for w in
+            [C64::new(1.1e-3, 0.2e-3), C64::new(0.0, 9e-4), C64::new(0.011, -0.003), C64::new(0.0, 0.0099)]
+        {
+            // The series of φ₁ holds below |w| = 1e-3, with error |w|⁵/720.
+            let closed = -cexpm1(-w) / w;
+            let series = C64::new(1.0, 0.0) + w * (-0.5 + w * (1.0 / 6.0 + w * (-1.0 / 24.0 + w / 120.0)));
+            assert!((closed - series).norm() < 1e-14 + w.norm().powi(5) / 720.0 * 1.01, "{w}");
+            let closed_p = (cexpm1(-w) * (w + 1.0) + w) / (w * w);
+            let series_p = C64::new(-0.5, 0.0)
+                + w * (1.0 / 3.0 + w * (-1.0 / 8.0 + w * (1.0 / 30.0 + w * (-1.0 / 144.0 + w / 840.0))));
+            assert!((closed_p - series_p).norm() < 1e-11, "{w}");
+            let d = 1e-5;
+            let fd = (phi1(w + d) - phi1(w - d)) / (2.0 * d);
+            assert!((phi1_prime(w) - fd).norm() < 1e-8, "{w}");
+        }
+    }
+}
