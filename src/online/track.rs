@@ -55,12 +55,14 @@ impl Trajectory {
 /// The sample time is the log's (`config.h` is replaced by it).
 ///
 /// # Errors
-/// Those of [`DqView::try_new`] (a missing channel, too short a log), of
+/// Those of [`DqView::try_new`] (a missing channel, too short a log) and
+/// [`DqView::terminal_voltage`] (a log with only the voltage reference), of
 /// [`MrasConfig::validate`] and of [`Mras::update`] (naming the sample).
 pub fn track(e: &Experiment, config: &MrasConfig) -> Result<Trajectory> {
     let v = DqView::try_new(e)?;
     let mut mras = Mras::try_new(MrasConfig { h: e.h(), ..config.clone() })?;
-    let (i_d, i_q, u_d, u_q, w_m) = (v.i_d(), v.i_q(), v.u_d(), v.u_q(), v.w_m());
+    let (u_d, u_q) = v.terminal_voltage()?;
+    let (i_d, i_q, w_m) = (v.i_d(), v.i_q(), v.w_m());
     let m = v.len() - 1;
     let mut out = Trajectory {
         t: Vec::with_capacity(m),

@@ -52,8 +52,8 @@ fn observer_without_adaptation_reproduces_the_exact_spm_simulation() {
             let s = Sample {
                 i_d: v.i_d()[k],
                 i_q: v.i_q()[k],
-                u_d: v.u_d()[k],
-                u_q: v.u_q()[k],
+                u_d: v.terminal_voltage().unwrap().0[k],
+                u_q: v.terminal_voltage().unwrap().1[k],
                 w_m: 0.5 * (w[k] + w[k + 1]),
             };
             let est = m.update(&s).unwrap();
@@ -141,7 +141,7 @@ fn explicit_euler_k_e(e: &greybox::Experiment, gamma_ke: f64, f: f64, k_e0: f64)
         let z = Complex::new(R_S, f64::from(N_P) * w_m * L_S);
         let a = (-z * h / L_S).exp();
         let b = (Complex::new(1.0, 0.0) - a) / z;
-        let u = Complex::new(v.u_d()[k], v.u_q()[k]);
+        let u = Complex::new(v.terminal_voltage().unwrap().0[k], v.terminal_voltage().unwrap().1[k]);
         i_hat = a * (i_hat + err * kappa) + b * (u - Complex::new(0.0, emf * k_e));
     }
     worst
