@@ -38,6 +38,7 @@
 #![allow(rustdoc::broken_intra_doc_links)]
 
 pub mod data;
+pub mod drive;
 pub mod error;
 pub mod estimate;
 pub mod model;

@@ -2,7 +2,6 @@
 //! an input log.
 
 use greybox::Error;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 /// Checks before any work that `path` can be written: not one of the `inputs`, in an
@@ -45,19 +44,8 @@ pub fn write(path: &Path, text: &str) -> greybox::Result<()> {
         println!("{text}");
         return Ok(());
     }
-    let err = |source| Error::Write { path: path.to_path_buf(), source };
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.{}.{:?}.tmp", std::process::id(), std::thread::current().id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
+    greybox::data::write::write_atomic(path, |f| {
         f.write_all(text.as_bytes())?;
-        f.write_all(b"\n")?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.map_err(err)
+        f.write_all(b"\n")
+    })
 }

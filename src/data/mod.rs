@@ -9,6 +9,7 @@
 //! inside the library.
 
 pub mod csv;
+pub mod write;
 
 use crate::error::{Error, Result};
 

@@ -8,6 +8,7 @@ mod common;
 mod coverage;
 mod criteria;
 mod data;
+mod drive;
 mod errors;
 mod examples;
 mod filter;

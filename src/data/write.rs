@@ -1,0 +1,65 @@
+//! Writing files without ever leaving a partial one: a temporary file in the target's
+//! folder, flushed and synced, then renamed over the target (atomic on POSIX), so a reader
+//! or a concurrent run never sees half a file and a failure leaves any existing file intact.
+
+use super::Experiment;
+use crate::error::{Error, Result};
+use std::io::Write;
+use std::path::Path;
+
+/// Writes what `fill` writes to `path`, atomically.
+///
+/// # Errors
+/// [`Error::Write`] with the path when the temporary file cannot be created, written,
+/// synced or renamed (the temporary file is then removed).
+pub fn write_atomic(path: &Path, fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result<()> {
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let tmp = dir.join(format!(".{name}.{}.{:?}.tmp", std::process::id(), std::thread::current().id()));
+    let result = (|| {
+        let file = std::fs::File::create(&tmp)?;
+        let mut w = std::io::BufWriter::new(file);
+        fill(&mut w)?;
+        let file = w.into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.map_err(|source| Error::Write { path: path.to_path_buf(), source })
+}
+
+/// Writes `e` as CSV to `path`, atomically: a time column `time` [s] (`t_k = k h`) and then
+/// every channel in order, headers the channel names, values in shortest round-trip form
+/// (read back bit for bit). Gzip-compressed when the path ends in `.gz`.
+///
+/// # Errors
+/// Those of [`write_atomic`].
+pub fn write_csv(path: &Path, e: &Experiment, time: &str) -> Result<()> {
+    let gz = path.extension().is_some_and(|x| x == "gz");
+    write_atomic(path, |w| {
+        if gz {
+            let mut z = flate2::write::GzEncoder::new(w, flate2::Compression::default());
+            rows(&mut z, e, time)?;
+            z.finish()?;
+            Ok(())
+        } else {
+            rows(w, e, time)
+        }
+    })
+}
+
+fn rows(w: &mut dyn Write, e: &Experiment, time: &str) -> std::io::Result<()> {
+    let mut out = ::csv::Writer::from_writer(w);
+    let header = std::iter::once(time).chain(e.channels().iter().map(|c| c.name.as_str()));
+    out.write_record(header)?;
+    let mut buf = Vec::with_capacity(e.channels().len() + 1);
+    for k in 0..e.len() {
+        buf.clear();
+        buf.push(format!("{}", k as f64 * e.h()));
+        buf.extend(e.channels().iter().map(|c| format!("{}", c.values[k])));
+        out.write_record(&buf)?;
+    }
+    out.flush()
+}

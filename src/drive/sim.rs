@@ -1,0 +1,225 @@
+//! The closed-loop simulation: controller, delayed and advanced averaged inverter, exact
+//! electrical step, RK4 mechanics, sensors; one period at a time.
+//!
+//! Per period `[t_k, t_{k+1})`:
+//! 1. the sensors measure `i[k]`, `ω_m[k]`, `θ_m[k]` (noise, ADC and encoder quantisation);
+//! 2. the controller computes `u_ref[k]` (logged as `ud_ref, uq_ref`);
+//! 3. the inverter applies `u_ref[k − d]` advanced by `a ω̂_e[k − d] h` from the angle the
+//!    controller measured then, held in the stator frame, plus the dead-time error
+//!    `−V_dt tanh(i_x/w)` of the phase currents at `t_k` (MODEL.md §4);
+//! 4. the mechanics advance with the torque of `i[k]` held over the period (RK4 sub-steps
+//!    on ω_m; the angle by the trapezoid `θ_m[k+1] = θ_m[k] + h (ω_m[k] + ω_m[k+1])/2`,
+//!    the rotation the electrical step assumes);
+//! 5. the electrical state advances by the offline models' exact stator-hold step at the
+//!    period's mean speed ([`ExactPlant`]), with the parameters of `t_k` (temperatures and
+//!    ramps); the logged `ud, uq` is the applied voltage's exact period mean in dq.
+//!
+//! So a log of this simulator is reproduced to rounding by the matching offline model with
+//! the true parameters, for either voltage column.
+
+use super::config::DriveConfig;
+use super::control::{Controller, Measurement};
+use crate::data::{Channel, Experiment};
+use crate::error::{Error, Result};
+use crate::pmsm::transform::{clarke, inverse_clarke, inverse_park, park};
+use crate::pmsm::{ALPHA_COPPER, BETA_NDFEB, C64, DqSignals, ExactPlant, MotorParameters, stator_hold_start};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use serde::{Deserialize, Serialize};
+
+/// The truth of a simulated log, written beside it as JSON.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Truth {
+    /// Scenario name.
+    pub scenario: String,
+    /// The plant at the start of the record.
+    pub start: MotorParameters,
+    /// The plant at the end of the record.
+    pub end: MotorParameters,
+    /// `K_e` at the start [V s/rad].
+    pub k_e: f64,
+    /// `K_t` at the start [N m/A].
+    pub k_t: f64,
+    /// Whether the plant's parameters change within the record.
+    pub time_varying: bool,
+    /// Sample time h [s].
+    pub h: f64,
+    /// Number of samples N.
+    pub samples: usize,
+    /// The configuration that produced the log.
+    pub config: DriveConfig,
+}
+
+/// A simulated drive log: the experiment (channels `ud, uq, id, iq, w_m, theta_m, ud_ref,
+/// uq_ref, id_ref, iq_ref`, as `greybox fit` reads them) and its truth.
+#[derive(Clone, Debug)]
+pub struct DriveLog {
+    /// The log.
+    pub experiment: Experiment,
+    /// What produced it.
+    pub truth: Truth,
+}
+
+/// The plant's parameters at time `t` [s]: thermal values, then the ramps.
+pub fn plant_at(cfg: &DriveConfig, t: f64) -> MotorParameters {
+    let th = &cfg.thermal;
+    let temp = |p: &super::Profile| if p.0.is_empty() { th.t0 } else { p.at(t) };
+    let factor = |p: &super::Profile| if p.0.is_empty() { 1.0 } else { p.at(t) };
+    let m = &cfg.motor;
+    MotorParameters {
+        r_s: m.r_s * (1.0 + ALPHA_COPPER * (temp(&th.winding) - th.t0)) * factor(&cfg.r_s_factor),
+        psi_f: m.psi_f * (1.0 + BETA_NDFEB * (temp(&th.magnet) - th.t0)) * factor(&cfg.psi_f_factor),
+        ..*m
+    }
+}
+
+/// Simulates the drive of `cfg` for `cfg.duration` seconds.
+///
+/// # Errors
+/// Those of [`DriveConfig::validate`]; [`Error::SimulationDiverged`] naming the sample when
+/// the state stops being finite (e.g. parameters turned non-physical by a ramp).
+pub fn simulate_drive(cfg: &DriveConfig) -> Result<DriveLog> {
+    cfg.validate()?;
+    let (h, n, np) = (cfg.control.h, cfg.samples(), f64::from(cfg.motor.n_p));
+    let mut plant = ExactPlant::new(cfg.motor.n_p, h, cfg.motor.salient())?;
+    let mut ctrl = Controller::new(&cfg.control, &cfg.motor, cfg.mechanics.inertia);
+    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+    let gauss = |rng: &mut ChaCha8Rng, s: f64| {
+        if s > 0.0 { Normal::new(0.0, s).map_or(0.0, |d| d.sample(rng)) } else { 0.0 }
+    };
+    let s = &cfg.sensors;
+    let adc = |x: f64| match s.adc_bits {
+        Some(b) => {
+            let q = 2.0 * s.adc_range / f64::from(b).exp2();
+            (x / q).round().clamp(-s.adc_range / q, s.adc_range / q) * q
+        }
+        None => x,
+    };
+    let encoder = |th: f64| match s.encoder_counts {
+        Some(c) => {
+            let q = std::f64::consts::TAU / f64::from(c);
+            (th / q).floor() * q
+        }
+        None => th,
+    };
+    let inv = &cfg.inverter;
+    let mut log = [(); 10].map(|_| Vec::with_capacity(n));
+    let (mut i, mut w, mut theta) = ([0.0; 2], 0.0, 0.0);
+    // The commands and the controller's angle and speed of the last d + 1 samples.
+    let mut history: std::collections::VecDeque<(C64, f64, f64)> = std::collections::VecDeque::new();
+    let diverged = |k: usize, p: &MotorParameters| Error::SimulationDiverged {
+        experiment: cfg.name.clone(),
+        sample: k,
+        parameters: format!("{p:?}"),
+    };
+    for k in 0..n {
+        let t = k as f64 * h;
+        let p = plant_at(cfg, t);
+        // 1. Sensors: phase currents with noise and ADC, angle by the encoder.
+        let th_e = np * theta;
+        let (a, b) = inverse_park(i[0], i[1], th_e);
+        let (ia, ib, _) = inverse_clarke(a, b);
+        let (ia, ib) =
+            (adc(ia + gauss(&mut rng, s.current_noise)), adc(ib + gauss(&mut rng, s.current_noise)));
+        let theta_meas = encoder(theta);
+        let (al, be) = clarke(ia, ib, -ia - ib);
+        let (id_m, iq_m) = park(al, be, np * theta_meas);
+        let w_meas = w + gauss(&mut rng, s.speed_noise);
+        let m = Measurement { i: [id_m, iq_m], w_m: w_meas, theta_m: theta_meas };
+        // 2. Controller.
+        let cmd = ctrl.update(t, &m);
+        history.push_back((C64::new(cmd.u[0], cmd.u[1]), np * theta_meas, np * w_meas));
+        while history.len() > inv.delay + 1 {
+            history.pop_front();
+        }
+        // 3. Inverter: the reference of k − d (the first one before that), in the stator frame.
+        let applied = history.front().copied().filter(|_| history.len() == inv.delay + 1);
+        let mut u_s =
+            applied.map_or(C64::default(), |(u, th, we)| u * C64::from_polar(1.0, th + inv.advance * we * h));
+        if inv.v_dt > 0.0 {
+            let (x, y, z) = inverse_clarke(a, b);
+            let (ea, eb) = clarke(-(x / inv.width).tanh(), -(y / inv.width).tanh(), -(z / inv.width).tanh());
+            u_s += C64::new(ea, eb) * inv.v_dt;
+        }
+        let u0 = u_s * C64::from_polar(1.0, -th_e);
+        // 4. Mechanics.
+        let w_next = mechanics(cfg, t, p.torque(i[0], i[1]), theta, w);
+        let w_mean = 0.5 * (w + w_next);
+        let phi = np * w_mean * h;
+        let mean = u0 / stator_hold_start(C64::new(1.0, 0.0), phi);
+        for (c, v) in log.iter_mut().zip([
+            mean.re + gauss(&mut rng, s.voltage_noise),
+            mean.im + gauss(&mut rng, s.voltage_noise),
+            id_m,
+            iq_m,
+            w_meas,
+            theta_meas,
+            cmd.u[0],
+            cmd.u[1],
+            cmd.i_ref[0],
+            cmd.i_ref[1],
+        ]) {
+            c.push(v);
+        }
+        // 5. Electrical step.
+        i = plant.step(&p, i, u0, w_mean).map_err(|_| diverged(k, &p))?;
+        theta += h * w_mean;
+        w = w_next;
+        if !(w.is_finite() && theta.is_finite()) {
+            return Err(diverged(k, &p));
+        }
+    }
+    let [u_d, u_q, i_d, i_q, w_m, theta_m, u_d_ref, u_q_ref, id_ref, iq_ref] = log;
+    let signals = DqSignals {
+        u_d,
+        u_q,
+        i_d,
+        i_q,
+        w_m,
+        theta_m: Some(theta_m),
+        u_d_ref: Some(u_d_ref),
+        u_q_ref: Some(u_q_ref),
+    };
+    let mut channels = signals.into_channels();
+    channels.push(Channel::new("id_ref", "A", id_ref));
+    channels.push(Channel::new("iq_ref", "A", iq_ref));
+    let experiment = Experiment::try_new(cfg.name.clone(), h, channels)?;
+    let (start, end) = (plant_at(cfg, 0.0), plant_at(cfg, (n - 1) as f64 * h));
+    let time_varying = (0..=100).any(|j| plant_at(cfg, cfg.duration * f64::from(j) / 100.0) != start);
+    let truth = Truth {
+        scenario: cfg.name.clone(),
+        start,
+        end,
+        k_e: start.k_e(),
+        k_t: start.k_t(),
+        time_varying,
+        h,
+        samples: n,
+        config: cfg.clone(),
+    };
+    Ok(DriveLog { experiment, truth })
+}
+
+/// ω_m at the end of the period from `w` at `t` [s], angle `theta` [rad], with the motor
+/// torque `t_e` [N m] held: RK4 sub-steps of `J ω̇ = T_e − B ω − T_c tanh(ω/ω_c) − m g l
+/// sin θ − T_L(t)`, `θ̇ = ω`.
+fn mechanics(cfg: &DriveConfig, t: f64, t_e: f64, theta: f64, w: f64) -> f64 {
+    let m = &cfg.mechanics;
+    let f = |t: f64, th: f64, w: f64| {
+        (t_e - m.viscous * w - m.coulomb * (w / m.coulomb_speed).tanh() - m.gravity * th.sin() - m.load.at(t))
+            / m.inertia
+    };
+    let dt = cfg.control.h / m.substeps as f64;
+    let (mut tt, mut th, mut ww) = (t, theta, w);
+    for _ in 0..m.substeps {
+        let (k1w, k1t) = (f(tt, th, ww), ww);
+        let (k2w, k2t) = (f(tt + 0.5 * dt, th + 0.5 * dt * k1t, ww + 0.5 * dt * k1w), ww + 0.5 * dt * k1w);
+        let (k3w, k3t) = (f(tt + 0.5 * dt, th + 0.5 * dt * k2t, ww + 0.5 * dt * k2w), ww + 0.5 * dt * k2w);
+        let (k4w, k4t) = (f(tt + dt, th + dt * k3t, ww + dt * k3w), ww + dt * k3w);
+        ww += dt / 6.0 * (k1w + 2.0 * k2w + 2.0 * k3w + k4w);
+        th += dt / 6.0 * (k1t + 2.0 * k2t + 2.0 * k3t + k4t);
+        tt += dt;
+    }
+    ww
+}

@@ -1,0 +1,158 @@
+//! A simulated machine stepped with the offline models' own exact steps (MODEL.md §2, §4):
+//! the drive simulator advances its plant with [`PmsmSpm`]'s closed-form step or
+//! [`PmsmIpm`]'s augmented exponential, one period at a time, so a log from the simulator
+//! is reproduced exactly by the model that fits it.
+
+use super::interval::{C64, SQRT_2_3, VoltageHold, check_finite, check_pole_pairs, check_positive, rotation};
+use super::spm::SpmInputs;
+use super::{PmsmIpm, PmsmSpm, augmented::IpmInputs};
+use crate::error::{Error, Result};
+use crate::model::GreyBoxModel;
+use serde::{Deserialize, Serialize};
+
+/// The electrical parameters of a machine (MODEL.md §2).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MotorParameters {
+    /// Stator resistance `R_s` [Ω].
+    pub r_s: f64,
+    /// d-axis inductance `L_d` [H].
+    pub l_d: f64,
+    /// q-axis inductance `L_q` [H] (`= l_d` for surface magnets).
+    pub l_q: f64,
+    /// Magnet flux linkage `ψ_f` [V s] (amplitude-invariant).
+    pub psi_f: f64,
+    /// Pole pairs `n_p`.
+    pub n_p: u32,
+}
+
+impl MotorParameters {
+    /// Back-EMF constant `K_e = √(3/2) n_p ψ_f` [V s/rad] (MODEL.md §2).
+    pub fn k_e(&self) -> f64 {
+        f64::from(self.n_p) * self.psi_f / SQRT_2_3
+    }
+
+    /// Torque constant `K_t = 1.5 n_p ψ_f` [N m per A of peak dq current].
+    pub fn k_t(&self) -> f64 {
+        1.5 * f64::from(self.n_p) * self.psi_f
+    }
+
+    /// Electromagnetic torque `T_e = 1.5 n_p (ψ_f i_q + (L_d − L_q) i_d i_q)` [N m] at the dq
+    /// currents `i_d, i_q` [A, peak] (MODEL.md §2).
+    pub fn torque(&self, i_d: f64, i_q: f64) -> f64 {
+        1.5 * f64::from(self.n_p) * (self.psi_f * i_q + (self.l_d - self.l_q) * i_d * i_q)
+    }
+
+    /// Whether `L_d ≠ L_q` (interior magnets).
+    pub fn salient(&self) -> bool {
+        self.l_d != self.l_q
+    }
+
+    /// Checks the values.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `r_s`, `l_d`, `l_q` (not positive and finite) or
+    /// `psi_f` (not finite); [`Error::InvalidPolePairs`] for `n_p = 0`.
+    pub fn validate(&self) -> Result<()> {
+        check_positive("r_s", self.r_s)?;
+        check_positive("l_d", self.l_d)?;
+        check_positive("l_q", self.l_q)?;
+        check_finite("psi_f", self.psi_f)?;
+        check_pole_pairs(self.n_p)
+    }
+}
+
+/// One-period inputs of the model that steps the plant.
+#[derive(Debug)]
+enum Engine {
+    Spm(PmsmSpm, SpmInputs),
+    Ipm(PmsmIpm, IpmInputs),
+}
+
+/// The exact electrical step of a machine driven by a voltage held in the stator frame
+/// over each period (an inverter's output), at the period's mean speed.
+#[derive(Debug)]
+pub struct ExactPlant {
+    engine: Engine,
+    h: f64,
+    n_p: u32,
+}
+
+impl ExactPlant {
+    /// The plant of a machine with `n_p` pole pairs at sample time `h` [s]; salient machines
+    /// step with the augmented exponential, the others in closed form.
+    ///
+    /// # Errors
+    /// [`Error::InvalidPolePairs`] for `n_p = 0`; [`Error::InvalidSampleTime`] for `h` not
+    /// positive and finite.
+    pub fn new(n_p: u32, h: f64, salient: bool) -> Result<Self> {
+        check_pole_pairs(n_p)?;
+        if !(h.is_finite() && h > 0.0) {
+            return Err(Error::InvalidSampleTime { h });
+        }
+        let one = |x: C64| vec![x];
+        let engine = if salient {
+            let inp = IpmInputs {
+                h,
+                hold: VoltageHold::Stator,
+                w_e: vec![0.0],
+                emf: vec![0.0],
+                u0: one(C64::default()),
+                dt: Vec::new(),
+            };
+            Engine::Ipm(PmsmIpm::new(n_p, VoltageHold::Stator), inp)
+        } else {
+            let inp = SpmInputs {
+                h,
+                w_e: vec![0.0],
+                emf: vec![0.0],
+                rot: one(C64::new(1.0, 0.0)),
+                vers: vec![0.0],
+                u: one(C64::default()),
+                dt: Vec::new(),
+            };
+            Engine::Spm(PmsmSpm::new(n_p, VoltageHold::Stator), inp)
+        };
+        Ok(Self { engine, h, n_p })
+    }
+
+    /// The dq current `[i_d, i_q]` [A] at the end of the period from `i` at its start, for
+    /// the dq voltage `u0` [V] at the start of the period held in the stator frame (it turns
+    /// backwards in dq by `ω_e h` over the period) and the period's mean mechanical speed
+    /// `w_m` [rad/s]: the step of [`PmsmSpm`] or [`PmsmIpm`] with the stator hold.
+    ///
+    /// # Errors
+    /// Those of the model's `coefficients` (the parameters are validated every step: they
+    /// may change with temperature); [`Error::Numerical`] for a non-finite result.
+    pub fn step(&mut self, p: &MotorParameters, i: [f64; 2], u0: C64, w_m: f64) -> Result<[f64; 2]> {
+        let w_e = f64::from(self.n_p) * w_m;
+        let phi = w_e * self.h;
+        let mut next = [0.0; 2];
+        match &mut self.engine {
+            Engine::Spm(model, inp) => {
+                let rot = rotation(phi);
+                let half = (0.5 * phi).sin();
+                (inp.w_e[0], inp.emf[0], inp.rot[0], inp.vers[0]) =
+                    (w_e, SQRT_2_3 * w_m, rot, 2.0 * half * half);
+                // The stator-held voltage enters the SPM step rotated to the period's end.
+                inp.u[0] = u0 * rot;
+                let c = model.coefficients(&[p.r_s, p.l_d, p.k_e()], inp)?;
+                model.step(&c, inp, 0, &i, &mut next);
+            }
+            Engine::Ipm(model, inp) => {
+                (inp.w_e[0], inp.emf[0], inp.u0[0]) = (w_e, SQRT_2_3 * w_m, u0);
+                let c = model.coefficients(&[p.r_s, p.l_d, p.l_q, p.k_e()], inp)?;
+                model.step(&c, inp, 0, &i, &mut next);
+            }
+        }
+        if next.iter().all(|x| x.is_finite()) {
+            Ok(next)
+        } else {
+            Err(Error::Numerical {
+                context: "plant step".into(),
+                reason: format!(
+                    "non-finite current from i = {i:?} A, u0 = {u0} V, w_m = {w_m} rad/s with {p:?}"
+                ),
+            })
+        }
+    }
+}
