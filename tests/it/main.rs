@@ -26,3 +26,4 @@ mod robust;
 mod solvers;
 mod spm;
 mod thermal;
+mod track;
