@@ -100,7 +100,7 @@ pub fn run_track(a: &TrackArgs) -> greybox::Result<()> {
         for (name, tr) in &runs {
             let f = &tr.final_estimate;
             println!(
-                "{name}: K_e = {:.6} V s/rad, K_t = {:.6} N m/A, R_s = {:.6} ohm ({} samples, {:.3} s)",
+                "{name}: K_e = {:.6} V s/rad, K_t = {:.6} N m/A, R_s = {:.6} ohm ({} observer steps, to t = {:.4} s)",
                 f.k_e,
                 f.k_t,
                 f.r_s,
