@@ -3,6 +3,7 @@
 //! ```text
 //! greybox fit LOG... --pole-pairs N [--model spm|ipm] [--hold auto|dq|stator] [--solver lm|gn] [--json PATH]
 //! greybox validate LOG... --params REPORT.json [--json PATH] [--compare-dir DIR]
+//! greybox track LOG... --pole-pairs N (--l-s H | --params REPORT.json) [--json PATH] [--max-points M]
 //! ```
 //! The library does the work; this file only maps flags to options and prints.
 
@@ -29,6 +30,8 @@ enum Command {
     Fit(Box<FitArgs>),
     /// Compare a saved fit (`--params REPORT.json`) with logs it was not fitted on: fit %, residual statistics, and the measured and simulated outputs for plotting.
     Validate(Box<cli::validate::ValidateArgs>),
+    /// Run the online MRAS observer (K_e, R_s; thesis 5.1) over each log: final estimates and their trajectory.
+    Track(Box<cli::track::TrackArgs>),
 }
 
 fn main() -> ExitCode {
@@ -36,6 +39,7 @@ fn main() -> ExitCode {
     let r = match &cli.command {
         Command::Fit(a) => cli::fit::run_fit(a),
         Command::Validate(a) => cli::validate::run_validate(a),
+        Command::Track(a) => cli::track::run_track(a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,

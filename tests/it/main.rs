@@ -27,3 +27,4 @@ mod robust;
 mod solvers;
 mod spm;
 mod thermal;
+mod track;

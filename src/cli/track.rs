@@ -1,0 +1,226 @@
+//! `greybox track`: the MRAS observer (thesis 5.1) over each log, its final estimates and
+//! their trajectory.
+
+use super::args::ColumnArgs;
+use super::output;
+use clap::{Args, ValueEnum};
+use greybox::online::{Adaptation, MrasConfig, Trajectory, track};
+use greybox::pmsm::{CsvOptions, MotorKind, SavedModel, VoltageHold, read_log};
+use serde_json::{Value, json};
+use std::path::PathBuf;
+
+/// Arguments of `greybox track`.
+///
+/// JSON shape (`--json`): one log gives
+/// `{"final": {"k_e", "k_t", "r_s"}, "trajectory": {"t": [], "k_e": [], "r_s": []}}`;
+/// several logs give `{"logs": [{"log": PATH, "final": …, "trajectory": …}, …]}` in the
+/// order given (PATH as given on the command line). Non-finite numbers are written as `null`.
+#[derive(Args, Debug)]
+#[command(
+    after_help = "JSON (--json): one log gives {\"final\": {\"k_e\", \"k_t\", \"r_s\"}, \"trajectory\": \
+{\"t\": [...], \"k_e\": [...], \"r_s\": [...]}}; several logs give {\"logs\": [{\"log\": PATH, \"final\": ..., \
+\"trajectory\": ...}, ...]}, in the order given (PATH as given). Units: k_e V s/rad, k_t N m/A, r_s ohm, t s. \
+Non-finite numbers are null."
+)]
+pub struct TrackArgs {
+    /// Drive logs (CSV, plain or gzip); the observer runs over each one separately.
+    #[arg(required = true)]
+    pub logs: Vec<PathBuf>,
+    /// Number of pole pairs n_p of the motor.
+    #[arg(long, short = 'p')]
+    pub pole_pairs: u32,
+    /// Stator inductance L_s [H], known to the observer. Required unless --params gives it.
+    #[arg(long, allow_hyphen_values = true)]
+    pub l_s: Option<f64>,
+    /// The JSON report of an SPM fit (`greybox fit --json`): its l_s is the observer's
+    /// inductance (unless --l-s), its k_e and r_s the initial estimates (unless --k-e0, --r-s0).
+    #[arg(long)]
+    pub params: Option<PathBuf>,
+    /// Initial estimate of K_e [V s/rad] (default: the report's with --params, else 0).
+    #[arg(long, allow_hyphen_values = true)]
+    pub k_e0: Option<f64>,
+    /// Initial estimate of R_s [Ω] (default: the report's with --params, else 0).
+    #[arg(long, allow_hyphen_values = true)]
+    pub r_s0: Option<f64>,
+    /// Adaptation gain γ_Ke of K_e, ≥ 0 (thesis 5.1.1; motor specific: a small L_s needs a
+    /// much smaller one).
+    #[arg(long, default_value_t = MrasConfig::default().gamma_ke, allow_hyphen_values = true)]
+    pub gamma_ke: f64,
+    /// Adaptation gain γ_Rs [Ω/(A s)] of R_s, ≤ 0 (thesis sign convention, eq. 5.4).
+    #[arg(long, default_value_t = MrasConfig::default().gamma_rs, allow_hyphen_values = true)]
+    pub gamma_rs: f64,
+    /// Observer feedback gain f [1/s], ≥ 0.
+    #[arg(long, default_value_t = MrasConfig::default().f, allow_hyphen_values = true)]
+    pub observer_gain: f64,
+    /// Speed scaling of the K_e law: lyapunov (gain grows with ω_m) or relay (sign of ω_m).
+    #[arg(long, value_enum, default_value_t = AdaptationArg::Lyapunov)]
+    pub adaptation: AdaptationArg,
+    /// Voltage hold of the log's source (MODEL.md §4): stator for a modulator, dq for a
+    /// dq-held simulator.
+    #[arg(long, value_enum, default_value_t = TrackHold::Stator)]
+    pub hold: TrackHold,
+    /// At most this many trajectory points per log in the JSON (evenly strided, the last
+    /// kept).
+    #[arg(long, default_value_t = 10_000)]
+    pub max_points: usize,
+    /// Write the JSON to this file ("-" for stdout, which suppresses the summary).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum AdaptationArg {
+    Lyapunov,
+    Relay,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum TrackHold {
+    Stator,
+    Dq,
+}
+
+pub fn run_track(a: &TrackArgs) -> greybox::Result<()> {
+    // Fail before the work, not after it, when the output cannot be written.
+    if let Some(path) = &a.json {
+        output::check(path, &a.logs)?;
+    }
+    let config = config(a)?;
+    let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
+    let mut runs = Vec::with_capacity(a.logs.len());
+    for path in &a.logs {
+        let log = read_log(path, &csv)?;
+        let trajectory = track(&log, &config).map_err(|e| flag_error(e, path))?;
+        runs.push((path.display().to_string(), trajectory));
+    }
+    let to_stdout = a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
+    if !to_stdout {
+        for (name, tr) in &runs {
+            let f = &tr.final_estimate;
+            println!(
+                "{name}: K_e = {:.6} V s/rad, K_t = {:.6} N m/A, R_s = {:.6} ohm ({} observer steps, to t = {:.4} s)",
+                f.k_e,
+                f.k_t,
+                f.r_s,
+                tr.t.len(),
+                tr.t.last().copied().unwrap_or(0.0)
+            );
+        }
+    }
+    if let Some(path) = &a.json {
+        output::write(path, &to_json(&runs, a.max_points))?;
+    }
+    Ok(())
+}
+
+/// The observer's settings from the flags (and `--params`), validated before any log is
+/// read; errors name the flag.
+fn config(a: &TrackArgs) -> greybox::Result<MrasConfig> {
+    let saved = match &a.params {
+        None => None,
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .map_err(|source| greybox::Error::Io { path: p.clone(), source })?;
+            let s = SavedModel::from_json(&text, Some(a.pole_pairs), None)?;
+            if !matches!(s.kind, MotorKind::Spm) {
+                return Err(greybox::Error::InvalidOption {
+                    option: "params".into(),
+                    reason: format!(
+                        "{} is a {} fit; the observer needs the surface-magnet model's l_s (fit with --model spm or give --l-s)",
+                        p.display(),
+                        s.kind.model_name()
+                    ),
+                });
+            }
+            Some(s)
+        }
+    };
+    // SPM model order: r_s, l_s, k_e.
+    let from_report = |i: usize| saved.as_ref().and_then(|s| s.theta.get(i).copied());
+    let l_s = a.l_s.or(from_report(1)).ok_or_else(|| greybox::Error::InvalidOption {
+        option: "l-s".into(),
+        reason: "the observer needs the stator inductance: give --l-s H or --params REPORT.json of a fit"
+            .into(),
+    })?;
+    let config = MrasConfig {
+        n_p: a.pole_pairs,
+        l_s,
+        h: 1.0, // replaced by each log's sample time in `track`
+        f: a.observer_gain,
+        gamma_ke: a.gamma_ke,
+        gamma_rs: a.gamma_rs,
+        adaptation: match a.adaptation {
+            AdaptationArg::Lyapunov => Adaptation::Lyapunov,
+            AdaptationArg::Relay => Adaptation::Relay,
+        },
+        k_e0: a.k_e0.or(from_report(2)).unwrap_or(0.0),
+        r_s0: a.r_s0.or(from_report(0)).unwrap_or(0.0),
+        hold: match a.hold {
+            TrackHold::Stator => VoltageHold::Stator,
+            TrackHold::Dq => VoltageHold::Dq,
+        },
+        ..MrasConfig::default()
+    };
+    config.validate().map_err(|e| flag_error(e, &PathBuf::new()))?;
+    Ok(config)
+}
+
+/// Renames a [`MrasConfig`] field in an error to the flag that sets it; other errors name
+/// the log (`log` empty: none).
+fn flag_error(e: greybox::Error, log: &std::path::Path) -> greybox::Error {
+    match e {
+        greybox::Error::InvalidOption { option, reason } => {
+            let flag = match option.as_str() {
+                "n_p" => "pole-pairs",
+                "l_s" => "l-s",
+                "f" => "observer-gain",
+                "gamma_ke" => "gamma-ke",
+                "gamma_rs" => "gamma-rs",
+                "k_e0" => "k-e0",
+                "r_s0" => "r-s0",
+                other => other,
+            };
+            greybox::Error::InvalidOption { option: flag.into(), reason }
+        }
+        // The observer's own failures name the sample, not the log.
+        e @ (greybox::Error::NonFinite { .. } | greybox::Error::Numerical { .. })
+            if !log.as_os_str().is_empty() =>
+        {
+            greybox::Error::Numerical {
+                context: format!("the observer over {}", log.display()),
+                reason: e.to_string(),
+            }
+        }
+        e => e,
+    }
+}
+
+/// The JSON of the runs (shape in [`TrackArgs`]), trajectories decimated to `max_points`.
+fn to_json(runs: &[(String, Trajectory)], max_points: usize) -> String {
+    let one = |tr: &Trajectory| {
+        let d = tr.decimate(max_points);
+        let f = &tr.final_estimate;
+        // `json!` writes a non-finite f64 as null.
+        json!({
+            "final": { "k_e": f.k_e, "k_t": f.k_t, "r_s": f.r_s },
+            "trajectory": { "t": d.t, "k_e": d.k_e, "r_s": d.r_s },
+        })
+    };
+    let v = match runs {
+        [(_, tr)] => one(tr),
+        _ => {
+            let logs: Vec<Value> = runs
+                .iter()
+                .map(|(name, tr)| {
+                    let mut o = one(tr);
+                    o["log"] = json!(name);
+                    o
+                })
+                .collect();
+            json!({ "logs": logs })
+        }
+    };
+    serde_json::to_string_pretty(&v).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+}

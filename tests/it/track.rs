@@ -1,0 +1,140 @@
+//! `greybox track`: the MRAS over a log from the command line, its JSON and its errors.
+#![cfg(feature = "cli")] // the `greybox` binary needs the `cli` feature
+
+use crate::errors::greybox;
+use serde_json::Value;
+use std::path::PathBuf;
+
+const SAMPLE: &str = "data/sample.csv.gz";
+
+/// A fresh path in the temporary folder, unique to this process and `tag`.
+fn temp(tag: &str) -> PathBuf {
+    std::env::temp_dir().join(format!("greybox-track-{}-{tag}", std::process::id()))
+}
+
+/// Runs `greybox` and parses the JSON it wrote to stdout (`--json -`).
+fn json_of(args: &[&str]) -> Value {
+    let out = greybox(args);
+    assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// The `l_s` and `k_e` of `greybox fit` on the sample log (4 pole pairs).
+fn fitted_l_s_and_k_e() -> (f64, f64) {
+    let v = json_of(&["fit", SAMPLE, "-p", "4", "--json", "-"]);
+    let value = |name: &str| {
+        v["parameters"].as_array().unwrap().iter().find(|p| p["name"] == name).unwrap()["value"]
+            .as_f64()
+            .unwrap()
+    };
+    (value("l_s"), value("k_e"))
+}
+
+fn keys(v: &Value) -> Vec<&str> {
+    let mut k: Vec<&str> = v.as_object().unwrap().keys().map(String::as_str).collect();
+    k.sort_unstable();
+    k
+}
+
+#[test]
+fn track_agrees_with_fit_on_the_sample_log() {
+    let (l_s, k_e_fit) = fitted_l_s_and_k_e();
+    let l_s = l_s.to_string();
+    let json = temp("sample.json");
+    let out = greybox(&["track", SAMPLE, "-p", "4", "--l-s", &l_s, "--json", json.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let summary = String::from_utf8_lossy(&out.stdout);
+    for word in ["K_e", "V s/rad", "K_t", "N m/A", "R_s", "ohm"] {
+        assert!(summary.contains(word), "summary lacks {word}: {summary}");
+    }
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    std::fs::remove_file(&json).ok();
+    assert_eq!(keys(&v), ["final", "trajectory"]);
+    assert_eq!(keys(&v["final"]), ["k_e", "k_t", "r_s"]);
+    assert_eq!(keys(&v["trajectory"]), ["k_e", "r_s", "t"]);
+    let len = |k: &str| v["trajectory"][k].as_array().unwrap().len();
+    let n = len("t");
+    assert!(n > 1 && n <= 10_000, "{n} points");
+    assert_eq!((len("k_e"), len("r_s")), (n, n));
+    let fin = |k: &str| v["final"][k].as_f64().unwrap();
+    let (k_e, k_t, r_s) = (fin("k_e"), fin("k_t"), fin("r_s"));
+    eprintln!(
+        "track on {SAMPLE}: l_s {l_s} H from fit; k_e {k_e:.6} (fit {k_e_fit:.6}, rel. {:.2e}), k_t {k_t:.6}, r_s {r_s:.6}, {n} points",
+        (k_e - k_e_fit).abs() / k_e_fit
+    );
+    assert!((k_e - k_e_fit).abs() < 0.01 * k_e_fit, "k_e {k_e} vs fit {k_e_fit}");
+    assert!((k_t - 1.5f64.sqrt() * k_e).abs() < 1e-12 * k_t, "k_t {k_t} vs √(3/2) k_e");
+    assert!(r_s.is_finite() && r_s > 0.0, "r_s {r_s}");
+    // The last trajectory point is the final estimate.
+    assert_eq!(v["trajectory"]["k_e"][n - 1], v["final"]["k_e"]);
+}
+
+#[test]
+fn track_takes_the_inductance_from_a_fit_report() {
+    let report = temp("fit.json");
+    let out = greybox(&["fit", SAMPLE, "-p", "4", "-q", "--json", report.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v = json_of(&["track", SAMPLE, "-p", "4", "--params", report.to_str().unwrap(), "--json", "-"]);
+    std::fs::remove_file(&report).ok();
+    let (_, k_e_fit) = fitted_l_s_and_k_e();
+    let k_e = v["final"]["k_e"].as_f64().unwrap();
+    assert!((k_e - k_e_fit).abs() < 0.01 * k_e_fit, "k_e {k_e} vs fit {k_e_fit}");
+}
+
+#[test]
+fn track_max_points_and_several_logs() {
+    let (l_s, _) = fitted_l_s_and_k_e();
+    let l_s = l_s.to_string();
+    let v = json_of(&["track", SAMPLE, "-p", "4", "--l-s", &l_s, "--max-points", "100", "--json", "-"]);
+    for k in ["t", "k_e", "r_s"] {
+        let m = v["trajectory"][k].as_array().unwrap().len();
+        assert!((2..=100).contains(&m), "{k}: {m} points");
+    }
+    // Several logs: one object per log, in order, named by the path given.
+    let v = json_of(&["track", SAMPLE, SAMPLE, "-p", "4", "--l-s", &l_s, "--max-points", "7", "--json", "-"]);
+    assert_eq!(keys(&v), ["logs"]);
+    let logs = v["logs"].as_array().unwrap();
+    assert_eq!(logs.len(), 2);
+    for o in logs {
+        assert_eq!(keys(o), ["final", "log", "trajectory"]);
+        assert_eq!(o["log"], SAMPLE);
+        assert!(o["trajectory"]["t"].as_array().unwrap().len() <= 7);
+    }
+}
+
+#[test]
+fn track_errors_name_the_flag_or_the_log() {
+    let l_s = "4.5e-3";
+    for (args, culprit) in [
+        (vec!["track", SAMPLE, "-p", "4"], "--l-s"),
+        (vec!["track", SAMPLE, "-p", "4", "--l-s", "0"], "l-s"),
+        (vec!["track", SAMPLE, "-p", "4", "--l-s", "nan"], "l-s"),
+        (vec!["track", SAMPLE, "-p", "4", "--l-s", l_s, "--gamma-ke", "-1"], "gamma-ke"),
+        (vec!["track", SAMPLE, "-p", "4", "--l-s", l_s, "--gamma-rs", "5"], "gamma-rs"),
+        (vec!["track", SAMPLE, "-p", "4", "--l-s", l_s, "--observer-gain", "inf"], "observer-gain"),
+        (vec!["track", SAMPLE, "-p", "0", "--l-s", l_s], "pole-pairs"),
+        (vec!["track", SAMPLE, "-p", "4", "--l-s", l_s, "--col-uq", "uq_missing"], "uq_missing"),
+        (vec!["track", "no/such/log.csv", "-p", "4", "--l-s", l_s], "no/such/log.csv"),
+    ] {
+        let out = greybox(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+        assert!(err.contains(culprit), "{args:?}: expected `{culprit}` in: {err}");
+    }
+}
+
+#[test]
+fn track_refuses_to_write_over_its_input_log() {
+    let log = temp("input.csv.gz");
+    std::fs::copy(SAMPLE, &log).unwrap();
+    let before = std::fs::read(&log).unwrap();
+    let path = log.to_str().unwrap();
+    let out = greybox(&["track", path, "-p", "4", "--l-s", "4.5e-3", "--json", path]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let after = std::fs::read(&log).unwrap();
+    std::fs::remove_file(&log).ok();
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("input log"), "{err}");
+    assert!(after == before, "the input log was changed");
+}
