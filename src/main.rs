@@ -4,6 +4,7 @@
 //! greybox fit LOG... --pole-pairs N [--model spm|ipm] [--hold auto|dq|stator] [--solver lm|gn] [--json PATH]
 //! greybox validate LOG... --params REPORT.json [--json PATH] [--compare-dir DIR]
 //! greybox track LOG... --pole-pairs N (--l-s H | --params REPORT.json) [--json PATH] [--max-points M]
+//! greybox simulate (--scenario exp1..exp6 | --config FILE.json) -o LOG.csv [--motor spm|ipm] [--seed N] [--set PATH=VALUE]
 //! ```
 //! The library does the work; this file only maps flags to options and prints.
 
@@ -32,6 +33,8 @@ enum Command {
     Validate(Box<cli::validate::ValidateArgs>),
     /// Run the online MRAS observer (K_e, R_s; thesis 5.1) over each log: final estimates and their trajectory.
     Track(Box<cli::track::TrackArgs>),
+    /// Simulate a closed-loop servo drive (thesis scenarios exp1-exp6 or a scenario file): a log `greybox fit` reads, with its truth JSON.
+    Simulate(Box<cli::simulate::SimulateArgs>),
 }
 
 fn main() -> ExitCode {
@@ -40,6 +43,7 @@ fn main() -> ExitCode {
         Command::Fit(a) => cli::fit::run_fit(a),
         Command::Validate(a) => cli::validate::run_validate(a),
         Command::Track(a) => cli::track::run_track(a),
+        Command::Simulate(a) => cli::simulate::run_simulate(a),
     };
     match r {
         Ok(()) => ExitCode::SUCCESS,

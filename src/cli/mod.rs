@@ -1,7 +1,8 @@
-//! The command-line tool's modules: arguments, `fit`, `validate`, `track`, report files.
+//! The command-line tool's modules: arguments, `fit`, `validate`, `track`, `simulate`, report files.
 
 pub mod args;
 pub mod fit;
 pub mod output;
+pub mod simulate;
 pub mod track;
 pub mod validate;
