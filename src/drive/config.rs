@@ -83,6 +83,13 @@ pub struct Control {
     pub i_d: Profile,
     /// d-current reference as a fraction of the q-current reference, added to `i_d`.
     pub i_d_ratio: f64,
+    /// Bandwidth ω_n [rad/s] of the critically damped trajectory filter a position
+    /// reference passes through (its speed and acceleration feed forward); 0: none.
+    pub position_filter: f64,
+    /// Online `K_t` adaptation: the MRAS (thesis 5.1, [`crate::online`]) runs in the loop
+    /// and the controller uses its `K̂_t`; `n_p`, `l_s`, `h` and the initial estimates are
+    /// the controller's own. Surface magnets only. `None`: fixed `K_t`.
+    pub adaptation: Option<crate::online::MrasConfig>,
 }
 
 impl Default for Control {
@@ -99,6 +106,8 @@ impl Default for Control {
             reference: Profile::default(),
             i_d: Profile::default(),
             i_d_ratio: 0.0,
+            position_filter: 0.0,
+            adaptation: None,
         }
     }
 }
@@ -237,6 +246,7 @@ impl DriveConfig {
             ("mechanics.viscous", self.mechanics.viscous),
             ("mechanics.coulomb", self.mechanics.coulomb),
             ("control.k_position", self.control.k_position),
+            ("control.position_filter", self.control.position_filter),
             ("inverter.v_dt", self.inverter.v_dt),
             ("sensors.current_noise", self.sensors.current_noise),
             ("sensors.speed_noise", self.sensors.speed_noise),
@@ -267,6 +277,15 @@ impl DriveConfig {
             if !v.is_finite() {
                 return Err(bad(n, v, "finite"));
             }
+        }
+        if self.control.position_filter * self.control.h > 0.5 {
+            return Err(bad("control.position_filter", self.control.position_filter, "at most 0.5/h"));
+        }
+        if self.control.adaptation.is_some() && self.motor.salient() {
+            return Err(Error::InvalidOption {
+                option: "control.adaptation".into(),
+                reason: "the MRAS observer is for surface magnets (l_d = l_q)".into(),
+            });
         }
         if self.mechanics.substeps == 0 || self.mechanics.substeps > 1000 {
             return Err(bad("mechanics.substeps", self.mechanics.substeps as f64, "in 1..=1000"));

@@ -8,6 +8,8 @@
 //! 2002, ch. 3).
 
 use super::config::{Control, Mode};
+use crate::error::Result;
+use crate::online::{Mras, MrasConfig, Sample};
 use crate::pmsm::MotorParameters;
 
 /// What the controller measures at `t_k`.
@@ -28,6 +30,8 @@ pub struct Command {
     pub u: [f64; 2],
     /// dq current reference [A] (after the current limit).
     pub i_ref: [f64; 2],
+    /// Speed reference of the speed loop [rad/s] (`None` in torque mode).
+    pub w_ref: Option<f64>,
 }
 
 /// The controller's state: integrators and the machine model it believes in.
@@ -41,14 +45,53 @@ pub struct Controller {
     int_i: [f64; 2],
     /// Speed-loop integrator [N m].
     int_w: f64,
+    /// Trajectory filter state: position [rad] and speed [rad/s].
+    filter: [f64; 2],
+    /// The MRAS whose `K̂_t` the controller uses, if adaptive.
+    mras: Option<Mras>,
 }
 
 impl Controller {
     /// A controller for `motor` (the plant at T_0; the controller's `ψ_f` is off by
     /// `cfg.k_t_factor`) on a load of inertia `inertia` [kg m²].
-    pub fn new(cfg: &Control, motor: &MotorParameters, inertia: f64) -> Self {
+    ///
+    /// # Errors
+    /// Those of [`Mras::try_new`] with `cfg.adaptation`.
+    pub fn new(cfg: &Control, motor: &MotorParameters, inertia: f64) -> Result<Self> {
         let model = MotorParameters { psi_f: motor.psi_f * cfg.k_t_factor, ..*motor };
-        Self { cfg: cfg.clone(), model, inertia, int_i: [0.0; 2], int_w: 0.0 }
+        let mras = match &cfg.adaptation {
+            None => None,
+            Some(m) => Some(Mras::try_new(MrasConfig {
+                n_p: model.n_p,
+                l_s: model.l_d,
+                h: cfg.h,
+                k_e0: model.k_e(),
+                r_s0: model.r_s,
+                ..m.clone()
+            })?),
+        };
+        Ok(Self { cfg: cfg.clone(), model, inertia, int_i: [0.0; 2], int_w: 0.0, filter: [0.0; 2], mras })
+    }
+
+    /// With adaptation, feeds the MRAS the sample (currents at `t_k` and the period-mean
+    /// voltage the controller knows it applies over `[t_k, t_{k+1})`) and takes its `K̂_t`
+    /// (a non-positive or non-finite estimate is ignored).
+    ///
+    /// # Errors
+    /// Those of [`Mras::update`] (a non-finite sample).
+    pub fn adapt(&mut self, s: &Sample) -> Result<()> {
+        if let Some(m) = self.mras.as_mut() {
+            let est = m.update(s)?;
+            if est.psi_f.is_finite() && est.psi_f > 0.0 {
+                self.model.psi_f = est.psi_f;
+            }
+        }
+        Ok(())
+    }
+
+    /// The controller's `K_t` [N m/A] now.
+    pub fn k_t(&self) -> f64 {
+        self.model.k_t()
     }
 
     /// The voltage reference at time `t` [s] from the measurement `m`.
@@ -56,15 +99,26 @@ impl Controller {
         let c = &self.cfg;
         let h = c.h;
         // Outer loops: torque reference [N m].
+        let mut w_ref_out = None;
         let torque = match c.mode {
             Mode::Torque => c.reference.at(t),
             Mode::Speed | Mode::Position => {
                 let (w_ref, accel) = match c.mode {
+                    Mode::Position if c.position_filter > 0.0 => {
+                        // Critically damped trajectory filter (semi-implicit Euler).
+                        let wn = c.position_filter;
+                        let [th, w] = self.filter;
+                        let a = wn * wn * (c.reference.at(t) - th) - 2.0 * wn * w;
+                        let w = w + h * a;
+                        self.filter = [th + h * w, w];
+                        (c.k_position * (self.filter[0] - m.theta_m) + w, a)
+                    }
                     Mode::Position => {
                         (c.k_position * (c.reference.at(t) - m.theta_m) + c.reference.slope(t), 0.0)
                     }
                     _ => (c.reference.at(t), c.reference.slope(t)),
                 };
+                w_ref_out = Some(w_ref);
                 let k_p = c.alpha_s * self.inertia;
                 let k_i = c.alpha_s * k_p / 5.0;
                 let e = w_ref - m.w_m;
@@ -98,6 +152,6 @@ impl Controller {
                 *int += c.alpha_c * p.r_s * h * e;
             }
         }
-        Command { u: raw.map(|v| v * scale), i_ref: [i_d, i_q] }
+        Command { u: raw.map(|v| v * scale), i_ref: [i_d, i_q], w_ref: w_ref_out }
     }
 }

@@ -45,16 +45,26 @@ pub fn scenario(name: &str, motor: MotorParameters) -> Result<DriveConfig> {
             duration: 16.0,
             ..base
         },
-        // Thesis Exp 2: a position step of 0.5 rad (within the current limit, so the loops stay
-        // linear) with the controller's K_t 20 % high.
+        // Thesis Exp 2: position steps of 3 rad back and forth every 0.6 s through a 30 rad/s
+        // trajectory filter (speed and acceleration fed forward), with the controller's K_t
+        // 20 % high: its torque feed-forward falls short by 1/6. Set `control.adaptation`
+        // to let the MRAS correct K_t in the loop.
         "exp2" => DriveConfig {
             control: super::config::Control {
                 mode: Mode::Position,
-                reference: Profile(vec![(0.0, 0.0), (0.2, 0.0), (0.2, 0.5)]),
+                reference: Profile(
+                    (0..5)
+                        .flat_map(|j| {
+                            let (t, to) = (0.2 + 0.6 * f64::from(j), if j % 2 == 0 { 3.0 } else { 0.0 });
+                            [(t, 3.0 - to), (t, to)]
+                        })
+                        .collect(),
+                ),
+                position_filter: 30.0,
                 k_t_factor: 1.2,
                 ..c
             },
-            duration: 1.5,
+            duration: 3.2,
             ..base
         },
         // Thesis Exp 3: back-and-forth moves at increasing speeds, with a gravity-like arm.

@@ -21,8 +21,11 @@ use super::config::DriveConfig;
 use super::control::{Controller, Measurement};
 use crate::data::{Channel, Experiment};
 use crate::error::{Error, Result};
+use crate::online::Sample;
 use crate::pmsm::transform::{clarke, inverse_clarke, inverse_park, park};
-use crate::pmsm::{ALPHA_COPPER, BETA_NDFEB, C64, DqSignals, ExactPlant, MotorParameters, stator_hold_start};
+use crate::pmsm::{
+    ALPHA_COPPER, BETA_NDFEB, C64, DqSignals, ExactPlant, MotorParameters, VoltageHold, stator_hold_start,
+};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -52,7 +55,9 @@ pub struct Truth {
 }
 
 /// A simulated drive log: the experiment (channels `ud, uq, id, iq, w_m, theta_m, ud_ref,
-/// uq_ref, id_ref, iq_ref`, as `greybox fit` reads them) and its truth.
+/// uq_ref, id_ref, iq_ref`, as `greybox fit` reads them, plus `w_ref` [rad/s], the speed
+/// loop's reference, in speed and position modes, and `k_t_ctrl` [N m/A], the controller's
+/// `K_t`, with adaptation) and its truth.
 #[derive(Clone, Debug)]
 pub struct DriveLog {
     /// The log.
@@ -82,8 +87,9 @@ pub fn plant_at(cfg: &DriveConfig, t: f64) -> MotorParameters {
 pub fn simulate_drive(cfg: &DriveConfig) -> Result<DriveLog> {
     cfg.validate()?;
     let (h, n, np) = (cfg.control.h, cfg.samples(), f64::from(cfg.motor.n_p));
-    let mut plant = ExactPlant::new(cfg.motor.n_p, h, cfg.motor.salient())?;
-    let mut ctrl = Controller::new(&cfg.control, &cfg.motor, cfg.mechanics.inertia);
+    let mut plant = ExactPlant::new(cfg.motor.n_p, h, cfg.motor.salient(), VoltageHold::Stator)?;
+    let mut ctrl = Controller::new(&cfg.control, &cfg.motor, cfg.mechanics.inertia)?;
+    let (mut w_refs, mut k_ts) = (Vec::new(), Vec::new());
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let gauss = |rng: &mut ChaCha8Rng, s: f64| {
         if s > 0.0 { Normal::new(0.0, s).map_or(0.0, |d| d.sample(rng)) } else { 0.0 }
@@ -137,6 +143,17 @@ pub fn simulate_drive(cfg: &DriveConfig) -> Result<DriveLog> {
         let applied = history.front().copied().filter(|_| history.len() == inv.delay + 1);
         let mut u_s =
             applied.map_or(C64::default(), |(u, th, we)| u * C64::from_polar(1.0, th + inv.advance * we * h));
+        if cfg.control.adaptation.is_some() {
+            // The voltage the controller knows it applies, in its own frame, as a period mean.
+            let u0 = u_s * C64::from_polar(1.0, -np * theta_meas);
+            let mean = u0 / stator_hold_start(C64::new(1.0, 0.0), np * w_meas * h);
+            let sample = Sample { i_d: id_m, i_q: iq_m, u_d: mean.re, u_q: mean.im, w_m: w_meas };
+            ctrl.adapt(&sample).map_err(|_| diverged(k, &p))?;
+            k_ts.push(ctrl.k_t());
+        }
+        if let Some(w) = cmd.w_ref {
+            w_refs.push(w);
+        }
         if inv.v_dt > 0.0 {
             let (x, y, z) = inverse_clarke(a, b);
             let (ea, eb) = clarke(-(x / inv.width).tanh(), -(y / inv.width).tanh(), -(z / inv.width).tanh());
@@ -184,6 +201,12 @@ pub fn simulate_drive(cfg: &DriveConfig) -> Result<DriveLog> {
     let mut channels = signals.into_channels();
     channels.push(Channel::new("id_ref", "A", id_ref));
     channels.push(Channel::new("iq_ref", "A", iq_ref));
+    if w_refs.len() == n {
+        channels.push(Channel::new("w_ref", "rad/s", w_refs));
+    }
+    if k_ts.len() == n {
+        channels.push(Channel::new("k_t_ctrl", "N m/A", k_ts));
+    }
     let experiment = Experiment::try_new(cfg.name.clone(), h, channels)?;
     let (start, end) = (plant_at(cfg, 0.0), plant_at(cfg, (n - 1) as f64 * h));
     let time_varying = (0..=100).any(|j| plant_at(cfg, cfg.duration * f64::from(j) / 100.0) != start);

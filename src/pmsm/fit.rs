@@ -10,16 +10,16 @@
 //!    their standard errors (MODEL.md §2).
 
 use super::hold::{DQ_DECISIVE, hold_ambiguity};
-use super::interval::{VoltageHold, VoltageInput, applied_experiment};
+use super::interval::{VoltageHold, VoltageInput};
 use super::inverter::InverterModel;
 use super::kind::MotorKind;
 use super::limit::{VoltageLimitWeighting, delay_of};
-use super::linear::least_squares;
 use super::mask::{DeadTimeMask, DeadTimeMaskWeighting, masked_pem};
 use super::report::delay_parameter;
 pub use super::report::{PmsmFit, StartComparison};
 use super::setup::PmsmSetup;
 use super::signals::channel;
+use super::start::least_squares_start;
 use super::temperature::ThermalReference;
 use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
@@ -139,29 +139,26 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             s
         }
         None => {
-            let applied = applied_experiments(experiments, n_p, options.input)?;
-            let mut ls = least_squares(applied.as_deref().unwrap_or(experiments), n_p, options.model)?;
-            // The regression sees the whole series resistance; the model adds the cable.
-            ls.theta[0] -= options.cable_resistance;
-            for (n, v) in ls.names.iter().zip(&ls.theta) {
-                if n != "k_e" && *v <= 0.0 {
-                    return Err(Error::Numerical {
-                        context: "least-squares start".into(),
-                        reason: format!("`{n}` = {v:e} is not positive; give a start value (--start)"),
-                    });
-                }
-            }
+            let (ls_names, theta) = least_squares_start(
+                experiments,
+                n_p,
+                options.model,
+                options.input,
+                options.cable_resistance,
+                options.inverter.as_ref(),
+            )?;
             notes.push(format!(
                 "start from linear least squares: {}",
-                ls.names
+                ls_names
                     .iter()
-                    .zip(&ls.theta)
+                    .zip(&theta)
                     .map(|(n, v)| format!("{n} = {v:.6e}"))
                     .collect::<Vec<_>>()
                     .join(", ")
             ));
-            ls_theta = Some(ls.theta.clone());
-            ls.theta.into_iter().chain(v_dt0).collect()
+            let with_v_dt = ls_names.len() == names.len();
+            ls_theta = Some(theta.clone());
+            theta.into_iter().chain(v_dt0.filter(|_| !with_v_dt)).collect()
         }
     };
     let reference = options.input != VoltageInput::Terminal;
@@ -357,23 +354,6 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     })
 }
 
-/// With a reference input, the experiments with their `ud, uq` replaced by the applied
-/// period-mean voltage (for the linear least-squares start); `None` for the terminal input.
-fn applied_experiments(
-    experiments: &[Experiment],
-    n_p: u32,
-    input: VoltageInput,
-) -> Result<Option<Vec<Experiment>>> {
-    if input == VoltageInput::Terminal {
-        return Ok(None);
-    }
-    experiments.iter().map(|e| applied_experiment(e, n_p, input)).collect::<Result<Vec<_>>>().map(Some)
-}
-
-/// Advice when the losses of the two holds are close (ratio within [`DQ_DECISIVE`]) but
-/// their estimates differ by more than 3 combined standard errors: the data do not clearly
-/// say how the voltage was held (PWM ripple, dead time, or a voltage column that is not a
-/// period mean).
 /// Applies the fixed flags and bounds of `options` to the model's parameter metadata.
 fn configure(params: &mut [Parameter], options: &PmsmFitOptions) -> Result<()> {
     let unknown = |n: &str, what: &str| Error::InvalidOption {

@@ -20,7 +20,7 @@
 
 use super::fit::{PmsmFit, PmsmFitOptions, fit_pmsm};
 use super::inverter::InverterModel;
-use super::signals::channel;
+use super::signals::{DqView, channel};
 use super::transform::{inverse_clarke, inverse_park};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
@@ -129,33 +129,45 @@ pub(crate) fn masked_pem(inverter: Option<&InverterModel>, pem: &PemOptions) -> 
     }
 }
 
-/// `4 h V_dt / L` [A] from a fit: `h` the longest sample time of the logs, `L` the smallest
-/// inductance estimate.
-fn auto_threshold(experiments: &[Experiment], fit: &PmsmFit) -> Result<f64> {
+/// Threshold relative to the largest current magnitude of the logs when a fit gives no
+/// positive `4 h V_dt / L` (e.g. `v_dt` at its bound 0 before the mask).
+pub const FALLBACK_RELATIVE_THRESHOLD: f64 = 0.05;
+
+/// `4 h V_dt / L` [A] from a fit (`h` the longest sample time of the logs, `L` the smallest
+/// inductance estimate), or `None` when that is not positive and finite.
+fn auto_threshold(experiments: &[Experiment], fit: &PmsmFit) -> Option<f64> {
     let h = experiments.iter().map(Experiment::h).fold(0.0, f64::max);
     let l = ["l_s", "l_d", "l_q"]
         .iter()
         .filter_map(|n| fit.parameter(n).map(|p| p.value))
         .fold(f64::INFINITY, f64::min);
     let v_dt = fit.parameter("v_dt").map_or(f64::NAN, |p| p.value);
-    let threshold = 4.0 * h * v_dt / l;
-    if threshold.is_finite() && threshold > 0.0 {
-        Ok(threshold)
-    } else {
-        Err(Error::Numerical {
+    Some(4.0 * h * v_dt / l).filter(|t| t.is_finite() && *t > 0.0)
+}
+
+/// [`FALLBACK_RELATIVE_THRESHOLD`] × the largest `|i_dq|` of the logs [A].
+fn fallback_threshold(experiments: &[Experiment]) -> Result<f64> {
+    let peak = experiments
+        .iter()
+        .filter_map(|e| DqView::try_new(e).ok())
+        .map(|v| v.peak_current())
+        .fold(0.0, f64::max);
+    Some(FALLBACK_RELATIVE_THRESHOLD * peak).filter(|t| t.is_finite() && *t > 0.0).ok_or_else(|| {
+        Error::Numerical {
             context: "dead-time mask".into(),
-            reason: format!(
-                "no threshold from v_dt = {v_dt:e} V and L = {l:e} H (give the threshold in amperes)"
-            ),
-        })
-    }
+            reason: "no threshold: the currents are all zero (give the threshold in amperes)".into(),
+        }
+    })
 }
 
 /// [`fit_pmsm`] with [`DeadTimeMask::Auto`]: the unmasked fit, then the threshold
 /// `4 h V_dt / L` from the latest fit, twice; the report records the threshold used.
 ///
+/// When a fit gives no positive `4 h V_dt / L` (its `v_dt` at 0), the threshold is
+/// [`FALLBACK_RELATIVE_THRESHOLD`] of the peak current for that step.
+///
 /// # Errors
-/// Those of [`fit_pmsm`]; [`Error::Numerical`] when a fit gives no positive threshold.
+/// Those of [`fit_pmsm`]; [`Error::Numerical`] when the currents are all zero.
 pub(crate) fn fit_auto_mask(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<PmsmFit> {
     let inverter = options.inverter.unwrap_or_default();
     let with_mask = |mask: Option<DeadTimeMask>, start: Option<Vec<f64>>| PmsmFitOptions {
@@ -166,7 +178,18 @@ pub(crate) fn fit_auto_mask(experiments: &[Experiment], options: &PmsmFitOptions
     let mut fit = fit_pmsm(experiments, &with_mask(None, None))?;
     let mut trail = Vec::new();
     for _ in 0..AUTO_ITERATIONS {
-        let threshold = auto_threshold(experiments, &fit)?;
+        let threshold = match auto_threshold(experiments, &fit) {
+            Some(t) => t,
+            None => {
+                let t = fallback_threshold(experiments)?;
+                trail.push(format!(
+                    "(v_dt {:.3e} V: {:.0} % of the peak current)",
+                    fit.parameter("v_dt").map_or(f64::NAN, |p| p.value),
+                    100.0 * FALLBACK_RELATIVE_THRESHOLD
+                ));
+                t
+            }
+        };
         trail.push(format!("{threshold:.4}"));
         let names = options.model.parameter_names().iter().copied().chain(["v_dt"]);
         let start: Option<Vec<f64>> = names.map(|n| fit.parameter(n).map(|p| p.value)).collect();

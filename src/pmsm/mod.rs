@@ -32,6 +32,7 @@ pub mod report;
 pub mod setup;
 pub mod signals;
 pub mod spm;
+pub(crate) mod start;
 pub mod temperature;
 pub mod transform;
 pub mod validate;

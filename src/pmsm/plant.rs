@@ -68,23 +68,25 @@ enum Engine {
     Ipm(PmsmIpm, IpmInputs),
 }
 
-/// The exact electrical step of a machine driven by a voltage held in the stator frame
-/// over each period (an inverter's output), at the period's mean speed.
+/// The exact electrical step of a machine at the period's mean speed, the voltage held in
+/// the stator frame over each period (an inverter's output) or in dq (some simulators).
 #[derive(Debug)]
 pub struct ExactPlant {
     engine: Engine,
     h: f64,
     n_p: u32,
+    hold: VoltageHold,
 }
 
 impl ExactPlant {
-    /// The plant of a machine with `n_p` pole pairs at sample time `h` [s]; salient machines
-    /// step with the augmented exponential, the others in closed form.
+    /// The plant of a machine with `n_p` pole pairs at sample time `h` [s] with the given
+    /// voltage hold; salient machines step with the augmented exponential, the others in
+    /// closed form.
     ///
     /// # Errors
     /// [`Error::InvalidPolePairs`] for `n_p = 0`; [`Error::InvalidSampleTime`] for `h` not
     /// positive and finite.
-    pub fn new(n_p: u32, h: f64, salient: bool) -> Result<Self> {
+    pub fn new(n_p: u32, h: f64, salient: bool, hold: VoltageHold) -> Result<Self> {
         check_pole_pairs(n_p)?;
         if !(h.is_finite() && h > 0.0) {
             return Err(Error::InvalidSampleTime { h });
@@ -93,13 +95,13 @@ impl ExactPlant {
         let engine = if salient {
             let inp = IpmInputs {
                 h,
-                hold: VoltageHold::Stator,
+                hold,
                 w_e: vec![0.0],
                 emf: vec![0.0],
                 u0: one(C64::default()),
                 dt: Vec::new(),
             };
-            Engine::Ipm(PmsmIpm::new(n_p, VoltageHold::Stator), inp)
+            Engine::Ipm(PmsmIpm::new(n_p, hold), inp)
         } else {
             let inp = SpmInputs {
                 h,
@@ -110,15 +112,15 @@ impl ExactPlant {
                 u: one(C64::default()),
                 dt: Vec::new(),
             };
-            Engine::Spm(PmsmSpm::new(n_p, VoltageHold::Stator), inp)
+            Engine::Spm(PmsmSpm::new(n_p, hold), inp)
         };
-        Ok(Self { engine, h, n_p })
+        Ok(Self { engine, h, n_p, hold })
     }
 
     /// The dq current `[i_d, i_q]` [A] at the end of the period from `i` at its start, for
-    /// the dq voltage `u0` [V] at the start of the period held in the stator frame (it turns
-    /// backwards in dq by `ω_e h` over the period) and the period's mean mechanical speed
-    /// `w_m` [rad/s]: the step of [`PmsmSpm`] or [`PmsmIpm`] with the stator hold.
+    /// the dq voltage `u0` [V] at the start of the period (held in the stator frame it turns
+    /// backwards in dq by `ω_e h` over the period; held in dq it stays) and the period's
+    /// mean mechanical speed `w_m` [rad/s]: the step of [`PmsmSpm`] or [`PmsmIpm`].
     ///
     /// # Errors
     /// Those of the model's `coefficients` (the parameters are validated every step: they
@@ -134,7 +136,10 @@ impl ExactPlant {
                 (inp.w_e[0], inp.emf[0], inp.rot[0], inp.vers[0]) =
                     (w_e, SQRT_2_3 * w_m, rot, 2.0 * half * half);
                 // The stator-held voltage enters the SPM step rotated to the period's end.
-                inp.u[0] = u0 * rot;
+                inp.u[0] = match self.hold {
+                    VoltageHold::Stator => u0 * rot,
+                    VoltageHold::Dq => u0,
+                };
                 let c = model.coefficients(&[p.r_s, p.l_d, p.k_e()], inp)?;
                 model.step(&c, inp, 0, &i, &mut next);
             }

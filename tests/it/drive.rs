@@ -54,8 +54,8 @@ fn simulated_logs_are_fitted_back_to_their_truth() {
 
 /// Thesis Exp 1 (MODEL.md §7): the MRAS, started at 80 % of the plant's K_e and R_s, follows
 /// the plant's K_t ramp (−10 % over 5–7 s) and R_s ramp (+20 % over 9–11 s): at 4.9 s, 8.9 s
-/// and the end both estimates are within 0.5 % of the plant's values at that time (the
-/// thesis' gains: each ramp leaves a lag that decays within about two seconds).
+/// and the end K_t is within 1 % and R_s within 2 % of the plant's values at that time
+/// (the thesis' gains), and each settles before the next change.
 #[test]
 fn exp1_mras_follows_the_plant() {
     let cfg = scenario("exp1", SPM_MOTOR).unwrap();
@@ -68,41 +68,64 @@ fn exp1_mras_follows_the_plant() {
         ..Default::default()
     };
     let tr = greybox::online::track(&log.experiment, &config).unwrap();
+    let errors = |k: usize| {
+        let plant = greybox::drive::plant_at(&cfg, tr.t[k]);
+        (rel(tr.k_e[k], plant.k_e()), rel(tr.r_s[k], plant.r_s))
+    };
     for t in [4.9, 8.9, cfg.duration - 0.01] {
         let k = tr.t.iter().position(|&x| x >= t).unwrap();
-        let plant = greybox::drive::plant_at(&cfg, t);
-        let (e_k, e_r) = (rel(tr.k_e[k], plant.k_e()), rel(tr.r_s[k], plant.r_s));
-        eprintln!("exp1 at {t} s: K_e error {e_k:.2e}, R_s error {e_r:.2e}");
-        assert!(e_k < 5e-3 && e_r < 5e-3, "at {t} s: K_e {e_k:e}, R_s {e_r:e}");
+        let (e_k, e_r) = errors(k);
+        eprintln!("exp1 at {t} s: K_t error {e_k:.2e}, R_s error {e_r:.2e}");
+        assert!(e_k < 0.01 && e_r < 0.02, "at {t} s: K_t {e_k:e}, R_s {e_r:e}");
+    }
+    // Settling: from each change (torque step at 1 s, K_t ramp 5–7 s, R_s ramp 9–11 s) to
+    // the time after which K_t stays within 1 % and R_s within 2 %, up to the next change.
+    for (from, to) in [(1.0, 5.0), (7.0, 9.0), (11.0, cfg.duration)] {
+        let window: Vec<usize> = (0..tr.t.len()).filter(|&k| tr.t[k] >= from && tr.t[k] < to).collect();
+        let last_bad = |i: usize| {
+            window.iter().rev().find(|&&k| {
+                let e = errors(k);
+                if i == 0 { e.0 >= 0.01 } else { e.1 >= 0.02 }
+            })
+        };
+        let settle = |i: usize| last_bad(i).map_or(0.0, |&k| tr.t[k] - from);
+        let (s_k, s_r) = (settle(0), settle(1));
+        eprintln!("exp1 after {from} s: K_t settles within 1 % in {s_k:.3} s, R_s within 2 % in {s_r:.3} s");
+        assert!(s_k < to - from - 0.1 && s_r < to - from - 0.1);
     }
 }
 
-/// Thesis Exp 2: with the controller's K_t 20 % too high the same position step is reached,
-/// but the torque it believes it commands is not the one it gets: the integrated position
-/// error is larger than with the right K_t.
+/// Thesis Exp 2: with the controller's K_t 20 % too high the position steps are reached, but
+/// its torque feed-forward falls short; with the MRAS adapting K_t in the loop the speed
+/// control error (integrated |ω_ref − ω|) is lower, and the controller's K_t ends within 1 %
+/// of the plant's.
 #[test]
-fn exp2_wrong_k_t_shows_as_speed_and_position_error() {
+fn exp2_adaptation_lowers_the_speed_error() {
     let cfg = scenario("exp2", SPM_MOTOR).unwrap();
-    let right = DriveConfig {
-        control: greybox::drive::Control { k_t_factor: 1.0, ..cfg.control.clone() },
+    let adaptive = DriveConfig {
+        control: greybox::drive::Control { adaptation: Some(Default::default()), ..cfg.control.clone() },
         ..cfg.clone()
     };
-    let track_error = |c: &DriveConfig| {
+    let speed_error = |c: &DriveConfig| {
         let log = simulate_drive(c).unwrap();
-        let th = &log.experiment.channel("theta_m").unwrap();
-        let iae: f64 = (0..th.len())
-            .map(|k| (c.control.reference.at(k as f64 * c.control.h) - th[k]).abs() * c.control.h)
-            .sum();
-        (iae, (th[th.len() - 1] - 0.5).abs())
+        let (w, w_ref) = (log.experiment.channel("w_m").unwrap(), log.experiment.channel("w_ref").unwrap());
+        let iae: f64 = w.iter().zip(w_ref).map(|(a, b)| (a - b).abs() * c.control.h).sum();
+        let th = log.experiment.channel("theta_m").unwrap();
+        (iae, (th[th.len() - 1] - c.control.reference.at(c.duration)).abs(), log)
     };
-    let (wrong, wrong_end) = track_error(&cfg);
-    let (ok, ok_end) = track_error(&right);
+    let (without, end_without, _) = speed_error(&cfg);
+    let (with, end_with, log) = speed_error(&adaptive);
+    let k_t = log.experiment.channel("k_t_ctrl").unwrap();
+    let k_t_end = k_t[k_t.len() - 1];
     eprintln!(
-        "exp2: integrated absolute position error {wrong:.5} rad s with K_t +20 %, {ok:.5} rad s with the right K_t; \
-         final error {wrong_end:.2e}, {ok_end:.2e} rad"
+        "exp2: speed control error {without:.5} rad without adaptation, {with:.5} rad with it; controller K_t {:.4} -> \
+         {k_t_end:.4} N m/A (plant {:.4}); final position error {end_without:.1e}, {end_with:.1e} rad",
+        k_t[0],
+        SPM_MOTOR.k_t()
     );
-    assert!(wrong_end < 1e-2 && ok_end < 1e-2);
-    assert!(wrong > ok);
+    assert!(end_without < 1e-2 && end_with < 1e-2);
+    assert!(with < without);
+    assert!(rel(k_t_end, SPM_MOTOR.k_t()) < 0.01);
 }
 
 /// Thesis Exp 3: the speed follows the back-and-forth moves to 280 rad/s.
@@ -236,4 +259,142 @@ fn simulate_command_line() {
     }
     assert!(!dir.join("c.csv").exists());
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The simulator's plant driven open loop by each development log's voltage and speed, with
+/// the log's truth, reproduces the log's currents as closely as the offline model does: the
+/// two are one step (identical to 1e-12 of the current scale), and both follow the log to
+/// its writing precision (motulator: stator hold; gym-electric-motor: dq hold).
+#[test]
+fn plant_reproduces_the_development_logs_open_loop() {
+    use greybox::model::Prepared;
+    use greybox::pmsm::{C64, ExactPlant, MotorParameters, PmsmIpm, PmsmSpm, VoltageHold, stator_hold_start};
+    use greybox::simulate::{SimOptions, simulate};
+    crate::common::require_shared!();
+    for stem in ["servo_spm_moves_idinj", "ipm_moves_idinj", "gem_spm_moves_idinj", "gem_ipm_moves_idinj"] {
+        let (e, t) = crate::common::load(stem);
+        let hold = if stem.starts_with("gem") { VoltageHold::Dq } else { VoltageHold::Stator };
+        let p = MotorParameters { r_s: t.r_s, l_d: t.l_d, l_q: t.l_q, psi_f: t.psi_f, n_p: t.n_p };
+        let v = greybox::pmsm::DqView::try_new(&e).unwrap();
+        let (ud, uq) = v.terminal_voltage().unwrap();
+        let (id, iq, wm) = (v.i_d(), v.i_q(), v.w_m());
+        let mut plant = ExactPlant::new(t.n_p, e.h(), t.salient, hold).unwrap();
+        let mut i = [id[0], iq[0]];
+        let mut plant_y = vec![i[0], i[1]];
+        for k in 0..e.len() - 1 {
+            let w = 0.5 * (wm[k] + wm[k + 1]);
+            let mean = C64::new(ud[k], uq[k]);
+            let u0 = match hold {
+                VoltageHold::Stator => stator_hold_start(mean, f64::from(t.n_p) * w * e.h()),
+                VoltageHold::Dq => mean,
+            };
+            i = plant.step(&p, i, u0, w).unwrap();
+            plant_y.extend(i);
+        }
+        let model_y = if t.salient {
+            let m = PmsmIpm::new(t.n_p, hold);
+            simulate(
+                &m,
+                &Prepared::new(&m, &e).unwrap(),
+                &[t.r_s, t.l_d, t.l_q, t.k_e],
+                &SimOptions::default(),
+            )
+        } else {
+            let m = PmsmSpm::new(t.n_p, hold);
+            simulate(&m, &Prepared::new(&m, &e).unwrap(), &[t.r_s, t.l_d, t.k_e], &SimOptions::default())
+        }
+        .unwrap();
+        let scale = id.iter().chain(iq).fold(0.0f64, |m, x| m.max(x.abs()));
+        let same = plant_y.iter().zip(&model_y).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let log_y: Vec<f64> = (0..e.len()).flat_map(|k| [id[k], iq[k]]).collect();
+        let rms = |y: &[f64]| {
+            (y.iter().zip(&log_y).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / y.len() as f64).sqrt()
+        };
+        eprintln!(
+            "{stem}: plant vs offline model max {same:.1e} A; rms error against the log: plant {:.3e} A, model {:.3e} A (scale {scale:.1} A)",
+            rms(&plant_y),
+            rms(&model_y)
+        );
+        assert!(same <= 1e-12 * scale, "{stem}: {same:e}");
+        assert!(rms(&plant_y) < 1e-4 * scale, "{stem}");
+    }
+}
+
+/// The offline fit of every scenario's noise-free log (both motors) recovers the scenario's
+/// truth within 1e-4 from the terminal voltage and from the reference voltage (delay 1,
+/// advance 1.5); with a 6 V dead-time voltage in the inverter, the fit from the reference
+/// with the inverter model meets the inverter issue's tolerances (R_s, L within 1 %, K_e
+/// within 0.1 %). exp1's plant changes at 5 s, so its fit takes the first 5 s.
+#[test]
+fn every_scenario_is_fitted_back_to_its_truth() {
+    use greybox::pmsm::InverterModel;
+    let mut worst = std::collections::BTreeMap::new();
+    for motor in [SPM_MOTOR, IPM_MOTOR] {
+        for name in greybox::drive::SCENARIOS {
+            let mut cfg = scenario(name, motor).unwrap();
+            cfg.duration = cfg.duration.min(if name == "exp1" { 4.99 } else { 4.0 });
+            let clean = simulate_drive(&cfg).unwrap();
+            let dead = simulate_drive(&DriveConfig {
+                inverter: greybox::drive::Inverter { v_dt: 6.0, ..cfg.inverter.clone() },
+                ..cfg.clone()
+            })
+            .unwrap();
+            let t = &clean.truth;
+            assert!(!t.time_varying, "{name}");
+            let truth = [
+                ("r_s", t.start.r_s),
+                ("l_s", t.start.l_d),
+                ("l_d", t.start.l_d),
+                ("l_q", t.start.l_q),
+                ("k_e", t.k_e),
+            ];
+            let inverter =
+                Some(InverterModel { mask: Some(greybox::pmsm::DeadTimeMask::Auto), ..Default::default() });
+            let runs = [
+                ("terminal", &clean, options(t, VoltageInput::Terminal), [1e-4; 2]),
+                ("reference", &clean, options(t, VoltageInput::REFERENCE), [1e-4; 2]),
+                (
+                    "reference, dead time",
+                    &dead,
+                    PmsmFitOptions { inverter, ..options(t, VoltageInput::REFERENCE) },
+                    [1e-2, 1e-3],
+                ),
+            ];
+            for (how, log, opts, tol) in runs {
+                // Where the least-squares start cannot separate the dead-time voltage from the
+                // inductances (IPM exp2 and exp5: little d-axis excitation), start as a user with
+                // a data sheet would: 30 % off every value.
+                let fit = fit_pmsm(std::slice::from_ref(&log.experiment), &opts).or_else(|e| {
+                    eprintln!("{name} {how}: {e}; started 30 % off instead");
+                    let start = if motor.salient() {
+                        vec![1.3 * t.start.r_s, 1.3 * t.start.l_d, 1.3 * t.start.l_q, 1.3 * t.k_e]
+                    } else {
+                        vec![1.3 * t.start.r_s, 1.3 * t.start.l_d, 1.3 * t.k_e]
+                    };
+                    fit_pmsm(
+                        std::slice::from_ref(&log.experiment),
+                        &PmsmFitOptions { start: Some(start), ..opts.clone() },
+                    )
+                });
+                let fit = fit.unwrap();
+                for (p, v) in truth {
+                    let Some(est) = fit.parameter(p) else { continue };
+                    let err = rel(est.value, v);
+                    let tol = if p == "k_e" { tol[1] } else { tol[0] };
+                    let w = worst.entry(format!("{how} {p}")).or_insert(0.0f64);
+                    *w = w.max(err);
+                    assert!(
+                        err < tol,
+                        "{name} {} from the {how}: {p} {err:e}",
+                        if motor.salient() { "IPM" } else { "SPM" }
+                    );
+                }
+                if let Some(v) = fit.parameter("v_dt") {
+                    eprintln!("{name}: v_dt {:.4} V (6 V in the inverter)", v.value);
+                }
+            }
+        }
+    }
+    let text: Vec<String> = worst.iter().map(|(k, v)| format!("{k} {v:.1e}")).collect();
+    eprintln!("scenario fits, worst relative error over all scenarios and both motors: {}", text.join(", "));
 }
