@@ -1,0 +1,118 @@
+//! Criterion benches of the MRAS observer (thesis 5.1, `greybox::online`): one
+//! [`Mras::update`] per sample, for both adaptation laws, and [`track`] over the shipped log.
+//!
+//! - `mras update, <law>`: 10 000 prepared samples per iteration of a synthetic SPM signal
+//!   (built here, no files: n_p = 4, L_s = 4.5 mH, h = 100 µs, the speed and the currents
+//!   varying around 200 rad/s mechanical, 5 A q and 2 A d, so that the `R_s` law is
+//!   active). Criterion's throughput is in samples (elements) per second; the time per
+//!   iteration divided by 10 000 is the time of one `update`.
+//! - `track`: [`track`] over `data/sample.csv.gz` (20 000 samples), the trajectory's
+//!   vectors included; reading the log is outside the timing.
+//!
+//! Run: `cargo bench --bench online` (a quick look:
+//! `cargo bench --bench online -- --warm-up-time 1 --measurement-time 3`).
+
+use criterion::{Criterion, Throughput, criterion_group};
+use greybox::online::{Adaptation, Mras, MrasConfig, Sample, track};
+use greybox::pmsm::read_log;
+use std::f64::consts::TAU;
+use std::hint::black_box;
+use std::path::PathBuf;
+
+/// Pole pairs n_p of the synthetic motor.
+const N_P: u32 = 4;
+/// Stator inductance L_s [H] of the synthetic motor.
+const L_S: f64 = 4.5e-3;
+/// Stator resistance R_s [Ω] of the synthetic motor.
+const R_S: f64 = 0.9;
+/// Back-EMF constant K_e [V s/rad] of the synthetic motor.
+const K_E: f64 = 0.54;
+/// Sample time h [s].
+const H: f64 = 1e-4;
+/// Samples per bench iteration.
+const N: usize = 10_000;
+
+/// `n` samples of an SPM at a rotating operating point: `ω_m = 200 + 20 sin(2π 3 t)` rad/s
+/// (mechanical), `i_d = 2 + 0.5 sin(2π 7 t)` A, `i_q = 5 + sin(2π 11 t)` A, and the voltages
+/// of the SPM's voltage equations with those currents (MODEL.md §2):
+/// `u = R_s i + L_s di/dt + j ω_e L_s i + j √(2/3) ω_m K_e`, `ω_e = n_p ω_m`.
+fn spm_signal(n: usize) -> Vec<Sample> {
+    (0..n)
+        .map(|k| {
+            let t = k as f64 * H;
+            let w_m = 200.0 + 20.0 * (TAU * 3.0 * t).sin();
+            let w_e = f64::from(N_P) * w_m;
+            let (i_d, di_d) = (2.0 + 0.5 * (TAU * 7.0 * t).sin(), 0.5 * TAU * 7.0 * (TAU * 7.0 * t).cos());
+            let (i_q, di_q) = (5.0 + (TAU * 11.0 * t).sin(), TAU * 11.0 * (TAU * 11.0 * t).cos());
+            let emf = (2.0f64 / 3.0).sqrt() * w_m * K_E;
+            Sample {
+                i_d,
+                i_q,
+                u_d: R_S * i_d + L_S * di_d - w_e * L_S * i_q,
+                u_q: R_S * i_q + L_S * di_q + w_e * L_S * i_d + emf,
+                w_m,
+            }
+        })
+        .collect()
+}
+
+/// The observer of the benches: the synthetic motor's known `n_p`, `L_s`, `h`, started 10 %
+/// off in `K_e` and 20 % in `R_s`. The relay law uses a larger `γ_Ke` (thesis 5.1.2).
+fn config(adaptation: Adaptation) -> MrasConfig {
+    let gamma_ke = match adaptation {
+        Adaptation::Lyapunov => 0.001,
+        Adaptation::Relay => 0.001 * 200.0,
+    };
+    MrasConfig {
+        n_p: N_P,
+        l_s: L_S,
+        h: H,
+        adaptation,
+        gamma_ke,
+        k_e0: 0.9 * K_E,
+        r_s0: 1.2 * R_S,
+        ..Default::default()
+    }
+}
+
+fn update(c: &mut Criterion) {
+    let samples = spm_signal(N);
+    let mut g = c.benchmark_group("mras update");
+    g.throughput(Throughput::Elements(N as u64));
+    for (name, adaptation) in [("lyapunov", Adaptation::Lyapunov), ("relay", Adaptation::Relay)] {
+        // One observer runs on over the iterations: each pass over the samples is one
+        // more period of the same signal, as a long log would be.
+        let mut mras = Mras::try_new(config(adaptation)).unwrap();
+        g.bench_function(format!("{name}, {N} samples"), |b| {
+            b.iter(|| {
+                for s in &samples {
+                    black_box(mras.update(black_box(s)).unwrap());
+                }
+            })
+        });
+        let last = mras.output();
+        assert!(last.k_e.is_finite() && last.r_s.is_finite(), "{name}: {last:?}");
+    }
+    g.finish();
+}
+
+fn track_sample_log(c: &mut Criterion) {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/sample.csv.gz");
+    let log = read_log(&path, &Default::default()).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    // The module example's settings: the servo log's 4 pole pairs and known L_s = 4.5 mH.
+    let cfg = MrasConfig { n_p: 4, l_s: 4.5e-3, k_e0: 0.45, r_s0: 0.7, ..Default::default() };
+    let mut g = c.benchmark_group("track");
+    // track takes N − 1 observer steps from N samples (the interval-mean speed).
+    g.throughput(Throughput::Elements(log.len() as u64 - 1));
+    g.bench_function(format!("sample.csv.gz, {} samples", log.len()), |b| {
+        b.iter(|| black_box(track(black_box(&log), &cfg).unwrap()))
+    });
+    g.finish();
+}
+
+criterion_group!(online, update, track_sample_log);
+
+fn main() {
+    online();
+    Criterion::default().configure_from_args().final_summary();
+}
