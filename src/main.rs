@@ -18,7 +18,10 @@ use std::process::ExitCode;
 #[command(
     name = "greybox",
     version,
-    about = "Grey-box estimation of PMSM parameters (R_s, L_s or L_d/L_q, K_e) from drive logs"
+    about = "Grey-box estimation of PMSM parameters (R_s, L_s or L_d/L_q, K_e) from drive logs",
+    after_help = "Exit codes: 0 success; 1 error (nothing computed, no report written); 2 invalid command line; \
+3 `fit` finished and wrote its report, but the result is not to be trusted (not converged, a parameter at a bound, \
+non-finite statistics, a likely setup mistake: see \"warnings\" in the report; --allow-unconverged turns this into 0)."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -41,12 +44,13 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match &cli.command {
         Command::Fit(a) => cli::fit::run_fit(a),
-        Command::Validate(a) => cli::validate::run_validate(a),
-        Command::Track(a) => cli::track::run_track(a),
-        Command::Simulate(a) => cli::simulate::run_simulate(a),
+        Command::Validate(a) => cli::validate::run_validate(a).map(|()| true),
+        Command::Track(a) => cli::track::run_track(a).map(|()| true),
+        Command::Simulate(a) => cli::simulate::run_simulate(a).map(|()| true),
     };
     match r {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(true) => ExitCode::SUCCESS,
+        Ok(false) => ExitCode::from(3),
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::FAILURE

@@ -8,6 +8,10 @@ use std::path::PathBuf;
 
 #[derive(Args, Debug)]
 pub struct FitArgs {
+    /// Exit with 0 even when the fit did not converge or a warning makes it untrusted (the
+    /// default exit code is then 3; the report is written either way).
+    #[arg(long)]
+    pub allow_unconverged: bool,
     /// Drive logs (CSV, plain or gzip). Several logs are fitted jointly with shared parameters.
     #[arg(required = true)]
     pub logs: Vec<PathBuf>,

@@ -12,7 +12,9 @@ use greybox::pmsm::{
 };
 use std::time::Instant;
 
-pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
+/// Runs `greybox fit`; `Ok(false)` when the report was written but the result is not
+/// trustworthy (not converged, or an untrusted warning) and `--allow-unconverged` is off.
+pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
     let t0 = Instant::now();
     // Fail before the fit, not after it, when the report cannot be written.
     if let Some(path) = &a.json {
@@ -40,7 +42,8 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
         if !quiet {
             print!("{ls}");
         }
-        return write_json(a, report.to_json());
+        write_json(a, report.to_json())?;
+        return Ok(true);
     }
     let speed_pll = match a.speed_pll {
         Some(Pll::Bandwidth(b)) => Some(b),
@@ -108,6 +111,7 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
     }
     let options = PmsmFitOptions {
         pole_pairs: a.pole_pairs,
+        skip_setup_checks: false,
         input,
         inverter,
         voltage_limit: a.u_dc.map(|u| u / 3f64.sqrt()),
@@ -156,10 +160,17 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<()> {
         print!("{result}");
     }
     write_json(a, result.to_json())?;
-    if !result.solver.success {
-        eprintln!("warning: the fit did not converge ({})", result.solver.termination);
+    let trusted = result.trusted();
+    if !trusted {
+        let codes: Vec<&str> =
+            result.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.as_str()).collect();
+        eprintln!(
+            "warning: the estimates are not to be trusted ({}){}",
+            codes.join(", "),
+            if a.allow_unconverged { "" } else { "; exit code 3 (--allow-unconverged: 0)" }
+        );
     }
-    Ok(())
+    Ok(trusted || a.allow_unconverged)
 }
 
 /// Refuses the options that linear least squares cannot honour, naming them.

@@ -4,6 +4,7 @@
 
 use super::diagnostics::{DiagnosticThresholds, diagnose};
 use super::problem::{FreeKind, Pass, PemProblem, Slot};
+use super::result::Warning;
 use super::result::t_quantile_975;
 use super::{DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing};
 use crate::error::Result;
@@ -11,6 +12,10 @@ use crate::model::GreyBoxModel;
 use crate::report::compare::WHITENESS_LAGS;
 use crate::report::metrics;
 use nalgebra::{DMatrix, DVector};
+
+/// Relative distance (to the larger of the estimate and its start) within which a free
+/// parameter counts as at its bound.
+pub const AT_BOUND: f64 = 1e-6;
 
 /// Computes the statistics at p̂ and fills a [`FitResult`].
 pub(crate) fn assemble<M: GreyBoxModel>(
@@ -61,6 +66,17 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         let idx = info_inv.as_ref().map_or(f64::INFINITY, |ai| {
             100.0 * (sums.e2_weighted * ai[(g, g)]).max(0.0).sqrt() * dtheta[g].abs() / value.abs()
         });
+        // At a bound the quadratic model of the loss does not hold (the gradient is not zero
+        // there): no standard error, no interval, and the flag says why.
+        let at_bound = match f.kind {
+            FreeKind::Parameter(j) => {
+                let scale = value.abs().max(start.abs()).max(f64::MIN_POSITIVE);
+                let near = |b: f64| b.is_finite() && (value - b).abs() <= AT_BOUND * scale;
+                near(params[j].lower) || near(params[j].upper)
+            }
+            FreeKind::InitialState(_) => false,
+        };
+        let se = if at_bound { f64::NAN } else { se };
         ParameterEstimate {
             name,
             unit,
@@ -70,6 +86,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
             error_index_percent: idx,
             fixed: false,
             nuisance: false,
+            at_bound,
             experiment: f.experiment.map(|e| names[e].clone()),
             start,
         }
@@ -90,6 +107,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
                 error_index_percent: 0.0,
                 fixed: true,
                 nuisance: prm.nuisance,
+                at_bound: false,
                 experiment: None,
                 start: start[j],
             });
@@ -196,6 +214,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         );
     }
     let derived = derived(problem, p, cov_theta.as_ref(), &se_free, &names);
+    let warnings = warnings(&solver, &parameters, &fit);
     Ok(FitResult {
         model: model.name().to_string(),
         experiments: names,
@@ -208,7 +227,52 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         solver,
         timing: Timing::default(),
         notes,
+        warnings,
     })
+}
+
+/// The generic warnings of a fit: not converged, a parameter at a bound, non-finite
+/// statistics (a constant output has no fit percentage; a zero residual no noise estimate).
+fn warnings(solver: &SolverReport, parameters: &[ParameterEstimate], fit: &FitStatistics) -> Vec<Warning> {
+    let mut out = Vec::new();
+    if !solver.success {
+        out.push(Warning::untrusted(
+            "not_converged",
+            format!(
+                "the solver did not converge ({}): the estimates are where it stopped",
+                solver.termination
+            ),
+        ));
+    }
+    let at_bound: Vec<&str> = parameters.iter().filter(|p| p.at_bound).map(|p| p.name.as_str()).collect();
+    if !at_bound.is_empty() {
+        out.push(Warning::untrusted(
+            "parameter_at_bound",
+            format!(
+                "{} at a bound: the fit is constrained there, the minimum lies beyond it (wrong model, units or \
+                 start?); no interval is given",
+                at_bound.join(", ")
+            ),
+        ));
+    }
+    let stats = fit.fit_percent.iter().chain(&fit.rms_residual).chain([&fit.loss, &fit.mse]);
+    let free_se = parameters.iter().filter(|p| !p.fixed && !p.at_bound).map(|p| &p.std_error);
+    if stats.chain(free_se.clone()).any(|x| !x.is_finite()) {
+        let outputs: Vec<&str> = fit
+            .outputs
+            .iter()
+            .zip(&fit.fit_percent)
+            .filter(|(_, f)| !f.is_finite())
+            .map(|(n, _)| n.as_str())
+            .collect();
+        let why = if outputs.is_empty() {
+            "a standard error is not finite (a parameter the data do not determine)".to_string()
+        } else {
+            format!("the fit percentage of {} is not finite (a constant output?)", outputs.join(", "))
+        };
+        out.push(Warning::untrusted("non_finite_statistics", why));
+    }
+    out
 }
 
 /// The model's derived quantities per experiment's θ and θ-covariance (n_θ × n_θ: the

@@ -68,11 +68,30 @@ pub fn solve_weighted(names: &[String], phi: &[f64], y: &[f64], sqrt_w: &[f64]) 
             ),
         });
     }
-    let a = Mat::<f64>::from_fn(rows, cols, |i, j| sw[i] * phi[i * cols + j] / norms[j]);
-    let b = Mat::<f64>::from_fn(rows, 1, |i, _| sw[i] * y[i]);
-    let qr = a.qr();
-    let r = qr.thin_R();
-    if let Some(j) = (0..cols).find(|&j| r[(j, j)].is_nan() || r[(j, j)].abs() < RANK_TOLERANCE) {
+    // QR of the augmented matrix [A | b] on one thread (bit-identical results for any thread
+    // count): its triangle holds R and Qᵀb, so θ = R⁻¹ (Qᵀb)_{0..n}.
+    let mut ab = Mat::<f64>::from_fn(rows, cols + 1, |i, j| {
+        if j < cols { sw[i] * phi[i * cols + j] / norms[j] } else { sw[i] * y[i] }
+    });
+    let size = rows.min(cols + 1);
+    let block = faer::linalg::qr::no_pivoting::factor::recommended_block_size::<f64>(rows, cols + 1);
+    let mut householder = Mat::<f64>::zeros(block, size);
+    let scratch = faer::linalg::qr::no_pivoting::factor::qr_in_place_scratch::<f64>(
+        rows,
+        cols + 1,
+        block,
+        Par::Seq,
+        Default::default(),
+    );
+    faer::linalg::qr::no_pivoting::factor::qr_in_place(
+        ab.as_mut(),
+        householder.as_mut(),
+        Par::Seq,
+        faer::dyn_stack::MemStack::new(&mut faer::dyn_stack::MemBuffer::new(scratch)),
+        Default::default(),
+    );
+    let r = |i: usize, j: usize| if i <= j && i < rows { ab[(i, j)] } else { 0.0 };
+    if let Some(j) = (0..cols).find(|&j| r(j, j).is_nan() || r(j, j).abs() < RANK_TOLERANCE) {
         return Err(Error::Numerical {
             context: "linear least squares".into(),
             reason: format!(
@@ -80,12 +99,17 @@ pub fn solve_weighted(names: &[String], phi: &[f64], y: &[f64], sqrt_w: &[f64]) 
                  (|R_jj| = {:.1e} < {RANK_TOLERANCE:e}); the data do not separate these parameters",
                 names[j],
                 names[..j].join("`, `"),
-                r[(j, j)].abs()
+                r(j, j).abs()
             ),
         });
     }
-    let sol = qr.solve_lstsq(&b);
-    let theta: Vec<f64> = (0..cols).map(|j| sol[(j, 0)] / norms[j]).collect();
+    let r_mat = DMatrix::from_fn(cols, cols, r);
+    let qtb = nalgebra::DVector::from_fn(cols, |i, _| r(i, cols));
+    let sol = r_mat.solve_upper_triangular(&qtb).ok_or_else(|| Error::Numerical {
+        context: "linear least squares".into(),
+        reason: "triangular factor R is singular".into(),
+    })?;
+    let theta: Vec<f64> = (0..cols).map(|j| sol[j] / norms[j]).collect();
     if theta.iter().any(|t| !t.is_finite()) {
         return Err(Error::Numerical {
             context: "linear least squares".into(),
@@ -99,9 +123,8 @@ pub fn solve_weighted(names: &[String], phi: &[f64], y: &[f64], sqrt_w: &[f64]) 
         e2 += (sw[i] * res).powi(2);
     }
     // diag((ΦᵀWΦ)⁻¹) = diag(D⁻¹ R⁻¹ R⁻ᵀ D⁻¹): squared row norms of R⁻¹, unscaled.
-    let r_inv = DMatrix::from_fn(cols, cols, |i, j| r[(i, j)])
-        .solve_upper_triangular(&DMatrix::identity(cols, cols))
-        .ok_or_else(|| Error::Numerical {
+    let r_inv =
+        r_mat.solve_upper_triangular(&DMatrix::identity(cols, cols)).ok_or_else(|| Error::Numerical {
             context: "linear least squares".into(),
             reason: "triangular factor R is singular".into(),
         })?;

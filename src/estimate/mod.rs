@@ -6,7 +6,7 @@
 //! statistics of the estimate. Domain workflows (e.g. [`crate::pmsm::fit_pmsm`]) build on
 //! it.
 
-mod assemble;
+pub mod assemble;
 pub mod diagnostics;
 pub mod filter;
 pub mod linear;
@@ -17,7 +17,9 @@ pub mod solver;
 pub mod weighting;
 
 pub use problem::{Loss, PemProblem, ProblemOptions};
-pub use result::{DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing};
+pub use result::{
+    DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing, Warning,
+};
 pub use scaling::{ParameterScaling, ScalingKind, Transform};
 pub use solver::gn::{self, GaussNewton};
 pub use solver::lm::{self, LevenbergMarquardt};

@@ -35,6 +35,11 @@ pub struct ParameterEstimate {
     /// A nuisance parameter of the model (not a property of the system itself).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub nuisance: bool,
+    /// The estimate sits at a bound (within [`crate::estimate::assemble::AT_BOUND`]
+    /// relative): the fit is constrained there, so `std_error` and `ci95` are NaN (`null` in
+    /// JSON) rather than an interval that pretends to be interior.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub at_bound: bool,
     /// Experiment this value belongs to, for per-experiment parameters; `None` when shared.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub experiment: Option<String>,
@@ -116,11 +121,43 @@ pub struct FitResult {
     pub solver: SolverReport,
     /// Timing.
     pub timing: Timing,
-    /// Remarks on the fit (start estimate, hold selection, warnings).
+    /// Remarks on the fit (start estimate, hold selection).
     pub notes: Vec<String>,
+    /// What a reader must not miss: results that are not trustworthy (not converged,
+    /// non-finite statistics, a parameter at a bound, a likely setup mistake) and the
+    /// conventions assumed where the data cannot tell.
+    #[serde(default)]
+    pub warnings: Vec<Warning>,
+}
+
+/// A warning of a fit report, with a stable code for scripts.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Warning {
+    /// Stable code, e.g. `not_converged`, `parameter_at_bound`, `pole_pairs`.
+    pub code: String,
+    /// What was found and what to do about it.
+    pub message: String,
+    /// While this holds the estimates are not to be trusted (`greybox fit` then exits
+    /// with code 3); `false` for information a reader must know (an assumed convention).
+    pub untrusted: bool,
+}
+
+impl Warning {
+    /// A warning that makes the result untrusted.
+    pub fn untrusted(code: &str, message: String) -> Self {
+        Self { code: code.into(), message, untrusted: true }
+    }
+    /// A warning that informs only.
+    pub fn notice(code: &str, message: String) -> Self {
+        Self { code: code.into(), message, untrusted: false }
+    }
 }
 
 impl FitResult {
+    /// Whether the fit converged and no warning makes it untrusted.
+    pub fn trusted(&self) -> bool {
+        self.solver.success && self.warnings.iter().all(|w| !w.untrusted)
+    }
     /// The estimate of the parameter called `name` (first match), if any.
     pub fn parameter(&self, name: &str) -> Option<&ParameterEstimate> {
         self.parameters.iter().find(|p| p.name == name)
@@ -133,6 +170,13 @@ impl FitResult {
     /// an unidentifiable parameter, its interval) are written as `null`, as JSON has no ∞.
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+    }
+}
+
+impl std::fmt::Display for Warning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kind = if self.untrusted { "WARNING" } else { "notice" };
+        write!(f, "{kind} [{}]: {}", self.code, self.message)
     }
 }
 
@@ -168,6 +212,9 @@ impl std::fmt::Display for FitResult {
             }
             if p.fixed {
                 name.push_str(" (fixed)");
+            }
+            if p.at_bound {
+                name.push_str(" (at bound)");
             }
             row(f, name, p.value, p.std_error, Some(p.ci95), Some(p.error_index_percent), &p.unit)?;
         }
@@ -226,6 +273,9 @@ impl std::fmt::Display for FitResult {
         }
         for n in &self.notes {
             writeln!(f, "note: {n}")?;
+        }
+        for w in &self.warnings {
+            writeln!(f, "{w}")?;
         }
         Ok(())
     }

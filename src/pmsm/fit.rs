@@ -9,7 +9,7 @@
 //! 3. the model derives `K_t = √(3/2) K_e` [N m/A] and `ψ_f = √(2/3) K_e / n_p` [V s] with
 //!    their standard errors (MODEL.md §2).
 
-use super::hold::{DQ_DECISIVE, hold_ambiguity};
+use super::hold::{DQ_DECISIVE, HoldFits, fit_holds, hold_ambiguity};
 use super::interval::{VoltageHold, VoltageInput};
 use super::inverter::InverterModel;
 use super::kind::MotorKind;
@@ -75,6 +75,9 @@ pub struct PmsmFitOptions {
     pub voltage_limit: Option<f64>,
     /// Options of the prediction-error fit.
     pub pem: PemOptions,
+    /// Skip the setup checks (a better pole-pair number, a salient log, the speed's unit
+    /// and frame): for fits nested in a search, whose final fit runs them.
+    pub skip_setup_checks: bool,
 }
 
 /// Fits a PMSM model to one or more logs of one motor (parameters shared unless listed in
@@ -113,6 +116,11 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         names.push("v_dt");
     }
     let names = &names[..];
+    let structure = if options.skip_setup_checks || options.inverter.is_some() {
+        None
+    } else {
+        super::detect::check_structure(experiments, n_p, options.model, options.input)?
+    };
     // The start of v_dt when the start comes from elsewhere: the known value, or 0.
     let v_dt0 = options.inverter.map(|i| i.known.unwrap_or(0.0));
     let mut notes = Vec::new();
@@ -222,19 +230,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     notes.extend(pem_note);
     let modulator =
         experiments.iter().all(|e| e.get(channel::U_D_REF).is_some() && e.get(channel::U_Q_REF).is_some());
-    let mut best: Option<(VoltageHold, FitResult)> = None;
-    let mut losses = Vec::new();
-    let mut others: Vec<(VoltageHold, FitResult)> = Vec::new();
-    for &hold in holds {
-        // The second hold starts from the first's estimate: it converges in a few steps.
-        let s = match &best {
-            Some((_, b)) if b.solver.success => names
-                .iter()
-                .map(|n| b.parameter(n).map(|p| p.value))
-                .collect::<Option<Vec<f64>>>()
-                .unwrap_or_else(|| start.clone()),
-            _ => start.clone(),
-        };
+    let fit_hold = |hold: VoltageHold, s: &[f64]| {
         let setup = PmsmSetup {
             n_p,
             hold,
@@ -243,46 +239,22 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             thermal: options.thermal,
             inverter: options.inverter,
         };
-        let r = match options.model {
+        match options.model {
             MotorKind::Spm => {
                 let mut m = PmsmSpm::from_setup(setup);
                 configure(m.parameters_mut(), options)?;
-                fit_with_weighting(&m, experiments, &s, &pem, weighting)
+                fit_with_weighting(&m, experiments, s, &pem, weighting)
             }
             MotorKind::Ipm => {
                 let mut m = PmsmIpm::from_setup(setup);
                 configure(m.parameters_mut(), options)?;
-                fit_with_weighting(&m, experiments, &s, &pem, weighting)
+                fit_with_weighting(&m, experiments, s, &pem, weighting)
             }
-        };
-        let r = r?;
-        losses.push((hold, r.fit.loss, r.solver.success));
-        // A log that carries a modulator's reference comes from an inverter, which holds its
-        // output in the stator frame: there the dq hold must fit decisively better to be
-        // chosen (switching ripple alone makes it fit a PWM log slightly better). Without a
-        // reference (a simulator may hold dq voltages) the lower loss decides.
-        let weighed = |h: VoltageHold, loss: f64| {
-            if h == VoltageHold::Dq && modulator { DQ_DECISIVE * loss } else { loss }
-        };
-        let better = match &best {
-            None => true,
-            Some((bh, b)) => {
-                (r.solver.success && !b.solver.success)
-                    || (r.solver.success == b.solver.success
-                        && weighed(hold, r.fit.loss) < weighed(*bh, b.fit.loss))
-            }
-        };
-        if better {
-            if let Some(b) = best.replace((hold, r)) {
-                others.push(b);
-            }
-        } else {
-            others.push((hold, r));
         }
-    }
-    let Some((hold, best)) = best else {
-        return Err(Error::InvalidOption { option: "hold".into(), reason: "no hold fitted".into() });
     };
+    let HoldFits { best: (hold, best), others, losses, notes: hold_notes } =
+        fit_holds(holds, &start, names, modulator, fit_hold)?;
+    notes.extend(hold_notes);
     let mut pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
     // The regression sees the whole series resistance.
     let motor: Vec<f64> = options
@@ -336,10 +308,17 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     };
     let fit_s = t0.elapsed().as_secs_f64();
     let parameters = best.parameters.iter().cloned().chain(delay_parameter(options.input, None)).collect();
+    let mut warnings = best.warnings.clone();
+    if !options.skip_setup_checks {
+        warnings.extend(structure);
+        warnings.extend(super::detect::pole_pair_warning(experiments, options, best.fit.loss));
+        warnings.extend(super::detect::warnings(experiments, n_p, &best));
+    }
     Ok(PmsmFit {
         report: FitResult {
             timing: Timing { fit_s, total_s: fit_s, ..best.timing.clone() },
             parameters,
+            warnings,
             ..best
         },
         pole_pairs: n_p,

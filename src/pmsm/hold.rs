@@ -2,6 +2,7 @@
 //! not settle it.
 
 use super::interval::VoltageHold;
+use crate::error::{Error, Result};
 use crate::estimate::FitResult;
 
 /// Factor by which the dq hold's loss must be lower than the stator hold's for
@@ -34,4 +35,93 @@ pub(crate) fn hold_ambiguity(
              inverter holds it in the stator frame (--hold stator); this fit used the {hold} hold"
         )
     })
+}
+
+/// The fits of every hold tried: the chosen one, the others, `(hold, loss, converged)` in
+/// fitting order, and notes on restarts.
+pub(crate) struct HoldFits {
+    pub best: (VoltageHold, FitResult),
+    pub others: Vec<(VoltageHold, FitResult)>,
+    pub losses: Vec<(VoltageHold, f64, bool)>,
+    pub notes: Vec<String>,
+}
+
+/// Whether a fit stalled: not converged, or a parameter at a bound.
+fn stalled(r: &FitResult) -> bool {
+    !r.solver.success || r.parameters.iter().any(|p| p.at_bound)
+}
+
+/// The estimate of `names` in a fit.
+fn estimate_of(r: &FitResult, names: &[&str]) -> Option<Vec<f64>> {
+    names.iter().map(|n| r.parameter(n).map(|p| p.value)).collect()
+}
+
+/// Fits every hold in `holds` with `fit_hold(hold, start)` (the second from the first's
+/// estimate when that converged), restarts a fit that stalled (not converged, or at a bound)
+/// from every other start available (the other hold's estimate, the given start) and keeps
+/// its lowest loss, then chooses: a converged fit over one that is not, else the lower loss,
+/// the dq hold's multiplied by [`DQ_DECISIVE`] when the logs carry a modulator's reference
+/// (`modulator`: an inverter holds its output in the stator frame).
+///
+/// # Errors
+/// Those of `fit_hold`; [`Error::InvalidOption`] for no hold.
+pub(crate) fn fit_holds(
+    holds: &[VoltageHold],
+    start: &[f64],
+    names: &[&str],
+    modulator: bool,
+    mut fit_hold: impl FnMut(VoltageHold, &[f64]) -> Result<FitResult>,
+) -> Result<HoldFits> {
+    let mut fits: Vec<(VoltageHold, FitResult)> = Vec::new();
+    for &hold in holds {
+        let s = fits
+            .last()
+            .filter(|(_, r)| !stalled(r))
+            .and_then(|(_, r)| estimate_of(r, names))
+            .unwrap_or_else(|| start.to_vec());
+        fits.push((hold, fit_hold(hold, &s)?));
+    }
+    let mut notes = Vec::new();
+    for i in 0..fits.len() {
+        if !stalled(&fits[i].1) {
+            continue;
+        }
+        let mut starts: Vec<Vec<f64>> = fits
+            .iter()
+            .enumerate()
+            .filter(|(j, (_, r))| *j != i && !stalled(r))
+            .filter_map(|(_, (_, r))| estimate_of(r, names))
+            .collect();
+        starts.push(start.to_vec());
+        let before = fits[i].1.fit.loss;
+        for s in starts {
+            let r = fit_hold(fits[i].0, &s)?;
+            let current = &fits[i].1;
+            if (r.solver.success && !current.solver.success)
+                || (!stalled(&r) && r.fit.loss < current.fit.loss)
+                || (stalled(current) && !stalled(&r))
+            {
+                fits[i].1 = r;
+            }
+        }
+        notes.push(format!(
+            "the {} hold fit stalled ({}); restarted from the other estimates: loss {before:.6e} -> {:.6e}{}",
+            fits[i].0,
+            if fits[i].1.solver.success { "at a bound" } else { "not converged" },
+            fits[i].1.fit.loss,
+            if stalled(&fits[i].1) { ", still stalled" } else { "" }
+        ));
+    }
+    let losses = fits.iter().map(|(h, r)| (*h, r.fit.loss, r.solver.success)).collect();
+    let weighed =
+        |h: VoltageHold, loss: f64| if h == VoltageHold::Dq && modulator { DQ_DECISIVE * loss } else { loss };
+    let key = |(h, r): &(VoltageHold, FitResult)| (stalled(r), weighed(*h, r.fit.loss));
+    let i = (0..fits.len())
+        .min_by(|&a, &b| {
+            let (ka, kb) = (key(&fits[a]), key(&fits[b]));
+            ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+        })
+        .ok_or_else(|| Error::InvalidOption { option: "hold".into(), reason: "no hold fitted".into() })?;
+    let best = fits.remove(i);
+    Ok(HoldFits { best, others: fits, losses, notes })
 }

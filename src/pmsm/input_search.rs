@@ -61,6 +61,7 @@ pub fn fit_estimating_input(
     let first = fit_pmsm(
         experiments,
         &PmsmFitOptions {
+            skip_setup_checks: true,
             input: VoltageInput::Reference { delay: delay0, advance, speed_pll: pll0 },
             ..options.clone()
         },
@@ -79,7 +80,13 @@ pub fn fit_estimating_input(
         let inverter = options.inverter.map(|i| InverterModel { width: width.or(i.width), ..i });
         fit_pmsm(
             experiments,
-            &PmsmFitOptions { input, inverter, start: Some(start.clone()), ..options.clone() },
+            &PmsmFitOptions {
+                input,
+                inverter,
+                start: Some(start.clone()),
+                skip_setup_checks: true,
+                ..options.clone()
+            },
         )
     };
     let fit_at = |delay: usize, speed_pll: Option<f64>| fit_with(delay, advance, speed_pll, None);
@@ -149,7 +156,15 @@ pub fn fit_estimating_input(
         }
         (false, _) => None,
     };
-    let best = fit_with(delay, advance, speed_pll, width)?;
+    let best = fit_pmsm(
+        experiments,
+        &PmsmFitOptions {
+            input: VoltageInput::Reference { delay, advance, speed_pll },
+            inverter: options.inverter.map(|i| InverterModel { width: width.or(i.width), ..i }),
+            start: Some(start.clone()),
+            ..options.clone()
+        },
+    )?;
     if !best.solver.success && (search.delay || search.advance || search.speed_pll || search.dead_time_width)
     {
         return Err(Error::Numerical {

@@ -31,6 +31,7 @@ impl LinearEstimate {
                     error_index_percent: self.error_index_percent[j],
                     fixed: false,
                     nuisance: false,
+                    at_bound: false,
                     experiment: None,
                     start: v,
                 }
@@ -96,6 +97,7 @@ impl LinearEstimate {
                 self.weighting,
                 self.options.prefilter.map_or("none".into(), |f| format!("{f} Hz"))
             )],
+            warnings: Vec::new(),
         }
     }
 }

@@ -175,9 +175,11 @@ pub(crate) fn fit_auto_mask(experiments: &[Experiment], options: &PmsmFitOptions
         start: start.or_else(|| options.start.clone()),
         ..options.clone()
     };
-    let mut fit = fit_pmsm(experiments, &with_mask(None, None))?;
+    let inner = PmsmFitOptions { skip_setup_checks: true, ..options.clone() };
+    let unmasked = PmsmFitOptions { inverter: Some(InverterModel { mask: None, ..inverter }), ..inner };
+    let mut fit = fit_pmsm(experiments, &unmasked)?;
     let mut trail = Vec::new();
-    for _ in 0..AUTO_ITERATIONS {
+    for step in 0..AUTO_ITERATIONS {
         let threshold = match auto_threshold(experiments, &fit) {
             Some(t) => t,
             None => {
@@ -193,7 +195,12 @@ pub(crate) fn fit_auto_mask(experiments: &[Experiment], options: &PmsmFitOptions
         trail.push(format!("{threshold:.4}"));
         let names = options.model.parameter_names().iter().copied().chain(["v_dt"]);
         let start: Option<Vec<f64>> = names.map(|n| fit.parameter(n).map(|p| p.value)).collect();
-        fit = fit_pmsm(experiments, &with_mask(Some(DeadTimeMask::Current(threshold)), start))?;
+        let last = step + 1 == AUTO_ITERATIONS;
+        let o = with_mask(Some(DeadTimeMask::Current(threshold)), start);
+        fit = fit_pmsm(
+            experiments,
+            &PmsmFitOptions { skip_setup_checks: !last || options.skip_setup_checks, ..o },
+        )?;
     }
     let mut pmsm_notes = fit.pmsm_notes.clone();
     pmsm_notes.push(format!(

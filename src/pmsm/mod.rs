@@ -15,6 +15,7 @@
 
 pub mod augmented;
 pub mod checks;
+pub mod detect;
 pub mod fit;
 pub mod hold;
 pub mod input_search;

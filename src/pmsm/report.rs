@@ -119,6 +119,7 @@ pub(crate) fn delay_parameter(
         error_index_percent: f64::NAN,
         fixed: estimated.is_none(),
         nuisance: true,
+        at_bound: false,
         experiment: None,
         start: d,
     })

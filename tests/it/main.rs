@@ -28,3 +28,4 @@ mod solvers;
 mod spm;
 mod thermal;
 mod track;
+mod trust;

@@ -407,3 +407,35 @@ fn gn_with_custom_line_search_still_recovers_misra1a() {
     assert!(rel(r.p[0], MISRA1A[0]) < 1e-9 && rel(r.p[1], MISRA1A[1]) < 1e-9, "{:?}", r.p);
     assert_monotone(&r.records);
 }
+
+/// Determinism: an IPM fit (least-squares start by QR, then LM) and an SPM fit give
+/// bit-identical reports on 1 and 2 threads (timings aside).
+#[test]
+fn fits_are_bit_identical_for_any_thread_count() {
+    use greybox::pmsm::{MotorKind, PmsmFitOptions, PmsmIpm, VoltageHold, fit_pmsm};
+    let mut rng = crate::common::Rng(11);
+    let s = crate::common::exciting_signals(20_000, 1e-4, 200.0, 40.0, 0.4, &mut rng);
+    let ipm = crate::common::simulate_into(
+        &PmsmIpm::new(2, VoltageHold::Stator),
+        &[0.35, 3.2e-3, 7.5e-3, 0.4164],
+        1e-4,
+        s.clone(),
+    );
+    let spm = crate::common::simulate_into(
+        &greybox::pmsm::PmsmSpm::new(2, VoltageHold::Stator),
+        &[0.35, 3.2e-3, 0.4164],
+        1e-4,
+        s,
+    );
+    for (model, e) in [(MotorKind::Ipm, ipm), (MotorKind::Spm, spm)] {
+        let options = PmsmFitOptions { model, ..crate::common::pmsm_options(2) };
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let fit = pool.install(|| fit_pmsm(std::slice::from_ref(&e), &options)).unwrap();
+            let mut json: serde_json::Value = serde_json::from_str(&fit.to_json()).unwrap();
+            json["timing"] = serde_json::Value::Null;
+            json.to_string()
+        };
+        assert_eq!(run(1), run(2), "{model:?}");
+    }
+}

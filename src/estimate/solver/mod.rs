@@ -113,16 +113,23 @@ impl Default for Tolerances {
 }
 
 impl Tolerances {
-    /// Checks that every tolerance is finite and ≥ 0 and `max_iters ≥ 1`.
+    /// Largest accepted tolerance: a relative reduction, step or gradient cosine of 1 % or
+    /// more is met before any progress, so the solver would "converge" where it started.
+    pub const MAX: f64 = 1e-2;
+
+    /// Checks that every tolerance is in `[0, MAX)` and `max_iters ≥ 1`.
     ///
     /// # Errors
     /// [`Error::InvalidOption`] naming the tolerance.
     pub fn validate(&self) -> Result<()> {
         for (name, v) in [("ftol", self.ftol), ("xtol", self.xtol), ("gtol", self.gtol)] {
-            if !(v.is_finite() && v >= 0.0) {
+            if !(v.is_finite() && (0.0..Self::MAX).contains(&v)) {
                 return Err(Error::InvalidOption {
                     option: name.into(),
-                    reason: format!("must be finite and ≥ 0, got {v}"),
+                    reason: format!(
+                        "must be in [0, {:e}) (a larger relative tolerance is met before any progress), got {v}",
+                        Self::MAX
+                    ),
                 });
             }
         }

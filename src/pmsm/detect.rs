@@ -1,0 +1,295 @@
+//! Detectors for the setup mistakes that otherwise give a confident wrong answer: a wrong
+//! pole-pair number, a speed in the wrong unit or frame, a surface-magnet model on a
+//! salient machine; and the conventions a fit assumes where the data cannot tell (peak vs
+//! RMS, amplitude- vs power-invariant dq).
+//!
+//! The pole-pair and saliency checks compare least-squares losses of the voltage equations
+//! (thesis 5.2.1). `n_p` enters only through `ω_e = n_p ω_m`, so with the base columns
+//! `i`, `di/dt`, `ω_m i⊥`, `√(2/3) ω_m` the regressors of any `n_p` are fixed combinations
+//! of them: one Gram matrix of the base columns gives every candidate's loss exactly.
+
+use super::fit::PmsmFitOptions;
+use super::interval::{SQRT_2_3, VoltageInput, applied_experiment};
+use super::kind::MotorKind;
+use super::signals::{DqView, channel};
+use crate::data::Experiment;
+use crate::error::{Error, Result};
+use crate::estimate::{FitResult, Warning};
+use nalgebra::{DMatrix, DVector};
+
+/// Candidates of `--pole-pairs auto` and of the pole-pair check.
+pub const POLE_PAIR_CANDIDATES: std::ops::RangeInclusive<u32> = 1..=32;
+/// A given `n_p` whose loss exceeds another candidate's by this factor is flagged.
+pub const POLE_PAIR_RATIO: f64 = 10.0;
+/// Loss ratio (surface-magnet over salient regression) from which a log is salient for
+/// sure (noise-free salient logs give 10⁴–10⁷; noisy ones a few).
+pub const SALIENT_CERTAIN: f64 = 100.0;
+/// Loss ratio from which a warning says the log may be salient.
+pub const SALIENT_LIKELY: f64 = 2.0;
+/// Relative inductance difference that counts as salient.
+pub const SALIENCY: f64 = 0.1;
+/// Relative mismatch of `dθ_m/dt` and `w_m` beyond which the speed check reports.
+pub const SPEED_MISMATCH: f64 = 0.05;
+
+/// Gram matrix `[C y]ᵀ[C y]` of the base columns of every interval of the applied voltage.
+fn gram(experiments: &[Experiment], kind: MotorKind, input: VoltageInput) -> Result<DMatrix<f64>> {
+    let nb = if kind == MotorKind::Spm { 4 } else { 6 };
+    let mut g = DMatrix::<f64>::zeros(nb + 1, nb + 1);
+    for e in experiments {
+        // n_p only scales the angle advance of a reference input; 1 is used for the scan.
+        let applied = applied_experiment(e, 1, input)?;
+        let v = DqView::try_new(&applied)?;
+        let (ud, uq) = v.terminal_voltage()?;
+        let (id, iq, wm, h) = (v.i_d(), v.i_q(), v.w_m(), v.h());
+        for k in 0..v.len() - 1 {
+            let (i_d, i_q) = (0.5 * (id[k] + id[k + 1]), 0.5 * (iq[k] + iq[k + 1]));
+            let (di_d, di_q) = ((id[k + 1] - id[k]) / h, (iq[k + 1] - iq[k]) / h);
+            let w = 0.5 * (wm[k] + wm[k + 1]);
+            let rows: [Vec<f64>; 2] = match kind {
+                MotorKind::Spm => {
+                    [vec![i_d, di_d, -w * i_q, 0.0, ud[k]], vec![i_q, di_q, w * i_d, SQRT_2_3 * w, uq[k]]]
+                }
+                MotorKind::Ipm => [
+                    vec![i_d, di_d, 0.0, -w * i_q, 0.0, 0.0, ud[k]],
+                    vec![i_q, 0.0, w * i_d, 0.0, di_q, SQRT_2_3 * w, uq[k]],
+                ],
+            };
+            for r in &rows {
+                for a in 0..=nb {
+                    for b in 0..=nb {
+                        g[(a, b)] += r[a] * r[b];
+                    }
+                }
+            }
+        }
+    }
+    Ok(g)
+}
+
+/// Least-squares loss `½ min‖y − Φθ‖²` and θ at `n_p` from the Gram matrix.
+fn loss_at(g: &DMatrix<f64>, kind: MotorKind, n_p: u32) -> Option<(f64, DVector<f64>)> {
+    let np = f64::from(n_p);
+    let nb = g.nrows() - 1;
+    // T maps the parameters to the base columns.
+    let t = match kind {
+        MotorKind::Spm => {
+            DMatrix::from_row_slice(4, 3, &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, np, 0.0, 0.0, 0.0, 1.0])
+        }
+        MotorKind::Ipm => DMatrix::from_row_slice(
+            6,
+            4,
+            &[
+                1.0, 0., 0., 0., 0., 1.0, 0., 0., 0., np, 0., 0., 0., 0., np, 0., 0., 0., 1.0, 0., 0., 0.,
+                0., 1.0,
+            ],
+        ),
+    };
+    let gcc = g.view((0, 0), (nb, nb));
+    let gcy = g.view((0, nb), (nb, 1));
+    let a = t.transpose() * gcc * &t;
+    let b = t.transpose() * gcy;
+    let theta = a.clone().cholesky()?.solve(&b);
+    let loss = 0.5 * (g[(nb, nb)] - (b.transpose() * &theta)[(0, 0)]);
+    Some((loss.max(0.0), theta.column(0).into_owned()))
+}
+
+/// The least-squares loss of the voltage equations at every candidate pole-pair number in
+/// [`POLE_PAIR_CANDIDATES`], `(n_p, loss [V²])`, for the voltage `input`.
+///
+/// # Errors
+/// Those of [`applied_experiment`] (a missing channel).
+pub fn pole_pair_losses(
+    experiments: &[Experiment],
+    kind: MotorKind,
+    input: VoltageInput,
+) -> Result<Vec<(u32, f64)>> {
+    let g = gram(experiments, kind, input)?;
+    Ok(POLE_PAIR_CANDIDATES.filter_map(|n| loss_at(&g, kind, n).map(|(l, _)| (n, l))).collect())
+}
+
+/// `--pole-pairs auto`: the candidate of lowest loss and the ratio of the runner-up's loss
+/// to it (large: decisive).
+///
+/// # Errors
+/// Those of [`pole_pair_losses`]; [`Error::Numerical`] when no candidate has a loss (no
+/// excitation).
+pub fn choose_pole_pairs(
+    experiments: &[Experiment],
+    kind: MotorKind,
+    input: VoltageInput,
+) -> Result<(u32, f64)> {
+    let mut losses = pole_pair_losses(experiments, kind, input)?;
+    losses.sort_by(|a, b| a.1.total_cmp(&b.1));
+    match losses.as_slice() {
+        [(n, best), (_, second), ..] => Ok((*n, second / best)),
+        [(n, _)] => Ok((*n, f64::INFINITY)),
+        [] => Err(Error::Numerical {
+            context: "pole pairs".into(),
+            reason: "no candidate can be regressed (the log does not excite the voltage equations)".into(),
+        }),
+    }
+}
+
+/// The structure check before a surface-magnet fit: the salient regression lowers the
+/// loss by a factor `ratio` with `L_d`, `L_q` more than [`SALIENCY`] apart. From
+/// [`SALIENT_CERTAIN`] on the log is salient (an error); from [`SALIENT_LIKELY`] on a warning
+/// says so (an unmodelled voltage error, such as dead time, can look salient too). Not run
+/// with the inverter model, whose error the regression does not contain.
+///
+/// # Errors
+/// [`Error::InvalidOption`] (`model`) naming both inductances and the loss ratio.
+pub(crate) fn check_structure(
+    experiments: &[Experiment],
+    n_p: u32,
+    kind: MotorKind,
+    input: VoltageInput,
+) -> Result<Option<Warning>> {
+    if kind != MotorKind::Spm {
+        return Ok(None);
+    }
+    let (Ok(gi), Ok(gs)) =
+        (gram(experiments, MotorKind::Ipm, input), gram(experiments, MotorKind::Spm, input))
+    else {
+        return Ok(None);
+    };
+    let (Some((ls, _)), Some((li, th))) =
+        (loss_at(&gs, MotorKind::Spm, n_p), loss_at(&gi, MotorKind::Ipm, n_p))
+    else {
+        return Ok(None);
+    };
+    let (l_d, l_q) = (th[1], th[2]);
+    let saliency = (l_d - l_q).abs() / l_d.abs().max(l_q.abs());
+    let ratio = ls / li;
+    let what = format!(
+        "a regression with L_d = {l_d:.4e} H and L_q = {l_q:.4e} H ({:.0} % apart) lowers the loss {ratio:.1} times",
+        100.0 * saliency
+    );
+    if saliency <= SALIENCY || ratio < SALIENT_LIKELY {
+        Ok(None)
+    } else if ratio >= SALIENT_CERTAIN {
+        Err(Error::InvalidOption {
+            option: "model".into(),
+            reason: format!("the log is salient: {what}; fit it with --model ipm"),
+        })
+    } else {
+        Ok(Some(Warning::untrusted(
+            "salient",
+            format!(
+                "{what}: the machine may be salient (--model ipm), or the voltage has an error the model lacks \
+                 (dead time: --dead-time estimate)"
+            ),
+        )))
+    }
+}
+
+/// The pole-pair check: when the least-squares scan prefers another `n_p` by
+/// [`POLE_PAIR_RATIO`], the prediction-error fit at that `n_p` decides (the scan alone is
+/// fooled by current noise in `di/dt`); a warning names it when its loss is that much lower.
+pub(crate) fn pole_pair_warning(
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+    loss: f64,
+) -> Option<Warning> {
+    let losses = pole_pair_losses(experiments, options.model, options.input).ok()?;
+    let given = losses.iter().find(|(n, _)| *n == options.pole_pairs)?.1;
+    let &(nb, lb) = losses.iter().min_by(|a, b| a.1.total_cmp(&b.1))?;
+    if nb == options.pole_pairs || given <= POLE_PAIR_RATIO * lb {
+        return None;
+    }
+    let other = PmsmFitOptions { pole_pairs: nb, start: None, skip_setup_checks: true, ..options.clone() };
+    let alt = super::fit::fit_pmsm(experiments, &other).ok()?;
+    (alt.fit.loss * POLE_PAIR_RATIO < loss).then(|| {
+        Warning::untrusted(
+            "pole_pairs",
+            format!(
+                "a fit with {nb} pole pairs has a {:.0} times lower loss than with the {} given: check -p (or a speed \
+                 logged in the electrical frame: --speed-frame electrical)",
+                loss / alt.fit.loss,
+                options.pole_pairs
+            ),
+        )
+    })
+}
+
+/// The warnings of a PMSM fit from its logs: a speed unit or frame mistake, and the assumed
+/// scaling (checks that cannot run are skipped).
+pub(crate) fn warnings(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> Vec<Warning> {
+    let mut out = Vec::new();
+    out.extend(speed_check(experiments, n_p));
+    out.push(scaling_notice(fit));
+    out
+}
+
+/// Compares `dθ_m/dt` with `w_m` (when `theta_m` is logged) and names the likely mistake
+/// when they differ by a known factor.
+fn speed_check(experiments: &[Experiment], n_p: u32) -> Option<Warning> {
+    let (mut num, mut den) = (0.0, 0.0);
+    for e in experiments {
+        let (Some(th), Ok(v)) = (e.get(channel::THETA_M), DqView::try_new(e)) else { continue };
+        let (w, h) = (v.w_m(), e.h());
+        let peak = w.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        for k in 0..e.len() - 1 {
+            let d = th.values[k + 1] - th.values[k];
+            let d = d - std::f64::consts::TAU * (d / std::f64::consts::TAU).round();
+            let wm = 0.5 * (w[k] + w[k + 1]);
+            if wm.abs() > 0.05 * peak {
+                num += d / h * wm;
+                den += wm * wm;
+            }
+        }
+    }
+    let r = num / den;
+    if !r.is_finite() || (r - 1.0).abs() <= SPEED_MISMATCH {
+        return None;
+    }
+    let np = f64::from(n_p);
+    let rpm = std::f64::consts::PI / 30.0;
+    let deg = std::f64::consts::PI / 180.0;
+    let candidates = [
+        (
+            np,
+            "θ_m turns n_p times faster than w_m says: the angle is electrical while the speed is mechanical (log both in one frame)",
+        ),
+        (
+            1.0 / np,
+            "w_m is n_p times faster than dθ_m/dt: the speed is electrical (--speed-frame electrical)",
+        ),
+        (rpm, "w_m is 30/π times faster than dθ_m/dt: the speed is in rpm (--speed-unit rpm)"),
+        (rpm / np, "the speed is electrical and in rpm (--speed-frame electrical --speed-unit rpm)"),
+        (
+            1.0 / rpm,
+            "w_m is 30/π times slower than dθ_m/dt: the speed is in rad/s, not rpm (drop --speed-unit rpm)",
+        ),
+        (1.0 / deg, "dθ_m/dt is 180/π times w_m: the angle is in degrees (--angle-unit deg)"),
+        (1e-3, "dθ_m/dt is 1000 times smaller than w_m: the time column is in milliseconds"),
+        (1e-6, "dθ_m/dt is 10⁶ times smaller than w_m: the time column is in microseconds"),
+    ];
+    let (_, why) = candidates
+        .iter()
+        .min_by(|a, b| (r / a.0).ln().abs().total_cmp(&(r / b.0).ln().abs()))
+        .filter(|(f, _)| (r / f - 1.0).abs() <= SPEED_MISMATCH)
+        .copied()
+        .unwrap_or((r, "no known unit or frame factor explains it"));
+    Some(Warning::untrusted("speed_unit", format!("dθ_m/dt is {r:.4} times w_m (expected 1): {why}")))
+}
+
+/// What the estimates would be under the conventions the data cannot tell apart.
+fn scaling_notice(fit: &FitResult) -> Warning {
+    let v = |n: &str| fit.parameter(n).map(|p| p.value);
+    let r = v("r_s").unwrap_or(f64::NAN);
+    let k = v("k_e").unwrap_or(f64::NAN);
+    let s2 = std::f64::consts::SQRT_2;
+    Warning::notice(
+        "scaling_assumed",
+        format!(
+            "currents and voltages read as amplitude-invariant dq peak values (MODEL.md §1); the data cannot tell. \
+             If the currents were RMS: r_s {:.6e} ohm and the inductances ÷√2; if the voltages were RMS: r_s {:.6e} \
+             ohm, inductances and k_e {:.6e} V s/rad ×√2; if the dq transform was power-invariant: k_e {:.6e} V s/rad \
+             (÷√(3/2)), r_s and inductances unchanged",
+            r / s2,
+            r * s2,
+            k * s2,
+            k * SQRT_2_3
+        ),
+    )
+}

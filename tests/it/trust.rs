@@ -1,0 +1,161 @@
+//! Trust (issue: no data loss, no confident wrong answer): concurrent report writers, honest
+//! exit codes, and the detectors of the setup mistakes that otherwise give a confident wrong
+//! answer, reproduced from the development logs.
+
+use crate::common::{load, pmsm_options};
+use greybox::Experiment;
+use greybox::data::Channel;
+use greybox::pmsm::{MotorKind, PmsmFitOptions, fit_pmsm};
+
+/// 200 threads writing different reports to one path leave one whole report, never a mix.
+#[test]
+fn concurrent_writers_leave_one_valid_report() {
+    let path = std::env::temp_dir().join(format!("greybox-concurrent-{}.json", std::process::id()));
+    std::thread::scope(|s| {
+        for i in 0..200 {
+            let path = &path;
+            s.spawn(move || {
+                let text = format!("{{\"writer\": {i}, \"pad\": \"{}\"}}", "x".repeat(1000 + 37 * i));
+                greybox::data::write::write_atomic(path, |w| w.write_all(text.as_bytes())).unwrap();
+            });
+        }
+    });
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    let i = v["writer"].as_u64().unwrap() as usize;
+    assert_eq!(v["pad"].as_str().unwrap().len(), 1000 + 37 * i);
+    let _ = std::fs::remove_file(&path);
+    let leftovers = std::fs::read_dir(std::env::temp_dir())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| {
+            e.file_name()
+                .to_string_lossy()
+                .contains(&format!("greybox-concurrent-{}.json.", std::process::id()))
+        })
+        .count();
+    assert_eq!(leftovers, 0, "temporary files left behind");
+}
+
+/// Exit codes: a fit stopped by the iteration limit writes its report, flags
+/// `not_converged` and exits 3 (0 with --allow-unconverged); an absurd tolerance is refused
+/// with exit code 1 before anything is written.
+#[cfg(feature = "cli")]
+#[test]
+fn exit_codes_tell_untrusted_results_apart() {
+    use crate::errors::greybox;
+    let json = std::env::temp_dir().join(format!("greybox-exit-{}.json", std::process::id()));
+    let j = json.to_str().unwrap();
+    let out = greybox(&[
+        "fit",
+        "data/sample.csv.gz",
+        "-p",
+        "4",
+        "-q",
+        "--max-iters",
+        "1",
+        "--start",
+        "2,0.01,0.8",
+        "--json",
+        j,
+    ]);
+    assert_eq!(out.status.code(), Some(3), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!(
+        v["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w["code"] == "not_converged" && w["untrusted"] == true)
+    );
+    let out = greybox(&[
+        "fit",
+        "data/sample.csv.gz",
+        "-p",
+        "4",
+        "-q",
+        "--max-iters",
+        "1",
+        "--start",
+        "2,0.01,0.8",
+        "--allow-unconverged",
+    ]);
+    assert_eq!(out.status.code(), Some(0));
+    std::fs::remove_file(&json).unwrap();
+    let out = greybox(&["fit", "data/sample.csv.gz", "-p", "4", "--ftol", "1e300", "--json", j]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("ftol"));
+    assert!(!json.exists());
+    let out = greybox(&["fit", "data/sample.csv.gz", "-p", "4", "-q"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+fn scaled(e: &Experiment, name: &str, factor: f64) -> Experiment {
+    let c = e.get(name).unwrap();
+    let values = c.values.iter().map(|v| v * factor).collect();
+    e.clone().with_channel(Channel::new(name, &c.unit, values)).unwrap()
+}
+
+fn codes(fit: &greybox::pmsm::PmsmFit) -> Vec<(String, bool, String)> {
+    fit.warnings.iter().map(|w| (w.code.clone(), w.untrusted, w.message.clone())).collect()
+}
+
+/// The silent-wrongness cases of the trust issue on the servo log: each gives an untrusted
+/// warning (exit code 3) naming the likely mistake, or an error; the right setup gives none.
+#[test]
+fn setup_mistakes_are_named() {
+    crate::common::require_shared!();
+    let (e, t) = load("servo_spm_moves_idinj");
+    let e = e.slice(0..30_000).unwrap();
+    let fit = |e: &Experiment, n_p: u32| fit_pmsm(std::slice::from_ref(e), &pmsm_options(n_p)).unwrap();
+    let untrusted = |f: &greybox::pmsm::PmsmFit, code: &str, says: &str| {
+        let c = codes(f);
+        let hit = c.iter().find(|(k, u, _)| k == code && *u);
+        eprintln!("{code}: {:?}", hit.map(|h| &h.2));
+        assert!(hit.is_some_and(|(_, _, m)| m.contains(says)), "{code} / {says}: {c:?}");
+        assert!(!f.trusted());
+    };
+    let right = fit(&e, t.n_p);
+    assert!(right.trusted(), "{:?}", codes(&right));
+    // Wrong pole pairs.
+    for n_p in [3, 8] {
+        untrusted(&fit(&e, n_p), "pole_pairs", "4 pole pairs");
+    }
+    // Electrical speed read as mechanical.
+    let electrical = scaled(&e, "w_m", f64::from(t.n_p));
+    let f = fit(&electrical, t.n_p);
+    untrusted(&f, "speed_unit", "electrical");
+    untrusted(&f, "pole_pairs", "1 pole pairs");
+    // rpm read as rad/s.
+    untrusted(&fit(&scaled(&e, "w_m", 30.0 / std::f64::consts::PI), t.n_p), "speed_unit", "rpm");
+    // Time in ms read as s: the speed check names the time column.
+    let ms = Experiment::try_new("ms", 1e3 * e.h(), e.channels().to_vec()).unwrap();
+    untrusted(&fit(&ms, t.n_p), "speed_unit", "milliseconds");
+    // RMS currents or power-invariant dq cannot be told from the data: a notice gives the
+    // estimates under the other conventions.
+    let notice = codes(&right).into_iter().find(|(k, u, _)| k == "scaling_assumed" && !u).unwrap();
+    assert!(notice.2.contains("RMS") && notice.2.contains("power-invariant"), "{}", notice.2);
+    // A surface-magnet model on the salient log is refused, naming the fix.
+    let (ipm, t) = load("ipm_moves_idinj");
+    let err = fit_pmsm(&[ipm], &PmsmFitOptions { model: MotorKind::Spm, ..pmsm_options(t.n_p) }).unwrap_err();
+    assert!(err.to_string().contains("--model ipm"), "{err}");
+}
+
+/// A parameter at its bound is flagged, with no interval, and makes the fit untrusted.
+#[test]
+fn a_parameter_at_a_bound_has_no_interval() {
+    let e = greybox::pmsm::read_log(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz"),
+        &Default::default(),
+    )
+    .unwrap();
+    let options = PmsmFitOptions {
+        bounds: vec![("r_s".into(), 0.95, 2.0)],
+        start: Some(vec![1.0, 4.5e-3, 0.54]),
+        ..pmsm_options(4)
+    };
+    let fit = fit_pmsm(&[e], &options).unwrap();
+    let r = fit.parameter("r_s").unwrap();
+    assert!(r.at_bound && r.std_error.is_nan() && r.ci95.iter().all(|c| c.is_nan()), "{r:?}");
+    assert!(fit.warnings.iter().any(|w| w.code == "parameter_at_bound" && w.message.contains("r_s")));
+    assert!(!fit.trusted());
+}
