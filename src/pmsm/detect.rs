@@ -14,6 +14,7 @@ use super::kind::MotorKind;
 use super::signals::{DqView, channel};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
+use crate::estimate::filter::Butterworth;
 use crate::estimate::{FitResult, Warning};
 use nalgebra::{DMatrix, DVector};
 
@@ -28,6 +29,9 @@ pub const SALIENT_CERTAIN: f64 = 100.0;
 pub const SALIENT_LIKELY: f64 = 2.0;
 /// Relative inductance difference that counts as salient.
 pub const SALIENCY: f64 = 0.1;
+/// Order and cutoff (relative to the sample rate) of the scan's zero-phase prefilter.
+const SCAN_FILTER_ORDER: usize = 4;
+const SCAN_CUTOFF: f64 = 0.05;
 /// Relative mismatch of `dθ_m/dt` and `w_m` beyond which the speed check reports.
 pub const SPEED_MISMATCH: f64 = 0.05;
 
@@ -37,7 +41,10 @@ fn gram(experiments: &[Experiment], kind: MotorKind, input: VoltageInput) -> Res
     let mut g = DMatrix::<f64>::zeros(nb + 1, nb + 1);
     for e in experiments {
         // n_p only scales the angle advance of a reference input; 1 is used for the scan.
-        let applied = applied_experiment(e, 1, input)?;
+        // A zero-phase low-pass at 5 % of the sample rate keeps current noise out of di/dt
+        // (MODEL.md §5: the derivative regressor is errors-in-variables).
+        let filter = Butterworth::try_new(SCAN_FILTER_ORDER, SCAN_CUTOFF / e.h(), e.h())?;
+        let applied = filter.filtfilt_experiment(&applied_experiment(e, 1, input)?, &[channel::THETA_M])?;
         let v = DqView::try_new(&applied)?;
         let (ud, uq) = v.terminal_voltage()?;
         let (id, iq, wm, h) = (v.i_d(), v.i_q(), v.w_m(), v.h());

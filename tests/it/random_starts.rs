@@ -22,7 +22,19 @@ fn show(v: &[f64]) -> String {
 /// Fits `log` from `starts` random starts around `truth`; returns the fraction [%] that
 /// reach the least-squares-start estimate, printing every start that does not.
 fn success_rate(label: &str, log: &Experiment, n_p: u32, truth: [f64; 3], starts: usize, seed: u64) -> f64 {
-    let opts = PmsmFitOptions { hold: HoldChoice::Stator, ..pmsm_options(n_p) };
+    success_rate_with(label, log, HoldChoice::Stator, n_p, truth, starts, seed)
+}
+
+fn success_rate_with(
+    label: &str,
+    log: &Experiment,
+    hold: HoldChoice,
+    n_p: u32,
+    truth: [f64; 3],
+    starts: usize,
+    seed: u64,
+) -> f64 {
+    let opts = PmsmFitOptions { hold, ..pmsm_options(n_p) };
     let reference = fit_pmsm(std::slice::from_ref(log), &opts).expect("fit from the LS start");
     assert!(reference.solver.success, "{label}: LS-start fit: {}", reference.solver.termination);
     let best = estimate(&reference);
@@ -88,4 +100,27 @@ fn servo_log_from_200_random_starts() {
     let log = log.slice(0..25_000).expect("2.5 s of the log");
     let rate = success_rate("servo 0–2.5 s", &log, t.n_p, [t.r_s, t.l_d, t.k_e], 200, 54321);
     assert!(rate >= 99.0, "servo log: only {rate:.1} % of the random starts reach the minimum");
+}
+
+/// The trust issue's case: 1 s of the servo log with the automatic hold, where 21 of 200
+/// starts used to stall in the stator-hold fit with L_s at its lower bound and the dq-hold
+/// fit (loss 65 times the minimum) was then reported as a success. A stalled hold fit is
+/// now restarted from the other hold's estimate: ≥ 99.5 % of the starts reach the minimum.
+/// `GREYBOX_STARTS` sets the number of starts (default 200; the note reports 1000).
+#[test]
+fn servo_log_automatic_hold_from_random_starts() {
+    crate::common::require_shared!();
+    let (log, t) = load("servo_spm_moves_idinj");
+    let log = log.slice(0..10_000).expect("1 s of the log");
+    let starts = std::env::var("GREYBOX_STARTS").ok().and_then(|s| s.parse().ok()).unwrap_or(200);
+    let rate = success_rate_with(
+        "servo 0–1 s, auto hold",
+        &log,
+        HoldChoice::Auto,
+        t.n_p,
+        [t.r_s, t.l_d, t.k_e],
+        starts,
+        2024,
+    );
+    assert!(rate >= 99.5, "only {rate:.1} % of the random starts reach the minimum");
 }
