@@ -69,7 +69,7 @@
 use super::config::{Adaptation, MrasConfig};
 use crate::error::{Error, Result};
 use crate::pmsm::interval::cexpm1;
-use crate::pmsm::{C64, SQRT_2_3, VoltageHold, rotation, stator_hold_start};
+use crate::pmsm::{C64, ExactPlant, MotorParameters, SQRT_2_3, VoltageHold, rotation, stator_hold_start};
 use serde::{Deserialize, Serialize};
 
 /// One sample of a drive: the currents measured at `t_k` and the voltage applied over
@@ -155,6 +155,8 @@ pub struct Mras {
     /// Samples consumed; 0 means the observer starts at the next measurement.
     n: usize,
     last: Estimates,
+    /// The salient step (`Some` when [`MrasConfig::salient`]).
+    plant: Option<ExactPlant>,
 }
 
 impl Mras {
@@ -166,7 +168,13 @@ impl Mras {
     pub fn try_new(config: MrasConfig) -> Result<Self> {
         config.validate()?;
         let kappa = -(-config.f * config.h).exp_m1();
+        let plant = if config.salient() {
+            Some(ExactPlant::new(config.n_p, config.h, true, config.hold)?)
+        } else {
+            None
+        };
         let mut m = Self {
+            plant,
             kappa,
             k_e: config.k_e0,
             r_s: config.r_s0,
@@ -236,7 +244,10 @@ impl Mras {
         // The last step re-taken with the new parameters (first order), then corrected.
         let i_post = i_hat + self.phi_k * dk + self.phi_r * (r_s - self.r_s);
         let x = i_post + (i - i_post) * self.kappa;
-        let (i_next, phi_k, phi_r, psi_k) = self.step(x, k_e, r_s, s);
+        let (i_next, phi_k, phi_r, psi_k) = match &self.plant {
+            None => self.step(x, k_e, r_s, s),
+            Some(plant) => self.step_salient(plant, x, k_e, r_s, s)?,
+        };
         if !(i_next.re.is_finite() && i_next.im.is_finite() && k_e.is_finite() && r_s.is_finite()) {
             return Err(Error::Numerical {
                 context: format!("MRAS update at sample {}", self.n),
@@ -330,6 +341,48 @@ impl Mras {
         };
         let phi_r = a * (-hl) * x + forced_r;
         (i_next, phi_k, phi_r, psi_k)
+    }
+}
+
+impl Mras {
+    /// The exact salient step from the corrected state `x` at `(k_e, r_s)` and its exact
+    /// sensitivities, `(î, φ_K, φ_R, ψ_K)` as [`Mras::step`] (module documentation).
+    fn step_salient(
+        &self,
+        plant: &ExactPlant,
+        x: C64,
+        k_e: f64,
+        r_s: f64,
+        s: &Sample,
+    ) -> Result<(C64, C64, C64, C64)> {
+        let n_p = self.cfg.n_p;
+        let p = MotorParameters {
+            r_s,
+            l_d: self.cfg.l_s,
+            l_q: self.cfg.l_q.unwrap_or(self.cfg.l_s),
+            psi_f: SQRT_2_3 * k_e / f64::from(n_p),
+            n_p,
+        };
+        let u = C64::new(s.u_d, s.u_q);
+        let u0 = match self.cfg.hold {
+            VoltageHold::Dq => u,
+            VoltageHold::Stator => stator_hold_start(u, f64::from(n_p) * s.w_m * self.cfg.h),
+        };
+        let d = plant.step_derivatives(&p, [x.re, x.im], u0, s.w_m).map_err(|e| Error::Numerical {
+            context: format!("MRAS update at sample {}", self.n),
+            reason: e.to_string(),
+        })?;
+        let c = |v: [f64; 2]| C64::new(v[0], v[1]);
+        let phi_k = c(d.d_k_e);
+        let psi_k = match self.cfg.adaptation {
+            Adaptation::Lyapunov => phi_k,
+            // φ_K is proportional to ω_m (its direction depends on ω_m only through the
+            // rotation within the period): φ_K/|ω_m|, and 0 at standstill where K_e has
+            // no effect on the step.
+            Adaptation::Relay if s.w_m != 0.0 => phi_k / s.w_m.abs(),
+            Adaptation::Relay => C64::default(),
+        };
+        Ok((c(d.next), phi_k, c(d.d_r_s), psi_k))
     }
 }
 
