@@ -155,6 +155,7 @@ fn mras_allocates_nothing_per_sample() {
         let tag = if salient { "salient" } else { "surface" };
         // update over valid samples, in one counted window.
         let mut m = observer(adaptation);
+        let start = std::time::Instant::now();
         let (active, n) = allocations(|| {
             let mut active = 0usize;
             for k in 10..10 + UPDATES {
@@ -163,6 +164,8 @@ fn mras_allocates_nothing_per_sample() {
             }
             active
         });
+        let ns = start.elapsed().as_secs_f64() * 1e9 / UPDATES as f64;
+        eprintln!("{tag} {adaptation:?}: {ns:.0} ns per update (quick timing, not asserted)");
         assert_eq!(n, 0, "{tag} {adaptation:?}: update allocated {n} times over {UPDATES} samples");
         assert!(active > UPDATES / 4, "{tag} {adaptation:?}: R_s law active at {active} samples only");
         let last = m.output();

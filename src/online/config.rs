@@ -46,7 +46,9 @@ pub struct MrasConfig {
     /// `dK̂_e/dt = γ_Ke Dᵀ e` is in V s/rad per s). With [`Adaptation::Relay`] use a larger one.
     /// The gain is motor specific: at a steady operating point `K̂_e` converges at the rate
     /// `γ_Ke emf² σ / (L_s² |σ + jω_e|²)` [1/s], `emf = √(2/3) ω_m`, `σ = R_s/L_s + f`
-    /// (quasi-static error of the observer), so a small `L_s` needs a much smaller `γ_Ke`.
+    /// (quasi-static error of the observer), so a small `L_s` needs a much smaller `γ_Ke`
+    /// (salient: about the same with `L_q` in place of `L_s`; e.g. 10⁻⁵ for
+    /// gym-electric-motor's `L_q = 1.3 mH` where motulator's 7.5 mH takes the default).
     pub gamma_ke: f64,
     /// Adaptation gain γ_Rs [Ω/(A s)] of `R_s`, at most 0: thesis sign convention
     /// `dR̂_s/dt = γ_Rs e_d` with `e = x − x̂` and `i_d > 0` (thesis eq. 5.4, γ_Rs = −10).

@@ -394,6 +394,27 @@ fn salient_step_derivatives_are_exact() {
     );
     assert!(worst_k < 1e-12, "{worst_k:e}");
     assert!(worst_r < 1e-6, "{worst_r:e}");
+    // Cost (printed, not asserted): one step with derivatives against the four plain steps
+    // of the difference route (main, unit K_e, R_s ± δ).
+    let mut plant = ExactPlant::new(IPM_N_P, h, true, VoltageHold::Stator).unwrap();
+    let p = params(IPM_R_S, IPM_K_E);
+    let n = 20_000;
+    let t0 = std::time::Instant::now();
+    let mut acc = 0.0;
+    for k in 0..n {
+        let w = 300.0 * (k as f64 * 1e-3).sin();
+        acc += plant.step_derivatives(&p, [1.0, 2.0], C64::new(5.0, 30.0), w).unwrap().d_r_s[0];
+    }
+    let t_der = t0.elapsed().as_secs_f64() * 1e9 / n as f64;
+    let t0 = std::time::Instant::now();
+    for k in 0..n {
+        let w = 300.0 * (k as f64 * 1e-3).sin();
+        for _ in 0..4 {
+            acc += plant.step(&p, [1.0, 2.0], C64::new(5.0, 30.0), w).unwrap()[0];
+        }
+    }
+    let t_fd = t0.elapsed().as_secs_f64() * 1e9 / n as f64;
+    eprintln!("step_derivatives {t_der:.0} ns, four plain steps {t_fd:.0} ns ({acc:.1e})");
     // A surface-magnet plant has no derivatives to offer; R_s = 0 is accepted.
     let spm = ExactPlant::new(IPM_N_P, h, false, VoltageHold::Stator).unwrap();
     assert!(matches!(
