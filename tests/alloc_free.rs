@@ -14,6 +14,7 @@
 //! observer unchanged.
 
 use greybox::online::{Adaptation, Mras, MrasConfig, Sample};
+use greybox::pmsm::{C64, ExactPlant, MotorParameters, VoltageHold};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::f64::consts::TAU;
@@ -143,6 +144,24 @@ fn mras_allocates_nothing_per_sample() {
     // The counter sees an allocation on this thread (else a zero below would prove nothing).
     let (v, n) = allocations(|| std::hint::black_box(Vec::<u8>::with_capacity(8)));
     assert_eq!((v.capacity(), n), (8, 1));
+    // The salient plant the observer steps with: ExactPlant::step and step_derivatives
+    // allocate nothing after construction (either hold).
+    for hold in [VoltageHold::Stator, VoltageHold::Dq] {
+        let mut plant = ExactPlant::new(4, H, true, hold).unwrap();
+        let p = MotorParameters { r_s: 0.9, l_d: 4.5e-3, l_q: L_Q, psi_f: 0.11, n_p: 4 };
+        let (acc, n) = allocations(|| {
+            let mut acc = 0.0;
+            for k in 0..UPDATES / 10 {
+                let s = sample_of(true, k);
+                let u0 = C64::new(s.u_d, s.u_q);
+                acc += plant.step(&p, [s.i_d, s.i_q], u0, s.w_m).unwrap()[0];
+                acc += plant.step_derivatives(&p, [s.i_d, s.i_q], u0, s.w_m).unwrap().d_r_s[1];
+            }
+            acc
+        });
+        assert!(acc.is_finite());
+        assert_eq!(n, 0, "ExactPlant ({hold} hold) allocated {n} times");
+    }
     for (salient, adaptation) in [
         (false, Adaptation::Lyapunov),
         (false, Adaptation::Relay),
