@@ -5,7 +5,7 @@ use super::args::ColumnArgs;
 use super::output;
 use clap::{Args, ValueEnum};
 use greybox::online::{Adaptation, MrasConfig, Trajectory, track};
-use greybox::pmsm::{CsvOptions, MotorKind, SavedModel, VoltageHold, read_log};
+use greybox::pmsm::{CsvOptions, SavedModel, VoltageHold, read_log};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 
@@ -29,11 +29,18 @@ pub struct TrackArgs {
     /// Number of pole pairs n_p of the motor.
     #[arg(long, short = 'p')]
     pub pole_pairs: u32,
-    /// Stator inductance L_s [H], known to the observer. Required unless --params gives it.
-    #[arg(long, allow_hyphen_values = true)]
+    /// Stator inductance L_s [H], known to the observer; with --l-q it is the d-axis
+    /// inductance L_d (alias --l-d). Required unless --params gives it.
+    #[arg(long, visible_alias = "l-d", allow_hyphen_values = true)]
     pub l_s: Option<f64>,
-    /// The JSON report of an SPM fit (`greybox fit --json`): its l_s is the observer's
-    /// inductance (unless --l-s), its k_e and r_s the initial estimates (unless --k-e0, --r-s0).
+    /// q-axis inductance L_q [H] of a salient (interior-magnet) machine: the observer then
+    /// steps the salient model with L_d = --l-s. Default: the report's l_q with an IPM
+    /// --params, else none (surface magnets).
+    #[arg(long, allow_hyphen_values = true)]
+    pub l_q: Option<f64>,
+    /// The JSON report of a fit (`greybox fit --json`): an SPM fit's l_s, or an IPM fit's
+    /// (`--model ipm`) l_d and l_q, are the observer's inductances (unless --l-s, --l-q), its
+    /// k_e and r_s the initial estimates (unless --k-e0, --r-s0).
     #[arg(long)]
     pub params: Option<PathBuf>,
     /// Initial estimate of K_e [V s/rad] (default: the report's with --params, else 0).
@@ -49,6 +56,11 @@ pub struct TrackArgs {
     /// Adaptation gain γ_Rs [Ω/(A s)] of R_s, ≤ 0 (thesis sign convention, eq. 5.4).
     #[arg(long, default_value_t = MrasConfig::default().gamma_rs, allow_hyphen_values = true)]
     pub gamma_rs: f64,
+    /// R_s adapts only while |i_d| exceeds this [A], ≥ 0 (d-current injection; raise it
+    /// above the current noise and the operating point's own i_d to adapt R_s on the
+    /// injection only).
+    #[arg(long, default_value_t = MrasConfig::default().i_d_threshold, allow_hyphen_values = true)]
+    pub i_d_threshold: f64,
     /// Observer feedback gain f [1/s], ≥ 0.
     #[arg(long, default_value_t = MrasConfig::default().f, allow_hyphen_values = true)]
     pub observer_gain: f64,
@@ -123,45 +135,40 @@ fn config(a: &TrackArgs) -> greybox::Result<MrasConfig> {
         Some(p) => {
             let text = std::fs::read_to_string(p)
                 .map_err(|source| greybox::Error::Io { path: p.clone(), source })?;
-            let s = SavedModel::from_json(&text, Some(a.pole_pairs), None)?;
-            if !matches!(s.kind, MotorKind::Spm) {
-                return Err(greybox::Error::InvalidOption {
-                    option: "params".into(),
-                    reason: format!(
-                        "{} is a {} fit; the observer needs the surface-magnet model's l_s (fit with --model spm or give --l-s)",
-                        p.display(),
-                        s.kind.model_name()
-                    ),
-                });
-            }
-            Some(s)
+            Some(SavedModel::from_json(&text, Some(a.pole_pairs), None)?)
         }
     };
-    // SPM model order: r_s, l_s, k_e.
-    let from_report = |i: usize| saved.as_ref().and_then(|s| s.theta.get(i).copied());
-    let l_s = a.l_s.or(from_report(1)).ok_or_else(|| greybox::Error::InvalidOption {
+    // The report's value of a parameter by name (SPM: r_s, l_s, k_e; IPM: r_s, l_d, l_q, k_e).
+    let from_report = |name: &str| {
+        let s = saved.as_ref()?;
+        let i = s.kind.parameter_names().iter().position(|n| *n == name)?;
+        s.theta.get(i).copied()
+    };
+    let l_s = a.l_s.or(from_report("l_s")).or(from_report("l_d")).ok_or_else(|| greybox::Error::InvalidOption {
         option: "l-s".into(),
-        reason: "the observer needs the stator inductance: give --l-s H or --params REPORT.json of a fit"
+        reason: "the observer needs the stator inductance: give --l-s H (with --l-q: L_d) or --params REPORT.json of a fit"
             .into(),
     })?;
+    let l_q = a.l_q.or(from_report("l_q"));
     let config = MrasConfig {
         n_p: a.pole_pairs,
         l_s,
+        l_q,
         h: 1.0, // replaced by each log's sample time in `track`
         f: a.observer_gain,
         gamma_ke: a.gamma_ke,
         gamma_rs: a.gamma_rs,
+        i_d_threshold: a.i_d_threshold,
         adaptation: match a.adaptation {
             AdaptationArg::Lyapunov => Adaptation::Lyapunov,
             AdaptationArg::Relay => Adaptation::Relay,
         },
-        k_e0: a.k_e0.or(from_report(2)).unwrap_or(0.0),
-        r_s0: a.r_s0.or(from_report(0)).unwrap_or(0.0),
+        k_e0: a.k_e0.or(from_report("k_e")).unwrap_or(0.0),
+        r_s0: a.r_s0.or(from_report("r_s")).unwrap_or(0.0),
         hold: match a.hold {
             TrackHold::Stator => VoltageHold::Stator,
             TrackHold::Dq => VoltageHold::Dq,
         },
-        ..MrasConfig::default()
     };
     config.validate().map_err(|e| flag_error(e, &PathBuf::new()))?;
     Ok(config)
@@ -175,9 +182,11 @@ fn flag_error(e: greybox::Error, log: &std::path::Path) -> greybox::Error {
             let flag = match option.as_str() {
                 "n_p" => "pole-pairs",
                 "l_s" => "l-s",
+                "l_q" => "l-q",
                 "f" => "observer-gain",
                 "gamma_ke" => "gamma-ke",
                 "gamma_rs" => "gamma-rs",
+                "i_d_threshold" => "i-d-threshold",
                 "k_e0" => "k-e0",
                 "r_s0" => "r-s0",
                 other => other,

@@ -28,8 +28,16 @@ pub enum Adaptation {
 pub struct MrasConfig {
     /// Pole pairs n_p (`ω_e = n_p ω_m`), at least 1.
     pub n_p: u32,
-    /// Known stator inductance L_s [H], positive.
+    /// Known stator inductance L_s [H], positive; the d-axis inductance `L_d` when
+    /// [`MrasConfig::l_q`] is given.
     pub l_s: f64,
+    /// Known q-axis inductance `L_q` [H] of a salient (interior-magnet) machine, positive;
+    /// `None` (the default, and what a configuration without the field parses to) for
+    /// surface magnets, `L_d = L_q = l_s`. With `Some(l_q)`, `l_q ≠ l_s`, the observer steps
+    /// the salient model ([`crate::pmsm::ExactPlant`]; see [`super::mras`]); `Some(l_s)` is
+    /// the surface-magnet observer.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub l_q: Option<f64>,
     /// Sample time h [s], positive; [`super::track`] takes it from the log.
     pub h: f64,
     /// Observer feedback gain f [1/s] per axis, `F = diag(f, f)`, at least 0 (thesis 100).
@@ -38,7 +46,9 @@ pub struct MrasConfig {
     /// `dK̂_e/dt = γ_Ke Dᵀ e` is in V s/rad per s). With [`Adaptation::Relay`] use a larger one.
     /// The gain is motor specific: at a steady operating point `K̂_e` converges at the rate
     /// `γ_Ke emf² σ / (L_s² |σ + jω_e|²)` [1/s], `emf = √(2/3) ω_m`, `σ = R_s/L_s + f`
-    /// (quasi-static error of the observer), so a small `L_s` needs a much smaller `γ_Ke`.
+    /// (quasi-static error of the observer), so a small `L_s` needs a much smaller `γ_Ke`
+    /// (salient: about the same with `L_q` in place of `L_s`; e.g. 10⁻⁵ for
+    /// gym-electric-motor's `L_q = 1.3 mH` where motulator's 7.5 mH takes the default).
     pub gamma_ke: f64,
     /// Adaptation gain γ_Rs [Ω/(A s)] of `R_s`, at most 0: thesis sign convention
     /// `dR̂_s/dt = γ_Rs e_d` with `e = x − x̂` and `i_d > 0` (thesis eq. 5.4, γ_Rs = −10).
@@ -62,6 +72,7 @@ impl Default for MrasConfig {
         Self {
             n_p: 0,
             l_s: 0.0,
+            l_q: None,
             h: 0.0,
             f: 100.0,
             gamma_ke: 0.001,
@@ -79,8 +90,8 @@ impl MrasConfig {
     /// Checks every field.
     ///
     /// # Errors
-    /// [`Error::InvalidOption`] naming the first bad field: `n_p` = 0, `l_s` or `h` not
-    /// positive and finite, `f`, `gamma_ke`, `i_d_threshold` or `r_s0` negative or not
+    /// [`Error::InvalidOption`] naming the first bad field: `n_p` = 0, `l_s`, `l_q` (when
+    /// given) or `h` not positive and finite, `f`, `gamma_ke`, `i_d_threshold` or `r_s0` negative or not
     /// finite, `gamma_rs` positive (the thesis' sign: it must be ≤ 0) or not finite,
     /// `k_e0` not finite.
     pub fn validate(&self) -> Result<()> {
@@ -88,7 +99,7 @@ impl MrasConfig {
         if self.n_p == 0 {
             return bad("n_p", "the number of pole pairs must be at least 1".into());
         }
-        for (name, v) in [("l_s", self.l_s), ("h", self.h)] {
+        for (name, v) in [("l_s", self.l_s), ("l_q", self.l_q.unwrap_or(1.0)), ("h", self.h)] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(name, format!("must be positive and finite, got {v}"));
             }
@@ -116,6 +127,11 @@ impl MrasConfig {
             return bad("k_e0", format!("must be finite, got {}", self.k_e0));
         }
         Ok(())
+    }
+
+    /// Whether the observer steps the salient model: `l_q` given and different from `l_s`.
+    pub fn salient(&self) -> bool {
+        self.l_q.is_some_and(|l_q| l_q != self.l_s)
     }
 
     /// Whether `R_s` adapts at a d-current `i_d` [A]: `|i_d| > i_d_threshold` and

@@ -1,7 +1,8 @@
 //! Online estimation of `K_e` and `R_s`, sample by sample: the model reference adaptive
 //! system (MRAS) of thesis 5.1 (Tenerz 2011; MODEL.md §7).
 //!
-//! - [`MrasConfig`] (with [`Adaptation`]): known `n_p`, `l_s`, sample time, gains;
+//! - [`MrasConfig`] (with [`Adaptation`]): known `n_p`, `l_s` (and `l_q` for a salient
+//!   machine), sample time, gains;
 //! - [`Mras`]: the observer, [`Mras::update`] per [`Sample`] giving [`Estimates`]; exact
 //!   in the state for any sample time and implicit in the parameters (see [`mras`]);
 //! - [`InjectionSchedule`]: the periodic d-current pulse that lets `R_s` adapt;

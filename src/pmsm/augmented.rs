@@ -52,6 +52,27 @@ pub struct IpmCoefficients {
     pub(crate) r_l_max: f64,
 }
 
+impl IpmCoefficients {
+    /// The coefficients at `θ = (r_s, l_d, l_q, k_e)` without the inverter term, computed
+    /// as [`super::PmsmIpm`]'s `coefficients` does but unchecked (the caller checks; `r_s`
+    /// may be 0 here).
+    pub(crate) fn at(h: f64, r: f64, l_d: f64, l_q: f64, k_e: f64) -> Self {
+        IpmCoefficients {
+            nth: 4,
+            v_dt: 0.0,
+            h,
+            k_e,
+            inv_l_d: 1.0 / l_d,
+            inv_l_q: 1.0 / l_q,
+            r_l_d: r / l_d,
+            r_l_q: r / l_q,
+            l_q_l_d: l_q / l_d,
+            l_d_l_q: l_d / l_q,
+            r_l_max: r / l_d.min(l_q),
+        }
+    }
+}
+
 /// Relative size below which a Taylor term no longer changes a block of the sum.
 const TOL: f64 = 1e-17;
 /// Largest spectral scale `ρ` of one substep of the vector series.
@@ -235,8 +256,20 @@ pub(crate) fn advance<const SENS: bool>(
     z: &mut Aug,
     one: f64,
 ) {
-    let w_e = inp.w_e[k];
-    let w_v = match inp.hold {
+    advance_at::<SENS>(c, inp.hold, inp.w_e[k], inp.emf[k], z, one);
+}
+
+/// [`advance`] for one period given by its values: the hold, the electrical speed `w_e`
+/// [rad/s] and the back-EMF per unit `K_e`, `emf = √(2/3) ω_m` [rad/s].
+pub(crate) fn advance_at<const SENS: bool>(
+    c: &IpmCoefficients,
+    hold: VoltageHold,
+    w_e: f64,
+    emf: f64,
+    z: &mut Aug,
+    one: f64,
+) {
+    let w_v = match hold {
         VoltageHold::Stator => w_e,
         VoltageHold::Dq => 0.0,
     };
@@ -246,12 +279,12 @@ pub(crate) fn advance<const SENS: bool>(
         return;
     }
     if rho <= RHO_MAX {
-        Sub::new(c, c.h, w_e, inp.emf[k], w_v).propagate::<SENS>(z, one);
+        Sub::new(c, c.h, w_e, emf, w_v).propagate::<SENS>(z, one);
         return;
     }
     let m = (rho / RHO_MAX).ceil();
     if m <= MAX_SUBSTEPS as f64 {
-        let sub = Sub::new(c, c.h / m, w_e, inp.emf[k], w_v);
+        let sub = Sub::new(c, c.h / m, w_e, emf, w_v);
         for _ in 0..m as usize {
             sub.propagate::<SENS>(z, one);
         }
@@ -263,7 +296,7 @@ pub(crate) fn advance<const SENS: bool>(
     for _ in 0..squarings {
         tau *= 0.5;
     }
-    let mt = Sub::new(c, tau, w_e, inp.emf[k], w_v).dense();
+    let mt = Sub::new(c, tau, w_e, emf, w_v).dense();
     let mut e = Mat::identity();
     let mut term = Mat::identity();
     for j in 1..=DENSE_TERMS {

@@ -50,7 +50,7 @@ pub use kind::{MotorKind, derived};
 pub use linear::{LinearEstimate, LinearOptions, least_squares, regressors, weighted_least_squares};
 pub use log::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit, read_log, read_logs};
 pub use mask::{DeadTimeMask, DeadTimeMaskWeighting};
-pub use plant::{ExactPlant, MotorParameters};
+pub use plant::{ExactPlant, MotorParameters, StepDerivatives};
 pub use setup::PmsmSetup;
 pub use signals::{DqSignals, DqView, MIN_SAMPLES, channel};
 pub use spm::PmsmSpm;

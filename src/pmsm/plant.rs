@@ -3,12 +3,24 @@
 //! [`PmsmIpm`]'s augmented exponential, one period at a time, so a log from the simulator
 //! is reproduced exactly by the model that fits it.
 
+use super::augmented::{Aug, IpmCoefficients, IpmInputs, advance_at};
 use super::interval::{C64, SQRT_2_3, VoltageHold, check_finite, check_pole_pairs, check_positive, rotation};
 use super::spm::SpmInputs;
-use super::{PmsmIpm, PmsmSpm, augmented::IpmInputs};
+use super::{PmsmIpm, PmsmSpm};
 use crate::error::{Error, Result};
 use crate::model::GreyBoxModel;
 use serde::{Deserialize, Serialize};
+
+/// One exact step with its derivatives: see [`ExactPlant::step_derivatives`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepDerivatives {
+    /// The dq current `[i_d, i_q]` [A] at the end of the period.
+    pub next: [f64; 2],
+    /// `∂next/∂R_s` at the fixed start current [A/Ω].
+    pub d_r_s: [f64; 2],
+    /// `∂next/∂K_e` at the fixed start current [A/(V s/rad)].
+    pub d_k_e: [f64; 2],
+}
 
 /// The electrical parameters of a machine (MODEL.md §2).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -62,7 +74,7 @@ impl MotorParameters {
 }
 
 /// One-period inputs of the model that steps the plant.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 enum Engine {
     Spm(PmsmSpm, SpmInputs),
     Ipm(PmsmIpm, IpmInputs),
@@ -70,7 +82,7 @@ enum Engine {
 
 /// The exact electrical step of a machine at the period's mean speed, the voltage held in
 /// the stator frame over each period (an inverter's output) or in dq (some simulators).
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct ExactPlant {
     engine: Engine,
     h: f64,
@@ -156,6 +168,61 @@ impl ExactPlant {
                 context: "plant step".into(),
                 reason: format!(
                     "non-finite current from i = {i:?} A, u0 = {u0} V, w_m = {w_m} rad/s with {p:?}"
+                ),
+            })
+        }
+    }
+
+    /// [`ExactPlant::step`] of a salient plant together with the exact derivatives of the
+    /// end current with respect to `R_s` and `K_e` at the fixed start current `i`: the
+    /// forward sensitivities of [`PmsmIpm`]'s augmented exponential started at zero (Van
+    /// Loan 1978; [`super::ipm`]), one augmented step, no finite difference. Takes `&self`
+    /// and allocates nothing unless it fails (an observer calls it per sample, see
+    /// [`crate::online::Mras`]). Unlike [`ExactPlant::step`] it accepts `R_s = 0` (an
+    /// estimate at its bound). `n_p` of `p` is ignored (the plant's own is used).
+    ///
+    /// # Errors
+    /// [`Error::InvalidOption`] (option `salient`) for a plant made with `salient = false`;
+    /// [`Error::InvalidParameter`] naming `r_s` (negative or not finite), `l_d`, `l_q` (not
+    /// positive and finite) or `psi_f` (not finite); [`Error::Numerical`] for a non-finite
+    /// result.
+    pub fn step_derivatives(
+        &self,
+        p: &MotorParameters,
+        i: [f64; 2],
+        u0: C64,
+        w_m: f64,
+    ) -> Result<StepDerivatives> {
+        if !matches!(self.engine, Engine::Ipm(..)) {
+            return Err(Error::InvalidOption {
+                option: "salient".into(),
+                reason: "step_derivatives needs the plant of a salient machine (ExactPlant::new with salient = true)"
+                    .into(),
+            });
+        }
+        if !(p.r_s.is_finite() && p.r_s >= 0.0) {
+            return Err(Error::InvalidParameter {
+                name: "r_s".into(),
+                value: p.r_s,
+                reason: "must be finite and at least 0".into(),
+            });
+        }
+        check_positive("l_d", p.l_d)?;
+        check_positive("l_q", p.l_q)?;
+        check_finite("psi_f", p.psi_f)?;
+        let w_e = f64::from(self.n_p) * w_m;
+        let k_e = f64::from(self.n_p) * p.psi_f / SQRT_2_3;
+        let c = IpmCoefficients::at(self.h, p.r_s, p.l_d, p.l_q, k_e);
+        let mut z = Aug { x: i, v: [u0.re, u0.im], ..Aug::default() };
+        advance_at::<true>(&c, self.hold, w_e, SQRT_2_3 * w_m, &mut z, 1.0);
+        let out = StepDerivatives { next: z.x, d_r_s: z.s[0], d_k_e: z.s[3] };
+        if out.next.iter().chain(&out.d_r_s).chain(&out.d_k_e).all(|x| x.is_finite()) {
+            Ok(out)
+        } else {
+            Err(Error::Numerical {
+                context: "plant step".into(),
+                reason: format!(
+                    "non-finite current or derivative from i = {i:?} A, u0 = {u0} V, w_m = {w_m} rad/s with {p:?}"
                 ),
             })
         }

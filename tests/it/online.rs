@@ -5,7 +5,7 @@ use crate::common::{Rng, Signals, exciting_signals, experiment, rel, require_sha
 use greybox::Error;
 use greybox::model::Prepared;
 use greybox::online::{Adaptation, InjectionSchedule, Mras, MrasConfig, Sample, track};
-use greybox::pmsm::{DqView, PmsmSpm, VoltageHold};
+use greybox::pmsm::{DqView, PmsmIpm, PmsmSpm, VoltageHold};
 use greybox::simulate::{SimOptions, simulate};
 
 /// The servo of the development logs: R_s [Ω], L_s [H], K_e [V s/rad], n_p.
@@ -291,5 +291,239 @@ proptest::proptest! {
                 }
             }
         }
+    }
+}
+
+/// The salient machine of motulator's development logs (`ipm_moves_idinj`): R_s [Ω],
+/// L_d, L_q [H], K_e [V s/rad], n_p.
+const IPM_R_S: f64 = 0.35;
+const IPM_L_D: f64 = 3.2e-3;
+const IPM_L_Q: f64 = 7.5e-3;
+const IPM_K_E: f64 = 0.416_413_256_273_140_3;
+const IPM_N_P: u32 = 2;
+
+/// A synthetic log of `n` samples at `h` from the crate's exact IPM model (augmented
+/// exponential) at the truth: random voltage steps, speed sweeping ±`w_max` [rad/s].
+fn ipm_plant(n: usize, h: f64, w_max: f64, hold: VoltageHold, seed: u64) -> greybox::Experiment {
+    let s = exciting_signals(n, h, w_max, 10.0, IPM_K_E, &mut Rng(seed));
+    simulate_into(&PmsmIpm::new(IPM_N_P, hold), &[IPM_R_S, IPM_L_D, IPM_L_Q, IPM_K_E], h, s)
+}
+
+fn ipm_config(h: f64, hold: VoltageHold) -> MrasConfig {
+    MrasConfig {
+        n_p: IPM_N_P,
+        l_s: IPM_L_D,
+        l_q: Some(IPM_L_Q),
+        h,
+        k_e0: 0.8 * IPM_K_E,
+        r_s0: 0.8 * IPM_R_S,
+        hold,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn salient_observer_without_adaptation_reproduces_the_exact_ipm_simulation() {
+    for hold in [VoltageHold::Stator, VoltageHold::Dq] {
+        let h = 1e-4;
+        let e = ipm_plant(20_000, h, 250.0, hold, 7);
+        let v = DqView::try_new(&e).unwrap();
+        let (u_d, u_q) = v.terminal_voltage().unwrap();
+        let cfg =
+            MrasConfig { k_e0: IPM_K_E, r_s0: IPM_R_S, gamma_ke: 0.0, gamma_rs: 0.0, ..ipm_config(h, hold) };
+        let mut m = Mras::try_new(cfg).unwrap();
+        let (w, mut worst, mut peak) = (v.w_m(), 0.0f64, 0.0f64);
+        for k in 0..v.len() - 1 {
+            let s = Sample {
+                i_d: v.i_d()[k],
+                i_q: v.i_q()[k],
+                u_d: u_d[k],
+                u_q: u_q[k],
+                w_m: 0.5 * (w[k] + w[k + 1]),
+            };
+            let est = m.update(&s).unwrap();
+            worst = worst.max(est.e_d.hypot(est.e_q));
+            peak = peak.max(s.i_d.hypot(s.i_q));
+        }
+        eprintln!("salient exactness, {hold} hold: max |e| = {worst:.2e} A (peak current {peak:.1} A)");
+        assert!(worst < 1e-12 * peak.max(1.0), "{hold}: {worst:e}");
+    }
+}
+
+#[test]
+fn salient_step_derivatives_are_exact() {
+    use greybox::pmsm::{C64, ExactPlant, MotorParameters, StepDerivatives};
+    let h = 2e-4;
+    let params = |r_s: f64, k_e: f64| MotorParameters {
+        r_s,
+        l_d: IPM_L_D,
+        l_q: IPM_L_Q,
+        psi_f: (2.0f64 / 3.0).sqrt() * k_e / f64::from(IPM_N_P),
+        n_p: IPM_N_P,
+    };
+    let mut rng = Rng(17);
+    let (mut worst_k, mut worst_r) = (0.0f64, 0.0f64);
+    for hold in [VoltageHold::Stator, VoltageHold::Dq] {
+        let mut plant = ExactPlant::new(IPM_N_P, h, true, hold).unwrap();
+        for _ in 0..200 {
+            let mut u = || 2.0 * rng.uniform() - 1.0;
+            let (i, u0, w_m) = ([30.0 * u(), 30.0 * u()], C64::new(200.0 * u(), 200.0 * u()), 400.0 * u());
+            let p = params(IPM_R_S, IPM_K_E);
+            let StepDerivatives { next, d_r_s, d_k_e } = plant.step_derivatives(&p, i, u0, w_m).unwrap();
+            // The same step as ExactPlant::step.
+            let stepped = plant.step(&p, i, u0, w_m).unwrap();
+            let scale = 1.0 + next[0].hypot(next[1]);
+            assert!((next[0] - stepped[0]).hypot(next[1] - stepped[1]) < 1e-13 * scale);
+            // Affine in (i, u, K_e): ∂/∂K_e is the step from zero current and voltage at unit K_e.
+            let unit = plant.step(&params(IPM_R_S, 1.0), [0.0; 2], C64::default(), w_m).unwrap();
+            let ek = (d_k_e[0] - unit[0]).hypot(d_k_e[1] - unit[1]) / (1e-300 + d_k_e[0].hypot(d_k_e[1]));
+            worst_k = worst_k.max(ek);
+            // ∂/∂R_s against a central difference (truncation ~δ², rounding ~ε|x|/δ).
+            let dr = 1e-5;
+            let (a, b) = (
+                plant.step(&params(IPM_R_S + dr, IPM_K_E), i, u0, w_m).unwrap(),
+                plant.step(&params(IPM_R_S - dr, IPM_K_E), i, u0, w_m).unwrap(),
+            );
+            let fd = [(a[0] - b[0]) / (2.0 * dr), (a[1] - b[1]) / (2.0 * dr)];
+            let er = (d_r_s[0] - fd[0]).hypot(d_r_s[1] - fd[1]) / (1e-300 + d_r_s[0].hypot(d_r_s[1]));
+            worst_r = worst_r.max(er);
+        }
+    }
+    eprintln!(
+        "salient step derivatives: K_e vs unit step rel. {worst_k:.1e}, R_s vs central difference rel. {worst_r:.1e}"
+    );
+    assert!(worst_k < 1e-12, "{worst_k:e}");
+    assert!(worst_r < 1e-6, "{worst_r:e}");
+    // Cost (printed, not asserted): one step with derivatives against the four plain steps
+    // of the difference route (main, unit K_e, R_s ± δ).
+    let mut plant = ExactPlant::new(IPM_N_P, h, true, VoltageHold::Stator).unwrap();
+    let p = params(IPM_R_S, IPM_K_E);
+    let n = 20_000;
+    let t0 = std::time::Instant::now();
+    let mut acc = 0.0;
+    for k in 0..n {
+        let w = 300.0 * (k as f64 * 1e-3).sin();
+        acc += plant.step_derivatives(&p, [1.0, 2.0], C64::new(5.0, 30.0), w).unwrap().d_r_s[0];
+    }
+    let t_der = t0.elapsed().as_secs_f64() * 1e9 / n as f64;
+    let t0 = std::time::Instant::now();
+    for k in 0..n {
+        let w = 300.0 * (k as f64 * 1e-3).sin();
+        for _ in 0..4 {
+            acc += plant.step(&p, [1.0, 2.0], C64::new(5.0, 30.0), w).unwrap()[0];
+        }
+    }
+    let t_fd = t0.elapsed().as_secs_f64() * 1e9 / n as f64;
+    eprintln!("step_derivatives {t_der:.0} ns, four plain steps {t_fd:.0} ns ({acc:.1e})");
+    // A surface-magnet plant has no derivatives to offer; R_s = 0 is accepted.
+    let spm = ExactPlant::new(IPM_N_P, h, false, VoltageHold::Stator).unwrap();
+    assert!(matches!(
+        spm.step_derivatives(&params(IPM_R_S, IPM_K_E), [1.0, 2.0], C64::default(), 10.0),
+        Err(Error::InvalidOption { .. })
+    ));
+    let ipm = ExactPlant::new(IPM_N_P, h, true, VoltageHold::Stator).unwrap();
+    assert!(ipm.step_derivatives(&params(0.0, IPM_K_E), [1.0, 2.0], C64::default(), 10.0).is_ok());
+}
+
+#[test]
+fn salient_lyapunov_and_relay_converge_from_80_percent() {
+    let h = 1e-4;
+    let e = ipm_plant(60_000, h, 200.0, VoltageHold::Stator, 11);
+    for (adaptation, gamma_ke) in [(Adaptation::Lyapunov, 0.001), (Adaptation::Relay, 0.1)] {
+        let cfg = MrasConfig { adaptation, gamma_ke, ..ipm_config(h, VoltageHold::Stator) };
+        let start = std::time::Instant::now();
+        let tr = run(&e, &cfg);
+        let ns = start.elapsed().as_secs_f64() * 1e9 / tr.t.len() as f64;
+        let (ek, er) = tail_errors(&tr, 10_000, IPM_K_E, IPM_R_S);
+        eprintln!(
+            "salient {adaptation:?}: final K_e rel. error {:.2e}, R_s {:.2e}; over the last 1 s max K_e {ek:.2e}, R_s {er:.2e} ({ns:.0} ns per sample with track)",
+            rel(tr.final_estimate.k_e, IPM_K_E),
+            rel(tr.final_estimate.r_s, IPM_R_S)
+        );
+        assert!(ek < 5e-3, "{adaptation:?}: K_e {ek:e}");
+        assert!(er < 2e-2, "{adaptation:?}: R_s {er:e}");
+    }
+    // The surface-magnet observer (l_s = L_d) on the same record is biased: the reason for
+    // the salient one.
+    let spm = run(&e, &MrasConfig { l_q: None, ..ipm_config(h, VoltageHold::Stator) });
+    eprintln!(
+        "surface-magnet observer on the salient record: final K_e rel. error {:.2e}, R_s {:.2e}",
+        rel(spm.final_estimate.k_e, IPM_K_E),
+        rel(spm.final_estimate.r_s, IPM_R_S)
+    );
+}
+
+#[test]
+fn salient_settings_validate_and_old_configs_parse() {
+    let good = ipm_config(1e-4, VoltageHold::Stator);
+    assert!(good.salient());
+    assert!(!MrasConfig { l_q: Some(IPM_L_D), ..good.clone() }.salient());
+    for bad in [0.0, -1e-3, f64::NAN, f64::INFINITY] {
+        match Mras::try_new(MrasConfig { l_q: Some(bad), ..good.clone() }) {
+            Err(Error::InvalidOption { option, .. }) => assert_eq!(option, "l_q"),
+            other => panic!("{bad}: {other:?}"),
+        }
+    }
+    // A configuration written before l_q existed parses to the surface-magnet observer, and
+    // one without l_q is written without it.
+    let old = r#"{"n_p": 4, "l_s": 0.0045, "h": 0.0001, "k_e0": 0.5, "r_s0": 0.7}"#;
+    let cfg: MrasConfig = serde_json::from_str(old).unwrap();
+    assert_eq!(cfg.l_q, None);
+    assert!(!serde_json::to_string(&cfg).unwrap().contains("l_q"));
+    let back: MrasConfig = serde_json::from_str(&serde_json::to_string(&good).unwrap()).unwrap();
+    assert_eq!(back, good);
+    // Garbage samples: an error or finite estimates, never a panic.
+    let mut m = Mras::try_new(MrasConfig { gamma_ke: 10.0, gamma_rs: -1e4, ..good }).unwrap();
+    for s in [
+        Sample { i_d: 1.0, i_q: 2.0, u_d: 3.0, u_q: 40.0, w_m: 50.0 },
+        Sample { i_d: 1e300, i_q: -1e300, u_d: 1e300, u_q: 0.0, w_m: 1e300 },
+        Sample { i_d: f64::NAN, ..Default::default() },
+        Sample { i_d: -8.0, i_q: 2.0, u_d: -3.0, u_q: 4.0, w_m: 0.0 },
+    ] {
+        if let Ok(est) = m.update(&s) {
+            assert!(est.k_e.is_finite() && est.r_s.is_finite() && est.r_s >= 0.0, "{est:?}");
+        }
+    }
+}
+
+#[test]
+fn salient_logs_with_d_injection() {
+    require_shared!();
+    // Gains per log. motulator's machine (L_q = 7.5 mH, up to 230 rad/s): the thesis
+    // defaults. gym-electric-motor's (L_d = 0.5 mH, L_q = 1.3 mH, up to 300 rad/s, R_s =
+    // 0.03 Ω): the K_e rate scales as γ_Ke emf²/L_q², about 57 times motulator's at one γ_Ke,
+    // so γ_Ke = 1e-5 (about motulator's rate); its R_s is 12 times smaller, so the current
+    // noise of the noisy copy (0.65 A rms) and the operating point's own i_d move R̂_s more:
+    // γ_Rs = −1, adapting while |i_d| > 5 A (the injection is −50 A and +25 A). The same
+    // gains on both gym-electric-motor logs.
+    for (stem, hold, gamma_ke, gamma_rs, i_d_threshold) in [
+        ("ipm_moves_idinj", VoltageHold::Stator, 0.001, -10.0, 0.5),
+        ("gem_ipm_moves_idinj", VoltageHold::Dq, 1e-5, -1.0, 5.0),
+        ("gem_ipm_moves_idinj_noisy", VoltageHold::Dq, 1e-5, -1.0, 5.0),
+    ] {
+        let (e, truth) = crate::common::load(stem);
+        assert!(truth.salient, "{stem}");
+        let cfg = MrasConfig {
+            n_p: truth.n_p,
+            l_s: truth.l_d,
+            l_q: Some(truth.l_q),
+            k_e0: 0.8 * truth.k_e,
+            r_s0: 0.8 * truth.r_s,
+            gamma_ke,
+            gamma_rs,
+            i_d_threshold,
+            hold,
+            ..Default::default()
+        };
+        let tr = run(&e, &cfg);
+        let n = tr.t.len();
+        let (ek, er) = tail_errors(&tr, n / 10, truth.k_e, truth.r_s);
+        let (fk, fr) = (rel(tr.final_estimate.k_e, truth.k_e), rel(tr.final_estimate.r_s, truth.r_s));
+        eprintln!(
+            "{stem}: final K_e {:.6} (truth {:.6}, rel. {fk:.2e}), R_s {:.5} (truth {}, rel. {fr:.2e}); last 10 % max rel. error K_e {ek:.2e}, R_s {er:.2e}",
+            tr.final_estimate.k_e, truth.k_e, tr.final_estimate.r_s, truth.r_s
+        );
+        assert!(fk < 0.01, "{stem}: K_e {fk:e}");
+        assert!(fr < 0.05, "{stem}: R_s {fr:e}");
     }
 }

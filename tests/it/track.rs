@@ -138,3 +138,95 @@ fn track_refuses_to_write_over_its_input_log() {
     assert!(err.contains("input log"), "{err}");
     assert!(after == before, "the input log was changed");
 }
+
+/// Final `(k_e, r_s)` of a single-log `greybox track` run (`--json -`).
+fn final_of(args: &[&str]) -> (f64, f64) {
+    let v = json_of(args);
+    (v["final"]["k_e"].as_f64().unwrap(), v["final"]["r_s"].as_f64().unwrap())
+}
+
+#[test]
+fn track_salient_logs_with_l_q_or_an_ipm_report() {
+    crate::common::require_shared!();
+    use crate::common::{data, rel, truth};
+    // motulator's salient log (stator hold): the inductances from `greybox fit --model ipm`.
+    let stem = "ipm_moves_idinj";
+    let t = truth(stem);
+    let log = data(&format!("{stem}.csv.gz"));
+    let log = log.to_str().unwrap();
+    let report = temp("ipm-fit.json");
+    let out = greybox(&["fit", log, "-p", "2", "--model", "ipm", "-q", "--json", report.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (k_e0, r_s0) = ((0.8 * t.k_e).to_string(), (0.8 * t.r_s).to_string());
+    let start = ["--k-e0", k_e0.as_str(), "--r-s0", r_s0.as_str(), "--json", "-"];
+    let with_report: Vec<&str> =
+        ["track", log, "-p", "2", "--params", report.to_str().unwrap()].into_iter().chain(start).collect();
+    let (k_e, r_s) = final_of(&with_report);
+    std::fs::remove_file(&report).ok();
+    eprintln!(
+        "track {stem} --params (IPM fit): K_e rel. error {:.2e}, R_s {:.2e}",
+        rel(k_e, t.k_e),
+        rel(r_s, t.r_s)
+    );
+    assert!(rel(k_e, t.k_e) < 0.01 && rel(r_s, t.r_s) < 0.05, "{k_e} {r_s}");
+    // The same with the inductances given: --l-d (alias of --l-s) and --l-q.
+    let (l_d, l_q) = (t.l_d.to_string(), t.l_q.to_string());
+    let flags: Vec<&str> =
+        ["track", log, "-p", "2", "--l-d", &l_d, "--l-q", &l_q].into_iter().chain(start).collect();
+    let (k_e2, r_s2) = final_of(&flags);
+    assert!(rel(k_e2, t.k_e) < 0.01 && rel(r_s2, t.r_s) < 0.05, "{k_e2} {r_s2}");
+    // Without --l-q the surface-magnet observer is far off on this machine.
+    let spm: Vec<&str> = ["track", log, "-p", "2", "--l-s", &l_d].into_iter().chain(start).collect();
+    let (k_e3, _) = final_of(&spm);
+    eprintln!("track {stem} without --l-q: K_e rel. error {:.2e}", rel(k_e3, t.k_e));
+    assert!(rel(k_e3, t.k_e) > 0.05, "{k_e3}");
+
+    // gym-electric-motor's (dq hold), with the gains of tests/it/online.rs.
+    let stem = "gem_ipm_moves_idinj";
+    let t = truth(stem);
+    let log = data(&format!("{stem}.csv.gz"));
+    let (l_d, l_q, k_e0, r_s0) =
+        (t.l_d.to_string(), t.l_q.to_string(), (0.8 * t.k_e).to_string(), (0.8 * t.r_s).to_string());
+    let (k_e, r_s) = final_of(&[
+        "track",
+        log.to_str().unwrap(),
+        "-p",
+        "4",
+        "--hold",
+        "dq",
+        "--l-s",
+        &l_d,
+        "--l-q",
+        &l_q,
+        "--k-e0",
+        &k_e0,
+        "--r-s0",
+        &r_s0,
+        "--gamma-ke",
+        "1e-5",
+        "--gamma-rs",
+        "-1",
+        "--i-d-threshold",
+        "5",
+        "--json",
+        "-",
+    ]);
+    eprintln!("track {stem}: K_e rel. error {:.2e}, R_s {:.2e}", rel(k_e, t.k_e), rel(r_s, t.r_s));
+    assert!(rel(k_e, t.k_e) < 0.01 && rel(r_s, t.r_s) < 0.05, "{k_e} {r_s}");
+}
+
+#[test]
+fn track_salient_flag_errors() {
+    for (args, culprit) in [
+        (vec!["track", SAMPLE, "-p", "4", "--l-s", "4.5e-3", "--l-q", "0"], "l-q"),
+        (vec!["track", SAMPLE, "-p", "4", "--l-d", "4.5e-3", "--l-q", "nan"], "l-q"),
+        (vec!["track", SAMPLE, "-p", "4", "--l-q", "9e-3"], "--l-s"),
+        (vec!["track", SAMPLE, "-p", "4", "--l-s", "4.5e-3", "--i-d-threshold", "-1"], "i-d-threshold"),
+    ] {
+        let out = greybox(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+        assert!(err.contains(culprit), "{args:?}: expected `{culprit}` in: {err}");
+    }
+}
