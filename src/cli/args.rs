@@ -15,9 +15,10 @@ pub struct FitArgs {
     /// Drive logs (CSV, plain or gzip). Several logs are fitted jointly with shared parameters.
     #[arg(required = true)]
     pub logs: Vec<PathBuf>,
-    /// Number of pole pairs n_p of the motor.
-    #[arg(long, short = 'p')]
-    pub pole_pairs: u32,
+    /// Number of pole pairs n_p of the motor, or `auto` (the lowest least-squares loss of
+    /// the voltage equations over 1-32 pole pairs; the report gives the runner-up's ratio).
+    #[arg(long, short = 'p', value_parser = parse_pole_pairs)]
+    pub pole_pairs: PolePairs,
     /// Machine model: surface (spm: r_s, l_s, k_e) or interior magnets (ipm: r_s, l_d, l_q, k_e).
     #[arg(long, value_enum, default_value_t = ModelArg::Spm)]
     pub model: ModelArg,
@@ -321,6 +322,21 @@ fn parse_dead_time(s: &str) -> Result<DeadTime, String> {
             .filter(|v: &f64| v.is_finite() && *v >= 0.0)
             .map(DeadTime::Volts)
             .ok_or_else(|| format!("`{s}`: expected none, estimate or a voltage ≥ 0")),
+    }
+}
+
+/// A pole-pair number, or to be chosen from the data.
+#[derive(Clone, Copy, Debug)]
+pub enum PolePairs {
+    Given(u32),
+    Auto,
+}
+
+/// Parses `auto` or a pole-pair number.
+fn parse_pole_pairs(s: &str) -> Result<PolePairs, String> {
+    match s {
+        "auto" => Ok(PolePairs::Auto),
+        _ => s.parse().map(PolePairs::Given).map_err(|_| format!("`{s}`: expected auto or a whole number")),
     }
 }
 

@@ -1,14 +1,15 @@
 //! `greybox fit`: read the logs, fit, print the table and write the JSON report.
 
 use super::args::{
-    Advance, DeadTime, Delay, FitArgs, HoldArg, MethodArg, ModelArg, Pll, ScalingArg, SolverArg, VoltageArg,
+    Advance, DeadTime, Delay, FitArgs, HoldArg, MethodArg, ModelArg, Pll, PolePairs, ScalingArg, SolverArg,
+    VoltageArg,
 };
 use super::output;
 use greybox::estimate::{FitResult, PemOptions, ScalingKind, SolverKind, Timing, Tolerances};
 use greybox::pmsm::weighted_least_squares;
 use greybox::pmsm::{
-    CsvOptions, HoldChoice, InputSearch, InverterModel, LinearOptions, MotorKind, PmsmFit, PmsmFitOptions,
-    ThermalReference, VoltageInput, fit_estimating_input, fit_pmsm,
+    CsvOptions, DqSource, Frame, HoldChoice, InputSearch, InverterModel, LinearOptions, MotorKind, PmsmFit,
+    PmsmFitOptions, ThermalReference, VoltageInput, fit_estimating_input, fit_pmsm,
 };
 use std::time::Instant;
 
@@ -21,7 +22,19 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
         output::check(path, &a.logs)?;
     }
     let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
-    let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
+    let given = match a.pole_pairs {
+        PolePairs::Given(n) => Some(n),
+        PolePairs::Auto => None,
+    };
+    let csv = CsvOptions { pole_pairs: given, ..a.columns.options() };
+    if given.is_none() && (csv.speed_frame == Frame::Electrical || csv.source == DqSource::Phases) {
+        return Err(greybox::Error::InvalidOption {
+            option: "pole-pairs".into(),
+            reason:
+                "auto cannot be used with an electrical speed or dq from phases, which need n_p to be read"
+                    .into(),
+        });
+    }
     let logs =
         a.logs.iter().map(|p| greybox::pmsm::read_log(p, &csv)).collect::<greybox::Result<Vec<_>>>()?;
     let read_s = t0.elapsed().as_secs_f64();
@@ -34,9 +47,10 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
         let t1 = Instant::now();
         let rule = a.weighting.rule()?;
         let opts = LinearOptions { prefilter: a.prefilter, ..LinearOptions::default() };
-        let ls = weighted_least_squares(&logs, a.pole_pairs, kind, rule.as_ref(), &opts)?;
+        let (n_p, _) = pole_pairs(a, &logs, kind, None)?;
+        let ls = weighted_least_squares(&logs, n_p, kind, rule.as_ref(), &opts)?;
         let names: Vec<String> = logs.iter().map(|e| e.name().to_string()).collect();
-        let report = ls.report(&names, a.pole_pairs, t1.elapsed().as_secs_f64());
+        let report = ls.report(&names, n_p, t1.elapsed().as_secs_f64());
         let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..report.timing.clone() };
         let report = FitResult { timing, ..report };
         if !quiet {
@@ -110,7 +124,7 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
         });
     }
     let options = PmsmFitOptions {
-        pole_pairs: a.pole_pairs,
+        pole_pairs: 1,
         skip_setup_checks: false,
         input,
         inverter,
@@ -149,13 +163,16 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
             ..PemOptions::default()
         },
     };
+    let (n_p, auto_note) = pole_pairs(a, &logs, kind, Some(&options))?;
+    let options = PmsmFitOptions { pole_pairs: n_p, ..options };
     let fit = if search.delay || search.advance || search.speed_pll || search.dead_time_width {
         fit_estimating_input(&logs, &options, search)?
     } else {
         fit_pmsm(&logs, &options)?
     };
     let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..fit.report.timing.clone() };
-    let result = PmsmFit { report: FitResult { timing, ..fit.report }, ..fit };
+    let pmsm_notes = fit.pmsm_notes.iter().cloned().chain(auto_note).collect();
+    let result = PmsmFit { report: FitResult { timing, ..fit.report }, pmsm_notes, ..fit };
     if !quiet {
         print!("{result}");
     }
@@ -171,6 +188,43 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
         );
     }
     Ok(trusted || a.allow_unconverged)
+}
+
+/// The pole pairs given, or chosen by `--pole-pairs auto` with a note on how decisively:
+/// the least-squares loss alone for `--method ls`, else the prediction-error loss of the
+/// best least-squares candidates fitted with `options`.
+fn pole_pairs(
+    a: &FitArgs,
+    logs: &[greybox::Experiment],
+    kind: MotorKind,
+    options: Option<&PmsmFitOptions>,
+) -> greybox::Result<(u32, Option<String>)> {
+    use greybox::pmsm::detect::{POLE_PAIR_CANDIDATES as C, choose_pole_pairs, choose_pole_pairs_by_fit};
+    match (a.pole_pairs, options) {
+        (PolePairs::Given(n), _) => Ok((n, None)),
+        (PolePairs::Auto, None) => {
+            let (n, ratio) = choose_pole_pairs(logs, kind, VoltageInput::Terminal)?;
+            let note = format!(
+                "pole pairs chosen automatically: {n} (least-squares loss of the voltage equations over {}-{}; the \
+                 runner-up's is {ratio:.1} times higher)",
+                C.start(),
+                C.end()
+            );
+            Ok((n, Some(note)))
+        }
+        (PolePairs::Auto, Some(o)) => {
+            let (n, ratio, fitted) = choose_pole_pairs_by_fit(logs, o)?;
+            let list: Vec<String> = fitted.iter().map(|(n, l)| format!("{n}: {l:.6e}")).collect();
+            let note = format!(
+                "pole pairs chosen automatically: {n}, the lowest prediction-error loss of the best least-squares \
+                 candidates over {}-{} ({}); the runner-up's is {ratio:.1} times higher",
+                C.start(),
+                C.end(),
+                list.join(", ")
+            );
+            Ok((n, Some(note)))
+        }
+    }
 }
 
 /// Refuses the options that linear least squares cannot honour, naming them.

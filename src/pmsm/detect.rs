@@ -218,6 +218,44 @@ pub(crate) fn pole_pair_warning(
     })
 }
 
+/// Least-squares candidates that `--pole-pairs auto` fits by the prediction-error method.
+pub const AUTO_CANDIDATES: usize = 3;
+
+/// `--pole-pairs auto`: the [`AUTO_CANDIDATES`] pole-pair numbers of lowest least-squares
+/// loss are fitted with `options` (their `pole_pairs` replaced), and the lowest
+/// prediction-error loss wins (the regression alone is fooled by current noise). Returns
+/// `n_p`, the runner-up's loss over the winner's, and every `(n_p, loss)` fitted.
+///
+/// # Errors
+/// Those of [`pole_pair_losses`]; [`Error::Numerical`] when no candidate can be fitted.
+pub fn choose_pole_pairs_by_fit(
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+) -> Result<(u32, f64, Vec<(u32, f64)>)> {
+    let mut ls = pole_pair_losses(experiments, options.model, options.input)?;
+    ls.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let mut fitted: Vec<(u32, f64)> = ls
+        .iter()
+        .take(AUTO_CANDIDATES)
+        .filter_map(|&(n, _)| {
+            let o = PmsmFitOptions { pole_pairs: n, skip_setup_checks: true, ..options.clone() };
+            let fit = super::fit::fit_pmsm(experiments, &o).ok()?;
+            fit.solver.success.then_some((n, fit.fit.loss))
+        })
+        .collect();
+    fitted.sort_by(|a, b| a.1.total_cmp(&b.1));
+    match fitted.as_slice() {
+        [(n, best), rest @ ..] => {
+            let ratio = rest.first().map_or(f64::INFINITY, |r| r.1 / best);
+            Ok((*n, ratio, fitted.clone()))
+        }
+        [] => Err(Error::Numerical {
+            context: "pole pairs".into(),
+            reason: "no candidate pole-pair number gives a converged fit".into(),
+        }),
+    }
+}
+
 /// The warnings of a PMSM fit from its logs: a speed unit or frame mistake, and the assumed
 /// scaling (checks that cannot run are skipped).
 pub(crate) fn warnings(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> Vec<Warning> {
