@@ -218,6 +218,9 @@ pub(crate) fn pole_pair_warning(
     })
 }
 
+/// `(n_p, runner-up loss / winner's loss, every (n_p, loss) fitted)`.
+pub type AutoPolePairs = (u32, f64, Vec<(u32, f64)>);
+
 /// Least-squares candidates that `--pole-pairs auto` fits by the prediction-error method.
 pub const AUTO_CANDIDATES: usize = 3;
 
@@ -231,7 +234,7 @@ pub const AUTO_CANDIDATES: usize = 3;
 pub fn choose_pole_pairs_by_fit(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
-) -> Result<(u32, f64, Vec<(u32, f64)>)> {
+) -> Result<AutoPolePairs> {
     let mut ls = pole_pair_losses(experiments, options.model, options.input)?;
     ls.sort_by(|a, b| a.1.total_cmp(&b.1));
     let mut fitted: Vec<(u32, f64)> = ls
