@@ -380,18 +380,26 @@ impl<R: Read> LineLimit<R> {
 impl<R: Read> Read for LineLimit<R> {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         let n = self.inner.read(buf)?;
-        let chunk = &buf[..n];
-        match chunk.iter().rposition(|&b| b == b'\n' || b == b'\r') {
-            Some(last) => {
-                self.line += chunk.iter().filter(|&&b| b == b'\n').count() as u64;
-                self.run = (n - last - 1) as u64;
-            }
-            None => self.run += n as u64,
+        let mut start = 0;
+        for end in buf[..n].iter().enumerate().filter(|(_, b)| matches!(b, b'\n' | b'\r')).map(|(i, _)| i) {
+            self.check(end - start)?;
+            self.run = 0;
+            self.line += u64::from(buf[end] == b'\n');
+            start = end + 1;
         }
+        self.check(n - start)?;
+        Ok(n)
+    }
+}
+
+impl<R> LineLimit<R> {
+    /// Adds `bytes` to the current line, failing once it is longer than the limit.
+    fn check(&mut self, bytes: usize) -> std::io::Result<()> {
+        self.run += bytes as u64;
         if self.run > self.max {
             return Err(std::io::Error::other(LineTooLong { line: self.line, max: self.max }));
         }
-        Ok(n)
+        Ok(())
     }
 }
 
