@@ -266,3 +266,26 @@ fn sample_times_outside_100_ns_to_100_ms_need_force() {
         std::fs::remove_file(p).ok();
     }
 }
+
+proptest::proptest! {
+    /// The row-by-row time check never refuses a column that the whole-column check
+    /// (every step within 25 % of the mean step) accepts.
+    #[test]
+    fn streaming_time_check_accepts_every_uniform_column(
+        steps in proptest::collection::vec(0.75f64..1.25, 1..200),
+        t0 in -1.0f64..1.0,
+        h in 1e-6f64..1e-2,
+    ) {
+        let mut t = vec![t0];
+        for s in &steps {
+            t.push(t.last().unwrap() + s * h);
+        }
+        let mean = (t[t.len() - 1] - t[0]) / steps.len() as f64;
+        let uniform = t.windows(2).all(|w| ((w[1] - w[0]) - mean).abs() <= 0.25 * mean);
+        let mut check = greybox::data::TimeSteps::new("t");
+        let streamed = t.iter().try_for_each(|&x| check.push(x));
+        if uniform {
+            proptest::prop_assert!(streamed.is_ok(), "{streamed:?}");
+        }
+    }
+}
