@@ -357,23 +357,28 @@ impl std::fmt::Display for LineTooLong {
 
 impl std::error::Error for LineTooLong {}
 
-/// A reader that fails once more than `max` bytes follow the last line break: the `csv`
-/// parser buffers a whole record, so the bound must act before it.
+/// A reader that fails once more than `max` bytes follow the last line break outside
+/// quotes: the `csv` parser buffers a whole record, so the bound must act before it.
 ///
-/// `\r` and `\n` both end a line (CR, LF and CRLF files); the line number in the error
-/// counts `\n`.
+/// `\r` and `\n` both end a line (CR, LF and CRLF files), except inside a quoted field,
+/// where they belong to the record (a `"` toggles quoting, so `""` inside a quoted field
+/// keeps it open; a stray `"` inside an unquoted field, which `csv` takes literally, makes
+/// the following lines count as one until the next `"`). The line number in the error
+/// counts every `\n`, as `csv` does.
 struct LineLimit<R> {
     inner: R,
     max: u64,
-    /// Bytes since the last `\r` or `\n`.
+    /// Bytes of the current record since its last line break outside quotes.
     run: u64,
     /// 1-based number of the line being read.
     line: u64,
+    /// Inside a quoted field.
+    quoted: bool,
 }
 
 impl<R: Read> LineLimit<R> {
     fn new(inner: R, max: u64) -> Self {
-        Self { inner, max, run: 0, line: 1 }
+        Self { inner, max, run: 0, line: 1, quoted: false }
     }
 }
 
@@ -381,11 +386,15 @@ impl<R: Read> Read for LineLimit<R> {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         let n = self.inner.read(buf)?;
         let mut start = 0;
-        for end in buf[..n].iter().enumerate().filter(|(_, b)| matches!(b, b'\n' | b'\r')).map(|(i, _)| i) {
-            self.check(end - start)?;
-            self.run = 0;
-            self.line += u64::from(buf[end] == b'\n');
-            start = end + 1;
+        for (i, &b) in buf[..n].iter().enumerate() {
+            if b == b'"' {
+                self.quoted = !self.quoted;
+            } else if matches!(b, b'\n' | b'\r') && !self.quoted {
+                self.check(i - start)?;
+                self.run = 0;
+                start = i + 1;
+            }
+            self.line += u64::from(b == b'\n');
         }
         self.check(n - start)?;
         Ok(n)
@@ -393,7 +402,7 @@ impl<R: Read> Read for LineLimit<R> {
 }
 
 impl<R> LineLimit<R> {
-    /// Adds `bytes` to the current line, failing once it is longer than the limit.
+    /// Adds `bytes` to the current record, failing once it is longer than the limit.
     fn check(&mut self, bytes: usize) -> std::io::Result<()> {
         self.run += bytes as u64;
         if self.run > self.max {
@@ -411,7 +420,7 @@ fn csv_error(path: &Path, e: csv::Error) -> Error {
                 return Error::LimitExceeded {
                     path: path.to_path_buf(),
                     line: long.line,
-                    what: format!("a line longer than {} bytes", long.max),
+                    what: format!("a line (record) longer than {} bytes", long.max),
                     limit: "max_line_bytes".into(),
                     max: long.max,
                 };

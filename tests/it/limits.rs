@@ -126,6 +126,25 @@ fn a_long_data_line_is_named_by_its_line_before_it_is_buffered() {
 }
 
 #[test]
+fn a_quoted_field_spanning_many_short_lines_counts_as_one_line() {
+    // A record may span lines inside quotes: 2 MB of short lines in one quoted cell.
+    let mut text = rows(5, 1e-3).into_bytes();
+    text.extend_from_slice(b"0.005,\"");
+    text.extend("a\n".repeat(1_000_000).bytes());
+    text.extend_from_slice(b"\",1,0,0,10\n");
+    let p = temp_file("quoted-lines", &text);
+    let err = read(&p).unwrap_err();
+    assert!(matches!(&err, Error::LimitExceeded { limit, .. } if limit == "max_line_bytes"), "{err:?}");
+    std::fs::remove_file(p).ok();
+    // Quoted header names and `""` escapes read as before.
+    let text = rows(20, 1e-3).replace(HEADER, "\"t\",\"ud\",uq,id,iq,w_m,\"say \"\"hi\"\"\"\n");
+    let text = text.replace(",10\n", ",10,\"a,\"\"b\"\"\"\n");
+    let p = temp_file("quoted-header", text.as_bytes());
+    assert_eq!(read(&p).unwrap().len(), 20);
+    std::fs::remove_file(p).ok();
+}
+
+#[test]
 fn a_long_cell_is_quoted_to_80_characters() {
     let cell = "x".repeat(100_000);
     let text = rows(20, 1e-3).replacen(",1,0.5,", &format!(",{cell},0.5,"), 3);
