@@ -116,8 +116,8 @@ pub enum Error {
         /// The value given [s].
         h: f64,
     },
-    /// The number of pole pairs is zero.
-    #[error("number of pole pairs n_p must be at least 1, got {n_p}")]
+    /// The number of pole pairs is outside `1..=100` (`pmsm::interval::MAX_POLE_PAIRS`).
+    #[error("number of pole pairs n_p must be in 1..=100, got {n_p}")]
     InvalidPolePairs {
         /// The value given.
         n_p: u32,
@@ -187,6 +187,48 @@ pub enum Error {
     /// The optimiser failed for a reason other than the ones above.
     #[error("optimiser failed: {0}")]
     Solver(String),
+    /// A file exceeds one of the read limits ([`crate::data::csv::ReadLimits`]); the read
+    /// stopped there, before buffering more.
+    #[error("{path}: line {line}: {what} exceeds the read limit `{limit}` = {max}")]
+    LimitExceeded {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number where the limit was passed (the header is line 1).
+        line: u64,
+        /// What is too large, e.g. `line longer than 1048576 bytes`.
+        what: String,
+        /// The limit's field name in [`crate::data::csv::ReadLimits`].
+        limit: String,
+        /// The limit's value.
+        max: u64,
+    },
+    /// A column the read wants appears more than once in the header.
+    #[error("{path}: column `{column}` appears twice in the header, as columns {first} and {second}")]
+    DuplicateColumn {
+        /// The file.
+        path: PathBuf,
+        /// The repeated header name.
+        column: String,
+        /// 1-based position of its first occurrence.
+        first: usize,
+        /// 1-based position of its second occurrence.
+        second: usize,
+    },
+    /// A log's sample time is outside the plausible range (a unit mistake, e.g. a time
+    /// column in ms read as s); `force` skips this check.
+    #[error(
+        "{path}: sample time h = {h:e} s is outside the plausible range [{min:e} s, {max:e} s] (a time column in other units than s? `--force` skips the plausibility limits)"
+    )]
+    ImplausibleSampleTime {
+        /// The log.
+        path: PathBuf,
+        /// The sample time found [s].
+        h: f64,
+        /// Smallest plausible h [s].
+        min: f64,
+        /// Largest plausible h [s].
+        max: f64,
+    },
 }
 
 /// Short for `std::result::Result<T, greybox::Error>`.

@@ -193,6 +193,18 @@ pub struct ColumnArgs {
     /// Compute dq currents and voltages from the phase columns and the rotor angle.
     #[arg(long)]
     pub dq_from_phases: bool,
+    /// Skip the plausibility limits (sample time h in [100 ns, 100 ms]).
+    #[arg(long)]
+    pub force: bool,
+    /// Longest line of a log in bytes; a longer one stops the read (default 1 MiB).
+    #[arg(long, default_value_t = greybox::data::csv::ReadLimits::default().max_line_bytes)]
+    pub max_line_bytes: u64,
+    /// Most columns in a log's header (default 4096).
+    #[arg(long, default_value_t = greybox::data::csv::ReadLimits::default().max_fields)]
+    pub max_fields: usize,
+    /// Most data rows in a log (default 10^8).
+    #[arg(long, default_value_t = greybox::data::csv::ReadLimits::default().max_rows)]
+    pub max_rows: u64,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -285,6 +297,12 @@ impl ColumnArgs {
             current_scale: scale(self.current_scale),
             voltage_scale: scale(self.voltage_scale),
             source: if self.dq_from_phases { DqSource::Phases } else { DqSource::Dq },
+            limits: greybox::data::csv::ReadLimits {
+                max_line_bytes: self.max_line_bytes,
+                max_fields: self.max_fields,
+                max_rows: self.max_rows,
+            },
+            force: self.force,
         }
     }
 }

@@ -24,7 +24,7 @@ use std::path::Path;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::{Channel, Experiment};
+use super::{Channel, Experiment, TimeSteps};
 use crate::error::{Error, Result};
 
 /// One column read into one channel: `channel = scale × column` [unit].
@@ -59,16 +59,45 @@ pub struct CsvSpec {
     pub time_scale: f64,
     /// The channels to read.
     pub columns: Vec<ColumnMap>,
+    /// Bounds on line length, field count and rows (defaults a real log never reaches).
+    pub limits: ReadLimits,
 }
 
 impl Default for CsvSpec {
     fn default() -> Self {
-        Self { time: "t".into(), time_scale: 1.0, columns: Vec::new() }
+        Self { time: "t".into(), time_scale: 1.0, columns: Vec::new(), limits: ReadLimits::default() }
     }
 }
 
+/// Bounds that keep a read's memory proportional to the data it accepts, whatever the file
+/// (a gzip of a gigabyte of commas is 1 MB). Each is checked while the file streams: the
+/// read stops with [`Error::LimitExceeded`] at the line that passes it, before buffering it.
+///
+/// The defaults are far beyond any drive log (a 30-column log at 100 kHz for 15 minutes is
+/// 10⁸ rows of about 300 bytes); raise them for larger files.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ReadLimits {
+    /// Longest line (record) in bytes, terminator excluded. Default 1 MiB.
+    pub max_line_bytes: u64,
+    /// Most header fields (columns). Default 4096.
+    pub max_fields: usize,
+    /// Most data rows (samples), header excluded. Default 10⁸.
+    pub max_rows: u64,
+}
+
+impl Default for ReadLimits {
+    fn default() -> Self {
+        Self { max_line_bytes: 1 << 20, max_fields: 4096, max_rows: 100_000_000 }
+    }
+}
+
+/// Longest excerpt of a cell quoted in an error, in characters.
+pub const QUOTE_CHARS: usize = 80;
+
 /// Columns parsed from a file: one entry per requested column, `None` when an optional
-/// column is absent.
+/// column is absent. Every value is finite and the first column (time) passed
+/// [`TimeSteps::push`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct Table {
     /// Experiment name: the file name without `.gz` and then without its extension.
@@ -85,12 +114,15 @@ pub struct Table {
 /// Gzip is detected by the magic bytes `1f 8b`, not by the extension. Fields may be
 /// surrounded by blanks; `nan` and `inf` parse as numbers and are then rejected by
 /// validation, naming the column. The sample time h [s] is the mean step of the time
-/// column, which must be uniform ([`Experiment::try_from_time`]).
+/// column, which must be uniform ([`Experiment::try_from_time`]). No plausibility limit
+/// applies to h here (a thermal log may be sampled every minute); `spec.limits` bound the
+/// file ([`ReadLimits`]).
 ///
 /// # Errors
-/// Those of [`read_table`], and of [`Experiment::try_from_time`] with the column names
-/// of the file in [`Error::NonFinite`]; [`Error::InvalidOption`] for a non-finite or zero
-/// scale.
+/// Those of [`read_table`] (which stops at the first NaN/Inf or bad time step), and of
+/// [`Experiment::try_from_time`] with the column names of the file in
+/// [`Error::NonFinite`]; [`Error::InvalidOption`] for a non-finite or zero scale, or a
+/// time scale that is not positive (the time column is checked as written).
 pub fn read_csv(path: impl AsRef<Path>, spec: &CsvSpec) -> Result<Experiment> {
     let path = path.as_ref();
     for (what, s) in std::iter::once(("time_scale", spec.time_scale))
@@ -103,9 +135,15 @@ pub fn read_csv(path: impl AsRef<Path>, spec: &CsvSpec) -> Result<Experiment> {
             });
         }
     }
+    if spec.time_scale < 0.0 {
+        return Err(Error::InvalidOption {
+            option: "time_scale".into(),
+            reason: format!("must be positive, got {}", spec.time_scale),
+        });
+    }
     let mut wanted = vec![(spec.time.as_str(), true)];
     wanted.extend(spec.columns.iter().map(|c| (c.column.as_str(), c.required)));
-    let table = read_table(path, &wanted)?;
+    let table = read_table(path, &wanted, &spec.limits)?;
     let mut cols = table.columns.into_iter();
     let mut t = cols.next().flatten().unwrap_or_default();
     t.iter_mut().for_each(|v| *v *= spec.time_scale);
@@ -140,19 +178,34 @@ pub fn read_csv_many<P: AsRef<Path> + Sync>(paths: &[P], spec: &CsvSpec) -> Resu
     results.into_iter().collect()
 }
 
-/// Parses the columns `wanted` (`(header name, required)`) of a CSV file, plain or gzip.
+/// Parses the columns `wanted` (`(header name, required)`) of a CSV file, plain or gzip;
+/// the first is the time column `t_k`, checked as it streams.
+///
+/// The file streams through a counter that enforces `limits` and then the `csv` parser;
+/// each row is checked as it is parsed: a wanted field must be a finite number and the
+/// time column must pass [`TimeSteps::push`] (positive steps, none far from the mean so
+/// far). So the read stops at the first bad row and its memory is the wanted columns of
+/// the rows accepted, plus one line. Errors quote at most [`QUOTE_CHARS`] characters of a
+/// cell. Unwanted columns may hold anything, even share a name.
 ///
 /// # Errors
 /// - [`Error::Io`] with the path if the file cannot be opened, read or decompressed;
+/// - [`Error::LimitExceeded`] naming the line where a line's length, the header's field
+///   count or the number of rows passes `limits`;
 /// - [`Error::TooShort`] for an empty file or a header without any name;
+/// - [`Error::DuplicateColumn`] for a wanted name that appears twice in the header, with
+///   both 1-based positions;
 /// - [`Error::MissingColumn`] naming the first required column not in the header and
 ///   listing the header;
 /// - [`Error::Csv`] with the path and 1-based line number for a row whose field count
 ///   differs from the header's, or a needed field that is not a number (naming the column
-///   and the text found).
+///   and the text found);
+/// - [`Error::NonFinite`] naming the header column and 0-based data row of a NaN/Inf in a
+///   wanted column; [`Error::NonUniformTime`] for a non-increasing or grossly irregular
+///   time step.
 ///
 /// Never panics.
-pub fn read_table(path: impl AsRef<Path>, wanted: &[(&str, bool)]) -> Result<Table> {
+pub fn read_table(path: impl AsRef<Path>, wanted: &[(&str, bool)], limits: &ReadLimits) -> Result<Table> {
     let path = path.as_ref();
     let name = experiment_name(path);
     let io_err = |source| Error::Io { path: path.to_path_buf(), source };
@@ -167,50 +220,83 @@ pub fn read_table(path: impl AsRef<Path>, wanted: &[(&str, bool)]) -> Result<Tab
         .flexible(false)
         .trim(csv::Trim::All)
         .buffer_capacity(1 << 16)
-        .from_reader(reader);
+        .from_reader(LineLimit::new(reader, limits.max_line_bytes));
     let header: Vec<String> = rdr
         .byte_headers()
         .map_err(|e| csv_error(path, e))?
         .iter()
         .map(|f| String::from_utf8_lossy(f).into_owned())
         .collect();
+    if header.len() > limits.max_fields {
+        return Err(Error::LimitExceeded {
+            path: path.to_path_buf(),
+            line: 1,
+            what: format!("a header of {} fields", header.len()),
+            limit: "max_fields".into(),
+            max: limits.max_fields as u64,
+        });
+    }
     if header.iter().all(String::is_empty) {
         return Err(Error::TooShort { name, len: 0, min: 1 });
     }
     let mut index = Vec::with_capacity(wanted.len());
     for &(column, required) in wanted {
-        let found = header.iter().position(|h| h == column);
-        if found.is_none() && required {
+        let mut found = header.iter().enumerate().filter(|(_, h)| *h == column).map(|(i, _)| i);
+        let first = found.next();
+        if let (Some(first), Some(second)) = (first, found.next()) {
+            return Err(Error::DuplicateColumn {
+                path: path.to_path_buf(),
+                column: column.to_string(),
+                first: first + 1,
+                second: second + 1,
+            });
+        }
+        if first.is_none() && required {
             return Err(Error::MissingColumn {
                 path: path.to_path_buf(),
                 column: column.to_string(),
-                available: header.join(", "),
+                available: header.iter().map(|h| name_excerpt(h.as_bytes())).collect::<Vec<_>>().join(", "),
             });
         }
-        index.push(found);
+        index.push(first);
     }
+    let mut time = TimeSteps::new(wanted.first().map_or("", |w| w.0));
     let mut values: Vec<Vec<f64>> = vec![Vec::new(); wanted.len()];
     let mut record = csv::ByteRecord::new();
     let mut row = 0usize;
     while rdr.read_byte_record(&mut record).map_err(|e| csv_error(path, e))? {
-        for (column, idx) in values.iter_mut().zip(&index) {
+        let line = record.position().map_or(0, csv::Position::line);
+        if row as u64 >= limits.max_rows {
+            return Err(Error::LimitExceeded {
+                path: path.to_path_buf(),
+                line,
+                what: format!("more than {} data rows", limits.max_rows),
+                limit: "max_rows".into(),
+                max: limits.max_rows,
+            });
+        }
+        for (j, (column, idx)) in values.iter_mut().zip(&index).enumerate() {
             let Some(idx) = *idx else { continue };
             // flexible(false) guarantees `record.len() == header.len()` > idx.
             let field = record.get(idx).unwrap_or_default();
-            match parse_f64(field) {
-                Some(x) => column.push(x),
-                None => {
-                    return Err(Error::Csv {
-                        path: path.to_path_buf(),
-                        line: record.position().map_or(0, csv::Position::line),
-                        message: format!(
-                            "column `{}` (data row {row}): cannot parse `{}` as a number",
-                            header[idx],
-                            String::from_utf8_lossy(field)
-                        ),
-                    });
-                }
+            let Some(x) = parse_f64(field) else {
+                return Err(Error::Csv {
+                    path: path.to_path_buf(),
+                    line,
+                    message: format!(
+                        "column `{}` (data row {row}): cannot parse {} as a number",
+                        header[idx],
+                        quote(field)
+                    ),
+                });
+            };
+            if !x.is_finite() {
+                return Err(Error::NonFinite { column: header[idx].clone(), row, value: x });
             }
+            if j == 0 {
+                time.push(x)?;
+            }
+            column.push(x);
         }
         row += 1;
     }
@@ -221,14 +307,126 @@ pub fn read_table(path: impl AsRef<Path>, wanted: &[(&str, bool)]) -> Result<Tab
     Ok(Table { name, header, columns })
 }
 
+/// A cell for an error message: in backquotes, cut after [`QUOTE_CHARS`] characters with
+/// `…` and the cell's full length in bytes.
+pub(crate) fn quote(field: &[u8]) -> String {
+    match excerpt(field) {
+        (head, Some(len)) => format!("`{head}…` ({len} bytes)"),
+        (head, None) => format!("`{head}`"),
+    }
+}
+
+/// A header name for the list of columns in [`Error::MissingColumn`]: as [`quote`],
+/// without the backquotes.
+pub(crate) fn name_excerpt(field: &[u8]) -> String {
+    match excerpt(field) {
+        (head, Some(len)) => format!("{head}… ({len} bytes)"),
+        (head, None) => head,
+    }
+}
+
+/// The first [`QUOTE_CHARS`] characters of `field`, and its length in bytes when cut.
+fn excerpt(field: &[u8]) -> (String, Option<usize>) {
+    // Only the excerpt is decoded, never the whole (possibly huge) cell.
+    let max = 4 * QUOTE_CHARS;
+    let head = String::from_utf8_lossy(&field[..field.len().min(max)]);
+    match head.char_indices().nth(QUOTE_CHARS) {
+        Some((cut, _)) => (head[..cut].to_string(), Some(field.len())),
+        None if field.len() > max => (head.into_owned(), Some(field.len())),
+        None => (head.into_owned(), None),
+    }
+}
+
 fn parse_f64(field: &[u8]) -> Option<f64> {
     std::str::from_utf8(field).ok()?.parse::<f64>().ok()
+}
+
+/// The line where a [`LineLimit`] stopped, carried through the `csv` parser as the
+/// payload of an [`std::io::Error`].
+#[derive(Debug)]
+struct LineTooLong {
+    line: u64,
+    max: u64,
+}
+
+impl std::fmt::Display for LineTooLong {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "line {} is longer than {} bytes", self.line, self.max)
+    }
+}
+
+impl std::error::Error for LineTooLong {}
+
+/// A reader that fails once more than `max` bytes follow the last line break outside
+/// quotes: the `csv` parser buffers a whole record, so the bound must act before it.
+///
+/// `\r` and `\n` both end a line (CR, LF and CRLF files), except inside a quoted field,
+/// where they belong to the record (a `"` toggles quoting, so `""` inside a quoted field
+/// keeps it open; a stray `"` inside an unquoted field, which `csv` takes literally, makes
+/// the following lines count as one until the next `"`). The line number in the error
+/// counts every `\n`, as `csv` does.
+struct LineLimit<R> {
+    inner: R,
+    max: u64,
+    /// Bytes of the current record since its last line break outside quotes.
+    run: u64,
+    /// 1-based number of the line being read.
+    line: u64,
+    /// Inside a quoted field.
+    quoted: bool,
+}
+
+impl<R: Read> LineLimit<R> {
+    fn new(inner: R, max: u64) -> Self {
+        Self { inner, max, run: 0, line: 1, quoted: false }
+    }
+}
+
+impl<R: Read> Read for LineLimit<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        let mut start = 0;
+        for (i, &b) in buf[..n].iter().enumerate() {
+            if b == b'"' {
+                self.quoted = !self.quoted;
+            } else if matches!(b, b'\n' | b'\r') && !self.quoted {
+                self.check(i - start)?;
+                self.run = 0;
+                start = i + 1;
+            }
+            self.line += u64::from(b == b'\n');
+        }
+        self.check(n - start)?;
+        Ok(n)
+    }
+}
+
+impl<R> LineLimit<R> {
+    /// Adds `bytes` to the current record, failing once it is longer than the limit.
+    fn check(&mut self, bytes: usize) -> std::io::Result<()> {
+        self.run += bytes as u64;
+        if self.run > self.max {
+            return Err(std::io::Error::other(LineTooLong { line: self.line, max: self.max }));
+        }
+        Ok(())
+    }
 }
 
 fn csv_error(path: &Path, e: csv::Error) -> Error {
     let line = e.position().map_or(0, |p| p.line());
     match e.into_kind() {
-        csv::ErrorKind::Io(source) => Error::Io { path: path.to_path_buf(), source },
+        csv::ErrorKind::Io(source) => {
+            if let Some(long) = source.get_ref().and_then(|e| e.downcast_ref::<LineTooLong>()) {
+                return Error::LimitExceeded {
+                    path: path.to_path_buf(),
+                    line: long.line,
+                    what: format!("a line (record) longer than {} bytes", long.max),
+                    limit: "max_line_bytes".into(),
+                    max: long.max,
+                };
+            }
+            Error::Io { path: path.to_path_buf(), source }
+        }
         csv::ErrorKind::UnequalLengths { expected_len, len, .. } => Error::Csv {
             path: path.to_path_buf(),
             line,

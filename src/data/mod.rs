@@ -96,7 +96,7 @@ impl Experiment {
     ///
     /// # Errors
     /// Those of [`Experiment::try_new`], plus [`Error::NonUniformTime`] naming `time_name`
-    /// and the row of the first non-increasing or irregular step, and
+    /// and the row of the first non-increasing or irregular step ([`TimeSteps`]), and
     /// [`Error::NonFinite`]/[`Error::LengthMismatch`]/[`Error::TooShort`] for the time
     /// vector itself.
     pub fn try_from_time(
@@ -115,9 +115,6 @@ impl Experiment {
         }
         if t.len() < 2 {
             return Err(Error::TooShort { name, len: t.len(), min: 2 });
-        }
-        if let Some((row, &value)) = t.iter().enumerate().find(|(_, x)| !x.is_finite()) {
-            return Err(Error::NonFinite { column: time_name.into(), row, value });
         }
         let h = uniform_step(t, time_name)?;
         Self::try_new(name, h, channels)
@@ -202,29 +199,109 @@ impl Experiment {
 /// decimals at any rate up to 100 kHz.
 pub const TIME_TOLERANCE: f64 = 0.25;
 
+/// Incremental check of a time column `t_k` [s], one row at a time, so that a reader can
+/// stop at the first bad row instead of after the whole file; [`TimeSteps::finish`] then
+/// applies the checks that need the mean step h of the whole column.
+///
+/// Row by row ([`TimeSteps::push`]): every value finite ([`Error::NonFinite`]), every step
+/// positive, and every step within `[0.6, 5/3]` of the mean of the steps before it
+/// ([`Error::NonUniformTime`], reported with [`TIME_TOLERANCE`]). A column that passes
+/// [`TIME_TOLERANCE`] against its mean h has every step and every partial mean within
+/// `[0.75 h, 1.25 h]`, so the row-by-row test never refuses a column the final one accepts;
+/// it only names a grossly dropped or repeated sample early (a repeated row at row 1).
+#[derive(Clone, Debug)]
+pub struct TimeSteps {
+    column: String,
+    first: f64,
+    last: f64,
+    rows: usize,
+}
+
+impl TimeSteps {
+    /// A checker for the time column called `column` (the name the errors carry).
+    pub fn new(column: impl Into<String>) -> Self {
+        Self { column: column.into(), first: 0.0, last: 0.0, rows: 0 }
+    }
+
+    /// Number of values pushed.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Checks the next value `t` [s], of 0-based row [`TimeSteps::rows`].
+    ///
+    /// # Errors
+    /// [`Error::NonFinite`] for NaN/Inf; [`Error::NonUniformTime`] for a step that is not
+    /// positive (with the mean step so far as `expected`) or is far from the mean of the
+    /// earlier steps.
+    pub fn push(&mut self, t: f64) -> Result<()> {
+        let row = self.rows;
+        if !t.is_finite() {
+            return Err(Error::NonFinite { column: self.column.clone(), row, value: t });
+        }
+        if row > 0 {
+            let dt = t - self.last;
+            let bad = |expected: f64| Error::NonUniformTime {
+                column: self.column.clone(),
+                row,
+                dt,
+                expected,
+                tolerance: TIME_TOLERANCE,
+            };
+            if dt <= 0.0 {
+                return Err(bad((t - self.first) / row as f64));
+            }
+            if row > 1 {
+                let before = (self.last - self.first) / (row - 1) as f64;
+                if !(0.6 * before..=before / 0.6).contains(&dt) {
+                    return Err(bad(before));
+                }
+            }
+        } else {
+            self.first = t;
+        }
+        self.last = t;
+        self.rows += 1;
+        Ok(())
+    }
+
+    /// Mean step h = `(t[N−1] − t[0])/(N − 1)` [s] of the column whose N values were pushed,
+    /// after the checks that need it: every step within [`TIME_TOLERANCE`] h of h and every
+    /// `t[k]` within `h/2` of `t[0] + k h`. `t` is the column itself.
+    ///
+    /// # Errors
+    /// [`Error::InvalidSampleTime`] for fewer than two values or a non-finite h;
+    /// [`Error::NonUniformTime`] naming the first row outside either bound.
+    pub fn finish(&self, t: &[f64]) -> Result<f64> {
+        let n = t.len();
+        if n < 2 {
+            return Err(Error::InvalidSampleTime { h: f64::NAN });
+        }
+        let h = (t[n - 1] - t[0]) / (n - 1) as f64;
+        if !(h.is_finite() && h > 0.0) {
+            return Err(Error::InvalidSampleTime { h });
+        }
+        let bad = |row: usize| Error::NonUniformTime {
+            column: self.column.clone(),
+            row,
+            dt: t[row] - t[row - 1],
+            expected: h,
+            tolerance: TIME_TOLERANCE,
+        };
+        if let Some(k) = (1..n).find(|&k| ((t[k] - t[k - 1]) - h).abs() > TIME_TOLERANCE * h) {
+            return Err(bad(k));
+        }
+        if let Some(k) = (1..n).find(|&k| (t[k] - (t[0] + k as f64 * h)).abs() > 0.5 * h) {
+            return Err(bad(k));
+        }
+        Ok(h)
+    }
+}
+
 /// Mean step of a uniform, strictly increasing time vector (N ≥ 2), checked sample by
-/// sample.
+/// sample with [`TimeSteps`].
 fn uniform_step(t: &[f64], column: &str) -> Result<f64> {
-    let n = t.len();
-    let bad = |row: usize, expected: f64| Error::NonUniformTime {
-        column: column.to_string(),
-        row,
-        dt: t[row] - t[row - 1],
-        expected,
-        tolerance: TIME_TOLERANCE,
-    };
-    if let Some(k) = (1..n).find(|&k| t[k] <= t[k - 1]) {
-        return Err(bad(k, (t[n - 1] - t[0]) / (n - 1) as f64));
-    }
-    let h = (t[n - 1] - t[0]) / (n - 1) as f64;
-    if !(h.is_finite() && h > 0.0) {
-        return Err(Error::InvalidSampleTime { h });
-    }
-    if let Some(k) = (1..n).find(|&k| ((t[k] - t[k - 1]) - h).abs() > TIME_TOLERANCE * h) {
-        return Err(bad(k, h));
-    }
-    if let Some(k) = (1..n).find(|&k| (t[k] - (t[0] + k as f64 * h)).abs() > 0.5 * h) {
-        return Err(bad(k, h));
-    }
-    Ok(h)
+    let mut steps = TimeSteps::new(column);
+    t.iter().try_for_each(|&x| steps.push(x))?;
+    steps.finish(t)
 }

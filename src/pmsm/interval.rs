@@ -314,12 +314,16 @@ pub fn applied_experiment(e: &Experiment, n_p: u32, input: VoltageInput) -> Resu
     DqSignals { u_d, u_q, ..v.to_signals() }.into_experiment(e.name(), e.h())
 }
 
-/// Checks a pole-pair number.
+/// Largest plausible number of pole pairs n_p: 100 (large direct-drive and wind
+/// generators reach a few tens; more is a typo or a speed in the wrong unit).
+pub const MAX_POLE_PAIRS: u32 = 100;
+
+/// Checks a pole-pair number: `1 ≤ n_p ≤` [`MAX_POLE_PAIRS`].
 ///
 /// # Errors
-/// [`Error::InvalidPolePairs`] for `n_p = 0`.
+/// [`Error::InvalidPolePairs`] for `n_p = 0` or `n_p > 100`.
 pub(crate) fn check_pole_pairs(n_p: u32) -> Result<()> {
-    if n_p == 0 { Err(Error::InvalidPolePairs { n_p }) } else { Ok(()) }
+    if (1..=MAX_POLE_PAIRS).contains(&n_p) { Ok(()) } else { Err(Error::InvalidPolePairs { n_p }) }
 }
 
 /// `e^{w} − 1` for complex w without cancellation near 0.

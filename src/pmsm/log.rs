@@ -18,10 +18,11 @@ use std::path::Path;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::interval::check_pole_pairs;
 use super::signals::{DqSignals, DqView, MIN_SAMPLES};
 use super::transform::{currents_to_dq, stator_held_voltages_to_dq};
 use crate::data::Experiment;
-use crate::data::csv::read_table;
+use crate::data::csv::{ReadLimits, name_excerpt, read_table};
 use crate::error::{Error, Result};
 
 /// Header names of the columns a log may hold, one per signal; every name is remappable.
@@ -176,7 +177,22 @@ pub struct CsvOptions {
     pub voltage_scale: Scale,
     /// Source of the dq signals (default: the dq columns).
     pub source: DqSource,
+    /// Bounds on line length, field count and rows ([`ReadLimits`]; defaults a real log
+    /// never reaches).
+    pub limits: ReadLimits,
+    /// Skip the plausibility limit on the sample time ([`MIN_SAMPLE_TIME`] ≤ h ≤
+    /// [`MAX_SAMPLE_TIME`]). Default `false`.
+    pub force: bool,
 }
+
+/// Shortest plausible sample time of a drive log: 100 ns (10 MHz, beyond any drive's
+/// control rate). A shorter h is most likely a time column in other units than seconds.
+pub const MIN_SAMPLE_TIME: f64 = 1e-7;
+
+/// Longest plausible sample time of a drive log: 100 ms (10 Hz, far too slow for the
+/// electrical dynamics the models describe). A longer h is most likely a time column in
+/// ms read as s.
+pub const MAX_SAMPLE_TIME: f64 = 0.1;
 
 /// Reads one PMSM drive log into a validated [`Experiment`] of N samples whose channels
 /// are named as in [`channel`](super::signals::channel).
@@ -188,9 +204,13 @@ pub struct CsvOptions {
 /// of the time column, which must be uniform ([`Experiment::try_from_time`]).
 ///
 /// # Errors
-/// - [`Error::InvalidPolePairs`] for `pole_pairs = Some(0)`, or `None` when the speed is
-///   electrical or the dq signals come from phases (before the file is opened);
-/// - those of [`read_table`]: [`Error::Io`], [`Error::MissingColumn`] for a required
+/// - [`Error::InvalidPolePairs`] for `pole_pairs` outside `Some(1..=100)`, or `None` when
+///   the speed is electrical or the dq signals come from phases (before the file is
+///   opened);
+/// - those of [`read_table`], which checks while the file streams and stops at the first
+///   bad row: [`Error::LimitExceeded`] for a file beyond `options.limits`,
+///   [`Error::DuplicateColumn`] for a wanted column named twice in the header,
+///   [`Error::Io`], [`Error::MissingColumn`] for a required
 ///   column (`t, ud, uq, id, iq, w_m`, where `ud, uq` may be absent when both `ud_ref,
 ///   uq_ref` are logged: such a log can only be fitted from its reference; for
 ///   [`DqSource::Phases`]
@@ -199,16 +219,21 @@ pub struct CsvOptions {
 /// - [`Error::TooShort`] for an empty file or fewer than [`MIN_SAMPLES`] rows;
 /// - [`Error::NonFinite`] naming the column (as configured) and 0-based data row of a NaN
 ///   or ±Inf; [`Error::NonUniformTime`] for a time column that is not uniform (a dropped or
-///   repeated sample), [`Error::InvalidSampleTime`] for a decreasing one.
+///   repeated sample), [`Error::InvalidSampleTime`] for a decreasing one;
+/// - [`Error::ImplausibleSampleTime`] naming the log for h outside
+///   [[`MIN_SAMPLE_TIME`], [`MAX_SAMPLE_TIME`]] = [100 ns, 100 ms], unless `options.force`.
 ///
 /// Never panics. Source of the conventions: MODEL.md §1, §4.
 pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experiment> {
     let path = path.as_ref();
     let needs_n_p = options.speed_frame == Frame::Electrical || options.source == DqSource::Phases;
     let n_p = match options.pole_pairs {
-        Some(0) => return Err(Error::InvalidPolePairs { n_p: 0 }),
+        Some(n_p) => {
+            check_pole_pairs(n_p)?;
+            n_p
+        }
         None if needs_n_p => return Err(Error::InvalidPolePairs { n_p: 0 }),
-        p => p.unwrap_or(1),
+        None => 1,
     };
     let c = &options.columns;
     let main: Vec<&String> = match options.source {
@@ -225,7 +250,7 @@ pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experime
         wanted.push((&c.theta_m, false));
     }
     wanted.extend([(c.u_d_ref.as_str(), false), (c.u_q_ref.as_str(), false)]);
-    let table = match read_table(path, &wanted) {
+    let table = match read_table(path, &wanted, &options.limits) {
         Err(Error::TooShort { name, len, .. }) => {
             return Err(Error::TooShort { name, len, min: MIN_SAMPLES });
         }
@@ -240,7 +265,12 @@ pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experime
             return Err(Error::MissingColumn {
                 path: path.to_path_buf(),
                 column: missing.clone(),
-                available: table.header.join(", "),
+                available: table
+                    .header
+                    .iter()
+                    .map(|h| name_excerpt(h.as_bytes()))
+                    .collect::<Vec<_>>()
+                    .join(", "),
             });
         }
     }
@@ -248,7 +278,17 @@ pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experime
     if rows < MIN_SAMPLES {
         return Err(Error::TooShort { name: table.name, len: rows, min: MIN_SAMPLES });
     }
-    build(table.name, table.columns, n_p, options).map_err(|e| rename_columns(e, &options.columns))
+    let e =
+        build(table.name, table.columns, n_p, options).map_err(|e| rename_columns(e, &options.columns))?;
+    if !options.force && !(MIN_SAMPLE_TIME..=MAX_SAMPLE_TIME).contains(&e.h()) {
+        return Err(Error::ImplausibleSampleTime {
+            path: path.to_path_buf(),
+            h: e.h(),
+            min: MIN_SAMPLE_TIME,
+            max: MAX_SAMPLE_TIME,
+        });
+    }
+    Ok(e)
 }
 
 /// Reads several logs with [`read_log`], in parallel, keeping the order of `paths`.

@@ -735,6 +735,7 @@ fn generic_csv_reads_a_non_motor_experiment() {
         time: "time_ms".into(),
         time_scale: 1e-3,
         columns: vec![power, ColumnMap::new("T_C", "temperature", "degC"), humidity],
+        ..CsvSpec::default()
     };
     let e = greybox::data::csv::read_csv(&p, &spec).unwrap();
     let stem = p.file_stem().unwrap().to_string_lossy().into_owned();

@@ -14,6 +14,7 @@ mod examples;
 mod filter;
 mod inverter;
 mod ipm;
+mod limits;
 mod linear;
 mod mgh;
 mod mgh_problems;
