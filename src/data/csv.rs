@@ -25,6 +25,9 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{Channel, Experiment, TimeSteps};
+use line_limit::{LineLimit, LineTooLong};
+
+mod line_limit;
 use crate::error::{Error, Result};
 
 /// One column read into one channel: `channel = scale × column` [unit].
@@ -339,77 +342,6 @@ fn excerpt(field: &[u8]) -> (String, Option<usize>) {
 
 fn parse_f64(field: &[u8]) -> Option<f64> {
     std::str::from_utf8(field).ok()?.parse::<f64>().ok()
-}
-
-/// The line where a [`LineLimit`] stopped, carried through the `csv` parser as the
-/// payload of an [`std::io::Error`].
-#[derive(Debug)]
-struct LineTooLong {
-    line: u64,
-    max: u64,
-}
-
-impl std::fmt::Display for LineTooLong {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "line {} is longer than {} bytes", self.line, self.max)
-    }
-}
-
-impl std::error::Error for LineTooLong {}
-
-/// A reader that fails once more than `max` bytes follow the last line break outside
-/// quotes: the `csv` parser buffers a whole record, so the bound must act before it.
-///
-/// `\r` and `\n` both end a line (CR, LF and CRLF files), except inside a quoted field,
-/// where they belong to the record (a `"` toggles quoting, so `""` inside a quoted field
-/// keeps it open; a stray `"` inside an unquoted field, which `csv` takes literally, makes
-/// the following lines count as one until the next `"`). The line number in the error
-/// counts every `\n`, as `csv` does.
-struct LineLimit<R> {
-    inner: R,
-    max: u64,
-    /// Bytes of the current record since its last line break outside quotes.
-    run: u64,
-    /// 1-based number of the line being read.
-    line: u64,
-    /// Inside a quoted field.
-    quoted: bool,
-}
-
-impl<R: Read> LineLimit<R> {
-    fn new(inner: R, max: u64) -> Self {
-        Self { inner, max, run: 0, line: 1, quoted: false }
-    }
-}
-
-impl<R: Read> Read for LineLimit<R> {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        let n = self.inner.read(buf)?;
-        let mut start = 0;
-        for (i, &b) in buf[..n].iter().enumerate() {
-            if b == b'"' {
-                self.quoted = !self.quoted;
-            } else if matches!(b, b'\n' | b'\r') && !self.quoted {
-                self.check(i - start)?;
-                self.run = 0;
-                start = i + 1;
-            }
-            self.line += u64::from(b == b'\n');
-        }
-        self.check(n - start)?;
-        Ok(n)
-    }
-}
-
-impl<R> LineLimit<R> {
-    /// Adds `bytes` to the current record, failing once it is longer than the limit.
-    fn check(&mut self, bytes: usize) -> std::io::Result<()> {
-        self.run += bytes as u64;
-        if self.run > self.max {
-            return Err(std::io::Error::other(LineTooLong { line: self.line, max: self.max }));
-        }
-        Ok(())
-    }
 }
 
 fn csv_error(path: &Path, e: csv::Error) -> Error {

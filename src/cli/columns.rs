@@ -1,0 +1,147 @@
+//! The CSV-reading flags shared by `fit`, `validate` and `track`: column names, units,
+//! frames and scaling, read limits; mapped to the library's [`CsvOptions`].
+
+use clap::{Args, ValueEnum};
+use greybox::pmsm::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
+
+#[derive(Args, Debug)]
+pub struct ColumnArgs {
+    /// Time column [s].
+    #[arg(long, default_value = "t")]
+    pub col_t: String,
+    /// d-axis voltage column.
+    #[arg(long, default_value = "ud")]
+    pub col_ud: String,
+    /// q-axis voltage column.
+    #[arg(long, default_value = "uq")]
+    pub col_uq: String,
+    /// d-axis current column.
+    #[arg(long, default_value = "id")]
+    pub col_id: String,
+    /// q-axis current column.
+    #[arg(long, default_value = "iq")]
+    pub col_iq: String,
+    /// Speed column.
+    #[arg(long, default_value = "w_m")]
+    pub col_w: String,
+    /// Rotor angle column (optional; needed with --dq-from-phases).
+    #[arg(long, default_value = "theta_m")]
+    pub col_theta: String,
+    /// d-axis voltage reference column (optional).
+    #[arg(long, default_value = "ud_ref")]
+    pub col_ud_ref: String,
+    /// q-axis voltage reference column (optional).
+    #[arg(long, default_value = "uq_ref")]
+    pub col_uq_ref: String,
+    /// Phase current columns a,b,c (with --dq-from-phases).
+    #[arg(long, value_delimiter = ',', num_args = 3, default_values = ["ia", "ib", "ic"])]
+    pub col_i_abc: Vec<String>,
+    /// Phase voltage columns a,b,c (with --dq-from-phases).
+    #[arg(long, value_delimiter = ',', num_args = 3, default_values = ["ua", "ub", "uc"])]
+    pub col_u_abc: Vec<String>,
+    /// Unit of the speed column.
+    #[arg(long, value_enum, default_value_t = SpeedUnitArg::RadS)]
+    pub speed_unit: SpeedUnitArg,
+    /// Unit of the angle column.
+    #[arg(long, value_enum, default_value_t = AngleUnitArg::Rad)]
+    pub angle_unit: AngleUnitArg,
+    /// Whether the speed and angle columns are mechanical or electrical.
+    #[arg(long, value_enum, default_value_t = FrameArg::Mechanical)]
+    pub speed_frame: FrameArg,
+    /// Scaling of the current columns (peak: |i_dq| = phase peak; rms: |i_dq| = phase RMS).
+    #[arg(long, value_enum, default_value_t = ScaleArg::Peak)]
+    pub current_scale: ScaleArg,
+    /// Scaling of the voltage columns.
+    #[arg(long, value_enum, default_value_t = ScaleArg::Peak)]
+    pub voltage_scale: ScaleArg,
+    /// Compute dq currents and voltages from the phase columns and the rotor angle.
+    #[arg(long)]
+    pub dq_from_phases: bool,
+    /// Skip the plausibility limits (sample time h in [100 ns, 100 ms]).
+    #[arg(long)]
+    pub force: bool,
+    /// Longest line of a log in bytes; a longer one stops the read (default 1 MiB).
+    #[arg(long, default_value_t = greybox::data::csv::ReadLimits::default().max_line_bytes)]
+    pub max_line_bytes: u64,
+    /// Most columns in a log's header (default 4096).
+    #[arg(long, default_value_t = greybox::data::csv::ReadLimits::default().max_fields)]
+    pub max_fields: usize,
+    /// Most data rows in a log (default 10^8).
+    #[arg(long, default_value_t = greybox::data::csv::ReadLimits::default().max_rows)]
+    pub max_rows: u64,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum SpeedUnitArg {
+    #[value(name = "rad/s", alias = "rad-s")]
+    RadS,
+    Rpm,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum AngleUnitArg {
+    Rad,
+    Deg,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum FrameArg {
+    Mechanical,
+    Electrical,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum ScaleArg {
+    Peak,
+    Rms,
+}
+
+impl ColumnArgs {
+    pub fn options(&self) -> CsvOptions {
+        let scale = |s: ScaleArg| match s {
+            ScaleArg::Peak => Scale::Peak,
+            ScaleArg::Rms => Scale::Rms,
+        };
+        CsvOptions {
+            pole_pairs: None,
+            columns: ColumnNames {
+                t: self.col_t.clone(),
+                u_d: self.col_ud.clone(),
+                u_q: self.col_uq.clone(),
+                i_d: self.col_id.clone(),
+                i_q: self.col_iq.clone(),
+                w_m: self.col_w.clone(),
+                theta_m: self.col_theta.clone(),
+                u_d_ref: self.col_ud_ref.clone(),
+                u_q_ref: self.col_uq_ref.clone(),
+                i_a: self.col_i_abc[0].clone(),
+                i_b: self.col_i_abc[1].clone(),
+                i_c: self.col_i_abc[2].clone(),
+                u_a: self.col_u_abc[0].clone(),
+                u_b: self.col_u_abc[1].clone(),
+                u_c: self.col_u_abc[2].clone(),
+            },
+            speed_unit: match self.speed_unit {
+                SpeedUnitArg::RadS => SpeedUnit::RadPerSec,
+                SpeedUnitArg::Rpm => SpeedUnit::Rpm,
+            },
+            speed_frame: match self.speed_frame {
+                FrameArg::Mechanical => Frame::Mechanical,
+                FrameArg::Electrical => Frame::Electrical,
+            },
+            angle_unit: match self.angle_unit {
+                AngleUnitArg::Rad => AngleUnit::Rad,
+                AngleUnitArg::Deg => AngleUnit::Deg,
+            },
+            current_scale: scale(self.current_scale),
+            voltage_scale: scale(self.voltage_scale),
+            source: if self.dq_from_phases { DqSource::Phases } else { DqSource::Dq },
+            limits: greybox::data::csv::ReadLimits {
+                max_line_bytes: self.max_line_bytes,
+                max_fields: self.max_fields,
+                max_rows: self.max_rows,
+            },
+            force: self.force,
+        }
+    }
+}

@@ -1,0 +1,174 @@
+//! The options of the PMSM log reader: column names, units, frames and scaling, the
+//! source of the dq signals, read limits and the sample-time plausibility range.
+
+use crate::data::csv::ReadLimits;
+use serde::{Deserialize, Serialize};
+
+/// Header names of the columns a log may hold, one per signal; every name is remappable.
+///
+/// The defaults are the header names of the development logs in `../shared/data`.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ColumnNames {
+    /// Time `t_k` [s] (required). Default `t`.
+    pub t: String,
+    /// d-axis voltage, period mean over `[t_k, t_k + h)` (required for [`DqSource::Dq`]).
+    /// Default `ud`.
+    pub u_d: String,
+    /// q-axis voltage, period mean (required for [`DqSource::Dq`]). Default `uq`.
+    pub u_q: String,
+    /// d-axis current at `t_k` (required for [`DqSource::Dq`]). Default `id`.
+    pub i_d: String,
+    /// q-axis current at `t_k` (required for [`DqSource::Dq`]). Default `iq`.
+    pub i_q: String,
+    /// Rotor speed at `t_k` (required). Default `w_m`.
+    pub w_m: String,
+    /// Rotor angle at `t_k` (optional; required for [`DqSource::Phases`]). Default `theta_m`.
+    pub theta_m: String,
+    /// d-axis voltage reference computed at `t_k` (optional). Default `ud_ref`.
+    pub u_d_ref: String,
+    /// q-axis voltage reference computed at `t_k` (optional). Default `uq_ref`.
+    pub u_q_ref: String,
+    /// Phase-a current at `t_k` (required for [`DqSource::Phases`]). Default `ia`.
+    pub i_a: String,
+    /// Phase-b current at `t_k` (required for [`DqSource::Phases`]). Default `ib`.
+    pub i_b: String,
+    /// Phase-c current at `t_k` (required for [`DqSource::Phases`]). Default `ic`.
+    pub i_c: String,
+    /// Phase-a to neutral voltage, period mean (required for [`DqSource::Phases`]).
+    /// Default `ua`.
+    pub u_a: String,
+    /// Phase-b to neutral voltage, period mean (required for [`DqSource::Phases`]).
+    /// Default `ub`.
+    pub u_b: String,
+    /// Phase-c to neutral voltage, period mean (required for [`DqSource::Phases`]).
+    /// Default `uc`.
+    pub u_c: String,
+}
+
+impl Default for ColumnNames {
+    fn default() -> Self {
+        let s = |x: &str| x.to_string();
+        Self {
+            t: s("t"),
+            u_d: s("ud"),
+            u_q: s("uq"),
+            i_d: s("id"),
+            i_q: s("iq"),
+            w_m: s("w_m"),
+            theta_m: s("theta_m"),
+            u_d_ref: s("ud_ref"),
+            u_q_ref: s("uq_ref"),
+            i_a: s("ia"),
+            i_b: s("ib"),
+            i_c: s("ic"),
+            u_a: s("ua"),
+            u_b: s("ub"),
+            u_c: s("uc"),
+        }
+    }
+}
+
+/// Unit of the speed column.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SpeedUnit {
+    /// Radians per second (default).
+    #[default]
+    RadPerSec,
+    /// Revolutions per minute; multiplied by `2π/60` on reading.
+    Rpm,
+}
+
+/// Whether the speed and angle columns are mechanical or electrical quantities.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Frame {
+    /// Mechanical speed and angle (default): `w_m`, `θ_m`.
+    #[default]
+    Mechanical,
+    /// Electrical speed and angle `w_e = n_p w_m`, `θ_e = n_p θ_m`: divided by `n_p` on
+    /// reading. A wrapped `θ_e` gives a `θ_m` in `[−π/n_p, π/n_p)`, which is all that
+    /// matters for `θ_e = n_p θ_m`.
+    Electrical,
+}
+
+/// Unit of the angle column.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AngleUnit {
+    /// Radians (default).
+    #[default]
+    Rad,
+    /// Degrees; multiplied by `π/180` on reading.
+    Deg,
+}
+
+/// Scaling of current or voltage columns (MODEL.md §1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Scale {
+    /// Amplitude-invariant peak values (default), what the library uses: a phase peak `X̂`
+    /// gives `|x_dq| = X̂`.
+    #[default]
+    Peak,
+    /// RMS-scaled values (`|x_dq|` = phase RMS, as some drives log): multiplied by `√2` on
+    /// reading. Power-invariant dq scaling (`|x_dq| = √(3/2)` × phase peak) is not this.
+    Rms,
+}
+
+/// Where the dq currents and voltages come from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DqSource {
+    /// The dq columns `u_d, u_q, i_d, i_q` (default).
+    #[default]
+    Dq,
+    /// Computed from the phase columns and `theta_m`: currents by Clarke and Park at
+    /// `θ_e = n_p θ_m`, voltages as period means of a voltage held in the **stator** frame
+    /// ([`stator_held_voltages_to_dq`],
+    /// MODEL.md §4). Phase voltages computed from a dq-held voltage (gym-electric-motor)
+    /// do not fit this model; read those logs with [`DqSource::Dq`].
+    Phases,
+}
+
+/// How to read a log: column names, units and the source of the dq signals.
+///
+/// `Default` reads the development logs in `../shared/data` as they are: SI units,
+/// mechanical speed and angle, peak scaling, dq columns.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct CsvOptions {
+    /// Pole pairs n_p, needed only to convert an electrical speed or angle
+    /// ([`Frame::Electrical`]) or phase quantities ([`DqSource::Phases`]); `None` otherwise.
+    pub pole_pairs: Option<u32>,
+    /// Header names of the columns.
+    pub columns: ColumnNames,
+    /// Unit of the speed column (default rad/s).
+    pub speed_unit: SpeedUnit,
+    /// Whether speed and angle are mechanical (default) or electrical.
+    pub speed_frame: Frame,
+    /// Unit of the angle column (default rad).
+    pub angle_unit: AngleUnit,
+    /// Scaling of the current columns, dq or phase (default peak).
+    pub current_scale: Scale,
+    /// Scaling of the voltage columns, dq, references or phase (default peak).
+    pub voltage_scale: Scale,
+    /// Source of the dq signals (default: the dq columns).
+    pub source: DqSource,
+    /// Bounds on line length, field count and rows ([`ReadLimits`]; defaults a real log
+    /// never reaches).
+    pub limits: ReadLimits,
+    /// Skip the plausibility limit on the sample time ([`MIN_SAMPLE_TIME`] ≤ h ≤
+    /// [`MAX_SAMPLE_TIME`]). Default `false`.
+    pub force: bool,
+}
+
+/// Shortest plausible sample time of a drive log: 100 ns (10 MHz, beyond any drive's
+/// control rate). A shorter h is most likely a time column in other units than seconds.
+pub const MIN_SAMPLE_TIME: f64 = 1e-7;
+
+/// Longest plausible sample time of a drive log: 100 ms (10 Hz, far too slow for the
+/// electrical dynamics the models describe). A longer h is most likely a time column in
+/// ms read as s.
+pub const MAX_SAMPLE_TIME: f64 = 0.1;
