@@ -12,6 +12,7 @@ mod drive;
 mod errors;
 mod examples;
 mod filter;
+mod fuzz;
 mod inverter;
 mod ipm;
 mod limits;

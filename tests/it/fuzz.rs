@@ -1,0 +1,168 @@
+//! Fuzzing in the normal test run (trust issue): log-like CSV files built from header
+//! names, numbers and junk (plain or gzip) through the PMSM reader with random options, and
+//! random command lines through the binary. Nothing may panic or take more than 5 s; every
+//! failure is an error value (exit code 1 or 2 for the tool). `GREYBOX_FUZZ_CASES` and
+//! `GREYBOX_FUZZ_CLI_CASES` set the number of cases (defaults 256 and 48; the trust note
+//! reports a run with 10⁵). The cargo-fuzz target in `fuzz/` runs the same reader on raw
+//! bytes.
+
+use greybox::pmsm::{AngleUnit, CsvOptions, DqSource, Frame, Scale, SpeedUnit, read_log};
+use proptest::prelude::*;
+use proptest::test_runner::{Config, TestRunner};
+use std::time::{Duration, Instant};
+
+const NAMES: [&str; 14] =
+    ["t", "ud", "uq", "id", "iq", "w_m", "theta_m", "ud_ref", "uq_ref", "ia", "ib", "ic", "x", "t"];
+
+fn cases(var: &str, default: u32) -> u32 {
+    std::env::var(var).ok().and_then(|s| s.parse().ok()).unwrap_or(default)
+}
+
+fn field() -> impl Strategy<Value = String> {
+    prop_oneof![
+        8 => (-1e3..1e3f64).prop_map(|x| format!("{x}")),
+        2 => (0u32..1000).prop_map(|k| format!("{}", f64::from(k) * 1e-4)),
+        1 => Just("nan".to_string()),
+        1 => Just("inf".to_string()),
+        1 => Just(String::new()),
+        1 => Just("1e999".to_string()),
+        1 => "[a-z\", ]{0,12}",
+        1 => Just("\"1,2\"".to_string()),
+    ]
+}
+
+fn log_text() -> impl Strategy<Value = (String, bool)> {
+    let canonical: Vec<&str> = vec!["t", "ud", "uq", "id", "iq", "w_m", "theta_m"];
+    let header = prop_oneof![
+        proptest::collection::vec(proptest::sample::select(NAMES.to_vec()), 1..12),
+        Just(canonical),
+    ];
+    (header, 0usize..60, any::<bool>(), any::<bool>(), any::<bool>()).prop_flat_map(
+        |(h, rows, uniform_t, gz, clean)| {
+            let width = h.len();
+            let cell =
+                if clean { (-1e3..1e3f64).prop_map(|x| format!("{x}")).boxed() } else { field().boxed() };
+            proptest::collection::vec(proptest::collection::vec(cell, width), rows).prop_map(move |body| {
+                let mut text = h.join(",") + "\n";
+                for (k, row) in body.iter().enumerate() {
+                    let mut row = row.clone();
+                    if uniform_t && let Some(i) = h.iter().position(|n| *n == "t") {
+                        row[i] = format!("{}", k as f64 * 1e-4);
+                    }
+                    text.push_str(&(row.join(",") + "\n"));
+                }
+                (text, gz)
+            })
+        },
+    )
+}
+
+fn options() -> impl Strategy<Value = CsvOptions> {
+    (0u32..120, any::<bool>(), any::<bool>(), any::<bool>(), any::<bool>(), any::<bool>(), any::<bool>())
+        .prop_map(|(n_p, electrical, rpm, deg, rms, phases, force)| CsvOptions {
+            pole_pairs: (n_p > 0).then_some(n_p),
+            speed_frame: if electrical { Frame::Electrical } else { Frame::Mechanical },
+            speed_unit: if rpm { SpeedUnit::Rpm } else { SpeedUnit::RadPerSec },
+            angle_unit: if deg { AngleUnit::Deg } else { AngleUnit::Rad },
+            current_scale: if rms { Scale::Rms } else { Scale::Peak },
+            source: if phases { DqSource::Phases } else { DqSource::Dq },
+            force,
+            ..CsvOptions::default()
+        })
+}
+
+#[test]
+fn reader_survives_generated_logs() {
+    let dir = std::env::temp_dir().join(format!("greybox-fuzz-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("log.csv");
+    let mut runner = TestRunner::new(Config { cases: cases("GREYBOX_FUZZ_CASES", 256), ..Config::default() });
+    let (ok, total) = (std::cell::Cell::new(0usize), std::cell::Cell::new(0usize));
+    runner
+        .run(&(log_text(), options()), |((text, gz), opts)| {
+            let bytes = if gz {
+                let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+                std::io::Write::write_all(&mut enc, text.as_bytes()).unwrap();
+                enc.finish().unwrap()
+            } else {
+                text.into_bytes()
+            };
+            std::fs::write(&path, &bytes).unwrap();
+            let t0 = Instant::now();
+            let r = read_log(&path, &opts);
+            prop_assert!(t0.elapsed() < Duration::from_secs(5));
+            total.set(total.get() + 1);
+            if let Ok(e) = r {
+                ok.set(ok.get() + 1);
+                prop_assert!(e.channels().iter().all(|c| c.values.iter().all(|v| v.is_finite())));
+            }
+            Ok(())
+        })
+        .unwrap();
+    eprintln!(
+        "fuzz: {} generated logs through read_log, {} read, the others refused with an error",
+        total.get(),
+        ok.get()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[cfg(feature = "cli")]
+#[test]
+fn command_line_survives_generated_options() {
+    let pole_pairs = ["4", "4", "0", "auto", "99999999999", "3"];
+    let flags: Vec<Vec<&str>> = vec![
+        vec!["--model", "ipm"],
+        vec!["--hold", "dq"],
+        vec!["--voltage", "reference"],
+        vec!["--delay", "estimate"],
+        vec!["--delay", "-1"],
+        vec!["--dead-time", "estimate"],
+        vec!["--dead-time", "nan"],
+        vec!["--dead-time-mask", "auto"],
+        vec!["--max-iters", "1"],
+        vec!["--ftol", "1e300"],
+        vec!["--huber", "2.0"],
+        vec!["--start", "1,2"],
+        vec!["--bounds", "r_s:0.95:2"],
+        vec!["--fix", "k_e"],
+        vec!["--speed-unit", "rpm"],
+        vec!["--current-scale", "rms"],
+        vec!["--u-dc", "-5"],
+        vec!["--json", "-"],
+        vec!["--max-line-bytes", "3"],
+        vec!["-q"],
+    ];
+    let bin = env!("CARGO_BIN_EXE_greybox");
+    let mut runner =
+        TestRunner::new(Config { cases: cases("GREYBOX_FUZZ_CLI_CASES", 48), ..Config::default() });
+    let strategy = (0..pole_pairs.len(), proptest::collection::vec(0..flags.len(), 0..4));
+    let total = std::cell::Cell::new(0usize);
+    let codes = std::cell::RefCell::new([0usize; 5]);
+    runner
+        .run(&strategy, |(p, picked)| {
+            let mut args = vec!["fit", "data/sample.csv.gz", "--max-iters", "20", "-p", pole_pairs[p]];
+            for i in &picked {
+                args.extend(flags[*i].iter().copied());
+            }
+            let t0 = Instant::now();
+            let out = std::process::Command::new(bin)
+                .args(&args)
+                .current_dir(env!("CARGO_MANIFEST_DIR"))
+                .output()
+                .unwrap();
+            total.set(total.get() + 1);
+            let err = String::from_utf8_lossy(&out.stderr);
+            prop_assert!(!err.contains("panicked"), "{args:?}: {err}");
+            prop_assert!(matches!(out.status.code(), Some(0..=3)), "{args:?}: {:?} {err}", out.status);
+            codes.borrow_mut()[out.status.code().unwrap_or(4) as usize] += 1;
+            prop_assert!(t0.elapsed() < Duration::from_secs(60), "{args:?}");
+            Ok(())
+        })
+        .unwrap();
+    eprintln!(
+        "fuzz: {} generated command lines, no panic; exit codes 0-3: {:?}",
+        total.get(),
+        &codes.borrow()[..4]
+    );
+}
