@@ -130,19 +130,7 @@ impl GreyBoxModel for PmsmIpm {
         check_positive("l_d", l_d)?;
         check_positive("l_q", l_q)?;
         check_finite("k_e", k_e)?;
-        let c = IpmCoefficients {
-            nth,
-            v_dt,
-            h: inputs.h,
-            k_e,
-            inv_l_d: 1.0 / l_d,
-            inv_l_q: 1.0 / l_q,
-            r_l_d: r / l_d,
-            r_l_q: r / l_q,
-            l_q_l_d: l_q / l_d,
-            l_d_l_q: l_d / l_q,
-            r_l_max: r / l_d.min(l_q),
-        };
+        let c = IpmCoefficients { nth, v_dt, ..IpmCoefficients::at(inputs.h, r, l_d, l_q, k_e) };
         let ratios = [c.inv_l_d, c.inv_l_q, c.r_l_max, c.l_q_l_d, c.l_d_l_q];
         if ratios.iter().any(|v| !v.is_finite()) {
             let (name, value) = if l_d <= l_q { ("l_d", l_d) } else { ("l_q", l_q) };
