@@ -12,6 +12,7 @@ use super::kind::MotorKind;
 use super::linear::regressors;
 use super::signals::DqView;
 use crate::data::Experiment;
+use crate::estimate::Warning;
 use crate::estimate::linear::solve_weighted;
 
 /// |correlation| above which a check speaks.
@@ -50,7 +51,8 @@ fn explained_beyond(phi: &[f64], y: &[f64], cols: usize, extra: &[f64]) -> f64 {
 /// The checks' advice for a fit of `kind` at `theta` (model order, without nuisance
 /// parameters) on `experiments` driven by `input`; `inverter` says whether the fit modelled
 /// the inverter. Logs the checks cannot read (no angle for the phase currents) are passed
-/// over; the advice names the log and the correlation.
+/// over; each warning (untrusted: the model lacks what the data show; codes `dead_time`,
+/// `voltage_late`) names the log and the correlation.
 pub fn advice(
     experiments: &[Experiment],
     n_p: u32,
@@ -58,7 +60,7 @@ pub fn advice(
     input: VoltageInput,
     theta: &[f64],
     inverter: bool,
-) -> Vec<String> {
+) -> Vec<Warning> {
     let mut out = Vec::new();
     for e in experiments {
         let Ok(v) = DqView::try_new(e) else { continue };
@@ -78,14 +80,14 @@ pub fn advice(
             let d: Vec<f64> = dirs.iter().flat_map(|c| [-c.re, -c.im]).collect();
             let gain = explained_beyond(&phi, &y, cols, &d);
             if gain > THRESHOLD {
-                out.push(format!(
+                out.push(Warning::untrusted("dead_time", format!(
                     "`{}`: the sign of the phase currents explains {:.0} % of the voltage residual the motor's \
                      parameters leave: an inverter dead-time voltage the model does not have (it biases r_s); fit \
                      the reference voltage with the inverter model (--voltage reference --dead-time estimate), or \
                      use the measured terminal voltage",
                     e.name(),
                     100.0 * gain
-                ));
+                )));
             }
         }
         // Interval k's voltage change u[k] − u[k−1], rows d, q as in the residual.
@@ -95,12 +97,12 @@ pub fn advice(
             .collect();
         let c = correlation(&r, &du);
         if c.abs() > THRESHOLD {
-            out.push(format!(
+            out.push(Warning::untrusted("voltage_late", format!(
                 "`{}`: the voltage residual follows the voltage's change from the sample before (correlation \
                  {c:+.2}): the voltage acts later than the model assumes, as a controller's reference does \
                  (--voltage reference --delay estimate)",
                 e.name()
-            ));
+            )));
         }
     }
     out

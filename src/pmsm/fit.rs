@@ -255,7 +255,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     let HoldFits { best: (hold, best), others, losses, notes: hold_notes } =
         fit_holds(holds, &start, names, modulator, fit_hold)?;
     notes.extend(hold_notes);
-    let mut pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
+    let pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
     // The regression sees the whole series resistance.
     let motor: Vec<f64> = options
         .model
@@ -265,14 +265,14 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             best.parameter(n).map(|p| p.value + if *n == "r_s" { options.cable_resistance } else { 0.0 })
         })
         .collect();
-    pmsm_advice.extend(super::checks::advice(
+    let model_checks = super::checks::advice(
         experiments,
         n_p,
         options.model,
         options.input,
         &motor,
         options.inverter.is_some(),
-    ));
+    );
     if losses.len() > 1 {
         let why = match (hold, modulator) {
             (VoltageHold::Stator, true) => format!(
@@ -309,6 +309,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     let fit_s = t0.elapsed().as_secs_f64();
     let parameters = best.parameters.iter().cloned().chain(delay_parameter(options.input, None)).collect();
     let mut warnings = best.warnings.clone();
+    warnings.extend(model_checks);
     if !options.skip_setup_checks {
         warnings.extend(structure);
         warnings.extend(super::detect::pole_pair_warning(experiments, options, best.fit.loss));

@@ -150,9 +150,11 @@ fn a_late_voltage_is_pointed_out() {
     let naive = s.into_experiment("naive", H).unwrap();
     let hold = PmsmFitOptions { hold: HoldChoice::Stator, ..pmsm_options(N_P) };
     let fit = fit_pmsm(std::slice::from_ref(&naive), &hold).unwrap();
-    assert!(fit.pmsm_advice.iter().any(|a| a.contains("acts later")), "{:?}", fit.pmsm_advice);
+    let late =
+        |f: &greybox::pmsm::PmsmFit| f.warnings.iter().any(|w| w.code == "voltage_late" && w.untrusted);
+    assert!(late(&fit) && !fit.trusted(), "{:?}", fit.warnings);
     let right = fit_pmsm(&[naive], &PmsmFitOptions { input: VoltageInput::REFERENCE, ..hold }).unwrap();
-    assert!(!right.pmsm_advice.iter().any(|a| a.contains("acts later")), "{:?}", right.pmsm_advice);
+    assert!(!late(&right), "{:?}", right.warnings);
 }
 
 /// On the development logs: the PWM log fitted from its reference without the inverter
@@ -162,19 +164,16 @@ fn residual_checks_on_the_development_logs() {
     crate::common::require_shared!();
     let (pwm, t) = crate::common::load("servo_spm_pwm_deadtime_idinj");
     let options = PmsmFitOptions { input: VoltageInput::REFERENCE, ..pmsm_options(t.n_p) };
-    let dead = |f: &greybox::pmsm::PmsmFit| f.pmsm_advice.iter().any(|a| a.contains("dead-time"));
+    let has = |f: &greybox::pmsm::PmsmFit, code: &str| f.warnings.iter().any(|w| w.code == code);
+    let dead = |f: &greybox::pmsm::PmsmFit| has(f, "dead_time");
     let without = fit_pmsm(std::slice::from_ref(&pwm), &options).unwrap();
-    assert!(dead(&without), "{:?}", without.pmsm_advice);
+    assert!(dead(&without) && !without.trusted(), "{:?}", without.warnings);
     let inverter = Some(greybox::pmsm::InverterModel::default());
     let with = fit_pmsm(&[pwm], &PmsmFitOptions { inverter, ..options.clone() }).unwrap();
-    assert!(!dead(&with), "{:?}", with.pmsm_advice);
+    assert!(!dead(&with), "{:?}", with.warnings);
     let (clean, _) = crate::common::load("servo_spm_moves_idinj");
     let fit = fit_pmsm(&[clean], &options).unwrap();
-    assert!(
-        !fit.pmsm_advice.iter().any(|a| a.contains("dead-time") || a.contains("acts later")),
-        "{:?}",
-        fit.pmsm_advice
-    );
+    assert!(!has(&fit, "dead_time") && !has(&fit, "voltage_late"), "{:?}", fit.warnings);
 }
 
 /// Samples driven by a reference at the modulator's limit are weighted out and counted; the
