@@ -17,6 +17,8 @@
 //!
 //! [`online`] estimates `k_e` and `r_s` sample by sample with the MRAS observer of thesis
 //! 5.1 ([`online::Mras`]; a whole log with [`online::track`]).
+//! [`drive`] simulates a closed-loop servo drive (thesis ch. 4; scenarios exp1–exp6) whose
+//! logs the offline models reproduce exactly.
 //!
 //! # Example
 //! ```
