@@ -124,7 +124,8 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
         });
     }
     let options = PmsmFitOptions {
-        pole_pairs: 1,
+        // Set below: given, or chosen by fitting these options at each candidate.
+        pole_pairs: 0,
         skip_setup_checks: false,
         input,
         inverter,

@@ -125,11 +125,11 @@ pub fn simulate_drive(cfg: &DriveConfig) -> Result<DriveLog> {
         // 1. Sensors: phase currents with noise and ADC, angle by the encoder.
         let th_e = np * theta;
         let (a, b) = inverse_park(i[0], i[1], th_e);
-        let (ia, ib, _) = inverse_clarke(a, b);
-        let (ia, ib) =
+        let (ia, ib, ic) = inverse_clarke(a, b);
+        let (ia_m, ib_m) =
             (adc(ia + gauss(&mut rng, s.current_noise)), adc(ib + gauss(&mut rng, s.current_noise)));
         let theta_meas = encoder(theta);
-        let (al, be) = clarke(ia, ib, -ia - ib);
+        let (al, be) = clarke(ia_m, ib_m, -ia_m - ib_m);
         let (id_m, iq_m) = park(al, be, np * theta_meas);
         let w_meas = w + gauss(&mut rng, s.speed_noise);
         let m = Measurement { i: [id_m, iq_m], w_m: w_meas, theta_m: theta_meas };
@@ -155,8 +155,9 @@ pub fn simulate_drive(cfg: &DriveConfig) -> Result<DriveLog> {
             w_refs.push(w);
         }
         if inv.v_dt > 0.0 {
-            let (x, y, z) = inverse_clarke(a, b);
-            let (ea, eb) = clarke(-(x / inv.width).tanh(), -(y / inv.width).tanh(), -(z / inv.width).tanh());
+            let sign = |x: f64| -(x / inv.width).tanh();
+            // The true phase currents at t_k (not the measured ones).
+            let (ea, eb) = clarke(sign(ia), sign(ib), sign(ic));
             u_s += C64::new(ea, eb) * inv.v_dt;
         }
         let u0 = u_s * C64::from_polar(1.0, -th_e);

@@ -35,10 +35,20 @@ const SCAN_CUTOFF: f64 = 0.05;
 /// Relative mismatch of `dθ_m/dt` and `w_m` beyond which the speed check reports.
 pub const SPEED_MISMATCH: f64 = 0.05;
 
-/// Gram matrix `[C y]ᵀ[C y]` of the base columns of every interval of the applied voltage.
-fn gram(experiments: &[Experiment], kind: MotorKind, input: VoltageInput) -> Result<DMatrix<f64>> {
-    let nb = if kind == MotorKind::Spm { 4 } else { 6 };
-    let mut g = DMatrix::<f64>::zeros(nb + 1, nb + 1);
+/// Base columns of the scan: `i`, `di_d/dt` (d rows), `ω_m i_d` (q rows), `−ω_m i_q` (d rows),
+/// `di_q/dt` (q rows), `√(2/3) ω_m` (q rows), then the voltage. The salient regressors are
+/// combinations of them at any `n_p`, and so are the surface-magnet ones (`L_s` takes both
+/// derivative and both cross columns).
+const BASE: usize = 6;
+
+/// Gram matrix `[C y]ᵀ[C y]` (7 × 7) of the base columns over every interval of the applied
+/// voltage, from a zero-phase low-passed copy of each log. One Gram serves every candidate
+/// `n_p` and both motor kinds.
+///
+/// # Errors
+/// Those of [`applied_experiment`] and of the filter (a log too short for it).
+pub(crate) fn scan_gram(experiments: &[Experiment], input: VoltageInput) -> Result<DMatrix<f64>> {
+    let mut g = DMatrix::<f64>::zeros(BASE + 1, BASE + 1);
     for e in experiments {
         // n_p only scales the angle advance of a reference input; 1 is used for the scan.
         // A zero-phase low-pass at 5 % of the sample rate keeps current noise out of di/dt
@@ -52,18 +62,13 @@ fn gram(experiments: &[Experiment], kind: MotorKind, input: VoltageInput) -> Res
             let (i_d, i_q) = (0.5 * (id[k] + id[k + 1]), 0.5 * (iq[k] + iq[k + 1]));
             let (di_d, di_q) = ((id[k + 1] - id[k]) / h, (iq[k + 1] - iq[k]) / h);
             let w = 0.5 * (wm[k] + wm[k + 1]);
-            let rows: [Vec<f64>; 2] = match kind {
-                MotorKind::Spm => {
-                    [vec![i_d, di_d, -w * i_q, 0.0, ud[k]], vec![i_q, di_q, w * i_d, SQRT_2_3 * w, uq[k]]]
-                }
-                MotorKind::Ipm => [
-                    vec![i_d, di_d, 0.0, -w * i_q, 0.0, 0.0, ud[k]],
-                    vec![i_q, 0.0, w * i_d, 0.0, di_q, SQRT_2_3 * w, uq[k]],
-                ],
-            };
+            let rows = [
+                [i_d, di_d, 0.0, -w * i_q, 0.0, 0.0, ud[k]],
+                [i_q, 0.0, w * i_d, 0.0, di_q, SQRT_2_3 * w, uq[k]],
+            ];
             for r in &rows {
-                for a in 0..=nb {
-                    for b in 0..=nb {
+                for a in 0..=BASE {
+                    for b in 0..=BASE {
                         g[(a, b)] += r[a] * r[b];
                     }
                 }
@@ -73,17 +78,19 @@ fn gram(experiments: &[Experiment], kind: MotorKind, input: VoltageInput) -> Res
     Ok(g)
 }
 
-/// Least-squares loss `½ min‖y − Φθ‖²` and θ at `n_p` from the Gram matrix.
+/// Least-squares loss `½ min‖y − Φθ‖²` and θ (model order of `kind`) at `n_p` from the
+/// Gram matrix of [`scan_gram`].
 fn loss_at(g: &DMatrix<f64>, kind: MotorKind, n_p: u32) -> Option<(f64, DVector<f64>)> {
     let np = f64::from(n_p);
-    let nb = g.nrows() - 1;
     // T maps the parameters to the base columns.
     let t = match kind {
-        MotorKind::Spm => {
-            DMatrix::from_row_slice(4, 3, &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, np, 0.0, 0.0, 0.0, 1.0])
-        }
+        MotorKind::Spm => DMatrix::from_row_slice(
+            BASE,
+            3,
+            &[1.0, 0., 0., 0., 1.0, 0., 0., np, 0., 0., np, 0., 0., 1.0, 0., 0., 0., 1.0],
+        ),
         MotorKind::Ipm => DMatrix::from_row_slice(
-            6,
+            BASE,
             4,
             &[
                 1.0, 0., 0., 0., 0., 1.0, 0., 0., 0., np, 0., 0., 0., 0., np, 0., 0., 0., 1.0, 0., 0., 0.,
@@ -91,27 +98,31 @@ fn loss_at(g: &DMatrix<f64>, kind: MotorKind, n_p: u32) -> Option<(f64, DVector<
             ],
         ),
     };
-    let gcc = g.view((0, 0), (nb, nb));
-    let gcy = g.view((0, nb), (nb, 1));
+    let gcc = g.view((0, 0), (BASE, BASE));
+    let gcy = g.view((0, BASE), (BASE, 1));
     let a = t.transpose() * gcc * &t;
     let b = t.transpose() * gcy;
     let theta = a.clone().cholesky()?.solve(&b);
-    let loss = 0.5 * (g[(nb, nb)] - (b.transpose() * &theta)[(0, 0)]);
+    let loss = 0.5 * (g[(BASE, BASE)] - (b.transpose() * &theta)[(0, 0)]);
     Some((loss.max(0.0), theta.column(0).into_owned()))
+}
+
+/// Every candidate's `(n_p, loss)` from a [`scan_gram`].
+fn losses_from(g: &DMatrix<f64>, kind: MotorKind) -> Vec<(u32, f64)> {
+    POLE_PAIR_CANDIDATES.filter_map(|n| loss_at(g, kind, n).map(|(l, _)| (n, l))).collect()
 }
 
 /// The least-squares loss of the voltage equations at every candidate pole-pair number in
 /// [`POLE_PAIR_CANDIDATES`], `(n_p, loss [V²])`, for the voltage `input`.
 ///
 /// # Errors
-/// Those of [`applied_experiment`] (a missing channel).
+/// Those of [`scan_gram`] (a missing channel, a log too short for the prefilter).
 pub fn pole_pair_losses(
     experiments: &[Experiment],
     kind: MotorKind,
     input: VoltageInput,
 ) -> Result<Vec<(u32, f64)>> {
-    let g = gram(experiments, kind, input)?;
-    Ok(POLE_PAIR_CANDIDATES.filter_map(|n| loss_at(&g, kind, n).map(|(l, _)| (n, l))).collect())
+    Ok(losses_from(&scan_gram(experiments, input)?, kind))
 }
 
 /// `--pole-pairs auto`: the candidate of lowest loss and the ratio of the runner-up's loss
@@ -141,26 +152,16 @@ pub fn choose_pole_pairs(
 /// loss by a factor `ratio` with `L_d`, `L_q` more than [`SALIENCY`] apart. From
 /// [`SALIENT_CERTAIN`] on the log is salient (an error); from [`SALIENT_LIKELY`] on a warning
 /// says so (an unmodelled voltage error, such as dead time, can look salient too). Not run
-/// with the inverter model, whose error the regression does not contain.
+/// with the inverter model, whose error the regression does not contain. `g` is the
+/// [`scan_gram`] of the logs.
 ///
 /// # Errors
 /// [`Error::InvalidOption`] (`model`) naming both inductances and the loss ratio.
-pub(crate) fn check_structure(
-    experiments: &[Experiment],
-    n_p: u32,
-    kind: MotorKind,
-    input: VoltageInput,
-) -> Result<Option<Warning>> {
+pub(crate) fn check_structure(g: &DMatrix<f64>, n_p: u32, kind: MotorKind) -> Result<Option<Warning>> {
     if kind != MotorKind::Spm {
         return Ok(None);
     }
-    let (Ok(gi), Ok(gs)) =
-        (gram(experiments, MotorKind::Ipm, input), gram(experiments, MotorKind::Spm, input))
-    else {
-        return Ok(None);
-    };
-    let (Some((ls, _)), Some((li, th))) =
-        (loss_at(&gs, MotorKind::Spm, n_p), loss_at(&gi, MotorKind::Ipm, n_p))
+    let (Some((ls, _)), Some((li, th))) = (loss_at(g, MotorKind::Spm, n_p), loss_at(g, MotorKind::Ipm, n_p))
     else {
         return Ok(None);
     };
@@ -192,12 +193,14 @@ pub(crate) fn check_structure(
 /// The pole-pair check: when the least-squares scan prefers another `n_p` by
 /// [`POLE_PAIR_RATIO`], the prediction-error fit at that `n_p` decides (the scan alone is
 /// fooled by current noise in `di/dt`); a warning names it when its loss is that much lower.
+/// `g` is the [`scan_gram`] of `experiments`.
 pub(crate) fn pole_pair_warning(
+    g: &DMatrix<f64>,
     experiments: &[Experiment],
     options: &PmsmFitOptions,
     loss: f64,
 ) -> Option<Warning> {
-    let losses = pole_pair_losses(experiments, options.model, options.input).ok()?;
+    let losses = losses_from(g, options.model);
     let given = losses.iter().find(|(n, _)| *n == options.pole_pairs)?.1;
     let &(nb, lb) = losses.iter().min_by(|a, b| a.1.total_cmp(&b.1))?;
     if nb == options.pole_pairs || given <= POLE_PAIR_RATIO * lb {

@@ -116,10 +116,15 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         names.push("v_dt");
     }
     let names = &names[..];
-    let structure = if options.skip_setup_checks || options.inverter.is_some() {
+    // One regression Gram for the setup checks (a log the scan cannot read is not checked).
+    let scan = if options.skip_setup_checks {
         None
     } else {
-        super::detect::check_structure(experiments, n_p, options.model, options.input)?
+        super::detect::scan_gram(experiments, options.input).ok()
+    };
+    let structure = match &scan {
+        Some(g) if options.inverter.is_none() => super::detect::check_structure(g, n_p, options.model)?,
+        _ => None,
     };
     // The start of v_dt when the start comes from elsewhere: the known value, or 0.
     let v_dt0 = options.inverter.map(|i| i.known.unwrap_or(0.0));
@@ -312,7 +317,9 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     warnings.extend(model_checks);
     if !options.skip_setup_checks {
         warnings.extend(structure);
-        warnings.extend(super::detect::pole_pair_warning(experiments, options, best.fit.loss));
+        if let Some(g) = &scan {
+            warnings.extend(super::detect::pole_pair_warning(g, experiments, options, best.fit.loss));
+        }
         warnings.extend(super::detect::warnings(experiments, n_p, &best));
     }
     Ok(PmsmFit {

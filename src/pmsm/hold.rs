@@ -73,6 +73,8 @@ pub(crate) fn fit_holds(
     mut fit_hold: impl FnMut(VoltageHold, &[f64]) -> Result<FitResult>,
 ) -> Result<HoldFits> {
     let mut fits: Vec<(VoltageHold, FitResult)> = Vec::new();
+    // The start each fit took: a restart from it again would only repeat the fit.
+    let mut used: Vec<Vec<f64>> = Vec::new();
     for &hold in holds {
         let s = fits
             .last()
@@ -80,6 +82,7 @@ pub(crate) fn fit_holds(
             .and_then(|(_, r)| estimate_of(r, names))
             .unwrap_or_else(|| start.to_vec());
         fits.push((hold, fit_hold(hold, &s)?));
+        used.push(s);
     }
     let mut notes = Vec::new();
     for i in 0..fits.len() {
@@ -93,7 +96,12 @@ pub(crate) fn fit_holds(
             .filter_map(|(_, (_, r))| estimate_of(r, names))
             .collect();
         starts.push(start.to_vec());
+        starts.retain(|s| *s != used[i]);
         let before = fits[i].1.fit.loss;
+        if starts.is_empty() {
+            notes.push(format!("the {} hold fit stalled; no other start to restart it from", fits[i].0));
+            continue;
+        }
         for s in starts {
             let r = fit_hold(fits[i].0, &s)?;
             let current = &fits[i].1;

@@ -75,19 +75,17 @@ pub fn fit_estimating_input(
         .chain(nuisance)
         .map(|n| first.parameter(n).map_or(f64::NAN, |p| p.value))
         .collect();
+    // The options of a candidate; candidates skip the setup checks, the final fit runs them.
+    let options_at =
+        |delay: usize, advance: f64, speed_pll: Option<f64>, width: Option<f64>| PmsmFitOptions {
+            input: VoltageInput::Reference { delay, advance, speed_pll },
+            inverter: options.inverter.map(|i| InverterModel { width: width.or(i.width), ..i }),
+            start: Some(start.clone()),
+            ..options.clone()
+        };
     let fit_with = |delay: usize, advance: f64, speed_pll: Option<f64>, width: Option<f64>| {
-        let input = VoltageInput::Reference { delay, advance, speed_pll };
-        let inverter = options.inverter.map(|i| InverterModel { width: width.or(i.width), ..i });
-        fit_pmsm(
-            experiments,
-            &PmsmFitOptions {
-                input,
-                inverter,
-                start: Some(start.clone()),
-                skip_setup_checks: true,
-                ..options.clone()
-            },
-        )
+        let o = options_at(delay, advance, speed_pll, width);
+        fit_pmsm(experiments, &PmsmFitOptions { skip_setup_checks: true, ..o })
     };
     let fit_at = |delay: usize, speed_pll: Option<f64>| fit_with(delay, advance, speed_pll, None);
     // A candidate that cannot be fitted (diverging simulation, no convergence) loses.
@@ -156,15 +154,7 @@ pub fn fit_estimating_input(
         }
         (false, _) => None,
     };
-    let best = fit_pmsm(
-        experiments,
-        &PmsmFitOptions {
-            input: VoltageInput::Reference { delay, advance, speed_pll },
-            inverter: options.inverter.map(|i| InverterModel { width: width.or(i.width), ..i }),
-            start: Some(start.clone()),
-            ..options.clone()
-        },
-    )?;
+    let best = fit_pmsm(experiments, &options_at(delay, advance, speed_pll, width))?;
     if !best.solver.success && (search.delay || search.advance || search.speed_pll || search.dead_time_width)
     {
         return Err(Error::Numerical {

@@ -175,9 +175,9 @@ pub(crate) fn fit_auto_mask(experiments: &[Experiment], options: &PmsmFitOptions
         start: start.or_else(|| options.start.clone()),
         ..options.clone()
     };
-    let inner = PmsmFitOptions { skip_setup_checks: true, ..options.clone() };
-    let unmasked = PmsmFitOptions { inverter: Some(InverterModel { mask: None, ..inverter }), ..inner };
-    let mut fit = fit_pmsm(experiments, &unmasked)?;
+    // The inner fits skip the setup checks; the last one runs them as `options` says.
+    let mut fit =
+        fit_pmsm(experiments, &PmsmFitOptions { skip_setup_checks: true, ..with_mask(None, None) })?;
     let mut trail = Vec::new();
     for step in 0..AUTO_ITERATIONS {
         let threshold = match auto_threshold(experiments, &fit) {

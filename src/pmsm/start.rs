@@ -89,7 +89,8 @@ fn with_dead_time(
         y.extend(u);
     }
     let weights = vec![1.0; y.len()];
-    Ok((names.clone(), solve_weighted(&names, &phi, &y, &weights)?.theta))
+    let theta = solve_weighted(&names, &phi, &y, &weights)?.theta;
+    Ok((names, theta))
 }
 
 /// With a reference input, the experiments with their `ud, uq` replaced by the applied
