@@ -11,6 +11,11 @@ fn short(name: &str, motor: greybox::pmsm::MotorParameters, duration: f64) -> Dr
     DriveConfig { duration, ..scenario(name, motor).unwrap() }
 }
 
+/// The plant's parameters at the start of a record, by the names of either model.
+fn truth_of(t: &greybox::drive::Truth) -> [(&'static str, f64); 5] {
+    [("r_s", t.start.r_s), ("l_s", t.start.l_d), ("l_d", t.start.l_d), ("l_q", t.start.l_q), ("k_e", t.k_e)]
+}
+
 fn options(truth: &greybox::drive::Truth, input: VoltageInput) -> PmsmFitOptions {
     let model = if truth.start.salient() { MotorKind::Ipm } else { MotorKind::Spm };
     PmsmFitOptions {
@@ -31,13 +36,7 @@ fn simulated_logs_are_fitted_back_to_their_truth() {
         let t = &log.truth;
         for input in [VoltageInput::Terminal, VoltageInput::REFERENCE] {
             let fit = fit_pmsm(std::slice::from_ref(&log.experiment), &options(t, input)).unwrap();
-            let truth = [
-                ("r_s", t.start.r_s),
-                ("l_s", t.start.l_d),
-                ("l_d", t.start.l_d),
-                ("l_q", t.start.l_q),
-                ("k_e", t.k_e),
-            ];
+            let truth = truth_of(t);
             for (name, v) in truth {
                 if let Some(p) = fit.parameter(name) {
                     let err = rel(p.value, v);
@@ -341,13 +340,7 @@ fn every_scenario_is_fitted_back_to_its_truth() {
             .unwrap();
             let t = &clean.truth;
             assert!(!t.time_varying, "{name}");
-            let truth = [
-                ("r_s", t.start.r_s),
-                ("l_s", t.start.l_d),
-                ("l_d", t.start.l_d),
-                ("l_q", t.start.l_q),
-                ("k_e", t.k_e),
-            ];
+            let truth = truth_of(t);
             let inverter =
                 Some(InverterModel { mask: Some(greybox::pmsm::DeadTimeMask::Auto), ..Default::default() });
             let runs = [

@@ -39,6 +39,26 @@ fn tail_errors(tr: &greybox::online::Trajectory, tail: usize, k_e: f64, r_s: f64
     (k, r)
 }
 
+/// The largest observer error `|e|` [A] over a log (each period's voltage, interval-mean
+/// speed) and the largest current magnitude.
+fn observer_error(m: &mut Mras, v: &DqView<'_>) -> (f64, f64) {
+    let (u_d, u_q) = v.terminal_voltage().unwrap();
+    let (w, mut worst, mut peak) = (v.w_m(), 0.0f64, 0.0f64);
+    for k in 0..v.len() - 1 {
+        let s = Sample {
+            i_d: v.i_d()[k],
+            i_q: v.i_q()[k],
+            u_d: u_d[k],
+            u_q: u_q[k],
+            w_m: 0.5 * (w[k] + w[k + 1]),
+        };
+        let est = m.update(&s).unwrap();
+        worst = worst.max(est.e_d.hypot(est.e_q));
+        peak = peak.max(s.i_d.hypot(s.i_q));
+    }
+    (worst, peak)
+}
+
 #[test]
 fn observer_without_adaptation_reproduces_the_exact_spm_simulation() {
     for hold in [VoltageHold::Stator, VoltageHold::Dq] {
@@ -47,19 +67,7 @@ fn observer_without_adaptation_reproduces_the_exact_spm_simulation() {
         let v = DqView::try_new(&e).unwrap();
         let cfg = MrasConfig { k_e0: K_E, r_s0: R_S, gamma_ke: 0.0, gamma_rs: 0.0, ..config(h, hold) };
         let mut m = Mras::try_new(cfg).unwrap();
-        let (w, mut worst, mut peak) = (v.w_m(), 0.0f64, 0.0f64);
-        for k in 0..v.len() - 1 {
-            let s = Sample {
-                i_d: v.i_d()[k],
-                i_q: v.i_q()[k],
-                u_d: v.terminal_voltage().unwrap().0[k],
-                u_q: v.terminal_voltage().unwrap().1[k],
-                w_m: 0.5 * (w[k] + w[k + 1]),
-            };
-            let est = m.update(&s).unwrap();
-            worst = worst.max(est.e_d.hypot(est.e_q));
-            peak = peak.max(s.i_d.hypot(s.i_q));
-        }
+        let (worst, peak) = observer_error(&mut m, &v);
         eprintln!("exactness, {hold} hold: max |e| = {worst:.2e} A (peak current {peak:.1} A)");
         assert!(worst < 1e-12 * peak.max(1.0), "{hold}: {worst:e}");
     }
@@ -328,23 +336,10 @@ fn salient_observer_without_adaptation_reproduces_the_exact_ipm_simulation() {
         let h = 1e-4;
         let e = ipm_plant(20_000, h, 250.0, hold, 7);
         let v = DqView::try_new(&e).unwrap();
-        let (u_d, u_q) = v.terminal_voltage().unwrap();
         let cfg =
             MrasConfig { k_e0: IPM_K_E, r_s0: IPM_R_S, gamma_ke: 0.0, gamma_rs: 0.0, ..ipm_config(h, hold) };
         let mut m = Mras::try_new(cfg).unwrap();
-        let (w, mut worst, mut peak) = (v.w_m(), 0.0f64, 0.0f64);
-        for k in 0..v.len() - 1 {
-            let s = Sample {
-                i_d: v.i_d()[k],
-                i_q: v.i_q()[k],
-                u_d: u_d[k],
-                u_q: u_q[k],
-                w_m: 0.5 * (w[k] + w[k + 1]),
-            };
-            let est = m.update(&s).unwrap();
-            worst = worst.max(est.e_d.hypot(est.e_q));
-            peak = peak.max(s.i_d.hypot(s.i_q));
-        }
+        let (worst, peak) = observer_error(&mut m, &v);
         eprintln!("salient exactness, {hold} hold: max |e| = {worst:.2e} A (peak current {peak:.1} A)");
         assert!(worst < 1e-12 * peak.max(1.0), "{hold}: {worst:e}");
     }
