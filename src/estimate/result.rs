@@ -3,13 +3,13 @@
 //! Statistics (MODEL.md §5; Ljung, *System Identification*, 2nd ed., sections 9.3 and
 //! 16.4; thesis 5.3 and appendix B):
 //! - covariance `Cov(θ̂) = A⁻¹ (Σ_i σ̂_i² B_i) A⁻¹` with `A = JᵀWJ`, `B_i = Σ_k w_ki² J_kiᵀJ_ki`
-//!   and `σ̂_i² = E_i²/(N − n_p/n_y)` the residual variance of output i; with uniform weights
+//!   and `σ̂_i² = E_i²/(N − n_free/n_y)` the residual variance of output i; with uniform weights
 //!   and equal noise this is the textbook `σ̂² (JᵀJ)⁻¹`;
-//! - 95 % confidence interval `θ̂ ± t_{0.975, N n_y − n_p} σ_θ`;
+//! - 95 % confidence interval `θ̂ ± t_{0.975, N n_y − n_free} σ_θ`;
 //! - parametric error index `P_i = 100 √(E² [A⁻¹]_ii)/|θ̂_i|` with `E² = Σ w ε²`: the change
 //!   of θ_i (others re-optimised) that doubles E², in percent;
 //! - fit per output `100 (1 − ‖y − ŷ‖/‖y − ȳ‖)` (NRMSE fit, as MATLAB's `compare`);
-//! - `AIC = N ln(E²/N) + 2 n_p`, `BIC = N ln(E²/N) + n_p ln N` over all `N = N_k n_y`
+//! - `AIC = N ln(E²/N) + 2 n_free`, `BIC = N ln(E²/N) + n_free ln N` over all `N = N_k n_y`
 //!   residuals (Gaussian likelihood, constants dropped).
 
 use crate::estimate::diagnostics::Diagnostics;
@@ -63,13 +63,13 @@ pub struct FitStatistics {
     pub loss: f64,
     /// Mean squared residual over all outputs, `E²/(N n_y)`.
     pub mse: f64,
-    /// Akaike information criterion `N ln(E²/N) + 2 n_p` over all `N = N_k n_y` residuals,
+    /// Akaike information criterion `N ln(E²/N) + 2 n_free` over all `N = N_k n_y` residuals,
     /// E² the unweighted residual sum of squares (Gaussian likelihood with one variance,
     /// constants dropped; Ljung 16.4).
     pub aic: f64,
-    /// Bayesian information criterion `N ln(E²/N) + n_p ln N` (as `aic`; Schwarz 1978).
+    /// Bayesian information criterion `N ln(E²/N) + n_free ln N` (as `aic`; Schwarz 1978).
     pub bic: f64,
-    /// Akaike's final prediction error `(E²/N)(1 + n_p/N)/(1 − n_p/N)` over all `N = N_k n_y`
+    /// Akaike's final prediction error `(E²/N)(1 + n_free/N)/(1 − n_free/N)` over all `N = N_k n_y`
     /// residuals (Ljung 16.4).
     #[serde(default)]
     pub fpe: f64,
@@ -79,7 +79,7 @@ pub struct FitStatistics {
     pub whiteness: Vec<crate::report::Whiteness>,
     /// Residual samples per output N (first samples excluded).
     pub samples: usize,
-    /// Degrees of freedom `N n_y − n_p`.
+    /// Degrees of freedom `N n_y − n_free`.
     pub dof: usize,
 }
 
@@ -133,7 +133,7 @@ pub struct FitResult {
 /// A warning of a fit report, with a stable code for scripts.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Warning {
-    /// Stable code, e.g. `not_converged`, `parameter_at_bound`, `pole_pairs`.
+    /// Stable code, e.g. `not_converged`, `parameter_at_bound`; models add their own.
     pub code: String,
     /// What was found and what to do about it.
     pub message: String,

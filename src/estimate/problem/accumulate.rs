@@ -20,7 +20,7 @@ pub struct Sums {
     pub jtj: DMatrix<f64>,
     /// Bread `A = Σ w ψ'(ε) JᵀJ` of the sandwich covariance `A⁻¹ B A⁻¹`.
     pub bread: DMatrix<f64>,
-    /// Meat `B`: `Σ_i σ̂_i² Σ_k w² J_kiᵀJ_ki` (quadratic), `N/(N − n_p) Σ w² ψ² JᵀJ` (Huber);
+    /// Meat `B`: `Σ_i σ̂_i² Σ_k w² J_kiᵀJ_ki` (quadratic), `N/(N − n_free) Σ w² ψ² JᵀJ` (Huber);
     /// with a residual prefilter L(q), `Σ_i σ̂_i² gᵢᵀgᵢ` with `gᵢ = Lᵀ(W J_f)` (the
     /// time-reversed filter applied to the weighted filtered Jacobian) and σ̂ from the raw
     /// residuals: exact for white raw residuals.
@@ -82,7 +82,7 @@ impl Accumulator {
     }
 
     /// One sample: `eps` the residual the criterion sees (filtered or not), `raw` the
-    /// output error itself, `jac` the criterion's Jacobian (row-major n_y × n_p).
+    /// output error itself, `jac` the criterion's Jacobian (row-major n_y × n_free).
     pub(crate) fn sample(
         &mut self,
         loss: &Loss,
@@ -147,7 +147,7 @@ impl Accumulator {
             let factor = match loss {
                 // Huber without prefilter: ψ² is already in the meat.
                 Loss::Huber { .. } if !prefiltered => live / dof,
-                // σ̂_i² = E_i²/(N − n_p/n_y) of the raw residuals with non-zero weight.
+                // σ̂_i² = E_i²/(N − n_free/n_y) of the raw residuals with non-zero weight.
                 _ => self.sse_live[i] / dof,
             };
             meat += mi * factor;

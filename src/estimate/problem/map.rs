@@ -6,7 +6,7 @@ use crate::model::GreyBoxModel;
 use nalgebra::DVector;
 
 impl<M: GreyBoxModel> PemProblem<'_, M> {
-    /// Scaled start vector p₀ (length n_p) for model start values θ₀ (initial states from
+    /// Scaled start vector p₀ (length n_free) for model start values θ₀ (initial states from
     /// the measurement).
     ///
     /// # Panics
@@ -23,7 +23,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     }
 
     /// Value of every free entry at p in its own unit (model parameters and initial
-    /// states), length n_p: the fitted vector in a form independent of the scaling.
+    /// states), length n_free: the fitted vector in a form independent of the scaling.
     pub fn free_values(&self, p: &DVector<f64>) -> Vec<f64> {
         self.free.iter().enumerate().map(|(g, f)| f.transform.to_theta(p[g])).collect()
     }
@@ -32,7 +32,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// ([`free_values`](Self::free_values) of a problem with the same layout).
     ///
     /// # Panics
-    /// If `values` is shorter than n_p.
+    /// If `values` is shorter than n_free.
     pub fn point_from_values(&self, values: &[f64]) -> DVector<f64> {
         let mut p = DVector::from_iterator(
             self.free.len(),
@@ -42,10 +42,10 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         p
     }
 
-    /// θ of experiment `e` at scaled point p (length n_p); returns length n_θ.
+    /// θ of experiment `e` at scaled point p (length n_free); returns length n_θ.
     ///
     /// # Panics
-    /// If `e` is not an experiment index or p is shorter than n_p.
+    /// If `e` is not an experiment index or p is shorter than n_free.
     pub fn theta(&self, e: usize, p: &DVector<f64>) -> Vec<f64> {
         self.terms[e]
             .slots

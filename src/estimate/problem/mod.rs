@@ -298,7 +298,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
     pub fn free(&self) -> &[FreeParameter] {
         &self.free
     }
-    /// Number of free parameters n_p.
+    /// Number of free parameters n_free.
     pub fn n_free(&self) -> usize {
         self.free.len()
     }

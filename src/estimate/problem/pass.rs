@@ -31,7 +31,7 @@ impl Pass {
 impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// Runs `f(k, ε_k, w_k, J_k)` over every counted sample of experiment e
     /// ([`first_sample`](Self::first_sample) on), where `ε_k = y_k − ŷ_k` (length n_y),
-    /// `w_k[i] = β_k Λ_i` and `J_k = ∂ŷ_k/∂p` is row-major `n_y × n_p` (empty without
+    /// `w_k[i] = β_k Λ_i` and `J_k = ∂ŷ_k/∂p` is row-major `n_y × n_free` (empty without
     /// `mode.jacobian`): the one loop every sum of the problem is built from.
     ///
     /// # Errors
@@ -118,7 +118,7 @@ impl<'f> ResidualFilter<'f> {
         Self { l, eps: vec![vec![[0.0; 2]; sections]; ny], jac: vec![vec![[0.0; 2]; sections]; ny * np], np }
     }
 
-    /// Filters output i's residual and its Jacobian row (length n_p, or empty) in place.
+    /// Filters output i's residual and its Jacobian row (length n_free, or empty) in place.
     #[inline]
     pub(crate) fn apply(&mut self, i: usize, eps: &mut f64, row: &mut [f64]) {
         *eps = self.l.step(&mut self.eps[i], *eps);

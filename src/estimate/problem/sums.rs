@@ -79,7 +79,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     }
 
     /// Weighted residuals `√w ε` stacked `[e][k][i]` and the Jacobian `√w ∂ŷ/∂p`
-    /// (`N_total n_y × n_p`): the full matrices, for tests and diagnostics only
+    /// (`N_total n_y × n_free`): the full matrices, for tests and diagnostics only
     /// (quadratic-loss view; the default path never forms them).
     ///
     /// # Errors

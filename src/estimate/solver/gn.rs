@@ -154,7 +154,7 @@ fn shifted_solve(h: &DMatrix<f64>, g: &DVector<f64>) -> Option<(DVector<f64>, f6
 
 /// The search direction at p with the bounds taken into account.
 struct Direction {
-    /// δ (scaled space, length n_p), zero in the held components.
+    /// δ (scaled space, length n_free), zero in the held components.
     delta: DVector<f64>,
     /// Largest diagonal shift μ used (0 when `JᵀWJ` was positive definite).
     shift: f64,
@@ -166,7 +166,7 @@ impl GaussNewton {
     /// Gauss-Newton direction with parameters held at the bounds they are pressed against:
     /// first those where the steepest-descent direction `JᵀWε` points out of the box, then
     /// any whose reduced Gauss-Newton step points out, re-solving the normal equations for
-    /// the others each time (at most n_p rounds). Every parameter at a bound then moves
+    /// the others each time (at most n_free rounds). Every parameter at a bound then moves
     /// inwards or not at all, so short steps need no projection and δ is a descent
     /// direction (Bertsekas, *SIAM J. Control Optim.* 20(2), 1982; Kelley, *Iterative
     /// Methods for Optimization*, 1999, section 5.5). Without active bounds this is the

@@ -24,23 +24,23 @@ use argmin::core::IterState;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
-/// argmin state of the greybox solvers: parameter `p` (scaled space, length n_p), gradient
-/// `∇V = −JᵀWε` (length n_p), "Hessian" `JᵀWJ` (n_p × n_p), cost `V`.
+/// argmin state of the greybox solvers: parameter `p` (scaled space, length n_free), gradient
+/// `∇V = −JᵀWε` (length n_free), "Hessian" `JᵀWJ` (n_free × n_free), cost `V`.
 pub type LsState = IterState<DVector<f64>, DVector<f64>, (), DMatrix<f64>, (), f64>;
 
-/// Cost and normal equations at one point (scaled space, length n_p).
+/// Cost and normal equations at one point (scaled space, length n_free).
 #[derive(Clone, Debug)]
 pub struct NormalEquations {
     /// `V = Σ w ρ(ε)` (`½ εᵀWε` for the quadratic loss).
     pub cost: f64,
-    /// `JᵀWJ` (IRLS-weighted for a robust loss), `n_p × n_p`.
+    /// `JᵀWJ` (IRLS-weighted for a robust loss), `n_free × n_free`.
     pub jtj: DMatrix<f64>,
-    /// `JᵀWψ(ε)` (`JᵀWε` for the quadratic loss), length n_p: the negative gradient `−∇V`.
+    /// `JᵀWψ(ε)` (`JᵀWε` for the quadratic loss), length n_free: the negative gradient `−∇V`.
     pub jtr: DVector<f64>,
 }
 
 impl NormalEquations {
-    /// Gradient of the cost `∇V = −JᵀWψ(ε)`, length n_p.
+    /// Gradient of the cost `∇V = −JᵀWψ(ε)`, length n_free.
     pub fn gradient(&self) -> DVector<f64> {
         -&self.jtr
     }
@@ -48,7 +48,7 @@ impl NormalEquations {
 
 /// A nonlinear least-squares problem in scaled variables p, as the solvers see it.
 pub trait LeastSquares {
-    /// Number of free parameters n_p.
+    /// Number of free parameters n_free.
     fn n_params(&self) -> usize;
     /// Cost `V(p) = ½ εᵀWε` with `JᵀWJ` and `JᵀWε` (`J = ∂ŷ/∂p`, `ε = y − ŷ`).
     ///

@@ -36,8 +36,8 @@ pub struct RunOptions {
     pub progress: bool,
 }
 
-/// Runs the chosen solver from `p0` (length n_p) through argmin's executor; returns p̂
-/// (the best point met) and the report. With n_p = 0 there is nothing to optimise: p̂ is
+/// Runs the chosen solver from `p0` (length n_free) through argmin's executor; returns p̂
+/// (the best point met) and the report. With n_free = 0 there is nothing to optimise: p̂ is
 /// empty and the report says "all parameters fixed".
 ///
 /// A run that stops without converging is not an error: [`SolverReport::success`] is

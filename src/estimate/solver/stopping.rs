@@ -80,7 +80,7 @@ impl Monitor {
         }
     }
 
-    /// The scaling `d_j` (length n_p, all > 0).
+    /// The scaling `d_j` (length n_free, all > 0).
     pub fn diag(&self) -> &DVector<f64> {
         &self.diag
     }
