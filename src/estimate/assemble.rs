@@ -3,7 +3,7 @@
 //! model's derived quantities (MODEL.md §5; Ljung 9.3, 16.4; thesis 5.3).
 
 use super::diagnostics::{DiagnosticThresholds, diagnose};
-use super::problem::{FreeKind, Pass, PemProblem, Slot};
+use super::problem::{FreeKind, PemProblem, Slot};
 use super::result::Warning;
 use super::result::t_quantile_975;
 use super::{DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing};
@@ -160,20 +160,9 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         &|n| model.advice(n),
         &|a, b| model.pair_advice(a, b),
     );
-    // Residual whiteness from the raw output errors of every experiment (one more
-    // simulation, no sensitivities), lags kept within each experiment.
-    let mut residuals: Vec<Vec<Vec<f64>>> = vec![Vec::new(); ny];
-    for e in 0..problem.terms().len() {
-        let mut per: Vec<Vec<f64>> = vec![Vec::new(); ny];
-        problem.pass(e, p, Pass::RAW_RESIDUALS, |_, eps, _, _| {
-            for (r, &v) in per.iter_mut().zip(eps) {
-                r.push(v);
-            }
-        })?;
-        for (all, r) in residuals.iter_mut().zip(per) {
-            all.push(r);
-        }
-    }
+    // Residual whiteness from the raw output errors of every experiment (kept by the
+    // statistics pass), lags kept within each experiment.
+    let residuals = &sums.residuals;
     let whiteness = residuals
         .iter()
         .map(|segments| {

@@ -16,6 +16,7 @@ pub mod scaling;
 pub mod solver;
 pub mod weighting;
 
+pub(crate) use problem::dot;
 pub use problem::{Loss, PemProblem, ProblemOptions};
 pub use result::{
     DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing, Warning,

@@ -18,8 +18,10 @@
 //! [`Sensitivities`], offered through [`GreyBoxModel::sensitivities`]: a model either
 //! implements them or gets finite differences, never a silent zero Jacobian.
 
+pub mod block;
 pub mod params;
 
+pub use block::{BLOCK_LEN, Block, BlockContext, BlockKernel, SimState};
 pub use params::{DerivedEstimate, Parameter};
 
 use crate::data::Experiment;
@@ -229,6 +231,14 @@ pub trait GreyBoxModel: Sync {
     /// The analytic forward sensitivities, when the model has them; `None` (the default)
     /// makes the estimator use finite differences.
     fn sensitivities(&self) -> Option<&dyn Sensitivities<Self::Inputs, Self::Coefficients>> {
+        None
+    }
+
+    /// The whole-block kernel, when the model has one: the same numbers as
+    /// [`step`](Self::step), [`output`](Self::output) and the analytic
+    /// [`sensitivities`](Self::sensitivities) a block of samples at a time. `None` (the
+    /// default) runs those per sample.
+    fn block_kernel(&self) -> Option<&dyn BlockKernel<Self::Inputs, Self::Coefficients>> {
         None
     }
 

@@ -32,7 +32,9 @@ const KIND: MotorKind = MotorKind::Spm;
 use super::signals::DqView;
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::model::{GreyBoxModel, Parameter, Sensitivities};
+use crate::model::{BlockKernel, GreyBoxModel, Parameter, Sensitivities};
+
+mod kernel;
 
 /// Per-interval data of the SPM step, independent of θ (index k = 0..N−2).
 #[derive(Clone, Debug)]
@@ -64,7 +66,6 @@ pub struct SpmCoefficients {
     r: f64,
     l: f64,
     k_e: f64,
-    h: f64,
     /// `e^{−R_s h/L_s}`.
     d: f64,
     /// `1 − e^{−R_s h/L_s}` without cancellation.
@@ -73,6 +74,10 @@ pub struct SpmCoefficients {
     g: f64,
     g_r: f64,
     g_l: f64,
+    /// `∂a/∂R_s / a = −h/L_s`.
+    a_r: f64,
+    /// `∂a/∂L_s / a = R_s h/L_s²`.
+    a_l: f64,
 }
 
 /// Surface-magnet PMSM model with exact sampled-data step and analytic sensitivities.
@@ -169,28 +174,26 @@ impl GreyBoxModel for PmsmSpm {
             r,
             l,
             k_e,
-            h,
             d,
             one_minus_d,
             g,
             g_r: ((h / l) * d - g) / r,
             g_l: -(h / l) * (d / l),
+            a_r: -h / l,
+            a_l: r * h / l / l,
         })
     }
 
     #[inline]
     fn step(&self, c: &SpmCoefficients, inp: &SpmInputs, k: usize, x: &[f64], x_next: &mut [f64]) {
-        let (a, b) = self.ab(c, inp, k);
-        let i = C64::new(x[0], x[1]);
-        let je = C64::new(0.0, c.k_e * inp.emf[k]);
-        let u = self.voltage(c, inp, k);
-        let forced = match self.setup.hold {
-            VoltageHold::Dq => b * (u - je),
-            VoltageHold::Stator => u * c.g - b * je,
-        };
-        let n = a * i + forced;
+        let t = kernel::terms::<false>(c, inp, self.setup.hold, k);
+        let n = t.a * C64::new(x[0], x[1]) + t.forced;
         x_next[0] = n.re;
         x_next[1] = n.im;
+    }
+
+    fn block_kernel(&self) -> Option<&dyn BlockKernel<SpmInputs, SpmCoefficients>> {
+        Some(self)
     }
 
     fn sensitivities(&self) -> Option<&dyn Sensitivities<SpmInputs, SpmCoefficients>> {
@@ -208,8 +211,7 @@ impl GreyBoxModel for PmsmSpm {
         out: &mut [f64],
     ) {
         // The step is affine in i: ∂i[k+1]/∂i[k] · v = a v.
-        let (a, _) = self.ab(c, inp, k);
-        let r = a * C64::new(v[0], v[1]);
+        let r = kernel::terms::<false>(c, inp, self.setup.hold, k).a * C64::new(v[0], v[1]);
         out[0] = r.re;
         out[1] = r.im;
     }
@@ -240,24 +242,9 @@ impl Sensitivities<SpmInputs, SpmCoefficients> for PmsmSpm {
         x_next: &mut [f64],
         s_next: &mut [f64],
     ) {
-        let (a, b) = self.ab(c, inp, k);
-        let w = inp.w_e[k];
-        let z = C64::new(c.r, w * c.l);
-        let hl = c.h / c.l;
-        let a_r = a * (-hl);
-        let a_l = a * (c.r * hl / c.l);
-        let b_r = (a * hl - b) / z;
-        let b_l = (a * (-c.r * hl / c.l) - b * C64::new(0.0, w)) / z;
-        let i = C64::new(x[0], x[1]);
-        let emf = inp.emf[k];
-        let je = C64::new(0.0, c.k_e * emf);
-        let u = self.voltage(c, inp, k);
-        let (forced, f_r, f_l) = match self.setup.hold {
-            VoltageHold::Dq => (b * (u - je), b_r * (u - je), b_l * (u - je)),
-            VoltageHold::Stator => (u * c.g - b * je, u * c.g_r - b_r * je, u * c.g_l - b_l * je),
-        };
-        let f_k = -b * C64::new(0.0, emf);
-        let n = a * i + forced;
+        let t = kernel::terms::<true>(c, inp, self.setup.hold, k);
+        let ai = t.a * C64::new(x[0], x[1]);
+        let n = ai + t.forced;
         x_next[0] = n.re;
         x_next[1] = n.im;
         // Row-major 2 × n_θ: s[j] = ∂i_d/∂θ_j, s[n_θ + j] = ∂i_q/∂θ_j.
@@ -267,16 +254,11 @@ impl Sensitivities<SpmInputs, SpmCoefficients> for PmsmSpm {
             s_next[j] = v.re;
             s_next[m + j] = v.im;
         };
-        put(0, a * col(0) + a_r * i + f_r);
-        put(1, a * col(1) + a_l * i + f_l);
-        put(2, a * col(2) + f_k);
+        put(0, t.a * col(0) + ai * c.a_r + t.f_r);
+        put(1, t.a * col(1) + ai * c.a_l + t.f_l);
+        put(2, t.a * col(2) + t.f_k);
         if m == 4 {
-            // ∂/∂v_dt: the error direction through the voltage term of the step.
-            let f_v = match self.setup.hold {
-                VoltageHold::Dq => b * inp.dt[k],
-                VoltageHold::Stator => inp.dt[k] * c.g,
-            };
-            put(3, a * col(3) + f_v);
+            put(3, t.a * col(3) + t.f_v);
         }
     }
 
@@ -292,25 +274,5 @@ impl Sensitivities<SpmInputs, SpmCoefficients> for PmsmSpm {
     ) {
         let n = dy.len();
         dy.copy_from_slice(&s[..n]);
-    }
-}
-
-impl PmsmSpm {
-    /// The voltage term of interval k with the inverter's error: `u[k] + v_dt dt[k]`.
-    #[inline(always)]
-    fn voltage(&self, c: &SpmCoefficients, inp: &SpmInputs, k: usize) -> C64 {
-        if c.nth == 4 { inp.u[k] + inp.dt[k] * c.v_dt } else { inp.u[k] }
-    }
-
-    /// `a = e^{−z h/L}` and `b = (1 − a)/z` for interval k.
-    #[inline(always)]
-    fn ab(&self, c: &SpmCoefficients, inp: &SpmInputs, k: usize) -> (C64, C64) {
-        let w = inp.w_e[k];
-        let a = inp.rot[k] * c.d;
-        let z = C64::new(c.r, w * c.l);
-        // 1 − a = (1 − d) cos φ + (1 − cos φ) + j d sin φ, free of cancellation.
-        let rot = inp.rot[k];
-        let one_minus_a = C64::new(c.one_minus_d * rot.re + inp.vers[k], -c.d * rot.im);
-        (a, one_minus_a / z)
     }
 }

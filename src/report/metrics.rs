@@ -132,14 +132,14 @@ pub fn whiteness(segments: &[&[f64]], max_lag: usize) -> Whiteness {
     let n: usize = segments.iter().map(|s| s.len()).sum();
     let mean = segments.iter().flat_map(|s| s.iter()).sum::<f64>() / n.max(1) as f64;
     let c: Vec<Vec<f64>> = segments.iter().map(|s| s.iter().map(|v| v - mean).collect()).collect();
-    let r0: f64 = c.iter().flatten().map(|v| v * v).sum();
+    let r0: f64 = c.iter().map(|s| crate::estimate::dot(s, s)).sum();
     let lags = max_lag.min(segments.iter().map(|s| s.len()).max().unwrap_or(0).saturating_sub(1));
     let autocorrelation: Vec<f64> = (1..=lags)
         .map(|tau| {
             let r: f64 = c
                 .iter()
                 .filter(|s| s.len() > tau)
-                .map(|s| s.iter().zip(&s[tau..]).map(|(a, b)| a * b).sum::<f64>())
+                .map(|s| crate::estimate::dot(&s[..s.len() - tau], &s[tau..]))
                 .sum();
             if r0 > 0.0 { r / r0 } else { 0.0 }
         })

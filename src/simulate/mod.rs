@@ -11,6 +11,11 @@
 //! Source: forward sensitivity analysis of a discrete recursion, e.g. Ljung, *System
 //! Identification* (2nd ed.), section 10.3; thesis section 5.3 (Tenerz 2011).
 
+mod blocks;
+mod fd;
+
+pub use blocks::simulate_blocks;
+
 use crate::error::{Error, Result};
 use crate::model::{GreyBoxModel, Prepared, describe};
 
@@ -101,97 +106,24 @@ where
     M: GreyBoxModel,
     F: FnMut(usize, &[f64], &[f64], &[f64]),
 {
-    let x0 = options.x0.unwrap_or(&prep.x0);
-    check_shooting(model, options.horizon)?;
-    check_inputs(model, prep, theta, x0)?;
-    let default_scale: Vec<f64>;
-    let fd_scale = match options.fd_scale {
-        Some(s) => s,
-        None => {
-            default_scale = theta.iter().map(|t| if *t != 0.0 { t.abs() } else { 1.0 }).collect();
-            &default_scale
-        }
-    };
-    if fd_scale.len() != theta.len() {
-        return Err(Error::InvalidOption {
-            option: "fd_scale".into(),
-            reason: format!("{} scales for {} parameters", fd_scale.len(), theta.len()),
-        });
-    }
-    let (nx, ny, nth) = (model.n_states(), model.n_outputs(), theta.len());
-    let c = model.coefficients(theta, &prep.inputs)?;
-    let analytic = model.sensitivities();
-    let mut x = x0.to_vec();
-    let mut xn = vec![0.0; nx];
-    let mut s = vec![0.0; nx * nth];
-    let mut sn = vec![0.0; nx * nth];
-    let mut y = vec![0.0; ny];
-    let mut dy = vec![0.0; ny * nth];
-    // ∂x/∂x₀ kept column by column (column m = direction e_m at k = 0).
-    let n0 = if options.x0_sensitivity { nx } else { 0 };
-    let mut s0: Vec<Vec<f64>> =
-        (0..n0).map(|m| (0..nx).map(|i| f64::from(u8::from(i == m))).collect()).collect();
-    let mut s0n = vec![0.0; nx];
-    let mut col = vec![0.0; ny];
-    let mut dy0 = vec![0.0; ny * n0];
-    let mut live0 = options.x0_sensitivity;
-    for k in 0..prep.n {
-        model.output(&c, &prep.inputs, k, &x, &mut y);
-        match analytic {
-            Some(a) => a.output_sensitivity(&c, &prep.inputs, k, &x, &s, &mut dy),
-            None => fd_sensitivity(model, prep, theta, fd_scale, &x, &s, &mut dy, ny, |c, xv, o| {
-                model.output(c, &prep.inputs, k, xv, o)
-            })?,
-        }
-        if !y.iter().chain(dy.iter()).all(|v| v.is_finite()) {
-            return Err(diverged(model, prep, theta, k));
-        }
-        for (m, v) in s0.iter().enumerate() {
-            if live0 {
-                model.output_state_derivative(&c, &prep.inputs, k, &x, v, &mut col);
-            } else {
-                col.fill(0.0);
-            }
+    let (ny, nth) = (model.n_outputs(), theta.len());
+    let n0 = if options.x0_sensitivity { model.n_states() } else { 0 };
+    let (mut y, mut dy, mut dy0) = (vec![0.0; ny], vec![0.0; ny * nth], vec![0.0; ny * n0]);
+    simulate_blocks(model, prep, theta, options, true, |b| {
+        for t in 0..b.len {
             for i in 0..ny {
-                dy0[i * n0 + m] = col[i];
-            }
-        }
-        visit(k, &y, &dy, &dy0);
-        if options.restarts_at(k) {
-            x.copy_from_slice(prep.y_at(k, ny));
-            s.fill(0.0);
-            live0 = false;
-        }
-        if k + 1 < prep.n && nx > 0 {
-            if live0 {
-                for v in s0.iter_mut() {
-                    model.step_state_derivative(&c, &prep.inputs, k, &x, v, &mut s0n);
-                    v.copy_from_slice(&s0n);
+                y[i] = b.y(i)[t];
+                for j in 0..nth {
+                    dy[i * nth + j] = b.dy(i, j)[t];
                 }
-                // A stable model forgets its initial state: once ∂x/∂x₀ has decayed below
-                // 1e-150 it is exactly zero for every later sum, and carrying it on into
-                // subnormal numbers would only slow the pass down many times.
-                if s0.iter().flatten().all(|v| v.abs() < 1e-150) {
-                    live0 = false;
+                for m in 0..n0 {
+                    dy0[i * n0 + m] = b.dy0(i, m)[t];
                 }
             }
-            match analytic {
-                Some(a) => a.step_sensitivity(&c, &prep.inputs, k, &x, &s, &mut xn, &mut sn),
-                None => {
-                    model.step(&c, &prep.inputs, k, &x, &mut xn);
-                    fd_sensitivity(model, prep, theta, fd_scale, &x, &s, &mut sn, nx, |c, xv, o| {
-                        model.step(c, &prep.inputs, k, xv, o)
-                    })?;
-                }
-            }
-            if !xn.iter().chain(sn.iter()).all(|v| v.is_finite()) {
-                return Err(diverged(model, prep, theta, k + 1));
-            }
-            std::mem::swap(&mut x, &mut xn);
-            std::mem::swap(&mut s, &mut sn);
+            visit(b.k0 + t, &y, &dy, &dy0);
         }
-    }
-    Ok(())
+        Ok(())
+    })
 }
 
 /// Checks the shapes a model and its prepared data must agree on, so that a wrong θ or a
@@ -238,7 +170,7 @@ pub(crate) fn check_inputs<M: GreyBoxModel>(
     Ok(())
 }
 
-fn check_shooting<M: GreyBoxModel>(model: &M, horizon: Option<usize>) -> Result<()> {
+pub(crate) fn check_shooting<M: GreyBoxModel>(model: &M, horizon: Option<usize>) -> Result<()> {
     match horizon {
         Some(0) => {
             Err(Error::InvalidOption { option: "horizon".into(), reason: "must be at least 1".into() })
@@ -266,79 +198,5 @@ pub(crate) fn diverged<M: GreyBoxModel>(
         experiment: prep.name.clone(),
         sample: k,
         parameters: describe(model.parameters(), theta),
-    }
-}
-
-/// Central-difference Jacobian of `g(x, θ)` with respect to `(x, θ/scale)`, rows = len(g).
-fn fd_jacobian<G>(nx: usize, x: &[f64], theta: &[f64], scale: &[f64], g: G) -> Result<Vec<Vec<f64>>>
-where
-    G: Fn(&[f64], &[f64]) -> Result<Vec<f64>>,
-{
-    let nth = theta.len();
-    // finitediff steps every variable by an absolute ∛ε: scale the states by their own size
-    // (1 + |x_i|, as the directional differences) as θ is scaled by `scale`, so that a state
-    // of 400 K or of 1e-6 A is differenced at the same relative precision.
-    let x_scale: Vec<f64> = x.iter().map(|v| 1.0 + v.abs()).collect();
-    let v0: Vec<f64> = x
-        .iter()
-        .zip(&x_scale)
-        .map(|(v, s)| v / s)
-        .chain(theta.iter().zip(scale).map(|(t, s)| t / s))
-        .collect();
-    let f = |v: &Vec<f64>| -> std::result::Result<Vec<f64>, argmin::core::Error> {
-        let xs: Vec<f64> = (0..nx).map(|i| v[i] * x_scale[i]).collect();
-        let th: Vec<f64> = (0..nth).map(|j| v[nx + j] * scale[j]).collect();
-        Ok(g(&xs, &th)?)
-    };
-    let mut jac = finitediff::vec::central_jacobian(&f)(&v0).map_err(Error::from_argmin)?;
-    for row in jac.iter_mut() {
-        for (d, s) in row.iter_mut().zip(&x_scale) {
-            *d /= s;
-        }
-    }
-    Ok(jac)
-}
-
-/// Sensitivity of `g(x, θ)` from finite differences, chained with the state sensitivity:
-/// `out = G_x s + G_θ` (row-major `n_out × n_θ`). `g` is the step (`n_out = n_x`) or the
-/// output map (`n_out = n_y`), evaluated by `eval(coefficients, x, out)`.
-#[allow(clippy::too_many_arguments)]
-fn fd_sensitivity<M, G>(
-    model: &M,
-    prep: &Prepared<M::Inputs>,
-    theta: &[f64],
-    scale: &[f64],
-    x: &[f64],
-    s: &[f64],
-    out: &mut [f64],
-    n_out: usize,
-    eval: G,
-) -> Result<()>
-where
-    M: GreyBoxModel,
-    G: Fn(&M::Coefficients, &[f64], &mut [f64]),
-{
-    let nx = model.n_states();
-    let jac = fd_jacobian(nx, x, theta, scale, |xv, th| {
-        let c = model.coefficients(th, &prep.inputs)?;
-        let mut o = vec![0.0; n_out];
-        eval(&c, xv, &mut o);
-        Ok(o)
-    })?;
-    chain(&jac, nx, s, scale, out);
-    Ok(())
-}
-
-/// `out[i, j] = Σ_m jac[i][m] s[m, j] + jac[i][nx + j] / scale[j]`.
-fn chain(jac: &[Vec<f64>], nx: usize, s: &[f64], scale: &[f64], out: &mut [f64]) {
-    let nth = scale.len();
-    for (i, row) in jac.iter().enumerate() {
-        for j in 0..nth {
-            let mut v = row[nx + j] / scale[j];
-            for m in 0..nx {
-                v += row[m] * s[m * nth + j];
-            }
-            out[i * nth + j] = v;
-        }
     }
 }

@@ -1,6 +1,8 @@
 //! Running sums at the estimate from which the statistics of a fit follow.
 
 use super::Loss;
+use super::gram::scatter_gram;
+use super::pass::LocalMap;
 use nalgebra::DMatrix;
 
 /// Sums at the estimate from which the statistics of a fit follow.
@@ -25,6 +27,9 @@ pub struct Sums {
     /// time-reversed filter applied to the weighted filtered Jacobian) and σ̂ from the raw
     /// residuals: exact for white raw residuals.
     pub meat: DMatrix<f64>,
+    /// The raw output errors `y − ŷ` of the counted samples, per output and experiment
+    /// (`residuals[i][e]`): for the whiteness test without another simulation.
+    pub residuals: Vec<Vec<Vec<f64>>>,
 }
 
 /// Running sums of [`PemProblem::sums`].
@@ -48,6 +53,7 @@ pub(crate) struct Accumulator {
     bread: DMatrix<f64>,
     // Per output: Σ w² J_iᵀJ_i (quadratic), Σ w² ψ² J_iᵀJ_i (Huber) or gᵀg (prefilter).
     meat_i: Vec<DMatrix<f64>>,
+    residuals: Vec<Vec<Vec<f64>>>,
 }
 
 impl Accumulator {
@@ -71,6 +77,7 @@ impl Accumulator {
             jtj: z.clone(),
             bread: z.clone(),
             meat_i: vec![z; ny],
+            residuals: vec![Vec::new(); ny],
         }
     }
 
@@ -83,29 +90,20 @@ impl Accumulator {
 
     /// One sample: `eps` the residual the criterion sees (filtered or not), `raw` the
     /// output error itself, `jac` the criterion's Jacobian (row-major n_y × n_free).
-    pub(crate) fn sample(
-        &mut self,
-        loss: &Loss,
-        y: &[f64],
-        eps: &[f64],
-        raw: &[f64],
-        w: &[f64],
-        jac: &[f64],
-    ) {
+    pub(crate) fn sample(&mut self, loss: &Loss, eps: &[f64], raw: &[f64], w: &[f64], jac: &[f64]) {
         let np = self.np;
         self.n_e += 1;
         for i in 0..self.ny {
             let (rho, _, _, dpsi) = loss.eval(i, eps[i]);
-            self.cost += w[i] * rho;
-            self.e2w += w[i] * eps[i] * eps[i];
-            self.sse[i] += raw[i] * raw[i];
-            if w[i] > 0.0 {
-                self.sse_live[i] += raw[i] * raw[i];
-                self.n_live[i] += 1;
-            }
-            let d = y[i] - self.y0[i];
-            self.ey[i] += d;
-            self.ey2[i] += d * d;
+            let live = w[i] > 0.0;
+            self.add_output_sums(
+                i,
+                w[i] * rho,
+                w[i] * eps[i] * eps[i],
+                raw[i] * raw[i],
+                if live { raw[i] * raw[i] } else { 0.0 },
+                usize::from(live),
+            );
             let row = &jac[i * np..(i + 1) * np];
             for a in 0..np {
                 for b in a..np {
@@ -114,6 +112,63 @@ impl Accumulator {
                     self.bread[(a, b)] += w[i] * dpsi * jj;
                 }
             }
+        }
+    }
+
+    /// Counts `n` more samples of the current experiment.
+    pub(crate) fn add_samples(&mut self, n: usize) {
+        self.n_e += n;
+    }
+
+    /// Adds output i's sums over some samples: cost, `Σ w ε²`, `Σ raw²`, and `Σ raw²` and
+    /// the count over the samples with non-zero weight.
+    pub(crate) fn add_output_sums(
+        &mut self,
+        i: usize,
+        cost: f64,
+        e2w: f64,
+        sse: f64,
+        sse_live: f64,
+        n_live: usize,
+    ) {
+        self.cost += cost;
+        self.e2w += e2w;
+        self.sse[i] += sse;
+        self.sse_live[i] += sse_live;
+        self.n_live[i] += n_live;
+    }
+
+    /// Adds the output moments of the current experiment (its measured outputs `y`,
+    /// row-major N × n_y, from sample `first` on) about its first measurement.
+    pub(crate) fn add_moments(&mut self, y: &[f64], first: usize) {
+        let ny = self.ny;
+        for (i, (ey, ey2)) in self.ey.iter_mut().zip(self.ey2.iter_mut()).enumerate() {
+            let y0 = self.y0[i];
+            let (mut s, mut s2) = ([0.0f64; 4], [0.0f64; 4]);
+            for (n, row) in y.chunks_exact(ny).skip(first).enumerate() {
+                let d = row[i] - y0;
+                s[n % 4] += d;
+                s2[n % 4] += d * d;
+            }
+            *ey += (s[0] + s[1]) + (s[2] + s[3]);
+            *ey2 += (s2[0] + s2[1]) + (s2[2] + s2[3]);
+        }
+    }
+
+    /// Keeps the raw output errors of the current experiment, one vector per output.
+    pub(crate) fn add_residuals(&mut self, residuals: Vec<Vec<f64>>) {
+        for (all, r) in self.residuals.iter_mut().zip(residuals) {
+            all.push(r);
+        }
+    }
+
+    /// Adds an experiment's Gram matrices in its local columns (row-major m × m, upper
+    /// triangle; `meat` one per output), chained to the optimiser's coordinates by `map`.
+    pub(crate) fn add_local(&mut self, map: &LocalMap, jtj: &[f64], bread: &[f64], meat: &[Vec<f64>]) {
+        scatter_gram(map, jtj, &mut self.jtj);
+        scatter_gram(map, bread, &mut self.bread);
+        for (mi, local) in self.meat_i.iter_mut().zip(meat) {
+            scatter_gram(map, local, mi);
         }
     }
 
@@ -164,6 +219,7 @@ impl Accumulator {
             jtj: self.jtj,
             bread: self.bread,
             meat,
+            residuals: self.residuals,
         }
     }
 }

@@ -10,6 +10,7 @@
 //! beyond δ is `δ/|ε|` (iteratively reweighted least squares).
 
 mod accumulate;
+mod gram;
 mod loss;
 mod map;
 mod pass;
@@ -18,8 +19,8 @@ mod sums;
 use crate::estimate::solver::LeastSquares;
 pub use crate::estimate::solver::NormalEquations;
 pub use accumulate::Sums;
+pub(crate) use gram::dot;
 pub use loss::Loss;
-pub(crate) use pass::Pass;
 
 use crate::error::{Error, Result};
 use crate::estimate::filter::Butterworth;

@@ -2,15 +2,32 @@
 //! scale, and the full residual and Jacobian matrices for diagnostics.
 
 use super::accumulate::{Accumulator, Sums};
+use super::gram::{dot, gram, scatter_gram, weighted_square_sum};
 use super::pass::{Pass, RawSample, ResidualFilter};
 use super::{Loss, NormalEquations, PemProblem};
 use crate::error::Result;
+use crate::model::BLOCK_LEN;
 use crate::model::GreyBoxModel;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
-/// One experiment's share of the cost and normal equations (cost, `JᵀWJ` row-major, `JᵀWψ`).
-type Partial = (f64, Vec<f64>, Vec<f64>);
+/// An experiment's Gram matrices in its local columns (row-major m × m, upper triangle):
+/// `JᵀWJ`, the bread, and each output's meat.
+struct LocalGrams {
+    jtj: Vec<f64>,
+    bread: Vec<f64>,
+    meat: Vec<Vec<f64>>,
+}
+
+impl LocalGrams {
+    fn new(ny: usize, m: usize) -> Self {
+        Self { jtj: vec![0.0; m * m], bread: vec![0.0; m * m], meat: vec![vec![0.0; m * m]; ny] }
+    }
+}
+
+/// One experiment's share of the cost and normal equations: cost, `JᵀWJ` (upper
+/// triangle, n_free × n_free) and `JᵀWψ`.
+type Partial = (f64, DMatrix<f64>, DVector<f64>);
 
 impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// Cost `V(p)` and normal equations `JᵀWJ`, `JᵀWψ` in one pass per experiment
@@ -20,42 +37,78 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// Those of the simulation: invalid θ, [`Error::SimulationDiverged`].
     pub fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations> {
         let np = self.free.len();
-        let parts: Vec<Result<Partial>> = (0..self.terms.len())
-            .into_par_iter()
-            .map(|e| {
-                let mut cost = 0.0;
-                let mut jtj = vec![0.0; np * np];
-                let mut jtr = vec![0.0; np];
-                self.pass(e, p, Pass::CRITERION, |_, eps, w, jac| {
-                    for (i, (&ei, &wi)) in eps.iter().zip(w).enumerate() {
-                        let (rho, psi, irls, _) = self.loss.eval(i, ei);
-                        cost += wi * rho;
-                        let row = &jac[i * np..(i + 1) * np];
-                        for a in 0..np {
-                            jtr[a] += wi * row[a] * psi;
-                            let wa = wi * irls * row[a];
-                            for b in a..np {
-                                jtj[a * np + b] += wa * row[b];
-                            }
-                        }
-                    }
-                })?;
-                Ok((cost, jtj, jtr))
-            })
-            .collect();
+        let parts: Vec<Result<Partial>> =
+            (0..self.terms.len()).into_par_iter().map(|e| self.experiment_normal_equations(e, p)).collect();
         let mut out = NormalEquations { cost: 0.0, jtj: DMatrix::zeros(np, np), jtr: DVector::zeros(np) };
         for part in parts {
             let (c, jtj, jtr) = part?;
             out.cost += c;
-            for a in 0..np {
-                out.jtr[a] += jtr[a];
-                for b in a..np {
-                    out.jtj[(a, b)] += jtj[a * np + b];
-                }
-            }
+            out.jtj += jtj;
+            out.jtr += jtr;
         }
         out.jtj.fill_lower_triangle_with_upper_triangle();
         Ok(out)
+    }
+
+    /// Experiment e's share of [`normal_equations`](Self::normal_equations): per output
+    /// i the weighted Gram of its local columns and its residual,
+    /// `G_i = Σ_k w_k [J_k ε_k]ᵀ[J_k ε_k]` with `w = β Λ_i ψ(ε)/ε` (IRLS weights; `ψ(ε) =
+    /// ε` for the quadratic loss), holds `JᵀWJ` in its first m columns and `JᵀWψ` in its
+    /// last (and, for the quadratic loss, twice the cost in its corner).
+    fn experiment_normal_equations(&self, e: usize, p: &DVector<f64>) -> Result<Partial> {
+        let (ny, np) = (self.model.n_outputs(), self.free.len());
+        let quadratic = matches!(self.loss, Loss::Quadratic);
+        let unweighted = quadratic && self.terms[e].weights.is_none();
+        let mut huber_cost = 0.0;
+        let mut g: Vec<Vec<f64>> = Vec::new();
+        let mut wq = vec![0.0; BLOCK_LEN];
+        let map = self.pass_blocks(e, p, Pass::CRITERION, |ch| {
+            let m1 = ch.m + 1;
+            if g.is_empty() {
+                g = vec![vec![0.0; m1 * m1]; ny];
+            }
+            let n = ch.len - ch.lo;
+            for (i, gi) in g.iter_mut().enumerate() {
+                let lambda = self.output_weights[i];
+                let cols: Vec<&[f64]> = (0..ch.m).map(|c| ch.col(i, c)).chain([ch.eps(i)]).collect();
+                if unweighted {
+                    gram(&cols, None, gi);
+                    continue;
+                }
+                for (t, (&ek, &bk)) in ch.eps(i).iter().zip(ch.beta()).enumerate() {
+                    let w = bk * lambda;
+                    if quadratic {
+                        wq[t] = w;
+                    } else {
+                        let (rho, _, irls, _) = self.loss.eval(i, ek);
+                        huber_cost += w * rho;
+                        wq[t] = w * irls;
+                    }
+                }
+                gram(&cols, Some(&wq[..n]), gi);
+            }
+        })?;
+        let mut jtj = DMatrix::zeros(np, np);
+        let mut jtr = DVector::zeros(np);
+        let mut cost = huber_cost;
+        let m = map.len();
+        for (i, gi) in g.iter().enumerate() {
+            // Unit weights were summed without Λ_i: it scales the whole Gram.
+            let scale = if unweighted { self.output_weights[i] } else { 1.0 };
+            let m1 = m + 1;
+            if quadratic {
+                cost += 0.5 * scale * gi[m * m1 + m];
+            }
+            let local: Vec<f64> = (0..m)
+                .flat_map(|a| (0..m).map(move |b| (a, b)))
+                .map(|(a, b)| scale * gi[a * m1 + b])
+                .collect();
+            scatter_gram(&map, &local, &mut jtj);
+            for a in 0..m {
+                jtr[map.global[a]] += map.dtheta[a] * scale * gi[a * m1 + m];
+            }
+        }
+        Ok((cost, jtj, jtr))
     }
 
     /// Cost `V(p)` only (simulation without sensitivities).
@@ -63,13 +116,22 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// # Errors
     /// As [`normal_equations`](Self::normal_equations).
     pub fn cost(&self, p: &DVector<f64>) -> Result<f64> {
+        let ny = self.model.n_outputs();
         let parts: Vec<Result<f64>> = (0..self.terms.len())
             .into_par_iter()
             .map(|e| {
                 let mut cost = 0.0;
-                self.pass(e, p, Pass::COST, |_, eps, w, _| {
-                    for (i, (&ei, &wi)) in eps.iter().zip(w).enumerate() {
-                        cost += wi * self.loss.eval(i, ei).0;
+                let quadratic = matches!(self.loss, Loss::Quadratic);
+                self.pass_blocks(e, p, Pass::COST, |ch| {
+                    for i in 0..ny {
+                        let lambda = self.output_weights[i];
+                        if quadratic {
+                            cost += 0.5 * lambda * weighted_square_sum(ch.eps(i), ch.beta());
+                            continue;
+                        }
+                        for (&ek, &bk) in ch.eps(i).iter().zip(ch.beta()) {
+                            cost += bk * lambda * self.loss.eval(i, ek).0;
+                        }
                     }
                 })?;
                 Ok(cost)
@@ -112,18 +174,9 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             let term = &self.terms[e];
             // Shift by the first measurement to keep Σy² − (Σy)²/n free of cancellation.
             acc.start_experiment(term.prep.y_at(0, ny));
+            acc.add_moments(&term.prep.y, self.first_sample(e));
             match self.prefilters.get(e) {
-                None => self.pass(e, p, Pass::CRITERION, |k, eps, w, jac| {
-                    acc.sample(&self.loss, term.prep.y_at(k, ny), eps, eps, w, jac);
-                    for i in 0..ny {
-                        let psi = self.loss.eval(i, eps[i]).1;
-                        let m = match self.loss {
-                            Loss::Quadratic => w[i] * w[i],
-                            Loss::Huber { .. } => w[i] * w[i] * psi * psi,
-                        };
-                        acc.add_meat(i, m, &jac[i * np..(i + 1) * np]);
-                    }
-                })?,
+                None => self.block_sums(e, p, &mut acc)?,
                 Some(l) => {
                     // The criterion sees L(q)ε; under white raw residuals e the score is
                     // J_fᵀ W L e, whose covariance is σ² gᵀg with g = Lᵀ (W J_f): the
@@ -132,15 +185,16 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                     self.pass(e, p, Pass::RAW, |k, eps, w, jac| {
                         raw.push((k, eps.to_vec(), w.to_vec(), jac.to_vec()))
                     })?;
+                    acc.add_residuals((0..ny).map(|i| raw.iter().map(|r| r.1[i]).collect()).collect());
                     let sections = l.sections().len();
                     let mut filter = ResidualFilter::new(l, ny, np);
                     let mut weighted = vec![vec![0.0; raw.len()]; ny * np];
-                    for (n, (k, eps, w, jac)) in raw.iter_mut().enumerate() {
+                    for (n, (_, eps, w, jac)) in raw.iter_mut().enumerate() {
                         let mut eps_f = eps.clone();
                         for i in 0..ny {
                             filter.apply(i, &mut eps_f[i], &mut jac[i * np..(i + 1) * np]);
                         }
-                        acc.sample(&self.loss, term.prep.y_at(*k, ny), &eps_f, eps, w, jac);
+                        acc.sample(&self.loss, &eps_f, eps, w, jac);
                         for i in 0..ny {
                             let dpsi = self.loss.eval(i, eps_f[i]).3;
                             for a in 0..np {
@@ -171,6 +225,68 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             acc.end_experiment();
         }
         Ok(acc.finish(&self.loss, !self.prefilters.is_empty()))
+    }
+
+    /// Experiment e's statistics sums without a prefilter, a block at a time: the
+    /// residual sums and the Gram matrices (`JᵀWJ`, the bread, each output's meat) in the
+    /// experiment's local columns, mapped once at the end; the raw residuals are kept
+    /// for the whiteness test.
+    fn block_sums(&self, e: usize, p: &DVector<f64>, acc: &mut Accumulator) -> Result<()> {
+        let ny = self.model.n_outputs();
+        let huber = matches!(self.loss, Loss::Huber { .. });
+        let weighted = self.terms[e].weights.is_some();
+        let mut local: Option<LocalGrams> = None;
+        let (mut w, mut wb, mut wm) = (vec![0.0; BLOCK_LEN], vec![0.0; BLOCK_LEN], vec![0.0; BLOCK_LEN]);
+        let mut residuals: Vec<Vec<f64>> = vec![Vec::with_capacity(self.terms[e].prep.n); ny];
+        let map = self.pass_blocks(e, p, Pass::CRITERION, |ch| {
+            let g = local.get_or_insert_with(|| LocalGrams::new(ny, ch.m));
+            let n = ch.len - ch.lo;
+            acc.add_samples(n);
+            for (i, res) in residuals.iter_mut().enumerate() {
+                let lambda = self.output_weights[i];
+                let eps = ch.eps(i);
+                res.extend_from_slice(eps);
+                let mut cost = 0.0;
+                for (t, (&ek, &bk)) in eps.iter().zip(ch.beta()).enumerate() {
+                    let (rho, psi, _, dpsi) = self.loss.eval(i, ek);
+                    let wi = bk * lambda;
+                    if huber {
+                        cost += wi * rho;
+                    }
+                    w[t] = wi;
+                    wb[t] = wi * dpsi;
+                    wm[t] = if huber { wi * wi * psi * psi } else { wi * wi };
+                }
+                let sse = dot(eps, eps);
+                let e2w = weighted_square_sum(eps, &w[..n]);
+                if !huber {
+                    cost = 0.5 * e2w;
+                }
+                let (sse_live, n_live) = if weighted {
+                    eps.iter()
+                        .zip(&w[..n])
+                        .filter(|(_, w)| **w > 0.0)
+                        .fold((0.0, 0), |(s, c), (e, _)| (s + e * e, c + 1))
+                } else {
+                    (sse, n)
+                };
+                acc.add_output_sums(i, cost, e2w, sse, sse_live, n_live);
+                let cols: Vec<&[f64]> = (0..ch.m).map(|c| ch.col(i, c)).collect();
+                gram(&cols, Some(&w[..n]), &mut g.jtj);
+                if huber {
+                    gram(&cols, Some(&wb[..n]), &mut g.bread);
+                }
+                gram(&cols, Some(&wm[..n]), &mut g.meat[i]);
+            }
+        })?;
+        if let Some(mut g) = local {
+            if !huber {
+                g.bread.clone_from(&g.jtj);
+            }
+            acc.add_local(&map, &g.jtj, &g.bread, &g.meat);
+        }
+        acc.add_residuals(residuals);
+        Ok(())
     }
 
     /// Robust scale `1.4826 × MAD` of each output's residuals at p (length n_y), the

@@ -1,0 +1,205 @@
+//! Blocks of samples in structure-of-arrays form: what a simulation with sensitivities
+//! hands the estimator, [`BLOCK_LEN`] samples at a time, and the optional whole-block
+//! kernel a model may offer ([`BlockKernel`]) so that the per-sample work runs without a
+//! call per sample.
+//!
+//! Source: the forward sensitivity recursion (Ljung, *System Identification*, 2nd ed.,
+//! 10.3) run over a block instead of a sample; the layout is the one SIMD loops want
+//! (one contiguous array per channel).
+
+/// Samples in one block (the last block of a record may be shorter).
+pub const BLOCK_LEN: usize = 256;
+
+/// One block of a simulation: outputs and, on request, their sensitivities, each channel
+/// a contiguous array of [`BLOCK_LEN`] values of which the first [`len`](Self::len) are set.
+///
+/// Channels: `y` n_y (`ŷ_i`), `dy` n_y × n_θ (`∂ŷ_i/∂θ_j` at channel `i n_θ + j`), `dy0`
+/// n_y × n_x0 (`∂ŷ_i/∂x₀_m` at channel `i n_x0 + m`, n_x0 = n_x when the initial-state
+/// sensitivity is asked for, else 0).
+#[derive(Clone, Debug)]
+pub struct Block {
+    /// Index of the block's first sample in the record.
+    pub k0: usize,
+    /// Samples set in this block (≤ [`BLOCK_LEN`]).
+    pub len: usize,
+    /// Whether `dy` and `dy0` are computed.
+    pub sensitivities: bool,
+    n_y: usize,
+    n_theta: usize,
+    n_x0: usize,
+    y: Vec<f64>,
+    dy: Vec<f64>,
+    dy0: Vec<f64>,
+}
+
+impl Block {
+    /// An empty block for `n_y` outputs, `n_theta` parameters and `n_x0` initial-state
+    /// directions (sensitivity channels allocated only when `sensitivities`).
+    pub fn new(n_y: usize, n_theta: usize, n_x0: usize, sensitivities: bool) -> Self {
+        let (nt, n0) = if sensitivities { (n_theta, n_x0) } else { (0, 0) };
+        Self {
+            k0: 0,
+            len: 0,
+            sensitivities,
+            n_y,
+            n_theta: nt,
+            n_x0: n0,
+            y: vec![0.0; n_y * BLOCK_LEN],
+            dy: vec![0.0; n_y * nt * BLOCK_LEN],
+            dy0: vec![0.0; n_y * n0 * BLOCK_LEN],
+        }
+    }
+    /// Number of outputs n_y.
+    pub fn n_outputs(&self) -> usize {
+        self.n_y
+    }
+    /// Number of parameters with a sensitivity channel (n_θ, or 0 without sensitivities).
+    pub fn n_theta(&self) -> usize {
+        self.n_theta
+    }
+    /// Number of initial-state directions n_x0 (0 when not asked for).
+    pub fn n_x0(&self) -> usize {
+        self.n_x0
+    }
+    /// `ŷ_i` over the block, length [`len`](Self::len).
+    pub fn y(&self, i: usize) -> &[f64] {
+        &self.y[i * BLOCK_LEN..i * BLOCK_LEN + self.len]
+    }
+    /// `∂ŷ_i/∂θ_j` over the block, length [`len`](Self::len).
+    pub fn dy(&self, i: usize, j: usize) -> &[f64] {
+        let c = i * self.n_theta + j;
+        &self.dy[c * BLOCK_LEN..c * BLOCK_LEN + self.len]
+    }
+    /// `∂ŷ_i/∂x₀_m` over the block, length [`len`](Self::len).
+    pub fn dy0(&self, i: usize, m: usize) -> &[f64] {
+        let c = i * self.n_x0 + m;
+        &self.dy0[c * BLOCK_LEN..c * BLOCK_LEN + self.len]
+    }
+    /// All channels for writing: `(y, dy, dy0)`, each channel [`BLOCK_LEN`] long, channel
+    /// order as in the type's documentation.
+    pub fn channels_mut(&mut self) -> (&mut [f64], &mut [f64], &mut [f64]) {
+        (&mut self.y, &mut self.dy, &mut self.dy0)
+    }
+    /// Whether every set value is finite; otherwise the offset of the first sample in the
+    /// block with a non-finite value.
+    pub fn first_non_finite(&self) -> Option<usize> {
+        let channels =
+            self.y.chunks(BLOCK_LEN).chain(self.dy.chunks(BLOCK_LEN)).chain(self.dy0.chunks(BLOCK_LEN));
+        let mut first: Option<usize> = None;
+        for c in channels {
+            let c = &c[..self.len];
+            if !all_finite(c) {
+                let k = c.iter().position(|v| !v.is_finite());
+                first = match (first, k) {
+                    (Some(a), Some(b)) => Some(a.min(b)),
+                    (a, b) => a.or(b),
+                };
+            }
+        }
+        first
+    }
+}
+
+impl SimState {
+    /// Whether the state and its sensitivities are all finite.
+    pub fn is_finite(&self) -> bool {
+        all_finite(&self.x) && all_finite(&self.s) && all_finite(&self.s0)
+    }
+}
+
+/// Whether every value of `c` is finite: `v · 0` is NaN exactly for a non-finite v, summed
+/// in four independent lanes so that the loop vectorises.
+#[inline]
+fn all_finite(c: &[f64]) -> bool {
+    let mut acc = [0.0f64; 4];
+    let mut chunks = c.chunks_exact(4);
+    for q in &mut chunks {
+        for l in 0..4 {
+            acc[l] += q[l] * 0.0;
+        }
+    }
+    let tail: f64 = chunks.remainder().iter().map(|v| v * 0.0).sum();
+    !(acc[0] + acc[1] + acc[2] + acc[3] + tail).is_nan()
+}
+
+/// The state a blocked simulation carries from block to block.
+#[derive(Clone, Debug)]
+pub struct SimState {
+    /// Next sample to produce.
+    pub k: usize,
+    /// State `x_k`, length n_x.
+    pub x: Vec<f64>,
+    /// `∂x_k/∂θ`, row-major n_x × n_θ.
+    pub s: Vec<f64>,
+    /// `∂x_k/∂x₀`, row-major n_x × n_x (`s0[i n_x + m] = ∂x_i/∂x₀_m`).
+    pub s0: Vec<f64>,
+    /// Whether `∂x/∂x₀` is still non-zero (false once a restart or decay has cleared it).
+    pub live0: bool,
+    /// Working space a [`BlockKernel`] may keep from block to block (empty at the start).
+    pub scratch: Vec<f64>,
+}
+
+impl SimState {
+    /// The state at sample 0: `x₀`, zero parameter sensitivity, identity `∂x/∂x₀` (live
+    /// when `x0_sensitivity`).
+    pub fn new(x0: &[f64], n_theta: usize, x0_sensitivity: bool) -> Self {
+        let nx = x0.len();
+        let mut s0 = vec![0.0; nx * nx];
+        for i in 0..nx {
+            s0[i * nx + i] = 1.0;
+        }
+        Self {
+            k: 0,
+            x: x0.to_vec(),
+            s: vec![0.0; nx * n_theta],
+            s0,
+            live0: x0_sensitivity,
+            scratch: Vec::new(),
+        }
+    }
+}
+
+/// What a block run needs beyond the model's data: the record length, the restart period
+/// and the measured outputs a restart takes the state from.
+#[derive(Clone, Copy, Debug)]
+pub struct BlockContext<'a> {
+    /// Record length N.
+    pub n: usize,
+    /// Restart period (k-step-ahead prediction), `None` = simulation.
+    pub horizon: Option<usize>,
+    /// Measured outputs, row-major N × n_y.
+    pub measured: &'a [f64],
+}
+
+impl BlockContext<'_> {
+    /// Whether the state restarts from the measurement after the output at sample k.
+    #[inline(always)]
+    pub fn restarts_at(&self, k: usize) -> bool {
+        matches!(self.horizon, Some(h) if k.is_multiple_of(h))
+    }
+}
+
+/// A whole-block simulation kernel of a model with inputs `I` and coefficients `C`: the
+/// same numbers as the model's per-sample [`step`](super::GreyBoxModel::step) and
+/// [`Sensitivities`](super::Sensitivities), computed a block at a time.
+pub trait BlockKernel<I, C>: Sync {
+    /// Fills `block` for samples `state.k .. state.k + block.len` (`block.k0 = state.k`
+    /// and `block.len` are set by the caller): at each sample k the output `ŷ_k` and, when
+    /// `block.sensitivities`, `∂ŷ_k/∂θ` and (for `block.n_x0() > 0`) `∂ŷ_k/∂x₀` (zero once
+    /// `state.live0` is false); then, when `ctx.restarts_at(k)`, the state restarts from
+    /// the measured `y_k` with zero sensitivities and `live0` false; then, for
+    /// `k + 1 < ctx.n`, the state (and its sensitivities when asked for) advances to k + 1.
+    /// Leaves `state.k = block.k0 + block.len`. Non-finite values are left for the caller
+    /// to find.
+    fn run(&self, c: &C, inputs: &I, ctx: &BlockContext<'_>, state: &mut SimState, block: &mut Block);
+
+    /// Whether a non-finite output or sensitivity at any sample of a block leaves the state
+    /// or one of its sensitivities non-finite at the block's end when the block has no
+    /// restart (true of a recursion whose outputs are its states and whose step is a sum
+    /// of products: NaN and ∞ survive both). Then a block without restarts is searched for
+    /// the first non-finite sample only when its end state is non-finite. The default,
+    /// `false`, searches every block.
+    fn non_finite_persists(&self) -> bool {
+        false
+    }
+}

@@ -1,0 +1,307 @@
+//! The SPM step's per-interval terms, shared by the per-sample step, its sensitivities and
+//! the whole-block kernel (so that the three give the same numbers to the last bit), and
+//! the block kernel itself.
+//!
+//! Over interval k (module docs of [`super`]; MODEL.md §4, thesis 5.2) with
+//! `z = R_s + j ω_e L_s`, `a = e^{−j ω_e h} e^{−R_s h/L_s}`, `b = (1 − a)/z`,
+//! `e = K_e √(2/3) ω_m`:
+//!
+//! ```text
+//! i[k+1] = a i[k] + f,   f = b (u − j e) (dq hold),  u g − b j e (stator hold)
+//! ∂i[k+1]/∂θ = a ∂i[k]/∂θ + (∂a/∂θ) i[k] + ∂f/∂θ
+//! ```
+//!
+//! with `∂a/∂R_s = −(h/L) a`, `∂a/∂L_s = (R_s h/L²) a`, `∂b/∂R_s = ((h/L) a − b)/z`,
+//! `∂b/∂L_s = (−(R_s h/L²) a − j ω_e b)/z`, `g = (1 − e^{−R_s h/L})/R_s`.
+
+use super::{PmsmSpm, SpmCoefficients, SpmInputs};
+use crate::model::{BLOCK_LEN, Block, BlockContext, BlockKernel, SimState};
+use crate::pmsm::interval::{C64, VoltageHold};
+use multiversion::multiversion;
+
+/// The terms of interval k: the step `i[k+1] = a i[k] + forced`, and with sensitivities
+/// the derivatives of the forced term by `r_s`, `l_s`, `k_e` and `v_dt` (zero when not
+/// computed).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Terms {
+    pub a: C64,
+    pub forced: C64,
+    pub f_r: C64,
+    pub f_l: C64,
+    pub f_k: C64,
+    pub f_v: C64,
+}
+
+/// `b · j e`.
+#[inline(always)]
+fn times_j(b: C64, e: f64) -> C64 {
+    C64::new(-b.im * e, b.re * e)
+}
+
+/// The terms of one interval from its data (`rot = e^{−jω_e h}`, `w = ω_e`, `vers =
+/// 1 − cos ω_e h`, `emf = √(2/3) ω_m`, the voltage term `u` and the inverter's direction
+/// `dt`) for the hold (`stator`) and inverter model (`v_dt`: n_θ = 4).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn terms_at<const SENS: bool>(
+    c: &SpmCoefficients,
+    stator: bool,
+    v_dt: bool,
+    rot: C64,
+    w: f64,
+    vers: f64,
+    emf: f64,
+    u: C64,
+    dt: C64,
+) -> Terms {
+    let a = rot * c.d;
+    let wl = w * c.l;
+    let q = 1.0 / (c.r * c.r + wl * wl);
+    let z_inv = C64::new(c.r * q, -wl * q);
+    // 1 − a = (1 − d) cos φ + (1 − cos φ) + j d sin φ, free of cancellation.
+    let one_minus_a = C64::new(c.one_minus_d * rot.re + vers, -c.d * rot.im);
+    let b = one_minus_a * z_inv;
+    let e = c.k_e * emf;
+    let u = if v_dt { u + dt * c.v_dt } else { u };
+    let forced = if stator { u * c.g - times_j(b, e) } else { b * C64::new(u.re, u.im - e) };
+    if !SENS {
+        return Terms { a, forced, ..Terms::default() };
+    }
+    let b_r = (a * (-c.a_r) - b) * z_inv;
+    let b_l = (a * (-c.a_l) - times_j(b, w)) * z_inv;
+    let (f_r, f_l) = if stator {
+        (u * c.g_r - times_j(b_r, e), u * c.g_l - times_j(b_l, e))
+    } else {
+        let ue = C64::new(u.re, u.im - e);
+        (b_r * ue, b_l * ue)
+    };
+    let f_k = -times_j(b, emf);
+    let f_v = match (v_dt, stator) {
+        (false, _) => C64::default(),
+        (true, true) => dt * c.g,
+        (true, false) => b * dt,
+    };
+    Terms { a, forced, f_r, f_l, f_k, f_v }
+}
+
+/// The terms of interval k (see [`terms_at`]).
+#[inline(always)]
+fn terms_for<const SENS: bool>(
+    c: &SpmCoefficients,
+    inp: &SpmInputs,
+    stator: bool,
+    v_dt: bool,
+    k: usize,
+) -> Terms {
+    let dt = if v_dt { inp.dt[k] } else { C64::default() };
+    terms_at::<SENS>(c, stator, v_dt, inp.rot[k], inp.w_e[k], inp.vers[k], inp.emf[k], inp.u[k], dt)
+}
+
+/// [`terms_for`] with the model's hold and parameter count.
+#[inline(always)]
+pub(super) fn terms<const SENS: bool>(
+    c: &SpmCoefficients,
+    inp: &SpmInputs,
+    hold: VoltageHold,
+    k: usize,
+) -> Terms {
+    terms_for::<SENS>(c, inp, hold == VoltageHold::Stator, c.nth == 4, k)
+}
+
+impl BlockKernel<SpmInputs, SpmCoefficients> for PmsmSpm {
+    fn run(
+        &self,
+        c: &SpmCoefficients,
+        inp: &SpmInputs,
+        ctx: &BlockContext<'_>,
+        st: &mut SimState,
+        b: &mut Block,
+    ) {
+        let stator = self.setup.hold == VoltageHold::Stator;
+        match (b.sensitivities, stator, c.nth == 4) {
+            (false, true, false) => run_block::<false, true, false>(c, inp, ctx, st, b),
+            (false, true, true) => run_block::<false, true, true>(c, inp, ctx, st, b),
+            (false, false, false) => run_block::<false, false, false>(c, inp, ctx, st, b),
+            (false, false, true) => run_block::<false, false, true>(c, inp, ctx, st, b),
+            (true, true, false) => run_block::<true, true, false>(c, inp, ctx, st, b),
+            (true, true, true) => run_block::<true, true, true>(c, inp, ctx, st, b),
+            (true, false, false) => run_block::<true, false, false>(c, inp, ctx, st, b),
+            (true, false, true) => run_block::<true, false, true>(c, inp, ctx, st, b),
+        }
+    }
+
+    /// The state is the output and the step a sum of products: a NaN or ∞ in any output or
+    /// sensitivity stays in the state (0 · ∞ is NaN).
+    fn non_finite_persists(&self) -> bool {
+        true
+    }
+}
+
+/// Number of per-interval term arrays a block keeps: `a`, the forced term and its
+/// derivatives by `r_s`, `l_s`, `k_e`, `v_dt`, each as real and imaginary parts.
+const TERM_ARRAYS: usize = 12;
+
+/// The terms of intervals `k0 .. k0 + steps` as arrays (`out`: [`TERM_ARRAYS`] channels
+/// of [`BLOCK_LEN`]): every interval independent of the others, so the loop vectorises;
+/// compiled for AVX-512 and AVX2 as well as the baseline and chosen at run time. The
+/// arithmetic is [`terms_at`]'s, so the numbers are the per-sample step's to the bit.
+#[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+fn fill_terms(
+    c: &SpmCoefficients,
+    inp: &SpmInputs,
+    k0: usize,
+    steps: usize,
+    mode: (bool, bool, bool),
+    out: &mut [f64],
+) {
+    match mode {
+        (false, true, false) => fill::<false, true, false>(c, inp, k0, steps, out),
+        (false, true, true) => fill::<false, true, true>(c, inp, k0, steps, out),
+        (false, false, false) => fill::<false, false, false>(c, inp, k0, steps, out),
+        (false, false, true) => fill::<false, false, true>(c, inp, k0, steps, out),
+        (true, true, false) => fill::<true, true, false>(c, inp, k0, steps, out),
+        (true, true, true) => fill::<true, true, true>(c, inp, k0, steps, out),
+        (true, false, false) => fill::<true, false, false>(c, inp, k0, steps, out),
+        (true, false, true) => fill::<true, false, true>(c, inp, k0, steps, out),
+    }
+}
+
+#[inline(always)]
+fn fill<const SENS: bool, const STATOR: bool, const VDT: bool>(
+    c: &SpmCoefficients,
+    inp: &SpmInputs,
+    k0: usize,
+    steps: usize,
+    out: &mut [f64],
+) {
+    let r = k0..k0 + steps;
+    let (rot, w, vers, emf, u) = (
+        &inp.rot[r.clone()],
+        &inp.w_e[r.clone()],
+        &inp.vers[r.clone()],
+        &inp.emf[r.clone()],
+        &inp.u[r.clone()],
+    );
+    let dt = if VDT { &inp.dt[r] } else { &[][..] };
+    let mut ch = out.chunks_exact_mut(BLOCK_LEN);
+    let mut next = || ch.next().map(|c| &mut c[..steps]).unwrap_or_default();
+    let (a_re, a_im, f_re, f_im) = (next(), next(), next(), next());
+    let (r_re, r_im, l_re, l_im, k_re, k_im, v_re, v_im) =
+        (next(), next(), next(), next(), next(), next(), next(), next());
+    for t in 0..steps {
+        let d = if VDT { dt[t] } else { C64::default() };
+        let tm = terms_at::<SENS>(c, STATOR, VDT, rot[t], w[t], vers[t], emf[t], u[t], d);
+        a_re[t] = tm.a.re;
+        a_im[t] = tm.a.im;
+        f_re[t] = tm.forced.re;
+        f_im[t] = tm.forced.im;
+        if SENS {
+            r_re[t] = tm.f_r.re;
+            r_im[t] = tm.f_r.im;
+            l_re[t] = tm.f_l.re;
+            l_im[t] = tm.f_l.im;
+            k_re[t] = tm.f_k.re;
+            k_im[t] = tm.f_k.im;
+            if VDT {
+                v_re[t] = tm.f_v.re;
+                v_im[t] = tm.f_v.im;
+            }
+        }
+    }
+}
+
+/// One block of the SPM recursion, monomorphised per sensitivities, hold and inverter
+/// model. `∂i/∂x₀` is carried as one complex product `P = Π a` (`∂i/∂i_d0 = P`,
+/// `∂i/∂i_q0 = j P`).
+#[inline(never)]
+fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
+    c: &SpmCoefficients,
+    inp: &SpmInputs,
+    ctx: &BlockContext<'_>,
+    st: &mut SimState,
+    b: &mut Block,
+) {
+    let (k0, len) = (b.k0, b.len);
+    let m = c.nth;
+    let n0 = b.n_x0();
+    let (yb, dyb, dy0b) = b.channels_mut();
+    let mut i = C64::new(st.x[0], st.x[1]);
+    let mut s = [C64::default(); 4];
+    if SENS {
+        for (j, sj) in s.iter_mut().enumerate().take(m) {
+            *sj = C64::new(st.s[j], st.s[m + j]);
+        }
+    }
+    let mut live0 = SENS && n0 == 2 && st.live0;
+    let mut p = if live0 { C64::new(st.s0[0], st.s0[2]) } else { C64::default() };
+    let mut next_restart = match ctx.horizon {
+        Some(h) => k0.div_ceil(h) * h,
+        None => usize::MAX,
+    };
+    let h = ctx.horizon.unwrap_or(usize::MAX);
+    // Intervals in this block (the record's last sample has none).
+    let steps = len.min(ctx.n - 1 - k0);
+    st.scratch.resize(TERM_ARRAYS * BLOCK_LEN, 0.0);
+    fill_terms(c, inp, k0, steps, (SENS, STATOR, VDT), &mut st.scratch);
+    let tv = |a: usize, t: usize| {
+        C64::new(st.scratch[2 * a * BLOCK_LEN + t], st.scratch[(2 * a + 1) * BLOCK_LEN + t])
+    };
+    for t in 0..len {
+        let k = k0 + t;
+        yb[t] = i.re;
+        yb[BLOCK_LEN + t] = i.im;
+        if SENS {
+            for (j, sj) in s.iter().enumerate().take(m) {
+                dyb[j * BLOCK_LEN + t] = sj.re;
+                dyb[(m + j) * BLOCK_LEN + t] = sj.im;
+            }
+            if n0 == 2 {
+                dy0b[t] = p.re;
+                dy0b[BLOCK_LEN + t] = -p.im;
+                dy0b[2 * BLOCK_LEN + t] = p.im;
+                dy0b[3 * BLOCK_LEN + t] = p.re;
+            }
+        }
+        if k == next_restart {
+            i = C64::new(ctx.measured[2 * k], ctx.measured[2 * k + 1]);
+            s = [C64::default(); 4];
+            p = C64::default();
+            live0 = false;
+            next_restart = next_restart.saturating_add(h);
+        }
+        if t < steps {
+            let a = tv(0, t);
+            let ai = a * i;
+            if SENS {
+                s[0] = a * s[0] + ai * c.a_r + tv(2, t);
+                s[1] = a * s[1] + ai * c.a_l + tv(3, t);
+                s[2] = a * s[2] + tv(4, t);
+                if VDT {
+                    s[3] = a * s[3] + tv(5, t);
+                }
+                if live0 {
+                    p = a * p;
+                    // As the per-sample path: a decayed ∂i/∂x₀ is exactly zero from here on.
+                    if p.re.abs() < 1e-150 && p.im.abs() < 1e-150 {
+                        p = C64::default();
+                        live0 = false;
+                    }
+                }
+            }
+            i = ai + tv(1, t);
+        }
+    }
+    st.x[0] = i.re;
+    st.x[1] = i.im;
+    if SENS {
+        for (j, sj) in s.iter().enumerate().take(m) {
+            st.s[j] = sj.re;
+            st.s[m + j] = sj.im;
+        }
+        if n0 == 2 {
+            st.s0.copy_from_slice(&[p.re, -p.im, p.im, p.re]);
+            st.live0 = live0;
+        }
+    }
+    st.k = k0 + len;
+}
