@@ -1,16 +1,21 @@
 //! Criterion benches on records from the drive simulator (no files needed): one simulation
-//! (SPM, IPM), a whole fit from the least-squares start at 60 800 and 512 000 samples (one
-//! hold and `--hold auto`, single-threaded and with the default thread pool), the drive
-//! simulator itself, and the CSV reader on a 512 000-row log (gzip and plain).
+//! (SPM, IPM); one pass of each kind (cost, normal equations, statistics; SPM, stator hold,
+//! x0 estimated, single-threaded) and the core prediction-error fit from the least-squares
+//! start (`estimate::fit`, x0 estimated, one hold) at 60 800 and 512 000 samples; the whole
+//! `fit_pmsm` (one hold and `--hold auto`, single-threaded and with the default thread
+//! pool); the drive simulator itself, and the CSV reader on a 512 000-row log (gzip and
+//! plain).
 //!
-//! Run: `cargo bench --bench scaling` (`GREYBOX_BENCH_10M=1` adds a 10⁷-sample fit).
+//! Run: `cargo bench --bench scaling` (`GREYBOX_BENCH_10M=1` adds the 10⁷-sample record to
+//! the passes and the core fit).
 
 use criterion::{Criterion, criterion_group};
 use greybox::Experiment;
 use greybox::drive::{DriveConfig, IPM_MOTOR, SPM_MOTOR, scenario, simulate_drive};
+use greybox::estimate::{PemOptions, PemProblem, ProblemOptions, scaling::NominalScaling};
 use greybox::model::Prepared;
 use greybox::pmsm::{
-    HoldChoice, MotorKind, PmsmFitOptions, PmsmIpm, PmsmSpm, VoltageHold, fit_pmsm, read_log,
+    HoldChoice, MotorKind, PmsmFitOptions, PmsmIpm, PmsmSpm, VoltageHold, fit_pmsm, least_squares, read_log,
 };
 use greybox::simulate::{SimOptions, simulate};
 use std::hint::black_box;
@@ -44,10 +49,53 @@ fn benches(c: &mut Criterion) {
     });
     g.finish();
 
-    let mut g = c.benchmark_group("fit");
-    g.sample_size(10);
     let big = record(SPM_MOTOR, 512_000);
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let huge = std::env::var_os("GREYBOX_BENCH_10M").map(|_| record(SPM_MOTOR, 10_000_000));
+    let mut records = vec![(&spm, "60800"), (&big, "512000")];
+    if let Some(h) = &huge {
+        records.push((h, "10000000"));
+    }
+    let m = PmsmSpm::new(SPM_MOTOR.n_p, VoltageHold::Stator);
+    let mut g = c.benchmark_group("pass");
+    g.sample_size(10);
+    for &(e, n) in &records {
+        let start = least_squares(std::slice::from_ref(e), SPM_MOTOR.n_p, MotorKind::Spm).unwrap().theta;
+        let prep = Prepared::new(&m, e).unwrap();
+        let opts = ProblemOptions { estimate_x0: true, ..Default::default() };
+        let problem = PemProblem::new(&m, vec![(prep, None)], &start, &NominalScaling, &opts).unwrap();
+        let p = problem.start_vector(&start);
+        g.bench_function(format!("cost, {n} samples, 1 thread"), |b| {
+            b.iter(|| one.install(|| black_box(problem.cost(black_box(&p)).unwrap())))
+        });
+        g.bench_function(format!("normal equations, {n} samples, 1 thread"), |b| {
+            b.iter(|| one.install(|| black_box(problem.normal_equations(black_box(&p)).unwrap())))
+        });
+        g.bench_function(format!("statistics, {n} samples, 1 thread"), |b| {
+            b.iter(|| one.install(|| black_box(problem.sums(black_box(&p)).unwrap())))
+        });
+    }
+    g.finish();
+    let mut g = c.benchmark_group("core fit");
+    g.sample_size(10);
+    for &(e, n) in &records {
+        let start = least_squares(std::slice::from_ref(e), SPM_MOTOR.n_p, MotorKind::Spm).unwrap().theta;
+        let o = PemOptions { estimate_x0: true, ..Default::default() };
+        g.bench_function(
+            format!("spm {n} samples from the LS start, stator hold, x0 estimated, 1 thread"),
+            |b| {
+                b.iter(|| {
+                    one.install(|| {
+                        black_box(greybox::estimate::fit(&m, std::slice::from_ref(e), &start, &o).unwrap())
+                    })
+                })
+            },
+        );
+    }
+    g.finish();
+
+    let mut g = c.benchmark_group("fit");
+    g.sample_size(10);
     for (e, n) in [(&spm, "60800"), (&big, "512000")] {
         for (hold, h) in [(HoldChoice::Stator, "stator hold"), (HoldChoice::Auto, "auto hold")] {
             let o = options(MotorKind::Spm, SPM_MOTOR.n_p, hold);
@@ -63,13 +111,6 @@ fn benches(c: &mut Criterion) {
     g.bench_function("ipm 60800 samples, stator hold", |b| {
         b.iter(|| black_box(fit_pmsm(std::slice::from_ref(&ipm), &o).unwrap()))
     });
-    if std::env::var_os("GREYBOX_BENCH_10M").is_some() {
-        let huge = record(SPM_MOTOR, 10_000_000);
-        let o = options(MotorKind::Spm, SPM_MOTOR.n_p, HoldChoice::Stator);
-        g.bench_function("spm 10000000 samples, stator hold", |b| {
-            b.iter(|| black_box(fit_pmsm(std::slice::from_ref(&huge), &o).unwrap()))
-        });
-    }
     g.bench_function("drive simulator, 60800 samples (exp3, SPM)", |b| {
         b.iter(|| black_box(record(SPM_MOTOR, 60_800)))
     });

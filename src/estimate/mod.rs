@@ -143,44 +143,9 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
     weighting: &dyn Weighting,
 ) -> Result<FitResult> {
     let t0 = Instant::now();
-    options.tolerances.validate()?;
+    let (problem, mut popts) = build_problem(model, experiments, start, options, weighting)?;
     let uniform = weighting.is_uniform();
-    let preps = experiments
-        .iter()
-        .map(|e| Ok((Prepared::new(model, e)?, if uniform { None } else { Some(weighting.weights(e)?) })))
-        .collect::<Result<Vec<_>>>()?;
-    if let Some(c) = options.huber
-        && !(c.is_finite() && c > 0.0)
-    {
-        return Err(Error::InvalidOption {
-            option: "huber".into(),
-            reason: format!("constant must be positive, got {c}"),
-        });
-    }
     let scaling = options.scaling.rule();
-    let mut popts = ProblemOptions {
-        per_experiment: options.per_experiment.clone(),
-        horizon: options.horizon,
-        output_weights: options.output_weights.clone().or_else(|| weighting.output_weights()),
-        loss: Loss::Quadratic,
-        estimate_x0: options.estimate_x0,
-        prefilters: match options.prefilter {
-            None => Vec::new(),
-            Some(fc) => experiments
-                .iter()
-                .map(|e| {
-                    filter::Butterworth::try_new(filter::DEFAULT_ORDER, fc, e.h()).map_err(|err| match err {
-                        Error::InvalidOption { reason, .. } => Error::InvalidOption {
-                            option: "prefilter".into(),
-                            reason: format!("{reason} (experiment `{}`)", e.name()),
-                        },
-                        other => other,
-                    })
-                })
-                .collect::<Result<_>>()?,
-        },
-    };
-    let problem = PemProblem::new(model, preps, start, scaling.as_ref(), &popts)?;
     let p0 = problem.start_vector(start);
     let (mut p_hat, mut report) = run_solver(&problem, p0, &options.run_options())?;
     let mut notes = Vec::new();
@@ -214,4 +179,76 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
     result.timing.fit_s = t0.elapsed().as_secs_f64();
     result.timing.total_s = result.timing.fit_s;
     Ok(result)
+}
+
+/// The prediction-error problem of a fit: the experiments prepared, their weights, the
+/// options (shared by [`fit_with_weighting`] and [`predicted_loss`]).
+fn build_problem<'m, M: GreyBoxModel>(
+    model: &'m M,
+    experiments: &[Experiment],
+    start: &[f64],
+    options: &PemOptions,
+    weighting: &dyn Weighting,
+) -> Result<(PemProblem<'m, M>, ProblemOptions)> {
+    options.tolerances.validate()?;
+    let uniform = weighting.is_uniform();
+    let preps = experiments
+        .iter()
+        .map(|e| Ok((Prepared::new(model, e)?, if uniform { None } else { Some(weighting.weights(e)?) })))
+        .collect::<Result<Vec<_>>>()?;
+    if let Some(c) = options.huber
+        && !(c.is_finite() && c > 0.0)
+    {
+        return Err(Error::InvalidOption {
+            option: "huber".into(),
+            reason: format!("constant must be positive, got {c}"),
+        });
+    }
+    let scaling = options.scaling.rule();
+    let popts = ProblemOptions {
+        per_experiment: options.per_experiment.clone(),
+        horizon: options.horizon,
+        output_weights: options.output_weights.clone().or_else(|| weighting.output_weights()),
+        loss: Loss::Quadratic,
+        estimate_x0: options.estimate_x0,
+        prefilters: match options.prefilter {
+            None => Vec::new(),
+            Some(fc) => experiments
+                .iter()
+                .map(|e| {
+                    filter::Butterworth::try_new(filter::DEFAULT_ORDER, fc, e.h()).map_err(|err| match err {
+                        Error::InvalidOption { reason, .. } => Error::InvalidOption {
+                            option: "prefilter".into(),
+                            reason: format!("{reason} (experiment `{}`)", e.name()),
+                        },
+                        other => other,
+                    })
+                })
+                .collect::<Result<_>>()?,
+        },
+    };
+    let problem = PemProblem::new(model, preps, start, scaling.as_ref(), &popts)?;
+    Ok((problem, popts))
+}
+
+/// The loss that a fit of `model` from `start` is predicted to reach, from one
+/// normal-equation pass at the start: the Gauss-Newton minimum of the local quadratic
+/// model, `V − ½ gᵀH⁻¹g` with `g = JᵀWε`, `H = JᵀWJ` (Nocedal & Wright, *Numerical
+/// Optimization*, 2nd ed., 10.3), floored at 0; `V` itself when `H` is singular. Cheap
+/// evidence for a choice between model structures (e.g. two voltage holds) before
+/// fitting only the better one.
+///
+/// # Errors
+/// As [`fit_with_weighting`] at the start.
+pub fn predicted_loss<M: GreyBoxModel>(
+    model: &M,
+    experiments: &[Experiment],
+    start: &[f64],
+    options: &PemOptions,
+    weighting: &dyn Weighting,
+) -> Result<f64> {
+    let (problem, _) = build_problem(model, experiments, start, options, weighting)?;
+    let ne = problem.normal_equations(&problem.start_vector(start))?;
+    let drop = ne.jtj.clone().cholesky().map(|c| 0.5 * ne.jtr.dot(&c.solve(&ne.jtr))).unwrap_or(0.0);
+    Ok((ne.cost - drop).max(0.0))
 }

@@ -9,6 +9,11 @@ use crate::estimate::FitResult;
 /// [`HoldChoice::Auto`] to choose it.
 pub const DQ_DECISIVE: f64 = 2.0;
 
+/// Factor by which the holds' predicted losses (weighed as in [`fit_holds`]) must differ
+/// for [`HoldChoice::Auto`](super::HoldChoice::Auto) to fit the better hold only; closer
+/// predictions fit both.
+pub const SCREEN_DECISIVE: f64 = 4.0;
+
 pub(crate) fn hold_ambiguity(
     best: &FitResult,
     hold: VoltageHold,
@@ -54,6 +59,68 @@ fn stalled(r: &FitResult) -> bool {
 /// The estimate of `names` in a fit.
 fn estimate_of(r: &FitResult, names: &[&str]) -> Option<Vec<f64>> {
     names.iter().map(|n| r.parameter(n).map(|p| p.value)).collect()
+}
+
+/// The hold whose predicted loss is at least [`SCREEN_DECISIVE`] times lower than every
+/// other's, the dq hold's weighed by [`DQ_DECISIVE`] when the logs carry a modulator's
+/// reference; `None` when no hold is that clearly better.
+fn screen(predicted: &[(VoltageHold, f64)], modulator: bool) -> Option<VoltageHold> {
+    let weighed =
+        |(h, l): &(VoltageHold, f64)| if *h == VoltageHold::Dq && modulator { DQ_DECISIVE * l } else { *l };
+    let best = predicted.iter().min_by(|a, b| weighed(a).total_cmp(&weighed(b)))?;
+    let clear = predicted
+        .iter()
+        .filter(|p| p.0 != best.0)
+        .all(|p| weighed(p) >= SCREEN_DECISIVE * weighed(best) && weighed(p) > 0.0);
+    clear.then_some(best.0)
+}
+
+/// [`fit_holds`] after a screen: when more than one hold is to be tried, each hold's loss
+/// is first predicted at the start by `predict(hold, start)` (one normal-equation pass,
+/// [`crate::estimate::predicted_loss`]); when one hold is clearly better
+/// ([`SCREEN_DECISIVE`]) only it is fitted, and if that fit stalls every hold is. A
+/// prediction that fails counts as no evidence.
+///
+/// # Errors
+/// As [`fit_holds`].
+pub(crate) fn fit_holds_screened(
+    holds: &[VoltageHold],
+    start: &[f64],
+    names: &[&str],
+    modulator: bool,
+    mut predict: impl FnMut(VoltageHold, &[f64]) -> Result<f64>,
+    mut fit_hold: impl FnMut(VoltageHold, &[f64]) -> Result<FitResult>,
+) -> Result<HoldFits> {
+    let mut notes = Vec::new();
+    if holds.len() > 1 {
+        let predicted: Option<Vec<(VoltageHold, f64)>> =
+            holds.iter().map(|&h| predict(h, start).ok().map(|l| (h, l))).collect();
+        let listed = |p: &[(VoltageHold, f64)]| {
+            p.iter().map(|(h, l)| format!("{h} {l:.6e}")).collect::<Vec<_>>().join(", ")
+        };
+        if let Some(p) = &predicted
+            && let Some(hold) = screen(p, modulator)
+        {
+            let mut fits = fit_holds(&[hold], start, names, modulator, &mut fit_hold)?;
+            if !stalled(&fits.best.1) {
+                fits.notes.push(format!(
+                    "voltage hold chosen automatically: the {hold} hold, whose loss the Gauss-Newton step from the \
+                     start predicts at least {SCREEN_DECISIVE} times lower{} (predicted losses {}); only it was fitted",
+                    if modulator { " (the dq hold's weighed ×2: the log carries a modulator's reference)" } else { "" },
+                    listed(p)
+                ));
+                return Ok(fits);
+            }
+            notes.push(format!(
+                "the {hold} hold, chosen from the predicted losses ({}), stalled: every hold fitted",
+                listed(p)
+            ));
+        }
+    }
+    let mut fits = fit_holds(holds, start, names, modulator, fit_hold)?;
+    notes.append(&mut fits.notes);
+    fits.notes = notes;
+    Ok(fits)
 }
 
 /// Fits every hold in `holds` with `fit_hold(hold, start)` (the second from the first's

@@ -17,11 +17,14 @@ struct LocalGrams {
     jtj: Vec<f64>,
     bread: Vec<f64>,
     meat: Vec<Vec<f64>>,
+    /// Each output's unweighted Gram (unit sample weights, quadratic loss).
+    unit: Vec<Vec<f64>>,
 }
 
 impl LocalGrams {
     fn new(ny: usize, m: usize) -> Self {
-        Self { jtj: vec![0.0; m * m], bread: vec![0.0; m * m], meat: vec![vec![0.0; m * m]; ny] }
+        let z = vec![0.0; m * m];
+        Self { jtj: z.clone(), bread: z.clone(), meat: vec![z.clone(); ny], unit: vec![z; ny] }
     }
 }
 
@@ -246,6 +249,15 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                 let lambda = self.output_weights[i];
                 let eps = ch.eps(i);
                 res.extend_from_slice(eps);
+                let cols: Vec<&[f64]> = (0..ch.m).map(|c| ch.col(i, c)).collect();
+                let sse = dot(eps, eps);
+                if !weighted && !huber {
+                    // Unit sample weights, quadratic loss: w = Λ_i, the bread is JᵀWJ and
+                    // the meat Λ_i JᵀWJ; one unweighted Gram serves all three.
+                    acc.add_output_sums(i, 0.5 * lambda * sse, lambda * sse, sse, sse, n);
+                    gram(&cols, None, &mut g.unit[i]);
+                    continue;
+                }
                 let mut cost = 0.0;
                 for (t, (&ek, &bk)) in eps.iter().zip(ch.beta()).enumerate() {
                     let (rho, psi, _, dpsi) = self.loss.eval(i, ek);
@@ -257,7 +269,6 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                     wb[t] = wi * dpsi;
                     wm[t] = if huber { wi * wi * psi * psi } else { wi * wi };
                 }
-                let sse = dot(eps, eps);
                 let e2w = weighted_square_sum(eps, &w[..n]);
                 if !huber {
                     cost = 0.5 * e2w;
@@ -271,7 +282,6 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                     (sse, n)
                 };
                 acc.add_output_sums(i, cost, e2w, sse, sse_live, n_live);
-                let cols: Vec<&[f64]> = (0..ch.m).map(|c| ch.col(i, c)).collect();
                 gram(&cols, Some(&w[..n]), &mut g.jtj);
                 if huber {
                     gram(&cols, Some(&wb[..n]), &mut g.bread);
@@ -280,6 +290,15 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             }
         })?;
         if let Some(mut g) = local {
+            for (i, unit) in g.unit.iter().enumerate() {
+                let lambda = self.output_weights[i];
+                for (v, u) in g.jtj.iter_mut().zip(unit) {
+                    *v += lambda * u;
+                }
+                for (v, u) in g.meat[i].iter_mut().zip(unit) {
+                    *v += lambda * lambda * u;
+                }
+            }
             if !huber {
                 g.bread.clone_from(&g.jtj);
             }
