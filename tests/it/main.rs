@@ -5,6 +5,7 @@
 
 mod common;
 
+mod blocks;
 mod coverage;
 mod criteria;
 mod data;
