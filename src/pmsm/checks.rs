@@ -6,44 +6,49 @@
 //! - the change of the voltage from one sample to the next: a voltage that acts one sample
 //!   later than the model assumes (a reference logged as if it were the terminal voltage).
 
-use super::interval::{VoltageInput, applied_experiment};
-use super::inverter::{InverterModel, dead_time_directions};
+//!
+//! Both checks stream over the intervals (no regressor matrix, nothing stored per sample):
+//! one pass folds `[Φ, d, y]` (`d` the dead-time column) into a tall-skinny QR
+//! ([`StreamedLeastSquares`]), whose nested solutions give the residual sums of squares with
+//! and without `d`, and sums the residual (shifted by its first value) and the voltage
+//! change, their squares and product for the correlation.
+
+use super::interval::{VoltageInput, applied_voltage};
+use super::inverter::{DeadTimeStream, InverterModel};
 use super::kind::MotorKind;
-use super::linear::regressors;
-use super::signals::DqView;
+use super::linear::{MAX_COLS, Regression};
+use super::signals::{DqView, channel};
 use crate::data::Experiment;
 use crate::estimate::Warning;
-use crate::estimate::linear::solve_weighted;
+use crate::estimate::linear::StreamedLeastSquares;
 
 /// |correlation| above which a check speaks.
 pub const THRESHOLD: f64 = 0.3;
 
-/// Pearson correlation of two equally long series (0 for a constant one).
-fn correlation(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len().min(b.len()) as f64;
-    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (x, y) in a.iter().zip(b) {
-        sab += (x - ma) * (y - mb);
-        saa += (x - ma) * (x - ma);
-        sbb += (y - mb) * (y - mb);
-    }
-    if saa > 0.0 && sbb > 0.0 { sab / (saa * sbb).sqrt() } else { 0.0 }
+/// Residual `y − φᵀθ` of one row (θ of length n_θ ≤ [`MAX_COLS`]).
+#[inline]
+fn residual(row: &[f64; MAX_COLS], y: f64, theta: &[f64]) -> f64 {
+    y - row.iter().zip(theta).map(|(a, b)| a * b).sum::<f64>()
 }
 
-/// Fraction of the residual sum of squares of the least-squares regression `y ~ Φ` that an
-/// extra column `extra` removes: `1 − RSS([Φ, extra]) / RSS(Φ)` (0 when either regression
-/// fails).
-fn explained_beyond(phi: &[f64], y: &[f64], cols: usize, extra: &[f64]) -> f64 {
-    let rss = |phi: &[f64], cols: usize| -> Option<f64> {
-        let names: Vec<String> = (0..cols).map(|j| format!("c{j}")).collect();
-        let sol = solve_weighted(&names, phi, y, &vec![1.0; y.len()]).ok()?;
-        Some(sol.e2)
-    };
-    let with: Vec<f64> =
-        (0..y.len()).flat_map(|i| phi[i * cols..(i + 1) * cols].iter().copied().chain([extra[i]])).collect();
-    match (rss(phi, cols), rss(&with, cols + 1)) {
-        (Some(a), Some(b)) if a > 0.0 => 1.0 - b / a,
+/// Interval k's voltage change `u[k] − u[k−1]` (0 for the first), d and q.
+#[inline]
+fn change(u_d: &[f64], u_q: &[f64], k: usize) -> [f64; 2] {
+    match k.checked_sub(1) {
+        Some(j) => [u_d[k] - u_d[j], u_q[k] - u_q[j]],
+        None => [0.0, 0.0],
+    }
+}
+
+/// Fraction of the residual sum of squares of the regression `y ~ Φ` that the last column
+/// `d` removes: `1 − RSS([Φ, d]) / RSS(Φ)`, from the QR of `[Φ, d, y]` (0 when either
+/// regression fails).
+fn explained_beyond(ls: &mut StreamedLeastSquares) -> f64 {
+    let names: Vec<String> = (0..ls.cols()).map(|j| format!("c{j}")).collect();
+    let without = ls.solve_leading(&names[..names.len() - 1]).map(|s| s.e2);
+    let with = ls.solve(&names).map(|s| s.e2);
+    match (without, with) {
+        (Ok(a), Ok(b)) if a > 0.0 => 1.0 - b / a,
         _ => 0.0,
     }
 }
@@ -62,23 +67,79 @@ pub fn advice(
     inverter: bool,
 ) -> Vec<Warning> {
     let mut out = Vec::new();
+    let cols = theta.len().min(MAX_COLS);
+    let theta = &theta[..cols];
     for e in experiments {
         let Ok(v) = DqView::try_new(e) else { continue };
-        let Ok(applied) = applied_experiment(e, n_p, input) else { continue };
-        let Ok(av) = DqView::try_new(&applied) else { continue };
-        let Ok((phi, y)) = regressors(&av, n_p, kind) else { continue };
-        let cols = theta.len();
-        let r: Vec<f64> = y
-            .iter()
-            .enumerate()
-            .map(|(i, yi)| yi - (0..cols).map(|j| phi[i * cols + j] * theta[j]).sum::<f64>())
-            .collect();
-        if !inverter && let Ok(dirs) = dead_time_directions(&v, n_p, &InverterModel::default()) {
+        let applied;
+        let (u_d, u_q) = match input {
+            VoltageInput::Terminal => match v.terminal_voltage() {
+                Ok(u) => u,
+                Err(_) => continue,
+            },
+            _ => match applied_voltage(&v, n_p, input) {
+                Ok(u) => {
+                    applied = u;
+                    (&applied.0[..], &applied.1[..])
+                }
+                Err(_) => continue,
+            },
+        };
+        let reg = Regression::new(&v, u_d, u_q, n_p, kind);
+        if reg.cols() != cols {
+            continue;
+        }
+        // The dead-time check: the sign of the phase currents as one more column.
+        let theta_m = e.get(channel::THETA_M).map(|c| c.values.as_slice());
+        let mut dead = match theta_m {
+            Some(th) if !inverter => {
+                DeadTimeStream::try_new(&v, n_p, &InverterModel::default()).ok().map(|s| (s, th))
+            }
+            _ => None,
+        };
+        let mut ls = StreamedLeastSquares::new(cols + 1);
+        // Sums of the correlation, the residual shifted by the first one (no cancellation
+        // when its mean is large against its spread): Σx, Σy, Σx², Σy², Σxy.
+        let shift = reg.intervals().checked_sub(1).map_or(0.0, |_| {
+            let (d, _, u) = reg.rows(0);
+            residual(&d, u[0], theta)
+        });
+        let mut sums = [0.0; 5];
+        let (id, iq) = (v.i_d(), v.i_q());
+        // The phase currents and angle of the interval's first sample.
+        let mut prev = dead.as_mut().map(|(s, th)| {
+            let sc = s.angle(th[0]);
+            (s.phases(id[0], iq[0], sc), sc)
+        });
+        reg.for_each(|k, d, q, u| {
+            let du = change(u_d, u_q, k);
+            for (x, y) in
+                [(residual(d, u[0], theta) - shift, du[0]), (residual(q, u[1], theta) - shift, du[1])]
+            {
+                sums[0] += x;
+                sums[1] += y;
+                sums[2] += x * x;
+                sums[3] += y * y;
+                sums[4] += x * y;
+            }
+            if let (Some((s, th)), Some((p, sc))) = (dead.as_mut(), prev.as_mut()) {
+                let sc1 = s.angle(th[k + 1]);
+                let p1 = s.phases(id[k + 1], iq[k + 1], sc1);
+                let dir = s.direction(*p, p1, *sc);
+                (*p, *sc) = (p1, sc1);
+                let (mut drow, mut qrow) = ([0.0; MAX_COLS + 1], [0.0; MAX_COLS + 1]);
+                drow[..cols].copy_from_slice(&d[..cols]);
+                qrow[..cols].copy_from_slice(&q[..cols]);
+                (drow[cols], qrow[cols]) = (-dir.re, -dir.im);
+                ls.push(&drow[..=cols], u[0], 1.0);
+                ls.push(&qrow[..=cols], u[1], 1.0);
+            }
+        });
+        if dead.is_some_and(|(s, _)| s.check_crossings().is_ok()) {
             // The resistance absorbs much of a dead-time voltage (both oppose the current), so
             // ask how much of the regression's residual the sign of the phase currents
             // explains beyond the motor's own regressors.
-            let d: Vec<f64> = dirs.iter().flat_map(|c| [-c.re, -c.im]).collect();
-            let gain = explained_beyond(&phi, &y, cols, &d);
+            let gain = explained_beyond(&mut ls);
             if gain > THRESHOLD {
                 out.push(Warning::untrusted("dead_time", format!(
                     "`{}`: the sign of the phase currents explains {:.0} % of the voltage residual the motor's \
@@ -90,12 +151,11 @@ pub fn advice(
                 )));
             }
         }
-        // Interval k's voltage change u[k] − u[k−1], rows d, q as in the residual.
-        let Ok((ud, uq)) = av.terminal_voltage() else { continue };
-        let du: Vec<f64> = (0..ud.len() - 1)
-            .flat_map(|k| if k == 0 { [0.0, 0.0] } else { [ud[k] - ud[k - 1], uq[k] - uq[k - 1]] })
-            .collect();
-        let c = correlation(&r, &du);
+        // Pearson correlation of the residual with the voltage change, rows d, q per interval.
+        let n = (2 * reg.intervals()) as f64;
+        let [sx, sy, sxx, syy, sxy] = sums;
+        let (saa, sbb, sab) = (sxx - sx * sx / n, syy - sy * sy / n, sxy - sx * sy / n);
+        let c = if saa > 0.0 && sbb > 0.0 { sab / (saa * sbb).sqrt() } else { 0.0 };
         if c.abs() > THRESHOLD {
             out.push(Warning::untrusted("voltage_late", format!(
                 "`{}`: the voltage residual follows the voltage's change from the sample before (correlation \

@@ -9,12 +9,17 @@
 //! of them: one Gram matrix of the base columns gives every candidate's loss exactly.
 
 use super::fit::PmsmFitOptions;
-use super::interval::{SQRT_2_3, VoltageInput, applied_experiment};
+use super::interval::{SQRT_2_3, VoltageInput};
 use super::kind::MotorKind;
+// Base columns of the scan: `i`, `di_d/dt` (d rows), `ω_m i_d` (q rows), `−ω_m i_q` (d rows),
+// `di_q/dt` (q rows), `√(2/3) ω_m` (q rows), then the voltage. The salient regressors are
+// combinations of them at any `n_p`, and so are the surface-magnet ones (`L_s` takes both
+// derivative and both cross columns). The Gram comes from `scan_gram`, streamed.
+use super::scan::BASE;
+pub(crate) use super::scan::scan_gram;
 use super::signals::{DqView, channel};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::filter::Butterworth;
 use crate::estimate::{FitResult, Warning};
 use nalgebra::{DMatrix, DVector};
 
@@ -29,54 +34,8 @@ pub const SALIENT_CERTAIN: f64 = 100.0;
 pub const SALIENT_LIKELY: f64 = 2.0;
 /// Relative inductance difference that counts as salient.
 pub const SALIENCY: f64 = 0.1;
-/// Order and cutoff (relative to the sample rate) of the scan's zero-phase prefilter.
-const SCAN_FILTER_ORDER: usize = 4;
-const SCAN_CUTOFF: f64 = 0.05;
 /// Relative mismatch of `dθ_m/dt` and `w_m` beyond which the speed check reports.
 pub const SPEED_MISMATCH: f64 = 0.05;
-
-/// Base columns of the scan: `i`, `di_d/dt` (d rows), `ω_m i_d` (q rows), `−ω_m i_q` (d rows),
-/// `di_q/dt` (q rows), `√(2/3) ω_m` (q rows), then the voltage. The salient regressors are
-/// combinations of them at any `n_p`, and so are the surface-magnet ones (`L_s` takes both
-/// derivative and both cross columns).
-const BASE: usize = 6;
-
-/// Gram matrix `[C y]ᵀ[C y]` (7 × 7) of the base columns over every interval of the applied
-/// voltage, from a zero-phase low-passed copy of each log. One Gram serves every candidate
-/// `n_p` and both motor kinds.
-///
-/// # Errors
-/// Those of [`applied_experiment`] and of the filter (a log too short for it).
-pub(crate) fn scan_gram(experiments: &[Experiment], input: VoltageInput) -> Result<DMatrix<f64>> {
-    let mut g = DMatrix::<f64>::zeros(BASE + 1, BASE + 1);
-    for e in experiments {
-        // n_p only scales the angle advance of a reference input; 1 is used for the scan.
-        // A zero-phase low-pass at 5 % of the sample rate keeps current noise out of di/dt
-        // (MODEL.md §5: the derivative regressor is errors-in-variables).
-        let filter = Butterworth::try_new(SCAN_FILTER_ORDER, SCAN_CUTOFF / e.h(), e.h())?;
-        let applied = filter.filtfilt_experiment(&applied_experiment(e, 1, input)?, &[channel::THETA_M])?;
-        let v = DqView::try_new(&applied)?;
-        let (ud, uq) = v.terminal_voltage()?;
-        let (id, iq, wm, h) = (v.i_d(), v.i_q(), v.w_m(), v.h());
-        for k in 0..v.len() - 1 {
-            let (i_d, i_q) = (0.5 * (id[k] + id[k + 1]), 0.5 * (iq[k] + iq[k + 1]));
-            let (di_d, di_q) = ((id[k + 1] - id[k]) / h, (iq[k + 1] - iq[k]) / h);
-            let w = 0.5 * (wm[k] + wm[k + 1]);
-            let rows = [
-                [i_d, di_d, 0.0, -w * i_q, 0.0, 0.0, ud[k]],
-                [i_q, 0.0, w * i_d, 0.0, di_q, SQRT_2_3 * w, uq[k]],
-            ];
-            for r in &rows {
-                for a in 0..=BASE {
-                    for b in 0..=BASE {
-                        g[(a, b)] += r[a] * r[b];
-                    }
-                }
-            }
-        }
-    }
-    Ok(g)
-}
 
 /// Least-squares loss `½ min‖y − Φθ‖²` and θ (model order of `kind`) at `n_p` from the
 /// Gram matrix of [`scan_gram`].

@@ -16,7 +16,7 @@
 use super::interval::C64;
 pub use super::mask::DeadTimeMask;
 use super::signals::DqView;
-use super::transform::{clarke, inverse_clarke, inverse_park, park};
+use super::transform::{clarke, inverse_clarke};
 use crate::error::{Error, Result};
 use crate::model::Parameter;
 use serde::{Deserialize, Serialize};
@@ -55,49 +55,111 @@ pub fn v_dt_parameter() -> Parameter {
 /// other parameters: `V_dt` unidentifiable).
 pub fn dead_time_directions(v: &DqView<'_>, n_p: u32, model: &InverterModel) -> Result<Vec<C64>> {
     let theta_m = v.experiment().channel(super::channel::THETA_M)?;
+    let mut stream = DeadTimeStream::try_new(v, n_p, model)?;
     let (id, iq) = (v.i_d(), v.i_q());
-    // With the mask, every kept period has its phase currents clear of zero: a sign 10 times
-    // sharper than the threshold is the sign there.
-    let width = model.width.unwrap_or(match model.mask {
-        Some(DeadTimeMask::Current(t)) if t > 0.0 => 0.1 * t,
-        _ => DEFAULT_RELATIVE_WIDTH * v.peak_current(),
-    });
-    if !(width.is_finite() && width > 0.0) {
-        return Err(Error::InvalidOption {
-            option: "dead-time width".into(),
-            reason: format!("{width} A must be positive and finite (all-zero currents?)"),
-        });
-    }
-    let np = f64::from(n_p);
-    let phases: Vec<(f64, f64, f64)> = (0..v.len())
+    let samples: Vec<([f64; 3], (f64, f64))> = (0..v.len())
         .map(|k| {
-            let (a, b) = inverse_park(id[k], iq[k], np * theta_m[k]);
-            inverse_clarke(a, b)
+            let sc = stream.angle(theta_m[k]);
+            (stream.phases(id[k], iq[k], sc), sc)
         })
         .collect();
-    for (x, name) in [0, 1, 2].into_iter().zip(["a", "b", "c"]) {
-        let get = |p: &(f64, f64, f64)| [p.0, p.1, p.2][x];
-        let lo = phases.iter().map(get).fold(f64::INFINITY, f64::min);
-        let hi = phases.iter().map(get).fold(f64::NEG_INFINITY, f64::max);
-        if !(hi > width && lo < -width) {
-            return Err(Error::Numerical {
-                context: "dead-time model".into(),
-                reason: format!(
-                    "the current of phase {name} (range [{lo:.3e}, {hi:.3e}] A) never crosses zero by more than \
-                     {width:.3e} A: the dead-time \
-                     voltage is then a constant offset the data cannot separate from the motor's parameters \
-                     (fix v_dt, or use a log with current reversals)"
-                ),
+    stream.check_crossings()?;
+    Ok(samples.windows(2).map(|w| stream.direction(w[0].0, w[1].0, w[0].1)).collect())
+}
+
+/// The dead-time directions of [`dead_time_directions`] one sample at a time, for passes that
+/// store nothing per sample: [`angle`](Self::angle) and [`phases`](Self::phases) at every
+/// sample in order, [`direction`](Self::direction) of each interval, and
+/// [`check_crossings`](Self::check_crossings) at the end. The arithmetic is that of
+/// [`dead_time_directions`], bit for bit.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct DeadTimeStream {
+    /// Width w of the smooth sign [A].
+    width: f64,
+    /// Pole pairs n_p.
+    np: f64,
+    /// Smallest and largest current of each phase seen [A].
+    lo: [f64; 3],
+    hi: [f64; 3],
+}
+
+impl DeadTimeStream {
+    /// The stream of `v` under `model` (its width resolved as [`InverterModel::width`] says).
+    ///
+    /// # Errors
+    /// [`Error::InvalidOption`] for a width that is not positive and finite.
+    pub(crate) fn try_new(v: &DqView<'_>, n_p: u32, model: &InverterModel) -> Result<Self> {
+        // With the mask, every kept period has its phase currents clear of zero: a sign 10 times
+        // sharper than the threshold is the sign there.
+        let width = model.width.unwrap_or(match model.mask {
+            Some(DeadTimeMask::Current(t)) if t > 0.0 => 0.1 * t,
+            _ => DEFAULT_RELATIVE_WIDTH * v.peak_current(),
+        });
+        if !(width.is_finite() && width > 0.0) {
+            return Err(Error::InvalidOption {
+                option: "dead-time width".into(),
+                reason: format!("{width} A must be positive and finite (all-zero currents?)"),
             });
         }
+        Ok(Self { width, np: f64::from(n_p), lo: [f64::INFINITY; 3], hi: [f64::NEG_INFINITY; 3] })
     }
-    Ok((0..v.len() - 1)
-        .map(|k| {
-            let s = |x: f64, y: f64| -((0.5 * (x + y)) / width).tanh();
-            let (p, q) = (phases[k], phases[k + 1]);
-            let (alpha, beta) = clarke(s(p.0, q.0), s(p.1, q.1), s(p.2, q.2));
-            let (d, qq) = park(alpha, beta, np * theta_m[k]);
-            C64::new(d, qq)
-        })
-        .collect())
+
+    /// `(sin θ_e, cos θ_e)` of the mechanical angle `theta_m` [rad].
+    #[inline]
+    pub(crate) fn angle(&self, theta_m: f64) -> (f64, f64) {
+        (self.np * theta_m).sin_cos()
+    }
+
+    /// Phase currents `(i_a, i_b, i_c)` [A] of a sample from its dq current and
+    /// [`angle`](Self::angle); each phase's range is recorded.
+    #[inline]
+    pub(crate) fn phases(&mut self, i_d: f64, i_q: f64, (s, c): (f64, f64)) -> [f64; 3] {
+        // inverse_park, with the angle's sine and cosine given.
+        let (i_a, i_b, i_c) = inverse_clarke(c * i_d - s * i_q, s * i_d + c * i_q);
+        let p = [i_a, i_b, i_c];
+        for ((lo, hi), x) in self.lo.iter_mut().zip(self.hi.iter_mut()).zip(p) {
+            *lo = lo.min(x);
+            *hi = hi.max(x);
+        }
+        p
+    }
+
+    /// The dq error per unit `V_dt` of the interval from phase currents `p` to `q`, rotated
+    /// by the [`angle`](Self::angle) `sc` at its start [V/V].
+    #[inline]
+    pub(crate) fn direction(&self, p: [f64; 3], q: [f64; 3], (s, c): (f64, f64)) -> C64 {
+        let sign = |x: f64, y: f64| -smooth_sign((0.5 * (x + y)) / self.width);
+        let (alpha, beta) = clarke(sign(p[0], q[0]), sign(p[1], q[1]), sign(p[2], q[2]));
+        // park, with the angle's sine and cosine given.
+        C64::new(c * alpha + s * beta, -s * alpha + c * beta)
+    }
+
+    /// # Errors
+    /// [`Error::Numerical`] naming the first phase whose current never crossed zero by more
+    /// than the width (its error is then a constant offset: `V_dt` unidentifiable).
+    pub(crate) fn check_crossings(&self) -> Result<()> {
+        let width = self.width;
+        for (x, name) in [0, 1, 2].into_iter().zip(["a", "b", "c"]) {
+            let (lo, hi) = (self.lo[x], self.hi[x]);
+            if !(hi > width && lo < -width) {
+                return Err(Error::Numerical {
+                    context: "dead-time model".into(),
+                    reason: format!(
+                        "the current of phase {name} (range [{lo:.3e}, {hi:.3e}] A) never crosses zero by more than \
+                         {width:.3e} A: the dead-time \
+                         voltage is then a constant offset the data cannot separate from the motor's parameters \
+                         (fix v_dt, or use a log with current reversals)"
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `tanh(x)`, without calling it where it is ±1 to the last bit (`|x| ≥ 19.5`:
+/// `1 − tanh|x| < 2e^{−39} < 2⁻⁵⁴`, below half an ulp of 1).
+#[inline]
+fn smooth_sign(x: f64) -> f64 {
+    if x.abs() >= 19.5 { x.signum() } else { x.tanh() }
 }

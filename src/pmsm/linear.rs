@@ -17,8 +17,8 @@
 //! [`weighted_least_squares`] optionally passes every signal through the same zero-phase
 //! Butterworth low-pass first ([`crate::estimate::filter`]) and weights both rows of
 //! interval k by the sample weight β_{k+1} of the sample that interval ends in (thesis
-//! eq. 5.11). The tall system is solved by a QR decomposition (faer) of the column-
-//! equilibrated, row-weighted regressor matrix; `R` of that decomposition also gives the
+//! eq. 5.11). The rows are streamed into a tall-skinny QR of the row-weighted regressors
+//! ([`StreamedLeastSquares`]; no rows × n_θ matrix is formed); `R` of that decomposition also gives the
 //! rank check and `(ΦᵀWΦ)⁻¹` for the standard errors and the parametric error index
 //! (thesis 5.3). With noisy currents the derivative column is errors-in-variables and `L`
 //! comes out low: use the result as the start of the prediction-error fit, not as the
@@ -30,7 +30,7 @@ use super::signals::{DqView, channel};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::filter::{self, Butterworth};
-use crate::estimate::linear::solve_weighted;
+use crate::estimate::linear::StreamedLeastSquares;
 use crate::estimate::weighting::{Uniform, Weighting};
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -127,8 +127,85 @@ impl fmt::Display for LinearEstimate {
     }
 }
 
+/// The regression rows of one experiment, interval by interval, without storing them:
+/// interval `k = 0..N−2` gives a d row and a q row (see the module documentation) and the
+/// voltages `(u_d[k], u_q[k])` they explain.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Regression<'a> {
+    i_d: &'a [f64],
+    i_q: &'a [f64],
+    w_m: &'a [f64],
+    u_d: &'a [f64],
+    u_q: &'a [f64],
+    h: f64,
+    np: f64,
+    kind: MotorKind,
+}
+
+/// Regressor columns of the largest model (IPM).
+pub(crate) const MAX_COLS: usize = 4;
+
+impl<'a> Regression<'a> {
+    /// The regression of `e` on the voltage `(u_d, u_q)` (period means [V], length N each:
+    /// the terminal voltage or an applied one).
+    pub(crate) fn new(e: &DqView<'a>, u_d: &'a [f64], u_q: &'a [f64], n_p: u32, kind: MotorKind) -> Self {
+        Self { i_d: e.i_d(), i_q: e.i_q(), w_m: e.w_m(), u_d, u_q, h: e.h(), np: f64::from(n_p), kind }
+    }
+
+    /// Number of intervals N − 1 (each gives a d and a q row).
+    pub(crate) fn intervals(&self) -> usize {
+        self.i_d.len().min(self.u_d.len()).min(self.u_q.len()).saturating_sub(1)
+    }
+
+    /// Regressor columns n_θ of the kind.
+    pub(crate) fn cols(&self) -> usize {
+        match self.kind {
+            MotorKind::Spm => 3,
+            MotorKind::Ipm => 4,
+        }
+    }
+
+    /// The d row, the q row (the first [`cols`](Self::cols) entries) and `(u_d[k], u_q[k])`
+    /// of interval k `< intervals()`.
+    #[inline]
+    pub(crate) fn rows(&self, k: usize) -> ([f64; MAX_COLS], [f64; MAX_COLS], [f64; 2]) {
+        let (d, q) = self.pair(
+            [self.i_d[k], self.i_d[k + 1]],
+            [self.i_q[k], self.i_q[k + 1]],
+            [self.w_m[k], self.w_m[k + 1]],
+        );
+        (d, q, [self.u_d[k], self.u_q[k]])
+    }
+
+    /// [`rows`](Self::rows) of every interval in order, as `f(k, d row, q row, (u_d, u_q))`.
+    #[inline]
+    pub(crate) fn for_each(&self, mut f: impl FnMut(usize, &[f64; MAX_COLS], &[f64; MAX_COLS], [f64; 2])) {
+        let currents = self.i_d.windows(2).zip(self.i_q.windows(2));
+        let voltages = self.u_d.iter().zip(self.u_q);
+        for (k, (((id, iq), wm), (ud, uq))) in currents.zip(self.w_m.windows(2)).zip(voltages).enumerate() {
+            let (d, q) = self.pair([id[0], id[1]], [iq[0], iq[1]], [wm[0], wm[1]]);
+            f(k, &d, &q, [*ud, *uq]);
+        }
+    }
+
+    /// The d and q rows from the currents and speeds at both ends of an interval.
+    #[inline]
+    fn pair(&self, id: [f64; 2], iq: [f64; 2], wm: [f64; 2]) -> ([f64; MAX_COLS], [f64; MAX_COLS]) {
+        let h = self.h;
+        let (idm, iqm) = (0.5 * (id[0] + id[1]), 0.5 * (iq[0] + iq[1]));
+        let (did, diq) = ((id[1] - id[0]) / h, (iq[1] - iq[0]) / h);
+        let w_m = 0.5 * (wm[0] + wm[1]);
+        let w_e = self.np * w_m;
+        match self.kind {
+            MotorKind::Spm => ([idm, did - w_e * iqm, 0.0, 0.0], [iqm, diq + w_e * idm, SQRT_2_3 * w_m, 0.0]),
+            MotorKind::Ipm => ([idm, did, -w_e * iqm, 0.0], [iqm, w_e * idm, diq, SQRT_2_3 * w_m]),
+        }
+    }
+}
+
 /// Regressor matrix Φ (rows × n_θ, row-major, rows = 2(N − 1)) and voltages y (length
-/// rows) of one experiment, unfiltered and unweighted.
+/// rows) of one experiment, unfiltered and unweighted. The fits themselves stream these rows
+/// and never form Φ; this is for inspection and tests.
 ///
 /// Rows alternate d, q for every interval `k = 0..N−2` (see the module documentation).
 ///
@@ -136,31 +213,16 @@ impl fmt::Display for LinearEstimate {
 /// [`Error::MissingChannel`] (`ud`) for a log without the terminal voltage (regress on
 /// [`super::applied_experiment`]'s voltage instead).
 pub fn regressors(e: &DqView<'_>, n_p: u32, kind: MotorKind) -> Result<(Vec<f64>, Vec<f64>)> {
-    let (h, np) = (e.h(), f64::from(n_p));
     let (u_d, u_q) = e.terminal_voltage()?;
-    let (id, iq, wm) = (e.i_d(), e.i_q(), e.w_m());
-    let n = e.len() - 1;
-    let cols = kind.parameter_names().len();
+    let reg = Regression::new(e, u_d, u_q, n_p, kind);
+    let (n, cols) = (reg.intervals(), reg.cols());
     let mut phi = Vec::with_capacity(2 * n * cols);
     let mut y = Vec::with_capacity(2 * n);
-    for k in 0..n {
-        let (idm, iqm) = (0.5 * (id[k] + id[k + 1]), 0.5 * (iq[k] + iq[k + 1]));
-        let (did, diq) = ((id[k + 1] - id[k]) / h, (iq[k + 1] - iq[k]) / h);
-        let w_m = 0.5 * (wm[k] + wm[k + 1]);
-        let w_e = np * w_m;
-        match kind {
-            MotorKind::Spm => {
-                phi.extend_from_slice(&[idm, did - w_e * iqm, 0.0]);
-                phi.extend_from_slice(&[iqm, diq + w_e * idm, SQRT_2_3 * w_m]);
-            }
-            MotorKind::Ipm => {
-                phi.extend_from_slice(&[idm, did, -w_e * iqm, 0.0]);
-                phi.extend_from_slice(&[iqm, w_e * idm, diq, SQRT_2_3 * w_m]);
-            }
-        }
-        y.push(u_d[k]);
-        y.push(u_q[k]);
-    }
+    reg.for_each(|_, d, q, u| {
+        phi.extend_from_slice(&d[..cols]);
+        phi.extend_from_slice(&q[..cols]);
+        y.extend_from_slice(&u);
+    });
     Ok((phi, y))
 }
 
@@ -218,26 +280,27 @@ pub fn weighted_least_squares(
 
     super::interval::check_pole_pairs(n_p)?;
     filter::check_order(options.filter_order).map_err(|e| rename_option(e, "filter_order", None))?;
-    let names = kind.parameter_names();
+    let names: Vec<String> = kind.parameter_names().iter().map(|s| s.to_string()).collect();
     let cols = names.len();
-    // Unweighted rows, and √β per row.
-    let (mut phi, mut y, mut sw) = (Vec::new(), Vec::new(), Vec::new());
-    // Intervals per experiment (each gives a d and a q row).
-    let mut segments = Vec::with_capacity(experiments.len());
+    // The filtered copies (kept for the residual pass) and √β per sample.
+    let mut filtered = Vec::with_capacity(experiments.len());
+    let mut ls = StreamedLeastSquares::new(cols);
+    let mut sum = [0.0; 2];
     for e in experiments {
-        let filtered;
-        let data = match options.prefilter {
+        let copy = match options.prefilter {
             Some(fc) => {
                 let bw = Butterworth::try_new(options.filter_order, fc, e.h())
                     .map_err(|err| rename_option(err, "prefilter", Some(e.name())))?;
-                filtered = bw.filtfilt_experiment(e, &[channel::THETA_M])?;
-                &filtered
+                Some(bw.filtfilt_experiment(e, &[channel::THETA_M])?)
             }
-            None => e,
+            None => None,
         };
-        let (p, v) = regressors(&DqView::try_new(data)?, n_p, kind)?;
-        if weighting.is_uniform() {
-            sw.resize(sw.len() + v.len(), 1.0);
+        let data = copy.as_ref().unwrap_or(e);
+        let view = DqView::try_new(data)?;
+        let (u_d, u_q) = view.terminal_voltage()?;
+        let reg = Regression::new(&view, u_d, u_q, n_p, kind);
+        let sqrt_beta: Option<Vec<f64>> = if weighting.is_uniform() {
+            None
         } else {
             let beta = weighting.weights(e)?;
             if beta.len() != e.len() {
@@ -252,28 +315,38 @@ pub fn weighted_least_squares(
                     ),
                 });
             }
+            Some(beta.iter().map(|b| b.sqrt()).collect())
+        };
+        reg.for_each(|k, d, q, u| {
             // Interval k ends in sample k + 1: both its rows take β_{k+1}.
-            sw.extend(beta[1..].iter().flat_map(|b| [b.sqrt(), b.sqrt()]));
-        }
-        segments.push(v.len() / 2);
-        phi.extend(p);
-        y.extend(v);
+            let sw = sqrt_beta.as_ref().map_or(1.0, |b| b[k + 1]);
+            ls.push(&d[..cols], u[0], sw);
+            ls.push(&q[..cols], u[1], sw);
+            sum[0] += u[0];
+            sum[1] += u[1];
+        });
+        filtered.push(copy);
     }
-    let rows = y.len();
-    let names: Vec<String> = names.iter().map(|s| s.to_string()).collect();
-    let sol = solve_weighted(&names, &phi, &y, &sw)?;
-    let mut sse = [0.0; 2];
-    let mean = [0, 1].map(|c| y.iter().skip(c).step_by(2).sum::<f64>() / (rows / 2).max(1) as f64);
-    let mut sst = [0.0; 2];
-    for (i, v) in y.iter().enumerate() {
-        sst[i % 2] += (v - mean[i % 2]).powi(2);
-    }
+    let rows = ls.rows();
+    let sol = ls.solve(&names)?;
+    // Residual pass: d and q equation errors, per experiment for the whiteness lags.
+    let mean = sum.map(|s| s / (rows / 2).max(1) as f64);
+    let (mut sse, mut sst) = ([0.0; 2], [0.0; 2]);
     let mut res = [Vec::with_capacity(rows / 2), Vec::with_capacity(rows / 2)];
-    for i in 0..rows {
-        let row = &phi[i * cols..(i + 1) * cols];
-        let r = y[i] - row.iter().zip(&sol.theta).map(|(a, b)| a * b).sum::<f64>();
-        sse[i % 2] += r * r;
-        res[i % 2].push(r);
+    let mut segments = Vec::with_capacity(experiments.len());
+    for (e, copy) in experiments.iter().zip(&filtered) {
+        let view = DqView::try_new(copy.as_ref().unwrap_or(e))?;
+        let (u_d, u_q) = view.terminal_voltage()?;
+        let reg = Regression::new(&view, u_d, u_q, n_p, kind);
+        reg.for_each(|_, d, q, u| {
+            for (c, row) in [d, q].iter().enumerate() {
+                let r = u[c] - row[..cols].iter().zip(&sol.theta).map(|(a, b)| a * b).sum::<f64>();
+                sse[c] += r * r;
+                sst[c] += (u[c] - mean[c]).powi(2);
+                res[c].push(r);
+            }
+        });
+        segments.push(reg.intervals());
     }
     // Whiteness of the d and q equation errors, lags within each experiment.
     let whiteness = res

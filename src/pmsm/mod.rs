@@ -30,6 +30,7 @@ pub mod log;
 pub mod mask;
 pub mod plant;
 pub mod report;
+mod scan;
 pub mod setup;
 pub mod signals;
 pub mod spm;

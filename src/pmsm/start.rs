@@ -4,14 +4,14 @@
 //! linear in `v_dt`, MODEL.md §4: without that column the regression lends it to `r_s` and
 //! the inductances, which can turn them negative).
 
-use super::interval::{VoltageInput, applied_experiment};
+use super::interval::{VoltageInput, applied_voltage};
 use super::inverter::{InverterModel, dead_time_directions};
 use super::kind::MotorKind;
-use super::linear::{least_squares, regressors};
+use super::linear::{MAX_COLS, Regression};
 use super::signals::DqView;
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::linear::solve_weighted;
+use crate::estimate::linear::StreamedLeastSquares;
 
 /// The least-squares start `(names, θ)`: the motor's parameters with the cable resistance
 /// taken out of `r_s`, and `v_dt` (clamped at 0) when `inverter` is estimated. For a
@@ -19,7 +19,7 @@ use crate::estimate::linear::solve_weighted;
 /// regression's `r_s` or `l_s`.
 ///
 /// # Errors
-/// Those of [`least_squares`] and [`dead_time_directions`]; [`Error::Numerical`] when a
+/// Those of [`applied_voltage`], [`StreamedLeastSquares::solve`] and [`dead_time_directions`]; [`Error::Numerical`] when a
 /// resistance or inductance comes out non-positive (give a start).
 pub(crate) fn least_squares_start(
     experiments: &[Experiment],
@@ -29,12 +29,9 @@ pub(crate) fn least_squares_start(
     cable_resistance: f64,
     inverter: Option<&InverterModel>,
 ) -> Result<(Vec<String>, Vec<f64>)> {
-    let applied = applied_experiments(experiments, n_p, input)?;
-    let data = applied.as_deref().unwrap_or(experiments);
-    let regress = |kind: MotorKind| match inverter.filter(|i| i.known.is_none()) {
-        Some(model) => with_dead_time(data, n_p, kind, model),
-        None => least_squares(data, n_p, kind).map(|ls| (ls.names, ls.theta)),
-    };
+    super::interval::check_pole_pairs(n_p)?;
+    let dead_time = inverter.filter(|i| i.known.is_none());
+    let regress = |kind: MotorKind| regress(experiments, n_p, kind, input, dead_time);
     let (names, mut theta) = regress(kind)?;
     // A salient regression with little d-axis excitation can give a non-positive `r_s` or
     // inductance: start those from the surface-magnet regression (`l_s` for both).
@@ -64,44 +61,57 @@ pub(crate) fn least_squares_start(
     Ok((names, theta))
 }
 
-/// Least squares with the dead-time voltage: each interval's d and q rows gain the column
-/// `−Re d_k`, `−Im d_k`, `d_k` the per-unit error of [`dead_time_directions`].
-fn with_dead_time(
+/// The least-squares `(names, θ)` of `kind` on the applied voltage of `input`, streamed
+/// (no regressor matrix is formed); with `dead_time`, each interval's d and q rows gain
+/// the column `−Re d_k`, `−Im d_k` (`d_k` the per-unit error of [`dead_time_directions`])
+/// and the names `v_dt`.
+fn regress(
     experiments: &[Experiment],
     n_p: u32,
     kind: MotorKind,
-    model: &InverterModel,
+    input: VoltageInput,
+    dead_time: Option<&InverterModel>,
 ) -> Result<(Vec<String>, Vec<f64>)> {
-    let names: Vec<String> =
-        kind.parameter_names().iter().map(|s| s.to_string()).chain(["v_dt".into()]).collect();
-    let cols = names.len() - 1;
-    let (mut phi, mut y) = (Vec::new(), Vec::new());
+    let names: Vec<String> = kind
+        .parameter_names()
+        .iter()
+        .map(|s| s.to_string())
+        .chain(dead_time.map(|_| "v_dt".to_string()))
+        .collect();
+    let mut ls = StreamedLeastSquares::new(names.len());
     for e in experiments {
         let v = DqView::try_new(e)?;
-        let (p, u) = regressors(&v, n_p, kind)?;
-        let dirs = dead_time_directions(&v, n_p, model)?;
-        for (k, d) in dirs.iter().enumerate() {
-            phi.extend_from_slice(&p[2 * k * cols..(2 * k + 1) * cols]);
-            phi.push(-d.re);
-            phi.extend_from_slice(&p[(2 * k + 1) * cols..(2 * k + 2) * cols]);
-            phi.push(-d.im);
+        let applied;
+        let (u_d, u_q) = match input {
+            VoltageInput::Terminal => v.terminal_voltage()?,
+            _ => {
+                applied = applied_voltage(&v, n_p, input)?;
+                (&applied.0[..], &applied.1[..])
+            }
+        };
+        let reg = Regression::new(&v, u_d, u_q, n_p, kind);
+        let cols = reg.cols();
+        match dead_time {
+            None => {
+                reg.for_each(|_, d, q, u| {
+                    ls.push(&d[..cols], u[0], 1.0);
+                    ls.push(&q[..cols], u[1], 1.0);
+                });
+            }
+            Some(model) => {
+                let dirs = dead_time_directions(&v, n_p, model)?;
+                for (k, dir) in dirs.iter().enumerate().take(reg.intervals()) {
+                    let (d, q, u) = reg.rows(k);
+                    let (mut drow, mut qrow) = ([0.0; MAX_COLS + 1], [0.0; MAX_COLS + 1]);
+                    drow[..cols].copy_from_slice(&d[..cols]);
+                    qrow[..cols].copy_from_slice(&q[..cols]);
+                    (drow[cols], qrow[cols]) = (-dir.re, -dir.im);
+                    ls.push(&drow[..=cols], u[0], 1.0);
+                    ls.push(&qrow[..=cols], u[1], 1.0);
+                }
+            }
         }
-        y.extend(u);
     }
-    let weights = vec![1.0; y.len()];
-    let theta = solve_weighted(&names, &phi, &y, &weights)?.theta;
+    let theta = ls.solve(&names)?.theta;
     Ok((names, theta))
-}
-
-/// With a reference input, the experiments with their `ud, uq` replaced by the applied
-/// period-mean voltage; `None` for the terminal input.
-fn applied_experiments(
-    experiments: &[Experiment],
-    n_p: u32,
-    input: VoltageInput,
-) -> Result<Option<Vec<Experiment>>> {
-    if input == VoltageInput::Terminal {
-        return Ok(None);
-    }
-    experiments.iter().map(|e| applied_experiment(e, n_p, input)).collect::<Result<Vec<_>>>().map(Some)
 }

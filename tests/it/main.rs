@@ -29,6 +29,7 @@ mod reports;
 mod robust;
 mod solvers;
 mod spm;
+mod streamed;
 mod thermal;
 mod track;
 mod trust;

@@ -1,0 +1,132 @@
+//! The regression Gram of the setup checks ([`super::detect`]), streamed: the five signals
+//! the voltage equations need (`u_d, u_q, i_d, i_q, w_m`) are low-passed together, lane by
+//! lane in one buffer, and the Gram of the base columns is summed over the intervals
+//! without forming a row matrix, the structural zeros of the d and q rows skipped.
+//!
+//! The zero-phase filter is [`Butterworth::filtfilt`] (odd reflection, steady-state start,
+//! forward then backward; Gustafsson 1996) with the same operations in the same order on
+//! every lane, so each lane equals `filtfilt` of its signal bit for bit; the Gram sums the
+//! products of every interval in the order of a dense `ΦᵀΦ`, so it equals the dense Gram bit
+//! for bit as well.
+
+use super::interval::{SQRT_2_3, VoltageInput, applied_voltage};
+use super::signals::DqView;
+use crate::data::Experiment;
+use crate::error::Result;
+use crate::estimate::filter::Butterworth;
+use nalgebra::DMatrix;
+
+/// Order and cutoff (relative to the sample rate) of the scan's zero-phase prefilter.
+const SCAN_FILTER_ORDER: usize = 4;
+const SCAN_CUTOFF: f64 = 0.05;
+
+/// Base columns of the scan (see [`super::detect`]); the Gram is `(BASE + 1)²` with the
+/// voltage last.
+pub(crate) const BASE: usize = 6;
+
+/// Filtered signals per sample: `[u_d, u_q, i_d, i_q, w_m]`.
+const LANES: usize = 5;
+
+/// Base columns of a d row that can be non-zero: `i_d`, `di_d/dt`, `−ω_m i_q`, `u_d`.
+const D_COLUMNS: [usize; 4] = [0, 1, 3, 6];
+/// Base columns of a q row that can be non-zero: `i_q`, `ω_m i_d`, `di_q/dt`, `√(2/3) ω_m`,
+/// `u_q`.
+const Q_COLUMNS: [usize; 5] = [0, 2, 4, 5, 6];
+
+/// Zero-phase low-pass of `L` equally long signals at once: lane `l` of sample `k` of the
+/// result is `bw.filtfilt(x[l])[k]`, bit for bit. Empty signals give an empty result.
+///
+/// Source: [`Butterworth::filtfilt`] (`scipy.signal.sosfiltfilt`, odd padding).
+fn filtfilt_lanes<const L: usize>(bw: &Butterworth, x: [&[f64]; L]) -> Vec<[f64; L]> {
+    let n = x.iter().map(|s| s.len()).min().unwrap_or(0);
+    if n == 0 {
+        return Vec::new();
+    }
+    let p = bw.pad_len(n);
+    let lane = |f: &dyn Fn(&[f64]) -> f64| -> [f64; L] { std::array::from_fn(|l| f(x[l])) };
+    let mut ext: Vec<[f64; L]> = Vec::with_capacity(n + 2 * p);
+    ext.extend((0..p).map(|i| lane(&|s| 2.0 * s[0] - s[p - i])));
+    ext.extend((0..n).map(|k| lane(&|s| s[k])));
+    ext.extend((0..p).map(|j| lane(&|s| 2.0 * s[n - 1] - s[n - 2 - j])));
+    // Per-section steady state under a constant input 1 (`sosfilt_zi`), as the filter has it.
+    let sections = bw.sections();
+    let mut scale = 1.0;
+    let zi: Vec<[f64; 2]> = sections
+        .iter()
+        .map(|s| {
+            let g = s.dc_gain();
+            let z2 = s.b[2] - s.a[2] * g;
+            let out = [scale * (s.b[1] - s.a[1] * g + z2), scale * z2];
+            scale *= g;
+            out
+        })
+        .collect();
+    let run = |ext: &mut dyn Iterator<Item = &mut [f64; L]>, start: [f64; L]| {
+        let mut z: Vec<[[f64; L]; 2]> =
+            zi.iter().map(|s| [start.map(|v| s[0] * v), start.map(|v| s[1] * v)]).collect();
+        for v in ext {
+            for (s, zs) in sections.iter().zip(z.iter_mut()) {
+                for l in 0..L {
+                    let y = s.b[0] * v[l] + zs[0][l];
+                    zs[0][l] = s.b[1] * v[l] - s.a[1] * y + zs[1][l];
+                    zs[1][l] = s.b[2] * v[l] - s.a[2] * y;
+                    v[l] = y;
+                }
+            }
+        }
+    };
+    let first = ext[0];
+    run(&mut ext.iter_mut(), first);
+    let last = ext[ext.len() - 1];
+    run(&mut ext.iter_mut().rev(), last);
+    ext.drain(..p);
+    ext.truncate(n);
+    ext
+}
+
+/// Gram matrix `[C y]ᵀ[C y]` (7 × 7) of the base columns over every interval of the applied
+/// voltage, from a zero-phase low-passed copy of each log. One Gram serves every candidate
+/// `n_p` and both motor kinds.
+///
+/// # Errors
+/// Those of [`DqView::try_new`], [`applied_voltage`] and of the filter design.
+pub(crate) fn scan_gram(experiments: &[Experiment], input: VoltageInput) -> Result<DMatrix<f64>> {
+    let mut g = [[0.0; BASE + 1]; BASE + 1];
+    for e in experiments {
+        let v = DqView::try_new(e)?;
+        // n_p only scales the angle advance of a reference input; 1 is used for the scan.
+        let applied;
+        let (u_d, u_q) = match input {
+            VoltageInput::Terminal => v.terminal_voltage()?,
+            _ => {
+                applied = applied_voltage(&v, 1, input)?;
+                (&applied.0[..], &applied.1[..])
+            }
+        };
+        // A zero-phase low-pass at 5 % of the sample rate keeps current noise out of di/dt
+        // (MODEL.md §5: the derivative regressor is errors-in-variables).
+        let filter = Butterworth::try_new(SCAN_FILTER_ORDER, SCAN_CUTOFF / e.h(), e.h())?;
+        let x = filtfilt_lanes::<LANES>(&filter, [u_d, u_q, v.i_d(), v.i_q(), v.w_m()]);
+        let h = v.h();
+        for s in x.windows(2) {
+            let ([ud, uq, id0, iq0, w0], [_, _, id1, iq1, w1]) = (s[0], s[1]);
+            let (i_d, i_q) = (0.5 * (id0 + id1), 0.5 * (iq0 + iq1));
+            let (di_d, di_q) = ((id1 - id0) / h, (iq1 - iq0) / h);
+            let w = 0.5 * (w0 + w1);
+            add_products(&mut g, &D_COLUMNS, [i_d, di_d, -w * i_q, ud]);
+            add_products(&mut g, &Q_COLUMNS, [i_q, w * i_d, di_q, SQRT_2_3 * w, uq]);
+        }
+    }
+    Ok(DMatrix::from_fn(BASE + 1, BASE + 1, |a, b| if a <= b { g[a][b] } else { g[b][a] }))
+}
+
+/// Adds the products `r_a r_b` of a row's non-zero entries `r` (at base columns `at`) to the
+/// upper triangle of `g`.
+#[inline]
+fn add_products<const K: usize>(g: &mut [[f64; BASE + 1]; BASE + 1], at: &[usize; K], r: [f64; K]) {
+    for a in 0..K {
+        for b in a..K {
+            g[at[a]][at[b]] += r[a] * r[b];
+        }
+    }
+}
