@@ -116,12 +116,27 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         names.push("v_dt");
     }
     let names = &names[..];
-    // One regression Gram for the setup checks (a log the scan cannot read is not checked).
-    let scan = if options.skip_setup_checks {
-        None
-    } else {
-        super::detect::scan_gram(experiments, options.input).ok()
-    };
+    // One regression Gram for the setup checks (a log the scan cannot read is not
+    // checked), and the least-squares start when none is given: independent, in parallel.
+    let (scan, least_squares) = rayon::join(
+        || {
+            (!options.skip_setup_checks)
+                .then(|| super::detect::scan_gram(experiments, options.input).ok())
+                .flatten()
+        },
+        || {
+            options.start.is_none().then(|| {
+                least_squares_start(
+                    experiments,
+                    n_p,
+                    options.model,
+                    options.input,
+                    options.cable_resistance,
+                    options.inverter.as_ref(),
+                )
+            })
+        },
+    );
     let structure = match &scan {
         Some(g) if options.inverter.is_none() => super::detect::check_structure(g, n_p, options.model)?,
         _ => None,
@@ -152,14 +167,8 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             s
         }
         None => {
-            let (ls_names, theta) = least_squares_start(
-                experiments,
-                n_p,
-                options.model,
-                options.input,
-                options.cable_resistance,
-                options.inverter.as_ref(),
-            )?;
+            let (ls_names, theta) =
+                least_squares.ok_or_else(|| Error::Solver("no least-squares start".into()))??;
             notes.push(format!(
                 "start from linear least squares: {}",
                 ls_names

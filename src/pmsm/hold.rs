@@ -4,6 +4,7 @@
 use super::interval::VoltageHold;
 use crate::error::{Error, Result};
 use crate::estimate::FitResult;
+use rayon::prelude::*;
 
 /// Factor by which the dq hold's loss must be lower than the stator hold's for
 /// [`HoldChoice::Auto`] to choose it.
@@ -88,13 +89,14 @@ pub(crate) fn fit_holds_screened(
     start: &[f64],
     names: &[&str],
     modulator: bool,
-    mut predict: impl FnMut(VoltageHold, &[f64]) -> Result<f64>,
+    predict: impl Fn(VoltageHold, &[f64]) -> Result<f64> + Sync,
     mut fit_hold: impl FnMut(VoltageHold, &[f64]) -> Result<FitResult>,
 ) -> Result<HoldFits> {
     let mut notes = Vec::new();
     if holds.len() > 1 {
+        // One normal-equation pass per hold, the holds in parallel.
         let predicted: Option<Vec<(VoltageHold, f64)>> =
-            holds.iter().map(|&h| predict(h, start).ok().map(|l| (h, l))).collect();
+            holds.par_iter().map(|&h| predict(h, start).ok().map(|l| (h, l))).collect();
         let listed = |p: &[(VoltageHold, f64)]| {
             p.iter().map(|(h, l)| format!("{h} {l:.6e}")).collect::<Vec<_>>().join(", ")
         };
