@@ -7,7 +7,9 @@
 //!
 //! Data flow: [`data`] (an [`Experiment`]: named channels read from a CSV log) →
 //! [`model`] (the [`model::GreyBoxModel`] trait) → [`simulate`] (single shooting with
-//! forward sensitivities) → [`estimate`] (prediction-error fit by Levenberg-Marquardt or
+//! forward sensitivities, a block of [`model::BLOCK_LEN`] samples at a time; a model may
+//! offer a whole-block kernel, [`model::BlockKernel`], as the surface-magnet model does) →
+//! [`estimate`] (prediction-error fit by Levenberg-Marquardt or
 //! Gauss-Newton, linear least squares, statistics) → [`estimate::FitResult`] (table and
 //! JSON). All motor knowledge lives in [`pmsm`]: the dq view of a log, the exact
 //! [`pmsm::PmsmSpm`] and [`pmsm::PmsmIpm`] models, the least-squares start, and

@@ -116,6 +116,15 @@ impl<'a, M: GreyBoxModel> PerSample<'a, M> {
         let sens = b.sensitivities;
         let analytic = model.sensitivities();
         let inp = &prep.inputs;
+        let (theta, fd_scale) = (self.theta, self.fd_scale);
+        // Finite differences of `eval` (the output map or the step), chained with `s`.
+        let fd = |x: &[f64],
+                  s: &[f64],
+                  out: &mut [f64],
+                  n_out,
+                  eval: &dyn Fn(&M::Coefficients, &[f64], &mut [f64])| {
+            fd_sensitivity(model, prep, theta, fd_scale, x, s, out, n_out, eval)
+        };
         for t in 0..b.len {
             let k = b.k0 + t;
             let (yb, dyb, dy0b) = b.channels_mut();
@@ -126,17 +135,7 @@ impl<'a, M: GreyBoxModel> PerSample<'a, M> {
             if sens {
                 match analytic {
                     Some(a) => a.output_sensitivity(c, inp, k, &st.x, &st.s, &mut self.dy),
-                    None => fd_sensitivity(
-                        model,
-                        prep,
-                        self.theta,
-                        self.fd_scale,
-                        &st.x,
-                        &st.s,
-                        &mut self.dy,
-                        ny,
-                        |c, xv, o| model.output(c, inp, k, xv, o),
-                    )?,
+                    None => fd(&st.x, &st.s, &mut self.dy, ny, &|c, xv, o| model.output(c, inp, k, xv, o))?,
                 }
                 for (ch, v) in self.dy.iter().enumerate() {
                     dyb[ch * BLOCK_LEN + t] = *v;
@@ -180,17 +179,7 @@ impl<'a, M: GreyBoxModel> PerSample<'a, M> {
                     }
                     (true, None) => {
                         model.step(c, inp, k, &st.x, &mut self.xn);
-                        fd_sensitivity(
-                            model,
-                            prep,
-                            self.theta,
-                            self.fd_scale,
-                            &st.x,
-                            &st.s,
-                            &mut self.sn,
-                            nx,
-                            |c, xv, o| model.step(c, inp, k, xv, o),
-                        )?;
+                        fd(&st.x, &st.s, &mut self.sn, nx, &|c, xv, o| model.step(c, inp, k, xv, o))?;
                     }
                     (false, _) => model.step(c, inp, k, &st.x, &mut self.xn),
                 }

@@ -3,13 +3,53 @@
 
 use super::accumulate::{Accumulator, Sums};
 use super::gram::{dot, gram, scatter_gram, weighted_square_sum};
-use super::pass::{Pass, RawSample, ResidualFilter};
+use super::pass::{Chunk, Pass, RawSample, ResidualFilter};
 use super::{Loss, NormalEquations, PemProblem};
 use crate::error::Result;
 use crate::model::BLOCK_LEN;
 use crate::model::GreyBoxModel;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+
+/// Output i's local columns of a chunk, then `extra` when given: in a fixed array for up
+/// to [`INLINE_COLUMNS`] columns (no allocation in the pass), else collected into `spill`.
+fn columns<'a>(
+    ch: &'a Chunk<'_>,
+    i: usize,
+    extra: Option<&'a [f64]>,
+    spill: &'a mut Vec<&'a [f64]>,
+) -> Columns<'a> {
+    let n = ch.m + usize::from(extra.is_some());
+    let all = (0..ch.m).map(|c| ch.col(i, c)).chain(extra);
+    if n <= INLINE_COLUMNS {
+        let mut a: [&[f64]; INLINE_COLUMNS] = [&[]; INLINE_COLUMNS];
+        for (slot, c) in a.iter_mut().zip(all) {
+            *slot = c;
+        }
+        Columns::Inline(a, n)
+    } else {
+        spill.extend(all);
+        Columns::Spilled(spill)
+    }
+}
+
+/// Most columns a pass holds without allocating.
+const INLINE_COLUMNS: usize = 12;
+
+/// The columns of [`columns`].
+enum Columns<'a> {
+    Inline([&'a [f64]; INLINE_COLUMNS], usize),
+    Spilled(&'a [&'a [f64]]),
+}
+
+impl<'a> AsRef<[&'a [f64]]> for Columns<'a> {
+    fn as_ref(&self) -> &[&'a [f64]] {
+        match self {
+            Self::Inline(a, n) => &a[..*n],
+            Self::Spilled(v) => v,
+        }
+    }
+}
 
 /// An experiment's Gram matrices in its local columns (row-major m × m, upper triangle):
 /// `JᵀWJ`, the bread, and each output's meat.
@@ -73,9 +113,10 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             let n = ch.len - ch.lo;
             for (i, gi) in g.iter_mut().enumerate() {
                 let lambda = self.output_weights[i];
-                let cols: Vec<&[f64]> = (0..ch.m).map(|c| ch.col(i, c)).chain([ch.eps(i)]).collect();
+                let mut spill = Vec::new();
+                let cols = columns(ch, i, Some(ch.eps(i)), &mut spill);
                 if unweighted {
-                    gram(&cols, None, gi);
+                    gram(cols.as_ref(), None, gi);
                     continue;
                 }
                 for (t, (&ek, &bk)) in ch.eps(i).iter().zip(ch.beta()).enumerate() {
@@ -88,7 +129,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                         wq[t] = w * irls;
                     }
                 }
-                gram(&cols, Some(&wq[..n]), gi);
+                gram(cols.as_ref(), Some(&wq[..n]), gi);
             }
         })?;
         let mut jtj = DMatrix::zeros(np, np);
@@ -249,13 +290,14 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                 let lambda = self.output_weights[i];
                 let eps = ch.eps(i);
                 res.extend_from_slice(eps);
-                let cols: Vec<&[f64]> = (0..ch.m).map(|c| ch.col(i, c)).collect();
+                let mut spill = Vec::new();
+                let cols = columns(ch, i, None, &mut spill);
                 let sse = dot(eps, eps);
                 if !weighted && !huber {
                     // Unit sample weights, quadratic loss: w = Λ_i, the bread is JᵀWJ and
                     // the meat Λ_i JᵀWJ; one unweighted Gram serves all three.
                     acc.add_output_sums(i, 0.5 * lambda * sse, lambda * sse, sse, sse, n);
-                    gram(&cols, None, &mut g.unit[i]);
+                    gram(cols.as_ref(), None, &mut g.unit[i]);
                     continue;
                 }
                 let mut cost = 0.0;
@@ -282,11 +324,11 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                     (sse, n)
                 };
                 acc.add_output_sums(i, cost, e2w, sse, sse_live, n_live);
-                gram(&cols, Some(&w[..n]), &mut g.jtj);
+                gram(cols.as_ref(), Some(&w[..n]), &mut g.jtj);
                 if huber {
-                    gram(&cols, Some(&wb[..n]), &mut g.bread);
+                    gram(cols.as_ref(), Some(&wb[..n]), &mut g.bread);
                 }
-                gram(&cols, Some(&wm[..n]), &mut g.meat[i]);
+                gram(cols.as_ref(), Some(&wm[..n]), &mut g.meat[i]);
             }
         })?;
         if let Some(mut g) = local {

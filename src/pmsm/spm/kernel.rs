@@ -118,16 +118,7 @@ impl BlockKernel<SpmInputs, SpmCoefficients> for PmsmSpm {
         b: &mut Block,
     ) {
         let stator = self.setup.hold == VoltageHold::Stator;
-        match (b.sensitivities, stator, c.nth == 4) {
-            (false, true, false) => run_block::<false, true, false>(c, inp, ctx, st, b),
-            (false, true, true) => run_block::<false, true, true>(c, inp, ctx, st, b),
-            (false, false, false) => run_block::<false, false, false>(c, inp, ctx, st, b),
-            (false, false, true) => run_block::<false, false, true>(c, inp, ctx, st, b),
-            (true, true, false) => run_block::<true, true, false>(c, inp, ctx, st, b),
-            (true, true, true) => run_block::<true, true, true>(c, inp, ctx, st, b),
-            (true, false, false) => run_block::<true, false, false>(c, inp, ctx, st, b),
-            (true, false, true) => run_block::<true, false, true>(c, inp, ctx, st, b),
-        }
+        run_any(c, inp, ctx, st, b, (b.sensitivities, stator, c.nth == 4));
     }
 
     /// The state is the output and the step a sum of products: a NaN or ∞ in any output or
@@ -135,6 +126,23 @@ impl BlockKernel<SpmInputs, SpmCoefficients> for PmsmSpm {
     fn non_finite_persists(&self) -> bool {
         true
     }
+}
+
+/// Calls `$f::<SENS, STATOR, VDT>($args)` for the run-time mode `(sensitivities, stator
+/// hold, v_dt)`: one monomorphised loop per mode.
+macro_rules! by_mode {
+    ($f:ident, $mode:expr, $($arg:expr),*) => {
+        match $mode {
+            (false, false, false) => $f::<false, false, false>($($arg),*),
+            (false, false, true) => $f::<false, false, true>($($arg),*),
+            (false, true, false) => $f::<false, true, false>($($arg),*),
+            (false, true, true) => $f::<false, true, true>($($arg),*),
+            (true, false, false) => $f::<true, false, false>($($arg),*),
+            (true, false, true) => $f::<true, false, true>($($arg),*),
+            (true, true, false) => $f::<true, true, false>($($arg),*),
+            (true, true, true) => $f::<true, true, true>($($arg),*),
+        }
+    };
 }
 
 /// Number of per-interval term arrays a block keeps: `a`, the forced term and its
@@ -154,16 +162,7 @@ fn fill_terms(
     mode: (bool, bool, bool),
     out: &mut [f64],
 ) {
-    match mode {
-        (false, true, false) => fill::<false, true, false>(c, inp, k0, steps, out),
-        (false, true, true) => fill::<false, true, true>(c, inp, k0, steps, out),
-        (false, false, false) => fill::<false, false, false>(c, inp, k0, steps, out),
-        (false, false, true) => fill::<false, false, true>(c, inp, k0, steps, out),
-        (true, true, false) => fill::<true, true, false>(c, inp, k0, steps, out),
-        (true, true, true) => fill::<true, true, true>(c, inp, k0, steps, out),
-        (true, false, false) => fill::<true, false, false>(c, inp, k0, steps, out),
-        (true, false, true) => fill::<true, false, true>(c, inp, k0, steps, out),
-    }
+    by_mode!(fill, mode, c, inp, k0, steps, out)
 }
 
 #[inline(always)]
@@ -210,10 +209,25 @@ fn fill<const SENS: bool, const STATOR: bool, const VDT: bool>(
     }
 }
 
+/// [`run_block`] for the mode `(sensitivities, stator hold, v_dt)`, compiled for AVX2 as
+/// well as the baseline (three-operand instructions: fewer register moves; no FMA, so the
+/// numbers are the same) and chosen at run time.
+#[multiversion(targets("x86_64+avx2"))]
+fn run_any<'a>(
+    c: &SpmCoefficients,
+    inp: &SpmInputs,
+    ctx: &BlockContext<'a>,
+    st: &mut SimState,
+    b: &mut Block,
+    mode: (bool, bool, bool),
+) {
+    by_mode!(run_block, mode, c, inp, ctx, st, b)
+}
+
 /// One block of the SPM recursion, monomorphised per sensitivities, hold and inverter
 /// model. `∂i/∂x₀` is carried as one complex product `P = Π a` (`∂i/∂i_d0 = P`,
 /// `∂i/∂i_q0 = j P`).
-#[inline(never)]
+#[inline(always)]
 fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
     c: &SpmCoefficients,
     inp: &SpmInputs,
