@@ -71,6 +71,10 @@ where
     Ok(())
 }
 
+/// A function of the coefficients and a state into an output slice (a step or an output
+/// map), for finite differences.
+type Eval<'e, C> = dyn Fn(&C, &[f64], &mut [f64]) + 'e;
+
 /// The per-sample runner: the model's `step`/`output` with its analytic sensitivities or
 /// finite differences, and the state derivatives for `∂x/∂x₀`.
 struct PerSample<'a, M: GreyBoxModel> {
@@ -118,11 +122,7 @@ impl<'a, M: GreyBoxModel> PerSample<'a, M> {
         let inp = &prep.inputs;
         let (theta, fd_scale) = (self.theta, self.fd_scale);
         // Finite differences of `eval` (the output map or the step), chained with `s`.
-        let fd = |x: &[f64],
-                  s: &[f64],
-                  out: &mut [f64],
-                  n_out,
-                  eval: &dyn Fn(&M::Coefficients, &[f64], &mut [f64])| {
+        let fd = |x: &[f64], s: &[f64], out: &mut [f64], n_out, eval: &Eval<'_, M::Coefficients>| {
             fd_sensitivity(model, prep, theta, fd_scale, x, s, out, n_out, eval)
         };
         for t in 0..b.len {
