@@ -16,8 +16,8 @@ pub mod scaling;
 pub mod solver;
 pub mod weighting;
 
-pub(crate) use problem::dot;
 pub use problem::{Loss, PemProblem, ProblemOptions};
+pub(crate) use problem::{dot, sum};
 pub use result::{
     DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing, Warning,
 };

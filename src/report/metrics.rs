@@ -129,18 +129,21 @@ pub fn metrics(
 /// mean, with the 95 % whiteness bound `1.96/√N` (N: all samples; max_lag clipped to the
 /// longest segment − 1).
 pub fn whiteness(segments: &[&[f64]], max_lag: usize) -> Whiteness {
+    use crate::estimate::{dot, sum};
     let n: usize = segments.iter().map(|s| s.len()).sum();
-    let mean = segments.iter().flat_map(|s| s.iter()).sum::<f64>() / n.max(1) as f64;
-    let c: Vec<Vec<f64>> = segments.iter().map(|s| s.iter().map(|v| v - mean).collect()).collect();
-    let r0: f64 = c.iter().map(|s| crate::estimate::dot(s, s)).sum();
+    let mean = segments.iter().map(|s| sum(s)).sum::<f64>() / n.max(1) as f64;
+    // Σ (e_k − m)(e_{k+τ} − m) = Σ e_k e_{k+τ} − m (Σ e_k + Σ e_{k+τ}) + n_τ m², each sum over
+    // the n_τ pairs of a segment: no centred copy of the residuals.
+    let centred = |s: &[f64], tau: usize| {
+        let pairs = s.len() - tau;
+        let (head, tail) = (&s[..pairs], &s[tau..]);
+        dot(head, tail) - mean * (sum(head) + sum(tail)) + pairs as f64 * mean * mean
+    };
+    let r0: f64 = segments.iter().map(|s| centred(s, 0)).sum();
     let lags = max_lag.min(segments.iter().map(|s| s.len()).max().unwrap_or(0).saturating_sub(1));
     let autocorrelation: Vec<f64> = (1..=lags)
         .map(|tau| {
-            let r: f64 = c
-                .iter()
-                .filter(|s| s.len() > tau)
-                .map(|s| crate::estimate::dot(&s[..s.len() - tau], &s[tau..]))
-                .sum();
+            let r: f64 = segments.iter().filter(|s| s.len() > tau).map(|s| centred(s, tau)).sum();
             if r0 > 0.0 { r / r0 } else { 0.0 }
         })
         .collect();

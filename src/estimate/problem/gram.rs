@@ -27,6 +27,32 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
+/// `max |v|` (0 for an empty slice; NaN values are skipped), in four lanes.
+pub(crate) fn max_abs(v: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let q = v.chunks_exact(4);
+    let tail = q.remainder().iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    for x in q {
+        for l in 0..4 {
+            acc[l] = acc[l].max(x[l].abs());
+        }
+    }
+    acc.iter().fold(tail, |m, a| m.max(*a))
+}
+
+/// `Σ_k v_k` in four lanes.
+pub(crate) fn sum(v: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let q = v.chunks_exact(4);
+    let tail: f64 = q.remainder().iter().sum();
+    for x in q {
+        for l in 0..4 {
+            acc[l] += x[l];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+}
+
 /// `Σ_k w_k e_k²` over equal-length slices, in four lanes.
 #[inline]
 pub(crate) fn weighted_square_sum(e: &[f64], w: &[f64]) -> f64 {

@@ -19,7 +19,7 @@ mod sums;
 use crate::estimate::solver::LeastSquares;
 pub use crate::estimate::solver::NormalEquations;
 pub use accumulate::Sums;
-pub(crate) use gram::dot;
+pub(crate) use gram::{dot, sum};
 pub use loss::Loss;
 
 use crate::error::{Error, Result};
@@ -223,11 +223,11 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             let x0_free = (options.estimate_x0 && !prep.x0.is_empty()).then(|| {
                 let g = free.len();
                 // Scale of the state: its RMS over the record (outputs are states for the PMSM).
-                let rms = (prep.y.iter().map(|v| v * v).sum::<f64>() / prep.y.len() as f64).sqrt();
+                let rms = (gram::dot(&prep.y, &prep.y) / prep.y.len() as f64).sqrt();
                 let scale = if rms > 0.0 && rms.is_finite() { rms } else { 1.0 };
                 // An initial state the data barely see (its transient weighted out) must
                 // not wander off: bound it to ten times the largest measured output.
-                let bound = (10.0 * prep.y.iter().fold(0.0f64, |m, v| m.max(v.abs())) + 1.0) / scale;
+                let bound = (10.0 * gram::max_abs(&prep.y) + 1.0) / scale;
                 for i in 0..prep.x0.len() {
                     free.push(FreeParameter {
                         kind: FreeKind::InitialState(i),
