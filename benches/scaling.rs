@@ -1,7 +1,7 @@
 //! Criterion benches on records from the drive simulator (no files needed): one simulation
 //! (SPM, IPM), a whole fit from the least-squares start at 60 800 and 512 000 samples (one
 //! hold and `--hold auto`, single-threaded and with the default thread pool), the drive
-//! simulator itself, and the CSV reader on a 512 000-row log (gzip and plain).
+//! simulator itself (the log readers: `benches/read.rs`).
 //!
 //! Run: `cargo bench --bench scaling` (`GREYBOX_BENCH_10M=1` adds a 10⁷-sample fit).
 
@@ -9,9 +9,7 @@ use criterion::{Criterion, criterion_group};
 use greybox::Experiment;
 use greybox::drive::{DriveConfig, IPM_MOTOR, SPM_MOTOR, scenario, simulate_drive};
 use greybox::model::Prepared;
-use greybox::pmsm::{
-    HoldChoice, MotorKind, PmsmFitOptions, PmsmIpm, PmsmSpm, VoltageHold, fit_pmsm, read_log,
-};
+use greybox::pmsm::{HoldChoice, MotorKind, PmsmFitOptions, PmsmIpm, PmsmSpm, VoltageHold, fit_pmsm};
 use greybox::simulate::{SimOptions, simulate};
 use std::hint::black_box;
 
@@ -74,20 +72,6 @@ fn benches(c: &mut Criterion) {
         b.iter(|| black_box(record(SPM_MOTOR, 60_800)))
     });
     g.finish();
-
-    let dir = std::env::temp_dir().join(format!("greybox-bench-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let mut g = c.benchmark_group("read");
-    g.sample_size(10);
-    for name in ["log.csv", "log.csv.gz"] {
-        let path = dir.join(name);
-        greybox::data::write::write_csv(&path, &big, "t").unwrap();
-        g.bench_function(format!("512000 rows, {name}"), |b| {
-            b.iter(|| black_box(read_log(&path, &Default::default()).unwrap()))
-        });
-    }
-    g.finish();
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 criterion_group!(scaling, benches);

@@ -21,7 +21,8 @@ use super::interval::check_pole_pairs;
 use super::signals::{DqSignals, DqView, MIN_SAMPLES};
 use super::transform::{currents_to_dq, stator_held_voltages_to_dq};
 use crate::data::Experiment;
-use crate::data::csv::{name_excerpt, read_table};
+use crate::data::columnar::read_table;
+use crate::data::csv::name_excerpt;
 use crate::error::{Error, Result};
 
 mod options;

@@ -5,8 +5,10 @@
 
 mod common;
 
+mod columnar;
 mod coverage;
 mod criteria;
+mod csv_reader;
 mod data;
 mod drive;
 mod errors;
