@@ -174,16 +174,15 @@ fn build(name: String, cols: Vec<Option<Vec<f64>>>, n_p: u32, options: &CsvOptio
         scale_in_place(v, u_scale);
     }
 
-    let (u_d, u_q, i_d, i_q) = match main.as_slice() {
-        [u_d, u_q, i_d, i_q] => {
-            let (mut u_d, mut u_q, mut i_d, mut i_q) = (u_d.clone(), u_q.clone(), i_d.clone(), i_q.clone());
+    let (u_d, u_q, i_d, i_q) = match <[Vec<f64>; 4]>::try_from(main) {
+        Ok([mut u_d, mut u_q, mut i_d, mut i_q]) => {
             scale_in_place(&mut u_d, u_scale);
             scale_in_place(&mut u_q, u_scale);
             scale_in_place(&mut i_d, i_scale);
             scale_in_place(&mut i_q, i_scale);
             (u_d, u_q, i_d, i_q)
         }
-        _ => {
+        Err(main) => {
             let mut ph: Vec<Vec<f64>> = main.into_iter().take(6).collect();
             for (k, v) in ph.iter_mut().enumerate() {
                 scale_in_place(v, if k < 3 { i_scale } else { u_scale });
