@@ -117,7 +117,9 @@ pub struct Table {
 /// Reads a log into a validated [`Experiment`] with one channel per entry of
 /// `spec.columns` (optional ones only when present).
 ///
-/// Gzip is detected by the magic bytes `1f 8b`, not by the extension. Fields may be
+/// Gzip is detected by the magic bytes `1f 8b`, not by the extension; a Parquet or Arrow
+/// IPC file (by extension, [`super::columnar::Format`]) is read the same way, its columns
+/// by name ([`super::columnar::read_table`]). Fields may be
 /// surrounded by blanks; `nan` and `inf` parse as numbers and are then rejected by
 /// validation, naming the column. The sample time h [s] is the mean step of the time
 /// column, which must be uniform ([`Experiment::try_from_time`]). No plausibility limit
@@ -125,7 +127,8 @@ pub struct Table {
 /// file ([`ReadLimits`]).
 ///
 /// # Errors
-/// Those of [`read_table`] (which stops at the first NaN/Inf or bad time step), and of
+/// Those of [`read_table`] (which stops at the first NaN/Inf or bad time step) or of
+/// [`super::columnar::read_table`], and of
 /// [`Experiment::try_from_time`] with the column names of the file in
 /// [`Error::NonFinite`]; [`Error::InvalidOption`] for a non-finite or zero scale, or a
 /// time scale that is not positive (the time column is checked as written).
