@@ -115,3 +115,35 @@ fn without_feature(path: &Path, format: Format) -> Error {
         ),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn formats_by_extension() {
+        for (name, f) in [
+            ("a.parquet", Format::Parquet),
+            ("a.PQ", Format::Parquet),
+            ("a.arrow", Format::ArrowIpc),
+            ("a.feather", Format::ArrowIpc),
+            ("a.ipc", Format::ArrowIpc),
+            ("a.csv.gz", Format::Csv),
+            ("a", Format::Csv),
+        ] {
+            assert_eq!(Format::of(Path::new(name)), f, "{name}");
+        }
+    }
+
+    /// `cargo test --no-default-features --lib`: a columnar path names the missing feature.
+    #[cfg(not(feature = "parquet"))]
+    #[test]
+    fn without_the_feature_a_columnar_file_names_it() {
+        let path = std::env::temp_dir().join(format!("greybox-nofeature-{}.parquet", std::process::id()));
+        std::fs::write(&path, b"PAR1").unwrap();
+        let err = read_table(&path, &[("t", true)], &ReadLimits::default()).unwrap_err();
+        assert!(matches!(err, Error::Format { .. }) && err.to_string().contains("`parquet`"), "{err}");
+        std::fs::remove_file(&path).ok();
+        assert!(!Format::Parquet.available() && Format::Csv.available());
+    }
+}

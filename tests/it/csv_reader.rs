@@ -14,7 +14,7 @@ use greybox::data::csv::{ReadLimits, Table, read_table};
 use proptest::prelude::*;
 
 /// The reader as it was before the fast path (commit ad58799), errors as strings.
-mod oracle {
+pub mod oracle {
     use super::*;
 
     struct LineLimit<R> {
