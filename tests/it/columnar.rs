@@ -13,9 +13,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use greybox::Error;
 use greybox::data::Experiment;
-use greybox::data::write::write_log;
 use greybox::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
-use greybox::pmsm::{CsvOptions, PmsmFitOptions, fit_pmsm, read_log};
+use greybox::pmsm::{CsvOptions, read_log};
 
 fn temp_path(name: &str) -> PathBuf {
     static COUNTER: AtomicUsize = AtomicUsize::new(0);
@@ -48,6 +47,8 @@ mod with_feature {
     use arrow_array::{
         ArrayRef, Float32Array, Float64Array, Int16Array, RecordBatch, StringArray, UInt64Array,
     };
+    use greybox::data::write::write_log;
+    use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
     use std::sync::Arc;
 
     #[test]
