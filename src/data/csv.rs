@@ -200,7 +200,8 @@ pub fn read_csv_many<P: AsRef<Path> + Sync>(paths: &[P], spec: &CsvSpec) -> Resu
 /// [`TimeSteps::push`](super::TimeSteps::push) (positive steps, none far from the mean so
 /// far). So the read stops at the first bad row (a chunk's too-long line is found before
 /// its rows are parsed, as by a streaming reader that bounds lines before it parses them)
-/// and its memory is the wanted columns of the rows accepted, plus 16 chunks and one line.
+/// and its memory is the wanted columns of the rows accepted, plus 32 chunks (8 MiB read
+/// ahead or being parsed) and one line.
 /// Errors quote at most [`QUOTE_CHARS`] characters of a cell. Unwanted columns may hold
 /// anything, even share a name.
 ///

@@ -28,7 +28,7 @@ pub(super) type Item = std::io::Result<Vec<u8>>;
 /// stays within [`AHEAD`] chunks plus one line.
 ///
 /// # Errors
-/// Opening or reading the first bytes; later read or decompression errors arrive as the
+/// Opening or reading the first bytes, or starting the thread; later read or decompression errors arrive as the
 /// stream's last item.
 pub(super) fn spawn<'scope>(
     scope: &'scope Scope<'scope, '_>,
@@ -40,7 +40,10 @@ pub(super) fn spawn<'scope>(
     let reader: Box<dyn Read + Send> =
         if gz { Box::new(flate2::read::MultiGzDecoder::new(buf)) } else { Box::new(buf) };
     let (tx, rx) = sync_channel(AHEAD);
-    scope.spawn(move || produce(reader, &tx, max_line));
+    // A thread that cannot be started is an I/O error, not a panic.
+    std::thread::Builder::new()
+        .name("greybox-read".into())
+        .spawn_scoped(scope, move || produce(reader, &tx, max_line))?;
     Ok(rx)
 }
 
