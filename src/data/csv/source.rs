@@ -86,24 +86,10 @@ fn produce(mut reader: Box<dyn Read + Send>, tx: &SyncSender<Item>, max_line: u6
     }
 }
 
-/// Appends up to [`CHUNK_BYTES`] bytes to `buf`; `true` at the end of the data.
+/// Appends up to [`CHUNK_BYTES`] bytes to `buf`; `true` at the end of the data. On an
+/// error the bytes read before it stay in `buf`.
 fn fill(reader: &mut dyn Read, buf: &mut Vec<u8>) -> std::io::Result<bool> {
-    let start = buf.len();
-    buf.resize(start + CHUNK_BYTES, 0);
-    let mut n = start;
-    let result = loop {
-        match reader.read(&mut buf[n..]) {
-            Ok(0) => break Ok(true),
-            Ok(k) => {
-                n += k;
-                if n == buf.len() {
-                    break Ok(false);
-                }
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => break Err(e),
-        }
-    };
-    buf.truncate(n);
-    result
+    // `read_to_end` fills the spare capacity without zeroing it first.
+    let n = reader.take(CHUNK_BYTES as u64).read_to_end(buf)?;
+    Ok(n < CHUNK_BYTES)
 }
