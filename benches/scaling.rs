@@ -3,8 +3,7 @@
 //! x0 estimated, single-threaded) and the core prediction-error fit from the least-squares
 //! start (`estimate::fit`, x0 estimated, one hold) at 60 800 and 512 000 samples; the whole
 //! `fit_pmsm` (one hold and `--hold auto`, single-threaded and with the default thread
-//! pool); the drive simulator itself, and the CSV reader on a 512 000-row log (gzip and
-//! plain).
+//! pool); the drive simulator itself (the log readers: `benches/read.rs`).
 //!
 //! Run: `cargo bench --bench scaling` (`GREYBOX_BENCH_10M=1` adds the 10⁷-sample record to
 //! the passes and the core fit).
@@ -15,7 +14,7 @@ use greybox::drive::{DriveConfig, IPM_MOTOR, SPM_MOTOR, scenario, simulate_drive
 use greybox::estimate::{PemOptions, PemProblem, ProblemOptions, scaling::NominalScaling};
 use greybox::model::Prepared;
 use greybox::pmsm::{
-    HoldChoice, MotorKind, PmsmFitOptions, PmsmIpm, PmsmSpm, VoltageHold, fit_pmsm, least_squares, read_log,
+    HoldChoice, MotorKind, PmsmFitOptions, PmsmIpm, PmsmSpm, VoltageHold, fit_pmsm, least_squares,
 };
 use greybox::simulate::{SimOptions, simulate};
 use std::hint::black_box;
@@ -115,20 +114,6 @@ fn benches(c: &mut Criterion) {
         b.iter(|| black_box(record(SPM_MOTOR, 60_800)))
     });
     g.finish();
-
-    let dir = std::env::temp_dir().join(format!("greybox-bench-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let mut g = c.benchmark_group("read");
-    g.sample_size(10);
-    for name in ["log.csv", "log.csv.gz"] {
-        let path = dir.join(name);
-        greybox::data::write::write_csv(&path, &big, "t").unwrap();
-        g.bench_function(format!("512000 rows, {name}"), |b| {
-            b.iter(|| black_box(read_log(&path, &Default::default()).unwrap()))
-        });
-    }
-    g.finish();
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 criterion_group!(scaling, benches);

@@ -229,6 +229,26 @@ pub enum Error {
         /// Largest plausible h [s].
         max: f64,
     },
+    /// A columnar log (Parquet, Arrow IPC) that cannot be read or written: a malformed
+    /// file, a missing value (null) in a wanted column, or a build without the cargo
+    /// feature `parquet`.
+    #[error("{path}: {message}")]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, naming the column and row where there is one.
+        message: String,
+    },
+    /// A wanted column of a columnar log whose type is not a number.
+    #[error("{path}: column `{column}` holds {found}, not numbers (integers or floating point)")]
+    ColumnType {
+        /// The file.
+        path: PathBuf,
+        /// The column's name.
+        column: String,
+        /// Its type, e.g. `Utf8`.
+        found: String,
+    },
 }
 
 /// Short for `std::result::Result<T, greybox::Error>`.

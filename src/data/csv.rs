@@ -17,17 +17,20 @@
 //! # Ok::<(), greybox::Error>(())
 //! ```
 
-use std::fs::File;
-use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::{Channel, Experiment, TimeSteps};
-use line_limit::{LineLimit, LineTooLong};
+use super::{Channel, Experiment};
+use line_limit::LineTooLong;
 
+mod chunk;
+mod float;
 mod line_limit;
+mod quoted;
+mod source;
+mod table;
 use crate::error::{Error, Result};
 
 /// One column read into one channel: `channel = scale × column` [unit].
@@ -100,7 +103,7 @@ pub const QUOTE_CHARS: usize = 80;
 
 /// Columns parsed from a file: one entry per requested column, `None` when an optional
 /// column is absent. Every value is finite and the first column (time) passed
-/// [`TimeSteps::push`].
+/// [`TimeSteps::push`](super::TimeSteps::push).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Table {
     /// Experiment name: the file name without `.gz` and then without its extension.
@@ -114,7 +117,9 @@ pub struct Table {
 /// Reads a log into a validated [`Experiment`] with one channel per entry of
 /// `spec.columns` (optional ones only when present).
 ///
-/// Gzip is detected by the magic bytes `1f 8b`, not by the extension. Fields may be
+/// Gzip is detected by the magic bytes `1f 8b`, not by the extension; a Parquet or Arrow
+/// IPC file (by extension, [`super::columnar::Format`]) is read the same way, its columns
+/// by name ([`super::columnar::read_table`]). Fields may be
 /// surrounded by blanks; `nan` and `inf` parse as numbers and are then rejected by
 /// validation, naming the column. The sample time h [s] is the mean step of the time
 /// column, which must be uniform ([`Experiment::try_from_time`]). No plausibility limit
@@ -122,7 +127,8 @@ pub struct Table {
 /// file ([`ReadLimits`]).
 ///
 /// # Errors
-/// Those of [`read_table`] (which stops at the first NaN/Inf or bad time step), and of
+/// Those of [`read_table`] (which stops at the first NaN/Inf or bad time step) or of
+/// [`super::columnar::read_table`], and of
 /// [`Experiment::try_from_time`] with the column names of the file in
 /// [`Error::NonFinite`]; [`Error::InvalidOption`] for a non-finite or zero scale, or a
 /// time scale that is not positive (the time column is checked as written).
@@ -146,7 +152,7 @@ pub fn read_csv(path: impl AsRef<Path>, spec: &CsvSpec) -> Result<Experiment> {
     }
     let mut wanted = vec![(spec.time.as_str(), true)];
     wanted.extend(spec.columns.iter().map(|c| (c.column.as_str(), c.required)));
-    let table = read_table(path, &wanted, &spec.limits)?;
+    let table = super::columnar::read_table(path, &wanted, &spec.limits)?;
     let mut cols = table.columns.into_iter();
     let mut t = cols.next().flatten().unwrap_or_default();
     t.iter_mut().for_each(|v| *v *= spec.time_scale);
@@ -184,12 +190,20 @@ pub fn read_csv_many<P: AsRef<Path> + Sync>(paths: &[P], spec: &CsvSpec) -> Resu
 /// Parses the columns `wanted` (`(header name, required)`) of a CSV file, plain or gzip;
 /// the first is the time column `t_k`, checked as it streams.
 ///
-/// The file streams through a counter that enforces `limits` and then the `csv` parser;
-/// each row is checked as it is parsed: a wanted field must be a finite number and the
-/// time column must pass [`TimeSteps::push`] (positive steps, none far from the mean so
-/// far). So the read stops at the first bad row and its memory is the wanted columns of
-/// the rows accepted, plus one line. Errors quote at most [`QUOTE_CHARS`] characters of a
-/// cell. Unwanted columns may hold anything, even share a name.
+/// A second thread reads (and gunzips) the file in line-aligned chunks of 256 KiB while
+/// the caller parses; chunks without a `"` are parsed in parallel batches (fields split at
+/// `,` and trimmed, numbers accepted and valued as `str::parse::<f64>` does, bit for bit,
+/// through `fast-float2` for plain decimals) and merged in order, and from the first chunk with a
+/// `"` on the `csv` parser takes over, so quoted fields, `""` escapes and line breaks in
+/// quotes read as the `csv` crate reads them. Either way, each row is checked in order as
+/// it is merged: a wanted field must be a finite number and the time column must pass
+/// [`TimeSteps::push`](super::TimeSteps::push) (positive steps, none far from the mean so
+/// far). So the read stops at the first bad row (a chunk's too-long line is found before
+/// its rows are parsed, as by a streaming reader that bounds lines before it parses them)
+/// and its memory is the wanted columns of the rows accepted, plus 32 chunks (8 MiB read
+/// ahead or being parsed) and one line.
+/// Errors quote at most [`QUOTE_CHARS`] characters of a cell. Unwanted columns may hold
+/// anything, even share a name.
 ///
 /// # Errors
 /// - [`Error::Io`] with the path if the file cannot be opened, read or decompressed;
@@ -209,27 +223,22 @@ pub fn read_csv_many<P: AsRef<Path> + Sync>(paths: &[P], spec: &CsvSpec) -> Resu
 ///
 /// Never panics.
 pub fn read_table(path: impl AsRef<Path>, wanted: &[(&str, bool)], limits: &ReadLimits) -> Result<Table> {
-    let path = path.as_ref();
-    let name = experiment_name(path);
-    let io_err = |source| Error::Io { path: path.to_path_buf(), source };
-    let file = File::open(path).map_err(io_err)?;
-    let mut buf = BufReader::with_capacity(1 << 16, file);
-    let head = buf.fill_buf().map_err(io_err)?;
-    let gz = head.starts_with(&[0x1f, 0x8b]);
-    let reader: Box<dyn Read> =
-        if gz { Box::new(flate2::read::MultiGzDecoder::new(buf)) } else { Box::new(buf) };
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(true)
-        .flexible(false)
-        .trim(csv::Trim::All)
-        .buffer_capacity(1 << 16)
-        .from_reader(LineLimit::new(reader, limits.max_line_bytes));
-    let header: Vec<String> = rdr
-        .byte_headers()
-        .map_err(|e| csv_error(path, e))?
-        .iter()
-        .map(|f| String::from_utf8_lossy(f).into_owned())
-        .collect();
+    table::read(path.as_ref(), wanted, limits)
+}
+
+/// Positions in `header` of the `wanted` columns (`(name, required)`), `None` for an
+/// absent optional one: the header checks of [`read_table`], shared by the columnar reader.
+///
+/// # Errors
+/// [`Error::LimitExceeded`] (line 1) for more than `limits.max_fields` names,
+/// [`Error::TooShort`] for a header without any name, [`Error::DuplicateColumn`] for a
+/// wanted name found twice, [`Error::MissingColumn`] for a required one not found.
+pub(crate) fn find_columns(
+    path: &Path,
+    header: &[String],
+    wanted: &[(&str, bool)],
+    limits: &ReadLimits,
+) -> Result<Vec<Option<usize>>> {
     if header.len() > limits.max_fields {
         return Err(Error::LimitExceeded {
             path: path.to_path_buf(),
@@ -240,7 +249,7 @@ pub fn read_table(path: impl AsRef<Path>, wanted: &[(&str, bool)], limits: &Read
         });
     }
     if header.iter().all(String::is_empty) {
-        return Err(Error::TooShort { name, len: 0, min: 1 });
+        return Err(Error::TooShort { name: experiment_name(path), len: 0, min: 1 });
     }
     let mut index = Vec::with_capacity(wanted.len());
     for &(column, required) in wanted {
@@ -263,51 +272,7 @@ pub fn read_table(path: impl AsRef<Path>, wanted: &[(&str, bool)], limits: &Read
         }
         index.push(first);
     }
-    let mut time = TimeSteps::new(wanted.first().map_or("", |w| w.0));
-    let mut values: Vec<Vec<f64>> = vec![Vec::new(); wanted.len()];
-    let mut record = csv::ByteRecord::new();
-    let mut row = 0usize;
-    while rdr.read_byte_record(&mut record).map_err(|e| csv_error(path, e))? {
-        let line = record.position().map_or(0, csv::Position::line);
-        if row as u64 >= limits.max_rows {
-            return Err(Error::LimitExceeded {
-                path: path.to_path_buf(),
-                line,
-                what: format!("more than {} data rows", limits.max_rows),
-                limit: "max_rows".into(),
-                max: limits.max_rows,
-            });
-        }
-        for (j, (column, idx)) in values.iter_mut().zip(&index).enumerate() {
-            let Some(idx) = *idx else { continue };
-            // flexible(false) guarantees `record.len() == header.len()` > idx.
-            let field = record.get(idx).unwrap_or_default();
-            let Some(x) = parse_f64(field) else {
-                return Err(Error::Csv {
-                    path: path.to_path_buf(),
-                    line,
-                    message: format!(
-                        "column `{}` (data row {row}): cannot parse {} as a number",
-                        header[idx],
-                        quote(field)
-                    ),
-                });
-            };
-            if !x.is_finite() {
-                return Err(Error::NonFinite { column: header[idx].clone(), row, value: x });
-            }
-            if j == 0 {
-                time.push(x)?;
-            }
-            column.push(x);
-        }
-        row += 1;
-    }
-    if row == 0 {
-        return Err(Error::TooShort { name, len: 0, min: 1 });
-    }
-    let columns = values.into_iter().zip(&index).map(|(v, i)| i.map(|_| v)).collect();
-    Ok(Table { name, header, columns })
+    Ok(index)
 }
 
 /// A cell for an error message: in backquotes, cut after [`QUOTE_CHARS`] characters with
@@ -340,10 +305,6 @@ fn excerpt(field: &[u8]) -> (String, Option<usize>) {
     }
 }
 
-fn parse_f64(field: &[u8]) -> Option<f64> {
-    std::str::from_utf8(field).ok()?.parse::<f64>().ok()
-}
-
 fn csv_error(path: &Path, e: csv::Error) -> Error {
     let line = e.position().map_or(0, |p| p.line());
     match e.into_kind() {
@@ -369,7 +330,7 @@ fn csv_error(path: &Path, e: csv::Error) -> Error {
 }
 
 /// File name without `.gz` and then without its extension (`.csv`).
-fn experiment_name(path: &Path) -> String {
+pub(crate) fn experiment_name(path: &Path) -> String {
     let file = path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
     let file = file.strip_suffix(".gz").unwrap_or(&file);
     let stem = Path::new(file).file_stem().map(|s| s.to_string_lossy().into_owned());

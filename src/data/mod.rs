@@ -8,6 +8,7 @@
 //! missing channel's name. Units are converted to SI at the edge (the CSV readers), never
 //! inside the library.
 
+pub mod columnar;
 pub mod csv;
 pub mod write;
 

@@ -50,6 +50,17 @@ pub fn write_csv(path: &Path, e: &Experiment, time: &str) -> Result<()> {
     })
 }
 
+/// Writes `e` to `path` atomically in the format of its extension: Parquet (`.parquet`),
+/// Arrow IPC (`.arrow`, `.feather`, `.ipc`) or else CSV as [`write_csv`] (gzip for `.gz`);
+/// see [`super::columnar::write`].
+///
+/// # Errors
+/// Those of [`write_atomic`]; [`Error::Format`] for a columnar extension in a build
+/// without the cargo feature `parquet`.
+pub fn write_log(path: &Path, e: &Experiment, time: &str) -> Result<()> {
+    super::columnar::write(path, e, time)
+}
+
 fn rows(w: &mut dyn Write, e: &Experiment, time: &str) -> std::io::Result<()> {
     let mut out = ::csv::Writer::from_writer(w);
     let header = std::iter::once(time).chain(e.channels().iter().map(|c| c.name.as_str()));

@@ -1,26 +1,31 @@
 //! Writing a simulated log: the CSV that `greybox fit` reads and the truth JSON beside it.
 
 use super::sim::DriveLog;
-use crate::data::write::{write_atomic, write_csv};
+use crate::data::columnar::Format;
+use crate::data::write::{write_atomic, write_log};
 use crate::error::Result;
 use std::path::{Path, PathBuf};
 
 impl DriveLog {
-    /// The truth file of a log path: `log.csv` / `log.csv.gz` → `log.json`.
+    /// The truth file of a log path: `log.csv` / `log.csv.gz` / `log.parquet` → `log.json`.
     pub fn truth_path(path: &Path) -> PathBuf {
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let stem = name.strip_suffix(".gz").unwrap_or(&name);
-        let stem = stem.strip_suffix(".csv").unwrap_or(stem);
+        let stem = match Format::of(Path::new(stem)) {
+            Format::Csv => stem.strip_suffix(".csv").unwrap_or(stem),
+            _ => Path::new(stem).file_stem().and_then(|s| s.to_str()).unwrap_or(stem),
+        };
         path.with_file_name(format!("{stem}.json"))
     }
 
-    /// Writes the log to `path` (CSV with a time column `t`; gzip for `.gz`) and its truth
+    /// Writes the log to `path` (CSV with a time column `t`, gzip for `.gz`; Parquet or Arrow
+    /// IPC by extension, [`write_log`]) and its truth
     /// to [`DriveLog::truth_path`], each atomically (the CSV first).
     ///
     /// # Errors
     /// [`crate::Error::Write`] naming the file that could not be written.
     pub fn write(&self, path: &Path) -> Result<()> {
-        write_csv(path, &self.experiment, "t")?;
+        write_log(path, &self.experiment, "t")?;
         let json =
             serde_json::to_string_pretty(&self.truth).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"));
         write_atomic(&Self::truth_path(path), |w| {

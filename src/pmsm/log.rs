@@ -1,4 +1,5 @@
-//! Reader for PMSM drive logs (CSV, plain or gzip) on top of [`crate::data::csv`].
+//! Reader for PMSM drive logs (CSV plain or gzip, Parquet, Arrow IPC) on top of
+//! [`crate::data::csv`] and [`crate::data::columnar`].
 //!
 //! A log is a CSV file with a header line and one row per sample `t_k = k h`; the default
 //! column names are `t, ud, uq, id, iq, w_m, theta_m, ud_ref, uq_ref`. Units are converted
@@ -21,7 +22,8 @@ use super::interval::check_pole_pairs;
 use super::signals::{DqSignals, DqView, MIN_SAMPLES};
 use super::transform::{currents_to_dq, stator_held_voltages_to_dq};
 use crate::data::Experiment;
-use crate::data::csv::{name_excerpt, read_table};
+use crate::data::columnar::read_table;
+use crate::data::csv::name_excerpt;
 use crate::error::{Error, Result};
 
 mod options;
@@ -30,8 +32,10 @@ pub use options::*;
 /// Reads one PMSM drive log into a validated [`Experiment`] of N samples whose channels
 /// are named as in [`channel`](super::signals::channel).
 ///
-/// Gzip is detected by the magic bytes `1f 8b`, not by the extension. The experiment's
-/// name is the file name without `.csv.gz` / `.csv`. Only the needed columns are parsed;
+/// Gzip is detected by the magic bytes `1f 8b`, not by the extension; a `.parquet`,
+/// `.arrow`, `.feather` or `.ipc` file is read as a columnar log
+/// ([`crate::data::columnar::read_table`]) with the same names, units and checks. The
+/// experiment's name is the file name without `.csv.gz` / `.csv` / `.parquet` …. Only the needed columns are parsed;
 /// the others may hold anything. Fields may be surrounded by blanks; `nan` and `inf` parse
 /// as numbers and are then rejected by validation. The sample time h [s] is the mean step
 /// of the time column, which must be uniform ([`Experiment::try_from_time`]).
@@ -48,7 +52,9 @@ pub use options::*;
 ///   uq_ref` are logged: such a log can only be fitted from its reference; for
 ///   [`DqSource::Phases`]
 ///   `t, ia, ib, ic, ua, ub, uc, theta_m, w_m`, all under their configured names),
-///   [`Error::Csv`] with the line number;
+///   [`Error::Csv`] with the line number; for a columnar log [`Error::ColumnType`] naming
+///   a wanted column that is not numeric and [`Error::Format`] for a malformed file, a null
+///   or a build without the cargo feature `parquet`;
 /// - [`Error::TooShort`] for an empty file or fewer than [`MIN_SAMPLES`] rows;
 /// - [`Error::NonFinite`] naming the column (as configured) and 0-based data row of a NaN
 ///   or ±Inf; [`Error::NonUniformTime`] for a time column that is not uniform (a dropped or
@@ -173,16 +179,15 @@ fn build(name: String, cols: Vec<Option<Vec<f64>>>, n_p: u32, options: &CsvOptio
         scale_in_place(v, u_scale);
     }
 
-    let (u_d, u_q, i_d, i_q) = match main.as_slice() {
-        [u_d, u_q, i_d, i_q] => {
-            let (mut u_d, mut u_q, mut i_d, mut i_q) = (u_d.clone(), u_q.clone(), i_d.clone(), i_q.clone());
+    let (u_d, u_q, i_d, i_q) = match <[Vec<f64>; 4]>::try_from(main) {
+        Ok([mut u_d, mut u_q, mut i_d, mut i_q]) => {
             scale_in_place(&mut u_d, u_scale);
             scale_in_place(&mut u_q, u_scale);
             scale_in_place(&mut i_d, i_scale);
             scale_in_place(&mut i_q, i_scale);
             (u_d, u_q, i_d, i_q)
         }
-        _ => {
+        Err(main) => {
             let mut ph: Vec<Vec<f64>> = main.into_iter().take(6).collect();
             for (k, v) in ph.iter_mut().enumerate() {
                 scale_in_place(v, if k < 3 { i_scale } else { u_scale });

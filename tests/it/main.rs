@@ -6,8 +6,10 @@
 mod common;
 
 mod blocks;
+mod columnar;
 mod coverage;
 mod criteria;
+mod csv_reader;
 mod data;
 mod drive;
 mod errors;

@@ -39,8 +39,9 @@ pub(super) struct LineLimit<R> {
 }
 
 impl<R: Read> LineLimit<R> {
-    pub(super) fn new(inner: R, max: u64) -> Self {
-        Self { inner, max, run: 0, line: 1, quoted: false }
+    /// A limit on `inner`, whose first byte starts 1-based line `line`, outside quotes.
+    pub(super) fn starting_at(inner: R, max: u64, line: u64) -> Self {
+        Self { inner, max, run: 0, line, quoted: false }
     }
 }
 

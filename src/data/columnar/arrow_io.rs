@@ -1,0 +1,271 @@
+//! Parquet and Arrow IPC through the Arrow crates: only the wanted columns decoded, any
+//! numeric type converted to f64, Parquet row groups read in parallel.
+
+use std::fs::File;
+use std::path::Path;
+use std::sync::Arc;
+
+use arrow_array::cast::AsArray;
+use arrow_array::types::{
+    Float16Type, Float32Type, Float64Type, Int8Type, Int16Type, Int32Type, Int64Type, UInt8Type, UInt16Type,
+    UInt32Type, UInt64Type,
+};
+use arrow_array::{Array, ArrayRef, Float64Array, RecordBatch, RecordBatchReader};
+use arrow_schema::{DataType, Field, Schema, SchemaRef};
+use parquet::arrow::ProjectionMask;
+use parquet::arrow::arrow_reader::{
+    ArrowReaderMetadata, ArrowReaderOptions, ParquetRecordBatchReaderBuilder,
+};
+use rayon::prelude::*;
+
+use super::{Format, check};
+use crate::data::Experiment;
+use crate::data::csv::{ReadLimits, Table, experiment_name, find_columns};
+use crate::data::write::write_atomic;
+use crate::error::{Error, Result};
+
+/// Rows per Parquet row group written: eight groups for 512 000 rows, read in parallel.
+const ROW_GROUP: usize = 1 << 16;
+
+/// Rows per decoded batch: 64 KiB a column, reused from the heap rather than mapped anew.
+const BATCH: usize = 1 << 13;
+
+fn format_err(path: &Path, e: impl std::fmt::Display) -> Error {
+    Error::Format { path: path.to_path_buf(), message: e.to_string() }
+}
+
+pub(super) fn read(
+    path: &Path,
+    format: Format,
+    wanted: &[(&str, bool)],
+    limits: &ReadLimits,
+) -> Result<Table> {
+    let file = File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+    let (header, index, columns, rows) = match format {
+        Format::Parquet => read_parquet(path, file, wanted, limits)?,
+        _ => read_ipc(path, file, wanted, limits)?,
+    };
+    let values: Vec<Option<Vec<f64>>> =
+        index.iter().zip(columns).map(|(i, c)| i.map(|_| c.concat())).collect();
+    if rows > limits.max_rows {
+        return Err(Error::LimitExceeded {
+            path: path.to_path_buf(),
+            // The line of the first row too many, were the log a CSV file with a header.
+            line: limits.max_rows.saturating_add(2),
+            what: format!("more than {} data rows", limits.max_rows),
+            limit: "max_rows".into(),
+            max: limits.max_rows,
+        });
+    }
+    check::rows(path, wanted.first().map_or("", |w| w.0), &header, &index, &values)?;
+    Ok(Table { name: experiment_name(path), header, columns: values })
+}
+
+type Read = (Vec<String>, Vec<Option<usize>>, Vec<Vec<Vec<f64>>>, u64);
+
+/// The schema's names and the wanted columns' positions in it.
+fn header(
+    path: &Path,
+    schema: &Schema,
+    wanted: &[(&str, bool)],
+    limits: &ReadLimits,
+) -> Result<(Vec<String>, Vec<Option<usize>>)> {
+    let header: Vec<String> = schema.fields().iter().map(|f| f.name().clone()).collect();
+    let index = find_columns(path, &header, wanted, limits)?;
+    Ok((header, index))
+}
+
+fn read_parquet(path: &Path, file: File, wanted: &[(&str, bool)], limits: &ReadLimits) -> Result<Read> {
+    let meta =
+        ArrowReaderMetadata::load(&file, ArrowReaderOptions::new()).map_err(|e| format_err(path, e))?;
+    let (header, index) = header(path, meta.schema(), wanted, limits)?;
+    let rows = u64::try_from(meta.metadata().file_metadata().num_rows()).unwrap_or(0);
+    if rows > limits.max_rows {
+        return Ok((header, index.iter().map(|_| None).collect(), vec![Vec::new(); wanted.len()], rows));
+    }
+    let picked: Vec<usize> = index.iter().flatten().copied().collect();
+    let groups = meta.metadata().num_row_groups();
+    let sizes: Vec<usize> =
+        meta.metadata().row_groups().iter().map(|g| usize::try_from(g.num_rows()).unwrap_or(0)).collect();
+    let total: usize = sizes.iter().sum();
+    // Each wanted column allocated once, each row group decoded into its own rows of it.
+    let mut columns: Vec<Vec<f64>> =
+        index.iter().map(|i| if i.is_some() { vec![0.0; total] } else { Vec::new() }).collect();
+    let mut slices: Vec<Vec<Option<&mut [f64]>>> = (0..groups).map(|_| Vec::new()).collect();
+    for (c, i) in columns.iter_mut().zip(&index) {
+        let mut rest = c.as_mut_slice();
+        for (g, &n) in sizes.iter().enumerate() {
+            if i.is_some() {
+                let (head, tail) = std::mem::take(&mut rest).split_at_mut(n);
+                slices[g].push(Some(head));
+                rest = tail;
+            } else {
+                slices[g].push(None);
+            }
+        }
+    }
+    // One reader per row group, each on its own file handle (a cloned handle would share
+    // the file offset between threads).
+    slices.into_par_iter().enumerate().try_for_each(|(g, mut out)| {
+        let file = File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+        let mask = ProjectionMask::roots(meta.parquet_schema(), picked.iter().copied());
+        let reader = ParquetRecordBatchReaderBuilder::new_with_metadata(file, meta.clone())
+            .with_projection(mask)
+            .with_batch_size(BATCH)
+            .with_row_groups(vec![g])
+            .build()
+            .map_err(|e| format_err(path, e))?;
+        let mut tmp = Vec::with_capacity(BATCH);
+        let mut at = 0;
+        for batch in reader {
+            let batch = batch.map_err(|e| format_err(path, e))?;
+            let end = at + batch.num_rows();
+            for (slot, i) in out.iter_mut().zip(&index) {
+                let (Some(slot), Some(i)) = (slot, i) else { continue };
+                tmp.clear();
+                append(path, &header[*i], column(path, &batch, &header[*i])?, at, &mut tmp)?;
+                let Some(dst) = slot.get_mut(at..end).filter(|d| d.len() == tmp.len()) else {
+                    return Err(format_err(
+                        path,
+                        format!("row group {g} holds more rows than its metadata says"),
+                    ));
+                };
+                dst.copy_from_slice(&tmp);
+            }
+            at = end;
+        }
+        Ok(())
+    })?;
+    let columns = columns.into_iter().map(|c| vec![c]).collect();
+    Ok((header, index, columns, rows))
+}
+
+fn column<'b>(path: &Path, batch: &'b RecordBatch, name: &str) -> Result<&'b ArrayRef> {
+    batch
+        .column_by_name(name)
+        .ok_or_else(|| format_err(path, format!("column `{name}` missing from a batch")))
+}
+
+fn read_ipc(path: &Path, file: File, wanted: &[(&str, bool)], limits: &ReadLimits) -> Result<Read> {
+    use arrow_ipc::reader::{FileReader, StreamReader};
+    // An IPC file (Feather v2) has a footer to seek; a stream (`.arrows`) has none.
+    let stream = File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+    let reader: Box<dyn RecordBatchReader> = match FileReader::try_new_buffered(file, None) {
+        Ok(r) => Box::new(r),
+        Err(file_err) => match StreamReader::try_new_buffered(stream, None) {
+            Ok(r) => Box::new(r),
+            Err(_) => return Err(format_err(path, file_err)),
+        },
+    };
+    let (header, index) = header(path, &reader.schema(), wanted, limits)?;
+    let values = collect(path, reader, &header, &index)?;
+    let rows = values.iter().map(Vec::len).max().unwrap_or(0) as u64;
+    let columns = values.into_iter().map(|v| vec![v]).collect();
+    Ok((header, index, columns, rows))
+}
+
+/// The wanted columns of every batch, as f64, one vector per wanted column.
+fn collect(
+    path: &Path,
+    reader: impl Iterator<Item = std::result::Result<RecordBatch, arrow_schema::ArrowError>>,
+    header: &[String],
+    index: &[Option<usize>],
+) -> Result<Vec<Vec<f64>>> {
+    let mut out: Vec<Vec<f64>> = vec![Vec::new(); index.len()];
+    let mut row = 0;
+    for batch in reader {
+        let batch = batch.map_err(|e| format_err(path, e))?;
+        for (v, i) in out.iter_mut().zip(index) {
+            let Some(i) = *i else { continue };
+            let name = &header[i];
+            let column = batch
+                .column_by_name(name)
+                .ok_or_else(|| format_err(path, format!("column `{name}` missing from a batch")))?;
+            append(path, name, column, row, v)?;
+        }
+        row += batch.num_rows();
+    }
+    Ok(out)
+}
+
+/// Appends `array` converted to f64; `row` is its first row in the file.
+fn append(path: &Path, name: &str, array: &ArrayRef, row: usize, out: &mut Vec<f64>) -> Result<()> {
+    if array.null_count() > 0 {
+        let at = (0..array.len()).find(|&k| array.is_null(k)).unwrap_or(0) + row;
+        return Err(format_err(path, format!("column `{name}` has no value (null) at row {at}")));
+    }
+    macro_rules! ext {
+        ($t:ty, $f:expr) => {
+            out.extend(array.as_primitive::<$t>().values().iter().map($f))
+        };
+    }
+    match array.data_type() {
+        DataType::Float64 => out.extend_from_slice(array.as_primitive::<Float64Type>().values()),
+        DataType::Float32 => ext!(Float32Type, |&x| f64::from(x)),
+        DataType::Float16 => ext!(Float16Type, |x| x.to_f64()),
+        DataType::Int8 => ext!(Int8Type, |&x| f64::from(x)),
+        DataType::Int16 => ext!(Int16Type, |&x| f64::from(x)),
+        DataType::Int32 => ext!(Int32Type, |&x| f64::from(x)),
+        DataType::Int64 => ext!(Int64Type, |&x| x as f64),
+        DataType::UInt8 => ext!(UInt8Type, |&x| f64::from(x)),
+        DataType::UInt16 => ext!(UInt16Type, |&x| f64::from(x)),
+        DataType::UInt32 => ext!(UInt32Type, |&x| f64::from(x)),
+        DataType::UInt64 => ext!(UInt64Type, |&x| x as f64),
+        other => {
+            return Err(Error::ColumnType {
+                path: path.to_path_buf(),
+                column: name.into(),
+                found: other.to_string(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The experiment as one batch: `time` then the channels, f64, units in field metadata.
+fn batch(e: &Experiment, time: &str) -> std::result::Result<RecordBatch, arrow_schema::ArrowError> {
+    let unit = |u: &str| std::collections::HashMap::from([("unit".to_string(), u.to_string())]);
+    let mut fields = vec![Field::new(time, DataType::Float64, false).with_metadata(unit("s"))];
+    let mut columns: Vec<ArrayRef> =
+        vec![Arc::new(Float64Array::from_iter_values((0..e.len()).map(|k| k as f64 * e.h())))];
+    for c in e.channels() {
+        fields.push(Field::new(&c.name, DataType::Float64, false).with_metadata(unit(&c.unit)));
+        columns.push(Arc::new(Float64Array::from(c.values.clone())));
+    }
+    let schema: SchemaRef = Arc::new(Schema::new(fields));
+    RecordBatch::try_new(schema, columns)
+}
+
+pub(super) fn write(path: &Path, format: Format, e: &Experiment, time: &str) -> Result<()> {
+    let write_err = |e: &dyn std::fmt::Display| Error::Write {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(e.to_string()),
+    };
+    let batch = batch(e, time).map_err(|e| write_err(&e))?;
+    match format {
+        Format::Parquet => {
+            use parquet::basic::Compression;
+            use parquet::file::properties::WriterProperties;
+            let props = WriterProperties::builder()
+                .set_compression(Compression::SNAPPY)
+                .set_dictionary_enabled(false)
+                .set_max_row_group_row_count(Some(ROW_GROUP))
+                .build();
+            // The writer wants a `Send` sink; the bytes go to the atomic file after.
+            let mut w = parquet::arrow::ArrowWriter::try_new(Vec::new(), batch.schema(), Some(props))
+                .map_err(|e| write_err(&e))?;
+            w.write(&batch).map_err(|e| write_err(&e))?;
+            let bytes = w.into_inner().map_err(|e| write_err(&e))?;
+            write_atomic(path, |out| out.write_all(&bytes))
+        }
+        _ => write_atomic(path, |out| {
+            let mut w = arrow_ipc::writer::FileWriter::try_new(out, &batch.schema())
+                .map_err(std::io::Error::other)?;
+            // Batches of `BATCH` rows: a reader then decodes one small batch at a time.
+            for at in (0..batch.num_rows()).step_by(BATCH) {
+                w.write(&batch.slice(at, BATCH.min(batch.num_rows() - at))).map_err(std::io::Error::other)?;
+            }
+            w.finish().map_err(std::io::Error::other)
+        }),
+    }
+}

@@ -1,0 +1,47 @@
+//! The row checks of a columnar read, in the order the CSV reader applies them row by row.
+
+use std::path::Path;
+
+use crate::data::TimeSteps;
+use crate::error::{Error, Result};
+
+/// Checks the wanted columns `values` (in request order, `None` when absent; the first the
+/// time column `time`) as the CSV reader checks its rows: the first NaN/Inf and the first
+/// bad time step, whichever comes first in row order (a row's time column first).
+///
+/// # Errors
+/// [`Error::NonFinite`] naming `header[index[j]]` and the row; the errors of
+/// [`TimeSteps::push`]; [`Error::TooShort`] for no rows.
+pub(super) fn rows(
+    path: &Path,
+    time: &str,
+    header: &[String],
+    index: &[Option<usize>],
+    values: &[Option<Vec<f64>>],
+) -> Result<()> {
+    let n = values.iter().flatten().map(Vec::len).next().unwrap_or(0);
+    if n == 0 {
+        return Err(Error::TooShort { name: crate::data::csv::experiment_name(path), len: 0, min: 1 });
+    }
+    // First non-finite value of the other columns, by (row, column).
+    let bad = values
+        .iter()
+        .zip(index)
+        .enumerate()
+        .skip(1)
+        .filter_map(|(j, (v, i))| {
+            let (v, i) = (v.as_ref()?, (*i)?);
+            v.iter().position(|x| !x.is_finite()).map(|row| (row, j, i, v[row]))
+        })
+        .min_by_key(|&(row, j, ..)| (row, j));
+    // The time column up to and including that row (its time is checked first).
+    if let Some(t) = values.first().and_then(Option::as_ref) {
+        let end = bad.map_or(n, |(row, ..)| row + 1);
+        let mut steps = TimeSteps::new(time);
+        t[..end.min(t.len())].iter().try_for_each(|&x| steps.push(x))?;
+    }
+    match bad {
+        Some((row, _, i, value)) => Err(Error::NonFinite { column: header[i].clone(), row, value }),
+        None => Ok(()),
+    }
+}

@@ -1,0 +1,219 @@
+//! Columnar logs (feature `parquet`): the same log as CSV, gzip CSV, Parquet and Arrow IPC
+//! reads into bit-identical experiments and fits to bit-identical estimates; the columnar
+//! reader's errors name the culprit (missing, duplicate or non-numeric column, null,
+//! NaN, non-monotone time); numeric types of any width read as f64.
+//!
+//! Without the feature (`cargo test --no-default-features --lib` builds the library alone;
+//! the integration tests need the `cli` feature's binary) a columnar path gives
+//! `Error::Format` naming the feature: `without_the_feature_columnar_files_name_it` below,
+//! compiled only then.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use greybox::Error;
+use greybox::data::Experiment;
+use greybox::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
+use greybox::pmsm::{CsvOptions, read_log};
+
+fn temp_path(name: &str) -> PathBuf {
+    static COUNTER: AtomicUsize = AtomicUsize::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("greybox-columnar-{}-{n}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+/// A short exp3 log from the drive simulator: `n` samples at 10 kHz.
+fn log(n: usize) -> Experiment {
+    let cfg = DriveConfig { duration: (n - 1) as f64 * 1e-4, ..scenario("exp3", SPM_MOTOR).unwrap() };
+    simulate_drive(&cfg).unwrap().experiment
+}
+
+#[allow(dead_code)] // only with the feature
+fn bits(e: &Experiment) -> Vec<(String, Vec<u64>)> {
+    let mut out = vec![("h".to_string(), vec![e.h().to_bits()])];
+    out.extend(e.channels().iter().map(|c| (c.name.clone(), c.values.iter().map(|x| x.to_bits()).collect())));
+    out
+}
+
+fn options() -> CsvOptions {
+    CsvOptions { pole_pairs: Some(SPM_MOTOR.n_p), ..CsvOptions::default() }
+}
+
+#[cfg(feature = "parquet")]
+mod with_feature {
+    use super::*;
+    use arrow_array::{
+        ArrayRef, Float32Array, Float64Array, Int16Array, RecordBatch, StringArray, UInt64Array,
+    };
+    use greybox::data::write::write_log;
+    use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
+    use std::sync::Arc;
+
+    #[test]
+    fn csv_parquet_and_arrow_read_bit_identically_and_fit_identically() {
+        let e = log(4_000);
+        let names = ["log.csv", "log.csv.gz", "log.parquet", "log.arrow", "log.feather"];
+        let read: Vec<Experiment> = names
+            .iter()
+            .map(|name| {
+                let path = temp_path(name);
+                write_log(&path, &e, "t").unwrap();
+                let r = read_log(&path, &options()).unwrap();
+                std::fs::remove_file(&path).ok();
+                r
+            })
+            .collect();
+        for (name, r) in names.iter().zip(&read) {
+            assert_eq!(r.name(), "log", "{name}");
+            assert_eq!(bits(r), bits(&read[0]), "{name}");
+        }
+        let fit = |e: &Experiment| {
+            let f = fit_pmsm(
+                std::slice::from_ref(e),
+                &PmsmFitOptions { pole_pairs: SPM_MOTOR.n_p, ..Default::default() },
+            )
+            .unwrap();
+            serde_json::to_string(&f.report.parameters).unwrap()
+        };
+        assert_eq!(fit(&read[0]), fit(&read[2]));
+        assert_eq!(fit(&read[0]), fit(&read[3]));
+    }
+
+    /// Writes `columns` (name, array) as Parquet and as Arrow IPC; both paths.
+    fn columnar(tag: &str, columns: Vec<(&str, ArrayRef)>) -> [PathBuf; 2] {
+        let batch = RecordBatch::try_from_iter(columns).unwrap();
+        let pq = temp_path(&format!("{tag}.parquet"));
+        let mut w =
+            parquet::arrow::ArrowWriter::try_new(std::fs::File::create(&pq).unwrap(), batch.schema(), None)
+                .unwrap();
+        w.write(&batch).unwrap();
+        w.close().unwrap();
+        let ipc = temp_path(&format!("{tag}.arrow"));
+        let mut w =
+            arrow_ipc::writer::FileWriter::try_new(std::fs::File::create(&ipc).unwrap(), &batch.schema())
+                .unwrap();
+        w.write(&batch).unwrap();
+        w.finish().unwrap();
+        [pq, ipc]
+    }
+
+    fn f64s(v: impl IntoIterator<Item = f64>) -> ArrayRef {
+        Arc::new(Float64Array::from_iter_values(v))
+    }
+
+    const N: usize = 40;
+
+    /// The columns of a valid log, `t` in µs steps of 100 (10 kHz).
+    fn valid() -> Vec<(&'static str, ArrayRef)> {
+        let t = (0..N).map(|k| k as f64 * 1e-4);
+        vec![
+            ("t", f64s(t)),
+            ("ud", f64s((0..N).map(|k| (k as f64).sin()))),
+            ("uq", Arc::new(Float32Array::from_iter_values((0..N).map(|k| k as f32 * 0.5))) as ArrayRef),
+            ("id", Arc::new(Int16Array::from_iter_values((0..N).map(|k| k as i16 - 7))) as ArrayRef),
+            ("iq", Arc::new(UInt64Array::from_iter_values((0..N).map(|k| k as u64 * 3))) as ArrayRef),
+            ("w_m", f64s((0..N).map(|_| 10.0))),
+            ("note", Arc::new(StringArray::from_iter_values((0..N).map(|k| format!("row {k}")))) as ArrayRef),
+        ]
+    }
+
+    #[test]
+    fn numeric_columns_of_any_type_read_as_f64() {
+        for path in columnar("types", valid()) {
+            let e = read_log(&path, &options()).unwrap();
+            assert_eq!(e.len(), N);
+            assert_eq!(e.channel("uq").unwrap()[3], 1.5);
+            assert_eq!(e.channel("id").unwrap()[0], -7.0);
+            assert_eq!(e.channel("iq").unwrap()[2], 6.0);
+            assert!((e.h() - 1e-4).abs() < 1e-15);
+        }
+    }
+
+    fn with(name: &str, array: ArrayRef) -> Vec<(&'static str, ArrayRef)> {
+        valid().into_iter().map(|(n, a)| if n == name { (n, array.clone()) } else { (n, a) }).collect()
+    }
+
+    #[test]
+    fn errors_name_the_culprit() {
+        for path in columnar("missing", valid().into_iter().filter(|(n, _)| *n != "iq").collect()) {
+            let err = read_log(&path, &options()).unwrap_err();
+            assert!(matches!(&err, Error::MissingColumn { column, .. } if column == "iq"), "{err:?}");
+        }
+        let text: ArrayRef = Arc::new(StringArray::from_iter_values((0..N).map(|k| k.to_string())));
+        for path in columnar("string", with("uq", text)) {
+            let err = read_log(&path, &options()).unwrap_err();
+            assert!(matches!(&err, Error::ColumnType { column, .. } if column == "uq"), "{err:?}");
+            assert!(err.to_string().contains("`uq`") && err.to_string().contains("Utf8"), "{err}");
+        }
+        let t = f64s((0..N).map(|k| if k == 9 { 0.0 } else { k as f64 * 1e-4 }));
+        for path in columnar("time", with("t", t)) {
+            let err = read_log(&path, &options()).unwrap_err();
+            assert!(matches!(&err, Error::NonUniformTime { column, row: 9, .. } if column == "t"), "{err:?}");
+        }
+        // A NaN at row 5 comes before the bad time step at row 9; the error names the column.
+        let t = f64s((0..N).map(|k| if k == 9 { 0.0 } else { k as f64 * 1e-4 }));
+        let nan = f64s((0..N).map(|k| if k == 5 { f64::NAN } else { 1.0 }));
+        let mut cols = with("t", t);
+        cols[5].1 = nan;
+        for path in columnar("nan", cols) {
+            let err = read_log(&path, &options()).unwrap_err();
+            assert!(matches!(&err, Error::NonFinite { column, row: 5, .. } if column == "w_m"), "{err:?}");
+        }
+        let null: ArrayRef = Arc::new(Float64Array::from_iter((0..N).map(|k| (k != 4).then_some(1.0))));
+        for path in columnar("null", with("ud", null)) {
+            let err = read_log(&path, &options()).unwrap_err();
+            assert!(matches!(&err, Error::Format { .. }), "{err:?}");
+            assert!(err.to_string().contains("`ud`") && err.to_string().contains("row 4"), "{err}");
+        }
+        let mut dup = valid();
+        dup[6].0 = "uq";
+        for path in columnar("dup", dup) {
+            let err = read_log(&path, &options()).unwrap_err();
+            assert!(
+                matches!(&err, Error::DuplicateColumn { column, first: 3, second: 7, .. } if column == "uq"),
+                "{err:?}"
+            );
+        }
+        // Not a Parquet file at all.
+        let path = temp_path("junk.parquet");
+        std::fs::write(&path, b"t,ud\n0,1\n").unwrap();
+        assert!(matches!(read_log(&path, &options()).unwrap_err(), Error::Format { .. }));
+        // Rows beyond the limit.
+        let limits = greybox::data::csv::ReadLimits { max_rows: 10, ..Default::default() };
+        for path in columnar("rows", valid()) {
+            let err = read_log(&path, &CsvOptions { limits, ..options() }).unwrap_err();
+            assert!(
+                matches!(&err, Error::LimitExceeded { limit, max: 10, .. } if limit == "max_rows"),
+                "{err:?}"
+            );
+        }
+    }
+
+    #[cfg(feature = "cli")]
+    #[test]
+    fn simulate_writes_parquet_that_fit_reads() {
+        let path = temp_path("sim.parquet");
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_greybox"))
+            .args(["simulate", "--scenario", "exp3", "--duration", "0.2", "-o"])
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(path.with_file_name("sim.json").is_file());
+        let e = read_log(&path, &options()).unwrap();
+        assert_eq!(e.len(), 2001);
+    }
+}
+
+#[cfg(not(feature = "parquet"))]
+#[test]
+fn without_the_feature_columnar_files_name_it() {
+    let path = temp_path("log.parquet");
+    let err = greybox::data::write::write_log(&path, &log(100), "t").unwrap_err();
+    assert!(matches!(err, Error::Format { .. }) && err.to_string().contains("`parquet`"), "{err}");
+    std::fs::write(&path, b"PAR1").unwrap();
+    let err = read_log(&path, &options()).unwrap_err();
+    assert!(matches!(err, Error::Format { .. }) && err.to_string().contains("`parquet`"), "{err}");
+}
