@@ -6,6 +6,7 @@
 mod common;
 
 mod blocks;
+mod cli_traps;
 mod coverage;
 mod criteria;
 mod data;
