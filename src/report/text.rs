@@ -44,7 +44,7 @@ impl Table {
     fn align(&self, j: usize) -> Align {
         self.align.get(j).copied().unwrap_or(Align::Right)
     }
-    fn cell<'a>(row: &'a [String], j: usize) -> &'a str {
+    fn cell(row: &[String], j: usize) -> &str {
         row.get(j).map_or("", String::as_str)
     }
     /// Column widths in characters.
