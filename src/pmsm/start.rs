@@ -151,7 +151,9 @@ pub(crate) fn user_start(
     }
     for (name, lo, hi) in &options.bounds {
         let Some(j) = index(name) else { continue };
-        if options.fixed_values.iter().any(|(n, _)| n == name) || lo.partial_cmp(hi) != Some(std::cmp::Ordering::Less) {
+        if options.fixed_values.iter().any(|(n, _)| n == name)
+            || lo.partial_cmp(hi) != Some(std::cmp::Ordering::Less)
+        {
             continue;
         }
         let s = start[j];
