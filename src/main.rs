@@ -5,12 +5,13 @@
 //! greybox validate LOG... --params REPORT.json [--json PATH] [--compare-dir DIR]
 //! greybox track LOG... --pole-pairs N (--l-s H | --params REPORT.json) [--json PATH] [--max-points M]
 //! greybox simulate (--scenario exp1..exp6 | --config FILE.json) -o LOG.csv [--motor spm|ipm] [--seed N] [--set PATH=VALUE]
+//! greybox completions bash|zsh|fish|elvish|powershell > FILE
 //! ```
 //! The library does the work; this file only maps flags to options and prints.
 
 mod cli;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 use cli::args::FitArgs;
 use std::process::ExitCode;
 
@@ -38,15 +39,30 @@ enum Command {
     Track(Box<cli::track::TrackArgs>),
     /// Simulate a closed-loop servo drive (thesis scenarios exp1-exp6 or a scenario file): a log `greybox fit` reads, with its truth JSON.
     Simulate(Box<cli::simulate::SimulateArgs>),
+    /// Print a shell completion script on stdout, e.g. `greybox completions bash > /etc/bash_completion.d/greybox`
+    /// or `greybox completions zsh > ~/.zfunc/_greybox`.
+    Completions {
+        /// The shell.
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match &cli.command {
-        Command::Fit(a) => cli::fit::run_fit(a),
+        Command::Fit(a) => cli::fit::run_fit(a).map_err(cli::errors::in_cli_words),
         Command::Validate(a) => cli::validate::run_validate(a).map(|()| true),
         Command::Track(a) => cli::track::run_track(a).map(|()| true),
         Command::Simulate(a) => cli::simulate::run_simulate(a).map(|()| true),
+        Command::Completions { shell } => {
+            // Into a buffer first: clap_complete panics when stdout is closed early (`| head`).
+            let mut script = Vec::new();
+            clap_complete::generate(*shell, &mut Cli::command(), "greybox", &mut script);
+            std::io::Write::write_all(&mut std::io::stdout(), &script)
+                .map(|()| true)
+                .map_err(|source| greybox::Error::Write { path: "stdout".into(), source })
+        }
     };
     match r {
         Ok(true) => ExitCode::SUCCESS,

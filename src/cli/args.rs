@@ -80,12 +80,16 @@ pub struct FitArgs {
     /// Write the JSON report to this file ("-" for stdout, which suppresses the table).
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// What to print on stdout: the aligned table, the JSON report, or the table as Markdown.
+    #[arg(long, value_enum, default_value_t = FormatArg::Table)]
+    pub format: FormatArg,
     /// Start values in model order, comma separated, SI units (default: linear least squares).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub start: Option<Vec<f64>>,
-    /// Parameters held at their start value, comma separated (e.g. r_s).
-    #[arg(long, value_delimiter = ',')]
-    pub fix: Vec<String>,
+    /// Parameters held fixed, comma separated: NAME at its start value (the least-squares
+    /// estimate or --start), NAME=VALUE at a value in SI units (e.g. r_s=0.9,k_e).
+    #[arg(long, value_delimiter = ',', value_parser = parse_fix)]
+    pub fix: Vec<(String, Option<f64>)>,
     /// Parameters estimated separately per log, comma separated (e.g. r_s).
     #[arg(long, value_delimiter = ',')]
     pub per_log: Vec<String>,
@@ -102,8 +106,9 @@ pub struct FitArgs {
     /// (speeds mechanical, rad/s; thesis eq. 5.11).
     #[arg(long, default_value = "uniform", value_parser = parse_weighting)]
     pub weighting: WeightingKind,
-    /// Robust fit with Huber's loss; the value is c in δ = c·σ̂ (default 1.345 when given without value).
-    #[arg(long, num_args = 0..=1, require_equals = true, default_missing_value = "1.345")]
+    /// Robust fit with Huber's loss, δ = C·σ̂ (C = 1.345 without a value). The value must be
+    /// attached with `=` (--huber=2.0): a separate word is read as a log.
+    #[arg(long, value_name = "C", num_args = 0..=1, require_equals = true, default_missing_value = "1.345")]
     pub huber: Option<f64>,
     /// Output weights Λ for i_d, i_q, comma separated (default 1,1).
     #[arg(long, value_delimiter = ',')]
@@ -139,6 +144,14 @@ pub struct FitArgs {
     pub quiet: bool,
     #[command(flatten)]
     pub columns: ColumnArgs,
+}
+
+/// What `greybox fit` prints on stdout.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FormatArg {
+    Table,
+    Json,
+    Markdown,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -288,6 +301,21 @@ fn parse_delay(s: &str) -> Result<Delay, String> {
             .parse()
             .map(Delay::Samples)
             .map_err(|_| format!("`{s}`: expected a number of samples or `estimate`")),
+    }
+}
+
+/// Parses `NAME` or `NAME=VALUE` (a finite value).
+fn parse_fix(s: &str) -> Result<(String, Option<f64>), String> {
+    match s.split_once('=') {
+        None if !s.is_empty() => Ok((s.to_string(), None)),
+        None => Err("empty parameter name".into()),
+        Some((name, v)) => {
+            let v: f64 = v.parse().map_err(|e| format!("`{s}`: {e}; expected NAME or NAME=VALUE"))?;
+            if name.is_empty() || !v.is_finite() {
+                return Err(format!("`{s}`: expected NAME or NAME=VALUE with a finite value"));
+            }
+            Ok((name.to_string(), Some(v)))
+        }
     }
 }
 

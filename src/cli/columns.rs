@@ -33,12 +33,12 @@ pub struct ColumnArgs {
     /// q-axis voltage reference column (optional).
     #[arg(long, default_value = "uq_ref")]
     pub col_uq_ref: String,
-    /// Phase current columns a,b,c (with --dq-from-phases).
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values = ["ia", "ib", "ic"])]
-    pub col_i_abc: Vec<String>,
-    /// Phase voltage columns a,b,c (with --dq-from-phases).
-    #[arg(long, value_delimiter = ',', num_args = 3, default_values = ["ua", "ub", "uc"])]
-    pub col_u_abc: Vec<String>,
+    /// Phase current columns, three names comma separated (with --dq-from-phases).
+    #[arg(long, value_name = "A,B,C", default_value = "ia,ib,ic", value_parser = parse_phases)]
+    pub col_i_abc: Phases,
+    /// Phase voltage columns, three names comma separated (with --dq-from-phases).
+    #[arg(long, value_name = "A,B,C", default_value = "ua,ub,uc", value_parser = parse_phases)]
+    pub col_u_abc: Phases,
     /// Unit of the speed column.
     #[arg(long, value_enum, default_value_t = SpeedUnitArg::RadS)]
     pub speed_unit: SpeedUnitArg,
@@ -69,6 +69,20 @@ pub struct ColumnArgs {
     /// Most data rows in a log (default 10^8).
     #[arg(long, default_value_t = greybox::data::csv::ReadLimits::default().max_rows)]
     pub max_rows: u64,
+}
+
+/// Three phase column names `a, b, c`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Phases(pub [String; 3]);
+
+/// Parses `A,B,C` (three non-empty names, spaces around them dropped). One word with
+/// commas, so that the flag never takes a following log path as a second value.
+fn parse_phases(s: &str) -> Result<Phases, String> {
+    let names: Vec<String> = s.split(',').map(|n| n.trim().to_string()).collect();
+    match <[String; 3]>::try_from(names) {
+        Ok(n) if n.iter().all(|x| !x.is_empty()) => Ok(Phases(n)),
+        _ => Err(format!("`{s}`: expected three column names separated by commas, e.g. ia,ib,ic")),
+    }
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -114,12 +128,12 @@ impl ColumnArgs {
                 theta_m: self.col_theta.clone(),
                 u_d_ref: self.col_ud_ref.clone(),
                 u_q_ref: self.col_uq_ref.clone(),
-                i_a: self.col_i_abc[0].clone(),
-                i_b: self.col_i_abc[1].clone(),
-                i_c: self.col_i_abc[2].clone(),
-                u_a: self.col_u_abc[0].clone(),
-                u_b: self.col_u_abc[1].clone(),
-                u_c: self.col_u_abc[2].clone(),
+                i_a: self.col_i_abc.0[0].clone(),
+                i_b: self.col_i_abc.0[1].clone(),
+                i_c: self.col_i_abc.0[2].clone(),
+                u_a: self.col_u_abc.0[0].clone(),
+                u_b: self.col_u_abc.0[1].clone(),
+                u_c: self.col_u_abc.0[2].clone(),
             },
             speed_unit: match self.speed_unit {
                 SpeedUnitArg::RadS => SpeedUnit::RadPerSec,

@@ -1,16 +1,18 @@
 //! `greybox fit`: read the logs, fit, print the table and write the JSON report.
 
 use super::args::{
-    Advance, DeadTime, Delay, FitArgs, HoldArg, MethodArg, ModelArg, Pll, PolePairs, ScalingArg, SolverArg,
-    VoltageArg,
+    Advance, DeadTime, Delay, FitArgs, FormatArg, HoldArg, MethodArg, ModelArg, Pll, PolePairs, ScalingArg,
+    SolverArg, VoltageArg,
 };
 use super::output;
 use greybox::estimate::{FitResult, PemOptions, ScalingKind, SolverKind, Timing, Tolerances};
+use greybox::pmsm::ReportOptions;
 use greybox::pmsm::weighted_least_squares;
 use greybox::pmsm::{
     CsvOptions, DqSource, Frame, HoldChoice, InputSearch, InverterModel, LinearOptions, MotorKind, PmsmFit,
     PmsmFitOptions, ThermalReference, VoltageInput, fit_estimating_input, fit_pmsm,
 };
+use greybox::report::Document;
 use std::time::Instant;
 
 /// Runs `greybox fit`; `Ok(false)` when the report was written but the result is not
@@ -35,8 +37,13 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
                     .into(),
         });
     }
+    super::logs::check_paths(&a.logs)?;
     let logs =
         a.logs.iter().map(|p| greybox::pmsm::read_log(p, &csv)).collect::<greybox::Result<Vec<_>>>()?;
+    let stems: Vec<String> = logs.iter().map(|e| e.name().to_string()).collect();
+    let names = super::logs::unique_names(&a.logs, &stems);
+    let logs: Vec<_> = logs.into_iter().zip(names).map(|(e, n)| e.renamed(n)).collect();
+    let report_options = ReportOptions { current_scale: csv.current_scale };
     let read_s = t0.elapsed().as_secs_f64();
     let kind = match a.model {
         ModelArg::Spm => MotorKind::Spm,
@@ -53,10 +60,15 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
         let report = ls.report(&names, n_p, t1.elapsed().as_secs_f64());
         let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..report.timing.clone() };
         let report = FitResult { timing, ..report };
+        let json = report.to_json();
         if !quiet {
-            print!("{ls}");
+            let k = |n: &str| report.parameter(n).map(|p| p.value);
+            let kt = report.derived("k_t").map(|q| q.value);
+            let conventions =
+                greybox::pmsm::report::conventions(k("k_e"), kt, k("l_d").is_some(), report_options);
+            print_report(a.format, &report.document(&conventions), &json);
         }
-        write_json(a, report.to_json())?;
+        write_json(a, json)?;
         return Ok(true);
     }
     let speed_pll = match a.speed_pll {
@@ -139,7 +151,8 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
             HoldArg::Stator => HoldChoice::Stator,
         },
         start: a.start.clone(),
-        fixed: a.fix.clone(),
+        fixed: a.fix.iter().filter(|(_, v)| v.is_none()).map(|(n, _)| n.clone()).collect(),
+        fixed_values: a.fix.iter().filter_map(|(n, v)| v.map(|v| (n.clone(), v))).collect(),
         bounds: a.bounds.clone(),
         pem: PemOptions {
             solver: match a.solver {
@@ -174,10 +187,11 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
     let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..fit.report.timing.clone() };
     let pmsm_notes = fit.pmsm_notes.iter().cloned().chain(auto_note).collect();
     let result = PmsmFit { report: FitResult { timing, ..fit.report }, pmsm_notes, ..fit };
+    let json = result.to_json();
     if !quiet {
-        print!("{result}");
+        print_report(a.format, &result.document(report_options), &json);
     }
-    write_json(a, result.to_json())?;
+    write_json(a, json)?;
     let trusted = result.trusted();
     if !trusted {
         let codes: Vec<&str> =
@@ -267,6 +281,15 @@ fn ls_only(a: &FitArgs) -> greybox::Result<()> {
             option: "method".into(),
             reason: format!("--method ls cannot honour {}: drop them or use --method pem", bad.join(", ")),
         })
+    }
+}
+
+/// Prints the report on stdout in the `--format` asked for.
+fn print_report(format: FormatArg, doc: &Document, json: &str) {
+    match format {
+        FormatArg::Table => print!("{}", doc.to_text()),
+        FormatArg::Markdown => print!("{}", doc.to_markdown()),
+        FormatArg::Json => println!("{json}"),
     }
 }
 

@@ -2,7 +2,9 @@
 
 pub mod args;
 pub mod columns;
+pub mod errors;
 pub mod fit;
+pub mod logs;
 pub mod output;
 pub mod simulate;
 pub mod track;

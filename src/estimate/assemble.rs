@@ -171,6 +171,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         .collect();
     let fit = FitStatistics {
         outputs: model.outputs().into_iter().map(|o| o.name).collect(),
+        output_units: model.outputs().into_iter().map(|o| o.unit).collect(),
         fit_percent: sums.sse.iter().zip(&sums.sst).map(|(e, t)| metrics::fit_percent(*e, *t)).collect(),
         rms_residual: sums.sse.iter().map(|e| (e / n as f64).sqrt()).collect(),
         loss: sums.cost,
@@ -213,6 +214,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         diagnostics,
         fit,
         correlation,
+        correlation_names: diag_names,
         solver,
         timing: Timing::default(),
         notes,

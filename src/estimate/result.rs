@@ -54,6 +54,10 @@ pub use crate::model::DerivedEstimate;
 pub struct FitStatistics {
     /// Output names, length n_y.
     pub outputs: Vec<String>,
+    /// Output units (e.g. `A`), length n_y; empty in reports written before the field
+    /// existed.
+    #[serde(default)]
+    pub output_units: Vec<String>,
     /// NRMSE fit per output [%], length n_y.
     pub fit_percent: Vec<f64>,
     /// RMS residual per output [output unit], length n_y.
@@ -117,6 +121,10 @@ pub struct FitResult {
     /// Correlation matrix of the free model parameters (order of the free entries of
     /// `parameters`; initial states excluded).
     pub correlation: Vec<Vec<f64>>,
+    /// Labels of the rows and columns of `correlation` (`name` or `name[experiment]`);
+    /// empty in reports written before the field existed.
+    #[serde(default)]
+    pub correlation_names: Vec<String>,
     /// Solver report.
     pub solver: SolverReport,
     /// Timing.
@@ -180,104 +188,10 @@ impl std::fmt::Display for Warning {
     }
 }
 
+/// The report table ([`FitResult::document`] without model conventions, as plain text).
 impl std::fmt::Display for FitResult {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(
-            f,
-            "model {}; {} experiment(s): {}",
-            self.model,
-            self.experiments.len(),
-            self.experiments.join(", ")
-        )?;
-        writeln!(
-            f,
-            "{:<14} {:>14} {:>11} {:>29} {:>9}  unit",
-            "parameter", "estimate", "std error", "95 % interval", "index %"
-        )?;
-        let row = |f: &mut std::fmt::Formatter<'_>,
-                   name: String,
-                   v: f64,
-                   se: f64,
-                   ci: Option<[f64; 2]>,
-                   idx: Option<f64>,
-                   unit: &str| {
-            let ci = ci.map(|c| format!("[{:.6e}, {:.6e}]", c[0], c[1])).unwrap_or_default();
-            let idx = idx.map(|i| format!("{i:.4}")).unwrap_or_default();
-            writeln!(f, "{name:<14} {v:>14.7e} {se:>11.3e} {ci:>29} {idx:>9}  {unit}")
-        };
-        for p in &self.parameters {
-            let mut name = p.name.clone();
-            if let Some(e) = &p.experiment {
-                name = format!("{name}[{e}]");
-            }
-            if p.fixed {
-                name.push_str(" (fixed)");
-            }
-            if p.at_bound {
-                name.push_str(" (at bound)");
-            }
-            row(f, name, p.value, p.std_error, Some(p.ci95), Some(p.error_index_percent), &p.unit)?;
-        }
-        for p in &self.initial_states {
-            let name = format!("{}[{}]", p.name, p.experiment.as_deref().unwrap_or(""));
-            row(f, name, p.value, p.std_error, Some(p.ci95), None, &p.unit)?;
-        }
-        for d in &self.derived {
-            let name = match &d.experiment {
-                Some(e) => format!("{}[{e}]", d.name),
-                None => d.name.clone(),
-            };
-            row(f, name, d.value, d.std_error, None, None, &d.unit)?;
-        }
-        let s = &self.fit;
-        let per = |v: &[f64], digits: usize| {
-            s.outputs.iter().zip(v).map(|(n, x)| format!("{n} {x:.digits$}")).collect::<Vec<_>>().join(", ")
-        };
-        writeln!(f, "fit [%]: {};  rms residual: {}", per(&s.fit_percent, 4), per(&s.rms_residual, 6))?;
-        writeln!(
-            f,
-            "loss {:.6e}, mse {:.6e}, FPE {:.6e}, AIC {:.1}, BIC {:.1}, N {} per output",
-            s.loss, s.mse, s.fpe, s.aic, s.bic, s.samples
-        )?;
-        if !s.whiteness.is_empty() {
-            let w: Vec<String> = s
-                .outputs
-                .iter()
-                .zip(&s.whiteness)
-                .map(|(n, w)| format!("{n} {:.0} %", 100.0 * w.fraction_outside))
-                .collect();
-            writeln!(
-                f,
-                "residual autocorrelation beyond the 95 % whiteness bound (lags 1–25): {}",
-                w.join(", ")
-            )?;
-        }
-        writeln!(
-            f,
-            "solver {}: {} after {} iterations ({} evaluations); fit {:.3} s",
-            self.solver.name,
-            self.solver.termination,
-            self.solver.iterations,
-            self.solver.evaluations,
-            self.timing.fit_s
-        )?;
-        let d = &self.diagnostics;
-        writeln!(
-            f,
-            "identifiability: singular values {} (relative information), condition number {:.3e}",
-            d.singular_values.iter().map(|v| format!("{v:.3e}")).collect::<Vec<_>>().join(", "),
-            d.condition_number
-        )?;
-        for a in &d.advice {
-            writeln!(f, "advice: {a}")?;
-        }
-        for n in &self.notes {
-            writeln!(f, "note: {n}")?;
-        }
-        for w in &self.warnings {
-            writeln!(f, "{w}")?;
-        }
-        Ok(())
+        f.write_str(&self.document(&[]).to_text())
     }
 }
 

@@ -11,6 +11,7 @@
 use super::fit::PmsmFitOptions;
 use super::interval::{SQRT_2_3, VoltageInput};
 use super::kind::MotorKind;
+use crate::report::eng::format_eng;
 // Base columns of the scan: `i`, `di_d/dt` (d rows), `ω_m i_d` (q rows), `−ω_m i_q` (d rows),
 // `di_q/dt` (q rows), `√(2/3) ω_m` (q rows), then the voltage. The salient regressors are
 // combinations of them at any `n_p`, and so are the surface-magnet ones (`L_s` takes both
@@ -293,13 +294,13 @@ fn scaling_notice(fit: &FitResult) -> Warning {
         "scaling_assumed",
         format!(
             "currents and voltages read as amplitude-invariant dq peak values (MODEL.md §1); the data cannot tell. \
-             If the currents were RMS: r_s {:.6e} ohm and the inductances ÷√2; if the voltages were RMS: r_s {:.6e} \
-             ohm, inductances and k_e {:.6e} V s/rad ×√2; if the dq transform was power-invariant: k_e {:.6e} V s/rad \
-             (÷√(3/2)), r_s and inductances unchanged",
-            r / s2,
-            r * s2,
-            k * s2,
-            k * SQRT_2_3
+             If the currents were RMS: r_s {} and the inductances ÷√2; if the voltages were RMS: r_s {}, \
+             inductances and k_e {} ×√2; if the dq transform was power-invariant: k_e {} (÷√(3/2)), r_s and \
+             inductances unchanged",
+            format_eng(r / s2, "ohm", 5),
+            format_eng(r * s2, "ohm", 5),
+            format_eng(k * s2, "V s/rad", 5),
+            format_eng(k * SQRT_2_3, "V s/rad", 5)
         ),
     )
 }

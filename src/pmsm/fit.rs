@@ -26,6 +26,7 @@ use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::{FitResult, PemOptions, Timing, Weighting, fit_with_weighting, predicted_loss};
 use crate::model::Parameter;
+use crate::report::eng::format_eng;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -60,7 +61,11 @@ pub struct PmsmFitOptions {
     pub start: Option<Vec<f64>>,
     /// Parameters held at their start value, by name.
     pub fixed: Vec<String>,
-    /// Bounds `(name, lower, upper)` replacing the model's defaults.
+    /// Parameters held at a given value `(name, value)` [SI unit of the parameter],
+    /// whatever the start (they need not be listed in `fixed`).
+    pub fixed_values: Vec<(String, f64)>,
+    /// Bounds `(name, lower, upper)` replacing the model's defaults. A least-squares start
+    /// outside them is clamped into them (with a note); a given start is not.
     pub bounds: Vec<(String, f64, f64)>,
     /// Known resistance in series with the winding (cable) [Ω], subtracted: `r_s` is the
     /// motor's alone, and the report gives the cable apart.
@@ -87,7 +92,8 @@ pub struct PmsmFitOptions {
 /// [`Error::InvalidPolePairs`] for `options.pole_pairs = 0`; [`Error::MissingChannel`]
 /// for a log without `ud, uq, id, iq, w_m`;
 /// [`Error::InvalidOption`] for no experiments, a start of the wrong length, an unknown
-/// parameter name in `fixed`/`bounds`;
+/// parameter name in `fixed`/`fixed_values`/`bounds`; [`Error::StartOutsideBounds`] for a
+/// given start or fixed value outside the bounds;
 /// [`Error::Numerical`] when the least-squares start cannot be computed (no excitation)
 /// or gives a non-positive `R_s`/`L`; and every error of [`crate::estimate::fit`].
 ///
@@ -155,9 +161,9 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                 return Err(Error::InvalidOption {
                     option: "start".into(),
                     reason: format!(
-                        "{} values given, the {:?} model has {} ({})",
+                        "{} values given, the {} model has {} ({})",
                         s.len(),
-                        options.model,
+                        options.model.model_name(),
                         names.len(),
                         names.join(", ")
                     ),
@@ -174,7 +180,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                 ls_names
                     .iter()
                     .zip(&theta)
-                    .map(|(n, v)| format!("{n} = {v:.6e}"))
+                    .map(|(n, v)| format!("{n} = {}", format_eng(*v, unit_of(options.model, n), 7)))
                     .collect::<Vec<_>>()
                     .join(", ")
             ));
@@ -183,6 +189,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             theta.into_iter().chain(v_dt0.filter(|_| !with_v_dt)).collect()
         }
     };
+    let start = super::start::user_start(start, names, options, &mut notes)?;
     let reference = options.input != VoltageInput::Terminal;
     let holds: &[VoltageHold] = match options.hold {
         HoldChoice::Dq if reference => {
@@ -364,7 +371,7 @@ fn configure(params: &mut [Parameter], options: &PmsmFitOptions) -> Result<()> {
         option: what.into(),
         reason: format!("no parameter `{n}`; the model has {}", params_list(options.model)),
     };
-    for name in &options.fixed {
+    for name in options.fixed.iter().chain(options.fixed_values.iter().map(|(n, _)| n)) {
         let p = params.iter_mut().find(|p| &p.name == name).ok_or_else(|| unknown(name, "fixed"))?;
         p.fixed = true;
     }
@@ -375,6 +382,11 @@ fn configure(params: &mut [Parameter], options: &PmsmFitOptions) -> Result<()> {
         p.check_bounds()?;
     }
     Ok(())
+}
+
+/// The unit of parameter `name` of `kind`, `V` for the dead-time voltage `v_dt`.
+fn unit_of(kind: MotorKind, name: &str) -> &'static str {
+    kind.table().iter().find(|p| p.name == name).map_or("V", |p| p.unit)
 }
 
 fn params_list(kind: MotorKind) -> String {

@@ -60,6 +60,7 @@ impl LinearEstimate {
         let sse = self.rms_residual.iter().map(|r| r * r * rows / 2.0).sum::<f64>();
         let fit = FitStatistics {
             outputs: vec!["ud".into(), "uq".into()],
+            output_units: vec!["V".into(), "V".into()],
             fit_percent: self.fit_percent.to_vec(),
             rms_residual: self.rms_residual.to_vec(),
             loss: 0.5 * self.e2,
@@ -81,6 +82,7 @@ impl LinearEstimate {
             diagnostics,
             fit,
             correlation,
+            correlation_names: self.names.clone(),
             solver: SolverReport {
                 name: "ls".into(),
                 iterations: 0,

@@ -52,6 +52,7 @@ pub use linear::{LinearEstimate, LinearOptions, least_squares, regressors, weigh
 pub use log::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit, read_log, read_logs};
 pub use mask::{DeadTimeMask, DeadTimeMaskWeighting};
 pub use plant::{ExactPlant, MotorParameters, StepDerivatives};
+pub use report::ReportOptions;
 pub use setup::PmsmSetup;
 pub use signals::{DqSignals, DqView, MIN_SAMPLES, channel};
 pub use spm::PmsmSpm;

@@ -6,6 +6,10 @@ use super::interval::{VoltageHold, VoltageInput};
 use super::inverter::InverterModel;
 use crate::estimate::FitResult;
 use crate::estimate::ParameterEstimate;
+use crate::pmsm::Scale;
+use crate::report::eng::format_eng;
+use crate::report::summary::REMARKS;
+use crate::report::{Block, Document};
 use serde::{Deserialize, Serialize};
 
 /// The least-squares start against the prediction-error estimate of one parameter.
@@ -65,36 +69,101 @@ impl PmsmFit {
     }
 }
 
-impl std::fmt::Display for PmsmFit {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(
-            f,
-            "PMSM with {} pole pairs, {} voltage hold, driven by the {}",
-            self.pole_pairs, self.hold, self.input
-        )?;
-        if self.cable_resistance != 0.0 {
-            writeln!(f, "known cable resistance {} ohm in series, not part of r_s", self.cable_resistance)?;
+/// What the report of a PMSM fit says that the data cannot tell: how the log's currents
+/// were scaled (the fit itself always works in peak values).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReportOptions {
+    /// Scaling of the log's current columns (`--current-scale`): with
+    /// [`Scale::Rms`] the report adds `k_t` per RMS ampere.
+    pub current_scale: Scale,
+}
+
+/// The conventions of a PMSM report in words (MODEL.md §1–2): amplitude-invariant dq in
+/// peak values, `k_e` as line-to-line RMS back-EMF per mechanical rad/s, `k_t` per peak
+/// ampere, and per RMS ampere when the log's currents were RMS. `k_e`, `k_t` [SI] are the
+/// estimates, quoted in the other units data sheets use; `salient` adds the IPM's
+/// reluctance torque.
+pub fn conventions(k_e: Option<f64>, k_t: Option<f64>, salient: bool, options: ReportOptions) -> Vec<String> {
+    let mut out = vec![
+        "dq: amplitude-invariant Clarke/Park in peak values (|i_dq| = phase peak current, |u_dq| = phase peak \
+         voltage; MODEL.md §1); speeds and angles mechanical unless marked _e"
+            .to_string(),
+    ];
+    let per_krpm = |k: f64| k * 1000.0 * std::f64::consts::PI / 30.0;
+    out.push(format!(
+        "k_e: line-to-line RMS back-EMF per mechanical rad/s [V s/rad], k_e = √(3/2) n_p ψ_f{}",
+        k_e.map_or(String::new(), |k| format!(" ({:.4} V line-to-line RMS per 1000 rpm)", per_krpm(k)))
+    ));
+    out.push(format!(
+        "k_t: torque per ampere of peak phase current (= |i_dq|) [N m/A], k_t = √(3/2) k_e = 1.5 n_p ψ_f{}",
+        if salient {
+            " (magnet torque; the reluctance torque 1.5 n_p (l_d − l_q) i_d i_q comes on top)"
+        } else {
+            ""
         }
-        write!(f, "{}", self.report)?;
+    ));
+    if options.current_scale == Scale::Rms {
+        out.push(format!(
+            "the log's currents were RMS (--current-scale rms, multiplied by √2 on reading): per RMS ampere \
+             k_t = √2 × k_t{}",
+            k_t.map_or(String::new(), |k| format!(" = {:.6} N m/A", std::f64::consts::SQRT_2 * k))
+        ));
+    }
+    out.push("psi_f: magnet flux linkage, peak per phase [V s]".into());
+    out
+}
+
+impl PmsmFit {
+    /// The report as a document: the machine and its input, the generic report with the
+    /// conventions in words, the least-squares start against the estimate, remarks.
+    pub fn document(&self, options: ReportOptions) -> Document {
+        let mut d = Document::default();
+        let kind = if self.report.model.ends_with("ipm") {
+            "interior magnets (ipm)"
+        } else {
+            "surface magnets (spm)"
+        };
+        d.line(format!(
+            "PMSM, {kind}, {} pole pairs, {} voltage hold, driven by the {}",
+            self.pole_pairs, self.hold, self.input
+        ));
+        if self.cable_resistance != 0.0 {
+            d.line(format!(
+                "known cable resistance {} in series, not part of r_s",
+                format_eng(self.cable_resistance, "ohm", 4)
+            ));
+        }
+        let value = |n: &str| self.report.parameter(n).map(|p| p.value);
+        let k_t = self.report.derived("k_t").map(|q| q.value);
+        let salient = self.report.parameter("l_d").is_some();
+        d.extend(self.report.document(&conventions(value("k_e"), k_t, salient, options)));
+        let more =
+            !(self.start_comparison.is_empty() && self.pmsm_advice.is_empty() && self.pmsm_notes.is_empty());
+        let has_remarks = d.blocks.iter().any(|b| matches!(b, Block::Heading(h) if h == REMARKS));
+        if more && !has_remarks {
+            d.heading(REMARKS);
+        }
         if !self.start_comparison.is_empty() {
             let parts: Vec<String> = self
                 .start_comparison
                 .iter()
                 .map(|c| format!("{} {:+.4} %", c.name, c.difference_percent))
                 .collect();
-            writeln!(
-                f,
+            d.line(format!(
                 "least-squares start vs estimate (LS bias if the fit is right): {}",
                 parts.join(", ")
-            )?;
+            ));
         }
-        for a in &self.pmsm_advice {
-            writeln!(f, "advice: {a}")?;
-        }
-        for n in &self.pmsm_notes {
-            writeln!(f, "note: {n}")?;
-        }
-        Ok(())
+        self.pmsm_advice.iter().for_each(|a| d.line(format!("advice: {a}")));
+        self.pmsm_notes.iter().for_each(|n| d.line(format!("note: {n}")));
+        d
+    }
+}
+
+/// The report table with peak-scaled currents ([`PmsmFit::document`] as plain text).
+impl std::fmt::Display for PmsmFit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.document(ReportOptions::default()).to_text())
     }
 }
 

@@ -115,3 +115,56 @@ fn regress(
     let theta = ls.solve(&names)?.theta;
     Ok((names, theta))
 }
+
+/// The start after the user's constraints: the values of `options.fixed_values` put in,
+/// and, for a least-squares start (`options.start` is `None`), every other entry outside
+/// its `options.bounds` clamped to the nearest bound, with a note in `notes`. `names` are
+/// the fitted parameters in model order (`start` has their length).
+///
+/// # Errors
+/// [`Error::InvalidOption`] (option `fixed`) for a fixed value of a parameter the model
+/// does not have or that is not finite.
+pub(crate) fn user_start(
+    mut start: Vec<f64>,
+    names: &[&str],
+    options: &super::PmsmFitOptions,
+    notes: &mut Vec<String>,
+) -> Result<Vec<f64>> {
+    let index = |name: &str| names.iter().position(|n| *n == name);
+    for (name, v) in &options.fixed_values {
+        let Some(j) = index(name) else {
+            return Err(Error::InvalidOption {
+                option: "fixed".into(),
+                reason: format!("no parameter `{name}`; the model has {}", names.join(", ")),
+            });
+        };
+        if !v.is_finite() {
+            return Err(Error::InvalidOption {
+                option: "fixed".into(),
+                reason: format!("`{name}` = {v}: a fixed value must be finite"),
+            });
+        }
+        start[j] = *v;
+    }
+    if options.start.is_some() {
+        return Ok(start);
+    }
+    for (name, lo, hi) in &options.bounds {
+        let Some(j) = index(name) else { continue };
+        if options.fixed_values.iter().any(|(n, _)| n == name)
+            || lo.partial_cmp(hi) != Some(std::cmp::Ordering::Less)
+        {
+            continue;
+        }
+        let s = start[j];
+        let clamped = s.clamp(*lo, *hi);
+        if clamped != s {
+            notes.push(format!(
+                "the least-squares start of {name}, {s:.7}, lies outside its bounds [{lo}, {hi}]: started at \
+                 {clamped} (the nearest bound; SI units)"
+            ));
+            start[j] = clamped;
+        }
+    }
+    Ok(start)
+}

@@ -1,9 +1,14 @@
 //! Reports apart from estimation: goodness-of-fit metrics as functions of measured and
 //! simulated outputs, and comparisons of a model with data it was not fitted on (MATLAB's
-//! `compare`).
+//! `compare`), and the fit report as text or Markdown (engineering prefixes, aligned
+//! columns).
 
 pub mod compare;
+pub mod eng;
 pub mod metrics;
+pub mod summary;
+pub mod text;
 
 pub use compare::{Comparison, compare};
 pub use metrics::{Metrics, Whiteness, metrics};
+pub use text::{Align, Block, Document, Table};

@@ -6,6 +6,7 @@
 mod common;
 
 mod blocks;
+mod cli_traps;
 mod columnar;
 mod coverage;
 mod criteria;
