@@ -16,7 +16,7 @@
 use super::interval::{VoltageInput, applied_voltage};
 use super::inverter::{DeadTimeStream, InverterModel};
 use super::kind::MotorKind;
-use super::linear::{MAX_COLS, Regression};
+use super::linear::{MAX_COLS, Regression, push_with_dead_time};
 use super::signals::{DqView, channel};
 use crate::data::Experiment;
 use crate::estimate::Warning;
@@ -127,12 +127,7 @@ pub fn advice(
                 let p1 = s.phases(id[k + 1], iq[k + 1], sc1);
                 let dir = s.direction(*p, p1, *sc);
                 (*p, *sc) = (p1, sc1);
-                let (mut drow, mut qrow) = ([0.0; MAX_COLS + 1], [0.0; MAX_COLS + 1]);
-                drow[..cols].copy_from_slice(&d[..cols]);
-                qrow[..cols].copy_from_slice(&q[..cols]);
-                (drow[cols], qrow[cols]) = (-dir.re, -dir.im);
-                ls.push(&drow[..=cols], u[0], 1.0);
-                ls.push(&qrow[..=cols], u[1], 1.0);
+                push_with_dead_time(&mut ls, d, q, [u[0], u[1]], cols, dir);
             }
         });
         if dead.is_some_and(|(s, _)| s.check_crossings().is_ok()) {

@@ -145,6 +145,25 @@ pub(crate) struct Regression<'a> {
 /// Regressor columns of the largest model (IPM).
 pub(crate) const MAX_COLS: usize = 4;
 
+/// Pushes one interval's d and q rows (first `cols` regressors of `d`, `q`, targets `u`)
+/// into `ls`, with the dead-time direction `dir` (per unit `v_dt`, enters as `−dir`) as one
+/// more regressor column.
+pub(crate) fn push_with_dead_time(
+    ls: &mut crate::estimate::linear::StreamedLeastSquares,
+    d: &[f64],
+    q: &[f64],
+    u: [f64; 2],
+    cols: usize,
+    dir: super::interval::C64,
+) {
+    let (mut drow, mut qrow) = ([0.0; MAX_COLS + 1], [0.0; MAX_COLS + 1]);
+    drow[..cols].copy_from_slice(&d[..cols]);
+    qrow[..cols].copy_from_slice(&q[..cols]);
+    (drow[cols], qrow[cols]) = (-dir.re, -dir.im);
+    ls.push(&drow[..=cols], u[0], 1.0);
+    ls.push(&qrow[..=cols], u[1], 1.0);
+}
+
 impl<'a> Regression<'a> {
     /// The regression of `e` on the voltage `(u_d, u_q)` (period means [V], length N each:
     /// the terminal voltage or an applied one).

@@ -7,7 +7,7 @@
 use super::interval::{VoltageInput, applied_voltage};
 use super::inverter::{InverterModel, dead_time_directions};
 use super::kind::MotorKind;
-use super::linear::{MAX_COLS, Regression};
+use super::linear::{Regression, push_with_dead_time};
 use super::signals::DqView;
 use crate::data::Experiment;
 use crate::error::{Error, Result};
@@ -102,12 +102,7 @@ fn regress(
                 let dirs = dead_time_directions(&v, n_p, model)?;
                 for (k, dir) in dirs.iter().enumerate().take(reg.intervals()) {
                     let (d, q, u) = reg.rows(k);
-                    let (mut drow, mut qrow) = ([0.0; MAX_COLS + 1], [0.0; MAX_COLS + 1]);
-                    drow[..cols].copy_from_slice(&d[..cols]);
-                    qrow[..cols].copy_from_slice(&q[..cols]);
-                    (drow[cols], qrow[cols]) = (-dir.re, -dir.im);
-                    ls.push(&drow[..=cols], u[0], 1.0);
-                    ls.push(&qrow[..=cols], u[1], 1.0);
+                    push_with_dead_time(&mut ls, &d[..], &q[..], [u[0], u[1]], cols, *dir);
                 }
             }
         }
