@@ -4,6 +4,7 @@ pub mod args;
 pub mod columns;
 pub mod fit;
 pub mod output;
+pub mod plots;
 pub mod simulate;
 pub mod track;
 pub mod validate;

@@ -119,6 +119,12 @@ pub struct FitResult {
     pub correlation: Vec<Vec<f64>>,
     /// Solver report.
     pub solver: SolverReport,
+    /// The free model parameters after each solver iteration, the start first [their
+    /// units]: rows 1 + iterations (a robust fit: the quadratic run's, then the Huber
+    /// run's), each row the free entries of `parameters` in order (as `correlation`); empty
+    /// when there was no iteration (closed form, all parameters fixed).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub parameter_trace: Vec<Vec<f64>>,
     /// Timing.
     pub timing: Timing,
     /// Remarks on the fit (start estimate, hold selection).

@@ -4,6 +4,9 @@
 
 pub mod compare;
 pub mod metrics;
+#[cfg(feature = "plot")]
+pub mod plot;
+pub mod residuals;
 
-pub use compare::{Comparison, compare};
+pub use compare::{Comparison, compare, compare_from};
 pub use metrics::{Metrics, Whiteness, metrics};
