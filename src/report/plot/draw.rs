@@ -43,20 +43,22 @@ pub(super) fn color(i: usize) -> RGBColor {
     PALETTE[i % PALETTE.len()]
 }
 
-/// A chart on `area` with a caption and both axes labelled (`x_desc`, `y_desc` carry the
-/// unit), a light grid, and tick labels of at most 4 significant digits.
+/// A chart on `area` under a header row (the caption on the left, the legend `keys` on
+/// the right, so that neither covers data), both axes labelled (`x_desc`, `y_desc` carry
+/// the unit), a light grid, and tick labels of at most 4 significant digits.
 pub(super) fn chart<'a, 'b>(
     area: &'a Area<'b>,
     caption: &str,
+    keys: &[(String, Key)],
     x: Range<f64>,
     y: Range<f64>,
     x_desc: &str,
     y_desc: &str,
 ) -> Drawn<Chart<'a, 'b>> {
     let (x_span, y_span) = (x.end - x.start, y.end - y.start);
+    header(area, caption, keys)?;
     let mut chart = ChartBuilder::on(area)
-        .caption(caption, (FONT, 17))
-        .margin_top(4)
+        .margin_top(HEADER)
         .margin_left(8)
         .margin_right(24)
         .margin_bottom(4)
@@ -79,6 +81,49 @@ pub(super) fn chart<'a, 'b>(
         .bold_line_style(RGBColor(210, 210, 210))
         .draw()?;
     Ok(chart)
+}
+
+/// Height of a panel's header row [px].
+pub(super) const HEADER: u32 = 30;
+
+/// How a legend key is drawn.
+#[derive(Clone, Copy)]
+pub(super) enum Key {
+    /// A line.
+    Line(ShapeStyle),
+    /// A filled band.
+    Band(ShapeStyle),
+    /// A dashed line.
+    Dashed(ShapeStyle),
+}
+
+/// A panel's header row: `caption` at the left, the legend `keys` from the right edge,
+/// so that neither covers data. Text widths are estimated generously for a sans-serif
+/// font (8 px a character at 17 px, 6.5 px at 13 px); the keys never start left of the
+/// caption's end.
+pub(super) fn header(area: &Area<'_>, caption: &str, keys: &[(String, Key)]) -> Drawn {
+    let (w, _) = area.dim_in_pixel();
+    area.draw_text(caption, &(FONT, 17).into_font().color(&BLACK), (12, 6))?;
+    let chars = |s: &str| s.chars().count() as f64;
+    let key_width = |label: &str| 30 + (6.5 * chars(label)) as i32 + 12;
+    let width: i32 = keys.iter().map(|(l, _)| key_width(l)).sum();
+    let caption_end = 12 + (8.0 * chars(caption)) as i32 + 16;
+    let mut x = (w as i32 - 24 - width).max(caption_end);
+    let font = (FONT, 13).into_font().color(&RGBColor(30, 30, 30));
+    let y = 14;
+    for (label, key) in keys {
+        match *key {
+            Key::Line(style) => area.draw(&PathElement::new(vec![(x, y), (x + 24, y)], style))?,
+            Key::Band(style) => area.draw(&Rectangle::new([(x, y - 6), (x + 24, y + 6)], style))?,
+            Key::Dashed(style) => {
+                area.draw(&PathElement::new(vec![(x, y), (x + 9, y)], style))?;
+                area.draw(&PathElement::new(vec![(x + 15, y), (x + 24, y)], style))?;
+            }
+        }
+        area.draw_text(label, &font, (x + 30, y - 7))?;
+        x += key_width(label);
+    }
+    Ok(())
 }
 
 /// The legend of `chart`'s labelled series, in its upper-right corner on a translucent

@@ -3,7 +3,7 @@
 //! 95 % intervals (fit), or the autocorrelation and the metrics per log (compare).
 
 use super::draw::{
-    Area, Drawn, FONT, PANEL, TITLE, WIDTH, chart, color, dashed, empty, legend, mark, range, value,
+    Area, Drawn, FONT, Key, PANEL, TITLE, WIDTH, chart, color, dashed, empty, legend, mark, range, value,
 };
 use super::{Context, plot_error, time};
 use crate::error::{Error, Result};
@@ -37,7 +37,10 @@ pub fn fit_svg(fit: &FitResult, comparisons: &[Comparison], context: Option<&Con
         .iter()
         .zip(&fit.fit.fit_percent)
         .zip(&fit.fit.rms_residual)
-        .map(|((o, f), r)| format!("{o} {f:.2} % (rms residual {})", value(*r)))
+        .enumerate()
+        .map(|(i, ((o, f), r))| {
+            format!("{o} {f:.2} % (rms residual {} {})", value(*r), comparisons[0].unit(i))
+        })
         .collect();
     let title = [
         format!("Fit of {} to {}: {}", fit.model, list(&fit.experiments), fit.solver.termination),
@@ -144,21 +147,27 @@ fn autocorrelation(area: &Area<'_>, outputs: &[String], whiteness: &[Whiteness])
         0.0,
     ]));
     let x = 0.0..lags as f64 + 1.0;
-    let mut ch = chart(area, caption, x.clone(), y, "lag τ [samples]", "r(τ) [-]")?;
+    let grey = RGBColor(90, 90, 90).stroke_width(1);
+    let mut keys: Vec<(String, Key)> = outputs
+        .iter()
+        .zip(whiteness)
+        .enumerate()
+        .map(|(o, (name, w))| {
+            (format!("{name} {:.0} % out", 100.0 * w.fraction_outside), Key::Line(color(o).stroke_width(2)))
+        })
+        .collect();
+    keys.push(("±1.96/√N".into(), Key::Dashed(grey)));
+    let mut ch = chart(area, caption, &keys, x.clone(), y, "lag τ [samples]", "r(τ) [-]")?;
     let n = whiteness.len().max(1) as f64;
-    for (o, (name, w)) in outputs.iter().zip(whiteness).enumerate() {
+    for (o, w) in whiteness.iter().enumerate() {
         let shift = (o as f64 - (n - 1.0) / 2.0) * 0.25;
         let style = color(o).stroke_width(2);
         ch.draw_series(w.autocorrelation.iter().enumerate().map(|(k, r)| {
             PathElement::new(vec![(k as f64 + 1.0 + shift, 0.0), (k as f64 + 1.0 + shift, *r)], style)
-        }))?
-        .label(format!("{name} ({:.0} % of lags outside)", 100.0 * w.fraction_outside))
-        .legend(mark(style));
+        }))?;
     }
-    let grey = RGBColor(90, 90, 90).stroke_width(1);
-    dashed(&mut ch, &x, bound, grey, Some("95 % bound ±1.96/√N"))?;
-    dashed(&mut ch, &x, -bound, grey, None)?;
-    legend(&mut ch, SeriesLabelPosition::UpperRight)
+    dashed(&mut ch, &x, bound, grey, None)?;
+    dashed(&mut ch, &x, -bound, grey, None)
 }
 
 /// The free parameters over the solver's iterations, each relative to its estimate.
@@ -174,7 +183,7 @@ fn trace(area: &Area<'_>, fit: &FitResult, free: &[&crate::estimate::ParameterEs
     let rel = |j: usize, v: f64| if free[j].value != 0.0 { v / free[j].value } else { f64::NAN };
     let y = range(rows.iter().flat_map(|r| (0..cols).map(move |j| rel(j, r[j]))).chain([1.0]));
     let x = 0.0..(rows.len() - 1).max(1) as f64;
-    let mut ch = chart(area, caption, x, y, "iteration", "θ / θ̂ [-] (1: the estimate)")?;
+    let mut ch = chart(area, caption, &[], x, y, "iteration", "θ / θ̂ [-] (1: the estimate)")?;
     for j in 0..cols {
         let style = color(j).stroke_width(2);
         let name = match &free[j].experiment {
@@ -204,9 +213,9 @@ fn estimates(area: &Area<'_>, free: &[&crate::estimate::ParameterEstimate]) -> D
     let half = if half > 0.0 { 1.25 * half } else { 1.0 };
     let n = free.len() as f64;
     let fmt = move |v: &f64| super::draw::tick(*v, 2.0 * half);
+    super::draw::header(area, caption, &[])?;
     let mut ch = ChartBuilder::on(area)
-        .caption(caption, (FONT, 17))
-        .margin_top(4)
+        .margin_top(super::draw::HEADER)
         .margin_left(8)
         .margin_right(24)
         .x_label_area_size(44)

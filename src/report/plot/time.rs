@@ -4,7 +4,7 @@
 
 use super::Context;
 use super::decimate_min_max;
-use super::draw::{Area, Chart, Drawn, MEASURED, chart, color, dashed, legend, mark, range};
+use super::draw::{Area, Chart, Drawn, Key, MEASURED, chart, color, dashed, range};
 use crate::report::Comparison;
 use plotters::prelude::*;
 
@@ -50,25 +50,17 @@ pub(super) fn draw(areas: &[Area<'_>], comparisons: &[Comparison], context: Opti
     let mut take = || next.next().ok_or("too few panels");
     let ny = comparisons.first().map_or(0, |c| c.outputs.len());
     let times: Vec<Vec<f64>> = (0..comparisons.len()).map(|i| line.times(comparisons, i)).collect();
+    let x = 0.0..line.end;
     if let Some(ctx) = context {
         let y = range(ctx.per_log.iter().flat_map(|v| v.iter().copied()));
-        let mut ch = chart(
-            take()?,
-            &format!("{} (measured)", ctx.name),
-            0.0..line.end,
-            y,
-            line.label(),
-            &axis(ctx.name, ctx.unit),
-        )?;
+        let style = MEASURED.stroke_width(1);
+        let keys = [(format!("{} measured", ctx.name), Key::Line(style.stroke_width(2)))];
+        let caption = format!("{} (measured)", ctx.name);
+        let mut ch = chart(take()?, &caption, &keys, x.clone(), y, line.label(), &axis(ctx.name, ctx.unit))?;
         for (i, (t, v)) in times.iter().zip(ctx.per_log).enumerate() {
-            let style = MEASURED.stroke_width(1);
-            let s = ch.draw_series(LineSeries::new(decimated(&ch, &line, t, v, comparisons, i), style))?;
-            if i == 0 {
-                s.label(format!("{} measured", ctx.name)).legend(mark(style));
-            }
+            ch.draw_series(LineSeries::new(decimated(&ch, &line, t, v, comparisons, i), style))?;
         }
         separators(&mut ch, &line)?;
-        legend(&mut ch, SeriesLabelPosition::UpperRight)?;
     }
     for o in 0..ny {
         let name = &comparisons[0].outputs[o];
@@ -76,21 +68,19 @@ pub(super) fn draw(areas: &[Area<'_>], comparisons: &[Comparison], context: Opti
         let measured: Vec<Vec<f64>> = comparisons.iter().map(|c| c.measured(o)).collect();
         let simulated: Vec<Vec<f64>> = comparisons.iter().map(|c| c.simulated(o)).collect();
         let y = range(measured.iter().chain(&simulated).flat_map(|v| v.iter().copied()));
-        let caption = format!("{name}: measured and simulated");
-        let mut ch = chart(take()?, &caption, 0.0..line.end, y, line.label(), &axis(name, unit))?;
         let styles = [MEASURED.stroke_width(1), color(0).stroke_width(1)];
-        for (which, (data, style)) in [&measured, &simulated].into_iter().zip(styles).enumerate() {
+        let keys = [
+            (format!("{name} measured"), Key::Line(styles[0].stroke_width(2))),
+            (format!("{name} simulated"), Key::Line(styles[1].stroke_width(2))),
+        ];
+        let caption = format!("{name}: measured and simulated");
+        let mut ch = chart(take()?, &caption, &keys, x.clone(), y, line.label(), &axis(name, unit))?;
+        for (data, style) in [&measured, &simulated].into_iter().zip(styles) {
             for (i, (t, v)) in times.iter().zip(data).enumerate() {
-                let s =
-                    ch.draw_series(LineSeries::new(decimated(&ch, &line, t, v, comparisons, i), style))?;
-                if i == 0 {
-                    s.label(format!("{name} {}", ["measured", "simulated"][which]))
-                        .legend(mark(style.stroke_width(2)));
-                }
+                ch.draw_series(LineSeries::new(decimated(&ch, &line, t, v, comparisons, i), style))?;
             }
         }
         separators(&mut ch, &line)?;
-        legend(&mut ch, SeriesLabelPosition::UpperRight)?;
         // The residual of the output, with ±2σ (σ: the RMS residual over all logs).
         let residual: Vec<Vec<f64>> = measured
             .iter()
@@ -100,29 +90,26 @@ pub(super) fn draw(areas: &[Area<'_>], comparisons: &[Comparison], context: Opti
         let n: usize = residual.iter().map(Vec::len).sum();
         let sigma = (residual.iter().flatten().map(|e| e * e).sum::<f64>() / n.max(1) as f64).sqrt();
         let y = range(residual.iter().flatten().copied().chain([-2.5 * sigma, 2.5 * sigma]));
-        let caption = format!("{name} residual (measured − simulated)");
-        let mut ch =
-            chart(take()?, &caption, 0.0..line.end, y, line.label(), &axis(&format!("ε {name}"), unit))?;
         let band = color(0).mix(0.12).filled();
+        let style = color(3).stroke_width(1);
+        let keys = [
+            (format!("ε {name}"), Key::Line(style.stroke_width(2))),
+            (format!("±2σ, σ = {} {unit}", super::draw::value(sigma)), Key::Band(band)),
+        ];
+        let caption = format!("{name} residual (measured − simulated)");
+        let y_desc = axis(&format!("ε {name}"), unit);
+        let mut ch = chart(take()?, &caption, &keys, x.clone(), y, line.label(), &y_desc)?;
         ch.draw_series(std::iter::once(Rectangle::new(
             [(0.0, -2.0 * sigma), (line.end, 2.0 * sigma)],
             band,
-        )))?
-        .label(format!("±2σ, σ = {} {unit}", super::draw::value(sigma)))
-        .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 18, y + 5)], band));
+        )))?;
         for (i, (t, v)) in times.iter().zip(&residual).enumerate() {
-            let style = color(3).stroke_width(1);
-            let s = ch.draw_series(LineSeries::new(decimated(&ch, &line, t, v, comparisons, i), style))?;
-            if i == 0 {
-                s.label(format!("ε {name}")).legend(mark(style.stroke_width(2)));
-            }
+            ch.draw_series(LineSeries::new(decimated(&ch, &line, t, v, comparisons, i), style))?;
         }
-        let x = 0.0..line.end;
         for y in [-2.0 * sigma, 2.0 * sigma] {
             dashed(&mut ch, &x, y, color(0).stroke_width(1), None)?;
         }
         separators(&mut ch, &line)?;
-        legend(&mut ch, SeriesLabelPosition::UpperRight)?;
     }
     Ok(())
 }

@@ -8,6 +8,10 @@ use crate::error::{Error, Result};
 use crate::online::Trajectory;
 use plotters::prelude::*;
 
+/// Width of the K_t axis [px]; the R_s panel leaves the same room so that the time axes
+/// line up.
+const RIGHT_AXIS: u32 = 90;
+
 /// `K_t = √(3/2) K_e` (MODEL.md §2).
 const KT_PER_KE: f64 = 1.224_744_871_391_589;
 
@@ -86,8 +90,8 @@ fn k_e(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
         .margin_left(8)
         .margin_right(8)
         .x_label_area_size(44)
-        .y_label_area_size(90)
-        .right_y_label_area_size(90)
+        .y_label_area_size(84)
+        .right_y_label_area_size(RIGHT_AXIS)
         .build_cartesian_2d(0.0..t_end, y.clone())?
         .set_secondary_coord(0.0..t_end, y.start * KT_PER_KE..y.end * KT_PER_KE);
     ch.configure_mesh()
@@ -134,7 +138,10 @@ fn r_s(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
     let t_end =
         runs.iter().filter_map(|r| r.trajectory.t.last().copied()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
     let y = range(runs.iter().flat_map(|r| r.trajectory.r_s.iter().copied().chain(r.truth.map(|t| t.r_s))));
-    let mut ch = super::draw::chart(area, "Stator resistance R_s", 0.0..t_end, y, "t [s]", "R_s [Ω]")?;
+    // The K_e panel's right margin (8) and K_t axis, less the common chart's margin (24).
+    let (w, _) = area.dim_in_pixel();
+    let (area, _) = area.split_horizontally(w - (RIGHT_AXIS + 8 - 24));
+    let mut ch = super::draw::chart(&area, "Stator resistance R_s", &[], 0.0..t_end, y, "t [s]", "R_s [Ω]")?;
     let width = ch.plotting_area().dim_in_pixel().0 as usize;
     for (i, r) in runs.iter().enumerate() {
         let style = color(i).stroke_width(2);
