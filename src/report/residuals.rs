@@ -4,7 +4,6 @@
 use super::Comparison;
 use crate::data::write::write_atomic;
 use crate::error::{Error, Result};
-use std::io::Write;
 use std::path::Path;
 
 /// Writes `comparisons` to `path` as CSV, atomically
@@ -56,18 +55,4 @@ pub fn write_residuals_csv(path: &Path, comparisons: &[Comparison]) -> Result<()
         out.flush()?;
         Ok(())
     })
-}
-
-/// Writes nothing but checks `path` could be created, for a caller that wants to fail
-/// before a long computation: creates and removes an empty temporary file beside it.
-///
-/// # Errors
-/// [`Error::Write`] naming the path when its folder is missing or not writable.
-pub fn check_writable(path: &Path) -> Result<()> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let probe = dir.join(format!(".{name}.{}.probe", std::process::id()));
-    let made = std::fs::File::create(&probe).and_then(|mut f| f.write_all(b""));
-    let _ = std::fs::remove_file(&probe);
-    made.map_err(|source| Error::Write { path: path.to_path_buf(), source })
 }
