@@ -123,7 +123,7 @@ pub struct FitResult {
     /// units]: rows 1 + iterations (a robust fit: the quadratic run's, then the Huber
     /// run's), each row the free entries of `parameters` in order (as `correlation`); empty
     /// when there was no iteration (closed form, all parameters fixed).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[serde(default)]
     pub parameter_trace: Vec<Vec<f64>>,
     /// Timing.
     pub timing: Timing,
