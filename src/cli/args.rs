@@ -142,6 +142,16 @@ pub struct FitArgs {
     /// Do not print the table.
     #[arg(long, short = 'q')]
     pub quiet: bool,
+    // Plots and exports (issue 17).
+    /// Write the fit plot (SVG) to this file: measured and simulated currents with the
+    /// speed, residuals with ±2σ, their autocorrelation, the parameter trace and the
+    /// estimates with 95 % intervals.
+    #[arg(long, value_name = "PATH.svg")]
+    pub plot: Option<PathBuf>,
+    /// Write t, <output>_measured, <output>_simulated, <output>_residual of every log (a
+    /// `log` column with several) as CSV to this file [s, A].
+    #[arg(long, value_name = "PATH.csv")]
+    pub residuals: Option<PathBuf>,
     #[command(flatten)]
     pub columns: ColumnArgs,
 }

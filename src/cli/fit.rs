@@ -23,6 +23,7 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
     if let Some(path) = &a.json {
         output::check(path, &a.logs)?;
     }
+    super::plots::check(&[("plot", a.plot.as_ref()), ("residuals", a.residuals.as_ref())], &a.logs)?;
     let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
     let given = match a.pole_pairs {
         PolePairs::Given(n) => Some(n),
@@ -192,6 +193,7 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
         print_report(a.format, &result.document(report_options), &json);
     }
     write_json(a, json)?;
+    super::plots::fit_outputs(a.plot.as_deref(), a.residuals.as_deref(), &result, &logs)?;
     let trusted = result.trusted();
     if !trusted {
         let codes: Vec<&str> =
@@ -268,6 +270,8 @@ fn ls_only(a: &FitArgs) -> greybox::Result<()> {
         ("--r-s0", a.r_s0.is_some()),
         ("--psi-f0", a.psi_f0.is_some()),
         ("--t0", a.t0.is_some()),
+        ("--plot", a.plot.is_some()),
+        ("--residuals", a.residuals.is_some()),
     ];
     for (flag, set) in given {
         if set {

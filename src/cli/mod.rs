@@ -6,6 +6,7 @@ pub mod errors;
 pub mod fit;
 pub mod logs;
 pub mod output;
+pub mod plots;
 pub mod simulate;
 pub mod track;
 pub mod validate;

@@ -78,6 +78,10 @@ pub struct TrackArgs {
     /// Write the JSON to this file ("-" for stdout, which suppresses the summary).
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Write the observer plot (SVG) to this file: K_e (K_t) and R_s over time, with the
+    /// truth when a truth JSON lies beside the log (`LOG.json`).
+    #[arg(long, value_name = "PATH.svg")]
+    pub plot: Option<PathBuf>,
     #[command(flatten)]
     pub columns: ColumnArgs,
 }
@@ -99,14 +103,20 @@ pub fn run_track(a: &TrackArgs) -> greybox::Result<()> {
     if let Some(path) = &a.json {
         output::check(path, &a.logs)?;
     }
+    super::plots::check(&[("plot", a.plot.as_ref())], &a.logs)?;
     let config = config(a)?;
     let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
     let mut runs = Vec::with_capacity(a.logs.len());
     for path in &a.logs {
         let log = read_log(path, &csv)?;
         let trajectory = track(&log, &config).map_err(|e| flag_error(e, path))?;
-        runs.push((path.display().to_string(), trajectory));
+        runs.push((path.clone(), trajectory));
     }
+    if let Some(plot) = &a.plot {
+        super::plots::track_plot(plot, &runs)?;
+    }
+    let runs: Vec<(String, Trajectory)> =
+        runs.into_iter().map(|(p, t)| (p.display().to_string(), t)).collect();
     let to_stdout = a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
     if !to_stdout {
         for (name, tr) in &runs {

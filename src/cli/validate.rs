@@ -27,6 +27,10 @@ pub struct ValidateArgs {
     /// (`<log>.compare.csv`: t, id, id_sim, iq, iq_sim), for plotting.
     #[arg(long)]
     pub compare_dir: Option<PathBuf>,
+    /// Write the compare plot (SVG) to this file: measured against simulated outputs with
+    /// the speed, residuals with ±2σ, their autocorrelation and the fit per log.
+    #[arg(long, value_name = "PATH.svg")]
+    pub plot: Option<PathBuf>,
     /// Print nothing but errors.
     #[arg(long, short = 'q')]
     pub quiet: bool,
@@ -44,6 +48,7 @@ pub fn run_validate(a: &ValidateArgs) -> greybox::Result<()> {
     if let Some(path) = &a.json {
         output::check(path, &a.logs)?;
     }
+    super::plots::check(&[("plot", a.plot.as_ref())], &a.logs)?;
     if let Some(dir) = a.compare_dir.as_ref().filter(|d| !d.is_dir()) {
         return Err(greybox::Error::InvalidOption {
             option: "compare-dir".into(),
@@ -90,6 +95,9 @@ pub fn run_validate(a: &ValidateArgs) -> greybox::Result<()> {
                 white.join(", ")
             );
         }
+    }
+    if let Some(path) = &a.plot {
+        super::plots::compare_plot(path, &comparisons, &logs)?;
     }
     if let Some(dir) = &a.compare_dir {
         for c in &comparisons {

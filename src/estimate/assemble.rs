@@ -22,7 +22,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     problem: &PemProblem<'_, M>,
     p: &DVector<f64>,
     start: &[f64],
-    solver: SolverReport,
+    mut solver: SolverReport,
     thresholds: &DiagnosticThresholds,
 ) -> Result<FitResult> {
     let model = problem.model();
@@ -204,6 +204,10 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         );
     }
     let derived = derived(problem, p, cov_theta.as_ref(), &se_free, &names);
+    let parameter_trace = std::mem::take(&mut solver.trace)
+        .iter()
+        .map(|q| order.iter().map(|&g| problem.free()[g].transform.to_theta(q[g])).collect())
+        .collect();
     let warnings = warnings(&solver, &parameters, &fit);
     Ok(FitResult {
         model: model.name().to_string(),
@@ -216,6 +220,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         correlation,
         correlation_names: diag_names,
         solver,
+        parameter_trace,
         timing: Timing::default(),
         notes,
         warnings,

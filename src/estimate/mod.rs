@@ -163,11 +163,20 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
             // Restart from the whole fitted vector: every per-experiment copy and every
             // estimated initial state, not only experiment 0's parameters.
             let values = problem.free_values(&p_hat);
+            let trace_values: Vec<Vec<f64>> = std::mem::take(&mut report.trace)
+                .into_iter()
+                .map(|q| problem.free_values(&nalgebra::DVector::from_vec(q)))
+                .collect();
             let terms = problem.into_data();
             popts.loss = Loss::Huber { delta };
             let robust = PemProblem::new(model, terms, start, scaling.as_ref(), &popts)?;
             let p1 = robust.point_from_values(&values);
+            // The quadratic run's trace, in the robust problem's scaled space, before its own.
+            let mut trace: Vec<Vec<f64>> =
+                trace_values.iter().map(|v| robust.point_from_values(v).as_slice().to_vec()).collect();
             (p_hat, report) = run_solver(&robust, p1, &options.run_options())?;
+            trace.append(&mut report.trace);
+            report.trace = trace;
             robust
         }
     };

@@ -127,6 +127,12 @@ pub struct FitResult {
     pub correlation_names: Vec<String>,
     /// Solver report.
     pub solver: SolverReport,
+    /// The free model parameters after each solver iteration, the start first [their
+    /// units]: rows 1 + iterations (a robust fit: the quadratic run's, then the Huber
+    /// run's), each row the free entries of `parameters` in order (as `correlation`); empty
+    /// when there was no iteration (closed form, all parameters fixed).
+    #[serde(default)]
+    pub parameter_trace: Vec<Vec<f64>>,
     /// Timing.
     pub timing: Timing,
     /// Remarks on the fit (start estimate, hold selection).

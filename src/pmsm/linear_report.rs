@@ -91,7 +91,9 @@ impl LinearEstimate {
                 reason,
                 evaluations: 1,
                 accepted_iterations: 0,
+                trace: Vec::new(),
             },
+            parameter_trace: Vec::new(),
             timing: Timing { read_s: 0.0, fit_s, total_s: fit_s },
             notes: vec![format!(
                 "linear least squares on the voltage equations (weighting {}; prefilter {}); standard errors \

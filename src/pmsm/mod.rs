@@ -33,6 +33,7 @@ pub mod report;
 mod scan;
 pub mod setup;
 pub mod signals;
+pub mod simulated;
 pub mod spm;
 pub(crate) mod start;
 pub mod temperature;

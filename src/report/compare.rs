@@ -21,6 +21,9 @@ pub struct Comparison {
     pub h: f64,
     /// Output names (channels), length n_y.
     pub outputs: Vec<String>,
+    /// Output units (SI), length n_y (empty when read from a comparison saved without them).
+    #[serde(default)]
+    pub units: Vec<String>,
     /// Measured outputs, row-major `N × n_y`.
     pub y: Vec<f64>,
     /// Simulated outputs, row-major `N × n_y`.
@@ -30,6 +33,34 @@ pub struct Comparison {
 }
 
 impl Comparison {
+    /// Number of samples N.
+    pub fn len(&self) -> usize {
+        self.y.len() / self.outputs.len().max(1)
+    }
+    /// Whether there is no sample.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Measured output `i` over time, length N (empty for `i ≥ n_y`).
+    pub fn measured(&self, i: usize) -> Vec<f64> {
+        let ny = self.outputs.len();
+        if i >= ny {
+            return Vec::new();
+        }
+        self.y.iter().skip(i).step_by(ny).copied().collect()
+    }
+    /// Simulated output `i` over time, length N (empty for `i ≥ n_y`).
+    pub fn simulated(&self, i: usize) -> Vec<f64> {
+        let ny = self.outputs.len();
+        if i >= ny {
+            return Vec::new();
+        }
+        self.y_hat.iter().skip(i).step_by(ny).copied().collect()
+    }
+    /// Unit of output `i` (empty when unknown).
+    pub fn unit(&self, i: usize) -> &str {
+        self.units.get(i).map_or("", String::as_str)
+    }
     /// The comparison as CSV text: `t, <output>, <output>_sim, …` [s, output units].
     pub fn to_csv(&self) -> String {
         let ny = self.outputs.len();
@@ -62,9 +93,25 @@ pub fn compare<M: GreyBoxModel>(
     theta: &[f64],
     n_params: usize,
 ) -> Result<Comparison> {
+    compare_from(model, experiment, theta, None, n_params)
+}
+
+/// As [`compare`], simulated from the initial state `x0` (length n_x; `None`: the measured
+/// first state), e.g. the one a fit estimated.
+///
+/// # Errors
+/// As [`compare`]; [`crate::Error::InvalidOption`] for an `x0` not of length n_x.
+pub fn compare_from<M: GreyBoxModel>(
+    model: &M,
+    experiment: &Experiment,
+    theta: &[f64],
+    x0: Option<&[f64]>,
+    n_params: usize,
+) -> Result<Comparison> {
     let prep = Prepared::new(model, experiment)?;
-    let y_hat = simulate(model, &prep, theta, &SimOptions::default())?;
-    let outputs: Vec<String> = model.outputs().into_iter().map(|o| o.name).collect();
+    let y_hat = simulate(model, &prep, theta, &SimOptions { x0, ..SimOptions::default() })?;
+    let (outputs, units): (Vec<String>, Vec<String>) =
+        model.outputs().into_iter().map(|o| (o.name, o.unit)).unzip();
     let metrics = metrics(&outputs, &prep.y, &y_hat, n_params, WHITENESS_LAGS)?;
-    Ok(Comparison { experiment: prep.name, h: experiment.h(), outputs, y: prep.y, y_hat, metrics })
+    Ok(Comparison { experiment: prep.name, h: experiment.h(), outputs, units, y: prep.y, y_hat, metrics })
 }

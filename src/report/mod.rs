@@ -6,9 +6,12 @@
 pub mod compare;
 pub mod eng;
 pub mod metrics;
+#[cfg(feature = "plot")]
+pub mod plot;
+pub mod residuals;
 pub mod summary;
 pub mod text;
 
-pub use compare::{Comparison, compare};
+pub use compare::{Comparison, compare, compare_from};
 pub use metrics::{Metrics, Whiteness, metrics};
 pub use text::{Align, Block, Document, Table};

@@ -25,6 +25,7 @@ mod mgh;
 mod mgh_problems;
 mod multi_experiment;
 mod online;
+mod plots;
 mod random_starts;
 mod recovery;
 mod reference;

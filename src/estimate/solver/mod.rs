@@ -229,4 +229,9 @@ pub struct SolverReport {
     /// rejected trial steps.
     #[serde(default)]
     pub accepted_iterations: u64,
+    /// The solver's point p after each iteration, the start first (scaled space, each of
+    /// length n_free; rows 1 + `iterations`). Not serialised: the fit report gives it in
+    /// physical units ([`crate::estimate::FitResult::parameter_trace`]).
+    #[serde(skip)]
+    pub trace: Vec<Vec<f64>>,
 }

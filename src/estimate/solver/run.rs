@@ -6,11 +6,11 @@ use super::gn::GaussNewton;
 use super::lm::LevenbergMarquardt;
 use super::{LeastSquares, LsState, ReportsTermination, Termination, Tolerances};
 use crate::error::{Error, Result};
-#[cfg(feature = "cli")]
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Executor, Solver, State, TerminationReason};
 use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
+use std::sync::{Arc, Mutex};
 
 /// Which optimiser runs the fit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -64,6 +64,7 @@ pub fn run_solver<O: LeastSquares>(
                 success: true,
                 evaluations: 0,
                 accepted_iterations: 0,
+                trace: Vec::new(),
             },
         ));
     }
@@ -85,8 +86,10 @@ where
     S: Solver<&'p O, LsState> + ReportsTermination,
 {
     let name = solver.name().to_string();
+    let trace = Arc::new(Mutex::new(Vec::new()));
     let exec = Executor::new(problem, solver)
-        .configure(|s| s.param(p0).max_iters(options.tolerances.max_iters).counting(true));
+        .configure(|s| s.param(p0).max_iters(options.tolerances.max_iters).counting(true))
+        .add_observer(Trace(Arc::clone(&trace)), ObserverMode::Always);
     // The spinner needs the `cli` feature (indicatif); without it `progress` has no effect.
     #[cfg(feature = "cli")]
     let exec = if options.progress { exec.add_observer(Progress::new(), ObserverMode::Always) } else { exec };
@@ -109,8 +112,42 @@ where
             reason,
             evaluations,
             accepted_iterations: res.solver.accepted_iterations(),
+            trace: std::mem::take(&mut *trace.lock().unwrap_or_else(|e| e.into_inner())),
         },
     ))
+}
+
+/// Records the solver's current point p at the start and after every iteration (one
+/// vector of length n_free per entry: a few kilobytes for a fit, nothing beside its
+/// simulations).
+struct Trace(Arc<Mutex<Vec<Vec<f64>>>>);
+
+impl Trace {
+    fn record<I: State<Param = DVector<f64>>>(&self, state: &I) {
+        if let Some(p) = state.get_param() {
+            self.0.lock().unwrap_or_else(|e| e.into_inner()).push(p.as_slice().to_vec());
+        }
+    }
+}
+
+impl<I: State<Param = DVector<f64>>> Observe<I> for Trace {
+    fn observe_init(
+        &mut self,
+        _name: &str,
+        state: &I,
+        _kv: &argmin::core::KV,
+    ) -> std::result::Result<(), argmin::core::Error> {
+        self.record(state);
+        Ok(())
+    }
+    fn observe_iter(
+        &mut self,
+        state: &I,
+        _kv: &argmin::core::KV,
+    ) -> std::result::Result<(), argmin::core::Error> {
+        self.record(state);
+        Ok(())
+    }
 }
 
 /// A spinner on stderr showing iteration and cost (hidden when stderr is not a terminal).

@@ -1,0 +1,103 @@
+//! `--plot` and `--residuals` of `fit`, `validate` and `track`: the library's plots and
+//! residual export, with the speed of each log as context and the truth beside a
+//! simulated log.
+
+use super::output;
+use greybox::Experiment;
+use greybox::drive::DriveLog;
+use greybox::online::Trajectory;
+use greybox::pmsm::{PmsmFit, channel};
+use greybox::report::Comparison;
+use greybox::report::plot::{self, Context, TrackRun, TrackTruth};
+use std::path::{Path, PathBuf};
+
+/// Checks before any work that the plot and residual files can be written (not an input,
+/// in an existing folder), naming the flag.
+pub fn check(paths: &[(&str, Option<&PathBuf>)], inputs: &[PathBuf]) -> greybox::Result<()> {
+    for (flag, path) in paths {
+        if let Some(p) = path {
+            output::check(p, inputs).map_err(|e| rename(e, flag))?;
+        }
+    }
+    Ok(())
+}
+
+/// Writes the fit plot and the residual CSV of `fit` on its `logs`, where asked.
+pub fn fit_outputs(
+    plot_path: Option<&Path>,
+    residuals: Option<&Path>,
+    fit: &PmsmFit,
+    logs: &[Experiment],
+) -> greybox::Result<()> {
+    if plot_path.is_none() && residuals.is_none() {
+        return Ok(());
+    }
+    let comparisons = fit.comparisons(logs)?;
+    if let Some(path) = residuals {
+        greybox::report::residuals::write_residuals_csv(path, &comparisons)?;
+    }
+    if let Some(path) = plot_path {
+        let speeds = speeds(logs, &comparisons);
+        let context = speeds.as_ref().map(|s| context(s));
+        plot::write_svg(path, &plot::fit_svg(fit, &comparisons, context.as_ref())?)?;
+    }
+    Ok(())
+}
+
+/// Writes the compare plot of a validation.
+pub fn compare_plot(path: &Path, comparisons: &[Comparison], logs: &[Experiment]) -> greybox::Result<()> {
+    let speeds = speeds(logs, comparisons);
+    let context = speeds.as_ref().map(|s| context(s));
+    plot::write_svg(path, &plot::compare_svg(comparisons, context.as_ref())?)
+}
+
+/// Writes the observer plot of the runs `(log path, trajectory)`, with the truth of each
+/// log read from the JSON beside it when there is one.
+pub fn track_plot(path: &Path, runs: &[(PathBuf, Trajectory)]) -> greybox::Result<()> {
+    let names: Vec<String> = runs.iter().map(|(p, _)| short_name(p)).collect();
+    let runs: Vec<TrackRun<'_>> = runs
+        .iter()
+        .zip(&names)
+        .map(|((p, tr), name)| TrackRun { name, trajectory: tr, truth: truth(p) })
+        .collect();
+    plot::write_svg(path, &plot::track_svg(&runs)?)
+}
+
+/// The mechanical speed of each log, when every log has it at the comparison's length.
+fn speeds<'a>(logs: &'a [Experiment], comparisons: &[Comparison]) -> Option<Vec<&'a [f64]>> {
+    let v: Vec<&[f64]> = logs.iter().filter_map(|e| e.channel(channel::W_M).ok()).collect();
+    let same = v.len() == comparisons.len() && v.iter().zip(comparisons).all(|(s, c)| s.len() == c.len());
+    same.then_some(v)
+}
+
+fn context<'a>(speeds: &'a [&'a [f64]]) -> Context<'a> {
+    Context { name: "w_m", unit: "rad/s, mechanical", per_log: speeds }
+}
+
+/// The truth of a log from the JSON beside it: a `greybox simulate` truth (`k_e`,
+/// `start.r_s`) or a dataset description (`Ke_project_Vs_per_rad_mech`, `Rs_ohm`);
+/// `None` when there is none or it has neither.
+fn truth(log: &Path) -> Option<TrackTruth> {
+    let text = std::fs::read_to_string(DriveLog::truth_path(log)).ok()?;
+    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+    let k_e = v.get("k_e").or_else(|| v.get("Ke_project_Vs_per_rad_mech"))?.as_f64()?;
+    let r_s = v.pointer("/start/r_s").or_else(|| v.get("Rs_ohm"))?.as_f64()?;
+    Some(TrackTruth { k_e, r_s })
+}
+
+/// The log's file name without `.gz` and `.csv`.
+fn short_name(p: &Path) -> String {
+    let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = name.strip_suffix(".gz").unwrap_or(&name);
+    name.strip_suffix(".csv").unwrap_or(name).to_string()
+}
+
+/// An output-file error named after its flag.
+fn rename(e: greybox::Error, flag: &str) -> greybox::Error {
+    match e {
+        greybox::Error::InvalidOption { reason, .. } => {
+            greybox::Error::InvalidOption { option: flag.into(), reason }
+        }
+        e => e,
+    }
+}

@@ -1,0 +1,81 @@
+//! The fitted model simulated on the logs it was fitted on: measured against simulated
+//! currents per log, the data of the fit plot and the residual export
+//! ([`crate::report::residuals`]).
+//!
+//! Each log is simulated (output error, whatever the fit's horizon) at its own θ̂ (shared
+//! parameters, and its copy of the per-log ones) from its estimated initial state (the
+//! measured first currents when the fit took them as exact), with the fit's hold, voltage
+//! input, cable and inverter model.
+
+use super::{MotorKind, PmsmFit, PmsmIpm, PmsmSetup, PmsmSpm};
+use crate::data::Experiment;
+use crate::error::{Error, Result};
+use crate::report::{Comparison, compare_from};
+
+impl PmsmFit {
+    /// Measured against simulated outputs (`id`, `iq` [A]) of each of `experiments`, which
+    /// must be the logs of the fit in the fit's order, one [`Comparison`] per log.
+    ///
+    /// # Errors
+    /// [`Error::InvalidOption`] (option `experiments`) when their number differs from the
+    /// fit's, the report is not a PMSM prediction-error fit, or a model parameter is
+    /// missing from it; those of [`compare_from`] (a log without the channels the model reads, a diverging simulation).
+    pub fn comparisons(&self, experiments: &[Experiment]) -> Result<Vec<Comparison>> {
+        let bad = |reason: String| Error::InvalidOption { option: "experiments".into(), reason };
+        let n = self.experiments.len();
+        if experiments.len() != n {
+            return Err(bad(format!("{} logs given, the fit has {n}", experiments.len())));
+        }
+        let kind = [MotorKind::Spm, MotorKind::Ipm]
+            .into_iter()
+            .find(|k| k.model_name() == self.model)
+            .ok_or_else(|| bad(format!("model `{}` is not a PMSM prediction-error fit", self.model)))?;
+        let mut names: Vec<&str> = kind.parameter_names().to_vec();
+        if self.inverter.is_some() {
+            names.push("v_dt");
+        }
+        // Per-log copies follow each other in log order; a shared parameter has one entry.
+        let theta_of = |e: usize| -> Result<Vec<f64>> {
+            names
+                .iter()
+                .map(|name| {
+                    let copies: Vec<f64> =
+                        self.parameters.iter().filter(|p| p.name == *name).map(|p| p.value).collect();
+                    match copies[..] {
+                        [v] => Ok(v),
+                        _ if copies.len() == n => Ok(copies[e]),
+                        _ => Err(bad(format!(
+                            "the report has {} values of `{name}` for {n} logs",
+                            copies.len()
+                        ))),
+                    }
+                })
+                .collect()
+        };
+        let setup = PmsmSetup {
+            input: self.input,
+            cable_resistance: self.cable_resistance,
+            inverter: self.inverter,
+            ..PmsmSetup::new(self.pole_pairs, self.hold)
+        };
+        let n_params = self.parameters.iter().filter(|p| !p.fixed).count();
+        let n_x = self.initial_states.len() / n.max(1);
+        experiments
+            .iter()
+            .enumerate()
+            .map(|(e, log)| {
+                let theta = theta_of(e)?;
+                let x0: Option<Vec<f64>> = (n_x == 2)
+                    .then(|| self.initial_states[2 * e..2 * e + 2].iter().map(|p| p.value).collect());
+                match kind {
+                    MotorKind::Spm => {
+                        compare_from(&PmsmSpm::from_setup(setup), log, &theta, x0.as_deref(), n_params)
+                    }
+                    MotorKind::Ipm => {
+                        compare_from(&PmsmIpm::from_setup(setup), log, &theta, x0.as_deref(), n_params)
+                    }
+                }
+            })
+            .collect()
+    }
+}

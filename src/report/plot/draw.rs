@@ -1,0 +1,215 @@
+//! Drawing helpers shared by the plots: colours, one chart per panel with labelled axes,
+//! legends, number formatting and axis ranges.
+
+use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
+use plotters::prelude::*;
+use std::ops::Range;
+
+/// Result of drawing on the SVG backend.
+pub(super) type Drawn<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
+
+/// A drawing area of the SVG backend.
+pub(super) type Area<'a> = DrawingArea<SVGBackend<'a>, Shift>;
+
+/// A cartesian chart of the SVG backend.
+pub(super) type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// Width of the figures [px].
+pub(super) const WIDTH: u32 = 1600;
+/// Height of one panel [px].
+pub(super) const PANEL: u32 = 230;
+/// Height of the title strip [px].
+pub(super) const TITLE: u32 = 64;
+/// Font family of every text (the viewer's sans-serif).
+pub(super) const FONT: &str = "sans-serif";
+
+/// Measured data.
+pub(super) const MEASURED: RGBColor = RGBColor(40, 40, 40);
+/// Distinct colours for series (simulated outputs, parameters, runs): the Tableau 10.
+pub(super) const PALETTE: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(23, 190, 207),
+];
+
+/// The i-th palette colour (cycling).
+pub(super) fn color(i: usize) -> RGBColor {
+    PALETTE[i % PALETTE.len()]
+}
+
+/// A chart on `area` under a header row (the caption on the left, the legend `keys` on
+/// the right, so that neither covers data), both axes labelled (`x_desc`, `y_desc` carry
+/// the unit), a light grid, and tick labels of at most 4 significant digits.
+pub(super) fn chart<'a, 'b>(
+    area: &'a Area<'b>,
+    caption: &str,
+    keys: &[(String, Key)],
+    x: Range<f64>,
+    y: Range<f64>,
+    x_desc: &str,
+    y_desc: &str,
+) -> Drawn<Chart<'a, 'b>> {
+    let (x_span, y_span) = (x.end - x.start, y.end - y.start);
+    header(area, caption, keys)?;
+    let mut chart = ChartBuilder::on(area)
+        .margin_top(HEADER)
+        .margin_left(8)
+        .margin_right(24)
+        .margin_bottom(4)
+        .x_label_area_size(44)
+        .y_label_area_size(84)
+        .build_cartesian_2d(x, y)?;
+    let x_fmt = |v: &f64| tick(*v, x_span);
+    let y_fmt = |v: &f64| tick(*v, y_span);
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .axis_desc_style((FONT, 15))
+        .label_style((FONT, 13))
+        .x_labels(8)
+        .y_labels(6)
+        .x_label_formatter(&x_fmt)
+        .y_label_formatter(&y_fmt)
+        .light_line_style(RGBColor(235, 235, 235))
+        .bold_line_style(RGBColor(210, 210, 210))
+        .draw()?;
+    Ok(chart)
+}
+
+/// Height of a panel's header row [px].
+pub(super) const HEADER: u32 = 30;
+
+/// How a legend key is drawn.
+#[derive(Clone, Copy)]
+pub(super) enum Key {
+    /// A line.
+    Line(ShapeStyle),
+    /// A filled band.
+    Band(ShapeStyle),
+    /// A dashed line.
+    Dashed(ShapeStyle),
+}
+
+/// A panel's header row: `caption` at the left, the legend `keys` from the right edge,
+/// so that neither covers data. Text widths are estimated generously for a sans-serif
+/// font (8 px a character at 17 px, 6.5 px at 13 px); the keys never start left of the
+/// caption's end.
+pub(super) fn header(area: &Area<'_>, caption: &str, keys: &[(String, Key)]) -> Drawn {
+    let (w, _) = area.dim_in_pixel();
+    area.draw_text(caption, &(FONT, 17).into_font().color(&BLACK), (12, 6))?;
+    let chars = |s: &str| s.chars().count() as f64;
+    let key_width = |label: &str| 30 + (6.5 * chars(label)) as i32 + 12;
+    let width: i32 = keys.iter().map(|(l, _)| key_width(l)).sum();
+    let caption_end = 12 + (8.0 * chars(caption)) as i32 + 16;
+    let mut x = (w as i32 - 24 - width).max(caption_end);
+    let font = (FONT, 13).into_font().color(&RGBColor(30, 30, 30));
+    let y = 14;
+    for (label, key) in keys {
+        match *key {
+            Key::Line(style) => area.draw(&PathElement::new(vec![(x, y), (x + 24, y)], style))?,
+            Key::Band(style) => area.draw(&Rectangle::new([(x, y - 6), (x + 24, y + 6)], style))?,
+            Key::Dashed(style) => {
+                area.draw(&PathElement::new(vec![(x, y), (x + 9, y)], style))?;
+                area.draw(&PathElement::new(vec![(x + 15, y), (x + 24, y)], style))?;
+            }
+        }
+        area.draw_text(label, &font, (x + 30, y - 7))?;
+        x += key_width(label);
+    }
+    Ok(())
+}
+
+/// The legend of `chart`'s labelled series, in its upper-right corner on a translucent
+/// white box.
+pub(super) fn legend<'a, 'b: 'a>(chart: &mut Chart<'a, 'b>, position: SeriesLabelPosition) -> Drawn {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .label_font((FONT, 13))
+        .background_style(WHITE.mix(0.85))
+        .border_style(RGBColor(160, 160, 160))
+        .margin(6)
+        .draw()?;
+    Ok(())
+}
+
+/// A legend mark: a short line in `style`.
+pub(super) fn mark(style: ShapeStyle) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
+    move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style)
+}
+
+/// A horizontal dashed line at `y` over `x`, labelled in the legend when `label` is given.
+pub(super) fn dashed(
+    chart: &mut Chart<'_, '_>,
+    x: &Range<f64>,
+    y: f64,
+    style: ShapeStyle,
+    label: Option<&str>,
+) -> Drawn {
+    let s = chart.draw_series(DashedLineSeries::new(vec![(x.start, y), (x.end, y)], 6, 4, style))?;
+    if let Some(l) = label {
+        s.label(l).legend(mark(style));
+    }
+    Ok(())
+}
+
+/// A message in the middle of an empty panel.
+pub(super) fn empty(area: &Area<'_>, caption: &str, message: &str) -> Drawn {
+    let (w, h) = area.dim_in_pixel();
+    area.draw_text(caption, &(FONT, 17).into_font().color(&BLACK), (12, 8))?;
+    area.draw_text(
+        message,
+        &(FONT, 14).into_font().color(&RGBColor(110, 110, 110)),
+        (w as i32 / 4, h as i32 / 2),
+    )?;
+    Ok(())
+}
+
+/// The range of the finite `values`, padded by 5 % (±1 around a single value, [0, 1]
+/// without any).
+pub(super) fn range(values: impl IntoIterator<Item = f64>) -> Range<f64> {
+    let (lo, hi) = values
+        .into_iter()
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    if lo > hi {
+        return 0.0..1.0;
+    }
+    let pad = if hi > lo { 0.05 * (hi - lo) } else { lo.abs().max(1.0) * 0.05 };
+    lo - pad..hi + pad
+}
+
+/// A tick label on an axis spanning `span`: at most 4 significant digits, exponent form
+/// outside [1e-3, 1e5), and 0 for what rounding left of zero (below 10⁻⁹ of the span).
+pub(super) fn tick(v: f64, span: f64) -> String {
+    if v == 0.0 || v.abs() < 1e-9 * span.abs() {
+        return "0".into();
+    }
+    let a = v.abs();
+    if !(1e-3..1e5).contains(&a) {
+        return format!("{v:.2e}");
+    }
+    let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
+}
+
+/// A value with 5 significant digits (exponent form outside [1e-3, 1e5)).
+pub(super) fn value(v: f64) -> String {
+    if !v.is_finite() {
+        return format!("{v}");
+    }
+    let a = v.abs();
+    if a != 0.0 && !(1e-3..1e5).contains(&a) {
+        return format!("{v:.4e}");
+    }
+    let decimals = if a == 0.0 { 0 } else { (4 - a.log10().floor() as i32).max(0) as usize };
+    format!("{v:.decimals$}")
+}

@@ -1,0 +1,160 @@
+//! The observer plot: K̂_e over time (K̂_t = √(3/2) K̂_e on the right axis) and R̂_s over
+//! time, one colour per log, the truth as dashed lines when known (thesis 5.1; MODEL.md
+//! §2 for the K_e/K_t convention).
+
+use super::draw::{Area, Drawn, FONT, PANEL, TITLE, WIDTH, color, legend, mark, range, tick, value};
+use super::{decimate_min_max, plot_error};
+use crate::error::{Error, Result};
+use crate::online::Trajectory;
+use plotters::prelude::*;
+
+/// Width of the K_t axis [px]; the R_s panel leaves the same room so that the time axes
+/// line up.
+const RIGHT_AXIS: u32 = 90;
+
+/// `K_t = √(3/2) K_e` (MODEL.md §2).
+const KT_PER_KE: f64 = 1.224_744_871_391_589;
+
+/// The true parameters of a (simulated) log.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrackTruth {
+    /// Back-EMF constant K_e [V s/rad] (line-to-line RMS per mechanical rad/s).
+    pub k_e: f64,
+    /// Stator resistance R_s [Ω].
+    pub r_s: f64,
+}
+
+/// One log's observer run.
+#[derive(Clone, Copy, Debug)]
+pub struct TrackRun<'a> {
+    /// Name of the log (legend).
+    pub name: &'a str,
+    /// The estimates over time.
+    pub trajectory: &'a Trajectory,
+    /// The truth, when known.
+    pub truth: Option<TrackTruth>,
+}
+
+/// The observer plot as SVG text: K̂_e [V s/rad] with K̂_t [N m/A, peak A] on the right
+/// axis, and R̂_s [Ω], over time [s], one colour per run, the truth dashed.
+///
+/// # Errors
+/// [`Error::InvalidOption`] (option `plot`) for no run, an empty trajectory, or a drawing
+/// failure.
+pub fn track_svg(runs: &[TrackRun<'_>]) -> Result<String> {
+    let bad = |reason: String| Error::InvalidOption { option: "plot".into(), reason };
+    if runs.is_empty() {
+        return Err(bad("nothing to plot: no observer run".into()));
+    }
+    if let Some(r) = runs.iter().find(|r| r.trajectory.t.is_empty()) {
+        return Err(bad(format!("the observer run over `{}` has no point", r.name)));
+    }
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (WIDTH, TITLE + 2 * PANEL + 80)).into_drawing_area();
+        let drawn: Drawn = (|| {
+            root.fill(&WHITE)?;
+            let (head, body) = root.split_vertically(TITLE);
+            let title = "MRAS observer: K_e and R_s estimates over time";
+            head.draw_text(title, &(FONT, 20).into_font().color(&BLACK), (16, 10))?;
+            let finals: Vec<String> = runs
+                .iter()
+                .map(|r| {
+                    let f = &r.trajectory.final_estimate;
+                    format!("{}: K_e {} V s/rad, R_s {} Ω", r.name, value(f.k_e), value(f.r_s))
+                })
+                .collect();
+            let sub = format!("final: {}", finals.join("; "));
+            head.draw_text(&sub, &(FONT, 15).into_font().color(&RGBColor(70, 70, 70)), (16, 38))?;
+            let panels = body.split_evenly((2, 1));
+            k_e(&panels[0], runs)?;
+            r_s(&panels[1], runs)?;
+            root.present()?;
+            Ok(())
+        })();
+        drawn.map_err(plot_error)?;
+    }
+    Ok(svg)
+}
+
+/// K̂_e over time with K̂_t on the secondary axis.
+fn k_e(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
+    let t_end =
+        runs.iter().filter_map(|r| r.trajectory.t.last().copied()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    let y = range(runs.iter().flat_map(|r| r.trajectory.k_e.iter().copied().chain(r.truth.map(|t| t.k_e))));
+    let (t_fmt, y_fmt) = (move |v: &f64| tick(*v, t_end), |v: &f64| tick(*v, y.end - y.start));
+    let kt_fmt = |v: &f64| tick(*v, (y.end - y.start) * KT_PER_KE);
+    let mut ch = ChartBuilder::on(area)
+        .caption("Back-EMF constant K_e (torque constant K_t = √(3/2) K_e on the right)", (FONT, 17))
+        .margin_top(4)
+        .margin_left(8)
+        .margin_right(8)
+        .x_label_area_size(44)
+        .y_label_area_size(84)
+        .right_y_label_area_size(RIGHT_AXIS)
+        .build_cartesian_2d(0.0..t_end, y.clone())?
+        .set_secondary_coord(0.0..t_end, y.start * KT_PER_KE..y.end * KT_PER_KE);
+    ch.configure_mesh()
+        .x_desc("t [s]")
+        .y_desc("K_e [V s/rad] (line-to-line RMS, mechanical)")
+        .axis_desc_style((FONT, 15))
+        .label_style((FONT, 13))
+        .x_label_formatter(&t_fmt)
+        .y_label_formatter(&y_fmt)
+        .light_line_style(RGBColor(235, 235, 235))
+        .bold_line_style(RGBColor(210, 210, 210))
+        .draw()?;
+    ch.configure_secondary_axes()
+        .y_desc("K_t [N m/A] (peak A)")
+        .axis_desc_style((FONT, 15))
+        .label_style((FONT, 13))
+        .y_label_formatter(&kt_fmt)
+        .draw()?;
+    let width = ch.plotting_area().dim_in_pixel().0 as usize;
+    for (i, r) in runs.iter().enumerate() {
+        let style = color(i).stroke_width(2);
+        let pts = decimate_min_max(&r.trajectory.t, &r.trajectory.k_e, width);
+        ch.draw_series(LineSeries::new(pts, style))?
+            .label(format!("K_e estimate, {}", r.name))
+            .legend(mark(style));
+        if let Some(truth) = r.truth {
+            let dash = color(i).stroke_width(1);
+            ch.draw_series(DashedLineSeries::new(vec![(0.0, truth.k_e), (t_end, truth.k_e)], 8, 5, dash))?
+                .label(format!("truth {} V s/rad, {}", value(truth.k_e), r.name))
+                .legend(mark(dash));
+        }
+    }
+    ch.configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .label_font((FONT, 13))
+        .background_style(WHITE.mix(0.85))
+        .border_style(RGBColor(160, 160, 160))
+        .draw()?;
+    Ok(())
+}
+
+/// R̂_s over time.
+fn r_s(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
+    let t_end =
+        runs.iter().filter_map(|r| r.trajectory.t.last().copied()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    let y = range(runs.iter().flat_map(|r| r.trajectory.r_s.iter().copied().chain(r.truth.map(|t| t.r_s))));
+    // The K_e panel's right margin (8) and K_t axis, less the common chart's margin (24).
+    let (w, _) = area.dim_in_pixel();
+    let (area, _) = area.split_horizontally(w - (RIGHT_AXIS + 8 - 24));
+    let mut ch = super::draw::chart(&area, "Stator resistance R_s", &[], 0.0..t_end, y, "t [s]", "R_s [Ω]")?;
+    let width = ch.plotting_area().dim_in_pixel().0 as usize;
+    for (i, r) in runs.iter().enumerate() {
+        let style = color(i).stroke_width(2);
+        let pts = decimate_min_max(&r.trajectory.t, &r.trajectory.r_s, width);
+        ch.draw_series(LineSeries::new(pts, style))?
+            .label(format!("R_s estimate, {}", r.name))
+            .legend(mark(style));
+        if let Some(truth) = r.truth {
+            let dash = color(i).stroke_width(1);
+            ch.draw_series(DashedLineSeries::new(vec![(0.0, truth.r_s), (t_end, truth.r_s)], 8, 5, dash))?
+                .label(format!("truth {} Ω, {}", value(truth.r_s), r.name))
+                .legend(mark(dash));
+        }
+    }
+    legend(&mut ch, SeriesLabelPosition::LowerRight)
+}
