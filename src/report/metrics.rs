@@ -134,16 +134,20 @@ pub fn whiteness(segments: &[&[f64]], max_lag: usize) -> Whiteness {
     let mean = segments.iter().map(|s| sum(s)).sum::<f64>() / n.max(1) as f64;
     // Σ (e_k − m)(e_{k+τ} − m) = Σ e_k e_{k+τ} − m (Σ e_k + Σ e_{k+τ}) + n_τ m², each sum over
     // the n_τ pairs of a segment: no centred copy of the residuals.
-    let centred = |s: &[f64], tau: usize| {
+    let totals: Vec<f64> = segments.iter().map(|s| sum(s)).collect();
+    let centred = |(s, total): (&&[f64], &f64), tau: usize| {
         let pairs = s.len() - tau;
-        let (head, tail) = (&s[..pairs], &s[tau..]);
-        dot(head, tail) - mean * (sum(head) + sum(tail)) + pairs as f64 * mean * mean
+        // Σ over the first and the last n − τ values: the total less τ values at an end.
+        let head = total - sum(&s[pairs..]);
+        let tail = total - sum(&s[..tau]);
+        dot(&s[..pairs], &s[tau..]) - mean * (head + tail) + pairs as f64 * mean * mean
     };
-    let r0: f64 = segments.iter().map(|s| centred(s, 0)).sum();
+    let r0: f64 = segments.iter().zip(&totals).map(|st| centred(st, 0)).sum();
     let lags = max_lag.min(segments.iter().map(|s| s.len()).max().unwrap_or(0).saturating_sub(1));
     let autocorrelation: Vec<f64> = (1..=lags)
         .map(|tau| {
-            let r: f64 = segments.iter().filter(|s| s.len() > tau).map(|s| centred(s, tau)).sum();
+            let r: f64 =
+                segments.iter().zip(&totals).filter(|(s, _)| s.len() > tau).map(|st| centred(st, tau)).sum();
             if r0 > 0.0 { r / r0 } else { 0.0 }
         })
         .collect();
