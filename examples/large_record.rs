@@ -75,7 +75,9 @@ fn main() -> greybox::Result<()> {
     );
     println!("simulation           {sim_s:.2} s (peak resident {} before the fit)", mb(sim_peak));
     println!(
-        "fit                  {fit_s:.2} s ({} iterations, {} evaluations, {})",
+        "fit                  {:.1} ms, {:.1} ns per sample ({} iterations, {} evaluations, {})",
+        fit_s * 1e3,
+        fit_s * 1e9 / samples as f64,
         fit.solver.iterations, fit.solver.evaluations, fit.solver.termination
     );
     println!("resident at fit start {}", mb(rss_before));
