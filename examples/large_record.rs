@@ -78,7 +78,9 @@ fn main() -> greybox::Result<()> {
         "fit                  {:.1} ms, {:.1} ns per sample ({} iterations, {} evaluations, {})",
         fit_s * 1e3,
         fit_s * 1e9 / samples as f64,
-        fit.solver.iterations, fit.solver.evaluations, fit.solver.termination
+        fit.solver.iterations,
+        fit.solver.evaluations,
+        fit.solver.termination
     );
     println!("resident at fit start {}", mb(rss_before));
     let scope =

@@ -83,10 +83,16 @@ pub(crate) fn weighted_square_sum(e: &[f64], w: &[f64]) -> f64 {
 #[multiversion(targets("x86_64+avx512f+avx512vl+fma", "x86_64+avx2+fma"))]
 pub(crate) fn gram(cols: &[&[f64]], w: Option<&[f64]>, g: &mut [f64]) {
     let fma = target_cfg_f!(target_feature = "fma");
+    // Eight lanes where 32 vector registers hold the sums (AVX-512), four elsewhere.
+    let wide = target_cfg_f!(target_feature = "avx512f");
     macro_rules! fixed {
         ($($m:literal)*) => {
             $(if let Ok(c) = <&[&[f64]; $m]>::try_from(cols) {
-                return if fma { gram_fixed::<$m, true>(c, w, g) } else { gram_fixed::<$m, false>(c, w, g) };
+                return match (fma, wide) {
+                    (true, true) => gram_fixed::<$m, true, 8>(c, w, g),
+                    (true, false) => gram_fixed::<$m, true, 4>(c, w, g),
+                    (false, _) => gram_fixed::<$m, false, 4>(c, w, g),
+                };
             })*
         };
     }
@@ -101,8 +107,11 @@ fn madd<const FMA: bool>(a: f64, b: f64, c: f64) -> f64 {
 }
 
 #[inline(always)]
-fn gram_fixed<const M: usize, const FMA: bool>(cols: &[&[f64]; M], w: Option<&[f64]>, g: &mut [f64]) {
-    const L: usize = 4;
+fn gram_fixed<const M: usize, const FMA: bool, const L: usize>(
+    cols: &[&[f64]; M],
+    w: Option<&[f64]>,
+    g: &mut [f64],
+) {
     let n = cols.iter().map(|c| c.len()).min().unwrap_or(0).min(w.map_or(usize::MAX, <[f64]>::len));
     let mut acc = [[[0.0f64; L]; M]; M];
     let quads = n / L;
@@ -139,8 +148,7 @@ fn gram_fixed<const M: usize, const FMA: bool>(cols: &[&[f64]; M], w: Option<&[f
     }
     for a in 0..M {
         for b in a..M {
-            let v = &acc[a][b];
-            g[a * M + b] += (v[0] + v[1]) + (v[2] + v[3]);
+            g[a * M + b] += acc[a][b].iter().sum::<f64>();
         }
     }
 }
