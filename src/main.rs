@@ -15,6 +15,12 @@ use clap::{CommandFactory, Parser, Subcommand};
 use cli::args::FitArgs;
 use std::process::ExitCode;
 
+// The command line's allocator keeps freed pages for the next large buffer: a fit allocates
+// and frees several record-length arrays, which the system allocator returns to the
+// kernel and faults in again each time.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 #[derive(Parser, Debug)]
 #[command(
     name = "greybox",
