@@ -103,9 +103,9 @@ pub enum Error {
         column: String,
         /// 0-based data row where the step deviates (the step from row−1 to row).
         row: usize,
-        /// The step found [s].
+        /// The step found \[s\].
         dt: f64,
-        /// The mean step [s].
+        /// The mean step \[s\].
         expected: f64,
         /// Relative tolerance applied.
         tolerance: f64,
@@ -113,7 +113,7 @@ pub enum Error {
     /// The sample time is not a positive finite number.
     #[error("sample time h must be positive and finite, got {h} s")]
     InvalidSampleTime {
-        /// The value given [s].
+        /// The value given \[s\].
         h: f64,
     },
     /// The number of pole pairs is outside `1..=100` (`pmsm::interval::MAX_POLE_PAIRS`).
@@ -222,11 +222,11 @@ pub enum Error {
     ImplausibleSampleTime {
         /// The log.
         path: PathBuf,
-        /// The sample time found [s].
+        /// The sample time found \[s\].
         h: f64,
-        /// Smallest plausible h [s].
+        /// Smallest plausible h \[s\].
         min: f64,
-        /// Largest plausible h [s].
+        /// Largest plausible h \[s\].
         max: f64,
     },
     /// A columnar log (Parquet, Arrow IPC) that cannot be read or written: a malformed

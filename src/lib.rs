@@ -1,9 +1,9 @@
 //! # greybox
 //!
 //! Grey-box estimation of the electrical parameters of permanent-magnet synchronous
-//! motors (PMSM) from drive logs: stator resistance `r_s` [Ω], inductance `l_s` (or `l_d`,
-//! `l_q`) [H] and back-EMF constant `k_e` [V s/rad], hence torque constant `k_t` [N m/A]
-//! and magnet flux `psi_f` [V s].
+//! motors (PMSM) from drive logs: stator resistance `r_s` \[Ω\], inductance `l_s` (or `l_d`,
+//! `l_q`) \[H\] and back-EMF constant `k_e` \[V s/rad\], hence torque constant `k_t` \[N m/A\]
+//! and magnet flux `psi_f` \[V s\].
 //!
 //! Data flow: [`data`] (an [`Experiment`]: named channels read from a CSV log) →
 //! [`model`] (the [`model::GreyBoxModel`] trait) → [`simulate`] (single shooting with
@@ -18,7 +18,7 @@
 //! amplitude-invariant, speeds and angles mechanical unless a name says `_e`.
 //!
 //! [`online`] estimates `k_e` and `r_s` sample by sample with the MRAS observer of thesis
-//! 5.1 ([`online::Mras`]; a whole log with [`online::track`]).
+//! 5.1 ([`online::Mras`]; a whole log with [`online::track()`]).
 //! [`drive`] simulates a closed-loop servo drive (thesis ch. 4; scenarios exp1–exp6) whose
 //! logs the offline models reproduce exactly.
 //!
@@ -39,7 +39,6 @@
 #![warn(missing_docs)]
 // Units are written in brackets, `[V]`, `[rad/s]`, as in the field's texts; rustdoc would
 // read them as links.
-#![allow(rustdoc::broken_intra_doc_links)]
 
 pub mod data;
 pub mod drive;

@@ -86,7 +86,7 @@ pub fn read_table(path: impl AsRef<Path>, wanted: &[(&str, bool)], limits: &Read
 }
 
 /// Writes `e` to `path` in the [`Format`] of its extension, atomically
-/// ([`crate::data::write::write_atomic`]): a time column `time` [s] (`t_k = k h`) and every
+/// ([`crate::data::write::write_atomic`]): a time column `time` \[s\] (`t_k = k h`) and every
 /// channel in order, all f64, so that [`read_table`] reads back the same values bit for
 /// bit. CSV as [`crate::data::write::write_csv`]; Parquet with Snappy-compressed pages
 /// and row groups of 65 536 rows, each channel's unit in its field metadata (`unit`);

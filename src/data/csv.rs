@@ -33,7 +33,7 @@ mod source;
 mod table;
 use crate::error::{Error, Result};
 
-/// One column read into one channel: `channel = scale × column` [unit].
+/// One column read into one channel: `channel = scale × column` \[unit\].
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ColumnMap {
     /// Header name of the column.
@@ -121,7 +121,7 @@ pub struct Table {
 /// IPC file (by extension, [`super::columnar::Format`]) is read the same way, its columns
 /// by name ([`super::columnar::read_table`]). Fields may be
 /// surrounded by blanks; `nan` and `inf` parse as numbers and are then rejected by
-/// validation, naming the column. The sample time h [s] is the mean step of the time
+/// validation, naming the column. The sample time h \[s\] is the mean step of the time
 /// column, which must be uniform ([`Experiment::try_from_time`]). No plausibility limit
 /// applies to h here (a thermal log may be sampled every minute); `spec.limits` bound the
 /// file ([`ReadLimits`]).

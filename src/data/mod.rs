@@ -39,7 +39,7 @@ impl Channel {
     }
 }
 
-/// One validated log: a name, the sample time h [s] and its channels.
+/// One validated log: a name, the sample time h \[s\] and its channels.
 ///
 /// Invariants checked by [`Experiment::try_new`]: h positive and finite, at least one
 /// channel, channel names unique, every channel of equal length N ≥ [`MIN_SAMPLES`] and
@@ -52,7 +52,7 @@ pub struct Experiment {
 }
 
 impl Experiment {
-    /// Validates `channels` sampled every `h` [s].
+    /// Validates `channels` sampled every `h` \[s\].
     ///
     /// # Errors
     /// [`Error::InvalidSampleTime`] for `h ≤ 0` or non-finite; [`Error::TooShort`] for no
@@ -89,7 +89,7 @@ impl Experiment {
         Ok(Self { name, h, channels })
     }
 
-    /// Like [`Experiment::try_new`], with the sample time taken from a time vector `t` [s].
+    /// Like [`Experiment::try_new`], with the sample time taken from a time vector `t` \[s\].
     ///
     /// `t` must be strictly increasing and uniform: every step within [`TIME_TOLERANCE`]
     /// (relative) of the mean step `h = (t[N−1] − t[0])/(N − 1)`, and `t[k]` within `h/2`
@@ -125,7 +125,7 @@ impl Experiment {
     pub fn name(&self) -> &str {
         &self.name
     }
-    /// Sample time h [s].
+    /// Sample time h \[s\].
     pub fn h(&self) -> f64 {
         self.h
     }
@@ -200,7 +200,7 @@ impl Experiment {
 /// decimals at any rate up to 100 kHz.
 pub const TIME_TOLERANCE: f64 = 0.25;
 
-/// Incremental check of a time column `t_k` [s], one row at a time, so that a reader can
+/// Incremental check of a time column `t_k` \[s\], one row at a time, so that a reader can
 /// stop at the first bad row instead of after the whole file; [`TimeSteps::finish`] then
 /// applies the checks that need the mean step h of the whole column.
 ///
@@ -229,7 +229,7 @@ impl TimeSteps {
         self.rows
     }
 
-    /// Checks the next value `t` [s], of 0-based row [`TimeSteps::rows`].
+    /// Checks the next value `t` \[s\], of 0-based row [`TimeSteps::rows`].
     ///
     /// # Errors
     /// [`Error::NonFinite`] for NaN/Inf; [`Error::NonUniformTime`] for a step that is not
@@ -266,7 +266,7 @@ impl TimeSteps {
         Ok(())
     }
 
-    /// Mean step h = `(t[N−1] − t[0])/(N − 1)` [s] of the column whose N values were pushed,
+    /// Mean step h = `(t[N−1] − t[0])/(N − 1)` \[s\] of the column whose N values were pushed,
     /// after the checks that need it: every step within [`TIME_TOLERANCE`] h of h and every
     /// `t[k]` within `h/2` of `t[0] + k h`. `t` is the column itself.
     ///

@@ -30,7 +30,7 @@ pub fn write_atomic(path: &Path, fill: impl FnOnce(&mut dyn Write) -> std::io::R
     result.map_err(|source| Error::Write { path: path.to_path_buf(), source })
 }
 
-/// Writes `e` as CSV to `path`, atomically: a time column `time` [s] (`t_k = k h`) and then
+/// Writes `e` as CSV to `path`, atomically: a time column `time` \[s\] (`t_k = k h`) and then
 /// every channel in order, headers the channel names, values in shortest round-trip form
 /// (read back bit for bit). Gzip-compressed when the path ends in `.gz`.
 ///

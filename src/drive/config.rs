@@ -12,17 +12,17 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Mechanics {
-    /// Inertia J [kg m²].
+    /// Inertia J \[kg m²\].
     pub inertia: f64,
-    /// Viscous friction B [N m s/rad].
+    /// Viscous friction B \[N m s/rad\].
     pub viscous: f64,
-    /// Coulomb friction T_c [N m], smoothed over `coulomb_speed`.
+    /// Coulomb friction T_c \[N m\], smoothed over `coulomb_speed`.
     pub coulomb: f64,
-    /// Speed ω_c [rad/s] over which the Coulomb friction changes sign (tanh).
+    /// Speed ω_c \[rad/s\] over which the Coulomb friction changes sign (tanh).
     pub coulomb_speed: f64,
-    /// Gravity-like torque amplitude m g l [N m] (an arm: `m g l sin θ_m`).
+    /// Gravity-like torque amplitude m g l \[N m\] (an arm: `m g l sin θ_m`).
     pub gravity: f64,
-    /// External load torque T_L(t) [N m].
+    /// External load torque T_L(t) \[N m\].
     pub load: Profile,
     /// RK4 sub-steps of the mechanics per sample period.
     pub substeps: usize,
@@ -46,12 +46,12 @@ impl Default for Mechanics {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Mode {
-    /// Torque reference [N m] straight to the current loop.
+    /// Torque reference \[N m\] straight to the current loop.
     Torque,
-    /// Speed reference [rad/s, mechanical] through the speed PI.
+    /// Speed reference \[rad/s, mechanical\] through the speed PI.
     #[default]
     Speed,
-    /// Position reference [rad, mechanical] through the position P and the speed PI.
+    /// Position reference \[rad, mechanical\] through the position P and the speed PI.
     Position,
 }
 
@@ -61,29 +61,29 @@ pub enum Mode {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Control {
-    /// Sample (and control) period h [s].
+    /// Sample (and control) period h \[s\].
     pub h: f64,
-    /// Current-loop bandwidth α_c [rad/s].
+    /// Current-loop bandwidth α_c \[rad/s\].
     pub alpha_c: f64,
-    /// Speed-loop bandwidth α_s [rad/s].
+    /// Speed-loop bandwidth α_s \[rad/s\].
     pub alpha_s: f64,
-    /// Position-loop gain [1/s].
+    /// Position-loop gain \[1/s\].
     pub k_position: f64,
-    /// Current limit |i| ≤ i_max [A, peak].
+    /// Current limit |i| ≤ i_max \[A, peak\].
     pub i_max: f64,
-    /// DC-link voltage U_dc [V]: the voltage limit is `U_dc/√3`.
+    /// DC-link voltage U_dc \[V\]: the voltage limit is `U_dc/√3`.
     pub u_dc: f64,
     /// The controller's `K_t` (and `ψ_f`) relative to the plant's at T_0: 1.2 = 20 % too high.
     pub k_t_factor: f64,
     /// What the outer loop follows.
     pub mode: Mode,
-    /// The reference of `mode` [N m, rad/s or rad].
+    /// The reference of `mode` \[N m, rad/s or rad\].
     pub reference: Profile,
-    /// d-current reference [A] (injection pulses; 0 for `i_d = 0` control).
+    /// d-current reference \[A\] (injection pulses; 0 for `i_d = 0` control).
     pub i_d: Profile,
     /// d-current reference as a fraction of the q-current reference, added to `i_d`.
     pub i_d_ratio: f64,
-    /// Bandwidth ω_n [rad/s] of the critically damped trajectory filter a position
+    /// Bandwidth ω_n \[rad/s\] of the critically damped trajectory filter a position
     /// reference passes through (its speed and acceleration feed forward); 0: none.
     pub position_filter: f64,
     /// Online `K_t` adaptation: the MRAS (thesis 5.1, [`crate::online`]) runs in the loop
@@ -118,13 +118,13 @@ impl Default for Control {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Inverter {
-    /// Computational delay d [samples].
+    /// Computational delay d \[samples\].
     pub delay: usize,
-    /// Modulator angle advance [ω_e h].
+    /// Modulator angle advance \[ω_e h\].
     pub advance: f64,
-    /// Dead-time and device-drop voltage V_dt ≈ t_d f_sw U_dc + V_on [V]; 0 = ideal.
+    /// Dead-time and device-drop voltage V_dt ≈ t_d f_sw U_dc + V_on \[V\]; 0 = ideal.
     pub v_dt: f64,
-    /// Width of the smooth sign [A].
+    /// Width of the smooth sign \[A\].
     pub width: f64,
 }
 
@@ -138,30 +138,30 @@ impl Default for Inverter {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Sensors {
-    /// Phase-current noise σ [A].
+    /// Phase-current noise σ \[A\].
     pub current_noise: f64,
-    /// Speed noise σ [rad/s].
+    /// Speed noise σ \[rad/s\].
     pub speed_noise: f64,
-    /// Noise σ on the logged terminal voltage [V] (not seen by the motor).
+    /// Noise σ on the logged terminal voltage \[V\] (not seen by the motor).
     pub voltage_noise: f64,
-    /// Current ADC resolution [bits] over ±`adc_range`; `None`: not quantised.
+    /// Current ADC resolution \[bits\] over ±`adc_range`; `None`: not quantised.
     pub adc_bits: Option<u32>,
-    /// Current ADC full scale [A].
+    /// Current ADC full scale \[A\].
     pub adc_range: f64,
     /// Encoder counts per mechanical revolution; `None`: exact angle.
     pub encoder_counts: Option<u32>,
 }
 
-/// Temperatures [°C] acting on `R_s(T) = R_s0 (1 + α (T − T_0))` and
+/// Temperatures \[°C\] acting on `R_s(T) = R_s0 (1 + α (T − T_0))` and
 /// `ψ_f(T) = ψ_f0 (1 + β (T − T_0))` (MODEL.md §3, thesis 3.4); empty profiles stay at T_0.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Thermal {
-    /// Reference temperature T_0 [°C] of the motor parameters.
+    /// Reference temperature T_0 \[°C\] of the motor parameters.
     pub t0: f64,
-    /// Winding temperature [°C].
+    /// Winding temperature \[°C\].
     pub winding: Profile,
-    /// Magnet temperature [°C].
+    /// Magnet temperature \[°C\].
     pub magnet: Profile,
 }
 
@@ -193,7 +193,7 @@ pub struct DriveConfig {
     pub r_s_factor: Profile,
     /// Plant `ψ_f` (hence `K_e`, `K_t`) relative to its thermal value over time (empty: 1).
     pub psi_f_factor: Profile,
-    /// Length of the record [s].
+    /// Length of the record \[s\].
     pub duration: f64,
     /// Seed of the noise.
     pub seed: u64,

@@ -15,22 +15,22 @@ use crate::pmsm::MotorParameters;
 /// What the controller measures at `t_k`.
 #[derive(Clone, Copy, Debug)]
 pub struct Measurement {
-    /// d, q currents [A] (in the measured frame).
+    /// d, q currents \[A\] (in the measured frame).
     pub i: [f64; 2],
-    /// Mechanical speed [rad/s].
+    /// Mechanical speed \[rad/s\].
     pub w_m: f64,
-    /// Mechanical angle [rad].
+    /// Mechanical angle \[rad\].
     pub theta_m: f64,
 }
 
 /// The controller's output at `t_k`.
 #[derive(Clone, Copy, Debug)]
 pub struct Command {
-    /// dq voltage reference [V] (after the voltage limit).
+    /// dq voltage reference \[V\] (after the voltage limit).
     pub u: [f64; 2],
-    /// dq current reference [A] (after the current limit).
+    /// dq current reference \[A\] (after the current limit).
     pub i_ref: [f64; 2],
-    /// Speed reference of the speed loop [rad/s] (`None` in torque mode).
+    /// Speed reference of the speed loop \[rad/s\] (`None` in torque mode).
     pub w_ref: Option<f64>,
 }
 
@@ -41,11 +41,11 @@ pub struct Controller {
     /// The controller's model of the machine (ψ_f scaled by `k_t_factor`).
     model: MotorParameters,
     inertia: f64,
-    /// Current-loop integrators [V].
+    /// Current-loop integrators \[V\].
     int_i: [f64; 2],
-    /// Speed-loop integrator [N m].
+    /// Speed-loop integrator \[N m\].
     int_w: f64,
-    /// Trajectory filter state: position [rad] and speed [rad/s].
+    /// Trajectory filter state: position \[rad\] and speed \[rad/s\].
     filter: [f64; 2],
     /// The MRAS whose `K̂_t` the controller uses, if adaptive.
     mras: Option<Mras>,
@@ -53,7 +53,7 @@ pub struct Controller {
 
 impl Controller {
     /// A controller for `motor` (the plant at T_0; the controller's `ψ_f` is off by
-    /// `cfg.k_t_factor`) on a load of inertia `inertia` [kg m²].
+    /// `cfg.k_t_factor`) on a load of inertia `inertia` \[kg m²\].
     ///
     /// # Errors
     /// Those of [`Mras::try_new`] with `cfg.adaptation`.
@@ -89,12 +89,12 @@ impl Controller {
         Ok(())
     }
 
-    /// The controller's `K_t` [N m/A] now.
+    /// The controller's `K_t` \[N m/A\] now.
     pub fn k_t(&self) -> f64 {
         self.model.k_t()
     }
 
-    /// The voltage reference at time `t` [s] from the measurement `m`.
+    /// The voltage reference at time `t` \[s\] from the measurement `m`.
     pub fn update(&mut self, t: f64, m: &Measurement) -> Command {
         let c = &self.cfg;
         let h = c.h;

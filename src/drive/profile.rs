@@ -17,7 +17,7 @@ impl Profile {
         Self(vec![(0.0, value)])
     }
 
-    /// The value at time `t` [s].
+    /// The value at time `t` \[s\].
     pub fn at(&self, t: f64) -> f64 {
         let p = &self.0;
         match p.iter().position(|&(tk, _)| tk > t) {
@@ -30,7 +30,7 @@ impl Profile {
         }
     }
 
-    /// The slope at time `t` [unit/s] (0 outside the breakpoints and on a jump).
+    /// The slope at time `t` \[unit/s\] (0 outside the breakpoints and on a jump).
     pub fn slope(&self, t: f64) -> f64 {
         let p = &self.0;
         match p.iter().position(|&(tk, _)| tk > t) {
@@ -59,7 +59,7 @@ impl Profile {
         Ok(())
     }
 
-    /// Back-and-forth trapezoidal moves: for each level `w` [unit], a ramp up in `ramp` s,
+    /// Back-and-forth trapezoidal moves: for each level `w` \[unit\], a ramp up in `ramp` s,
     /// a hold of `hold` s, a ramp to `−w` through zero, a hold, a ramp back to 0 and a
     /// `dwell` at rest; starting at `start` s.
     pub fn back_and_forth(start: f64, levels: &[f64], ramp: f64, hold: f64, dwell: f64) -> Self {

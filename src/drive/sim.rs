@@ -40,13 +40,13 @@ pub struct Truth {
     pub start: MotorParameters,
     /// The plant at the end of the record.
     pub end: MotorParameters,
-    /// `K_e` at the start [V s/rad].
+    /// `K_e` at the start \[V s/rad\].
     pub k_e: f64,
-    /// `K_t` at the start [N m/A].
+    /// `K_t` at the start \[N m/A\].
     pub k_t: f64,
     /// Whether the plant's parameters change within the record.
     pub time_varying: bool,
-    /// Sample time h [s].
+    /// Sample time h \[s\].
     pub h: f64,
     /// Number of samples N.
     pub samples: usize,
@@ -56,7 +56,7 @@ pub struct Truth {
 
 /// A simulated drive log: the experiment (channels `ud, uq, id, iq, w_m, theta_m, ud_ref,
 /// uq_ref, id_ref, iq_ref`, as `greybox fit` reads them, plus `w_ref` [rad/s], the speed
-/// loop's reference, in speed and position modes, and `k_t_ctrl` [N m/A], the controller's
+/// loop's reference, in speed and position modes, and `k_t_ctrl` \[N m/A\], the controller's
 /// `K_t`, with adaptation) and its truth.
 #[derive(Clone, Debug)]
 pub struct DriveLog {
@@ -66,7 +66,7 @@ pub struct DriveLog {
     pub truth: Truth,
 }
 
-/// The plant's parameters at time `t` [s]: thermal values, then the ramps.
+/// The plant's parameters at time `t` \[s\]: thermal values, then the ramps.
 pub fn plant_at(cfg: &DriveConfig, t: f64) -> MotorParameters {
     let th = &cfg.thermal;
     let temp = |p: &super::Profile| if p.0.is_empty() { th.t0 } else { p.at(t) };
@@ -225,8 +225,8 @@ pub fn simulate_drive(cfg: &DriveConfig) -> Result<DriveLog> {
     Ok(DriveLog { experiment, truth })
 }
 
-/// ω_m at the end of the period from `w` at `t` [s], angle `theta` [rad], with the motor
-/// torque `t_e` [N m] held: RK4 sub-steps of `J ω̇ = T_e − B ω − T_c tanh(ω/ω_c) − m g l
+/// ω_m at the end of the period from `w` at `t` \[s\], angle `theta` \[rad\], with the motor
+/// torque `t_e` \[N m\] held: RK4 sub-steps of `J ω̇ = T_e − B ω − T_c tanh(ω/ω_c) − m g l
 /// sin θ − T_L(t)`, `θ̇ = ω`.
 fn mechanics(cfg: &DriveConfig, t: f64, t_e: f64, theta: f64, w: f64) -> f64 {
     let m = &cfg.mechanics;

@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct DiagnosticThresholds {
-    /// Parametric error index [%] above which a parameter is poorly determined.
+    /// Parametric error index \[%\] above which a parameter is poorly determined.
     pub error_index_percent: f64,
     /// |correlation| above which two parameters are reported as confounded.
     pub correlation: f64,
@@ -38,7 +38,7 @@ impl Default for DiagnosticThresholds {
 pub struct PoorlyDetermined {
     /// Parameter name (with `[experiment]` for per-experiment copies).
     pub name: String,
-    /// Its error index [%].
+    /// Its error index \[%\].
     pub error_index_percent: f64,
 }
 
@@ -69,7 +69,7 @@ pub struct Diagnostics {
 }
 
 /// Builds the diagnostics from the relative information matrix `m` (n × n, symmetric),
-/// the parameter names (length n), error indices [%] (length n) and correlation matrix
+/// the parameter names (length n), error indices \[%\] (length n) and correlation matrix
 /// (n × n) of the same parameters; shorter inputs are read as far as they go.
 ///
 /// `advice(name)` and `pair_advice(a, b)` give the domain's advice for a poorly determined

@@ -98,8 +98,8 @@ pub struct Butterworth {
 }
 
 impl Butterworth {
-    /// Designs the low-pass of `order` (even, 2..=[`MAX_ORDER`]) with cutoff `cutoff` [Hz]
-    /// (the −3 dB frequency of one pass) for sample time `h` [s].
+    /// Designs the low-pass of `order` (even, 2..=[`MAX_ORDER`]) with cutoff `cutoff` \[Hz\]
+    /// (the −3 dB frequency of one pass) for sample time `h` \[s\].
     ///
     /// # Errors
     /// [`Error::InvalidSampleTime`] for `h` not positive and finite;
@@ -146,11 +146,11 @@ impl Butterworth {
     pub fn order(&self) -> usize {
         self.order
     }
-    /// Cutoff frequency f_c [Hz] (−3 dB per pass).
+    /// Cutoff frequency f_c \[Hz\] (−3 dB per pass).
     pub fn cutoff(&self) -> f64 {
         self.cutoff
     }
-    /// Sample time h [s].
+    /// Sample time h \[s\].
     pub fn h(&self) -> f64 {
         self.h
     }
@@ -161,7 +161,7 @@ impl Butterworth {
         &self.sections
     }
 
-    /// Frequency response `H(e^{j 2π f h})` of one (causal) pass at frequency `f` [Hz].
+    /// Frequency response `H(e^{j 2π f h})` of one (causal) pass at frequency `f` \[Hz\].
     ///
     /// The forward-backward filter's response is `|H|²`, real and non-negative.
     pub fn frequency_response(&self, f: f64) -> Complex<f64> {
@@ -169,7 +169,7 @@ impl Butterworth {
         self.sections.iter().map(|s| s.response(w)).product()
     }
 
-    /// Time constant of the slowest pole, `−1/ln|z|_max` [samples].
+    /// Time constant of the slowest pole, `−1/ln|z|_max` \[samples\].
     pub fn time_constant(&self) -> f64 {
         let r2 = self.sections.iter().map(|s| s.a[2]).fold(0.0, f64::max);
         -2.0 / r2.ln()

@@ -28,12 +28,12 @@ pub const BLOCK: usize = 1024;
 /// The solution of [`solve_weighted`] and [`StreamedLeastSquares::solve`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct LinearSolution {
-    /// Estimates θ̂, length n_θ [units of the regressors' parameters].
+    /// Estimates θ̂, length n_θ \[units of the regressors' parameters\].
     pub theta: Vec<f64>,
     /// Standard errors `√(σ̂² [(ΦᵀWΦ)⁻¹]_ii)` with `σ̂² = E²/(rows_w − n_θ)` (rows_w: rows
     /// of positive weight), length n_θ; NaN without degrees of freedom.
     pub std_error: Vec<f64>,
-    /// Parametric error index `P_i = 100 √(E² [(ΦᵀWΦ)⁻¹]_ii) / |θ̂_i|` [%], length n_θ.
+    /// Parametric error index `P_i = 100 √(E² [(ΦᵀWΦ)⁻¹]_ii) / |θ̂_i|` \[%\], length n_θ.
     pub error_index_percent: Vec<f64>,
     /// Weighted squared residual `E² = Σ w r²` at θ̂ (from R: the squared norm of the part
     /// of `y` that the columns do not span).

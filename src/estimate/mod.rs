@@ -59,7 +59,7 @@ pub struct PemOptions {
     /// robust scale `1.4826 MAD` of the residuals of a preceding quadratic fit. `None` =
     /// quadratic loss.
     pub huber: Option<f64>,
-    /// Residual prefilter L(q): cutoff [Hz] of a causal low-pass Butterworth filter of
+    /// Residual prefilter L(q): cutoff \[Hz\] of a causal low-pass Butterworth filter of
     /// order 4 applied to the residuals and their sensitivities (the thesis uses a
     /// 4th-order low-pass; MODEL.md §5). `None` = no filter.
     pub prefilter: Option<f64>,

@@ -22,13 +22,13 @@ pub struct ParameterEstimate {
     pub name: String,
     /// Unit, e.g. `ohm`.
     pub unit: String,
-    /// Estimate θ̂ [unit].
+    /// Estimate θ̂ \[unit\].
     pub value: f64,
-    /// Standard error [unit] (0 for fixed, ∞ when not identifiable).
+    /// Standard error \[unit\] (0 for fixed, ∞ when not identifiable).
     pub std_error: f64,
-    /// 95 % confidence interval `[lo, hi]` [unit].
+    /// 95 % confidence interval `[lo, hi]` \[unit\].
     pub ci95: [f64; 2],
-    /// Parametric error index [%] (thesis 5.3).
+    /// Parametric error index \[%\] (thesis 5.3).
     pub error_index_percent: f64,
     /// Held fixed during the fit.
     pub fixed: bool,
@@ -43,7 +43,7 @@ pub struct ParameterEstimate {
     /// Experiment this value belongs to, for per-experiment parameters; `None` when shared.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub experiment: Option<String>,
-    /// Start value [unit].
+    /// Start value \[unit\].
     pub start: f64,
 }
 
@@ -58,9 +58,9 @@ pub struct FitStatistics {
     /// existed.
     #[serde(default)]
     pub output_units: Vec<String>,
-    /// NRMSE fit per output [%], length n_y.
+    /// NRMSE fit per output \[%\], length n_y.
     pub fit_percent: Vec<f64>,
-    /// RMS residual per output [output unit], length n_y.
+    /// RMS residual per output \[output unit\], length n_y.
     pub rms_residual: Vec<f64>,
     /// Criterion value at the estimate, `V = Σ β_k Σ_i Λ_i ρ(ε_ki)` with ρ the loss
     /// (`½ε²` for the quadratic loss; Huber's ρ with `--huber`).
@@ -89,7 +89,7 @@ pub struct FitStatistics {
 
 pub use crate::estimate::solver::SolverReport;
 
-/// Wall-clock timing [s].
+/// Wall-clock timing \[s\].
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Timing {
     /// Reading the logs.

@@ -74,27 +74,27 @@ impl Weighting for Uniform {
     }
 }
 
-/// Shape of a speed-based weight β(|ω_m|), ω_m mechanical [rad/s].
+/// Shape of a speed-based weight β(|ω_m|), ω_m mechanical \[rad/s\].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "shape", rename_all = "snake_case")]
 pub enum SpeedShape {
     /// `β = 1/(1 + (|ω_m|/w0)²)`: emphasises low speed.
     LowSpeed {
-        /// Corner speed [rad/s, mechanical], > 0.
+        /// Corner speed \[rad/s, mechanical\], > 0.
         w0: f64,
     },
     /// `β = (|ω_m|/w0)²/(1 + (|ω_m|/w0)²)`: emphasises high speed.
     HighSpeed {
-        /// Corner speed [rad/s, mechanical], > 0.
+        /// Corner speed \[rad/s, mechanical\], > 0.
         w0: f64,
     },
     /// `β = 1` for `lo ≤ |ω_m| ≤ hi`, `floor` elsewhere.
     Band {
-        /// Lower edge [rad/s, mechanical], ≥ 0.
+        /// Lower edge \[rad/s, mechanical\], ≥ 0.
         lo: f64,
-        /// Upper edge [rad/s, mechanical], > lo.
+        /// Upper edge \[rad/s, mechanical\], > lo.
         hi: f64,
-        /// Weight outside the band, in [0, 1].
+        /// Weight outside the band, in \[0, 1\].
         floor: f64,
     },
 }
@@ -108,12 +108,12 @@ pub struct SpeedWeighting {
 }
 
 impl SpeedWeighting {
-    /// Weighting by the speed in `channel` [rad/s] with the given shape; checks the
+    /// Weighting by the speed in `channel` \[rad/s\] with the given shape; checks the
     /// shape's parameters.
     ///
     /// # Errors
     /// [`Error::InvalidOption`] for a non-positive or non-finite corner speed, an empty band
-    /// or a floor outside [0, 1].
+    /// or a floor outside \[0, 1\].
     pub fn try_new(channel: &str, shape: SpeedShape) -> Result<Self> {
         let bad = |reason: String| Err(Error::InvalidOption { option: "weighting".into(), reason });
         match shape {
@@ -135,7 +135,7 @@ impl SpeedWeighting {
     pub fn shape(&self) -> SpeedShape {
         self.shape
     }
-    /// β at mechanical speed `w_m` [rad/s].
+    /// β at mechanical speed `w_m` \[rad/s\].
     pub fn beta(&self, w_m: f64) -> f64 {
         let w = w_m.abs();
         match self.shape {
@@ -227,7 +227,7 @@ pub enum WeightingKind {
     Uniform,
     /// [`SpeedWeighting`] with this shape.
     Speed {
-        /// The speed channel the weight reads [rad/s].
+        /// The speed channel the weight reads \[rad/s\].
         channel: String,
         /// The shape β(|ω|).
         shape: SpeedShape,

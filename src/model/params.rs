@@ -111,9 +111,9 @@ pub struct DerivedEstimate {
     pub name: String,
     /// Unit, e.g. `N m/A`.
     pub unit: String,
-    /// Value [unit].
+    /// Value \[unit\].
     pub value: f64,
-    /// Standard error [unit].
+    /// Standard error \[unit\].
     pub std_error: f64,
     /// Experiment, for quantities derived from per-experiment parameters.
     #[serde(skip_serializing_if = "Option::is_none", default)]

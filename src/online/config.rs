@@ -28,39 +28,39 @@ pub enum Adaptation {
 pub struct MrasConfig {
     /// Pole pairs n_p (`ω_e = n_p ω_m`), at least 1.
     pub n_p: u32,
-    /// Known stator inductance L_s [H], positive; the d-axis inductance `L_d` when
+    /// Known stator inductance L_s \[H\], positive; the d-axis inductance `L_d` when
     /// [`MrasConfig::l_q`] is given.
     pub l_s: f64,
-    /// Known q-axis inductance `L_q` [H] of a salient (interior-magnet) machine, positive;
+    /// Known q-axis inductance `L_q` \[H\] of a salient (interior-magnet) machine, positive;
     /// `None` (the default, and what a configuration without the field parses to) for
     /// surface magnets, `L_d = L_q = l_s`. With `Some(l_q)`, `l_q ≠ l_s`, the observer steps
     /// the salient model ([`crate::pmsm::ExactPlant`]; see [`super::mras`]); `Some(l_s)` is
     /// the surface-magnet observer.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub l_q: Option<f64>,
-    /// Sample time h [s], positive; [`super::track`] takes it from the log.
+    /// Sample time h \[s\], positive; [`super::track()`] takes it from the log.
     pub h: f64,
-    /// Observer feedback gain f [1/s] per axis, `F = diag(f, f)`, at least 0 (thesis 100).
+    /// Observer feedback gain f \[1/s\] per axis, `F = diag(f, f)`, at least 0 (thesis 100).
     pub f: f64,
     /// Adaptation gain γ_Ke of `K_e`, at least 0 (thesis 0.001; units such that
     /// `dK̂_e/dt = γ_Ke Dᵀ e` is in V s/rad per s). With [`Adaptation::Relay`] use a larger one.
     /// The gain is motor specific: at a steady operating point `K̂_e` converges at the rate
-    /// `γ_Ke emf² σ / (L_s² |σ + jω_e|²)` [1/s], `emf = √(2/3) ω_m`, `σ = R_s/L_s + f`
+    /// `γ_Ke emf² σ / (L_s² |σ + jω_e|²)` \[1/s\], `emf = √(2/3) ω_m`, `σ = R_s/L_s + f`
     /// (quasi-static error of the observer), so a small `L_s` needs a much smaller `γ_Ke`
     /// (salient: about the same with `L_q` in place of `L_s`; e.g. 10⁻⁵ for
     /// gym-electric-motor's `L_q = 1.3 mH` where motulator's 7.5 mH takes the default).
     pub gamma_ke: f64,
-    /// Adaptation gain γ_Rs [Ω/(A s)] of `R_s`, at most 0: thesis sign convention
+    /// Adaptation gain γ_Rs \[Ω/(A s)\] of `R_s`, at most 0: thesis sign convention
     /// `dR̂_s/dt = γ_Rs e_d` with `e = x − x̂` and `i_d > 0` (thesis eq. 5.4, γ_Rs = −10).
     pub gamma_rs: f64,
     /// Speed scaling of the `K_e` law.
     pub adaptation: Adaptation,
-    /// `R_s` adapts only while `|i_d|` exceeds this [A] (d-current injection, thesis
+    /// `R_s` adapts only while `|i_d|` exceeds this \[A\] (d-current injection, thesis
     /// 5.1.1); at least 0. Default 0.5 A (our choice; the thesis names none).
     pub i_d_threshold: f64,
-    /// Initial estimate of K_e [V s/rad], finite.
+    /// Initial estimate of K_e \[V s/rad\], finite.
     pub k_e0: f64,
-    /// Initial estimate of R_s [Ω], at least 0.
+    /// Initial estimate of R_s \[Ω\], at least 0.
     pub r_s0: f64,
     /// How the voltage is held over a period (MODEL.md §4); the observer's step is exact
     /// for this hold.
@@ -134,7 +134,7 @@ impl MrasConfig {
         self.l_q.is_some_and(|l_q| l_q != self.l_s)
     }
 
-    /// Whether `R_s` adapts at a d-current `i_d` [A]: `|i_d| > i_d_threshold` and
+    /// Whether `R_s` adapts at a d-current `i_d` \[A\]: `|i_d| > i_d_threshold` and
     /// `γ_Rs ≠ 0` (thesis 5.1.1: without d current the d equation carries no information
     /// on `R_s`). False for a non-finite `i_d`.
     pub fn r_s_adapts(&self, i_d: f64) -> bool {

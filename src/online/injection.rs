@@ -5,8 +5,8 @@
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
-/// A periodic d-current pulse: `i_d_amplitude` [A] for `duration_s` [s] at the start of
-/// every `period_s` [s], zero otherwise. Add its [`InjectionSchedule::i_d_reference`] to the
+/// A periodic d-current pulse: `i_d_amplitude` \[A\] for `duration_s` \[s\] at the start of
+/// every `period_s` \[s\], zero otherwise. Add its [`InjectionSchedule::i_d_reference`] to the
 /// drive's d-current reference.
 ///
 /// Default: 1 s every 600 s (thesis 5.1.1) with amplitude 0 A: the amplitude is motor
@@ -14,11 +14,11 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct InjectionSchedule {
-    /// Period between the starts of two pulses [s], positive.
+    /// Period between the starts of two pulses \[s\], positive.
     pub period_s: f64,
-    /// Length of one pulse [s], in `[0, period_s]`.
+    /// Length of one pulse \[s\], in `[0, period_s]`.
     pub duration_s: f64,
-    /// d-current of the pulse [A, peak dq], finite (either sign).
+    /// d-current of the pulse \[A, peak dq\], finite (either sign).
     pub i_d_amplitude: f64,
 }
 
@@ -61,7 +61,7 @@ impl InjectionSchedule {
         Ok(())
     }
 
-    /// Whether a pulse is on at time `t` [s] (`t mod period_s < duration_s`); false for
+    /// Whether a pulse is on at time `t` \[s\] (`t mod period_s < duration_s`); false for
     /// negative or non-finite `t` and for an invalid schedule.
     pub fn is_injecting(&self, t: f64) -> bool {
         if !(t.is_finite() && t >= 0.0 && self.period_s.is_finite() && self.period_s > 0.0) {
@@ -70,7 +70,7 @@ impl InjectionSchedule {
         t.rem_euclid(self.period_s) < self.duration_s
     }
 
-    /// The d-current reference [A] at time `t` [s]: `i_d_amplitude` during a pulse, 0
+    /// The d-current reference \[A\] at time `t` \[s\]: `i_d_amplitude` during a pulse, 0
     /// otherwise (see [`InjectionSchedule::is_injecting`]).
     pub fn i_d_reference(&self, t: f64) -> f64 {
         if self.is_injecting(t) { self.i_d_amplitude } else { 0.0 }

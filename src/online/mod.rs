@@ -6,9 +6,9 @@
 //! - [`Mras`]: the observer, [`Mras::update`] per [`Sample`] giving [`Estimates`]; exact
 //!   in the state for any sample time and implicit in the parameters (see [`mras`]);
 //! - [`InjectionSchedule`]: the periodic d-current pulse that lets `R_s` adapt;
-//! - [`track`]: the observer over a whole log, a [`Trajectory`].
+//! - [`track()`]: the observer over a whole log, a [`Trajectory`].
 //!
-//! Speeds are mechanical (`w_m` [rad/s]); `ω_e = n_p w_m`. Choose the voltage hold of the
+//! Speeds are mechanical (`w_m` \[rad/s\]); `ω_e = n_p w_m`. Choose the voltage hold of the
 //! log's source (MODEL.md §4): on a dq-held log (gym-electric-motor) the default stator
 //! hold biases `K̂_e` by percents.
 //!

@@ -115,33 +115,33 @@ mod step;
 /// the coming period `[t_k, t_k + h)` (MODEL.md §4).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Sample {
-    /// d-axis current at `t_k` [A, peak dq].
+    /// d-axis current at `t_k` \[A, peak dq\].
     pub i_d: f64,
-    /// q-axis current at `t_k` [A, peak dq].
+    /// q-axis current at `t_k` \[A, peak dq\].
     pub i_q: f64,
-    /// d-axis voltage over `[t_k, t_k + h)` [V], its period mean.
+    /// d-axis voltage over `[t_k, t_k + h)` \[V\], its period mean.
     pub u_d: f64,
-    /// q-axis voltage over `[t_k, t_k + h)` [V], its period mean.
+    /// q-axis voltage over `[t_k, t_k + h)` \[V\], its period mean.
     pub u_q: f64,
-    /// Mechanical speed over the coming period [rad/s] (the interval mean
-    /// `(ω_m[k] + ω_m[k+1])/2` when known, as [`super::track`] passes it; else ω_m[k]).
+    /// Mechanical speed over the coming period \[rad/s\] (the interval mean
+    /// `(ω_m[k] + ω_m[k+1])/2` when known, as [`super::track()`] passes it; else ω_m\[k\]).
     pub w_m: f64,
 }
 
 /// What the observer knows after a sample.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Estimates {
-    /// Back-EMF constant K̂_e [V s/rad] (line-to-line RMS per mechanical rad/s).
+    /// Back-EMF constant K̂_e \[V s/rad\] (line-to-line RMS per mechanical rad/s).
     pub k_e: f64,
-    /// Torque constant `K̂_t = √(3/2) K̂_e` [N m/A, peak dq current] (MODEL.md §2).
+    /// Torque constant `K̂_t = √(3/2) K̂_e` \[N m/A, peak dq current\] (MODEL.md §2).
     pub k_t: f64,
-    /// Magnet flux linkage `ψ̂_f = √(2/3) K̂_e / n_p` [V s] (MODEL.md §2).
+    /// Magnet flux linkage `ψ̂_f = √(2/3) K̂_e / n_p` \[V s\] (MODEL.md §2).
     pub psi_f: f64,
-    /// Stator resistance R̂_s [Ω].
+    /// Stator resistance R̂_s \[Ω\].
     pub r_s: f64,
-    /// d-axis observer error `i_d − î_d` at `t_k` before adaptation [A].
+    /// d-axis observer error `i_d − î_d` at `t_k` before adaptation \[A\].
     pub e_d: f64,
-    /// q-axis observer error `i_q − î_q` at `t_k` before adaptation [A].
+    /// q-axis observer error `i_q − î_q` at `t_k` before adaptation \[A\].
     pub e_q: f64,
     /// Whether `R̂_s` adapted at this sample (see [`MrasConfig::r_s_adapts`]).
     pub r_s_active: bool,
@@ -184,7 +184,7 @@ pub struct Mras {
     kappa: f64,
     k_e: f64,
     r_s: f64,
-    /// Observer prediction of the current at the next sample [A].
+    /// Observer prediction of the current at the next sample \[A\].
     i_hat: C64,
     /// Sensitivities of `i_hat` to K̂_e and R̂_s over the last step, and the K_e law's
     /// direction (φ_K, or φ_K/|ω_m| for the relay).
@@ -239,7 +239,7 @@ impl Mras {
         self.last
     }
 
-    /// The observer's prediction `(î_d, î_q)` [A] of the current at the next sample.
+    /// The observer's prediction `(î_d, î_q)` \[A\] of the current at the next sample.
     pub fn predicted_current(&self) -> (f64, f64) {
         (self.i_hat.re, self.i_hat.im)
     }
@@ -350,7 +350,7 @@ impl Mras {
     }
 }
 
-/// The estimates at `(k_e, r_s)` with the error `e` [A].
+/// The estimates at `(k_e, r_s)` with the error `e` \[A\].
 fn estimates(k_e: f64, r_s: f64, n_p: u32, e: C64, r_s_active: bool) -> Estimates {
     Estimates {
         k_e,

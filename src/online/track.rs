@@ -10,11 +10,11 @@ use serde::{Deserialize, Serialize};
 /// The estimates over time, one point per sample interval (all vectors of one length).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Trajectory {
-    /// Time of each point `t_k = k h` [s], length M.
+    /// Time of each point `t_k = k h` \[s\], length M.
     pub t: Vec<f64>,
-    /// K̂_e after the sample at `t_k` [V s/rad], length M.
+    /// K̂_e after the sample at `t_k` \[V s/rad\], length M.
     pub k_e: Vec<f64>,
-    /// R̂_s after the sample at `t_k` [Ω], length M.
+    /// R̂_s after the sample at `t_k` \[Ω\], length M.
     pub r_s: Vec<f64>,
     /// The estimates after the last sample.
     pub final_estimate: Estimates,

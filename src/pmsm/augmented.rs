@@ -14,15 +14,15 @@ use nalgebra::SMatrix;
 /// Per-interval data of the IPM step, independent of θ (index k = 0..N−2).
 #[derive(Clone, Debug)]
 pub struct IpmInputs {
-    /// Sample time h [s].
+    /// Sample time h \[s\].
     pub h: f64,
     /// The voltage hold that `u0` refers to.
     pub hold: VoltageHold,
-    /// Interval-mean electrical speed ω_e [rad/s], length N−1.
+    /// Interval-mean electrical speed ω_e \[rad/s\], length N−1.
     pub w_e: Vec<f64>,
-    /// `√(2/3)` × interval-mean mechanical speed [rad/s], length N−1: back-EMF per unit K_e.
+    /// `√(2/3)` × interval-mean mechanical speed \[rad/s\], length N−1: back-EMF per unit K_e.
     pub emf: Vec<f64>,
-    /// dq voltage at the start of the period [V], length N−1: `u[k]` (dq hold) or
+    /// dq voltage at the start of the period \[V\], length N−1: `u[k]` (dq hold) or
     /// `u₀ = u[k] jφ/(1 − e^{−jφ})` (stator hold).
     pub u0: Vec<Complex<f64>>,
     /// The inverter's voltage error per unit `v_dt` at the start of the period, held like
@@ -35,20 +35,20 @@ pub struct IpmInputs {
 pub struct IpmCoefficients {
     /// Number of parameters n_θ (4, or 5 with `v_dt`).
     pub(crate) nth: usize,
-    /// Inverter voltage error `v_dt` [V] (0 without the inverter model).
+    /// Inverter voltage error `v_dt` \[V\] (0 without the inverter model).
     pub(crate) v_dt: f64,
     pub(crate) h: f64,
     pub(crate) k_e: f64,
-    /// `1/L_d`, `1/L_q` [1/H].
+    /// `1/L_d`, `1/L_q` \[1/H\].
     pub(crate) inv_l_d: f64,
     pub(crate) inv_l_q: f64,
-    /// `R_s/L_d`, `R_s/L_q` [1/s].
+    /// `R_s/L_d`, `R_s/L_q` \[1/s\].
     pub(crate) r_l_d: f64,
     pub(crate) r_l_q: f64,
     /// `L_q/L_d`, `L_d/L_q`.
     pub(crate) l_q_l_d: f64,
     pub(crate) l_d_l_q: f64,
-    /// `max(R_s/L_d, R_s/L_q)` [1/s]: the decay part of the spectral scale.
+    /// `max(R_s/L_d, R_s/L_q)` \[1/s\]: the decay part of the spectral scale.
     pub(crate) r_l_max: f64,
 }
 
@@ -94,7 +94,7 @@ const INV: [f64; MAX_TERMS + 1] = {
 /// Terms of the dense series on a scaled substep (`0.5^24/24! ≈ 10⁻³¹`).
 const DENSE_TERMS: usize = 24;
 
-/// Augmented state without its constant 1: `x` [A], `s[j] = ∂x/∂θ_j`, `v` [V].
+/// Augmented state without its constant 1: `x` \[A\], `s[j] = ∂x/∂θ_j`, `v` \[V\].
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Aug {
     pub(crate) x: [f64; 2],
@@ -155,10 +155,10 @@ impl Aug {
 struct Sub {
     /// `τ A`, row-major.
     a: [f64; 4],
-    /// `τ/L_d`, `τ/L_q` [s/H]: voltage to current slope, and `−∂f/∂R_s` per current.
+    /// `τ/L_d`, `τ/L_q` \[s/H\]: voltage to current slope, and `−∂f/∂R_s` per current.
     b_d: f64,
     b_q: f64,
-    /// `−τ K_e √(2/3) ω_m / L_q` [A]: back-EMF, the column of the constant 1.
+    /// `−τ K_e √(2/3) ω_m / L_q` \[A\]: back-EMF, the column of the constant 1.
     c_q: f64,
     /// `−τ √(2/3) ω_m / L_q`: `τ ∂f_q/∂K_e`.
     k_q: f64,
@@ -260,7 +260,7 @@ pub(crate) fn advance<const SENS: bool>(
 }
 
 /// [`advance`] for one period given by its values: the hold, the electrical speed `w_e`
-/// [rad/s] and the back-EMF per unit `K_e`, `emf = √(2/3) ω_m` [rad/s].
+/// \[rad/s\] and the back-EMF per unit `K_e`, `emf = √(2/3) ω_m` \[rad/s\].
 pub(crate) fn advance_at<const SENS: bool>(
     c: &IpmCoefficients,
     hold: VoltageHold,

@@ -76,7 +76,7 @@ fn losses_from(g: &DMatrix<f64>, kind: MotorKind) -> Vec<(u32, f64)> {
 /// [`POLE_PAIR_CANDIDATES`], `(n_p, loss [V²])`, for the voltage `input`.
 ///
 /// # Errors
-/// Those of [`scan_gram`] (a missing channel, a log too short for the prefilter).
+/// Those of the regression scan (a missing channel, a log too short for the prefilter).
 pub fn pole_pair_losses(
     experiments: &[Experiment],
     kind: MotorKind,

@@ -6,7 +6,7 @@
 //! 2. fit with the chosen voltage hold; with [`HoldChoice::Auto`] fit both holds (the
 //!    second from the first's estimate) and keep the one with the lower loss — the holds
 //!    differ at second order in `ω_e h`, which decides between 10⁻⁴ and 10⁻⁷ accuracy;
-//! 3. the model derives `K_t = √(3/2) K_e` [N m/A] and `ψ_f = √(2/3) K_e / n_p` [V s] with
+//! 3. the model derives `K_t = √(3/2) K_e` \[N m/A\] and `ψ_f = √(2/3) K_e / n_p` \[V s\] with
 //!    their standard errors (MODEL.md §2).
 
 use super::hold::{DQ_DECISIVE, HoldFits, fit_holds_screened, hold_ambiguity};
@@ -61,13 +61,13 @@ pub struct PmsmFitOptions {
     pub start: Option<Vec<f64>>,
     /// Parameters held at their start value, by name.
     pub fixed: Vec<String>,
-    /// Parameters held at a given value `(name, value)` [SI unit of the parameter],
+    /// Parameters held at a given value `(name, value)` \[SI unit of the parameter\],
     /// whatever the start (they need not be listed in `fixed`).
     pub fixed_values: Vec<(String, f64)>,
     /// Bounds `(name, lower, upper)` replacing the model's defaults. A least-squares start
     /// outside them is clamped into them (with a note); a given start is not.
     pub bounds: Vec<(String, f64, f64)>,
-    /// Known resistance in series with the winding (cable) [Ω], subtracted: `r_s` is the
+    /// Known resistance in series with the winding (cable) \[Ω\], subtracted: `r_s` is the
     /// motor's alone, and the report gives the cable apart.
     pub cable_resistance: f64,
     /// Reference point of the winding and magnet temperatures derived from `r_s` and `psi_f`.
@@ -75,7 +75,7 @@ pub struct PmsmFitOptions {
     /// The inverter's voltage error as a nuisance input (`v_dt`, estimated or known); for a
     /// fit driven by the reference voltage.
     pub inverter: Option<InverterModel>,
-    /// The modulator's voltage limit [V] (`U_dc/√3`): with the reference input, samples
+    /// The modulator's voltage limit \[V\] (`U_dc/√3`): with the reference input, samples
     /// driven by a reference at the limit are weighted out. `None`: not checked.
     pub voltage_limit: Option<f64>,
     /// Options of the prediction-error fit.

@@ -7,10 +7,10 @@ use crate::estimate::FitResult;
 use rayon::prelude::*;
 
 /// Factor by which the dq hold's loss must be lower than the stator hold's for
-/// [`HoldChoice::Auto`] to choose it.
+/// [`HoldChoice::Auto`](super::HoldChoice::Auto) to choose it.
 pub const DQ_DECISIVE: f64 = 2.0;
 
-/// Factor by which the holds' predicted losses (weighed as in [`fit_holds`]) must differ
+/// Factor by which the holds' predicted losses (weighed as in the final choice) must differ
 /// for [`HoldChoice::Auto`](super::HoldChoice::Auto) to fit the better hold only; closer
 /// predictions fit both.
 pub const SCREEN_DECISIVE: f64 = 4.0;

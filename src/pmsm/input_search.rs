@@ -15,11 +15,11 @@ use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::FitResult;
 
-/// Delays tried [samples].
+/// Delays tried \[samples\].
 pub const DELAYS: std::ops::RangeInclusive<usize> = 0..=3;
-/// Range of the modulator angle advance searched [ω_e h].
+/// Range of the modulator angle advance searched \[ω_e h\].
 pub const ADVANCE_RANGE: (f64, f64) = (-1.0, 4.0);
-/// Range of the speed-estimator bandwidth searched [rad/s]: 2π·10 Hz to 2π·2 kHz.
+/// Range of the speed-estimator bandwidth searched \[rad/s\]: 2π·10 Hz to 2π·2 kHz.
 pub const SPEED_PLL_RANGE: (f64, f64) = (62.83185307179586, 12_566.370614359172);
 /// Log-spaced bandwidths of the coarse scan before the golden-section refinement.
 const COARSE: usize = 16;

@@ -42,13 +42,13 @@ pub type C64 = Complex<f64>;
 /// `√(2/3)`: back-EMF per K_e and mechanical speed (MODEL.md §2).
 pub const SQRT_2_3: f64 = 0.816_496_580_927_726;
 
-/// Interval-mean mechanical speed `(w_m[k] + w_m[k+1])/2` [rad/s] for `k = 0..N−2`,
+/// Interval-mean mechanical speed `(w_m[k] + w_m[k+1])/2` \[rad/s\] for `k = 0..N−2`,
 /// length N − 1 (MODEL.md §4: the speed of the exact step).
 pub fn interval_mean_speed(w_m: &[f64]) -> Vec<f64> {
     w_m.windows(2).map(|w| 0.5 * (w[0] + w[1])).collect()
 }
 
-/// Rotation of the dq frame over one period, `e^{−jφ}` with `φ = ω_e h` [rad].
+/// Rotation of the dq frame over one period, `e^{−jφ}` with `φ = ω_e h` \[rad\].
 pub fn rotation(phi: f64) -> C64 {
     C64::new(phi.cos(), -phi.sin())
 }
@@ -87,15 +87,15 @@ pub(crate) fn check_finite(name: &str, v: f64) -> Result<()> {
 /// Data-only quantities of one sample interval, shared by the SPM and IPM models.
 #[derive(Clone, Copy, Debug)]
 pub struct Interval {
-    /// Interval-mean electrical speed ω_e [rad/s].
+    /// Interval-mean electrical speed ω_e \[rad/s\].
     pub w_e: f64,
-    /// `√(2/3)` × interval-mean mechanical speed [rad/s]: back-EMF per unit K_e.
+    /// `√(2/3)` × interval-mean mechanical speed \[rad/s\]: back-EMF per unit K_e.
     pub emf: f64,
     /// Rotation of the dq frame over the period, `e^{−jφ}`, `φ = ω_e h`.
     pub rot: C64,
     /// `1 − cos φ`, free of cancellation near 0.
     pub vers: f64,
-    /// dq voltage at the start of the period [V]: `u[k]` (dq hold) or `u₀` (stator hold).
+    /// dq voltage at the start of the period \[V\]: `u[k]` (dq hold) or `u₀` (stator hold).
     pub u0: C64,
 }
 
@@ -152,13 +152,13 @@ pub enum VoltageInput {
     /// samples later with a modulator angle advance of `advance · ω_e h` and held in the
     /// stator frame (an inverter). It lacks the inverter's own voltage error.
     Reference {
-        /// Computational delay d [samples]; 1 for a drive that computes at `t_k` and
+        /// Computational delay d \[samples\]; 1 for a drive that computes at `t_k` and
         /// applies over `[t_{k+1}, t_{k+2})`.
         delay: usize,
         /// Modulator angle advance in units of `ω_e h` (1.5 compensates the delay and the
         /// half-period mean).
         advance: f64,
-        /// Bandwidth α_o [rad/s] of the phase-locked loop by which the controller estimates
+        /// Bandwidth α_o \[rad/s\] of the phase-locked loop by which the controller estimates
         /// the speed it advances with, from the logged angle `theta_m`
         /// (`ω̂ += h α_o² e`, `θ̂ += h (ω̂ + 2 α_o e)`, `e = θ_e − θ̂`); `None`: the logged speed.
         #[serde(default)]
@@ -263,7 +263,7 @@ pub fn model_intervals(
     }
 }
 
-/// The dq voltage applied over each interval as its period mean [V], `(u_d, u_q)` of
+/// The dq voltage applied over each interval as its period mean \[V\], `(u_d, u_q)` of
 /// length N (the last sample repeats the last interval): the terminal voltage itself, or
 /// the reference after its delay and advance (`mean = u₀ (1 − e^{−jφ})/(jφ)`, the inverse
 /// of [`stator_hold_start`]). This is what the linear least-squares start regresses on.
@@ -283,8 +283,8 @@ pub fn applied_voltage(v: &DqView<'_>, n_p: u32, input: VoltageInput) -> Result<
     Ok((mean.iter().map(|u| u.re).collect(), mean.iter().map(|u| u.im).collect()))
 }
 
-/// Electrical speed [rad/s] at every sample as a phase-locked loop of bandwidth `alpha`
-/// [rad/s] estimates it from the mechanical angle `theta_m` (a drive's usual speed
+/// Electrical speed \[rad/s\] at every sample as a phase-locked loop of bandwidth `alpha`
+/// \[rad/s\] estimates it from the mechanical angle `theta_m` (a drive's usual speed
 /// estimate; critically damped, started at the logged speed), length N.
 pub fn speed_pll_estimate(theta_m: &[f64], w_m: &[f64], n_p: u32, h: f64, alpha: f64) -> Vec<f64> {
     let np = f64::from(n_p);

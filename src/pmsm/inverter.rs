@@ -8,7 +8,7 @@
 //! `r_on` from the winding resistance. A known `r_on` is a series resistance: give it with
 //! the cable's (`cable_resistance`, `--cable-resistance`), and `r_s` is the motor's alone.
 //!
-//! Sign near zero current: `tanh(i_x / w)` with width `w` [A] (the ripple and the
+//! Sign near zero current: `tanh(i_x / w)` with width `w` \[A\] (the ripple and the
 //! parasitic capacitances blur the switch-over). The error is held in the stator frame over
 //! the period, like the voltage the modulator applies, so the exact stator-hold step stays
 //! exact with it.
@@ -27,10 +27,10 @@ pub const DEFAULT_RELATIVE_WIDTH: f64 = 0.02;
 /// The inverter error model: per-phase `−V_dt tanh(i_x/w)`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Default)]
 pub struct InverterModel {
-    /// Width w of the smooth sign [A]; `None`: [`DEFAULT_RELATIVE_WIDTH`] × the largest
+    /// Width w of the smooth sign \[A\]; `None`: [`DEFAULT_RELATIVE_WIDTH`] × the largest
     /// `|i_dq|` of the log, or a tenth of the [`DeadTimeMask`] threshold.
     pub width: Option<f64>,
-    /// A known `V_dt` [V], held fixed; `None`: estimated (from 0).
+    /// A known `V_dt` \[V\], held fixed; `None`: estimated (from 0).
     pub known: Option<f64>,
     /// Periods with a phase current near zero weighted out ([`DeadTimeMask`]); `None`: all
     /// periods kept.
@@ -38,13 +38,13 @@ pub struct InverterModel {
     pub mask: Option<DeadTimeMask>,
 }
 
-/// The nuisance parameter `v_dt` [V]: the per-phase voltage error, non-negative.
+/// The nuisance parameter `v_dt` \[V\]: the per-phase voltage error, non-negative.
 pub fn v_dt_parameter() -> Parameter {
     Parameter { lower: 0.0, nuisance: true, ..Parameter::free("v_dt", "V", 1.0) }
 }
 
 /// Per interval `k = 0..N−2`, the dq voltage error per unit `V_dt` at the start of the
-/// period [V/V]: `−park(clarke(tanh(ī_a/w), tanh(ī_b/w), tanh(ī_c/w)), θ_e[k])` with `ī_x`
+/// period \[V/V\]: `−park(clarke(tanh(ī_a/w), tanh(ī_b/w), tanh(ī_c/w)), θ_e[k])` with `ī_x`
 /// the interval mean of the phase currents (each sample's dq current rotated by its own
 /// `θ_e = n_p θ_m`).
 ///
@@ -74,11 +74,11 @@ pub fn dead_time_directions(v: &DqView<'_>, n_p: u32, model: &InverterModel) -> 
 /// [`dead_time_directions`], bit for bit.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct DeadTimeStream {
-    /// Width w of the smooth sign [A].
+    /// Width w of the smooth sign \[A\].
     width: f64,
     /// Pole pairs n_p.
     np: f64,
-    /// Smallest and largest current of each phase seen [A].
+    /// Smallest and largest current of each phase seen \[A\].
     lo: [f64; 3],
     hi: [f64; 3],
 }
@@ -104,13 +104,13 @@ impl DeadTimeStream {
         Ok(Self { width, np: f64::from(n_p), lo: [f64::INFINITY; 3], hi: [f64::NEG_INFINITY; 3] })
     }
 
-    /// `(sin θ_e, cos θ_e)` of the mechanical angle `theta_m` [rad].
+    /// `(sin θ_e, cos θ_e)` of the mechanical angle `theta_m` \[rad\].
     #[inline]
     pub(crate) fn angle(&self, theta_m: f64) -> (f64, f64) {
         (self.np * theta_m).sin_cos()
     }
 
-    /// Phase currents `(i_a, i_b, i_c)` [A] of a sample from its dq current and
+    /// Phase currents `(i_a, i_b, i_c)` \[A\] of a sample from its dq current and
     /// [`angle`](Self::angle); each phase's range is recorded.
     #[inline]
     pub(crate) fn phases(&mut self, i_d: f64, i_q: f64, (s, c): (f64, f64)) -> [f64; 3] {
@@ -125,7 +125,7 @@ impl DeadTimeStream {
     }
 
     /// The dq error per unit `V_dt` of the interval from phase currents `p` to `q`, rotated
-    /// by the [`angle`](Self::angle) `sc` at its start [V/V].
+    /// by the [`angle`](Self::angle) `sc` at its start \[V/V\].
     #[inline]
     pub(crate) fn direction(&self, p: [f64; 3], q: [f64; 3], (s, c): (f64, f64)) -> C64 {
         let sign = |x: f64, y: f64| -smooth_sign((0.5 * (x + y)) / self.width);

@@ -1,7 +1,7 @@
 //! Interior-magnet (salient) PMSM, `L_d ≠ L_q`, with the exact sampled-data step.
 //!
-//! State and output `x = y = (i_d, i_q)` [A, peak]; parameters `θ = (r_s, l_d, l_q, k_e)`
-//! [Ω, H, H, V s/rad]. Continuous model (thesis Tenerz 2011, section 2 and eq. 5.1;
+//! State and output `x = y = (i_d, i_q)` \[A, peak\]; parameters `θ = (r_s, l_d, l_q, k_e)`
+//! \[Ω, H, H, V s/rad\]. Continuous model (thesis Tenerz 2011, section 2 and eq. 5.1;
 //! MODEL.md §2), with `ω_e = n_p ω_m` and the back-EMF `e = √(2/3) K_e ω_m = ω_e ψ_f`:
 //!
 //! ```text
@@ -56,7 +56,7 @@ use nalgebra::Complex;
 ///
 /// Parameters `(r_s [Ω], l_d [H], l_q [H], k_e [V s/rad])`; `r_s`, `l_d`, `l_q` bounded
 /// positive, `k_e` unbounded (a negative estimate means the log's sign convention differs).
-/// State and outputs `(i_d, i_q)` [A]. Source: thesis Tenerz 2011 sections 2 and 5;
+/// State and outputs `(i_d, i_q)` \[A\]. Source: thesis Tenerz 2011 sections 2 and 5;
 /// MODEL.md §2, §4; the method is described in the [module docs](self).
 #[derive(Clone, Debug)]
 pub struct PmsmIpm {

@@ -3,7 +3,7 @@
 //!
 //! Advice after MODEL.md §6 (thesis 5.1.1, 6.3): `K_e` needs speed, `R_s` current at low
 //! speed or a d-current injection, `L` current transients or `i_d ≠ 0` at speed. Derived
-//! quantities after MODEL.md §2: `K_t = √(3/2) K_e` [N m/A], `ψ_f = √(2/3) K_e / n_p` [V s].
+//! quantities after MODEL.md §2: `K_t = √(3/2) K_e` \[N m/A\], `ψ_f = √(2/3) K_e / n_p` \[V s\].
 
 use crate::model::DerivedEstimate;
 use crate::model::Parameter;
@@ -131,7 +131,7 @@ impl MotorKind {
     }
 }
 
-/// `k_t` [N m/A] and `psi_f` [V s] from the `k_e` of θ (model order of `kind`) on a
+/// `k_t` \[N m/A\] and `psi_f` \[V s\] from the `k_e` of θ (model order of `kind`) on a
 /// machine with `n_p` pole pairs, with their standard errors (MODEL.md §2).
 pub fn derived(kind: MotorKind, n_p: u32, theta: &[f64], std_error: &[f64]) -> Vec<DerivedEstimate> {
     let kt = 1.5f64.sqrt();

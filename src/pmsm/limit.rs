@@ -15,9 +15,9 @@ use crate::estimate::Weighting;
 pub struct VoltageLimitWeighting<'a> {
     /// The rule for the other samples.
     pub inner: &'a dyn Weighting,
-    /// Largest applicable voltage magnitude [V] (`U_dc/√3`).
+    /// Largest applicable voltage magnitude \[V\] (`U_dc/√3`).
     pub limit: f64,
-    /// Delay of the reference [samples].
+    /// Delay of the reference \[samples\].
     pub delay: usize,
 }
 

@@ -39,7 +39,7 @@ use std::fmt;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct LinearOptions {
-    /// Cutoff f_c [Hz] of the zero-phase Butterworth low-pass applied to every signal
+    /// Cutoff f_c \[Hz\] of the zero-phase Butterworth low-pass applied to every signal
     /// (u_d, u_q, i_d, i_q, w_m) before the regressors are formed; `None` = no filter.
     /// Must lie in `(0, 1/(2h))` for every experiment.
     pub prefilter: Option<f64>,
@@ -69,13 +69,13 @@ pub struct LinearEstimate {
     /// They assume white equation errors, which filtering and errors-in-variables break:
     /// read them as a scale, not as a confidence statement.
     pub std_error: Vec<f64>,
-    /// Parametric error index `P_i = 100 √(E² [(ΦᵀWΦ)⁻¹]_ii) / |θ̂_i|` [%] (thesis 5.3,
+    /// Parametric error index `P_i = 100 √(E² [(ΦᵀWΦ)⁻¹]_ii) / |θ̂_i|` \[%\] (thesis 5.3,
     /// appendix B): the relative change of θ_i (the others re-optimised) that doubles E².
     /// Small is well excited. Length n_θ.
     pub error_index_percent: Vec<f64>,
-    /// Weighted squared equation error `E² = Σ β r²` at θ̂ [V²].
+    /// Weighted squared equation error `E² = Σ β r²` at θ̂ \[V²\].
     pub e2: f64,
-    /// Unweighted RMS equation residual of the d and q rows [V], `[d, q]`.
+    /// Unweighted RMS equation residual of the d and q rows \[V\], `[d, q]`.
     pub rms_residual: [f64; 2],
     /// Number of regression rows (2 per sample interval, all experiments).
     pub rows: usize,
@@ -89,12 +89,12 @@ pub struct LinearEstimate {
     pub whiteness: Vec<crate::report::Whiteness>,
     /// `(ΦᵀWΦ)⁻¹` (n_θ × n_θ): the correlation of the estimates.
     pub inverse: Vec<Vec<f64>>,
-    /// NRMSE fit of the d and q voltage equations [%]: `100 (1 − ‖u − Φθ̂‖/‖u − ū‖)`.
+    /// NRMSE fit of the d and q voltage equations \[%\]: `100 (1 − ‖u − Φθ̂‖/‖u − ū‖)`.
     pub fit_percent: [f64; 2],
 }
 
 impl LinearEstimate {
-    /// Estimate of parameter `name` [SI], if the model has it.
+    /// Estimate of parameter `name` \[SI\], if the model has it.
     pub fn value(&self, name: &str) -> Option<f64> {
         self.names.iter().position(|n| n == name).map(|i| self.theta[i])
     }
@@ -165,7 +165,7 @@ pub(crate) fn push_with_dead_time(
 }
 
 impl<'a> Regression<'a> {
-    /// The regression of `e` on the voltage `(u_d, u_q)` (period means [V], length N each:
+    /// The regression of `e` on the voltage `(u_d, u_q)` (period means \[V\], length N each:
     /// the terminal voltage or an applied one).
     pub(crate) fn new(e: &DqView<'a>, u_d: &'a [f64], u_q: &'a [f64], n_p: u32, kind: MotorKind) -> Self {
         Self { i_d: e.i_d(), i_q: e.i_q(), w_m: e.w_m(), u_d, u_q, h: e.h(), np: f64::from(n_p), kind }

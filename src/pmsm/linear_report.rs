@@ -15,7 +15,7 @@ use nalgebra::DMatrix;
 
 impl LinearEstimate {
     /// The estimate as a [`FitResult`] for `experiments` (names) on a machine with `n_p`
-    /// pole pairs; `fit_s` [s] is the time the estimate took.
+    /// pole pairs; `fit_s` \[s\] is the time the estimate took.
     pub fn report(&self, experiments: &[String], n_p: u32, fit_s: f64) -> FitResult {
         let n = self.theta.len();
         let tq = t_quantile_975(self.dof);

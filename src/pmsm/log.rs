@@ -4,8 +4,8 @@
 //! A log is a CSV file with a header line and one row per sample `t_k = k h`; the default
 //! column names are `t, ud, uq, id, iq, w_m, theta_m, ud_ref, uq_ref`. Units are converted
 //! to the library's SI conventions here, at the edge (MODEL.md §1): speeds mechanical
-//! [rad/s], angles mechanical [rad], currents and voltages amplitude-invariant dq peak
-//! values [A], [V]. The channels are named as in [`channel`](super::signals::channel).
+//! \[rad/s\], angles mechanical \[rad\], currents and voltages amplitude-invariant dq peak
+//! values \[A\], \[V\]. The channels are named as in [`channel`](super::signals::channel).
 //!
 //! ```no_run
 //! use greybox::pmsm::{read_log, CsvOptions};
@@ -37,7 +37,7 @@ pub use options::*;
 /// ([`crate::data::columnar::read_table`]) with the same names, units and checks. The
 /// experiment's name is the file name without `.csv.gz` / `.csv` / `.parquet` …. Only the needed columns are parsed;
 /// the others may hold anything. Fields may be surrounded by blanks; `nan` and `inf` parse
-/// as numbers and are then rejected by validation. The sample time h [s] is the mean step
+/// as numbers and are then rejected by validation. The sample time h \[s\] is the mean step
 /// of the time column, which must be uniform ([`Experiment::try_from_time`]).
 ///
 /// # Errors
@@ -60,7 +60,7 @@ pub use options::*;
 ///   or ±Inf; [`Error::NonUniformTime`] for a time column that is not uniform (a dropped or
 ///   repeated sample), [`Error::InvalidSampleTime`] for a decreasing one;
 /// - [`Error::ImplausibleSampleTime`] naming the log for h outside
-///   [[`MIN_SAMPLE_TIME`], [`MAX_SAMPLE_TIME`]] = [100 ns, 100 ms], unless `options.force`.
+///   [[`MIN_SAMPLE_TIME`], [`MAX_SAMPLE_TIME`]] = \[100 ns, 100 ms\], unless `options.force`.
 ///
 /// Never panics. Source of the conventions: MODEL.md §1, §4.
 pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experiment> {

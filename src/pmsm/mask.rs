@@ -36,7 +36,7 @@ const AUTO_ITERATIONS: usize = 2;
 pub enum DeadTimeMask {
     /// Threshold `4 h V_dt / L` from the fit (see the module documentation).
     Auto,
-    /// A threshold [A]: periods in which a phase current comes closer to zero are dropped.
+    /// A threshold \[A\]: periods in which a phase current comes closer to zero are dropped.
     Current(f64),
 }
 
@@ -49,12 +49,12 @@ pub struct DeadTimeMaskWeighting<'a> {
     pub inner: &'a dyn Weighting,
     /// Pole pairs n_p (`θ_e = n_p θ_m`).
     pub n_p: u32,
-    /// Threshold [A].
+    /// Threshold \[A\].
     pub threshold: f64,
 }
 
 impl DeadTimeMaskWeighting<'_> {
-    /// Phase currents `(i_a, i_b, i_c)` [A] at sample k, `None` without the channels.
+    /// Phase currents `(i_a, i_b, i_c)` \[A\] at sample k, `None` without the channels.
     fn phases(&self, e: &Experiment, k: usize) -> Option<[f64; 3]> {
         let (id, iq, th) = (e.get(channel::I_D)?, e.get(channel::I_Q)?, e.get(channel::THETA_M)?);
         let (a, b) = inverse_park(id.values[k], iq.values[k], f64::from(self.n_p) * th.values[k]);
@@ -133,7 +133,7 @@ pub(crate) fn masked_pem(inverter: Option<&InverterModel>, pem: &PemOptions) -> 
 /// positive `4 h V_dt / L` (e.g. `v_dt` at its bound 0 before the mask).
 pub const FALLBACK_RELATIVE_THRESHOLD: f64 = 0.05;
 
-/// `4 h V_dt / L` [A] from a fit (`h` the longest sample time of the logs, `L` the smallest
+/// `4 h V_dt / L` \[A\] from a fit (`h` the longest sample time of the logs, `L` the smallest
 /// inductance estimate), or `None` when that is not positive and finite.
 fn auto_threshold(experiments: &[Experiment], fit: &PmsmFit) -> Option<f64> {
     let h = experiments.iter().map(Experiment::h).fold(0.0, f64::max);
@@ -145,7 +145,7 @@ fn auto_threshold(experiments: &[Experiment], fit: &PmsmFit) -> Option<f64> {
     Some(4.0 * h * v_dt / l).filter(|t| t.is_finite() && *t > 0.0)
 }
 
-/// [`FALLBACK_RELATIVE_THRESHOLD`] × the largest `|i_dq|` of the logs [A].
+/// [`FALLBACK_RELATIVE_THRESHOLD`] × the largest `|i_dq|` of the logs \[A\].
 fn fallback_threshold(experiments: &[Experiment]) -> Result<f64> {
     let peak = experiments
         .iter()

@@ -61,7 +61,7 @@ pub use temperature::{ALPHA_COPPER, BETA_NDFEB, ThermalReference};
 pub use validate::SavedModel;
 
 /// The part of [`crate::model::GreyBoxModel`] every PMSM model shares, from its motor
-/// kind's table: name, the dq current state and outputs `id`, `iq` [A], the channels read
+/// kind's table: name, the dq current state and outputs `id`, `iq` \[A\], the channels read
 /// (`ud`, `uq`, `w_m`), parameter metadata (`self.params`), advice, and `k_t`, `psi_f`
 /// derived with `self.n_p` pole pairs.
 macro_rules! pmsm_model_metadata {

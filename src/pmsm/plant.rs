@@ -14,42 +14,42 @@ use serde::{Deserialize, Serialize};
 /// One exact step with its derivatives: see [`ExactPlant::step_derivatives`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StepDerivatives {
-    /// The dq current `[i_d, i_q]` [A] at the end of the period.
+    /// The dq current `[i_d, i_q]` \[A\] at the end of the period.
     pub next: [f64; 2],
-    /// `∂next/∂R_s` at the fixed start current [A/Ω].
+    /// `∂next/∂R_s` at the fixed start current \[A/Ω\].
     pub d_r_s: [f64; 2],
-    /// `∂next/∂K_e` at the fixed start current [A/(V s/rad)].
+    /// `∂next/∂K_e` at the fixed start current \[A/(V s/rad)\].
     pub d_k_e: [f64; 2],
 }
 
 /// The electrical parameters of a machine (MODEL.md §2).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MotorParameters {
-    /// Stator resistance `R_s` [Ω].
+    /// Stator resistance `R_s` \[Ω\].
     pub r_s: f64,
-    /// d-axis inductance `L_d` [H].
+    /// d-axis inductance `L_d` \[H\].
     pub l_d: f64,
-    /// q-axis inductance `L_q` [H] (`= l_d` for surface magnets).
+    /// q-axis inductance `L_q` \[H\] (`= l_d` for surface magnets).
     pub l_q: f64,
-    /// Magnet flux linkage `ψ_f` [V s] (amplitude-invariant).
+    /// Magnet flux linkage `ψ_f` \[V s\] (amplitude-invariant).
     pub psi_f: f64,
     /// Pole pairs `n_p`.
     pub n_p: u32,
 }
 
 impl MotorParameters {
-    /// Back-EMF constant `K_e = √(3/2) n_p ψ_f` [V s/rad] (MODEL.md §2).
+    /// Back-EMF constant `K_e = √(3/2) n_p ψ_f` \[V s/rad\] (MODEL.md §2).
     pub fn k_e(&self) -> f64 {
         f64::from(self.n_p) * self.psi_f / SQRT_2_3
     }
 
-    /// Torque constant `K_t = 1.5 n_p ψ_f` [N m per A of peak dq current].
+    /// Torque constant `K_t = 1.5 n_p ψ_f` \[N m per A of peak dq current\].
     pub fn k_t(&self) -> f64 {
         1.5 * f64::from(self.n_p) * self.psi_f
     }
 
-    /// Electromagnetic torque `T_e = 1.5 n_p (ψ_f i_q + (L_d − L_q) i_d i_q)` [N m] at the dq
-    /// currents `i_d, i_q` [A, peak] (MODEL.md §2).
+    /// Electromagnetic torque `T_e = 1.5 n_p (ψ_f i_q + (L_d − L_q) i_d i_q)` \[N m\] at the dq
+    /// currents `i_d, i_q` \[A, peak\] (MODEL.md §2).
     pub fn torque(&self, i_d: f64, i_q: f64) -> f64 {
         1.5 * f64::from(self.n_p) * (self.psi_f * i_q + (self.l_d - self.l_q) * i_d * i_q)
     }
@@ -91,7 +91,7 @@ pub struct ExactPlant {
 }
 
 impl ExactPlant {
-    /// The plant of a machine with `n_p` pole pairs at sample time `h` [s] with the given
+    /// The plant of a machine with `n_p` pole pairs at sample time `h` \[s\] with the given
     /// voltage hold; salient machines step with the augmented exponential, the others in
     /// closed form.
     ///
@@ -129,10 +129,10 @@ impl ExactPlant {
         Ok(Self { engine, h, n_p, hold })
     }
 
-    /// The dq current `[i_d, i_q]` [A] at the end of the period from `i` at its start, for
-    /// the dq voltage `u0` [V] at the start of the period (held in the stator frame it turns
+    /// The dq current `[i_d, i_q]` \[A\] at the end of the period from `i` at its start, for
+    /// the dq voltage `u0` \[V\] at the start of the period (held in the stator frame it turns
     /// backwards in dq by `ω_e h` over the period; held in dq it stays) and the period's
-    /// mean mechanical speed `w_m` [rad/s]: the step of [`PmsmSpm`] or [`PmsmIpm`].
+    /// mean mechanical speed `w_m` \[rad/s\]: the step of [`PmsmSpm`] or [`PmsmIpm`].
     ///
     /// # Errors
     /// Those of the model's `coefficients` (the parameters are validated every step: they

@@ -17,11 +17,11 @@ use serde::{Deserialize, Serialize};
 pub struct StartComparison {
     /// Parameter name.
     pub name: String,
-    /// Least-squares estimate [unit].
+    /// Least-squares estimate \[unit\].
     pub least_squares: f64,
-    /// Prediction-error estimate [unit].
+    /// Prediction-error estimate \[unit\].
     pub pem: f64,
-    /// `100 (LS − PEM)/PEM` [%]: the bias of LS if PEM is right.
+    /// `100 (LS − PEM)/PEM` \[%\]: the bias of LS if PEM is right.
     pub difference_percent: f64,
 }
 
@@ -39,7 +39,7 @@ pub struct PmsmFit {
     pub hold: VoltageHold,
     /// The voltage that drove the model.
     pub input: VoltageInput,
-    /// The known series (cable) resistance taken out of `r_s` [Ω].
+    /// The known series (cable) resistance taken out of `r_s` \[Ω\].
     pub cable_resistance: f64,
     /// The inverter model the fit used (its `v_dt` is among the parameters).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -80,7 +80,7 @@ pub struct ReportOptions {
 
 /// The conventions of a PMSM report in words (MODEL.md §1–2): amplitude-invariant dq in
 /// peak values, `k_e` as line-to-line RMS back-EMF per mechanical rad/s, `k_t` per peak
-/// ampere, and per RMS ampere when the log's currents were RMS. `k_e`, `k_t` [SI] are the
+/// ampere, and per RMS ampere when the log's currents were RMS. `k_e`, `k_t` \[SI\] are the
 /// estimates, quoted in the other units data sheets use; `salient` adds the IPM's
 /// reluctance torque.
 pub fn conventions(k_e: Option<f64>, k_t: Option<f64>, salient: bool, options: ReportOptions) -> Vec<String> {
@@ -168,7 +168,7 @@ impl std::fmt::Display for PmsmFit {
 }
 
 /// The computational delay of a reference input as a nuisance entry of the report's
-/// parameters (`delay_samples` [samples]); `None` for the terminal voltage. Held fixed at the
+/// parameters (`delay_samples` \[samples\]); `None` for the terminal voltage. Held fixed at the
 /// given delay unless `estimated` gives the 95 % set of delays `[lo, hi]` a likelihood-ratio
 /// test does not reject (see [`super::input_search`]); its standard error is then
 /// `(hi − lo)/3.92` (0 when the set is the delay alone) and its error index is not defined.

@@ -17,7 +17,7 @@ pub struct PmsmSetup {
     pub hold: VoltageHold,
     /// The voltage that drives the model.
     pub input: VoltageInput,
-    /// Known resistance in series with the winding (cable, connectors) [Ω]: the circuit
+    /// Known resistance in series with the winding (cable, connectors) \[Ω\]: the circuit
     /// sees `R_s + R_cable`, and the estimated `r_s` is the motor's alone (MODEL.md §4).
     pub cable_resistance: f64,
     /// Reference point of the winding and magnet temperature estimates, if known.
@@ -42,7 +42,7 @@ impl PmsmSetup {
 }
 
 impl PmsmSetup {
-    /// The resistance the circuit sees, `R_s + R_cable` [Ω], for the motor's `r_s`.
+    /// The resistance the circuit sees, `R_s + R_cable` \[Ω\], for the motor's `r_s`.
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] naming `r_s` when it is not positive and finite, or
@@ -65,7 +65,7 @@ impl PmsmSetup {
 macro_rules! pmsm_model_setup {
     () => {
         /// The model for `setup` with default parameter metadata; with the inverter model
-        /// the nuisance parameter `v_dt` [V] follows the motor's, held fixed when its value
+        /// the nuisance parameter `v_dt` \[V\] follows the motor's, held fixed when its value
         /// is known.
         pub fn from_setup(setup: $crate::pmsm::PmsmSetup) -> Self {
             let mut model = Self {
@@ -83,7 +83,7 @@ macro_rules! pmsm_model_setup {
             self.setup.input = input;
             self
         }
-        /// The same model with a known series (cable) resistance [Ω]: the estimated `r_s`
+        /// The same model with a known series (cable) resistance \[Ω\]: the estimated `r_s`
         /// is then the motor's alone. A negative or non-finite value is reported by
         /// [`GreyBoxModel::coefficients`].
         pub fn with_cable_resistance(mut self, ohm: f64) -> Self {
@@ -96,7 +96,7 @@ macro_rules! pmsm_model_setup {
             self
         }
         /// The same model with the inverter's voltage error `−v_dt tanh(i_x/w)` per phase
-        /// as a nuisance input: the parameter `v_dt` [V] is appended to θ, held fixed when
+        /// as a nuisance input: the parameter `v_dt` \[V\] is appended to θ, held fixed when
         /// `model.known` gives its value.
         pub fn with_inverter(mut self, model: $crate::pmsm::InverterModel) -> Self {
             if self.setup.inverter.is_none() {

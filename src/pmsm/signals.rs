@@ -10,21 +10,21 @@ use crate::error::{Error, Result};
 
 /// Channel names of a PMSM log, as the CSV defaults and [`DqSignals`] write them.
 pub mod channel {
-    /// d-axis terminal voltage, period mean over `[t_k, t_k + h)` [V].
+    /// d-axis terminal voltage, period mean over `[t_k, t_k + h)` \[V\].
     pub const U_D: &str = "ud";
-    /// q-axis terminal voltage, period mean [V].
+    /// q-axis terminal voltage, period mean \[V\].
     pub const U_Q: &str = "uq";
-    /// d-axis current at `t_k` [A, peak].
+    /// d-axis current at `t_k` \[A, peak\].
     pub const I_D: &str = "id";
-    /// q-axis current at `t_k` [A, peak].
+    /// q-axis current at `t_k` \[A, peak\].
     pub const I_Q: &str = "iq";
-    /// Mechanical rotor speed at `t_k` [rad/s].
+    /// Mechanical rotor speed at `t_k` \[rad/s\].
     pub const W_M: &str = "w_m";
-    /// Mechanical rotor angle at `t_k` [rad].
+    /// Mechanical rotor angle at `t_k` \[rad\].
     pub const THETA_M: &str = "theta_m";
-    /// d-axis voltage reference computed at `t_k` [V].
+    /// d-axis voltage reference computed at `t_k` \[V\].
     pub const U_D_REF: &str = "ud_ref";
-    /// q-axis voltage reference computed at `t_k` [V].
+    /// q-axis voltage reference computed at `t_k` \[V\].
     pub const U_Q_REF: &str = "uq_ref";
 }
 
@@ -34,27 +34,27 @@ pub const MIN_SAMPLES: usize = 16;
 
 /// Raw signals of one PMSM log before validation; all vectors have one entry per sample.
 ///
-/// Units: `u_d, u_q, u_d_ref, u_q_ref` [V], `i_d, i_q` [A, peak], `w_m` [rad/s, mechanical],
-/// `theta_m` [rad, mechanical].
+/// Units: `u_d, u_q, u_d_ref, u_q_ref` \[V\], `i_d, i_q` \[A, peak\], `w_m` \[rad/s, mechanical\],
+/// `theta_m` \[rad, mechanical\].
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DqSignals {
-    /// d-axis terminal voltage, period mean over `[t_k, t_k + h)` [V], length N; empty when
+    /// d-axis terminal voltage, period mean over `[t_k, t_k + h)` \[V\], length N; empty when
     /// the log carries only the voltage reference (`u_d_ref`, `u_q_ref`).
     pub u_d: Vec<f64>,
-    /// q-axis terminal voltage, period mean over `[t_k, t_k + h)` [V], length N; empty as
+    /// q-axis terminal voltage, period mean over `[t_k, t_k + h)` \[V\], length N; empty as
     /// `u_d`.
     pub u_q: Vec<f64>,
-    /// d-axis current at `t_k` [A, peak], length N.
+    /// d-axis current at `t_k` \[A, peak\], length N.
     pub i_d: Vec<f64>,
-    /// q-axis current at `t_k` [A, peak], length N.
+    /// q-axis current at `t_k` \[A, peak\], length N.
     pub i_q: Vec<f64>,
-    /// Mechanical rotor speed at `t_k` [rad/s], length N.
+    /// Mechanical rotor speed at `t_k` \[rad/s\], length N.
     pub w_m: Vec<f64>,
-    /// Mechanical rotor angle at `t_k` [rad], length N, if logged.
+    /// Mechanical rotor angle at `t_k` \[rad\], length N, if logged.
     pub theta_m: Option<Vec<f64>>,
-    /// d-axis voltage reference computed at `t_k` [V], length N, if logged.
+    /// d-axis voltage reference computed at `t_k` \[V\], length N, if logged.
     pub u_d_ref: Option<Vec<f64>>,
-    /// q-axis voltage reference computed at `t_k` [V], length N, if logged.
+    /// q-axis voltage reference computed at `t_k` \[V\], length N, if logged.
     pub u_q_ref: Option<Vec<f64>>,
 }
 
@@ -81,7 +81,7 @@ impl DqSignals {
         c
     }
 
-    /// A validated PMSM experiment sampled every `h` [s].
+    /// A validated PMSM experiment sampled every `h` \[s\].
     ///
     /// # Errors
     /// Those of [`Experiment::try_new`] (naming the channel and row), and
@@ -132,7 +132,7 @@ impl<'a> DqView<'a> {
     pub fn experiment(&self) -> &'a Experiment {
         self.e
     }
-    /// Sample time h [s].
+    /// Sample time h \[s\].
     pub fn h(&self) -> f64 {
         self.e.h()
     }
@@ -144,7 +144,7 @@ impl<'a> DqView<'a> {
     pub fn is_empty(&self) -> bool {
         self.e.is_empty()
     }
-    /// The terminal voltage `(u_d, u_q)`, period means [V], each of length N.
+    /// The terminal voltage `(u_d, u_q)`, period means \[V\], each of length N.
     ///
     /// # Errors
     /// [`Error::MissingChannel`] (`ud`) for a log that carries only the voltage reference.
@@ -158,27 +158,27 @@ impl<'a> DqView<'a> {
             })),
         }
     }
-    /// d-axis current at `t_k` [A, peak], length N.
+    /// d-axis current at `t_k` \[A, peak\], length N.
     pub fn i_d(&self) -> &'a [f64] {
         self.i_d
     }
-    /// q-axis current at `t_k` [A, peak], length N.
+    /// q-axis current at `t_k` \[A, peak\], length N.
     pub fn i_q(&self) -> &'a [f64] {
         self.i_q
     }
-    /// Mechanical speed at `t_k` [rad/s], length N.
+    /// Mechanical speed at `t_k` \[rad/s\], length N.
     pub fn w_m(&self) -> &'a [f64] {
         self.w_m
     }
-    /// Largest current magnitude `max_k |i_dq[k]|` [A, peak].
+    /// Largest current magnitude `max_k |i_dq[k]|` \[A, peak\].
     pub fn peak_current(&self) -> f64 {
         self.i_d.iter().zip(self.i_q).map(|(d, q)| d.hypot(*q)).fold(0.0, f64::max)
     }
-    /// Mechanical angle at `t_k` [rad], length N, if logged.
+    /// Mechanical angle at `t_k` \[rad\], length N, if logged.
     pub fn theta_m(&self) -> Option<&'a [f64]> {
         self.e.get(channel::THETA_M).map(|c| c.values.as_slice())
     }
-    /// d- and q-axis voltage references [V], length N each, if both are logged.
+    /// d- and q-axis voltage references \[V\], length N each, if both are logged.
     pub fn u_dq_ref(&self) -> Option<(&'a [f64], &'a [f64])> {
         Some((&self.e.get(channel::U_D_REF)?.values, &self.e.get(channel::U_Q_REF)?.values))
     }

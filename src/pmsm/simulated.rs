@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 use crate::report::{Comparison, compare_from};
 
 impl PmsmFit {
-    /// Measured against simulated outputs (`id`, `iq` [A]) of each of `experiments`, which
+    /// Measured against simulated outputs (`id`, `iq` \[A\]) of each of `experiments`, which
     /// must be the logs of the fit in the fit's order, one [`Comparison`] per log.
     ///
     /// # Errors

@@ -1,7 +1,7 @@
 //! Surface-magnet PMSM (`L_d = L_q = L_s`) with the exact zero-order-hold step.
 //!
-//! State and output `x = y = (i_d, i_q)` [A, peak]; parameters `θ = (r_s, l_s, k_e)`
-//! [Ω, H, V s/rad]. Continuous model (thesis eq. 5.1, MODEL.md §2), in complex form with
+//! State and output `x = y = (i_d, i_q)` \[A, peak\]; parameters `θ = (r_s, l_s, k_e)`
+//! \[Ω, H, V s/rad\]. Continuous model (thesis eq. 5.1, MODEL.md §2), in complex form with
 //! `i = i_d + j i_q`, `ω_e = n_p ω_m`:
 //!
 //! ```text
@@ -39,17 +39,17 @@ mod kernel;
 /// Per-interval data of the SPM step, independent of θ (index k = 0..N−2).
 #[derive(Clone, Debug)]
 pub struct SpmInputs {
-    /// Sample time h [s].
+    /// Sample time h \[s\].
     pub h: f64,
-    /// Interval-mean electrical speed ω_e [rad/s].
+    /// Interval-mean electrical speed ω_e \[rad/s\].
     pub w_e: Vec<f64>,
-    /// `√(2/3)` × interval-mean mechanical speed [rad/s]: back-EMF per unit K_e.
+    /// `√(2/3)` × interval-mean mechanical speed \[rad/s\]: back-EMF per unit K_e.
     pub emf: Vec<f64>,
     /// Rotation of the dq frame over the period, `e^{−j ω_e h}`.
     pub rot: Vec<C64>,
     /// Versine of the period's rotation, `1 − cos(ω_e h) = 2 sin²(ω_e h/2)` (exact near 0).
     pub vers: Vec<f64>,
-    /// Voltage term of the step [V]: `u[k]` (dq hold) or `u₀ e^{−jφ}` (stator hold).
+    /// Voltage term of the step \[V\]: `u[k]` (dq hold) or `u₀ e^{−jφ}` (stator hold).
     pub u: Vec<C64>,
     /// The inverter's voltage error per unit `v_dt`, in the convention of `u` (empty
     /// without the inverter model).
@@ -61,7 +61,7 @@ pub struct SpmInputs {
 pub struct SpmCoefficients {
     /// Number of parameters n_θ (3, or 4 with `v_dt`).
     nth: usize,
-    /// Inverter voltage error `v_dt` [V] (0 without the inverter model).
+    /// Inverter voltage error `v_dt` \[V\] (0 without the inverter model).
     v_dt: f64,
     r: f64,
     l: f64,
@@ -70,7 +70,7 @@ pub struct SpmCoefficients {
     d: f64,
     /// `1 − e^{−R_s h/L_s}` without cancellation.
     one_minus_d: f64,
-    /// `(1 − e^{−R_s h/L_s})/R_s` [1/Ω].
+    /// `(1 − e^{−R_s h/L_s})/R_s` \[1/Ω\].
     g: f64,
     g_r: f64,
     g_l: f64,

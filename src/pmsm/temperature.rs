@@ -6,29 +6,29 @@ use crate::error::{Error, Result};
 use crate::model::DerivedEstimate;
 use serde::{Deserialize, Serialize};
 
-/// Temperature coefficient of copper resistance α [1/K].
+/// Temperature coefficient of copper resistance α \[1/K\].
 pub const ALPHA_COPPER: f64 = 0.00393;
-/// Temperature coefficient of NdFeB remanence β [1/K] (−0.11 %/K).
+/// Temperature coefficient of NdFeB remanence β \[1/K\] (−0.11 %/K).
 pub const BETA_NDFEB: f64 = -0.0011;
 
 /// The reference point of the temperature estimates: resistance and flux at `t0`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ThermalReference {
-    /// Reference temperature T_0 [°C].
+    /// Reference temperature T_0 \[°C\].
     pub t0: f64,
-    /// Winding resistance at T_0 [Ω], if known.
+    /// Winding resistance at T_0 \[Ω\], if known.
     pub r_s0: Option<f64>,
-    /// Magnet flux at T_0 [V s], if known.
+    /// Magnet flux at T_0 \[V s\], if known.
     pub psi_f0: Option<f64>,
-    /// Copper coefficient α [1/K].
+    /// Copper coefficient α \[1/K\].
     pub alpha: f64,
-    /// Magnet coefficient β [1/K].
+    /// Magnet coefficient β \[1/K\].
     pub beta: f64,
 }
 
 impl ThermalReference {
-    /// Copper and NdFeB at `t0` [°C] with the resistance `r_s0` [Ω] and the flux `psi_f0`
-    /// [V s] there (either may be unknown).
+    /// Copper and NdFeB at `t0` \[°C\] with the resistance `r_s0` \[Ω\] and the flux `psi_f0`
+    /// \[V s\] there (either may be unknown).
     ///
     /// # Errors
     /// [`Error::InvalidOption`] (option `thermal`) for a non-finite T_0 or a reference value
@@ -46,8 +46,8 @@ impl ThermalReference {
         Ok(Self { t0, r_s0, psi_f0, alpha: ALPHA_COPPER, beta: BETA_NDFEB })
     }
 
-    /// `t_winding` and `t_magnet` [°C] from the resistance `r_s` ± `se_r` [Ω] and the flux
-    /// `psi_f` ± `se_psi` [V s], for the reference values that are known.
+    /// `t_winding` and `t_magnet` \[°C\] from the resistance `r_s` ± `se_r` \[Ω\] and the flux
+    /// `psi_f` ± `se_psi` \[V s\], for the reference values that are known.
     pub fn temperatures(&self, r_s: f64, se_r: f64, psi_f: f64, se_psi: f64) -> Vec<DerivedEstimate> {
         let make = |name: &str, value: f64, std_error: f64| DerivedEstimate {
             name: name.into(),

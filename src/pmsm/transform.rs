@@ -37,7 +37,7 @@ pub fn inverse_clarke(x_alpha: f64, x_beta: f64) -> (f64, f64, f64) {
     (x_alpha, -0.5 * x_alpha + h, -0.5 * x_alpha - h)
 }
 
-/// Park transform `(x_α, x_β)` → `(x_d, x_q)` at the **electrical** angle `theta_e` [rad]:
+/// Park transform `(x_α, x_β)` → `(x_d, x_q)` at the **electrical** angle `theta_e` \[rad\]:
 /// `x_d + j x_q = (x_α + j x_β) e^{−jθ_e}`; same unit as the input.
 ///
 /// No errors, no panics. Source: MODEL.md §1; Krause et al. ch. 3.
@@ -48,7 +48,7 @@ pub fn park(x_alpha: f64, x_beta: f64, theta_e: f64) -> (f64, f64) {
 }
 
 /// Inverse Park transform `(x_d, x_q)` → `(x_α, x_β)` at the **electrical** angle
-/// `theta_e` [rad]: `x_α + j x_β = (x_d + j x_q) e^{jθ_e}`; same unit as the input.
+/// `theta_e` \[rad\]: `x_α + j x_β = (x_d + j x_q) e^{jθ_e}`; same unit as the input.
 ///
 /// No errors, no panics. Source: MODEL.md §1; Krause et al. ch. 3.
 #[inline]
@@ -58,7 +58,7 @@ pub fn inverse_park(x_d: f64, x_q: f64, theta_e: f64) -> (f64, f64) {
 }
 
 /// Period-mean factor of a voltage held in the stator frame, seen in dq:
-/// `(1 − e^{−jφ})/(jφ)` as `(real, imaginary)`, dimensionless; `phi` [rad] is the
+/// `(1 − e^{−jφ})/(jφ)` as `(real, imaginary)`, dimensionless; `phi` \[rad\] is the
 /// electrical angle the rotor turns within the period, `φ = ω_e h`.
 ///
 /// Equals `(sin φ/φ, −(1 − cos φ)/φ)`; below `|φ| < 1e-8` the series
@@ -75,8 +75,8 @@ pub fn stator_hold_mean_factor(phi: f64) -> (f64, f64) {
     }
 }
 
-/// dq currents `(i_d, i_q)` [A, peak], each of length N, from phase currents `i_a, i_b, i_c`
-/// [A, peak] sampled at `t_k` and the **mechanical** angle `theta_m` [rad] at `t_k`.
+/// dq currents `(i_d, i_q)` \[A, peak\], each of length N, from phase currents `i_a, i_b, i_c`
+/// \[A, peak\] sampled at `t_k` and the **mechanical** angle `theta_m` \[rad\] at `t_k`.
 ///
 /// `i_dq[k] = park(clarke(i_abc[k]), n_p θ_m[k])`. A zero-sequence component in the phase
 /// currents is ignored.
@@ -106,17 +106,17 @@ pub fn currents_to_dq(
     Ok((i_d, i_q))
 }
 
-/// Period-mean dq voltages `(u_d, u_q)` [V, peak], each of length N, from phase-to-neutral
-/// voltages `u_a, u_b, u_c` [V, peak] that are period means over `[t_k, t_k + h)` of a
+/// Period-mean dq voltages `(u_d, u_q)` \[V, peak\], each of length N, from phase-to-neutral
+/// voltages `u_a, u_b, u_c` \[V, peak\] that are period means over `[t_k, t_k + h)` of a
 /// voltage held constant in the **stator** frame (what an inverter applies).
 ///
 /// The stator-frame voltage `u_αβ[k] = clarke(u_abc[k])` is constant over the period while
 /// the dq frame turns by `φ_k = n_p (w_m[k] + w_m[k+1])/2 · h` (mechanical speed `w_m`
-/// [rad/s], sample time `h` [s]; `w_m[k]` alone for the last sample). Its dq period mean is
+/// \[rad/s\], sample time `h` \[s\]; `w_m[k]` alone for the last sample). Its dq period mean is
 ///
 /// `u_dq[k] = park(u_αβ[k], n_p θ_m[k]) · (1 − e^{−jφ_k})/(jφ_k)`
 ///
-/// (see [`stator_hold_mean_factor`]); `theta_m` [rad] is the **mechanical** angle at `t_k`.
+/// (see [`stator_hold_mean_factor`]); `theta_m` \[rad\] is the **mechanical** angle at `t_k`.
 /// This is exact when the speed is constant within the period. Do not use it for logs whose
 /// phase voltages were computed from a dq voltage held over the step (gym-electric-motor):
 /// there `park(clarke(u_abc[k]), θ_e[k])` alone is the logged dq voltage.

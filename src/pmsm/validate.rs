@@ -1,6 +1,6 @@
 //! Validation of a saved PMSM fit on logs it was not fitted on: the model and parameters
 //! are read back from the JSON report of [`super::fit_pmsm`] (or of the command line's
-//! `greybox fit --json`) and compared with each log by [`crate::report::compare`].
+//! `greybox fit --json`) and compared with each log by [`crate::report::compare()`].
 
 use super::interval::{VoltageHold, VoltageInput};
 use super::inverter::InverterModel;
@@ -23,7 +23,7 @@ pub struct SavedModel {
     pub hold: VoltageHold,
     /// The voltage that drove the model (terminal, or the reference with its delay).
     pub input: VoltageInput,
-    /// The known series (cable) resistance the fit took out of `r_s` [Ω].
+    /// The known series (cable) resistance the fit took out of `r_s` \[Ω\].
     pub cable_resistance: f64,
     /// The inverter model of the fit, if it had one.
     pub inverter: Option<InverterModel>,
@@ -125,7 +125,7 @@ impl SavedModel {
     /// experiment, simulated from its measured first current.
     ///
     /// # Errors
-    /// Those of [`compare`]: a log without the channels the model reads, a diverging
+    /// Those of [`compare()`]: a log without the channels the model reads, a diverging
     /// simulation.
     pub fn validate(&self, experiments: &[Experiment]) -> Result<Vec<Comparison>> {
         let setup = self.setup();

@@ -17,7 +17,7 @@ pub const WHITENESS_LAGS: usize = 25;
 pub struct Comparison {
     /// Experiment name.
     pub experiment: String,
-    /// Sample time h [s].
+    /// Sample time h \[s\].
     pub h: f64,
     /// Output names (channels), length n_y.
     pub outputs: Vec<String>,
@@ -61,7 +61,7 @@ impl Comparison {
     pub fn unit(&self, i: usize) -> &str {
         self.units.get(i).map_or("", String::as_str)
     }
-    /// The comparison as CSV text: `t, <output>, <output>_sim, …` [s, output units].
+    /// The comparison as CSV text: `t, <output>, <output>_sim, …` \[s, output units\].
     pub fn to_csv(&self) -> String {
         let ny = self.outputs.len();
         let mut out = String::from("t");

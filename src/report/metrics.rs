@@ -27,9 +27,9 @@ pub struct Whiteness {
 pub struct Metrics {
     /// Output names, length n_y.
     pub outputs: Vec<String>,
-    /// NRMSE fit per output `100 (1 − ‖y − ŷ‖/‖y − ȳ‖)` [%], length n_y.
+    /// NRMSE fit per output `100 (1 − ‖y − ŷ‖/‖y − ȳ‖)` \[%\], length n_y.
     pub fit_percent: Vec<f64>,
-    /// RMS residual per output [output unit], length n_y.
+    /// RMS residual per output \[output unit\], length n_y.
     pub rms_residual: Vec<f64>,
     /// Mean squared residual over all outputs, `E²/(N n_y)`.
     pub mse: f64,
@@ -46,7 +46,7 @@ pub struct Metrics {
     pub samples: usize,
 }
 
-/// NRMSE fit `100 (1 − √(SSE/SST))` [%] from the residual sum of squares and the sum of
+/// NRMSE fit `100 (1 − √(SSE/SST))` \[%\] from the residual sum of squares and the sum of
 /// squares about the mean; NaN for a constant output (SST = 0).
 pub fn fit_percent(sse: f64, sst: f64) -> f64 {
     if sst > 0.0 { 100.0 * (1.0 - (sse / sst).sqrt()) } else { f64::NAN }

@@ -9,7 +9,7 @@ use std::path::Path;
 /// Writes `comparisons` to `path` as CSV, atomically
 /// ([`write_atomic`]): a header `t, <output>_measured, <output>_simulated,
 /// <output>_residual, …` (output names as in the comparisons, e.g. `id_measured`), then
-/// one row per sample with `t = k h` [s] from the log's first sample and the outputs in
+/// one row per sample with `t = k h` \[s\] from the log's first sample and the outputs in
 /// their units (SI); the residual is `measured − simulated`. With several comparisons a
 /// first column `log` names each row's log and the logs follow each other in blocks.
 /// Numbers are in shortest round-trip form (read back bit for bit).

@@ -9,7 +9,7 @@ pub enum Loss {
     /// `ρ(ε) = ½ ε²`.
     #[default]
     Quadratic,
-    /// Huber's loss with threshold δ_i per output [output unit], length n_y.
+    /// Huber's loss with threshold δ_i per output \[output unit\], length n_y.
     Huber {
         /// Thresholds δ_i > 0.
         delta: Vec<f64>,

@@ -52,7 +52,7 @@ pub struct ProblemOptions {
 /// Where each model parameter of one experiment comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Slot {
-    /// Held at this value [parameter unit].
+    /// Held at this value \[parameter unit\].
     Fixed(f64),
     /// The optimiser's free parameter with this index.
     Free(usize),

@@ -77,7 +77,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// (experiments in parallel, summed in a fixed order: identical for any thread count).
     ///
     /// # Errors
-    /// Those of the simulation: invalid θ, [`Error::SimulationDiverged`].
+    /// Those of the simulation: invalid θ, [`crate::Error::SimulationDiverged`].
     pub fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations> {
         let np = self.free.len();
         let parts: Vec<Result<Partial>> =

@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct ColumnNames {
-    /// Time `t_k` [s] (required). Default `t`.
+    /// Time `t_k` \[s\] (required). Default `t`.
     pub t: String,
     /// d-axis voltage, period mean over `[t_k, t_k + h)` (required for [`DqSource::Dq`]).
     /// Default `ud`.
@@ -126,7 +126,7 @@ pub enum DqSource {
     Dq,
     /// Computed from the phase columns and `theta_m`: currents by Clarke and Park at
     /// `θ_e = n_p θ_m`, voltages as period means of a voltage held in the **stator** frame
-    /// ([`stator_held_voltages_to_dq`],
+    /// ([`crate::pmsm::transform::stator_held_voltages_to_dq`],
     /// MODEL.md §4). Phase voltages computed from a dq-held voltage (gym-electric-motor)
     /// do not fit this model; read those logs with [`DqSource::Dq`].
     Phases,

@@ -15,11 +15,11 @@ pub(super) type Area<'a> = DrawingArea<SVGBackend<'a>, Shift>;
 /// A cartesian chart of the SVG backend.
 pub(super) type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
-/// Width of the figures [px].
+/// Width of the figures \[px\].
 pub(super) const WIDTH: u32 = 1600;
-/// Height of one panel [px].
+/// Height of one panel \[px\].
 pub(super) const PANEL: u32 = 230;
-/// Height of the title strip [px].
+/// Height of the title strip \[px\].
 pub(super) const TITLE: u32 = 64;
 /// Font family of every text (the viewer's sans-serif).
 pub(super) const FONT: &str = "sans-serif";
@@ -83,7 +83,7 @@ pub(super) fn chart<'a, 'b>(
     Ok(chart)
 }
 
-/// Height of a panel's header row [px].
+/// Height of a panel's header row \[px\].
 pub(super) const HEADER: u32 = 30;
 
 /// How a legend key is drawn.
@@ -172,7 +172,7 @@ pub(super) fn empty(area: &Area<'_>, caption: &str, message: &str) -> Drawn {
     Ok(())
 }
 
-/// The range of the finite `values`, padded by 5 % (±1 around a single value, [0, 1]
+/// The range of the finite `values`, padded by 5 % (±1 around a single value, \[0, 1\]
 /// without any).
 pub(super) fn range(values: impl IntoIterator<Item = f64>) -> Range<f64> {
     let (lo, hi) = values

@@ -197,7 +197,7 @@ fn trace(area: &Area<'_>, fit: &FitResult, free: &[&crate::estimate::ParameterEs
     legend(&mut ch, SeriesLabelPosition::LowerRight)
 }
 
-/// Each free parameter's 95 % interval relative to its estimate [%], one row each,
+/// Each free parameter's 95 % interval relative to its estimate \[%\], one row each,
 /// labelled with the value and unit.
 fn estimates(area: &Area<'_>, free: &[&crate::estimate::ParameterEstimate]) -> Drawn {
     let caption = "Estimates with 95 % intervals";

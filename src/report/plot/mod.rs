@@ -27,7 +27,7 @@ use crate::error::{Error, Result};
 use std::path::Path;
 
 /// A measured signal drawn above the outputs for context, e.g. the mechanical speed
-/// `w_m` [rad/s]: its name, unit and samples per log (each as long as that log's
+/// `w_m` \[rad/s\]: its name, unit and samples per log (each as long as that log's
 /// comparison).
 #[derive(Clone, Copy, Debug)]
 pub struct Context<'a> {

@@ -8,11 +8,11 @@ use super::draw::{Area, Chart, Drawn, Key, MEASURED, chart, color, dashed, range
 use crate::report::Comparison;
 use plotters::prelude::*;
 
-/// Logs laid out on one time axis: where each starts [s] and where the last ends.
+/// Logs laid out on one time axis: where each starts \[s\] and where the last ends.
 pub(super) struct Timeline {
-    /// Start of each log [s].
+    /// Start of each log \[s\].
     pub starts: Vec<f64>,
-    /// End of the last log [s].
+    /// End of the last log \[s\].
     pub end: f64,
 }
 
@@ -31,7 +31,7 @@ impl Timeline {
     pub fn label(&self) -> &'static str {
         if self.starts.len() > 1 { "t [s] (logs one after another)" } else { "t [s]" }
     }
-    /// Time of every sample of log `i` [s].
+    /// Time of every sample of log `i` \[s\].
     fn times(&self, comparisons: &[Comparison], i: usize) -> Vec<f64> {
         let c = &comparisons[i];
         (0..c.len()).map(|k| self.starts[i] + k as f64 * c.h).collect()

@@ -8,7 +8,7 @@ use crate::error::{Error, Result};
 use crate::online::Trajectory;
 use plotters::prelude::*;
 
-/// Width of the K_t axis [px]; the R_s panel leaves the same room so that the time axes
+/// Width of the K_t axis \[px\]; the R_s panel leaves the same room so that the time axes
 /// line up.
 const RIGHT_AXIS: u32 = 90;
 
@@ -18,9 +18,9 @@ const KT_PER_KE: f64 = 1.224_744_871_391_589;
 /// The true parameters of a (simulated) log.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TrackTruth {
-    /// Back-EMF constant K_e [V s/rad] (line-to-line RMS per mechanical rad/s).
+    /// Back-EMF constant K_e \[V s/rad\] (line-to-line RMS per mechanical rad/s).
     pub k_e: f64,
-    /// Stator resistance R_s [Ω].
+    /// Stator resistance R_s \[Ω\].
     pub r_s: f64,
 }
 
@@ -35,8 +35,8 @@ pub struct TrackRun<'a> {
     pub truth: Option<TrackTruth>,
 }
 
-/// The observer plot as SVG text: K̂_e [V s/rad] with K̂_t [N m/A, peak A] on the right
-/// axis, and R̂_s [Ω], over time [s], one colour per run, the truth dashed.
+/// The observer plot as SVG text: K̂_e \[V s/rad\] with K̂_t \[N m/A, peak A\] on the right
+/// axis, and R̂_s \[Ω\], over time \[s\], one colour per run, the truth dashed.
 ///
 /// # Errors
 /// [`Error::InvalidOption`] (option `plot`) for no run, an empty trajectory, or a drawing
