@@ -124,7 +124,7 @@ pub struct Table {
 /// validation, naming the column. The sample time h \[s\] is the mean step of the time
 /// column, which must be uniform ([`Experiment::try_from_time`]). No plausibility limit
 /// applies to h here (a thermal log may be sampled every minute); `spec.limits` bound the
-/// file ([`ReadLimits`]).
+/// file ([`ReadLimits`]). The path `-` reads standard input.
 ///
 /// # Errors
 /// Those of [`read_table`] (which stops at the first NaN/Inf or bad time step) or of
@@ -329,8 +329,11 @@ fn csv_error(path: &Path, e: csv::Error) -> Error {
     }
 }
 
-/// File name without `.gz` and then without its extension (`.csv`).
+/// File name without `.gz` and then without its extension (`.csv`); `stdin` for `-`.
 pub(crate) fn experiment_name(path: &Path) -> String {
+    if path == Path::new("-") {
+        return "stdin".into();
+    }
     let file = path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
     let file = file.strip_suffix(".gz").unwrap_or(&file);
     let stem = Path::new(file).file_stem().map(|s| s.to_string_lossy().into_owned());

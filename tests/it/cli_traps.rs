@@ -264,3 +264,31 @@ fn report_formats() {
     let t = stdout(&out);
     assert!(t.contains("mΩ") && t.contains("ud") && t.contains(" V"), "{t}");
 }
+
+/// `-` reads the log from standard input (gzip or plain), named `stdin`, with the estimates
+/// of the same log read from its file; `-` given twice is refused (stdin reads once).
+#[test]
+fn a_log_from_standard_input() {
+    use std::process::{Command, Stdio};
+    let (code, from_file) = json_of(&["fit", SAMPLE, "-p", "4"]);
+    assert_eq!(code, Some(0));
+    let run = |stdin: Stdio| {
+        Command::new(env!("CARGO_BIN_EXE_greybox"))
+            .args(["fit", "-", "-p", "4", "-q", "--json", "-"])
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .stdin(stdin)
+            .output()
+            .unwrap()
+    };
+    let gz = std::fs::File::open(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(SAMPLE)).unwrap();
+    let out = run(Stdio::from(gz));
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let from_stdin: Value = serde_json::from_str(&stdout(&out)).unwrap();
+    for name in ["r_s", "l_s", "k_e"] {
+        assert_eq!(parameter(&from_stdin, name)["value"], parameter(&from_file, name)["value"], "{name}");
+    }
+    assert!(stdout(&out).contains("stdin"), "the log is named stdin");
+    let out = greybox(&["fit", "-", "-", "-p", "4"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(stderr(&out).contains("given twice"), "{}", stderr(&out));
+}

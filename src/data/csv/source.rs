@@ -35,7 +35,10 @@ pub(super) fn spawn<'scope>(
     path: &Path,
     max_line: u64,
 ) -> std::io::Result<Receiver<Item>> {
-    let mut buf = BufReader::with_capacity(1 << 16, File::open(path)?);
+    // `-` is standard input (a pipe: `zcat log.csv.gz | greybox fit - …`).
+    let input: Box<dyn Read + Send> =
+        if path == Path::new("-") { Box::new(std::io::stdin()) } else { Box::new(File::open(path)?) };
+    let mut buf = BufReader::with_capacity(1 << 16, input);
     let gz = buf.fill_buf()?.starts_with(&[0x1f, 0x8b]);
     let reader: Box<dyn Read + Send> =
         if gz { Box::new(flate2::read::MultiGzDecoder::new(buf)) } else { Box::new(buf) };
