@@ -13,7 +13,7 @@
 //! and without `d`, and sums the residual (shifted by its first value) and the voltage
 //! change, their squares and product for the correlation.
 
-use super::interval::{VoltageInput, applied_voltage};
+use super::interval::{VoltageInput, driving_voltage};
 use super::inverter::{DeadTimeStream, InverterModel};
 use super::kind::MotorKind;
 use super::linear::{MAX_COLS, Regression, push_with_dead_time};
@@ -71,21 +71,8 @@ pub fn advice(
     let theta = &theta[..cols];
     for e in experiments {
         let Ok(v) = DqView::try_new(e) else { continue };
-        let applied;
-        let (u_d, u_q) = match input {
-            VoltageInput::Terminal => match v.terminal_voltage() {
-                Ok(u) => u,
-                Err(_) => continue,
-            },
-            _ => match applied_voltage(&v, n_p, input) {
-                Ok(u) => {
-                    applied = u;
-                    (&applied.0[..], &applied.1[..])
-                }
-                Err(_) => continue,
-            },
-        };
-        let reg = Regression::new(&v, u_d, u_q, n_p, kind);
+        let Ok((u_d, u_q)) = driving_voltage(&v, n_p, input) else { continue };
+        let reg = Regression::new(&v, &u_d, &u_q, n_p, kind);
         if reg.cols() != cols {
             continue;
         }
@@ -112,7 +99,7 @@ pub fn advice(
             (s.phases(id[0], iq[0], sc), sc)
         });
         reg.for_each(|k, d, q, u| {
-            let du = change(u_d, u_q, k);
+            let du = change(&u_d, &u_q, k);
             for (x, y) in
                 [(residual(d, u[0], theta) - shift, du[0]), (residual(q, u[1], theta) - shift, du[1])]
             {

@@ -11,6 +11,7 @@ use crate::data::Experiment;
 use crate::error::{Error, Result};
 use nalgebra::Complex;
 use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
 
 /// How the voltage is held between samples (MODEL.md §4).
 ///
@@ -281,6 +282,23 @@ pub fn applied_voltage(v: &DqView<'_>, n_p: u32, input: VoltageInput) -> Result<
         ivs.iter().map(|iv| iv.u0 / stator_hold_start(C64::new(1.0, 0.0), iv.w_e * h)).collect();
     mean.push(mean.last().copied().unwrap_or_default());
     Ok((mean.iter().map(|u| u.re).collect(), mean.iter().map(|u| u.im).collect()))
+}
+
+/// A pair of dq signals `(d, q)`, borrowed from a log or computed.
+pub(crate) type DqPair<'a> = (Cow<'a, [f64]>, Cow<'a, [f64]>);
+
+/// The voltage a regression on the voltage equations reads, `(u_d, u_q)` \[V\] of length N:
+/// [`applied_voltage`], borrowing the terminal voltage instead of copying it.
+///
+/// # Errors
+/// Those of [`DqView::terminal_voltage`] and [`applied_voltage`].
+pub(crate) fn driving_voltage<'a>(v: &'a DqView<'_>, n_p: u32, input: VoltageInput) -> Result<DqPair<'a>> {
+    if input == VoltageInput::Terminal {
+        let (u_d, u_q) = v.terminal_voltage()?;
+        return Ok((Cow::Borrowed(u_d), Cow::Borrowed(u_q)));
+    }
+    let (u_d, u_q) = applied_voltage(v, n_p, input)?;
+    Ok((Cow::Owned(u_d), Cow::Owned(u_q)))
 }
 
 /// Electrical speed \[rad/s\] at every sample as a phase-locked loop of bandwidth `alpha`

@@ -9,7 +9,7 @@
 //! products of every interval in the order of a dense `ΦᵀΦ`, so it equals the dense Gram bit
 //! for bit as well.
 
-use super::interval::{SQRT_2_3, VoltageInput, applied_voltage};
+use super::interval::{SQRT_2_3, VoltageInput, driving_voltage};
 use super::signals::DqView;
 use crate::data::Experiment;
 use crate::error::Result;
@@ -89,24 +89,17 @@ fn filtfilt_lanes<const L: usize>(bw: &Butterworth, x: [&[f64]; L]) -> Vec<[f64;
 /// `n_p` and both motor kinds.
 ///
 /// # Errors
-/// Those of [`DqView::try_new`], [`applied_voltage`] and of the filter design.
+/// Those of [`DqView::try_new`], [`applied_voltage`](super::interval::applied_voltage) and of the filter design.
 pub(crate) fn scan_gram(experiments: &[Experiment], input: VoltageInput) -> Result<DMatrix<f64>> {
     let mut g = [[0.0; BASE + 1]; BASE + 1];
     for e in experiments {
         let v = DqView::try_new(e)?;
         // n_p only scales the angle advance of a reference input; 1 is used for the scan.
-        let applied;
-        let (u_d, u_q) = match input {
-            VoltageInput::Terminal => v.terminal_voltage()?,
-            _ => {
-                applied = applied_voltage(&v, 1, input)?;
-                (&applied.0[..], &applied.1[..])
-            }
-        };
+        let (u_d, u_q) = driving_voltage(&v, 1, input)?;
         // A zero-phase low-pass at 5 % of the sample rate keeps current noise out of di/dt
         // (MODEL.md §5: the derivative regressor is errors-in-variables).
         let filter = Butterworth::try_new(SCAN_FILTER_ORDER, SCAN_CUTOFF / e.h(), e.h())?;
-        let x = filtfilt_lanes::<LANES>(&filter, [u_d, u_q, v.i_d(), v.i_q(), v.w_m()]);
+        let x = filtfilt_lanes::<LANES>(&filter, [&u_d, &u_q, v.i_d(), v.i_q(), v.w_m()]);
         let h = v.h();
         for s in x.windows(2) {
             let ([ud, uq, id0, iq0, w0], [_, _, id1, iq1, w1]) = (s[0], s[1]);

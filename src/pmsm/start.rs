@@ -4,7 +4,7 @@
 //! linear in `v_dt`, MODEL.md §4: without that column the regression lends it to `r_s` and
 //! the inductances, which can turn them negative).
 
-use super::interval::{VoltageInput, applied_voltage};
+use super::interval::{VoltageInput, driving_voltage};
 use super::inverter::{InverterModel, dead_time_directions};
 use super::kind::MotorKind;
 use super::linear::{Regression, push_with_dead_time};
@@ -19,7 +19,7 @@ use crate::estimate::linear::StreamedLeastSquares;
 /// regression's `r_s` or `l_s`.
 ///
 /// # Errors
-/// Those of [`applied_voltage`], [`StreamedLeastSquares::solve`] and [`dead_time_directions`]; [`Error::Numerical`] when a
+/// Those of [`applied_voltage`](super::interval::applied_voltage), [`StreamedLeastSquares::solve`] and [`dead_time_directions`]; [`Error::Numerical`] when a
 /// resistance or inductance comes out non-positive (give a start).
 pub(crate) fn least_squares_start(
     experiments: &[Experiment],
@@ -81,15 +81,8 @@ fn regress(
     let mut ls = StreamedLeastSquares::new(names.len());
     for e in experiments {
         let v = DqView::try_new(e)?;
-        let applied;
-        let (u_d, u_q) = match input {
-            VoltageInput::Terminal => v.terminal_voltage()?,
-            _ => {
-                applied = applied_voltage(&v, n_p, input)?;
-                (&applied.0[..], &applied.1[..])
-            }
-        };
-        let reg = Regression::new(&v, u_d, u_q, n_p, kind);
+        let (u_d, u_q) = driving_voltage(&v, n_p, input)?;
+        let reg = Regression::new(&v, &u_d, &u_q, n_p, kind);
         let cols = reg.cols();
         match dead_time {
             None => {
