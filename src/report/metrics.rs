@@ -131,10 +131,10 @@ pub fn metrics(
 pub fn whiteness(segments: &[&[f64]], max_lag: usize) -> Whiteness {
     use crate::estimate::{dot, sum};
     let n: usize = segments.iter().map(|s| s.len()).sum();
-    let mean = segments.iter().map(|s| sum(s)).sum::<f64>() / n.max(1) as f64;
+    let totals: Vec<f64> = segments.iter().map(|s| sum(s)).collect();
+    let mean = totals.iter().sum::<f64>() / n.max(1) as f64;
     // Σ (e_k − m)(e_{k+τ} − m) = Σ e_k e_{k+τ} − m (Σ e_k + Σ e_{k+τ}) + n_τ m², each sum over
     // the n_τ pairs of a segment: no centred copy of the residuals.
-    let totals: Vec<f64> = segments.iter().map(|s| sum(s)).collect();
     let centred = |(s, total): (&&[f64], &f64), tau: usize| {
         let pairs = s.len() - tau;
         // Σ over the first and the last n − τ values: the total less τ values at an end.

@@ -5,6 +5,7 @@
 
 use greybox::Experiment;
 use greybox::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
+use greybox::estimate::solver::NormalEquations;
 use greybox::estimate::{PemProblem, ProblemOptions, scaling::NominalScaling};
 use greybox::model::{GreyBoxModel, Parameter, Prepared, Sensitivities, Signal};
 use greybox::pmsm::{InverterModel, PmsmSetup, PmsmSpm, VoltageHold, VoltageInput};
@@ -88,6 +89,14 @@ fn run<M: GreyBoxModel>(m: &M, e: &Experiment, theta: &[f64], horizon: Option<us
     out
 }
 
+/// The normal equations at `theta` with the initial state estimated.
+fn normal_equations<M: GreyBoxModel>(m: &M, e: &Experiment, theta: &[f64]) -> NormalEquations {
+    let opts = ProblemOptions { estimate_x0: true, ..Default::default() };
+    let data = vec![(Prepared::new(m, e).unwrap(), None)];
+    let pb = PemProblem::new(m, data, theta, &NominalScaling, &opts).unwrap();
+    pb.normal_equations(&pb.start_vector(theta)).unwrap()
+}
+
 #[test]
 fn the_spm_block_kernel_is_the_per_sample_path_to_the_bit() {
     let e = log();
@@ -117,30 +126,8 @@ fn the_spm_block_kernel_is_the_per_sample_path_to_the_bit() {
                 );
             }
             // The normal equations on either, with x0 estimated.
-            let ne = |pb: Result<_, _>| -> greybox::estimate::solver::NormalEquations {
-                let pb: PemProblem<'_, _> = pb.unwrap();
-                pb.normal_equations(&pb.start_vector(theta)).unwrap()
-            };
-            let opts = ProblemOptions { estimate_x0: true, ..Default::default() };
-            let a = ne(PemProblem::new(
-                &m,
-                vec![(Prepared::new(&m, &e).unwrap(), None)],
-                theta,
-                &NominalScaling,
-                &opts,
-            ));
-            let ps = PerSample(PmsmSpm::from_setup(setup));
-            let b = {
-                let pb = PemProblem::new(
-                    &ps,
-                    vec![(Prepared::new(&ps, &e).unwrap(), None)],
-                    theta,
-                    &NominalScaling,
-                    &opts,
-                )
-                .unwrap();
-                pb.normal_equations(&pb.start_vector(theta)).unwrap()
-            };
+            let a = normal_equations(&m, &e, theta);
+            let b = normal_equations(&PerSample(PmsmSpm::from_setup(setup)), &e, theta);
             assert_eq!(
                 (a.cost, &a.jtj, &a.jtr),
                 (b.cost, &b.jtj, &b.jtr),
