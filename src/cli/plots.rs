@@ -6,9 +6,10 @@ use super::output;
 use greybox::Experiment;
 use greybox::drive::DriveLog;
 use greybox::online::Trajectory;
+use greybox::online::plot::{TrackRun, TrackTruth, track_svg};
 use greybox::pmsm::{PmsmFit, channel};
 use greybox::report::Comparison;
-use greybox::report::plot::{self, Context, TrackRun, TrackTruth};
+use greybox::report::plot::{self, Context};
 use std::path::{Path, PathBuf};
 
 /// Checks before any work that the plot and residual files can be written (not an input,
@@ -60,7 +61,7 @@ pub fn track_plot(path: &Path, runs: &[(PathBuf, Trajectory)]) -> greybox::Resul
         .zip(&names)
         .map(|((p, tr), name)| TrackRun { name, trajectory: tr, truth: truth(p) })
         .collect();
-    plot::write_svg(path, &plot::track_svg(&runs)?)
+    plot::write_svg(path, &track_svg(&runs)?)
 }
 
 /// The mechanical speed of each log, when every log has it at the comparison's length.

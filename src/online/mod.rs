@@ -32,6 +32,8 @@
 pub mod config;
 pub mod injection;
 pub mod mras;
+#[cfg(feature = "plot")]
+pub mod plot;
 pub mod track;
 
 pub use config::{Adaptation, MrasConfig};

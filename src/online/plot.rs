@@ -2,10 +2,12 @@
 //! time, one colour per log, the truth as dashed lines when known (thesis 5.1; MODEL.md
 //! §2 for the K_e/K_t convention).
 
-use super::draw::{Area, Drawn, FONT, PANEL, TITLE, WIDTH, color, legend, mark, range, tick, value};
-use super::{decimate_min_max, plot_error};
+use super::Trajectory;
 use crate::error::{Error, Result};
-use crate::online::Trajectory;
+use crate::report::plot::draw::{
+    Area, Drawn, FONT, PANEL, TITLE, WIDTH, color, legend, mark, range, tick, value,
+};
+use crate::report::plot::{decimate_min_max, plot_error};
 use plotters::prelude::*;
 
 /// Width of the K_t axis \[px\]; the R_s panel leaves the same room so that the time axes
@@ -141,7 +143,15 @@ fn r_s(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
     // The K_e panel's right margin (8) and K_t axis, less the common chart's margin (24).
     let (w, _) = area.dim_in_pixel();
     let (area, _) = area.split_horizontally(w - (RIGHT_AXIS + 8 - 24));
-    let mut ch = super::draw::chart(&area, "Stator resistance R_s", &[], 0.0..t_end, y, "t [s]", "R_s [Ω]")?;
+    let mut ch = crate::report::plot::draw::chart(
+        &area,
+        "Stator resistance R_s",
+        &[],
+        0.0..t_end,
+        y,
+        "t [s]",
+        "R_s [Ω]",
+    )?;
     let width = ch.plotting_area().dim_in_pixel().0 as usize;
     for (i, r) in runs.iter().enumerate() {
         let style = color(i).stroke_width(2);

@@ -62,7 +62,8 @@ fn simulated_outputs_match_the_fit() {
 #[cfg(feature = "plot")]
 mod svg {
     use super::*;
-    use greybox::report::plot::{self, Context, TrackRun, TrackTruth};
+    use greybox::online::plot::{TrackRun, TrackTruth, track_svg};
+    use greybox::report::plot::{self, Context};
 
     /// Points drawn by every `<polyline>` of an SVG.
     fn polyline_points(svg: &str) -> Vec<usize> {
@@ -201,8 +202,7 @@ mod svg {
             greybox::online::MrasConfig { n_p: 4, l_s: 4.5e-3, k_e0: 0.3, r_s0: 0.5, ..Default::default() };
         let tr = greybox::online::track(log, &config).unwrap();
         let truth = TrackTruth { k_e: 0.5389, r_s: 0.9 };
-        let svg =
-            plot::track_svg(&[TrackRun { name: "sample", trajectory: &tr, truth: Some(truth) }]).unwrap();
+        let svg = track_svg(&[TrackRun { name: "sample", trajectory: &tr, truth: Some(truth) }]).unwrap();
         for label in [
             "K_e [V s/rad]",
             "K_t [N m/A]",
@@ -214,7 +214,7 @@ mod svg {
             assert!(svg.contains(label), "the track plot lacks `{label}`");
         }
         assert!(polyline_points(&svg).iter().all(|&p| p <= 2 * 1600 + 2));
-        assert!(plot::track_svg(&[]).is_err());
+        assert!(track_svg(&[]).is_err());
     }
 }
 

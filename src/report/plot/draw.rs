@@ -7,27 +7,27 @@ use plotters::prelude::*;
 use std::ops::Range;
 
 /// Result of drawing on the SVG backend.
-pub(super) type Drawn<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
+pub(crate) type Drawn<T = ()> = std::result::Result<T, Box<dyn std::error::Error>>;
 
 /// A drawing area of the SVG backend.
-pub(super) type Area<'a> = DrawingArea<SVGBackend<'a>, Shift>;
+pub(crate) type Area<'a> = DrawingArea<SVGBackend<'a>, Shift>;
 
 /// A cartesian chart of the SVG backend.
-pub(super) type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+pub(crate) type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
 /// Width of the figures \[px\].
-pub(super) const WIDTH: u32 = 1600;
+pub(crate) const WIDTH: u32 = 1600;
 /// Height of one panel \[px\].
-pub(super) const PANEL: u32 = 230;
+pub(crate) const PANEL: u32 = 230;
 /// Height of the title strip \[px\].
-pub(super) const TITLE: u32 = 64;
+pub(crate) const TITLE: u32 = 64;
 /// Font family of every text (the viewer's sans-serif).
-pub(super) const FONT: &str = "sans-serif";
+pub(crate) const FONT: &str = "sans-serif";
 
 /// Measured data.
-pub(super) const MEASURED: RGBColor = RGBColor(40, 40, 40);
+pub(crate) const MEASURED: RGBColor = RGBColor(40, 40, 40);
 /// Distinct colours for series (simulated outputs, parameters, runs): the Tableau 10.
-pub(super) const PALETTE: [RGBColor; 8] = [
+pub(crate) const PALETTE: [RGBColor; 8] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
     RGBColor(44, 160, 44),
@@ -39,14 +39,14 @@ pub(super) const PALETTE: [RGBColor; 8] = [
 ];
 
 /// The i-th palette colour (cycling).
-pub(super) fn color(i: usize) -> RGBColor {
+pub(crate) fn color(i: usize) -> RGBColor {
     PALETTE[i % PALETTE.len()]
 }
 
 /// A chart on `area` under a header row (the caption on the left, the legend `keys` on
 /// the right, so that neither covers data), both axes labelled (`x_desc`, `y_desc` carry
 /// the unit), a light grid, and tick labels of at most 4 significant digits.
-pub(super) fn chart<'a, 'b>(
+pub(crate) fn chart<'a, 'b>(
     area: &'a Area<'b>,
     caption: &str,
     keys: &[(String, Key)],
@@ -84,11 +84,11 @@ pub(super) fn chart<'a, 'b>(
 }
 
 /// Height of a panel's header row \[px\].
-pub(super) const HEADER: u32 = 30;
+pub(crate) const HEADER: u32 = 30;
 
 /// How a legend key is drawn.
 #[derive(Clone, Copy)]
-pub(super) enum Key {
+pub(crate) enum Key {
     /// A line.
     Line(ShapeStyle),
     /// A filled band.
@@ -101,7 +101,7 @@ pub(super) enum Key {
 /// so that neither covers data. Text widths are estimated generously for a sans-serif
 /// font (8 px a character at 17 px, 6.5 px at 13 px); the keys never start left of the
 /// caption's end.
-pub(super) fn header(area: &Area<'_>, caption: &str, keys: &[(String, Key)]) -> Drawn {
+pub(crate) fn header(area: &Area<'_>, caption: &str, keys: &[(String, Key)]) -> Drawn {
     let (w, _) = area.dim_in_pixel();
     area.draw_text(caption, &(FONT, 17).into_font().color(&BLACK), (12, 6))?;
     let chars = |s: &str| s.chars().count() as f64;
@@ -128,7 +128,7 @@ pub(super) fn header(area: &Area<'_>, caption: &str, keys: &[(String, Key)]) -> 
 
 /// The legend of `chart`'s labelled series, in its upper-right corner on a translucent
 /// white box.
-pub(super) fn legend<'a, 'b: 'a>(chart: &mut Chart<'a, 'b>, position: SeriesLabelPosition) -> Drawn {
+pub(crate) fn legend<'a, 'b: 'a>(chart: &mut Chart<'a, 'b>, position: SeriesLabelPosition) -> Drawn {
     chart
         .configure_series_labels()
         .position(position)
@@ -141,12 +141,12 @@ pub(super) fn legend<'a, 'b: 'a>(chart: &mut Chart<'a, 'b>, position: SeriesLabe
 }
 
 /// A legend mark: a short line in `style`.
-pub(super) fn mark(style: ShapeStyle) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
+pub(crate) fn mark(style: ShapeStyle) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
     move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style)
 }
 
 /// A horizontal dashed line at `y` over `x`, labelled in the legend when `label` is given.
-pub(super) fn dashed(
+pub(crate) fn dashed(
     chart: &mut Chart<'_, '_>,
     x: &Range<f64>,
     y: f64,
@@ -161,7 +161,7 @@ pub(super) fn dashed(
 }
 
 /// A message in the middle of an empty panel.
-pub(super) fn empty(area: &Area<'_>, caption: &str, message: &str) -> Drawn {
+pub(crate) fn empty(area: &Area<'_>, caption: &str, message: &str) -> Drawn {
     let (w, h) = area.dim_in_pixel();
     area.draw_text(caption, &(FONT, 17).into_font().color(&BLACK), (12, 8))?;
     area.draw_text(
@@ -174,7 +174,7 @@ pub(super) fn empty(area: &Area<'_>, caption: &str, message: &str) -> Drawn {
 
 /// The range of the finite `values`, padded by 5 % (±1 around a single value, \[0, 1\]
 /// without any).
-pub(super) fn range(values: impl IntoIterator<Item = f64>) -> Range<f64> {
+pub(crate) fn range(values: impl IntoIterator<Item = f64>) -> Range<f64> {
     let (lo, hi) = values
         .into_iter()
         .filter(|v| v.is_finite())
@@ -188,7 +188,7 @@ pub(super) fn range(values: impl IntoIterator<Item = f64>) -> Range<f64> {
 
 /// A tick label on an axis spanning `span`: at most 4 significant digits, exponent form
 /// outside [1e-3, 1e5), and 0 for what rounding left of zero (below 10⁻⁹ of the span).
-pub(super) fn tick(v: f64, span: f64) -> String {
+pub(crate) fn tick(v: f64, span: f64) -> String {
     if v == 0.0 || v.abs() < 1e-9 * span.abs() {
         return "0".into();
     }
@@ -202,7 +202,7 @@ pub(super) fn tick(v: f64, span: f64) -> String {
 }
 
 /// A value with 5 significant digits (exponent form outside [1e-3, 1e5)).
-pub(super) fn value(v: f64) -> String {
+pub(crate) fn value(v: f64) -> String {
     if !v.is_finite() {
         return format!("{v}");
     }

@@ -18,7 +18,7 @@ use plotters::prelude::*;
 /// estimate), the residual autocorrelation with its 95 % whiteness bound (from
 /// `fit.fit.whiteness`, else from the comparisons), and the free parameters' estimates with
 /// their 95 % intervals. `comparisons` are the fit's logs simulated at the estimate (e.g.
-/// [`crate::pmsm::PmsmFit::comparisons`]), drawn one after another.
+/// e.g. a motor fit's `comparisons`), drawn one after another.
 ///
 /// # Errors
 /// [`Error::InvalidOption`] (option `plot`) for no comparison, comparisons with different

@@ -1,5 +1,4 @@
-//! SVG plots of a fit, of a comparison on a validation log and of observer trajectories
-//! (feature `plot`, with plotters' SVG backend; no fonts are needed: the viewer renders
+//! SVG plots of a fit and of a comparison on a validation log (feature `plot`, with plotters' SVG backend; no fonts are needed: the viewer renders
 //! the text).
 //!
 //! Every function takes data, never file names, and returns the SVG text; [`write_svg`]
@@ -11,17 +10,16 @@
 //!   speed), residuals with their ±2σ band, residual autocorrelation with its 95 % bound,
 //!   the parameter trace over the iterations, the estimates with their 95 % intervals;
 //! - [`compare_svg`]: the same time panels and autocorrelation for a model on logs it was
-//!   not fitted on (MATLAB's `compare`; Ljung, *System Identification*, 16.5–16.6);
-//! - [`track_svg`]: the observer's K̂_e (K̂_t on the right axis) and R̂_s over time, with the
-//!   truth when known.
+//!   not fitted on (MATLAB's `compare`; Ljung, *System Identification*, 16.5–16.6).
+//!
+//! The drawing helpers (module `draw`) also serve the observer's plot, which lives with the
+//! observer ([`crate::online::plot`]).
 
-mod draw;
+pub(crate) mod draw;
 mod fit;
 mod time;
-mod track;
 
 pub use fit::{compare_svg, fit_svg};
-pub use track::{TrackRun, TrackTruth, track_svg};
 
 use crate::error::{Error, Result};
 use std::path::Path;
@@ -81,7 +79,7 @@ pub fn decimate_min_max(t: &[f64], y: &[f64], columns: usize) -> Vec<(f64, f64)>
 }
 
 /// A drawing failure as the crate's error (option `plot`).
-fn plot_error(e: impl std::fmt::Display) -> Error {
+pub(crate) fn plot_error(e: impl std::fmt::Display) -> Error {
     Error::InvalidOption { option: "plot".into(), reason: e.to_string() }
 }
 
