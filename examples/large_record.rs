@@ -33,10 +33,14 @@ fn mb(bytes: Option<u64>) -> String {
 }
 
 fn main() -> greybox::Result<()> {
-    let n: usize = std::env::args()
-        .nth(1)
-        .map_or(10_000_000, |a| a.parse().expect("the argument is the number of samples N"));
-    assert!(n >= 16, "N = {n}: a fit needs at least 16 samples");
+    let bad = |reason: String| greybox::Error::InvalidOption { option: "N".into(), reason };
+    let n: usize = match std::env::args().nth(1) {
+        None => 10_000_000,
+        Some(a) => a.parse().map_err(|_| bad(format!("`{a}` is not a number of samples")))?,
+    };
+    if n < 16 {
+        return Err(bad(format!("{n} samples: a fit needs at least 16")));
+    }
 
     // The drive simulator's record, cut down to the channels the fit reads.
     let t0 = Instant::now();
@@ -47,8 +51,10 @@ fn main() -> greybox::Result<()> {
     let truth = [("r_s", log.truth.start.r_s), ("l_s", log.truth.start.l_d), ("k_e", log.truth.k_e)];
     let channels: Vec<Channel> = ["ud", "uq", "id", "iq", "w_m"]
         .iter()
-        .map(|name| log.experiment.get(name).expect("a drive log carries ud, uq, id, iq, w_m").clone())
-        .collect();
+        .map(|name| {
+            log.experiment.get(name).cloned().ok_or_else(|| bad(format!("the drive log has no `{name}`")))
+        })
+        .collect::<greybox::Result<_>>()?;
     let experiment = Experiment::try_new("exp3-large", log.experiment.h(), channels)?;
     let varying = log.truth.time_varying;
     drop(log);
