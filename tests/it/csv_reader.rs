@@ -89,13 +89,29 @@ pub mod oracle {
         }
     }
 
-    fn quote(field: &[u8]) -> String {
+    /// The first 80 characters of a cell, and its length in bytes when cut.
+    fn excerpt(field: &[u8]) -> (String, Option<usize>) {
         let max = 320;
         let head = String::from_utf8_lossy(&field[..field.len().min(max)]);
         match head.char_indices().nth(80) {
-            Some((cut, _)) => format!("`{}…` ({} bytes)", &head[..cut], field.len()),
-            None if field.len() > max => format!("`{head}…` ({} bytes)", field.len()),
-            None => format!("`{head}`"),
+            Some((cut, _)) => (head[..cut].to_string(), Some(field.len())),
+            None if field.len() > max => (head.into_owned(), Some(field.len())),
+            None => (head.into_owned(), None),
+        }
+    }
+
+    fn quote(field: &[u8]) -> String {
+        match excerpt(field) {
+            (head, Some(len)) => format!("`{head}…` ({len} bytes)"),
+            (head, None) => format!("`{head}`"),
+        }
+    }
+
+    /// A header name in the list of a missing-column error: as `quote`, without backquotes.
+    fn name_excerpt(field: &[u8]) -> String {
+        match excerpt(field) {
+            (head, Some(len)) => format!("{head}… ({len} bytes)"),
+            (head, None) => head,
         }
     }
 
@@ -139,7 +155,8 @@ pub mod oracle {
                 return Err(s(Error::DuplicateColumn { path: p, column: column.into(), first, second }));
             }
             if found.is_empty() && required {
-                let available = header.join(", ");
+                let available =
+                    header.iter().map(|h| name_excerpt(h.as_bytes())).collect::<Vec<_>>().join(", ");
                 return Err(s(Error::MissingColumn { path: p, column: column.into(), available }));
             }
             index.push(found.first().copied());
