@@ -57,7 +57,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match &cli.command {
-        Command::Fit(a) => cli::fit::run_fit(a).map_err(cli::errors::in_cli_words),
+        Command::Fit(a) => cli::fit::run_fit(a),
         Command::Validate(a) => cli::validate::run_validate(a).map(|()| true),
         Command::Track(a) => cli::track::run_track(a).map(|()| true),
         Command::Simulate(a) => cli::simulate::run_simulate(a).map(|()| true),
@@ -70,6 +70,21 @@ fn main() -> ExitCode {
                 .map_err(|source| greybox::Error::Write { path: "stdout".into(), source })
         }
     };
+    // Errors name the flags of the subcommand that ran, as the user typed them.
+    let r = r.map_err(|e| {
+        let command = Cli::command();
+        let name = match &cli.command {
+            Command::Fit(_) => "fit",
+            Command::Validate(_) => "validate",
+            Command::Track(_) => "track",
+            Command::Simulate(_) => "simulate",
+            Command::Completions { .. } => "completions",
+        };
+        match command.find_subcommand(name) {
+            Some(sub) => cli::errors::in_cli_words(e, sub),
+            None => e,
+        }
+    });
     match r {
         Ok(true) => ExitCode::SUCCESS,
         Ok(false) => ExitCode::from(3),

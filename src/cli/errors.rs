@@ -50,13 +50,27 @@ fn model_words(text: &str) -> String {
 }
 
 /// `e` with the option named by its flag and the model by its `--model` value; other
-/// errors unchanged.
-pub fn in_cli_words(e: Error) -> Error {
+/// errors unchanged. The flag is looked up in [`flag_of`] for `greybox fit`, then among
+/// the long flags of `command` (the subcommand that ran): an option `gamma_ke` or
+/// `gamma-ke` becomes `--gamma-ke` when the command has that flag. An option that is
+/// not a flag (a scenario-file path such as `motor.r_s`) is left as it is.
+pub fn in_cli_words(e: Error, command: &clap::Command) -> Error {
     match e {
-        Error::InvalidOption { option, reason } => Error::InvalidOption {
-            option: flag_of(&option).map_or(option, str::to_string),
-            reason: model_words(&reason),
-        },
+        Error::InvalidOption { option, reason } => {
+            let fit = command.get_name() == "fit";
+            let kebab = option.replace('_', "-");
+            let flag = (fit.then(|| flag_of(&option)).flatten().map(str::to_string)).or_else(|| {
+                command
+                    .get_arguments()
+                    .find(|a| {
+                        a.get_long() == Some(&kebab)
+                            || a.get_all_aliases().is_some_and(|v| v.contains(&kebab.as_str()))
+                    })
+                    .and_then(|a| a.get_long())
+                    .map(|l| format!("--{l}"))
+            });
+            Error::InvalidOption { option: flag.unwrap_or(option), reason: model_words(&reason) }
+        }
         other => other,
     }
 }
@@ -65,15 +79,39 @@ pub fn in_cli_words(e: Error) -> Error {
 mod tests {
     use super::*;
 
+    fn command(name: &'static str) -> clap::Command {
+        clap::Command::new(name)
+            .arg(clap::Arg::new("gamma_ke").long("gamma-ke"))
+            .arg(clap::Arg::new("l_s").long("l-s").visible_alias("l-d"))
+            .arg(clap::Arg::new("json").long("json"))
+    }
+
     #[test]
     fn options_become_flags() {
         let e = Error::InvalidOption {
             option: "per_experiment".into(),
             reason: "no parameter `x_s` in model `pmsm_spm`".into(),
         };
-        let s = in_cli_words(e).to_string();
+        let s = in_cli_words(e, &command("fit")).to_string();
         assert_eq!(s, "invalid option `--per-log`: no parameter `x_s` in model spm (--model spm)");
         let e = Error::InvalidOption { option: "something else".into(), reason: "r".into() };
-        assert!(in_cli_words(e).to_string().contains("`something else`"));
+        assert!(in_cli_words(e, &command("fit")).to_string().contains("`something else`"));
+    }
+
+    #[test]
+    fn options_of_other_commands_become_their_flags() {
+        let flag = |option: &str| match in_cli_words(
+            Error::InvalidOption { option: option.into(), reason: "r".into() },
+            &command("track"),
+        ) {
+            Error::InvalidOption { option, .. } => option,
+            other => panic!("{other}"),
+        };
+        assert_eq!(flag("gamma_ke"), "--gamma-ke");
+        assert_eq!(flag("gamma-ke"), "--gamma-ke");
+        assert_eq!(flag("l-d"), "--l-s");
+        // `fit`'s table is not used for other commands: `output` is not `--json` here.
+        assert_eq!(flag("output"), "output");
+        assert_eq!(flag("motor.r_s"), "motor.r_s");
     }
 }

@@ -4,12 +4,22 @@
 use greybox::Error;
 use std::path::{Path, PathBuf};
 
-/// Checks before any work that `path` can be written: not one of the `inputs`, in an
-/// existing directory. "-" (stdout) always can.
+/// Checks before any work that the report `path` (`--json`) can be written: not one of
+/// the `inputs`, in an existing directory. "-" (stdout) always can.
 ///
 /// # Errors
-/// [`Error::InvalidOption`] naming the path when it is an input or its folder is missing.
+/// [`Error::InvalidOption`] (option `json`) naming the path when it is an input or its
+/// folder is missing.
 pub fn check(path: &Path, inputs: &[PathBuf]) -> greybox::Result<()> {
+    check_as("json", path, inputs)
+}
+
+/// [`check`] for the output given by the flag `flag` (its long name, e.g. `output`).
+///
+/// # Errors
+/// [`Error::InvalidOption`] (option `flag`) naming the path when it is an input or its
+/// folder is missing.
+pub fn check_as(flag: &str, path: &Path, inputs: &[PathBuf]) -> greybox::Result<()> {
     if path.as_os_str() == "-" {
         return Ok(());
     }
@@ -19,14 +29,14 @@ pub fn check(path: &Path, inputs: &[PathBuf]) -> greybox::Result<()> {
     };
     if let Some(input) = inputs.iter().find(|i| same(path, i)) {
         return Err(Error::InvalidOption {
-            option: "output".into(),
+            option: flag.into(),
             reason: format!("{} is an input log: refusing to overwrite it", input.display()),
         });
     }
     let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
     if !dir.is_dir() {
         return Err(Error::InvalidOption {
-            option: "output".into(),
+            option: flag.into(),
             reason: format!("folder {} of {} does not exist", dir.display(), path.display()),
         });
     }

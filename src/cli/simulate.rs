@@ -101,8 +101,8 @@ pub fn run_simulate(a: &SimulateArgs) -> greybox::Result<()> {
         return Err(Error::InvalidOption { option: "output".into(), reason: "give -o LOG.csv".into() });
     };
     let inputs: Vec<PathBuf> = a.config.iter().cloned().collect();
-    output::check(path, &inputs)?;
-    output::check(&DriveLog::truth_path(path), &inputs)?;
+    output::check_as("output", path, &inputs)?;
+    output::check_as("output", &DriveLog::truth_path(path), &inputs)?;
     let log = simulate_drive(&cfg)?;
     log.write(path)?;
     let t = &log.truth;

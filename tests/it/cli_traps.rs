@@ -163,6 +163,33 @@ fn errors_name_the_flag_and_the_model_as_typed() {
     assert!(stderr(&out).contains("ipm model"), "{}", stderr(&out));
 }
 
+/// `validate`, `track` and `simulate` name their own flags too, with the `--` the user
+/// typed: the observer's gains, the inductance, the pole pairs, the scenario and the
+/// outputs (`--json` for a report, `--output` for a simulated log).
+#[test]
+fn other_commands_name_their_flags() {
+    let dir = temp_dir("flags");
+    let missing = dir.join("no/such/folder/x.csv");
+    let missing = missing.to_str().unwrap();
+    let track = ["track", SAMPLE, "-p", "4"];
+    for (args, flag) in [
+        (vec![&track[..], &["--l-s", "4.5e-3", "--gamma-ke", "-1"]].concat(), "`--gamma-ke`"),
+        (vec![&track[..], &["--l-s", "4.5e-3", "--gamma-rs", "1"]].concat(), "`--gamma-rs`"),
+        (vec![&track[..], &["--l-s", "-1"]].concat(), "`--l-s`"),
+        (vec![&track[..], &["--l-s", "4.5e-3", "--observer-gain", "-2"]].concat(), "`--observer-gain`"),
+        (vec!["track", SAMPLE, "-p", "0", "--l-s", "4.5e-3"], "`--pole-pairs`"),
+        (vec![&track[..], &["--l-s", "4.5e-3", "--json", SAMPLE]].concat(), "`--json`"),
+        (vec!["validate", SAMPLE, "--params", SAMPLE, "--json", SAMPLE], "`--json`"),
+        (vec!["simulate", "--scenario", "exp9", "-o", missing], "`--scenario`"),
+        (vec!["simulate", "--scenario", "exp1", "-o", missing], "`--output`"),
+    ] {
+        let out = greybox(&args);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(flag), "{args:?}: {err}");
+    }
+}
+
 /// The same log given twice is refused, as typed and after resolving `..` (it would
 /// shrink the standard errors by √2).
 #[test]
