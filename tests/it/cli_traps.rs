@@ -173,12 +173,12 @@ fn other_commands_name_their_flags() {
     let missing = missing.to_str().unwrap();
     let track = ["track", SAMPLE, "-p", "4"];
     for (args, flag) in [
-        (vec![&track[..], &["--l-s", "4.5e-3", "--gamma-ke", "-1"]].concat(), "`--gamma-ke`"),
-        (vec![&track[..], &["--l-s", "4.5e-3", "--gamma-rs", "1"]].concat(), "`--gamma-rs`"),
-        (vec![&track[..], &["--l-s", "-1"]].concat(), "`--l-s`"),
-        (vec![&track[..], &["--l-s", "4.5e-3", "--observer-gain", "-2"]].concat(), "`--observer-gain`"),
+        ([&track[..], &["--l-s", "4.5e-3", "--gamma-ke", "-1"]].concat(), "`--gamma-ke`"),
+        ([&track[..], &["--l-s", "4.5e-3", "--gamma-rs", "1"]].concat(), "`--gamma-rs`"),
+        ([&track[..], &["--l-s", "-1"]].concat(), "`--l-s`"),
+        ([&track[..], &["--l-s", "4.5e-3", "--observer-gain", "-2"]].concat(), "`--observer-gain`"),
         (vec!["track", SAMPLE, "-p", "0", "--l-s", "4.5e-3"], "`--pole-pairs`"),
-        (vec![&track[..], &["--l-s", "4.5e-3", "--json", SAMPLE]].concat(), "`--json`"),
+        ([&track[..], &["--l-s", "4.5e-3", "--json", SAMPLE]].concat(), "`--json`"),
         (vec!["validate", SAMPLE, "--params", SAMPLE, "--json", SAMPLE], "`--json`"),
         (vec!["simulate", "--scenario", "exp9", "-o", missing], "`--scenario`"),
         (vec!["simulate", "--scenario", "exp1", "-o", missing], "`--output`"),
