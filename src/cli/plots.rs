@@ -75,14 +75,14 @@ fn context<'a>(speeds: &'a [&'a [f64]]) -> Context<'a> {
     Context { name: "w_m", unit: "rad/s, mechanical", per_log: speeds }
 }
 
-/// The truth of a log from the JSON beside it: a `greybox simulate` truth (`k_e`,
-/// `start.r_s`) or a dataset description (`Ke_project_Vs_per_rad_mech`, `Rs_ohm`);
-/// `None` when there is none or it has neither.
+/// The truth of a log from the JSON `greybox simulate` wrote beside it (`k_e`,
+/// `start.r_s`); `None` when there is none or it is not one (another tool's description
+/// of a log is not read: the plot shows no truth then).
 fn truth(log: &Path) -> Option<TrackTruth> {
     let text = std::fs::read_to_string(DriveLog::truth_path(log)).ok()?;
     let v: serde_json::Value = serde_json::from_str(&text).ok()?;
-    let k_e = v.get("k_e").or_else(|| v.get("Ke_project_Vs_per_rad_mech"))?.as_f64()?;
-    let r_s = v.pointer("/start/r_s").or_else(|| v.get("Rs_ohm"))?.as_f64()?;
+    let k_e = v.get("k_e")?.as_f64()?;
+    let r_s = v.pointer("/start/r_s")?.as_f64()?;
     Some(TrackTruth { k_e, r_s })
 }
 

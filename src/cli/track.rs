@@ -79,9 +79,13 @@ pub struct TrackArgs {
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Write the observer plot (SVG) to this file: K_e (K_t) and R_s over time, with the
-    /// truth when a truth JSON lies beside the log (`LOG.json`).
+    /// truth when the log was written by `greybox simulate` (its truth JSON `LOG.json`
+    /// beside it).
     #[arg(long, value_name = "PATH.svg")]
     pub plot: Option<PathBuf>,
+    /// Print nothing on stdout (the JSON and the plot are still written).
+    #[arg(long, short = 'q')]
+    pub quiet: bool,
     #[command(flatten)]
     pub columns: ColumnArgs,
 }
@@ -118,7 +122,7 @@ pub fn run_track(a: &TrackArgs) -> greybox::Result<()> {
     let runs: Vec<(String, Trajectory)> =
         runs.into_iter().map(|(p, t)| (p.display().to_string(), t)).collect();
     let to_stdout = a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
-    if !to_stdout {
+    if !to_stdout && !a.quiet {
         for (name, tr) in &runs {
             let f = &tr.final_estimate;
             println!(

@@ -109,10 +109,12 @@ mod svg {
             "r_s",
             "l_s",
             "k_e",
-            // the estimates with their units
+            // the estimates with their units, SI-prefixed
             "r_s = ",
-            "ohm",
-            "V s/rad",
+            "mΩ",
+            "mH",
+            "mV s/rad",
+            "lags outside ±1.96/√N",
         ] {
             assert!(text.contains(label), "the fit plot lacks `{label}`");
         }

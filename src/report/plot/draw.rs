@@ -186,8 +186,9 @@ pub(crate) fn range(values: impl IntoIterator<Item = f64>) -> Range<f64> {
     lo - pad..hi + pad
 }
 
-/// A tick label on an axis spanning `span`: at most 4 significant digits, exponent form
-/// outside [1e-3, 1e5), and 0 for what rounding left of zero (below 10⁻⁹ of the span).
+/// A tick label on an axis spanning `span`: 4 significant digits, or as many more as
+/// tell ticks `span/8` apart; exponent form outside [1e-3, 1e5), and 0 for what rounding
+/// left of zero (below 10⁻⁹ of the span).
 pub(crate) fn tick(v: f64, span: f64) -> String {
     if v == 0.0 || v.abs() < 1e-9 * span.abs() {
         return "0".into();
@@ -196,7 +197,12 @@ pub(crate) fn tick(v: f64, span: f64) -> String {
     if !(1e-3..1e5).contains(&a) {
         return format!("{v:.2e}");
     }
-    let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+    // Four significant digits, or more when the ticks are closer than that resolves
+    // (0.53885, 0.5389, 0.53895 on a span of 2e-4).
+    let by_size = 3 - a.log10().floor() as i32;
+    let step = span.abs() / 8.0;
+    let by_step = if step > 0.0 && step.is_finite() { 1 - step.log10().floor() as i32 } else { 0 };
+    let decimals = by_size.max(by_step).clamp(0, 12) as usize;
     let s = format!("{v:.decimals$}");
     if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
 }
@@ -212,4 +218,22 @@ pub(crate) fn value(v: f64) -> String {
     }
     let decimals = if a == 0.0 { 0 } else { (4 - a.log10().floor() as i32).max(0) as usize };
     format!("{v:.decimals$}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::tick;
+
+    #[test]
+    fn ticks_tell_neighbours_apart() {
+        // A narrow span around 0.5389: neighbouring ticks must differ as text.
+        let labels: Vec<String> = (0..5).map(|k| tick(0.53885 + 2.5e-5 * f64::from(k), 2e-4)).collect();
+        for w in labels.windows(2) {
+            assert_ne!(w[0], w[1], "{labels:?}");
+        }
+        assert_eq!(tick(0.5, 1.0), "0.5");
+        assert_eq!(tick(200.0, 400.0), "200");
+        assert_eq!(tick(1e-12, 10.0), "0");
+        assert_eq!(tick(4e-5, 8e-5), "4.00e-5");
+    }
 }

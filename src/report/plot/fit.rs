@@ -9,6 +9,7 @@ use super::{Context, plot_error, time};
 use crate::error::{Error, Result};
 use crate::estimate::FitResult;
 use crate::report::compare::WHITENESS_LAGS;
+use crate::report::eng::format_eng;
 use crate::report::{Comparison, Whiteness, metrics};
 use plotters::prelude::*;
 
@@ -39,7 +40,7 @@ pub fn fit_svg(fit: &FitResult, comparisons: &[Comparison], context: Option<&Con
         .zip(&fit.fit.rms_residual)
         .enumerate()
         .map(|(i, ((o, f), r))| {
-            format!("{o} {f:.2} % (rms residual {} {})", value(*r), comparisons[0].unit(i))
+            format!("{o} {f:.2} % (rms residual {})", format_eng(*r, comparisons[0].unit(i), 5))
         })
         .collect();
     let title = [
@@ -150,14 +151,18 @@ fn autocorrelation(area: &Area<'_>, outputs: &[String], whiteness: &[Whiteness])
     let grey = RGBColor(90, 90, 90).stroke_width(1);
     let mut keys: Vec<(String, Key)> = outputs
         .iter()
-        .zip(whiteness)
         .enumerate()
-        .map(|(o, (name, w))| {
-            (format!("{name} {:.0} % out", 100.0 * w.fraction_outside), Key::Line(color(o).stroke_width(2)))
-        })
+        .map(|(o, name)| (name.clone(), Key::Line(color(o).stroke_width(2))))
         .collect();
     keys.push(("±1.96/√N".into(), Key::Dashed(grey)));
-    let mut ch = chart(area, caption, &keys, x.clone(), y, "lag τ [samples]", "r(τ) [-]")?;
+    // The share of lags outside the bound goes under the axis, where there is room for it.
+    let outside: Vec<String> = outputs
+        .iter()
+        .zip(whiteness)
+        .map(|(name, w)| format!("{name} {:.0} %", 100.0 * w.fraction_outside))
+        .collect();
+    let x_desc = format!("lag τ [samples]   (lags outside ±1.96/√N: {})", outside.join(", "));
+    let mut ch = chart(area, caption, &keys, x.clone(), y, &x_desc, "r(τ) [-]")?;
     let n = whiteness.len().max(1) as f64;
     for (o, w) in whiteness.iter().enumerate() {
         let shift = (o as f64 - (n - 1.0) / 2.0) * 0.25;
@@ -248,14 +253,14 @@ fn estimates(area: &Area<'_>, free: &[&crate::estimate::ParameterEstimate]) -> D
                 PathElement::new(vec![(lo, y - 0.12), (lo, y + 0.12)], style),
                 PathElement::new(vec![(hi, y - 0.12), (hi, y + 0.12)], style),
             ])?;
-            format!("± {} {} (± {}  %)", value(p.ci95[1] - p.value), p.unit, value(hi))
+            format!("± {} (± {} %)", format_eng(p.ci95[1] - p.value, &p.unit, 2), value(hi))
         } else if p.at_bound {
             "(at a bound: no interval)".to_string()
         } else {
             "(no interval: not identifiable)".to_string()
         };
         ch.draw_series(std::iter::once(Circle::new((0.0, y), 4, style.filled())))?;
-        let label = format!("{name} = {} {}  {interval}", value(p.value), p.unit);
+        let label = format!("{name} = {}  {interval}", format_eng(p.value, &p.unit, 6));
         ch.draw_series(std::iter::once(Text::new(label, (-half * 0.97, y + 0.42), (FONT, 14).into_font())))?;
     }
     Ok(())

@@ -94,7 +94,7 @@ pub(super) fn draw(areas: &[Area<'_>], comparisons: &[Comparison], context: Opti
         let style = color(3).stroke_width(1);
         let keys = [
             (format!("ε {name}"), Key::Line(style.stroke_width(2))),
-            (format!("±2σ, σ = {} {unit}", super::draw::value(sigma)), Key::Band(band)),
+            (format!("±2σ, σ = {}", crate::report::eng::format_eng(sigma, unit, 5)), Key::Band(band)),
         ];
         let caption = format!("{name} residual (measured − simulated)");
         let y_desc = axis(&format!("ε {name}"), unit);
