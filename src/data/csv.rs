@@ -213,9 +213,12 @@ pub fn read_csv_many<P: AsRef<Path> + Sync>(paths: &[P], spec: &CsvSpec) -> Resu
 /// far). So the read stops at the first bad row (a chunk's too-long line is found before
 /// its rows are parsed, as by a streaming reader that bounds lines before it parses them)
 /// and its memory is the wanted columns of the rows accepted, plus 32 chunks (8 MiB read
-/// ahead or being parsed) and one line.
+/// ahead or being parsed, their buffers reused) and one line. The columns are reserved
+/// for the rows the file's size predicts (for gzip the size it records, believed only up
+/// to 32 times the stored file), so that they grow about once instead of doubling; the
+/// capacity not yet filled is address space, not memory in use.
 /// Errors quote at most [`QUOTE_CHARS`] characters of a cell. Unwanted columns may hold
-/// anything, even share a name.
+/// anything, even share a name: their cells are skipped (delimiters counted), never parsed.
 ///
 /// # Errors
 /// - [`Error::Io`] with the path if the file cannot be opened, read or decompressed;

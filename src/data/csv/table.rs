@@ -34,11 +34,10 @@ pub(super) struct State<'a> {
     /// Line of the next record: one plus the `\n` up to the break that ended the last one.
     pub next_line: u64,
     /// Bytes of data merged by the fast path, and what the file says it holds in all
-    /// (uncompressed) and as stored: the columns are reserved once from these.
+    /// (uncompressed) and as stored: the columns grow to the rows these predict.
     merged_bytes: u64,
     size_hint: Option<u64>,
     stored: Option<u64>,
-    reserved: bool,
 }
 
 pub(super) fn read(
@@ -63,7 +62,6 @@ pub(super) fn read(
         merged_bytes: 0,
         size_hint: None,
         stored: None,
-        reserved: false,
     };
     std::thread::scope(|scope| {
         let stream = source::spawn(scope, path, limits.max_line_bytes).map_err(io_err)?;
@@ -259,8 +257,9 @@ impl State<'_> {
                 });
             }
         }
-        if !self.reserved {
-            self.reserve(chunk.len() as u64, p.rows);
+        let need = self.rows + p.rows;
+        if self.values.iter().zip(layout.index).any(|(v, i)| i.is_some() && v.capacity() < need) {
+            self.reserve(chunk.len() as u64, need, layout.index);
         }
         for (v, c) in self.values.iter_mut().zip(&p.columns) {
             v.extend_from_slice(c);
@@ -274,33 +273,30 @@ impl State<'_> {
         Ok(())
     }
 
-    /// Reserves the wanted columns for the rows the file holds, estimated from its size
-    /// and the bytes per row of the first chunk (a 2 % margin): the columns then grow
-    /// once instead of doubling (each doubling copies them and faults fresh pages). The
-    /// estimate is a hint only: it never passes `max_rows`, and a gzip file's recorded
-    /// size (anyone can write it) is believed only while the columns stay within 32
-    /// times the stored file.
-    fn reserve(&mut self, bytes: u64, rows: usize) {
-        let (Some(size), Some(stored)) = (self.size_hint, self.stored) else {
-            self.reserved = true;
-            return;
-        };
-        if rows < 16 {
-            // Too few rows to tell the bytes per row; the next chunk will.
-            return;
-        }
-        self.reserved = true;
-        let per_row = (self.merged_bytes + bytes) as f64 / (self.rows + rows) as f64;
-        let estimate = (size as f64 / per_row * 1.02) as u64 + 64;
-        let present = self.index.iter().flatten().count().max(1) as u64;
-        let total = estimate.min(self.limits.max_rows);
-        if total.saturating_mul(8 * present) > stored.saturating_mul(32) {
+    /// Grows the wanted columns (header positions `index`), too short for `need` rows once this chunk of `bytes` is
+    /// merged, to the rows the file holds as predicted from its size and the bytes per row
+    /// so far (2 % more): the columns then grow about once instead of doubling (each
+    /// doubling copies them and faults in fresh pages, a tenth of the read). Never less
+    /// than a quarter more than `need`, so that growth stays geometric whatever the
+    /// prediction. A prediction is a hint only: it never passes `max_rows`, and nothing is
+    /// reserved (the columns double as they fill) when it is below `need`, or would take
+    /// more than 32 times the stored file (a gzip file's recorded size is anyone's word).
+    fn reserve(&mut self, bytes: u64, need: usize, index: &[Option<usize>]) {
+        let (Some(size), Some(stored)) = (self.size_hint, self.stored) else { return };
+        let seen = self.merged_bytes + bytes;
+        if seen >= size || need == 0 {
             return;
         }
-        let more = usize::try_from(total).unwrap_or(0).saturating_sub(self.rows);
-        for (v, i) in self.values.iter_mut().zip(&self.index) {
+        let predicted = (need as f64 * size as f64 / seen as f64 * 1.02) as u64 + 64;
+        let rows = predicted.max(need as u64 + need as u64 / 4).min(self.limits.max_rows);
+        let present = index.iter().flatten().count() as u64;
+        if rows <= need as u64 || rows.saturating_mul(8 * present) > stored.saturating_mul(32) {
+            return;
+        }
+        let rows = usize::try_from(rows).unwrap_or(need);
+        for (v, i) in self.values.iter_mut().zip(index) {
             if i.is_some() {
-                v.reserve_exact(more);
+                v.reserve_exact(rows.saturating_sub(v.len()));
             }
         }
     }
