@@ -2,6 +2,7 @@
 //! frames and scaling, read limits; mapped to the library's [`CsvOptions`].
 
 use clap::{Args, ValueEnum};
+use greybox::data::csv::Delimiter;
 use greybox::pmsm::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
 
 #[derive(Args, Debug)]
@@ -69,6 +70,9 @@ pub struct ColumnArgs {
     /// Most data rows in a log (default 10^8).
     #[arg(long, default_value_t = greybox::data::csv::ReadLimits::default().max_rows)]
     pub max_rows: u64,
+    /// Field delimiter of CSV logs: `,` `;` `tab` (or `\t`) `|`; Parquet/Arrow ignore it.
+    #[arg(long, default_value = ",", value_parser = |s: &str| s.parse::<Delimiter>().map_err(|e| e.to_string()))]
+    pub delimiter: Delimiter,
 }
 
 /// Three phase column names `a, b, c`.
@@ -156,6 +160,7 @@ impl ColumnArgs {
                 max_rows: self.max_rows,
             },
             force: self.force,
+            delimiter: self.delimiter,
         }
     }
 }

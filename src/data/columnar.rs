@@ -20,7 +20,7 @@
 use std::path::Path;
 
 use super::Experiment;
-use super::csv::{ReadLimits, Table};
+use super::csv::{Delimiter, ReadLimits, Table};
 // Without the feature only `without_feature` builds an error; the docs link it either way.
 #[cfg_attr(feature = "parquet", allow(unused_imports))]
 use crate::error::Error;
@@ -62,7 +62,7 @@ impl Format {
 
 /// Parses the columns `wanted` (`(header name, required)`, the first the time column) of a
 /// log in any [`Format`], by extension: a CSV file through
-/// [`crate::data::csv::read_table`], a columnar one through the Arrow readers (only the
+/// [`crate::data::csv::read_table`] with its fields separated by `delimiter`, a columnar one through the Arrow readers (only the
 /// wanted columns are decoded; Parquet row groups in parallel).
 ///
 /// # Errors
@@ -74,10 +74,15 @@ impl Format {
 /// [`Error::DuplicateColumn`], [`Error::MissingColumn`] as for CSV; [`Error::ColumnType`]
 /// naming a wanted column that is not numeric; [`Error::NonFinite`] naming the column and
 /// 0-based row of the first NaN/Inf; [`Error::NonUniformTime`] for a bad time step.
-pub fn read_table(path: impl AsRef<Path>, wanted: &[(&str, bool)], limits: &ReadLimits) -> Result<Table> {
+pub fn read_table(
+    path: impl AsRef<Path>,
+    wanted: &[(&str, bool)],
+    limits: &ReadLimits,
+    delimiter: Delimiter,
+) -> Result<Table> {
     let path = path.as_ref();
     match Format::of(path) {
-        Format::Csv => super::csv::read_table(path, wanted, limits),
+        Format::Csv => super::csv::read_table(path, wanted, limits, delimiter),
         #[cfg(feature = "parquet")]
         format => arrow_io::read(path, format, wanted, limits),
         #[cfg(not(feature = "parquet"))]
@@ -141,7 +146,7 @@ mod tests {
     fn without_the_feature_a_columnar_file_names_it() {
         let path = std::env::temp_dir().join(format!("greybox-nofeature-{}.parquet", std::process::id()));
         std::fs::write(&path, b"PAR1").unwrap();
-        let err = read_table(&path, &[("t", true)], &ReadLimits::default()).unwrap_err();
+        let err = read_table(&path, &[("t", true)], &ReadLimits::default(), Delimiter::COMMA).unwrap_err();
         assert!(matches!(err, Error::Format { .. }) && err.to_string().contains("`parquet`"), "{err}");
         std::fs::remove_file(&path).ok();
         assert!(!Format::Parquet.available() && Format::Csv.available());

@@ -23,9 +23,11 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{Channel, Experiment};
+pub use delimiter::Delimiter;
 use line_limit::LineTooLong;
 
 mod chunk;
+mod delimiter;
 mod float;
 mod line_limit;
 mod quoted;
@@ -67,11 +69,19 @@ pub struct CsvSpec {
     pub columns: Vec<ColumnMap>,
     /// Bounds on line length, field count and rows (defaults a real log never reaches).
     pub limits: ReadLimits,
+    /// The field delimiter of a CSV file (default `,`); Parquet and Arrow files ignore it.
+    pub delimiter: Delimiter,
 }
 
 impl Default for CsvSpec {
     fn default() -> Self {
-        Self { time: "t".into(), time_scale: 1.0, columns: Vec::new(), limits: ReadLimits::default() }
+        Self {
+            time: "t".into(),
+            time_scale: 1.0,
+            columns: Vec::new(),
+            limits: ReadLimits::default(),
+            delimiter: Delimiter::default(),
+        }
     }
 }
 
@@ -152,7 +162,7 @@ pub fn read_csv(path: impl AsRef<Path>, spec: &CsvSpec) -> Result<Experiment> {
     }
     let mut wanted = vec![(spec.time.as_str(), true)];
     wanted.extend(spec.columns.iter().map(|c| (c.column.as_str(), c.required)));
-    let table = super::columnar::read_table(path, &wanted, &spec.limits)?;
+    let table = super::columnar::read_table(path, &wanted, &spec.limits, spec.delimiter)?;
     let mut cols = table.columns.into_iter();
     let mut t = cols.next().flatten().unwrap_or_default();
     t.iter_mut().for_each(|v| *v *= spec.time_scale);
@@ -187,13 +197,15 @@ pub fn read_csv_many<P: AsRef<Path> + Sync>(paths: &[P], spec: &CsvSpec) -> Resu
     results.into_iter().collect()
 }
 
-/// Parses the columns `wanted` (`(header name, required)`) of a CSV file, plain or gzip;
-/// the first is the time column `t_k`, checked as it streams.
+/// Parses the columns `wanted` (`(header name, required)`) of a CSV file, plain or gzip,
+/// its fields separated by `delimiter`; the first is the time column `t_k`, checked as it
+/// streams.
 ///
 /// A second thread reads (and gunzips) the file in line-aligned chunks of 256 KiB while
 /// the caller parses; chunks without a `"` are parsed in parallel batches (fields split at
-/// `,` and trimmed, numbers accepted and valued as `str::parse::<f64>` does, bit for bit,
-/// through `fast-float2` for plain decimals) and merged in order, and from the first chunk with a
+/// the delimiter and trimmed, numbers accepted and valued as `str::parse::<f64>` does, bit
+/// for bit, through `fast-float2` for plain decimals; an unwanted field is skipped, not
+/// parsed) and merged in order, and from the first chunk with a
 /// `"` on the `csv` parser takes over, so quoted fields, `""` escapes and line breaks in
 /// quotes read as the `csv` crate reads them. Either way, each row is checked in order as
 /// it is merged: a wanted field must be a finite number and the time column must pass
@@ -201,15 +213,21 @@ pub fn read_csv_many<P: AsRef<Path> + Sync>(paths: &[P], spec: &CsvSpec) -> Resu
 /// far). So the read stops at the first bad row (a chunk's too-long line is found before
 /// its rows are parsed, as by a streaming reader that bounds lines before it parses them)
 /// and its memory is the wanted columns of the rows accepted, plus 32 chunks (8 MiB read
-/// ahead or being parsed) and one line.
+/// ahead or being parsed, their buffers reused) and one line. The columns are reserved
+/// for the rows the file's size predicts (for gzip the size it records, believed only up
+/// to 32 times the stored file), so that they grow about once instead of doubling; the
+/// capacity not yet filled is address space, not memory in use.
 /// Errors quote at most [`QUOTE_CHARS`] characters of a cell. Unwanted columns may hold
-/// anything, even share a name.
+/// anything, even share a name: their cells are skipped (delimiters counted), never parsed.
 ///
 /// # Errors
 /// - [`Error::Io`] with the path if the file cannot be opened, read or decompressed;
 /// - [`Error::LimitExceeded`] naming the line where a line's length, the header's field
 ///   count or the number of rows passes `limits`;
 /// - [`Error::TooShort`] for an empty file or a header without any name;
+/// - [`Error::Csv`] (line of the header) for a header of one field that holds another of
+///   the [`Delimiter`]s while a required column is missing: the message names that
+///   delimiter (`read the file with the delimiter `;` (`--delimiter ';'`)`);
 /// - [`Error::DuplicateColumn`] for a wanted name that appears twice in the header, with
 ///   both 1-based positions;
 /// - [`Error::MissingColumn`] naming the first required column not in the header and
@@ -222,8 +240,13 @@ pub fn read_csv_many<P: AsRef<Path> + Sync>(paths: &[P], spec: &CsvSpec) -> Resu
 ///   time step.
 ///
 /// Never panics.
-pub fn read_table(path: impl AsRef<Path>, wanted: &[(&str, bool)], limits: &ReadLimits) -> Result<Table> {
-    table::read(path.as_ref(), wanted, limits)
+pub fn read_table(
+    path: impl AsRef<Path>,
+    wanted: &[(&str, bool)],
+    limits: &ReadLimits,
+    delimiter: Delimiter,
+) -> Result<Table> {
+    table::read(path.as_ref(), wanted, limits, delimiter)
 }
 
 /// Positions in `header` of the `wanted` columns (`(name, required)`), `None` for an

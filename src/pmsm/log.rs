@@ -89,7 +89,7 @@ pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experime
         wanted.push((&c.theta_m, false));
     }
     wanted.extend([(c.u_d_ref.as_str(), false), (c.u_q_ref.as_str(), false)]);
-    let table = match read_table(path, &wanted, &options.limits) {
+    let table = match read_table(path, &wanted, &options.limits, options.delimiter) {
         Err(Error::TooShort { name, len, .. }) => {
             return Err(Error::TooShort { name, len, min: MIN_SAMPLES });
         }

@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use greybox::Error;
 use greybox::data::TimeSteps;
-use greybox::data::csv::{ReadLimits, Table, read_table};
+use greybox::data::csv::{Delimiter, ReadLimits, Table, read_table};
 use proptest::prelude::*;
 
 /// The reader as it was before the fast path (commit ad58799), errors as strings.
@@ -206,13 +206,13 @@ pub mod oracle {
     }
 }
 
-fn temp_path(ext: &str) -> PathBuf {
+pub fn temp_path(ext: &str) -> PathBuf {
     static COUNTER: AtomicUsize = AtomicUsize::new(0);
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
     std::env::temp_dir().join(format!("greybox-csvreader-{}-{n}.{ext}", std::process::id()))
 }
 
-fn gzip(bytes: &[u8]) -> Vec<u8> {
+pub fn gzip(bytes: &[u8]) -> Vec<u8> {
     let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
     enc.write_all(bytes).unwrap();
     enc.finish().unwrap()
@@ -223,7 +223,7 @@ fn gzip(bytes: &[u8]) -> Vec<u8> {
 fn same(bytes: &[u8], gz: bool, wanted: &[(&str, bool)], limits: &ReadLimits) -> Result<(), String> {
     let path = temp_path(if gz { "csv.gz" } else { "csv" });
     std::fs::write(&path, if gz { gzip(bytes) } else { bytes.to_vec() }).unwrap();
-    let new = read_table(&path, wanted, limits).map_err(|e| e.to_string());
+    let new = read_table(&path, wanted, limits, Delimiter::COMMA).map_err(|e| e.to_string());
     let old = oracle::read_table(&path, wanted, limits);
     std::fs::remove_file(&path).ok();
     match (&new, &old) {
@@ -251,7 +251,7 @@ fn cell() -> impl Strategy<Value = String> {
 
 /// Log-like texts: a header from `NAMES`, rows with a uniform time column (or not), cells
 /// of numbers and junk, line breaks `\n`, `\r\n` or `\r`, blank lines, a byte order mark.
-fn text() -> impl Strategy<Value = Vec<u8>> {
+pub fn text() -> impl Strategy<Value = Vec<u8>> {
     let header = proptest::collection::vec(proptest::sample::select(NAMES.to_vec()), 1..6);
     (header, 0usize..40, any::<bool>(), 0usize..3, any::<bool>(), any::<bool>()).prop_flat_map(
         |(h, rows, uniform, eol, bom, blank)| {
@@ -279,7 +279,7 @@ fn text() -> impl Strategy<Value = Vec<u8>> {
     )
 }
 
-fn limits() -> impl Strategy<Value = ReadLimits> {
+pub fn limits() -> impl Strategy<Value = ReadLimits> {
     (
         prop_oneof![Just(1u64 << 20), 4u64..80],
         prop_oneof![Just(4096usize), 1usize..6],
@@ -292,7 +292,7 @@ fn limits() -> impl Strategy<Value = ReadLimits> {
         })
 }
 
-fn wanted() -> impl Strategy<Value = Vec<(&'static str, bool)>> {
+pub fn wanted() -> impl Strategy<Value = Vec<(&'static str, bool)>> {
     proptest::collection::vec(
         (proptest::sample::select(vec!["t", "a", "b", "c", "\"a\"", "x"]), any::<bool>()),
         1..4,
@@ -319,7 +319,7 @@ proptest! {
         let field = format!(" ,{s}\n");
         let path = temp_path("csv");
         std::fs::write(&path, format!("t,x\n0,{s}\n").as_bytes()).unwrap();
-        let read = read_table(&path, &[("t", true), ("x", true)], &ReadLimits::default());
+        let read = read_table(&path, &[("t", true), ("x", true)], &ReadLimits::default(), Delimiter::COMMA);
         std::fs::remove_file(&path).ok();
         let ours = read.ok().and_then(|t| t.columns[1].as_ref().map(|c| c[0].to_bits()));
         // A field the reader refuses is either unparsable or not finite.
@@ -332,7 +332,8 @@ proptest! {
         if x.is_finite() {
             let path = temp_path("csv");
             std::fs::write(&path, format!("t,x,y\n0,{x},{x:e}\n").as_bytes()).unwrap();
-            let t = read_table(&path, &[("t", true), ("x", true), ("y", true)], &ReadLimits::default()).unwrap();
+            let wanted = [("t", true), ("x", true), ("y", true)];
+            let t = read_table(&path, &wanted, &ReadLimits::default(), Delimiter::COMMA).unwrap();
             std::fs::remove_file(&path).ok();
             prop_assert_eq!(t.columns[1].as_ref().unwrap()[0].to_bits(), bits);
             prop_assert_eq!(t.columns[2].as_ref().unwrap()[0].to_bits(), bits);

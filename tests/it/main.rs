@@ -12,6 +12,7 @@ mod coverage;
 mod criteria;
 mod csv_reader;
 mod data;
+mod delimiter;
 mod drive;
 mod errors;
 mod examples;

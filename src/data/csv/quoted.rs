@@ -48,6 +48,7 @@ impl<'s, 'a, 'r> Quoted<'s, 'a, 'r> {
             .has_headers(false)
             .flexible(true)
             .trim(csv::Trim::All)
+            .delimiter(s.delimiter.byte())
             .buffer_capacity(1 << 16)
             .from_reader(prefix.chain(limited));
         let mut record = csv::ByteRecord::new();
@@ -61,7 +62,8 @@ impl<'s, 'a, 'r> Quoted<'s, 'a, 'r> {
             };
             first_record = false;
             if header {
-                s.set_header(record.iter().map(|f| String::from_utf8_lossy(f).into_owned()).collect())?;
+                let names = record.iter().map(|f| String::from_utf8_lossy(f).into_owned()).collect();
+                s.set_header(names, line)?;
                 header = false;
                 continue;
             }
@@ -96,7 +98,7 @@ impl<'s, 'a, 'r> Quoted<'s, 'a, 'r> {
             s.rows += 1;
         }
         if header {
-            return s.set_header(Vec::new());
+            return s.set_header(Vec::new(), 1);
         }
         Ok(())
     }

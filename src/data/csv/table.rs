@@ -3,14 +3,14 @@
 //! each merged in order so that the first bad row stops the read.
 
 use std::path::Path;
-use std::sync::mpsc::Receiver;
+use std::sync::mpsc::{Receiver, Sender};
 
 use rayon::prelude::*;
 
 use super::chunk::{ChunkError, Layout, Line, Parsed, parse};
 use super::quoted::Quoted;
 use super::source::{self, AHEAD, Item};
-use super::{ReadLimits, Table, experiment_name, find_columns};
+use super::{Delimiter, ReadLimits, Table, experiment_name, find_columns};
 use crate::data::TimeSteps;
 use crate::error::{Error, Result};
 
@@ -19,6 +19,7 @@ pub(super) struct State<'a> {
     pub path: &'a Path,
     pub limits: &'a ReadLimits,
     pub wanted: &'a [(&'a str, bool)],
+    pub delimiter: Delimiter,
     /// The header's names (empty until it is read).
     pub header: Vec<String>,
     /// Header position of each wanted column.
@@ -32,14 +33,25 @@ pub(super) struct State<'a> {
     pub newlines: u64,
     /// Line of the next record: one plus the `\n` up to the break that ended the last one.
     pub next_line: u64,
+    /// Bytes of data merged by the fast path, and what the file says it holds in all
+    /// (uncompressed) and as stored: the columns grow to the rows these predict.
+    merged_bytes: u64,
+    size_hint: Option<u64>,
+    stored: Option<u64>,
 }
 
-pub(super) fn read(path: &Path, wanted: &[(&str, bool)], limits: &ReadLimits) -> Result<Table> {
+pub(super) fn read(
+    path: &Path,
+    wanted: &[(&str, bool)],
+    limits: &ReadLimits,
+    delimiter: Delimiter,
+) -> Result<Table> {
     let io_err = |source| Error::Io { path: path.to_path_buf(), source };
     let mut s = State {
         path,
         limits,
         wanted,
+        delimiter,
         header: Vec::new(),
         index: Vec::new(),
         values: vec![Vec::new(); wanted.len()],
@@ -47,20 +59,25 @@ pub(super) fn read(path: &Path, wanted: &[(&str, bool)], limits: &ReadLimits) ->
         rows: 0,
         newlines: 0,
         next_line: 1,
+        merged_bytes: 0,
+        size_hint: None,
+        stored: None,
     };
     std::thread::scope(|scope| {
-        let rx = source::spawn(scope, path, limits.max_line_bytes).map_err(io_err)?;
+        let stream = source::spawn(scope, path, limits.max_line_bytes).map_err(io_err)?;
+        (s.size_hint, s.stored) = (stream.size_hint, stream.stored);
+        let (rx, recycle) = (&stream.rx, &stream.recycle);
         let mut header = true;
         let mut first = true;
         loop {
             let chunk = match rx.recv() {
                 Ok(Ok(chunk)) => chunk,
                 Ok(Err(e)) => return Err(io_err(e)),
-                Err(_) if header => return s.set_header(Vec::new()),
+                Err(_) if header => return s.set_header(Vec::new(), 1),
                 Err(_) => break,
             };
             if memchr::memchr(b'"', &chunk).is_some() {
-                Quoted::new(&mut s, chunk, &rx, header, first).run()?;
+                Quoted::new(&mut s, chunk, rx, header, first).run()?;
                 break;
             }
             if header {
@@ -70,10 +87,10 @@ pub(super) fn read(path: &Path, wanted: &[(&str, bool)], limits: &ReadLimits) ->
                 };
                 header = false;
                 first = false;
-                if !s.batch(vec![rest], &rx)? {
+                if !s.batch(vec![rest], rx, recycle)? {
                     break;
                 }
-            } else if !s.batch(vec![chunk], &rx)? {
+            } else if !s.batch(vec![chunk], rx, recycle)? {
                 break;
             }
         }
@@ -91,7 +108,7 @@ impl State<'_> {
     /// breaks, else the rest of the chunk after the header's line break.
     fn header_chunk(&mut self, chunk: Vec<u8>, first: bool) -> Result<Option<Vec<u8>>> {
         // A streaming reader checks line lengths before it parses (see `ChunkError::TooLong`).
-        let layout = Layout { fields: 0, index: &[], max_line: self.limits.max_line_bytes };
+        let layout = Layout::new(0, &[], self.limits.max_line_bytes, self.delimiter.byte());
         if let Some(ChunkError::TooLong { newlines }) = parse(&chunk, &layout, 0).error {
             return Err(self.too_long(self.newlines + newlines));
         }
@@ -109,26 +126,48 @@ impl State<'_> {
             return Ok(None);
         }
         let end = memchr::memchr2(b'\n', b'\r', &chunk[pos..]).map_or(chunk.len(), |p| pos + p);
-        let fields = chunk[pos..end]
-            .split(|&b| b == b',')
-            .map(|f| String::from_utf8_lossy(f.trim_ascii()).into_owned());
-        self.set_header(fields.collect())?;
+        let d = self.delimiter.byte();
+        let fields =
+            chunk[pos..end].split(|&b| b == d).map(|f| String::from_utf8_lossy(f.trim_ascii()).into_owned());
+        self.set_header(fields.collect(), 1 + self.newlines)?;
         let newline = chunk.get(end) == Some(&b'\n');
         self.newlines += u64::from(newline);
         self.next_line = 1 + self.newlines;
         Ok(Some(chunk.get(end + 1..).unwrap_or_default().to_vec()))
     }
 
-    /// Checks the header ([`find_columns`]) and keeps it.
-    pub(super) fn set_header(&mut self, header: Vec<String>) -> Result<()> {
-        self.index = find_columns(self.path, &header, self.wanted, self.limits)?;
+    /// Checks the header ([`find_columns`]), found on 1-based line `line`, and keeps it.
+    ///
+    /// A header of one field that holds another delimiter (`t;ud;uq` read with `,`) fails
+    /// with [`Error::Csv`] suggesting that delimiter, rather than as a missing column.
+    pub(super) fn set_header(&mut self, header: Vec<String>, line: u64) -> Result<()> {
+        let index = find_columns(self.path, &header, self.wanted, self.limits);
+        if let (Err(Error::MissingColumn { .. }), [only]) = (&index, header.as_slice())
+            && let Some(d) =
+                Delimiter::ALL.into_iter().find(|d| *d != self.delimiter && only.contains(d.byte() as char))
+        {
+            let message = format!(
+                "the header is one field, {}, which holds `{}`: read the file with the delimiter `{d}` \
+                 (`--delimiter '{d}'`), not `{}`",
+                super::quote(only.as_bytes()),
+                if d == Delimiter::TAB { "\\t" } else { d.name() },
+                self.delimiter,
+            );
+            return Err(Error::Csv { path: self.path.to_path_buf(), line, message });
+        }
+        self.index = index?;
         self.header = header;
         Ok(())
     }
 
     /// Parses `batch` and whatever more chunks are already waiting (up to [`AHEAD`], none
     /// with a `"`), in parallel, and merges them in order. `Ok(false)` at the end of the data.
-    fn batch(&mut self, mut batch: Vec<Vec<u8>>, rx: &Receiver<Item>) -> Result<bool> {
+    fn batch(
+        &mut self,
+        mut batch: Vec<Vec<u8>>,
+        rx: &Receiver<Item>,
+        recycle: &Sender<Vec<u8>>,
+    ) -> Result<bool> {
         let mut tail = None;
         while batch.len() < AHEAD {
             match rx.try_recv() {
@@ -146,7 +185,7 @@ impl State<'_> {
         }
         let index = std::mem::take(&mut self.index);
         let layout =
-            Layout { fields: self.header.len(), index: &index, max_line: self.limits.max_line_bytes };
+            Layout::new(self.header.len(), &index, self.limits.max_line_bytes, self.delimiter.byte());
         let cap = self.cap();
         let parsed: Vec<Parsed> = if batch.len() == 1 {
             vec![parse(&batch[0], &layout, cap)]
@@ -156,6 +195,10 @@ impl State<'_> {
         let merged = batch.iter().zip(parsed).try_for_each(|(chunk, p)| self.merge(chunk, p, &layout));
         self.index = index;
         merged?;
+        for chunk in batch {
+            // The reading thread may have ended: then the buffer is simply dropped.
+            recycle.send(chunk).ok();
+        }
         match tail {
             None => Ok(true),
             Some(Err(e)) => Err(Error::Io { path: self.path.to_path_buf(), source: e }),
@@ -214,15 +257,48 @@ impl State<'_> {
                 });
             }
         }
+        let need = self.rows + p.rows;
+        if self.values.iter().zip(layout.index).any(|(v, i)| i.is_some() && v.capacity() < need) {
+            self.reserve(chunk.len() as u64, need, layout.index);
+        }
         for (v, c) in self.values.iter_mut().zip(&p.columns) {
             v.extend_from_slice(c);
         }
         self.rows += p.rows;
+        self.merged_bytes += chunk.len() as u64;
         if let Some(n) = p.last_break {
             self.next_line = base + n;
         }
         self.newlines += p.newlines;
         Ok(())
+    }
+
+    /// Grows the wanted columns (header positions `index`), too short for `need` rows once this chunk of `bytes` is
+    /// merged, to the rows the file holds as predicted from its size and the bytes per row
+    /// so far (2 % more): the columns then grow about once instead of doubling (each
+    /// doubling copies them and faults in fresh pages, a tenth of the read). Never less
+    /// than a quarter more than `need`, so that growth stays geometric whatever the
+    /// prediction. A prediction is a hint only: it never passes `max_rows`, and nothing is
+    /// reserved (the columns double as they fill) when it is below `need`, or would take
+    /// more than 32 times the stored file (a gzip file's recorded size is anyone's word).
+    fn reserve(&mut self, bytes: u64, need: usize, index: &[Option<usize>]) {
+        let (Some(size), Some(stored)) = (self.size_hint, self.stored) else { return };
+        let seen = self.merged_bytes + bytes;
+        if seen >= size || need == 0 {
+            return;
+        }
+        let predicted = (need as f64 * size as f64 / seen as f64 * 1.02) as u64 + 64;
+        let rows = predicted.max(need as u64 + need as u64 / 4).min(self.limits.max_rows);
+        let present = index.iter().flatten().count() as u64;
+        if rows <= need as u64 || rows.saturating_mul(8 * present) > stored.saturating_mul(32) {
+            return;
+        }
+        let rows = usize::try_from(rows).unwrap_or(need);
+        for (v, i) in self.values.iter_mut().zip(index) {
+            if i.is_some() {
+                v.reserve_exact(rows.saturating_sub(v.len()));
+            }
+        }
     }
 
     pub(super) fn too_long(&self, newlines: u64) -> Error {

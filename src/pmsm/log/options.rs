@@ -1,7 +1,7 @@
 //! The options of the PMSM log reader: column names, units, frames and scaling, the
 //! source of the dq signals, read limits and the sample-time plausibility range.
 
-use crate::data::csv::ReadLimits;
+use crate::data::csv::{Delimiter, ReadLimits};
 use serde::{Deserialize, Serialize};
 
 /// Header names of the columns a log may hold, one per signal; every name is remappable.
@@ -162,6 +162,9 @@ pub struct CsvOptions {
     /// Skip the plausibility limit on the sample time ([`MIN_SAMPLE_TIME`] ≤ h ≤
     /// [`MAX_SAMPLE_TIME`]). Default `false`.
     pub force: bool,
+    /// The field delimiter of a CSV log ([`Delimiter`]: `,` by default, `;`, tab or `|`);
+    /// Parquet and Arrow logs ignore it.
+    pub delimiter: Delimiter,
 }
 
 /// Shortest plausible sample time of a drive log: 100 ns (10 MHz, beyond any drive's
