@@ -10,7 +10,10 @@
 
 pub mod columnar;
 pub mod csv;
+pub mod segments;
 pub mod write;
+
+pub use segments::{GAP_FACTOR, TimeWindow, is_gap};
 
 use crate::error::{Error, Result};
 
