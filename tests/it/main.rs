@@ -36,5 +36,5 @@ mod spm;
 mod streamed;
 mod thermal;
 mod track;
-mod window;
 mod trust;
+mod window;
