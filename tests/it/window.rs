@@ -246,3 +246,28 @@ fn every_error_of_the_window_and_the_split_names_its_flag() {
     assert!(matches!(read_log(&log, &bad), Err(Error::InvalidOption { option, .. }) if option == "from"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The columnar readers skip their streaming time check the same way: a Parquet log with a
+/// pause is refused at the gap, or split at it.
+#[cfg(feature = "parquet")]
+#[test]
+fn a_parquet_log_with_a_gap_splits_as_a_csv_log() {
+    use greybox::data::{Channel, write::write_log};
+    let dir = temp_dir("parquet");
+    let e = read_log(Path::new(env!("CARGO_MANIFEST_DIR")).join(SAMPLE), &options()).unwrap();
+    // A second time column with a 0.3 s pause before row 5000.
+    let t: Vec<f64> =
+        (0..e.len()).map(|k| 0.6 + k as f64 * 1e-4 + if k < 5000 { 0.0 } else { 0.3 }).collect();
+    let path = dir.join("paused.parquet");
+    write_log(&path, &e.with_channel(Channel::new("t_pause", "s", t)).unwrap(), "t").unwrap();
+    let mut opts = options();
+    opts.columns.t = "t_pause".into();
+    let err = read_log(&path, &opts).unwrap_err();
+    assert!(matches!(&err, Error::NonUniformTime { row: 5000, .. }), "{err:?}");
+    assert!(err.to_string().contains("--split-gaps"), "{err}");
+    let log = read_log_segments(&path, &opts).unwrap();
+    let lengths: Vec<usize> = log.experiments.iter().map(|e| e.len()).collect();
+    assert_eq!(lengths, [5000, 15000]);
+    assert!(log.dropped.is_empty());
+    let _ = std::fs::remove_dir_all(&dir);
+}
