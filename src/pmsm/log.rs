@@ -86,14 +86,14 @@ pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experime
     let path = path.as_ref();
     let raw = Raw::read(path, options, !options.window.is_open())?;
     if options.window.is_open() {
-        let e = raw.build(0..raw.rows, None, options)?;
-        return plausible(path, e, options);
+        let rows = raw.rows;
+        return plausible(path, raw.into_experiment(0..rows, options)?, options);
     }
     let cut = raw.window(options)?;
     if let Some(next) = cut.segments.get(1) {
         return Err(raw.gap(next.start, cut.h, &options.columns.t));
     }
-    let e = raw.build(cut.segments[0].clone(), None, options)?;
+    let e = raw.into_experiment(cut.segments[0].clone(), options)?;
     plausible(path, e, options)
 }
 
@@ -246,10 +246,26 @@ impl Raw {
         }
     }
 
-    /// The experiment of rows `range`, named `name` (default: the log's name).
-    fn build(&self, range: Range<usize>, name: Option<String>, options: &CsvOptions) -> Result<Experiment> {
+    /// The experiment of rows `range` under the log's name, built from the columns
+    /// themselves (cut in place, not copied).
+    fn into_experiment(mut self, range: Range<usize>, options: &CsvOptions) -> Result<Experiment> {
+        let cols = std::mem::take(&mut self.cols)
+            .into_iter()
+            .map(|c| {
+                c.map(|mut v| {
+                    v.truncate(range.end);
+                    v.drain(..range.start);
+                    v
+                })
+            })
+            .collect();
+        build(self.name, cols, self.n_p, options)
+            .map_err(|e| rename_columns(e, &options.columns, range.start))
+    }
+
+    /// The experiment of rows `range` named `name`, from copies of the rows.
+    fn build(&self, range: Range<usize>, name: String, options: &CsvOptions) -> Result<Experiment> {
         let cols = self.cols.iter().map(|c| c.as_ref().map(|v| v[range.clone()].to_vec())).collect();
-        let name = name.unwrap_or_else(|| self.name.clone());
         build(name, cols, self.n_p, options).map_err(|e| rename_columns(e, &options.columns, range.start))
     }
 }

@@ -85,14 +85,18 @@ pub fn read_log_segments(path: impl AsRef<Path>, options: &CsvOptions) -> Result
             ),
         });
     }
-    let one = kept.len() == 1;
-    let experiments = kept
-        .into_iter()
-        .enumerate()
-        .map(|(k, range)| {
-            let name = if one { raw.name.clone() } else { format!("{}#{}", raw.name, k + 1) };
-            plausible(path, raw.build(range, Some(name), options)?, options)
-        })
-        .collect::<Result<Vec<_>>>()?;
-    Ok(LogSegments { name: raw.name.clone(), experiments, dropped })
+    let name = raw.name.clone();
+    let experiments = if let [range] = &kept[..] {
+        // One segment (the common case of a log without gaps): its rows cut in place.
+        vec![plausible(path, raw.into_experiment(range.clone(), options)?, options)?]
+    } else {
+        kept.into_iter()
+            .enumerate()
+            .map(|(k, range)| {
+                let e = raw.build(range, format!("{name}#{}", k + 1), options)?;
+                plausible(path, e, options)
+            })
+            .collect::<Result<Vec<_>>>()?
+    };
+    Ok(LogSegments { name, experiments, dropped })
 }
