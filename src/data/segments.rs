@@ -86,7 +86,7 @@ impl TimeWindow {
         {
             return Err(Error::InvalidOption {
                 option: "from".into(),
-                reason: format!("the window start {from} s is not before its end {to} s (--to)"),
+                reason: format!("the window start {from} s is not before its end {to} s"),
             });
         }
         Ok(())
