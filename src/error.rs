@@ -96,7 +96,8 @@ pub enum Error {
     },
     /// The time column is not uniformly sampled.
     #[error(
-        "time column `{column}` is not uniform at row {row}: step {dt:e} s, expected {expected:e} s (relative tolerance {tolerance:e})"
+        "time column `{column}` is not uniform at row {row}: step {dt:e} s, expected {expected:e} s (relative tolerance {tolerance:e}){}",
+        crate::data::segments::gap_hint(*.dt, *.expected)
     )]
     NonUniformTime {
         /// Time column name.
@@ -217,7 +218,7 @@ pub enum Error {
     /// A log's sample time is outside the plausible range (a unit mistake, e.g. a time
     /// column in ms read as s); `force` skips this check.
     #[error(
-        "{path}: sample time h = {h:e} s is outside the plausible range [{min:e} s, {max:e} s] (a time column in other units than s? `--force` skips the plausibility limits)"
+        "{path}: sample time h = {h:e} s is outside the plausible range [{min:e} s, {max:e} s] ({hint}`--force` skips the plausibility limits)"
     )]
     ImplausibleSampleTime {
         /// The log.
@@ -228,6 +229,9 @@ pub enum Error {
         min: f64,
         /// Largest plausible h \[s\].
         max: f64,
+        /// What would explain it, ending in `; `: the time unit that would make h plausible
+        /// (`the time column in ms? --time-unit ms gives h = 1e-4 s; `), or a question.
+        hint: String,
     },
     /// A columnar log (Parquet, Arrow IPC) that cannot be read or written: a malformed
     /// file, a missing value (null) in a wanted column, or a build without the cargo

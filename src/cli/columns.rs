@@ -1,9 +1,13 @@
 //! The CSV-reading flags shared by `fit`, `validate` and `track`: column names, units,
-//! frames and scaling, read limits; mapped to the library's [`CsvOptions`].
+//! frames and scaling, read limits, the time window and the split at gaps; mapped to the
+//! library's [`CsvOptions`].
 
 use clap::{Args, ValueEnum};
+use greybox::Experiment;
+use greybox::data::TimeWindow;
 use greybox::data::csv::Delimiter;
-use greybox::pmsm::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
+use greybox::pmsm::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit, TimeUnit};
+use std::path::PathBuf;
 
 #[derive(Args, Debug)]
 pub struct ColumnArgs {
@@ -58,6 +62,22 @@ pub struct ColumnArgs {
     /// Compute dq currents and voltages from the phase columns and the rotor angle.
     #[arg(long)]
     pub dq_from_phases: bool,
+    /// Unit of the time column (--col-t), converted to seconds before the window, the gap
+    /// check and the sample-time plausibility limits.
+    #[arg(long, value_enum, default_value_t = TimeUnitArg::S)]
+    pub time_unit: TimeUnitArg,
+    /// Keep only the samples with t >= SECONDS (inclusive; time after --time-unit). Must be
+    /// before --to; the window must hold at least 16 samples.
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub from: Option<f64>,
+    /// Keep only the samples with t <= SECONDS (inclusive; time after --time-unit).
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub to: Option<f64>,
+    /// Split each log at the gaps of its time column (a step back, or one longer than 1.5
+    /// times the median step) into segments fitted jointly, each with its own initial state,
+    /// named LOG#1, LOG#2, ...; segments under 16 samples are dropped with a warning.
+    #[arg(long)]
+    pub split_gaps: bool,
     /// Skip the plausibility limits (sample time h in [100 ns, 100 ms]).
     #[arg(long)]
     pub force: bool,
@@ -94,6 +114,13 @@ pub enum SpeedUnitArg {
     #[value(name = "rad/s", alias = "rad-s")]
     RadS,
     Rpm,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum TimeUnitArg {
+    S,
+    Ms,
+    Us,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -159,8 +186,82 @@ impl ColumnArgs {
                 max_fields: self.max_fields,
                 max_rows: self.max_rows,
             },
+            time_unit: match self.time_unit {
+                TimeUnitArg::S => TimeUnit::S,
+                TimeUnitArg::Ms => TimeUnit::Ms,
+                TimeUnitArg::Us => TimeUnit::Us,
+            },
+            window: TimeWindow { from: self.from, to: self.to },
             force: self.force,
             delimiter: self.delimiter,
         }
+    }
+
+    /// Reads `paths` with `csv` (from [`ColumnArgs::options`]): one experiment per log, or
+    /// with --split-gaps one per segment, named `LOG#1`, `LOG#2`, … (a log without gaps keeps
+    /// its name). `unique`: each log named by [`super::logs::unique_names`], else by its file
+    /// stem. A dropped segment is reported on stderr with its time span. Grouped by log, in
+    /// the order of `paths`.
+    ///
+    /// # Errors
+    /// The reader's, with the options named by their flags (`--from`, `--to`,
+    /// `--from/--to`, `--split-gaps`).
+    pub fn read_logs(
+        &self,
+        paths: &[PathBuf],
+        csv: &CsvOptions,
+        unique: bool,
+    ) -> greybox::Result<Vec<Vec<Experiment>>> {
+        let read = |p: &PathBuf| -> greybox::Result<greybox::pmsm::LogSegments> {
+            if self.split_gaps {
+                greybox::pmsm::read_log_segments(p, csv)
+            } else {
+                let e = greybox::pmsm::read_log(p, csv)?;
+                Ok(greybox::pmsm::LogSegments {
+                    name: e.name().to_string(),
+                    experiments: vec![e],
+                    dropped: vec![],
+                })
+            }
+        };
+        let logs = paths.iter().map(read).collect::<greybox::Result<Vec<_>>>().map_err(flag_words)?;
+        let stems: Vec<String> = logs.iter().map(|l| l.name.clone()).collect();
+        let names = if unique { super::logs::unique_names(paths, &stems) } else { stems };
+        let mut out = Vec::with_capacity(logs.len());
+        for ((log, name), path) in logs.into_iter().zip(names).zip(paths) {
+            for d in &log.dropped {
+                eprintln!(
+                    "warning: {}: the segment from t = {} s to {} s ({} samples, fewer than {}) is dropped, not fitted",
+                    path.display(),
+                    d.from,
+                    d.to,
+                    d.samples,
+                    greybox::pmsm::MIN_SAMPLES
+                );
+            }
+            let one = log.experiments.len() == 1;
+            let renamed = log.experiments.into_iter().enumerate().map(|(k, e)| {
+                if one { e.renamed(name.clone()) } else { e.renamed(format!("{name}#{}", k + 1)) }
+            });
+            out.push(renamed.collect());
+        }
+        Ok(out)
+    }
+}
+
+/// The reader's option names as the flags that set them.
+fn flag_words(e: greybox::Error) -> greybox::Error {
+    match e {
+        greybox::Error::InvalidOption { option, reason } => {
+            let flag = match option.as_str() {
+                "from" => "--from",
+                "to" => "--to",
+                "window" => "--from/--to",
+                "split_gaps" => "--split-gaps",
+                _ => return greybox::Error::InvalidOption { option, reason },
+            };
+            greybox::Error::InvalidOption { option: flag.into(), reason }
+        }
+        other => other,
     }
 }

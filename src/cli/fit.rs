@@ -39,11 +39,7 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
         });
     }
     super::logs::check_paths(&a.logs)?;
-    let logs =
-        a.logs.iter().map(|p| greybox::pmsm::read_log(p, &csv)).collect::<greybox::Result<Vec<_>>>()?;
-    let stems: Vec<String> = logs.iter().map(|e| e.name().to_string()).collect();
-    let names = super::logs::unique_names(&a.logs, &stems);
-    let logs: Vec<_> = logs.into_iter().zip(names).map(|(e, n)| e.renamed(n)).collect();
+    let logs: Vec<_> = a.columns.read_logs(&a.logs, &csv, true)?.into_iter().flatten().collect();
     let report_options = ReportOptions { current_scale: csv.current_scale };
     let read_s = t0.elapsed().as_secs_f64();
     let kind = match a.model {

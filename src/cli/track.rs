@@ -5,7 +5,7 @@ use super::args::ColumnArgs;
 use super::output;
 use clap::{Args, ValueEnum};
 use greybox::online::{Adaptation, MrasConfig, Trajectory, track};
-use greybox::pmsm::{CsvOptions, SavedModel, VoltageHold, read_log};
+use greybox::pmsm::{CsvOptions, SavedModel, VoltageHold};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 
@@ -110,17 +110,22 @@ pub fn run_track(a: &TrackArgs) -> greybox::Result<()> {
     super::plots::check(&[("plot", a.plot.as_ref())], &a.logs)?;
     let config = config(a)?;
     let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
-    let mut runs = Vec::with_capacity(a.logs.len());
-    for path in &a.logs {
-        let log = read_log(path, &csv)?;
-        let trajectory = track(&log, &config).map_err(|e| flag_error(e, path))?;
-        runs.push((path.clone(), trajectory));
+    let groups = a.columns.read_logs(&a.logs, &csv, false)?;
+    let (mut runs, mut names) = (Vec::with_capacity(a.logs.len()), Vec::with_capacity(a.logs.len()));
+    for (path, group) in a.logs.iter().zip(groups) {
+        // With --split-gaps, each segment is tracked on its own: `LOG#1`, `LOG#2`, ….
+        let one = group.len() == 1;
+        for (k, log) in group.iter().enumerate() {
+            let trajectory = track(log, &config).map_err(|e| flag_error(e, path))?;
+            let name = path.display().to_string();
+            names.push(if one { name } else { format!("{name}#{}", k + 1) });
+            runs.push((path.clone(), trajectory));
+        }
     }
     if let Some(plot) = &a.plot {
         super::plots::track_plot(plot, &runs)?;
     }
-    let runs: Vec<(String, Trajectory)> =
-        runs.into_iter().map(|(p, t)| (p.display().to_string(), t)).collect();
+    let runs: Vec<(String, Trajectory)> = runs.into_iter().zip(names).map(|((_, t), n)| (n, t)).collect();
     let to_stdout = a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
     if !to_stdout && !a.quiet {
         for (name, tr) in &runs {

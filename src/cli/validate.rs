@@ -3,7 +3,7 @@
 use super::args::ColumnArgs;
 use super::output;
 use clap::{Args, ValueEnum};
-use greybox::pmsm::{CsvOptions, SavedModel, VoltageHold, read_log};
+use greybox::pmsm::{CsvOptions, SavedModel, VoltageHold};
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
@@ -63,7 +63,7 @@ pub fn run_validate(a: &ValidateArgs) -> greybox::Result<()> {
     });
     let saved = SavedModel::from_json(&text, a.pole_pairs, hold)?;
     let csv = CsvOptions { pole_pairs: Some(saved.pole_pairs), ..a.columns.options() };
-    let logs = a.logs.iter().map(|p| read_log(p, &csv)).collect::<greybox::Result<Vec<_>>>()?;
+    let logs: Vec<_> = a.columns.read_logs(&a.logs, &csv, false)?.into_iter().flatten().collect();
     let comparisons = saved.validate(&logs)?;
     let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
     if !quiet {

@@ -10,7 +10,10 @@
 
 pub mod columnar;
 pub mod csv;
+pub mod segments;
 pub mod write;
+
+pub use segments::{GAP_FACTOR, TimeWindow, is_gap};
 
 use crate::error::{Error, Result};
 
@@ -210,6 +213,8 @@ pub const TIME_TOLERANCE: f64 = 0.25;
 /// [`TIME_TOLERANCE`] against its mean h has every step and every partial mean within
 /// `[0.75 h, 1.25 h]`, so the row-by-row test never refuses a column the final one accepts;
 /// it only names a grossly dropped or repeated sample early (a repeated row at row 1).
+/// A gap ([`is_gap`]) is an error here like any other bad step (its message says so and
+/// how to split the log); [`segments::time_segments`] cuts a column at its gaps instead.
 #[derive(Clone, Debug)]
 pub struct TimeSteps {
     column: String,

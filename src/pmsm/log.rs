@@ -14,20 +14,26 @@
 //! # Ok::<(), greybox::Error>(())
 //! ```
 
-use std::path::Path;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
 use super::interval::check_pole_pairs;
-use super::signals::{DqSignals, DqView, MIN_SAMPLES};
-use super::transform::{currents_to_dq, stator_held_voltages_to_dq};
+use super::signals::MIN_SAMPLES;
 use crate::data::Experiment;
 use crate::data::columnar::read_table;
 use crate::data::csv::name_excerpt;
+use crate::data::segments::{TimeSegments, time_segments};
 use crate::error::{Error, Result};
 
+mod build;
 mod options;
+mod split;
 pub use options::*;
+pub use split::{DroppedSegment, LogSegments, read_log_segments};
+
+use build::{build, rename_columns};
 
 /// Reads one PMSM drive log into a validated [`Experiment`] of N samples whose channels
 /// are named as in [`channel`](super::signals::channel).
@@ -38,7 +44,10 @@ pub use options::*;
 /// experiment's name is the file name without `.csv.gz` / `.csv` / `.parquet` …. Only the needed columns are parsed;
 /// the others may hold anything. Fields may be surrounded by blanks; `nan` and `inf` parse
 /// as numbers and are then rejected by validation. The sample time h \[s\] is the mean step
-/// of the time column, which must be uniform ([`Experiment::try_from_time`]).
+/// of the time column, which must be uniform ([`Experiment::try_from_time`]). The time
+/// column is in `options.time_unit`, divided into seconds first; `options.window` then keeps
+/// the rows with `from ≤ t ≤ to` \[s\] (both inclusive), and only those rows are checked
+/// and kept. Row numbers in errors count the file's data rows from 0 either way.
 ///
 /// # Errors
 /// - [`Error::InvalidPolePairs`] for `pole_pairs` outside `Some(1..=100)`, or `None` when
@@ -60,74 +69,32 @@ pub use options::*;
 ///   or ±Inf; [`Error::NonUniformTime`] for a time column that is not uniform (a dropped or
 ///   repeated sample), [`Error::InvalidSampleTime`] for a decreasing one;
 /// - [`Error::ImplausibleSampleTime`] naming the log for h outside
-///   [[`MIN_SAMPLE_TIME`], [`MAX_SAMPLE_TIME`]] = \[100 ns, 100 ms\], unless `options.force`.
+///   [[`MIN_SAMPLE_TIME`], [`MAX_SAMPLE_TIME`]] = \[100 ns, 100 ms\], unless `options.force`,
+///   with the time unit that would explain it (`--time-unit ms` for a column in ms read as
+///   s);
+/// - for a window (`options.window`): [`Error::InvalidOption`] with option `from` or `to`
+///   for a non-finite end or `from ≥ to` (before the file is opened), and option `window`
+///   for a window holding fewer than [`MIN_SAMPLES`] samples (saying how many it holds and
+///   the span of the log's time column).
+///
+/// A gap in the time column ([`crate::data::is_gap`]: a step back or longer than 1.5 h) is
+/// an [`Error::NonUniformTime`] whose message suggests `--split-gaps`; read such a log with
+/// [`read_log_segments`].
 ///
 /// Never panics. Source of the conventions: MODEL.md §1, §4.
 pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experiment> {
     let path = path.as_ref();
-    let needs_n_p = options.speed_frame == Frame::Electrical || options.source == DqSource::Phases;
-    let n_p = match options.pole_pairs {
-        Some(n_p) => {
-            check_pole_pairs(n_p)?;
-            n_p
-        }
-        None if needs_n_p => return Err(Error::InvalidPolePairs { n_p: 0 }),
-        None => 1,
-    };
-    let c = &options.columns;
-    let main: Vec<&String> = match options.source {
-        DqSource::Dq => vec![&c.u_d, &c.u_q, &c.i_d, &c.i_q],
-        DqSource::Phases => vec![&c.i_a, &c.i_b, &c.i_c, &c.u_a, &c.u_b, &c.u_c, &c.theta_m],
-    };
-    // Required columns in a fixed order: the error names the first one missing.
-    // The terminal voltage may be absent when the reference is logged (checked below).
-    let dq = options.source == DqSource::Dq;
-    let mut wanted: Vec<(&str, bool)> = vec![(&c.t, true)];
-    wanted.extend(main.iter().enumerate().map(|(i, n)| (n.as_str(), !(dq && i < 2))));
-    wanted.push((&c.w_m, true));
-    if options.source == DqSource::Dq {
-        wanted.push((&c.theta_m, false));
+    let raw = Raw::read(path, options, !options.window.is_open())?;
+    if options.window.is_open() {
+        let rows = raw.rows;
+        return plausible(path, raw.into_experiment(0..rows, options)?, options);
     }
-    wanted.extend([(c.u_d_ref.as_str(), false), (c.u_q_ref.as_str(), false)]);
-    let table = match read_table(path, &wanted, &options.limits, options.delimiter) {
-        Err(Error::TooShort { name, len, .. }) => {
-            return Err(Error::TooShort { name, len, min: MIN_SAMPLES });
-        }
-        other => other?,
-    };
-    if dq {
-        let has = |i: usize| table.columns[i].is_some();
-        let n = table.columns.len();
-        let (terminal, reference) = (has(1) && has(2), has(n - 2) && has(n - 1));
-        if !terminal && (!reference || has(1) || has(2)) {
-            let missing = if has(1) { &c.u_q } else { &c.u_d };
-            return Err(Error::MissingColumn {
-                path: path.to_path_buf(),
-                column: missing.clone(),
-                available: table
-                    .header
-                    .iter()
-                    .map(|h| name_excerpt(h.as_bytes()))
-                    .collect::<Vec<_>>()
-                    .join(", "),
-            });
-        }
+    let cut = raw.window(options)?;
+    if let Some(next) = cut.segments.get(1) {
+        return Err(raw.gap(next.start, cut.h, &options.columns.t));
     }
-    let rows = table.columns[0].as_ref().map_or(0, Vec::len);
-    if rows < MIN_SAMPLES {
-        return Err(Error::TooShort { name: table.name, len: rows, min: MIN_SAMPLES });
-    }
-    let e =
-        build(table.name, table.columns, n_p, options).map_err(|e| rename_columns(e, &options.columns))?;
-    if !options.force && !(MIN_SAMPLE_TIME..=MAX_SAMPLE_TIME).contains(&e.h()) {
-        return Err(Error::ImplausibleSampleTime {
-            path: path.to_path_buf(),
-            h: e.h(),
-            min: MIN_SAMPLE_TIME,
-            max: MAX_SAMPLE_TIME,
-        });
-    }
-    Ok(e)
+    let e = raw.into_experiment(cut.segments[0].clone(), options)?;
+    plausible(path, e, options)
 }
 
 /// Reads several logs with [`read_log`], in parallel, keeping the order of `paths`.
@@ -139,124 +106,195 @@ pub fn read_logs<P: AsRef<Path> + Sync>(paths: &[P], options: &CsvOptions) -> Re
     results.into_iter().collect()
 }
 
-/// Converts units, derives dq from phases if asked, and validates. `cols` are in the
-/// order of [`read_log`]'s request.
-fn build(name: String, cols: Vec<Option<Vec<f64>>>, n_p: u32, options: &CsvOptions) -> Result<Experiment> {
-    let phases = options.source == DqSource::Phases;
-    let mut cols = cols.into_iter();
-    let mut next = || cols.next().flatten();
-    let t = next().unwrap_or_default();
-    let main: Vec<Vec<f64>> = (0..if phases { 7 } else { 4 }).map(|_| next().unwrap_or_default()).collect();
-    let mut w_m = next().unwrap_or_default();
-    let mut theta_m = if phases { main.get(6).cloned() } else { next() };
-    let mut u_d_ref = next();
-    let mut u_q_ref = next();
+/// The wanted columns of one log as parsed, the time column (first) in seconds.
+struct Raw {
+    path: PathBuf,
+    name: String,
+    n_p: u32,
+    /// Data rows.
+    rows: usize,
+    /// In the order of the request (`t`, the main columns, `w_m`, …).
+    cols: Vec<Option<Vec<f64>>>,
+}
 
-    let frame = match options.speed_frame {
-        Frame::Mechanical => 1.0,
-        Frame::Electrical => 1.0 / f64::from(n_p),
-    };
-    let speed = frame
-        * match options.speed_unit {
-            SpeedUnit::RadPerSec => 1.0,
-            SpeedUnit::Rpm => std::f64::consts::PI / 30.0,
-        };
-    let angle = frame
-        * match options.angle_unit {
-            AngleUnit::Rad => 1.0,
-            AngleUnit::Deg => std::f64::consts::PI / 180.0,
-        };
-    let scale = |s: Scale| match s {
-        Scale::Peak => 1.0,
-        Scale::Rms => std::f64::consts::SQRT_2,
-    };
-    let (i_scale, u_scale) = (scale(options.current_scale), scale(options.voltage_scale));
-    scale_in_place(&mut w_m, speed);
-    if let Some(v) = theta_m.as_mut() {
-        scale_in_place(v, angle);
-    }
-    for v in [u_d_ref.as_mut(), u_q_ref.as_mut()].into_iter().flatten() {
-        scale_in_place(v, u_scale);
-    }
+/// A wanted name that no header holds: asked for first, it takes the place of the time
+/// column, whose streaming check ([`crate::data::TimeSteps`]) the readers then skip; the
+/// time column itself is read as an ordinary column and split or windowed here.
+const NO_TIME_CHECK: &str = "\u{0}greybox: time column checked after the read";
 
-    let (u_d, u_q, i_d, i_q) = match <[Vec<f64>; 4]>::try_from(main) {
-        Ok([mut u_d, mut u_q, mut i_d, mut i_q]) => {
-            scale_in_place(&mut u_d, u_scale);
-            scale_in_place(&mut u_q, u_scale);
-            scale_in_place(&mut i_d, i_scale);
-            scale_in_place(&mut i_q, i_scale);
-            (u_d, u_q, i_d, i_q)
+impl Raw {
+    /// Reads the wanted columns; `lenient`: without the readers' row-by-row time check
+    /// (for a window or a split at gaps, which check the rows they keep).
+    fn read(path: &Path, options: &CsvOptions, lenient: bool) -> Result<Self> {
+        options.window.check()?;
+        let needs_n_p = options.speed_frame == Frame::Electrical || options.source == DqSource::Phases;
+        let n_p = match options.pole_pairs {
+            Some(n_p) => {
+                check_pole_pairs(n_p)?;
+                n_p
+            }
+            None if needs_n_p => return Err(Error::InvalidPolePairs { n_p: 0 }),
+            None => 1,
+        };
+        let c = &options.columns;
+        let main: Vec<&String> = match options.source {
+            DqSource::Dq => vec![&c.u_d, &c.u_q, &c.i_d, &c.i_q],
+            DqSource::Phases => vec![&c.i_a, &c.i_b, &c.i_c, &c.u_a, &c.u_b, &c.u_c, &c.theta_m],
+        };
+        // Required columns in a fixed order: the error names the first one missing.
+        // The terminal voltage may be absent when the reference is logged (checked below).
+        let dq = options.source == DqSource::Dq;
+        let mut wanted: Vec<(&str, bool)> = if lenient { vec![(NO_TIME_CHECK, false)] } else { Vec::new() };
+        wanted.push((&c.t, true));
+        wanted.extend(main.iter().enumerate().map(|(i, n)| (n.as_str(), !(dq && i < 2))));
+        wanted.push((&c.w_m, true));
+        if options.source == DqSource::Dq {
+            wanted.push((&c.theta_m, false));
         }
-        Err(main) => {
-            let mut ph: Vec<Vec<f64>> = main.into_iter().take(6).collect();
-            for (k, v) in ph.iter_mut().enumerate() {
-                scale_in_place(v, if k < 3 { i_scale } else { u_scale });
+        wanted.extend([(c.u_d_ref.as_str(), false), (c.u_q_ref.as_str(), false)]);
+        let mut table = match read_table(path, &wanted, &options.limits, options.delimiter) {
+            Err(Error::TooShort { name, len, .. }) => {
+                return Err(Error::TooShort { name, len, min: MIN_SAMPLES });
             }
-            let th = theta_m.as_deref().unwrap_or_default();
-            // The transforms mix columns and neighbouring rows, so a NaN would surface
-            // under a dq name: report the raw column instead.
-            let c = &options.columns;
-            let names = [&c.i_a, &c.i_b, &c.i_c, &c.u_a, &c.u_b, &c.u_c, &c.theta_m, &c.w_m];
-            let cols = ph.iter().map(Vec::as_slice).chain([th, &w_m[..]]);
-            for (col, v) in names.into_iter().zip(cols) {
-                if let Some((row, &value)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
-                    return Err(Error::NonFinite { column: col.clone(), row, value });
-                }
-            }
-            let h = mean_step(&t);
-            let [i_a, i_b, i_c, u_a, u_b, u_c] = &ph[..] else {
-                return Err(Error::Numerical {
-                    context: "phase columns".into(),
-                    reason: "six expected".into(),
+            Err(Error::NonUniformTime { column, row, dt, expected, tolerance }) => {
+                // The reader saw the file's unit; the message says seconds.
+                let s = options.time_unit.per_second();
+                return Err(Error::NonUniformTime {
+                    column,
+                    row,
+                    dt: dt / s,
+                    expected: expected / s,
+                    tolerance,
                 });
-            };
-            let (i_d, i_q) = currents_to_dq(i_a, i_b, i_c, th, n_p)?;
-            let (u_d, u_q) = stator_held_voltages_to_dq(u_a, u_b, u_c, th, &w_m, h, n_p)?;
-            (u_d, u_q, i_d, i_q)
-        }
-    };
-    let signals = DqSignals { u_d, u_q, i_d, i_q, w_m, theta_m, u_d_ref, u_q_ref };
-    let e = Experiment::try_from_time(name, "t", &t, signals.into_channels())?;
-    DqView::try_new(&e)?;
-    Ok(e)
-}
-
-fn scale_in_place(v: &mut [f64], f: f64) {
-    if f != 1.0 {
-        v.iter_mut().for_each(|x| *x *= f);
-    }
-}
-
-/// `(t[N−1] − t[0])/(N − 1)`, or NaN below two samples (validation then rejects the log).
-fn mean_step(t: &[f64]) -> f64 {
-    match t {
-        [first, .., last] => (last - first) / (t.len() - 1) as f64,
-        _ => f64::NAN,
-    }
-}
-
-/// Replaces the library's signal names in validation errors by the configured header names.
-fn rename_columns(e: Error, c: &ColumnNames) -> Error {
-    let map = |col: String| -> String {
-        let configured = match col.as_str() {
-            "t" => &c.t,
-            "ud" => &c.u_d,
-            "uq" => &c.u_q,
-            "id" => &c.i_d,
-            "iq" => &c.i_q,
-            "w_m" => &c.w_m,
-            "theta_m" => &c.theta_m,
-            "ud_ref" => &c.u_d_ref,
-            "uq_ref" => &c.u_q_ref,
-            _ => return col,
+            }
+            other => other?,
         };
-        configured.clone()
-    };
-    match e {
-        Error::NonFinite { column, row, value } => Error::NonFinite { column: map(column), row, value },
-        Error::NonUniformTime { column, row, dt, expected, tolerance } => {
-            Error::NonUniformTime { column: map(column), row, dt, expected, tolerance }
+        if lenient {
+            table.columns.remove(0);
         }
-        other => other,
+        if dq {
+            let has = |i: usize| table.columns[i].is_some();
+            let n = table.columns.len();
+            let (terminal, reference) = (has(1) && has(2), has(n - 2) && has(n - 1));
+            if !terminal && (!reference || has(1) || has(2)) {
+                let missing = if has(1) { &c.u_q } else { &c.u_d };
+                return Err(Error::MissingColumn {
+                    path: path.to_path_buf(),
+                    column: missing.clone(),
+                    available: table
+                        .header
+                        .iter()
+                        .map(|h| name_excerpt(h.as_bytes()))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                });
+            }
+        }
+        let rows = table.columns[0].as_ref().map_or(0, Vec::len);
+        if rows < MIN_SAMPLES {
+            return Err(Error::TooShort { name: table.name, len: rows, min: MIN_SAMPLES });
+        }
+        let per_second = options.time_unit.per_second();
+        if let Some(t) = table.columns[0].as_mut().filter(|_| per_second != 1.0) {
+            t.iter_mut().for_each(|x| *x /= per_second);
+        }
+        Ok(Self { path: path.to_path_buf(), name: table.name, n_p, rows, cols: table.columns })
     }
+
+    /// The time column \[s\].
+    fn t(&self) -> &[f64] {
+        self.cols[0].as_deref().unwrap_or_default()
+    }
+
+    /// The rows of `options.window`, cut at the gaps.
+    ///
+    /// # Errors
+    /// [`Error::InvalidOption`] (option `window`) when the window holds fewer than
+    /// [`MIN_SAMPLES`] rows.
+    fn window(&self, options: &CsvOptions) -> Result<TimeSegments> {
+        let cut = time_segments(self.t(), &options.window);
+        if cut.in_window < MIN_SAMPLES {
+            let t = self.t();
+            let (first, last) =
+                (t.first().copied().unwrap_or(f64::NAN), t.last().copied().unwrap_or(f64::NAN));
+            return Err(Error::InvalidOption {
+                option: "window".into(),
+                reason: format!(
+                    "the window {} holds {} samples of {} (its time column, read in {}, runs from {first} s \
+                     to {last} s); at least {MIN_SAMPLES} are needed",
+                    options.window.describe(),
+                    cut.in_window,
+                    self.path.display(),
+                    options.time_unit.name(),
+                ),
+            });
+        }
+        Ok(cut)
+    }
+
+    /// The gap error at `row` for the reference step `h` \[s\] (its message suggests
+    /// splitting the log).
+    fn gap(&self, row: usize, h: f64, column: &str) -> Error {
+        let t = self.t();
+        let dt = if row > 0 { t[row] - t[row - 1] } else { f64::NAN };
+        Error::NonUniformTime {
+            column: column.to_string(),
+            row,
+            dt,
+            expected: h,
+            tolerance: crate::data::TIME_TOLERANCE,
+        }
+    }
+
+    /// The experiment of rows `range` under the log's name, built from the columns
+    /// themselves (cut in place, not copied).
+    fn into_experiment(mut self, range: Range<usize>, options: &CsvOptions) -> Result<Experiment> {
+        let cols = std::mem::take(&mut self.cols)
+            .into_iter()
+            .map(|c| {
+                c.map(|mut v| {
+                    v.truncate(range.end);
+                    v.drain(..range.start);
+                    v
+                })
+            })
+            .collect();
+        build(self.name, cols, self.n_p, options)
+            .map_err(|e| rename_columns(e, &options.columns, range.start))
+    }
+
+    /// The experiment of rows `range` named `name`, from copies of the rows.
+    fn build(&self, range: Range<usize>, name: String, options: &CsvOptions) -> Result<Experiment> {
+        let cols = self.cols.iter().map(|c| c.as_ref().map(|v| v[range.clone()].to_vec())).collect();
+        build(name, cols, self.n_p, options).map_err(|e| rename_columns(e, &options.columns, range.start))
+    }
+}
+
+/// `e` if its sample time is plausible (or `options.force`).
+///
+/// # Errors
+/// [`Error::ImplausibleSampleTime`] with the time unit that would explain h, if one does.
+fn plausible(path: &Path, e: Experiment, options: &CsvOptions) -> Result<Experiment> {
+    let h = e.h();
+    let range = MIN_SAMPLE_TIME..=MAX_SAMPLE_TIME;
+    if options.force || range.contains(&h) {
+        return Ok(e);
+    }
+    let given = options.time_unit;
+    let hint = [TimeUnit::S, TimeUnit::Ms, TimeUnit::Us]
+        .into_iter()
+        .filter(|&u| u != given)
+        .map(|u| (u, h * given.per_second() / u.per_second()))
+        .find(|(_, h)| range.contains(h))
+        .map_or_else(
+            || format!("a time column in other units than {}? ", given.name()),
+            |(u, h)| format!("the time column in {0}? `--time-unit {0}` gives h = {h:e} s; ", u.name()),
+        );
+    Err(Error::ImplausibleSampleTime {
+        path: path.to_path_buf(),
+        h,
+        min: MIN_SAMPLE_TIME,
+        max: MAX_SAMPLE_TIME,
+        hint,
+    })
 }

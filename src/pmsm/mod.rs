@@ -50,7 +50,10 @@ pub use inverter::InverterModel;
 pub use ipm::PmsmIpm;
 pub use kind::{MotorKind, derived};
 pub use linear::{LinearEstimate, LinearOptions, least_squares, regressors, weighted_least_squares};
-pub use log::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit, read_log, read_logs};
+pub use log::{
+    AngleUnit, ColumnNames, CsvOptions, DqSource, DroppedSegment, Frame, LogSegments, Scale, SpeedUnit,
+    TimeUnit, read_log, read_log_segments, read_logs,
+};
 pub use mask::{DeadTimeMask, DeadTimeMaskWeighting};
 pub use plant::{ExactPlant, MotorParameters, StepDerivatives};
 pub use report::ReportOptions;

@@ -38,3 +38,4 @@ mod streamed;
 mod thermal;
 mod track;
 mod trust;
+mod window;

@@ -1,6 +1,7 @@
 //! The options of the PMSM log reader: column names, units, frames and scaling, the
 //! source of the dq signals, read limits and the sample-time plausibility range.
 
+use crate::data::TimeWindow;
 use crate::data::csv::{Delimiter, ReadLimits};
 use serde::{Deserialize, Serialize};
 
@@ -78,6 +79,40 @@ pub enum SpeedUnit {
     RadPerSec,
     /// Revolutions per minute; multiplied by `2π/60` on reading.
     Rpm,
+}
+
+/// Unit of the time column; the reader converts it to seconds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TimeUnit {
+    /// Seconds (default).
+    #[default]
+    S,
+    /// Milliseconds; divided by 10³ on reading.
+    Ms,
+    /// Microseconds; divided by 10⁶ on reading.
+    Us,
+}
+
+impl TimeUnit {
+    /// Units of this kind in one second: 1, 10³ or 10⁶. The reader divides by it (a
+    /// division, so that a time exactly representable in seconds converts exactly).
+    pub fn per_second(self) -> f64 {
+        match self {
+            Self::S => 1.0,
+            Self::Ms => 1e3,
+            Self::Us => 1e6,
+        }
+    }
+
+    /// The unit's name on the command line: `s`, `ms`, `us`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::S => "s",
+            Self::Ms => "ms",
+            Self::Us => "us",
+        }
+    }
 }
 
 /// Whether the speed and angle columns are mechanical or electrical quantities.
@@ -159,6 +194,13 @@ pub struct CsvOptions {
     /// Bounds on line length, field count and rows ([`ReadLimits`]; defaults a real log
     /// never reaches).
     pub limits: ReadLimits,
+    /// Unit of the time column (default s), converted to seconds before anything else:
+    /// the window, the gaps and the sample-time plausibility all see seconds.
+    pub time_unit: TimeUnit,
+    /// Samples kept, by their time \[s\] after the unit conversion: `from ≤ t ≤ to`, both
+    /// inclusive (default: all). With a window, the time column is checked on the kept rows
+    /// only, so a gap outside it is no error.
+    pub window: TimeWindow,
     /// Skip the plausibility limit on the sample time ([`MIN_SAMPLE_TIME`] ≤ h ≤
     /// [`MAX_SAMPLE_TIME`]). Default `false`.
     pub force: bool,
