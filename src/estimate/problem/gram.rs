@@ -30,14 +30,57 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7])) + tail
 }
 
-/// `max |v|` (0 for an empty slice; NaN values are skipped), in four lanes.
+/// `dot(&v[..n − τ], &v[τ..])` for every lag τ in `0..=lags` (n = `v.len()`, lags < n or
+/// n = 0): the same numbers as [`dot`] to the bit (the same lanes, added in the same
+/// order), in one sweep over `v` a tile at a time rather than one sweep per lag.
+#[multiversion(targets("x86_64+avx512f+avx512vl+fma", "x86_64+avx2+fma"))]
+pub(crate) fn lagged_dots(v: &[f64], lags: usize) -> Vec<f64> {
+    const L: usize = 8;
+    // Chunks of L per tile: 2048 samples, 16 kB, held in the L1 cache for every lag.
+    const TILE: usize = 256;
+    let fma = target_cfg_f!(target_feature = "fma");
+    let n = v.len();
+    let lags = lags.min(n.saturating_sub(1));
+    let mut acc = vec![[0.0f64; L]; lags + 1];
+    let chunks = n / L;
+    let mut c0 = 0;
+    while c0 < chunks {
+        let c1 = (c0 + TILE).min(chunks);
+        for (tau, a) in acc.iter_mut().enumerate() {
+            let hi = c1.min((n - tau) / L);
+            if hi <= c0 {
+                continue;
+            }
+            let (x, y) = (&v[c0 * L..hi * L], &v[c0 * L + tau..hi * L + tau]);
+            for (xc, yc) in x.chunks_exact(L).zip(y.chunks_exact(L)) {
+                for l in 0..L {
+                    a[l] = if fma { xc[l].mul_add(yc[l], a[l]) } else { xc[l] * yc[l] + a[l] };
+                }
+            }
+        }
+        c0 = c1;
+    }
+    acc.iter()
+        .enumerate()
+        .map(|(tau, a)| {
+            let pairs = n - tau;
+            let k = pairs / L * L;
+            let tail: f64 = v[k..pairs].iter().zip(&v[k + tau..]).map(|(x, y)| x * y).sum();
+            ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7])) + tail
+        })
+        .collect()
+}
+
+/// `max |v|` (0 for an empty slice; NaN values are skipped), in eight lanes.
 pub(crate) fn max_abs(v: &[f64]) -> f64 {
-    let mut acc = [0.0f64; 4];
-    let q = v.chunks_exact(4);
+    let mut acc = [0.0f64; 8];
+    let q = v.chunks_exact(8);
     let tail = q.remainder().iter().fold(0.0f64, |m, x| m.max(x.abs()));
     for x in q {
-        for l in 0..4 {
-            acc[l] = acc[l].max(x[l].abs());
+        for l in 0..8 {
+            // A comparison (false for NaN) rather than `f64::max`: it vectorises.
+            let a = x[l].abs();
+            acc[l] = if a > acc[l] { a } else { acc[l] };
         }
     }
     acc.iter().fold(tail, |m, a| m.max(*a))
