@@ -32,33 +32,58 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 /// `dot(&v[..n − τ], &v[τ..])` for every lag τ in `0..=lags` (n = `v.len()`, lags < n or
 /// n = 0): the same numbers as [`dot`] to the bit (the same lanes, added in the same
-/// order), in one sweep over `v` a tile at a time rather than one sweep per lag.
+/// order), in one sweep over `v` a tile at a time rather than one sweep per lag, four
+/// lags at once (independent sums, so the additions overlap).
 #[multiversion(targets("x86_64+avx512f+avx512vl+fma", "x86_64+avx2+fma"))]
 pub(crate) fn lagged_dots(v: &[f64], lags: usize) -> Vec<f64> {
-    const L: usize = 8;
+    let fma = target_cfg_f!(target_feature = "fma");
+    if fma { lagged::<true>(v, lags) } else { lagged::<false>(v, lags) }
+}
+
+/// Lanes of [`lagged_dots`] (those of [`dot`]).
+const LANES: usize = 8;
+
+#[inline(always)]
+fn lagged<const FMA: bool>(v: &[f64], lags: usize) -> Vec<f64> {
+    const L: usize = LANES;
     // Chunks of L per tile: 2048 samples, 16 kB, held in the L1 cache for every lag.
     const TILE: usize = 256;
-    let fma = target_cfg_f!(target_feature = "fma");
     let n = v.len();
     let lags = lags.min(n.saturating_sub(1));
     let mut acc = vec![[0.0f64; L]; lags + 1];
-    let chunks = n / L;
+    // The chunks that every lag has (the longest lag has the fewest), tile by tile.
+    let common = (n - lags) / L;
     let mut c0 = 0;
-    while c0 < chunks {
-        let c1 = (c0 + TILE).min(chunks);
-        for (tau, a) in acc.iter_mut().enumerate() {
-            let hi = c1.min((n - tau) / L);
-            if hi <= c0 {
-                continue;
-            }
-            let (x, y) = (&v[c0 * L..hi * L], &v[c0 * L + tau..hi * L + tau]);
-            for (xc, yc) in x.chunks_exact(L).zip(y.chunks_exact(L)) {
-                for l in 0..L {
-                    a[l] = if fma { xc[l].mul_add(yc[l], a[l]) } else { xc[l] * yc[l] + a[l] };
+    while c0 < common {
+        let c1 = (c0 + TILE).min(common);
+        let xs = || v[c0 * L..c1 * L].chunks_exact(L);
+        let ys = |tau: usize| v[c0 * L + tau..].chunks_exact(L);
+        for (g, accs) in acc.chunks_mut(4).enumerate() {
+            let t = 4 * g;
+            if let [a0, a1, a2, a3] = accs {
+                let mut s = [*a0, *a1, *a2, *a3];
+                for ((((x, y0), y1), y2), y3) in xs().zip(ys(t)).zip(ys(t + 1)).zip(ys(t + 2)).zip(ys(t + 3))
+                {
+                    for l in 0..L {
+                        s[0][l] = madd::<FMA>(x[l], y0[l], s[0][l]);
+                        s[1][l] = madd::<FMA>(x[l], y1[l], s[1][l]);
+                        s[2][l] = madd::<FMA>(x[l], y2[l], s[2][l]);
+                        s[3][l] = madd::<FMA>(x[l], y3[l], s[3][l]);
+                    }
+                }
+                [*a0, *a1, *a2, *a3] = s;
+            } else {
+                for (j, a) in accs.iter_mut().enumerate() {
+                    sweep::<FMA>(xs(), ys(t + j), a);
                 }
             }
         }
         c0 = c1;
+    }
+    // The chunks past the common ones, lag by lag, in order.
+    for (tau, a) in acc.iter_mut().enumerate() {
+        let end = (n - tau) / L;
+        sweep::<FMA>(v[common * L..end * L].chunks_exact(L), v[common * L + tau..].chunks_exact(L), a);
     }
     acc.iter()
         .enumerate()
@@ -69,6 +94,22 @@ pub(crate) fn lagged_dots(v: &[f64], lags: usize) -> Vec<f64> {
             ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7])) + tail
         })
         .collect()
+}
+
+/// Adds `x_l y_l` into lane l of `a` over the chunks of `xs` (and as many of `ys`).
+#[inline(always)]
+fn sweep<'a, const FMA: bool>(
+    xs: impl Iterator<Item = &'a [f64]>,
+    ys: impl Iterator<Item = &'a [f64]>,
+    a: &mut [f64; LANES],
+) {
+    let mut s = *a;
+    for (x, y) in xs.zip(ys) {
+        for l in 0..LANES {
+            s[l] = madd::<FMA>(x[l], y[l], s[l]);
+        }
+    }
+    *a = s;
 }
 
 /// `max |v|` (0 for an empty slice; NaN values are skipped), in eight lanes.
