@@ -1,5 +1,6 @@
 //! Criterion benches on records from the drive simulator (no files needed): one simulation
-//! (SPM, IPM); one pass of each kind (cost, normal equations, statistics; SPM, stator hold,
+//! (SPM, IPM); one pass of each kind (cost, normal equations, statistics in full and after
+//! a normal-equation pass at the same point, as a fit has it; SPM, stator hold,
 //! x0 estimated, single-threaded) and the core prediction-error fit from the least-squares
 //! start (`estimate::fit`, x0 estimated, one hold) at 60 800 and 512 000 samples; the whole
 //! `fit_pmsm` (one hold and `--hold auto`, single-threaded and with the default thread
@@ -70,7 +71,16 @@ fn benches(c: &mut Criterion) {
         g.bench_function(format!("normal equations, {n} samples, 1 thread"), |b| {
             b.iter(|| one.install(|| black_box(problem.normal_equations(black_box(&p)).unwrap())))
         });
+        // A problem that has run no normal-equation pass: the statistics pass in full.
+        let fresh =
+            PemProblem::new(&m, vec![(Prepared::new(&m, e).unwrap(), None)], &start, &NominalScaling, &opts)
+                .unwrap();
         g.bench_function(format!("statistics, {n} samples, 1 thread"), |b| {
+            b.iter(|| one.install(|| black_box(fresh.sums(black_box(&p)).unwrap())))
+        });
+        // As in a fit: the normal-equation pass at p (above) is the lowest-cost one met, so
+        // its Grams serve and only the residuals are simulated.
+        g.bench_function(format!("statistics after the normal equations at p, {n} samples, 1 thread"), |b| {
             b.iter(|| one.install(|| black_box(problem.sums(black_box(&p)).unwrap())))
         });
     }

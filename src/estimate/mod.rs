@@ -17,7 +17,7 @@ pub mod solver;
 pub mod weighting;
 
 pub use problem::{Loss, PemProblem, ProblemOptions};
-pub(crate) use problem::{dot, sum};
+pub(crate) use problem::{lagged_dots, sum};
 pub use result::{
     DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing, Warning,
 };

@@ -76,8 +76,13 @@ impl<I> Prepared<I> {
         let cols = outputs.iter().map(|o| e.channel(&o.name)).collect::<Result<Vec<_>>>()?;
         let n = e.len();
         let mut y = Vec::with_capacity(n * cols.len());
-        for k in 0..n {
-            y.extend(cols.iter().map(|c| c[k]));
+        if let [a, b] = cols[..] {
+            // The common case (two currents): one interleaving sweep.
+            y.extend(a.iter().zip(b).flat_map(|(a, b)| [*a, *b]));
+        } else {
+            for k in 0..n {
+                y.extend(cols.iter().map(|c| c[k]));
+            }
         }
         let mut x0 = vec![0.0; model.n_states()];
         model.initial_state(&y[..cols.len()], &mut x0);

@@ -65,6 +65,18 @@ pub fn stator_hold_start(mean: C64, phi: f64) -> C64 {
     mean * C64::new(0.0, phi) / denom
 }
 
+/// [`stator_hold_start`] from the interval's rotation `rot = e^{−jφ}` and `vers = 1 − cos φ`
+/// computed already (no further sine or cosine): the same number to the bit, as
+/// `e^{−jφ} − 1` is `(0 · cos φ − vers, −sin φ)` in [`cexpm1`] (sine odd, cosine even).
+#[inline]
+fn stator_hold_start_at(mean: C64, phi: f64, rot: C64, vers: f64) -> C64 {
+    if phi.abs() < 1e-8 {
+        return mean * C64::new(1.0 - phi * phi / 12.0, 0.5 * phi);
+    }
+    let denom = -C64::new(0.0 * rot.re - vers, rot.im);
+    mean * C64::new(0.0, phi) / denom
+}
+
 pub(crate) fn check_positive(name: &str, v: f64) -> Result<()> {
     if v.is_finite() && v > 0.0 {
         Ok(())
@@ -116,7 +128,7 @@ pub fn intervals<'a>(
         let uk = C64::new(ud[k], uq[k]);
         let u0 = match hold {
             VoltageHold::Dq => uk,
-            VoltageHold::Stator => stator_hold_start(uk, iv.w_e * h),
+            VoltageHold::Stator => stator_hold_start_at(uk, iv.w_e * h, iv.rot, iv.vers),
         };
         Interval { u0, ..iv }
     }))
@@ -140,6 +152,24 @@ fn motion<'a>(v: &DqView<'a>, n_p: u32) -> impl Iterator<Item = Interval> + 'a {
             u0: C64::new(0.0, 0.0),
         }
     })
+}
+
+/// Runs `f` over the intervals of [`model_intervals`], without collecting the terminal ones.
+///
+/// # Errors
+/// Those of [`model_intervals`].
+pub(crate) fn for_each_model_interval(
+    v: &DqView<'_>,
+    n_p: u32,
+    hold: VoltageHold,
+    input: VoltageInput,
+    f: impl FnMut(Interval),
+) -> Result<()> {
+    match input {
+        VoltageInput::Terminal => intervals(v, n_p, hold)?.for_each(f),
+        _ => model_intervals(v, n_p, hold, input)?.into_iter().for_each(f),
+    }
+    Ok(())
 }
 
 /// Which voltage drives the model (MODEL.md §4, "Reference versus actual voltage").
@@ -349,4 +379,24 @@ pub(crate) fn cexpm1(w: C64) -> C64 {
     let (s, c) = w.im.sin_cos();
     let half = (0.5 * w.im).sin();
     C64::new(w.re.exp_m1() * c - 2.0 * half * half, w.re.exp() * s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`stator_hold_start_at`] is [`stator_hold_start`] to the bit, at any angle.
+    #[test]
+    fn stator_hold_start_at_is_bit_identical() {
+        let mean = C64::new(12.5, -230.25);
+        let mut phis: Vec<f64> = (-4000..=4000).map(|k| k as f64 * 7.3e-4).collect();
+        phis.extend([1e-9, -1e-9, 1e-8, -1e-8, 1.1e-8, 3.0, -3.1, 25.0, 1e-5, -2e-7]);
+        for phi in phis {
+            let half = (0.5 * phi).sin();
+            let got = stator_hold_start_at(mean, phi, rotation(phi), 2.0 * half * half);
+            let want = stator_hold_start(mean, phi);
+            assert_eq!(got.re.to_bits(), want.re.to_bits(), "φ = {phi}");
+            assert_eq!(got.im.to_bits(), want.im.to_bits(), "φ = {phi}");
+        }
+    }
 }

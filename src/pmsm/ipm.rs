@@ -40,7 +40,7 @@
 
 use super::augmented::{Aug, advance};
 pub use super::augmented::{IpmCoefficients, IpmInputs};
-use super::interval::{VoltageHold, check_finite, check_pole_pairs, check_positive, model_intervals};
+use super::interval::{VoltageHold, check_finite, check_pole_pairs, check_positive, for_each_model_interval};
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
 use super::setup::PmsmSetup;
@@ -93,11 +93,11 @@ impl GreyBoxModel for PmsmIpm {
             u0: Vec::with_capacity(n),
             dt: Vec::new(),
         };
-        for iv in model_intervals(&v, self.setup.n_p, self.setup.hold, self.setup.input)? {
+        for_each_model_interval(&v, self.setup.n_p, self.setup.hold, self.setup.input, |iv| {
             inputs.w_e.push(iv.w_e);
             inputs.emf.push(iv.emf);
             inputs.u0.push(iv.u0);
-        }
+        })?;
         if let Some(inv) = &self.setup.inverter {
             inputs.dt = dead_time_directions(&v, self.setup.n_p, inv)?;
         }

@@ -22,7 +22,7 @@
 //! (forward sensitivity), so one pass gives residuals and gradients.
 
 use super::interval::{
-    C64, VoltageHold, VoltageInput, check_finite, check_pole_pairs, check_positive, model_intervals,
+    C64, VoltageHold, VoltageInput, check_finite, check_pole_pairs, check_positive, for_each_model_interval,
 };
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
@@ -112,7 +112,7 @@ fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold, input: VoltageIn
         Vec::with_capacity(n),
         Vec::with_capacity(n),
     );
-    for iv in model_intervals(v, n_p, hold, input)? {
+    for_each_model_interval(v, n_p, hold, input, |iv| {
         w_e.push(iv.w_e);
         emf.push(iv.emf);
         rot.push(iv.rot);
@@ -122,7 +122,7 @@ fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold, input: VoltageIn
             VoltageHold::Dq => iv.u0,
             VoltageHold::Stator => iv.u0 * iv.rot,
         });
-    }
+    })?;
     Ok(SpmInputs { h: v.h(), w_e, emf, rot, vers, u, dt: Vec::new() })
 }
 

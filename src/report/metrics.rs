@@ -129,25 +129,32 @@ pub fn metrics(
 /// mean, with the 95 % whiteness bound `1.96/√N` (N: all samples; max_lag clipped to the
 /// longest segment − 1).
 pub fn whiteness(segments: &[&[f64]], max_lag: usize) -> Whiteness {
-    use crate::estimate::{dot, sum};
+    use crate::estimate::{lagged_dots, sum};
     let n: usize = segments.iter().map(|s| s.len()).sum();
     let totals: Vec<f64> = segments.iter().map(|s| sum(s)).collect();
     let mean = totals.iter().sum::<f64>() / n.max(1) as f64;
+    let lags = max_lag.min(segments.iter().map(|s| s.len()).max().unwrap_or(0).saturating_sub(1));
+    // Σ_k e_k e_{k+τ} of every segment for every lag it has, in one sweep per segment.
+    let products: Vec<Vec<f64>> = segments.iter().map(|s| lagged_dots(s, lags)).collect();
     // Σ (e_k − m)(e_{k+τ} − m) = Σ e_k e_{k+τ} − m (Σ e_k + Σ e_{k+τ}) + n_τ m², each sum over
     // the n_τ pairs of a segment: no centred copy of the residuals.
-    let centred = |(s, total): (&&[f64], &f64), tau: usize| {
+    let centred = |((s, total), dots): ((&&[f64], &f64), &Vec<f64>), tau: usize| {
         let pairs = s.len() - tau;
         // Σ over the first and the last n − τ values: the total less τ values at an end.
         let head = total - sum(&s[pairs..]);
         let tail = total - sum(&s[..tau]);
-        dot(&s[..pairs], &s[tau..]) - mean * (head + tail) + pairs as f64 * mean * mean
+        dots[tau] - mean * (head + tail) + pairs as f64 * mean * mean
     };
-    let r0: f64 = segments.iter().zip(&totals).map(|st| centred(st, 0)).sum();
-    let lags = max_lag.min(segments.iter().map(|s| s.len()).max().unwrap_or(0).saturating_sub(1));
+    let r0: f64 = segments.iter().zip(&totals).zip(&products).map(|st| centred(st, 0)).sum();
     let autocorrelation: Vec<f64> = (1..=lags)
         .map(|tau| {
-            let r: f64 =
-                segments.iter().zip(&totals).filter(|(s, _)| s.len() > tau).map(|st| centred(st, tau)).sum();
+            let r: f64 = segments
+                .iter()
+                .zip(&totals)
+                .zip(&products)
+                .filter(|((s, _), _)| s.len() > tau)
+                .map(|st| centred(st, tau))
+                .sum();
             if r0 > 0.0 { r / r0 } else { 0.0 }
         })
         .collect();
@@ -177,6 +184,24 @@ mod tests {
         assert!((m.mse - 1.25).abs() < 1e-12);
         assert!((m.fpe - 1.25 * (1.0 + 0.25) / (1.0 - 0.25)).abs() < 1e-12);
         assert!(metrics(&names, &y, &[1.0; 3], 1, 2).is_err());
+    }
+
+    /// The one-sweep lag products are the per-lag dot products to the bit, for lengths
+    /// around the lane and tile sizes and lags up to the length.
+    #[test]
+    fn lagged_dots_match_dot_per_lag() {
+        use crate::estimate::lagged_dots;
+        use crate::estimate::problem::dot;
+        let v: Vec<f64> = (0..5000).map(|k| ((k * 7919) % 1013) as f64 / 97.0 - 5.0).collect();
+        for n in [0, 1, 7, 8, 9, 30, 2047, 2048, 2049, 4100, 5000] {
+            let s = &v[..n];
+            let got = lagged_dots(s, 25);
+            assert_eq!(got.len(), 26.min(n.max(1)), "n = {n}");
+            for (tau, g) in got.iter().enumerate() {
+                let want = dot(&s[..n - tau], &s[tau..]);
+                assert_eq!(g.to_bits(), want.to_bits(), "n = {n}, τ = {tau}");
+            }
+        }
     }
 
     #[test]

@@ -20,6 +20,7 @@ mod filter;
 mod fuzz;
 mod inverter;
 mod ipm;
+mod kept_sums;
 mod limits;
 mod linear;
 mod mgh;

@@ -145,10 +145,20 @@ impl Accumulator {
         for (i, (ey, ey2)) in self.ey.iter_mut().zip(self.ey2.iter_mut()).enumerate() {
             let y0 = self.y0[i];
             let (mut s, mut s2) = ([0.0f64; 4], [0.0f64; 4]);
-            for (n, row) in y.chunks_exact(ny).skip(first).enumerate() {
+            // Row n of the counted samples adds to lane n mod 4, four rows at a time.
+            let quads = y.get(first * ny..).unwrap_or_default().chunks_exact(4 * ny);
+            let rest = quads.remainder();
+            for q in quads {
+                for l in 0..4 {
+                    let d = q[l * ny + i] - y0;
+                    s[l] += d;
+                    s2[l] += d * d;
+                }
+            }
+            for (l, row) in rest.chunks_exact(ny).enumerate() {
                 let d = row[i] - y0;
-                s[n % 4] += d;
-                s2[n % 4] += d * d;
+                s[l] += d;
+                s2[l] += d * d;
             }
             *ey += (s[0] + s[1]) + (s[2] + s[3]);
             *ey2 += (s2[0] + s2[1]) + (s2[2] + s2[3]);

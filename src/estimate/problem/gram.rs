@@ -30,14 +30,98 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7])) + tail
 }
 
-/// `max |v|` (0 for an empty slice; NaN values are skipped), in four lanes.
+/// `dot(&v[..n − τ], &v[τ..])` for every lag τ in `0..=lags` (n = `v.len()`, lags < n or
+/// n = 0): the same numbers as [`dot`] to the bit (the same lanes, added in the same
+/// order), in one sweep over `v` a tile at a time rather than one sweep per lag, four
+/// lags at once (independent sums, so the additions overlap).
+#[multiversion(targets("x86_64+avx512f+avx512vl+fma", "x86_64+avx2+fma"))]
+pub(crate) fn lagged_dots(v: &[f64], lags: usize) -> Vec<f64> {
+    let fma = target_cfg_f!(target_feature = "fma");
+    if fma { lagged::<true>(v, lags) } else { lagged::<false>(v, lags) }
+}
+
+/// Lanes of [`lagged_dots`] (those of [`dot`]).
+const LANES: usize = 8;
+
+#[inline(always)]
+fn lagged<const FMA: bool>(v: &[f64], lags: usize) -> Vec<f64> {
+    const L: usize = LANES;
+    // Chunks of L per tile: 2048 samples, 16 kB, held in the L1 cache for every lag.
+    const TILE: usize = 256;
+    let n = v.len();
+    let lags = lags.min(n.saturating_sub(1));
+    let mut acc = vec![[0.0f64; L]; lags + 1];
+    // The chunks that every lag has (the longest lag has the fewest), tile by tile.
+    let common = (n - lags) / L;
+    let mut c0 = 0;
+    while c0 < common {
+        let c1 = (c0 + TILE).min(common);
+        let xs = || v[c0 * L..c1 * L].chunks_exact(L);
+        let ys = |tau: usize| v[c0 * L + tau..].chunks_exact(L);
+        for (g, accs) in acc.chunks_mut(4).enumerate() {
+            let t = 4 * g;
+            if let [a0, a1, a2, a3] = accs {
+                let mut s = [*a0, *a1, *a2, *a3];
+                for ((((x, y0), y1), y2), y3) in xs().zip(ys(t)).zip(ys(t + 1)).zip(ys(t + 2)).zip(ys(t + 3))
+                {
+                    for l in 0..L {
+                        s[0][l] = madd::<FMA>(x[l], y0[l], s[0][l]);
+                        s[1][l] = madd::<FMA>(x[l], y1[l], s[1][l]);
+                        s[2][l] = madd::<FMA>(x[l], y2[l], s[2][l]);
+                        s[3][l] = madd::<FMA>(x[l], y3[l], s[3][l]);
+                    }
+                }
+                [*a0, *a1, *a2, *a3] = s;
+            } else {
+                for (j, a) in accs.iter_mut().enumerate() {
+                    sweep::<FMA>(xs(), ys(t + j), a);
+                }
+            }
+        }
+        c0 = c1;
+    }
+    // The chunks past the common ones, lag by lag, in order.
+    for (tau, a) in acc.iter_mut().enumerate() {
+        let end = (n - tau) / L;
+        sweep::<FMA>(v[common * L..end * L].chunks_exact(L), v[common * L + tau..].chunks_exact(L), a);
+    }
+    acc.iter()
+        .enumerate()
+        .map(|(tau, a)| {
+            let pairs = n - tau;
+            let k = pairs / L * L;
+            let tail: f64 = v[k..pairs].iter().zip(&v[k + tau..]).map(|(x, y)| x * y).sum();
+            ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7])) + tail
+        })
+        .collect()
+}
+
+/// Adds `x_l y_l` into lane l of `a` over the chunks of `xs` (and as many of `ys`).
+#[inline(always)]
+fn sweep<'a, const FMA: bool>(
+    xs: impl Iterator<Item = &'a [f64]>,
+    ys: impl Iterator<Item = &'a [f64]>,
+    a: &mut [f64; LANES],
+) {
+    let mut s = *a;
+    for (x, y) in xs.zip(ys) {
+        for l in 0..LANES {
+            s[l] = madd::<FMA>(x[l], y[l], s[l]);
+        }
+    }
+    *a = s;
+}
+
+/// `max |v|` (0 for an empty slice; NaN values are skipped), in eight lanes.
 pub(crate) fn max_abs(v: &[f64]) -> f64 {
-    let mut acc = [0.0f64; 4];
-    let q = v.chunks_exact(4);
+    let mut acc = [0.0f64; 8];
+    let q = v.chunks_exact(8);
     let tail = q.remainder().iter().fold(0.0f64, |m, x| m.max(x.abs()));
     for x in q {
-        for l in 0..4 {
-            acc[l] = acc[l].max(x[l].abs());
+        for l in 0..8 {
+            // A comparison (false for NaN) rather than `f64::max`: it vectorises.
+            let a = x[l].abs();
+            acc[l] = if a > acc[l] { a } else { acc[l] };
         }
     }
     acc.iter().fold(tail, |m, a| m.max(*a))

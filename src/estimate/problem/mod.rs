@@ -10,6 +10,7 @@
 //! beyond δ is `δ/|ε|` (iteratively reweighted least squares).
 
 mod accumulate;
+mod best;
 mod gram;
 mod loss;
 mod map;
@@ -19,7 +20,9 @@ mod sums;
 use crate::estimate::solver::LeastSquares;
 pub use crate::estimate::solver::NormalEquations;
 pub use accumulate::Sums;
-pub(crate) use gram::{dot, sum};
+#[cfg(test)]
+pub(crate) use gram::dot;
+pub(crate) use gram::{lagged_dots, sum};
 pub use loss::Loss;
 
 use crate::error::{Error, Result};
@@ -104,6 +107,8 @@ pub struct PemProblem<'m, M: GreyBoxModel> {
     output_weights: Vec<f64>,
     loss: Loss,
     prefilters: Vec<Butterworth>,
+    /// The normal-equation pass of lowest cost so far, for the statistics at the estimate.
+    best: best::BestPass,
 }
 
 impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
@@ -264,6 +269,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             output_weights,
             loss: options.loss.clone(),
             prefilters: options.prefilters.clone(),
+            best: best::BestPass::default(),
         };
         if scaling.needs_column_norms() {
             problem.rescale_by_column_norms(start, scaling)?;
@@ -284,6 +290,8 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             fp.lower_p = fp.transform.to_scaled(p.lower);
             fp.upper_p = fp.transform.to_scaled(p.upper);
         }
+        // That pass's Grams are chained with the old transforms.
+        self.best.clear();
         Ok(())
     }
 

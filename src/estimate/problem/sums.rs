@@ -2,6 +2,7 @@
 //! scale, and the full residual and Jacobian matrices for diagnostics.
 
 use super::accumulate::{Accumulator, Sums};
+use super::best::ExperimentGrams;
 use super::gram::{dot, gram, scatter_gram, weighted_square_sum};
 use super::pass::{Chunk, Pass, RawSample, ResidualFilter};
 use super::{Loss, NormalEquations, PemProblem};
@@ -69,8 +70,9 @@ impl LocalGrams {
 }
 
 /// One experiment's share of the cost and normal equations: cost, `JᵀWJ` (upper
-/// triangle, n_free × n_free) and `JᵀWψ`.
-type Partial = (f64, DMatrix<f64>, DVector<f64>);
+/// triangle, n_free × n_free) and `JᵀWψ`; and its Grams when the statistics can take them
+/// (see the `best` module).
+type Partial = (f64, DMatrix<f64>, DVector<f64>, Option<ExperimentGrams>);
 
 impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// Cost `V(p)` and normal equations `JᵀWJ`, `JᵀWψ` in one pass per experiment
@@ -83,13 +85,18 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         let parts: Vec<Result<Partial>> =
             (0..self.terms.len()).into_par_iter().map(|e| self.experiment_normal_equations(e, p)).collect();
         let mut out = NormalEquations { cost: 0.0, jtj: DMatrix::zeros(np, np), jtr: DVector::zeros(np) };
+        let mut grams = Vec::with_capacity(parts.len());
         for part in parts {
-            let (c, jtj, jtr) = part?;
+            let (c, jtj, jtr, g) = part?;
             out.cost += c;
             out.jtj += jtj;
             out.jtr += jtr;
+            grams.extend(g);
         }
         out.jtj.fill_lower_triangle_with_upper_triangle();
+        if grams.len() == self.terms.len() {
+            self.best.offer(p, out.cost, grams);
+        }
         Ok(out)
     }
 
@@ -136,6 +143,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         let mut jtr = DVector::zeros(np);
         let mut cost = huber_cost;
         let m = map.len();
+        let keep = unweighted && self.prefilters.is_empty() && !g.is_empty();
         for (i, gi) in g.iter().enumerate() {
             // Unit weights were summed without Λ_i: it scales the whole Gram.
             let scale = if unweighted { self.output_weights[i] } else { 1.0 };
@@ -152,7 +160,8 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                 jtr[map.global[a]] += map.dtheta[a] * scale * gi[a * m1 + m];
             }
         }
-        Ok((cost, jtj, jtr))
+        let grams = keep.then_some(ExperimentGrams { map, grams: g });
+        Ok((cost, jtj, jtr, grams))
     }
 
     /// Cost `V(p)` only (simulation without sensitivities).
@@ -214,12 +223,14 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     pub fn sums(&self, p: &DVector<f64>) -> Result<Sums> {
         let (ny, np) = (self.model.n_outputs(), self.free.len());
         let mut acc = Accumulator::new(ny, np);
+        let kept = self.best.at(p);
         for e in 0..self.terms.len() {
             let term = &self.terms[e];
             // Shift by the first measurement to keep Σy² − (Σy)²/n free of cancellation.
             acc.start_experiment(term.prep.y_at(0, ny));
             acc.add_moments(&term.prep.y, self.first_sample(e));
             match self.prefilters.get(e) {
+                None if let Some(g) = kept.as_ref().map(|k| &k[e]) => self.kept_sums(e, p, g, &mut acc)?,
                 None => self.block_sums(e, p, &mut acc)?,
                 Some(l) => {
                     // The criterion sees L(q)ε; under white raw residuals e the score is

@@ -1,0 +1,57 @@
+//! The statistics at a point after a normal-equation pass there (whose Grams the problem
+//! keeps and the statistics take: quadratic loss, unit weights) against those of a problem
+//! that ran no pass: the same sums to 1e-12 and the same raw residuals to the bit, for one
+//! experiment with its initial state estimated and for two with a per-experiment `r_s`.
+
+use greybox::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
+use greybox::estimate::problem::Sums;
+use greybox::estimate::{PemProblem, ProblemOptions, scaling::NominalScaling};
+use greybox::model::Prepared;
+use greybox::pmsm::{PmsmSpm, VoltageHold};
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-12 * a.abs().max(b.abs())
+}
+
+fn assert_same(kept: &Sums, full: &Sums) {
+    assert!(close(kept.cost, full.cost), "cost {} vs {}", kept.cost, full.cost);
+    assert!(close(kept.e2_weighted, full.e2_weighted));
+    assert_eq!(kept.count, full.count);
+    for (a, b) in kept.sse.iter().zip(&full.sse).chain(kept.sst.iter().zip(&full.sst)) {
+        assert!(close(*a, *b), "{a} vs {b}");
+    }
+    for (a, b) in [(&kept.jtj, &full.jtj), (&kept.bread, &full.bread), (&kept.meat, &full.meat)] {
+        assert_eq!(a.shape(), b.shape());
+        let scale = b.amax();
+        for (x, y) in a.iter().zip(b.iter()) {
+            assert!((x - y).abs() <= 1e-12 * scale, "{x} vs {y} (largest entry {scale})");
+        }
+    }
+    assert_eq!(kept.residuals, full.residuals);
+}
+
+#[test]
+fn statistics_after_the_normal_equations_equal_a_full_pass() {
+    let record = |seconds: f64| {
+        let cfg = DriveConfig { duration: seconds, ..scenario("exp3", SPM_MOTOR).unwrap() };
+        simulate_drive(&cfg).unwrap().experiment
+    };
+    let (a, b) = (record(0.3), record(0.2));
+    let m = PmsmSpm::new(SPM_MOTOR.n_p, VoltageHold::Stator);
+    // Off the truth, so that the residuals and the gradient are not zero.
+    let start = [1.1 * SPM_MOTOR.r_s, 0.9 * SPM_MOTOR.l_d, SPM_MOTOR.k_e()];
+    let cases = [
+        (vec![&a], ProblemOptions { estimate_x0: true, ..Default::default() }),
+        (vec![&a, &b], ProblemOptions { per_experiment: vec!["r_s".into()], ..Default::default() }),
+    ];
+    for (logs, opts) in cases {
+        let build = || {
+            let data = logs.iter().map(|e| (Prepared::new(&m, e).unwrap(), None)).collect();
+            PemProblem::new(&m, data, &start, &NominalScaling, &opts).unwrap()
+        };
+        let (kept, fresh) = (build(), build());
+        let p = kept.start_vector(&start);
+        kept.normal_equations(&p).unwrap();
+        assert_same(&kept.sums(&p).unwrap(), &fresh.sums(&p).unwrap());
+    }
+}
