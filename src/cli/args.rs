@@ -27,11 +27,11 @@ pub struct FitArgs {
     /// With --each: write the summary (one row per log: status, parameters with standard
     /// errors, derived quantities, fit %, hold, warnings) to PATH.csv and PATH.json (an
     /// extension .csv or .json given is dropped first).
-    #[arg(long, value_name = "PATH", requires = "each")]
+    #[arg(long, value_name = "PATH")]
     pub summary: Option<PathBuf>,
     /// With --each: write the trend plot (SVG) of every parameter over the logs, in file
     /// order, with 95 % intervals.
-    #[arg(long, value_name = "PATH.svg", requires = "each")]
+    #[arg(long, value_name = "PATH.svg")]
     pub trend: Option<PathBuf>,
     /// Number of pole pairs n_p of the motor, or `auto` (the lowest least-squares loss of
     /// the voltage equations over 1-32 pole pairs; the report gives the runner-up's ratio).

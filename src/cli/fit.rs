@@ -35,6 +35,14 @@ pub struct Plan {
 /// trustworthy (not converged, or an untrusted warning) and `--allow-unconverged` is off.
 pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
     let t0 = Instant::now();
+    for (flag, given) in [("--summary", a.summary.is_some()), ("--trend", a.trend.is_some())] {
+        if given {
+            return Err(greybox::Error::InvalidOption {
+                option: flag.into(),
+                reason: "belongs to a batch (--each DIR_OR_GLOB); one fit writes --json and --plot".into(),
+            });
+        }
+    }
     // Fail before the fit, not after it, when the report cannot be written.
     if let Some(path) = &a.json {
         output::check(path, &a.logs)?;
