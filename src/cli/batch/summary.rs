@@ -2,7 +2,7 @@
 //! CSV (one row per log, a column per figure) and JSON, and printed as a table.
 
 use greybox::pmsm::PmsmFit;
-use greybox::report::eng::{UnitScale, display_unit};
+use greybox::report::eng::{UnitScale, decimals_for, display_unit};
 use serde::Serialize;
 use std::path::Path;
 
@@ -255,9 +255,9 @@ pub fn table(records: &[Record]) -> String {
     let scales: Vec<UnitScale> = params
         .iter()
         .map(|(n, u)| {
-            let v =
-                records.iter().flat_map(|r| &r.parameters).find(|q| q.name == *n).map_or(0.0, |q| q.value);
-            UnitScale::for_value(v, u)
+            // One prefix per column, from the largest estimate.
+            let v = records.iter().flat_map(|r| &r.parameters).filter(|q| q.name == *n);
+            UnitScale::for_value(v.map(|q| q.value.abs()).fold(0.0, f64::max), u)
         })
         .collect();
     let mut head: Vec<String> = vec!["log".into(), "status".into()];
@@ -268,7 +268,10 @@ pub fn table(records: &[Record]) -> String {
         let mut row = vec![r.name.clone(), r.status.word().to_string()];
         for ((n, _), s) in params.iter().zip(&scales) {
             let q = r.parameters.iter().find(|q| q.name == *n);
-            row.push(q.map(|q| s.number(q.value, 4)).unwrap_or_else(|| "-".into()));
+            row.push(
+                q.map(|q| s.number(q.value, decimals_for(q.value / s.factor, 6)))
+                    .unwrap_or_else(|| "-".into()),
+            );
         }
         let fit = r.fit_percent.iter().map(|(_, f)| *f).fold(f64::INFINITY, f64::min);
         row.push(if fit.is_finite() { format!("{fit:.3}") } else { "-".into() });
