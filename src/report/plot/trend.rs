@@ -118,6 +118,11 @@ fn panel(
         let bar = p.interval.filter(|_| !p.flagged).unwrap_or([p.value, p.value]);
         [p.value, bar[0], bar[1]]
     }));
+    // A span below 10⁻⁹ of the values is rounding noise that no tick label can show:
+    // widen it to that.
+    let mid = 0.5 * (y.start + y.end);
+    let floor = 1e-9 * mid.abs();
+    let y = if y.end - y.start < floor { mid - floor / 2.0..mid + floor / 2.0 } else { y };
     let clipped = points.iter().any(|(_, p)| {
         p.interval.is_some_and(|[lo, hi]| lo < y.start || hi > y.end || !lo.is_finite() || !hi.is_finite())
     });
@@ -265,6 +270,21 @@ mod tests {
         assert_ne!(fine_tick(900.0055, 0.004), fine_tick(900.0062, 0.004));
         assert_eq!(fine_tick(4.5, 3.0), "4.5");
         assert_eq!(fine_tick(538.887715, 2e-5), "538.887715");
+    }
+
+    #[test]
+    fn rounding_noise_is_not_drawn_as_a_trend() {
+        let p = |v: f64| Some(TrendPoint { value: v, interval: None, flagged: false });
+        let s = [TrendSeries {
+            name: "l".into(),
+            unit: "mH".into(),
+            points: vec![p(4.5), p(4.5 * (1.0 + 1e-15))],
+        }];
+        let runs = vec!["a".to_string(), "b".to_string()];
+        let t = Trend { title: "T", subtitle: "S", runs: &runs, x_desc: "log", flag: "f", series: &s };
+        let svg = trend_svg(&t).unwrap();
+        // The axis spans 10⁻⁹ of the value: ticks 4.499999999 … 4.500000001, told apart.
+        assert!(svg.contains("\n4.500000001\n") || svg.contains("\n4.499999999\n"), "{svg}");
     }
 
     #[test]
