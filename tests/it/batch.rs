@@ -57,7 +57,11 @@ fn batch_fits_each_log_and_reports_the_broken_one() {
     let out_dir = dir.join("out");
     std::fs::create_dir_all(&out_dir).unwrap();
     let (summary, trend) = (out_dir.join("summary"), out_dir.join("trend.svg"));
-    let out = greybox(&["fit", "--each", s(&dir), "-p", "4", "--summary", s(&summary), "--trend", s(&trend)]);
+    // The thermal reference at b_warm's truth: its temperatures are T_0, the others' below
+    // and above (winding) as their r_s.
+    let thermal = ["--t0", "20", "--r-s0", "1.0", "--psi-f0", "0.1"];
+    let args = ["fit", "--each", s(&dir), "-p", "4", "--summary", s(&summary), "--trend", s(&trend)];
+    let out = greybox(&[&args[..], &thermal].concat());
     assert_eq!(out.status.code(), Some(4), "{}", stderr(&out));
     let err = stderr(&out);
     assert!(err.contains("d_broken.csv") && err.contains("cannot parse `x`"), "{err}");
@@ -89,6 +93,15 @@ fn batch_fits_each_log_and_reports_the_broken_one() {
         assert!(log["fit_percent"].as_array().unwrap().iter().all(|f| f[1].as_f64().unwrap() > 99.9));
         assert!(log["hold"].is_string() && log["pole_pairs"] == 4);
     }
+    let t_winding: Vec<f64> = logs[..3]
+        .iter()
+        .map(|l| {
+            l["derived"].as_array().unwrap().iter().find(|d| d["name"] == "t_winding").unwrap()["value"]
+                .as_f64()
+                .unwrap()
+        })
+        .collect();
+    assert!((t_winding[1] - 20.0).abs() < 1e-3 && t_winding[0] < 0.0 && t_winding[2] > 40.0, "{t_winding:?}");
     assert_eq!(logs[3]["status"], "failed");
     assert!(logs[3]["error"].as_str().unwrap().contains("cannot parse `x`"), "{}", logs[3]);
     // CSV: the same figures, one row per log, the failed one with its error and no values.
@@ -104,7 +117,7 @@ fn batch_fits_each_log_and_reports_the_broken_one() {
         let num = |c: &str| row[col(c)].parse::<f64>().unwrap();
         assert!(rel(num("r_s [Ω]"), r_s) < 1e-6 && rel(num("k_e [V s/rad]"), k_e(psi_f)) < 1e-6);
         assert!(rel(num("l_s [H]"), L_S) < 1e-6 && num("r_s_se [Ω]") > 0.0);
-        assert!(num("fit_id [%]") > 99.9 && num("psi_f [V s]") > 0.0);
+        assert!(num("fit_id [%]") > 99.9 && num("psi_f [V s]") > 0.0 && num("t_magnet [°C]").is_finite());
     }
     assert_eq!(&rows[3][col("status")], "failed");
     assert!(rows[3][col("error")].contains("cannot parse `x`") && rows[3][col("r_s [Ω]")].is_empty());
