@@ -6,6 +6,7 @@
 //! match and the flags a batch cannot honour are refused, naming the flag.
 #![cfg(feature = "cli")]
 
+use crate::common::rel;
 use crate::errors::greybox;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -38,10 +39,6 @@ fn stderr(out: &std::process::Output) -> String {
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
-}
-
-fn rel(a: f64, b: f64) -> f64 {
-    ((a - b) / b).abs()
 }
 
 /// K_e = √(3/2) n_p ψ_f (MODEL.md §2), n_p = 4.
