@@ -2,6 +2,7 @@
 //!
 //! ```text
 //! greybox fit LOG... --pole-pairs N [--model spm|ipm] [--hold auto|dq|stator] [--solver lm|gn] [--json PATH]
+//! greybox fit --each DIR_OR_GLOB --pole-pairs N [fit flags] [--summary PATH] [--trend PATH.svg]
 //! greybox validate LOG... --params REPORT.json [--json PATH] [--compare-dir DIR]
 //! greybox track LOG... --pole-pairs N (--l-s H | --params REPORT.json) [--json PATH] [--max-points M]
 //! greybox simulate (--scenario exp1..exp6 | --config FILE.json) -o LOG.csv [--motor spm|ipm] [--seed N] [--set PATH=VALUE]
@@ -28,7 +29,9 @@ static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
     about = "Grey-box estimation of PMSM parameters (R_s, L_s or L_d/L_q, K_e) from drive logs",
     after_help = "Exit codes: 0 success; 1 error (nothing computed, no report written); 2 invalid command line; \
 3 `fit` finished and wrote its report, but the result is not to be trusted (not converged, a parameter at a bound, \
-non-finite statistics, a likely setup mistake: see \"warnings\" in the report; --allow-unconverged turns this into 0)."
+non-finite statistics, a likely setup mistake: see \"warnings\" in the report; --allow-unconverged turns this into 0); \
+4 `fit --each`: a log could not be read or fitted (reported, skipped; the summary and trend plot are written). \
+With --each, 3 means that no log failed but a fit is untrusted."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -56,17 +59,22 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let r = match &cli.command {
-        Command::Fit(a) => cli::fit::run_fit(a),
-        Command::Validate(a) => cli::validate::run_validate(a).map(|()| true),
-        Command::Track(a) => cli::track::run_track(a).map(|()| true),
-        Command::Simulate(a) => cli::simulate::run_simulate(a).map(|()| true),
+    // The exit code: 0, or 3 for an untrusted fit, 4 for a failed log of a batch.
+    let code = |trusted: bool| if trusted { 0 } else { 3 };
+    let r: greybox::Result<u8> = match &cli.command {
+        Command::Fit(a) => match &a.each {
+            Some(pattern) => cli::batch::run_batch(a, pattern),
+            None => cli::fit::run_fit(a).map(code),
+        },
+        Command::Validate(a) => cli::validate::run_validate(a).map(|()| 0),
+        Command::Track(a) => cli::track::run_track(a).map(|()| 0),
+        Command::Simulate(a) => cli::simulate::run_simulate(a).map(|()| 0),
         Command::Completions { shell } => {
             // Into a buffer first: clap_complete panics when stdout is closed early (`| head`).
             let mut script = Vec::new();
             clap_complete::generate(*shell, &mut Cli::command(), "greybox", &mut script);
             std::io::Write::write_all(&mut std::io::stdout(), &script)
-                .map(|()| true)
+                .map(|()| 0)
                 .map_err(|source| greybox::Error::Write { path: "stdout".into(), source })
         }
     };
@@ -86,8 +94,7 @@ fn main() -> ExitCode {
         }
     });
     match r {
-        Ok(true) => ExitCode::SUCCESS,
-        Ok(false) => ExitCode::from(3),
+        Ok(code) => ExitCode::from(code),
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::FAILURE

@@ -13,9 +13,26 @@ pub struct FitArgs {
     /// default exit code is then 3; the report is written either way).
     #[arg(long)]
     pub allow_unconverged: bool,
-    /// Drive logs (CSV, plain or gzip). Several logs are fitted jointly with shared parameters.
-    #[arg(required = true)]
+    /// Drive logs (CSV, plain or gzip; Parquet, Arrow IPC). Several logs are fitted jointly
+    /// with shared parameters.
+    #[arg(required_unless_present = "each")]
     pub logs: Vec<PathBuf>,
+    // Batch fits (issue 17 item 2): `cli::batch`.
+    /// Fit every log of a folder (its .csv, .csv.gz, .parquet, .pq, .arrow, .arrows,
+    /// .feather, .ipc files) or every file a glob matches (`'runs/*.csv.gz'`, quoted), each
+    /// on its own, in parallel, in file-name order; a log that cannot be read or fitted is
+    /// reported and skipped. Exit code 4 when any log failed.
+    #[arg(long, value_name = "DIR_OR_GLOB", conflicts_with_all = ["logs", "per_log", "json", "plot", "residuals", "format"])]
+    pub each: Option<String>,
+    /// With --each: write the summary (one row per log: status, parameters with standard
+    /// errors, derived quantities, fit %, hold, warnings) to PATH.csv and PATH.json (an
+    /// extension .csv or .json given is dropped first).
+    #[arg(long, value_name = "PATH")]
+    pub summary: Option<PathBuf>,
+    /// With --each: write the trend plot (SVG) of every parameter over the logs, in file
+    /// order, with 95 % intervals.
+    #[arg(long, value_name = "PATH.svg")]
+    pub trend: Option<PathBuf>,
     /// Number of pole pairs n_p of the motor, or `auto` (the lowest least-squares loss of
     /// the voltage equations over 1-32 pole pairs; the report gives the runner-up's ratio).
     #[arg(long, short = 'p', value_parser = parse_pole_pairs)]

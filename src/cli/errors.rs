@@ -75,6 +75,13 @@ pub fn in_cli_words(e: Error, command: &clap::Command) -> Error {
     }
 }
 
+/// [`in_cli_words`] for `greybox fit`'s flags, where the subcommand is not at hand (a
+/// batch's per-log errors).
+pub fn in_fit_words(e: Error) -> Error {
+    let fit = <super::args::FitArgs as clap::Args>::augment_args(clap::Command::new("fit"));
+    in_cli_words(e, &fit)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -15,16 +15,120 @@ use greybox::pmsm::{
 use greybox::report::Document;
 use std::time::Instant;
 
+/// What `greybox fit` does to every log, decided from the flags before any log is read:
+/// how to read a log, how to report it, and the prediction-error fit (`None` for
+/// `--method ls`). Used by the joint fit ([`run_fit`]) and the batch
+/// ([`super::batch::run_batch`]).
+pub struct Plan {
+    /// How a log is read.
+    pub csv: CsvOptions,
+    /// How the report states the log's scaling.
+    pub report_options: ReportOptions,
+    /// Surface or interior magnets.
+    pub kind: MotorKind,
+    /// The fit's options (pole pairs still 0: set per fit by [`fit_logs`]) and which input
+    /// parameters are searched; `None` for `--method ls`.
+    pub pem: Option<(PmsmFitOptions, InputSearch)>,
+}
+
 /// Runs `greybox fit`; `Ok(false)` when the report was written but the result is not
 /// trustworthy (not converged, or an untrusted warning) and `--allow-unconverged` is off.
 pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
     let t0 = Instant::now();
+    for (flag, given) in [("--summary", a.summary.is_some()), ("--trend", a.trend.is_some())] {
+        if given {
+            return Err(greybox::Error::InvalidOption {
+                option: flag.into(),
+                reason: "belongs to a batch (--each DIR_OR_GLOB); one fit writes --json and --plot".into(),
+            });
+        }
+    }
     // Fail before the fit, not after it, when the report cannot be written.
     if let Some(path) = &a.json {
         output::check(path, &a.logs)?;
     }
     super::plots::check(&[("plot", a.plot.as_ref()), ("residuals", a.residuals.as_ref())], &a.logs)?;
     let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
+    let plan = plan(a)?;
+    super::logs::check_paths(&a.logs)?;
+    let logs: Vec<_> = a.columns.read_logs(&a.logs, &plan.csv, true)?.into_iter().flatten().collect();
+    let read_s = t0.elapsed().as_secs_f64();
+    let Some((options, search)) = &plan.pem else {
+        let t1 = Instant::now();
+        let rule = a.weighting.rule()?;
+        let opts = LinearOptions { prefilter: a.prefilter, ..LinearOptions::default() };
+        let (n_p, _) = pole_pairs(a.pole_pairs, &logs, plan.kind, None)?;
+        let ls = weighted_least_squares(&logs, n_p, plan.kind, rule.as_ref(), &opts)?;
+        let names: Vec<String> = logs.iter().map(|e| e.name().to_string()).collect();
+        let report = ls.report(&names, n_p, t1.elapsed().as_secs_f64());
+        let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..report.timing.clone() };
+        let report = FitResult { timing, ..report };
+        let json = report.to_json();
+        if !quiet {
+            let k = |n: &str| report.parameter(n).map(|p| p.value);
+            let kt = report.derived("k_t").map(|q| q.value);
+            let conventions =
+                greybox::pmsm::report::conventions(k("k_e"), kt, k("l_d").is_some(), plan.report_options);
+            print_report(a.format, &report.document(&conventions), &json);
+        }
+        write_json(a, json)?;
+        return Ok(true);
+    };
+    let result = fit_logs(a.pole_pairs, options, *search, &logs, t0, read_s)?;
+    let json = result.to_json();
+    if !quiet {
+        print_report(a.format, &result.document(plan.report_options), &json);
+    }
+    write_json(a, json)?;
+    super::plots::fit_outputs(a.plot.as_deref(), a.residuals.as_deref(), &result, &logs)?;
+    let trusted = result.trusted();
+    if !trusted {
+        let codes: Vec<&str> =
+            result.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.as_str()).collect();
+        eprintln!(
+            "warning: the estimates are not to be trusted ({}){}",
+            codes.join(", "),
+            if a.allow_unconverged { "" } else { "; exit code 3 (--allow-unconverged: 0)" }
+        );
+    }
+    Ok(trusted || a.allow_unconverged)
+}
+
+/// The prediction-error fit of `logs` (jointly) with `options`: the pole pairs given or
+/// chosen (`--pole-pairs auto`, with its note), the input search when `search` asks for
+/// one, and the timing from `t0` with the `read_s` seconds it took to read the logs.
+///
+/// # Errors
+/// Those of [`fit_pmsm`], [`fit_estimating_input`] and the pole-pair choice.
+pub fn fit_logs(
+    pole_pairs_arg: PolePairs,
+    options: &PmsmFitOptions,
+    search: InputSearch,
+    logs: &[greybox::Experiment],
+    t0: Instant,
+    read_s: f64,
+) -> greybox::Result<PmsmFit> {
+    let (n_p, auto_note) = pole_pairs(pole_pairs_arg, logs, options.model, Some(options))?;
+    let options = PmsmFitOptions { pole_pairs: n_p, ..options.clone() };
+    let fit = if search.delay || search.advance || search.speed_pll || search.dead_time_width {
+        fit_estimating_input(logs, &options, search)?
+    } else {
+        fit_pmsm(logs, &options)?
+    };
+    let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..fit.report.timing.clone() };
+    let pmsm_notes = fit.pmsm_notes.iter().cloned().chain(auto_note).collect();
+    Ok(PmsmFit { report: FitResult { timing, ..fit.report }, pmsm_notes, ..fit })
+}
+
+/// The [`Plan`] of the flags `a`, every combination the fit cannot honour refused.
+///
+/// # Errors
+/// [`greybox::Error::InvalidOption`] naming the flag: `--pole-pairs auto` with an
+/// electrical speed or dq from phases, options `--method ls` cannot honour, input searches
+/// with `--voltage actual`, `--r-s0`/`--psi-f0` without `--t0`, a dead-time mask without
+/// the dead-time model, a dead-time model with the measured voltage; and those of
+/// [`ThermalReference::try_new`] and the `--weighting` rule.
+pub fn plan(a: &FitArgs) -> greybox::Result<Plan> {
     let given = match a.pole_pairs {
         PolePairs::Given(n) => Some(n),
         PolePairs::Auto => None,
@@ -38,35 +142,15 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
                     .into(),
         });
     }
-    super::logs::check_paths(&a.logs)?;
-    let logs: Vec<_> = a.columns.read_logs(&a.logs, &csv, true)?.into_iter().flatten().collect();
     let report_options = ReportOptions { current_scale: csv.current_scale };
-    let read_s = t0.elapsed().as_secs_f64();
     let kind = match a.model {
         ModelArg::Spm => MotorKind::Spm,
         ModelArg::Ipm => MotorKind::Ipm,
     };
     if let MethodArg::Ls = a.method {
         ls_only(a)?;
-        let t1 = Instant::now();
-        let rule = a.weighting.rule()?;
-        let opts = LinearOptions { prefilter: a.prefilter, ..LinearOptions::default() };
-        let (n_p, _) = pole_pairs(a, &logs, kind, None)?;
-        let ls = weighted_least_squares(&logs, n_p, kind, rule.as_ref(), &opts)?;
-        let names: Vec<String> = logs.iter().map(|e| e.name().to_string()).collect();
-        let report = ls.report(&names, n_p, t1.elapsed().as_secs_f64());
-        let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..report.timing.clone() };
-        let report = FitResult { timing, ..report };
-        let json = report.to_json();
-        if !quiet {
-            let k = |n: &str| report.parameter(n).map(|p| p.value);
-            let kt = report.derived("k_t").map(|q| q.value);
-            let conventions =
-                greybox::pmsm::report::conventions(k("k_e"), kt, k("l_d").is_some(), report_options);
-            print_report(a.format, &report.document(&conventions), &json);
-        }
-        write_json(a, json)?;
-        return Ok(true);
+        a.weighting.rule()?;
+        return Ok(Plan { csv, report_options, kind, pem: None });
     }
     let speed_pll = match a.speed_pll {
         Some(Pll::Bandwidth(b)) => Some(b),
@@ -174,46 +258,20 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
             ..PemOptions::default()
         },
     };
-    let (n_p, auto_note) = pole_pairs(a, &logs, kind, Some(&options))?;
-    let options = PmsmFitOptions { pole_pairs: n_p, ..options };
-    let fit = if search.delay || search.advance || search.speed_pll || search.dead_time_width {
-        fit_estimating_input(&logs, &options, search)?
-    } else {
-        fit_pmsm(&logs, &options)?
-    };
-    let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..fit.report.timing.clone() };
-    let pmsm_notes = fit.pmsm_notes.iter().cloned().chain(auto_note).collect();
-    let result = PmsmFit { report: FitResult { timing, ..fit.report }, pmsm_notes, ..fit };
-    let json = result.to_json();
-    if !quiet {
-        print_report(a.format, &result.document(report_options), &json);
-    }
-    write_json(a, json)?;
-    super::plots::fit_outputs(a.plot.as_deref(), a.residuals.as_deref(), &result, &logs)?;
-    let trusted = result.trusted();
-    if !trusted {
-        let codes: Vec<&str> =
-            result.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.as_str()).collect();
-        eprintln!(
-            "warning: the estimates are not to be trusted ({}){}",
-            codes.join(", "),
-            if a.allow_unconverged { "" } else { "; exit code 3 (--allow-unconverged: 0)" }
-        );
-    }
-    Ok(trusted || a.allow_unconverged)
+    Ok(Plan { csv, report_options, kind, pem: Some((options, search)) })
 }
 
 /// The pole pairs given, or chosen by `--pole-pairs auto` with a note on how decisively:
 /// the least-squares loss alone for `--method ls`, else the prediction-error loss of the
 /// best least-squares candidates fitted with `options`.
 fn pole_pairs(
-    a: &FitArgs,
+    given: PolePairs,
     logs: &[greybox::Experiment],
     kind: MotorKind,
     options: Option<&PmsmFitOptions>,
 ) -> greybox::Result<(u32, Option<String>)> {
     use greybox::pmsm::detect::{POLE_PAIR_CANDIDATES as C, choose_pole_pairs, choose_pole_pairs_by_fit};
-    match (a.pole_pairs, options) {
+    match (given, options) {
         (PolePairs::Given(n), _) => Ok((n, None)),
         (PolePairs::Auto, None) => {
             let (n, ratio) = choose_pole_pairs(logs, kind, VoltageInput::Terminal)?;

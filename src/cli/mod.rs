@@ -1,6 +1,7 @@
-//! The command-line tool's modules: arguments, `fit`, `validate`, `track`, `simulate`, report files.
+//! The command-line tool's modules: arguments, `fit` and its batch (`fit --each`), `validate`, `track`, `simulate`, report files.
 
 pub mod args;
+pub mod batch;
 pub mod columns;
 pub mod errors;
 pub mod fit;

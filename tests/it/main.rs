@@ -5,6 +5,7 @@
 
 mod common;
 
+mod batch;
 mod blocks;
 mod cli_traps;
 mod columnar;

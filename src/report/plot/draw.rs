@@ -95,6 +95,8 @@ pub(crate) enum Key {
     Band(ShapeStyle),
     /// A dashed line.
     Dashed(ShapeStyle),
+    /// A point (a circle filled or outlined by the style).
+    Dot(ShapeStyle),
 }
 
 /// A panel's header row: `caption` at the left, the legend `keys` from the right edge,
@@ -119,6 +121,7 @@ pub(crate) fn header(area: &Area<'_>, caption: &str, keys: &[(String, Key)]) -> 
                 area.draw(&PathElement::new(vec![(x, y), (x + 9, y)], style))?;
                 area.draw(&PathElement::new(vec![(x + 15, y), (x + 24, y)], style))?;
             }
+            Key::Dot(style) => area.draw(&Circle::new((x + 12, y), 5, style))?,
         }
         area.draw_text(label, &font, (x + 30, y - 7))?;
         x += key_width(label);

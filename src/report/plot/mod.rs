@@ -10,7 +10,9 @@
 //!   speed), residuals with their ±2σ band, residual autocorrelation with its 95 % bound,
 //!   the parameter trace over the iterations, the estimates with their 95 % intervals;
 //! - [`compare_svg`]: the same time panels and autocorrelation for a model on logs it was
-//!   not fitted on (MATLAB's `compare`; Ljung, *System Identification*, 16.5–16.6).
+//!   not fitted on (MATLAB's `compare`; Ljung, *System Identification*, 16.5–16.6);
+//! - [`trend_svg`]: estimates over a sequence of runs (one fit per log) with their 95 %
+//!   intervals as error bars.
 //!
 //! The drawing helpers (module `draw`) also serve the observer's plot, which lives with the
 //! observer ([`crate::online::plot`]).
@@ -18,8 +20,10 @@
 pub(crate) mod draw;
 mod fit;
 mod time;
+mod trend;
 
 pub use fit::{compare_svg, fit_svg};
+pub use trend::{MAX_NAMED_RUNS, Trend, TrendPoint, TrendSeries, trend_svg};
 
 use crate::error::{Error, Result};
 use std::path::Path;

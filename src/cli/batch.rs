@@ -1,0 +1,250 @@
+//! `greybox fit --each DIR_OR_GLOB`: every log of a folder (or every file a glob matches)
+//! fitted on its own with the same flags, in parallel, into one summary (CSV and JSON), a
+//! trend plot and a table.
+//!
+//! The logs are fitted by a rayon parallel iterator in the global pool. The fit of one log
+//! uses rayon too (`rayon::join`, parallel iterators over holds and blocks): nested in the
+//! batch, its tasks go to the same pool, whose work stealing keeps the number of threads at
+//! the pool's size, so the batch does not oversubscribe the cores. (The CSV reader's
+//! decompression thread, one per log being read, is the only thread outside the pool.)
+//!
+//! A log that cannot be read or fitted is reported on stderr (one line: its path and the
+//! error) and kept in the summary as `failed`; the others are still fitted. Exit codes:
+//! 0 every log fitted and trusted; 3 a log's fit is untrusted (and none failed) without
+//! `--allow-unconverged`; 4 a log failed (the summary is written all the same); 1 an
+//! error before any fit (no log matched, a flag the batch cannot honour, an output that
+//! cannot be written).
+
+mod summary;
+mod trend;
+
+use super::args::FitArgs;
+use super::fit::{Plan, fit_logs, plan};
+use super::output;
+use greybox::Error;
+use greybox::pmsm::PmsmFit;
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use summary::{Record, Status};
+
+/// Exit code when a log of the batch failed (could not be read or fitted).
+pub const EXIT_FAILED: u8 = 4;
+/// Exit code when a fit is untrusted (as `greybox fit`).
+pub const EXIT_UNTRUSTED: u8 = 3;
+
+/// File-name endings of the logs taken from a folder (lower case).
+const LOG_ENDINGS: [&str; 8] =
+    [".csv", ".csv.gz", ".parquet", ".pq", ".arrow", ".arrows", ".feather", ".ipc"];
+
+/// Runs `greybox fit --each PATTERN`; returns the exit code (see the module doc).
+///
+/// # Errors
+/// [`Error::InvalidOption`] naming `--each` when nothing matches or the glob is malformed,
+/// naming `--method` for `--method ls`, naming `--summary`/`--trend` for an output that
+/// cannot be written (checked before any fit); the errors of [`plan`]; [`Error::Write`]
+/// when an output cannot be written after the fits.
+pub fn run_batch(a: &FitArgs, pattern: &str) -> greybox::Result<u8> {
+    let t0 = Instant::now();
+    let plan = plan(a)?;
+    if plan.pem.is_none() {
+        return Err(Error::InvalidOption {
+            option: "--method".into(),
+            reason: "--each fits each log by the prediction-error method; --method ls is for one fit (drop --each)"
+                .into(),
+        });
+    }
+    let paths = expand(pattern)?;
+    let summary_paths = a.summary.as_deref().map(summary_paths);
+    for (flag, path) in summary_paths.iter().flat_map(|(c, j)| [("--summary", c), ("--summary", j)]) {
+        output::check(path, &paths).map_err(|e| renamed(e, flag))?;
+    }
+    if let Some(p) = &a.trend {
+        output::check(p, &paths).map_err(|e| renamed(e, "--trend"))?;
+    }
+    let stems: Vec<String> = paths.iter().map(|p| stem(p)).collect();
+    let names = super::logs::unique_names(&paths, &stems);
+    let bar = progress(a.quiet, paths.len());
+    let records: Vec<Record> = paths
+        .par_iter()
+        .zip(&names)
+        .map(|(path, name)| {
+            let result = fit_one(a, &plan, path, name);
+            if let Err(e) = &result {
+                // The reader's errors name the file already.
+                let shown = path.display().to_string();
+                let e = e.to_string();
+                let line = if e.contains(&shown) { e } else { format!("{shown}: {e}") };
+                bar.suspend(|| eprintln!("error: {line}"));
+            }
+            bar.inc(1);
+            Record::new(path, name, result)
+        })
+        .collect();
+    bar.finish_and_clear();
+    let wall_s = t0.elapsed().as_secs_f64();
+    let count = |s: Status| records.iter().filter(|r| r.status == s).count();
+    let (ok, untrusted, failed) = (count(Status::Ok), count(Status::Untrusted), count(Status::Failed));
+    if !a.quiet {
+        print!("{}", summary::table(&records));
+    }
+    if let Some((csv, json)) = &summary_paths {
+        output::write(csv, summary::csv(&records)?.trim_end())?;
+        output::write(json, &summary::json(pattern, &records, wall_s))?;
+    }
+    if let Some(p) = &a.trend {
+        greybox::report::plot::write_svg(p, &trend::svg(pattern, &records)?)?;
+    }
+    eprintln!("{} logs in {wall_s:.2} s: {ok} ok, {untrusted} untrusted, {failed} failed", records.len());
+    Ok(if failed > 0 {
+        eprintln!("exit code {EXIT_FAILED}: a log could not be read or fitted");
+        EXIT_FAILED
+    } else if untrusted > 0 && !a.allow_unconverged {
+        eprintln!("exit code {EXIT_UNTRUSTED}: a fit is not to be trusted (--allow-unconverged: 0)");
+        EXIT_UNTRUSTED
+    } else {
+        0
+    })
+}
+
+/// Reads and fits one log as `greybox fit LOG` would (without its spinner), named `name`;
+/// a panic inside becomes an error, so that the other logs are still fitted.
+fn fit_one(a: &FitArgs, plan: &Plan, path: &Path, name: &str) -> greybox::Result<PmsmFit> {
+    let run = || {
+        let t0 = Instant::now();
+        // One experiment, or with --split-gaps one per segment (`name#1`, `name#2`, …).
+        let segments: Vec<_> =
+            a.columns.read_logs(&[path.to_path_buf()], &plan.csv, false)?.into_iter().flatten().collect();
+        let one = segments.len() == 1;
+        let logs: Vec<_> = segments
+            .into_iter()
+            .enumerate()
+            .map(|(k, e)| if one { e.renamed(name.to_string()) } else { e.renamed(format!("{name}#{}", k + 1)) })
+            .collect();
+        let read_s = t0.elapsed().as_secs_f64();
+        let (options, search) = plan.pem.as_ref().ok_or_else(|| Error::Solver("no fit planned".into()))?;
+        let mut options = options.clone();
+        options.pem.progress = false;
+        fit_logs(a.pole_pairs, &options, *search, &logs, t0, read_s)
+    };
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(run)) {
+        Ok(r) => r.map_err(super::errors::in_fit_words),
+        Err(p) => {
+            let what = p
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| p.downcast_ref::<String>().cloned());
+            Err(Error::Solver(format!("internal error: {}", what.unwrap_or_else(|| "panic".into()))))
+        }
+    }
+}
+
+/// The logs of `pattern`: a folder's files ending in one of [`LOG_ENDINGS`], or the files a
+/// glob matches; sorted by file name (then by path).
+///
+/// # Errors
+/// [`Error::InvalidOption`] naming `--each` for a malformed glob, an unreadable folder or
+/// entry, or no log at all.
+fn expand(pattern: &str) -> greybox::Result<Vec<PathBuf>> {
+    let bad = |reason: String| Error::InvalidOption { option: "--each".into(), reason };
+    let dir = Path::new(pattern);
+    let mut paths: Vec<PathBuf> = if dir.is_dir() {
+        let entries = std::fs::read_dir(dir).map_err(|e| bad(format!("folder {pattern}: {e}")))?;
+        let mut v = Vec::new();
+        for entry in entries {
+            let p = entry.map_err(|e| bad(format!("folder {pattern}: {e}")))?.path();
+            let name = p.file_name().map(|n| n.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+            if p.is_file() && LOG_ENDINGS.iter().any(|e| name.ends_with(e)) {
+                v.push(p);
+            }
+        }
+        if v.is_empty() {
+            return Err(bad(format!("folder {pattern} holds no log ({})", LOG_ENDINGS.join(", "))));
+        }
+        v
+    } else {
+        let matches =
+            glob::glob(pattern).map_err(|e| bad(format!("`{pattern}` is not a valid glob: {e}")))?;
+        let mut v = Vec::new();
+        for m in matches {
+            let p = m.map_err(|e| bad(format!("{pattern}: {e}")))?;
+            if p.is_file() {
+                v.push(p);
+            }
+        }
+        if v.is_empty() {
+            return Err(bad(format!("`{pattern}` is neither a folder nor a glob matching any file")));
+        }
+        v
+    };
+    paths.sort_by(|x, y| x.file_name().cmp(&y.file_name()).then_with(|| x.cmp(y)));
+    Ok(paths)
+}
+
+/// The name of a log as the reader gives it: the file name without `.gz` and a log
+/// extension.
+fn stem(p: &Path) -> String {
+    let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = name.strip_suffix(".gz").unwrap_or(&name);
+    match name.rsplit_once('.') {
+        Some((s, ext)) if LOG_ENDINGS.iter().any(|e| e[1..].eq_ignore_ascii_case(ext)) => s.to_string(),
+        _ => name.to_string(),
+    }
+}
+
+/// `PATH.csv` and `PATH.json` of `--summary PATH` (a `.csv` or `.json` given is dropped
+/// first).
+fn summary_paths(p: &Path) -> (PathBuf, PathBuf) {
+    let base = match p.extension().and_then(|e| e.to_str()) {
+        Some("csv" | "json") => p.with_extension(""),
+        _ => p.to_path_buf(),
+    };
+    let with = |ext: &str| {
+        let mut s = base.clone().into_os_string();
+        s.push(ext);
+        PathBuf::from(s)
+    };
+    (with(".csv"), with(".json"))
+}
+
+/// The progress bar over `n` logs on stderr; hidden with `-q` or when stderr is not a
+/// terminal.
+fn progress(quiet: bool, n: usize) -> ProgressBar {
+    if quiet || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(n as u64);
+    if let Ok(style) = ProgressStyle::with_template(
+        "{spinner} fitting {pos}/{len} logs [{bar:30}] {elapsed_precise} (eta {eta})",
+    ) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    bar
+}
+
+/// An output-file error named after its flag.
+fn renamed(e: Error, flag: &str) -> Error {
+    match e {
+        Error::InvalidOption { reason, .. } => Error::InvalidOption { option: flag.into(), reason },
+        e => e,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stems_and_summary_paths() {
+        assert_eq!(stem(Path::new("/a/run.csv.gz")), "run");
+        assert_eq!(stem(Path::new("b/hot.PARQUET")), "hot");
+        assert_eq!(stem(Path::new("notes.txt")), "notes.txt");
+        let (c, j) = summary_paths(Path::new("out/sum.json"));
+        assert_eq!((c, j), (PathBuf::from("out/sum.csv"), PathBuf::from("out/sum.json")));
+        let (c, _) = summary_paths(Path::new("out/sum.v2"));
+        assert_eq!(c, PathBuf::from("out/sum.v2.csv"));
+    }
+}
