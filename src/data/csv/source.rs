@@ -108,12 +108,15 @@ fn produce(mut reader: Box<dyn Read + Send>, tx: &SyncSender<Item>, back: &Recei
                 continue;
             }
         };
+        let tail = buf.len() - cut;
         let mut next = match back.try_recv() {
             Ok(mut b) => {
                 b.clear();
+                // Room for the tail and a chunk, so that `fill` never moves the buffer.
+                b.reserve(tail + CHUNK_BYTES);
                 b
             }
-            Err(TryRecvError::Empty | TryRecvError::Disconnected) => Vec::with_capacity(CHUNK_BYTES),
+            Err(TryRecvError::Empty | TryRecvError::Disconnected) => Vec::with_capacity(tail + CHUNK_BYTES),
         };
         next.extend_from_slice(&buf[cut..]);
         buf.truncate(cut);
