@@ -52,14 +52,18 @@ pub fn compare_plot(path: &Path, comparisons: &[Comparison], logs: &[Experiment]
     plot::write_svg(path, &plot::compare_svg(comparisons, context.as_ref())?)
 }
 
-/// Writes the observer plot of the runs `(log path, trajectory)`, with the truth of each
+/// Writes the observer plot of the runs `(log path, segment, trajectory)` (a segment of a
+/// log split at its gaps is drawn as `LOG#k`), with the truth of each
 /// log read from the JSON beside it when there is one.
-pub fn track_plot(path: &Path, runs: &[(PathBuf, Trajectory)]) -> greybox::Result<()> {
-    let names: Vec<String> = runs.iter().map(|(p, _)| short_name(p)).collect();
+pub fn track_plot(path: &Path, runs: &[(PathBuf, Option<usize>, Trajectory)]) -> greybox::Result<()> {
+    let names: Vec<String> = runs
+        .iter()
+        .map(|(p, segment, _)| segment.map_or_else(|| short_name(p), |k| format!("{}#{k}", short_name(p))))
+        .collect();
     let runs: Vec<TrackRun<'_>> = runs
         .iter()
         .zip(&names)
-        .map(|((p, tr), name)| TrackRun { name, trajectory: tr, truth: truth(p) })
+        .map(|((p, _, tr), name)| TrackRun { name, trajectory: tr, truth: truth(p) })
         .collect();
     plot::write_svg(path, &track_svg(&runs)?)
 }

@@ -117,15 +117,16 @@ pub fn run_track(a: &TrackArgs) -> greybox::Result<()> {
         let one = group.len() == 1;
         for (k, log) in group.iter().enumerate() {
             let trajectory = track(log, &config).map_err(|e| flag_error(e, path))?;
+            let segment = (!one).then_some(k + 1);
             let name = path.display().to_string();
-            names.push(if one { name } else { format!("{name}#{}", k + 1) });
-            runs.push((path.clone(), trajectory));
+            names.push(segment.map_or_else(|| name.clone(), |k| format!("{name}#{k}")));
+            runs.push((path.clone(), segment, trajectory));
         }
     }
     if let Some(plot) = &a.plot {
         super::plots::track_plot(plot, &runs)?;
     }
-    let runs: Vec<(String, Trajectory)> = runs.into_iter().zip(names).map(|((_, t), n)| (n, t)).collect();
+    let runs: Vec<(String, Trajectory)> = runs.into_iter().zip(names).map(|((_, _, t), n)| (n, t)).collect();
     let to_stdout = a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
     if !to_stdout && !a.quiet {
         for (name, tr) in &runs {

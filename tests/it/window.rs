@@ -199,6 +199,14 @@ fn a_log_with_gaps_is_refused_or_split_into_segments_fitted_jointly() {
     let out = greybox(&["validate", s(&gappy), "--params", s(&report), "--split-gaps"]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success() && text.contains("run#1:") && text.contains("run#2:"), "{text}");
+    // track too, each segment its own run, named `#k` in the text and in the plot.
+    let plot = dir.join("track.svg");
+    let out =
+        greybox(&["track", s(&gappy), "-p", "4", "--l-s", "4.5e-3", "--split-gaps", "--plot", s(&plot)]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && text.contains("run.csv#1:") && text.contains("run.csv#2:"), "{text}");
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(svg.contains("run#1") && svg.contains("run#2"), "the track plot names no segment");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
