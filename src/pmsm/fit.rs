@@ -9,7 +9,7 @@
 //! 3. the model derives `K_t = √(3/2) K_e` \[N m/A\] and `ψ_f = √(2/3) K_e / n_p` \[V s\] with
 //!    their standard errors (MODEL.md §2).
 
-use super::hold::{DQ_DECISIVE, HoldFits, fit_holds_screened, hold_ambiguity};
+use super::hold::{DQ_DECISIVE, HoldFits, fit_holds_of, hold_ambiguity};
 use super::interval::{VoltageHold, VoltageInput};
 use super::inverter::InverterModel;
 use super::kind::MotorKind;
@@ -24,7 +24,7 @@ use super::temperature::ThermalReference;
 use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::{FitResult, PemOptions, Timing, Weighting, fit_with_weighting, predicted_loss};
+use crate::estimate::{FitResult, PemOptions, Timing, Weighting};
 use crate::model::Parameter;
 use crate::report::eng::format_eng;
 use serde::{Deserialize, Serialize};
@@ -251,38 +251,36 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     notes.extend(pem_note);
     let modulator =
         experiments.iter().all(|e| e.get(channel::U_D_REF).is_some() && e.get(channel::U_Q_REF).is_some());
-    // A fit of one hold (`predict`: only its predicted loss) from the start `s`.
-    let run_hold = |hold: VoltageHold, s: &[f64], predict: bool| -> Result<(f64, Option<FitResult>)> {
-        let setup = PmsmSetup {
-            n_p,
-            hold,
-            input: options.input,
-            cable_resistance: options.cable_resistance,
-            thermal: options.thermal,
-            inverter: options.inverter,
+    let setup = |hold: VoltageHold| PmsmSetup {
+        n_p,
+        hold,
+        input: options.input,
+        cable_resistance: options.cable_resistance,
+        thermal: options.thermal,
+        inverter: options.inverter,
+    };
+    macro_rules! fit_holds {
+        ($model:path) => {
+            fit_holds_of(
+                holds,
+                &start,
+                names,
+                modulator,
+                |h| {
+                    let mut m = <$model>::from_setup(setup(h));
+                    configure(m.parameters_mut(), options)?;
+                    Ok(m)
+                },
+                experiments,
+                &pem,
+                weighting,
+            )?
         };
-        macro_rules! run {
-            ($model:expr) => {{
-                let mut m = $model;
-                configure(m.parameters_mut(), options)?;
-                if predict {
-                    Ok((predicted_loss(&m, experiments, s, &pem, weighting)?, None))
-                } else {
-                    fit_with_weighting(&m, experiments, s, &pem, weighting).map(|r| (r.fit.loss, Some(r)))
-                }
-            }};
-        }
-        match options.model {
-            MotorKind::Spm => run!(PmsmSpm::from_setup(setup)),
-            MotorKind::Ipm => run!(PmsmIpm::from_setup(setup)),
-        }
+    }
+    let HoldFits { best: (hold, best), others, losses, notes: hold_notes } = match options.model {
+        MotorKind::Spm => fit_holds!(PmsmSpm),
+        MotorKind::Ipm => fit_holds!(PmsmIpm),
     };
-    let fit_hold = |hold: VoltageHold, s: &[f64]| {
-        run_hold(hold, s, false)?.1.ok_or_else(|| Error::Solver(format!("no {hold} hold fit")))
-    };
-    let predict_hold = |hold: VoltageHold, s: &[f64]| run_hold(hold, s, true).map(|r| r.0);
-    let HoldFits { best: (hold, best), others, losses, notes: hold_notes } =
-        fit_holds_screened(holds, &start, names, modulator, predict_hold, fit_hold)?;
     notes.extend(hold_notes);
     let pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
     // The regression sees the whole series resistance.
