@@ -17,7 +17,7 @@ use super::limit::{VoltageLimitWeighting, delay_of};
 use super::mask::{DeadTimeMask, DeadTimeMaskWeighting, masked_pem};
 use super::report::delay_parameter;
 pub use super::report::{PmsmFit, StartComparison};
-use super::setup::PmsmSetup;
+use super::setup::{PmsmSetup, configure};
 use super::signals::channel;
 use super::start::least_squares_start;
 use super::temperature::ThermalReference;
@@ -25,7 +25,6 @@ use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::{FitResult, PemOptions, Timing, Weighting};
-use crate::model::Parameter;
 use crate::report::eng::format_eng;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -277,10 +276,27 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             )?
         };
     }
-    let HoldFits { best: (hold, best), others, losses, notes: hold_notes } = match options.model {
-        MotorKind::Spm => fit_holds!(PmsmSpm),
-        MotorKind::Ipm => fit_holds!(PmsmIpm),
-    };
+    // The dead-time check needs no estimate: beside the fits.
+    let (fits, dead) = rayon::join(
+        || -> Result<HoldFits> {
+            Ok(match options.model {
+                MotorKind::Spm => fit_holds!(PmsmSpm),
+                MotorKind::Ipm => fit_holds!(PmsmIpm),
+            })
+        },
+        || {
+            let (kind, input, inverter) = (options.model, options.input, options.inverter.is_some());
+            super::checks::dead_time_advice(
+                experiments,
+                n_p,
+                kind,
+                input,
+                kind.parameter_names().len(),
+                inverter,
+            )
+        },
+    );
+    let HoldFits { best: (hold, best), others, losses, notes: hold_notes } = fits?;
     notes.extend(hold_notes);
     let pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
     // The regression sees the whole series resistance.
@@ -292,14 +308,8 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             best.parameter(n).map(|p| p.value + if *n == "r_s" { options.cable_resistance } else { 0.0 })
         })
         .collect();
-    let model_checks = super::checks::advice(
-        experiments,
-        n_p,
-        options.model,
-        options.input,
-        &motor,
-        options.inverter.is_some(),
-    );
+    let late = super::checks::late_voltage_advice(experiments, n_p, options.model, options.input, &motor);
+    let model_checks = super::checks::merge(dead, late);
     if losses.len() > 1 {
         let why = match (hold, modulator) {
             (VoltageHold::Stator, true) => format!(
@@ -363,30 +373,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     })
 }
 
-/// Applies the fixed flags and bounds of `options` to the model's parameter metadata.
-fn configure(params: &mut [Parameter], options: &PmsmFitOptions) -> Result<()> {
-    let unknown = |n: &str, what: &str| Error::InvalidOption {
-        option: what.into(),
-        reason: format!("no parameter `{n}`; the model has {}", params_list(options.model)),
-    };
-    for name in options.fixed.iter().chain(options.fixed_values.iter().map(|(n, _)| n)) {
-        let p = params.iter_mut().find(|p| &p.name == name).ok_or_else(|| unknown(name, "fixed"))?;
-        p.fixed = true;
-    }
-    for (name, lo, hi) in &options.bounds {
-        let p = params.iter_mut().find(|p| &p.name == name).ok_or_else(|| unknown(name, "bounds"))?;
-        p.lower = *lo;
-        p.upper = *hi;
-        p.check_bounds()?;
-    }
-    Ok(())
-}
-
 /// The unit of parameter `name` of `kind`, `V` for the dead-time voltage `v_dt`.
 fn unit_of(kind: MotorKind, name: &str) -> &'static str {
     kind.table().iter().find(|p| p.name == name).map_or("V", |p| p.unit)
-}
-
-fn params_list(kind: MotorKind) -> String {
-    kind.parameter_names().join(", ")
 }
