@@ -261,6 +261,8 @@ fn build_problem<'m, M: GreyBoxModel>(
 pub struct StartedFit<'m, M: GreyBoxModel> {
     problem: PemProblem<'m, M>,
     popts: ProblemOptions,
+    options: PemOptions,
+    weighting: &'m dyn Weighting,
     start: Vec<f64>,
     predicted: f64,
     t0: Instant,
@@ -277,14 +279,14 @@ impl<'m, M: GreyBoxModel> StartedFit<'m, M> {
         experiments: &[Experiment],
         start: &[f64],
         options: &PemOptions,
-        weighting: &dyn Weighting,
+        weighting: &'m dyn Weighting,
     ) -> Result<Self> {
         let t0 = Instant::now();
         let (problem, popts) = build_problem(model, experiments, start, options, weighting)?;
         let ne = problem.seeded_normal_equations(&problem.start_vector(start))?;
         let drop = ne.jtj.clone().cholesky().map(|c| 0.5 * ne.jtr.dot(&c.solve(&ne.jtr))).unwrap_or(0.0);
         let predicted = (ne.cost - drop).max(0.0);
-        Ok(Self { problem, popts, start: start.to_vec(), predicted, t0 })
+        Ok(Self { problem, popts, options: options.clone(), weighting, start: start.to_vec(), predicted, t0 })
     }
 
     /// The loss that the fit is predicted to reach, from the pass at the start: the
@@ -300,13 +302,13 @@ impl<'m, M: GreyBoxModel> StartedFit<'m, M> {
         &self.start
     }
 
-    /// Runs the fit: as [`fit_with_weighting`] with the options and `weighting` it was
-    /// built with (the same rule must be given again: it names the weighting in the notes).
+    /// Runs the fit: as [`fit_with_weighting`] with the options and weighting it was built
+    /// with.
     ///
     /// # Errors
     /// As [`fit_with_weighting`].
-    pub fn fit(self, options: &PemOptions, weighting: &dyn Weighting) -> Result<FitResult> {
-        finish(self.problem, self.popts, &self.start, options, weighting, self.t0)
+    pub fn fit(self) -> Result<FitResult> {
+        finish(self.problem, self.popts, &self.start, &self.options, self.weighting, self.t0)
     }
 }
 

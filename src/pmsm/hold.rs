@@ -111,7 +111,7 @@ pub(crate) fn fit_holds_of<M: GreyBoxModel>(
         modulator,
         |h, s| StartedFit::new(model(h)?, experiments, s, pem, weighting).map(|f| (f.predicted_loss(), f)),
         |h, s, started: Option<StartedFit<'_, M>>| match started {
-            Some(f) => f.fit(pem, weighting),
+            Some(f) => f.fit(),
             None => fit_with_weighting(model(h)?, experiments, s, pem, weighting),
         },
     )

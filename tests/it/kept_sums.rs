@@ -71,7 +71,7 @@ fn a_fit_continued_from_its_prediction_equals_a_fresh_fit() {
         let fresh = fit_with_weighting(&m, std::slice::from_ref(&e), &start, &opts, &Uniform).unwrap();
         let started = StartedFit::new(&m, std::slice::from_ref(&e), &start, &opts, &Uniform).unwrap();
         let predicted = started.predicted_loss();
-        let cont = started.fit(&opts, &Uniform).unwrap();
+        let cont = started.fit().unwrap();
         assert_eq!(cont.fit.loss.to_bits(), fresh.fit.loss.to_bits(), "{hold}");
         assert_eq!(cont.solver.iterations, fresh.solver.iterations);
         assert_eq!(cont.solver.evaluations, fresh.solver.evaluations);
