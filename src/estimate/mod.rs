@@ -143,7 +143,21 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
     weighting: &dyn Weighting,
 ) -> Result<FitResult> {
     let t0 = Instant::now();
-    let (problem, mut popts) = build_problem(model, experiments, start, options, weighting)?;
+    let (problem, popts) = build_problem(model, experiments, start, options, weighting)?;
+    finish(problem, popts, start, options, weighting, t0)
+}
+
+/// Runs the solver on `problem` from `start` and assembles the result (the Huber refit
+/// included): the common end of [`fit_with_weighting`] and [`StartedFit::fit`].
+fn finish<M: GreyBoxModel>(
+    problem: PemProblem<'_, M>,
+    mut popts: ProblemOptions,
+    start: &[f64],
+    options: &PemOptions,
+    weighting: &dyn Weighting,
+    t0: Instant,
+) -> Result<FitResult> {
+    let model = problem.model();
     let uniform = weighting.is_uniform();
     let scaling = options.scaling.rule();
     let p0 = problem.start_vector(start);
@@ -240,12 +254,68 @@ fn build_problem<'m, M: GreyBoxModel>(
     Ok((problem, popts))
 }
 
+/// A fit built and evaluated at its start, not yet run: the prepared experiments and one
+/// normal-equation pass at the start, from which [`predicted_loss`](Self::predicted_loss)
+/// comes and with which [`fit`](Self::fit) begins (the pass is not repeated; the estimate
+/// is the same bits as [`fit_with_weighting`]'s).
+pub struct StartedFit<'m, M: GreyBoxModel> {
+    problem: PemProblem<'m, M>,
+    popts: ProblemOptions,
+    options: PemOptions,
+    weighting: &'m dyn Weighting,
+    start: Vec<f64>,
+    predicted: f64,
+    t0: Instant,
+}
+
+impl<'m, M: GreyBoxModel> StartedFit<'m, M> {
+    /// Builds the fit of `model` to `experiments` from `start` (length n_θ, model order) and
+    /// makes its normal-equation pass at the start.
+    ///
+    /// # Errors
+    /// As [`fit_with_weighting`] at the start.
+    pub fn new(
+        model: &'m M,
+        experiments: &[Experiment],
+        start: &[f64],
+        options: &PemOptions,
+        weighting: &'m dyn Weighting,
+    ) -> Result<Self> {
+        let t0 = Instant::now();
+        let (problem, popts) = build_problem(model, experiments, start, options, weighting)?;
+        let ne = problem.seeded_normal_equations(&problem.start_vector(start))?;
+        let drop = ne.jtj.clone().cholesky().map(|c| 0.5 * ne.jtr.dot(&c.solve(&ne.jtr))).unwrap_or(0.0);
+        let predicted = (ne.cost - drop).max(0.0);
+        Ok(Self { problem, popts, options: options.clone(), weighting, start: start.to_vec(), predicted, t0 })
+    }
+
+    /// The loss that the fit is predicted to reach, from the pass at the start: the
+    /// Gauss-Newton minimum of the local quadratic model, `V − ½ gᵀH⁻¹g` with `g = JᵀWε`,
+    /// `H = JᵀWJ` (Nocedal & Wright, *Numerical Optimization*, 2nd ed., 10.3), floored at
+    /// 0; `V` itself when `H` is singular (units of the cost).
+    pub fn predicted_loss(&self) -> f64 {
+        self.predicted
+    }
+
+    /// The start it was built from (length n_θ, model order).
+    pub fn start(&self) -> &[f64] {
+        &self.start
+    }
+
+    /// Runs the fit: as [`fit_with_weighting`] with the options and weighting it was built
+    /// with.
+    ///
+    /// # Errors
+    /// As [`fit_with_weighting`].
+    pub fn fit(self) -> Result<FitResult> {
+        finish(self.problem, self.popts, &self.start, &self.options, self.weighting, self.t0)
+    }
+}
+
 /// The loss that a fit of `model` from `start` is predicted to reach, from one
-/// normal-equation pass at the start: the Gauss-Newton minimum of the local quadratic
-/// model, `V − ½ gᵀH⁻¹g` with `g = JᵀWε`, `H = JᵀWJ` (Nocedal & Wright, *Numerical
-/// Optimization*, 2nd ed., 10.3), floored at 0; `V` itself when `H` is singular. Cheap
-/// evidence for a choice between model structures (e.g. two voltage holds) before
-/// fitting only the better one.
+/// normal-equation pass at the start ([`StartedFit::predicted_loss`]). Cheap evidence for
+/// a choice between model structures (e.g. two voltage holds) before fitting only the
+/// better one; [`StartedFit`] keeps the pass for that fit.
 ///
 /// # Errors
 /// As [`fit_with_weighting`] at the start.
@@ -256,8 +326,5 @@ pub fn predicted_loss<M: GreyBoxModel>(
     options: &PemOptions,
     weighting: &dyn Weighting,
 ) -> Result<f64> {
-    let (problem, _) = build_problem(model, experiments, start, options, weighting)?;
-    let ne = problem.normal_equations(&problem.start_vector(start))?;
-    let drop = ne.jtj.clone().cholesky().map(|c| 0.5 * ne.jtr.dot(&c.solve(&ne.jtr))).unwrap_or(0.0);
-    Ok((ne.cost - drop).max(0.0))
+    StartedFit::new(model, experiments, start, options, weighting).map(|s| s.predicted_loss())
 }

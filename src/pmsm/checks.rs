@@ -66,86 +66,127 @@ pub fn advice(
     theta: &[f64],
     inverter: bool,
 ) -> Vec<Warning> {
-    let mut out = Vec::new();
-    let cols = theta.len().min(MAX_COLS);
-    let theta = &theta[..cols];
-    for e in experiments {
-        let Ok(v) = DqView::try_new(e) else { continue };
-        let Ok((u_d, u_q)) = driving_voltage(&v, n_p, input) else { continue };
-        let reg = Regression::new(&v, &u_d, &u_q, n_p, kind);
-        if reg.cols() != cols {
-            continue;
-        }
-        // The dead-time check: the sign of the phase currents as one more column.
-        let theta_m = e.get(channel::THETA_M).map(|c| c.values.as_slice());
-        let mut dead = match theta_m {
-            Some(th) if !inverter => {
-                DeadTimeStream::try_new(&v, n_p, &InverterModel::default()).ok().map(|s| (s, th))
-            }
-            _ => None,
-        };
-        let mut ls = StreamedLeastSquares::new(cols + 1);
-        // Sums of the correlation, the residual shifted by the first one (no cancellation
-        // when its mean is large against its spread): Σx, Σy, Σx², Σy², Σxy.
-        let shift = reg.intervals().checked_sub(1).map_or(0.0, |_| {
-            let (d, _, u) = reg.rows(0);
-            residual(&d, u[0], theta)
-        });
-        let mut sums = [0.0; 5];
-        let (id, iq) = (v.i_d(), v.i_q());
-        // The phase currents and angle of the interval's first sample.
-        let mut prev = dead.as_mut().map(|(s, th)| {
+    let dead = dead_time_advice(experiments, n_p, kind, input, theta.len(), inverter);
+    merge(dead, late_voltage_advice(experiments, n_p, kind, input, theta))
+}
+
+/// Every log's warnings of [`advice`] in its order (per log the dead-time one first) from
+/// [`dead_time_advice`] and [`late_voltage_advice`] (one entry per log each).
+pub(crate) fn merge(dead: Vec<Option<Warning>>, late: Vec<Option<Warning>>) -> Vec<Warning> {
+    dead.into_iter().zip(late).flat_map(|(d, l)| d.into_iter().chain(l)).collect()
+}
+
+/// `f(view, u_d, u_q, regression)` on the regression of log `e` (`n_theta` columns, at most
+/// [`MAX_COLS`]) with its driving voltage; `None` for a log the checks cannot read.
+fn with_regression<R>(
+    e: &Experiment,
+    n_p: u32,
+    kind: MotorKind,
+    input: VoltageInput,
+    n_theta: usize,
+    f: impl FnOnce(&DqView<'_>, &[f64], &[f64], &Regression<'_>) -> Option<R>,
+) -> Option<R> {
+    let v = DqView::try_new(e).ok()?;
+    let (u_d, u_q) = driving_voltage(&v, n_p, input).ok()?;
+    let reg = Regression::new(&v, &u_d, &u_q, n_p, kind);
+    if reg.cols() != n_theta.min(MAX_COLS) {
+        return None;
+    }
+    f(&v, &u_d, &u_q, &reg)
+}
+
+/// The dead-time check of [`advice`], one entry per log: it needs no estimate (only the
+/// number `n_theta` of motor parameters), so it can run beside the fit.
+pub(crate) fn dead_time_advice(
+    experiments: &[Experiment],
+    n_p: u32,
+    kind: MotorKind,
+    input: VoltageInput,
+    n_theta: usize,
+    inverter: bool,
+) -> Vec<Option<Warning>> {
+    let cols = n_theta.min(MAX_COLS);
+    let check = |e: &Experiment| {
+        with_regression(e, n_p, kind, input, n_theta, |v, _, _, reg| {
+            // The dead-time check: the sign of the phase currents as one more column.
+            let th = e.get(channel::THETA_M).map(|c| c.values.as_slice()).filter(|_| !inverter)?;
+            let mut s = DeadTimeStream::try_new(v, n_p, &InverterModel::default()).ok()?;
+            let mut ls = StreamedLeastSquares::new(cols + 1);
+            let (id, iq) = (v.i_d(), v.i_q());
+            // The phase currents and angle of the interval's first sample.
             let sc = s.angle(th[0]);
-            (s.phases(id[0], iq[0], sc), sc)
-        });
-        reg.for_each(|k, d, q, u| {
-            let du = change(&u_d, &u_q, k);
-            for (x, y) in
-                [(residual(d, u[0], theta) - shift, du[0]), (residual(q, u[1], theta) - shift, du[1])]
-            {
-                sums[0] += x;
-                sums[1] += y;
-                sums[2] += x * x;
-                sums[3] += y * y;
-                sums[4] += x * y;
-            }
-            if let (Some((s, th)), Some((p, sc))) = (dead.as_mut(), prev.as_mut()) {
+            let (mut p, mut sc) = (s.phases(id[0], iq[0], sc), sc);
+            reg.for_each(|k, d, q, u| {
                 let sc1 = s.angle(th[k + 1]);
                 let p1 = s.phases(id[k + 1], iq[k + 1], sc1);
-                let dir = s.direction(*p, p1, *sc);
-                (*p, *sc) = (p1, sc1);
+                let dir = s.direction(p, p1, sc);
+                (p, sc) = (p1, sc1);
                 push_with_dead_time(&mut ls, d, q, [u[0], u[1]], cols, dir);
-            }
-        });
-        if dead.is_some_and(|(s, _)| s.check_crossings().is_ok()) {
+            });
+            s.check_crossings().ok()?;
             // The resistance absorbs much of a dead-time voltage (both oppose the current), so
             // ask how much of the regression's residual the sign of the phase currents
             // explains beyond the motor's own regressors.
             let gain = explained_beyond(&mut ls);
-            if gain > THRESHOLD {
-                out.push(Warning::untrusted("dead_time", format!(
-                    "`{}`: the sign of the phase currents explains {:.0} % of the voltage residual the motor's \
-                     parameters leave: an inverter dead-time voltage the model does not have (it biases r_s); fit \
-                     the reference voltage with the inverter model (--voltage reference --dead-time estimate), or \
-                     use the measured terminal voltage",
-                    e.name(),
-                    100.0 * gain
-                )));
-            }
-        }
-        // Pearson correlation of the residual with the voltage change, rows d, q per interval.
-        let n = (2 * reg.intervals()) as f64;
-        let [sx, sy, sxx, syy, sxy] = sums;
-        let (saa, sbb, sab) = (sxx - sx * sx / n, syy - sy * sy / n, sxy - sx * sy / n);
-        let c = if saa > 0.0 && sbb > 0.0 { sab / (saa * sbb).sqrt() } else { 0.0 };
-        if c.abs() > THRESHOLD {
-            out.push(Warning::untrusted("voltage_late", format!(
+            (gain > THRESHOLD).then(|| {
+            Warning::untrusted("dead_time", format!(
+                "`{}`: the sign of the phase currents explains {:.0} % of the voltage residual the motor's \
+                 parameters leave: an inverter dead-time voltage the model does not have (it biases r_s); fit \
+                 the reference voltage with the inverter model (--voltage reference --dead-time estimate), or \
+                 use the measured terminal voltage",
+                e.name(),
+                100.0 * gain
+            ))
+        })
+        })
+    };
+    experiments.iter().map(check).collect()
+}
+
+/// The late-voltage check of [`advice`] at `theta`, one entry per log.
+pub(crate) fn late_voltage_advice(
+    experiments: &[Experiment],
+    n_p: u32,
+    kind: MotorKind,
+    input: VoltageInput,
+    theta: &[f64],
+) -> Vec<Option<Warning>> {
+    let theta = &theta[..theta.len().min(MAX_COLS)];
+    let check = |e: &Experiment| {
+        with_regression(e, n_p, kind, input, theta.len(), |_, u_d, u_q, reg| {
+            // Sums of the correlation, the residual shifted by the first one (no cancellation
+            // when its mean is large against its spread): Σx, Σy, Σx², Σy², Σxy.
+            let shift = reg.intervals().checked_sub(1).map_or(0.0, |_| {
+                let (d, _, u) = reg.rows(0);
+                residual(&d, u[0], theta)
+            });
+            let mut sums = [0.0; 5];
+            reg.for_each(|k, d, q, u| {
+                let du = change(u_d, u_q, k);
+                for (x, y) in
+                    [(residual(d, u[0], theta) - shift, du[0]), (residual(q, u[1], theta) - shift, du[1])]
+                {
+                    sums[0] += x;
+                    sums[1] += y;
+                    sums[2] += x * x;
+                    sums[3] += y * y;
+                    sums[4] += x * y;
+                }
+            });
+            // Pearson correlation of the residual with the voltage change, rows d, q per interval.
+            let n = (2 * reg.intervals()) as f64;
+            let [sx, sy, sxx, syy, sxy] = sums;
+            let (saa, sbb, sab) = (sxx - sx * sx / n, syy - sy * sy / n, sxy - sx * sy / n);
+            let c = if saa > 0.0 && sbb > 0.0 { sab / (saa * sbb).sqrt() } else { 0.0 };
+            (c.abs() > THRESHOLD).then(|| {
+            Warning::untrusted("voltage_late", format!(
                 "`{}`: the voltage residual follows the voltage's change from the sample before (correlation \
                  {c:+.2}): the voltage acts later than the model assumes, as a controller's reference does \
                  (--voltage reference --delay estimate)",
                 e.name()
-            )));
-        }
-    }
-    out
+            ))
+        })
+        })
+    };
+    experiments.iter().map(check).collect()
 }

@@ -9,7 +9,7 @@
 //! 3. the model derives `K_t = √(3/2) K_e` \[N m/A\] and `ψ_f = √(2/3) K_e / n_p` \[V s\] with
 //!    their standard errors (MODEL.md §2).
 
-use super::hold::{DQ_DECISIVE, HoldFits, fit_holds_screened, hold_ambiguity};
+use super::hold::{DQ_DECISIVE, HoldFits, fit_holds_of, hold_ambiguity};
 use super::interval::{VoltageHold, VoltageInput};
 use super::inverter::InverterModel;
 use super::kind::MotorKind;
@@ -17,15 +17,14 @@ use super::limit::{VoltageLimitWeighting, delay_of};
 use super::mask::{DeadTimeMask, DeadTimeMaskWeighting, masked_pem};
 use super::report::delay_parameter;
 pub use super::report::{PmsmFit, StartComparison};
-use super::setup::PmsmSetup;
+use super::setup::{PmsmSetup, configure};
 use super::signals::channel;
 use super::start::least_squares_start;
 use super::temperature::ThermalReference;
 use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::{FitResult, PemOptions, Timing, Weighting, fit_with_weighting, predicted_loss};
-use crate::model::Parameter;
+use crate::estimate::{FitResult, PemOptions, Timing, Weighting};
 use crate::report::eng::format_eng;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -251,38 +250,53 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     notes.extend(pem_note);
     let modulator =
         experiments.iter().all(|e| e.get(channel::U_D_REF).is_some() && e.get(channel::U_Q_REF).is_some());
-    // A fit of one hold (`predict`: only its predicted loss) from the start `s`.
-    let run_hold = |hold: VoltageHold, s: &[f64], predict: bool| -> Result<(f64, Option<FitResult>)> {
-        let setup = PmsmSetup {
-            n_p,
-            hold,
-            input: options.input,
-            cable_resistance: options.cable_resistance,
-            thermal: options.thermal,
-            inverter: options.inverter,
+    let setup = |hold: VoltageHold| PmsmSetup {
+        n_p,
+        hold,
+        input: options.input,
+        cable_resistance: options.cable_resistance,
+        thermal: options.thermal,
+        inverter: options.inverter,
+    };
+    macro_rules! fit_holds {
+        ($model:path) => {
+            fit_holds_of(
+                holds,
+                &start,
+                names,
+                modulator,
+                |h| {
+                    let mut m = <$model>::from_setup(setup(h));
+                    configure(m.parameters_mut(), options)?;
+                    Ok(m)
+                },
+                experiments,
+                &pem,
+                weighting,
+            )?
         };
-        macro_rules! run {
-            ($model:expr) => {{
-                let mut m = $model;
-                configure(m.parameters_mut(), options)?;
-                if predict {
-                    Ok((predicted_loss(&m, experiments, s, &pem, weighting)?, None))
-                } else {
-                    fit_with_weighting(&m, experiments, s, &pem, weighting).map(|r| (r.fit.loss, Some(r)))
-                }
-            }};
-        }
-        match options.model {
-            MotorKind::Spm => run!(PmsmSpm::from_setup(setup)),
-            MotorKind::Ipm => run!(PmsmIpm::from_setup(setup)),
-        }
-    };
-    let fit_hold = |hold: VoltageHold, s: &[f64]| {
-        run_hold(hold, s, false)?.1.ok_or_else(|| Error::Solver(format!("no {hold} hold fit")))
-    };
-    let predict_hold = |hold: VoltageHold, s: &[f64]| run_hold(hold, s, true).map(|r| r.0);
-    let HoldFits { best: (hold, best), others, losses, notes: hold_notes } =
-        fit_holds_screened(holds, &start, names, modulator, predict_hold, fit_hold)?;
+    }
+    // The dead-time check needs no estimate: beside the fits.
+    let (fits, dead) = rayon::join(
+        || -> Result<HoldFits> {
+            Ok(match options.model {
+                MotorKind::Spm => fit_holds!(PmsmSpm),
+                MotorKind::Ipm => fit_holds!(PmsmIpm),
+            })
+        },
+        || {
+            let (kind, input, inverter) = (options.model, options.input, options.inverter.is_some());
+            super::checks::dead_time_advice(
+                experiments,
+                n_p,
+                kind,
+                input,
+                kind.parameter_names().len(),
+                inverter,
+            )
+        },
+    );
+    let HoldFits { best: (hold, best), others, losses, notes: hold_notes } = fits?;
     notes.extend(hold_notes);
     let pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
     // The regression sees the whole series resistance.
@@ -294,14 +308,8 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             best.parameter(n).map(|p| p.value + if *n == "r_s" { options.cable_resistance } else { 0.0 })
         })
         .collect();
-    let model_checks = super::checks::advice(
-        experiments,
-        n_p,
-        options.model,
-        options.input,
-        &motor,
-        options.inverter.is_some(),
-    );
+    let late = super::checks::late_voltage_advice(experiments, n_p, options.model, options.input, &motor);
+    let model_checks = super::checks::merge(dead, late);
     if losses.len() > 1 {
         let why = match (hold, modulator) {
             (VoltageHold::Stator, true) => format!(
@@ -365,30 +373,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     })
 }
 
-/// Applies the fixed flags and bounds of `options` to the model's parameter metadata.
-fn configure(params: &mut [Parameter], options: &PmsmFitOptions) -> Result<()> {
-    let unknown = |n: &str, what: &str| Error::InvalidOption {
-        option: what.into(),
-        reason: format!("no parameter `{n}`; the model has {}", params_list(options.model)),
-    };
-    for name in options.fixed.iter().chain(options.fixed_values.iter().map(|(n, _)| n)) {
-        let p = params.iter_mut().find(|p| &p.name == name).ok_or_else(|| unknown(name, "fixed"))?;
-        p.fixed = true;
-    }
-    for (name, lo, hi) in &options.bounds {
-        let p = params.iter_mut().find(|p| &p.name == name).ok_or_else(|| unknown(name, "bounds"))?;
-        p.lower = *lo;
-        p.upper = *hi;
-        p.check_bounds()?;
-    }
-    Ok(())
-}
-
 /// The unit of parameter `name` of `kind`, `V` for the dead-time voltage `v_dt`.
 fn unit_of(kind: MotorKind, name: &str) -> &'static str {
     kind.table().iter().find(|p| p.name == name).map_or("V", |p| p.unit)
-}
-
-fn params_list(kind: MotorKind) -> String {
-    kind.parameter_names().join(", ")
 }

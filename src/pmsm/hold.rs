@@ -2,8 +2,10 @@
 //! not settle it.
 
 use super::interval::VoltageHold;
+use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::FitResult;
+use crate::estimate::{FitResult, PemOptions, StartedFit, Weighting, fit_with_weighting};
+use crate::model::GreyBoxModel;
 use rayon::prelude::*;
 
 /// Factor by which the dq hold's loss must be lower than the stator hold's for
@@ -76,50 +78,104 @@ fn screen(predicted: &[(VoltageHold, f64)], modulator: bool) -> Option<VoltageHo
     clear.then_some(best.0)
 }
 
+/// [`fit_holds_screened`] for the models that `make(hold)` builds: each hold's prediction
+/// is a [`StartedFit`] of `experiments` (options `pem`, `weighting`), and the fit of the
+/// hold it predicted, from the same start, continues it (its start's preparation and
+/// normal-equation pass are not repeated: the estimate is the same bits).
+///
+/// # Errors
+/// Those of `make`; as [`fit_holds`] with [`fit_with_weighting`].
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn fit_holds_of<M: GreyBoxModel>(
+    holds: &[VoltageHold],
+    start: &[f64],
+    names: &[&str],
+    modulator: bool,
+    make: impl Fn(VoltageHold) -> Result<M>,
+    experiments: &[Experiment],
+    pem: &PemOptions,
+    weighting: &dyn Weighting,
+) -> Result<HoldFits> {
+    let models = holds.iter().map(|&h| Ok((h, make(h)?))).collect::<Result<Vec<_>>>()?;
+    let model = |h: VoltageHold| {
+        models
+            .iter()
+            .find(|(m, _)| *m == h)
+            .map(|(_, m)| m)
+            .ok_or_else(|| Error::Solver(format!("no {h} hold model")))
+    };
+    fit_holds_screened(
+        holds,
+        start,
+        names,
+        modulator,
+        |h, s| StartedFit::new(model(h)?, experiments, s, pem, weighting).map(|f| (f.predicted_loss(), f)),
+        |h, s, started: Option<StartedFit<'_, M>>| match started {
+            Some(f) => f.fit(),
+            None => fit_with_weighting(model(h)?, experiments, s, pem, weighting),
+        },
+    )
+}
+
 /// [`fit_holds`] after a screen: when more than one hold is to be tried, each hold's loss
 /// is first predicted at the start by `predict(hold, start)` (one normal-equation pass,
-/// [`crate::estimate::predicted_loss`]); when one hold is clearly better
+/// [`crate::estimate::predicted_loss`]), which also gives what the fit of that hold from
+/// that start continues (`fit_hold(hold, start, Some(it))`); when one hold is clearly better
 /// ([`SCREEN_DECISIVE`]) only it is fitted, and if that fit stalls every hold is. A
 /// prediction that fails counts as no evidence.
 ///
 /// # Errors
 /// As [`fit_holds`].
-pub(crate) fn fit_holds_screened(
+pub(crate) fn fit_holds_screened<P: Send>(
     holds: &[VoltageHold],
     start: &[f64],
     names: &[&str],
     modulator: bool,
-    predict: impl Fn(VoltageHold, &[f64]) -> Result<f64> + Sync,
-    mut fit_hold: impl FnMut(VoltageHold, &[f64]) -> Result<FitResult>,
+    predict: impl Fn(VoltageHold, &[f64]) -> Result<(f64, P)> + Sync,
+    mut fit_hold: impl FnMut(VoltageHold, &[f64], Option<P>) -> Result<FitResult>,
 ) -> Result<HoldFits> {
     let mut notes = Vec::new();
+    // What the predictions prepared, each for the first fit of its hold from `start`.
+    let mut seeds: Vec<(VoltageHold, P)> = Vec::new();
+    let mut chosen = None;
     if holds.len() > 1 {
         // One normal-equation pass per hold, the holds in parallel.
+        let runs: Vec<Option<(VoltageHold, f64, P)>> =
+            holds.par_iter().map(|&h| predict(h, start).ok().map(|(l, p)| (h, l, p))).collect();
         let predicted: Option<Vec<(VoltageHold, f64)>> =
-            holds.par_iter().map(|&h| predict(h, start).ok().map(|l| (h, l))).collect();
+            runs.iter().map(|r| r.as_ref().map(|r| (r.0, r.1))).collect();
+        seeds = runs.into_iter().flatten().map(|(h, _, p)| (h, p)).collect();
         let listed = |p: &[(VoltageHold, f64)]| {
             p.iter().map(|(h, l)| format!("{h} {l:.6e}")).collect::<Vec<_>>().join(", ")
         };
         if let Some(p) = &predicted
             && let Some(hold) = screen(p, modulator)
         {
-            let mut fits = fit_holds(&[hold], start, names, modulator, &mut fit_hold)?;
-            if !stalled(&fits.best.1) {
-                fits.notes.push(format!(
-                    "voltage hold chosen automatically: the {hold} hold, whose loss the Gauss-Newton step from the \
-                     start predicts at least {SCREEN_DECISIVE} times lower{} (predicted losses {}); only it was fitted",
-                    if modulator { " (the dq hold's weighed ×2: the log carries a modulator's reference)" } else { "" },
-                    listed(p)
-                ));
-                return Ok(fits);
-            }
-            notes.push(format!(
-                "the {hold} hold, chosen from the predicted losses ({}), stalled: every hold fitted",
-                listed(p)
-            ));
+            chosen = Some((hold, listed(p)));
         }
     }
-    let mut fits = fit_holds(holds, start, names, modulator, fit_hold)?;
+    let mut fit_from = |seeds: &mut Vec<(VoltageHold, P)>, h: VoltageHold, s: &[f64]| {
+        let seed = seeds.iter().position(|(sh, _)| *sh == h && s == start).map(|i| seeds.swap_remove(i).1);
+        fit_hold(h, s, seed)
+    };
+    if let Some((hold, listed)) = chosen {
+        seeds.retain(|(h, _)| *h == hold);
+        let mut fits = fit_holds(&[hold], start, names, modulator, |h, s| fit_from(&mut seeds, h, s))?;
+        if !stalled(&fits.best.1) {
+            fits.notes.push(format!(
+                "voltage hold chosen automatically: the {hold} hold, whose loss the Gauss-Newton step from the \
+                 start predicts at least {SCREEN_DECISIVE} times lower{} (predicted losses {listed}); only it was fitted",
+                if modulator { " (the dq hold's weighed ×2: the log carries a modulator's reference)" } else { "" },
+            ));
+            return Ok(fits);
+        }
+        notes.push(format!(
+            "the {hold} hold, chosen from the predicted losses ({listed}), stalled: every hold fitted"
+        ));
+    }
+    // Only the first hold's fit starts from `start` (a restart from it may, later).
+    seeds.retain(|(h, _)| Some(h) == holds.first());
+    let mut fits = fit_holds(holds, start, names, modulator, |h, s| fit_from(&mut seeds, h, s))?;
     notes.append(&mut fits.notes);
     fits.notes = notes;
     Ok(fits)

@@ -2,10 +2,13 @@
 //! known cable resistance in series, and the reference point of the temperature estimates.
 //! Shared by [`super::PmsmSpm`] and [`super::PmsmIpm`].
 
+use super::fit::PmsmFitOptions;
 use super::interval::{VoltageHold, VoltageInput};
 use super::inverter::InverterModel;
+use super::kind::MotorKind;
 use super::temperature::ThermalReference;
 use crate::error::{Error, Result};
+use crate::model::Parameter;
 use serde::{Deserialize, Serialize};
 
 /// The setup of a PMSM model.
@@ -131,3 +134,26 @@ macro_rules! pmsm_model_setup {
     };
 }
 pub(crate) use pmsm_model_setup;
+
+/// Applies the fixed flags and bounds of `options` to the model's parameter metadata.
+pub(crate) fn configure(params: &mut [Parameter], options: &PmsmFitOptions) -> Result<()> {
+    let unknown = |n: &str, what: &str| Error::InvalidOption {
+        option: what.into(),
+        reason: format!("no parameter `{n}`; the model has {}", params_list(options.model)),
+    };
+    for name in options.fixed.iter().chain(options.fixed_values.iter().map(|(n, _)| n)) {
+        let p = params.iter_mut().find(|p| &p.name == name).ok_or_else(|| unknown(name, "fixed"))?;
+        p.fixed = true;
+    }
+    for (name, lo, hi) in &options.bounds {
+        let p = params.iter_mut().find(|p| &p.name == name).ok_or_else(|| unknown(name, "bounds"))?;
+        p.lower = *lo;
+        p.upper = *hi;
+        p.check_bounds()?;
+    }
+    Ok(())
+}
+
+fn params_list(kind: MotorKind) -> String {
+    kind.parameter_names().join(", ")
+}

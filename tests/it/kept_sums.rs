@@ -55,3 +55,35 @@ fn statistics_after_the_normal_equations_equal_a_full_pass() {
         assert_same(&kept.sums(&p).unwrap(), &fresh.sums(&p).unwrap());
     }
 }
+
+/// A fit started by its prediction (its start's pass handed to the solver) against a fit
+/// from nothing, both holds: the same estimate, loss, errors and iterations to the bit, and
+/// its predicted loss that of [`greybox::estimate::predicted_loss`].
+#[test]
+fn a_fit_continued_from_its_prediction_equals_a_fresh_fit() {
+    use greybox::estimate::{PemOptions, StartedFit, fit_with_weighting, predicted_loss, weighting::Uniform};
+    let cfg = DriveConfig { duration: 0.3, ..scenario("exp3", SPM_MOTOR).unwrap() };
+    let e = simulate_drive(&cfg).unwrap().experiment;
+    let start = [1.1 * SPM_MOTOR.r_s, 0.9 * SPM_MOTOR.l_d, SPM_MOTOR.k_e()];
+    let opts = PemOptions::default();
+    for hold in [VoltageHold::Stator, VoltageHold::Dq] {
+        let m = PmsmSpm::new(SPM_MOTOR.n_p, hold);
+        let fresh = fit_with_weighting(&m, std::slice::from_ref(&e), &start, &opts, &Uniform).unwrap();
+        let started = StartedFit::new(&m, std::slice::from_ref(&e), &start, &opts, &Uniform).unwrap();
+        let predicted = started.predicted_loss();
+        let cont = started.fit().unwrap();
+        assert_eq!(cont.fit.loss.to_bits(), fresh.fit.loss.to_bits(), "{hold}");
+        assert_eq!(cont.solver.iterations, fresh.solver.iterations);
+        assert_eq!(cont.solver.evaluations, fresh.solver.evaluations);
+        for (a, b) in cont.parameters.iter().zip(&fresh.parameters) {
+            assert_eq!(a.value.to_bits(), b.value.to_bits(), "{hold} {}", a.name);
+            assert_eq!(a.std_error.to_bits(), b.std_error.to_bits(), "{hold} {}", a.name);
+        }
+        let alone = predicted_loss(&m, std::slice::from_ref(&e), &start, &opts, &Uniform).unwrap();
+        assert_eq!(predicted.to_bits(), alone.to_bits(), "{hold}");
+        assert!(
+            cont.solver.iterations > 0 && predicted.is_finite() && predicted >= 0.0,
+            "{hold}: {predicted}"
+        );
+    }
+}
