@@ -68,9 +68,44 @@ fn rows(w: &mut dyn Write, e: &Experiment, time: &str) -> std::io::Result<()> {
     let mut buf = Vec::with_capacity(e.channels().len() + 1);
     for k in 0..e.len() {
         buf.clear();
-        buf.push(format!("{}", k as f64 * e.h()));
-        buf.extend(e.channels().iter().map(|c| format!("{}", c.values[k])));
+        buf.push(shortest(k as f64 * e.h()));
+        buf.extend(e.channels().iter().map(|c| shortest(c.values[k])));
         out.write_record(&buf)?;
     }
     out.flush()
+}
+
+/// `v` in its shortest round-trip form: positional (`0.0001`, `538.88`) for magnitudes in
+/// [1e-5, 1e16) and zero, else in exponent form (`6.828872080095706e-29`), which Rust's
+/// `Display` would write as 29 zeros and the digits. Both forms read back bit for bit.
+fn shortest(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || !v.is_finite() || (1e-5..1e16).contains(&a) { format!("{v}") } else { format!("{v:e}") }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::shortest;
+
+    #[test]
+    fn round_trips_bit_for_bit_and_stays_short() {
+        for v in [
+            0.0,
+            -0.0,
+            1e-5,
+            9.99e-6,
+            6.828872080095706e-29,
+            -5.395937824640298e-13,
+            538.888,
+            1e16,
+            1e300,
+            5e-324,
+        ] {
+            let s = shortest(v);
+            assert_eq!(s.parse::<f64>().unwrap().to_bits(), v.to_bits(), "{v}: {s}");
+            assert!(s.len() <= 24, "{v}: {s}");
+        }
+        assert_eq!(shortest(6.828872080095706e-29), "6.828872080095706e-29");
+        assert_eq!(shortest(0.0001), "0.0001");
+    }
 }
