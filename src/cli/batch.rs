@@ -21,6 +21,7 @@ mod summary;
 mod trend;
 
 use super::args::FitArgs;
+use super::columns::named;
 use super::fit::{Plan, fit_logs, plan};
 use super::output;
 use greybox::Error;
@@ -115,18 +116,7 @@ fn fit_one(a: &FitArgs, plan: &Plan, path: &Path, name: &str) -> greybox::Result
     let run = || {
         let t0 = Instant::now();
         // One experiment, or with --split-gaps one per segment (`name#1`, `name#2`, …).
-        let segments: Vec<_> =
-            a.columns.read_logs(&[path.to_path_buf()], &plan.csv, false)?.into_iter().flatten().collect();
-        let one = segments.len() == 1;
-        let logs: Vec<_> = segments
-            .into_iter()
-            .enumerate()
-            .map(
-                |(k, e)| {
-                    if one { e.renamed(name.to_string()) } else { e.renamed(format!("{name}#{}", k + 1)) }
-                },
-            )
-            .collect();
+        let logs = named(path, a.columns.read_segments(path, &plan.csv)?, name);
         let read_s = t0.elapsed().as_secs_f64();
         let (options, search) = plan.pem.as_ref().ok_or_else(|| Error::Solver("no fit planned".into()))?;
         let mut options = options.clone();

@@ -6,8 +6,9 @@ use clap::{Args, ValueEnum};
 use greybox::Experiment;
 use greybox::data::TimeWindow;
 use greybox::data::csv::Delimiter;
+use greybox::pmsm::LogSegments;
 use greybox::pmsm::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit, TimeUnit};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
 pub struct ColumnArgs {
@@ -204,49 +205,62 @@ impl ColumnArgs {
     /// the order of `paths`.
     ///
     /// # Errors
-    /// The reader's, with the options named by their flags (`--from`, `--to`,
-    /// `--from/--to`, `--split-gaps`).
+    /// Those of [`ColumnArgs::read_segments`].
     pub fn read_logs(
         &self,
         paths: &[PathBuf],
         csv: &CsvOptions,
         unique: bool,
     ) -> greybox::Result<Vec<Vec<Experiment>>> {
-        let read = |p: &PathBuf| -> greybox::Result<greybox::pmsm::LogSegments> {
-            if self.split_gaps {
-                greybox::pmsm::read_log_segments(p, csv)
-            } else {
-                let e = greybox::pmsm::read_log(p, csv)?;
-                Ok(greybox::pmsm::LogSegments {
-                    name: e.name().to_string(),
-                    experiments: vec![e],
-                    dropped: vec![],
-                })
-            }
-        };
-        let logs = paths.iter().map(read).collect::<greybox::Result<Vec<_>>>().map_err(flag_words)?;
+        let logs = paths.iter().map(|p| self.read_segments(p, csv)).collect::<greybox::Result<Vec<_>>>()?;
         let stems: Vec<String> = logs.iter().map(|l| l.name.clone()).collect();
         let names = if unique { super::logs::unique_names(paths, &stems) } else { stems };
-        let mut out = Vec::with_capacity(logs.len());
-        for ((log, name), path) in logs.into_iter().zip(names).zip(paths) {
-            for d in &log.dropped {
-                eprintln!(
-                    "warning: {}: the segment from t = {} s to {} s ({} samples, fewer than {}) is dropped, not fitted",
-                    path.display(),
-                    d.from,
-                    d.to,
-                    d.samples,
-                    greybox::pmsm::MIN_SAMPLES
-                );
-            }
-            let one = log.experiments.len() == 1;
-            let renamed = log.experiments.into_iter().enumerate().map(|(k, e)| {
-                if one { e.renamed(name.clone()) } else { e.renamed(format!("{name}#{}", k + 1)) }
-            });
-            out.push(renamed.collect());
-        }
-        Ok(out)
+        Ok(logs
+            .into_iter()
+            .zip(names)
+            .zip(paths)
+            .map(|((log, name), path)| named(path, log, &name))
+            .collect())
     }
+
+    /// Reads one log with `csv`: one experiment, or with --split-gaps its segments (named
+    /// by the reader; see [`named`]).
+    ///
+    /// # Errors
+    /// The reader's, with the options named by their flags (`--from`, `--to`,
+    /// `--from/--to`, `--split-gaps`).
+    pub fn read_segments(&self, path: &Path, csv: &CsvOptions) -> greybox::Result<LogSegments> {
+        let log = if self.split_gaps {
+            greybox::pmsm::read_log_segments(path, csv)
+        } else {
+            greybox::pmsm::read_log(path, csv).map(|e| LogSegments {
+                name: e.name().to_string(),
+                experiments: vec![e],
+                dropped: vec![],
+            })
+        };
+        log.map_err(flag_words)
+    }
+}
+
+/// The experiments of `log` (read from `path`) named `name`, or `name#1`, `name#2`, … when
+/// it was split into segments; its dropped segments reported on stderr with their span.
+pub fn named(path: &Path, log: LogSegments, name: &str) -> Vec<Experiment> {
+    for d in &log.dropped {
+        eprintln!(
+            "warning: {}: the segment from t = {} s to {} s ({} samples, fewer than {}) is dropped, not fitted",
+            path.display(),
+            d.from,
+            d.to,
+            d.samples,
+            greybox::pmsm::MIN_SAMPLES
+        );
+    }
+    let one = log.experiments.len() == 1;
+    let segment = |k: usize, e: Experiment| {
+        if one { e.renamed(name) } else { e.renamed(format!("{name}#{}", k + 1)) }
+    };
+    log.experiments.into_iter().enumerate().map(|(k, e)| segment(k, e)).collect()
 }
 
 /// The reader's option names as the flags that set them.
