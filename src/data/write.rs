@@ -75,10 +75,11 @@ fn rows(w: &mut dyn Write, e: &Experiment, time: &str) -> std::io::Result<()> {
     out.flush()
 }
 
-/// `v` in its shortest round-trip form: positional (`0.0001`, `538.88`) for magnitudes in
-/// [1e-5, 1e16) and zero, else in exponent form (`6.828872080095706e-29`), which Rust's
-/// `Display` would write as 29 zeros and the digits. Both forms read back bit for bit.
-fn shortest(v: f64) -> String {
+/// `v` as text for a CSV cell, in its shortest round-trip form: positional (`0.0001`,
+/// `538.88`) for magnitudes in \[1e-5, 1e16) and zero, else in exponent form
+/// (`6.828872080095706e-29`), which Rust's `Display` would write as 29 zeros and the
+/// digits. Both forms read back bit for bit; `NaN`/`inf` as Rust writes them. Never fails.
+pub fn shortest(v: f64) -> String {
     let a = v.abs();
     if v == 0.0 || !v.is_finite() || (1e-5..1e16).contains(&a) { format!("{v}") } else { format!("{v:e}") }
 }

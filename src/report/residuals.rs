@@ -2,7 +2,7 @@
 //! that any tool can plot them.
 
 use super::Comparison;
-use crate::data::write::write_atomic;
+use crate::data::write::{shortest, write_atomic};
 use crate::error::{Error, Result};
 use std::path::Path;
 
@@ -44,10 +44,10 @@ pub fn write_residuals_csv(path: &Path, comparisons: &[Comparison]) -> Result<()
                 if several {
                     row.push(c.experiment.clone());
                 }
-                row.push(format!("{}", k as f64 * c.h));
+                row.push(shortest(k as f64 * c.h));
                 for i in 0..ny {
                     let (y, y_hat) = (c.y[k * ny + i], c.y_hat[k * ny + i]);
-                    row.extend([format!("{y}"), format!("{y_hat}"), format!("{}", y - y_hat)]);
+                    row.extend([shortest(y), shortest(y_hat), shortest(y - y_hat)]);
                 }
                 out.write_record(&row)?;
             }
