@@ -53,8 +53,7 @@ impl BestPass {
     pub(crate) fn at(&self, p: &DVector<f64>) -> Option<Vec<ExperimentGrams>> {
         let kept = self.0.lock().unwrap_or_else(|e| e.into_inner());
         let k = kept.as_ref()?;
-        let same = k.p.len() == p.len() && k.p.iter().zip(p.iter()).all(|(a, b)| a.to_bits() == b.to_bits());
-        same.then(|| k.experiments.clone())
+        same_point(&k.p, p).then(|| k.experiments.clone())
     }
 
     /// Forgets the kept pass (the map from p to θ changed).
@@ -105,4 +104,10 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         acc.add_residuals(residuals);
         Ok(())
     }
+}
+
+/// Whether two points of the parameter space are the same to the bit (every entry equal as
+/// bits): a pass kept at one serves the other exactly, not approximately.
+pub(crate) fn same_point(a: &DVector<f64>, b: &DVector<f64>) -> bool {
+    a.len() == b.len() && a.iter().zip(b.iter()).all(|(x, y)| x.to_bits() == y.to_bits())
 }

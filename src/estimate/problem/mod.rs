@@ -349,9 +349,7 @@ impl<M: GreyBoxModel> LeastSquares for PemProblem<'_, M> {
     }
     fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations> {
         let mut seed = self.seed.lock().unwrap_or_else(|e| e.into_inner());
-        let same =
-            |q: &DVector<f64>| q.len() == p.len() && q.iter().zip(p).all(|(a, b)| a.to_bits() == b.to_bits());
-        if let Some((_, ne)) = seed.take_if(|(q, _)| same(q)) {
+        if let Some((_, ne)) = seed.take_if(|(q, _)| best::same_point(q, p)) {
             return Ok(ne);
         }
         drop(seed);
