@@ -89,7 +89,12 @@ fn benches(c: &mut Criterion) {
     g.sample_size(10);
     for &(e, n) in &records {
         let start = least_squares(std::slice::from_ref(e), SPM_MOTOR.n_p, MotorKind::Spm).unwrap().theta;
-        let o = PemOptions { estimate_x0: true, ..Default::default() };
+        // As `fit_pmsm` from its least-squares start: a close start's damping.
+        let o = PemOptions {
+            estimate_x0: true,
+            initial_damping: Some(greybox::estimate::CLOSE_START_DAMPING),
+            ..Default::default()
+        };
         g.bench_function(
             format!("spm {n} samples from the LS start, stator hold, x0 estimated, 1 thread"),
             |b| {

@@ -24,7 +24,7 @@ pub use result::{
 pub use scaling::{ParameterScaling, ScalingKind, Transform};
 pub use solver::gn::{self, GaussNewton};
 pub use solver::lm::{self, LevenbergMarquardt};
-pub use solver::run::{RunOptions, SolverKind, run_solver};
+pub use solver::run::{CLOSE_START_DAMPING, DEFAULT_DAMPING, RunOptions, SolverKind, run_solver};
 pub use solver::{LeastSquares, LsState, NormalEquations, ReportsTermination, Termination, Tolerances};
 pub use weighting::{Weighting, WeightingKind};
 
@@ -73,12 +73,21 @@ pub struct PemOptions {
     /// Show a progress spinner on stderr (only when stderr is a terminal). Has an effect
     /// only with the `cli` feature (which brings in `indicatif`); ignored without it.
     pub progress: bool,
+    /// Levenberg-Marquardt's initial damping λ₀ ([`RunOptions::initial_damping`]); `None`:
+    /// [`DEFAULT_DAMPING`] here, [`CLOSE_START_DAMPING`] in the PMSM fits that start from
+    /// the linear least-squares estimate.
+    pub initial_damping: Option<f64>,
 }
 
 impl PemOptions {
     /// The options of the solver run.
     pub fn run_options(&self) -> RunOptions {
-        RunOptions { solver: self.solver, tolerances: self.tolerances, progress: self.progress }
+        RunOptions {
+            solver: self.solver,
+            tolerances: self.tolerances,
+            progress: self.progress,
+            initial_damping: self.initial_damping,
+        }
     }
 }
 
@@ -97,6 +106,7 @@ impl Default for PemOptions {
             estimate_x0: true,
             diagnostics: DiagnosticThresholds::default(),
             progress: false,
+            initial_damping: None,
         }
     }
 }

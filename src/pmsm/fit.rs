@@ -24,7 +24,7 @@ use super::temperature::ThermalReference;
 use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::{FitResult, PemOptions, Timing, Weighting};
+use crate::estimate::{CLOSE_START_DAMPING, FitResult, PemOptions, Timing, Weighting};
 use crate::report::eng::format_eng;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -246,8 +246,12 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             m.threshold
         ));
     }
-    let (pem, pem_note) = masked_pem(options.inverter.as_ref(), &options.pem);
+    let (mut pem, pem_note) = masked_pem(options.inverter.as_ref(), &options.pem);
     notes.extend(pem_note);
+    if ls_theta.is_some() {
+        // The linear least-squares start is close: nearly Gauss-Newton steps from it.
+        pem.initial_damping = pem.initial_damping.or(Some(CLOSE_START_DAMPING));
+    }
     let modulator =
         experiments.iter().all(|e| e.get(channel::U_D_REF).is_some() && e.get(channel::U_Q_REF).is_some());
     let setup = |hold: VoltageHold| PmsmSetup {

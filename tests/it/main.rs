@@ -15,6 +15,7 @@ mod csv_reader;
 mod data;
 mod delimiter;
 mod drive;
+mod early_stop;
 mod errors;
 mod examples;
 mod filter;

@@ -428,7 +428,8 @@ fn a_vanished_jacobian_is_no_convergence() {
     let meyer = crate::mgh_problems::problem(10, 3, 16);
     let problem = Mgh(meyer.as_ref());
     let run = |p0: Vec<f64>, solver| {
-        let options = RunOptions { solver, tolerances: driver_tolerances(3), progress: false };
+        let options =
+            RunOptions { solver, tolerances: driver_tolerances(3), progress: false, ..Default::default() };
         run_solver(&problem, DVector::from_vec(p0), &options).expect("the solver runs")
     };
     let (p, gn) = run(meyer.start_at(100.0), SolverKind::Gn);

@@ -12,7 +12,10 @@
 //! (`lmder`; see [`Tolerances`] and the `stopping` module): `ftol` on both the actual and
 //! the predicted relative reduction of every accepted step, `xtol` on every trial step in
 //! the D-scaled norm (after it is evaluated and, if it lowers the cost, taken: near a zero
-//! residual that last step squares the residual), `gtol` on the scaled gradient at every
+//! residual that last step squares the residual) and on the step that the local model asks
+//! for next from an accepted point (before it is evaluated: the run ends at that point,
+//! which is within `xtol ‖p‖_D` of the one the step would reach; MINPACK bounds that next
+//! step by its trust radius Δ and tests Δ), `gtol` on the scaled gradient at every
 //! accepted point, and [`Termination::NoDescent`] when λ exceeds 1e32. One difference:
 //! MINPACK also applies the `ftol` test after a rejected step; here a rejected step only
 //! raises λ (see the comment in `next_iter`). A test passing where the Jacobian has
@@ -45,10 +48,17 @@ pub struct LevenbergMarquardt {
 }
 
 impl LevenbergMarquardt {
-    /// A solver with the given tolerances and initial damping `λ₀ = 1e-3` (relative to
-    /// `diag(JᵀWJ)`).
+    /// A solver with the given tolerances and initial damping
+    /// `λ₀ =` [`DEFAULT_DAMPING`](super::run::DEFAULT_DAMPING) (relative to `diag(JᵀWJ)`).
     pub fn new(tol: Tolerances) -> Self {
-        Self { tol, lambda: 1e-3, nu: 2.0, monitor: Monitor::default(), accepted: 0, termination: None }
+        Self {
+            tol,
+            lambda: super::run::DEFAULT_DAMPING,
+            nu: 2.0,
+            monitor: Monitor::default(),
+            accepted: 0,
+            termination: None,
+        }
     }
     /// Sets the initial damping λ₀ (> 0).
     ///
@@ -152,6 +162,17 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
                     self.stop(self.monitor.certify(Termination::StepTolerance, &ne.jtj, ne.cost));
                 } else if Monitor::gradient_converged(&self.tol, &ne.jtj, &ne.jtr, ne.cost) {
                     self.stop(self.monitor.certify(Termination::GradientTolerance, &ne.jtj, ne.cost));
+                } else if damped_solve(&ne.jtj, self.monitor.diag(), self.lambda, &ne.jtr).is_some_and(
+                    |next| {
+                        let predicted = next.dot(&ne.jtr) - 0.5 * next.dot(&(&ne.jtj * &next));
+                        self.monitor.small_step(&self.tol, &next, &trial)
+                            && predicted <= self.tol.ftol * ne.cost
+                    },
+                ) {
+                    // The next step would move the point by less than xtol and lower the
+                    // cost by less than ftol, by the local model: the run ends here
+                    // rather than spend a pass on it.
+                    self.stop(self.monitor.certify(Termination::StepTolerance, &ne.jtj, ne.cost));
                 }
                 let kv = argmin::kv!(
                     "lambda" => self.lambda; "rho" => r.ratio; "actred" => r.actred; "prered" => r.prered;

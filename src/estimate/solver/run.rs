@@ -34,7 +34,20 @@ pub struct RunOptions {
     pub tolerances: Tolerances,
     /// Show a progress spinner on stderr (only when stderr is a terminal).
     pub progress: bool,
+    /// Levenberg-Marquardt's initial damping λ₀, relative to `diag(JᵀWJ)` (> 0; no effect
+    /// on Gauss-Newton). `None`: [`DEFAULT_DAMPING`]. Madsen, Nielsen & Tingleff (*Methods
+    /// for non-linear least squares problems*, 2004, section 3.2) advise 1e-6 from a start
+    /// believed close to the minimum and 1e-3 otherwise ([`CLOSE_START_DAMPING`]).
+    pub initial_damping: Option<f64>,
 }
+
+/// λ₀ of a run from a start of unknown quality (Madsen, Nielsen & Tingleff 2004, 3.2).
+pub const DEFAULT_DAMPING: f64 = 1e-3;
+
+/// λ₀ of a run from a start believed close to the minimum, e.g. a linear least-squares
+/// estimate on the same data (Madsen, Nielsen & Tingleff 2004, 3.2): the first steps are
+/// nearly Gauss-Newton steps. A poor start costs a few rejected steps (λ doubles at each).
+pub const CLOSE_START_DAMPING: f64 = 1e-6;
 
 /// Runs the chosen solver from `p0` (length n_free) through argmin's executor; returns p̂
 /// (the best point met) and the report. With n_free = 0 there is nothing to optimise: p̂ is
@@ -69,7 +82,17 @@ pub fn run_solver<O: LeastSquares>(
         ));
     }
     match options.solver {
-        SolverKind::Lm => execute(problem, LevenbergMarquardt::new(options.tolerances), p0, options),
+        SolverKind::Lm => {
+            let lm = LevenbergMarquardt::new(options.tolerances)
+                .with_lambda(options.initial_damping.unwrap_or(DEFAULT_DAMPING))
+                .map_err(|e| match e {
+                    Error::InvalidOption { reason, .. } => {
+                        Error::InvalidOption { option: "initial_damping".into(), reason }
+                    }
+                    other => other,
+                })?;
+            execute(problem, lm, p0, options)
+        }
         SolverKind::Gn => execute(problem, GaussNewton::new(options.tolerances), p0, options),
     }
 }
