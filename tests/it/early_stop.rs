@@ -31,10 +31,10 @@ fn fit(e: &Experiment, pem: PemOptions) -> PmsmFit {
 /// Fits `e` with the defaults, with tight tolerances and with the old initial damping;
 /// checks the first against the second; returns the passes of the three.
 fn compare(e: &Experiment) -> (u64, u64, u64) {
-    let quick = fit(&e, PemOptions::default());
+    let quick = fit(e, PemOptions::default());
     let tight_tol = Tolerances { ftol: 1e-15, xtol: 1e-15, gtol: 1e-15, max_iters: 200 };
-    let tight = fit(&e, PemOptions { tolerances: tight_tol, ..Default::default() });
-    let old = fit(&e, PemOptions { initial_damping: Some(DEFAULT_DAMPING), ..Default::default() });
+    let tight = fit(e, PemOptions { tolerances: tight_tol, ..Default::default() });
+    let old = fit(e, PemOptions { initial_damping: Some(DEFAULT_DAMPING), ..Default::default() });
     assert!(quick.report.solver.success, "{}", quick.report.solver.termination);
     for (a, b) in quick.report.parameters.iter().zip(&tight.report.parameters) {
         // xtol = 1e-10 bounds the step left untaken in the scaled norm.
