@@ -40,7 +40,9 @@
 
 use super::augmented::{Aug, advance};
 pub use super::augmented::{IpmCoefficients, IpmInputs};
-use super::interval::{VoltageHold, check_finite, check_pole_pairs, check_positive, for_each_model_interval};
+use super::interval::{
+    IntervalArrays, VoltageHold, check_finite, check_pole_pairs, check_positive, model_interval_arrays,
+};
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
 use super::setup::PmsmSetup;
@@ -84,20 +86,9 @@ impl GreyBoxModel for PmsmIpm {
     fn prepare(&self, e: &Experiment) -> Result<IpmInputs> {
         check_pole_pairs(self.setup.n_p)?;
         let v = DqView::try_new(e)?;
-        let n = v.len() - 1;
-        let mut inputs = IpmInputs {
-            h: v.h(),
-            hold: self.setup.hold,
-            w_e: Vec::with_capacity(n),
-            emf: Vec::with_capacity(n),
-            u0: Vec::with_capacity(n),
-            dt: Vec::new(),
-        };
-        for_each_model_interval(&v, self.setup.n_p, self.setup.hold, self.setup.input, |iv| {
-            inputs.w_e.push(iv.w_e);
-            inputs.emf.push(iv.emf);
-            inputs.u0.push(iv.u0);
-        })?;
+        let IntervalArrays { w_e, emf, u0, .. } =
+            model_interval_arrays(&v, self.setup.n_p, self.setup.hold, self.setup.input)?;
+        let mut inputs = IpmInputs { h: v.h(), hold: self.setup.hold, w_e, emf, u0, dt: Vec::new() };
         if let Some(inv) = &self.setup.inverter {
             inputs.dt = dead_time_directions(&v, self.setup.n_p, inv)?;
         }

@@ -22,7 +22,8 @@
 //! (forward sensitivity), so one pass gives residuals and gradients.
 
 use super::interval::{
-    C64, VoltageHold, VoltageInput, check_finite, check_pole_pairs, check_positive, for_each_model_interval,
+    C64, IntervalArrays, VoltageHold, VoltageInput, check_finite, check_pole_pairs, check_positive,
+    model_interval_arrays,
 };
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
@@ -104,25 +105,11 @@ impl PmsmSpm {
 
 /// Per-interval speed, rotation and held voltage term of the SPM step.
 fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold, input: VoltageInput) -> Result<SpmInputs> {
-    let n = v.len() - 1;
-    let (mut w_e, mut emf, mut rot, mut vers, mut u) = (
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-    );
-    for_each_model_interval(v, n_p, hold, input, |iv| {
-        w_e.push(iv.w_e);
-        emf.push(iv.emf);
-        rot.push(iv.rot);
-        vers.push(iv.vers);
+    let IntervalArrays { w_e, emf, rot, vers, u0: mut u } = model_interval_arrays(v, n_p, hold, input)?;
+    if hold == VoltageHold::Stator {
         // The stator-held voltage enters the SPM step rotated to the end of the period.
-        u.push(match hold {
-            VoltageHold::Dq => iv.u0,
-            VoltageHold::Stator => iv.u0 * iv.rot,
-        });
-    })?;
+        u.iter_mut().zip(&rot).for_each(|(u, r)| *u *= r);
+    }
     Ok(SpmInputs { h: v.h(), w_e, emf, rot, vers, u, dt: Vec::new() })
 }
 
