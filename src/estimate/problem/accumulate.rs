@@ -142,30 +142,26 @@ impl Accumulator {
     /// row-major N × n_y, from sample `first` on) about its first measurement.
     pub(crate) fn add_moments(&mut self, y: &[f64], first: usize) {
         let ny = self.ny;
-        // Row n of the counted samples adds to lane n mod 4 of each output, four rows at a
-        // time, every output in the same sweep.
-        let (mut s, mut s2) = (vec![[0.0f64; 4]; ny], vec![[0.0f64; 4]; ny]);
-        let quads = y.get(first * ny..).unwrap_or_default().chunks_exact(4 * ny);
-        let rest = quads.remainder();
-        for q in quads {
-            for l in 0..4 {
-                for i in 0..ny {
-                    let d = q[l * ny + i] - self.y0[i];
-                    s[i][l] += d;
-                    s2[i][l] += d * d;
+        for (i, (ey, ey2)) in self.ey.iter_mut().zip(self.ey2.iter_mut()).enumerate() {
+            let y0 = self.y0[i];
+            let (mut s, mut s2) = ([0.0f64; 4], [0.0f64; 4]);
+            // Row n of the counted samples adds to lane n mod 4, four rows at a time.
+            let quads = y.get(first * ny..).unwrap_or_default().chunks_exact(4 * ny);
+            let rest = quads.remainder();
+            for q in quads {
+                for l in 0..4 {
+                    let d = q[l * ny + i] - y0;
+                    s[l] += d;
+                    s2[l] += d * d;
                 }
             }
-        }
-        for (l, row) in rest.chunks_exact(ny).enumerate() {
-            for i in 0..ny {
-                let d = row[i] - self.y0[i];
-                s[i][l] += d;
-                s2[i][l] += d * d;
+            for (l, row) in rest.chunks_exact(ny).enumerate() {
+                let d = row[i] - y0;
+                s[l] += d;
+                s2[l] += d * d;
             }
-        }
-        for i in 0..ny {
-            self.ey[i] += (s[i][0] + s[i][1]) + (s[i][2] + s[i][3]);
-            self.ey2[i] += (s2[i][0] + s2[i][1]) + (s2[i][2] + s2[i][3]);
+            *ey += (s[0] + s[1]) + (s[2] + s[3]);
+            *ey2 += (s2[0] + s2[1]) + (s2[2] + s2[3]);
         }
     }
 
