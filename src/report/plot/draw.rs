@@ -43,8 +43,8 @@ pub(crate) fn color(i: usize) -> RGBColor {
     PALETTE[i % PALETTE.len()]
 }
 
-/// A chart on `area` under a header row (the caption on the left, the legend `keys` on
-/// the right, so that neither covers data), both axes labelled (`x_desc`, `y_desc` carry
+/// A chart on `area` under a [`header`] (the caption on the left, the legend `keys` on
+/// the right, wrapped onto further rows when too wide, so that neither covers data), both axes labelled (`x_desc`, `y_desc` carry
 /// the unit), a light grid, and tick labels of at most 4 significant digits.
 pub(crate) fn chart<'a, 'b>(
     area: &'a Area<'b>,
@@ -56,9 +56,9 @@ pub(crate) fn chart<'a, 'b>(
     y_desc: &str,
 ) -> Drawn<Chart<'a, 'b>> {
     let (x_span, y_span) = (x.end - x.start, y.end - y.start);
-    header(area, caption, keys)?;
+    let top = header(area, caption, keys)?;
     let mut chart = ChartBuilder::on(area)
-        .margin_top(HEADER)
+        .margin_top(top)
         .margin_left(8)
         .margin_right(24)
         .margin_bottom(4)
@@ -83,7 +83,7 @@ pub(crate) fn chart<'a, 'b>(
     Ok(chart)
 }
 
-/// Height of a panel's header row \[px\].
+/// Height of a panel's header row \[px\] (more when the legend wraps: [`header`]).
 pub(crate) const HEADER: u32 = 30;
 
 /// How a legend key is drawn.
@@ -100,20 +100,22 @@ pub(crate) enum Key {
 }
 
 /// A panel's header row: `caption` at the left, the legend `keys` from the right edge,
-/// so that neither covers data. Text widths are estimated generously for a sans-serif
-/// font (8 px a character at 17 px, 6.5 px at 13 px); the keys never start left of the
-/// caption's end.
-pub(crate) fn header(area: &Area<'_>, caption: &str, keys: &[(String, Key)]) -> Drawn {
+/// so that neither covers data; returns the header's height \[px\], [`HEADER`] or more,
+/// under which the chart goes. Text widths are estimated generously for a sans-serif
+/// font (8 px a character at 17 px, 6.5 px at 13 px). Keys that do not fit on the
+/// caption's line wrap onto further rows ([`key_layout`]); a label too long for a row is
+/// cut with "…".
+pub(crate) fn header(area: &Area<'_>, caption: &str, keys: &[(String, Key)]) -> Drawn<u32> {
     let (w, _) = area.dim_in_pixel();
     area.draw_text(caption, &(FONT, 17).into_font().color(&BLACK), (12, 6))?;
     let chars = |s: &str| s.chars().count() as f64;
-    let key_width = |label: &str| 30 + (6.5 * chars(label)) as i32 + 12;
-    let width: i32 = keys.iter().map(|(l, _)| key_width(l)).sum();
+    let label_width = |label: &str| (6.5 * chars(label)) as i32;
     let caption_end = 12 + (8.0 * chars(caption)) as i32 + 16;
-    let mut x = (w as i32 - 24 - width).max(caption_end);
+    let widths: Vec<i32> = keys.iter().map(|(l, _)| label_width(l)).collect();
+    let (slots, height) = key_layout(w as i32, caption_end, &widths);
     let font = (FONT, 13).into_font().color(&RGBColor(30, 30, 30));
-    let y = 14;
-    for (label, key) in keys {
+    for ((label, key), slot) in keys.iter().zip(slots) {
+        let (x, y) = (slot.x, slot.y);
         match *key {
             Key::Line(style) => area.draw(&PathElement::new(vec![(x, y), (x + 24, y)], style))?,
             Key::Band(style) => area.draw(&Rectangle::new([(x, y - 6), (x + 24, y + 6)], style))?,
@@ -123,10 +125,72 @@ pub(crate) fn header(area: &Area<'_>, caption: &str, keys: &[(String, Key)]) -> 
             }
             Key::Dot(style) => area.draw(&Circle::new((x + 12, y), 5, style))?,
         }
-        area.draw_text(label, &font, (x + 30, y - 7))?;
-        x += key_width(label);
+        if slot.label >= label_width(label) {
+            area.draw_text(label, &font, (x + 30, y - 7))?;
+        } else {
+            // As many characters as the slot holds, the last one an ellipsis.
+            let keep = (f64::from(slot.label) / 6.5) as usize;
+            if keep > 0 {
+                let cut: String = label.chars().take(keep - 1).chain(['…']).collect();
+                area.draw_text(&cut, &font, (x + 30, y - 7))?;
+            }
+        }
     }
-    Ok(())
+    Ok(height)
+}
+
+/// Height of each legend row below the caption's line \[px\].
+pub(crate) const KEY_ROW: u32 = 20;
+
+/// Where a legend key goes in a header \[px\]: the left end of its sample `x`, the middle
+/// of its row `y`, and the width of its label (less than asked when cut to fit).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Slot {
+    /// Left end of the key's sample; the label starts 30 px right of it.
+    pub x: i32,
+    /// Middle of the key's row.
+    pub y: i32,
+    /// Width left for the label.
+    pub label: i32,
+}
+
+/// The legend's layout in the header of a panel `width` px wide whose caption ends at
+/// `caption_end`, for keys with labels `labels` px wide (each key takes a 30 px sample
+/// before its label and a 12 px gap after it; the rows end 24 px from the panel's right
+/// edge): each key's [`Slot`] and the header's height. The keys fill, in order and
+/// right-aligned, the caption's line and then further rows of [`KEY_ROW`] px under it
+/// starting 12 px from the left edge; a key wider than a row has a row of its own and
+/// its label cut to fit. Keys that all fit on the caption's line stay on it, the header
+/// [`HEADER`] px high.
+pub(crate) fn key_layout(width: i32, caption_end: i32, labels: &[i32]) -> (Vec<Slot>, u32) {
+    const SAMPLE: i32 = 30;
+    const GAP: i32 = 12;
+    let right = width - 24;
+    // Rows of (key, key width), the caption's line first.
+    let mut rows: Vec<Vec<(usize, i32)>> = vec![Vec::new()];
+    let mut used = 0;
+    for (k, &label) in labels.iter().enumerate() {
+        let key = SAMPLE + label.max(0) + GAP;
+        let start = if rows.len() == 1 { caption_end } else { 12 };
+        if start + used + key > right && (rows.len() == 1 || used > 0) {
+            rows.push(Vec::new());
+            used = 0;
+        }
+        let room = right - if rows.len() == 1 { caption_end } else { 12 };
+        let key = key.min(room.max(SAMPLE + GAP));
+        rows.last_mut().expect("a row").push((k, key));
+        used += key;
+    }
+    let mut slots = vec![Slot { x: 0, y: 0, label: 0 }; labels.len()];
+    for (r, row) in rows.iter().enumerate() {
+        let mut x = right - row.iter().map(|(_, w)| w).sum::<i32>();
+        let y = 14 + KEY_ROW as i32 * r as i32;
+        for &(k, key) in row {
+            slots[k] = Slot { x, y, label: key - SAMPLE - GAP };
+            x += key;
+        }
+    }
+    (slots, HEADER + KEY_ROW * (rows.len() as u32 - 1))
 }
 
 /// The legend of `chart`'s labelled series, in its upper-right corner on a translucent
@@ -225,7 +289,53 @@ pub(crate) fn value(v: f64) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::tick;
+    use super::{HEADER, KEY_ROW, Slot, key_layout, tick};
+
+    #[test]
+    fn legend_that_fits_stays_on_the_caption_line() {
+        // The time panel of `id` (992 px, caption "id measured and simulated"): as before,
+        // right-aligned from 24 px before the right edge, a key 30 + label + 12 px wide.
+        let (slots, height) = key_layout(992, 228, &[78, 84]);
+        assert_eq!(height, HEADER);
+        let x0 = 992 - 24 - (30 + 78 + 12) - (30 + 84 + 12);
+        assert_eq!(slots, [Slot { x: x0, y: 14, label: 78 }, Slot { x: x0 + 120, y: 14, label: 84 }]);
+        assert_eq!(key_layout(992, 228, &[]), (vec![], HEADER));
+        // Exactly filling the room between the caption and the margin still fits.
+        let (slots, height) = key_layout(600, 600 - 24 - 142, &[100]);
+        assert_eq!((slots[0].x, height), (600 - 24 - 142, HEADER));
+    }
+
+    #[test]
+    fn legend_too_wide_wraps_inside_the_panel() {
+        let (width, caption_end) = (400, 220);
+        let labels = [60, 300, 120, 900, 40, 50];
+        let (slots, height) = key_layout(width, caption_end, &labels);
+        // Rows: 60 beside the caption; 300; 120; 900 cut; 40 and 50.
+        assert_eq!(height, HEADER + 4 * KEY_ROW);
+        for (k, (s, &label)) in slots.iter().zip(&labels).enumerate() {
+            // Inside the panel, above the chart (which starts `height` down), cut only
+            // when wider than a row.
+            assert!(s.x >= 12 && s.x + 30 + s.label <= width - 24, "key {k}: {s:?}");
+            assert!(s.y - 7 >= 0 && s.y + 7 <= height as i32, "key {k}: {s:?} under {height}");
+            assert!(s.label == label || (s.label < label && s.x == 12), "key {k}: {s:?}");
+            // Right of the caption on its line; keys in order, never overlapping.
+            assert!(s.y > 14 || s.x >= caption_end, "key {k}: {s:?}");
+            if let Some(next) = slots.get(k + 1) {
+                assert!(next.y > s.y || (next.y == s.y && next.x >= s.x + 30 + s.label + 12));
+            }
+        }
+        assert_eq!(slots[0].y, 14, "the first key fits beside the caption");
+        assert_eq!(slots[3], Slot { x: 12, y: slots[3].y, label: 400 - 24 - 12 - 42 });
+        // Rows are right-aligned: the last key of each row ends at the margin.
+        for (k, s) in slots.iter().enumerate() {
+            if slots.get(k + 1).is_none_or(|n| n.y > s.y) {
+                assert_eq!(s.x + 30 + s.label + 12, width - 24, "key {k}");
+            }
+        }
+        // A caption wider than the panel sends every key under it.
+        let (slots, _) = key_layout(400, 900, &[40]);
+        assert_eq!(slots[0].y, 14 + KEY_ROW as i32);
+    }
 
     #[test]
     fn ticks_tell_neighbours_apart() {

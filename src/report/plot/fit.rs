@@ -218,9 +218,9 @@ fn estimates(area: &Area<'_>, free: &[&crate::estimate::ParameterEstimate]) -> D
     let half = if half > 0.0 { 1.25 * half } else { 1.0 };
     let n = free.len() as f64;
     let fmt = move |v: &f64| super::draw::tick(*v, 2.0 * half);
-    super::draw::header(area, caption, &[])?;
+    let top = super::draw::header(area, caption, &[])?;
     let mut ch = ChartBuilder::on(area)
-        .margin_top(super::draw::HEADER)
+        .margin_top(top)
         .margin_left(8)
         .margin_right(24)
         .x_label_area_size(44)

@@ -142,7 +142,7 @@ fn panel(
     if points.is_empty() {
         keys.clear();
     }
-    header(area, &caption, &keys)?;
+    let top = header(area, &caption, &keys)?;
     // Room per run for a name at 6.5 px a character at 13 px.
     let slot = (WIDTH - 120) as usize / n;
     let max_chars = (slot / 7).max(4);
@@ -150,7 +150,7 @@ fn panel(
     // Run k (0-based) at x = k + 1; at most n ticks, so that plotters steps by whole runs.
     let x = 0.5..n as f64 + 0.5;
     let mut chart = ChartBuilder::on(area)
-        .margin_top(super::draw::HEADER)
+        .margin_top(top)
         .margin_left(8)
         .margin_right(24)
         .margin_bottom(4)
