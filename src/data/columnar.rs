@@ -7,7 +7,8 @@
 //! round to the nearest f64); any other type is [`Error::ColumnType`] naming the column.
 //! The checks are those of the CSV reader: the header's ([`crate::data::csv::read_table`]),
 //! finite values in the wanted columns ([`Error::NonFinite`] naming column and row) and a
-//! time column that passes [`crate::data::TimeSteps`], in row order.
+//! time column that passes [`crate::data::TimeSteps`], in row order (unless
+//! [`read_table_with`] is told [`TimeCheck::Skip`]).
 //!
 //! ```no_run
 //! use greybox::pmsm::{read_log, CsvOptions};
@@ -19,8 +20,8 @@
 
 use std::path::Path;
 
-use super::Experiment;
 use super::csv::{Delimiter, ReadLimits, Table};
+use super::{Experiment, TimeCheck};
 // Without the feature only `without_feature` builds an error; the docs link it either way.
 #[cfg_attr(feature = "parquet", allow(unused_imports))]
 use crate::error::Error;
@@ -80,11 +81,29 @@ pub fn read_table(
     limits: &ReadLimits,
     delimiter: Delimiter,
 ) -> Result<Table> {
+    read_table_with(path, wanted, limits, delimiter, TimeCheck::Streaming)
+}
+
+/// [`read_table`], with `time` saying whether the time column (the first of `wanted`) is
+/// checked with [`crate::data::TimeSteps`] in row order ([`TimeCheck::Streaming`], what
+/// [`read_table`] does) or read as any other wanted column, its steps left to the caller
+/// ([`TimeCheck::Skip`]); a CSV file through [`crate::data::csv::read_table_with`].
+///
+/// # Errors
+/// Those of [`read_table`]; with [`TimeCheck::Skip`] never [`Error::NonUniformTime`], and a
+/// NaN/Inf in the time column is [`Error::NonFinite`] naming it as for any wanted column.
+pub fn read_table_with(
+    path: impl AsRef<Path>,
+    wanted: &[(&str, bool)],
+    limits: &ReadLimits,
+    delimiter: Delimiter,
+    time: TimeCheck,
+) -> Result<Table> {
     let path = path.as_ref();
     match Format::of(path) {
-        Format::Csv => super::csv::read_table(path, wanted, limits, delimiter),
+        Format::Csv => super::csv::read_table_with(path, wanted, limits, delimiter, time),
         #[cfg(feature = "parquet")]
-        format => arrow_io::read(path, format, wanted, limits),
+        format => arrow_io::read(path, format, wanted, limits, time),
         #[cfg(not(feature = "parquet"))]
         format => Err(without_feature(path, format)),
     }

@@ -22,7 +22,7 @@ use std::path::Path;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::{Channel, Experiment};
+use super::{Channel, Experiment, TimeCheck};
 pub use delimiter::Delimiter;
 use line_limit::LineTooLong;
 
@@ -199,7 +199,7 @@ pub fn read_csv_many<P: AsRef<Path> + Sync>(paths: &[P], spec: &CsvSpec) -> Resu
 
 /// Parses the columns `wanted` (`(header name, required)`) of a CSV file, plain or gzip,
 /// its fields separated by `delimiter`; the first is the time column `t_k`, checked as it
-/// streams.
+/// streams ([`read_table_with`] and [`TimeCheck::Skip`] leave that check to the caller).
 ///
 /// A second thread reads (and gunzips) the file in line-aligned chunks of 256 KiB while
 /// the caller parses; chunks without a `"` are parsed in parallel batches (fields split at
@@ -246,7 +246,26 @@ pub fn read_table(
     limits: &ReadLimits,
     delimiter: Delimiter,
 ) -> Result<Table> {
-    table::read(path.as_ref(), wanted, limits, delimiter)
+    read_table_with(path, wanted, limits, delimiter, TimeCheck::Streaming)
+}
+
+/// [`read_table`], with `time` saying whether the time column (the first of `wanted`) is
+/// checked as the rows stream in ([`TimeCheck::Streaming`], what [`read_table`] does) or
+/// read as any other wanted column, its steps left to the caller ([`TimeCheck::Skip`]).
+///
+/// # Errors
+/// Those of [`read_table`]; with [`TimeCheck::Skip`] never [`Error::NonUniformTime`], and a
+/// NaN/Inf in the time column is [`Error::NonFinite`] naming it as for any wanted column.
+///
+/// Never panics.
+pub fn read_table_with(
+    path: impl AsRef<Path>,
+    wanted: &[(&str, bool)],
+    limits: &ReadLimits,
+    delimiter: Delimiter,
+    time: TimeCheck,
+) -> Result<Table> {
+    table::read(path.as_ref(), wanted, limits, delimiter, time)
 }
 
 /// Positions in `header` of the `wanted` columns (`(name, required)`), `None` for an

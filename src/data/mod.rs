@@ -203,6 +203,22 @@ impl Experiment {
 /// decimals at any rate up to 100 kHz.
 pub const TIME_TOLERANCE: f64 = 0.25;
 
+/// Whether a table reader ([`csv::read_table_with`], [`columnar::read_table_with`]) checks
+/// the time column (the first wanted column) with [`TimeSteps::push`] while the rows
+/// stream in. Default [`TimeCheck::Streaming`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TimeCheck {
+    /// The reader checks the time column row by row and stops at the first bad step
+    /// ([`Error::NonUniformTime`]), as [`csv::read_table`] always does. The default.
+    #[default]
+    Streaming,
+    /// The reader reads the time column as any other wanted column (each value a finite
+    /// number, else [`Error::NonFinite`] naming it) and leaves its steps unchecked: for a
+    /// caller that checks them itself, e.g. one that keeps a window of the rows or cuts the
+    /// column at its gaps ([`segments::time_segments`]).
+    Skip,
+}
+
 /// Incremental check of a time column `t_k` \[s\], one row at a time, so that a reader can
 /// stop at the first bad row instead of after the whole file; [`TimeSteps::finish`] then
 /// applies the checks that need the mean step h of the whole column.

@@ -22,7 +22,8 @@ use rayon::prelude::*;
 use super::interval::check_pole_pairs;
 use super::signals::MIN_SAMPLES;
 use crate::data::Experiment;
-use crate::data::columnar::read_table;
+use crate::data::TimeCheck;
+use crate::data::columnar::read_table_with;
 use crate::data::csv::name_excerpt;
 use crate::data::segments::{TimeSegments, time_segments};
 use crate::error::{Error, Result};
@@ -53,7 +54,7 @@ use build::{build, rename_columns};
 /// - [`Error::InvalidPolePairs`] for `pole_pairs` outside `Some(1..=100)`, or `None` when
 ///   the speed is electrical or the dq signals come from phases (before the file is
 ///   opened);
-/// - those of [`read_table`], which checks while the file streams and stops at the first
+/// - those of [`read_table_with`], which checks while the file streams and stops at the first
 ///   bad row: [`Error::LimitExceeded`] for a file beyond `options.limits`,
 ///   [`Error::DuplicateColumn`] for a wanted column named twice in the header,
 ///   [`Error::Io`], [`Error::MissingColumn`] for a required
@@ -117,14 +118,10 @@ struct Raw {
     cols: Vec<Option<Vec<f64>>>,
 }
 
-/// A wanted name that no header holds: asked for first, it takes the place of the time
-/// column, whose streaming check ([`crate::data::TimeSteps`]) the readers then skip; the
-/// time column itself is read as an ordinary column and split or windowed here.
-const NO_TIME_CHECK: &str = "\u{0}greybox: time column checked after the read";
-
 impl Raw {
     /// Reads the wanted columns; `lenient`: without the readers' row-by-row time check
-    /// (for a window or a split at gaps, which check the rows they keep).
+    /// ([`TimeCheck::Skip`], for a window or a split at gaps, which check the rows they
+    /// keep: the time column is then split or windowed here).
     fn read(path: &Path, options: &CsvOptions, lenient: bool) -> Result<Self> {
         options.window.check()?;
         let needs_n_p = options.speed_frame == Frame::Electrical || options.source == DqSource::Phases;
@@ -144,15 +141,15 @@ impl Raw {
         // Required columns in a fixed order: the error names the first one missing.
         // The terminal voltage may be absent when the reference is logged (checked below).
         let dq = options.source == DqSource::Dq;
-        let mut wanted: Vec<(&str, bool)> = if lenient { vec![(NO_TIME_CHECK, false)] } else { Vec::new() };
-        wanted.push((&c.t, true));
+        let mut wanted: Vec<(&str, bool)> = vec![(&c.t, true)];
         wanted.extend(main.iter().enumerate().map(|(i, n)| (n.as_str(), !(dq && i < 2))));
         wanted.push((&c.w_m, true));
         if options.source == DqSource::Dq {
             wanted.push((&c.theta_m, false));
         }
         wanted.extend([(c.u_d_ref.as_str(), false), (c.u_q_ref.as_str(), false)]);
-        let mut table = match read_table(path, &wanted, &options.limits, options.delimiter) {
+        let time = if lenient { TimeCheck::Skip } else { TimeCheck::Streaming };
+        let mut table = match read_table_with(path, &wanted, &options.limits, options.delimiter, time) {
             Err(Error::TooShort { name, len, .. }) => {
                 return Err(Error::TooShort { name, len, min: MIN_SAMPLES });
             }
@@ -169,9 +166,6 @@ impl Raw {
             }
             other => other?,
         };
-        if lenient {
-            table.columns.remove(0);
-        }
         if dq {
             let has = |i: usize| table.columns[i].is_some();
             let n = table.columns.len();

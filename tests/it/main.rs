@@ -39,6 +39,7 @@ mod solvers;
 mod spm;
 mod streamed;
 mod thermal;
+mod time_check;
 mod track;
 mod trust;
 mod window;

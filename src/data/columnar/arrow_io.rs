@@ -19,9 +19,9 @@ use parquet::arrow::arrow_reader::{
 use rayon::prelude::*;
 
 use super::{Format, check};
-use crate::data::Experiment;
 use crate::data::csv::{ReadLimits, Table, experiment_name, find_columns};
 use crate::data::write::write_atomic;
+use crate::data::{Experiment, TimeCheck};
 use crate::error::{Error, Result};
 
 /// Rows per Parquet row group written: eight groups for 512 000 rows, read in parallel.
@@ -39,6 +39,7 @@ pub(super) fn read(
     format: Format,
     wanted: &[(&str, bool)],
     limits: &ReadLimits,
+    time: TimeCheck,
 ) -> Result<Table> {
     let file = File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
     let (header, index, columns, rows) = match format {
@@ -57,7 +58,8 @@ pub(super) fn read(
             max: limits.max_rows,
         });
     }
-    check::rows(path, wanted.first().map_or("", |w| w.0), &header, &index, &values)?;
+    let time = (time == TimeCheck::Streaming).then(|| wanted.first().map_or("", |w| w.0));
+    check::rows(path, time, &header, &index, &values)?;
     Ok(Table { name: experiment_name(path), header, columns: values })
 }
 

@@ -6,15 +6,17 @@ use crate::data::TimeSteps;
 use crate::error::{Error, Result};
 
 /// Checks the wanted columns `values` (in request order, `None` when absent; the first the
-/// time column `time`) as the CSV reader checks its rows: the first NaN/Inf and the first
-/// bad time step, whichever comes first in row order (a row's time column first).
+/// time column, named `time`) as the CSV reader checks its rows: the first NaN/Inf and the
+/// first bad time step, whichever comes first in row order (a row's time column first).
+/// With `time` `None` ([`crate::data::TimeCheck::Skip`]) the time column's steps are not
+/// checked, and its values are checked as those of any other column.
 ///
 /// # Errors
 /// [`Error::NonFinite`] naming `header[index[j]]` and the row; the errors of
 /// [`TimeSteps::push`]; [`Error::TooShort`] for no rows.
 pub(super) fn rows(
     path: &Path,
-    time: &str,
+    time: Option<&str>,
     header: &[String],
     index: &[Option<usize>],
     values: &[Option<Vec<f64>>],
@@ -23,19 +25,19 @@ pub(super) fn rows(
     if n == 0 {
         return Err(Error::TooShort { name: crate::data::csv::experiment_name(path), len: 0, min: 1 });
     }
-    // First non-finite value of the other columns, by (row, column).
+    // First non-finite value of the other columns (of all, time unchecked), by (row, column).
     let bad = values
         .iter()
         .zip(index)
         .enumerate()
-        .skip(1)
+        .skip(usize::from(time.is_some()))
         .filter_map(|(j, (v, i))| {
             let (v, i) = (v.as_ref()?, (*i)?);
             v.iter().position(|x| !x.is_finite()).map(|row| (row, j, i, v[row]))
         })
         .min_by_key(|&(row, j, ..)| (row, j));
     // The time column up to and including that row (its time is checked first).
-    if let Some(t) = values.first().and_then(Option::as_ref) {
+    if let (Some(time), Some(t)) = (time, values.first().and_then(Option::as_ref)) {
         let end = bad.map_or(n, |(row, ..)| row + 1);
         let mut steps = TimeSteps::new(time);
         t[..end.min(t.len())].iter().try_for_each(|&x| steps.push(x))?;

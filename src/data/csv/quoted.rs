@@ -90,8 +90,10 @@ impl<'s, 'a, 'r> Quoted<'s, 'a, 'r> {
                 if !x.is_finite() {
                     return Err(Error::NonFinite { column: s.header[idx].clone(), row, value: x });
                 }
-                if j == 0 {
-                    s.time.push(x)?;
+                if j == 0
+                    && let Some(time) = s.time.as_mut()
+                {
+                    time.push(x)?;
                 }
                 column.push(x);
             }

@@ -11,7 +11,7 @@ use super::chunk::{ChunkError, Layout, Line, Parsed, parse};
 use super::quoted::Quoted;
 use super::source::{self, AHEAD, Item};
 use super::{Delimiter, ReadLimits, Table, experiment_name, find_columns};
-use crate::data::TimeSteps;
+use crate::data::{TimeCheck, TimeSteps};
 use crate::error::{Error, Result};
 
 /// What the read knows at the end of the bytes merged so far.
@@ -26,7 +26,8 @@ pub(super) struct State<'a> {
     pub index: Vec<Option<usize>>,
     /// Values per wanted column.
     pub values: Vec<Vec<f64>>,
-    pub time: TimeSteps,
+    /// The streaming check of the time column; `None` for [`TimeCheck::Skip`].
+    pub time: Option<TimeSteps>,
     /// Data rows accepted.
     pub rows: usize,
     /// `\n` merged.
@@ -45,6 +46,7 @@ pub(super) fn read(
     wanted: &[(&str, bool)],
     limits: &ReadLimits,
     delimiter: Delimiter,
+    time: TimeCheck,
 ) -> Result<Table> {
     let io_err = |source| Error::Io { path: path.to_path_buf(), source };
     let mut s = State {
@@ -55,7 +57,7 @@ pub(super) fn read(
         header: Vec::new(),
         index: Vec::new(),
         values: vec![Vec::new(); wanted.len()],
-        time: TimeSteps::new(wanted.first().map_or("", |w| w.0)),
+        time: (time == TimeCheck::Streaming).then(|| TimeSteps::new(wanted.first().map_or("", |w| w.0))),
         rows: 0,
         newlines: 0,
         next_line: 1,
@@ -213,7 +215,8 @@ impl State<'_> {
         usize::try_from(self.limits.max_rows.saturating_sub(self.rows as u64)).unwrap_or(usize::MAX)
     }
 
-    /// Appends a parsed chunk, after checking its time column row by row; its error if any.
+    /// Appends a parsed chunk, after checking its time column row by row (unless
+    /// [`TimeCheck::Skip`]); its error if any.
     fn merge(&mut self, chunk: &[u8], mut p: Parsed, layout: &Layout) -> Result<()> {
         let cap = self.cap();
         if p.rows >= cap && !matches!(p.error, Some(ChunkError::TooLong { .. })) {
@@ -223,8 +226,10 @@ impl State<'_> {
         if let Some(ChunkError::TooLong { newlines }) = p.error {
             return Err(self.too_long(self.newlines + newlines));
         }
-        if layout.index.first().is_some_and(Option::is_some) {
-            p.columns[0].iter().try_for_each(|&t| self.time.push(t))?;
+        if let Some(time) = self.time.as_mut()
+            && layout.index.first().is_some_and(Option::is_some)
+        {
+            p.columns[0].iter().try_for_each(|&t| time.push(t))?;
         }
         let base = 1 + self.newlines;
         let line = |l: Line| match l {

@@ -1,0 +1,79 @@
+//! The table readers' streaming time check and [`TimeCheck::Skip`]: a time column that steps
+//! back or jumps is refused by default (`read_table`, `read_table_with(.., Streaming)`) and
+//! read as it is, every row, when the caller says it checks the steps itself.
+
+use std::path::PathBuf;
+
+use greybox::Error;
+use greybox::data::TimeCheck;
+use greybox::data::csv::{Delimiter, ReadLimits, Table};
+
+fn temp_path(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("greybox-timecheck-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+/// A time column that is uniform for 5 rows, then steps back (row 5) and jumps (row 8).
+const T: [f64; 10] = [0.0, 0.1, 0.2, 0.3, 0.4, 0.15, 0.25, 0.35, 9.0, 9.1];
+
+fn read(path: &PathBuf, time: TimeCheck) -> greybox::Result<Table> {
+    let wanted = [("t", true), ("x", true)];
+    greybox::data::columnar::read_table_with(path, &wanted, &ReadLimits::default(), Delimiter::COMMA, time)
+}
+
+fn check(path: &PathBuf) {
+    let wanted = [("t", true), ("x", true)];
+    for err in [
+        greybox::data::columnar::read_table(path, &wanted, &ReadLimits::default(), Delimiter::COMMA)
+            .unwrap_err(),
+        read(path, TimeCheck::Streaming).unwrap_err(),
+    ] {
+        assert!(
+            matches!(&err, Error::NonUniformTime { column, row: 5, .. } if column == "t"),
+            "{}: {err}",
+            path.display()
+        );
+    }
+    let table = read(path, TimeCheck::Skip).unwrap();
+    assert_eq!(table.columns[0].as_deref(), Some(&T[..]), "{}", path.display());
+    let x: Vec<f64> = (0..T.len()).map(|k| k as f64).collect();
+    assert_eq!(table.columns[1].as_deref(), Some(&x[..]));
+}
+
+#[test]
+fn a_bad_time_column_is_refused_by_default_and_read_when_the_caller_checks_it() {
+    let body: String = T.iter().enumerate().map(|(k, t)| format!("{t},{k}\n")).collect();
+    let path = temp_path("steps.csv");
+    std::fs::write(&path, format!("t,x\n{body}")).unwrap();
+    check(&path);
+    // The `csv` parser's path (a quoted cell) checks the same way.
+    let quoted = temp_path("quoted.csv");
+    std::fs::write(&quoted, format!("t,\"x\"\n{body}")).unwrap();
+    check(&quoted);
+    // The check is the reader's only one on the time column: a NaN is refused either way.
+    let nan = temp_path("nan.csv");
+    std::fs::write(&nan, "t,x\n0,0\nnan,1\n").unwrap();
+    for time in [TimeCheck::Streaming, TimeCheck::Skip] {
+        let err = read(&nan, time).unwrap_err();
+        assert!(matches!(&err, Error::NonFinite { column, row: 1, .. } if column == "t"), "{err}");
+    }
+}
+
+#[cfg(feature = "parquet")]
+#[test]
+fn a_columnar_log_skips_the_check_the_same_way() {
+    use arrow_array::{ArrayRef, Float64Array, RecordBatch};
+    use std::sync::Arc;
+    let columns: Vec<(&str, ArrayRef)> = vec![
+        ("t", Arc::new(Float64Array::from_iter_values(T))),
+        ("x", Arc::new(Float64Array::from_iter_values((0..T.len()).map(|k| k as f64)))),
+    ];
+    let batch = RecordBatch::try_from_iter(columns).unwrap();
+    let path = temp_path("steps.parquet");
+    let file = std::fs::File::create(&path).unwrap();
+    let mut w = parquet::arrow::ArrowWriter::try_new(file, batch.schema(), None).unwrap();
+    w.write(&batch).unwrap();
+    w.close().unwrap();
+    check(&path);
+}
