@@ -24,9 +24,12 @@ use super::temperature::ThermalReference;
 use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
+use crate::estimate::result::Warning;
 use crate::estimate::{CLOSE_START_DAMPING, FitResult, PemOptions, Timing, Weighting};
 use crate::report::eng::format_eng;
+use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
+use std::thread::ScopedJoinHandle;
 use std::time::Instant;
 
 /// Which voltage hold the fit assumes.
@@ -120,32 +123,54 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     if options.inverter.is_some() {
         names.push("v_dt");
     }
-    let names = &names[..];
-    // One regression Gram for the setup checks (a log the scan cannot read is not
-    // checked), and the least-squares start when none is given: independent, in parallel.
-    let (scan, least_squares) = rayon::join(
-        || {
+    // The setup checks' regression Gram (a log the scan cannot read is not checked) and the
+    // dead-time check need no estimate: each on a thread of its own from the start, beside
+    // the start, the fits and their statistics (which leave a core idle at times).
+    std::thread::scope(|scope| {
+        let scan = scope.spawn(|| {
             (!options.skip_setup_checks)
                 .then(|| super::detect::scan_gram(experiments, options.input).ok())
                 .flatten()
-        },
-        || {
-            options.start.is_none().then(|| {
-                least_squares_start(
-                    experiments,
-                    n_p,
-                    options.model,
-                    options.input,
-                    options.cable_resistance,
-                    options.inverter.as_ref(),
-                )
-            })
-        },
-    );
-    let structure = match &scan {
-        Some(g) if options.inverter.is_none() => super::detect::check_structure(g, n_p, options.model)?,
-        _ => None,
-    };
+        });
+        let dead = scope.spawn(|| {
+            let (kind, input, inverter) = (options.model, options.input, options.inverter.is_some());
+            let n_theta = kind.parameter_names().len();
+            super::checks::dead_time_advice(experiments, n_p, kind, input, n_theta, inverter)
+        });
+        fit_beside(experiments, options, t0, &names, Beside { scan, dead })
+    })
+}
+
+/// The checks running beside a fit (see [`fit_pmsm`]).
+struct Beside<'s> {
+    scan: ScopedJoinHandle<'s, Option<DMatrix<f64>>>,
+    dead: ScopedJoinHandle<'s, Vec<Option<Warning>>>,
+}
+
+/// The result of a check's thread (a panic there goes on here, as it would have inline).
+fn joined<T>(h: ScopedJoinHandle<'_, T>) -> T {
+    h.join().unwrap_or_else(|p| std::panic::resume_unwind(p))
+}
+
+/// [`fit_pmsm`] once the checks that need no estimate are under way.
+fn fit_beside(
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+    t0: Instant,
+    names: &[&str],
+    beside: Beside<'_>,
+) -> Result<PmsmFit> {
+    let n_p = options.pole_pairs;
+    let least_squares = options.start.is_none().then(|| {
+        least_squares_start(
+            experiments,
+            n_p,
+            options.model,
+            options.input,
+            options.cable_resistance,
+            options.inverter.as_ref(),
+        )
+    });
     // The start of v_dt when the start comes from elsewhere: the known value, or 0.
     let v_dt0 = options.inverter.map(|i| i.known.unwrap_or(0.0));
     let mut notes = Vec::new();
@@ -277,29 +302,20 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                 experiments,
                 &pem,
                 weighting,
-            )?
+            )
         };
     }
-    // The dead-time check needs no estimate: beside the fits.
-    let (fits, dead) = rayon::join(
-        || -> Result<HoldFits> {
-            Ok(match options.model {
-                MotorKind::Spm => fit_holds!(PmsmSpm),
-                MotorKind::Ipm => fit_holds!(PmsmIpm),
-            })
-        },
-        || {
-            let (kind, input, inverter) = (options.model, options.input, options.inverter.is_some());
-            super::checks::dead_time_advice(
-                experiments,
-                n_p,
-                kind,
-                input,
-                kind.parameter_names().len(),
-                inverter,
-            )
-        },
-    );
+    let fits = match options.model {
+        MotorKind::Spm => fit_holds!(PmsmSpm),
+        MotorKind::Ipm => fit_holds!(PmsmIpm),
+    };
+    // A log the structure check refuses is refused whatever its fit gave.
+    let scan = joined(beside.scan);
+    let structure = match &scan {
+        Some(g) if options.inverter.is_none() => super::detect::check_structure(g, n_p, options.model)?,
+        _ => None,
+    };
+    let dead = joined(beside.dead);
     let HoldFits { best: (hold, best), others, losses, notes: hold_notes } = fits?;
     notes.extend(hold_notes);
     let pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
