@@ -24,13 +24,13 @@ use super::temperature::ThermalReference;
 use super::{PmsmIpm, PmsmSpm};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::result::Warning;
 use crate::estimate::{CLOSE_START_DAMPING, FitResult, PemOptions, Timing, Weighting};
 use crate::report::eng::format_eng;
-use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
-use std::thread::ScopedJoinHandle;
 use std::time::Instant;
+
+mod beside;
+use beside::{Beside, Pending};
 
 /// Which voltage hold the fit assumes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -125,31 +125,27 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     }
     // The setup checks' regression Gram (a log the scan cannot read is not checked) and the
     // dead-time check need no estimate: each on a thread of its own from the start, beside
-    // the start, the fits and their statistics (which leave a core idle at times).
+    // the start, the fits and their statistics (which leave a core idle at times); in
+    // turn on the calling thread when the caller's rayon pool has one thread.
+    let scan = || {
+        (!options.skip_setup_checks)
+            .then(|| super::detect::scan_gram(experiments, options.input).ok())
+            .flatten()
+    };
+    let dead = || {
+        let (kind, input, inverter) = (options.model, options.input, options.inverter.is_some());
+        let n_theta = kind.parameter_names().len();
+        super::checks::dead_time_advice(experiments, n_p, kind, input, n_theta, inverter)
+    };
+    if rayon::current_num_threads() == 1 {
+        let beside = Beside { scan: Pending::Ready(scan()), dead: Pending::Ready(dead()) };
+        return fit_beside(experiments, options, t0, &names, beside);
+    }
     std::thread::scope(|scope| {
-        let scan = scope.spawn(|| {
-            (!options.skip_setup_checks)
-                .then(|| super::detect::scan_gram(experiments, options.input).ok())
-                .flatten()
-        });
-        let dead = scope.spawn(|| {
-            let (kind, input, inverter) = (options.model, options.input, options.inverter.is_some());
-            let n_theta = kind.parameter_names().len();
-            super::checks::dead_time_advice(experiments, n_p, kind, input, n_theta, inverter)
-        });
-        fit_beside(experiments, options, t0, &names, Beside { scan, dead })
+        let beside =
+            Beside { scan: Pending::Thread(scope.spawn(scan)), dead: Pending::Thread(scope.spawn(dead)) };
+        fit_beside(experiments, options, t0, &names, beside)
     })
-}
-
-/// The checks running beside a fit (see [`fit_pmsm`]).
-struct Beside<'s> {
-    scan: ScopedJoinHandle<'s, Option<DMatrix<f64>>>,
-    dead: ScopedJoinHandle<'s, Vec<Option<Warning>>>,
-}
-
-/// The result of a check's thread (a panic there goes on here, as it would have inline).
-fn joined<T>(h: ScopedJoinHandle<'_, T>) -> T {
-    h.join().unwrap_or_else(|p| std::panic::resume_unwind(p))
 }
 
 /// [`fit_pmsm`] once the checks that need no estimate are under way.
@@ -310,12 +306,12 @@ fn fit_beside(
         MotorKind::Ipm => fit_holds!(PmsmIpm),
     };
     // A log the structure check refuses is refused whatever its fit gave.
-    let scan = joined(beside.scan);
+    let scan = beside.scan.get();
     let structure = match &scan {
         Some(g) if options.inverter.is_none() => super::detect::check_structure(g, n_p, options.model)?,
         _ => None,
     };
-    let dead = joined(beside.dead);
+    let dead = beside.dead.get();
     let HoldFits { best: (hold, best), others, losses, notes: hold_notes } = fits?;
     notes.extend(hold_notes);
     let pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
