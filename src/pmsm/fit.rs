@@ -30,7 +30,8 @@ use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
 mod beside;
-use beside::{Beside, Pending};
+use crate::estimate::result::Warning;
+use beside::Pending;
 
 /// Which voltage hold the fit assumes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -123,50 +124,57 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     if options.inverter.is_some() {
         names.push("v_dt");
     }
-    // The setup checks' regression Gram (a log the scan cannot read is not checked) and the
-    // dead-time check need no estimate: each on a thread of its own from the start, beside
-    // the start, the fits and their statistics (which leave a core idle at times); in
-    // turn on the calling thread when the caller's rayon pool has one thread.
-    let scan = || {
-        (!options.skip_setup_checks)
-            .then(|| super::detect::scan_gram(experiments, options.input).ok())
-            .flatten()
-    };
+    // The dead-time check needs no estimate: on a thread of its own from the start, beside
+    // the start, the fits and their statistics (which leave a core idle at times); on the
+    // calling thread when the caller's rayon pool has one thread.
     let dead = || {
         let (kind, input, inverter) = (options.model, options.input, options.inverter.is_some());
         let n_theta = kind.parameter_names().len();
         super::checks::dead_time_advice(experiments, n_p, kind, input, n_theta, inverter)
     };
     if rayon::current_num_threads() == 1 {
-        let beside = Beside { scan: Pending::Ready(scan()), dead: Pending::Ready(dead()) };
-        return fit_beside(experiments, options, t0, &names, beside);
+        return fit_beside(experiments, options, t0, &names, Pending::Ready(dead()));
     }
     std::thread::scope(|scope| {
-        let beside =
-            Beside { scan: Pending::Thread(scope.spawn(scan)), dead: Pending::Thread(scope.spawn(dead)) };
-        fit_beside(experiments, options, t0, &names, beside)
+        fit_beside(experiments, options, t0, &names, Pending::Thread(scope.spawn(dead)))
     })
 }
 
-/// [`fit_pmsm`] once the checks that need no estimate are under way.
+/// [`fit_pmsm`] once the dead-time check is under way.
 fn fit_beside(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
     t0: Instant,
     names: &[&str],
-    beside: Beside<'_>,
+    dead: Pending<'_, Vec<Option<Warning>>>,
 ) -> Result<PmsmFit> {
     let n_p = options.pole_pairs;
-    let least_squares = options.start.is_none().then(|| {
-        least_squares_start(
-            experiments,
-            n_p,
-            options.model,
-            options.input,
-            options.cable_resistance,
-            options.inverter.as_ref(),
-        )
-    });
+    // One regression Gram for the setup checks (a log the scan cannot read is not
+    // checked), and the least-squares start when none is given: independent, in parallel
+    // (the scan's filtered signals are gone before the fits prepare theirs).
+    let (scan, least_squares) = rayon::join(
+        || {
+            (!options.skip_setup_checks)
+                .then(|| super::detect::scan_gram(experiments, options.input).ok())
+                .flatten()
+        },
+        || {
+            options.start.is_none().then(|| {
+                least_squares_start(
+                    experiments,
+                    n_p,
+                    options.model,
+                    options.input,
+                    options.cable_resistance,
+                    options.inverter.as_ref(),
+                )
+            })
+        },
+    );
+    let structure = match &scan {
+        Some(g) if options.inverter.is_none() => super::detect::check_structure(g, n_p, options.model)?,
+        _ => None,
+    };
     // The start of v_dt when the start comes from elsewhere: the known value, or 0.
     let v_dt0 = options.inverter.map(|i| i.known.unwrap_or(0.0));
     let mut notes = Vec::new();
@@ -305,13 +313,7 @@ fn fit_beside(
         MotorKind::Spm => fit_holds!(PmsmSpm),
         MotorKind::Ipm => fit_holds!(PmsmIpm),
     };
-    // A log the structure check refuses is refused whatever its fit gave.
-    let scan = beside.scan.get();
-    let structure = match &scan {
-        Some(g) if options.inverter.is_none() => super::detect::check_structure(g, n_p, options.model)?,
-        _ => None,
-    };
-    let dead = beside.dead.get();
+    let dead = dead.get();
     let HoldFits { best: (hold, best), others, losses, notes: hold_notes } = fits?;
     notes.extend(hold_notes);
     let pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();

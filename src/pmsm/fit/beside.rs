@@ -1,14 +1,6 @@
-//! The checks that need no estimate, running beside a fit ([`super::fit_pmsm`]).
+//! A check that needs no estimate, running beside a fit ([`super::fit_pmsm`]).
 
-use crate::estimate::result::Warning;
-use nalgebra::DMatrix;
 use std::thread::ScopedJoinHandle;
-
-/// The checks running beside a fit (see [`super::fit_pmsm`]).
-pub(super) struct Beside<'s> {
-    pub scan: Pending<'s, Option<DMatrix<f64>>>,
-    pub dead: Pending<'s, Vec<Option<Warning>>>,
-}
 
 /// A check's result: on its way from a thread of its own, or at hand.
 pub(super) enum Pending<'s, T> {
