@@ -52,7 +52,13 @@ pub const SQRT_2_3: f64 = 0.816_496_580_927_726;
 /// Interval-mean mechanical speed `(w_m[k] + w_m[k+1])/2` \[rad/s\] for `k = 0..N−2`,
 /// length N − 1 (MODEL.md §4: the speed of the exact step).
 pub fn interval_mean_speed(w_m: &[f64]) -> Vec<f64> {
-    w_m.windows(2).map(|w| 0.5 * (w[0] + w[1])).collect()
+    w_m.windows(2).map(mean_speed).collect()
+}
+
+/// The mean `(w[0] + w[1])/2` of the speeds at an interval's ends (`w` of length ≥ 2).
+#[inline]
+fn mean_speed(w: &[f64]) -> f64 {
+    0.5 * (w[0] + w[1])
 }
 
 /// Rotation of the dq frame over one period, `e^{−jφ}` with `φ = ω_e h` \[rad\].
@@ -148,14 +154,21 @@ fn motion_half<'a>(v: &DqView<'a>, n_p: u32) -> impl Iterator<Item = (Interval, 
     let h = v.h();
     let np = f64::from(n_p);
     let wm = v.w_m();
-    (0..v.len() - 1).map(move |k| {
-        let w_m = 0.5 * (wm[k] + wm[k + 1]);
+    wm.windows(2).map(move |w| {
+        let w_m = mean_speed(w);
         let w_e = np * w_m;
-        let (sin_half, cos_half) = (0.5 * (w_e * h)).sin_cos();
+        let (sin_half, cos_half) = half_angle(w_e, h);
         let (rot, vers) = half_angle_rotation(sin_half, cos_half);
         let iv = Interval { w_e, emf: SQRT_2_3 * w_m, rot, vers, u0: C64::new(0.0, 0.0) };
         (iv, sin_half, cos_half)
     })
+}
+
+/// `(sin φ/2, cos φ/2)` of an interval of electrical speed `w_e` \[rad/s\] and length `h`
+/// \[s\] (`φ = ω_e h`).
+#[inline]
+fn half_angle(w_e: f64, h: f64) -> (f64, f64) {
+    (0.5 * (w_e * h)).sin_cos()
 }
 
 /// The rotation `e^{−jφ} = (1 − 2 sin²(φ/2), −2 sin(φ/2) cos(φ/2))` and the versine

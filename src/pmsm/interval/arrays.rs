@@ -5,8 +5,8 @@
 //! [`intervals`](super::intervals).
 
 use super::{
-    C64, DqView, Interval, Result, SQRT_2_3, VoltageHold, VoltageInput, half_angle_rotation, model_intervals,
-    stator_hold_start_half,
+    C64, DqView, Interval, Result, SQRT_2_3, VoltageHold, VoltageInput, half_angle, half_angle_rotation,
+    mean_speed, model_intervals, stator_hold_start_half,
 };
 
 /// The intervals `k = 0..N−2` of a log (see [`Interval`]), each field an array of N − 1.
@@ -48,13 +48,13 @@ pub(crate) fn model_interval_arrays(
     let (ud, uq) = v.terminal_voltage()?;
     let (h, np, wm) = (v.h(), f64::from(n_p), v.w_m());
     let n = v.len() - 1;
-    let w_e: Vec<f64> = wm.windows(2).map(|w| np * (0.5 * (w[0] + w[1]))).collect();
-    let emf: Vec<f64> = wm.windows(2).map(|w| SQRT_2_3 * (0.5 * (w[0] + w[1]))).collect();
+    let w_e: Vec<f64> = wm.windows(2).map(|w| np * mean_speed(w)).collect();
+    let emf: Vec<f64> = wm.windows(2).map(|w| SQRT_2_3 * mean_speed(w)).collect();
     // (sin φ/2, cos φ/2) held in `rot` until the other arrays have taken them.
     let mut rot: Vec<C64> = w_e
         .iter()
-        .map(|w| {
-            let (s, c) = (0.5 * (w * h)).sin_cos();
+        .map(|&w| {
+            let (s, c) = half_angle(w, h);
             C64::new(s, c)
         })
         .collect();
