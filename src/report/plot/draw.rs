@@ -44,8 +44,9 @@ pub(crate) fn color(i: usize) -> RGBColor {
 }
 
 /// A chart on `area` under a [`header`] (the caption on the left, the legend `keys` on
-/// the right, wrapped onto further rows when too wide, so that neither covers data), both axes labelled (`x_desc`, `y_desc` carry
-/// the unit), a light grid, and tick labels of at most 4 significant digits.
+/// the right, wrapped onto further rows when too wide, so that neither covers data), both
+/// axes labelled (`x_desc`, `y_desc` carry the unit), a light grid, and tick labels of at
+/// most 4 significant digits.
 pub(crate) fn chart<'a, 'b>(
     area: &'a Area<'b>,
     caption: &str,
@@ -56,15 +57,8 @@ pub(crate) fn chart<'a, 'b>(
     y_desc: &str,
 ) -> Drawn<Chart<'a, 'b>> {
     let (x_span, y_span) = (x.end - x.start, y.end - y.start);
-    let top = header(area, caption, keys)?;
-    let mut chart = ChartBuilder::on(area)
-        .margin_top(top)
-        .margin_left(8)
-        .margin_right(24)
-        .margin_bottom(4)
-        .x_label_area_size(44)
-        .y_label_area_size(84)
-        .build_cartesian_2d(x, y)?;
+    let mut chart =
+        under_header(area, caption, keys)?.margin_bottom(4).y_label_area_size(84).build_cartesian_2d(x, y)?;
     let x_fmt = |v: &f64| tick(*v, x_span);
     let y_fmt = |v: &f64| tick(*v, y_span);
     chart
@@ -191,6 +185,20 @@ pub(crate) fn key_layout(width: i32, caption_end: i32, labels: &[i32]) -> (Vec<S
         }
     }
     (slots, HEADER + KEY_ROW * (rows.len() as u32 - 1))
+}
+
+/// The [`header`] of a panel drawn, and a chart builder placed under it (the header's
+/// height above, 8 px left, 24 px right, 44 px for the x labels), for the caller to give
+/// its y label width (and bottom margin) and coordinates.
+pub(crate) fn under_header<'a, 'b>(
+    area: &'a Area<'b>,
+    caption: &str,
+    keys: &[(String, Key)],
+) -> Drawn<ChartBuilder<'a, 'b, SVGBackend<'b>>> {
+    let top = header(area, caption, keys)?;
+    let mut builder = ChartBuilder::on(area);
+    builder.margin_top(top).margin_left(8).margin_right(24).x_label_area_size(44);
+    Ok(builder)
 }
 
 /// The legend of `chart`'s labelled series, in its upper-right corner on a translucent

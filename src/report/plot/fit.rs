@@ -218,12 +218,7 @@ fn estimates(area: &Area<'_>, free: &[&crate::estimate::ParameterEstimate]) -> D
     let half = if half > 0.0 { 1.25 * half } else { 1.0 };
     let n = free.len() as f64;
     let fmt = move |v: &f64| super::draw::tick(*v, 2.0 * half);
-    let top = super::draw::header(area, caption, &[])?;
-    let mut ch = ChartBuilder::on(area)
-        .margin_top(top)
-        .margin_left(8)
-        .margin_right(24)
-        .x_label_area_size(44)
+    let mut ch = super::draw::under_header(area, caption, &[])?
         .y_label_area_size(20)
         .build_cartesian_2d(-half..half, -0.7..n - 0.2)?;
     ch.configure_mesh()

@@ -1,7 +1,7 @@
 //! The trend plot: quantities estimated on a sequence of runs (e.g. one fit per log), each
 //! on its own panel over the run index, with its 95 % interval as an error bar.
 
-use super::draw::{Drawn, FONT, Key, PANEL, TITLE, WIDTH, color, header, range, tick};
+use super::draw::{Drawn, FONT, Key, PANEL, TITLE, WIDTH, color, range, tick, under_header};
 use super::plot_error;
 use crate::error::{Error, Result};
 use plotters::prelude::*;
@@ -142,19 +142,14 @@ fn panel(
     if points.is_empty() {
         keys.clear();
     }
-    let top = header(area, &caption, &keys)?;
     // Room per run for a name at 6.5 px a character at 13 px.
     let slot = (WIDTH - 120) as usize / n;
     let max_chars = (slot / 7).max(4);
     let y_span = y.end - y.start;
     // Run k (0-based) at x = k + 1; at most n ticks, so that plotters steps by whole runs.
     let x = 0.5..n as f64 + 0.5;
-    let mut chart = ChartBuilder::on(area)
-        .margin_top(top)
-        .margin_left(8)
-        .margin_right(24)
+    let mut chart = under_header(area, &caption, &keys)?
         .margin_bottom(4)
-        .x_label_area_size(44)
         .y_label_area_size(112)
         .build_cartesian_2d(x, y.clone())?;
     let x_fmt = |v: &f64| {
