@@ -85,7 +85,8 @@ use build::{build, rename_columns};
 /// Never panics. Source of the conventions: MODEL.md §1, §4.
 pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experiment> {
     let path = path.as_ref();
-    let raw = Raw::read(path, options, !options.window.is_open())?;
+    let time = if options.window.is_open() { TimeCheck::Streaming } else { TimeCheck::Skip };
+    let raw = Raw::read(path, options, time)?;
     if options.window.is_open() {
         let rows = raw.rows;
         return plausible(path, raw.into_experiment(0..rows, options)?, options);
@@ -119,10 +120,10 @@ struct Raw {
 }
 
 impl Raw {
-    /// Reads the wanted columns; `lenient`: without the readers' row-by-row time check
-    /// ([`TimeCheck::Skip`], for a window or a split at gaps, which check the rows they
-    /// keep: the time column is then split or windowed here).
-    fn read(path: &Path, options: &CsvOptions, lenient: bool) -> Result<Self> {
+    /// Reads the wanted columns, the time column checked by the reader as `time` says
+    /// ([`TimeCheck::Skip`] for a window or a split at gaps, which check the rows they keep:
+    /// the time column is then split or windowed here).
+    fn read(path: &Path, options: &CsvOptions, time: TimeCheck) -> Result<Self> {
         options.window.check()?;
         let needs_n_p = options.speed_frame == Frame::Electrical || options.source == DqSource::Phases;
         let n_p = match options.pole_pairs {
@@ -148,7 +149,6 @@ impl Raw {
             wanted.push((&c.theta_m, false));
         }
         wanted.extend([(c.u_d_ref.as_str(), false), (c.u_q_ref.as_str(), false)]);
-        let time = if lenient { TimeCheck::Skip } else { TimeCheck::Streaming };
         let mut table = match read_table_with(path, &wanted, &options.limits, options.delimiter, time) {
             Err(Error::TooShort { name, len, .. }) => {
                 return Err(Error::TooShort { name, len, min: MIN_SAMPLES });

@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use super::{CsvOptions, Raw, plausible};
-use crate::data::Experiment;
+use crate::data::{Experiment, TimeCheck};
 use crate::error::{Error, Result};
 use crate::pmsm::signals::MIN_SAMPLES;
 
@@ -66,7 +66,7 @@ pub struct DroppedSegment {
 /// ```
 pub fn read_log_segments(path: impl AsRef<Path>, options: &CsvOptions) -> Result<LogSegments> {
     let path = path.as_ref();
-    let raw = Raw::read(path, options, true)?;
+    let raw = Raw::read(path, options, TimeCheck::Skip)?;
     let cut = raw.window(options)?;
     let t = raw.t();
     let (kept, short): (Vec<_>, Vec<_>) = cut.segments.into_iter().partition(|s| s.len() >= MIN_SAMPLES);
