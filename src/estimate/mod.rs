@@ -75,7 +75,8 @@ pub struct PemOptions {
     pub progress: bool,
     /// Levenberg-Marquardt's initial damping λ₀ ([`RunOptions::initial_damping`]); `None`:
     /// [`DEFAULT_DAMPING`] here, [`CLOSE_START_DAMPING`] in the PMSM fits that start from
-    /// the linear least-squares estimate.
+    /// the linear least-squares estimate. Dimensionless (relative to `diag(JᵀWJ)`); a value
+    /// not positive and finite is [`Error::InvalidOption`] naming `initial_damping`.
     pub initial_damping: Option<f64>,
 }
 

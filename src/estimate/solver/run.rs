@@ -57,9 +57,9 @@ pub const CLOSE_START_DAMPING: f64 = 1e-6;
 /// false and [`SolverReport::reason`] says why.
 ///
 /// # Errors
-/// [`Error::InvalidOption`] for invalid tolerances; those of
-/// [`LeastSquares::normal_equations`] at the start; every error other than an unusable
-/// trial point during the run.
+/// [`Error::InvalidOption`] for invalid tolerances or an `initial_damping` that is not
+/// positive and finite; those of [`LeastSquares::normal_equations`] at the start; every
+/// error other than an unusable trial point during the run.
 pub fn run_solver<O: LeastSquares>(
     problem: &O,
     p0: DVector<f64>,
