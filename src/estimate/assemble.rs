@@ -9,7 +9,6 @@ use super::result::t_quantile_975;
 use super::{DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing};
 use crate::error::Result;
 use crate::model::GreyBoxModel;
-use crate::report::compare::WHITENESS_LAGS;
 use crate::report::metrics;
 use nalgebra::{DMatrix, DVector};
 
@@ -160,15 +159,9 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         &|n| model.advice(n),
         &|a, b| model.pair_advice(a, b),
     );
-    // Residual whiteness from the raw output errors of every experiment (kept by the
-    // statistics pass), lags kept within each experiment.
-    let residuals = &sums.residuals;
-    let whiteness = residuals
-        .iter()
-        .map(|segments| {
-            metrics::whiteness(&segments.iter().map(Vec::as_slice).collect::<Vec<_>>(), WHITENESS_LAGS)
-        })
-        .collect();
+    // Residual whiteness from the lag sums of the raw output errors of every experiment
+    // (streamed by the statistics pass), lags kept within each experiment.
+    let whiteness = sums.lag_sums.iter().map(|segments| metrics::whiteness_of(segments)).collect();
     let fit = FitStatistics {
         outputs: model.outputs().into_iter().map(|o| o.name).collect(),
         output_units: model.outputs().into_iter().map(|o| o.unit).collect(),

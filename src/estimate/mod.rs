@@ -16,8 +16,9 @@ pub mod scaling;
 pub mod solver;
 pub mod weighting;
 
-pub use problem::{Loss, PemProblem, ProblemOptions};
-pub(crate) use problem::{lagged_dots, sum};
+#[cfg(test)]
+pub(crate) use problem::lagged_dots;
+pub use problem::{LAG_CHUNK, LagStream, LagSums, Loss, PemProblem, ProblemOptions, WHITENESS_LAGS};
 pub use result::{
     DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing, Warning,
 };

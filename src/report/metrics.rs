@@ -9,6 +9,7 @@
 //! estimator and [`crate::simulate::simulate`] give them.
 
 use crate::error::{Error, Result};
+use crate::estimate::LagSums;
 use serde::{Deserialize, Serialize};
 
 /// Residual whiteness of one output: normalised autocorrelation at lags `1..=max_lag`.
@@ -127,34 +128,23 @@ pub fn metrics(
 /// Normalised autocorrelation at lags `1..=max_lag` of residuals recorded in `segments`
 /// (one per experiment; lags never cross from one segment to the next), about their pooled
 /// mean, with the 95 % whiteness bound `1.96/√N` (N: all samples; max_lag clipped to the
-/// longest segment − 1).
+/// longest segment − 1). The numbers of [`whiteness_of`] the segments' [`LagSums`].
 pub fn whiteness(segments: &[&[f64]], max_lag: usize) -> Whiteness {
-    use crate::estimate::{lagged_dots, sum};
-    let n: usize = segments.iter().map(|s| s.len()).sum();
-    let totals: Vec<f64> = segments.iter().map(|s| sum(s)).collect();
-    let mean = totals.iter().sum::<f64>() / n.max(1) as f64;
-    let lags = max_lag.min(segments.iter().map(|s| s.len()).max().unwrap_or(0).saturating_sub(1));
-    // Σ_k e_k e_{k+τ} of every segment for every lag it has, in one sweep per segment.
-    let products: Vec<Vec<f64>> = segments.iter().map(|s| lagged_dots(s, lags)).collect();
-    // Σ (e_k − m)(e_{k+τ} − m) = Σ e_k e_{k+τ} − m (Σ e_k + Σ e_{k+τ}) + n_τ m², each sum over
-    // the n_τ pairs of a segment: no centred copy of the residuals.
-    let centred = |((s, total), dots): ((&&[f64], &f64), &Vec<f64>), tau: usize| {
-        let pairs = s.len() - tau;
-        // Σ over the first and the last n − τ values: the total less τ values at an end.
-        let head = total - sum(&s[pairs..]);
-        let tail = total - sum(&s[..tau]);
-        dots[tau] - mean * (head + tail) + pairs as f64 * mean * mean
-    };
-    let r0: f64 = segments.iter().zip(&totals).zip(&products).map(|st| centred(st, 0)).sum();
+    whiteness_of(&segments.iter().map(|s| LagSums::of(s, max_lag)).collect::<Vec<_>>())
+}
+
+/// [`whiteness`] from each segment's lag sums (streamed by a fit's statistics pass
+/// instead of kept residuals): lags `1..=max_lag`, max_lag the smallest the sums hold,
+/// clipped to the longest segment − 1 (Ljung 1999, 16.6).
+pub fn whiteness_of(segments: &[LagSums]) -> Whiteness {
+    let n: usize = segments.iter().map(|s| s.n).sum();
+    let mean = segments.iter().map(|s| s.total).sum::<f64>() / n.max(1) as f64;
+    let held = segments.iter().map(LagSums::max_lag).min().unwrap_or(0);
+    let lags = held.min(segments.iter().map(|s| s.n).max().unwrap_or(0).saturating_sub(1));
+    let r0: f64 = segments.iter().map(|s| s.centred(0, mean)).sum();
     let autocorrelation: Vec<f64> = (1..=lags)
         .map(|tau| {
-            let r: f64 = segments
-                .iter()
-                .zip(&totals)
-                .zip(&products)
-                .filter(|((s, _), _)| s.len() > tau)
-                .map(|st| centred(st, tau))
-                .sum();
+            let r: f64 = segments.iter().filter(|s| s.n > tau).map(|s| s.centred(tau, mean)).sum();
             if r0 > 0.0 { r / r0 } else { 0.0 }
         })
         .collect();

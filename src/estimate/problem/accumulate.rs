@@ -2,6 +2,7 @@
 
 use super::Loss;
 use super::gram::scatter_gram;
+use super::lags::{LagStream, LagSums, WHITENESS_LAGS};
 use super::pass::LocalMap;
 use nalgebra::DMatrix;
 
@@ -27,9 +28,10 @@ pub struct Sums {
     /// time-reversed filter applied to the weighted filtered Jacobian) and σ̂ from the raw
     /// residuals: exact for white raw residuals.
     pub meat: DMatrix<f64>,
-    /// The raw output errors `y − ŷ` of the counted samples, per output and experiment
-    /// (`residuals[i][e]`): for the whiteness test without another simulation.
-    pub residuals: Vec<Vec<Vec<f64>>>,
+    /// The lag sums of the raw output errors `y − ŷ` of the counted samples, per output
+    /// and experiment (`lag_sums[i][e]`, up to lag [`WHITENESS_LAGS`]): the whiteness test
+    /// without the residuals kept or another simulation.
+    pub lag_sums: Vec<Vec<LagSums>>,
 }
 
 /// Running sums of [`PemProblem::sums`].
@@ -53,7 +55,9 @@ pub(crate) struct Accumulator {
     bread: DMatrix<f64>,
     // Per output: Σ w² J_iᵀJ_i (quadratic), Σ w² ψ² J_iᵀJ_i (Huber) or gᵀg (prefilter).
     meat_i: Vec<DMatrix<f64>>,
-    residuals: Vec<Vec<Vec<f64>>>,
+    lag_sums: Vec<Vec<LagSums>>,
+    // The current experiment's raw residuals, per output.
+    streams: Vec<LagStream>,
 }
 
 impl Accumulator {
@@ -77,7 +81,8 @@ impl Accumulator {
             jtj: z.clone(),
             bread: z.clone(),
             meat_i: vec![z; ny],
-            residuals: vec![Vec::new(); ny],
+            lag_sums: vec![Vec::new(); ny],
+            streams: Vec::new(),
         }
     }
 
@@ -86,6 +91,7 @@ impl Accumulator {
         self.ey.fill(0.0);
         self.ey2.fill(0.0);
         self.n_e = 0;
+        self.streams = (0..self.ny).map(|_| LagStream::new(WHITENESS_LAGS)).collect();
     }
 
     /// One sample: `eps` the residual the criterion sees (filtered or not), `raw` the
@@ -165,11 +171,10 @@ impl Accumulator {
         }
     }
 
-    /// Keeps the raw output errors of the current experiment, one vector per output.
-    pub(crate) fn add_residuals(&mut self, residuals: Vec<Vec<f64>>) {
-        for (all, r) in self.residuals.iter_mut().zip(residuals) {
-            all.push(r);
-        }
+    /// Streams output i's next raw output errors of the current experiment (in time
+    /// order) into its lag sums.
+    pub(crate) fn add_residuals(&mut self, i: usize, residuals: &[f64]) {
+        self.streams[i].push(residuals);
     }
 
     /// Adds an experiment's Gram matrices in its local columns (row-major m × m, upper
@@ -194,6 +199,9 @@ impl Accumulator {
     pub(crate) fn end_experiment(&mut self) {
         let n = self.n_e as f64;
         self.count += self.n_e;
+        for (all, s) in self.lag_sums.iter_mut().zip(std::mem::take(&mut self.streams)) {
+            all.push(s.finish());
+        }
         for i in 0..self.ny {
             // Pool about the grand mean over all experiments.
             let y0 = self.y0[i];
@@ -229,7 +237,7 @@ impl Accumulator {
             jtj: self.jtj,
             bread: self.bread,
             meat,
-            residuals: self.residuals,
+            lag_sums: self.lag_sums,
         }
     }
 }

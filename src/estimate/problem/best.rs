@@ -66,7 +66,8 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// Experiment e's statistics sums at p from the kept pass's Grams `kept` (quadratic
     /// loss, unit weights, no prefilter): the sums of the statistics pass, whose Gram of
     /// output i serves `JᵀWJ` (Λ_i G_i), the bread (the same) and the meat (Λ_i² G_i);
-    /// one simulation without sensitivities gives the raw residuals for the whiteness test.
+    /// one simulation without sensitivities streams the raw residuals into the whiteness test's
+    /// lag sums.
     ///
     /// # Errors
     /// Those of the simulation: invalid θ, [`crate::Error::SimulationDiverged`].
@@ -78,13 +79,13 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         acc: &mut Accumulator,
     ) -> Result<()> {
         let ny = self.model.n_outputs();
-        let mut residuals: Vec<Vec<f64>> = vec![Vec::with_capacity(self.terms[e].prep.n); ny];
+        let mut n = 0;
         self.pass_blocks(e, p, Pass::RAW_RESIDUALS, |ch| {
-            for (i, res) in residuals.iter_mut().enumerate() {
-                res.extend_from_slice(ch.eps(i));
+            n += ch.len - ch.lo;
+            for i in 0..ny {
+                acc.add_residuals(i, ch.eps(i));
             }
         })?;
-        let n = residuals.first().map_or(0, Vec::len);
         acc.add_samples(n);
         let m = kept.map.len();
         let mut jtj = vec![0.0; m * m];
@@ -101,7 +102,6 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             }
         }
         acc.add_local(&kept.map, &jtj, &jtj, &meat);
-        acc.add_residuals(residuals);
         Ok(())
     }
 }

@@ -46,8 +46,6 @@ const LANES: usize = 8;
 #[inline(always)]
 fn lagged<const FMA: bool>(v: &[f64], lags: usize) -> Vec<f64> {
     const L: usize = LANES;
-    // Chunks of L per tile: 2048 samples, 16 kB, held in the L1 cache for every lag.
-    const TILE: usize = 256;
     let n = v.len();
     let lags = lags.min(n.saturating_sub(1));
     let mut acc = vec![[0.0f64; L]; lags + 1];
@@ -56,28 +54,7 @@ fn lagged<const FMA: bool>(v: &[f64], lags: usize) -> Vec<f64> {
     let mut c0 = 0;
     while c0 < common {
         let c1 = (c0 + TILE).min(common);
-        let xs = || v[c0 * L..c1 * L].chunks_exact(L);
-        let ys = |tau: usize| v[c0 * L + tau..].chunks_exact(L);
-        for (g, accs) in acc.chunks_mut(4).enumerate() {
-            let t = 4 * g;
-            if let [a0, a1, a2, a3] = accs {
-                let mut s = [*a0, *a1, *a2, *a3];
-                for ((((x, y0), y1), y2), y3) in xs().zip(ys(t)).zip(ys(t + 1)).zip(ys(t + 2)).zip(ys(t + 3))
-                {
-                    for l in 0..L {
-                        s[0][l] = madd::<FMA>(x[l], y0[l], s[0][l]);
-                        s[1][l] = madd::<FMA>(x[l], y1[l], s[1][l]);
-                        s[2][l] = madd::<FMA>(x[l], y2[l], s[2][l]);
-                        s[3][l] = madd::<FMA>(x[l], y3[l], s[3][l]);
-                    }
-                }
-                [*a0, *a1, *a2, *a3] = s;
-            } else {
-                for (j, a) in accs.iter_mut().enumerate() {
-                    sweep::<FMA>(xs(), ys(t + j), a);
-                }
-            }
-        }
+        tile_lags::<FMA>(&v[c0 * L..c1 * L], |tau| &v[c0 * L + tau..], &mut acc);
         c0 = c1;
     }
     // The chunks past the common ones, lag by lag, in order.
@@ -91,9 +68,82 @@ fn lagged<const FMA: bool>(v: &[f64], lags: usize) -> Vec<f64> {
             let pairs = n - tau;
             let k = pairs / L * L;
             let tail: f64 = v[k..pairs].iter().zip(&v[k + tau..]).map(|(x, y)| x * y).sum();
-            ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7])) + tail
+            lanes_total(a) + tail
         })
         .collect()
+}
+
+/// `Σ_{k=c}^{n−1} v_{k−τ} v_k` for every lag τ in `0..=lags` (n = `v.len()`, `lags ≤ c ≤
+/// n`): the lag products whose later value lies past the first c values, which a stream
+/// counted before (its carry, see [`LagStream`](super::lags::LagStream)). One sweep a
+/// tile at a time, four lags at once, as [`lagged_dots`]; an empty result when `c < lags`
+/// or `c > n` (the products would need values before `v`).
+#[multiversion(targets("x86_64+avx512f+avx512vl+fma", "x86_64+avx2+fma"))]
+pub(crate) fn lagged_dots_after(v: &[f64], c: usize, lags: usize) -> Vec<f64> {
+    let fma = target_cfg_f!(target_feature = "fma");
+    if c < lags || c > v.len() {
+        return Vec::new();
+    }
+    if fma { lagged_after::<true>(v, c, lags) } else { lagged_after::<false>(v, c, lags) }
+}
+
+#[inline(always)]
+fn lagged_after<const FMA: bool>(v: &[f64], c: usize, lags: usize) -> Vec<f64> {
+    const L: usize = LANES;
+    let chunks = (v.len() - c) / L;
+    let mut acc = vec![[0.0f64; L]; lags + 1];
+    let mut c0 = 0;
+    while c0 < chunks {
+        let c1 = (c0 + TILE).min(chunks);
+        tile_lags::<FMA>(&v[c + c0 * L..c + c1 * L], |tau| &v[c + c0 * L - tau..], &mut acc);
+        c0 = c1;
+    }
+    let k = c + chunks * L;
+    acc.iter()
+        .enumerate()
+        .map(|(tau, a)| {
+            let tail: f64 = v[k..].iter().zip(&v[k - tau..]).map(|(x, y)| x * y).sum();
+            lanes_total(a) + tail
+        })
+        .collect()
+}
+
+/// Chunks of [`LANES`] per tile of the lag sweeps: 2048 samples, 16 kB, held in the L1
+/// cache for every lag.
+const TILE: usize = 256;
+
+/// Adds, for every lag τ of `acc`, `x_l y_l` into lane l over the chunks of `x` (whole
+/// chunks) paired with those of `y_at(τ)`: four lags at once.
+#[inline(always)]
+fn tile_lags<'a, const FMA: bool>(x: &'a [f64], y_at: impl Fn(usize) -> &'a [f64], acc: &mut [[f64; LANES]]) {
+    const L: usize = LANES;
+    let xs = || x.chunks_exact(L);
+    let ys = |tau: usize| y_at(tau).chunks_exact(L);
+    for (g, accs) in acc.chunks_mut(4).enumerate() {
+        let t = 4 * g;
+        if let [a0, a1, a2, a3] = accs {
+            let mut s = [*a0, *a1, *a2, *a3];
+            for ((((x, y0), y1), y2), y3) in xs().zip(ys(t)).zip(ys(t + 1)).zip(ys(t + 2)).zip(ys(t + 3)) {
+                for l in 0..L {
+                    s[0][l] = madd::<FMA>(x[l], y0[l], s[0][l]);
+                    s[1][l] = madd::<FMA>(x[l], y1[l], s[1][l]);
+                    s[2][l] = madd::<FMA>(x[l], y2[l], s[2][l]);
+                    s[3][l] = madd::<FMA>(x[l], y3[l], s[3][l]);
+                }
+            }
+            [*a0, *a1, *a2, *a3] = s;
+        } else {
+            for (j, a) in accs.iter_mut().enumerate() {
+                sweep::<FMA>(xs(), ys(t + j), a);
+            }
+        }
+    }
+}
+
+/// The lanes' total in the order of [`dot`].
+#[inline(always)]
+fn lanes_total(a: &[f64; LANES]) -> f64 {
+    ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]))
 }
 
 /// Adds `x_l y_l` into lane l of `a` over the chunks of `xs` (and as many of `ys`).

@@ -12,6 +12,7 @@
 mod accumulate;
 mod best;
 mod gram;
+mod lags;
 mod loss;
 mod map;
 mod pass;
@@ -22,7 +23,9 @@ pub use crate::estimate::solver::NormalEquations;
 pub use accumulate::Sums;
 #[cfg(test)]
 pub(crate) use gram::dot;
-pub(crate) use gram::{lagged_dots, sum};
+#[cfg(test)]
+pub(crate) use gram::lagged_dots;
+pub use lags::{LAG_CHUNK, LagStream, LagSums, WHITENESS_LAGS};
 pub use loss::Loss;
 
 use crate::error::{Error, Result};

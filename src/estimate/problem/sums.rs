@@ -240,7 +240,9 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                     self.pass(e, p, Pass::RAW, |k, eps, w, jac| {
                         raw.push((k, eps.to_vec(), w.to_vec(), jac.to_vec()))
                     })?;
-                    acc.add_residuals((0..ny).map(|i| raw.iter().map(|r| r.1[i]).collect()).collect());
+                    for i in 0..ny {
+                        acc.add_residuals(i, &raw.iter().map(|r| r.1[i]).collect::<Vec<_>>());
+                    }
                     let sections = l.sections().len();
                     let mut filter = ResidualFilter::new(l, ny, np);
                     let mut weighted = vec![vec![0.0; raw.len()]; ny * np];
@@ -284,23 +286,22 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
 
     /// Experiment e's statistics sums without a prefilter, a block at a time: the
     /// residual sums and the Gram matrices (`JᵀWJ`, the bread, each output's meat) in the
-    /// experiment's local columns, mapped once at the end; the raw residuals are kept
-    /// for the whiteness test.
+    /// experiment's local columns, mapped once at the end; the raw residuals stream into
+    /// the whiteness test's lag sums.
     fn block_sums(&self, e: usize, p: &DVector<f64>, acc: &mut Accumulator) -> Result<()> {
         let ny = self.model.n_outputs();
         let huber = matches!(self.loss, Loss::Huber { .. });
         let weighted = self.terms[e].weights.is_some();
         let mut local: Option<LocalGrams> = None;
         let (mut w, mut wb, mut wm) = (vec![0.0; BLOCK_LEN], vec![0.0; BLOCK_LEN], vec![0.0; BLOCK_LEN]);
-        let mut residuals: Vec<Vec<f64>> = vec![Vec::with_capacity(self.terms[e].prep.n); ny];
         let map = self.pass_blocks(e, p, Pass::CRITERION, |ch| {
             let g = local.get_or_insert_with(|| LocalGrams::new(ny, ch.m));
             let n = ch.len - ch.lo;
             acc.add_samples(n);
-            for (i, res) in residuals.iter_mut().enumerate() {
+            for i in 0..ny {
                 let lambda = self.output_weights[i];
                 let eps = ch.eps(i);
-                res.extend_from_slice(eps);
+                acc.add_residuals(i, eps);
                 let mut spill = Vec::new();
                 let cols = columns(ch, i, None, &mut spill);
                 let sse = dot(eps, eps);
@@ -357,7 +358,6 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             }
             acc.add_local(&map, &g.jtj, &g.bread, &g.meat);
         }
-        acc.add_residuals(residuals);
         Ok(())
     }
 
