@@ -167,7 +167,7 @@ fn motion_half<'a>(v: &DqView<'a>, n_p: u32) -> impl Iterator<Item = (Interval, 
 /// `(sin φ/2, cos φ/2)` of an interval of electrical speed `w_e` \[rad/s\] and length `h`
 /// \[s\] (`φ = ω_e h`).
 #[inline]
-fn half_angle(w_e: f64, h: f64) -> (f64, f64) {
+pub(crate) fn half_angle(w_e: f64, h: f64) -> (f64, f64) {
     (0.5 * (w_e * h)).sin_cos()
 }
 
@@ -175,7 +175,7 @@ fn half_angle(w_e: f64, h: f64) -> (f64, f64) {
 /// `1 − cos φ = 2 sin²(φ/2)` (free of cancellation near 0) from one sine and cosine of
 /// the half angle.
 #[inline]
-fn half_angle_rotation(sin_half: f64, cos_half: f64) -> (C64, f64) {
+pub(crate) fn half_angle_rotation(sin_half: f64, cos_half: f64) -> (C64, f64) {
     let vers = 2.0 * sin_half * sin_half;
     (C64::new(1.0 - vers, -2.0 * sin_half * cos_half), vers)
 }

@@ -86,8 +86,9 @@ impl GreyBoxModel for PmsmIpm {
     fn prepare(&self, e: &Experiment) -> Result<IpmInputs> {
         check_pole_pairs(self.setup.n_p)?;
         let v = DqView::try_new(e)?;
-        let IntervalArrays { w_e, emf, u0, .. } =
-            model_interval_arrays(&v, self.setup.n_p, self.setup.hold, self.setup.input)?;
+        let arrays = model_interval_arrays(&v, self.setup.n_p, self.setup.hold, self.setup.input)?;
+        let (w_e, emf) = arrays.speeds(self.setup.n_p);
+        let IntervalArrays { u0, .. } = arrays;
         let mut inputs = IpmInputs { h: v.h(), hold: self.setup.hold, w_e, emf, u0, dt: Vec::new() };
         if let Some(inv) = &self.setup.inverter {
             inputs.dt = dead_time_directions(&v, self.setup.n_p, inv)?;

@@ -4,7 +4,9 @@
 //! is reproduced exactly by the model that fits it.
 
 use super::augmented::{Aug, IpmCoefficients, IpmInputs, advance_at};
-use super::interval::{C64, SQRT_2_3, VoltageHold, check_finite, check_pole_pairs, check_positive, rotation};
+use super::interval::{
+    C64, SQRT_2_3, VoltageHold, check_finite, check_pole_pairs, check_positive, half_angle, half_angle_rotation,
+};
 use super::spm::SpmInputs;
 use super::{PmsmIpm, PmsmSpm};
 use crate::error::{Error, Result};
@@ -117,10 +119,9 @@ impl ExactPlant {
         } else {
             let inp = SpmInputs {
                 h,
-                w_e: vec![0.0],
-                emf: vec![0.0],
-                rot: one(C64::new(1.0, 0.0)),
-                vers: vec![0.0],
+                n_p: f64::from(n_p),
+                w_m: vec![0.0],
+                half: vec![[0.0, 1.0]],
                 u: one(C64::default()),
                 dt: Vec::new(),
             };
@@ -139,14 +140,12 @@ impl ExactPlant {
     /// may change with temperature); [`Error::Numerical`] for a non-finite result.
     pub fn step(&mut self, p: &MotorParameters, i: [f64; 2], u0: C64, w_m: f64) -> Result<[f64; 2]> {
         let w_e = f64::from(self.n_p) * w_m;
-        let phi = w_e * self.h;
         let mut next = [0.0; 2];
         match &mut self.engine {
             Engine::Spm(model, inp) => {
-                let rot = rotation(phi);
-                let half = (0.5 * phi).sin();
-                (inp.w_e[0], inp.emf[0], inp.rot[0], inp.vers[0]) =
-                    (w_e, SQRT_2_3 * w_m, rot, 2.0 * half * half);
+                let (s, c) = half_angle(w_e, self.h);
+                let rot = half_angle_rotation(s, c).0;
+                (inp.w_m[0], inp.half[0]) = (w_m, [s, c]);
                 // The stator-held voltage enters the SPM step rotated to the period's end.
                 inp.u[0] = match self.hold {
                     VoltageHold::Stator => u0 * rot,

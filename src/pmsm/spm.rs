@@ -23,7 +23,7 @@
 
 use super::interval::{
     C64, IntervalArrays, VoltageHold, VoltageInput, check_finite, check_pole_pairs, check_positive,
-    model_interval_arrays,
+    half_angle_rotation, model_interval_arrays,
 };
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
@@ -42,14 +42,16 @@ mod kernel;
 pub struct SpmInputs {
     /// Sample time h \[s\].
     pub h: f64,
-    /// Interval-mean electrical speed ω_e \[rad/s\].
-    pub w_e: Vec<f64>,
-    /// `√(2/3)` × interval-mean mechanical speed \[rad/s\]: back-EMF per unit K_e.
-    pub emf: Vec<f64>,
-    /// Rotation of the dq frame over the period, `e^{−j ω_e h}`.
-    pub rot: Vec<C64>,
-    /// Versine of the period's rotation, `1 − cos(ω_e h) = 2 sin²(ω_e h/2)` (exact near 0).
-    pub vers: Vec<f64>,
+    /// Pole pairs n_p as a number: `ω_e = n_p ω_m`.
+    pub n_p: f64,
+    /// Interval-mean mechanical speed ω_m \[rad/s\]: the electrical speed `ω_e = n_p ω_m`
+    /// and the back-EMF per unit K_e, `√(2/3) ω_m`.
+    pub w_m: Vec<f64>,
+    /// `[sin φ/2, cos φ/2]` of the period's rotation `φ = ω_e h`: its rotation of the dq
+    /// frame `e^{−jφ} = (1 − 2 sin²(φ/2), −2 sin(φ/2) cos(φ/2))` and versine `1 − cos φ =
+    /// 2 sin²(φ/2)` (exact near 0) follow in the kernel, so 24 bytes an interval are
+    /// not stored.
+    pub half: Vec<[f64; 2]>,
     /// Voltage term of the step \[V\]: `u[k]` (dq hold) or `u₀ e^{−jφ}` (stator hold).
     pub u: Vec<C64>,
     /// The inverter's voltage error per unit `v_dt`, in the convention of `u` (empty
@@ -105,12 +107,12 @@ impl PmsmSpm {
 
 /// Per-interval speed, rotation and held voltage term of the SPM step.
 fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold, input: VoltageInput) -> Result<SpmInputs> {
-    let IntervalArrays { w_e, emf, rot, vers, u0: mut u } = model_interval_arrays(v, n_p, hold, input)?;
+    let IntervalArrays { w_m, half, u0: mut u } = model_interval_arrays(v, n_p, hold, input)?;
     if hold == VoltageHold::Stator {
         // The stator-held voltage enters the SPM step rotated to the end of the period.
-        u.iter_mut().zip(&rot).for_each(|(u, r)| *u *= r);
+        u.iter_mut().zip(&half).for_each(|(u, &[s, c])| *u *= half_angle_rotation(s, c).0);
     }
-    Ok(SpmInputs { h: v.h(), w_e, emf, rot, vers, u, dt: Vec::new() })
+    Ok(SpmInputs { h: v.h(), n_p: f64::from(n_p), w_m, half, u, dt: Vec::new() })
 }
 
 impl GreyBoxModel for PmsmSpm {
@@ -128,7 +130,9 @@ impl GreyBoxModel for PmsmSpm {
             inputs.dt = match self.setup.hold {
                 VoltageHold::Dq => dirs,
                 // Rotated to the end of the period, as the stator-held voltage.
-                VoltageHold::Stator => dirs.iter().zip(&inputs.rot).map(|(d, r)| d * r).collect(),
+                VoltageHold::Stator => {
+                    dirs.iter().zip(&inputs.half).map(|(d, &[s, c])| d * half_angle_rotation(s, c).0).collect()
+                }
             };
         }
         Ok(inputs)

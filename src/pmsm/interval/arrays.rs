@@ -1,30 +1,42 @@
 //! The intervals of a log as arrays, one per quantity (structure of arrays): what the
 //! models' `prepare` keeps. For the terminal voltage each array is computed in its own
 //! loop over independent intervals (they vectorise), with one sine and cosine of the half
-//! angle per interval (MODEL.md §4; thesis 5.2); the numbers are those of
+//! angle per interval, kept as such (MODEL.md §4; thesis 5.2); the numbers are those of
 //! [`intervals`](super::intervals).
 
 use super::{
-    C64, DqView, Interval, Result, SQRT_2_3, VoltageHold, VoltageInput, half_angle, half_angle_rotation,
-    mean_speed, model_intervals, stator_hold_start_half,
+    C64, DqView, Result, SQRT_2_3, VoltageHold, VoltageInput, half_angle, mean_speed, model_intervals,
+    stator_hold_start_half,
 };
+#[cfg(doc)]
+use super::{Interval, half_angle_rotation};
 
-/// The intervals `k = 0..N−2` of a log (see [`Interval`]), each field an array of N − 1.
+/// The intervals `k = 0..N−2` of a log (see [`Interval`]), each field an array of N − 1:
+/// the few numbers from which every data-only term of an interval follows exactly (40
+/// bytes an interval), so the prepared inputs stay small.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct IntervalArrays {
-    /// Interval-mean electrical speed ω_e \[rad/s\].
-    pub w_e: Vec<f64>,
-    /// `√(2/3)` × interval-mean mechanical speed \[rad/s\].
-    pub emf: Vec<f64>,
-    /// `e^{−jφ}`, `φ = ω_e h`.
-    pub rot: Vec<C64>,
-    /// `1 − cos φ`.
-    pub vers: Vec<f64>,
+    /// Interval-mean mechanical speed ω_m \[rad/s\]: `ω_e = n_p ω_m`, back-EMF per unit K_e
+    /// `√(2/3) ω_m`.
+    pub w_m: Vec<f64>,
+    /// `[sin φ/2, cos φ/2]`, `φ = ω_e h`: the rotation `e^{−jφ}` and versine `1 − cos φ` by
+    /// [`half_angle_rotation`].
+    pub half: Vec<[f64; 2]>,
     /// dq voltage at the start of the period \[V\].
     pub u0: Vec<C64>,
 }
 
-/// The intervals of [`model_intervals`] as arrays.
+impl IntervalArrays {
+    /// `(ω_e, √(2/3) ω_m)` of every interval for `n_p` pole pairs \[rad/s\]: the numbers of
+    /// [`Interval`]'s `w_e` and `emf`.
+    pub(crate) fn speeds(&self, n_p: u32) -> (Vec<f64>, Vec<f64>) {
+        let np = f64::from(n_p);
+        (self.w_m.iter().map(|w| np * w).collect(), self.w_m.iter().map(|w| SQRT_2_3 * w).collect())
+    }
+}
+
+/// The intervals of [`model_intervals`] as arrays (the same numbers: every field of an
+/// [`Interval`] follows from them by the same operations).
 ///
 /// # Errors
 /// Those of [`model_intervals`].
@@ -34,42 +46,30 @@ pub(crate) fn model_interval_arrays(
     hold: VoltageHold,
     input: VoltageInput,
 ) -> Result<IntervalArrays> {
-    if input != VoltageInput::Terminal {
-        let ivs = model_intervals(v, n_p, hold, input)?;
-        let field = |f: fn(&Interval) -> f64| ivs.iter().map(f).collect();
-        return Ok(IntervalArrays {
-            w_e: field(|iv| iv.w_e),
-            emf: field(|iv| iv.emf),
-            vers: field(|iv| iv.vers),
-            rot: ivs.iter().map(|iv| iv.rot).collect(),
-            u0: ivs.iter().map(|iv| iv.u0).collect(),
-        });
-    }
-    let (ud, uq) = v.terminal_voltage()?;
-    let (h, np, wm) = (v.h(), f64::from(n_p), v.w_m());
-    let n = v.len() - 1;
-    let w_e: Vec<f64> = wm.windows(2).map(|w| np * mean_speed(w)).collect();
-    let emf: Vec<f64> = wm.windows(2).map(|w| SQRT_2_3 * mean_speed(w)).collect();
-    // (sin φ/2, cos φ/2) held in `rot` until the other arrays have taken them.
-    let mut rot: Vec<C64> = w_e
+    let (h, np) = (v.h(), f64::from(n_p));
+    let w_m: Vec<f64> = v.w_m().windows(2).map(mean_speed).collect();
+    let half: Vec<[f64; 2]> = w_m
         .iter()
         .map(|&w| {
-            let (s, c) = half_angle(w, h);
-            C64::new(s, c)
+            let (s, c) = half_angle(np * w, h);
+            [s, c]
         })
         .collect();
+    if input != VoltageInput::Terminal {
+        let u0 = model_intervals(v, n_p, hold, input)?.iter().map(|iv| iv.u0).collect();
+        return Ok(IntervalArrays { w_m, half, u0 });
+    }
+    let (ud, uq) = v.terminal_voltage()?;
+    let n = v.len() - 1;
     let mean = |k: usize| C64::new(ud[k], uq[k]);
     let u0: Vec<C64> = match hold {
         VoltageHold::Dq => (0..n).map(mean).collect(),
-        VoltageHold::Stator => {
-            (0..n).map(|k| stator_hold_start_half(mean(k), w_e[k] * h, rot[k].re, rot[k].im)).collect()
-        }
+        VoltageHold::Stator => (0..n)
+            .map(|k| {
+                let [s, c] = half[k];
+                stator_hold_start_half(mean(k), np * w_m[k] * h, s, c)
+            })
+            .collect(),
     };
-    let mut vers = Vec::with_capacity(n);
-    for r in &mut rot {
-        let (turn, vs) = half_angle_rotation(r.re, r.im);
-        *r = turn;
-        vers.push(vs);
-    }
-    Ok(IntervalArrays { w_e, emf, rot, vers, u0 })
+    Ok(IntervalArrays { w_m, half, u0 })
 }

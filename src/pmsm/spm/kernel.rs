@@ -16,7 +16,7 @@
 
 use super::{PmsmSpm, SpmCoefficients, SpmInputs};
 use crate::model::{BLOCK_LEN, Block, BlockContext, BlockKernel, SimState};
-use crate::pmsm::interval::{C64, VoltageHold};
+use crate::pmsm::interval::{C64, SQRT_2_3, VoltageHold, half_angle_rotation};
 use multiversion::multiversion;
 
 /// The terms of interval k: the step `i[k+1] = a i[k] + forced`, and with sensitivities
@@ -94,7 +94,10 @@ fn terms_for<const SENS: bool>(
     k: usize,
 ) -> Terms {
     let dt = if v_dt { inp.dt[k] } else { C64::default() };
-    terms_at::<SENS>(c, stator, v_dt, inp.rot[k], inp.w_e[k], inp.vers[k], inp.emf[k], inp.u[k], dt)
+    let [s, co] = inp.half[k];
+    let (rot, vers) = half_angle_rotation(s, co);
+    let w_m = inp.w_m[k];
+    terms_at::<SENS>(c, stator, v_dt, rot, inp.n_p * w_m, vers, SQRT_2_3 * w_m, inp.u[k], dt)
 }
 
 /// [`terms_for`] with the model's hold and parameter count.
@@ -174,13 +177,7 @@ fn fill<const SENS: bool, const STATOR: bool, const VDT: bool>(
     out: &mut [f64],
 ) {
     let r = k0..k0 + steps;
-    let (rot, w, vers, emf, u) = (
-        &inp.rot[r.clone()],
-        &inp.w_e[r.clone()],
-        &inp.vers[r.clone()],
-        &inp.emf[r.clone()],
-        &inp.u[r.clone()],
-    );
+    let (half, w_m, u) = (&inp.half[r.clone()], &inp.w_m[r.clone()], &inp.u[r.clone()]);
     let dt = if VDT { &inp.dt[r] } else { &[][..] };
     let mut ch = out.chunks_exact_mut(BLOCK_LEN);
     let mut next = || ch.next().map(|c| &mut c[..steps]).unwrap_or_default();
@@ -189,7 +186,9 @@ fn fill<const SENS: bool, const STATOR: bool, const VDT: bool>(
         (next(), next(), next(), next(), next(), next(), next(), next());
     for t in 0..steps {
         let d = if VDT { dt[t] } else { C64::default() };
-        let tm = terms_at::<SENS>(c, STATOR, VDT, rot[t], w[t], vers[t], emf[t], u[t], d);
+        let [s, co] = half[t];
+        let (rot, vers) = half_angle_rotation(s, co);
+        let tm = terms_at::<SENS>(c, STATOR, VDT, rot, inp.n_p * w_m[t], vers, SQRT_2_3 * w_m[t], u[t], d);
         a_re[t] = tm.a.re;
         a_im[t] = tm.a.im;
         f_re[t] = tm.forced.re;
