@@ -5,7 +5,8 @@
 
 use super::augmented::{Aug, IpmCoefficients, IpmInputs, advance_at};
 use super::interval::{
-    C64, SQRT_2_3, VoltageHold, check_finite, check_pole_pairs, check_positive, half_angle, half_angle_rotation,
+    C64, SQRT_2_3, VoltageHold, check_finite, check_pole_pairs, check_positive, half_angle,
+    half_angle_rotation,
 };
 use super::spm::SpmInputs;
 use super::{PmsmIpm, PmsmSpm};

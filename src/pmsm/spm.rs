@@ -130,9 +130,11 @@ impl GreyBoxModel for PmsmSpm {
             inputs.dt = match self.setup.hold {
                 VoltageHold::Dq => dirs,
                 // Rotated to the end of the period, as the stator-held voltage.
-                VoltageHold::Stator => {
-                    dirs.iter().zip(&inputs.half).map(|(d, &[s, c])| d * half_angle_rotation(s, c).0).collect()
-                }
+                VoltageHold::Stator => dirs
+                    .iter()
+                    .zip(&inputs.half)
+                    .map(|(d, &[s, c])| d * half_angle_rotation(s, c).0)
+                    .collect(),
             };
         }
         Ok(inputs)

@@ -46,8 +46,8 @@ pub(super) fn read(
         Format::Parquet => read_parquet(path, file, wanted, limits)?,
         _ => read_ipc(path, file, wanted, limits)?,
     };
-    let values: Vec<Option<Vec<f64>>> =
-        index.iter().zip(columns).map(|(i, c)| i.map(|_| c.concat())).collect();
+    // Each wanted column as read, moved rather than copied.
+    let values: Vec<Option<Vec<f64>>> = index.iter().zip(columns).map(|(i, c)| i.map(|_| c)).collect();
     if rows > limits.max_rows {
         return Err(Error::LimitExceeded {
             path: path.to_path_buf(),
@@ -63,7 +63,9 @@ pub(super) fn read(
     Ok(Table { name: experiment_name(path), header, columns: values })
 }
 
-type Read = (Vec<String>, Vec<Option<usize>>, Vec<Vec<Vec<f64>>>, u64);
+/// The header, the wanted columns' positions in it, one vector per wanted column, and the
+/// row count.
+type Read = (Vec<String>, Vec<Option<usize>>, Vec<Vec<f64>>, u64);
 
 /// The schema's names and the wanted columns' positions in it.
 fn header(
@@ -138,7 +140,6 @@ fn read_parquet(path: &Path, file: File, wanted: &[(&str, bool)], limits: &ReadL
         }
         Ok(())
     })?;
-    let columns = columns.into_iter().map(|c| vec![c]).collect();
     Ok((header, index, columns, rows))
 }
 
@@ -162,8 +163,7 @@ fn read_ipc(path: &Path, file: File, wanted: &[(&str, bool)], limits: &ReadLimit
     let (header, index) = header(path, &reader.schema(), wanted, limits)?;
     let values = collect(path, reader, &header, &index)?;
     let rows = values.iter().map(Vec::len).max().unwrap_or(0) as u64;
-    let columns = values.into_iter().map(|v| vec![v]).collect();
-    Ok((header, index, columns, rows))
+    Ok((header, index, values, rows))
 }
 
 /// The wanted columns of every batch, as f64, one vector per wanted column.
