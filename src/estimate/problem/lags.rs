@@ -85,8 +85,10 @@ impl LagStream {
             n: 0,
             total: 0.0,
             dots: vec![0.0; max_lag + 1],
-            head: Vec::with_capacity(max_lag),
-            buf: Vec::with_capacity(max_lag + chunk),
+            head: Vec::new(),
+            // Grown as values come (a short sequence keeps a short buffer), to at most
+            // max_lag + chunk values.
+            buf: Vec::new(),
             carry: 0,
         }
     }
@@ -96,6 +98,11 @@ impl LagStream {
         while !e.is_empty() {
             let room = self.chunk - (self.buf.len() - self.carry);
             let (now, later) = e.split_at(room.min(e.len()));
+            let need = self.buf.len() + now.len();
+            if need > self.buf.capacity() {
+                let cap = (2 * self.buf.capacity()).max(need).min(self.max_lag + self.chunk);
+                self.buf.reserve_exact(cap - self.buf.len());
+            }
             self.buf.extend_from_slice(now);
             e = later;
             if self.buf.len() - self.carry == self.chunk {
@@ -132,6 +139,8 @@ impl LagStream {
     /// The lag sums of the sequence pushed.
     pub fn finish(mut self) -> LagSums {
         self.flush();
+        // The carry is at most max_lag values: no chunk-sized buffer outlives the stream.
+        self.buf.shrink_to_fit();
         LagSums { n: self.n, total: self.total, dots: self.dots, head: self.head, tail: self.buf }
     }
 }
@@ -171,6 +180,16 @@ mod tests {
                 e.chunks(piece).for_each(|c| s.push(c));
                 assert_eq!(s.finish(), whole, "n = {n}, pieces of {piece}");
             }
+        }
+    }
+
+    /// The finished sums hold their few values, not the stream's buffer (a fit of many
+    /// experiments keeps one per experiment and output until its statistics are done).
+    #[test]
+    fn finished_sums_keep_no_buffer() {
+        for n in [10, 3 * LAG_CHUNK + 5] {
+            let s = LagSums::of(&sequence(n), 25);
+            assert!(s.tail.capacity() <= 2 * 25, "n = {n}: capacity {}", s.tail.capacity());
         }
     }
 
