@@ -18,7 +18,7 @@ pub mod weighting;
 
 #[cfg(test)]
 pub(crate) use problem::lagged_dots;
-pub use problem::{LAG_CHUNK, LagStream, LagSums, Loss, PemProblem, ProblemOptions, WHITENESS_LAGS};
+pub use problem::{LAG_CHUNK, LagSums, Loss, PemProblem, ProblemOptions, WHITENESS_LAGS};
 pub use result::{
     DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing, Warning,
 };

@@ -34,8 +34,9 @@ const D_COLUMNS: [usize; 4] = [0, 1, 3, 6];
 /// `u_q`.
 const Q_COLUMNS: [usize; 5] = [0, 2, 4, 5, 6];
 
-/// Zero-phase low-pass of `L` equally long signals at once: lane `l` of sample `k` of the
-/// result is `bw.filtfilt(x[l])[k]`, bit for bit. Empty signals give an empty result.
+/// Zero-phase low-pass of the scan's five signals at once (over the shortest one's
+/// length): lane `l` of sample `k` of the result is `bw.filtfilt(x[l])[k]`, bit for bit.
+/// Empty signals give an empty result.
 ///
 /// Source: [`Butterworth::filtfilt`] (`scipy.signal.sosfiltfilt`, odd padding).
 fn filtfilt_lanes(bw: &Butterworth, x: [&[f64]; LANES]) -> Vec<[f64; LANES]> {

@@ -42,12 +42,12 @@ mod kernel;
 pub struct SpmInputs {
     /// Sample time h \[s\].
     pub h: f64,
-    /// Pole pairs n_p as a number: `ω_e = n_p ω_m`.
+    /// Pole pairs n_p as a number: `ω_e = n_p ω_m` (the model's, set by `prepare`).
     pub n_p: f64,
-    /// Interval-mean mechanical speed ω_m \[rad/s\]: the electrical speed `ω_e = n_p ω_m`
-    /// and the back-EMF per unit K_e, `√(2/3) ω_m`.
+    /// Interval-mean mechanical speed ω_m \[rad/s\], length N − 1: the electrical speed
+    /// `ω_e = n_p ω_m` and the back-EMF per unit K_e, `√(2/3) ω_m`.
     pub w_m: Vec<f64>,
-    /// `[sin φ/2, cos φ/2]` of the period's rotation `φ = ω_e h`: its rotation of the dq
+    /// `[sin φ/2, cos φ/2]` \[–\], length N − 1, of the period's rotation `φ = ω_e h`: its rotation of the dq
     /// frame `e^{−jφ} = (1 − 2 sin²(φ/2), −2 sin(φ/2) cos(φ/2))` and versine `1 − cos φ =
     /// 2 sin²(φ/2)` (exact near 0) follow in the kernel, so 24 bytes an interval are
     /// not stored.

@@ -130,21 +130,24 @@ pub fn metrics(
 /// mean, with the 95 % whiteness bound `1.96/√N` (N: all samples; max_lag clipped to the
 /// longest segment − 1). The numbers of [`whiteness_of`] the segments' [`LagSums`].
 pub fn whiteness(segments: &[&[f64]], max_lag: usize) -> Whiteness {
+    // Clipped first: no sums are kept for lags no segment has.
+    let max_lag = max_lag.min(segments.iter().map(|s| s.len()).max().unwrap_or(0).saturating_sub(1));
     whiteness_of(&segments.iter().map(|s| LagSums::of(s, max_lag)).collect::<Vec<_>>())
 }
 
-/// [`whiteness`] from each segment's lag sums (streamed by a fit's statistics pass
-/// instead of kept residuals): lags `1..=max_lag`, max_lag the smallest the sums hold,
-/// clipped to the longest segment − 1 (Ljung 1999, 16.6).
+/// [`whiteness`] from each segment's lag sums, as a fit's statistics stream them
+/// ([`crate::estimate::problem::Sums::lag_sums`]) instead of keeping the residuals: lags
+/// `1..=max_lag`, max_lag the smallest the sums hold, clipped to the longest segment − 1
+/// (Ljung 1999, 16.6).
 pub fn whiteness_of(segments: &[LagSums]) -> Whiteness {
-    let n: usize = segments.iter().map(|s| s.n).sum();
-    let mean = segments.iter().map(|s| s.total).sum::<f64>() / n.max(1) as f64;
+    let n: usize = segments.iter().map(LagSums::n).sum();
+    let mean = segments.iter().map(LagSums::total).sum::<f64>() / n.max(1) as f64;
     let held = segments.iter().map(LagSums::max_lag).min().unwrap_or(0);
-    let lags = held.min(segments.iter().map(|s| s.n).max().unwrap_or(0).saturating_sub(1));
+    let lags = held.min(segments.iter().map(LagSums::n).max().unwrap_or(0).saturating_sub(1));
     let r0: f64 = segments.iter().map(|s| s.centred(0, mean)).sum();
     let autocorrelation: Vec<f64> = (1..=lags)
         .map(|tau| {
-            let r: f64 = segments.iter().filter(|s| s.n > tau).map(|s| s.centred(tau, mean)).sum();
+            let r: f64 = segments.iter().filter(|s| s.n() > tau).map(|s| s.centred(tau, mean)).sum();
             if r0 > 0.0 { r / r0 } else { 0.0 }
         })
         .collect();
@@ -174,6 +177,18 @@ mod tests {
         assert!((m.mse - 1.25).abs() < 1e-12);
         assert!((m.fpe - 1.25 * (1.0 + 0.25) / (1.0 - 0.25)).abs() < 1e-12);
         assert!(metrics(&names, &y, &[1.0; 3], 1, 2).is_err());
+    }
+
+    /// A lag count beyond the data is clipped before any sums are kept (no overflow, no
+    /// huge allocation): the lags the longest segment has.
+    #[test]
+    fn whiteness_clips_the_lags_to_the_data() {
+        let e: Vec<f64> = (0..40).map(|k| (k as f64 * 0.9).sin()).collect();
+        for max_lag in [39, 1_000_000_000, usize::MAX] {
+            let w = whiteness(&[&e[..30], &e[30..]], max_lag);
+            assert_eq!(w.autocorrelation.len(), 29, "max_lag {max_lag}");
+        }
+        assert_eq!(whiteness(&[&e], usize::MAX), whiteness(&[&e], 39));
     }
 
     /// The one-sweep lag products are the per-lag dot products to the bit, for lengths

@@ -163,6 +163,14 @@ fn read_ipc(path: &Path, file: File, wanted: &[(&str, bool)], limits: &ReadLimit
     let (header, index) = header(path, &reader.schema(), wanted, limits)?;
     let values = collect(path, reader, &header, &index)?;
     let rows = values.iter().map(Vec::len).max().unwrap_or(0) as u64;
+    // Grown batch by batch: the slack goes before the columns outlive the read.
+    let values = values
+        .into_iter()
+        .map(|mut v| {
+            v.shrink_to_fit();
+            v
+        })
+        .collect();
     Ok((header, index, values, rows))
 }
 

@@ -76,11 +76,12 @@ fn lagged<const FMA: bool>(v: &[f64], lags: usize) -> Vec<f64> {
 /// `Σ_{k=c}^{n−1} v_{k−τ} v_k` for every lag τ in `0..=lags` (n = `v.len()`, `lags ≤ c ≤
 /// n`): the lag products whose later value lies past the first c values, which a stream
 /// counted before (its carry, see [`LagStream`](super::lags::LagStream)). One sweep a
-/// tile at a time, four lags at once, as [`lagged_dots`]; an empty result when `c < lags`
-/// or `c > n` (the products would need values before `v`).
+/// tile at a time, four lags at once, as [`lagged_dots`]. `c < lags` or `c > n` (products
+/// that would need values before `v`) is a caller's error: empty in release builds.
 #[multiversion(targets("x86_64+avx512f+avx512vl+fma", "x86_64+avx2+fma"))]
 pub(crate) fn lagged_dots_after(v: &[f64], c: usize, lags: usize) -> Vec<f64> {
     let fma = target_cfg_f!(target_feature = "fma");
+    debug_assert!(lags <= c && c <= v.len(), "lag products past {c} of {} values up to lag {lags}", v.len());
     if c < lags || c > v.len() {
         return Vec::new();
     }

@@ -4,7 +4,8 @@
 
 use super::gram::{lagged_dots, lagged_dots_after, sum};
 
-/// Lags of the residual whiteness test of a fit (autocorrelation at lags 1..=25).
+/// Lags of the residual whiteness test of a fit: the autocorrelation at lags 1..=25, as
+/// MATLAB's `resid` by default (Ljung 1999, 16.6).
 pub const WHITENESS_LAGS: usize = 25;
 
 /// Values a [`LagStream`] gathers before it sums their lag products (with those of the
@@ -14,28 +15,51 @@ pub const WHITENESS_LAGS: usize = 25;
 pub const LAG_CHUNK: usize = 16_384;
 
 /// The lag sums of one sequence `e_0 … e_{n−1}` (one output's residuals over one
-/// experiment), built by [`LagStream`]: enough for the autocorrelation about any mean
-/// (`Σ (e_k − m)(e_{k+τ} − m) = dots[τ] − m (Σ_{k<n−τ} e_k + Σ_{k≥τ} e_k) + (n − τ) m²`,
-/// each partial sum the total less τ values at an end).
+/// experiment), as a fit's statistics stream them ([`Sums::lag_sums`](super::Sums)): enough
+/// for the autocorrelation about any mean (`Σ (e_k − m)(e_{k+τ} − m) = dots[τ] − m
+/// (Σ_{k<n−τ} e_k + Σ_{k≥τ} e_k) + (n − τ) m²`, each partial sum the total less τ values at
+/// an end), which [`whiteness_of`](crate::report::metrics::whiteness_of) takes. O(max_lag)
+/// memory. Built only by the crate, so its parts always agree.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LagSums {
-    /// Number of values n.
-    pub n: usize,
-    /// `Σ_k e_k` \[unit of e\].
-    pub total: f64,
-    /// `dots[τ] = Σ_{k=0}^{n−1−τ} e_k e_{k+τ}` for τ = 0..=max_lag (length max_lag + 1; 0
-    /// for τ ≥ n) \[unit of e squared\].
-    pub dots: Vec<f64>,
-    /// The first min(n, max_lag) values.
-    pub head: Vec<f64>,
-    /// The last min(n, max_lag) values, in order.
-    pub tail: Vec<f64>,
+    n: usize,
+    total: f64,
+    dots: Vec<f64>,
+    head: Vec<f64>,
+    tail: Vec<f64>,
 }
 
 impl LagSums {
+    /// Number of values n.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
+    /// `Σ_k e_k` \[unit of e\].
+    pub fn total(&self) -> f64 {
+        self.total
+    }
+
+    /// `dots[τ] = Σ_{k=0}^{n−1−τ} e_k e_{k+τ}` for τ = 0..=max_lag, length max_lag + 1 (0 for
+    /// τ ≥ n) \[unit of e squared\].
+    pub fn dots(&self) -> &[f64] {
+        &self.dots
+    }
+
+    /// The first min(n, max_lag) values \[unit of e\].
+    pub fn head(&self) -> &[f64] {
+        &self.head
+    }
+
+    /// The last min(n, max_lag) values, in order \[unit of e\].
+    pub fn tail(&self) -> &[f64] {
+        &self.tail
+    }
+
     /// The lag sums of a whole sequence `e` up to lag `max_lag` (those of a
-    /// [`LagStream`] that took `e`).
-    pub fn of(e: &[f64], max_lag: usize) -> Self {
+    /// [`LagStream`] that took `e`); `max_lag + 1` sums are kept, so callers clip it to the
+    /// sequence first.
+    pub(crate) fn of(e: &[f64], max_lag: usize) -> Self {
         let mut s = LagStream::new(max_lag);
         s.push(e);
         s.finish()
@@ -47,8 +71,8 @@ impl LagSums {
     }
 
     /// `Σ_k (e_k − m)(e_{k+τ} − m)` over the n − τ pairs at lag `tau ≤ min(max_lag, n)`
-    /// about the mean `m`.
-    pub fn centred(&self, tau: usize, m: f64) -> f64 {
+    /// about the mean `m` (callers keep to that range: the crate's [`whiteness_of`](crate::report::metrics::whiteness_of) does).
+    pub(crate) fn centred(&self, tau: usize, m: f64) -> f64 {
         let pairs = self.n - tau;
         // Σ over the first and the last n − τ values: the total less τ values at an end.
         let first = self.total - sum(&self.tail[self.tail.len() - tau..]);
@@ -62,7 +86,7 @@ impl LagSums {
 /// to come) and at most [`LAG_CHUNK`] pending ones: the chunks start at fixed positions
 /// of the sequence, so the sums do not depend on the pieces' sizes.
 #[derive(Clone, Debug)]
-pub struct LagStream {
+pub(crate) struct LagStream {
     max_lag: usize,
     chunk: usize,
     n: usize,
@@ -75,8 +99,8 @@ pub struct LagStream {
 }
 
 impl LagStream {
-    /// An empty stream summing the lag products up to lag `max_lag`.
-    pub fn new(max_lag: usize) -> Self {
+    /// An empty stream summing the lag products up to lag `max_lag` (`max_lag + 1` sums).
+    pub(crate) fn new(max_lag: usize) -> Self {
         // A first chunk of at least max_lag values leaves a full carry for every later one.
         let chunk = LAG_CHUNK.max(max_lag);
         Self {
@@ -94,7 +118,7 @@ impl LagStream {
     }
 
     /// Appends the values `e` to the sequence.
-    pub fn push(&mut self, mut e: &[f64]) {
+    pub(crate) fn push(&mut self, mut e: &[f64]) {
         while !e.is_empty() {
             let room = self.chunk - (self.buf.len() - self.carry);
             let (now, later) = e.split_at(room.min(e.len()));
@@ -137,7 +161,7 @@ impl LagStream {
     }
 
     /// The lag sums of the sequence pushed.
-    pub fn finish(mut self) -> LagSums {
+    pub(crate) fn finish(mut self) -> LagSums {
         self.flush();
         // The carry is at most max_lag values: no chunk-sized buffer outlives the stream.
         self.buf.shrink_to_fit();

@@ -25,7 +25,7 @@ pub use accumulate::Sums;
 pub(crate) use gram::dot;
 #[cfg(test)]
 pub(crate) use gram::lagged_dots;
-pub use lags::{LAG_CHUNK, LagStream, LagSums, WHITENESS_LAGS};
+pub use lags::{LAG_CHUNK, LagSums, WHITENESS_LAGS};
 pub use loss::Loss;
 
 use crate::error::{Error, Result};
