@@ -8,8 +8,8 @@ use super::gram::{lagged_dots, lagged_dots_after, sum};
 /// MATLAB's `resid` by default (Ljung 1999, 16.6).
 pub const WHITENESS_LAGS: usize = 25;
 
-/// Values a [`LagStream`] gathers before it sums their lag products (with those of the
-/// carry): for a sequence of at most this many values the sums are those of one sweep
+/// Values a fit's statistics gather of a residual sequence before they sum their lag
+/// products (with those of the last max_lag values before them): for a sequence of at most this many values the sums are those of one sweep
 /// over the whole sequence to the bit; for a longer one they agree to rounding, and they
 /// never depend on how the sequence was cut into pushes.
 pub const LAG_CHUNK: usize = 16_384;
