@@ -110,9 +110,15 @@ fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold, input: VoltageIn
     let IntervalArrays { w_m, half, u0: mut u } = model_interval_arrays(v, n_p, hold, input)?;
     if hold == VoltageHold::Stator {
         // The stator-held voltage enters the SPM step rotated to the end of the period.
-        u.iter_mut().zip(&half).for_each(|(u, &[s, c])| *u *= half_angle_rotation(s, c).0);
+        to_period_end(&mut u, &half);
     }
     Ok(SpmInputs { h: v.h(), n_p: f64::from(n_p), w_m, half, u, dt: Vec::new() })
+}
+
+/// Turns each interval's dq vector by its period's rotation `e^{−jφ}` (from `half = [sin φ/2,
+/// cos φ/2]`): a stator-held vector at the start of the period, seen at its end.
+fn to_period_end(v: &mut [C64], half: &[[f64; 2]]) {
+    v.iter_mut().zip(half).for_each(|(x, &[s, c])| *x *= half_angle_rotation(s, c).0);
 }
 
 impl GreyBoxModel for PmsmSpm {
@@ -126,16 +132,12 @@ impl GreyBoxModel for PmsmSpm {
         let v = DqView::try_new(e)?;
         let mut inputs = interval_inputs(&v, self.setup.n_p, self.setup.hold, self.setup.input)?;
         if let Some(inv) = &self.setup.inverter {
-            let dirs = dead_time_directions(&v, self.setup.n_p, inv)?;
-            inputs.dt = match self.setup.hold {
-                VoltageHold::Dq => dirs,
+            let mut dirs = dead_time_directions(&v, self.setup.n_p, inv)?;
+            if self.setup.hold == VoltageHold::Stator {
                 // Rotated to the end of the period, as the stator-held voltage.
-                VoltageHold::Stator => dirs
-                    .iter()
-                    .zip(&inputs.half)
-                    .map(|(d, &[s, c])| d * half_angle_rotation(s, c).0)
-                    .collect(),
-            };
+                to_period_end(&mut dirs, &inputs.half);
+            }
+            inputs.dt = dirs;
         }
         Ok(inputs)
     }

@@ -38,22 +38,26 @@ fn times_j(b: C64, e: f64) -> C64 {
     C64::new(-b.im * e, b.re * e)
 }
 
-/// The terms of one interval from its data (`rot = e^{−jω_e h}`, `w = ω_e`, `vers =
-/// 1 − cos ω_e h`, `emf = √(2/3) ω_m`, the voltage term `u` and the inverter's direction
-/// `dt`) for the hold (`stator`) and inverter model (`v_dt`: n_θ = 4).
+/// The terms of one interval from its data as [`SpmInputs`] keeps it (`half = [sin φ/2,
+/// cos φ/2]`, the mean mechanical speed `w_m`, the voltage term `u` and the inverter's
+/// direction `dt`; `n_p` the pole pairs) for the hold (`stator`) and inverter model
+/// (`v_dt`: n_θ = 4). The rotation `e^{−jφ}`, the versine `1 − cos φ`, `ω_e = n_p ω_m` and
+/// `√(2/3) ω_m` are formed here, the one place both the per-sample step and the block
+/// kernel take them from.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn terms_at<const SENS: bool>(
     c: &SpmCoefficients,
     stator: bool,
     v_dt: bool,
-    rot: C64,
-    w: f64,
-    vers: f64,
-    emf: f64,
+    n_p: f64,
+    [s, co]: [f64; 2],
+    w_m: f64,
     u: C64,
     dt: C64,
 ) -> Terms {
+    let (rot, vers) = half_angle_rotation(s, co);
+    let (w, emf) = (n_p * w_m, SQRT_2_3 * w_m);
     let a = rot * c.d;
     let wl = w * c.l;
     let q = 1.0 / (c.r * c.r + wl * wl);
@@ -94,10 +98,7 @@ fn terms_for<const SENS: bool>(
     k: usize,
 ) -> Terms {
     let dt = if v_dt { inp.dt[k] } else { C64::default() };
-    let [s, co] = inp.half[k];
-    let (rot, vers) = half_angle_rotation(s, co);
-    let w_m = inp.w_m[k];
-    terms_at::<SENS>(c, stator, v_dt, rot, inp.n_p * w_m, vers, SQRT_2_3 * w_m, inp.u[k], dt)
+    terms_at::<SENS>(c, stator, v_dt, inp.n_p, inp.half[k], inp.w_m[k], inp.u[k], dt)
 }
 
 /// [`terms_for`] with the model's hold and parameter count.
@@ -186,9 +187,7 @@ fn fill<const SENS: bool, const STATOR: bool, const VDT: bool>(
         (next(), next(), next(), next(), next(), next(), next(), next());
     for t in 0..steps {
         let d = if VDT { dt[t] } else { C64::default() };
-        let [s, co] = half[t];
-        let (rot, vers) = half_angle_rotation(s, co);
-        let tm = terms_at::<SENS>(c, STATOR, VDT, rot, inp.n_p * w_m[t], vers, SQRT_2_3 * w_m[t], u[t], d);
+        let tm = terms_at::<SENS>(c, STATOR, VDT, inp.n_p, half[t], w_m[t], u[t], d);
         a_re[t] = tm.a.re;
         a_im[t] = tm.a.im;
         f_re[t] = tm.forced.re;
