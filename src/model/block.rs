@@ -7,6 +7,8 @@
 //! 10.3) run over a block instead of a sample; the layout is the one SIMD loops want
 //! (one contiguous array per channel).
 
+use crate::data::all_finite;
+
 /// Samples in one block (the last block of a record may be shorter).
 pub const BLOCK_LEN: usize = 256;
 
@@ -105,21 +107,6 @@ impl SimState {
     pub fn is_finite(&self) -> bool {
         all_finite(&self.x) && all_finite(&self.s) && all_finite(&self.s0)
     }
-}
-
-/// Whether every value of `c` is finite: `v · 0` is NaN exactly for a non-finite v, summed
-/// in four independent lanes so that the loop vectorises.
-#[inline]
-fn all_finite(c: &[f64]) -> bool {
-    let mut acc = [0.0f64; 4];
-    let mut chunks = c.chunks_exact(4);
-    for q in &mut chunks {
-        for l in 0..4 {
-            acc[l] += q[l] * 0.0;
-        }
-    }
-    let tail: f64 = chunks.remainder().iter().map(|v| v * 0.0).sum();
-    !(acc[0] + acc[1] + acc[2] + acc[3] + tail).is_nan()
 }
 
 /// The state a blocked simulation carries from block to block.
