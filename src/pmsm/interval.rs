@@ -14,10 +14,10 @@ use serde::{Deserialize, Serialize};
 mod arrays;
 mod reference;
 pub(crate) use arrays::{IntervalArrays, model_interval_arrays};
-pub(crate) use reference::driving_voltage;
 pub use reference::{
     applied_experiment, applied_voltage, model_intervals, reference_intervals, speed_pll_estimate,
 };
+pub(crate) use reference::{driving_voltage, model_start_voltages};
 
 /// How the voltage is held between samples (MODEL.md §4).
 ///

@@ -5,11 +5,11 @@
 //! [`intervals`](super::intervals).
 
 use super::{
-    C64, DqView, Result, SQRT_2_3, VoltageHold, VoltageInput, half_angle, mean_speed, model_intervals,
+    C64, DqView, Result, SQRT_2_3, VoltageHold, VoltageInput, half_angle, mean_speed, model_start_voltages,
     stator_hold_start_half,
 };
 #[cfg(doc)]
-use super::{Interval, half_angle_rotation};
+use super::{Interval, half_angle_rotation, model_intervals};
 
 /// The intervals `k = 0..N−2` of a log (see [`Interval`]), each field an array of N − 1:
 /// the few numbers from which every data-only term of an interval follows exactly (40
@@ -56,7 +56,7 @@ pub(crate) fn model_interval_arrays(
         })
         .collect();
     if input != VoltageInput::Terminal {
-        let u0 = model_intervals(v, n_p, hold, input)?.iter().map(|iv| iv.u0).collect();
+        let u0 = model_start_voltages(v, n_p, hold, input)?;
         return Ok(IntervalArrays { w_m, half, u0 });
     }
     let (ud, uq) = v.terminal_voltage()?;

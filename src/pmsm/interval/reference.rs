@@ -4,7 +4,8 @@
 //! voltage").
 
 use super::{
-    C64, DqSignals, DqView, Interval, VoltageHold, VoltageInput, intervals, motion, stator_hold_start,
+    C64, DqSignals, DqView, Interval, VoltageHold, VoltageInput, intervals, mean_speed, motion,
+    stator_hold_start,
 };
 use crate::data::Experiment;
 use crate::error::{Error, Result};
@@ -27,6 +28,19 @@ pub fn reference_intervals(
     advance: f64,
     speed_pll: Option<f64>,
 ) -> Result<Vec<Interval>> {
+    let u0 = reference_start_voltages(v, n_p, delay, advance, speed_pll)?;
+    Ok(motion(v, n_p).zip(u0).map(|(iv, u0)| Interval { u0, ..iv }).collect())
+}
+
+/// The start-of-period voltages `u₀` of [`reference_intervals`] alone (its errors), length
+/// N − 1 \[V\]: the interval rotations are not formed.
+fn reference_start_voltages(
+    v: &DqView<'_>,
+    n_p: u32,
+    delay: usize,
+    advance: f64,
+    speed_pll: Option<f64>,
+) -> Result<Vec<C64>> {
     let e = v.experiment();
     let (ud, uq) = (e.channel(crate::pmsm::channel::U_D_REF)?, e.channel(crate::pmsm::channel::U_Q_REF)?);
     if !advance.is_finite() || delay + 1 >= v.len() {
@@ -40,15 +54,16 @@ pub fn reference_intervals(
         None => v.w_m().iter().map(|w| np * w).collect(),
         Some(a) => speed_pll_estimate(e.channel(crate::pmsm::channel::THETA_M)?, v.w_m(), n_p, h, a),
     };
-    let mut out: Vec<Interval> = motion(v, n_p).collect();
-    let phis: Vec<f64> = out.iter().map(|iv| iv.w_e * h).collect();
-    for (k, iv) in out.iter_mut().enumerate() {
-        let j = k.saturating_sub(delay);
-        let turned: f64 = phis[j..k].iter().sum();
-        let angle = advance * w_adv[j] * h - turned;
-        iv.u0 = C64::new(ud[j], uq[j]) * C64::new(angle.cos(), angle.sin());
-    }
-    Ok(out)
+    // φ_k = ω_e h of each interval, as `motion` forms ω_e.
+    let phis: Vec<f64> = v.w_m().windows(2).map(|w| np * mean_speed(w) * h).collect();
+    Ok((0..phis.len())
+        .map(|k| {
+            let j = k.saturating_sub(delay);
+            let turned: f64 = phis[j..k].iter().sum();
+            let angle = advance * w_adv[j] * h - turned;
+            C64::new(ud[j], uq[j]) * C64::new(angle.cos(), angle.sin())
+        })
+        .collect())
 }
 
 /// The intervals of a log for the given hold and voltage input: [`intervals`] for the
@@ -66,13 +81,30 @@ pub fn model_intervals(
 ) -> Result<Vec<Interval>> {
     match input {
         VoltageInput::Terminal => Ok(intervals(v, n_p, hold)?.collect()),
+        VoltageInput::Reference { .. } => {
+            let u0 = model_start_voltages(v, n_p, hold, input)?;
+            Ok(motion(v, n_p).zip(u0).map(|(iv, u0)| Interval { u0, ..iv }).collect())
+        }
+    }
+}
+
+/// The start-of-period voltages `u₀` of [`model_intervals`] alone (its errors), length
+/// N − 1 \[V\]: for a caller that forms the intervals' rotations itself.
+pub(crate) fn model_start_voltages(
+    v: &DqView<'_>,
+    n_p: u32,
+    hold: VoltageHold,
+    input: VoltageInput,
+) -> Result<Vec<C64>> {
+    match input {
+        VoltageInput::Terminal => Ok(intervals(v, n_p, hold)?.map(|iv| iv.u0).collect()),
         VoltageInput::Reference { .. } if hold == VoltageHold::Dq => Err(Error::InvalidOption {
             option: "hold".into(),
             reason: "a reference voltage is applied by a modulator, which holds it in the stator frame"
                 .into(),
         }),
         VoltageInput::Reference { delay, advance, speed_pll } => {
-            reference_intervals(v, n_p, delay, advance, speed_pll)
+            reference_start_voltages(v, n_p, delay, advance, speed_pll)
         }
     }
 }
