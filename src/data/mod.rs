@@ -22,6 +22,12 @@ use crate::error::{Error, Result};
 /// at least two samples).
 pub const MIN_SAMPLES: usize = 1;
 
+/// A channel's values, shared: cloning an [`Experiment`], or preparing a fit on it,
+/// shares the samples instead of copying them (a fit's memory beyond the data stays
+/// O(n_θ²) where its model reads the channels as they are). Build one from a `Vec<f64>`
+/// with `.into()`; [`std::sync::Arc::make_mut`] edits it (copying only if it is shared).
+pub type Values = std::sync::Arc<Vec<f64>>;
+
 /// One named signal: values at `t_k` (or period means over `[t_k, t_k + h)`, as the
 /// channel's documentation says), length N.
 #[derive(Clone, Debug, PartialEq)]
@@ -30,15 +36,15 @@ pub struct Channel {
     pub name: String,
     /// SI unit, e.g. `V`, `rad/s`, `K`; empty for dimensionless.
     pub unit: String,
-    /// One value per sample, length N.
-    pub values: Vec<f64>,
+    /// One value per sample, length N (shared, see [`Values`]).
+    pub values: Values,
 }
 
 impl Channel {
     /// A channel called `name` in `unit` with the given values (not yet validated: that
     /// happens when an [`Experiment`] is built from it).
     pub fn new(name: impl Into<String>, unit: impl Into<String>, values: Vec<f64>) -> Self {
-        Self { name: name.into(), unit: unit.into(), values }
+        Self { name: name.into(), unit: unit.into(), values: values.into() }
     }
 }
 
@@ -153,11 +159,23 @@ impl Experiment {
     /// # Errors
     /// [`Error::MissingChannel`] naming the experiment, the channel and the channels present.
     pub fn channel(&self, name: &str) -> Result<&[f64]> {
-        self.get(name).map(|c| c.values.as_slice()).ok_or_else(|| Error::MissingChannel {
+        self.values(name).map(|v| v.as_slice())
+    }
+    /// The error for a channel `name` the experiment lacks.
+    fn missing(&self, name: &str) -> Error {
+        Error::MissingChannel {
             experiment: self.name.clone(),
             channel: name.into(),
             available: self.channels.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", "),
-        })
+        }
+    }
+    /// The shared values of the channel called `name`, length N (cloning them shares the
+    /// samples: see [`Values`]).
+    ///
+    /// # Errors
+    /// As [`Experiment::channel`].
+    pub fn values(&self, name: &str) -> Result<&Values> {
+        self.get(name).map(|c| &c.values).ok_or_else(|| self.missing(name))
     }
     /// The experiment with `channel` added, or replacing the channel of the same name.
     ///

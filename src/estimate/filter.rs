@@ -245,9 +245,12 @@ impl Butterworth {
             .channels()
             .iter()
             .map(|c| {
-                let values =
-                    if keep.contains(&c.name.as_str()) { c.values.clone() } else { self.filtfilt(&c.values) };
-                Channel::new(c.name.clone(), c.unit.clone(), values)
+                let values = if keep.contains(&c.name.as_str()) {
+                    c.values.clone()
+                } else {
+                    self.filtfilt(&c.values).into()
+                };
+                Channel { name: c.name.clone(), unit: c.unit.clone(), values }
             })
             .collect();
         Experiment::try_new(e.name(), e.h(), channels)

@@ -7,7 +7,7 @@
 //! 10.3) run over a block instead of a sample; the layout is the one SIMD loops want
 //! (one contiguous array per channel).
 
-use crate::data::all_finite;
+use crate::data::{Values, all_finite};
 
 /// Samples in one block (the last block of a record may be shorter).
 pub const BLOCK_LEN: usize = 256;
@@ -154,8 +154,8 @@ pub struct BlockContext<'a> {
     pub n: usize,
     /// Restart period (k-step-ahead prediction), `None` = simulation.
     pub horizon: Option<usize>,
-    /// Measured outputs, row-major N × n_y.
-    pub measured: &'a [f64],
+    /// Measured outputs, n_y columns of length N ([`Prepared::y`](super::Prepared::y)).
+    pub measured: &'a [Values],
 }
 
 impl BlockContext<'_> {

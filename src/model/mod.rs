@@ -24,7 +24,7 @@ pub mod params;
 pub use block::{BLOCK_LEN, Block, BlockContext, BlockKernel, SimState};
 pub use params::{DerivedEstimate, Parameter};
 
-use crate::data::Experiment;
+use crate::data::{Experiment, Values};
 use crate::error::Result;
 use serde::{Deserialize, Serialize};
 
@@ -46,17 +46,17 @@ impl Signal {
 
 /// The data a model is fitted on, prepared once per experiment by [`Prepared::new`].
 ///
-/// `y` holds the measured outputs row-major, `y[k n_y + i]` = output i at sample k,
-/// length `N n_y`; `x0` the initial state from the measurement at k = 0 (length n_x,
-/// empty for a static model).
+/// `y` holds the measured outputs, one column per output (`y[i][k]` = output i at sample
+/// k, each of length N), shared with the experiment rather than copied; `x0` the initial
+/// state from the measurement at k = 0 (length n_x, empty for a static model).
 #[derive(Clone, Debug)]
 pub struct Prepared<I> {
     /// Experiment name (for error messages and reports).
     pub name: String,
     /// Number of samples N.
     pub n: usize,
-    /// Measured outputs, row-major `N × n_y`.
-    pub y: Vec<f64>,
+    /// Measured outputs, n_y columns of length N (the experiment's channels, shared).
+    pub y: Vec<Values>,
     /// Initial state from the measurement at k = 0, length n_x.
     pub x0: Vec<f64>,
     /// Model-specific, θ-independent per-sample data (inputs, rotations, speeds).
@@ -64,37 +64,36 @@ pub struct Prepared<I> {
 }
 
 impl<I> Prepared<I> {
-    /// Reads the model's declared output channels from `e` into `y`, the initial state
-    /// from the first sample ([`GreyBoxModel::initial_state`]) and the model's inputs
-    /// ([`GreyBoxModel::prepare`]).
+    /// Takes the model's declared output channels of `e` as `y` (shared, not copied), the
+    /// initial state from the first sample ([`GreyBoxModel::initial_state`]) and the
+    /// model's inputs ([`GreyBoxModel::prepare`]).
     ///
     /// # Errors
     /// [`crate::Error::MissingChannel`] naming an output channel `e` lacks; those of
     /// [`GreyBoxModel::prepare`].
     pub fn new<M: GreyBoxModel<Inputs = I> + ?Sized>(model: &M, e: &Experiment) -> Result<Self> {
-        let outputs = model.outputs();
-        let cols = outputs.iter().map(|o| e.channel(&o.name)).collect::<Result<Vec<_>>>()?;
+        let y = model.outputs().iter().map(|o| e.values(&o.name).cloned()).collect::<Result<Vec<_>>>()?;
         let n = e.len();
-        let mut y = Vec::with_capacity(n * cols.len());
-        if let [a, b] = cols[..] {
-            // The common case (two currents): one interleaving sweep.
-            y.extend(a.iter().zip(b).flat_map(|(a, b)| [*a, *b]));
-        } else {
-            for k in 0..n {
-                y.extend(cols.iter().map(|c| c[k]));
-            }
-        }
         let mut x0 = vec![0.0; model.n_states()];
-        model.initial_state(&y[..cols.len()], &mut x0);
+        let y0: Vec<f64> = y.iter().map(|c| c.first().copied().unwrap_or(0.0)).collect();
+        model.initial_state(&y0, &mut x0);
         Ok(Self { name: e.name().into(), n, y, x0, inputs: model.prepare(e)? })
     }
 
-    /// Measured output vector at sample k, length n_y.
+    /// The measured output vector at sample k into `out` (length n_y).
     ///
     /// # Panics
-    /// If `(k + 1) n_y` exceeds `y.len()` (k ≥ N for consistent data).
-    pub fn y_at(&self, k: usize, n_y: usize) -> &[f64] {
-        &self.y[k * n_y..(k + 1) * n_y]
+    /// If k ≥ N or `out` is shorter than n_y.
+    pub fn y_at(&self, k: usize, out: &mut [f64]) {
+        for (o, c) in out.iter_mut().zip(&self.y) {
+            *o = c[k];
+        }
+    }
+
+    /// The measured outputs row-major, `N × n_y` (`[k n_y + i]` = output i at sample k): a
+    /// copy, for reports.
+    pub fn y_rows(&self) -> Vec<f64> {
+        (0..self.n).flat_map(|k| self.y.iter().map(move |c| c[k])).collect()
     }
 }
 

@@ -57,7 +57,7 @@ pub fn interval_mean_speed(w_m: &[f64]) -> Vec<f64> {
 
 /// The mean `(w[0] + w[1])/2` of the speeds at an interval's ends (`w` of length ≥ 2).
 #[inline]
-fn mean_speed(w: &[f64]) -> f64 {
+pub(crate) fn mean_speed(w: &[f64]) -> f64 {
     0.5 * (w[0] + w[1])
 }
 

@@ -4,11 +4,8 @@
 //! is reproduced exactly by the model that fits it.
 
 use super::augmented::{Aug, IpmCoefficients, IpmInputs, advance_at};
-use super::interval::{
-    C64, SQRT_2_3, VoltageHold, check_finite, check_pole_pairs, check_positive, half_angle,
-    half_angle_rotation,
-};
-use super::spm::SpmInputs;
+use super::interval::{C64, SQRT_2_3, VoltageHold, check_finite, check_pole_pairs, check_positive};
+use super::spm::{SpmInputs, SpmVoltage};
 use super::{PmsmIpm, PmsmSpm};
 use crate::error::{Error, Result};
 use crate::model::GreyBoxModel;
@@ -121,9 +118,8 @@ impl ExactPlant {
             let inp = SpmInputs {
                 h,
                 n_p: f64::from(n_p),
-                w_m: vec![0.0],
-                half: vec![[0.0, 1.0]],
-                u: one(C64::default()),
+                w_m: vec![0.0; 2].into(),
+                u: SpmVoltage::Start(one(C64::default())),
                 dt: Vec::new(),
             };
             Engine::Spm(PmsmSpm::new(n_p, hold), inp)
@@ -144,14 +140,12 @@ impl ExactPlant {
         let mut next = [0.0; 2];
         match &mut self.engine {
             Engine::Spm(model, inp) => {
-                let (s, c) = half_angle(w_e, self.h);
-                let rot = half_angle_rotation(s, c).0;
-                (inp.w_m[0], inp.half[0]) = (w_m, [s, c]);
-                // The stator-held voltage enters the SPM step rotated to the period's end.
-                inp.u[0] = match self.hold {
-                    VoltageHold::Stator => u0 * rot,
-                    VoltageHold::Dq => u0,
-                };
+                // One interval whose mean speed is w_m (exactly: (w + w)/2 = w), its
+                // start-of-period voltage u0; the model turns a stator-held one.
+                std::sync::Arc::make_mut(&mut inp.w_m).fill(w_m);
+                if let SpmVoltage::Start(u) = &mut inp.u {
+                    u[0] = u0;
+                }
                 let c = model.coefficients(&[p.r_s, p.l_d, p.k_e()], inp)?;
                 model.step(&c, inp, 0, &i, &mut next);
             }

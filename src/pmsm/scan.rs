@@ -1,13 +1,14 @@
 //! The regression Gram of the setup checks ([`super::detect`]), streamed: the five signals
 //! the voltage equations need (`u_d, u_q, i_d, i_q, w_m`) are low-passed together, lane by
-//! lane in one buffer, and the Gram of the base columns is summed over the intervals
-//! without forming a row matrix, the structural zeros of the d and q rows skipped.
+//! lane, a chunk at a time, and the Gram of the base columns is summed over the intervals
+//! without forming a row matrix, the structural zeros of the d and q rows skipped. Nothing
+//! the size of the record is allocated.
 //!
 //! The zero-phase filter is [`Butterworth::filtfilt`] (odd reflection, steady-state start,
 //! forward then backward; Gustafsson 1996) with the same operations in the same order on
 //! every lane, so each lane equals `filtfilt` of its signal bit for bit; the Gram sums the
-//! products of every interval in the order of a dense `ΦᵀΦ`, so it equals the dense Gram bit
-//! for bit as well.
+//! products of every interval, chunk by chunk from the record's end (the order in which
+//! the backward pass finishes them), so it equals a dense `ΦᵀΦ` to rounding.
 
 use super::interval::{SQRT_2_3, VoltageInput, driving_voltage};
 use super::signals::DqView;
@@ -34,22 +35,69 @@ const D_COLUMNS: [usize; 4] = [0, 1, 3, 6];
 /// `u_q`.
 const Q_COLUMNS: [usize; 5] = [0, 2, 4, 5, 6];
 
+/// Samples per chunk of the streamed zero-phase filter ([`filtfilt_chunks`]).
+const CHUNK: usize = 4096;
+
+/// The delays of the filter's cascade: per section the quad's two delays (lanes 0–3) and
+/// the fifth lane's.
+#[derive(Clone, Debug)]
+struct Delays(Vec<([[f64; 4]; 2], [f64; 2])>);
+
+impl Delays {
+    /// Every section at its steady state `zi` (per unit input, `sosfilt_zi`) under the
+    /// constant input `start`.
+    fn steady(zi: &[[f64; 2]], start: [f64; LANES]) -> Self {
+        let quad = [start[0], start[1], start[2], start[3]];
+        Self(
+            zi.iter()
+                .map(|s| {
+                    ([quad.map(|v| s[0] * v), quad.map(|v| s[1] * v)], [s[0] * start[4], s[1] * start[4]])
+                })
+                .collect(),
+        )
+    }
+}
+
 /// Zero-phase low-pass of the scan's five signals at once (over the shortest one's
-/// length): lane `l` of sample `k` of the result is `bw.filtfilt(x[l])[k]`, bit for bit.
-/// Empty signals give an empty result.
+/// length), streamed: `f(k0, chunk, next)` receives samples `k0 .. k0 + chunk.len()` of the
+/// result (lane `l` of sample k is `bw.filtfilt(x[l])[k]`, bit for bit) and the sample after
+/// them (`None` for the last), chunk by chunk from the end of the record to its start.
+/// Empty signals give no call.
 ///
-/// Source: [`Butterworth::filtfilt`] (`scipy.signal.sosfiltfilt`, odd padding).
-fn filtfilt_lanes(bw: &Butterworth, x: [&[f64]; LANES]) -> Vec<[f64; LANES]> {
-    const L: usize = LANES;
+/// The forward pass keeps only its delays at the start of every [`CHUNK`] samples; the
+/// backward pass then runs chunk by chunk from the end, each chunk's forward outputs
+/// recomputed from its checkpoint (the same operations from the same state, so the same
+/// numbers), so that one chunk is held instead of a filtered copy of the record: the
+/// forward pass costs twice, the memory is `O(CHUNK)`.
+///
+/// Source: [`Butterworth::filtfilt`] (`scipy.signal.sosfiltfilt`, odd padding);
+/// checkpointing as in reverse-mode differentiation (Griewank & Walther, *Evaluating
+/// Derivatives*, 2nd ed., 2008, ch. 12).
+fn filtfilt_chunks(
+    bw: &Butterworth,
+    x: [&[f64]; LANES],
+    mut f: impl FnMut(usize, &[[f64; LANES]], Option<[f64; LANES]>),
+) {
     let n = x.iter().map(|s| s.len()).min().unwrap_or(0);
     if n == 0 {
-        return Vec::new();
+        return;
     }
     let p = bw.pad_len(n);
-    let mut ext: Vec<[f64; L]> = Vec::with_capacity(n + 2 * p);
-    ext.extend((0..p).map(|i| std::array::from_fn(|l| 2.0 * x[l][0] - x[l][p - i])));
-    ext.extend((0..n).map(|k| std::array::from_fn(|l| x[l][k])));
-    ext.extend((0..p).map(|j| std::array::from_fn(|l| 2.0 * x[l][n - 1] - x[l][n - 2 - j])));
+    let total = n + 2 * p;
+    // The odd extension: p reflected samples each side.
+    let ext = |i: usize| -> [f64; LANES] {
+        std::array::from_fn(|l| {
+            if i < p {
+                2.0 * x[l][0] - x[l][p - i]
+            } else if i < p + n {
+                x[l][i - p]
+            } else {
+                2.0 * x[l][n - 1] - x[l][n - 2 - (i - p - n)]
+            }
+        })
+    };
+    let fill =
+        |buf: &mut [[f64; LANES]], s: usize| buf.iter_mut().enumerate().for_each(|(t, v)| *v = ext(s + t));
     // Per-section steady state under a constant input 1 (`sosfilt_zi`), as the filter has it.
     let sections = bw.sections();
     let mut scale = 1.0;
@@ -63,33 +111,43 @@ fn filtfilt_lanes(bw: &Butterworth, x: [&[f64]; LANES]) -> Vec<[f64; LANES]> {
             out
         })
         .collect();
-    cascade(sections, &zi, &mut ext, false);
-    cascade(sections, &zi, &mut ext, true);
-    ext.drain(..p);
-    ext.truncate(n);
-    ext
+    let mut buf = vec![[0.0; LANES]; CHUNK.min(total)];
+    let mut z = Delays::steady(&zi, ext(0));
+    let mut checkpoints = Vec::with_capacity(total.div_ceil(CHUNK));
+    let mut last = [0.0; LANES];
+    for s in (0..total).step_by(CHUNK) {
+        checkpoints.push(z.clone());
+        let chunk = &mut buf[..CHUNK.min(total - s)];
+        fill(chunk, s);
+        cascade(sections, &mut z, chunk, false);
+        last = chunk[chunk.len() - 1];
+    }
+    let mut back = Delays::steady(&zi, last);
+    let mut next = None;
+    for (c, mut z) in checkpoints.into_iter().enumerate().rev() {
+        let s = c * CHUNK;
+        let chunk = &mut buf[..CHUNK.min(total - s)];
+        fill(chunk, s);
+        cascade(sections, &mut z, chunk, false);
+        cascade(sections, &mut back, chunk, true);
+        // The record's samples in this chunk (the padding dropped).
+        let (lo, hi) = (s.max(p), (s + chunk.len()).min(p + n));
+        if lo < hi {
+            f(lo - p, &chunk[lo - s..hi - s], next);
+            next = Some(chunk[lo - s]);
+        }
+    }
 }
 
-/// One pass of the filter's cascade over `ext` (forward, or backward when `reverse`), in
-/// place, every lane from the steady state `zi` (per unit input) of its first value in the
-/// pass's order. Lanes 0–3 run as one vector of four and lane 4 beside it: the same
-/// operations in the same order on every lane, so each lane's numbers are those of a
-/// scalar pass to the bit, whatever the vector width; compiled for AVX-512 and AVX2 as
-/// well as the baseline and chosen at run time.
+/// One pass of the filter's cascade over `buf` (forward, or backward when `reverse`), in
+/// place, from and into the delays `z`. Lanes 0–3 run as one vector of four and lane 4
+/// beside it: the same operations in the same order on every lane, so each lane's numbers
+/// are those of a scalar pass to the bit, whatever the vector width; compiled for AVX-512
+/// and AVX2 as well as the baseline and chosen at run time.
 #[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
-fn cascade(sections: &[Biquad], zi: &[[f64; 2]], ext: &mut [[f64; LANES]], reverse: bool) {
-    let Some(&start) = (if reverse { ext.last() } else { ext.first() }) else { return };
+fn cascade(sections: &[Biquad], z: &mut Delays, buf: &mut [[f64; LANES]], reverse: bool) {
     let quad = |v: [f64; LANES]| -> [f64; 4] { [v[0], v[1], v[2], v[3]] };
-    // Per section: the quad's two delays, then the fifth lane's.
-    let mut z: Vec<([[f64; 4]; 2], [f64; 2])> = zi
-        .iter()
-        .map(|s| {
-            (
-                [quad(start).map(|v| s[0] * v), quad(start).map(|v| s[1] * v)],
-                [s[0] * start[4], s[1] * start[4]],
-            )
-        })
-        .collect();
+    let z = &mut z.0;
     let mut step = |v: &mut [f64; LANES]| {
         let (mut q, mut w) = (quad(*v), v[4]);
         for (s, (zq, zw)) in sections.iter().zip(z.iter_mut()) {
@@ -105,9 +163,9 @@ fn cascade(sections: &[Biquad], zi: &[[f64; 2]], ext: &mut [[f64; LANES]], rever
         *v = [q[0], q[1], q[2], q[3], w];
     };
     if reverse {
-        ext.iter_mut().rev().for_each(&mut step);
+        buf.iter_mut().rev().for_each(&mut step);
     } else {
-        ext.iter_mut().for_each(&mut step);
+        buf.iter_mut().for_each(&mut step);
     }
 }
 
@@ -126,16 +184,20 @@ pub(crate) fn scan_gram(experiments: &[Experiment], input: VoltageInput) -> Resu
         // A zero-phase low-pass at 5 % of the sample rate keeps current noise out of di/dt
         // (MODEL.md §5: the derivative regressor is errors-in-variables).
         let filter = Butterworth::try_new(SCAN_FILTER_ORDER, SCAN_CUTOFF / e.h(), e.h())?;
-        let x = filtfilt_lanes(&filter, [&u_d, &u_q, v.i_d(), v.i_q(), v.w_m()]);
         let h = v.h();
-        for s in x.windows(2) {
-            let ([ud, uq, id0, iq0, w0], [_, _, id1, iq1, w1]) = (s[0], s[1]);
+        let mut add = |[ud, uq, id0, iq0, w0]: [f64; LANES], [_, _, id1, iq1, w1]: [f64; LANES]| {
             let (i_d, i_q) = (0.5 * (id0 + id1), 0.5 * (iq0 + iq1));
             let (di_d, di_q) = ((id1 - id0) / h, (iq1 - iq0) / h);
             let w = 0.5 * (w0 + w1);
             add_products(&mut g, &D_COLUMNS, [i_d, di_d, -w * i_q, ud]);
             add_products(&mut g, &Q_COLUMNS, [i_q, w * i_d, di_q, SQRT_2_3 * w, uq]);
-        }
+        };
+        filtfilt_chunks(&filter, [&u_d, &u_q, v.i_d(), v.i_q(), v.w_m()], |_, chunk, next| {
+            chunk.windows(2).for_each(|s| add(s[0], s[1]));
+            if let (Some(&a), Some(b)) = (chunk.last(), next) {
+                add(a, b);
+            }
+        });
     }
     Ok(DMatrix::from_fn(BASE + 1, BASE + 1, |a, b| if a <= b { g[a][b] } else { g[b][a] }))
 }
@@ -161,7 +223,7 @@ mod tests {
     fn lanes_are_filtfilt_to_the_bit() {
         let h = 1e-4;
         let bw = Butterworth::try_new(SCAN_FILTER_ORDER, SCAN_CUTOFF / h, h).unwrap();
-        for n in [2, 7, 40, 1000, 5003] {
+        for n in [2, 7, 40, 1000, 5003, 2 * CHUNK - 30, 3 * CHUNK + 17] {
             let signals: Vec<Vec<f64>> = (0..LANES)
                 .map(|l| {
                     (0..n)
@@ -170,7 +232,15 @@ mod tests {
                 })
                 .collect();
             let x: [&[f64]; LANES] = std::array::from_fn(|l| signals[l].as_slice());
-            let lanes = filtfilt_lanes(&bw, x);
+            // The chunks, from the end, each followed by the next one's first sample.
+            let mut lanes: Vec<[f64; LANES]> = Vec::new();
+            let mut expect_next: Option<[f64; LANES]> = None;
+            filtfilt_chunks(&bw, x, |k0, chunk, next| {
+                assert_eq!(k0 + chunk.len(), n - lanes.len(), "n = {n}: chunks in reverse order");
+                assert_eq!(next, expect_next, "n = {n}: the sample after chunk {k0}");
+                expect_next = chunk.first().copied();
+                lanes.splice(0..0, chunk.iter().copied());
+            });
             assert_eq!(lanes.len(), n);
             for (l, s) in signals.iter().enumerate() {
                 let direct = bw.filtfilt(s);
@@ -181,6 +251,6 @@ mod tests {
                 );
             }
         }
-        assert!(filtfilt_lanes(&bw, [&[]; LANES]).is_empty());
+        filtfilt_chunks(&bw, [&[]; LANES], |_, _, _| panic!("no samples, no chunk"));
     }
 }

@@ -5,7 +5,7 @@
 //! quantities (`|i_dq|` = phase peak), `u[k]` is the terminal voltage averaged over
 //! `[t_k, t_k + h)`, speeds and angles are **mechanical**.
 
-use crate::data::{Channel, Experiment};
+use crate::data::{Channel, Experiment, Values};
 use crate::error::{Error, Result};
 
 /// Channel names of a PMSM log, as the CSV defaults and [`DqSignals`] write them.
@@ -100,7 +100,7 @@ pub struct DqView<'a> {
     terminal: Option<(&'a [f64], &'a [f64])>,
     i_d: &'a [f64],
     i_q: &'a [f64],
-    w_m: &'a [f64],
+    w_m: &'a Values,
 }
 
 impl<'a> DqView<'a> {
@@ -121,7 +121,7 @@ impl<'a> DqView<'a> {
             terminal,
             i_d: e.channel(channel::I_D)?,
             i_q: e.channel(channel::I_Q)?,
-            w_m: e.channel(channel::W_M)?,
+            w_m: e.values(channel::W_M)?,
         };
         if e.len() < MIN_SAMPLES {
             return Err(Error::TooShort { name: e.name().into(), len: e.len(), min: MIN_SAMPLES });
@@ -158,6 +158,20 @@ impl<'a> DqView<'a> {
             })),
         }
     }
+    /// [`terminal_voltage`](Self::terminal_voltage) as the experiment's shared channels
+    /// (cloning them shares the samples).
+    ///
+    /// # Errors
+    /// As [`terminal_voltage`](Self::terminal_voltage).
+    pub fn shared_terminal_voltage(&self) -> Result<(&'a Values, &'a Values)> {
+        self.terminal_voltage()?;
+        Ok((self.e.values(channel::U_D)?, self.e.values(channel::U_Q)?))
+    }
+    /// [`w_m`](Self::w_m) as the experiment's shared channel (cloning it shares the
+    /// samples).
+    pub fn shared_w_m(&self) -> &'a Values {
+        self.w_m
+    }
     /// d-axis current at `t_k` \[A, peak\], length N.
     pub fn i_d(&self) -> &'a [f64] {
         self.i_d
@@ -168,7 +182,7 @@ impl<'a> DqView<'a> {
     }
     /// Mechanical speed at `t_k` \[rad/s\], length N.
     pub fn w_m(&self) -> &'a [f64] {
-        self.w_m
+        self.w_m.as_slice()
     }
     /// Largest current magnitude `max_k |i_dq[k]|` \[A, peak\].
     pub fn peak_current(&self) -> f64 {
@@ -184,7 +198,7 @@ impl<'a> DqView<'a> {
     }
     /// The signals copied out (to edit and rebuild an experiment).
     pub fn to_signals(&self) -> DqSignals {
-        let opt = |n: &str| self.e.get(n).map(|c| c.values.clone());
+        let opt = |n: &str| self.e.get(n).map(|c| c.values.to_vec());
         DqSignals {
             u_d: self.terminal.map(|u| u.0.to_vec()).unwrap_or_default(),
             u_q: self.terminal.map(|u| u.1.to_vec()).unwrap_or_default(),

@@ -17,13 +17,16 @@
 //!
 //! with `e = √(2/3) K_e ω_m`, `φ = ω_e h`, `u₀ = u[k] jφ/(1 − e^{−jφ})`; `ω_m` is the
 //! interval mean `(ω_m[k] + ω_m[k+1])/2`. The rotation `e^{−jφ}` and `u₀` depend on the
-//! data only and are computed once in [`GreyBoxModel::prepare`]; `e^{−R_s h/L_s}` depends on
-//! θ only and is computed once per θ. Sensitivities differentiate this recursion
-//! (forward sensitivity), so one pass gives residuals and gradients.
+//! data only; they are formed block by block in the pass from the experiment's own
+//! channels, which [`GreyBoxModel::prepare`] shares rather than copies (one sine and cosine
+//! of `φ/2` an interval, so the fit's memory beyond the data stays O(n_θ²)).
+//! `e^{−R_s h/L_s}` depends on θ only and is computed once per θ. Sensitivities
+//! differentiate this recursion (forward sensitivity), so one pass gives residuals and
+//! gradients.
 
 use super::interval::{
-    C64, IntervalArrays, VoltageHold, VoltageInput, check_finite, check_pole_pairs, check_positive,
-    half_angle_rotation, model_interval_arrays,
+    C64, VoltageHold, VoltageInput, check_finite, check_pole_pairs, check_positive, half_angle,
+    half_angle_rotation, mean_speed, model_start_voltages, stator_hold_start_half,
 };
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
@@ -31,32 +34,124 @@ use super::setup::PmsmSetup;
 
 const KIND: MotorKind = MotorKind::Spm;
 use super::signals::DqView;
-use crate::data::Experiment;
+use crate::data::{Experiment, Values};
 use crate::error::{Error, Result};
 use crate::model::{BlockKernel, GreyBoxModel, Parameter, Sensitivities};
 
 mod kernel;
 
-/// Per-interval data of the SPM step, independent of θ (index k = 0..N−2).
+/// The data of the SPM step, independent of θ: the experiment's speed and voltage
+/// channels, shared with it (not copied), from which each interval's terms are formed as
+/// the pass needs them ([`SpmInputs::interval`]).
 #[derive(Clone, Debug)]
 pub struct SpmInputs {
     /// Sample time h \[s\].
     pub h: f64,
     /// Pole pairs n_p as a number: `ω_e = n_p ω_m` (the model's, set by `prepare`).
     pub n_p: f64,
-    /// Interval-mean mechanical speed ω_m \[rad/s\], length N − 1: the electrical speed
-    /// `ω_e = n_p ω_m` and the back-EMF per unit K_e, `√(2/3) ω_m`.
-    pub w_m: Vec<f64>,
-    /// `[sin φ/2, cos φ/2]` \[–\], length N − 1, of the period's rotation `φ = ω_e h`: its rotation of the dq
-    /// frame `e^{−jφ} = (1 − 2 sin²(φ/2), −2 sin(φ/2) cos(φ/2))` and versine `1 − cos φ =
-    /// 2 sin²(φ/2)` (exact near 0) follow in the kernel, so 24 bytes an interval are
-    /// not stored.
-    pub half: Vec<[f64; 2]>,
-    /// Voltage term of the step \[V\]: `u[k]` (dq hold) or `u₀ e^{−jφ}` (stator hold).
-    pub u: Vec<C64>,
-    /// The inverter's voltage error per unit `v_dt`, in the convention of `u` (empty
-    /// without the inverter model).
+    /// Mechanical speed at the samples ω_m \[rad/s\], length N (the experiment's channel);
+    /// interval k runs at the mean `(ω_m[k] + ω_m[k+1])/2`.
+    pub w_m: Values,
+    /// The voltage that drives the step.
+    pub u: SpmVoltage,
+    /// The inverter's voltage error per unit `v_dt` of each interval, length N − 1, in the
+    /// convention of the voltage term (rotated to the period's end for the stator hold);
+    /// empty without the inverter model.
     pub dt: Vec<C64>,
+}
+
+/// The voltage of an SPM step's data ([`SpmInputs::u`]).
+#[derive(Clone, Debug)]
+pub enum SpmVoltage {
+    /// The measured terminal voltage `(u_d, u_q)`, period means \[V\], length N each (the
+    /// experiment's channels): the stator hold's start-of-period voltage `u₀` follows per
+    /// interval (MODEL.md §4).
+    Terminal(Values, Values),
+    /// The dq voltage at the start of each period `u₀` \[V\], length N − 1 (the reference
+    /// voltage, delayed and advanced: [`crate::pmsm::model_intervals`]).
+    Start(Vec<C64>),
+}
+
+impl SpmInputs {
+    /// Number of intervals N − 1.
+    pub fn intervals(&self) -> usize {
+        self.w_m.len().saturating_sub(1)
+    }
+
+    /// Interval k's data (`k < N − 1`) for the hold (`stator`): `[sin φ/2, cos φ/2]` of its
+    /// rotation `φ = ω_e h`, its mean mechanical speed ω_m \[rad/s\] and its voltage term
+    /// \[V\]: `u[k]` (dq hold) or `u₀ e^{−jφ}` (stator hold, the start-of-period voltage seen
+    /// at the period's end). The per-sample step and the block kernel both take their data
+    /// from here, so they give the same numbers to the bit.
+    ///
+    /// # Panics
+    /// If k ≥ N − 1.
+    #[inline(always)]
+    pub fn interval(&self, stator: bool, k: usize) -> ([f64; 2], f64, C64) {
+        let w = mean_speed(&self.w_m[k..k + 2]);
+        let (s, c) = half_angle(self.n_p * w, self.h);
+        let u0 = match &self.u {
+            SpmVoltage::Terminal(d, q) => self.terminal_start(stator, C64::new(d[k], q[k]), w, s, c),
+            SpmVoltage::Start(u0) => u0[k],
+        };
+        ([s, c], w, seen_at_end(stator, u0, s, c))
+    }
+
+    /// [`interval`](Self::interval) for the intervals `k0 .. k0 + half.len()` into `half`,
+    /// `w_m` and `u` (of equal length), the same numbers to the bit: the loops without a
+    /// sine run over independent intervals and vectorise.
+    ///
+    /// # Panics
+    /// If `w_m` or `u` is shorter than `half`, or the intervals run past N − 1.
+    #[inline(always)]
+    pub(crate) fn fill_intervals(
+        &self,
+        stator: bool,
+        k0: usize,
+        half: &mut [[f64; 2]],
+        w_m: &mut [f64],
+        u: &mut [C64],
+    ) {
+        let steps = half.len();
+        let (w_m, u) = (&mut w_m[..steps], &mut u[..steps]);
+        for (w, pair) in w_m.iter_mut().zip(self.w_m[k0..k0 + steps + 1].windows(2)) {
+            *w = mean_speed(pair);
+        }
+        for (hk, &w) in half.iter_mut().zip(w_m.iter()) {
+            let (s, c) = half_angle(self.n_p * w, self.h);
+            *hk = [s, c];
+        }
+        match &self.u {
+            SpmVoltage::Terminal(d, q) => {
+                let (d, q) = (&d[k0..k0 + steps], &q[k0..k0 + steps]);
+                for t in 0..steps {
+                    let [s, c] = half[t];
+                    let u0 = self.terminal_start(stator, C64::new(d[t], q[t]), w_m[t], s, c);
+                    u[t] = seen_at_end(stator, u0, s, c);
+                }
+            }
+            SpmVoltage::Start(u0) => {
+                for ((ut, &u0), &[s, c]) in u.iter_mut().zip(&u0[k0..k0 + steps]).zip(half.iter()) {
+                    *ut = seen_at_end(stator, u0, s, c);
+                }
+            }
+        }
+    }
+
+    /// The start-of-period dq voltage of the terminal voltage `uk` (the period mean) over
+    /// an interval of mean speed `w` and half angle `(s, c)`.
+    #[inline(always)]
+    fn terminal_start(&self, stator: bool, uk: C64, w: f64, s: f64, c: f64) -> C64 {
+        if stator { stator_hold_start_half(uk, self.n_p * w * self.h, s, c) } else { uk }
+    }
+}
+
+/// The voltage term of the step from the start-of-period voltage `u0`: for the stator hold
+/// turned by the period's rotation `e^{−jφ}` (from `(s, c) = (sin φ/2, cos φ/2)`), the
+/// stator-held voltage seen at the period's end; the dq-held one as it is.
+#[inline(always)]
+fn seen_at_end(stator: bool, u0: C64, s: f64, c: f64) -> C64 {
+    if stator { u0 * half_angle_rotation(s, c).0 } else { u0 }
 }
 
 /// θ-dependent coefficients of the SPM step.
@@ -105,20 +200,26 @@ impl PmsmSpm {
     super::setup::pmsm_model_setup!();
 }
 
-/// Per-interval speed, rotation and held voltage term of the SPM step.
+/// The SPM step's data of a log: its speed and voltage channels shared, or the
+/// start-of-period voltages of the reference input.
 fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold, input: VoltageInput) -> Result<SpmInputs> {
-    let IntervalArrays { w_m, half, u0: mut u } = model_interval_arrays(v, n_p, hold, input)?;
-    if hold == VoltageHold::Stator {
-        // The stator-held voltage enters the SPM step rotated to the end of the period.
-        to_period_end(&mut u, &half);
-    }
-    Ok(SpmInputs { h: v.h(), n_p: f64::from(n_p), w_m, half, u, dt: Vec::new() })
+    let u = match input {
+        VoltageInput::Terminal => {
+            let (d, q) = v.shared_terminal_voltage()?;
+            SpmVoltage::Terminal(d.clone(), q.clone())
+        }
+        VoltageInput::Reference { .. } => SpmVoltage::Start(model_start_voltages(v, n_p, hold, input)?),
+    };
+    Ok(SpmInputs { h: v.h(), n_p: f64::from(n_p), w_m: v.shared_w_m().clone(), u, dt: Vec::new() })
 }
 
-/// Turns each interval's dq vector by its period's rotation `e^{−jφ}` (from `half = [sin φ/2,
-/// cos φ/2]`): a stator-held vector at the start of the period, seen at its end.
-fn to_period_end(v: &mut [C64], half: &[[f64; 2]]) {
-    v.iter_mut().zip(half).for_each(|(x, &[s, c])| *x *= half_angle_rotation(s, c).0);
+/// Turns each interval's dq vector by its period's rotation `e^{−jφ}`: a stator-held vector
+/// at the start of the period, seen at its end.
+fn to_period_end(v: &mut [C64], inputs: &SpmInputs) {
+    for (k, x) in v.iter_mut().enumerate() {
+        let ([s, c], _, _) = inputs.interval(false, k);
+        *x *= half_angle_rotation(s, c).0;
+    }
 }
 
 impl GreyBoxModel for PmsmSpm {
@@ -135,7 +236,7 @@ impl GreyBoxModel for PmsmSpm {
             let mut dirs = dead_time_directions(&v, self.setup.n_p, inv)?;
             if self.setup.hold == VoltageHold::Stator {
                 // Rotated to the end of the period, as the stator-held voltage.
-                to_period_end(&mut dirs, &inputs.half);
+                to_period_end(&mut dirs, &inputs);
             }
             inputs.dt = dirs;
         }

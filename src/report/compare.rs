@@ -112,6 +112,7 @@ pub fn compare_from<M: GreyBoxModel>(
     let y_hat = simulate(model, &prep, theta, &SimOptions { x0, ..SimOptions::default() })?;
     let (outputs, units): (Vec<String>, Vec<String>) =
         model.outputs().into_iter().map(|o| (o.name, o.unit)).unzip();
-    let metrics = metrics(&outputs, &prep.y, &y_hat, n_params, WHITENESS_LAGS)?;
-    Ok(Comparison { experiment: prep.name, h: experiment.h(), outputs, units, y: prep.y, y_hat, metrics })
+    let y = prep.y_rows();
+    let metrics = metrics(&outputs, &y, &y_hat, n_params, WHITENESS_LAGS)?;
+    Ok(Comparison { experiment: prep.name, h: experiment.h(), outputs, units, y, y_hat, metrics })
 }

@@ -153,7 +153,9 @@ impl<'a, M: GreyBoxModel> PerSample<'a, M> {
                 }
             }
             if ctx.restarts_at(k) {
-                st.x.copy_from_slice(&ctx.measured[k * ny..(k + 1) * ny]);
+                for (x, c) in st.x.iter_mut().zip(ctx.measured) {
+                    *x = c[k];
+                }
                 st.s.fill(0.0);
                 st.s0.fill(0.0);
                 st.live0 = false;

@@ -69,7 +69,7 @@ pub fn simulate<M: GreyBoxModel>(
     for k in 0..prep.n {
         model.output(&c, &prep.inputs, k, &x, &mut yhat[k * ny..(k + 1) * ny]);
         if options.restarts_at(k) {
-            x.copy_from_slice(prep.y_at(k, ny));
+            prep.y_at(k, &mut x);
         }
         if k + 1 < prep.n && nx > 0 {
             model.step(&c, &prep.inputs, k, &x, &mut xn);
@@ -146,14 +146,13 @@ pub(crate) fn check_inputs<M: GreyBoxModel>(
         return bad("x0", format!("{} values for model `{}` with {nx} states", x0.len(), model.name()));
     }
     let min = if nx > 0 { 2 } else { 1 };
-    if prep.n < min || prep.y.len() != prep.n * ny {
+    if prep.n < min || prep.y.len() != ny || prep.y.iter().any(|c| c.len() != prep.n) {
+        let lengths: Vec<usize> = prep.y.iter().map(|c| c.len()).collect();
         return bad(
             "prepared data",
             format!(
-                "experiment `{}`: {} output values for {} samples of {ny} outputs (need N ≥ {min})",
-                prep.name,
-                prep.y.len(),
-                prep.n
+                "experiment `{}`: output columns of lengths {lengths:?} for {} samples of {ny} outputs (need N ≥ {min})",
+                prep.name, prep.n
             ),
         );
     }

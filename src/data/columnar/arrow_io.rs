@@ -240,7 +240,7 @@ fn batch(e: &Experiment, time: &str) -> std::result::Result<RecordBatch, arrow_s
         vec![Arc::new(Float64Array::from_iter_values((0..e.len()).map(|k| k as f64 * e.h())))];
     for c in e.channels() {
         fields.push(Field::new(&c.name, DataType::Float64, false).with_metadata(unit(&c.unit)));
-        columns.push(Arc::new(Float64Array::from(c.values.clone())));
+        columns.push(Arc::new(Float64Array::from_iter_values(c.values.iter().copied())));
     }
     let schema: SchemaRef = Arc::new(Schema::new(fields));
     RecordBatch::try_new(schema, columns)

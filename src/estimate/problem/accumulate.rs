@@ -4,6 +4,7 @@ use super::Loss;
 use super::gram::scatter_gram;
 use super::lags::{LagStream, LagSums, WHITENESS_LAGS};
 use super::pass::LocalMap;
+use crate::data::Values;
 use nalgebra::DMatrix;
 
 /// Sums at the estimate from which the statistics of a fit follow.
@@ -146,23 +147,22 @@ impl Accumulator {
 
     /// Adds the output moments of the current experiment (its measured outputs `y`,
     /// row-major N × n_y, from sample `first` on) about its first measurement.
-    pub(crate) fn add_moments(&mut self, y: &[f64], first: usize) {
-        let ny = self.ny;
+    pub(crate) fn add_moments(&mut self, y: &[Values], first: usize) {
         for (i, (ey, ey2)) in self.ey.iter_mut().zip(self.ey2.iter_mut()).enumerate() {
             let y0 = self.y0[i];
             let (mut s, mut s2) = ([0.0f64; 4], [0.0f64; 4]);
-            // Row n of the counted samples adds to lane n mod 4, four rows at a time.
-            let quads = y.get(first * ny..).unwrap_or_default().chunks_exact(4 * ny);
+            // Sample n of the counted ones adds to lane n mod 4, four samples at a time.
+            let quads = y[i].get(first..).unwrap_or_default().chunks_exact(4);
             let rest = quads.remainder();
             for q in quads {
                 for l in 0..4 {
-                    let d = q[l * ny + i] - y0;
+                    let d = q[l] - y0;
                     s[l] += d;
                     s2[l] += d * d;
                 }
             }
-            for (l, row) in rest.chunks_exact(ny).enumerate() {
-                let d = row[i] - y0;
+            for (l, v) in rest.iter().enumerate() {
+                let d = v - y0;
                 s[l] += d;
                 s2[l] += d * d;
             }

@@ -234,11 +234,13 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             let x0_free = (options.estimate_x0 && !prep.x0.is_empty()).then(|| {
                 let g = free.len();
                 // Scale of the state: its RMS over the record (outputs are states for the PMSM).
-                let rms = (gram::dot(&prep.y, &prep.y) / prep.y.len() as f64).sqrt();
+                let squares: f64 = prep.y.iter().map(|c| gram::dot(c, c)).sum();
+                let rms = (squares / (prep.n * prep.y.len()) as f64).sqrt();
                 let scale = if rms > 0.0 && rms.is_finite() { rms } else { 1.0 };
                 // An initial state the data barely see (its transient weighted out) must
                 // not wander off: bound it to ten times the largest measured output.
-                let bound = (10.0 * gram::max_abs(&prep.y) + 1.0) / scale;
+                let largest = prep.y.iter().map(|c| gram::max_abs(c)).fold(0.0, f64::max);
+                let bound = (10.0 * largest + 1.0) / scale;
                 for i in 0..prep.x0.len() {
                     free.push(FreeParameter {
                         kind: FreeKind::InitialState(i),

@@ -171,20 +171,10 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         simulate_blocks(self.model, &term.prep, &theta, &options, mode.jacobian, |b| {
             let (k0, len) = (b.k0, b.len);
             let lo = first.saturating_sub(k0).min(len);
-            let rows = y[(k0 + lo) * ny..(k0 + len) * ny].chunks_exact(ny);
-            if ny == 2 {
-                // The common case (two currents): one sweep over the row-major outputs.
-                let (e0, e1) = eps.split_at_mut(BLOCK_LEN);
-                let (y0, y1) = (b.y(0), b.y(1));
-                for (t, row) in (lo..len).zip(rows) {
-                    e0[t] = row[0] - y0[t];
-                    e1[t] = row[1] - y1[t];
-                }
-            } else {
-                for (t, row) in (lo..len).zip(rows) {
-                    for (i, v) in row.iter().enumerate() {
-                        eps[i * BLOCK_LEN + t] = v - b.y(i)[t];
-                    }
+            for (i, (e, col)) in eps.chunks_exact_mut(BLOCK_LEN).zip(y).enumerate() {
+                let measured = &col[k0 + lo..k0 + len];
+                for ((e, m), s) in e[lo..len].iter_mut().zip(measured).zip(&b.y(i)[lo..]) {
+                    *e = m - s;
                 }
             }
             let beta = match &term.weights {

@@ -227,7 +227,9 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         for e in 0..self.terms.len() {
             let term = &self.terms[e];
             // Shift by the first measurement to keep Σy² − (Σy)²/n free of cancellation.
-            acc.start_experiment(term.prep.y_at(0, ny));
+            let mut y0 = vec![0.0; ny];
+            term.prep.y_at(0, &mut y0);
+            acc.start_experiment(&y0);
             acc.add_moments(&term.prep.y, self.first_sample(e));
             match self.prefilters.get(e) {
                 None if let Some(g) = kept.as_ref().map(|k| &k[e]) => self.kept_sums(e, p, g, &mut acc)?,

@@ -1,27 +1,24 @@
 //! The intervals of a log as arrays, one per quantity (structure of arrays): what the
-//! models' `prepare` keeps. For the terminal voltage each array is computed in its own
-//! loop over independent intervals (they vectorise), with one sine and cosine of the half
-//! angle per interval, kept as such (MODEL.md §4; thesis 5.2); the numbers are those of
-//! [`intervals`](super::intervals).
+//! IPM model's `prepare` keeps. For the terminal voltage each array is computed in its own
+//! loop over independent intervals (they vectorise), the stator hold's start voltage with
+//! one sine and cosine of the half angle per interval (MODEL.md §4; thesis 5.2); the
+//! numbers are those of [`intervals`](super::intervals).
 
 use super::{
     C64, DqView, Result, SQRT_2_3, VoltageHold, VoltageInput, half_angle, mean_speed, model_start_voltages,
     stator_hold_start_half,
 };
 #[cfg(doc)]
-use super::{Interval, half_angle_rotation, model_intervals};
+use super::{Interval, model_intervals};
 
 /// The intervals `k = 0..N−2` of a log (see [`Interval`]), each field an array of N − 1:
-/// the few numbers from which every data-only term of an interval follows exactly (40
+/// the few numbers from which every data-only term of an interval follows exactly (24
 /// bytes an interval), so the prepared inputs stay small.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct IntervalArrays {
     /// Interval-mean mechanical speed ω_m \[rad/s\]: `ω_e = n_p ω_m`, back-EMF per unit K_e
     /// `√(2/3) ω_m`.
     pub w_m: Vec<f64>,
-    /// `[sin φ/2, cos φ/2]`, `φ = ω_e h`: the rotation `e^{−jφ}` and versine `1 − cos φ` by
-    /// [`half_angle_rotation`].
-    pub half: Vec<[f64; 2]>,
     /// dq voltage at the start of the period \[V\].
     pub u0: Vec<C64>,
 }
@@ -48,28 +45,22 @@ pub(crate) fn model_interval_arrays(
 ) -> Result<IntervalArrays> {
     let (h, np) = (v.h(), f64::from(n_p));
     let w_m: Vec<f64> = v.w_m().windows(2).map(mean_speed).collect();
-    let half: Vec<[f64; 2]> = w_m
-        .iter()
-        .map(|&w| {
-            let (s, c) = half_angle(np * w, h);
-            [s, c]
-        })
-        .collect();
     if input != VoltageInput::Terminal {
         let u0 = model_start_voltages(v, n_p, hold, input)?;
-        return Ok(IntervalArrays { w_m, half, u0 });
+        return Ok(IntervalArrays { w_m, u0 });
     }
     let (ud, uq) = v.terminal_voltage()?;
-    let n = v.len() - 1;
     let mean = |k: usize| C64::new(ud[k], uq[k]);
     let u0: Vec<C64> = match hold {
-        VoltageHold::Dq => (0..n).map(mean).collect(),
-        VoltageHold::Stator => (0..n)
-            .map(|k| {
-                let [s, c] = half[k];
-                stator_hold_start_half(mean(k), np * w_m[k] * h, s, c)
+        VoltageHold::Dq => (0..w_m.len()).map(mean).collect(),
+        VoltageHold::Stator => w_m
+            .iter()
+            .enumerate()
+            .map(|(k, &w)| {
+                let (s, c) = half_angle(np * w, h);
+                stator_hold_start_half(mean(k), np * w * h, s, c)
             })
             .collect(),
     };
-    Ok(IntervalArrays { w_m, half, u0 })
+    Ok(IntervalArrays { w_m, u0 })
 }

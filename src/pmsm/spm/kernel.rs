@@ -98,7 +98,8 @@ fn terms_for<const SENS: bool>(
     k: usize,
 ) -> Terms {
     let dt = if v_dt { inp.dt[k] } else { C64::default() };
-    terms_at::<SENS>(c, stator, v_dt, inp.n_p, inp.half[k], inp.w_m[k], inp.u[k], dt)
+    let (half, w_m, u) = inp.interval(stator, k);
+    terms_at::<SENS>(c, stator, v_dt, inp.n_p, half, w_m, u, dt)
 }
 
 /// [`terms_for`] with the model's hold and parameter count.
@@ -177,9 +178,9 @@ fn fill<const SENS: bool, const STATOR: bool, const VDT: bool>(
     steps: usize,
     out: &mut [f64],
 ) {
-    let r = k0..k0 + steps;
-    let (half, w_m, u) = (&inp.half[r.clone()], &inp.w_m[r.clone()], &inp.u[r.clone()]);
-    let dt = if VDT { &inp.dt[r] } else { &[][..] };
+    let (mut half, mut w_m, mut u) = ([[0.0; 2]; BLOCK_LEN], [0.0; BLOCK_LEN], [C64::default(); BLOCK_LEN]);
+    inp.fill_intervals(STATOR, k0, &mut half[..steps], &mut w_m, &mut u);
+    let dt = if VDT { &inp.dt[k0..k0 + steps] } else { &[][..] };
     let mut ch = out.chunks_exact_mut(BLOCK_LEN);
     let mut next = || ch.next().map(|c| &mut c[..steps]).unwrap_or_default();
     let (a_re, a_im, f_re, f_im) = (next(), next(), next(), next());
@@ -275,7 +276,7 @@ fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
             }
         }
         if k == next_restart {
-            i = C64::new(ctx.measured[2 * k], ctx.measured[2 * k + 1]);
+            i = C64::new(ctx.measured[0][k], ctx.measured[1][k]);
             s = [C64::default(); 4];
             p = C64::default();
             live0 = false;
