@@ -165,10 +165,52 @@ fn motion_half<'a>(v: &DqView<'a>, n_p: u32) -> impl Iterator<Item = (Interval, 
 }
 
 /// `(sin φ/2, cos φ/2)` of an interval of electrical speed `w_e` \[rad/s\] and length `h`
-/// \[s\] (`φ = ω_e h`).
-#[inline]
+/// \[s\] (`φ = ω_e h`): [`sin_cos_small`] up to `|φ/2| = π/4` (a quarter of the sample
+/// rate, beyond any sensible log), the library's `sin_cos` beyond.
+#[inline(always)]
 pub(crate) fn half_angle(w_e: f64, h: f64) -> (f64, f64) {
-    (0.5 * (w_e * h)).sin_cos()
+    let x = half_angle_arg(w_e, h);
+    if x.abs() <= SMALL_ANGLE { sin_cos_small(x) } else { x.sin_cos() }
+}
+
+/// The half angle `φ/2 = ω_e h / 2` \[rad\] of [`half_angle`].
+#[inline(always)]
+pub(crate) fn half_angle_arg(w_e: f64, h: f64) -> f64 {
+    0.5 * (w_e * h)
+}
+
+/// Largest |x| for which [`sin_cos_small`] is used: π/4.
+pub(crate) const SMALL_ANGLE: f64 = std::f64::consts::FRAC_PI_4;
+
+/// `(sin x, cos x)` for `|x| ≤ π/4` by the minimax polynomials of fdlibm's `__kernel_sin`
+/// and `__kernel_cos` (Sun Microsystems 1993; as in musl's `__sin.c`, `__cos.c`): errors
+/// below one ulp, no argument reduction and no branch, so a loop over intervals
+/// vectorises (the library's `sin_cos` is a call per value).
+#[inline(always)]
+pub(crate) fn sin_cos_small(x: f64) -> (f64, f64) {
+    // fdlibm's coefficients, each the shortest decimal of its double (S1 = 0xBFC55555_55555549
+    // … C6 = 0xBDA8FAE9_BE8838D4 in k_sin.c, k_cos.c).
+    const S1: f64 = -0.166_666_666_666_666_32;
+    const S2: f64 = 0.008_333_333_333_322_49;
+    const S3: f64 = -1.984_126_982_985_795e-4;
+    const S4: f64 = 2.755_731_370_707_006_8e-6;
+    const S5: f64 = -2.505_076_025_340_686_3e-8;
+    const S6: f64 = 1.589_690_995_211_55e-10;
+    const C1: f64 = 0.041_666_666_666_666_6;
+    const C2: f64 = -0.001_388_888_888_887_411;
+    const C3: f64 = 2.480_158_728_947_673e-5;
+    const C4: f64 = -2.755_731_435_139_066_3e-7;
+    const C5: f64 = 2.087_572_321_298_175e-9;
+    const C6: f64 = -1.135_964_755_778_819_5e-11;
+    let z = x * x;
+    let w = z * z;
+    let r = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6);
+    let sin = x + z * x * (S1 + z * r);
+    let rc = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
+    let hz = 0.5 * z;
+    let one_minus = 1.0 - hz;
+    let cos = one_minus + (((1.0 - one_minus) - hz) + z * rc);
+    (sin, cos)
 }
 
 /// The rotation `e^{−jφ} = (1 − 2 sin²(φ/2), −2 sin(φ/2) cos(φ/2))` and the versine
@@ -257,6 +299,26 @@ pub(crate) fn cexpm1(w: C64) -> C64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The polynomial sine and cosine are the library's to an ulp over `[−π/4, π/4]`, odd
+    /// and even, and `half_angle` switches to the library's past π/4.
+    #[test]
+    fn the_small_angle_sine_and_cosine_are_the_librarys_to_an_ulp() {
+        let ulp = |v: f64| f64::EPSILON * v.abs().max(f64::MIN_POSITIVE);
+        let mut xs: Vec<f64> = (0..=200_000).map(|k| k as f64 / 200_000.0 * SMALL_ANGLE).collect();
+        xs.extend([1e-300, 1e-20, 1e-9, 2f64.powi(-27), 0.1, 0.5, 0.67, SMALL_ANGLE]);
+        for x in xs {
+            let (s, c) = sin_cos_small(x);
+            let (s0, c0) = x.sin_cos();
+            assert!((s - s0).abs() <= ulp(s0), "sin {x}: {s} vs {s0}");
+            assert!((c - c0).abs() <= ulp(c0), "cos {x}: {c} vs {c0}");
+            assert_eq!(sin_cos_small(-x), (-s, c), "odd sine, even cosine at {x}");
+        }
+        for x in [0.786, 1.0, 3.0, -2.5, 100.0] {
+            assert_eq!(half_angle(2.0 * x, 1.0), x.sin_cos(), "past π/4 at {x}");
+        }
+        assert_eq!(half_angle(2.0 * 0.3, 1.0), sin_cos_small(0.3));
+    }
 
     /// [`stator_hold_start_half`] is [`stator_hold_start`] to a few ulps, the half-angle
     /// rotation is `rotation(φ)` likewise, and near 0 the versine keeps its relative

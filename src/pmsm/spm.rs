@@ -25,8 +25,9 @@
 //! gradients.
 
 use super::interval::{
-    C64, VoltageHold, VoltageInput, check_finite, check_pole_pairs, check_positive, half_angle,
-    half_angle_rotation, mean_speed, model_start_voltages, stator_hold_start_half,
+    C64, SMALL_ANGLE, VoltageHold, VoltageInput, check_finite, check_pole_pairs, check_positive, half_angle,
+    half_angle_arg, half_angle_rotation, mean_speed, model_start_voltages, sin_cos_small,
+    stator_hold_start_half,
 };
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
@@ -58,6 +59,17 @@ pub struct SpmInputs {
     /// convention of the voltage term (rotated to the period's end for the stator hold);
     /// empty without the inverter model.
     pub dt: Vec<C64>,
+}
+
+/// Arrays of equal length a block of intervals' data is formed in (structure of arrays):
+/// mean speed ω_m \[rad/s\], `sin φ/2`, `cos φ/2`, and the voltage term's real and
+/// imaginary parts \[V\] ([`SpmInputs::interval`]).
+pub(crate) struct IntervalData<'a> {
+    pub w_m: &'a mut [f64],
+    pub sin: &'a mut [f64],
+    pub cos: &'a mut [f64],
+    pub u_re: &'a mut [f64],
+    pub u_im: &'a mut [f64],
 }
 
 /// The voltage of an SPM step's data ([`SpmInputs::u`]).
@@ -97,42 +109,51 @@ impl SpmInputs {
         ([s, c], w, seen_at_end(stator, u0, s, c))
     }
 
-    /// [`interval`](Self::interval) for the intervals `k0 .. k0 + half.len()` into `half`,
-    /// `w_m` and `u` (of equal length), the same numbers to the bit: the loops without a
-    /// sine run over independent intervals and vectorise.
+    /// [`interval`](Self::interval) for the intervals `k0 .. k0 + out.w_m.len()` into `out`
+    /// (arrays of equal length), the same numbers to the bit: the loops run over independent
+    /// intervals and vectorise.
     ///
     /// # Panics
-    /// If `w_m` or `u` is shorter than `half`, or the intervals run past N − 1.
+    /// If the arrays of `out` differ in length, or the intervals run past N − 1.
     #[inline(always)]
-    pub(crate) fn fill_intervals(
-        &self,
-        stator: bool,
-        k0: usize,
-        half: &mut [[f64; 2]],
-        w_m: &mut [f64],
-        u: &mut [C64],
-    ) {
-        let steps = half.len();
-        let (w_m, u) = (&mut w_m[..steps], &mut u[..steps]);
+    pub(crate) fn fill_intervals(&self, stator: bool, k0: usize, out: IntervalData<'_>) {
+        let IntervalData { w_m, sin, cos, u_re, u_im } = out;
+        let steps = w_m.len();
         for (w, pair) in w_m.iter_mut().zip(self.w_m[k0..k0 + steps + 1].windows(2)) {
             *w = mean_speed(pair);
         }
-        for (hk, &w) in half.iter_mut().zip(w_m.iter()) {
-            let (s, c) = half_angle(self.n_p * w, self.h);
-            *hk = [s, c];
+        // `half_angle` in two loops: the polynomial for every interval (vectorised), then,
+        // where an interval's half angle passes π/4 (a quarter of the sample rate), the
+        // library's sine, as `half_angle` has it. The half angle grows with |ω_m| (rounding
+        // is monotone), so the largest speed tells whether any does.
+        for ((s, c), &w) in sin.iter_mut().zip(cos.iter_mut()).zip(w_m.iter()) {
+            (*s, *c) = sin_cos_small(half_angle_arg(self.n_p * w, self.h));
         }
+        if half_angle_arg(self.n_p * largest_magnitude(w_m), self.h) > SMALL_ANGLE {
+            for ((s, c), &w) in sin.iter_mut().zip(cos.iter_mut()).zip(w_m.iter()) {
+                let x = half_angle_arg(self.n_p * w, self.h);
+                if x.abs() > SMALL_ANGLE {
+                    (*s, *c) = x.sin_cos();
+                }
+            }
+        }
+        let (sin, cos, w_m) = (&*sin, &*cos, &*w_m);
+        let mut put = |t: usize, u: C64| {
+            u_re[t] = u.re;
+            u_im[t] = u.im;
+        };
         match &self.u {
             SpmVoltage::Terminal(d, q) => {
                 let (d, q) = (&d[k0..k0 + steps], &q[k0..k0 + steps]);
                 for t in 0..steps {
-                    let [s, c] = half[t];
+                    let (s, c) = (sin[t], cos[t]);
                     let u0 = self.terminal_start(stator, C64::new(d[t], q[t]), w_m[t], s, c);
-                    u[t] = seen_at_end(stator, u0, s, c);
+                    put(t, seen_at_end(stator, u0, s, c));
                 }
             }
             SpmVoltage::Start(u0) => {
-                for ((ut, &u0), &[s, c]) in u.iter_mut().zip(&u0[k0..k0 + steps]).zip(half.iter()) {
-                    *ut = seen_at_end(stator, u0, s, c);
+                for (t, &u0) in u0[k0..k0 + steps].iter().enumerate() {
+                    put(t, seen_at_end(stator, u0, sin[t], cos[t]));
                 }
             }
         }
@@ -144,6 +165,21 @@ impl SpmInputs {
     fn terminal_start(&self, stator: bool, uk: C64, w: f64, s: f64, c: f64) -> C64 {
         if stator { stator_hold_start_half(uk, self.n_p * w * self.h, s, c) } else { uk }
     }
+}
+
+/// `max_k |v_k|` (0 for none), in eight lanes so that it vectorises.
+#[inline(always)]
+fn largest_magnitude(v: &[f64]) -> f64 {
+    let mut lanes = [0.0f64; 8];
+    let chunks = v.chunks_exact(8);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for (m, x) in lanes.iter_mut().zip(c) {
+            // A comparison rather than `f64::max`: it vectorises.
+            *m = if x.abs() > *m { x.abs() } else { *m };
+        }
+    }
+    rest.iter().chain(&lanes).fold(0.0, |m, x| if x.abs() > m { x.abs() } else { m })
 }
 
 /// The voltage term of the step from the start-of-period voltage `u0`: for the stator hold

@@ -14,7 +14,7 @@
 //! with `∂a/∂R_s = −(h/L) a`, `∂a/∂L_s = (R_s h/L²) a`, `∂b/∂R_s = ((h/L) a − b)/z`,
 //! `∂b/∂L_s = (−(R_s h/L²) a − j ω_e b)/z`, `g = (1 − e^{−R_s h/L})/R_s`.
 
-use super::{PmsmSpm, SpmCoefficients, SpmInputs};
+use super::{IntervalData, PmsmSpm, SpmCoefficients, SpmInputs};
 use crate::model::{BLOCK_LEN, Block, BlockContext, BlockKernel, SimState};
 use crate::pmsm::interval::{C64, SQRT_2_3, VoltageHold, half_angle_rotation};
 use multiversion::multiversion;
@@ -154,8 +154,11 @@ macro_rules! by_mode {
 /// derivatives by `r_s`, `l_s`, `k_e`, `v_dt`, each as real and imaginary parts.
 const TERM_ARRAYS: usize = 12;
 
+/// Number of per-interval data arrays behind them ([`IntervalData`]).
+const INTERVAL_ARRAYS: usize = 5;
+
 /// The terms of intervals `k0 .. k0 + steps` as arrays (`out`: [`TERM_ARRAYS`] channels
-/// of [`BLOCK_LEN`]): every interval independent of the others, so the loop vectorises;
+/// of [`BLOCK_LEN`], then the [`INTERVAL_ARRAYS`] of their data): every interval independent of the others, so the loop vectorises;
 /// compiled for AVX-512 and AVX2 as well as the baseline and chosen at run time. The
 /// arithmetic is [`terms_at`]'s, so the numbers are the per-sample step's to the bit.
 #[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
@@ -178,8 +181,14 @@ fn fill<const SENS: bool, const STATOR: bool, const VDT: bool>(
     steps: usize,
     out: &mut [f64],
 ) {
-    let (mut half, mut w_m, mut u) = ([[0.0; 2]; BLOCK_LEN], [0.0; BLOCK_LEN], [C64::default(); BLOCK_LEN]);
-    inp.fill_intervals(STATOR, k0, &mut half[..steps], &mut w_m, &mut u);
+    let (out, data) = out.split_at_mut(TERM_ARRAYS * BLOCK_LEN);
+    let mut ch = data.chunks_exact_mut(BLOCK_LEN).map(|c| &mut c[..steps]);
+    let mut next = || ch.next().unwrap_or_default();
+    let iv = IntervalData { w_m: next(), sin: next(), cos: next(), u_re: next(), u_im: next() };
+    inp.fill_intervals(STATOR, k0, iv);
+    let (w_m, s, co) =
+        (&data[..BLOCK_LEN], &data[BLOCK_LEN..2 * BLOCK_LEN], &data[2 * BLOCK_LEN..3 * BLOCK_LEN]);
+    let (u_re, u_im) = (&data[3 * BLOCK_LEN..4 * BLOCK_LEN], &data[4 * BLOCK_LEN..5 * BLOCK_LEN]);
     let dt = if VDT { &inp.dt[k0..k0 + steps] } else { &[][..] };
     let mut ch = out.chunks_exact_mut(BLOCK_LEN);
     let mut next = || ch.next().map(|c| &mut c[..steps]).unwrap_or_default();
@@ -188,7 +197,8 @@ fn fill<const SENS: bool, const STATOR: bool, const VDT: bool>(
         (next(), next(), next(), next(), next(), next(), next(), next());
     for t in 0..steps {
         let d = if VDT { dt[t] } else { C64::default() };
-        let tm = terms_at::<SENS>(c, STATOR, VDT, inp.n_p, half[t], w_m[t], u[t], d);
+        let u = C64::new(u_re[t], u_im[t]);
+        let tm = terms_at::<SENS>(c, STATOR, VDT, inp.n_p, [s[t], co[t]], w_m[t], u, d);
         a_re[t] = tm.a.re;
         a_im[t] = tm.a.im;
         f_re[t] = tm.forced.re;
@@ -254,7 +264,7 @@ fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
     let h = ctx.horizon.unwrap_or(usize::MAX);
     // Intervals in this block (the record's last sample has none).
     let steps = len.min(ctx.n - 1 - k0);
-    st.scratch.resize(TERM_ARRAYS * BLOCK_LEN, 0.0);
+    st.scratch.resize((TERM_ARRAYS + INTERVAL_ARRAYS) * BLOCK_LEN, 0.0);
     fill_terms(c, inp, k0, steps, (SENS, STATOR, VDT), &mut st.scratch);
     let tv = |a: usize, t: usize| {
         C64::new(st.scratch[2 * a * BLOCK_LEN + t], st.scratch[(2 * a + 1) * BLOCK_LEN + t])
