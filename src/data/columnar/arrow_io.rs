@@ -119,22 +119,20 @@ fn read_parquet(path: &Path, file: File, wanted: &[(&str, bool)], limits: &ReadL
             .with_row_groups(vec![g])
             .build()
             .map_err(|e| format_err(path, e))?;
-        let mut tmp = Vec::with_capacity(BATCH);
         let mut at = 0;
         for batch in reader {
             let batch = batch.map_err(|e| format_err(path, e))?;
             let end = at + batch.num_rows();
             for (slot, i) in out.iter_mut().zip(&index) {
                 let (Some(slot), Some(i)) = (slot, i) else { continue };
-                tmp.clear();
-                append(path, &header[*i], column(path, &batch, &header[*i])?, at, &mut tmp)?;
-                let Some(dst) = slot.get_mut(at..end).filter(|d| d.len() == tmp.len()) else {
+                let array = column(path, &batch, &header[*i])?;
+                let Some(dst) = slot.get_mut(at..end).filter(|d| d.len() == array.len()) else {
                     return Err(format_err(
                         path,
                         format!("row group {g} holds more rows than its metadata says"),
                     ));
                 };
-                dst.copy_from_slice(&tmp);
+                convert(path, &header[*i], array, at, dst)?;
             }
             at = end;
         }
@@ -200,17 +198,25 @@ fn collect(
 
 /// Appends `array` converted to f64; `row` is its first row in the file.
 fn append(path: &Path, name: &str, array: &ArrayRef, row: usize, out: &mut Vec<f64>) -> Result<()> {
+    let start = out.len();
+    out.resize(start + array.len(), 0.0);
+    convert(path, name, array, row, &mut out[start..])
+}
+
+/// Writes `array` converted to f64 into `out` (of the array's length); `row` is its first
+/// row in the file.
+fn convert(path: &Path, name: &str, array: &ArrayRef, row: usize, out: &mut [f64]) -> Result<()> {
     if array.null_count() > 0 {
         let at = (0..array.len()).find(|&k| array.is_null(k)).unwrap_or(0) + row;
         return Err(format_err(path, format!("column `{name}` has no value (null) at row {at}")));
     }
     macro_rules! ext {
         ($t:ty, $f:expr) => {
-            out.extend(array.as_primitive::<$t>().values().iter().map($f))
+            out.iter_mut().zip(array.as_primitive::<$t>().values().iter().map($f)).for_each(|(o, v)| *o = v)
         };
     }
     match array.data_type() {
-        DataType::Float64 => out.extend_from_slice(array.as_primitive::<Float64Type>().values()),
+        DataType::Float64 => out.copy_from_slice(array.as_primitive::<Float64Type>().values()),
         DataType::Float32 => ext!(Float32Type, |&x| f64::from(x)),
         DataType::Float16 => ext!(Float16Type, |x| x.to_f64()),
         DataType::Int8 => ext!(Int8Type, |&x| f64::from(x)),
