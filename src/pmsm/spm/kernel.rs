@@ -234,7 +234,8 @@ fn run_any<'a>(
 }
 
 /// One block of the SPM recursion, monomorphised per sensitivities, hold and inverter
-/// model. `∂i/∂x₀` is carried as one complex product `P = Π a` (`∂i/∂i_d0 = P`,
+/// model; every channel is a `[f64; BLOCK_LEN]` and the parameters are written out, so the
+/// loop carries no bounds checks and keeps the sensitivities in registers. `∂i/∂x₀` is carried as one complex product `P = Π a` (`∂i/∂i_d0 = P`,
 /// `∂i/∂i_q0 = j P`).
 #[inline(always)]
 fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
@@ -244,10 +245,9 @@ fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
     st: &mut SimState,
     b: &mut Block,
 ) {
-    let (k0, len) = (b.k0, b.len);
+    let (k0, len) = (b.k0, b.len.min(BLOCK_LEN));
     let m = c.nth;
     let n0 = b.n_x0();
-    let (yb, dyb, dy0b) = b.channels_mut();
     let mut i = C64::new(st.x[0], st.x[1]);
     let mut s = [C64::default(); 4];
     if SENS {
@@ -266,23 +266,41 @@ fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
     let steps = len.min(ctx.n - 1 - k0);
     st.scratch.resize((TERM_ARRAYS + INTERVAL_ARRAYS) * BLOCK_LEN, 0.0);
     fill_terms(c, inp, k0, steps, (SENS, STATOR, VDT), &mut st.scratch);
-    let tv = |a: usize, t: usize| {
-        C64::new(st.scratch[2 * a * BLOCK_LEN + t], st.scratch[(2 * a + 1) * BLOCK_LEN + t])
+    // Every channel as an array of BLOCK_LEN, indexed below BLOCK_LEN: no bounds checks in
+    // the loop.
+    let (terms, _) = st.scratch.as_chunks::<BLOCK_LEN>();
+    let (yb, dyb, dy0b) = b.channels_mut();
+    let (
+        [y_re, y_im, ..],
+        [tm_a_re, tm_a_im, f_re, f_im, r_re, r_im, l_re, l_im, k_re, k_im, v_re, v_im, ..],
+    ) = (yb.as_chunks_mut::<BLOCK_LEN>().0, terms)
+    else {
+        // Not reached (the block has the model's two outputs, the scratch its terms): were
+        // it, the state turns non-finite, which the caller reports, rather than wrong.
+        st.x.fill(f64::NAN);
+        st.k = k0 + len;
+        return;
     };
+    // ∂ŷ/∂θ: the m real parts, then the m imaginary ones (m = 3, or 4 with v_dt).
+    let (dy, _) = dyb.as_chunks_mut::<BLOCK_LEN>();
+    let (dy_re, dy_im) = dy.split_at_mut(dy.len() / 2);
+    let (dy0, _) = dy0b.as_chunks_mut::<BLOCK_LEN>();
+    let term = |re: &[f64; BLOCK_LEN], im: &[f64; BLOCK_LEN], t: usize| C64::new(re[t], im[t]);
     for t in 0..len {
         let k = k0 + t;
-        yb[t] = i.re;
-        yb[BLOCK_LEN + t] = i.im;
+        y_re[t] = i.re;
+        y_im[t] = i.im;
         if SENS {
-            for (j, sj) in s.iter().enumerate().take(m) {
-                dyb[j * BLOCK_LEN + t] = sj.re;
-                dyb[(m + j) * BLOCK_LEN + t] = sj.im;
+            // Written out per parameter (not a loop over m): the sensitivities stay in registers.
+            for j in 0..if VDT { 4 } else { 3 } {
+                dy_re[j][t] = s[j].re;
+                dy_im[j][t] = s[j].im;
             }
-            if n0 == 2 {
-                dy0b[t] = p.re;
-                dy0b[BLOCK_LEN + t] = -p.im;
-                dy0b[2 * BLOCK_LEN + t] = p.im;
-                dy0b[3 * BLOCK_LEN + t] = p.re;
+            if let [d0, d1, d2, d3] = dy0 {
+                d0[t] = p.re;
+                d1[t] = -p.im;
+                d2[t] = p.im;
+                d3[t] = p.re;
             }
         }
         if k == next_restart {
@@ -293,14 +311,14 @@ fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
             next_restart = next_restart.saturating_add(h);
         }
         if t < steps {
-            let a = tv(0, t);
+            let a = term(tm_a_re, tm_a_im, t);
             let ai = a * i;
             if SENS {
-                s[0] = a * s[0] + ai * c.a_r + tv(2, t);
-                s[1] = a * s[1] + ai * c.a_l + tv(3, t);
-                s[2] = a * s[2] + tv(4, t);
+                s[0] = a * s[0] + ai * c.a_r + term(r_re, r_im, t);
+                s[1] = a * s[1] + ai * c.a_l + term(l_re, l_im, t);
+                s[2] = a * s[2] + term(k_re, k_im, t);
                 if VDT {
-                    s[3] = a * s[3] + tv(5, t);
+                    s[3] = a * s[3] + term(v_re, v_im, t);
                 }
                 if live0 {
                     p = a * p;
@@ -311,7 +329,7 @@ fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
                     }
                 }
             }
-            i = ai + tv(1, t);
+            i = ai + term(f_re, f_im, t);
         }
     }
     st.x[0] = i.re;
