@@ -7,27 +7,56 @@
 //! is formed by scaling and squaring (Moler & Van Loan 2003, "Nineteen dubious ways to
 //! compute the exponential of a matrix, twenty-five years later", SIAM Review 45(1)).
 
-use super::interval::VoltageHold;
+use super::interval::{IntervalVoltage, SQRT_2_3, VoltageHold, half_angle, mean_speed};
+use crate::data::Values;
 use nalgebra::Complex;
 use nalgebra::SMatrix;
 
-/// Per-interval data of the IPM step, independent of θ (index k = 0..N−2).
+/// The data of the IPM step, independent of θ: the experiment's speed and voltage channels,
+/// shared with it (not copied), from which each interval's speeds and start-of-period
+/// voltage follow ([`IpmInputs::speeds`], [`IpmInputs::u0`]; index k = 0..N−2).
 #[derive(Clone, Debug)]
 pub struct IpmInputs {
     /// Sample time h \[s\].
     pub h: f64,
     /// The voltage hold that `u0` refers to.
     pub hold: VoltageHold,
-    /// Interval-mean electrical speed ω_e \[rad/s\], length N−1.
-    pub w_e: Vec<f64>,
-    /// `√(2/3)` × interval-mean mechanical speed \[rad/s\], length N−1: back-EMF per unit K_e.
-    pub emf: Vec<f64>,
-    /// dq voltage at the start of the period \[V\], length N−1: `u[k]` (dq hold) or
-    /// `u₀ = u[k] jφ/(1 − e^{−jφ})` (stator hold).
-    pub u0: Vec<Complex<f64>>,
+    /// Pole pairs n_p as a number: `ω_e = n_p ω_m`.
+    pub n_p: f64,
+    /// Mechanical speed at the samples ω_m \[rad/s\], length N (the experiment's channel);
+    /// interval k runs at the mean `(ω_m[k] + ω_m[k+1])/2`.
+    pub w_m: Values,
+    /// The voltage that drives the step.
+    pub u: IntervalVoltage,
     /// The inverter's voltage error per unit `v_dt` at the start of the period, held like
     /// `u0` (empty without the inverter model), length N−1.
     pub dt: Vec<Complex<f64>>,
+}
+
+impl IpmInputs {
+    /// Interval k's electrical speed ω_e and back-EMF per unit K_e `√(2/3) ω_m` \[rad/s\],
+    /// at its mean speed.
+    ///
+    /// # Panics
+    /// If k ≥ N − 1.
+    #[inline]
+    pub fn speeds(&self, k: usize) -> (f64, f64) {
+        let w = mean_speed(&self.w_m[k..k + 2]);
+        (self.n_p * w, SQRT_2_3 * w)
+    }
+
+    /// Interval k's dq voltage at the start of the period \[V\]: `u[k]` (dq hold) or
+    /// `u₀ = u[k] jφ/(1 − e^{−jφ})` (stator hold) of the terminal voltage, or a reference's.
+    ///
+    /// # Panics
+    /// If k ≥ N − 1.
+    #[inline]
+    pub fn u0(&self, k: usize) -> Complex<f64> {
+        let w_e = self.speeds(k).0;
+        let stator = self.hold == VoltageHold::Stator;
+        let (s, c) = if stator { half_angle(w_e, self.h) } else { (0.0, 1.0) };
+        self.u.start(stator, k, w_e * self.h, s, c)
+    }
 }
 
 /// θ-dependent coefficients of the IPM step (ratios precomputed once per θ).
@@ -256,7 +285,8 @@ pub(crate) fn advance<const SENS: bool>(
     z: &mut Aug,
     one: f64,
 ) {
-    advance_at::<SENS>(c, inp.hold, inp.w_e[k], inp.emf[k], z, one);
+    let (w_e, emf) = inp.speeds(k);
+    advance_at::<SENS>(c, inp.hold, w_e, emf, z, one);
 }
 
 /// [`advance`] for one period given by its values: the hold, the electrical speed `w_e`
@@ -323,9 +353,9 @@ mod tests {
         let inp = IpmInputs {
             h: 2e-4,
             hold: VoltageHold::Stator,
-            w_e: vec![],
-            emf: vec![],
-            u0: vec![],
+            n_p: 4.0,
+            w_m: Vec::new().into(),
+            u: IntervalVoltage::Start(Vec::new()),
             dt: vec![],
         };
         PmsmIpm::new(4, VoltageHold::Stator).coefficients(&[0.35, 3.2e-3, 7.5e-3, 0.4164], &inp).unwrap()

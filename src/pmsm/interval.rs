@@ -11,13 +11,14 @@ use crate::error::{Error, Result};
 use nalgebra::Complex;
 use serde::{Deserialize, Serialize};
 
-mod arrays;
 mod reference;
-pub(crate) use arrays::{IntervalArrays, model_interval_arrays};
+mod voltage;
 pub use reference::{
     applied_experiment, applied_voltage, model_intervals, reference_intervals, speed_pll_estimate,
 };
 pub(crate) use reference::{driving_voltage, model_start_voltages};
+pub use voltage::IntervalVoltage;
+pub(crate) use voltage::terminal_start;
 
 /// How the voltage is held between samples (MODEL.md §4).
 ///

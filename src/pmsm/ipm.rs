@@ -41,7 +41,8 @@
 use super::augmented::{Aug, advance};
 pub use super::augmented::{IpmCoefficients, IpmInputs};
 use super::interval::{
-    IntervalArrays, VoltageHold, check_finite, check_pole_pairs, check_positive, model_interval_arrays,
+    IntervalVoltage, VoltageHold, VoltageInput, check_finite, check_pole_pairs, check_positive,
+    model_start_voltages,
 };
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
@@ -86,10 +87,18 @@ impl GreyBoxModel for PmsmIpm {
     fn prepare(&self, e: &Experiment) -> Result<IpmInputs> {
         check_pole_pairs(self.setup.n_p)?;
         let v = DqView::try_new(e)?;
-        let arrays = model_interval_arrays(&v, self.setup.n_p, self.setup.hold, self.setup.input)?;
-        let (w_e, emf) = arrays.speeds(self.setup.n_p);
-        let IntervalArrays { u0, .. } = arrays;
-        let mut inputs = IpmInputs { h: v.h(), hold: self.setup.hold, w_e, emf, u0, dt: Vec::new() };
+        let (n_p, hold, input) = (self.setup.n_p, self.setup.hold, self.setup.input);
+        let u = match input {
+            VoltageInput::Terminal => {
+                let (d, q) = v.shared_terminal_voltage()?;
+                IntervalVoltage::Terminal(d.clone(), q.clone())
+            }
+            VoltageInput::Reference { .. } => {
+                IntervalVoltage::Start(model_start_voltages(&v, n_p, hold, input)?)
+            }
+        };
+        let mut inputs =
+            IpmInputs { h: v.h(), hold, n_p: f64::from(n_p), w_m: v.shared_w_m().clone(), u, dt: Vec::new() };
         if let Some(inv) = &self.setup.inverter {
             inputs.dt = dead_time_directions(&v, self.setup.n_p, inv)?;
         }
@@ -235,5 +244,5 @@ impl Sensitivities<IpmInputs, IpmCoefficients> for PmsmIpm {
 /// The held voltage of interval k with the inverter's error: `u0[k] + v_dt dt[k]`.
 #[inline(always)]
 fn voltage(c: &IpmCoefficients, inp: &IpmInputs, k: usize) -> Complex<f64> {
-    if c.nth == 5 { inp.u0[k] + inp.dt[k] * c.v_dt } else { inp.u0[k] }
+    if c.nth == 5 { inp.u0(k) + inp.dt[k] * c.v_dt } else { inp.u0(k) }
 }

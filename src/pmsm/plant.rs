@@ -4,8 +4,10 @@
 //! is reproduced exactly by the model that fits it.
 
 use super::augmented::{Aug, IpmCoefficients, IpmInputs, advance_at};
-use super::interval::{C64, SQRT_2_3, VoltageHold, check_finite, check_pole_pairs, check_positive};
-use super::spm::{SpmInputs, SpmVoltage};
+use super::interval::{
+    C64, IntervalVoltage, SQRT_2_3, VoltageHold, check_finite, check_pole_pairs, check_positive,
+};
+use super::spm::SpmInputs;
 use super::{PmsmIpm, PmsmSpm};
 use crate::error::{Error, Result};
 use crate::model::GreyBoxModel;
@@ -108,9 +110,9 @@ impl ExactPlant {
             let inp = IpmInputs {
                 h,
                 hold,
-                w_e: vec![0.0],
-                emf: vec![0.0],
-                u0: one(C64::default()),
+                n_p: f64::from(n_p),
+                w_m: vec![0.0; 2].into(),
+                u: IntervalVoltage::Start(one(C64::default())),
                 dt: Vec::new(),
             };
             Engine::Ipm(PmsmIpm::new(n_p, hold), inp)
@@ -119,7 +121,7 @@ impl ExactPlant {
                 h,
                 n_p: f64::from(n_p),
                 w_m: vec![0.0; 2].into(),
-                u: SpmVoltage::Start(one(C64::default())),
+                u: IntervalVoltage::Start(one(C64::default())),
                 dt: Vec::new(),
             };
             Engine::Spm(PmsmSpm::new(n_p, hold), inp)
@@ -136,21 +138,24 @@ impl ExactPlant {
     /// Those of the model's `coefficients` (the parameters are validated every step: they
     /// may change with temperature); [`Error::Numerical`] for a non-finite result.
     pub fn step(&mut self, p: &MotorParameters, i: [f64; 2], u0: C64, w_m: f64) -> Result<[f64; 2]> {
-        let w_e = f64::from(self.n_p) * w_m;
         let mut next = [0.0; 2];
         match &mut self.engine {
             Engine::Spm(model, inp) => {
                 // One interval whose mean speed is w_m (exactly: (w + w)/2 = w), its
                 // start-of-period voltage u0; the model turns a stator-held one.
                 std::sync::Arc::make_mut(&mut inp.w_m).fill(w_m);
-                if let SpmVoltage::Start(u) = &mut inp.u {
+                if let IntervalVoltage::Start(u) = &mut inp.u {
                     u[0] = u0;
                 }
                 let c = model.coefficients(&[p.r_s, p.l_d, p.k_e()], inp)?;
                 model.step(&c, inp, 0, &i, &mut next);
             }
             Engine::Ipm(model, inp) => {
-                (inp.w_e[0], inp.emf[0], inp.u0[0]) = (w_e, SQRT_2_3 * w_m, u0);
+                // As the SPM's: one interval of mean speed w_m, start-of-period voltage u0.
+                std::sync::Arc::make_mut(&mut inp.w_m).fill(w_m);
+                if let IntervalVoltage::Start(u) = &mut inp.u {
+                    u[0] = u0;
+                }
                 let c = model.coefficients(&[p.r_s, p.l_d, p.l_q, p.k_e()], inp)?;
                 model.step(&c, inp, 0, &i, &mut next);
             }

@@ -25,9 +25,9 @@
 //! gradients.
 
 use super::interval::{
-    C64, SMALL_ANGLE, VoltageHold, VoltageInput, check_finite, check_pole_pairs, check_positive, half_angle,
-    half_angle_arg, half_angle_rotation, mean_speed, model_start_voltages, sin_cos_small,
-    stator_hold_start_half,
+    C64, IntervalVoltage, SMALL_ANGLE, VoltageHold, VoltageInput, check_finite, check_pole_pairs,
+    check_positive, half_angle, half_angle_arg, half_angle_rotation, mean_speed, model_start_voltages,
+    sin_cos_small, terminal_start,
 };
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
@@ -54,7 +54,7 @@ pub struct SpmInputs {
     /// interval k runs at the mean `(ω_m[k] + ω_m[k+1])/2`.
     pub w_m: Values,
     /// The voltage that drives the step.
-    pub u: SpmVoltage,
+    pub u: IntervalVoltage,
     /// The inverter's voltage error per unit `v_dt` of each interval, length N − 1, in the
     /// convention of the voltage term (rotated to the period's end for the stator hold);
     /// empty without the inverter model.
@@ -70,18 +70,6 @@ pub(crate) struct IntervalData<'a> {
     pub cos: &'a mut [f64],
     pub u_re: &'a mut [f64],
     pub u_im: &'a mut [f64],
-}
-
-/// The voltage of an SPM step's data ([`SpmInputs::u`]).
-#[derive(Clone, Debug)]
-pub enum SpmVoltage {
-    /// The measured terminal voltage `(u_d, u_q)`, period means \[V\], length N each (the
-    /// experiment's channels): the stator hold's start-of-period voltage `u₀` follows per
-    /// interval (MODEL.md §4).
-    Terminal(Values, Values),
-    /// The dq voltage at the start of each period `u₀` \[V\], length N − 1 (the reference
-    /// voltage, delayed and advanced: [`crate::pmsm::model_intervals`]).
-    Start(Vec<C64>),
 }
 
 impl SpmInputs {
@@ -102,10 +90,7 @@ impl SpmInputs {
     pub fn interval(&self, stator: bool, k: usize) -> ([f64; 2], f64, C64) {
         let w = mean_speed(&self.w_m[k..k + 2]);
         let (s, c) = half_angle(self.n_p * w, self.h);
-        let u0 = match &self.u {
-            SpmVoltage::Terminal(d, q) => self.terminal_start(stator, C64::new(d[k], q[k]), w, s, c),
-            SpmVoltage::Start(u0) => u0[k],
-        };
+        let u0 = self.u.start(stator, k, self.n_p * w * self.h, s, c);
         ([s, c], w, seen_at_end(stator, u0, s, c))
     }
 
@@ -143,27 +128,20 @@ impl SpmInputs {
             u_im[t] = u.im;
         };
         match &self.u {
-            SpmVoltage::Terminal(d, q) => {
+            IntervalVoltage::Terminal(d, q) => {
                 let (d, q) = (&d[k0..k0 + steps], &q[k0..k0 + steps]);
                 for t in 0..steps {
                     let (s, c) = (sin[t], cos[t]);
-                    let u0 = self.terminal_start(stator, C64::new(d[t], q[t]), w_m[t], s, c);
+                    let u0 = terminal_start(stator, C64::new(d[t], q[t]), self.n_p * w_m[t] * self.h, s, c);
                     put(t, seen_at_end(stator, u0, s, c));
                 }
             }
-            SpmVoltage::Start(u0) => {
+            IntervalVoltage::Start(u0) => {
                 for (t, &u0) in u0[k0..k0 + steps].iter().enumerate() {
                     put(t, seen_at_end(stator, u0, sin[t], cos[t]));
                 }
             }
         }
-    }
-
-    /// The start-of-period dq voltage of the terminal voltage `uk` (the period mean) over
-    /// an interval of mean speed `w` and half angle `(s, c)`.
-    #[inline(always)]
-    fn terminal_start(&self, stator: bool, uk: C64, w: f64, s: f64, c: f64) -> C64 {
-        if stator { stator_hold_start_half(uk, self.n_p * w * self.h, s, c) } else { uk }
     }
 }
 
@@ -242,9 +220,9 @@ fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold, input: VoltageIn
     let u = match input {
         VoltageInput::Terminal => {
             let (d, q) = v.shared_terminal_voltage()?;
-            SpmVoltage::Terminal(d.clone(), q.clone())
+            IntervalVoltage::Terminal(d.clone(), q.clone())
         }
-        VoltageInput::Reference { .. } => SpmVoltage::Start(model_start_voltages(v, n_p, hold, input)?),
+        VoltageInput::Reference { .. } => IntervalVoltage::Start(model_start_voltages(v, n_p, hold, input)?),
     };
     Ok(SpmInputs { h: v.h(), n_p: f64::from(n_p), w_m: v.shared_w_m().clone(), u, dt: Vec::new() })
 }

@@ -225,7 +225,7 @@ fn stiff_parameters_match_rk4() {
         let mut worst: f64 = 0.0;
         for k in 0..10 {
             let w_m = 0.5 * (w[k] + w[k + 1]);
-            let u0 = [p.inputs.u0[k].re, p.inputs.u0[k].im];
+            let u0 = [p.inputs.u0(k).re, p.inputs.u0(k).im];
             x = rk4_period(th, hold, w_m, u0, x, 50_000);
             let err = norm([xs[k + 1][0] - x[0], xs[k + 1][1] - x[1]]) / norm(x);
             assert!(err <= 1e-9, "{hold} k = {k}: {err:e}");
