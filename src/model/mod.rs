@@ -12,9 +12,13 @@
 //! depends on the model type.
 //!
 //! Two kinds of per-sample work are kept apart so that the inner loop stays short:
-//! quantities that depend on the data only are computed once per experiment by
+//! quantities that depend on the data only are prepared once per experiment by
 //! [`GreyBoxModel::prepare`]; quantities that depend on θ only once per parameter vector by
-//! [`GreyBoxModel::coefficients`]. Analytic forward sensitivities are a separate trait,
+//! [`GreyBoxModel::coefficients`]. An experiment's channels are shared
+//! ([`crate::data::Values`]): [`Prepared`] takes the measured outputs without copying them,
+//! and a model whose data-only terms are cheap may keep the channels it reads and form
+//! those terms block by block (the PMSM models do), so that a fit's memory beyond its data
+//! does not grow with the record. Analytic forward sensitivities are a separate trait,
 //! [`Sensitivities`], offered through [`GreyBoxModel::sensitivities`]: a model either
 //! implements them or gets finite differences, never a silent zero Jacobian.
 
