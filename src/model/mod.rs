@@ -63,7 +63,8 @@ pub struct Prepared<I> {
     pub y: Vec<Values>,
     /// Initial state from the measurement at k = 0, length n_x.
     pub x0: Vec<f64>,
-    /// Model-specific, θ-independent per-sample data (inputs, rotations, speeds).
+    /// Model-specific, θ-independent data (inputs, rotations, speeds, or the shared channels
+    /// they are formed from).
     pub inputs: I,
 }
 
@@ -84,10 +85,11 @@ impl<I> Prepared<I> {
         Ok(Self { name: e.name().into(), n, y, x0, inputs: model.prepare(e)? })
     }
 
-    /// The measured output vector at sample k into `out` (length n_y).
+    /// The measured output vector at sample k into `out` (length n_y; a shorter `out` gets
+    /// the first outputs).
     ///
     /// # Panics
-    /// If k ≥ N or `out` is shorter than n_y.
+    /// If k ≥ N.
     pub fn y_at(&self, k: usize, out: &mut [f64]) {
         for (o, c) in out.iter_mut().zip(&self.y) {
             *o = c[k];
@@ -142,7 +144,8 @@ impl<I> Prepared<I> {
 /// assert_eq!(m.parameters().len(), 2);
 /// ```
 pub trait GreyBoxModel: Sync {
-    /// θ-independent per-sample data derived from an experiment.
+    /// θ-independent data derived from an experiment (per-sample arrays, or the shared
+    /// channels a model forms its per-sample terms from).
     type Inputs: Send + Sync;
     /// θ-dependent, sample-independent coefficients (computed once per θ).
     type Coefficients: Send + Sync;

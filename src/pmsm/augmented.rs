@@ -26,7 +26,8 @@ pub struct IpmInputs {
     /// Mechanical speed at the samples ω_m \[rad/s\], length N (the experiment's channel);
     /// interval k runs at the mean `(ω_m[k] + ω_m[k+1])/2`.
     pub w_m: Values,
-    /// The voltage that drives the step.
+    /// The voltage that drives the step \[V\] (terminal channels of length N, or N − 1
+    /// start-of-period voltages).
     pub u: IntervalVoltage,
     /// The inverter's voltage error per unit `v_dt` at the start of the period, held like
     /// `u0` (empty without the inverter model), length N−1.
@@ -53,9 +54,8 @@ impl IpmInputs {
     #[inline]
     pub fn u0(&self, k: usize) -> Complex<f64> {
         let w_e = self.speeds(k).0;
-        let stator = self.hold == VoltageHold::Stator;
-        let (s, c) = if stator { half_angle(w_e, self.h) } else { (0.0, 1.0) };
-        self.u.start(stator, k, w_e * self.h, s, c)
+        let (s, c) = if self.hold == VoltageHold::Stator { half_angle(w_e, self.h) } else { (0.0, 1.0) };
+        self.u.start(self.hold, k, w_e * self.h, s, c)
     }
 }
 

@@ -144,8 +144,9 @@ impl ExactPlant {
                 // One interval whose mean speed is w_m (exactly: (w + w)/2 = w), its
                 // start-of-period voltage u0; the model turns a stator-held one.
                 std::sync::Arc::make_mut(&mut inp.w_m).fill(w_m);
-                if let IntervalVoltage::Start(u) = &mut inp.u {
-                    u[0] = u0;
+                match &mut inp.u {
+                    IntervalVoltage::Start(u) if !u.is_empty() => u[0] = u0,
+                    other => *other = IntervalVoltage::Start(vec![u0]),
                 }
                 let c = model.coefficients(&[p.r_s, p.l_d, p.k_e()], inp)?;
                 model.step(&c, inp, 0, &i, &mut next);
@@ -153,8 +154,9 @@ impl ExactPlant {
             Engine::Ipm(model, inp) => {
                 // As the SPM's: one interval of mean speed w_m, start-of-period voltage u0.
                 std::sync::Arc::make_mut(&mut inp.w_m).fill(w_m);
-                if let IntervalVoltage::Start(u) = &mut inp.u {
-                    u[0] = u0;
+                match &mut inp.u {
+                    IntervalVoltage::Start(u) if !u.is_empty() => u[0] = u0,
+                    other => *other = IntervalVoltage::Start(vec![u0]),
                 }
                 let c = model.coefficients(&[p.r_s, p.l_d, p.l_q, p.k_e()], inp)?;
                 model.step(&c, inp, 0, &i, &mut next);

@@ -1,8 +1,9 @@
 //! The regression Gram of the setup checks ([`super::detect`]), streamed: the five signals
 //! the voltage equations need (`u_d, u_q, i_d, i_q, w_m`) are low-passed together, lane by
 //! lane, a chunk at a time, and the Gram of the base columns is summed over the intervals
-//! without forming a row matrix, the structural zeros of the d and q rows skipped. Nothing
-//! the size of the record is allocated.
+//! without forming a row matrix, the structural zeros of the d and q rows skipped. For the
+//! terminal voltage nothing the size of the record is allocated (a reference input's
+//! applied voltage is formed first).
 //!
 //! The zero-phase filter is [`Butterworth::filtfilt`] (odd reflection, steady-state start,
 //! forward then backward; Gustafsson 1996) with the same operations in the same order on
@@ -68,7 +69,8 @@ impl Delays {
 /// backward pass then runs chunk by chunk from the end, each chunk's forward outputs
 /// recomputed from its checkpoint (the same operations from the same state, so the same
 /// numbers), so that one chunk is held instead of a filtered copy of the record: the
-/// forward pass costs twice, the memory is `O(CHUNK)`.
+/// forward pass costs twice, the memory is one chunk and a checkpoint of 40 delays per
+/// chunk (0.08 bytes a sample).
 ///
 /// Source: [`Butterworth::filtfilt`] (`scipy.signal.sosfiltfilt`, odd padding);
 /// checkpointing as in reverse-mode differentiation (Griewank & Walther, *Evaluating

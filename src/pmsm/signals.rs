@@ -158,8 +158,8 @@ impl<'a> DqView<'a> {
             })),
         }
     }
-    /// [`terminal_voltage`](Self::terminal_voltage) as the experiment's shared channels
-    /// (cloning them shares the samples).
+    /// [`terminal_voltage`](Self::terminal_voltage) `(u_d, u_q)` \[V\], length N each, as the
+    /// experiment's shared channels (cloning them shares the samples).
     ///
     /// # Errors
     /// As [`terminal_voltage`](Self::terminal_voltage).
@@ -167,8 +167,8 @@ impl<'a> DqView<'a> {
         self.terminal_voltage()?;
         Ok((self.e.values(channel::U_D)?, self.e.values(channel::U_Q)?))
     }
-    /// [`w_m`](Self::w_m) as the experiment's shared channel (cloning it shares the
-    /// samples).
+    /// [`w_m`](Self::w_m) \[rad/s\], length N, as the experiment's shared channel (cloning
+    /// it shares the samples).
     pub fn shared_w_m(&self) -> &'a Values {
         self.w_m
     }

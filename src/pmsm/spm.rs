@@ -19,7 +19,9 @@
 //! interval mean `(ω_m[k] + ω_m[k+1])/2`. The rotation `e^{−jφ}` and `u₀` depend on the
 //! data only; they are formed block by block in the pass from the experiment's own
 //! channels, which [`GreyBoxModel::prepare`] shares rather than copies (one sine and cosine
-//! of `φ/2` an interval, so the fit's memory beyond the data stays O(n_θ²)).
+//! of `φ/2` an interval, so that a fit of the terminal voltage keeps nothing per sample
+//! beyond the data; a reference input keeps its start-of-period voltages, the inverter
+//! model its error directions, 16 bytes an interval each).
 //! `e^{−R_s h/L_s}` depends on θ only and is computed once per θ. Sensitivities
 //! differentiate this recursion (forward sensitivity), so one pass gives residuals and
 //! gradients.
@@ -53,7 +55,8 @@ pub struct SpmInputs {
     /// Mechanical speed at the samples ω_m \[rad/s\], length N (the experiment's channel);
     /// interval k runs at the mean `(ω_m[k] + ω_m[k+1])/2`.
     pub w_m: Values,
-    /// The voltage that drives the step.
+    /// The voltage that drives the step \[V\] (terminal channels of length N, or N − 1
+    /// start-of-period voltages).
     pub u: IntervalVoltage,
     /// The inverter's voltage error per unit `v_dt` of each interval, length N − 1, in the
     /// convention of the voltage term (rotated to the period's end for the stator hold);
@@ -78,7 +81,7 @@ impl SpmInputs {
         self.w_m.len().saturating_sub(1)
     }
 
-    /// Interval k's data (`k < N − 1`) for the hold (`stator`): `[sin φ/2, cos φ/2]` of its
+    /// Interval k's data (`k < N − 1`) for the `hold`: `[sin φ/2, cos φ/2]` of its
     /// rotation `φ = ω_e h`, its mean mechanical speed ω_m \[rad/s\] and its voltage term
     /// \[V\]: `u[k]` (dq hold) or `u₀ e^{−jφ}` (stator hold, the start-of-period voltage seen
     /// at the period's end). The per-sample step and the block kernel both take their data
@@ -87,11 +90,11 @@ impl SpmInputs {
     /// # Panics
     /// If k ≥ N − 1.
     #[inline(always)]
-    pub fn interval(&self, stator: bool, k: usize) -> ([f64; 2], f64, C64) {
+    pub fn interval(&self, hold: VoltageHold, k: usize) -> ([f64; 2], f64, C64) {
         let w = mean_speed(&self.w_m[k..k + 2]);
         let (s, c) = half_angle(self.n_p * w, self.h);
-        let u0 = self.u.start(stator, k, self.n_p * w * self.h, s, c);
-        ([s, c], w, seen_at_end(stator, u0, s, c))
+        let u0 = self.u.start(hold, k, self.n_p * w * self.h, s, c);
+        ([s, c], w, seen_at_end(hold == VoltageHold::Stator, u0, s, c))
     }
 
     /// [`interval`](Self::interval) for the intervals `k0 .. k0 + out.w_m.len()` into `out`
@@ -231,7 +234,7 @@ fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold, input: VoltageIn
 /// at the start of the period, seen at its end.
 fn to_period_end(v: &mut [C64], inputs: &SpmInputs) {
     for (k, x) in v.iter_mut().enumerate() {
-        let ([s, c], _, _) = inputs.interval(false, k);
+        let ([s, c], _, _) = inputs.interval(VoltageHold::Dq, k);
         *x *= half_angle_rotation(s, c).0;
     }
 }

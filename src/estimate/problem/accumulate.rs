@@ -145,8 +145,8 @@ impl Accumulator {
         self.n_live[i] += n_live;
     }
 
-    /// Adds the output moments of the current experiment (its measured outputs `y`,
-    /// row-major N × n_y, from sample `first` on) about its first measurement.
+    /// Adds the output moments of the current experiment (its measured outputs `y`, n_y
+    /// columns of length N, from sample `first` on) about its first measurement.
     pub(crate) fn add_moments(&mut self, y: &[Values], first: usize) {
         for (i, (ey, ey2)) in self.ey.iter_mut().zip(self.ey2.iter_mut()).enumerate() {
             let y0 = self.y0[i];

@@ -3,10 +3,11 @@
 //! reference input is turned into. The start-of-period voltage of a stator-held terminal
 //! voltage follows per interval (MODEL.md §4).
 
-use super::{C64, stator_hold_start_half};
+use super::{C64, VoltageHold, stator_hold_start_half};
 use crate::data::Values;
 
-/// The voltage that drives a PMSM model's intervals.
+/// The voltage that drives a PMSM model's intervals \[V\]: the terminal voltage's two
+/// channels of length N, or N − 1 start-of-period voltages.
 #[derive(Clone, Debug)]
 pub enum IntervalVoltage {
     /// The measured terminal voltage `(u_d, u_q)`, period means \[V\], length N each (the
@@ -18,15 +19,16 @@ pub enum IntervalVoltage {
 }
 
 impl IntervalVoltage {
-    /// The dq voltage at the start of interval k \[V\] for the hold (`stator`), from the
-    /// interval's angle `φ = ω_e h` \[rad\] and `(s, c) = (sin φ/2, cos φ/2)`: `u[k]` (dq
-    /// hold) or `u₀ = u[k] jφ/(1 − e^{−jφ})` (stator hold) of the terminal voltage, the
-    /// stored `u₀` of a reference.
+    /// The dq voltage at the start of interval k \[V\] for the `hold`, from the interval's
+    /// angle `φ = ω_e h` \[rad\] and `(s, c) = (sin φ/2, cos φ/2)`: `u[k]` (dq hold) or
+    /// `u₀ = u[k] jφ/(1 − e^{−jφ})` (stator hold) of the terminal voltage, the stored `u₀`
+    /// of a reference.
     ///
     /// # Panics
     /// If k is past the data (k ≥ N − 1 for [`Start`](Self::Start), k ≥ N otherwise).
     #[inline(always)]
-    pub fn start(&self, stator: bool, k: usize, phi: f64, s: f64, c: f64) -> C64 {
+    pub fn start(&self, hold: VoltageHold, k: usize, phi: f64, s: f64, c: f64) -> C64 {
+        let stator = hold == VoltageHold::Stator;
         match self {
             Self::Terminal(d, q) => terminal_start(stator, C64::new(d[k], q[k]), phi, s, c),
             Self::Start(u0) => u0[k],

@@ -98,7 +98,8 @@ fn terms_for<const SENS: bool>(
     k: usize,
 ) -> Terms {
     let dt = if v_dt { inp.dt[k] } else { C64::default() };
-    let (half, w_m, u) = inp.interval(stator, k);
+    let hold = if stator { VoltageHold::Stator } else { VoltageHold::Dq };
+    let (half, w_m, u) = inp.interval(hold, k);
     terms_at::<SENS>(c, stator, v_dt, inp.n_p, half, w_m, u, dt)
 }
 
@@ -248,6 +249,22 @@ fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
     let (k0, len) = (b.k0, b.len.min(BLOCK_LEN));
     let m = c.nth;
     let n0 = b.n_x0();
+    // The shapes `BlockKernel::run` asks of its caller: otherwise the block and the state
+    // turn non-finite, which the caller reports, rather than a panic or a wrong number.
+    let shapes = k0 < ctx.n
+        && b.n_outputs() == 2
+        && st.x.len() == 2
+        && (!SENS || (b.n_theta() == m && st.s.len() == 2 * m))
+        && (n0 == 0 || (n0 == 2 && st.s0.len() == 4))
+        && (ctx.horizon.is_none()
+            || ctx.measured.iter().take(2).all(|c| c.len() == ctx.n) && ctx.measured.len() >= 2);
+    if !shapes {
+        let (yb, dyb, dy0b) = b.channels_mut();
+        [yb, dyb, dy0b].into_iter().for_each(|c| c.fill(f64::NAN));
+        st.x.fill(f64::NAN);
+        st.k = k0 + len;
+        return;
+    }
     let mut i = C64::new(st.x[0], st.x[1]);
     let mut s = [C64::default(); 4];
     if SENS {
@@ -275,8 +292,9 @@ fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
         [tm_a_re, tm_a_im, f_re, f_im, r_re, r_im, l_re, l_im, k_re, k_im, v_re, v_im, ..],
     ) = (yb.as_chunks_mut::<BLOCK_LEN>().0, terms)
     else {
-        // Not reached (the block has the model's two outputs, the scratch its terms): were
-        // it, the state turns non-finite, which the caller reports, rather than wrong.
+        // Not reached (the shapes are checked above, the scratch holds every term): were it,
+        // the block and the state turn non-finite, as above.
+        [yb, dyb, dy0b].into_iter().for_each(|c| c.fill(f64::NAN));
         st.x.fill(f64::NAN);
         st.k = k0 + len;
         return;
@@ -346,3 +364,6 @@ fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
     }
     st.k = k0 + len;
 }
+
+#[cfg(test)]
+mod tests;
