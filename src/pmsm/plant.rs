@@ -9,6 +9,7 @@ use super::interval::{
 };
 use super::spm::SpmInputs;
 use super::{PmsmIpm, PmsmSpm};
+use crate::data::Values;
 use crate::error::{Error, Result};
 use crate::model::GreyBoxModel;
 use serde::{Deserialize, Serialize};
@@ -72,6 +73,18 @@ impl MotorParameters {
         check_positive("l_q", self.l_q)?;
         check_finite("psi_f", self.psi_f)?;
         check_pole_pairs(self.n_p)
+    }
+}
+
+/// Sets a model's data to the one interval the plant steps: mean speed `w` \[rad/s\]
+/// (both ends at `w`, so `(w + w)/2 = w` exactly) and start-of-period dq voltage `u0` \[V\],
+/// which the model turns for a stator hold. Allocates nothing once the data are of that
+/// shape (as [`ExactPlant::new`] makes them).
+fn one_interval(w_m: &mut Values, u: &mut IntervalVoltage, w: f64, u0: C64) {
+    std::sync::Arc::make_mut(w_m).fill(w);
+    match u {
+        IntervalVoltage::Start(v) if !v.is_empty() => v[0] = u0,
+        other => *other = IntervalVoltage::Start(vec![u0]),
     }
 }
 
@@ -141,23 +154,12 @@ impl ExactPlant {
         let mut next = [0.0; 2];
         match &mut self.engine {
             Engine::Spm(model, inp) => {
-                // One interval whose mean speed is w_m (exactly: (w + w)/2 = w), its
-                // start-of-period voltage u0; the model turns a stator-held one.
-                std::sync::Arc::make_mut(&mut inp.w_m).fill(w_m);
-                match &mut inp.u {
-                    IntervalVoltage::Start(u) if !u.is_empty() => u[0] = u0,
-                    other => *other = IntervalVoltage::Start(vec![u0]),
-                }
+                one_interval(&mut inp.w_m, &mut inp.u, w_m, u0);
                 let c = model.coefficients(&[p.r_s, p.l_d, p.k_e()], inp)?;
                 model.step(&c, inp, 0, &i, &mut next);
             }
             Engine::Ipm(model, inp) => {
-                // As the SPM's: one interval of mean speed w_m, start-of-period voltage u0.
-                std::sync::Arc::make_mut(&mut inp.w_m).fill(w_m);
-                match &mut inp.u {
-                    IntervalVoltage::Start(u) if !u.is_empty() => u[0] = u0,
-                    other => *other = IntervalVoltage::Start(vec![u0]),
-                }
+                one_interval(&mut inp.w_m, &mut inp.u, w_m, u0);
                 let c = model.coefficients(&[p.r_s, p.l_d, p.l_q, p.k_e()], inp)?;
                 model.step(&c, inp, 0, &i, &mut next);
             }

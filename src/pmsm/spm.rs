@@ -233,8 +233,8 @@ fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold, input: VoltageIn
 /// Turns each interval's dq vector by its period's rotation `e^{−jφ}`: a stator-held vector
 /// at the start of the period, seen at its end.
 fn to_period_end(v: &mut [C64], inputs: &SpmInputs) {
-    for (k, x) in v.iter_mut().enumerate() {
-        let ([s, c], _, _) = inputs.interval(VoltageHold::Dq, k);
+    for (x, pair) in v.iter_mut().zip(inputs.w_m.windows(2)) {
+        let (s, c) = half_angle(inputs.n_p * mean_speed(pair), inputs.h);
         *x *= half_angle_rotation(s, c).0;
     }
 }
