@@ -1,11 +1,12 @@
 //! The statistics at a point after a normal-equation pass there (whose Grams the problem
 //! keeps and the statistics take: quadratic loss, unit weights) against those of a problem
 //! that ran no pass: the same sums to 1e-12 and the same lag sums of the raw residuals to the bit, for one
-//! experiment with its initial state estimated and for two with a per-experiment `r_s`.
+//! experiment with its initial state estimated and for two with a per-experiment `r_s`;
+//! likewise after a pass flagged as the solver's last, which gathered the lag sums itself.
 
 use greybox::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
 use greybox::estimate::problem::Sums;
-use greybox::estimate::{PemProblem, ProblemOptions, scaling::NominalScaling};
+use greybox::estimate::{LeastSquares, PemProblem, ProblemOptions, scaling::NominalScaling};
 use greybox::model::Prepared;
 use greybox::pmsm::{PmsmSpm, VoltageHold};
 
@@ -58,10 +59,18 @@ fn statistics_after_the_normal_equations_equal_a_full_pass() {
             let data = logs.iter().map(|e| (Prepared::new(&m, e).unwrap(), None)).collect();
             PemProblem::new(&m, data, &start, &NominalScaling, &opts).unwrap()
         };
-        let (kept, fresh) = (build(), build());
+        let (kept, gathered, fresh) = (build(), build(), build());
         let p = kept.start_vector(&start);
-        kept.normal_equations(&p).unwrap();
-        assert_same(&kept.sums(&p).unwrap(), &fresh.sums(&p).unwrap());
+        let ne = kept.normal_equations(&p).unwrap();
+        let full = fresh.sums(&p).unwrap();
+        assert_same(&kept.sums(&p).unwrap(), &full);
+        // A pass flagged as the solver's last also keeps the residuals' lag sums: the same
+        // normal equations to the bit, and the statistics without another pass.
+        let ne_last = LeastSquares::normal_equations_likely_last(&gathered, &p).unwrap();
+        assert_eq!(ne_last.cost.to_bits(), ne.cost.to_bits());
+        assert!(ne_last.jtj.iter().zip(ne.jtj.iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(ne_last.jtr.iter().zip(ne.jtr.iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert_same(&gathered.sums(&p).unwrap(), &full);
     }
 }
 

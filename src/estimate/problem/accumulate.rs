@@ -59,6 +59,8 @@ pub(crate) struct Accumulator {
     lag_sums: Vec<Vec<LagSums>>,
     // The current experiment's raw residuals, per output.
     streams: Vec<LagStream>,
+    // Or their lag sums, when a normal-equation pass gathered them.
+    gathered: Option<Vec<LagSums>>,
 }
 
 impl Accumulator {
@@ -84,6 +86,7 @@ impl Accumulator {
             meat_i: vec![z; ny],
             lag_sums: vec![Vec::new(); ny],
             streams: Vec::new(),
+            gathered: None,
         }
     }
 
@@ -92,6 +95,7 @@ impl Accumulator {
         self.ey.fill(0.0);
         self.ey2.fill(0.0);
         self.n_e = 0;
+        self.gathered = None;
         self.streams = (0..self.ny).map(|_| LagStream::new(WHITENESS_LAGS)).collect();
     }
 
@@ -196,11 +200,22 @@ impl Accumulator {
         }
     }
 
+    /// Sets the current experiment's lag sums, one per output, gathered elsewhere (the
+    /// normal-equation pass at the same point): its residuals are not streamed here.
+    pub(crate) fn add_lag_sums(&mut self, sums: Vec<LagSums>) {
+        self.gathered = Some(sums);
+    }
+
     pub(crate) fn end_experiment(&mut self) {
         let n = self.n_e as f64;
         self.count += self.n_e;
-        for (all, s) in self.lag_sums.iter_mut().zip(std::mem::take(&mut self.streams)) {
-            all.push(s.finish());
+        let streams = std::mem::take(&mut self.streams);
+        let sums: Vec<LagSums> = match self.gathered.take() {
+            Some(sums) => sums,
+            None => streams.into_iter().map(LagStream::finish).collect(),
+        };
+        for (all, s) in self.lag_sums.iter_mut().zip(sums) {
+            all.push(s);
         }
         for i in 0..self.ny {
             // Pool about the grand mean over all experiments.

@@ -6,11 +6,17 @@
 //! and its residual (`JᵀJ`, `Jᵀε`, `εᵀε` per output). The solver's estimate is the point
 //! of lowest cost it evaluated, so the problem keeps that pass's Grams, and
 //! [`PemProblem::sums`](super::PemProblem::sums) at that very point (compared bit by bit)
-//! takes them instead of a second pass with sensitivities.
+//! takes them instead of a second pass with sensitivities. A pass the solver expects to be
+//! its last ([`LeastSquares::normal_equations_likely_last`]) also streams the raw
+//! residuals into the whiteness test's lag sums: if it is the estimate, the statistics run
+//! no pass at all; if not, they cost that pass a few ns a sample (the lag products).
+//!
+//! [`LeastSquares::normal_equations_likely_last`]: crate::estimate::solver::LeastSquares::normal_equations_likely_last
 
 use super::PemProblem;
 use super::accumulate::Accumulator;
-use super::pass::{LocalMap, Pass};
+use super::lags::{LagStream, LagSums, WHITENESS_LAGS};
+use super::pass::{Chunk, LocalMap, Pass};
 use crate::error::Result;
 use crate::model::GreyBoxModel;
 use nalgebra::DVector;
@@ -18,11 +24,46 @@ use std::sync::Mutex;
 
 /// One experiment's Grams from a normal-equation pass: per output i the row-major
 /// `(m + 1) × (m + 1)` upper triangle of `Σ_k [J_k ε_k]ᵀ[J_k ε_k]` over its m local columns
-/// and its residual (unit weights, without Λ_i), and the local columns' map.
+/// and its residual (unit weights, without Λ_i), and the local columns' map; and the raw
+/// residuals' sums when the pass gathered them.
 #[derive(Clone, Debug)]
 pub(crate) struct ExperimentGrams {
     pub map: LocalMap,
     pub grams: Vec<Vec<f64>>,
+    pub residuals: Option<ResidualSums>,
+}
+
+/// What the statistics take of an experiment's raw residuals: the number of samples
+/// counted and each output's lag sums (up to [`WHITENESS_LAGS`]).
+#[derive(Clone, Debug)]
+pub(crate) struct ResidualSums {
+    n: usize,
+    lags: Vec<LagSums>,
+}
+
+/// [`ResidualSums`] gathered block by block, in time order.
+pub(crate) struct ResidualStreams {
+    n: usize,
+    streams: Vec<LagStream>,
+}
+
+impl ResidualStreams {
+    /// Empty streams for `ny` outputs.
+    pub(crate) fn new(ny: usize) -> Self {
+        Self { n: 0, streams: (0..ny).map(|_| LagStream::new(WHITENESS_LAGS)).collect() }
+    }
+
+    /// Takes a block's counted residuals (raw: the pass has no prefilter).
+    pub(crate) fn push(&mut self, ch: &Chunk<'_>) {
+        self.n += ch.len - ch.lo;
+        for (i, s) in self.streams.iter_mut().enumerate() {
+            s.push(ch.eps(i));
+        }
+    }
+
+    pub(crate) fn finish(self) -> ResidualSums {
+        ResidualSums { n: self.n, lags: self.streams.into_iter().map(LagStream::finish).collect() }
+    }
 }
 
 /// The Grams of the lowest-cost pass evaluated so far and its point p.
@@ -66,8 +107,8 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// Experiment e's statistics sums at p from the kept pass's Grams `kept` (quadratic
     /// loss, unit weights, no prefilter): the sums of the statistics pass, whose Gram of
     /// output i serves `JᵀWJ` (Λ_i G_i), the bread (the same) and the meat (Λ_i² G_i);
-    /// one simulation without sensitivities streams the raw residuals into the whiteness test's
-    /// lag sums.
+    /// the raw residuals' lag sums are the pass's when it gathered them; otherwise one
+    /// simulation without sensitivities streams the raw residuals into them.
     ///
     /// # Errors
     /// Those of the simulation: invalid θ, [`crate::Error::SimulationDiverged`].
@@ -79,13 +120,22 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         acc: &mut Accumulator,
     ) -> Result<()> {
         let ny = self.model.n_outputs();
-        let mut n = 0;
-        self.pass_blocks(e, p, Pass::RAW_RESIDUALS, |ch| {
-            n += ch.len - ch.lo;
-            for i in 0..ny {
-                acc.add_residuals(i, ch.eps(i));
+        let n = match &kept.residuals {
+            Some(r) => {
+                acc.add_lag_sums(r.lags.clone());
+                r.n
             }
-        })?;
+            None => {
+                let mut n = 0;
+                self.pass_blocks(e, p, Pass::RAW_RESIDUALS, |ch| {
+                    n += ch.len - ch.lo;
+                    for i in 0..ny {
+                        acc.add_residuals(i, ch.eps(i));
+                    }
+                })?;
+                n
+            }
+        };
         acc.add_samples(n);
         let m = kept.map.len();
         let mut jtj = vec![0.0; m * m];

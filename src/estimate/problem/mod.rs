@@ -342,6 +342,12 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
         Ok(ne)
     }
 
+    /// The seeded normal equations, once, when they were taken at exactly p.
+    fn take_seed(&self, p: &DVector<f64>) -> Option<NormalEquations> {
+        let mut seed = self.seed.lock().unwrap_or_else(|e| e.into_inner());
+        seed.take_if(|(q, _)| best::same_point(q, p)).map(|(_, ne)| ne)
+    }
+
     /// Gives the experiments' data back (to build a problem with other options).
     pub fn into_data(self) -> Vec<WeightedData<M::Inputs>> {
         self.terms.into_iter().map(|t| (t.prep, t.weights)).collect()
@@ -353,12 +359,12 @@ impl<M: GreyBoxModel> LeastSquares for PemProblem<'_, M> {
         self.n_free()
     }
     fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations> {
-        let mut seed = self.seed.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, ne)) = seed.take_if(|(q, _)| best::same_point(q, p)) {
-            return Ok(ne);
-        }
-        drop(seed);
-        PemProblem::normal_equations(self, p)
+        self.take_seed(p).map_or_else(|| PemProblem::normal_equations(self, p), Ok)
+    }
+    /// The normal equations with the raw residuals' lag sums kept beside the pass's Grams:
+    /// [`sums`](PemProblem::sums) at this point, if it is the estimate, runs no pass.
+    fn normal_equations_likely_last(&self, p: &DVector<f64>) -> Result<NormalEquations> {
+        self.take_seed(p).map_or_else(|| self.normal_equations_gathering(p, true), Ok)
     }
     fn cost(&self, p: &DVector<f64>) -> Result<f64> {
         PemProblem::cost(self, p)

@@ -2,7 +2,7 @@
 //! scale, and the full residual and Jacobian matrices for diagnostics.
 
 use super::accumulate::{Accumulator, Sums};
-use super::best::ExperimentGrams;
+use super::best::{ExperimentGrams, ResidualStreams};
 use super::gram::{dot, gram, scatter_gram, weighted_square_sum};
 use super::pass::{Chunk, Pass, RawSample, ResidualFilter};
 use super::{Loss, NormalEquations, PemProblem};
@@ -81,9 +81,26 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// # Errors
     /// Those of the simulation: invalid θ, [`crate::Error::SimulationDiverged`].
     pub fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations> {
+        self.normal_equations_gathering(p, false)
+    }
+
+    /// [`normal_equations`](Self::normal_equations); with `residual_sums`, the pass also
+    /// streams the raw residuals into the whiteness test's lag sums and keeps them with its
+    /// Grams, so that [`sums`](Self::sums) at this point needs no pass at all (see the
+    /// `best` module).
+    ///
+    /// # Errors
+    /// As [`normal_equations`](Self::normal_equations).
+    pub(crate) fn normal_equations_gathering(
+        &self,
+        p: &DVector<f64>,
+        residual_sums: bool,
+    ) -> Result<NormalEquations> {
         let np = self.free.len();
-        let parts: Vec<Result<Partial>> =
-            (0..self.terms.len()).into_par_iter().map(|e| self.experiment_normal_equations(e, p)).collect();
+        let parts: Vec<Result<Partial>> = (0..self.terms.len())
+            .into_par_iter()
+            .map(|e| self.experiment_normal_equations(e, p, residual_sums))
+            .collect();
         let mut out = NormalEquations { cost: 0.0, jtj: DMatrix::zeros(np, np), jtr: DVector::zeros(np) };
         let mut grams = Vec::with_capacity(parts.len());
         for part in parts {
@@ -104,16 +121,27 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// i the weighted Gram of its local columns and its residual,
     /// `G_i = Σ_k w_k [J_k ε_k]ᵀ[J_k ε_k]` with `w = β Λ_i ψ(ε)/ε` (IRLS weights; `ψ(ε) =
     /// ε` for the quadratic loss), holds `JᵀWJ` in its first m columns and `JᵀWψ` in its
-    /// last (and, for the quadratic loss, twice the cost in its corner).
-    fn experiment_normal_equations(&self, e: usize, p: &DVector<f64>) -> Result<Partial> {
+    /// last (and, for the quadratic loss, twice the cost in its corner); with
+    /// `residual_sums`, and where the Grams are kept, the raw residuals' lag sums too.
+    fn experiment_normal_equations(
+        &self,
+        e: usize,
+        p: &DVector<f64>,
+        residual_sums: bool,
+    ) -> Result<Partial> {
         let (ny, np) = (self.model.n_outputs(), self.free.len());
         let quadratic = matches!(self.loss, Loss::Quadratic);
         let unweighted = quadratic && self.terms[e].weights.is_none();
+        let keeps = unweighted && self.prefilters.is_empty();
+        let mut streams = (residual_sums && keeps).then(|| ResidualStreams::new(ny));
         let mut huber_cost = 0.0;
         let mut g: Vec<Vec<f64>> = Vec::new();
         let mut wq = vec![0.0; BLOCK_LEN];
         let map = self.pass_blocks(e, p, Pass::CRITERION, |ch| {
             let m1 = ch.m + 1;
+            if let Some(s) = streams.as_mut() {
+                s.push(ch);
+            }
             if g.is_empty() {
                 g = vec![vec![0.0; m1 * m1]; ny];
             }
@@ -143,7 +171,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         let mut jtr = DVector::zeros(np);
         let mut cost = huber_cost;
         let m = map.len();
-        let keep = unweighted && self.prefilters.is_empty() && !g.is_empty();
+        let keep = keeps && !g.is_empty();
         for (i, gi) in g.iter().enumerate() {
             // Unit weights were summed without Λ_i: it scales the whole Gram.
             let scale = if unweighted { self.output_weights[i] } else { 1.0 };
@@ -160,7 +188,8 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                 jtr[map.global[a]] += map.dtheta[a] * scale * gi[a * m1 + m];
             }
         }
-        let grams = keep.then_some(ExperimentGrams { map, grams: g });
+        let residuals = streams.map(ResidualStreams::finish);
+        let grams = keep.then_some(ExperimentGrams { map, grams: g, residuals });
         Ok((cost, jtj, jtr, grams))
     }
 
@@ -362,38 +391,4 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         }
         Ok(())
     }
-
-    /// Robust scale `1.4826 × MAD` of each output's residuals at p (length n_y), the
-    /// standard deviation for Gaussian residuals (Huber 1981, 5.1).
-    ///
-    /// # Errors
-    /// As [`cost`](Self::cost).
-    pub fn robust_scale(&self, p: &DVector<f64>) -> Result<Vec<f64>> {
-        let ny = self.model.n_outputs();
-        let mut res: Vec<Vec<f64>> = vec![Vec::new(); ny];
-        for e in 0..self.terms.len() {
-            self.pass(e, p, Pass::RAW_RESIDUALS, |_, eps, _, _| {
-                for (r, &v) in res.iter_mut().zip(eps) {
-                    r.push(v);
-                }
-            })?;
-        }
-        Ok(res.into_iter().map(|r| 1.4826 * mad(r)).collect())
-    }
-}
-
-/// Median absolute deviation from the median (0 for an empty slice).
-fn mad(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let median = |v: &mut Vec<f64>| {
-        let m = v.len() / 2;
-        *v.select_nth_unstable_by(m, f64::total_cmp).1
-    };
-    let med = median(&mut v);
-    for x in v.iter_mut() {
-        *x = (*x - med).abs();
-    }
-    median(&mut v)
 }

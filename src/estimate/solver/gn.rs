@@ -291,16 +291,30 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
             })?;
             let armijo = cost - self.c1 * jtr.dot(&step);
             if let Some(c) = c.filter(|c| c.is_finite() && *c < cost && *c <= armijo) {
-                let ne = problem.problem("normal_equations_count", |o| match o.normal_equations(&trial) {
-                    Ok(ne) => Ok(Some(ne)),
-                    Err(e) if is_infeasible(&e) => Ok(None),
-                    Err(e) => Err(e.into()),
+                // Whether the run ends here, by this search's cost (the normal equations'
+                // agrees to rounding).
+                let last =
+                    Monitor::cost_converged(&self.tol, &Monitor::reductions(cost, Some(c), predicted(&step)))
+                        || (trials == 1
+                            && self.monitor.likely_last(&self.tol, &step, &trial, predicted(&step) / cost));
+                let ne = problem.problem("normal_equations_count", |o| {
+                    let ne = if last {
+                        o.normal_equations_likely_last(&trial)
+                    } else {
+                        o.normal_equations(&trial)
+                    };
+                    match ne {
+                        Ok(ne) => Ok(Some(ne)),
+                        Err(e) if is_infeasible(&e) => Ok(None),
+                        Err(e) => Err(e.into()),
+                    }
                 })?;
                 // The two evaluations agree to rounding; the state keeps the normal
                 // equations' cost, which must also be a decrease.
                 if let Some(ne) = ne.filter(|ne| ne.cost.is_finite() && ne.cost < cost) {
                     self.accepted += 1;
                     self.monitor.observe(&ne.jtj);
+                    self.monitor.accept_step(&step);
                     let r = Monitor::reductions(cost, Some(ne.cost), predicted(&step));
                     if ne.cost == 0.0 {
                         self.stop(Termination::ZeroResidual);

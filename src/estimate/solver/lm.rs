@@ -139,12 +139,16 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
             Ok(())
         })?;
         let step = &trial - &p;
-        let eval = problem.problem("normal_equations_count", |o| match o.normal_equations(&trial) {
-            Ok(ne) => Ok(Some(ne)),
-            Err(e) if is_infeasible(&e) => Ok(None),
-            Err(e) => Err(e.into()),
-        })?;
         let predicted = step.dot(&jtr) - 0.5 * step.dot(&(&jtj * &step));
+        let last = self.monitor.likely_last(&self.tol, &step, &trial, predicted / cost);
+        let eval = problem.problem("normal_equations_count", |o| {
+            let ne = if last { o.normal_equations_likely_last(&trial) } else { o.normal_equations(&trial) };
+            match ne {
+                Ok(ne) => Ok(Some(ne)),
+                Err(e) if is_infeasible(&e) => Ok(None),
+                Err(e) => Err(e.into()),
+            }
+        })?;
         let r = Monitor::reductions(cost, eval.as_ref().map(|ne| ne.cost), predicted);
         match eval {
             Some(ne) if ne.cost.is_finite() && ne.cost < cost => {
@@ -154,6 +158,7 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
                 self.lambda = self.lambda.max(1e-300);
                 self.nu = 2.0;
                 self.monitor.observe(&ne.jtj);
+                self.monitor.accept_step(&step);
                 if ne.cost == 0.0 {
                     self.stop(Termination::ZeroResidual);
                 } else if Monitor::cost_converged(&self.tol, &r) {

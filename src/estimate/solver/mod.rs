@@ -57,6 +57,19 @@ pub trait LeastSquares {
     /// cannot simulate (the solvers treat these as an infinite cost at trial points);
     /// anything else aborts the fit.
     fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations>;
+    /// [`normal_equations`](Self::normal_equations) at a trial point that, once accepted,
+    /// likely ends the run: its step already passes the step test, or its cost reduction
+    /// the cost test. The solvers ask this of such points, so that a problem may gather in
+    /// the same pass what its statistics need at the estimate and spare a pass after the
+    /// run ([`PemProblem`](crate::estimate::PemProblem) keeps the residuals' lag sums).
+    /// The returned normal equations are those of `normal_equations(p)` to the bit; by
+    /// default this is `normal_equations(p)`.
+    ///
+    /// # Errors
+    /// As [`normal_equations`](Self::normal_equations).
+    fn normal_equations_likely_last(&self, p: &DVector<f64>) -> Result<NormalEquations> {
+        self.normal_equations(p)
+    }
     /// Cost `V(p)` alone.
     ///
     /// # Errors
@@ -72,6 +85,9 @@ impl<T: LeastSquares + ?Sized> LeastSquares for &T {
     }
     fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations> {
         (**self).normal_equations(p)
+    }
+    fn normal_equations_likely_last(&self, p: &DVector<f64>) -> Result<NormalEquations> {
+        (**self).normal_equations_likely_last(p)
     }
     fn cost(&self, p: &DVector<f64>) -> Result<f64> {
         (**self).cost(p)

@@ -42,6 +42,8 @@ pub(crate) struct Monitor {
     peak: DVector<f64>,
     /// Cost at the start V₀.
     cost0: f64,
+    /// `‖δ‖_D` of the last accepted step (none before the first).
+    last_step: Option<f64>,
 }
 
 /// Relative reductions of a trial step (see the module documentation).
@@ -59,6 +61,7 @@ impl Monitor {
     /// Starts a run at cost V₀ and `JᵀWJ` at the start.
     fn start(&mut self, cost0: f64, jtj: &DMatrix<f64>) {
         self.cost0 = cost0;
+        self.last_step = None;
         self.peak = jtj.diagonal().map(|d| d.max(0.0));
         self.diag = self.peak.map(|d| if d > 0.0 { d } else { 1.0 });
     }
@@ -93,6 +96,28 @@ impl Monitor {
     /// MINPACK's `xtol` test on the next step δ from p.
     pub fn small_step(&self, tol: &Tolerances, step: &DVector<f64>, p: &DVector<f64>) -> bool {
         self.norm(step) <= tol.xtol * self.norm(p)
+    }
+
+    /// Whether a trial step δ to `trial`, whose relative reduction the quadratic model
+    /// predicts as `prered`, likely ends the run once accepted: it passes the xtol test
+    /// itself, or its predicted reduction is below ftol, or the step after it, extrapolated
+    /// from the last two as superlinear convergence has it (`‖δ‖²_D / ‖δ_prev‖_D`), would
+    /// pass the xtol test. Only a hint (what the solver asks of the trial's evaluation); the
+    /// tests that end the run are the others here.
+    pub fn likely_last(
+        &self,
+        tol: &Tolerances,
+        step: &DVector<f64>,
+        trial: &DVector<f64>,
+        prered: f64,
+    ) -> bool {
+        let (norm, bound) = (self.norm(step), tol.xtol * self.norm(trial));
+        norm <= bound || prered <= tol.ftol || self.last_step.is_some_and(|prev| norm * norm <= bound * prev)
+    }
+
+    /// Takes in an accepted step δ (for [`likely_last`](Self::likely_last)).
+    pub fn accept_step(&mut self, step: &DVector<f64>) {
+        self.last_step = Some(self.norm(step));
     }
 
     /// The reductions of a step from a point of cost `cost` to one of cost `new_cost`
