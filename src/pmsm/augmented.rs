@@ -7,55 +7,34 @@
 //! is formed by scaling and squaring (Moler & Van Loan 2003, "Nineteen dubious ways to
 //! compute the exponential of a matrix, twenty-five years later", SIAM Review 45(1)).
 
-use super::interval::{IntervalVoltage, SQRT_2_3, VoltageHold, half_angle, mean_speed};
-use crate::data::Values;
+use super::interval::{IntervalSource, VoltageHold};
 use nalgebra::Complex;
 use nalgebra::SMatrix;
 
-/// The data of the IPM step, independent of θ: the experiment's speed and voltage channels,
-/// shared with it (not copied), from which each interval's speeds and start-of-period
-/// voltage follow ([`IpmInputs::speeds`], [`IpmInputs::u0`]; index k = 0..N−2).
+/// The data of the IPM step, independent of θ: its intervals' source (the experiment's
+/// speed and voltage channels, shared, not copied), from which each interval's speeds and
+/// start-of-period voltage follow ([`IntervalSource::speeds`],
+/// [`IntervalSource::start_voltage`]), its voltage hold and the inverter's error directions.
 #[derive(Clone, Debug)]
 pub struct IpmInputs {
-    /// Sample time h \[s\].
-    pub h: f64,
-    /// The voltage hold that `u0` refers to.
+    /// Sample time, pole pairs, speed and voltage of the intervals.
+    pub source: IntervalSource,
+    /// The voltage hold that the start-of-period voltage refers to.
     pub hold: VoltageHold,
-    /// Pole pairs n_p as a number: `ω_e = n_p ω_m`.
-    pub n_p: f64,
-    /// Mechanical speed at the samples ω_m \[rad/s\], length N (the experiment's channel);
-    /// interval k runs at the mean `(ω_m[k] + ω_m[k+1])/2`.
-    pub w_m: Values,
-    /// The voltage that drives the step \[V\] (terminal channels of length N, or N − 1
-    /// start-of-period voltages).
-    pub u: IntervalVoltage,
     /// The inverter's voltage error per unit `v_dt` at the start of the period, held like
-    /// `u0` (empty without the inverter model), length N−1.
+    /// the voltage (empty without the inverter model), length N−1.
     pub dt: Vec<Complex<f64>>,
 }
 
 impl IpmInputs {
-    /// Interval k's electrical speed ω_e and back-EMF per unit K_e `√(2/3) ω_m` \[rad/s\],
-    /// at its mean speed.
-    ///
-    /// # Panics
-    /// If k ≥ N − 1.
-    #[inline]
-    pub fn speeds(&self, k: usize) -> (f64, f64) {
-        let w = mean_speed(&self.w_m[k..k + 2]);
-        (self.n_p * w, SQRT_2_3 * w)
-    }
-
-    /// Interval k's dq voltage at the start of the period \[V\]: `u[k]` (dq hold) or
-    /// `u₀ = u[k] jφ/(1 − e^{−jφ})` (stator hold) of the terminal voltage, or a reference's.
+    /// Interval k's dq voltage at the start of the period \[V\] for the model's hold
+    /// ([`IntervalSource::start_voltage`]).
     ///
     /// # Panics
     /// If k ≥ N − 1.
     #[inline]
     pub fn u0(&self, k: usize) -> Complex<f64> {
-        let w_e = self.speeds(k).0;
-        let (s, c) = if self.hold == VoltageHold::Stator { half_angle(w_e, self.h) } else { (0.0, 1.0) };
-        self.u.start(self.hold, k, w_e * self.h, s, c)
+        self.source.start_voltage(self.hold, k)
     }
 }
 
@@ -285,7 +264,7 @@ pub(crate) fn advance<const SENS: bool>(
     z: &mut Aug,
     one: f64,
 ) {
-    let (w_e, emf) = inp.speeds(k);
+    let (w_e, emf) = inp.source.speeds(k);
     advance_at::<SENS>(c, inp.hold, w_e, emf, z, one);
 }
 
@@ -348,16 +327,16 @@ mod tests {
     use crate::model::GreyBoxModel;
     use crate::pmsm::PmsmIpm;
     use crate::pmsm::SQRT_2_3;
+    use crate::pmsm::interval::IntervalVoltage;
 
     fn coefficients() -> IpmCoefficients {
-        let inp = IpmInputs {
+        let source = IntervalSource {
             h: 2e-4,
-            hold: VoltageHold::Stator,
             n_p: 4.0,
             w_m: Vec::new().into(),
             u: IntervalVoltage::Start(Vec::new()),
-            dt: vec![],
         };
+        let inp = IpmInputs { source, hold: VoltageHold::Stator, dt: vec![] };
         PmsmIpm::new(4, VoltageHold::Stator).coefficients(&[0.35, 3.2e-3, 7.5e-3, 0.4164], &inp).unwrap()
     }
 

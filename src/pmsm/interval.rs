@@ -12,11 +12,14 @@ use nalgebra::Complex;
 use serde::{Deserialize, Serialize};
 
 mod reference;
+mod source;
 mod voltage;
 pub use reference::{
     applied_experiment, applied_voltage, model_intervals, reference_intervals, speed_pll_estimate,
 };
 pub(crate) use reference::{driving_voltage, model_start_voltages};
+pub(crate) use source::IntervalData;
+pub use source::IntervalSource;
 pub use voltage::IntervalVoltage;
 pub(crate) use voltage::terminal_start;
 

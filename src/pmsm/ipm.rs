@@ -41,8 +41,8 @@
 use super::augmented::{Aug, advance};
 pub use super::augmented::{IpmCoefficients, IpmInputs};
 use super::interval::{
-    IntervalVoltage, VoltageHold, VoltageInput, check_finite, check_pole_pairs, check_positive,
-    model_start_voltages,
+    IntervalSource, IntervalVoltage, VoltageHold, VoltageInput, check_finite, check_pole_pairs,
+    check_positive, model_start_voltages,
 };
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
@@ -97,8 +97,8 @@ impl GreyBoxModel for PmsmIpm {
                 IntervalVoltage::Start(model_start_voltages(&v, n_p, hold, input)?)
             }
         };
-        let mut inputs =
-            IpmInputs { h: v.h(), hold, n_p: f64::from(n_p), w_m: v.shared_w_m().clone(), u, dt: Vec::new() };
+        let source = IntervalSource { h: v.h(), n_p: f64::from(n_p), w_m: v.shared_w_m().clone(), u };
+        let mut inputs = IpmInputs { source, hold, dt: Vec::new() };
         if let Some(inv) = &self.setup.inverter {
             inputs.dt = dead_time_directions(&v, self.setup.n_p, inv)?;
         }
@@ -131,7 +131,7 @@ impl GreyBoxModel for PmsmIpm {
         check_positive("l_d", l_d)?;
         check_positive("l_q", l_q)?;
         check_finite("k_e", k_e)?;
-        let c = IpmCoefficients { nth, v_dt, ..IpmCoefficients::at(inputs.h, r, l_d, l_q, k_e) };
+        let c = IpmCoefficients { nth, v_dt, ..IpmCoefficients::at(inputs.source.h, r, l_d, l_q, k_e) };
         let ratios = [c.inv_l_d, c.inv_l_q, c.r_l_max, c.l_q_l_d, c.l_d_l_q];
         if ratios.iter().any(|v| !v.is_finite()) {
             let (name, value) = if l_d <= l_q { ("l_d", l_d) } else { ("l_q", l_q) };

@@ -43,8 +43,9 @@ pub mod validate;
 pub use fit::{HoldChoice, PmsmFit, PmsmFitOptions, StartComparison, fit_pmsm};
 pub use input_search::{InputSearch, fit_estimating_input};
 pub use interval::{
-    C64, Interval, IntervalVoltage, SQRT_2_3, VoltageHold, VoltageInput, applied_experiment, applied_voltage,
-    interval_mean_speed, intervals, model_intervals, reference_intervals, rotation, stator_hold_start,
+    C64, Interval, IntervalSource, IntervalVoltage, SQRT_2_3, VoltageHold, VoltageInput, applied_experiment,
+    applied_voltage, interval_mean_speed, intervals, model_intervals, reference_intervals, rotation,
+    stator_hold_start,
 };
 pub use inverter::InverterModel;
 pub use ipm::PmsmIpm;

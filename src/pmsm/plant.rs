@@ -5,11 +5,10 @@
 
 use super::augmented::{Aug, IpmCoefficients, IpmInputs, advance_at};
 use super::interval::{
-    C64, IntervalVoltage, SQRT_2_3, VoltageHold, check_finite, check_pole_pairs, check_positive,
+    C64, IntervalSource, SQRT_2_3, VoltageHold, check_finite, check_pole_pairs, check_positive,
 };
 use super::spm::SpmInputs;
 use super::{PmsmIpm, PmsmSpm};
-use crate::data::Values;
 use crate::error::{Error, Result};
 use crate::model::GreyBoxModel;
 use serde::{Deserialize, Serialize};
@@ -76,18 +75,6 @@ impl MotorParameters {
     }
 }
 
-/// Sets a model's data to the one interval the plant steps: mean speed `w` \[rad/s\]
-/// (both ends at `w`, so `(w + w)/2 = w` exactly) and start-of-period dq voltage `u0` \[V\],
-/// which the model turns for a stator hold. Allocates nothing once the data are of that
-/// shape (as [`ExactPlant::new`] makes them).
-fn one_interval(w_m: &mut Values, u: &mut IntervalVoltage, w: f64, u0: C64) {
-    std::sync::Arc::make_mut(w_m).fill(w);
-    match u {
-        IntervalVoltage::Start(v) if !v.is_empty() => v[0] = u0,
-        other => *other = IntervalVoltage::Start(vec![u0]),
-    }
-}
-
 /// One-period inputs of the model that steps the plant.
 #[derive(Clone, Debug)]
 enum Engine {
@@ -118,26 +105,11 @@ impl ExactPlant {
         if !(h.is_finite() && h > 0.0) {
             return Err(Error::InvalidSampleTime { h });
         }
-        let one = |x: C64| vec![x];
+        let source = IntervalSource::one(h, f64::from(n_p));
         let engine = if salient {
-            let inp = IpmInputs {
-                h,
-                hold,
-                n_p: f64::from(n_p),
-                w_m: vec![0.0; 2].into(),
-                u: IntervalVoltage::Start(one(C64::default())),
-                dt: Vec::new(),
-            };
-            Engine::Ipm(PmsmIpm::new(n_p, hold), inp)
+            Engine::Ipm(PmsmIpm::new(n_p, hold), IpmInputs { source, hold, dt: Vec::new() })
         } else {
-            let inp = SpmInputs {
-                h,
-                n_p: f64::from(n_p),
-                w_m: vec![0.0; 2].into(),
-                u: IntervalVoltage::Start(one(C64::default())),
-                dt: Vec::new(),
-            };
-            Engine::Spm(PmsmSpm::new(n_p, hold), inp)
+            Engine::Spm(PmsmSpm::new(n_p, hold), SpmInputs { source, dt: Vec::new() })
         };
         Ok(Self { engine, h, n_p, hold })
     }
@@ -154,12 +126,12 @@ impl ExactPlant {
         let mut next = [0.0; 2];
         match &mut self.engine {
             Engine::Spm(model, inp) => {
-                one_interval(&mut inp.w_m, &mut inp.u, w_m, u0);
+                inp.source.set_one(w_m, u0);
                 let c = model.coefficients(&[p.r_s, p.l_d, p.k_e()], inp)?;
                 model.step(&c, inp, 0, &i, &mut next);
             }
             Engine::Ipm(model, inp) => {
-                one_interval(&mut inp.w_m, &mut inp.u, w_m, u0);
+                inp.source.set_one(w_m, u0);
                 let c = model.coefficients(&[p.r_s, p.l_d, p.l_q, p.k_e()], inp)?;
                 model.step(&c, inp, 0, &i, &mut next);
             }

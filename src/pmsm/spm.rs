@@ -27,9 +27,8 @@
 //! gradients.
 
 use super::interval::{
-    C64, IntervalVoltage, SMALL_ANGLE, VoltageHold, VoltageInput, check_finite, check_pole_pairs,
-    check_positive, half_angle, half_angle_arg, half_angle_rotation, mean_speed, model_start_voltages,
-    sin_cos_small, terminal_start,
+    C64, IntervalSource, IntervalVoltage, VoltageHold, VoltageInput, check_finite, check_pole_pairs,
+    check_positive, half_angle, half_angle_rotation, mean_speed, model_start_voltages,
 };
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
@@ -37,138 +36,24 @@ use super::setup::PmsmSetup;
 
 const KIND: MotorKind = MotorKind::Spm;
 use super::signals::DqView;
-use crate::data::{Experiment, Values};
+use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::model::{BlockKernel, GreyBoxModel, Parameter, Sensitivities};
 
 mod kernel;
 
-/// The data of the SPM step, independent of θ: the experiment's speed and voltage
-/// channels, shared with it (not copied), from which each interval's terms are formed as
-/// the pass needs them ([`SpmInputs::interval`]).
+/// The data of the SPM step, independent of θ: its intervals' source (the experiment's
+/// speed and voltage channels, shared, not copied), from which each interval's terms are
+/// formed as the pass needs them ([`IntervalSource::interval`]), and the inverter's error
+/// directions.
 #[derive(Clone, Debug)]
 pub struct SpmInputs {
-    /// Sample time h \[s\].
-    pub h: f64,
-    /// Pole pairs n_p as a number: `ω_e = n_p ω_m` (the model's, set by `prepare`).
-    pub n_p: f64,
-    /// Mechanical speed at the samples ω_m \[rad/s\], length N (the experiment's channel);
-    /// interval k runs at the mean `(ω_m[k] + ω_m[k+1])/2`.
-    pub w_m: Values,
-    /// The voltage that drives the step \[V\] (terminal channels of length N, or N − 1
-    /// start-of-period voltages).
-    pub u: IntervalVoltage,
+    /// Sample time, pole pairs, speed and voltage of the intervals.
+    pub source: IntervalSource,
     /// The inverter's voltage error per unit `v_dt` of each interval, length N − 1, in the
     /// convention of the voltage term (rotated to the period's end for the stator hold);
     /// empty without the inverter model.
     pub dt: Vec<C64>,
-}
-
-/// Arrays of equal length a block of intervals' data is formed in (structure of arrays):
-/// mean speed ω_m \[rad/s\], `sin φ/2`, `cos φ/2`, and the voltage term's real and
-/// imaginary parts \[V\] ([`SpmInputs::interval`]).
-pub(crate) struct IntervalData<'a> {
-    pub w_m: &'a mut [f64],
-    pub sin: &'a mut [f64],
-    pub cos: &'a mut [f64],
-    pub u_re: &'a mut [f64],
-    pub u_im: &'a mut [f64],
-}
-
-impl SpmInputs {
-    /// Number of intervals N − 1.
-    pub fn intervals(&self) -> usize {
-        self.w_m.len().saturating_sub(1)
-    }
-
-    /// Interval k's data (`k < N − 1`) for the `hold`: `[sin φ/2, cos φ/2]` of its
-    /// rotation `φ = ω_e h`, its mean mechanical speed ω_m \[rad/s\] and its voltage term
-    /// \[V\]: `u[k]` (dq hold) or `u₀ e^{−jφ}` (stator hold, the start-of-period voltage seen
-    /// at the period's end). The per-sample step and the block kernel both take their data
-    /// from here, so they give the same numbers to the bit.
-    ///
-    /// # Panics
-    /// If k ≥ N − 1.
-    #[inline(always)]
-    pub fn interval(&self, hold: VoltageHold, k: usize) -> ([f64; 2], f64, C64) {
-        let w = mean_speed(&self.w_m[k..k + 2]);
-        let (s, c) = half_angle(self.n_p * w, self.h);
-        let u0 = self.u.start(hold, k, self.n_p * w * self.h, s, c);
-        ([s, c], w, seen_at_end(hold == VoltageHold::Stator, u0, s, c))
-    }
-
-    /// [`interval`](Self::interval) for the intervals `k0 .. k0 + out.w_m.len()` into `out`
-    /// (arrays of equal length), the same numbers to the bit: the loops run over independent
-    /// intervals and vectorise.
-    ///
-    /// # Panics
-    /// If the arrays of `out` differ in length, or the intervals run past N − 1.
-    #[inline(always)]
-    pub(crate) fn fill_intervals(&self, stator: bool, k0: usize, out: IntervalData<'_>) {
-        let IntervalData { w_m, sin, cos, u_re, u_im } = out;
-        let steps = w_m.len();
-        for (w, pair) in w_m.iter_mut().zip(self.w_m[k0..k0 + steps + 1].windows(2)) {
-            *w = mean_speed(pair);
-        }
-        // `half_angle` in two loops: the polynomial for every interval (vectorised), then,
-        // where an interval's half angle passes π/4 (a quarter of the sample rate), the
-        // library's sine, as `half_angle` has it. The half angle grows with |ω_m| (rounding
-        // is monotone), so the largest speed tells whether any does.
-        for ((s, c), &w) in sin.iter_mut().zip(cos.iter_mut()).zip(w_m.iter()) {
-            (*s, *c) = sin_cos_small(half_angle_arg(self.n_p * w, self.h));
-        }
-        if half_angle_arg(self.n_p * largest_magnitude(w_m), self.h) > SMALL_ANGLE {
-            for ((s, c), &w) in sin.iter_mut().zip(cos.iter_mut()).zip(w_m.iter()) {
-                let x = half_angle_arg(self.n_p * w, self.h);
-                if x.abs() > SMALL_ANGLE {
-                    (*s, *c) = x.sin_cos();
-                }
-            }
-        }
-        let (sin, cos, w_m) = (&*sin, &*cos, &*w_m);
-        let mut put = |t: usize, u: C64| {
-            u_re[t] = u.re;
-            u_im[t] = u.im;
-        };
-        match &self.u {
-            IntervalVoltage::Terminal(d, q) => {
-                let (d, q) = (&d[k0..k0 + steps], &q[k0..k0 + steps]);
-                for t in 0..steps {
-                    let (s, c) = (sin[t], cos[t]);
-                    let u0 = terminal_start(stator, C64::new(d[t], q[t]), self.n_p * w_m[t] * self.h, s, c);
-                    put(t, seen_at_end(stator, u0, s, c));
-                }
-            }
-            IntervalVoltage::Start(u0) => {
-                for (t, &u0) in u0[k0..k0 + steps].iter().enumerate() {
-                    put(t, seen_at_end(stator, u0, sin[t], cos[t]));
-                }
-            }
-        }
-    }
-}
-
-/// `max_k |v_k|` (0 for none), in eight lanes so that it vectorises.
-#[inline(always)]
-fn largest_magnitude(v: &[f64]) -> f64 {
-    let mut lanes = [0.0f64; 8];
-    let chunks = v.chunks_exact(8);
-    let rest = chunks.remainder();
-    for c in chunks {
-        for (m, x) in lanes.iter_mut().zip(c) {
-            // A comparison rather than `f64::max`: it vectorises.
-            *m = if x.abs() > *m { x.abs() } else { *m };
-        }
-    }
-    rest.iter().chain(&lanes).fold(0.0, |m, x| if x.abs() > m { x.abs() } else { m })
-}
-
-/// The voltage term of the step from the start-of-period voltage `u0`: for the stator hold
-/// turned by the period's rotation `e^{−jφ}` (from `(s, c) = (sin φ/2, cos φ/2)`), the
-/// stator-held voltage seen at the period's end; the dq-held one as it is.
-#[inline(always)]
-fn seen_at_end(stator: bool, u0: C64, s: f64, c: f64) -> C64 {
-    if stator { u0 * half_angle_rotation(s, c).0 } else { u0 }
 }
 
 /// θ-dependent coefficients of the SPM step.
@@ -227,14 +112,18 @@ fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold, input: VoltageIn
         }
         VoltageInput::Reference { .. } => IntervalVoltage::Start(model_start_voltages(v, n_p, hold, input)?),
     };
-    Ok(SpmInputs { h: v.h(), n_p: f64::from(n_p), w_m: v.shared_w_m().clone(), u, dt: Vec::new() })
+    Ok(SpmInputs {
+        source: IntervalSource { h: v.h(), n_p: f64::from(n_p), w_m: v.shared_w_m().clone(), u },
+        dt: Vec::new(),
+    })
 }
 
 /// Turns each interval's dq vector by its period's rotation `e^{−jφ}`: a stator-held vector
 /// at the start of the period, seen at its end.
 fn to_period_end(v: &mut [C64], inputs: &SpmInputs) {
-    for (x, pair) in v.iter_mut().zip(inputs.w_m.windows(2)) {
-        let (s, c) = half_angle(inputs.n_p * mean_speed(pair), inputs.h);
+    let src = &inputs.source;
+    for (x, pair) in v.iter_mut().zip(src.w_m.windows(2)) {
+        let (s, c) = half_angle(src.n_p * mean_speed(pair), src.h);
         *x *= half_angle_rotation(s, c).0;
     }
 }
@@ -276,7 +165,7 @@ impl GreyBoxModel for PmsmSpm {
         let r = self.setup.series_resistance(r)?;
         check_positive("l_s", l)?;
         check_finite("k_e", k_e)?;
-        let h = inputs.h;
+        let h = inputs.source.h;
         let x = r * h / l;
         let d = (-x).exp();
         let one_minus_d = -(-x).exp_m1();

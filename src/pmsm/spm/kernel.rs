@@ -14,9 +14,9 @@
 //! with `∂a/∂R_s = −(h/L) a`, `∂a/∂L_s = (R_s h/L²) a`, `∂b/∂R_s = ((h/L) a − b)/z`,
 //! `∂b/∂L_s = (−(R_s h/L²) a − j ω_e b)/z`, `g = (1 − e^{−R_s h/L})/R_s`.
 
-use super::{IntervalData, PmsmSpm, SpmCoefficients, SpmInputs};
+use super::{PmsmSpm, SpmCoefficients, SpmInputs};
 use crate::model::{BLOCK_LEN, Block, BlockContext, BlockKernel, SimState};
-use crate::pmsm::interval::{C64, SQRT_2_3, VoltageHold, half_angle_rotation};
+use crate::pmsm::interval::{C64, IntervalData, SQRT_2_3, VoltageHold, half_angle_rotation};
 use multiversion::multiversion;
 
 /// The terms of interval k: the step `i[k+1] = a i[k] + forced`, and with sensitivities
@@ -99,8 +99,8 @@ fn terms_for<const SENS: bool>(
 ) -> Terms {
     let dt = if v_dt { inp.dt[k] } else { C64::default() };
     let hold = if stator { VoltageHold::Stator } else { VoltageHold::Dq };
-    let (half, w_m, u) = inp.interval(hold, k);
-    terms_at::<SENS>(c, stator, v_dt, inp.n_p, half, w_m, u, dt)
+    let (half, w_m, u) = inp.source.interval(hold, k);
+    terms_at::<SENS>(c, stator, v_dt, inp.source.n_p, half, w_m, u, dt)
 }
 
 /// [`terms_for`] with the model's hold and parameter count.
@@ -186,7 +186,7 @@ fn fill<const SENS: bool, const STATOR: bool, const VDT: bool>(
     let mut ch = data.chunks_exact_mut(BLOCK_LEN).map(|c| &mut c[..steps]);
     let mut next = || ch.next().unwrap_or_default();
     let iv = IntervalData { w_m: next(), sin: next(), cos: next(), u_re: next(), u_im: next() };
-    inp.fill_intervals(STATOR, k0, iv);
+    inp.source.fill_intervals(STATOR, k0, iv);
     let (w_m, s, co) =
         (&data[..BLOCK_LEN], &data[BLOCK_LEN..2 * BLOCK_LEN], &data[2 * BLOCK_LEN..3 * BLOCK_LEN]);
     let (u_re, u_im) = (&data[3 * BLOCK_LEN..4 * BLOCK_LEN], &data[4 * BLOCK_LEN..5 * BLOCK_LEN]);
@@ -199,7 +199,7 @@ fn fill<const SENS: bool, const STATOR: bool, const VDT: bool>(
     for t in 0..steps {
         let d = if VDT { dt[t] } else { C64::default() };
         let u = C64::new(u_re[t], u_im[t]);
-        let tm = terms_at::<SENS>(c, STATOR, VDT, inp.n_p, [s[t], co[t]], w_m[t], u, d);
+        let tm = terms_at::<SENS>(c, STATOR, VDT, inp.source.n_p, [s[t], co[t]], w_m[t], u, d);
         a_re[t] = tm.a.re;
         a_im[t] = tm.a.im;
         f_re[t] = tm.forced.re;

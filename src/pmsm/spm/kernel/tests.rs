@@ -2,9 +2,10 @@
 
 use super::*;
 use crate::pmsm::IntervalVoltage;
+use crate::pmsm::interval::IntervalSource;
 
-/// A block's interval data ([`SpmInputs::fill_intervals`]) are the per-sample ones
-/// ([`SpmInputs::interval`]) to the bit, for both holds and both kinds of voltage, with
+/// A block's interval data ([`IntervalSource::fill_intervals`]) are the per-sample ones
+/// ([`IntervalSource::interval`]) to the bit, for both holds and both kinds of voltage, with
 /// half angles on both sides of ±π/4 (the polynomial and the library's sine) in one block.
 #[test]
 fn block_interval_data_are_the_per_sample_ones() {
@@ -16,7 +17,7 @@ fn block_interval_data_are_the_per_sample_ones() {
     let start: Vec<C64> = (0..n - 1).map(|k| C64::new(d[k] + 1.5, q[k] - 0.5)).collect();
     let voltages = [IntervalVoltage::Terminal(d.into(), q.into()), IntervalVoltage::Start(start)];
     for u in voltages {
-        let inp = SpmInputs { h: 1e-4, n_p: 4.0, w_m: w_m.clone().into(), u, dt: Vec::new() };
+        let inp = IntervalSource { h: 1e-4, n_p: 4.0, w_m: w_m.clone().into(), u };
         for hold in [VoltageHold::Dq, VoltageHold::Stator] {
             for k0 in [0, 37, n - 1 - 5] {
                 let steps = BLOCK_LEN.min(n - 1 - k0);
