@@ -146,6 +146,37 @@ impl SimState {
     }
 }
 
+impl SimState {
+    /// `len` values of [`scratch`](Self::scratch) for arrays of [`BLOCK_LEN`] (channel c at
+    /// `c · BLOCK_LEN`), placed away from the arrays a kernel reads or writes beside them
+    /// (`hot`: the block's channels, the data the block reads) modulo [`BLOCK_LEN`] values
+    /// (2 kB, so every channel of each lies at the same address bits): a load within a few
+    /// cache lines of an earlier store modulo 4 kB waits for that store (4K aliasing;
+    /// Intel® 64 and IA-32 Architectures Optimization Reference Manual, "4-KByte memory
+    /// access aliasing"; AMD's Software Optimization Guide for Zen 4, 2.12), which doubled
+    /// a pass where the allocator aligned every buffer to a page. The offset is a whole
+    /// number of cache lines, the farthest from every hot address of 32 candidates. The
+    /// values are left as they were (a kernel writes them before it reads them).
+    pub fn scratch_apart(&mut self, len: usize, hot: &[*const f64]) -> &mut [f64] {
+        const LINE: usize = 8;
+        const PERIOD: usize = BLOCK_LEN * std::mem::size_of::<f64>();
+        self.scratch.resize(len + BLOCK_LEN, 0.0);
+        let base = self.scratch.as_ptr() as usize;
+        let apart = |shift: &usize| {
+            let r = (base + shift * std::mem::size_of::<f64>()) % PERIOD;
+            hot.iter()
+                .map(|&h| {
+                    let d = (r + PERIOD - h as usize % PERIOD) % PERIOD;
+                    d.min(PERIOD - d)
+                })
+                .min()
+                .unwrap_or(PERIOD)
+        };
+        let shift = (0..BLOCK_LEN / LINE).map(|j| j * LINE).max_by_key(apart).unwrap_or(0);
+        &mut self.scratch[shift..shift + len]
+    }
+}
+
 /// What a block run needs beyond the model's data: the record length, the restart period
 /// and the measured outputs a restart takes the state from.
 #[derive(Clone, Copy, Debug)]
@@ -188,5 +219,43 @@ pub trait BlockKernel<I, C>: Sync {
     /// `false`, searches every block.
     fn non_finite_persists(&self) -> bool {
         false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The scratch is placed whole cache lines into its buffer, within a line of the
+    /// largest distance possible (modulo the 2 kB channel period) from its h hot addresses,
+    /// which is at least `period / 2h`: for hot addresses all on one page boundary (as an
+    /// allocator that aligns every buffer to a page gives them), half the period away.
+    #[test]
+    fn scratch_lies_apart_from_the_hot_arrays() {
+        let period = BLOCK_LEN * 8;
+        let distance = |a: usize, b: usize| {
+            let d = (a + period - b % period) % period;
+            d.min(period - d)
+        };
+        let page = vec![0.0f64; 3 * BLOCK_LEN];
+        let aligned = page.as_ptr().wrapping_add(BLOCK_LEN - page.as_ptr() as usize / 8 % BLOCK_LEN);
+        let spread = [aligned, aligned.wrapping_add(40), aligned.wrapping_add(130)];
+        for hot in [vec![aligned; 1], spread.to_vec()] {
+            let mut st = SimState::new(&[0.0, 0.0], 3, false);
+            let len = 5 * BLOCK_LEN;
+            let s = st.scratch_apart(len, &hot);
+            assert_eq!(s.len(), len);
+            let at = s.as_ptr() as usize;
+            let offset = (at - st.scratch.as_ptr() as usize) / 8;
+            assert_eq!(offset % 8, 0, "whole cache lines");
+            let least = period / (2 * hot.len()) - 32;
+            for &h in &hot {
+                assert!(
+                    distance(at, h as usize) >= least,
+                    "{} bytes from a hot array",
+                    distance(at, h as usize)
+                );
+            }
+        }
     }
 }

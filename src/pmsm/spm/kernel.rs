@@ -16,7 +16,7 @@
 
 use super::{PmsmSpm, SpmCoefficients, SpmInputs};
 use crate::model::{BLOCK_LEN, Block, BlockContext, BlockKernel, SimState};
-use crate::pmsm::interval::{C64, IntervalData, SQRT_2_3, VoltageHold, half_angle_rotation};
+use crate::pmsm::interval::{C64, IntervalData, IntervalVoltage, SQRT_2_3, VoltageHold, half_angle_rotation};
 use multiversion::multiversion;
 
 /// The terms of interval k: the step `i[k+1] = a i[k] + forced`, and with sensitivities
@@ -281,12 +281,18 @@ fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
     let h = ctx.horizon.unwrap_or(usize::MAX);
     // Intervals in this block (the record's last sample has none).
     let steps = len.min(ctx.n - 1 - k0);
-    st.scratch.resize((TERM_ARRAYS + INTERVAL_ARRAYS) * BLOCK_LEN, 0.0);
-    fill_terms(c, inp, k0, steps, (SENS, STATOR, VDT), &mut st.scratch);
+    let (yb, dyb, dy0b) = b.channels_mut();
+    // The terms stored by the fill and loaded by the loop, apart from the data the fill
+    // loads and the outputs the loop stores.
+    let from_k0 = |v: &[f64]| v.get(k0..).map_or(std::ptr::null(), <[f64]>::as_ptr);
+    let (w_m, u) = (from_k0(&inp.source.w_m), &inp.source.u);
+    let (d, q) = if let IntervalVoltage::Terminal(d, q) = u { (from_k0(d), from_k0(q)) } else { (w_m, w_m) };
+    let hot = [yb.as_ptr(), dyb.as_ptr(), dy0b.as_ptr(), w_m, d, q];
+    let scratch = st.scratch_apart((TERM_ARRAYS + INTERVAL_ARRAYS) * BLOCK_LEN, &hot);
+    fill_terms(c, inp, k0, steps, (SENS, STATOR, VDT), scratch);
     // Every channel as an array of BLOCK_LEN, indexed below BLOCK_LEN: no bounds checks in
     // the loop.
-    let (terms, _) = st.scratch.as_chunks::<BLOCK_LEN>();
-    let (yb, dyb, dy0b) = b.channels_mut();
+    let (terms, _) = scratch.as_chunks::<BLOCK_LEN>();
     let (
         [y_re, y_im, ..],
         [tm_a_re, tm_a_im, f_re, f_im, r_re, r_im, l_re, l_im, k_re, k_im, v_re, v_im, ..],
