@@ -149,7 +149,8 @@ impl SimState {
 impl SimState {
     /// `len` values of [`scratch`](Self::scratch) for arrays of [`BLOCK_LEN`] (channel c at
     /// `c · BLOCK_LEN`), placed away from the arrays a kernel reads or writes beside them
-    /// (`hot`: the block's channels, the data the block reads) modulo [`BLOCK_LEN`] values
+    /// (`hot`: the addresses of the block's channels and of the data the block reads, as
+    /// numbers) modulo [`BLOCK_LEN`] values
     /// (2 kB, so every channel of each lies at the same address bits): a load within a few
     /// cache lines of an earlier store modulo 4 kB waits for that store (4K aliasing;
     /// Intel® 64 and IA-32 Architectures Optimization Reference Manual, "4-KByte memory
@@ -157,16 +158,19 @@ impl SimState {
     /// a pass where the allocator aligned every buffer to a page. The offset is a whole
     /// number of cache lines, the farthest from every hot address of 32 candidates. The
     /// values are left as they were (a kernel writes them before it reads them).
-    pub fn scratch_apart(&mut self, len: usize, hot: &[*const f64]) -> &mut [f64] {
+    pub(crate) fn scratch_apart(&mut self, len: usize, hot: &[usize]) -> &mut [f64] {
         const LINE: usize = 8;
         const PERIOD: usize = BLOCK_LEN * std::mem::size_of::<f64>();
+        // A kernel asks for a few blocks' worth: `len + BLOCK_LEN` cannot overflow then, and
+        // saturating keeps the slice below in range were it to.
+        let len = len.min(usize::MAX - BLOCK_LEN);
         self.scratch.resize(len + BLOCK_LEN, 0.0);
         let base = self.scratch.as_ptr() as usize;
         let apart = |shift: &usize| {
             let r = (base + shift * std::mem::size_of::<f64>()) % PERIOD;
             hot.iter()
                 .map(|&h| {
-                    let d = (r + PERIOD - h as usize % PERIOD) % PERIOD;
+                    let d = (r + PERIOD - h % PERIOD) % PERIOD;
                     d.min(PERIOD - d)
                 })
                 .min()
@@ -239,8 +243,8 @@ mod tests {
         };
         let page = vec![0.0f64; 3 * BLOCK_LEN];
         let aligned = page.as_ptr().wrapping_add(BLOCK_LEN - page.as_ptr() as usize / 8 % BLOCK_LEN);
-        let spread = [aligned, aligned.wrapping_add(40), aligned.wrapping_add(130)];
-        for hot in [vec![aligned; 1], spread.to_vec()] {
+        let spread = [aligned, aligned.wrapping_add(40), aligned.wrapping_add(130)].map(|p| p as usize);
+        for hot in [vec![aligned as usize; 1], spread.to_vec()] {
             let mut st = SimState::new(&[0.0, 0.0], 3, false);
             let len = 5 * BLOCK_LEN;
             let s = st.scratch_apart(len, &hot);
@@ -250,11 +254,7 @@ mod tests {
             assert_eq!(offset % 8, 0, "whole cache lines");
             let least = period / (2 * hot.len()) - 32;
             for &h in &hot {
-                assert!(
-                    distance(at, h as usize) >= least,
-                    "{} bytes from a hot array",
-                    distance(at, h as usize)
-                );
+                assert!(distance(at, h) >= least, "{} bytes from a hot array", distance(at, h));
             }
         }
     }

@@ -136,3 +136,37 @@ fn the_spm_block_kernel_is_the_per_sample_path_to_the_bit() {
         }
     }
 }
+
+/// Inputs that do not cover the record (a hand-built `IntervalSource` shorter than the
+/// context, or inverter directions missing) turn the block and the state non-finite, which
+/// the caller reports, instead of a panic.
+#[test]
+fn the_spm_block_kernel_rejects_inputs_shorter_than_the_record() {
+    use greybox::model::{Block, BlockContext, BlockKernel, GreyBoxModel, SimState};
+    use greybox::pmsm::spm::SpmInputs;
+    use greybox::pmsm::{C64, IntervalSource, IntervalVoltage, PmsmSpm, VoltageHold};
+    let n = 100;
+    let y: Vec<greybox::data::Values> = vec![vec![0.0; n].into(), vec![0.0; n].into()];
+    let ctx = BlockContext { n, horizon: None, measured: &y };
+    let short =
+        |u: IntervalVoltage, w: usize| IntervalSource { h: 1e-4, n_p: 4.0, w_m: vec![1.0; w].into(), u };
+    let cases = [
+        (short(IntervalVoltage::Start(vec![C64::default(); 9]), 10), 0),
+        (short(IntervalVoltage::Terminal(vec![1.0; n].into(), vec![1.0; 50].into()), n), 0),
+        (short(IntervalVoltage::Start(vec![C64::default(); n - 1]), n), 3),
+    ];
+    for (i, (source, dt)) in cases.into_iter().enumerate() {
+        // The third case asks for the inverter model (4 parameters) with 3 directions.
+        let m = PmsmSpm::new(4, VoltageHold::Stator);
+        let m = if dt > 0 { m.with_inverter(Default::default()) } else { m };
+        let theta: Vec<f64> = [1.0, 5e-3, 0.1, 0.5][..m.parameters().len()].to_vec();
+        let inp = SpmInputs { source, dt: vec![C64::default(); dt] };
+        let c = m.coefficients(&theta, &inp).unwrap();
+        let mut st = SimState::new(&[0.0, 0.0], theta.len(), false);
+        let mut b = Block::new(2, theta.len(), 0, true);
+        b.len = n;
+        m.run(&c, &inp, &ctx, &mut st, &mut b);
+        assert!(st.x.iter().all(|x| x.is_nan()), "case {i}: state {:?}", st.x);
+        assert!(b.y(0).iter().all(|x| x.is_nan()), "case {i}");
+    }
+}

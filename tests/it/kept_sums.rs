@@ -70,6 +70,7 @@ fn statistics_after_the_normal_equations_equal_a_full_pass() {
         assert_eq!(ne_last.cost.to_bits(), ne.cost.to_bits());
         assert!(ne_last.jtj.iter().zip(ne.jtj.iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
         assert!(ne_last.jtr.iter().zip(ne.jtr.iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(gathered.statistics_kept(&p) && !kept.statistics_kept(&p) && !fresh.statistics_kept(&p));
         assert_same(&gathered.sums(&p).unwrap(), &full);
     }
 }

@@ -23,6 +23,7 @@ mod fuzz;
 mod inverter;
 mod ipm;
 mod kept_sums;
+mod last_pass;
 mod limits;
 mod linear;
 mod mgh;

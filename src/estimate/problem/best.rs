@@ -33,6 +33,16 @@ pub(crate) struct ExperimentGrams {
     pub residuals: Option<ResidualSums>,
 }
 
+/// What a normal-equation pass keeps for the statistics, where they can take it (see the
+/// module documentation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Gather {
+    /// Its Grams.
+    Grams,
+    /// Its Grams and the raw residuals' sums (the pass the solver expects to be its last).
+    GramsAndResiduals,
+}
+
 /// What the statistics take of an experiment's raw residuals: the number of samples
 /// counted and each output's lag sums (up to [`WHITENESS_LAGS`]).
 #[derive(Clone, Debug)]
@@ -104,6 +114,13 @@ impl BestPass {
 }
 
 impl<M: GreyBoxModel> PemProblem<'_, M> {
+    /// Whether [`sums`](PemProblem::sums) at p takes every sum from a pass already made
+    /// there (the normal-equation pass the solver flagged as its last, at exactly p: every
+    /// entry the same bits), so that the statistics simulate nothing.
+    pub fn statistics_kept(&self, p: &DVector<f64>) -> bool {
+        self.best.at(p).is_some_and(|k| k.iter().all(|e| e.residuals.is_some()))
+    }
+
     /// Experiment e's statistics sums at p from the kept pass's Grams `kept` (quadratic
     /// loss, unit weights, no prefilter): the sums of the statistics pass, whose Gram of
     /// output i serves `JᵀWJ` (Λ_i G_i), the bread (the same) and the meat (Λ_i² G_i);

@@ -364,7 +364,8 @@ impl<M: GreyBoxModel> LeastSquares for PemProblem<'_, M> {
     /// The normal equations with the raw residuals' lag sums kept beside the pass's Grams:
     /// [`sums`](PemProblem::sums) at this point, if it is the estimate, runs no pass.
     fn normal_equations_likely_last(&self, p: &DVector<f64>) -> Result<NormalEquations> {
-        self.take_seed(p).map_or_else(|| self.normal_equations_gathering(p, true), Ok)
+        self.take_seed(p)
+            .map_or_else(|| self.normal_equations_gathering(p, best::Gather::GramsAndResiduals), Ok)
     }
     fn cost(&self, p: &DVector<f64>) -> Result<f64> {
         PemProblem::cost(self, p)

@@ -2,7 +2,7 @@
 //! scale, and the full residual and Jacobian matrices for diagnostics.
 
 use super::accumulate::{Accumulator, Sums};
-use super::best::{ExperimentGrams, ResidualStreams};
+use super::best::{ExperimentGrams, Gather, ResidualStreams};
 use super::gram::{dot, gram, scatter_gram, weighted_square_sum};
 use super::pass::{Chunk, Pass, RawSample, ResidualFilter};
 use super::{Loss, NormalEquations, PemProblem};
@@ -81,10 +81,10 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// # Errors
     /// Those of the simulation: invalid θ, [`crate::Error::SimulationDiverged`].
     pub fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations> {
-        self.normal_equations_gathering(p, false)
+        self.normal_equations_gathering(p, Gather::Grams)
     }
 
-    /// [`normal_equations`](Self::normal_equations); with `residual_sums`, the pass also
+    /// [`normal_equations`](Self::normal_equations); with [`Gather::GramsAndResiduals`], the pass also
     /// streams the raw residuals into the whiteness test's lag sums and keeps them with its
     /// Grams, so that [`sums`](Self::sums) at this point needs no pass at all (see the
     /// `best` module).
@@ -94,12 +94,12 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     pub(crate) fn normal_equations_gathering(
         &self,
         p: &DVector<f64>,
-        residual_sums: bool,
+        gather: Gather,
     ) -> Result<NormalEquations> {
         let np = self.free.len();
         let parts: Vec<Result<Partial>> = (0..self.terms.len())
             .into_par_iter()
-            .map(|e| self.experiment_normal_equations(e, p, residual_sums))
+            .map(|e| self.experiment_normal_equations(e, p, gather))
             .collect();
         let mut out = NormalEquations { cost: 0.0, jtj: DMatrix::zeros(np, np), jtr: DVector::zeros(np) };
         let mut grams = Vec::with_capacity(parts.len());
@@ -122,18 +122,13 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// `G_i = Σ_k w_k [J_k ε_k]ᵀ[J_k ε_k]` with `w = β Λ_i ψ(ε)/ε` (IRLS weights; `ψ(ε) =
     /// ε` for the quadratic loss), holds `JᵀWJ` in its first m columns and `JᵀWψ` in its
     /// last (and, for the quadratic loss, twice the cost in its corner); with
-    /// `residual_sums`, and where the Grams are kept, the raw residuals' lag sums too.
-    fn experiment_normal_equations(
-        &self,
-        e: usize,
-        p: &DVector<f64>,
-        residual_sums: bool,
-    ) -> Result<Partial> {
+    /// [`Gather::GramsAndResiduals`], and where the Grams are kept, the raw residuals' lag sums too.
+    fn experiment_normal_equations(&self, e: usize, p: &DVector<f64>, gather: Gather) -> Result<Partial> {
         let (ny, np) = (self.model.n_outputs(), self.free.len());
         let quadratic = matches!(self.loss, Loss::Quadratic);
         let unweighted = quadratic && self.terms[e].weights.is_none();
         let keeps = unweighted && self.prefilters.is_empty();
-        let mut streams = (residual_sums && keeps).then(|| ResidualStreams::new(ny));
+        let mut streams = (gather == Gather::GramsAndResiduals && keeps).then(|| ResidualStreams::new(ny));
         let mut huber_cost = 0.0;
         let mut g: Vec<Vec<f64>> = Vec::new();
         let mut wq = vec![0.0; BLOCK_LEN];

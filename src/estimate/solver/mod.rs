@@ -58,8 +58,9 @@ pub trait LeastSquares {
     /// anything else aborts the fit.
     fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations>;
     /// [`normal_equations`](Self::normal_equations) at a trial point that, once accepted,
-    /// likely ends the run: its step already passes the step test, or its cost reduction
-    /// the cost test. The solvers ask this of such points, so that a problem may gather in
+    /// likely ends the run: its step already passes the step test, the cost reduction its
+    /// quadratic model predicts passes the cost test, or the step after it, extrapolated
+    /// from the last two, would pass the step test. The solvers ask this of such points, so that a problem may gather in
     /// the same pass what its statistics need at the estimate and spare a pass after the
     /// run ([`PemProblem`](crate::estimate::PemProblem) keeps the residuals' lag sums).
     /// The returned normal equations are those of `normal_equations(p)` to the bit; by

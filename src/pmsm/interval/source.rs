@@ -55,6 +55,17 @@ impl IntervalSource {
         }
     }
 
+    /// Whether the source holds the data of a record of `n` samples: at least n speeds and,
+    /// for the terminal voltage, n samples of each channel, for start voltages n − 1 (what
+    /// the per-interval methods index for the intervals `0..n − 1`).
+    pub fn covers(&self, n: usize) -> bool {
+        let u = match &self.u {
+            IntervalVoltage::Terminal(d, q) => d.len().min(q.len()) >= n,
+            IntervalVoltage::Start(u0) => u0.len() + 1 >= n,
+        };
+        self.w_m.len() >= n && u
+    }
+
     /// Number of intervals N − 1.
     pub fn intervals(&self) -> usize {
         self.w_m.len().saturating_sub(1)

@@ -252,6 +252,8 @@ fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
     // The shapes `BlockKernel::run` asks of its caller: otherwise the block and the state
     // turn non-finite, which the caller reports, rather than a panic or a wrong number.
     let shapes = k0 < ctx.n
+        && inp.source.covers(ctx.n)
+        && (!VDT || inp.dt.len() + 1 >= ctx.n)
         && b.n_outputs() == 2
         && st.x.len() == 2
         && (!SENS || (b.n_theta() == m && st.s.len() == 2 * m))
@@ -284,10 +286,16 @@ fn run_block<const SENS: bool, const STATOR: bool, const VDT: bool>(
     let (yb, dyb, dy0b) = b.channels_mut();
     // The terms stored by the fill and loaded by the loop, apart from the data the fill
     // loads and the outputs the loop stores.
-    let from_k0 = |v: &[f64]| v.get(k0..).map_or(std::ptr::null(), <[f64]>::as_ptr);
-    let (w_m, u) = (from_k0(&inp.source.w_m), &inp.source.u);
-    let (d, q) = if let IntervalVoltage::Terminal(d, q) = u { (from_k0(d), from_k0(q)) } else { (w_m, w_m) };
-    let hot = [yb.as_ptr(), dyb.as_ptr(), dy0b.as_ptr(), w_m, d, q];
+    let at_k0 = |v: &[f64]| v.get(k0..).map_or(0, |v| v.as_ptr() as usize);
+    let complex_at_k0 = |v: &[C64]| v.get(k0..).map_or(0, |v| v.as_ptr() as usize);
+    let (w_m, u) = (at_k0(&inp.source.w_m), &inp.source.u);
+    let (d, q) = match u {
+        IntervalVoltage::Terminal(d, q) => (at_k0(d), at_k0(q)),
+        IntervalVoltage::Start(u0) => (complex_at_k0(u0), w_m),
+    };
+    let dt = if VDT { complex_at_k0(&inp.dt) } else { w_m };
+    let outputs = [yb.as_ptr(), dyb.as_ptr(), dy0b.as_ptr()].map(|p| p as usize);
+    let hot = [outputs[0], outputs[1], outputs[2], w_m, d, q, dt];
     let scratch = st.scratch_apart((TERM_ARRAYS + INTERVAL_ARRAYS) * BLOCK_LEN, &hot);
     fill_terms(c, inp, k0, steps, (SENS, STATOR, VDT), scratch);
     // Every channel as an array of BLOCK_LEN, indexed below BLOCK_LEN: no bounds checks in
