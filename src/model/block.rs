@@ -144,9 +144,7 @@ impl SimState {
             scratch: Vec::new(),
         }
     }
-}
 
-impl SimState {
     /// `len` values of [`scratch`](Self::scratch) for arrays of [`BLOCK_LEN`] (channel c at
     /// `c · BLOCK_LEN`), placed away from the arrays a kernel reads or writes beside them
     /// (`hot`: the addresses of the block's channels and of the data the block reads, as

@@ -40,10 +40,7 @@
 
 use super::augmented::{Aug, advance};
 pub use super::augmented::{IpmCoefficients, IpmInputs};
-use super::interval::{
-    IntervalSource, IntervalVoltage, VoltageHold, VoltageInput, check_finite, check_pole_pairs,
-    check_positive, model_start_voltages,
-};
+use super::interval::{IntervalSource, VoltageHold, check_finite, check_pole_pairs, check_positive};
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
 use super::setup::PmsmSetup;
@@ -87,17 +84,8 @@ impl GreyBoxModel for PmsmIpm {
     fn prepare(&self, e: &Experiment) -> Result<IpmInputs> {
         check_pole_pairs(self.setup.n_p)?;
         let v = DqView::try_new(e)?;
-        let (n_p, hold, input) = (self.setup.n_p, self.setup.hold, self.setup.input);
-        let u = match input {
-            VoltageInput::Terminal => {
-                let (d, q) = v.shared_terminal_voltage()?;
-                IntervalVoltage::Terminal(d.clone(), q.clone())
-            }
-            VoltageInput::Reference { .. } => {
-                IntervalVoltage::Start(model_start_voltages(&v, n_p, hold, input)?)
-            }
-        };
-        let source = IntervalSource { h: v.h(), n_p: f64::from(n_p), w_m: v.shared_w_m().clone(), u };
+        let hold = self.setup.hold;
+        let source = IntervalSource::of_log(&v, self.setup.n_p, hold, self.setup.input)?;
         let mut inputs = IpmInputs { source, hold, dt: Vec::new() };
         if let Some(inv) = &self.setup.inverter {
             inputs.dt = dead_time_directions(&v, self.setup.n_p, inv)?;

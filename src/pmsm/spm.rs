@@ -27,8 +27,7 @@
 //! gradients.
 
 use super::interval::{
-    C64, IntervalSource, IntervalVoltage, VoltageHold, VoltageInput, check_finite, check_pole_pairs,
-    check_positive, half_angle, half_angle_rotation, mean_speed, model_start_voltages,
+    C64, IntervalSource, VoltageHold, check_finite, check_pole_pairs, check_positive, half_angle_rotation,
 };
 use super::inverter::dead_time_directions;
 use super::kind::MotorKind;
@@ -102,28 +101,11 @@ impl PmsmSpm {
     super::setup::pmsm_model_setup!();
 }
 
-/// The SPM step's data of a log: its speed and voltage channels shared, or the
-/// start-of-period voltages of the reference input.
-fn interval_inputs(v: &DqView<'_>, n_p: u32, hold: VoltageHold, input: VoltageInput) -> Result<SpmInputs> {
-    let u = match input {
-        VoltageInput::Terminal => {
-            let (d, q) = v.shared_terminal_voltage()?;
-            IntervalVoltage::Terminal(d.clone(), q.clone())
-        }
-        VoltageInput::Reference { .. } => IntervalVoltage::Start(model_start_voltages(v, n_p, hold, input)?),
-    };
-    Ok(SpmInputs {
-        source: IntervalSource { h: v.h(), n_p: f64::from(n_p), w_m: v.shared_w_m().clone(), u },
-        dt: Vec::new(),
-    })
-}
-
 /// Turns each interval's dq vector by its period's rotation `e^{−jφ}`: a stator-held vector
 /// at the start of the period, seen at its end.
-fn to_period_end(v: &mut [C64], inputs: &SpmInputs) {
-    let src = &inputs.source;
-    for (x, pair) in v.iter_mut().zip(src.w_m.windows(2)) {
-        let (s, c) = half_angle(src.n_p * mean_speed(pair), src.h);
+fn to_period_end(v: &mut [C64], source: &IntervalSource) {
+    for (k, x) in v.iter_mut().enumerate().take(source.intervals()) {
+        let (s, c) = source.half_angle(k);
         *x *= half_angle_rotation(s, c).0;
     }
 }
@@ -137,12 +119,13 @@ impl GreyBoxModel for PmsmSpm {
     fn prepare(&self, e: &Experiment) -> Result<SpmInputs> {
         check_pole_pairs(self.setup.n_p)?;
         let v = DqView::try_new(e)?;
-        let mut inputs = interval_inputs(&v, self.setup.n_p, self.setup.hold, self.setup.input)?;
+        let source = IntervalSource::of_log(&v, self.setup.n_p, self.setup.hold, self.setup.input)?;
+        let mut inputs = SpmInputs { source, dt: Vec::new() };
         if let Some(inv) = &self.setup.inverter {
             let mut dirs = dead_time_directions(&v, self.setup.n_p, inv)?;
             if self.setup.hold == VoltageHold::Stator {
                 // Rotated to the end of the period, as the stator-held voltage.
-                to_period_end(&mut dirs, &inputs);
+                to_period_end(&mut dirs, &inputs.source);
             }
             inputs.dt = dirs;
         }

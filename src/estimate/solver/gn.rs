@@ -32,8 +32,8 @@
 //! for Least Squares Problems*, 1996, section 9.2 (damped Gauss-Newton) and 5.2 (bounds).
 
 use super::{
-    LeastSquares, LsState, Monitor, ReportsTermination, Termination, Tolerances, damped_solve, init_state,
-    is_infeasible, missing, status,
+    LeastSquares, LsState, Monitor, NormalEquations, ReportsTermination, Termination, Tolerances,
+    damped_solve, init_state, is_infeasible, missing, status, trial_normal_equations,
 };
 use argmin::core::{KV, Problem, Solver, TerminationStatus};
 use nalgebra::{DMatrix, DVector};
@@ -297,18 +297,9 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
                     Monitor::cost_converged(&self.tol, &Monitor::reductions(cost, Some(c), predicted(&step)))
                         || (trials == 1
                             && self.monitor.likely_last(&self.tol, &step, &trial, predicted(&step) / cost));
-                let ne = problem.problem("normal_equations_count", |o| {
-                    let ne = if last {
-                        o.normal_equations_likely_last(&trial)
-                    } else {
-                        o.normal_equations(&trial)
-                    };
-                    match ne {
-                        Ok(ne) => Ok(Some(ne)),
-                        Err(e) if is_infeasible(&e) => Ok(None),
-                        Err(e) => Err(e.into()),
-                    }
-                })?;
+                let evaluate: fn(&O, &DVector<f64>) -> crate::Result<NormalEquations> =
+                    if last { O::normal_equations_likely_last } else { O::normal_equations };
+                let ne = trial_normal_equations(problem, &trial, evaluate)?;
                 // The two evaluations agree to rounding; the state keeps the normal
                 // equations' cost, which must also be a decrease.
                 if let Some(ne) = ne.filter(|ne| ne.cost.is_finite() && ne.cost < cost) {

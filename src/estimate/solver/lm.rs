@@ -26,8 +26,8 @@
 
 pub use super::LsState;
 use super::{
-    LeastSquares, Monitor, ReportsTermination, Termination, Tolerances, damped_solve, init_state,
-    is_infeasible, missing, status,
+    LeastSquares, Monitor, NormalEquations, ReportsTermination, Termination, Tolerances, damped_solve,
+    init_state, missing, status, trial_normal_equations,
 };
 use argmin::core::{KV, Problem, Solver, TerminationStatus};
 use nalgebra::DVector;
@@ -140,15 +140,13 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
         })?;
         let step = &trial - &p;
         let predicted = step.dot(&jtr) - 0.5 * step.dot(&(&jtj * &step));
-        let last = self.monitor.likely_last(&self.tol, &step, &trial, predicted / cost);
-        let eval = problem.problem("normal_equations_count", |o| {
-            let ne = if last { o.normal_equations_likely_last(&trial) } else { o.normal_equations(&trial) };
-            match ne {
-                Ok(ne) => Ok(Some(ne)),
-                Err(e) if is_infeasible(&e) => Ok(None),
-                Err(e) => Err(e.into()),
-            }
-        })?;
+        let evaluate: fn(&O, &DVector<f64>) -> crate::Result<NormalEquations> =
+            if self.monitor.likely_last(&self.tol, &step, &trial, predicted / cost) {
+                O::normal_equations_likely_last
+            } else {
+                O::normal_equations
+            };
+        let eval = trial_normal_equations(problem, &trial, evaluate)?;
         let r = Monitor::reductions(cost, eval.as_ref().map(|ne| ne.cost), predicted);
         match eval {
             Some(ne) if ne.cost.is_finite() && ne.cost < cost => {

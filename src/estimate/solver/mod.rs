@@ -103,6 +103,24 @@ pub(crate) fn is_infeasible(e: &Error) -> bool {
     matches!(e, Error::SimulationDiverged { .. } | Error::InvalidParameter { .. })
 }
 
+/// The normal equations at a trial point by `evaluate` (the problem's `normal_equations`,
+/// or `normal_equations_likely_last` for a trial expected to end the run), counted as
+/// argmin counts them; `None` where the model cannot be simulated there ([`is_infeasible`]).
+///
+/// # Errors
+/// Every other error of `evaluate`.
+pub(crate) fn trial_normal_equations<O: LeastSquares>(
+    problem: &mut argmin::core::Problem<O>,
+    trial: &DVector<f64>,
+    evaluate: fn(&O, &DVector<f64>) -> Result<NormalEquations>,
+) -> std::result::Result<Option<NormalEquations>, argmin::core::Error> {
+    problem.problem("normal_equations_count", |o| match evaluate(o, trial) {
+        Ok(ne) => Ok(Some(ne)),
+        Err(e) if is_infeasible(&e) => Ok(None),
+        Err(e) => Err(e.into()),
+    })
+}
+
 /// Stopping tolerances shared by the solvers (MINPACK's `lmder`; Moré, Garbow & Hillstrom,
 /// *User guide for MINPACK-1*, ANL-80-74, 1980; Moré 1978).
 ///

@@ -5,8 +5,8 @@
 //! [`SpmInputs`](crate::pmsm::SpmInputs) and [`IpmInputs`](crate::pmsm::IpmInputs) hold one.
 
 use super::{
-    C64, IntervalVoltage, SMALL_ANGLE, SQRT_2_3, VoltageHold, half_angle, half_angle_arg,
-    half_angle_rotation, mean_speed, sin_cos_small, terminal_start,
+    C64, DqView, IntervalVoltage, Result, SMALL_ANGLE, SQRT_2_3, VoltageHold, VoltageInput, half_angle,
+    half_angle_arg, half_angle_rotation, mean_speed, model_start_voltages, sin_cos_small, terminal_start,
 };
 use crate::data::Values;
 
@@ -38,6 +38,27 @@ pub(crate) struct IntervalData<'a> {
 }
 
 impl IntervalSource {
+    /// The source of a log for a model of `n_p` pole pairs with the voltage `hold`, driven
+    /// by `input`: the log's speed channel and, for the terminal voltage, its voltage
+    /// channels, shared (not copied); for a reference, its start-of-period voltages
+    /// ([`model_start_voltages`]: 16 bytes an interval).
+    ///
+    /// # Errors
+    /// [`crate::Error::MissingChannel`] for a voltage channel the input needs; those of
+    /// [`model_start_voltages`] for a reference.
+    pub(crate) fn of_log(v: &DqView<'_>, n_p: u32, hold: VoltageHold, input: VoltageInput) -> Result<Self> {
+        let u = match input {
+            VoltageInput::Terminal => {
+                let (d, q) = v.shared_terminal_voltage()?;
+                IntervalVoltage::Terminal(d.clone(), q.clone())
+            }
+            VoltageInput::Reference { .. } => {
+                IntervalVoltage::Start(model_start_voltages(v, n_p, hold, input)?)
+            }
+        };
+        Ok(Self { h: v.h(), n_p: f64::from(n_p), w_m: v.shared_w_m().clone(), u })
+    }
+
     /// One interval at rest with a zero start-of-period voltage, for a plant that sets it
     /// every step ([`set_one`](Self::set_one)).
     pub(crate) fn one(h: f64, n_p: f64) -> Self {
@@ -80,6 +101,15 @@ impl IntervalSource {
     pub fn speeds(&self, k: usize) -> (f64, f64) {
         let w = mean_speed(&self.w_m[k..k + 2]);
         (self.n_p * w, SQRT_2_3 * w)
+    }
+
+    /// `(sin φ/2, cos φ/2)` of interval k's rotation `φ = ω_e h` at its mean speed.
+    ///
+    /// # Panics
+    /// If k ≥ N − 1.
+    #[inline]
+    pub fn half_angle(&self, k: usize) -> (f64, f64) {
+        half_angle(self.n_p * mean_speed(&self.w_m[k..k + 2]), self.h)
     }
 
     /// Interval k's dq voltage at the start of the period \[V\] for the `hold`: `u[k]` (dq
