@@ -13,8 +13,9 @@
 //! and without `d`, and sums the residual (shifted by its first value) and the voltage
 //! change, their squares and product for the correlation.
 
+use super::interval::C64;
 use super::interval::{VoltageInput, driving_voltage};
-use super::inverter::{DeadTimeStream, InverterModel};
+use super::inverter::{DeadTimeStream, Inline, InverterModel, WINDOW};
 use super::kind::MotorKind;
 use super::linear::{MAX_COLS, Regression, push_with_dead_time};
 use super::signals::{DqView, channel};
@@ -113,16 +114,16 @@ pub(crate) fn dead_time_advice(
             let mut s = DeadTimeStream::try_new(v, n_p, &InverterModel::default()).ok()?;
             let mut ls = StreamedLeastSquares::new(cols + 1);
             let (id, iq) = (v.i_d(), v.i_q());
-            // The phase currents and angle of the interval's first sample.
-            let sc = s.angle(th[0]);
-            let (mut p, mut sc) = (s.phases(id[0], iq[0], sc), sc);
-            reg.for_each(|k, d, q, u| {
-                let sc1 = s.angle(th[k + 1]);
-                let p1 = s.phases(id[k + 1], iq[k + 1], sc1);
-                let dir = s.direction(p, p1, sc);
-                (p, sc) = (p1, sc1);
-                push_with_dead_time(&mut ls, d, q, [u[0], u[1]], cols, dir);
-            });
+            let mut dirs = [C64::default(); WINDOW];
+            for k0 in (0..reg.intervals()).step_by(WINDOW) {
+                let dirs = &mut dirs[..WINDOW.min(reg.intervals() - k0)];
+                let end = k0 + dirs.len() + 1;
+                s.directions::<Inline>(&th[k0..end], &id[k0..end], &iq[k0..end], dirs);
+                for (k, dir) in (k0..).zip(dirs.iter()) {
+                    let (d, q, u) = reg.rows(k);
+                    push_with_dead_time(&mut ls, &d, &q, u, cols, *dir);
+                }
+            }
             s.check_crossings().ok()?;
             // The resistance absorbs much of a dead-time voltage (both oppose the current), so
             // ask how much of the regression's residual the sign of the phase currents

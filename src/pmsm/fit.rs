@@ -30,8 +30,7 @@ use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
 mod beside;
-use crate::estimate::result::Warning;
-use beside::Pending;
+use beside::{Beside, Pending};
 
 /// Which voltage hold the fit assumes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -124,57 +123,47 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     if options.inverter.is_some() {
         names.push("v_dt");
     }
-    // The dead-time check needs no estimate: on a thread of its own from the start, beside
-    // the start, the fits and their statistics (which leave a core idle at times); on the
-    // calling thread when the caller's rayon pool has one thread.
-    let dead = || {
-        let (kind, input, inverter) = (options.model, options.input, options.inverter.is_some());
-        let n_theta = kind.parameter_names().len();
-        super::checks::dead_time_advice(experiments, n_p, kind, input, n_theta, inverter)
+    // The checks that need no estimate run on a thread of their own from the start, beside
+    // the start, the fits and their statistics (which leave a core idle at times): the
+    // setup scan (one regression Gram; a log the scan cannot read is not checked) and the
+    // dead-time check. On the calling thread when the caller's rayon pool has one thread.
+    let beside = || Beside {
+        scan: (!options.skip_setup_checks)
+            .then(|| super::detect::scan_gram(experiments, options.input).ok())
+            .flatten(),
+        dead: {
+            let (kind, input, inverter) = (options.model, options.input, options.inverter.is_some());
+            let n_theta = kind.parameter_names().len();
+            super::checks::dead_time_advice(experiments, n_p, kind, input, n_theta, inverter)
+        },
     };
     if rayon::current_num_threads() == 1 {
-        return fit_beside(experiments, options, t0, &names, Pending::Ready(dead()));
+        return fit_beside(experiments, options, t0, &names, Pending::Ready(beside()));
     }
     std::thread::scope(|scope| {
-        fit_beside(experiments, options, t0, &names, Pending::Thread(scope.spawn(dead)))
+        fit_beside(experiments, options, t0, &names, Pending::Thread(scope.spawn(beside)))
     })
 }
 
-/// [`fit_pmsm`] once the dead-time check is under way.
+/// [`fit_pmsm`] once the checks beside it are under way.
 fn fit_beside(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
     t0: Instant,
     names: &[&str],
-    dead: Pending<'_, Vec<Option<Warning>>>,
+    beside: Pending<'_, Beside>,
 ) -> Result<PmsmFit> {
     let n_p = options.pole_pairs;
-    // One regression Gram for the setup checks (a log the scan cannot read is not
-    // checked), and the least-squares start when none is given: independent, in parallel
-    // (the scan's filtered signals are gone before the fits prepare theirs).
-    let (scan, least_squares) = rayon::join(
-        || {
-            (!options.skip_setup_checks)
-                .then(|| super::detect::scan_gram(experiments, options.input).ok())
-                .flatten()
-        },
-        || {
-            options.start.is_none().then(|| {
-                least_squares_start(
-                    experiments,
-                    n_p,
-                    options.model,
-                    options.input,
-                    options.cable_resistance,
-                    options.inverter.as_ref(),
-                )
-            })
-        },
-    );
-    let structure = match &scan {
-        Some(g) if options.inverter.is_none() => super::detect::check_structure(g, n_p, options.model)?,
-        _ => None,
-    };
+    let least_squares = options.start.is_none().then(|| {
+        least_squares_start(
+            experiments,
+            n_p,
+            options.model,
+            options.input,
+            options.cable_resistance,
+            options.inverter.as_ref(),
+        )
+    });
     // The start of v_dt when the start comes from elsewhere: the known value, or 0.
     let v_dt0 = options.inverter.map(|i| i.known.unwrap_or(0.0));
     let mut notes = Vec::new();
@@ -313,7 +302,12 @@ fn fit_beside(
         MotorKind::Spm => fit_holds!(PmsmSpm),
         MotorKind::Ipm => fit_holds!(PmsmIpm),
     };
-    let dead = dead.get();
+    let Beside { scan, dead } = beside.get();
+    // A salient log fitted without the saliency is an error, before any of the fits' own.
+    let structure = match &scan {
+        Some(g) if options.inverter.is_none() => super::detect::check_structure(g, n_p, options.model)?,
+        _ => None,
+    };
     let HoldFits { best: (hold, best), others, losses, notes: hold_notes } = fits?;
     notes.extend(hold_notes);
     let pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
@@ -326,7 +320,11 @@ fn fit_beside(
             best.parameter(n).map(|p| p.value + if *n == "r_s" { options.cable_resistance } else { 0.0 })
         })
         .collect();
-    let late = super::checks::late_voltage_advice(experiments, n_p, options.model, options.input, &motor);
+    // The late-voltage check and the setup checks' own warnings need the estimate: side by side.
+    let (late, setup_warnings) = rayon::join(
+        || super::checks::late_voltage_advice(experiments, n_p, options.model, options.input, &motor),
+        || (!options.skip_setup_checks).then(|| super::detect::warnings(experiments, n_p, &best)),
+    );
     let model_checks = super::checks::merge(dead, late);
     if losses.len() > 1 {
         let why = match (hold, modulator) {
@@ -370,8 +368,8 @@ fn fit_beside(
         if let Some(g) = &scan {
             warnings.extend(super::detect::pole_pair_warning(g, experiments, options, best.fit.loss));
         }
-        warnings.extend(super::detect::warnings(experiments, n_p, &best));
     }
+    warnings.extend(setup_warnings.into_iter().flatten());
     Ok(PmsmFit {
         report: FitResult {
             timing: Timing { fit_s, total_s: fit_s, ..best.timing.clone() },

@@ -16,9 +16,11 @@
 use super::interval::C64;
 pub use super::mask::DeadTimeMask;
 use super::signals::DqView;
-use super::transform::{clarke, inverse_clarke};
 use crate::error::{Error, Result};
 use crate::model::Parameter;
+pub(crate) use directions::{Elementary, Inline, Library};
+
+mod directions;
 use serde::{Deserialize, Serialize};
 
 /// Default sign width, relative to the largest current magnitude of the log.
@@ -56,22 +58,24 @@ pub fn v_dt_parameter() -> Parameter {
 pub fn dead_time_directions(v: &DqView<'_>, n_p: u32, model: &InverterModel) -> Result<Vec<C64>> {
     let theta_m = v.experiment().channel(super::channel::THETA_M)?;
     let mut stream = DeadTimeStream::try_new(v, n_p, model)?;
-    let (id, iq) = (v.i_d(), v.i_q());
-    let samples: Vec<([f64; 3], (f64, f64))> = (0..v.len())
-        .map(|k| {
-            let sc = stream.angle(theta_m[k]);
-            (stream.phases(id[k], iq[k], sc), sc)
-        })
-        .collect();
+    let mut out = vec![C64::default(); v.len().saturating_sub(1)];
+    for (k0, dirs) in (0..).step_by(WINDOW).zip(out.chunks_mut(WINDOW)) {
+        let end = k0 + dirs.len() + 1;
+        stream.directions::<Library>(&theta_m[k0..end], &v.i_d()[k0..end], &v.i_q()[k0..end], dirs);
+    }
     stream.check_crossings()?;
-    Ok(samples.windows(2).map(|w| stream.direction(w[0].0, w[1].0, w[0].1)).collect())
+    Ok(out)
 }
 
-/// The dead-time directions of [`dead_time_directions`] one sample at a time, for passes that
-/// store nothing per sample: [`angle`](Self::angle) and [`phases`](Self::phases) at every
-/// sample in order, [`direction`](Self::direction) of each interval, and
-/// [`check_crossings`](Self::check_crossings) at the end. The arithmetic is that of
-/// [`dead_time_directions`], bit for bit.
+/// Intervals per call of [`DeadTimeStream::directions`] at most: its scratch is on the
+/// stack.
+pub(crate) const WINDOW: usize = 256;
+
+/// The dead-time directions of [`dead_time_directions`] a window at a time, for passes
+/// that store nothing per sample: [`directions`](Self::directions) of every window of
+/// intervals in order, and [`check_crossings`](Self::check_crossings) at the end. With
+/// [`Library`] the arithmetic is that of [`dead_time_directions`], bit for bit, however the
+/// record is cut into windows (each interval's direction depends on its two samples only).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct DeadTimeStream {
     /// Width w of the smooth sign \[A\].
@@ -104,34 +108,35 @@ impl DeadTimeStream {
         Ok(Self { width, np: f64::from(n_p), lo: [f64::INFINITY; 3], hi: [f64::NEG_INFINITY; 3] })
     }
 
-    /// `(sin θ_e, cos θ_e)` of the mechanical angle `theta_m` \[rad\].
-    #[inline]
-    pub(crate) fn angle(&self, theta_m: f64) -> (f64, f64) {
-        (self.np * theta_m).sin_cos()
-    }
-
-    /// Phase currents `(i_a, i_b, i_c)` \[A\] of a sample from its dq current and
-    /// [`angle`](Self::angle); each phase's range is recorded.
-    #[inline]
-    pub(crate) fn phases(&mut self, i_d: f64, i_q: f64, (s, c): (f64, f64)) -> [f64; 3] {
-        // inverse_park, with the angle's sine and cosine given.
-        let (i_a, i_b, i_c) = inverse_clarke(c * i_d - s * i_q, s * i_d + c * i_q);
-        let p = [i_a, i_b, i_c];
-        for ((lo, hi), x) in self.lo.iter_mut().zip(self.hi.iter_mut()).zip(p) {
-            *lo = lo.min(x);
-            *hi = hi.max(x);
+    /// The dq error per unit `V_dt` \[V/V\] of each interval between consecutive samples of
+    /// the mechanical angle `theta_m` \[rad\] and the dq current `i_d`, `i_q` \[A\] (m + 1
+    /// samples each, m = `out.len()` ≤ [`WINDOW`]) into `out`, rotated by the angle at the
+    /// interval's start; each phase's range is recorded. The phase currents are the
+    /// inverse Park transform at `θ_e = n_p θ_m`, the sign `tanh` of their interval mean
+    /// over the width, sines, cosines and tangents taken as `E` says ([`Library`] for the
+    /// models, [`Inline`] for the dead-time check).
+    ///
+    /// # Panics
+    /// When a slice is shorter than `out.len() + 1` or `out` is longer than [`WINDOW`].
+    pub(crate) fn directions<E: Elementary>(
+        &mut self,
+        theta_m: &[f64],
+        i_d: &[f64],
+        i_q: &[f64],
+        out: &mut [C64],
+    ) {
+        let n = out.len() + 1;
+        let (theta_m, i_d, i_q) = (&theta_m[..n], &i_d[..n], &i_q[..n]);
+        let mut phases = [[0.0; WINDOW + 1]; 3];
+        let mut sc = [(0.0, 0.0); WINDOW + 1];
+        E::angles(self.np, theta_m, &mut sc[..n]);
+        directions::phases(i_d, i_q, &sc[..n], &mut phases);
+        for (x, (lo, hi)) in self.lo.iter_mut().zip(self.hi.iter_mut()).enumerate() {
+            let p = &phases[x][..n];
+            *lo = p.iter().copied().fold(*lo, f64::min);
+            *hi = p.iter().copied().fold(*hi, f64::max);
         }
-        p
-    }
-
-    /// The dq error per unit `V_dt` of the interval from phase currents `p` to `q`, rotated
-    /// by the [`angle`](Self::angle) `sc` at its start \[V/V\].
-    #[inline]
-    pub(crate) fn direction(&self, p: [f64; 3], q: [f64; 3], (s, c): (f64, f64)) -> C64 {
-        let sign = |x: f64, y: f64| -smooth_sign((0.5 * (x + y)) / self.width);
-        let (alpha, beta) = clarke(sign(p[0], q[0]), sign(p[1], q[1]), sign(p[2], q[2]));
-        // park, with the angle's sine and cosine given.
-        C64::new(c * alpha + s * beta, -s * alpha + c * beta)
+        E::signs(self.width, &phases, &sc[..n], out);
     }
 
     /// # Errors
@@ -155,11 +160,4 @@ impl DeadTimeStream {
         }
         Ok(())
     }
-}
-
-/// `tanh(x)`, without calling it where it is ±1 to the last bit (`|x| ≥ 19.5`:
-/// `1 − tanh|x| < 2e^{−39} < 2⁻⁵⁴`, below half an ulp of 1).
-#[inline]
-fn smooth_sign(x: f64) -> f64 {
-    if x.abs() >= 19.5 { x.signum() } else { x.tanh() }
 }

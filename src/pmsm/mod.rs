@@ -16,6 +16,7 @@
 pub mod augmented;
 pub mod checks;
 pub mod detect;
+mod elementary;
 pub mod fit;
 pub mod hold;
 pub mod input_search;

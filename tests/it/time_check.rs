@@ -5,8 +5,9 @@
 use std::path::PathBuf;
 
 use greybox::Error;
-use greybox::data::TimeCheck;
 use greybox::data::csv::{Delimiter, ReadLimits, Table};
+use greybox::data::{TimeCheck, TimeSteps};
+use proptest::prelude::*;
 
 fn temp_path(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("greybox-timecheck-{}", std::process::id()));
@@ -76,4 +77,70 @@ fn a_columnar_log_skips_the_check_the_same_way() {
     w.write(&batch).unwrap();
     w.close().unwrap();
     check(&path);
+}
+
+/// Row by row, then [`TimeSteps::finish`]: the reference for [`TimeSteps::push_all`].
+fn one_by_one(t: &[f64]) -> (greybox::Result<()>, usize, greybox::Result<f64>) {
+    let mut steps = TimeSteps::new("t");
+    let pushed = t.iter().try_for_each(|&x| steps.push(x));
+    (pushed, steps.rows(), steps.finish(t))
+}
+
+/// [`TimeSteps::push_all`], then [`TimeSteps::finish`].
+fn all_at_once(t: &[f64]) -> (greybox::Result<()>, usize, greybox::Result<f64>) {
+    let mut steps = TimeSteps::new("t");
+    let pushed = steps.push_all(t);
+    (pushed, steps.rows(), steps.finish(t))
+}
+
+proptest! {
+    /// Whatever the column (jittered steps up to and beyond the fast path's bound, a step
+    /// back, a NaN, an offset start), pushing it at once gives what row by row gives: the
+    /// same error with the same row, the same count, the same mean step.
+    #[test]
+    fn pushing_a_column_at_once_is_pushing_it_row_by_row(
+        n in 2usize..400,
+        t0 in -1e3f64..1e3,
+        h in 1e-5f64..1.0,
+        jitter in 0.0f64..0.5,
+        seed in any::<u64>(),
+        fault in 0usize..4,
+        at in 0usize..400,
+    ) {
+        let mut state = seed;
+        let mut next = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut t: Vec<f64> = Vec::with_capacity(n);
+        for k in 0..n {
+            let step = if k == 0 { t0 } else { t[k - 1] + h * (1.0 + 2.0 * jitter * next()) };
+            t.push(step);
+        }
+        let at = at % n;
+        match fault {
+            1 => t[at] = f64::NAN,
+            2 if at > 0 => t[at] = t[at - 1],
+            3 => t[at] += 10.0 * h,
+            _ => {}
+        }
+        let (a, b) = (one_by_one(&t), all_at_once(&t));
+        prop_assert_eq!(format!("{:?}", a.0), format!("{:?}", b.0));
+        prop_assert_eq!(a.1, b.1);
+        prop_assert_eq!(format!("{:?}", a.2), format!("{:?}", b.2));
+    }
+}
+
+#[test]
+fn a_checker_with_rows_pushes_the_rest_row_by_row() {
+    let mut steps = TimeSteps::new("t");
+    steps.push(0.0).unwrap();
+    steps.push(0.1).unwrap();
+    // Uniform on its own, but its first step from the rows before is a jump.
+    let err = steps.push_all(&[5.0, 5.1, 5.2]).unwrap_err();
+    assert!(matches!(err, Error::NonUniformTime { row: 2, .. }), "{err}");
+    let mut steps = TimeSteps::new("t");
+    steps.push_all(&[0.0, 0.1]).unwrap();
+    steps.push_all(&[0.2, 0.3]).unwrap();
+    assert_eq!(steps.rows(), 4);
 }

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use crate::data::TimeSteps;
+use crate::data::{TimeSteps, all_finite};
 use crate::error::{Error, Result};
 
 /// Checks the wanted columns `values` (in request order, `None` when absent; the first the
@@ -33,14 +33,15 @@ pub(super) fn rows(
         .skip(usize::from(time.is_some()))
         .filter_map(|(j, (v, i))| {
             let (v, i) = (v.as_ref()?, (*i)?);
-            v.iter().position(|x| !x.is_finite()).map(|row| (row, j, i, v[row]))
+            let row = (!all_finite(v)).then(|| v.iter().position(|x| !x.is_finite())).flatten()?;
+            Some((row, j, i, v[row]))
         })
         .min_by_key(|&(row, j, ..)| (row, j));
     // The time column up to and including that row (its time is checked first).
     if let (Some(time), Some(t)) = (time, values.first().and_then(Option::as_ref)) {
         let end = bad.map_or(n, |(row, ..)| row + 1);
         let mut steps = TimeSteps::new(time);
-        t[..end.min(t.len())].iter().try_for_each(|&x| steps.push(x))?;
+        steps.push_all(&t[..end.min(t.len())])?;
     }
     match bad {
         Some((row, _, i, value)) => Err(Error::NonFinite { column: header[i].clone(), row, value }),

@@ -1,5 +1,6 @@
-//! A check that needs no estimate, running beside a fit ([`super::fit_pmsm`]).
+//! The checks that need no estimate, running beside a fit ([`super::fit_pmsm`]).
 
+use crate::estimate::result::Warning;
 use std::thread::ScopedJoinHandle;
 
 /// A check's result: on its way from a thread of its own, or at hand.
@@ -16,4 +17,13 @@ impl<T> Pending<'_, T> {
             Self::Ready(v) => v,
         }
     }
+}
+
+/// What the checks beside a fit ([`super::fit_pmsm`]) found without its estimate.
+pub(super) struct Beside {
+    /// The setup scan's regression Gram ([`crate::pmsm::detect`]); `None` when the
+    /// setup checks are skipped or the scan cannot read a log.
+    pub scan: Option<nalgebra::DMatrix<f64>>,
+    /// The dead-time check, one entry per log ([`crate::pmsm::checks`]).
+    pub dead: Vec<Option<Warning>>,
 }
