@@ -98,8 +98,19 @@ fn filtfilt_chunks(
             }
         })
     };
-    let fill =
-        |buf: &mut [[f64; LANES]], s: usize| buf.iter_mut().enumerate().for_each(|(t, v)| *v = ext(s + t));
+    // The chunk of the extension from index s: the record's own samples copied lane by lane
+    // (no branch per value), the reflected ones by `ext`.
+    let fill = |buf: &mut [[f64; LANES]], s: usize| {
+        let (lo, hi) = (p.clamp(s, s + buf.len()), (p + n).clamp(s, s + buf.len()));
+        for (t, v) in buf.iter_mut().enumerate().filter(|(t, _)| !(lo..hi).contains(&(s + t))) {
+            *v = ext(s + t);
+        }
+        for (l, x) in x.iter().enumerate() {
+            for (v, xi) in buf[lo - s..hi - s].iter_mut().zip(&x[lo - p..hi - p]) {
+                v[l] = *xi;
+            }
+        }
+    };
     // Per-section steady state under a constant input 1 (`sosfilt_zi`), as the filter has it.
     let sections = bw.sections();
     let mut scale = 1.0;
@@ -148,27 +159,35 @@ fn filtfilt_chunks(
 /// and AVX2 as well as the baseline and chosen at run time.
 #[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
 fn cascade(sections: &[Biquad], z: &mut Delays, buf: &mut [[f64; LANES]], reverse: bool) {
-    let quad = |v: [f64; LANES]| -> [f64; 4] { [v[0], v[1], v[2], v[3]] };
     let z = &mut z.0;
-    let mut step = |v: &mut [f64; LANES]| {
-        let (mut q, mut w) = (quad(*v), v[4]);
-        for (s, (zq, zw)) in sections.iter().zip(z.iter_mut()) {
-            let y: [f64; 4] = std::array::from_fn(|l| s.b[0] * q[l] + zq[0][l]);
-            zq[0] = std::array::from_fn(|l| s.b[1] * q[l] - s.a[1] * y[l] + zq[1][l]);
-            zq[1] = std::array::from_fn(|l| s.b[2] * q[l] - s.a[2] * y[l]);
-            q = y;
-            let yw = s.b[0] * w + zw[0];
-            zw[0] = s.b[1] * w - s.a[1] * yw + zw[1];
-            zw[1] = s.b[2] * w - s.a[2] * yw;
-            w = yw;
-        }
-        *v = [q[0], q[1], q[2], q[3], w];
-    };
+    // A loop per direction around an inlined step (a closure would be compiled for the
+    // baseline only, outside the target's features).
     if reverse {
-        buf.iter_mut().rev().for_each(&mut step);
+        for v in buf.iter_mut().rev() {
+            step(sections, z, v);
+        }
     } else {
-        buf.iter_mut().for_each(&mut step);
+        for v in buf.iter_mut() {
+            step(sections, z, v);
+        }
     }
+}
+
+/// One sample `v` through every section of the cascade, updating the delays `z`.
+#[inline(always)]
+fn step(sections: &[Biquad], z: &mut [([[f64; 4]; 2], [f64; 2])], v: &mut [f64; LANES]) {
+    let (mut q, mut w) = ([v[0], v[1], v[2], v[3]], v[4]);
+    for (s, (zq, zw)) in sections.iter().zip(z.iter_mut()) {
+        let y: [f64; 4] = std::array::from_fn(|l| s.b[0] * q[l] + zq[0][l]);
+        zq[0] = std::array::from_fn(|l| s.b[1] * q[l] - s.a[1] * y[l] + zq[1][l]);
+        zq[1] = std::array::from_fn(|l| s.b[2] * q[l] - s.a[2] * y[l]);
+        q = y;
+        let yw = s.b[0] * w + zw[0];
+        zw[0] = s.b[1] * w - s.a[1] * yw + zw[1];
+        zw[1] = s.b[2] * w - s.a[2] * yw;
+        w = yw;
+    }
+    *v = [q[0], q[1], q[2], q[3], w];
 }
 
 /// Gram matrix `[C y]ᵀ[C y]` (7 × 7) of the base columns over every interval of the applied
@@ -187,26 +206,45 @@ pub(crate) fn scan_gram(experiments: &[Experiment], input: VoltageInput) -> Resu
         // (MODEL.md §5: the derivative regressor is errors-in-variables).
         let filter = Butterworth::try_new(SCAN_FILTER_ORDER, SCAN_CUTOFF / e.h(), e.h())?;
         let h = v.h();
-        let mut add = |[ud, uq, id0, iq0, w0]: [f64; LANES], [_, _, id1, iq1, w1]: [f64; LANES]| {
-            let (i_d, i_q) = (0.5 * (id0 + id1), 0.5 * (iq0 + iq1));
-            let (di_d, di_q) = ((id1 - id0) / h, (iq1 - iq0) / h);
-            let w = 0.5 * (w0 + w1);
-            add_products(&mut g, &D_COLUMNS, [i_d, di_d, -w * i_q, ud]);
-            add_products(&mut g, &Q_COLUMNS, [i_q, w * i_d, di_q, SQRT_2_3 * w, uq]);
-        };
         filtfilt_chunks(&filter, [&u_d, &u_q, v.i_d(), v.i_q(), v.w_m()], |_, chunk, next| {
-            chunk.windows(2).for_each(|s| add(s[0], s[1]));
+            add_intervals(&mut g, h, chunk);
             if let (Some(&a), Some(b)) = (chunk.last(), next) {
-                add(a, b);
+                add_interval(&mut g, h, &a, &b);
             }
         });
     }
     Ok(DMatrix::from_fn(BASE + 1, BASE + 1, |a, b| if a <= b { g[a][b] } else { g[b][a] }))
 }
 
+/// Adds the d and q rows of every interval between consecutive samples of `chunk` (the
+/// filtered `[u_d, u_q, i_d, i_q, w_m]`, sample time `h` \[s\]) to the Gram `g`, in order.
+#[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+fn add_intervals(g: &mut [[f64; BASE + 1]; BASE + 1], h: f64, chunk: &[[f64; LANES]]) {
+    // A local copy the compiler can hold in registers.
+    let mut sums = *g;
+    for (a, b) in chunk.iter().zip(chunk.iter().skip(1)) {
+        add_interval(&mut sums, h, a, b);
+    }
+    *g = sums;
+}
+
+/// Adds the d and q rows of the interval from sample `a` to sample `b` to the Gram `g`: the
+/// interval means of the current and the speed, the current's change over `h`, and the
+/// voltage of `a`.
+#[inline(always)]
+fn add_interval(g: &mut [[f64; BASE + 1]; BASE + 1], h: f64, a: &[f64; LANES], b: &[f64; LANES]) {
+    let [ud, uq, id0, iq0, w0] = *a;
+    let [_, _, id1, iq1, w1] = *b;
+    let (i_d, i_q) = (0.5 * (id0 + id1), 0.5 * (iq0 + iq1));
+    let (di_d, di_q) = ((id1 - id0) / h, (iq1 - iq0) / h);
+    let w = 0.5 * (w0 + w1);
+    add_products(g, &D_COLUMNS, [i_d, di_d, -w * i_q, ud]);
+    add_products(g, &Q_COLUMNS, [i_q, w * i_d, di_q, SQRT_2_3 * w, uq]);
+}
+
 /// Adds the products `r_a r_b` of a row's non-zero entries `r` (at base columns `at`) to the
 /// upper triangle of `g`.
-#[inline]
+#[inline(always)]
 fn add_products<const K: usize>(g: &mut [[f64; BASE + 1]; BASE + 1], at: &[usize; K], r: [f64; K]) {
     for a in 0..K {
         for b in a..K {
