@@ -12,6 +12,7 @@ use super::fit::PmsmFitOptions;
 use super::interval::{SQRT_2_3, VoltageInput};
 use super::kind::MotorKind;
 use crate::report::eng::format_eng;
+use multiversion::multiversion;
 // Base columns of the scan: `i`, `di_d/dt` (d rows), `ω_m i_d` (q rows), `−ω_m i_q` (d rows),
 // `di_q/dt` (q rows), `√(2/3) ω_m` (q rows), then the voltage. The salient regressors are
 // combinations of them at any `n_p`, and so are the surface-magnet ones (`L_s` takes both
@@ -231,6 +232,24 @@ pub(crate) fn warnings(experiments: &[Experiment], n_p: u32, fit: &FitResult) ->
     out
 }
 
+/// The sums `(Σ dθ·ω/h, Σ ω²)` of [`speed_check`] continued over one log: per interval the
+/// angle's step `dθ` (wrapped to ±π) and the mean speed ω, where |ω| exceeds 5 % of the
+/// log's peak; compiled for AVX2 as well (the rounding inline, not a library call).
+#[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+fn speed_sums((mut num, mut den): (f64, f64), th: &[f64], w: &[f64], h: f64) -> (f64, f64) {
+    let peak = w.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    for ((t, w), (t1, w1)) in th.iter().zip(w).zip(th.iter().zip(w).skip(1)) {
+        let d = t1 - t;
+        let d = d - std::f64::consts::TAU * (d / std::f64::consts::TAU).round();
+        let wm = 0.5 * (w + w1);
+        if wm.abs() > 0.05 * peak {
+            num += d / h * wm;
+            den += wm * wm;
+        }
+    }
+    (num, den)
+}
+
 /// Compares `dθ_m/dt` with `w_m` (when `theta_m` is logged) and names the likely mistake
 /// when they differ by a known factor.
 fn speed_check(experiments: &[Experiment], n_p: u32) -> Option<Warning> {
@@ -238,16 +257,7 @@ fn speed_check(experiments: &[Experiment], n_p: u32) -> Option<Warning> {
     for e in experiments {
         let (Some(th), Ok(v)) = (e.get(channel::THETA_M), DqView::try_new(e)) else { continue };
         let (w, h) = (v.w_m(), e.h());
-        let peak = w.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        for k in 0..e.len() - 1 {
-            let d = th.values[k + 1] - th.values[k];
-            let d = d - std::f64::consts::TAU * (d / std::f64::consts::TAU).round();
-            let wm = 0.5 * (w[k] + w[k + 1]);
-            if wm.abs() > 0.05 * peak {
-                num += d / h * wm;
-                den += wm * wm;
-            }
-        }
+        (num, den) = speed_sums((num, den), &th.values, w, h);
     }
     let r = num / den;
     if !r.is_finite() || (r - 1.0).abs() <= SPEED_MISMATCH {

@@ -184,9 +184,19 @@ impl<'a> DqView<'a> {
     pub fn w_m(&self) -> &'a [f64] {
         self.w_m.as_slice()
     }
-    /// Largest current magnitude `max_k |i_dq[k]|` \[A, peak\].
+    /// Largest current magnitude `max_k |i_dq[k]|` \[A, peak\] (`hypot` of each sample).
     pub fn peak_current(&self) -> f64 {
-        self.i_d.iter().zip(self.i_q).map(|(d, q)| d.hypot(*q)).fold(0.0, f64::max)
+        // The largest squared magnitude first (a loop that vectorises), then `hypot` of the
+        // samples whose square is within rounding of it (or not finite): the same maximum
+        // as `hypot` of every sample.
+        let (d, q) = (self.i_d, self.i_q);
+        let squares = || d.iter().zip(q).map(|(d, q)| d * d + q * q);
+        let threshold = squares().fold(0.0, f64::max) * (1.0 - 1e-12);
+        squares()
+            .zip(d.iter().zip(q))
+            .filter(|(s, _)| !(*s < threshold))
+            .map(|(_, (d, q))| d.hypot(*q))
+            .fold(0.0, f64::max)
     }
     /// Mechanical angle at `t_k` \[rad\], length N, if logged.
     pub fn theta_m(&self) -> Option<&'a [f64]> {

@@ -773,3 +773,32 @@ fn dq_view_without_iq_is_a_missing_channel() {
     }
     assert!(err.to_string().contains("`iq`"), "{err}");
 }
+
+proptest::proptest! {
+    /// The peak current is the largest `hypot` of any sample, exactly, whatever the scale
+    /// (down to where the squares underflow and up to where they overflow).
+    #[test]
+    fn the_peak_current_is_the_largest_hypot(
+        scale in proptest::sample::select(vec![1e-170, 1e-3, 1.0, 1e3, 1e154, 1e300]),
+        values in proptest::collection::vec((-1.0f64..1.0, -1.0f64..1.0), 16..80),
+    ) {
+        let i_d: Vec<f64> = values.iter().map(|v| v.0 * scale).collect();
+        let i_q: Vec<f64> = values.iter().map(|v| v.1 * scale).collect();
+        let n = i_d.len();
+        let e = Experiment::try_new(
+            "peak",
+            1e-4,
+            vec![
+                Channel::new("ud", "V", vec![0.0; n]),
+                Channel::new("uq", "V", vec![0.0; n]),
+                Channel::new("id", "A", i_d.clone()),
+                Channel::new("iq", "A", i_q.clone()),
+                Channel::new("w_m", "rad/s", vec![0.0; n]),
+            ],
+        )
+        .unwrap();
+        let direct = i_d.iter().zip(&i_q).map(|(d, q)| d.hypot(*q)).fold(0.0, f64::max);
+        let peak = greybox::pmsm::signals::DqView::try_new(&e).unwrap().peak_current();
+        proptest::prop_assert_eq!(peak.to_bits(), direct.to_bits());
+    }
+}
