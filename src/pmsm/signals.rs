@@ -194,7 +194,7 @@ impl<'a> DqView<'a> {
         let threshold = squares().fold(0.0, f64::max) * (1.0 - 1e-12);
         squares()
             .zip(d.iter().zip(q))
-            .filter(|(s, _)| !(*s < threshold))
+            .filter(|(s, _)| *s >= threshold || s.is_nan())
             .map(|(_, (d, q))| d.hypot(*q))
             .fold(0.0, f64::max)
     }
