@@ -15,6 +15,7 @@
 //! any thread count.
 
 use crate::error::{Error, Result};
+use multiversion::multiversion;
 use nalgebra::DMatrix;
 
 /// Smallest accepted `|R_jj|` of the QR factor of the column-equilibrated regressors (unit
@@ -126,32 +127,8 @@ impl StreamedLeastSquares {
     fn fold(&mut self) {
         let (m, w) = (self.filled, self.cols + 1);
         self.filled = 0;
-        if m == 0 {
-            return;
-        }
-        for j in 0..w {
-            let (head, tail) = self.block.split_at_mut((j + 1) * BLOCK);
-            let x = &head[j * BLOCK..j * BLOCK + m];
-            let sigma = dot(x, x);
-            if sigma == 0.0 {
-                continue;
-            }
-            let x0 = self.r[j * w + j];
-            let norm = (x0 * x0 + sigma).sqrt();
-            let beta = if x0 >= 0.0 { -norm } else { norm };
-            // H = I − τ v vᵀ with v = [1; x / v0] maps [x0; x] to [β; 0].
-            let v0 = x0 - beta;
-            let tau = (beta - x0) / beta;
-            self.r[j * w + j] = beta;
-            for c in j + 1..w {
-                let col = &mut tail[(c - j - 1) * BLOCK..(c - j - 1) * BLOCK + m];
-                let t = tau * (self.r[c * w + j] + dot(x, col) / v0);
-                self.r[c * w + j] -= t;
-                let s = t / v0;
-                for (b, a) in col.iter_mut().zip(x) {
-                    *b -= s * a;
-                }
-            }
+        if m > 0 {
+            fold_block(&mut self.r, &mut self.block, m, w);
         }
     }
 
@@ -251,7 +228,7 @@ impl StreamedLeastSquares {
 }
 
 /// `Σ a_i b_i` in eight fixed lanes (vectorisable, and the same order on every machine).
-#[inline]
+#[inline(always)]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     let mut acc = [0.0; 8];
     let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
@@ -300,4 +277,36 @@ pub fn solve_weighted(names: &[String], phi: &[f64], y: &[f64], sqrt_w: &[f64]) 
         ls.push(row, *yi, *w);
     }
     ls.solve(names)
+}
+
+/// [`StreamedLeastSquares::fold`] of the m pending rows of `block` (column-major, BLOCK
+/// rows a column, w = n_θ + 1 columns) into `r` (w × w): one Householder reflection per
+/// column of `[R; B]`. Compiled for AVX-512 and AVX2 as well and chosen at run time: the
+/// same operations in the same order ([`dot`]'s eight fixed lanes), so the same numbers.
+#[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+fn fold_block(r: &mut [f64], block: &mut [f64], m: usize, w: usize) {
+    for j in 0..w {
+        let (head, tail) = block.split_at_mut((j + 1) * BLOCK);
+        let x = &head[j * BLOCK..j * BLOCK + m];
+        let sigma = dot(x, x);
+        if sigma == 0.0 {
+            continue;
+        }
+        let x0 = r[j * w + j];
+        let norm = (x0 * x0 + sigma).sqrt();
+        let beta = if x0 >= 0.0 { -norm } else { norm };
+        // H = I − τ v vᵀ with v = [1; x / v0] maps [x0; x] to [β; 0].
+        let v0 = x0 - beta;
+        let tau = (beta - x0) / beta;
+        r[j * w + j] = beta;
+        for c in j + 1..w {
+            let col = &mut tail[(c - j - 1) * BLOCK..(c - j - 1) * BLOCK + m];
+            let t = tau * (r[c * w + j] + dot(x, col) / v0);
+            r[c * w + j] -= t;
+            let s = t / v0;
+            for (b, a) in col.iter_mut().zip(x) {
+                *b -= s * a;
+            }
+        }
+    }
 }
