@@ -20,6 +20,39 @@ const TO_INT: f64 = 6_755_399_441_055_744.0;
 /// The bit pattern of [`TO_INT`]: the sum's bits minus these are the integer.
 const TO_INT_BITS: u64 = 0x4338_0000_0000_0000;
 
+// fdlibm's minimax coefficients of `__kernel_sin` and `__kernel_cos`, each the shortest
+// decimal of its double (S1 = 0xBFC55555_55555549 … C6 = 0xBDA8FAE9_BE8838D4 in k_sin.c,
+// k_cos.c).
+const S1: f64 = -0.166_666_666_666_666_32;
+const S2: f64 = 0.008_333_333_333_322_49;
+const S3: f64 = -1.984_126_982_985_795e-4;
+const S4: f64 = 2.755_731_370_707_006_8e-6;
+const S5: f64 = -2.505_076_025_340_686_3e-8;
+const S6: f64 = 1.589_690_995_211_55e-10;
+const C1: f64 = 0.041_666_666_666_666_6;
+const C2: f64 = -0.001_388_888_888_887_411;
+const C3: f64 = 2.480_158_728_947_673e-5;
+const C4: f64 = -2.755_731_435_139_066_3e-7;
+const C5: f64 = 2.087_572_321_298_175e-9;
+const C6: f64 = -1.135_964_755_778_819_5e-11;
+
+/// `(sin x, cos x)` for `|x| ≤ π/4` by the minimax polynomials of fdlibm's `__kernel_sin`
+/// and `__kernel_cos` (Sun Microsystems 1993; as in musl's `__sin.c`, `__cos.c`): errors
+/// below one ulp, no argument reduction and no branch, so a loop over intervals
+/// vectorises (the library's `sin_cos` is a call per value).
+#[inline(always)]
+pub(crate) fn sin_cos_small(x: f64) -> (f64, f64) {
+    let z = x * x;
+    let w = z * z;
+    let r = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6);
+    let sin = x + z * x * (S1 + z * r);
+    let rc = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
+    let hz = 0.5 * z;
+    let one_minus = 1.0 - hz;
+    let cos = one_minus + (((1.0 - one_minus) - hz) + z * rc);
+    (sin, cos)
+}
+
 /// `(sin x, cos x)` for `|x| ≤` [`REDUCE_LIMIT`] (fdlibm: x reduced to `y ∈ [−π/4, π/4]`
 /// with a tail, then `__kernel_sin`, `__kernel_cos` and the quadrant's swap and signs);
 /// each within an ulp of the library's. Beyond the limit the result is not the sine: the
@@ -52,12 +85,6 @@ pub(crate) fn sin_cos_reduced(x: f64) -> (f64, f64) {
 /// fdlibm's `__kernel_sin(x, y, 1)`: sin(x + y) for |x| ≤ π/4, y the tail of x.
 #[inline(always)]
 fn kernel_sin(x: f64, y: f64) -> f64 {
-    const S1: f64 = -1.666_666_666_666_663_2e-1;
-    const S2: f64 = 8.333_333_333_322_49e-3;
-    const S3: f64 = -1.984_126_982_985_795e-4;
-    const S4: f64 = 2.755_731_370_707_006_8e-6;
-    const S5: f64 = -2.505_076_025_340_686_3e-8;
-    const S6: f64 = 1.589_690_995_211_55e-10;
     let z = x * x;
     let w = z * z;
     let r = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6);
@@ -68,12 +95,6 @@ fn kernel_sin(x: f64, y: f64) -> f64 {
 /// fdlibm's `__kernel_cos(x, y)`: cos(x + y) for |x| ≤ π/4, y the tail of x.
 #[inline(always)]
 fn kernel_cos(x: f64, y: f64) -> f64 {
-    const C1: f64 = 4.166_666_666_666_66e-2;
-    const C2: f64 = -1.388_888_888_887_411e-3;
-    const C3: f64 = 2.480_158_728_947_673e-5;
-    const C4: f64 = -2.755_731_435_139_066_3e-7;
-    const C5: f64 = 2.087_572_321_298_175e-9;
-    const C6: f64 = -1.135_964_755_778_819_5e-11;
     let z = x * x;
     let w = z * z;
     let r = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));

@@ -6,6 +6,7 @@
 //! `ω_m = (ω_m[k] + ω_m[k+1])/2`, so the current equation is linear and time-invariant over
 //! the period and has an exact discretisation (thesis 5.2; MODEL.md §4).
 
+pub(crate) use super::elementary::sin_cos_small;
 use super::signals::{DqSignals, DqView};
 use crate::error::{Error, Result};
 use nalgebra::Complex;
@@ -185,37 +186,6 @@ pub(crate) fn half_angle_arg(w_e: f64, h: f64) -> f64 {
 
 /// Largest |x| for which [`sin_cos_small`] is used: π/4.
 pub(crate) const SMALL_ANGLE: f64 = std::f64::consts::FRAC_PI_4;
-
-/// `(sin x, cos x)` for `|x| ≤ π/4` by the minimax polynomials of fdlibm's `__kernel_sin`
-/// and `__kernel_cos` (Sun Microsystems 1993; as in musl's `__sin.c`, `__cos.c`): errors
-/// below one ulp, no argument reduction and no branch, so a loop over intervals
-/// vectorises (the library's `sin_cos` is a call per value).
-#[inline(always)]
-pub(crate) fn sin_cos_small(x: f64) -> (f64, f64) {
-    // fdlibm's coefficients, each the shortest decimal of its double (S1 = 0xBFC55555_55555549
-    // … C6 = 0xBDA8FAE9_BE8838D4 in k_sin.c, k_cos.c).
-    const S1: f64 = -0.166_666_666_666_666_32;
-    const S2: f64 = 0.008_333_333_333_322_49;
-    const S3: f64 = -1.984_126_982_985_795e-4;
-    const S4: f64 = 2.755_731_370_707_006_8e-6;
-    const S5: f64 = -2.505_076_025_340_686_3e-8;
-    const S6: f64 = 1.589_690_995_211_55e-10;
-    const C1: f64 = 0.041_666_666_666_666_6;
-    const C2: f64 = -0.001_388_888_888_887_411;
-    const C3: f64 = 2.480_158_728_947_673e-5;
-    const C4: f64 = -2.755_731_435_139_066_3e-7;
-    const C5: f64 = 2.087_572_321_298_175e-9;
-    const C6: f64 = -1.135_964_755_778_819_5e-11;
-    let z = x * x;
-    let w = z * z;
-    let r = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6);
-    let sin = x + z * x * (S1 + z * r);
-    let rc = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
-    let hz = 0.5 * z;
-    let one_minus = 1.0 - hz;
-    let cos = one_minus + (((1.0 - one_minus) - hz) + z * rc);
-    (sin, cos)
-}
 
 /// The rotation `e^{−jφ} = (1 − 2 sin²(φ/2), −2 sin(φ/2) cos(φ/2))` and the versine
 /// `1 − cos φ = 2 sin²(φ/2)` (free of cancellation near 0) from one sine and cosine of
