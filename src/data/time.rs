@@ -157,14 +157,15 @@ impl TimeSteps {
 const SAFE_STEP: f64 = 0.2;
 
 /// Whether every step of `t` (N ≥ 2, finite) is within `tolerance` (relative) of the mean
-/// step `(t[N−1] − t[0])/(N − 1)`, which must be positive: a branch-free loop that
+/// step `(t[N−1] − t[0])/(N − 1)`, which must be positive and a normal number (an overflowed
+/// or subnormal mean goes row by row): a branch-free loop that
 /// vectorises. (`t` finite: no NaN to compare.)
 fn steps_within(t: &[f64], tolerance: f64) -> bool {
     let n = t.len();
     let h = (t[n - 1] - t[0]) / (n - 1) as f64;
     let bound = tolerance * h;
     let outside: usize = t[1..].iter().zip(t).map(|(b, a)| usize::from(((b - a) - h).abs() > bound)).sum();
-    h > 0.0 && outside == 0
+    h.is_normal() && h > 0.0 && outside == 0
 }
 
 /// Mean step of a uniform, strictly increasing time vector (N ≥ 2), checked sample by

@@ -9,8 +9,9 @@
 //! in musl), the exponential fdlibm's `e_exp.c`, and the tangent below 0.625 the rational
 //! form of Cephes `tanh.c` (Moshier 1989).
 
-/// Largest |x| \[rad\] that [`sin_cos_reduced`] takes: 2²⁰ π/2, where the two-step
-/// reduction stays exact (fdlibm's medium case).
+/// Largest |x| \[rad\] that [`sin_cos_reduced`] takes: fdlibm's bound of its medium case
+/// (high word 0x413921fb, just above 2²⁰ π/2 = 1 647 099.329), where n ≤ 2²⁰ and the
+/// two-step reduction stays exact.
 pub(crate) const REDUCE_LIMIT: f64 = 1_647_099.332_810_515_8;
 
 /// Adding and subtracting `1.5 · 2⁵²` rounds a double below 2⁵¹ to an integer (ties to
@@ -172,8 +173,9 @@ mod tests {
         for x in xs {
             let (s, c) = sin_cos_reduced(x);
             let (ls, lc) = x.sin_cos();
-            // Absolute in units of 1 near a zero of the function (the library's own result
-            // there is only as exact as x is a multiple of π/2).
+            // Relative (ulps of the library's value), except near a zero of the function,
+            // where the absolute error in units of 1 counts (the library's own result there
+            // is only as exact as x is a multiple of π/2).
             worst = worst.max(ulps(s, ls).min((s - ls).abs() / f64::EPSILON));
             worst = worst.max(ulps(c, lc).min((c - lc).abs() / f64::EPSILON));
         }

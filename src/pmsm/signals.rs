@@ -191,7 +191,13 @@ impl<'a> DqView<'a> {
         // as `hypot` of every sample.
         let (d, q) = (self.i_d, self.i_q);
         let squares = || d.iter().zip(q).map(|(d, q)| d * d + q * q);
-        let threshold = squares().fold(0.0, f64::max) * (1.0 - 1e-12);
+        let largest = squares().fold(0.0, f64::max);
+        // Below 1e-290 a square is subnormal or close to it and its rounding no longer
+        // relative; an infinite one hides the finite ones: every sample's hypot there.
+        if !(1e-290..=f64::MAX).contains(&largest) {
+            return d.iter().zip(q).map(|(d, q)| d.hypot(*q)).fold(0.0, f64::max);
+        }
+        let threshold = largest * (1.0 - 1e-12);
         squares()
             .zip(d.iter().zip(q))
             .filter(|(s, _)| *s >= threshold || s.is_nan())

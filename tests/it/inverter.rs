@@ -293,3 +293,50 @@ fn dead_time_mask_errors_name_the_culprit() {
     // A modest threshold keeps most of the record and still fits.
     assert!(fit(0.05).unwrap().solver.success);
 }
+
+/// The models' dead-time directions, computed a window of intervals at a time, are those of
+/// the per-sample formula (library `sin_cos` and `tanh`) to the bit, for records that end
+/// just before, on and after a window's edge, with angles past the inline reduction's limit.
+#[test]
+fn windowed_directions_are_the_per_sample_formula_to_the_bit() {
+    use greybox::data::Channel;
+    use greybox::pmsm::inverter::dead_time_directions;
+    use greybox::pmsm::transform::{clarke, inverse_clarke};
+    for n in [255usize, 256, 257, 258, 511, 512, 513, 514, 3000] {
+        let th: Vec<f64> = (0..n).map(|k| 0.0131 * k as f64 + if k % 97 == 5 { 3e5 } else { 0.0 }).collect();
+        let id: Vec<f64> = (0..n).map(|k| 2.0 * (0.021 * k as f64).sin() - 0.3).collect();
+        let iq: Vec<f64> = (0..n).map(|k| 10.0 * (0.007 * k as f64).cos()).collect();
+        let zeros = vec![0.0; n];
+        let channel = |name: &str, unit: &str, v: &[f64]| Channel::new(name, unit, v.to_vec());
+        let e = greybox::Experiment::try_new(
+            "windows",
+            1e-4,
+            vec![
+                channel("ud", "V", &zeros),
+                channel("uq", "V", &zeros),
+                channel("id", "A", &id),
+                channel("iq", "A", &iq),
+                channel("w_m", "rad/s", &zeros),
+                channel("theta_m", "rad", &th),
+            ],
+        )
+        .unwrap();
+        let width = 0.3;
+        let model = InverterModel { width: Some(width), ..Default::default() };
+        let new = dead_time_directions(&DqView::try_new(&e).unwrap(), N_P, &model).unwrap();
+        let sign = |x: f64| if x.abs() >= 19.5 { x.signum() } else { x.tanh() };
+        let sample = |k: usize| {
+            let (s, c) = (f64::from(N_P) * th[k]).sin_cos();
+            let (a, b, cc) = inverse_clarke(c * id[k] - s * iq[k], s * id[k] + c * iq[k]);
+            ([a, b, cc], (s, c))
+        };
+        assert_eq!(new.len(), n - 1);
+        for (k, d) in new.iter().enumerate() {
+            let ((p, (s, c)), (q, _)) = (sample(k), sample(k + 1));
+            let sg = |x: f64, y: f64| -sign((0.5 * (x + y)) / width);
+            let (alpha, beta) = clarke(sg(p[0], q[0]), sg(p[1], q[1]), sg(p[2], q[2]));
+            let (re, im) = (c * alpha + s * beta, -s * alpha + c * beta);
+            assert!(d.re.to_bits() == re.to_bits() && d.im.to_bits() == im.to_bits(), "n = {n}, k = {k}");
+        }
+    }
+}

@@ -131,6 +131,23 @@ proptest! {
     }
 }
 
+/// Columns at the ends of the range: a mean step that overflows, and subnormal steps whose
+/// relative bound no longer rounds as a relative one, are checked row by row.
+#[test]
+fn extreme_columns_are_pushed_as_row_by_row() {
+    let u = 5e-324;
+    for t in [
+        vec![-1.7e308, 0.0, 0.5e308],
+        vec![0.0, 2.0 * u, 5.0 * u, 9.0 * u],
+        vec![1e300, 1e300 + 1e284, 1e300 + 2e284],
+    ] {
+        let (a, b) = (one_by_one(&t), all_at_once(&t));
+        assert_eq!(format!("{:?}", a.0), format!("{:?}", b.0), "{t:?}");
+        assert_eq!(a.1, b.1, "{t:?}");
+        assert_eq!(format!("{:?}", a.2), format!("{:?}", b.2), "{t:?}");
+    }
+}
+
 #[test]
 fn a_checker_with_rows_pushes_the_rest_row_by_row() {
     let mut steps = TimeSteps::new("t");

@@ -5,7 +5,7 @@
 use crate::common::{load, pmsm_options};
 use greybox::Experiment;
 use greybox::data::Channel;
-use greybox::pmsm::{MotorKind, PmsmFitOptions, fit_pmsm};
+use greybox::pmsm::{HoldChoice, MotorKind, PmsmFitOptions, VoltageInput, fit_pmsm};
 
 /// 200 threads writing different reports to one path leave one whole report, never a mix.
 #[test]
@@ -115,8 +115,18 @@ fn setup_mistakes_are_named() {
     assert!(notice.2.contains("RMS") && notice.2.contains("power-invariant"), "{}", notice.2);
     // A surface-magnet model on the salient log is refused, naming the fix.
     let (ipm, t) = load("ipm_moves_idinj");
-    let err = fit_pmsm(&[ipm], &PmsmFitOptions { model: MotorKind::Spm, ..pmsm_options(t.n_p) }).unwrap_err();
+    let spm = PmsmFitOptions { model: MotorKind::Spm, ..pmsm_options(t.n_p) };
+    let err = fit_pmsm(std::slice::from_ref(&ipm), &spm).unwrap_err();
     assert!(err.to_string().contains("--model ipm"), "{err}");
+    // Before any other error the options or the fits give: a start of the wrong length, a
+    // dq hold with the reference voltage.
+    for other in [
+        PmsmFitOptions { start: Some(vec![1.0, 2.0]), ..spm.clone() },
+        PmsmFitOptions { hold: HoldChoice::Dq, input: VoltageInput::REFERENCE, ..spm.clone() },
+    ] {
+        let err = fit_pmsm(std::slice::from_ref(&ipm), &other).unwrap_err();
+        assert!(err.to_string().contains("--model ipm"), "{err}");
+    }
 }
 
 /// A parameter at its bound is flagged, with no interval, and makes the fit untrusted.

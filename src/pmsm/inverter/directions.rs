@@ -18,9 +18,9 @@ pub(crate) type Phases = [[f64; WINDOW + 1]; 3];
 
 /// Sines, cosines and smooth signs of [`super::DeadTimeStream::directions`].
 pub(crate) trait Elementary {
-    /// `(sin θ_e, cos θ_e)` of `θ_e = np θ_m` for every mechanical angle of `theta_m`
+    /// `(sin θ_e, cos θ_e)` of `θ_e = n_p θ_m` for every mechanical angle of `theta_m`
     /// \[rad\] into `out` (the same length).
-    fn angles(np: f64, theta_m: &[f64], out: &mut [(f64, f64)]);
+    fn angles(n_p: f64, theta_m: &[f64], out: &mut [(f64, f64)]);
 
     /// The directions of the m = `out.len()` intervals between consecutive samples of the
     /// window (m + 1 phase currents \[A\] and angles), for the sign's width \[A\]:
@@ -37,9 +37,9 @@ pub(crate) struct Library;
 pub(crate) struct Inline;
 
 impl Elementary for Library {
-    fn angles(np: f64, theta_m: &[f64], out: &mut [(f64, f64)]) {
+    fn angles(n_p: f64, theta_m: &[f64], out: &mut [(f64, f64)]) {
         for (o, t) in out.iter_mut().zip(theta_m) {
-            *o = (np * t).sin_cos();
+            *o = (n_p * t).sin_cos();
         }
     }
 
@@ -50,8 +50,8 @@ impl Elementary for Library {
 }
 
 impl Elementary for Inline {
-    fn angles(np: f64, theta_m: &[f64], out: &mut [(f64, f64)]) {
-        inline_angles(np, theta_m, out);
+    fn angles(n_p: f64, theta_m: &[f64], out: &mut [(f64, f64)]) {
+        inline_angles(n_p, theta_m, out);
     }
 
     fn signs(width: f64, phases: &Phases, sc: &[(f64, f64)], out: &mut [C64]) {
@@ -60,13 +60,13 @@ impl Elementary for Inline {
 }
 
 #[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
-fn inline_angles(np: f64, theta_m: &[f64], out: &mut [(f64, f64)]) {
+fn inline_angles(n_p: f64, theta_m: &[f64], out: &mut [(f64, f64)]) {
     for (o, t) in out.iter_mut().zip(theta_m) {
-        *o = sin_cos_reduced(np * t);
+        *o = sin_cos_reduced(n_p * t);
     }
-    if !theta_m.iter().all(|t| (np * t).abs() <= REDUCE_LIMIT) {
+    if !theta_m.iter().all(|t| (n_p * t).abs() <= REDUCE_LIMIT) {
         for (o, t) in out.iter_mut().zip(theta_m) {
-            let x = np * t;
+            let x = n_p * t;
             if x.abs() > REDUCE_LIMIT || x.is_nan() {
                 *o = x.sin_cos();
             }

@@ -1,0 +1,199 @@
+//! The fits of [`super::fit_pmsm`] from their start: the least-squares start unless one is
+//! given, the user's constraints on it, the holds to fit, the weighting (voltage limit,
+//! dead-time mask) and the fits of those holds (MODEL.md §4–5).
+
+use super::super::hold::{HoldFits, fit_holds_of};
+use super::super::interval::{VoltageHold, VoltageInput};
+use super::super::kind::MotorKind;
+use super::super::limit::{VoltageLimitWeighting, delay_of};
+use super::super::mask::{DeadTimeMask, DeadTimeMaskWeighting, masked_pem};
+use super::super::setup::{PmsmSetup, configure};
+use super::super::signals::channel;
+use super::super::start::least_squares_start;
+use super::super::{PmsmIpm, PmsmSpm};
+use super::{HoldChoice, PmsmFitOptions};
+use crate::data::Experiment;
+use crate::error::{Error, Result};
+use crate::estimate::{CLOSE_START_DAMPING, Weighting};
+use crate::report::eng::format_eng;
+
+/// What [`fit_from_start`] gives the rest of [`super::fit_pmsm`].
+pub(super) struct Fitted {
+    /// The fits of the holds tried, the best first.
+    pub fits: HoldFits,
+    /// Notes on the start, the holds and the weighting, in order.
+    pub notes: Vec<String>,
+    /// The least-squares start (model order, `v_dt` included when estimated), when used.
+    pub ls_theta: Option<Vec<f64>>,
+    /// Whether every log carries a modulator's reference `ud_ref, uq_ref`.
+    pub modulator: bool,
+}
+
+/// The start of the fits of `experiments` under `options` (fitted parameters `names`, model
+/// order) and the fits of the holds `options.hold` allows.
+///
+/// # Errors
+/// Those of [`super::fit_pmsm`] but the setup checks': a start of the wrong length, the
+/// least-squares start's, the user's constraints', the hold or voltage-limit options', and
+/// the fits'.
+pub(super) fn fit_from_start(
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+    names: &[&str],
+) -> Result<Fitted> {
+    let n_p = options.pole_pairs;
+    let least_squares = options.start.is_none().then(|| {
+        least_squares_start(
+            experiments,
+            n_p,
+            options.model,
+            options.input,
+            options.cable_resistance,
+            options.inverter.as_ref(),
+        )
+    });
+    // The start of v_dt when the start comes from elsewhere: the known value, or 0.
+    let v_dt0 = options.inverter.map(|i| i.known.unwrap_or(0.0));
+    let mut notes = Vec::new();
+    let mut ls_theta = None;
+    let start = match &options.start {
+        Some(s) => {
+            let s: Vec<f64> = match v_dt0 {
+                Some(v) if s.len() + 1 == names.len() => s.iter().copied().chain([v]).collect(),
+                _ => s.clone(),
+            };
+            if s.len() != names.len() {
+                return Err(Error::InvalidOption {
+                    option: "start".into(),
+                    reason: format!(
+                        "{} values given, the {} model has {} ({})",
+                        s.len(),
+                        options.model.model_name(),
+                        names.len(),
+                        names.join(", ")
+                    ),
+                });
+            }
+            notes.push("start given by the user".to_string());
+            s
+        }
+        None => {
+            let (ls_names, theta) =
+                least_squares.ok_or_else(|| Error::Solver("no least-squares start".into()))??;
+            notes.push(format!(
+                "start from linear least squares: {}",
+                ls_names
+                    .iter()
+                    .zip(&theta)
+                    .map(|(n, v)| format!("{n} = {}", format_eng(*v, unit_of(options.model, n), 7)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+            let with_v_dt = ls_names.len() == names.len();
+            ls_theta = Some(theta.clone());
+            theta.into_iter().chain(v_dt0.filter(|_| !with_v_dt)).collect()
+        }
+    };
+    let start = super::super::start::user_start(start, names, options, &mut notes)?;
+    let reference = options.input != VoltageInput::Terminal;
+    let holds: &[VoltageHold] = match options.hold {
+        HoldChoice::Dq if reference => {
+            return Err(Error::InvalidOption {
+                option: "hold".into(),
+                reason: "a reference voltage is applied by a modulator, which holds it in the stator frame"
+                    .into(),
+            });
+        }
+        HoldChoice::Dq => &[VoltageHold::Dq],
+        HoldChoice::Stator => &[VoltageHold::Stator],
+        HoldChoice::Auto if reference => {
+            notes.push("reference voltage: the modulator holds it in the stator frame (stator hold)".into());
+            &[VoltageHold::Stator]
+        }
+        HoldChoice::Auto => &[VoltageHold::Stator, VoltageHold::Dq],
+    };
+    if let Some(l) = options.voltage_limit.filter(|l| !(l.is_finite() && *l > 0.0)) {
+        return Err(Error::InvalidOption {
+            option: "voltage_limit".into(),
+            reason: format!("{l} V must be positive and finite (U_dc/√3)"),
+        });
+    }
+    let inner = options.pem.weighting.rule()?;
+    let limited = options
+        .voltage_limit
+        .filter(|_| options.input != VoltageInput::Terminal)
+        .map(|limit| VoltageLimitWeighting { inner: inner.as_ref(), limit, delay: delay_of(options.input) });
+    let weighting: &dyn Weighting = match &limited {
+        Some(l) => l,
+        None => inner.as_ref(),
+    };
+    if let Some(l) = &limited {
+        let n: usize = experiments.iter().map(|e| l.count(e)).sum();
+        notes.push(format!(
+            "{n} samples driven by a reference at the voltage limit {:.1} V weighted out",
+            l.limit
+        ));
+    }
+    let masked = match options.inverter.and_then(|i| i.mask) {
+        Some(DeadTimeMask::Current(threshold)) => {
+            Some(DeadTimeMaskWeighting { inner: weighting, n_p, threshold })
+        }
+        _ => None,
+    };
+    let weighting: &dyn Weighting = match &masked {
+        Some(m) => m,
+        None => weighting,
+    };
+    if let Some(m) = &masked {
+        let n: usize = experiments.iter().map(|e| m.count(e)).sum();
+        let total: usize = experiments.iter().map(Experiment::len).sum();
+        notes.push(format!(
+            "dead-time mask: {n} of {total} samples weighted out (a phase current within {:.4} A of zero)",
+            m.threshold
+        ));
+    }
+    let (mut pem, pem_note) = masked_pem(options.inverter.as_ref(), &options.pem);
+    notes.extend(pem_note);
+    if ls_theta.is_some() {
+        // The linear least-squares start is close: nearly Gauss-Newton steps from it.
+        pem.initial_damping = pem.initial_damping.or(Some(CLOSE_START_DAMPING));
+    }
+    let modulator =
+        experiments.iter().all(|e| e.get(channel::U_D_REF).is_some() && e.get(channel::U_Q_REF).is_some());
+    let setup = |hold: VoltageHold| PmsmSetup {
+        n_p,
+        hold,
+        input: options.input,
+        cable_resistance: options.cable_resistance,
+        thermal: options.thermal,
+        inverter: options.inverter,
+    };
+    macro_rules! fit_holds {
+        ($model:path) => {
+            fit_holds_of(
+                holds,
+                &start,
+                names,
+                modulator,
+                |h| {
+                    let mut m = <$model>::from_setup(setup(h));
+                    configure(m.parameters_mut(), options)?;
+                    Ok(m)
+                },
+                experiments,
+                &pem,
+                weighting,
+            )
+        };
+    }
+    let fits = match options.model {
+        MotorKind::Spm => fit_holds!(PmsmSpm),
+        MotorKind::Ipm => fit_holds!(PmsmIpm),
+    }?;
+    Ok(Fitted { fits, notes, ls_theta, modulator })
+}
+
+/// The unit of parameter `name` of `kind`, `V` for the dead-time voltage `v_dt`.
+fn unit_of(kind: MotorKind, name: &str) -> &'static str {
+    kind.table().iter().find(|p| p.name == name).map_or("V", |p| p.unit)
+}
