@@ -158,8 +158,8 @@ const SAFE_STEP: f64 = 0.2;
 
 /// Whether every step of `t` (N ≥ 2, finite) is within `tolerance` (relative) of the mean
 /// step `(t[N−1] − t[0])/(N − 1)`, which must be positive and a normal number (an overflowed
-/// or subnormal mean goes row by row): a branch-free loop that
-/// vectorises. (`t` finite: no NaN to compare.)
+/// or subnormal mean goes row by row): a branch-free loop that vectorises (`t` finite: no
+/// NaN to compare).
 fn steps_within(t: &[f64], tolerance: f64) -> bool {
     let n = t.len();
     let h = (t[n - 1] - t[0]) / (n - 1) as f64;

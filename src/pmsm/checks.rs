@@ -13,8 +13,7 @@
 //! and without `d`, and sums the residual (shifted by its first value) and the voltage
 //! change, their squares and product for the correlation.
 
-use super::interval::C64;
-use super::interval::{VoltageInput, driving_voltage};
+use super::interval::{C64, VoltageInput, driving_voltage};
 use super::inverter::{DeadTimeStream, Inline, InverterModel, WINDOW};
 use super::kind::MotorKind;
 use super::linear::{MAX_COLS, Regression, push_with_dead_time};
@@ -117,8 +116,7 @@ pub(crate) fn dead_time_advice(
             let mut dirs = [C64::default(); WINDOW];
             for k0 in (0..reg.intervals()).step_by(WINDOW) {
                 let dirs = &mut dirs[..WINDOW.min(reg.intervals() - k0)];
-                let end = k0 + dirs.len() + 1;
-                s.directions::<Inline>(&th[k0..end], &id[k0..end], &iq[k0..end], dirs);
+                s.directions::<Inline>(&th[k0..], &id[k0..], &iq[k0..], dirs);
                 for (k, dir) in (k0..).zip(dirs.iter()) {
                     let (d, q, u) = reg.rows(k);
                     push_with_dead_time(&mut ls, &d, &q, u, cols, *dir);

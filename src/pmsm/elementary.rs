@@ -1,8 +1,9 @@
 //! Sine, cosine and hyperbolic tangent without a library call: straight-line code (no
 //! branch, no table) whose loops over many values vectorise, within two ulps of the
-//! system library's results. The library's functions are a call per value; the inverter
-//! model's error directions take one sine and cosine per sample and three tangents per
-//! interval ([`super::inverter`]).
+//! system library's results. The library's functions are a call per value; the dead-time
+//! check's error directions take one sine and cosine per sample and three tangents per
+//! interval ([`super::inverter`]). [`sin_cos_small`] (the interval half angles of the
+//! models) is the kernels without a tail, in its own order of operations.
 //!
 //! Sources: the reduction modulo π/2 and the kernels are fdlibm's (Sun Microsystems 1993,
 //! `e_rem_pio2.c` medium case with its second step always taken, `k_sin.c`, `k_cos.c`; as

@@ -19,9 +19,9 @@ use super::signals::DqView;
 use crate::error::{Error, Result};
 use crate::model::Parameter;
 pub(crate) use directions::{Elementary, Inline, Library};
+use serde::{Deserialize, Serialize};
 
 mod directions;
-use serde::{Deserialize, Serialize};
 
 /// Default sign width, relative to the largest current magnitude of the log.
 pub const DEFAULT_RELATIVE_WIDTH: f64 = 0.02;
@@ -59,21 +59,17 @@ pub fn dead_time_directions(v: &DqView<'_>, n_p: u32, model: &InverterModel) -> 
     let theta_m = v.experiment().channel(super::channel::THETA_M)?;
     let mut stream = DeadTimeStream::try_new(v, n_p, model)?;
     let mut out = vec![C64::default(); v.len().saturating_sub(1)];
-    for (k0, dirs) in (0..).step_by(WINDOW).zip(out.chunks_mut(WINDOW)) {
-        let end = k0 + dirs.len() + 1;
-        stream.directions::<Library>(&theta_m[k0..end], &v.i_d()[k0..end], &v.i_q()[k0..end], dirs);
-    }
+    stream.directions::<Library>(theta_m, v.i_d(), v.i_q(), &mut out);
     stream.check_crossings()?;
     Ok(out)
 }
 
-/// Intervals per call of [`DeadTimeStream::directions`] at most: its scratch is on the
-/// stack.
+/// Intervals per window of [`DeadTimeStream::directions`]: its scratch is on the stack.
 pub(crate) const WINDOW: usize = 256;
 
-/// The dead-time directions of [`dead_time_directions`] a window at a time, for passes
-/// that store nothing per sample: [`directions`](Self::directions) of every window of
-/// intervals in order, and [`check_crossings`](Self::check_crossings) at the end. With
+/// The dead-time directions of [`dead_time_directions`] a part at a time, for passes that
+/// store nothing per sample: [`directions`](Self::directions) of every part of the record
+/// in order, and [`check_crossings`](Self::check_crossings) at the end. With
 /// [`Library`] the arithmetic is that of [`dead_time_directions`], bit for bit, however the
 /// record is cut into windows (each interval's direction depends on its two samples only).
 #[derive(Clone, Copy, Debug)]
@@ -110,14 +106,14 @@ impl DeadTimeStream {
 
     /// The dq error per unit `V_dt` \[V/V\] of each interval between consecutive samples of
     /// the mechanical angle `theta_m` \[rad\] and the dq current `i_d`, `i_q` \[A\] (m + 1
-    /// samples each, m = `out.len()` ≤ [`WINDOW`]) into `out`, rotated by the angle at the
-    /// interval's start; each phase's range is recorded. The phase currents are the
-    /// inverse Park transform at `θ_e = n_p θ_m`, the sign `tanh` of their interval mean
-    /// over the width, sines, cosines and tangents taken as `E` says ([`Library`] for the
-    /// models, [`Inline`] for the dead-time check).
+    /// samples each, m = `out.len()`) into `out`, rotated by the angle at the interval's
+    /// start; each phase's range is recorded. The phase currents are the inverse Park
+    /// transform at `θ_e = n_p θ_m`, the sign `tanh` of their interval mean over the width,
+    /// sines, cosines and tangents taken as `E` says ([`Library`] for the models, [`Inline`]
+    /// for the dead-time check); [`WINDOW`] intervals at a time.
     ///
     /// # Panics
-    /// When a slice is shorter than `out.len() + 1` or `out` is longer than [`WINDOW`].
+    /// When a slice is shorter than `out.len() + 1`.
     pub(crate) fn directions<E: Elementary>(
         &mut self,
         theta_m: &[f64],
@@ -125,18 +121,20 @@ impl DeadTimeStream {
         i_q: &[f64],
         out: &mut [C64],
     ) {
-        let n = out.len() + 1;
-        let (theta_m, i_d, i_q) = (&theta_m[..n], &i_d[..n], &i_q[..n]);
-        let mut phases = [[0.0; WINDOW + 1]; 3];
-        let mut sc = [(0.0, 0.0); WINDOW + 1];
-        E::angles(self.np, theta_m, &mut sc[..n]);
-        directions::phases(i_d, i_q, &sc[..n], &mut phases);
-        for (x, (lo, hi)) in self.lo.iter_mut().zip(self.hi.iter_mut()).enumerate() {
-            let p = &phases[x][..n];
-            *lo = p.iter().copied().fold(*lo, f64::min);
-            *hi = p.iter().copied().fold(*hi, f64::max);
+        for (k0, out) in (0..).step_by(WINDOW).zip(out.chunks_mut(WINDOW)) {
+            let n = out.len() + 1;
+            let (theta_m, i_d, i_q) = (&theta_m[k0..k0 + n], &i_d[k0..k0 + n], &i_q[k0..k0 + n]);
+            let mut phases = [[0.0; WINDOW + 1]; 3];
+            let mut sc = [(0.0, 0.0); WINDOW + 1];
+            E::angles(self.np, theta_m, &mut sc[..n]);
+            directions::phases(i_d, i_q, &sc[..n], &mut phases);
+            for (x, (lo, hi)) in self.lo.iter_mut().zip(self.hi.iter_mut()).enumerate() {
+                let p = &phases[x][..n];
+                *lo = p.iter().copied().fold(*lo, f64::min);
+                *hi = p.iter().copied().fold(*hi, f64::max);
+            }
+            E::signs(self.width, &phases, &sc[..n], out);
         }
-        E::signs(self.width, &phases, &sc[..n], out);
     }
 
     /// # Errors

@@ -102,8 +102,8 @@ fn filtfilt_chunks(
     // (no branch per value), the reflected ones by `ext`.
     let fill = |buf: &mut [[f64; LANES]], s: usize| {
         let (lo, hi) = (p.clamp(s, s + buf.len()), (p + n).clamp(s, s + buf.len()));
-        for (t, v) in buf.iter_mut().enumerate().filter(|(t, _)| !(lo..hi).contains(&(s + t))) {
-            *v = ext(s + t);
+        for i in (s..lo).chain(hi..s + buf.len()) {
+            buf[i - s] = ext(i);
         }
         if lo < hi {
             for (l, x) in x.iter().enumerate() {

@@ -194,10 +194,8 @@ impl<'a> DqView<'a> {
         let largest = squares().fold(0.0, f64::max);
         // Below 1e-290 a square is subnormal or close to it and its rounding no longer
         // relative; an infinite one hides the finite ones: every sample's hypot there.
-        if !(1e-290..=f64::MAX).contains(&largest) {
-            return d.iter().zip(q).map(|(d, q)| d.hypot(*q)).fold(0.0, f64::max);
-        }
-        let threshold = largest * (1.0 - 1e-12);
+        let threshold =
+            if (1e-290..=f64::MAX).contains(&largest) { largest * (1.0 - 1e-12) } else { f64::NEG_INFINITY };
         squares()
             .zip(d.iter().zip(q))
             .filter(|(s, _)| *s >= threshold || s.is_nan())

@@ -42,16 +42,6 @@ pub(super) fn fit_from_start(
     names: &[&str],
 ) -> Result<Fitted> {
     let n_p = options.pole_pairs;
-    let least_squares = options.start.is_none().then(|| {
-        least_squares_start(
-            experiments,
-            n_p,
-            options.model,
-            options.input,
-            options.cable_resistance,
-            options.inverter.as_ref(),
-        )
-    });
     // The start of v_dt when the start comes from elsewhere: the known value, or 0.
     let v_dt0 = options.inverter.map(|i| i.known.unwrap_or(0.0));
     let mut notes = Vec::new();
@@ -78,8 +68,14 @@ pub(super) fn fit_from_start(
             s
         }
         None => {
-            let (ls_names, theta) =
-                least_squares.ok_or_else(|| Error::Solver("no least-squares start".into()))??;
+            let (ls_names, theta) = least_squares_start(
+                experiments,
+                n_p,
+                options.model,
+                options.input,
+                options.cable_resistance,
+                options.inverter.as_ref(),
+            )?;
             notes.push(format!(
                 "start from linear least squares: {}",
                 ls_names
