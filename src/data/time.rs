@@ -97,8 +97,8 @@ impl TimeSteps {
         Ok(())
     }
 
-    /// [`push`](Self::push) of every value of `t` in order, with the same result and the
-    /// same error (the first bad row's).
+    /// [`push`](Self::push) of every value of `t` \[s\] in order, with the same result and
+    /// the same error (the first bad row's).
     ///
     /// A fresh checker first tests, without a division per row, that `t` is finite and that
     /// every step lies within 20 % of the column's mean step. Then every partial
