@@ -127,12 +127,10 @@ pub mod oracle {
         let limited = LineLimit { inner: reader, max: limits.max_line_bytes, run: 0, line: 1, quoted: false };
         let mut rdr =
             csv::ReaderBuilder::new().trim(csv::Trim::All).buffer_capacity(1 << 16).from_reader(limited);
-        let header: Vec<String> = rdr
-            .byte_headers()
-            .map_err(|e| s(csv_error(path, e)))?
-            .iter()
-            .map(|f| String::from_utf8_lossy(f).into_owned())
-            .collect();
+        let header_record = rdr.byte_headers().map_err(|e| s(csv_error(path, e)))?;
+        let header_line = header_record.position().map_or(1, csv::Position::line);
+        let header: Vec<String> =
+            header_record.iter().map(|f| String::from_utf8_lossy(f).into_owned()).collect();
         let p = path.to_path_buf();
         if header.len() > limits.max_fields {
             return Err(s(Error::LimitExceeded {
@@ -155,6 +153,22 @@ pub mod oracle {
                 return Err(s(Error::DuplicateColumn { path: p, column: column.into(), first, second }));
             }
             if found.is_empty() && required {
+                // A header of one field that holds another delimiter names it (the reader's
+                // hint since the delimiter option).
+                if let [only] = header.as_slice()
+                    && let Some(d) = Delimiter::ALL
+                        .into_iter()
+                        .find(|d| *d != Delimiter::COMMA && only.contains(d.byte() as char))
+                {
+                    let message = format!(
+                        "the header is one field, {}, which holds `{}`: read the file with the delimiter `{d}` \
+                         (`--delimiter '{d}'`), not `{}`",
+                        quote(only.as_bytes()),
+                        if d == Delimiter::TAB { "\\t" } else { d.name() },
+                        Delimiter::COMMA,
+                    );
+                    return Err(s(Error::Csv { path: p, line: header_line, message }));
+                }
                 let available =
                     header.iter().map(|h| name_excerpt(h.as_bytes())).collect::<Vec<_>>().join(", ");
                 return Err(s(Error::MissingColumn { path: p, column: column.into(), available }));
