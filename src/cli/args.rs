@@ -140,8 +140,10 @@ pub struct FitArgs {
     /// (causal L(q)), on every signal for ls (zero-phase, forward-backward).
     #[arg(long)]
     pub prefilter: Option<f64>,
-    /// Estimation method: prediction error (pem) or the linear least-squares regression of
-    /// the voltage equations (ls; weighted by --weighting, filtered by --prefilter).
+    /// Estimation method: prediction error (pem), the linear least-squares regression of
+    /// the voltage equations (ls; weighted by --weighting, filtered by --prefilter), or
+    /// instrumental variables on the exact inverse model (iv: for noise on the logged
+    /// voltage or current, errors in variables; SPM, terminal voltage).
     #[arg(long, value_enum, default_value_t = MethodArg::Pem)]
     pub method: MethodArg,
     /// Maximum number of solver iterations.
@@ -190,6 +192,7 @@ pub enum ModelArg {
 pub enum MethodArg {
     Pem,
     Ls,
+    Iv,
 }
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum HoldArg {

@@ -118,10 +118,11 @@ fn fit_one(a: &FitArgs, plan: &Plan, path: &Path, name: &str) -> greybox::Result
         // One experiment, or with --split-gaps one per segment (`name#1`, `name#2`, …).
         let logs = named(path, a.columns.read_segments(path, &plan.csv)?, name);
         let read_s = t0.elapsed().as_secs_f64();
-        let (options, search) = plan.pem.as_ref().ok_or_else(|| Error::Solver("no fit planned".into()))?;
+        let (options, search, estimator) =
+            plan.pem.as_ref().ok_or_else(|| Error::Solver("no fit planned".into()))?;
         let mut options = options.clone();
         options.pem.progress = false;
-        fit_logs(a.pole_pairs, &options, *search, &logs, t0, read_s)
+        fit_logs(a.pole_pairs, &options, *search, *estimator, &logs, t0, read_s)
     };
     match std::panic::catch_unwind(std::panic::AssertUnwindSafe(run)) {
         Ok(r) => r.map_err(super::errors::in_fit_words),

@@ -9,8 +9,8 @@ use greybox::estimate::{FitResult, PemOptions, ScalingKind, SolverKind, Timing, 
 use greybox::pmsm::ReportOptions;
 use greybox::pmsm::weighted_least_squares;
 use greybox::pmsm::{
-    CsvOptions, DqSource, Frame, HoldChoice, InputSearch, InverterModel, LinearOptions, MotorKind, PmsmFit,
-    PmsmFitOptions, ThermalReference, VoltageInput, fit_estimating_input, fit_pmsm,
+    CsvOptions, DqSource, Estimator, Frame, HoldChoice, InputSearch, InverterModel, LinearOptions, MotorKind,
+    PmsmFit, PmsmFitOptions, ThermalReference, VoltageInput, fit_estimating_input, fit_pmsm, fit_pmsm_iv,
 };
 use greybox::report::Document;
 use std::time::Instant;
@@ -28,7 +28,7 @@ pub struct Plan {
     pub kind: MotorKind,
     /// The fit's options (pole pairs still 0: set per fit by [`fit_logs`]) and which input
     /// parameters are searched; `None` for `--method ls`.
-    pub pem: Option<(PmsmFitOptions, InputSearch)>,
+    pub pem: Option<(PmsmFitOptions, InputSearch, Estimator)>,
 }
 
 /// Runs `greybox fit`; `Ok(false)` when the report was written but the result is not
@@ -53,7 +53,7 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
     super::logs::check_paths(&a.logs)?;
     let logs: Vec<_> = a.columns.read_logs(&a.logs, &plan.csv, true)?.into_iter().flatten().collect();
     let read_s = t0.elapsed().as_secs_f64();
-    let Some((options, search)) = &plan.pem else {
+    let Some((options, search, estimator)) = &plan.pem else {
         let t1 = Instant::now();
         let rule = a.weighting.rule()?;
         let opts = LinearOptions { prefilter: a.prefilter, ..LinearOptions::default() };
@@ -74,7 +74,7 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
         write_json(a, json)?;
         return Ok(true);
     };
-    let result = fit_logs(a.pole_pairs, options, *search, &logs, t0, read_s)?;
+    let result = fit_logs(a.pole_pairs, options, *search, *estimator, &logs, t0, read_s)?;
     let json = result.to_json();
     if !quiet {
         print_report(a.format, &result.document(plan.report_options), &json);
@@ -104,6 +104,7 @@ pub fn fit_logs(
     pole_pairs_arg: PolePairs,
     options: &PmsmFitOptions,
     search: InputSearch,
+    estimator: Estimator,
     logs: &[greybox::Experiment],
     t0: Instant,
     read_s: f64,
@@ -112,6 +113,8 @@ pub fn fit_logs(
     let options = PmsmFitOptions { pole_pairs: n_p, ..options.clone() };
     let fit = if search.delay || search.advance || search.speed_pll || search.dead_time_width {
         fit_estimating_input(logs, &options, search)?
+    } else if estimator == Estimator::InstrumentalVariables {
+        fit_pmsm_iv(logs, &options)?
     } else {
         fit_pmsm(logs, &options)?
     };
@@ -258,7 +261,22 @@ pub fn plan(a: &FitArgs) -> greybox::Result<Plan> {
             ..PemOptions::default()
         },
     };
-    Ok(Plan { csv, report_options, kind, pem: Some((options, search)) })
+    let estimator = match a.method {
+        MethodArg::Iv => Estimator::InstrumentalVariables,
+        _ => Estimator::PredictionError,
+    };
+    if estimator == Estimator::InstrumentalVariables
+        && (search.delay || search.advance || search.speed_pll || search.dead_time_width)
+    {
+        return Err(greybox::Error::InvalidOption {
+            option: "method".into(),
+            reason:
+                "iv inverts the measured terminal voltage: it takes no input search (--delay, --advance, \
+                     --speed-pll, --dead-time-width estimate)"
+                    .into(),
+        });
+    }
+    Ok(Plan { csv, report_options, kind, pem: Some((options, search, estimator)) })
 }
 
 /// The pole pairs given, or chosen by `--pole-pairs auto` with a note on how decisively:

@@ -138,8 +138,11 @@ impl Default for Inverter {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Sensors {
-    /// Phase-current noise σ \[A\].
+    /// Phase-current noise σ \[A\] (the stationary standard deviation).
     pub current_noise: f64,
+    /// Pole a of the phase-current noise, an AR(1) process `n_k = a n_{k−1} + √(1 − a²) σ e_k`
+    /// with white unit e (in \[0, 1); 0: white noise).
+    pub current_noise_pole: f64,
     /// Speed noise σ \[rad/s\].
     pub speed_noise: f64,
     /// Noise σ on the logged terminal voltage \[V\] (not seen by the motor).
@@ -252,6 +255,7 @@ impl DriveConfig {
             ("sensors.speed_noise", self.sensors.speed_noise),
             ("sensors.voltage_noise", self.sensors.voltage_noise),
             ("sensors.adc_range", self.sensors.adc_range),
+            ("sensors.current_noise_pole", self.sensors.current_noise_pole),
         ];
         let finite = [
             ("mechanics.gravity", self.mechanics.gravity),
@@ -277,6 +281,13 @@ impl DriveConfig {
             if !v.is_finite() {
                 return Err(bad(n, v, "finite"));
             }
+        }
+        if self.sensors.current_noise_pole >= 1.0 {
+            return Err(bad(
+                "sensors.current_noise_pole",
+                self.sensors.current_noise_pole,
+                "below 1 (a stable AR(1) pole)",
+            ));
         }
         if self.control.position_filter * self.control.h > 0.5 {
             return Err(bad("control.position_filter", self.control.position_filter, "at most 0.5/h"));

@@ -112,6 +112,8 @@ pub fn simulate_drive(cfg: &DriveConfig) -> Result<DriveLog> {
     let inv = &cfg.inverter;
     let mut log = [(); 10].map(|_| Vec::with_capacity(n));
     let (mut i, mut w, mut theta) = ([0.0; 2], 0.0, 0.0);
+    // The phase-current noise of phases a and b (AR(1) with pole `current_noise_pole`).
+    let mut noise = [0.0; 2];
     // The commands and the controller's angle and speed of the last d + 1 samples.
     let mut history: std::collections::VecDeque<(C64, f64, f64)> = std::collections::VecDeque::new();
     let diverged = |k: usize, p: &MotorParameters| Error::SimulationDiverged {
@@ -126,8 +128,10 @@ pub fn simulate_drive(cfg: &DriveConfig) -> Result<DriveLog> {
         let th_e = np * theta;
         let (a, b) = inverse_park(i[0], i[1], th_e);
         let (ia, ib, ic) = inverse_clarke(a, b);
-        let (ia_m, ib_m) =
-            (adc(ia + gauss(&mut rng, s.current_noise)), adc(ib + gauss(&mut rng, s.current_noise)));
+        let (a1, b1) = (gauss(&mut rng, s.current_noise), gauss(&mut rng, s.current_noise));
+        let gain = (1.0 - s.current_noise_pole * s.current_noise_pole).sqrt();
+        noise = [s.current_noise_pole * noise[0] + gain * a1, s.current_noise_pole * noise[1] + gain * b1];
+        let (ia_m, ib_m) = (adc(ia + noise[0]), adc(ib + noise[1]));
         let theta_meas = encoder(theta);
         let (al, be) = clarke(ia_m, ib_m, -ia_m - ib_m);
         let (id_m, iq_m) = park(al, be, np * theta_meas);

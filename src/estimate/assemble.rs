@@ -6,7 +6,10 @@ use super::diagnostics::{DiagnosticThresholds, diagnose};
 use super::problem::{FreeKind, PemProblem, Slot};
 use super::result::Warning;
 use super::result::t_quantile_975;
-use super::{DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing};
+use super::{
+    CovarianceMethod, DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing,
+    Uncertainty,
+};
 use crate::error::Result;
 use crate::model::GreyBoxModel;
 use crate::report::metrics;
@@ -40,30 +43,73 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     let bread_inv = inverse_on_support(&sums.bread);
     let dtheta: Vec<f64> =
         problem.free().iter().enumerate().map(|(g, f)| f.transform.dtheta_dp(p[g])).collect();
-    let cov_theta = bread_inv.as_ref().map(|ai| {
-        let cov_p = ai * &sums.meat * ai;
-        DMatrix::from_fn(np, np, |i, j| cov_p[(i, j)] * dtheta[i] * dtheta[j])
-    });
-    let tq = t_quantile_975(dof);
-    let names = problem.terms().iter().map(|t| t.prep.name.clone()).collect::<Vec<_>>();
-    let states = model.states();
+    let sandwich = |meat: &DMatrix<f64>| {
+        bread_inv.as_ref().map(|ai| {
+            let cov_p = ai * meat * ai;
+            DMatrix::from_fn(np, np, |i, j| cov_p[(i, j)] * dtheta[i] * dtheta[j])
+        })
+    };
+    // Residual whiteness from the lag sums of the raw output errors of every experiment
+    // (streamed by the statistics pass), lags kept within each experiment; residuals that
+    // fail it take the score's batch-means covariance (see `problem::batches`).
+    let whiteness: Vec<metrics::Whiteness> =
+        sums.lag_sums.iter().map(|segments| metrics::whiteness_of(segments)).collect();
+    let white = whiteness.iter().all(|w| w.is_white(n));
+    let batch_means = sums.batch_means.as_ref().filter(|_| !white && dof > 0);
+    let uncertainty = Uncertainty {
+        method: if batch_means.is_some() { CovarianceMethod::BatchMeans } else { CovarianceMethod::White },
+        dof: batch_means.map_or(dof, |b| b.batches - 1),
+        batches: batch_means.map_or(0, |b| b.batches),
+        batch_samples: batch_means.map_or(0, |b| b.batch_samples),
+        ljung_box: whiteness.iter().map(|w| w.ljung_box(n)).collect(),
+        ljung_box_critical: whiteness.first().map_or(0.0, metrics::Whiteness::ljung_box_critical),
+    };
+    let cov_white = sandwich(&sums.meat);
+    let cov_theta = match batch_means {
+        Some(b) => sandwich(&b.meat),
+        None => cov_white.clone(),
+    };
+    let tq = t_quantile_975(uncertainty.dof);
+    let standard_errors = |cov: &Option<DMatrix<f64>>| -> Vec<f64> {
+        (0..np)
+            .map(|g| {
+                let unseen = sums.bread[(g, g)].is_nan() || sums.bread[(g, g)] <= 0.0;
+                match cov {
+                    Some(c) if !unseen && dof > 0 => c[(g, g)].max(0.0).sqrt(),
+                    _ => f64::INFINITY,
+                }
+            })
+            .collect()
+    };
     // Standard error of every free entry; without degrees of freedom there is no noise
-    // estimate, hence no standard error.
-    let se_free: Vec<f64> = (0..np)
-        .map(|g| {
-            let unseen = sums.bread[(g, g)].is_nan() || sums.bread[(g, g)] <= 0.0;
-            match &cov_theta {
-                Some(c) if !unseen && dof > 0 => c[(g, g)].max(0.0).sqrt(),
-                _ => f64::INFINITY,
-            }
+    // estimate, hence no standard error. An initial state is seen by the first samples
+    // only, inside one batch, whose sum the estimate sets to zero: batch means cannot tell
+    // its variance, so it keeps the white one.
+    let se_white = standard_errors(&cov_white);
+    let se_free: Vec<f64> = standard_errors(&cov_theta)
+        .into_iter()
+        .zip(&se_white)
+        .zip(problem.free())
+        .map(|((se, white), f)| match f.kind {
+            FreeKind::InitialState(_) => *white,
+            FreeKind::Parameter(_) => se,
         })
         .collect();
+    let names = problem.terms().iter().map(|t| t.prep.name.clone()).collect::<Vec<_>>();
+    let states = model.states();
     let estimate = |g: usize, name: String, unit: String, start: f64| {
         let f = &problem.free()[g];
         let value = f.transform.to_theta(p[g]);
         let se = se_free[g];
+        // The error index grows with the standard error when batch means replace the white
+        // covariance (the residual sum of squares understates coloured noise alike).
+        let colour = if se_white[g] > 0.0 && se_white[g].is_finite() && se.is_finite() {
+            se / se_white[g]
+        } else {
+            1.0
+        };
         let idx = info_inv.as_ref().map_or(f64::INFINITY, |ai| {
-            100.0 * (sums.e2_weighted * ai[(g, g)]).max(0.0).sqrt() * dtheta[g].abs() / value.abs()
+            100.0 * (sums.e2_weighted * ai[(g, g)]).max(0.0).sqrt() * dtheta[g].abs() / value.abs() * colour
         });
         // At a bound the quadratic model of the loss does not hold (the gradient is not zero
         // there): no standard error, no interval, and the flag says why.
@@ -81,6 +127,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
             unit,
             value,
             std_error: se,
+            std_error_white: if at_bound { f64::NAN } else { se_white[g] },
             ci95: [value - tq * se, value + tq * se],
             error_index_percent: idx,
             fixed: false,
@@ -102,6 +149,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
                 unit: prm.unit.clone(),
                 value: start[j],
                 std_error: 0.0,
+                std_error_white: 0.0,
                 ci95: [start[j], start[j]],
                 error_index_percent: 0.0,
                 fixed: true,
@@ -159,9 +207,6 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         &|n| model.advice(n),
         &|a, b| model.pair_advice(a, b),
     );
-    // Residual whiteness from the lag sums of the raw output errors of every experiment
-    // (streamed by the statistics pass), lags kept within each experiment.
-    let whiteness = sums.lag_sums.iter().map(|segments| metrics::whiteness_of(segments)).collect();
     let fit = FitStatistics {
         outputs: model.outputs().into_iter().map(|o| o.name).collect(),
         output_units: model.outputs().into_iter().map(|o| o.unit).collect(),
@@ -212,6 +257,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         fit,
         correlation,
         correlation_names: diag_names,
+        uncertainty,
         solver,
         parameter_trace,
         timing: Timing::default(),

@@ -9,6 +9,7 @@
 pub mod assemble;
 pub mod diagnostics;
 pub mod filter;
+pub mod iv;
 pub mod linear;
 pub mod problem;
 pub mod result;
@@ -18,9 +19,13 @@ pub mod weighting;
 
 #[cfg(test)]
 pub(crate) use problem::lagged_dots;
-pub use problem::{LAG_CHUNK, LagSums, Loss, PemProblem, ProblemOptions, WHITENESS_LAGS};
+pub use problem::{
+    BatchMeans, LAG_CHUNK, LagSums, Loss, MIN_BATCHES, PemProblem, ProblemOptions, TARGET_BATCHES,
+    WHITENESS_LAGS,
+};
 pub use result::{
-    DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing, Warning,
+    CovarianceMethod, DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing,
+    Uncertainty, Warning,
 };
 pub use scaling::{ParameterScaling, ScalingKind, Transform};
 pub use solver::gn::{self, GaussNewton};

@@ -24,8 +24,15 @@ pub struct ParameterEstimate {
     pub unit: String,
     /// Estimate θ̂ \[unit\].
     pub value: f64,
-    /// Standard error \[unit\] (0 for fixed, ∞ when not identifiable).
+    /// Standard error \[unit\] (0 for fixed, ∞ when not identifiable): from the
+    /// covariance [`FitResult::uncertainty`] names (white-noise sandwich, or batch means
+    /// when the residuals are not white).
     pub std_error: f64,
+    /// Standard error \[unit\] from the white-noise sandwich `A⁻¹ (Σ_i σ̂_i² B_i) A⁻¹`, whatever
+    /// the residuals: equal to `std_error` for white residuals; NaN in reports written
+    /// before the field existed.
+    #[serde(default = "not_given")]
+    pub std_error_white: f64,
     /// 95 % confidence interval `[lo, hi]` \[unit\].
     pub ci95: [f64; 2],
     /// Parametric error index \[%\] (thesis 5.3).
@@ -45,6 +52,43 @@ pub struct ParameterEstimate {
     pub experiment: Option<String>,
     /// Start value \[unit\].
     pub start: f64,
+}
+
+/// NaN: a figure the report does not give.
+fn not_given() -> f64 {
+    f64::NAN
+}
+
+/// The covariance behind the reported standard errors and intervals.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CovarianceMethod {
+    /// The sandwich with each output's residual variance: white residuals.
+    #[default]
+    White,
+    /// The sandwich with the score's batch-means long-run covariance (residuals not white;
+    /// `crate::estimate::BatchMeans`).
+    BatchMeans,
+}
+
+/// How the reported standard errors and intervals were formed, and why.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Uncertainty {
+    /// The covariance of `std_error` and `ci95`.
+    pub method: CovarianceMethod,
+    /// Degrees of freedom of the t quantile of `ci95`: the residuals' (white) or the
+    /// batches' less one (batch means).
+    pub dof: usize,
+    /// Number of batches (batch means; 0 otherwise).
+    pub batches: usize,
+    /// Samples per batch (batch means; 0 otherwise).
+    pub batch_samples: usize,
+    /// Ljung–Box statistic of each output's residuals over the whiteness lags
+    /// ([`crate::report::Whiteness::ljung_box`]), length n_y.
+    pub ljung_box: Vec<f64>,
+    /// Its 1 % critical value: above it the residuals are not white.
+    pub ljung_box_critical: f64,
 }
 
 pub use crate::model::DerivedEstimate;
@@ -125,6 +169,10 @@ pub struct FitResult {
     /// empty in reports written before the field existed.
     #[serde(default)]
     pub correlation_names: Vec<String>,
+    /// How the standard errors and intervals were formed (white-noise or batch-means
+    /// covariance) and the whiteness test that chose.
+    #[serde(default)]
+    pub uncertainty: Uncertainty,
     /// Solver report.
     pub solver: SolverReport,
     /// The free model parameters after each solver iteration, the start first [their

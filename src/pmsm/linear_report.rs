@@ -27,6 +27,7 @@ impl LinearEstimate {
                     unit: self.units[j].clone(),
                     value: v,
                     std_error: se,
+                    std_error_white: se,
                     ci95: [v - tq * se, v + tq * se],
                     error_index_percent: self.error_index_percent[j],
                     fixed: false,
@@ -83,6 +84,7 @@ impl LinearEstimate {
             fit,
             correlation,
             correlation_names: self.names.clone(),
+            uncertainty: crate::estimate::Uncertainty { dof: self.dof, ..Default::default() },
             solver: SolverReport {
                 name: "ls".into(),
                 iterations: 0,

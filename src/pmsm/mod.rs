@@ -23,6 +23,7 @@ pub mod input_search;
 pub mod interval;
 pub mod inverter;
 pub mod ipm;
+pub mod iv;
 pub mod kind;
 pub mod limit;
 pub mod linear;
@@ -50,6 +51,7 @@ pub use interval::{
 };
 pub use inverter::InverterModel;
 pub use ipm::PmsmIpm;
+pub use iv::{Estimator, fit_pmsm_iv};
 pub use kind::{MotorKind, derived};
 pub use linear::{LinearEstimate, LinearOptions, least_squares, regressors, weighted_least_squares};
 pub use log::{

@@ -184,6 +184,7 @@ pub(crate) fn delay_parameter(
         unit: "samples".into(),
         value: d,
         std_error: (ci[1] - ci[0]) / 3.92,
+        std_error_white: (ci[1] - ci[0]) / 3.92,
         ci95: ci,
         error_index_percent: f64::NAN,
         fixed: estimated.is_none(),

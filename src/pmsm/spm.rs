@@ -39,6 +39,7 @@ use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::model::{BlockKernel, GreyBoxModel, Parameter, Sensitivities};
 
+mod inverse;
 mod kernel;
 
 /// The data of the SPM step, independent of θ: its intervals' source (the experiment's

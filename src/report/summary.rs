@@ -118,6 +118,9 @@ impl FitResult {
         }
         d.table(t);
         d.line(ERROR_INDEX_LEGEND);
+        if let Some(line) = self.uncertainty_line() {
+            d.line(line);
+        }
         if !self.initial_states.is_empty() {
             d.heading(
                 "initial state (x0: the states at each log's first sample, estimated with the parameters)",
@@ -158,6 +161,20 @@ impl FitResult {
         self.correlation_section(&mut d);
         self.remarks(&mut d);
         d
+    }
+
+    /// Says how the standard errors were formed when it is not the white-noise covariance.
+    fn uncertainty_line(&self) -> Option<String> {
+        let u = &self.uncertainty;
+        (u.method == crate::estimate::CovarianceMethod::BatchMeans).then(|| {
+            let q = u.ljung_box.iter().fold(0.0f64, |a, b| a.max(*b));
+            format!(
+                "std error: residuals not white (Ljung–Box Q {q:.3e} > {:.1}): the score's long-run covariance by \
+                 batch means over {} batches of {} samples, interval t with {} degrees of freedom; the white-noise \
+                 std errors are in the JSON (std_error_white)",
+                u.ljung_box_critical, u.batches, u.batch_samples, u.dof
+            )
+        })
     }
 
     fn fit_section(&self, d: &mut Document) {

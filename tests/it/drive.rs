@@ -167,6 +167,7 @@ fn records_are_deterministic_for_a_seed() {
         adc_bits: Some(12),
         adc_range: 20.0,
         encoder_counts: Some(4096),
+        current_noise_pole: 0.5,
     };
     let a = simulate_drive(&cfg).unwrap();
     let b = simulate_drive(&cfg).unwrap();

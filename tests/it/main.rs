@@ -10,6 +10,7 @@ mod blocks;
 mod cli_traps;
 mod columnar;
 mod coverage;
+mod coverage_drive;
 mod criteria;
 mod csv_reader;
 mod data;

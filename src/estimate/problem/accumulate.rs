@@ -1,6 +1,7 @@
 //! Running sums at the estimate from which the statistics of a fit follow.
 
 use super::Loss;
+use super::batches::{BatchMeans, BlockScores, ScoreSeries, TARGET_BATCHES};
 use super::gram::scatter_gram;
 use super::lags::{LagStream, LagSums, WHITENESS_LAGS};
 use super::pass::LocalMap;
@@ -33,6 +34,9 @@ pub struct Sums {
     /// and experiment (`lag_sums[i][e]`, up to lag [`WHITENESS_LAGS`]): the whiteness test
     /// without the residuals kept or another simulation.
     pub lag_sums: Vec<Vec<LagSums>>,
+    /// The batch-means long-run covariance of the score (the meat for residuals that are
+    /// not white; see the `batches` module); `None` when too few batches can be formed.
+    pub batch_means: Option<BatchMeans>,
 }
 
 /// Running sums of [`PemProblem::sums`].
@@ -61,6 +65,8 @@ pub(crate) struct Accumulator {
     streams: Vec<LagStream>,
     // Or their lag sums, when a normal-equation pass gathered them.
     gathered: Option<Vec<LagSums>>,
+    // Every experiment's score summed per block, for the batch means.
+    scores: ScoreSeries,
 }
 
 impl Accumulator {
@@ -87,6 +93,7 @@ impl Accumulator {
             lag_sums: vec![Vec::new(); ny],
             streams: Vec::new(),
             gathered: None,
+            scores: ScoreSeries::new(np),
         }
     }
 
@@ -200,6 +207,16 @@ impl Accumulator {
         }
     }
 
+    /// Adds the current experiment's block scores, in its local columns chained by `map`.
+    pub(crate) fn add_block_scores(&mut self, map: &LocalMap, scores: &BlockScores) {
+        self.scores.add(map, scores);
+    }
+
+    /// Adds the current experiment's per-sample scores (n_free each, in time order).
+    pub(crate) fn add_sample_scores(&mut self, scores: &[nalgebra::DVector<f64>]) {
+        self.scores.add_samples(scores, crate::model::BLOCK_LEN);
+    }
+
     /// Sets the current experiment's lag sums, one per output, gathered elsewhere (the
     /// normal-equation pass at the same point): its residuals are not streamed here.
     pub(crate) fn add_lag_sums(&mut self, sums: Vec<LagSums>) {
@@ -253,6 +270,7 @@ impl Accumulator {
             bread: self.bread,
             meat,
             lag_sums: self.lag_sums,
+            batch_means: self.scores.batch_means(TARGET_BATCHES),
         }
     }
 }

@@ -15,6 +15,7 @@
 
 use super::PemProblem;
 use super::accumulate::Accumulator;
+use super::batches::BlockScores;
 use super::lags::{LagStream, LagSums, WHITENESS_LAGS};
 use super::pass::{Chunk, LocalMap, Pass};
 use crate::error::Result;
@@ -31,6 +32,8 @@ pub(crate) struct ExperimentGrams {
     pub map: LocalMap,
     pub grams: Vec<Vec<f64>>,
     pub residuals: Option<ResidualSums>,
+    /// The score summed over each block of the pass (the batch means' atoms).
+    pub scores: BlockScores,
 }
 
 /// What a normal-equation pass keeps for the statistics, where they can take it (see the
@@ -169,6 +172,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             }
         }
         acc.add_local(&kept.map, &jtj, &jtj, &meat);
+        acc.add_block_scores(&kept.map, &kept.scores);
         Ok(())
     }
 }

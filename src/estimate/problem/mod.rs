@@ -10,6 +10,7 @@
 //! beyond δ is `δ/|ε|` (iteratively reweighted least squares).
 
 mod accumulate;
+mod batches;
 mod best;
 mod gram;
 mod lags;
@@ -21,10 +22,13 @@ mod sums;
 use crate::estimate::solver::LeastSquares;
 pub use crate::estimate::solver::NormalEquations;
 pub use accumulate::Sums;
+pub(crate) use batches::ScoreSeries;
+pub use batches::{BatchMeans, MIN_BATCHES, TARGET_BATCHES};
 #[cfg(test)]
 pub(crate) use gram::dot;
 #[cfg(test)]
 pub(crate) use gram::lagged_dots;
+pub(crate) use lags::LagStream;
 pub use lags::{LAG_CHUNK, LagSums, WHITENESS_LAGS};
 pub use loss::Loss;
 

@@ -2,6 +2,7 @@
 //! scale, and the full residual and Jacobian matrices for diagnostics.
 
 use super::accumulate::{Accumulator, Sums};
+use super::batches::BlockScores;
 use super::best::{ExperimentGrams, Gather, ResidualStreams};
 use super::gram::{dot, gram, scatter_gram, weighted_square_sum};
 use super::pass::{Chunk, Pass, RawSample, ResidualFilter};
@@ -132,6 +133,9 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         let mut huber_cost = 0.0;
         let mut g: Vec<Vec<f64>> = Vec::new();
         let mut wq = vec![0.0; BLOCK_LEN];
+        // The kept Grams' block scores (their Jᵀε column's growth per block), for the batch means.
+        let mut scores = keeps.then(BlockScores::default);
+        let mut before = Vec::new();
         let map = self.pass_blocks(e, p, Pass::CRITERION, |ch| {
             let m1 = ch.m + 1;
             if let Some(s) = streams.as_mut() {
@@ -139,6 +143,8 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             }
             if g.is_empty() {
                 g = vec![vec![0.0; m1 * m1]; ny];
+                before = vec![0.0; ny * ch.m];
+                scores = scores.take().map(|_| BlockScores::new(ch.m));
             }
             let n = ch.len - ch.lo;
             for (i, gi) in g.iter_mut().enumerate() {
@@ -160,6 +166,9 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                     }
                 }
                 gram(cols.as_ref(), Some(&wq[..n]), gi);
+            }
+            if let Some(s) = scores.as_mut() {
+                s.push_gram_growth(n, &g, &self.output_weights, &mut before);
             }
         })?;
         let mut jtj = DMatrix::zeros(np, np);
@@ -184,7 +193,8 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             }
         }
         let residuals = streams.map(ResidualStreams::finish);
-        let grams = keep.then_some(ExperimentGrams { map, grams: g, residuals });
+        let scores = scores.unwrap_or_default();
+        let grams = keep.then_some(ExperimentGrams { map, grams: g, residuals, scores });
         Ok((cost, jtj, jtr, grams))
     }
 
@@ -272,6 +282,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                     let sections = l.sections().len();
                     let mut filter = ResidualFilter::new(l, ny, np);
                     let mut weighted = vec![vec![0.0; raw.len()]; ny * np];
+                    let mut scores = vec![DVector::zeros(np); raw.len()];
                     for (n, (_, eps, w, jac)) in raw.iter_mut().enumerate() {
                         let mut eps_f = eps.clone();
                         for i in 0..ny {
@@ -279,12 +290,14 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                         }
                         acc.sample(&self.loss, &eps_f, eps, w, jac);
                         for i in 0..ny {
-                            let dpsi = self.loss.eval(i, eps_f[i]).3;
+                            let (_, psi, _, dpsi) = self.loss.eval(i, eps_f[i]);
                             for a in 0..np {
                                 weighted[i * np + a][n] = w[i] * dpsi * jac[i * np + a];
+                                scores[n][a] += w[i] * psi * jac[i * np + a];
                             }
                         }
                     }
+                    acc.add_sample_scores(&scores);
                     for i in 0..ny {
                         let g: Vec<Vec<f64>> = (0..np)
                             .map(|a| {
@@ -320,10 +333,18 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         let weighted = self.terms[e].weights.is_some();
         let mut local: Option<LocalGrams> = None;
         let (mut w, mut wb, mut wm) = (vec![0.0; BLOCK_LEN], vec![0.0; BLOCK_LEN], vec![0.0; BLOCK_LEN]);
+        // w ψ(ε) of a block, and the block's score in the local columns.
+        let (mut wpsi, mut score) = (vec![0.0; BLOCK_LEN], Vec::new());
+        let mut scores = BlockScores::default();
         let map = self.pass_blocks(e, p, Pass::CRITERION, |ch| {
-            let g = local.get_or_insert_with(|| LocalGrams::new(ny, ch.m));
+            let g = local.get_or_insert_with(|| {
+                scores = BlockScores::new(ch.m);
+                score = vec![0.0; ch.m];
+                LocalGrams::new(ny, ch.m)
+            });
             let n = ch.len - ch.lo;
             acc.add_samples(n);
+            score.fill(0.0);
             for i in 0..ny {
                 let lambda = self.output_weights[i];
                 let eps = ch.eps(i);
@@ -336,6 +357,9 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                     // the meat Λ_i JᵀWJ; one unweighted Gram serves all three.
                     acc.add_output_sums(i, 0.5 * lambda * sse, lambda * sse, sse, sse, n);
                     gram(cols.as_ref(), None, &mut g.unit[i]);
+                    for (s, c) in score.iter_mut().zip(cols.as_ref()) {
+                        *s += lambda * dot(c, eps);
+                    }
                     continue;
                 }
                 let mut cost = 0.0;
@@ -348,6 +372,10 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                     w[t] = wi;
                     wb[t] = wi * dpsi;
                     wm[t] = if huber { wi * wi * psi * psi } else { wi * wi };
+                    wpsi[t] = wi * psi;
+                }
+                for (s, c) in score.iter_mut().zip(cols.as_ref()) {
+                    *s += dot(c, &wpsi[..n]);
                 }
                 let e2w = weighted_square_sum(eps, &w[..n]);
                 if !huber {
@@ -368,7 +396,9 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                 }
                 gram(cols.as_ref(), Some(&wm[..n]), &mut g.meat[i]);
             }
+            scores.push(n, &score);
         })?;
+        acc.add_block_scores(&map, &scores);
         if let Some(mut g) = local {
             for (i, unit) in g.unit.iter().enumerate() {
                 let lambda = self.output_weights[i];

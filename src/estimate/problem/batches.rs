@@ -1,0 +1,231 @@
+//! The score's long-run covariance by batch means, for residuals that are not white.
+//!
+//! The sandwich `A⁻¹ B A⁻¹` needs `B = Var(Σ_k s_k)`, the variance of the summed score
+//! `s_k = Σ_i w_ki ψ(ε_ki) J_kiᵀ` (n_free). White residuals give `B = Σ_i σ̂_i² Σ_k w² J_kiᵀJ_ki`;
+//! coloured ones (noise on an input, coloured measurement noise, a model error) make the
+//! scores of neighbouring samples correlated and that `B` far too small. Batch means
+//! estimate it without the per-sample scores: cut each experiment's samples into B
+//! consecutive batches of about `N/B` samples, sum the score over each batch (`S_b`, which
+//! a pass over the blocks forms anyway as its share of `JᵀWψ`), and take
+//! `B̂ = B/(B − 1) Σ_b (S_b − (n_b/N) S)(S_b − (n_b/N) S)ᵀ` with `S = Σ_b S_b` (≈ 0 at the
+//! estimate). With the number of batches held fixed, `(θ̂_j − θ_j)/se_j` is Student t with
+//! `B − 1` degrees of freedom when the batches are long against the scores' correlation
+//! time (the fixed-b view: Kiefer & Vogelsang, *Econometric Theory* 21 (2005) 1130–1164;
+//! Ibragimov & Müller, *J. Bus. Econ. Stat.* 28 (2010) 453–468; batch means in simulation
+//! output analysis: Schmeiser, *Oper. Res.* 30 (1982) 556–568). Blocks of the pass are the
+//! atoms: a batch is a run of whole blocks of one experiment, so nothing per sample is kept.
+
+use super::pass::LocalMap;
+use nalgebra::{DMatrix, DVector};
+
+/// Batches the long-run covariance aims at (the t quantile of 31 degrees of freedom is
+/// 2.04, 4 % above the normal one; more batches would shorten them against a slow
+/// correlation).
+pub const TARGET_BATCHES: usize = 32;
+
+/// Fewest batches for which the batch-means covariance is given (t with 7 degrees of
+/// freedom: 2.36).
+pub const MIN_BATCHES: usize = 8;
+
+/// One experiment's score summed over each block of a pass, in the experiment's local
+/// columns (before the chain factor `dθ/dp`): block `c` counted `counts[c]` samples and
+/// summed to `values[c m .. (c + 1) m]`.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct BlockScores {
+    m: usize,
+    counts: Vec<usize>,
+    values: Vec<f64>,
+}
+
+impl BlockScores {
+    /// Empty sums for m local columns.
+    pub(crate) fn new(m: usize) -> Self {
+        Self { m, counts: Vec::new(), values: Vec::new() }
+    }
+
+    /// Appends one block's score sum (length m) over its `n` counted samples.
+    pub(crate) fn push(&mut self, n: usize, score: &[f64]) {
+        debug_assert_eq!(score.len(), self.m);
+        self.counts.push(n);
+        self.values.extend_from_slice(score);
+    }
+
+    /// Appends the last column of each output's running Gram `(m + 1) × (m + 1)` (its
+    /// `Jᵀψ`, scaled by `scale[i]`) minus what it held before this block (`before`, updated).
+    pub(crate) fn push_gram_growth(
+        &mut self,
+        n: usize,
+        grams: &[Vec<f64>],
+        scale: &[f64],
+        before: &mut [f64],
+    ) {
+        let m = self.m;
+        let m1 = m + 1;
+        let mut s = vec![0.0; m];
+        for ((g, &l), prev) in grams.iter().zip(scale).zip(before.chunks_exact_mut(m)) {
+            for a in 0..m {
+                let now = g[a * m1 + m];
+                s[a] += l * (now - prev[a]);
+                prev[a] = now;
+            }
+        }
+        self.push(n, &s);
+    }
+}
+
+/// The batch-means long-run covariance of the summed score (n_free × n_free) and the
+/// batches it came from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BatchMeans {
+    /// `B̂` in the optimiser's coordinates (module documentation).
+    pub meat: DMatrix<f64>,
+    /// Number of batches B (the t quantile takes B − 1 degrees of freedom).
+    pub batches: usize,
+    /// Samples in a batch (the length aimed at; an experiment's last batch may be up to
+    /// half as long again, or its only one shorter).
+    pub batch_samples: usize,
+}
+
+/// Every experiment's block scores in the optimiser's coordinates, in time order.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct ScoreSeries {
+    np: usize,
+    /// Per experiment: the block counts and their n_free-long scores.
+    experiments: Vec<(Vec<usize>, Vec<DVector<f64>>)>,
+}
+
+impl ScoreSeries {
+    pub(crate) fn new(np: usize) -> Self {
+        Self { np, experiments: Vec::new() }
+    }
+
+    /// Adds one experiment's block scores, chained by `map` into the optimiser's coordinates.
+    pub(crate) fn add(&mut self, map: &LocalMap, blocks: &BlockScores) {
+        let m = blocks.m;
+        let scores = blocks
+            .values
+            .chunks_exact(m.max(1))
+            .take(blocks.counts.len())
+            .map(|local| {
+                let mut s = DVector::zeros(self.np);
+                for (a, v) in local.iter().enumerate().take(m) {
+                    s[map.global[a]] += map.dtheta[a] * v;
+                }
+                s
+            })
+            .collect();
+        self.experiments.push((blocks.counts.clone(), scores));
+    }
+
+    /// Adds one experiment's per-sample scores (n_free each), in time order, a block of
+    /// `block` samples at a time.
+    pub(crate) fn add_samples(&mut self, scores: &[DVector<f64>], block: usize) {
+        let counts = scores.chunks(block).map(<[_]>::len).collect();
+        let sums =
+            scores.chunks(block).map(|c| c.iter().fold(DVector::zeros(self.np), |a, s| a + s)).collect();
+        self.experiments.push((counts, sums));
+    }
+
+    /// The batch-means covariance over about `target` batches (module documentation);
+    /// `None` when fewer than [`MIN_BATCHES`] batches can be formed, or when no experiment
+    /// recorded its scores.
+    pub(crate) fn batch_means(&self, target: usize) -> Option<BatchMeans> {
+        let total: usize = self.experiments.iter().flat_map(|(c, _)| c).sum();
+        if total == 0 || self.experiments.is_empty() {
+            return None;
+        }
+        let length = total.div_ceil(target.max(1));
+        let mut batches: Vec<(usize, DVector<f64>)> = Vec::new();
+        for (counts, scores) in &self.experiments {
+            let first = batches.len();
+            let (mut n, mut s) = (0, DVector::zeros(self.np));
+            for (&c, v) in counts.iter().zip(scores) {
+                n += c;
+                s += v;
+                if n >= length {
+                    batches.push((n, std::mem::replace(&mut s, DVector::zeros(self.np))));
+                    n = 0;
+                }
+            }
+            if n > 0 {
+                // A short tail joins the batch before it (of the same experiment).
+                let joins = batches.len() > first && 2 * n < length;
+                match batches.last_mut().filter(|_| joins) {
+                    Some(last) => {
+                        last.0 += n;
+                        last.1 += s;
+                    }
+                    None => batches.push((n, s)),
+                }
+            }
+        }
+        let b = batches.len();
+        if b < MIN_BATCHES {
+            return None;
+        }
+        let sum = batches.iter().fold(DVector::zeros(self.np), |a, (_, s)| a + s);
+        let mut meat = DMatrix::zeros(self.np, self.np);
+        for (n, s) in &batches {
+            let d = s - &sum * (*n as f64 / total as f64);
+            meat += &d * d.transpose();
+        }
+        meat *= b as f64 / (b - 1) as f64;
+        Some(BatchMeans { meat, batches: b, batch_samples: length })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// AR(1) scores x_k = ρ x_{k−1} + e_k of one parameter: the batch-means variance of
+    /// their sum approaches the long-run variance N σ²/(1 − ρ)², far above the white N σ²/(1 − ρ²).
+    #[test]
+    fn batch_means_recover_an_ar1_long_run_variance() {
+        let (rho, n) = (0.9, 200_000usize);
+        let mut state = 0x1234_5678_9abc_def1u64;
+        let mut uniform = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut x = 0.0;
+        let scores: Vec<DVector<f64>> = (0..n)
+            .map(|_| {
+                // Sum of 12 uniforms − 6: unit variance.
+                let e: f64 = (0..12).map(|_| uniform()).sum::<f64>() - 6.0;
+                x = rho * x + e;
+                DVector::from_element(1, x)
+            })
+            .collect();
+        let mut series = ScoreSeries::new(1);
+        series.add_samples(&scores, 256);
+        let bm = series.batch_means(TARGET_BATCHES).expect("enough batches");
+        // Blocks of 256 make batches of 6400 samples: 31, the tail joined to the last.
+        assert_eq!(bm.batches, 31);
+        let long_run = n as f64 / (1.0 - rho) / (1.0 - rho);
+        let ratio = bm.meat[(0, 0)] / long_run;
+        // 31 degrees of freedom: the estimate's relative sd is √(2/31) = 0.25.
+        assert!((0.5..1.6).contains(&ratio), "batch means / long-run variance = {ratio}");
+        let white = n as f64 / (1.0 - rho * rho);
+        assert!(bm.meat[(0, 0)] > 4.0 * white);
+    }
+
+    /// Experiments never share a batch; a short tail joins its experiment's last batch;
+    /// too few batches give none.
+    #[test]
+    fn batches_stay_within_experiments() {
+        let one = |n: usize| vec![DVector::from_element(2, 1.0); n];
+        let mut series = ScoreSeries::new(2);
+        series.add_samples(&one(1000), 100);
+        series.add_samples(&one(1050), 100);
+        let bm = series.batch_means(20).expect("batches");
+        // length ⌈2050/20⌉ = 103 → blocks of 100 pair up: 5 + 5 batches.
+        assert_eq!(bm.batches, 10);
+        assert!(ScoreSeries::new(2).batch_means(20).is_none());
+        let mut short = ScoreSeries::new(1);
+        short.add_samples(&vec![DVector::from_element(1, 1.0); 700], 256);
+        assert!(short.batch_means(TARGET_BATCHES).is_none());
+    }
+}
