@@ -61,8 +61,17 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
         let ls = weighted_least_squares(&logs, n_p, plan.kind, rule.as_ref(), &opts)?;
         let names: Vec<String> = logs.iter().map(|e| e.name().to_string()).collect();
         let report = ls.report(&names, n_p, t1.elapsed().as_secs_f64());
+        // The prediction-error fit of the same logs tells whether noise biased the regression.
+        let pem = PmsmFitOptions { pole_pairs: n_p, model: plan.kind, ..PmsmFitOptions::default() };
+        let warnings = match fit_pmsm(
+            &logs,
+            &PmsmFitOptions { pem: PemOptions { progress: false, ..pem.pem.clone() }, ..pem },
+        ) {
+            Ok(fit) => ls.disagreement(&fit.report).into_iter().collect(),
+            Err(_) => Vec::new(),
+        };
         let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..report.timing.clone() };
-        let report = FitResult { timing, ..report };
+        let report = FitResult { timing, warnings, ..report };
         let json = report.to_json();
         if !quiet {
             let k = |n: &str| report.parameter(n).map(|p| p.value);
@@ -72,7 +81,7 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
             print_report(a.format, &report.document(&conventions), &json);
         }
         write_json(a, json)?;
-        return Ok(true);
+        return Ok(trusted(&report, a.allow_unconverged));
     };
     let result = fit_logs(a.pole_pairs, options, *search, *estimator, &logs, t0, read_s)?;
     let json = result.to_json();
@@ -81,17 +90,23 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
     }
     write_json(a, json)?;
     super::plots::fit_outputs(a.plot.as_deref(), a.residuals.as_deref(), &result, &logs)?;
-    let trusted = result.trusted();
+    Ok(trusted(&result, a.allow_unconverged))
+}
+
+/// Whether `report` is trusted, saying why not on stderr; `allow` (--allow-unconverged)
+/// lets an untrusted one pass.
+fn trusted(report: &FitResult, allow: bool) -> bool {
+    let trusted = report.trusted();
     if !trusted {
         let codes: Vec<&str> =
-            result.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.as_str()).collect();
+            report.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.as_str()).collect();
         eprintln!(
             "warning: the estimates are not to be trusted ({}){}",
             codes.join(", "),
-            if a.allow_unconverged { "" } else { "; exit code 3 (--allow-unconverged: 0)" }
+            if allow { "" } else { "; exit code 3 (--allow-unconverged: 0)" }
         );
     }
-    Ok(trusted || a.allow_unconverged)
+    trusted || allow
 }
 
 /// The prediction-error fit of `logs` (jointly) with `options`: the pole pairs given or

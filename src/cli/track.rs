@@ -5,7 +5,7 @@ use super::args::ColumnArgs;
 use super::output;
 use clap::{Args, ValueEnum};
 use greybox::online::{Adaptation, MrasConfig, Trajectory, track};
-use greybox::pmsm::{CsvOptions, SavedModel, VoltageHold};
+use greybox::pmsm::{CsvOptions, SavedModel, VoltageHold, VoltageInput, applied_experiment};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 
@@ -68,9 +68,9 @@ pub struct TrackArgs {
     #[arg(long, value_enum, default_value_t = AdaptationArg::Lyapunov)]
     pub adaptation: AdaptationArg,
     /// Voltage hold of the log's source (MODEL.md §4): stator for a modulator, dq for a
-    /// dq-held simulator.
-    #[arg(long, value_enum, default_value_t = TrackHold::Stator)]
-    pub hold: TrackHold,
+    /// dq-held simulator. Default: the fit's with --params, else stator.
+    #[arg(long, value_enum)]
+    pub hold: Option<TrackHold>,
     /// At most this many trajectory points per log in the JSON (evenly strided, the last
     /// kept).
     #[arg(long, default_value_t = 10_000)]
@@ -108,7 +108,7 @@ pub fn run_track(a: &TrackArgs) -> greybox::Result<()> {
         output::check(path, &a.logs)?;
     }
     super::plots::check(&[("plot", a.plot.as_ref())], &a.logs)?;
-    let config = config(a)?;
+    let (config, input) = config(a)?;
     let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
     let groups = a.columns.read_logs(&a.logs, &csv, false)?;
     let (mut runs, mut names) = (Vec::with_capacity(a.logs.len()), Vec::with_capacity(a.logs.len()));
@@ -116,7 +116,14 @@ pub fn run_track(a: &TrackArgs) -> greybox::Result<()> {
         // With --split-gaps, each segment is tracked on its own: `LOG#1`, `LOG#2`, ….
         let one = group.len() == 1;
         for (k, log) in group.iter().enumerate() {
-            let trajectory = track(log, &config).map_err(|e| flag_error(e, path))?;
+            // A fit from the reference voltage (--params) drives the observer with the voltage
+            // its delay and advance apply, as it drove the fit.
+            let applied = match input {
+                VoltageInput::Terminal => None,
+                _ => Some(applied_experiment(log, a.pole_pairs, input).map_err(|e| flag_error(e, path))?),
+            };
+            let trajectory =
+                track(applied.as_ref().unwrap_or(log), &config).map_err(|e| flag_error(e, path))?;
             let segment = (!one).then_some(k + 1);
             let name = path.display().to_string();
             names.push(segment.map_or_else(|| name.clone(), |k| format!("{name}#{k}")));
@@ -147,9 +154,9 @@ pub fn run_track(a: &TrackArgs) -> greybox::Result<()> {
     Ok(())
 }
 
-/// The observer's settings from the flags (and `--params`), validated before any log is
-/// read; errors name the flag.
-fn config(a: &TrackArgs) -> greybox::Result<MrasConfig> {
+/// The observer's settings from the flags (and `--params`: its inductances, estimates, hold
+/// and voltage input), validated before any log is read; errors name the flag.
+fn config(a: &TrackArgs) -> greybox::Result<(MrasConfig, VoltageInput)> {
     let saved = match &a.params {
         None => None,
         Some(p) => {
@@ -186,12 +193,21 @@ fn config(a: &TrackArgs) -> greybox::Result<MrasConfig> {
         k_e0: a.k_e0.or(from_report("k_e")).unwrap_or(0.0),
         r_s0: a.r_s0.or(from_report("r_s")).unwrap_or(0.0),
         hold: match a.hold {
-            TrackHold::Stator => VoltageHold::Stator,
-            TrackHold::Dq => VoltageHold::Dq,
+            Some(TrackHold::Stator) => VoltageHold::Stator,
+            Some(TrackHold::Dq) => VoltageHold::Dq,
+            None => saved.as_ref().map_or(VoltageHold::Stator, |s| s.hold),
         },
     };
     config.validate().map_err(|e| flag_error(e, &PathBuf::new()))?;
-    Ok(config)
+    if saved.as_ref().is_some_and(|s| s.inverter.is_some()) {
+        return Err(greybox::Error::InvalidOption {
+            option: "params".into(),
+            reason: "the fit modelled the inverter's dead time, which the observer does not: give the report of a \
+                     fit from the terminal voltage, or of one from the reference without --dead-time"
+                .into(),
+        });
+    }
+    Ok((config, saved.map_or(VoltageInput::Terminal, |s| s.input)))
 }
 
 /// Renames a [`MrasConfig`] field in an error to the flag that sets it; other errors name

@@ -101,15 +101,8 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         let f = &problem.free()[g];
         let value = f.transform.to_theta(p[g]);
         let se = se_free[g];
-        // The error index grows with the standard error when batch means replace the white
-        // covariance (the residual sum of squares understates coloured noise alike).
-        let colour = if se_white[g] > 0.0 && se_white[g].is_finite() && se.is_finite() {
-            se / se_white[g]
-        } else {
-            1.0
-        };
         let idx = info_inv.as_ref().map_or(f64::INFINITY, |ai| {
-            100.0 * (sums.e2_weighted * ai[(g, g)]).max(0.0).sqrt() * dtheta[g].abs() / value.abs() * colour
+            100.0 * (sums.e2_weighted * ai[(g, g)]).max(0.0).sqrt() * dtheta[g].abs() / value.abs()
         });
         // At a bound the quadratic model of the loss does not hold (the gradient is not zero
         // there): no standard error, no interval, and the flag says why.

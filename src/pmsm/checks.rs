@@ -25,6 +25,14 @@ use crate::estimate::linear::StreamedLeastSquares;
 /// |correlation| above which a check speaks.
 pub const THRESHOLD: f64 = 0.3;
 
+/// |slope| of the voltage residual on the voltage's change above which the late-voltage
+/// check speaks (with the correlation above [`THRESHOLD`]). A voltage that acts one sample
+/// late leaves the residual `r_k ≈ u[k] − u[k−1]` itself: slope 1. White noise of variance
+/// σ² on the logged voltage (or its rounding to a few digits) is in both `r_k` (as `n_k`)
+/// and the change (as `n_k − n_{k−1}`): correlation up to 1/√2, but slope
+/// `σ²/(2σ² + var Δu_true) ≤ ½`.
+pub const LATE_SLOPE: f64 = 0.75;
+
 /// Residual `y − φᵀθ` of one row (θ of length n_θ ≤ [`MAX_COLS`]).
 #[inline]
 fn residual(row: &[f64; MAX_COLS], y: f64, theta: &[f64]) -> f64 {
@@ -177,11 +185,12 @@ pub(crate) fn late_voltage_advice(
             let [sx, sy, sxx, syy, sxy] = sums;
             let (saa, sbb, sab) = (sxx - sx * sx / n, syy - sy * sy / n, sxy - sx * sy / n);
             let c = if saa > 0.0 && sbb > 0.0 { sab / (saa * sbb).sqrt() } else { 0.0 };
-            (c.abs() > THRESHOLD).then(|| {
+            let slope = if sbb > 0.0 { sab / sbb } else { 0.0 };
+            (c.abs() > THRESHOLD && slope.abs() > LATE_SLOPE).then(|| {
             Warning::untrusted("voltage_late", format!(
                 "`{}`: the voltage residual follows the voltage's change from the sample before (correlation \
-                 {c:+.2}): the voltage acts later than the model assumes, as a controller's reference does \
-                 (--voltage reference --delay estimate)",
+                 {c:+.2}, slope {slope:+.2}): the voltage acts later than the model assumes, as a controller's \
+                 reference does (--voltage reference --delay estimate)",
                 e.name()
             ))
         })

@@ -16,10 +16,11 @@ use super::kind::MotorKind;
 use super::mask::DeadTimeMask;
 use super::report::delay_parameter;
 pub use super::report::{PmsmFit, StartComparison};
+use super::setup::PmsmSetup;
 use super::temperature::ThermalReference;
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::{FitResult, PemOptions, Timing};
+use crate::estimate::{CovarianceMethod, FitResult, PemOptions, Timing};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -141,6 +142,11 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     })
 }
 
+/// The SPM motor parameters `(r_s, l_s, k_e)` of a fit (NaN where one is missing).
+fn motor_only(fit: &FitResult) -> [f64; 3] {
+    ["r_s", "l_s", "k_e"].map(|n| fit.parameter(n).map_or(f64::NAN, |p| p.value))
+}
+
 /// [`fit_pmsm`] once the checks beside it are under way.
 fn fit_beside(
     experiments: &[Experiment],
@@ -221,6 +227,13 @@ fn fit_beside(
         }
     }
     warnings.extend(setup_warnings.into_iter().flatten());
+    let plain = options.model == MotorKind::Spm
+        && options.input == VoltageInput::Terminal
+        && options.inverter.is_none();
+    if plain && best.uncertainty.method == CovarianceMethod::BatchMeans {
+        let setup = PmsmSetup { cable_resistance: options.cable_resistance, ..PmsmSetup::new(n_p, hold) };
+        warnings.extend(super::noise::input_noise_notice(experiments, setup, &motor_only(&best)));
+    }
     Ok(PmsmFit {
         report: FitResult {
             timing: Timing { fit_s, total_s: fit_s, ..best.timing.clone() },

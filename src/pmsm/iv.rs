@@ -204,7 +204,9 @@ fn report(
          {:.6e}, k_e {:.6e}); goodness of fit and residual checks are the output-error fit's",
         oe.report.parameters[0].value, oe.report.parameters[1].value, oe.report.parameters[2].value
     ));
-    let mut warnings = oe.report.warnings.clone();
+    // The input noise the output-error fit was told of is what this method is for.
+    let mut warnings: Vec<_> =
+        oe.report.warnings.iter().filter(|w| w.code != "input_noise").cloned().collect();
     if !converged {
         warnings.push(crate::estimate::Warning::untrusted(
             "not_converged",

@@ -29,8 +29,13 @@ use super::signals::{DqView, channel};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::filter::{self, Butterworth};
-use crate::estimate::linear::StreamedLeastSquares;
+use crate::estimate::linear::{LinearSolution, StreamedLeastSquares};
+use crate::estimate::problem::{BlockScores, ScoreSeries, TARGET_BATCHES};
 use crate::estimate::weighting::{Uniform, Weighting};
+use crate::estimate::{CovarianceMethod, Uncertainty};
+use crate::model::BLOCK_LEN;
+use crate::report::Whiteness;
+use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
@@ -67,11 +72,18 @@ pub struct LinearEstimate {
     pub units: Vec<String>,
     /// Estimates θ̂ in SI units (Ω, H, V s/rad), length n_θ.
     pub theta: Vec<f64>,
-    /// Standard errors, `√(σ̂² [(ΦᵀWΦ)⁻¹]_ii)` with `σ̂² = E²/(rows_w − n_θ)` (rows_w: rows
-    /// of positive weight), same units as θ̂, length n_θ; NaN without degrees of freedom.
-    /// They assume white equation errors, which filtering and errors-in-variables break:
-    /// read them as a scale, not as a confidence statement.
+    /// Standard errors of θ̂ (same units as θ̂, length n_θ; NaN without degrees of
+    /// freedom): `σ̂² (ΦᵀWΦ)⁻¹` when the equation errors pass the whiteness test, else
+    /// from the batch means of the score ([`uncertainty`](Self::uncertainty) says which).
+    /// Neither removes the errors-in-variables bias of noisy currents: the regression is a
+    /// start, not the answer.
     pub std_error: Vec<f64>,
+    /// The white-noise standard errors `σ̂² (ΦᵀWΦ)⁻¹`, whatever the equation errors.
+    #[serde(default)]
+    pub std_error_white: Vec<f64>,
+    /// How `std_error` was formed.
+    #[serde(default)]
+    pub uncertainty: Uncertainty,
     /// Parametric error index `P_i = 100 √(E² [(ΦᵀWΦ)⁻¹]_ii) / |θ̂_i|` \[%\] (thesis 5.3,
     /// appendix B): the relative change of θ_i (the others re-optimised) that doubles E².
     /// Small is well excited. Length n_θ.
@@ -188,6 +200,7 @@ pub fn weighted_least_squares(
     let cols = names.len();
     // The filtered copies (kept for the residual pass) and √β per sample.
     let mut filtered = Vec::with_capacity(experiments.len());
+    let mut weights = Vec::with_capacity(experiments.len());
     let mut ls = StreamedLeastSquares::new(cols);
     let mut sum = [0.0; 2];
     for e in experiments {
@@ -230,6 +243,7 @@ pub fn weighted_least_squares(
             sum[1] += u[1];
         });
         filtered.push(copy);
+        weights.push(sqrt_beta);
     }
     let rows = ls.rows();
     let sol = ls.solve(&names)?;
@@ -238,22 +252,40 @@ pub fn weighted_least_squares(
     let (mut sse, mut sst) = ([0.0; 2], [0.0; 2]);
     let mut res = [Vec::with_capacity(rows / 2), Vec::with_capacity(rows / 2)];
     let mut segments = Vec::with_capacity(experiments.len());
-    for (e, copy) in experiments.iter().zip(&filtered) {
+    // The score β φ r summed per block of intervals, for the batch means.
+    let mut scores = ScoreSeries::new(cols);
+    for ((e, copy), sqrt_beta) in experiments.iter().zip(&filtered).zip(&weights) {
         let view = DqView::try_new(copy.as_ref().unwrap_or(e))?;
         let (u_d, u_q) = view.terminal_voltage()?;
         let reg = Regression::new(&view, u_d, u_q, n_p, kind);
-        reg.for_each(|_, d, q, u| {
+        let mut blocks = BlockScores::new(cols);
+        let (mut block, mut count) = (vec![0.0; cols], 0);
+        reg.for_each(|k, d, q, u| {
+            let beta = sqrt_beta.as_ref().map_or(1.0, |b| b[k + 1] * b[k + 1]);
             for (c, row) in [d, q].iter().enumerate() {
                 let r = u[c] - row[..cols].iter().zip(&sol.theta).map(|(a, b)| a * b).sum::<f64>();
                 sse[c] += r * r;
                 sst[c] += (u[c] - mean[c]).powi(2);
                 res[c].push(r);
+                for (s, x) in block.iter_mut().zip(&row[..cols]) {
+                    *s += beta * x * r;
+                }
+            }
+            count += 1;
+            if count == BLOCK_LEN {
+                blocks.push(count, &block);
+                block.fill(0.0);
+                count = 0;
             }
         });
+        if count > 0 {
+            blocks.push(count, &block);
+        }
+        scores.add_plain(&blocks);
         segments.push(reg.intervals());
     }
     // Whiteness of the d and q equation errors, lags within each experiment.
-    let whiteness = res
+    let whiteness: Vec<Whiteness> = res
         .iter()
         .map(|r| {
             let mut parts = Vec::with_capacity(segments.len());
@@ -266,11 +298,14 @@ pub fn weighted_least_squares(
         })
         .collect();
     let half = (rows / 2) as f64;
+    let (std_error, uncertainty) = covariance(&sol, &whiteness, &scores, rows / 2);
     Ok(LinearEstimate {
         kind,
         names,
         units: kind.parameter_units().iter().map(|s| s.to_string()).collect(),
-        std_error: sol.std_error,
+        std_error,
+        std_error_white: sol.std_error.clone(),
+        uncertainty,
         error_index_percent: sol.error_index_percent,
         theta: sol.theta,
         e2: sol.e2,
@@ -284,6 +319,38 @@ pub fn weighted_least_squares(
         weighting: weighting.name(),
         options: options.clone(),
     })
+}
+
+/// The standard errors of the regression and how they were formed: white
+/// (`σ̂² (ΦᵀWΦ)⁻¹`) when the d and q equation errors of all `n` intervals pass the whiteness
+/// test, else the batch means of the score `Σ β φ r` (`estimate::BatchMeans`) in the
+/// sandwich `(ΦᵀWΦ)⁻¹ Ω (ΦᵀWΦ)⁻¹`.
+fn covariance(
+    sol: &LinearSolution,
+    whiteness: &[Whiteness],
+    scores: &ScoreSeries,
+    n: usize,
+) -> (Vec<f64>, Uncertainty) {
+    let white = whiteness.iter().all(|w| w.is_white(n));
+    let bm = if white { None } else { scores.batch_means(TARGET_BATCHES) };
+    let uncertainty = Uncertainty {
+        method: if bm.is_some() { CovarianceMethod::BatchMeans } else { CovarianceMethod::White },
+        dof: bm.as_ref().map_or(sol.dof, |b| b.batches - 1),
+        batches: bm.as_ref().map_or(0, |b| b.batches),
+        batch_samples: bm.as_ref().map_or(0, |b| b.batch_samples),
+        ljung_box: whiteness.iter().map(|w| w.ljung_box(n)).collect(),
+        ljung_box_critical: whiteness.first().map_or(0.0, Whiteness::ljung_box_critical),
+    };
+    let se = match bm {
+        None => sol.std_error.clone(),
+        Some(b) => {
+            let m = sol.inverse.len();
+            let inv = DMatrix::from_fn(m, m, |i, j| sol.inverse[i][j]);
+            let cov = &inv * b.meat * &inv;
+            (0..m).map(|j| cov[(j, j)].max(0.0).sqrt()).collect()
+        }
+    };
+    (se, uncertainty)
 }
 
 /// Renames the option of an [`Error::InvalidOption`] from the filter to the field of

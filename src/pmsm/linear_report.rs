@@ -9,7 +9,9 @@ use super::kind::derived;
 use super::linear::LinearEstimate;
 use crate::estimate::diagnostics::{DiagnosticThresholds, diagnose};
 use crate::estimate::result::t_quantile_975;
-use crate::estimate::{FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing};
+use crate::estimate::{
+    FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing, Warning,
+};
 use crate::report::metrics;
 use nalgebra::DMatrix;
 
@@ -18,7 +20,7 @@ impl LinearEstimate {
     /// pole pairs; `fit_s` \[s\] is the time the estimate took.
     pub fn report(&self, experiments: &[String], n_p: u32, fit_s: f64) -> FitResult {
         let n = self.theta.len();
-        let tq = t_quantile_975(self.dof);
+        let tq = t_quantile_975(self.uncertainty.dof);
         let parameters: Vec<ParameterEstimate> = (0..n)
             .map(|j| {
                 let (v, se) = (self.theta[j], self.std_error[j]);
@@ -27,7 +29,7 @@ impl LinearEstimate {
                     unit: self.units[j].clone(),
                     value: v,
                     std_error: se,
-                    std_error_white: se,
+                    std_error_white: self.std_error_white.get(j).copied().unwrap_or(se),
                     ci95: [v - tq * se, v + tq * se],
                     error_index_percent: self.error_index_percent[j],
                     fixed: false,
@@ -84,7 +86,7 @@ impl LinearEstimate {
             fit,
             correlation,
             correlation_names: self.names.clone(),
-            uncertainty: crate::estimate::Uncertainty { dof: self.dof, ..Default::default() },
+            uncertainty: self.uncertainty.clone(),
             solver: SolverReport {
                 name: "ls".into(),
                 iterations: 0,
@@ -98,12 +100,47 @@ impl LinearEstimate {
             parameter_trace: Vec::new(),
             timing: Timing { read_s: 0.0, fit_s, total_s: fit_s },
             notes: vec![format!(
-                "linear least squares on the voltage equations (weighting {}; prefilter {}); standard errors \
-                 assume white equation errors",
+                "linear least squares on the voltage equations (weighting {}; prefilter {}); with noisy currents \
+                 the regression is biased (errors in variables): a start, not the answer",
                 self.weighting,
                 self.options.prefilter.map_or("none".into(), |f| format!("{f} Hz"))
             )],
             warnings: Vec::new(),
         }
+    }
+}
+
+impl LinearEstimate {
+    /// An untrusted warning (code `ls_biased`) when this regression and a prediction-error
+    /// fit `pem` of the same logs disagree on a parameter by more than 1.96 standard errors
+    /// of the difference (`√(se_ls² + se_pem²)`): the regression takes the currents'
+    /// derivative as a regressor, so noise on the currents biases it (errors in variables;
+    /// thesis 5.2.1), and its discretisation is approximate, while output error on the exact
+    /// step is biased by neither. `None` when they agree.
+    pub fn disagreement(&self, pem: &FitResult) -> Option<Warning> {
+        let off: Vec<String> = self
+            .names
+            .iter()
+            .enumerate()
+            .filter_map(|(j, name)| {
+                let p = pem.parameter(name)?;
+                let se = (self.std_error[j].powi(2) + p.std_error.powi(2)).sqrt();
+                let z = (self.theta[j] - p.value) / se;
+                (z.abs() > 1.96)
+                    .then(|| format!("{name} {:.6e} against {:.6e} ({z:+.1} σ)", self.theta[j], p.value))
+            })
+            .collect();
+        (!off.is_empty()).then(|| {
+            Warning::untrusted(
+                "ls_biased",
+                format!(
+                    "the regression disagrees with the prediction-error fit beyond their intervals: {}; it is \
+                     biased, by noise on the currents (their derivative is a regressor: errors in variables) or by \
+                     its approximate discretisation, so its intervals do not hold: use the prediction-error fit \
+                     (--method pem), or --method iv with noise on the voltage",
+                    off.join(", ")
+                ),
+            )
+        })
     }
 }

@@ -30,6 +30,7 @@ pub mod linear;
 pub mod linear_report;
 pub mod log;
 pub mod mask;
+mod noise;
 pub mod plant;
 pub mod report;
 mod scan;

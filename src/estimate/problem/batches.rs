@@ -117,6 +117,12 @@ impl ScoreSeries {
         self.experiments.push((blocks.counts.clone(), scores));
     }
 
+    /// Adds one experiment's block scores already in the optimiser's coordinates (m = n_free).
+    pub(crate) fn add_plain(&mut self, blocks: &BlockScores) {
+        let scores = blocks.values.chunks_exact(self.np.max(1)).map(DVector::from_column_slice).collect();
+        self.experiments.push((blocks.counts.clone(), scores));
+    }
+
     /// Adds one experiment's per-sample scores (n_free each), in time order, a block of
     /// `block` samples at a time.
     pub(crate) fn add_samples(&mut self, scores: &[DVector<f64>], block: usize) {

@@ -22,8 +22,8 @@ mod sums;
 use crate::estimate::solver::LeastSquares;
 pub use crate::estimate::solver::NormalEquations;
 pub use accumulate::Sums;
-pub(crate) use batches::ScoreSeries;
 pub use batches::{BatchMeans, MIN_BATCHES, TARGET_BATCHES};
+pub(crate) use batches::{BlockScores, ScoreSeries};
 #[cfg(test)]
 pub(crate) use gram::dot;
 #[cfg(test)]

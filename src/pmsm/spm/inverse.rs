@@ -87,13 +87,14 @@ mod tests {
     /// agree with central differences, for both holds.
     #[test]
     fn inverse_undoes_the_step() {
-        let n = 6;
+        let n = 20;
+        let f = |a: f64, b: f64, c: f64| (0..n).map(|k| a + b * (c * k as f64).sin()).collect::<Vec<f64>>();
         let s = DqSignals {
-            u_d: vec![3.0, -2.0, 5.0, 1.0, 0.5, 0.0],
-            u_q: vec![20.0, 25.0, 18.0, 30.0, 28.0, 0.0],
+            u_d: f(1.0, 4.0, 0.7),
+            u_q: f(25.0, 6.0, 0.3),
             i_d: vec![0.0; n],
             i_q: vec![0.0; n],
-            w_m: vec![100.0, 120.0, 150.0, 170.0, 200.0, 210.0],
+            w_m: f(150.0, 60.0, 0.2),
             theta_m: None,
             u_d_ref: None,
             u_q_ref: None,
