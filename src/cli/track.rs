@@ -64,9 +64,20 @@ pub struct TrackArgs {
     /// Observer feedback gain f [1/s], ≥ 0.
     #[arg(long, default_value_t = MrasConfig::default().f, allow_hyphen_values = true)]
     pub observer_gain: f64,
-    /// Speed scaling of the K_e law: lyapunov (gain grows with ω_m) or relay (sign of ω_m).
-    #[arg(long, value_enum, default_value_t = AdaptationArg::Lyapunov)]
+    /// Adaptation law: normalised (gains set by the information each parameter receives,
+    /// time constants --tau-ke and --tau-rs, no motor-specific gain), or the thesis' laws
+    /// with --gamma-ke and --gamma-rs: lyapunov (K_e gain grows with ω_m) or relay (sign of
+    /// ω_m).
+    #[arg(long, value_enum, default_value_t = AdaptationArg::Normalised)]
     pub adaptation: AdaptationArg,
+    /// Time constant of the K_e estimate [s] with --adaptation normalised: longer averages
+    /// more noise, shorter follows faster changes.
+    #[arg(long, default_value_t = MrasConfig::default().tau_ke)]
+    pub tau_ke: f64,
+    /// Time constant of the R_s estimate [s] with --adaptation normalised (over the samples
+    /// where it adapts: |i_d| above --i-d-threshold).
+    #[arg(long, default_value_t = MrasConfig::default().tau_rs)]
+    pub tau_rs: f64,
     /// Voltage hold of the log's source (MODEL.md §4): stator for a modulator, dq for a
     /// dq-held simulator. Default: the fit's with --params, else stator.
     #[arg(long, value_enum)]
@@ -92,6 +103,7 @@ pub struct TrackArgs {
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum AdaptationArg {
+    Normalised,
     Lyapunov,
     Relay,
 }
@@ -187,9 +199,12 @@ fn config(a: &TrackArgs) -> greybox::Result<(MrasConfig, VoltageInput)> {
         gamma_rs: a.gamma_rs,
         i_d_threshold: a.i_d_threshold,
         adaptation: match a.adaptation {
+            AdaptationArg::Normalised => Adaptation::Normalised,
             AdaptationArg::Lyapunov => Adaptation::Lyapunov,
             AdaptationArg::Relay => Adaptation::Relay,
         },
+        tau_ke: a.tau_ke,
+        tau_rs: a.tau_rs,
         k_e0: a.k_e0.or(from_report("k_e")).unwrap_or(0.0),
         r_s0: a.r_s0.or(from_report("r_s")).unwrap_or(0.0),
         hold: match a.hold {
@@ -222,6 +237,8 @@ fn flag_error(e: greybox::Error, log: &std::path::Path) -> greybox::Error {
                 "f" => "observer-gain",
                 "gamma_ke" => "gamma-ke",
                 "gamma_rs" => "gamma-rs",
+                "tau_ke" => "tau-ke",
+                "tau_rs" => "tau-rs",
                 "i_d_threshold" => "i-d-threshold",
                 "k_e0" => "k-e0",
                 "r_s0" => "r-s0",

@@ -15,6 +15,15 @@ pub enum Adaptation {
     /// `ω_m` in the adaptation's `D` replaced by `sign(ω_m)` (+1 at ω_m = 0): a gain that
     /// does not depend on the speed's size; needs a larger `γ_Ke` (thesis 5.1.2).
     Relay,
+    /// The Lyapunov directions with gains normalised by the information each parameter
+    /// receives: `γ = (h/τ) / P̄`, `P̄` the mean of `|φ|²` (the squared sensitivity of the
+    /// prediction to the parameter) over the last τ (`MrasConfig::tau_ke`, `tau_rs`). Each
+    /// estimate then settles with the time constant τ whatever the motor's size and speed,
+    /// and averages the noise over it: the normalised LMS / recursive least squares with
+    /// forgetting factor `1 − h/τ` (Haykin, *Adaptive Filter Theory*, 5th ed., 2014, 6.1
+    /// and 10.2; Ioannou & Sun, *Robust Adaptive Control*, 1996, 4.5.5 on normalisation).
+    /// No motor-specific gain.
+    Normalised,
 }
 
 /// Settings of [`super::Mras`]; plain data with serde and thesis defaults.
@@ -53,8 +62,14 @@ pub struct MrasConfig {
     /// Adaptation gain γ_Rs \[Ω/(A s)\] of `R_s`, at most 0: thesis sign convention
     /// `dR̂_s/dt = γ_Rs e_d` with `e = x − x̂` and `i_d > 0` (thesis eq. 5.4, γ_Rs = −10).
     pub gamma_rs: f64,
-    /// Speed scaling of the `K_e` law.
+    /// Speed scaling of the `K_e` law, or the normalised laws.
     pub adaptation: Adaptation,
+    /// Time constant τ_Ke \[s\] of the `K_e` estimate under [`Adaptation::Normalised`],
+    /// positive (default 0.5 s).
+    pub tau_ke: f64,
+    /// Time constant τ_Rs \[s\] of the `R_s` estimate under [`Adaptation::Normalised`]
+    /// (counted over the samples where it adapts), positive (default 0.5 s).
+    pub tau_rs: f64,
     /// `R_s` adapts only while `|i_d|` exceeds this \[A\] (d-current injection, thesis
     /// 5.1.1); at least 0. Default 0.5 A (our choice; the thesis names none).
     pub i_d_threshold: f64,
@@ -78,6 +93,8 @@ impl Default for MrasConfig {
             gamma_ke: 0.001,
             gamma_rs: -10.0,
             adaptation: Adaptation::Lyapunov,
+            tau_ke: 0.5,
+            tau_rs: 0.5,
             i_d_threshold: 0.5,
             k_e0: 0.0,
             r_s0: 0.0,
@@ -99,7 +116,13 @@ impl MrasConfig {
         if self.n_p == 0 {
             return bad("n_p", "the number of pole pairs must be at least 1".into());
         }
-        for (name, v) in [("l_s", self.l_s), ("l_q", self.l_q.unwrap_or(1.0)), ("h", self.h)] {
+        for (name, v) in [
+            ("l_s", self.l_s),
+            ("l_q", self.l_q.unwrap_or(1.0)),
+            ("h", self.h),
+            ("tau_ke", self.tau_ke),
+            ("tau_rs", self.tau_rs),
+        ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(name, format!("must be positive and finite, got {v}"));
             }
@@ -138,6 +161,6 @@ impl MrasConfig {
     /// `γ_Rs ≠ 0` (thesis 5.1.1: without d current the d equation carries no information
     /// on `R_s`). False for a non-finite `i_d`.
     pub fn r_s_adapts(&self, i_d: f64) -> bool {
-        i_d.abs() > self.i_d_threshold && self.gamma_rs != 0.0
+        i_d.abs() > self.i_d_threshold && (self.gamma_rs != 0.0 || self.adaptation == Adaptation::Normalised)
     }
 }

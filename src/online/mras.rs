@@ -167,6 +167,8 @@ struct Next {
     psi_k: C64,
     k_e: f64,
     r_s: f64,
+    p_k: f64,
+    p_r: f64,
 }
 
 /// The MRAS observer (thesis 5.1): state `î` and parameters `(K̂_e, R̂_s)`; see the module
@@ -191,6 +193,10 @@ pub struct Mras {
     phi_k: C64,
     phi_r: C64,
     psi_k: C64,
+    /// Mean information `|φ|²` of K̂_e and R̂_s over the last τ ([`Adaptation::Normalised`];
+    /// 0 before any).
+    p_k: f64,
+    p_r: f64,
     /// Samples consumed; 0 means the observer starts at the next measurement.
     n: usize,
     last: Estimates,
@@ -221,6 +227,8 @@ impl Mras {
             phi_k: C64::default(),
             phi_r: C64::default(),
             psi_k: C64::default(),
+            p_k: 0.0,
+            p_r: 0.0,
             n: 0,
             last: Estimates::default(),
             cfg: config,
@@ -278,7 +286,8 @@ impl Mras {
         let i_hat = if self.n == 0 { i } else { self.i_hat };
         let e = i - i_hat;
         let active = self.n > 0 && self.cfg.r_s_adapts(s.i_d);
-        let (dk, dr) = self.adaptation(e, i, active)?;
+        let (g_k, g_r, p_k, p_r) = self.gains(i, active);
+        let (dk, dr) = self.adaptation(e, g_k, g_r)?;
         let (k_e, r_s) = (self.k_e + dk, (self.r_s + dr).max(0.0));
         // The last step re-taken with the new parameters (first order), then corrected.
         let i_post = i_hat + self.phi_k * dk + self.phi_r * (r_s - self.r_s);
@@ -296,7 +305,7 @@ impl Mras {
         Ok(MrasOutput {
             estimates: estimates(k_e, r_s, self.cfg.n_p, e, active),
             sample: self.n,
-            next: Next { i_hat: i_next, phi_k, phi_r, psi_k, k_e, r_s },
+            next: Next { i_hat: i_next, phi_k, phi_r, psi_k, k_e, r_s, p_k, p_r },
         })
     }
 
@@ -319,18 +328,35 @@ impl Mras {
         let nx = out.next;
         (self.i_hat, self.phi_k, self.phi_r, self.psi_k, self.k_e, self.r_s) =
             (nx.i_hat, nx.phi_k, nx.phi_r, nx.psi_k, nx.k_e, nx.r_s);
+        (self.p_k, self.p_r) = (nx.p_k, nx.p_r);
         self.n += 1;
         self.last = out.estimates;
         Ok(())
     }
 
-    /// `(ΔK̂_e, ΔR̂_s)` from `(I + Γ Re(ΨᴴΦ)) Δθ = Γ Re(Ψᴴ e)` (module documentation).
-    fn adaptation(&self, e: C64, i: C64, r_active: bool) -> Result<(f64, f64)> {
+    /// The gains `(γ_K, γ_R)` at current `i` (R̂_s adapting when `r_active`) and the mean
+    /// information `(P̄_K, P̄_R)` after this sample (unchanged but under
+    /// [`Adaptation::Normalised`]).
+    fn gains(&self, i: C64, r_active: bool) -> (f64, f64, f64, f64) {
+        if self.cfg.adaptation != Adaptation::Normalised {
+            // −γ_Rs L_s/|i| maps the thesis' gain onto the sensitivity φ_R ≈ −h i/L_s; |i| > 0
+            // whenever |i_d| exceeds the threshold.
+            let g_r = if r_active { -self.cfg.gamma_rs * self.cfg.l_s / i.norm() } else { 0.0 };
+            return (self.cfg.gamma_ke, g_r, self.p_k, self.p_r);
+        }
+        // P̄ ← P̄ + (h/τ)(|φ|² − P̄), started at the first value; γ = (h/τ)/P̄.
+        let mean = |p: f64, info: f64, a: f64| if p > 0.0 { p + a * (info - p) } else { info };
+        let gain = |p: f64, a: f64| if p > 0.0 && p.is_finite() { a / p } else { 0.0 };
+        let (a_k, a_r) = (self.cfg.h / self.cfg.tau_ke, self.cfg.h / self.cfg.tau_rs);
+        let p_k = mean(self.p_k, self.phi_k.norm_sqr(), a_k);
+        let p_r = if r_active { mean(self.p_r, self.phi_r.norm_sqr(), a_r) } else { self.p_r };
+        (gain(p_k, a_k), if r_active { gain(p_r, a_r) } else { 0.0 }, p_k, p_r)
+    }
+
+    /// `(ΔK̂_e, ΔR̂_s)` from `(I + Γ Re(ΨᴴΦ)) Δθ = Γ Re(Ψᴴ e)` with `Γ = diag(g_k, g_r)`
+    /// (module documentation).
+    fn adaptation(&self, e: C64, g_k: f64, g_r: f64) -> Result<(f64, f64)> {
         let dot = |a: C64, b: C64| a.re * b.re + a.im * b.im; // Re(ā b)
-        let g_k = self.cfg.gamma_ke;
-        // −γ_Rs L_s/|i| maps the thesis' gain onto the sensitivity φ_R ≈ −h i/L_s; |i| > 0
-        // whenever |i_d| exceeds the threshold.
-        let g_r = if r_active { -self.cfg.gamma_rs * self.cfg.l_s / i.norm() } else { 0.0 };
         let (psi_k, phi_k, phi_r) = (self.psi_k, self.phi_k, self.phi_r);
         let m = [
             [g_k * dot(psi_k, phi_k), g_k * dot(psi_k, phi_r)],

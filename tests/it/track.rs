@@ -230,3 +230,29 @@ fn track_salient_flag_errors() {
         assert!(err.contains(culprit), "{args:?}: expected `{culprit}` in: {err}");
     }
 }
+
+/// The default (normalised) adaptation on the noisy development logs, each fitted first and
+/// tracked with the fit's report: K_e within 1 %, R_s within 5 % of the truth, no gain
+/// given (the thesis' gains leave R_s of the interior-magnet log at +270 %).
+#[test]
+fn track_defaults_survive_the_noisy_logs() {
+    crate::common::require_shared!();
+    for (name, p, model, k_e, r_s) in [
+        ("servo_spm_moves_idinj_noisy", "4", "spm", 0.538_887_743_412_299_2, 0.9),
+        ("gem_ipm_moves_idinj_noisy", "4", "ipm", 0.244_948_974_278_317_8, 0.03),
+    ] {
+        let log = crate::common::shared_file(&format!("{name}.csv.gz"));
+        let report = temp(&format!("{name}.json"));
+        let out =
+            greybox(&["fit", &log, "-p", p, "--model", model, "--json", report.to_str().unwrap(), "-q"]);
+        assert!(
+            out.status.code().is_some_and(|c| c == 0 || c == 3),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let (k, r) = final_of(&["track", &log, "-p", p, "--params", report.to_str().unwrap(), "--json", "-"]);
+        let _ = std::fs::remove_file(&report);
+        assert!((k / k_e - 1.0).abs() < 0.01, "{name}: K_e {k} for {k_e}");
+        assert!((r / r_s - 1.0).abs() < 0.05, "{name}: R_s {r} for {r_s}");
+    }
+}

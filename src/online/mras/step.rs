@@ -31,7 +31,7 @@ impl Mras {
         let i_next = a * x + forced;
         let phi_k = -b * C64::new(0.0, SQRT_2_3 * s.w_m);
         let psi_k = match self.cfg.adaptation {
-            Adaptation::Lyapunov => phi_k,
+            Adaptation::Lyapunov | Adaptation::Normalised => phi_k,
             Adaptation::Relay => -b * C64::new(0.0, SQRT_2_3 * if s.w_m < 0.0 { -1.0 } else { 1.0 }),
         };
         let phi_r = a * (-hl) * x + forced_r;
@@ -70,7 +70,7 @@ impl Mras {
         let c = |v: [f64; 2]| C64::new(v[0], v[1]);
         let phi_k = c(d.d_k_e);
         let psi_k = match self.cfg.adaptation {
-            Adaptation::Lyapunov => phi_k,
+            Adaptation::Lyapunov | Adaptation::Normalised => phi_k,
             // φ_K is proportional to ω_m (its direction depends on ω_m only through the
             // rotation within the period): φ_K/|ω_m|, and 0 at standstill where K_e has
             // no effect on the step.
