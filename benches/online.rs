@@ -60,7 +60,7 @@ fn spm_signal(n: usize) -> Vec<Sample> {
 /// off in `K_e` and 20 % in `R_s`. The relay law uses a larger `γ_Ke` (thesis 5.1.2).
 fn config(adaptation: Adaptation) -> MrasConfig {
     let gamma_ke = match adaptation {
-        Adaptation::Lyapunov => 0.001,
+        Adaptation::Lyapunov | Adaptation::Normalised => 0.001,
         Adaptation::Relay => 0.001 * 200.0,
     };
     MrasConfig {
@@ -79,7 +79,11 @@ fn update(c: &mut Criterion) {
     let samples = spm_signal(N);
     let mut g = c.benchmark_group("mras update");
     g.throughput(Throughput::Elements(N as u64));
-    for (name, adaptation) in [("lyapunov", Adaptation::Lyapunov), ("relay", Adaptation::Relay)] {
+    for (name, adaptation) in [
+        ("lyapunov", Adaptation::Lyapunov),
+        ("relay", Adaptation::Relay),
+        ("normalised", Adaptation::Normalised),
+    ] {
         // One observer runs on over the iterations: each pass over the samples is one
         // more period of the same signal, as a long log would be.
         let mut mras = Mras::try_new(config(adaptation)).unwrap();
