@@ -12,6 +12,10 @@ use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::report::{Comparison, compare_from};
 
+/// What simulating a fit on its logs takes: the model kind and setup, each log's θ and
+/// initial state, and the number of estimated parameters.
+type Plan = (MotorKind, PmsmSetup, Vec<(Vec<f64>, Option<Vec<f64>>)>, usize);
+
 impl PmsmFit {
     /// Measured against simulated outputs (`id`, `iq` \[A\]) of each of `experiments`, which
     /// must be the logs of the fit in the fit's order, one [`Comparison`] per log.
@@ -21,6 +25,54 @@ impl PmsmFit {
     /// fit's, the report is not a PMSM prediction-error fit, or a model parameter is
     /// missing from it; those of [`compare_from`] (a log without the channels the model reads, a diverging simulation).
     pub fn comparisons(&self, experiments: &[Experiment]) -> Result<Vec<Comparison>> {
+        let (kind, setup, logs, n_params) = self.plan(experiments)?;
+        experiments
+            .iter()
+            .zip(logs)
+            .map(|(log, (theta, x0))| match kind {
+                MotorKind::Spm => {
+                    compare_from(&PmsmSpm::from_setup(setup), log, &theta, x0.as_deref(), n_params)
+                }
+                MotorKind::Ipm => {
+                    compare_from(&PmsmIpm::from_setup(setup), log, &theta, x0.as_deref(), n_params)
+                }
+            })
+            .collect()
+    }
+
+    /// The simulated outputs alone of [`comparisons`](Self::comparisons), row-major
+    /// `N × n_y` per log (`[k n_y + i]`), without the measured copy and the metrics.
+    ///
+    /// # Errors
+    /// As [`comparisons`](Self::comparisons).
+    pub fn simulated_outputs(&self, experiments: &[Experiment]) -> Result<Vec<Vec<f64>>> {
+        fn run<M: crate::model::GreyBoxModel>(
+            m: &M,
+            e: &Experiment,
+            theta: &[f64],
+            x0: Option<&[f64]>,
+        ) -> Result<Vec<f64>> {
+            let prep = crate::model::Prepared::new(m, e)?;
+            crate::simulate::simulate(
+                m,
+                &prep,
+                theta,
+                &crate::simulate::SimOptions { x0, ..Default::default() },
+            )
+        }
+        let (kind, setup, logs, _) = self.plan(experiments)?;
+        experiments
+            .iter()
+            .zip(logs)
+            .map(|(log, (theta, x0))| match kind {
+                MotorKind::Spm => run(&PmsmSpm::from_setup(setup), log, &theta, x0.as_deref()),
+                MotorKind::Ipm => run(&PmsmIpm::from_setup(setup), log, &theta, x0.as_deref()),
+            })
+            .collect()
+    }
+
+    /// The [`Plan`] of simulating this fit on `experiments`.
+    fn plan(&self, experiments: &[Experiment]) -> Result<Plan> {
         let bad = |reason: String| Error::InvalidOption { option: "experiments".into(), reason };
         let n = self.experiments.len();
         if experiments.len() != n {
@@ -60,22 +112,13 @@ impl PmsmFit {
         };
         let n_params = self.parameters.iter().filter(|p| !p.fixed).count();
         let n_x = self.initial_states.len() / n.max(1);
-        experiments
-            .iter()
-            .enumerate()
-            .map(|(e, log)| {
-                let theta = theta_of(e)?;
-                let x0: Option<Vec<f64>> = (n_x == 2)
+        let logs = (0..n)
+            .map(|e| {
+                let x0 = (n_x == 2)
                     .then(|| self.initial_states[2 * e..2 * e + 2].iter().map(|p| p.value).collect());
-                match kind {
-                    MotorKind::Spm => {
-                        compare_from(&PmsmSpm::from_setup(setup), log, &theta, x0.as_deref(), n_params)
-                    }
-                    MotorKind::Ipm => {
-                        compare_from(&PmsmIpm::from_setup(setup), log, &theta, x0.as_deref(), n_params)
-                    }
-                }
+                Ok((theta_of(e)?, x0))
             })
-            .collect()
+            .collect::<Result<_>>()?;
+        Ok((kind, setup, logs, n_params))
     }
 }
