@@ -143,7 +143,7 @@ pub struct FitArgs {
     /// Estimation method: prediction error (pem), the linear least-squares regression of
     /// the voltage equations (ls; weighted by --weighting, filtered by --prefilter), or
     /// instrumental variables on the exact inverse model (iv: for noise on the logged
-    /// voltage or current, errors in variables; SPM, terminal voltage).
+    /// voltage or current, errors in variables; terminal voltage).
     #[arg(long, value_enum, default_value_t = MethodArg::Pem)]
     pub method: MethodArg,
     /// Maximum number of solver iterations.

@@ -16,8 +16,9 @@ use super::problem::LagStream;
 use super::problem::{BatchMeans, LagSums, ScoreSeries, TARGET_BATCHES, WHITENESS_LAGS};
 use super::result::{CovarianceMethod, Uncertainty, t_quantile_975};
 use crate::error::{Error, Result};
-use crate::model::BLOCK_LEN;
+use crate::model::{BLOCK_LEN, GreyBoxModel, Prepared};
 use crate::report::metrics::{self, Whiteness};
+use crate::simulate::{SimOptions, simulate};
 use nalgebra::{DMatrix, DVector};
 
 /// Running sums of the IV estimating equations over one or more experiments.
@@ -158,6 +159,75 @@ impl IvSums {
         let cov = bm.map_or_else(|| cov_white.clone(), |b| sandwich(&b.meat));
         Ok(IvCovariance { cov, cov_white, uncertainty, whiteness })
     }
+}
+
+/// The IV sums at θ of the one-step equation error of a model whose state is its output
+/// (`n_x = n_y`, the output the state): `ε_k = y[k+1] − x⁺(θ, k, y[k])`, the step from the
+/// measured state; `D_k = −∂x⁺/∂θ` there; instruments `Z_k = −∂x⁺/∂θ` of interval `k − 1`
+/// from the state the model simulates at θ from the first sample (output error: noise-free
+/// up to the inputs' noise), so that neither the measured state's noise (in `ε_k` as
+/// `y[k+1]`'s and `y[k]`'s) nor the input of interval k (in `ε_k` through the step) reaches
+/// them (Söderström & Stoica, *System Identification*, 1989, 8.2: instruments from an
+/// auxiliary model's simulated outputs and delayed inputs). Summed over `preps`, one
+/// experiment each.
+///
+/// # Errors
+/// [`Error::InvalidOption`] for a model without analytic sensitivities or whose state is
+/// not its output; those of [`crate::simulate::simulate`].
+pub fn one_step_sums<M: GreyBoxModel>(
+    model: &M,
+    preps: &[Prepared<M::Inputs>],
+    theta: &[f64],
+) -> Result<IvSums> {
+    let (nx, nth) = (model.n_states(), theta.len());
+    let sens = model.sensitivities().ok_or_else(|| Error::InvalidOption {
+        option: "method".into(),
+        reason: format!(
+            "instrumental variables need the analytic sensitivities `{}` does not have",
+            model.name()
+        ),
+    })?;
+    if nx != model.n_outputs() || nx == 0 {
+        return Err(Error::InvalidOption {
+            option: "method".into(),
+            reason: format!(
+                "instrumental variables on the one-step error need a state that is the output (`{}`)",
+                model.name()
+            ),
+        });
+    }
+    let mut acc = IvSums::new(nx, nth);
+    let zero = vec![0.0; nx * nth];
+    let (mut x, mut x_sim, mut next, mut d, mut z, mut z_prev) = (
+        vec![0.0; nx],
+        vec![0.0; nx],
+        vec![0.0; nx],
+        vec![0.0; nx * nth],
+        vec![0.0; nx * nth],
+        vec![0.0; nx * nth],
+    );
+    let mut scratch = vec![0.0; nx];
+    for prep in preps {
+        let c = model.coefficients(theta, &prep.inputs)?;
+        let sim = simulate(model, prep, theta, &SimOptions::default())?;
+        acc.start_experiment();
+        for k in 0..prep.n.saturating_sub(1) {
+            prep.y_at(k, &mut x);
+            x_sim.copy_from_slice(&sim[k * nx..(k + 1) * nx]);
+            sens.step_sensitivity(&c, &prep.inputs, k, &x, &zero, &mut next, &mut d);
+            sens.step_sensitivity(&c, &prep.inputs, k, &x_sim, &zero, &mut scratch, &mut z);
+            if k > 0 {
+                prep.y_at(k + 1, &mut scratch);
+                let eps: Vec<f64> = scratch.iter().zip(&next).map(|(y, p)| y - p).collect();
+                let dn: Vec<f64> = d.iter().map(|v| -v).collect();
+                let zn: Vec<f64> = z_prev.iter().map(|v| -v).collect();
+                acc.add(&eps, &dn, &zn);
+            }
+            std::mem::swap(&mut z, &mut z_prev);
+        }
+        acc.end_experiment();
+    }
+    Ok(acc)
 }
 
 impl IvCovariance {

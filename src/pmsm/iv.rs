@@ -16,13 +16,19 @@
 //! Iterated with the auxiliary model updated to each estimate until the step is below
 //! 1e-10 relative; started from the output-error fit, whose hold it keeps.
 //!
-//! Where it holds: the SPM model on the terminal voltage, any hold, cable resistance.
-//! Not yet: the IPM model (its 2×2 step inverts alike; not written), the reference voltage
-//! and the inverter model (the applied voltage is then a model output, not a measurement,
-//! and its error is the inverter's, not noise), per-log and fixed parameters.
+//! The interior-magnet model has no scalar inverse: there the equation error is the one-step
+//! current error `i[k+1] − x⁺(θ, k, i[k])` of its exact step, with the same instruments
+//! (the step's sensitivities at the simulated current of interval k − 1, whose voltage is
+//! not interval k's: `estimate::iv::one_step_sums`).
+//!
+//! Where it holds: both models on the terminal voltage, any hold, cable resistance. Not
+//! yet: the reference voltage and the inverter model (the applied voltage is then a model
+//! output, not a measurement, and its error is the inverter's, not noise), per-log and
+//! fixed parameters.
 
 use super::fit::{PmsmFitOptions, fit_pmsm};
 use super::interval::{C64, VoltageInput};
+use super::ipm::PmsmIpm;
 use super::kind::{MotorKind, derived};
 use super::report::PmsmFit;
 use super::setup::PmsmSetup;
@@ -30,7 +36,7 @@ use super::signals::DqView;
 use super::spm::PmsmSpm;
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::iv::{IvCovariance, IvSums};
+use crate::estimate::iv::{IvCovariance, IvSums, one_step_sums};
 use crate::estimate::{ParameterEstimate, SolverReport, Termination};
 use crate::model::{GreyBoxModel, Prepared};
 use crate::simulate::{SimOptions, simulate};
@@ -59,9 +65,6 @@ fn check_options(options: &PmsmFitOptions) -> Result<()> {
             reason: format!("iv (instrumental variables) does not take {what} yet; use --method pem"),
         })
     };
-    if options.model != MotorKind::Spm {
-        return no("the IPM model (--model ipm)");
-    }
     if options.input != VoltageInput::Terminal || options.inverter.is_some() {
         return no("the reference voltage or the inverter model (it inverts the measured terminal voltage)");
     }
@@ -123,56 +126,75 @@ pub fn fit_pmsm_iv(experiments: &[Experiment], options: &PmsmFitOptions) -> Resu
     let oe = fit_pmsm(experiments, options)?;
     let setup =
         PmsmSetup { cable_resistance: options.cable_resistance, ..PmsmSetup::new(oe.pole_pairs, oe.hold) };
-    let model = PmsmSpm::from_setup(setup);
-    let names = ["r_s", "l_s", "k_e"];
-    let mut theta: Vec<f64> =
+    let names = options.model.parameter_names();
+    let start: Vec<f64> =
         names.iter().map(|n| oe.parameter(n).map(|p| p.value)).collect::<Option<_>>().ok_or_else(|| {
             Error::Numerical { context: "instrumental variables".into(), reason: "no start".into() }
         })?;
-    let logs: Vec<Log> = experiments
-        .iter()
-        .map(|e| {
-            let v = DqView::try_new(e)?;
-            let i = v.i_d().iter().zip(v.i_q()).map(|(&d, &q)| C64::new(d, q)).collect();
-            Ok(Log { prep: Prepared::new(&model, e)?, i })
-        })
-        .collect::<Result<_>>()?;
+    let solved = match options.model {
+        MotorKind::Spm => {
+            let model = PmsmSpm::from_setup(setup);
+            let logs: Vec<Log> = experiments
+                .iter()
+                .map(|e| {
+                    let v = DqView::try_new(e)?;
+                    let i = v.i_d().iter().zip(v.i_q()).map(|(&d, &q)| C64::new(d, q)).collect();
+                    Ok(Log { prep: Prepared::new(&model, e)?, i })
+                })
+                .collect::<Result<_>>()?;
+            iterate(start, |t| sums(&model, &logs, t))?
+        }
+        MotorKind::Ipm => {
+            let model = PmsmIpm::from_setup(setup);
+            let preps = experiments.iter().map(|e| Prepared::new(&model, e)).collect::<Result<Vec<_>>>()?;
+            iterate(start, |t| one_step_sums(&model, &preps, t))?
+        }
+    };
+    Ok(report(oe, solved, t0.elapsed().as_secs_f64()))
+}
+
+/// The IV estimate, its covariance, the refinements made and whether they converged.
+type Solved = (Vec<f64>, IvCovariance, usize, bool);
+
+/// Newton steps on the IV equations of `sums` from `theta` (refining the instruments with
+/// each estimate) until the step is below [`IV_STEP_TOLERANCE`] relative, at most
+/// [`IV_MAX_ITERATIONS`]; the covariance at the end.
+///
+/// # Errors
+/// Those of `sums` and [`IvSums::step`]; [`Error::Numerical`] when a parameter that must be
+/// positive (all but the last, `k_e`) leaves the positive range.
+fn iterate(mut theta: Vec<f64>, sums: impl Fn(&[f64]) -> Result<IvSums>) -> Result<Solved> {
     let mut iterations = 0;
     let mut converged = false;
     while iterations < IV_MAX_ITERATIONS && !converged {
-        let step = sums(&model, &logs, &theta)?.step()?;
+        let step = sums(&theta)?.step()?;
         iterations += 1;
         converged = step.iter().zip(&theta).all(|(d, t)| d.abs() <= IV_STEP_TOLERANCE * t.abs());
         for (t, d) in theta.iter_mut().zip(step.iter()) {
             *t += d;
         }
-        if theta[..2].iter().any(|t| t.is_nan() || *t <= 0.0) {
+        let positive = theta.len() - 1;
+        if theta[..positive].iter().any(|t| t.is_nan() || *t <= 0.0) {
             return Err(Error::Numerical {
                 context: "instrumental variables".into(),
                 reason: format!(
-                    "the iteration left the positive r_s, l_s ({theta:?}): the instruments are too weak"
+                    "the iteration left the positive resistance and inductances ({theta:?}): the instruments are \
+                     too weak"
                 ),
             });
         }
     }
-    let final_sums = sums(&model, &logs, &theta)?;
-    let cov = final_sums.covariance()?;
-    Ok(report(oe, &theta, &cov, iterations, converged, t0.elapsed().as_secs_f64()))
+    let cov = sums(&theta)?.covariance()?;
+    Ok((theta, cov, iterations, converged))
 }
 
 /// The output-error report `oe` with the IV estimate θ, its covariance and iterations.
-fn report(
-    oe: PmsmFit,
-    theta: &[f64],
-    cov: &IvCovariance,
-    iterations: usize,
-    converged: bool,
-    fit_s: f64,
-) -> PmsmFit {
+fn report(oe: PmsmFit, (theta, cov, iterations, converged): Solved, fit_s: f64) -> PmsmFit {
+    let n = theta.len();
     let tq = cov.t_quantile();
-    let se: Vec<f64> = (0..3).map(|j| cov.cov[(j, j)].max(0.0).sqrt()).collect();
+    let se: Vec<f64> = (0..n).map(|j| cov.cov[(j, j)].max(0.0).sqrt()).collect();
     let mut parameters: Vec<ParameterEstimate> = oe.report.parameters.clone();
-    for (j, p) in parameters.iter_mut().take(3).enumerate() {
+    for (j, p) in parameters.iter_mut().take(n).enumerate() {
         let start = p.value;
         *p = ParameterEstimate {
             value: theta[j],
@@ -185,7 +207,7 @@ fn report(
             ..p.clone()
         };
     }
-    let correlation = (0..3).map(|a| (0..3).map(|b| cov.cov[(a, b)] / (se[a] * se[b])).collect()).collect();
+    let correlation = (0..n).map(|a| (0..n).map(|b| cov.cov[(a, b)] / (se[a] * se[b])).collect()).collect();
     let termination = if converged { Termination::StepTolerance } else { Termination::MaxIterations };
     let solver = SolverReport {
         name: "iv".into(),
@@ -198,11 +220,18 @@ fn report(
         trace: Vec::new(),
     };
     let mut notes = oe.report.notes.clone();
+    let kind = if n == 3 { MotorKind::Spm } else { MotorKind::Ipm };
+    let start: Vec<String> =
+        oe.report.parameters.iter().take(n).map(|p| format!("{} {:.6e}", p.name, p.value)).collect();
     notes.push(format!(
-        "instrumental variables on the exact inverse model (voltage equation errors), instruments from the \
-         model's simulated currents, {iterations} refinements from the output-error estimate (r_s {:.6e}, l_s \
-         {:.6e}, k_e {:.6e}); goodness of fit and residual checks are the output-error fit's",
-        oe.report.parameters[0].value, oe.report.parameters[1].value, oe.report.parameters[2].value
+        "instrumental variables on the {}, instruments from the model's simulated currents one interval back, \
+         {iterations} refinements from the output-error estimate ({}); goodness of fit and residual checks are \
+         the output-error fit's",
+        match kind {
+            MotorKind::Spm => "exact inverse model (voltage equation errors)",
+            MotorKind::Ipm => "one-step current equation (the exact step from the measured current)",
+        },
+        start.join(", ")
     ));
     // The input noise the output-error fit was told of is what this method is for.
     let mut warnings: Vec<_> =
@@ -214,7 +243,7 @@ fn report(
         ));
     }
     let report = crate::estimate::FitResult {
-        derived: derived(MotorKind::Spm, oe.pole_pairs, theta, &se),
+        derived: derived(kind, oe.pole_pairs, &theta, &se),
         parameters,
         correlation,
         uncertainty: cov.uncertainty.clone(),
