@@ -8,8 +8,9 @@
 //! Hence the voltage term the currents imply, `û = (i[k+1] − a i[k] − c)/B`, exact for any
 //! θ, and its derivatives `∂û/∂θ = −(∂a/∂θ i[k] + ∂c/∂θ + û ∂B/∂θ)/B`.
 
+use super::kernel::{Core, core};
 use super::{PmsmSpm, SpmCoefficients, SpmInputs};
-use crate::pmsm::interval::{C64, SQRT_2_3, VoltageHold, half_angle_rotation};
+use crate::pmsm::interval::{C64, VoltageHold};
 
 /// The θ- and data-dependent terms of interval k's step for its inversion, with their
 /// derivatives by `(r_s, l_s, k_e)`.
@@ -48,16 +49,8 @@ impl PmsmSpm {
     /// If k ≥ N − 1.
     pub(crate) fn inverse_step(&self, c: &SpmCoefficients, inp: &SpmInputs, k: usize) -> InverseStep {
         let hold = self.setup.hold;
-        let ([s, co], w_m, u) = inp.source.interval(hold, k);
-        let (rot, vers) = half_angle_rotation(s, co);
-        let (w, emf) = (inp.source.n_p * w_m, SQRT_2_3 * w_m);
-        let a = rot * c.d;
-        let wl = w * c.l;
-        let q = 1.0 / (c.r * c.r + wl * wl);
-        let z_inv = C64::new(c.r * q, -wl * q);
-        let one_minus_a = C64::new(c.one_minus_d * rot.re + vers, -c.d * rot.im);
-        let b = one_minus_a * z_inv;
-        let e = c.k_e * emf;
+        let (half, w_m, u) = inp.source.interval(hold, k);
+        let Core { w, emf, a, z_inv, b, e } = core(c, inp.source.n_p, half, w_m);
         let b_r = (a * (-c.a_r) - b) * z_inv;
         let b_l = (a * (-c.a_l) - times_j(b, w)) * z_inv;
         let zero = C64::default();

@@ -38,6 +38,32 @@ fn times_j(b: C64, e: f64) -> C64 {
     C64::new(-b.im * e, b.re * e)
 }
 
+/// The θ- and speed-dependent core of interval k's step: `ω_e`, `√(2/3) ω_m`, `a`, `1/z`,
+/// `b = (1 − a)/z` and `e = K_e √(2/3) ω_m`.
+pub(super) struct Core {
+    pub w: f64,
+    pub emf: f64,
+    pub a: C64,
+    pub z_inv: C64,
+    pub b: C64,
+    pub e: f64,
+}
+
+/// The [`Core`] at `half = [sin φ/2, cos φ/2]` and mean mechanical speed `w_m`.
+#[inline(always)]
+pub(super) fn core(c: &SpmCoefficients, n_p: f64, [s, co]: [f64; 2], w_m: f64) -> Core {
+    let (rot, vers) = half_angle_rotation(s, co);
+    let (w, emf) = (n_p * w_m, SQRT_2_3 * w_m);
+    let a = rot * c.d;
+    let wl = w * c.l;
+    let q = 1.0 / (c.r * c.r + wl * wl);
+    let z_inv = C64::new(c.r * q, -wl * q);
+    // 1 − a = (1 − d) cos φ + (1 − cos φ) + j d sin φ, free of cancellation.
+    let one_minus_a = C64::new(c.one_minus_d * rot.re + vers, -c.d * rot.im);
+    let b = one_minus_a * z_inv;
+    Core { w, emf, a, z_inv, b, e: c.k_e * emf }
+}
+
 /// The terms of one interval from its data as [`SpmInputs`] keeps it (`half = [sin φ/2,
 /// cos φ/2]`, the mean mechanical speed `w_m`, the voltage term `u` and the inverter's
 /// direction `dt`; `n_p` the pole pairs) for the hold (`stator`) and inverter model
@@ -56,16 +82,7 @@ fn terms_at<const SENS: bool>(
     u: C64,
     dt: C64,
 ) -> Terms {
-    let (rot, vers) = half_angle_rotation(s, co);
-    let (w, emf) = (n_p * w_m, SQRT_2_3 * w_m);
-    let a = rot * c.d;
-    let wl = w * c.l;
-    let q = 1.0 / (c.r * c.r + wl * wl);
-    let z_inv = C64::new(c.r * q, -wl * q);
-    // 1 − a = (1 − d) cos φ + (1 − cos φ) + j d sin φ, free of cancellation.
-    let one_minus_a = C64::new(c.one_minus_d * rot.re + vers, -c.d * rot.im);
-    let b = one_minus_a * z_inv;
-    let e = c.k_e * emf;
+    let Core { w, emf, a, z_inv, b, e } = core(c, n_p, [s, co], w_m);
     let u = if v_dt { u + dt * c.v_dt } else { u };
     let forced = if stator { u * c.g - times_j(b, e) } else { b * C64::new(u.re, u.im - e) };
     if !SENS {
