@@ -280,6 +280,9 @@ pub fn plan(a: &FitArgs) -> greybox::Result<Plan> {
         MethodArg::Iv => Estimator::InstrumentalVariables,
         _ => Estimator::PredictionError,
     };
+    if estimator == Estimator::InstrumentalVariables {
+        greybox::pmsm::iv::check_options(&options)?;
+    }
     if estimator == Estimator::InstrumentalVariables
         && (search.delay || search.advance || search.speed_pll || search.dead_time_width)
     {

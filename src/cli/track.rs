@@ -40,7 +40,9 @@ pub struct TrackArgs {
     pub l_q: Option<f64>,
     /// The JSON report of a fit (`greybox fit --json`): an SPM fit's l_s, or an IPM fit's
     /// (`--model ipm`) l_d and l_q, are the observer's inductances (unless --l-s, --l-q), its
-    /// k_e and r_s the initial estimates (unless --k-e0, --r-s0).
+    /// k_e and r_s the initial estimates (unless --k-e0, --r-s0), its hold the observer's
+    /// (unless --hold); a fit from the reference voltage makes the observer read the log's
+    /// ud_ref, uq_ref with that fit's delay and advance.
     #[arg(long)]
     pub params: Option<PathBuf>,
     /// Initial estimate of K_e [V s/rad] (default: the report's with --params, else 0).
@@ -49,11 +51,12 @@ pub struct TrackArgs {
     /// Initial estimate of R_s [Ω] (default: the report's with --params, else 0).
     #[arg(long, allow_hyphen_values = true)]
     pub r_s0: Option<f64>,
-    /// Adaptation gain γ_Ke of K_e, ≥ 0 (thesis 5.1.1; motor specific: a small L_s needs a
-    /// much smaller one).
+    /// Adaptation gain γ_Ke of K_e, ≥ 0, for --adaptation lyapunov or relay (thesis 5.1.1;
+    /// motor specific: a small L_s needs a much smaller one).
     #[arg(long, default_value_t = MrasConfig::default().gamma_ke, allow_hyphen_values = true)]
     pub gamma_ke: f64,
-    /// Adaptation gain γ_Rs [Ω/(A s)] of R_s, ≤ 0 (thesis sign convention, eq. 5.4).
+    /// Adaptation gain γ_Rs [Ω/(A s)] of R_s, ≤ 0, for --adaptation lyapunov or relay
+    /// (thesis sign convention, eq. 5.4).
     #[arg(long, default_value_t = MrasConfig::default().gamma_rs, allow_hyphen_values = true)]
     pub gamma_rs: f64,
     /// R_s adapts only while |i_d| exceeds this [A], ≥ 0 (d-current injection; raise it
@@ -71,12 +74,12 @@ pub struct TrackArgs {
     #[arg(long, value_enum, default_value_t = AdaptationArg::Normalised)]
     pub adaptation: AdaptationArg,
     /// Time constant of the K_e estimate [s] with --adaptation normalised: longer averages
-    /// more noise, shorter follows faster changes.
-    #[arg(long, default_value_t = MrasConfig::default().tau_ke)]
+    /// more noise, shorter follows faster changes; at least 100 sample times.
+    #[arg(long, default_value_t = MrasConfig::default().tau_ke, allow_hyphen_values = true)]
     pub tau_ke: f64,
     /// Time constant of the R_s estimate [s] with --adaptation normalised (over the samples
     /// where it adapts: |i_d| above --i-d-threshold).
-    #[arg(long, default_value_t = MrasConfig::default().tau_rs)]
+    #[arg(long, default_value_t = MrasConfig::default().tau_rs, allow_hyphen_values = true)]
     pub tau_rs: f64,
     /// Voltage hold of the log's source (MODEL.md §4): stator for a modulator, dq for a
     /// dq-held simulator. Default: the fit's with --params, else stator.

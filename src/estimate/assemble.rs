@@ -3,7 +3,7 @@
 //! model's derived quantities (MODEL.md §5; Ljung 9.3, 16.4; thesis 5.3).
 
 use super::diagnostics::{DiagnosticThresholds, diagnose};
-use super::problem::{FreeKind, PemProblem, Slot};
+use super::problem::{FreeKind, MIN_BATCHES, PemProblem, Slot};
 use super::result::Warning;
 use super::result::t_quantile_975;
 use super::{
@@ -84,17 +84,25 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     // Standard error of every free entry; without degrees of freedom there is no noise
     // estimate, hence no standard error. An initial state is seen by the first samples
     // only, inside one batch, whose sum the estimate sets to zero: batch means cannot tell
-    // its variance, so it keeps the white one.
+    // its variance, so it keeps the white one; so does a per-experiment parameter of an
+    // experiment with fewer than MIN_BATCHES batches of its own.
     let se_white = standard_errors(&cov_white);
+    let few = |e: Option<usize>| {
+        batch_means
+            .is_some_and(|b| e.is_some_and(|e| b.per_experiment.get(e).is_none_or(|&n| n < MIN_BATCHES)))
+    };
     let se_free: Vec<f64> = standard_errors(&cov_theta)
         .into_iter()
         .zip(&se_white)
         .zip(problem.free())
         .map(|((se, white), f)| match f.kind {
             FreeKind::InitialState(_) => *white,
+            FreeKind::Parameter(_) if few(f.experiment) => *white,
             FreeKind::Parameter(_) => se,
         })
         .collect();
+    let white_only =
+        problem.free().iter().any(|f| matches!(f.kind, FreeKind::Parameter(_)) && few(f.experiment));
     let names = problem.terms().iter().map(|t| t.prep.name.clone()).collect::<Vec<_>>();
     let states = model.states();
     let estimate = |g: usize, name: String, unit: String, start: f64| {
@@ -221,6 +229,12 @@ pub(crate) fn assemble<M: GreyBoxModel>(
             let what = model.poor_fit_advice().map(|a| format!(": {a}")).unwrap_or_default();
             diagnostics.advice.push(format!("poor fit of {name} ({f:.1} %){what}"));
         }
+    }
+    if white_only {
+        notes.push(format!(
+            "the residuals are not white, but a per-log parameter's log is too short for {MIN_BATCHES} batches of its \
+             own: its standard error is the white one, which coloured residuals make too small"
+        ));
     }
     if dof == 0 {
         notes.push(format!(

@@ -56,7 +56,8 @@ pub struct IvCovariance {
 }
 
 impl IvSums {
-    /// Empty sums for `ny` equation errors per sample and `nth` parameters.
+    /// Empty sums for `ny` equation errors per sample and `nth` parameters (shapes of
+    /// [`add`](Self::add)).
     pub fn new(ny: usize, nth: usize) -> Self {
         Self {
             ny,
@@ -73,14 +74,19 @@ impl IvSums {
         }
     }
 
-    /// Starts an experiment: lags and batches never reach across experiments.
+    /// Starts an experiment: lags and batches never reach across experiments (call before
+    /// its first [`add`](Self::add)).
     pub fn start_experiment(&mut self) {
         self.streams = (0..self.ny).map(|_| LagStream::new(WHITENESS_LAGS)).collect();
         self.block.clear();
     }
 
-    /// Adds sample k: equation error `eps` (n_y), its Jacobian `d` and instruments `z`
-    /// (row-major n_y × n_θ each).
+    /// Adds sample k: equation error `eps` (n_y, the outputs' units), its Jacobian `d` and
+    /// instruments `z` (row-major n_y × n_θ each, output unit per parameter unit).
+    ///
+    /// # Panics
+    /// If `eps` is shorter than n_y or `d`, `z` shorter than n_y n_θ (a caller's bug, not
+    /// user input).
     pub fn add(&mut self, eps: &[f64], d: &[f64], z: &[f64]) {
         let nth = self.nth;
         let mut s = DVector::zeros(nth);
@@ -103,7 +109,7 @@ impl IvSums {
         self.count += 1;
     }
 
-    /// Ends the current experiment.
+    /// Ends the current experiment (after its last [`add`](Self::add)).
     pub fn end_experiment(&mut self) {
         for (all, st) in self.lags.iter_mut().zip(std::mem::take(&mut self.streams)) {
             all.push(st.finish());
@@ -231,7 +237,8 @@ pub fn one_step_sums<M: GreyBoxModel>(
 }
 
 impl IvCovariance {
-    /// The 0.975 t quantile of the intervals.
+    /// The 0.975 quantile of Student's t at [`Uncertainty::dof`]: the factor of the 95 %
+    /// intervals.
     pub fn t_quantile(&self) -> f64 {
         t_quantile_975(self.uncertainty.dof)
     }

@@ -59,7 +59,9 @@ fn not_given() -> f64 {
     f64::NAN
 }
 
-/// The covariance behind the reported standard errors and intervals.
+/// The covariance behind the reported standard errors and intervals (Ljung, *System
+/// Identification*, 2nd ed., 9.3 for the white sandwich; the batch means of
+/// `problem::batches` for coloured residuals).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum CovarianceMethod {
@@ -71,7 +73,8 @@ pub enum CovarianceMethod {
     BatchMeans,
 }
 
-/// How the reported standard errors and intervals were formed, and why.
+/// How the reported standard errors and intervals were formed, and why: the Ljung–Box test
+/// (Ljung & Box, *Biometrika* 65 (1978) 297–303) at 1 % chooses the covariance.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Uncertainty {

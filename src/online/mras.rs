@@ -109,6 +109,7 @@ use crate::pmsm::interval::cexpm1;
 use crate::pmsm::{C64, ExactPlant, MotorParameters, SQRT_2_3, VoltageHold, rotation, stator_hold_start};
 use serde::{Deserialize, Serialize};
 
+mod gains;
 mod step;
 
 /// One sample of a drive: the currents measured at `t_k` and the voltage applied over
@@ -204,14 +205,37 @@ pub struct Mras {
     plant: Option<ExactPlant>,
 }
 
+/// Share of the mean information below which a sample does not update it
+/// ([`Adaptation::Normalised`]).
+pub const INFORMATIVE: f64 = 0.1;
+
+/// Shortest time constant of [`Adaptation::Normalised`], in sample times: measured on a
+/// 10 kHz log with 1 V of voltage noise, 20 samples diverged and 30 did not; the margin
+/// keeps the adaptation well slower than the observer's error dynamics.
+pub const MIN_TAU_SAMPLES: f64 = 100.0;
+
 impl Mras {
     /// An observer with the given settings, started at `k_e0`, `r_s0` and, at the first
     /// sample, at the measured current.
     ///
     /// # Errors
-    /// Those of [`MrasConfig::validate`] ([`Error::InvalidOption`] naming the field).
+    /// Those of [`MrasConfig::validate`] ([`Error::InvalidOption`] naming the field); with
+    /// [`Adaptation::Normalised`], `tau_ke` or `tau_rs` shorter than [`MIN_TAU_SAMPLES`]
+    /// sample times.
     pub fn try_new(config: MrasConfig) -> Result<Self> {
         config.validate()?;
+        for (name, tau) in [("tau_ke", config.tau_ke), ("tau_rs", config.tau_rs)] {
+            if config.adaptation == Adaptation::Normalised && tau < MIN_TAU_SAMPLES * config.h {
+                return Err(Error::InvalidOption {
+                    option: name.into(),
+                    reason: format!(
+                        "{tau} s is shorter than {MIN_TAU_SAMPLES} sample times ({} s): an adaptation as fast as the \
+                         observer's own error dynamics is unstable",
+                        MIN_TAU_SAMPLES * config.h
+                    ),
+                });
+            }
+        }
         let kappa = -(-config.f * config.h).exp_m1();
         let plant = if config.salient() {
             Some(ExactPlant::new(config.n_p, config.h, true, config.hold)?)
@@ -332,25 +356,6 @@ impl Mras {
         self.n += 1;
         self.last = out.estimates;
         Ok(())
-    }
-
-    /// The gains `(γ_K, γ_R)` at current `i` (R̂_s adapting when `r_active`) and the mean
-    /// information `(P̄_K, P̄_R)` after this sample (unchanged but under
-    /// [`Adaptation::Normalised`]).
-    fn gains(&self, i: C64, r_active: bool) -> (f64, f64, f64, f64) {
-        if self.cfg.adaptation != Adaptation::Normalised {
-            // −γ_Rs L_s/|i| maps the thesis' gain onto the sensitivity φ_R ≈ −h i/L_s; |i| > 0
-            // whenever |i_d| exceeds the threshold.
-            let g_r = if r_active { -self.cfg.gamma_rs * self.cfg.l_s / i.norm() } else { 0.0 };
-            return (self.cfg.gamma_ke, g_r, self.p_k, self.p_r);
-        }
-        // P̄ ← P̄ + (h/τ)(|φ|² − P̄), started at the first value; γ = (h/τ)/P̄.
-        let mean = |p: f64, info: f64, a: f64| if p > 0.0 { p + a * (info - p) } else { info };
-        let gain = |p: f64, a: f64| if p > 0.0 && p.is_finite() { a / p } else { 0.0 };
-        let (a_k, a_r) = (self.cfg.h / self.cfg.tau_ke, self.cfg.h / self.cfg.tau_rs);
-        let p_k = mean(self.p_k, self.phi_k.norm_sqr(), a_k);
-        let p_r = if r_active { mean(self.p_r, self.phi_r.norm_sqr(), a_r) } else { self.p_r };
-        (gain(p_k, a_k), if r_active { gain(p_r, a_r) } else { 0.0 }, p_k, p_r)
     }
 
     /// `(ΔK̂_e, ΔR̂_s)` from `(I + Γ Re(ΨᴴΦ)) Δθ = Γ Re(Ψᴴ e)` with `Γ = diag(g_k, g_r)`

@@ -37,7 +37,7 @@ use super::spm::PmsmSpm;
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::iv::{IvCovariance, IvSums, one_step_sums};
-use crate::estimate::{ParameterEstimate, SolverReport, Termination};
+use crate::estimate::{ParameterEstimate, SolverReport, Termination, WeightingKind};
 use crate::model::{GreyBoxModel, Prepared};
 use crate::simulate::{SimOptions, simulate};
 
@@ -58,7 +58,10 @@ pub const IV_MAX_ITERATIONS: usize = 30;
 pub const IV_STEP_TOLERANCE: f64 = 1e-10;
 
 /// Refuses the options the inverse model does not cover (module documentation).
-fn check_options(options: &PmsmFitOptions) -> Result<()> {
+///
+/// # Errors
+/// [`Error::InvalidOption`] (option `method`) naming the option.
+pub fn check_options(options: &PmsmFitOptions) -> Result<()> {
     let no = |what: &str| {
         Err(Error::InvalidOption {
             option: "method".into(),
@@ -74,6 +77,19 @@ fn check_options(options: &PmsmFitOptions) -> Result<()> {
     }
     if options.thermal.is_some() {
         return no("temperature estimates (--t0)");
+    }
+    let pem = &options.pem;
+    if !options.bounds.is_empty() {
+        return no("bounds (--bounds)");
+    }
+    if pem.horizon.is_some() || pem.prefilter.is_some() || pem.huber.is_some() || pem.output_weights.is_some()
+    {
+        return no(
+            "the output-error criterion's options (--horizon, --prefilter, --huber, --output-weights)",
+        );
+    }
+    if pem.weighting != WeightingKind::Uniform {
+        return no("sample weights (--weighting)");
     }
     Ok(())
 }
@@ -203,6 +219,7 @@ fn report(oe: PmsmFit, (theta, cov, iterations, converged): Solved, fit_s: f64) 
             ci95: [theta[j] - tq * se[j], theta[j] + tq * se[j]],
             // The error index belongs to the output-error criterion.
             error_index_percent: f64::NAN,
+            at_bound: false,
             start,
             ..p.clone()
         };
@@ -220,7 +237,7 @@ fn report(oe: PmsmFit, (theta, cov, iterations, converged): Solved, fit_s: f64) 
         trace: Vec::new(),
     };
     let mut notes = oe.report.notes.clone();
-    let kind = if n == 3 { MotorKind::Spm } else { MotorKind::Ipm };
+    let kind = if n == MotorKind::Spm.parameter_names().len() { MotorKind::Spm } else { MotorKind::Ipm };
     let start: Vec<String> =
         oe.report.parameters.iter().take(n).map(|p| format!("{} {:.6e}", p.name, p.value)).collect();
     notes.push(format!(
@@ -252,6 +269,15 @@ fn report(oe: PmsmFit, (theta, cov, iterations, converged): Solved, fit_s: f64) 
         notes,
         warnings,
         timing: crate::estimate::Timing { fit_s, total_s: fit_s, ..oe.report.timing.clone() },
+        // The initial states and the error-index verdicts are the output-error criterion's;
+        // the information matrix's singular values still describe the data.
+        initial_states: Vec::new(),
+        diagnostics: crate::estimate::diagnostics::Diagnostics {
+            poorly_determined: Vec::new(),
+            correlated: Vec::new(),
+            advice: Vec::new(),
+            ..oe.report.diagnostics.clone()
+        },
         ..oe.report.clone()
     };
     PmsmFit { report, start_comparison: Vec::new(), ..oe }

@@ -81,9 +81,12 @@ pub struct BatchMeans {
     pub meat: DMatrix<f64>,
     /// Number of batches B (the t quantile takes B − 1 degrees of freedom).
     pub batches: usize,
-    /// Samples in a batch (the length aimed at; an experiment's last batch may be up to
-    /// half as long again, or its only one shorter).
+    /// Mean samples in a batch (whole blocks of the pass; an experiment's last batch may be
+    /// up to half as long again, or its only one shorter).
     pub batch_samples: usize,
+    /// Batches of each experiment, in order: a parameter of one experiment alone (per-log,
+    /// or its initial state) is seen by its experiment's batches only.
+    pub per_experiment: Vec<usize>,
 }
 
 /// Every experiment's block scores in the optimiser's coordinates, in time order.
@@ -142,13 +145,17 @@ impl ScoreSeries {
         }
         let length = total.div_ceil(target.max(1));
         let mut batches: Vec<(usize, DVector<f64>)> = Vec::new();
+        // Where each experiment's batches start, then the end.
+        let mut cuts = Vec::with_capacity(self.experiments.len() + 1);
         for (counts, scores) in &self.experiments {
             let first = batches.len();
+            cuts.push(first);
             let (mut n, mut s) = (0, DVector::zeros(self.np));
             for (&c, v) in counts.iter().zip(scores) {
                 n += c;
                 s += v;
-                if n >= length {
+                // Cut at the block boundary nearest the length aimed at.
+                if n + c / 2 >= length {
                     batches.push((n, std::mem::replace(&mut s, DVector::zeros(self.np))));
                     n = 0;
                 }
@@ -165,10 +172,12 @@ impl ScoreSeries {
                 }
             }
         }
+        cuts.push(batches.len());
         let b = batches.len();
         if b < MIN_BATCHES {
             return None;
         }
+        let per_experiment = cuts.windows(2).map(|w| w[1] - w[0]).collect();
         let sum = batches.iter().fold(DVector::zeros(self.np), |a, (_, s)| a + s);
         let mut meat = DMatrix::zeros(self.np, self.np);
         for (n, s) in &batches {
@@ -176,7 +185,7 @@ impl ScoreSeries {
             meat += &d * d.transpose();
         }
         meat *= b as f64 / (b - 1) as f64;
-        Some(BatchMeans { meat, batches: b, batch_samples: length })
+        Some(BatchMeans { meat, batches: b, batch_samples: total / b, per_experiment })
     }
 }
 
@@ -208,8 +217,10 @@ mod tests {
         let mut series = ScoreSeries::new(1);
         series.add_samples(&scores, 256);
         let bm = series.batch_means(TARGET_BATCHES).expect("enough batches");
-        // Blocks of 256 make batches of 6400 samples: 31, the tail joined to the last.
-        assert_eq!(bm.batches, 31);
+        // Batches of 24 blocks of 256 (6144 samples, the boundary nearest 6250): 32, and
+        // the tail of 3392 samples a batch of its own.
+        assert_eq!(bm.batches, 33);
+        assert_eq!(bm.per_experiment, vec![33]);
         let long_run = n as f64 / (1.0 - rho) / (1.0 - rho);
         let ratio = bm.meat[(0, 0)] / long_run;
         // 31 degrees of freedom: the estimate's relative sd is √(2/31) = 0.25.
@@ -227,8 +238,10 @@ mod tests {
         series.add_samples(&one(1000), 100);
         series.add_samples(&one(1050), 100);
         let bm = series.batch_means(20).expect("batches");
-        // length ⌈2050/20⌉ = 103 → blocks of 100 pair up: 5 + 5 batches.
-        assert_eq!(bm.batches, 10);
+        // length ⌈2050/20⌉ = 103: every block of 100 is a batch, the second experiment's
+        // tail of 50 joins its last.
+        assert_eq!(bm.batches, 20);
+        assert_eq!(bm.per_experiment, vec![10, 10]);
         assert!(ScoreSeries::new(2).batch_means(20).is_none());
         let mut short = ScoreSeries::new(1);
         short.add_samples(&vec![DVector::from_element(1, 1.0); 700], 256);

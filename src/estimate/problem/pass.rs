@@ -102,6 +102,46 @@ impl Chunk<'_> {
     }
 }
 
+/// Output i's local columns of a chunk, then `extra` when given: in a fixed array for up
+/// to [`INLINE_COLUMNS`] columns (no allocation in the pass), else collected into `spill`.
+pub(crate) fn columns<'a>(
+    ch: &'a Chunk<'_>,
+    i: usize,
+    extra: Option<&'a [f64]>,
+    spill: &'a mut Vec<&'a [f64]>,
+) -> Columns<'a> {
+    let n = ch.m + usize::from(extra.is_some());
+    let all = (0..ch.m).map(|c| ch.col(i, c)).chain(extra);
+    if n <= INLINE_COLUMNS {
+        let mut a: [&[f64]; INLINE_COLUMNS] = [&[]; INLINE_COLUMNS];
+        for (slot, c) in a.iter_mut().zip(all) {
+            *slot = c;
+        }
+        Columns::Inline(a, n)
+    } else {
+        spill.extend(all);
+        Columns::Spilled(spill)
+    }
+}
+
+/// Most columns a pass holds without allocating.
+pub(crate) const INLINE_COLUMNS: usize = 12;
+
+/// The columns of [`columns`].
+pub(crate) enum Columns<'a> {
+    Inline([&'a [f64]; INLINE_COLUMNS], usize),
+    Spilled(&'a [&'a [f64]]),
+}
+
+impl<'a> AsRef<[&'a [f64]]> for Columns<'a> {
+    fn as_ref(&self) -> &[&'a [f64]] {
+        match self {
+            Self::Inline(a, n) => &a[..*n],
+            Self::Spilled(v) => v,
+        }
+    }
+}
+
 /// Unit sample weights for an experiment without weights.
 static ONES: [f64; BLOCK_LEN] = [1.0; BLOCK_LEN];
 

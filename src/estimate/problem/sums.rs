@@ -5,53 +5,13 @@ use super::accumulate::{Accumulator, Sums};
 use super::batches::BlockScores;
 use super::best::{ExperimentGrams, Gather, ResidualStreams};
 use super::gram::{dot, gram, scatter_gram, weighted_square_sum};
-use super::pass::{Chunk, Pass, RawSample, ResidualFilter};
+use super::pass::{Pass, RawSample, ResidualFilter, columns};
 use super::{Loss, NormalEquations, PemProblem};
 use crate::error::Result;
 use crate::model::BLOCK_LEN;
 use crate::model::GreyBoxModel;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
-
-/// Output i's local columns of a chunk, then `extra` when given: in a fixed array for up
-/// to [`INLINE_COLUMNS`] columns (no allocation in the pass), else collected into `spill`.
-fn columns<'a>(
-    ch: &'a Chunk<'_>,
-    i: usize,
-    extra: Option<&'a [f64]>,
-    spill: &'a mut Vec<&'a [f64]>,
-) -> Columns<'a> {
-    let n = ch.m + usize::from(extra.is_some());
-    let all = (0..ch.m).map(|c| ch.col(i, c)).chain(extra);
-    if n <= INLINE_COLUMNS {
-        let mut a: [&[f64]; INLINE_COLUMNS] = [&[]; INLINE_COLUMNS];
-        for (slot, c) in a.iter_mut().zip(all) {
-            *slot = c;
-        }
-        Columns::Inline(a, n)
-    } else {
-        spill.extend(all);
-        Columns::Spilled(spill)
-    }
-}
-
-/// Most columns a pass holds without allocating.
-const INLINE_COLUMNS: usize = 12;
-
-/// The columns of [`columns`].
-enum Columns<'a> {
-    Inline([&'a [f64]; INLINE_COLUMNS], usize),
-    Spilled(&'a [&'a [f64]]),
-}
-
-impl<'a> AsRef<[&'a [f64]]> for Columns<'a> {
-    fn as_ref(&self) -> &[&'a [f64]] {
-        match self {
-            Self::Inline(a, n) => &a[..*n],
-            Self::Spilled(v) => v,
-        }
-    }
-}
 
 /// An experiment's Gram matrices in its local columns (row-major m × m, upper triangle):
 /// `JᵀWJ`, the bread, and each output's meat.
