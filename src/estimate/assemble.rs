@@ -7,8 +7,7 @@ use super::problem::{FreeKind, MIN_BATCHES, PemProblem, Slot};
 use super::result::Warning;
 use super::result::t_quantile_975;
 use super::{
-    CovarianceMethod, DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing,
-    Uncertainty,
+    DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing, Uncertainty,
 };
 use crate::error::Result;
 use crate::model::GreyBoxModel;
@@ -54,16 +53,9 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     // fail it take the score's batch-means covariance (see `problem::batches`).
     let whiteness: Vec<metrics::Whiteness> =
         sums.lag_sums.iter().map(|segments| metrics::whiteness_of(segments)).collect();
-    let white = whiteness.iter().all(|w| w.is_white(n));
-    let batch_means = sums.batch_means.as_ref().filter(|_| !white && dof > 0);
-    let uncertainty = Uncertainty {
-        method: if batch_means.is_some() { CovarianceMethod::BatchMeans } else { CovarianceMethod::White },
-        dof: batch_means.map_or(dof, |b| b.batches - 1),
-        batches: batch_means.map_or(0, |b| b.batches),
-        batch_samples: batch_means.map_or(0, |b| b.batch_samples),
-        ljung_box: whiteness.iter().map(|w| w.ljung_box(n)).collect(),
-        ljung_box_critical: whiteness.first().map_or(0.0, metrics::Whiteness::ljung_box_critical),
-    };
+    let offered = sums.batch_means.as_ref().filter(|_| dof > 0);
+    let uncertainty = Uncertainty::choose(&whiteness, n, dof, offered);
+    let batch_means = uncertainty.taken(offered);
     let cov_white = sandwich(&sums.meat);
     let cov_theta = match batch_means {
         Some(b) => sandwich(&b.meat),

@@ -13,10 +13,10 @@
 //! covariance, for any model.
 
 use super::problem::LagStream;
-use super::problem::{BatchMeans, LagSums, ScoreSeries, TARGET_BATCHES, WHITENESS_LAGS};
-use super::result::{CovarianceMethod, Uncertainty, t_quantile_975};
+use super::problem::{BlockScores, LagSums, ScoreSeries, TARGET_BATCHES, WHITENESS_LAGS};
+use super::result::{Uncertainty, t_quantile_975};
 use crate::error::{Error, Result};
-use crate::model::{BLOCK_LEN, GreyBoxModel, Prepared};
+use crate::model::{GreyBoxModel, Prepared};
 use crate::report::metrics::{self, Whiteness};
 use crate::simulate::{SimOptions, simulate};
 use nalgebra::{DMatrix, DVector};
@@ -39,7 +39,10 @@ pub struct IvSums {
     lags: Vec<Vec<LagSums>>,
     streams: Vec<LagStream>,
     scores: ScoreSeries,
-    block: Vec<DVector<f64>>,
+    /// The current experiment's score `Zᵀε` summed per block.
+    blocks: BlockScores,
+    /// One sample's score (scratch).
+    sample: Vec<f64>,
 }
 
 /// The covariance of an IV estimate and how it was formed.
@@ -70,7 +73,8 @@ impl IvSums {
             lags: vec![Vec::new(); ny],
             streams: Vec::new(),
             scores: ScoreSeries::new(nth),
-            block: Vec::new(),
+            blocks: BlockScores::new(nth),
+            sample: vec![0.0; nth],
         }
     }
 
@@ -78,7 +82,7 @@ impl IvSums {
     /// its first [`add`](Self::add)).
     pub fn start_experiment(&mut self) {
         self.streams = (0..self.ny).map(|_| LagStream::new(WHITENESS_LAGS)).collect();
-        self.block.clear();
+        self.blocks = BlockScores::new(self.nth);
     }
 
     /// Adds sample k: equation error `eps` (n_y, the outputs' units), its Jacobian `d` and
@@ -89,7 +93,8 @@ impl IvSums {
     /// user input).
     pub fn add(&mut self, eps: &[f64], d: &[f64], z: &[f64]) {
         let nth = self.nth;
-        let mut s = DVector::zeros(nth);
+        let s = &mut self.sample;
+        s.fill(0.0);
         for i in 0..self.ny {
             let (zi, di) = (&z[i * nth..(i + 1) * nth], &d[i * nth..(i + 1) * nth]);
             for a in 0..nth {
@@ -104,8 +109,10 @@ impl IvSums {
                 st.push(&[eps[i]]);
             }
         }
-        self.score += &s;
-        self.block.push(s);
+        for (total, v) in self.score.iter_mut().zip(&self.sample) {
+            *total += v;
+        }
+        self.blocks.add(&self.sample);
         self.count += 1;
     }
 
@@ -114,8 +121,8 @@ impl IvSums {
         for (all, st) in self.lags.iter_mut().zip(std::mem::take(&mut self.streams)) {
             all.push(st.finish());
         }
-        let scores = std::mem::take(&mut self.block);
-        self.scores.add_samples(&scores, BLOCK_LEN);
+        self.blocks.close();
+        self.scores.add_plain(&self.blocks);
     }
 
     /// The Newton step `δ = −M⁻¹ Σ Zᵀε` \[parameter units\] (n_θ).
@@ -145,7 +152,6 @@ impl IvSums {
         let n = self.count;
         let dof = (n * self.ny).saturating_sub(self.nth);
         let whiteness: Vec<Whiteness> = self.lags.iter().map(|s| metrics::whiteness_of(s)).collect();
-        let white = whiteness.iter().all(|w| w.is_white(n));
         let mut omega = DMatrix::zeros(self.nth, self.nth);
         for (i, zz) in self.zz.iter().enumerate() {
             let sigma2 = self.sse[i] / (n as f64 - self.nth as f64 / self.ny as f64).max(1.0);
@@ -153,15 +159,9 @@ impl IvSums {
         }
         let sandwich = |o: &DMatrix<f64>| &m_inv * o * m_inv.transpose();
         let cov_white = sandwich(&omega);
-        let bm: Option<BatchMeans> = if white { None } else { self.scores.batch_means(TARGET_BATCHES) };
-        let uncertainty = Uncertainty {
-            method: if bm.is_some() { CovarianceMethod::BatchMeans } else { CovarianceMethod::White },
-            dof: bm.as_ref().map_or(dof, |b| b.batches - 1),
-            batches: bm.as_ref().map_or(0, |b| b.batches),
-            batch_samples: bm.as_ref().map_or(0, |b| b.batch_samples),
-            ljung_box: whiteness.iter().map(|w| w.ljung_box(n)).collect(),
-            ljung_box_critical: whiteness.first().map_or(0.0, Whiteness::ljung_box_critical),
-        };
+        let offered = self.scores.batch_means(TARGET_BATCHES);
+        let uncertainty = Uncertainty::choose(&whiteness, n, dof, offered.as_ref());
+        let bm = uncertainty.taken(offered.as_ref());
         let cov = bm.map_or_else(|| cov_white.clone(), |b| sandwich(&b.meat));
         Ok(IvCovariance { cov, cov_white, uncertainty, whiteness })
     }
@@ -223,11 +223,14 @@ pub fn one_step_sums<M: GreyBoxModel>(
             sens.step_sensitivity(&c, &prep.inputs, k, &x, &zero, &mut next, &mut d);
             sens.step_sensitivity(&c, &prep.inputs, k, &x_sim, &zero, &mut scratch, &mut z);
             if k > 0 {
+                // ε, −∂x⁺/∂θ and the instruments' sign, in place (each buffer is refilled
+                // before it is read again).
                 prep.y_at(k + 1, &mut scratch);
-                let eps: Vec<f64> = scratch.iter().zip(&next).map(|(y, p)| y - p).collect();
-                let dn: Vec<f64> = d.iter().map(|v| -v).collect();
-                let zn: Vec<f64> = z_prev.iter().map(|v| -v).collect();
-                acc.add(&eps, &dn, &zn);
+                for (y, p) in scratch.iter_mut().zip(&next) {
+                    *y -= p;
+                }
+                d.iter_mut().chain(z_prev.iter_mut()).for_each(|v| *v = -*v);
+                acc.add(&scratch, &d, &z_prev);
             }
             std::mem::swap(&mut z, &mut z_prev);
         }

@@ -94,6 +94,40 @@ pub struct Uncertainty {
     pub ljung_box_critical: f64,
 }
 
+impl Uncertainty {
+    /// The choice for residuals of `n` samples per output whose whiteness per output is
+    /// `whiteness`: the batch means `batch_means` when any output fails the Ljung–Box test
+    /// and they are given, with `B − 1` degrees of freedom; otherwise white, with `dof`.
+    pub fn choose(
+        whiteness: &[crate::report::Whiteness],
+        n: usize,
+        dof: usize,
+        batch_means: Option<&crate::estimate::BatchMeans>,
+    ) -> Self {
+        let batch_means = batch_means.filter(|_| !whiteness.iter().all(|w| w.is_white(n)));
+        Self {
+            method: if batch_means.is_some() {
+                CovarianceMethod::BatchMeans
+            } else {
+                CovarianceMethod::White
+            },
+            dof: batch_means.map_or(dof, |b| b.batches - 1),
+            batches: batch_means.map_or(0, |b| b.batches),
+            batch_samples: batch_means.map_or(0, |b| b.batch_samples),
+            ljung_box: whiteness.iter().map(|w| w.ljung_box(n)).collect(),
+            ljung_box_critical: whiteness.first().map_or(0.0, crate::report::Whiteness::ljung_box_critical),
+        }
+    }
+
+    /// The batch means this uncertainty took from those offered to [`choose`](Self::choose).
+    pub fn taken<'b>(
+        &self,
+        batch_means: Option<&'b crate::estimate::BatchMeans>,
+    ) -> Option<&'b crate::estimate::BatchMeans> {
+        batch_means.filter(|_| self.method == CovarianceMethod::BatchMeans)
+    }
+}
+
 pub use crate::model::DerivedEstimate;
 
 /// Goodness of fit.

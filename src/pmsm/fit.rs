@@ -142,11 +142,6 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     })
 }
 
-/// The SPM motor parameters `(r_s, l_s, k_e)` of a fit (NaN where one is missing).
-fn motor_only(fit: &FitResult) -> [f64; 3] {
-    ["r_s", "l_s", "k_e"].map(|n| fit.parameter(n).map_or(f64::NAN, |p| p.value))
-}
-
 /// [`fit_pmsm`] once the checks beside it are under way.
 fn fit_beside(
     experiments: &[Experiment],
@@ -231,8 +226,9 @@ fn fit_beside(
         && options.input == VoltageInput::Terminal
         && options.inverter.is_none();
     if plain && best.uncertainty.method == CovarianceMethod::BatchMeans {
-        let setup = PmsmSetup { cable_resistance: options.cable_resistance, ..PmsmSetup::new(n_p, hold) };
-        warnings.extend(super::noise::input_noise_notice(experiments, setup, &motor_only(&best)));
+        // `motor` holds the whole series resistance already: no cable on top.
+        let setup = PmsmSetup::new(n_p, hold);
+        warnings.extend(super::noise::input_noise_notice(experiments, setup, &motor));
     }
     Ok(PmsmFit {
         report: FitResult {

@@ -28,12 +28,11 @@ use super::kind::MotorKind;
 use super::signals::{DqView, channel};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
+use crate::estimate::Uncertainty;
 use crate::estimate::filter::{self, Butterworth};
 use crate::estimate::linear::{LinearSolution, StreamedLeastSquares};
 use crate::estimate::problem::{BlockScores, ScoreSeries, TARGET_BATCHES};
 use crate::estimate::weighting::{Uniform, Weighting};
-use crate::estimate::{CovarianceMethod, Uncertainty};
-use crate::model::BLOCK_LEN;
 use crate::report::Whiteness;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
@@ -259,7 +258,6 @@ pub fn weighted_least_squares(
         let (u_d, u_q) = view.terminal_voltage()?;
         let reg = Regression::new(&view, u_d, u_q, n_p, kind);
         let mut blocks = BlockScores::new(cols);
-        let (mut block, mut count) = (vec![0.0; cols], 0);
         reg.for_each(|k, d, q, u| {
             let beta = sqrt_beta.as_ref().map_or(1.0, |b| b[k + 1] * b[k + 1]);
             for (c, row) in [d, q].iter().enumerate() {
@@ -267,20 +265,13 @@ pub fn weighted_least_squares(
                 sse[c] += r * r;
                 sst[c] += (u[c] - mean[c]).powi(2);
                 res[c].push(r);
-                for (s, x) in block.iter_mut().zip(&row[..cols]) {
+                for (s, x) in blocks.open_mut().iter_mut().zip(&row[..cols]) {
                     *s += beta * x * r;
                 }
             }
-            count += 1;
-            if count == BLOCK_LEN {
-                blocks.push(count, &block);
-                block.fill(0.0);
-                count = 0;
-            }
+            blocks.count();
         });
-        if count > 0 {
-            blocks.push(count, &block);
-        }
+        blocks.close();
         scores.add_plain(&blocks);
         segments.push(reg.intervals());
     }
@@ -331,22 +322,15 @@ fn covariance(
     scores: &ScoreSeries,
     n: usize,
 ) -> (Vec<f64>, Uncertainty) {
-    let white = whiteness.iter().all(|w| w.is_white(n));
-    let bm = if white { None } else { scores.batch_means(TARGET_BATCHES) };
-    let uncertainty = Uncertainty {
-        method: if bm.is_some() { CovarianceMethod::BatchMeans } else { CovarianceMethod::White },
-        dof: bm.as_ref().map_or(sol.dof, |b| b.batches - 1),
-        batches: bm.as_ref().map_or(0, |b| b.batches),
-        batch_samples: bm.as_ref().map_or(0, |b| b.batch_samples),
-        ljung_box: whiteness.iter().map(|w| w.ljung_box(n)).collect(),
-        ljung_box_critical: whiteness.first().map_or(0.0, Whiteness::ljung_box_critical),
-    };
+    let offered = scores.batch_means(TARGET_BATCHES);
+    let uncertainty = Uncertainty::choose(whiteness, n, sol.dof, offered.as_ref());
+    let bm = uncertainty.taken(offered.as_ref());
     let se = match bm {
         None => sol.std_error.clone(),
         Some(b) => {
             let m = sol.inverse.len();
             let inv = DMatrix::from_fn(m, m, |i, j| sol.inverse[i][j]);
-            let cov = &inv * b.meat * &inv;
+            let cov = &inv * &b.meat * &inv;
             (0..m).map(|j| cov[(j, j)].max(0.0).sqrt()).collect()
         }
     };

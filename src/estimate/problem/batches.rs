@@ -16,6 +16,7 @@
 //! atoms: a batch is a run of whole blocks of one experiment, so nothing per sample is kept.
 
 use super::pass::LocalMap;
+use crate::model::BLOCK_LEN;
 use nalgebra::{DMatrix, DVector};
 
 /// Batches the long-run covariance aims at (the t quantile of 31 degrees of freedom is
@@ -35,12 +36,48 @@ pub(crate) struct BlockScores {
     m: usize,
     counts: Vec<usize>,
     values: Vec<f64>,
+    /// The block [`add`](Self::add) fills, and its samples so far.
+    open: Vec<f64>,
+    open_n: usize,
 }
 
 impl BlockScores {
     /// Empty sums for m local columns.
     pub(crate) fn new(m: usize) -> Self {
-        Self { m, counts: Vec::new(), values: Vec::new() }
+        Self { m, counts: Vec::new(), values: Vec::new(), open: vec![0.0; m], open_n: 0 }
+    }
+
+    /// Adds one sample's score (length m) to the open block, then [`count`](Self::count)s it.
+    pub(crate) fn add(&mut self, score: &[f64]) {
+        for (o, v) in self.open.iter_mut().zip(score) {
+            *o += v;
+        }
+        self.count();
+    }
+
+    /// The open block's sums (length m), for a sample's score added term by term before
+    /// [`count`](Self::count).
+    pub(crate) fn open_mut(&mut self) -> &mut [f64] {
+        &mut self.open
+    }
+
+    /// Ends the current sample; the open block is appended once it holds [`BLOCK_LEN`]
+    /// samples (and by [`close`](Self::close)).
+    pub(crate) fn count(&mut self) {
+        self.open_n += 1;
+        if self.open_n == BLOCK_LEN {
+            self.close();
+        }
+    }
+
+    /// Appends the open block, if it holds a sample.
+    pub(crate) fn close(&mut self) {
+        if self.open_n > 0 {
+            self.counts.push(self.open_n);
+            self.values.extend_from_slice(&self.open);
+            self.open.fill(0.0);
+            self.open_n = 0;
+        }
     }
 
     /// Appends one block's score sum (length m) over its `n` counted samples.

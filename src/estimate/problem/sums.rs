@@ -94,7 +94,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         let mut g: Vec<Vec<f64>> = Vec::new();
         let mut wq = vec![0.0; BLOCK_LEN];
         // The kept Grams' block scores (their Jᵀε column's growth per block), for the batch means.
-        let mut scores = keeps.then(BlockScores::default);
+        let mut scores: Option<BlockScores> = None;
         let mut before = Vec::new();
         let map = self.pass_blocks(e, p, Pass::CRITERION, |ch| {
             let m1 = ch.m + 1;
@@ -104,7 +104,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             if g.is_empty() {
                 g = vec![vec![0.0; m1 * m1]; ny];
                 before = vec![0.0; ny * ch.m];
-                scores = scores.take().map(|_| BlockScores::new(ch.m));
+                scores = keeps.then(|| BlockScores::new(ch.m));
             }
             let n = ch.len - ch.lo;
             for (i, gi) in g.iter_mut().enumerate() {
