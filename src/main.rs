@@ -27,7 +27,8 @@ static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
     name = "greybox",
     version,
     about = "Grey-box estimation of PMSM parameters (R_s, L_s or L_d/L_q, K_e) from drive logs",
-    after_help = "Exit codes: 0 success; 1 error (nothing computed, no report written); 2 invalid command line; \
+    after_help = "Exit codes: 0 success; 1 error (nothing computed, no report written); 2 invalid command line (an \
+option, its value or a LOG argument the error names; nothing computed, no report written); \
 3 `fit` finished and wrote its report, but the result is not to be trusted (not converged, a parameter at a bound, \
 non-finite statistics, a likely setup mistake: see \"warnings\" in the report; --allow-unconverged turns this into 0); \
 4 `fit --each`: a log could not be read or fitted (reported, skipped; the summary and trend plot are written). \
@@ -59,6 +60,12 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // Interrupted (SIGINT, SIGTERM, SIGHUP): the temporaries of outputs not yet renamed are
+    // removed, the old outputs stay; exit 130 as a shell reports an interrupt.
+    let _ = ctrlc::set_handler(|| {
+        greybox::data::staged::remove_temporaries();
+        std::process::exit(130);
+    });
     // The exit code: 0, or 3 for an untrusted fit, 4 for a failed log of a batch.
     let code = |trusted: bool| if trusted { 0 } else { 3 };
     let r: greybox::Result<u8> = match &cli.command {
@@ -73,9 +80,7 @@ fn main() -> ExitCode {
             // Into a buffer first: clap_complete panics when stdout is closed early (`| head`).
             let mut script = Vec::new();
             clap_complete::generate(*shell, &mut Cli::command(), "greybox", &mut script);
-            std::io::Write::write_all(&mut std::io::stdout(), &script)
-                .map(|()| 0)
-                .map_err(|source| greybox::Error::Write { path: "stdout".into(), source })
+            cli::output::stdout(&String::from_utf8_lossy(&script)).map(|()| 0)
         }
     };
     // Errors name the flags of the subcommand that ran, as the user typed them.
@@ -97,7 +102,20 @@ fn main() -> ExitCode {
         Ok(code) => ExitCode::from(code),
         Err(e) => {
             eprintln!("error: {e}");
-            ExitCode::FAILURE
+            ExitCode::from(exit_code_of(&e))
         }
+    }
+}
+
+/// The exit code of an error: 2 when it names a flag, a value or an argument of the command
+/// line (an invalid option, pole-pair number, bound or start), 1 otherwise.
+fn exit_code_of(e: &greybox::Error) -> u8 {
+    use greybox::Error;
+    match e {
+        Error::InvalidOption { .. }
+        | Error::InvalidPolePairs { .. }
+        | Error::InvalidBounds { .. }
+        | Error::StartOutsideBounds { .. } => 2,
+        _ => 1,
     }
 }

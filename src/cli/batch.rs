@@ -25,6 +25,7 @@ use super::columns::named;
 use super::fit::{Plan, fit_logs, plan};
 use super::output;
 use greybox::Error;
+use greybox::data::staged::Staged;
 use greybox::pmsm::PmsmFit;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
@@ -61,12 +62,9 @@ pub fn run_batch(a: &FitArgs, pattern: &str) -> greybox::Result<u8> {
     }
     let paths = expand(pattern)?;
     let summary_paths = a.summary.as_deref().map(summary_paths);
-    for (flag, path) in summary_paths.iter().flat_map(|(c, j)| [("--summary", c), ("--summary", j)]) {
-        output::check(path, &paths).map_err(|e| renamed(e, flag))?;
-    }
-    if let Some(p) = &a.trend {
-        output::check(p, &paths).map_err(|e| renamed(e, "--trend"))?;
-    }
+    let (csv, json) =
+        (summary_paths.as_ref().map(|s| s.0.as_path()), summary_paths.as_ref().map(|s| s.1.as_path()));
+    output::check_all(&[("--summary", csv), ("--summary", json), ("--trend", a.trend.as_deref())], &paths)?;
     let stems: Vec<String> = paths.iter().map(|p| stem(p)).collect();
     let names = super::logs::unique_names(&paths, &stems);
     let bar = progress(a.quiet, paths.len());
@@ -89,15 +87,18 @@ pub fn run_batch(a: &FitArgs, pattern: &str) -> greybox::Result<u8> {
     let count = |s: Status| records.iter().filter(|r| r.status == s).count();
     let (ok, untrusted, failed) = (count(Status::Ok), count(Status::Untrusted), count(Status::Failed));
     if !a.quiet {
-        print!("{}", summary::table(&records));
+        super::output::stdout(&summary::table(&records))?;
     }
+    let mut staged = Staged::new();
     if let Some((csv, json)) = &summary_paths {
-        output::write(csv, summary::csv(&records)?.trim_end())?;
-        output::write(json, &summary::json(pattern, &records, wall_s))?;
+        output::write(&mut staged, csv, summary::csv(&records)?.trim_end())?;
+        output::write(&mut staged, json, &summary::json(pattern, &records, wall_s))?;
     }
     if let Some(p) = &a.trend {
-        greybox::report::plot::write_svg(p, &trend::svg(pattern, &records)?)?;
+        let svg = trend::svg(pattern, &records)?;
+        staged.produce(p, |tmp| greybox::report::plot::write_svg(tmp, &svg))?;
     }
+    staged.commit()?;
     eprintln!("{} logs in {wall_s:.2} s: {ok} ok, {untrusted} untrusted, {failed} failed", records.len());
     Ok(if failed > 0 {
         eprintln!("exit code {EXIT_FAILED}: a log could not be read or fitted");
@@ -244,14 +245,6 @@ fn progress(quiet: bool, n: usize) -> ProgressBar {
     }
     bar.enable_steady_tick(std::time::Duration::from_millis(200));
     bar
-}
-
-/// An output-file error named after its flag.
-fn renamed(e: Error, flag: &str) -> Error {
-    match e {
-        Error::InvalidOption { reason, .. } => Error::InvalidOption { option: flag.into(), reason },
-        e => e,
-    }
 }
 
 #[cfg(test)]

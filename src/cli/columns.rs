@@ -54,6 +54,10 @@ pub struct ColumnArgs {
     /// Whether the speed and angle columns are mechanical or electrical.
     #[arg(long, value_enum, default_value_t = FrameArg::Mechanical)]
     pub speed_frame: FrameArg,
+    /// Negate the speed column on reading (a drive whose speed counts the other way than
+    /// its dq frame turns; the angle column is read as it is).
+    #[arg(long)]
+    pub negate_speed: bool,
     /// Scaling of the current columns (peak: |i_dq| = phase peak; rms: |i_dq| = phase RMS).
     #[arg(long, value_enum, default_value_t = ScaleArg::Peak)]
     pub current_scale: ScaleArg,
@@ -175,6 +179,7 @@ impl ColumnArgs {
                 FrameArg::Mechanical => Frame::Mechanical,
                 FrameArg::Electrical => Frame::Electrical,
             },
+            negate_speed: self.negate_speed,
             angle_unit: match self.angle_unit {
                 AngleUnitArg::Rad => AngleUnit::Rad,
                 AngleUnitArg::Deg => AngleUnit::Deg,
@@ -239,7 +244,22 @@ impl ColumnArgs {
                 dropped: vec![],
             })
         };
-        log.map_err(flag_words)
+        log.map_err(flag_words).map_err(|e| with_file(path, e))
+    }
+}
+
+/// A data error that names no file (a non-finite value, a time step, a length) with the
+/// log's path in front, as the parse errors have it.
+fn with_file(path: &Path, e: greybox::Error) -> greybox::Error {
+    use greybox::Error;
+    match e {
+        Error::NonFinite { .. }
+        | Error::NonUniformTime { .. }
+        | Error::LengthMismatch { .. }
+        | Error::InvalidSampleTime { .. } => {
+            Error::Format { path: path.to_path_buf(), message: e.to_string() }
+        }
+        other => other,
     }
 }
 

@@ -71,8 +71,64 @@ pub fn in_cli_words(e: Error, command: &clap::Command) -> Error {
             });
             Error::InvalidOption { option: flag.unwrap_or(option), reason: model_words(&reason) }
         }
+        Error::MissingColumn { path, column, available } => match column_hint(&column, &available, command) {
+            Some((flag, found)) => Error::InvalidOption {
+                option: flag.clone(),
+                reason: format!(
+                    "{}: no column `{column}` in the header ({available}); `{found}` looks like it: {flag} \"{found}\"",
+                    path.display()
+                ),
+            },
+            None => Error::MissingColumn { path, column, available },
+        },
         other => other,
     }
+}
+
+/// Other names logs give the standard columns (compared without case, units in brackets
+/// or punctuation).
+const COLUMN_ALIASES: [(&str, &[&str]); 7] = [
+    ("t", &["time", "times", "timestamp", "ts"]),
+    ("ud", &["vd", "voltaged", "udmeas"]),
+    ("uq", &["vq", "voltageq", "uqmeas"]),
+    ("id", &["currentd", "idmeas"]),
+    ("iq", &["currentq", "iqmeas"]),
+    ("w_m", &["wm", "w", "omega", "omegam", "speed", "velocity"]),
+    ("theta_m", &["thetam", "theta", "angle", "position", "pos"]),
+];
+
+/// A header name without case, units in brackets or parentheses, and punctuation.
+fn normalised(name: &str) -> String {
+    let mut depth = 0i32;
+    name.chars()
+        .filter(|c| {
+            match c {
+                '[' | '(' => depth += 1,
+                ']' | ')' => depth -= 1,
+                _ => return depth == 0 && c.is_alphanumeric(),
+            }
+            false
+        })
+        .flat_map(char::to_lowercase)
+        .collect()
+}
+
+/// For a missing standard column: the flag that names it (the command's `--col-*` whose
+/// default is the column) and the header entry that looks like it.
+fn column_hint(column: &str, available: &str, command: &clap::Command) -> Option<(String, String)> {
+    let names: Vec<String> = std::iter::once(normalised(column))
+        .chain(
+            COLUMN_ALIASES
+                .iter()
+                .filter(|(c, _)| *c == column)
+                .flat_map(|(_, a)| a.iter().map(|s| s.to_string())),
+        )
+        .collect();
+    let found = available.split(", ").find(|h| names.contains(&normalised(h)))?;
+    let flag = command.get_arguments().find(|a| {
+        a.get_long().is_some_and(|l| l.starts_with("col-")) && a.get_default_values() == [column]
+    })?;
+    Some((format!("--{}", flag.get_long()?), found.to_string()))
 }
 
 /// [`in_cli_words`] for `greybox fit`'s flags, where the subcommand is not at hand (a

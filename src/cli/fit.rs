@@ -5,6 +5,7 @@ use super::args::{
     SolverArg, VoltageArg,
 };
 use super::output;
+use greybox::data::staged::Staged;
 use greybox::estimate::{FitResult, PemOptions, ScalingKind, SolverKind, Timing, Tolerances};
 use greybox::pmsm::ReportOptions;
 use greybox::pmsm::weighted_least_squares;
@@ -44,10 +45,14 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
         }
     }
     // Fail before the fit, not after it, when the report cannot be written.
-    if let Some(path) = &a.json {
-        output::check(path, &a.logs)?;
-    }
-    super::plots::check(&[("plot", a.plot.as_ref()), ("residuals", a.residuals.as_ref())], &a.logs)?;
+    output::check_all(
+        &[
+            ("--json", a.json.as_deref()),
+            ("--plot", a.plot.as_deref()),
+            ("--residuals", a.residuals.as_deref()),
+        ],
+        &a.logs,
+    )?;
     let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
     let plan = plan(a)?;
     super::logs::check_paths(&a.logs)?;
@@ -78,18 +83,27 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
             let kt = report.derived("k_t").map(|q| q.value);
             let conventions =
                 greybox::pmsm::report::conventions(k("k_e"), kt, k("l_d").is_some(), plan.report_options);
-            print_report(a.format, &report.document(&conventions), &json);
+            print_report(a.format, &report.document(&conventions), &json)?;
         }
-        write_json(a, json)?;
+        let mut staged = Staged::new();
+        if let Some(path) = &a.json {
+            output::write(&mut staged, path, &json)?;
+        }
+        staged.commit()?;
         return Ok(trusted(&report, a.allow_unconverged));
     };
     let result = fit_logs(a.pole_pairs, options, *search, *estimator, &logs, t0, read_s)?;
     let json = result.to_json();
+    // Every output file staged, the report printed, then all renamed at once.
+    let mut staged = Staged::new();
+    super::plots::fit_outputs(&mut staged, a.plot.as_deref(), a.residuals.as_deref(), &result, &logs)?;
     if !quiet {
-        print_report(a.format, &result.document(plan.report_options), &json);
+        print_report(a.format, &result.document(plan.report_options), &json)?;
     }
-    write_json(a, json)?;
-    super::plots::fit_outputs(a.plot.as_deref(), a.residuals.as_deref(), &result, &logs)?;
+    if let Some(path) = &a.json {
+        output::write(&mut staged, path, &json)?;
+    }
+    staged.commit()?;
     Ok(trusted(&result, a.allow_unconverged))
 }
 
@@ -379,18 +393,13 @@ fn ls_only(a: &FitArgs) -> greybox::Result<()> {
 }
 
 /// Prints the report on stdout in the `--format` asked for.
-fn print_report(format: FormatArg, doc: &Document, json: &str) {
-    match format {
-        FormatArg::Table => print!("{}", doc.to_text()),
-        FormatArg::Markdown => print!("{}", doc.to_markdown()),
-        FormatArg::Json => println!("{json}"),
-    }
-}
-
-/// Writes the JSON report where `--json` says ("-" = stdout), atomically.
-pub fn write_json(a: &FitArgs, json: String) -> greybox::Result<()> {
-    match &a.json {
-        None => Ok(()),
-        Some(path) => output::write(path, &json),
-    }
+///
+/// # Errors
+/// [`greybox::Error::Write`] when stdout cannot take it (not a closed pipe).
+fn print_report(format: FormatArg, doc: &Document, json: &str) -> greybox::Result<()> {
+    super::output::stdout(&match format {
+        FormatArg::Table => doc.to_text(),
+        FormatArg::Markdown => doc.to_markdown(),
+        FormatArg::Json => format!("{json}\n"),
+    })
 }

@@ -1,20 +1,14 @@
-//! Report files: checked before the work, written atomically after it succeeds, never over
-//! an input log.
+//! Report files: checked before the work (never over an input, never two outputs in one
+//! file), staged and renamed together after it succeeds; stdout that fails is an error,
+//! a closed pipe quiet.
 
 use greybox::Error;
+use greybox::data::staged::Staged;
 use std::path::{Path, PathBuf};
 
-/// Checks before any work that the report `path` (`--json`) can be written: not one of
-/// the `inputs`, in an existing directory. "-" (stdout) always can.
-///
-/// # Errors
-/// [`Error::InvalidOption`] (option `json`) naming the path when it is an input or its
-/// folder is missing.
-pub fn check(path: &Path, inputs: &[PathBuf]) -> greybox::Result<()> {
-    check_as("json", path, inputs)
-}
-
-/// [`check`] for the output given by the flag `flag` (its long name, e.g. `output`).
+/// Checks before any work that the output given by the flag `flag` (its long name, e.g.
+/// `output`) can be written: not one of the `inputs`, in an existing directory. "-"
+/// (stdout) always can.
 ///
 /// # Errors
 /// [`Error::InvalidOption`] (option `flag`) naming the path when it is an input or its
@@ -23,14 +17,10 @@ pub fn check_as(flag: &str, path: &Path, inputs: &[PathBuf]) -> greybox::Result<
     if path.as_os_str() == "-" {
         return Ok(());
     }
-    let same = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
-        (Ok(x), Ok(y)) => x == y,
-        _ => a == b,
-    };
-    if let Some(input) = inputs.iter().find(|i| same(path, i)) {
+    if let Some(input) = inputs.iter().find(|i| same_file(path, i)) {
         return Err(Error::InvalidOption {
             option: flag.into(),
-            reason: format!("{} is an input log: refusing to overwrite it", input.display()),
+            reason: format!("{} is an input of this command: refusing to overwrite it", input.display()),
         });
     }
     let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
@@ -43,19 +33,66 @@ pub fn check_as(flag: &str, path: &Path, inputs: &[PathBuf]) -> greybox::Result<
     Ok(())
 }
 
-/// Writes `text` to `path` ("-" = stdout) atomically: a temporary file in the same folder,
-/// flushed, then renamed over the target, so that a reader or a concurrent run never sees
-/// a partial file and a failure leaves any existing file intact.
+/// Checks before any work that every output `(flag, path)` given can be written
+/// ([`check_as`]: not an input, in an existing folder) and that no two outputs are one file
+/// (the second would replace the first). `inputs`: every file the command reads (logs,
+/// `--params`, `--config`).
 ///
 /// # Errors
-/// [`Error::Write`] with the path when the temporary file cannot be written or renamed.
-pub fn write(path: &Path, text: &str) -> greybox::Result<()> {
-    if path.as_os_str() == "-" {
-        println!("{text}");
-        return Ok(());
+/// [`Error::InvalidOption`] naming the flag and the path.
+pub fn check_all(outputs: &[(&str, Option<&Path>)], inputs: &[PathBuf]) -> greybox::Result<()> {
+    let given: Vec<(&str, &Path)> =
+        outputs.iter().filter_map(|(f, p)| p.filter(|p| p.as_os_str() != "-").map(|p| (*f, p))).collect();
+    for (i, (flag, path)) in given.iter().enumerate() {
+        check_as(flag, path, inputs)?;
+        if let Some((other, _)) = given[..i].iter().find(|(_, q)| same_file(q, path)) {
+            return Err(Error::InvalidOption {
+                option: (*flag).into(),
+                reason: format!(
+                    "{} is also the output of {other}: give each output its own file",
+                    path.display()
+                ),
+            });
+        }
     }
-    greybox::data::write::write_atomic(path, |f| {
+    Ok(())
+}
+
+/// Whether two paths name one file (by their canonical forms when they exist).
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => a == b,
+    }
+}
+
+/// Stages `text` for `path` ("-" = stdout, written at once): a temporary file beside it,
+/// renamed over it when the command commits all its outputs together, so that a reader or
+/// a concurrent run never sees a partial file and a failure leaves every old file intact.
+///
+/// # Errors
+/// [`Error::Write`] with the path when the temporary file cannot be written.
+pub fn write(staged: &mut Staged, path: &Path, text: &str) -> greybox::Result<()> {
+    if path.as_os_str() == "-" {
+        return stdout(&format!("{text}\n"));
+    }
+    staged.write(path, |f| {
         f.write_all(text.as_bytes())?;
         f.write_all(b"\n")
     })
+}
+
+/// Writes `text` to stdout and flushes it. A reader that went away (`| head`: a broken
+/// pipe) is no error and stops the output quietly; any other failure (a full disk behind
+/// `> file`, `/dev/full`) is.
+///
+/// # Errors
+/// [`Error::Write`] (path `stdout`) with the cause.
+pub fn stdout(text: &str) -> greybox::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        r => r.map_err(|source| Error::Write { path: "stdout".into(), source }),
+    }
 }

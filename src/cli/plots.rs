@@ -2,8 +2,8 @@
 //! residual export, with the speed of each log as context and the truth beside a
 //! simulated log.
 
-use super::output;
 use greybox::Experiment;
+use greybox::data::staged::Staged;
 use greybox::drive::DriveLog;
 use greybox::online::Trajectory;
 use greybox::online::plot::{TrackRun, TrackTruth, track_svg};
@@ -12,19 +12,9 @@ use greybox::report::Comparison;
 use greybox::report::plot::{self, Context};
 use std::path::{Path, PathBuf};
 
-/// Checks before any work that the plot and residual files can be written (not an input,
-/// in an existing folder), naming the flag.
-pub fn check(paths: &[(&str, Option<&PathBuf>)], inputs: &[PathBuf]) -> greybox::Result<()> {
-    for (flag, path) in paths {
-        if let Some(p) = path {
-            output::check(p, inputs).map_err(|e| rename(e, flag))?;
-        }
-    }
-    Ok(())
-}
-
 /// Writes the fit plot and the residual CSV of `fit` on its `logs`, where asked.
 pub fn fit_outputs(
+    staged: &mut Staged,
     plot_path: Option<&Path>,
     residuals: Option<&Path>,
     fit: &PmsmFit,
@@ -35,27 +25,38 @@ pub fn fit_outputs(
     }
     let comparisons = fit.comparisons(logs)?;
     if let Some(path) = residuals {
-        greybox::report::residuals::write_residuals_csv(path, &comparisons)?;
+        staged.produce(path, |tmp| greybox::report::residuals::write_residuals_csv(tmp, &comparisons))?;
     }
     if let Some(path) = plot_path {
         let speeds = speeds(logs, &comparisons);
         let context = speeds.as_ref().map(|s| context(s));
-        plot::write_svg(path, &plot::fit_svg(fit, &comparisons, context.as_ref())?)?;
+        let svg = plot::fit_svg(fit, &comparisons, context.as_ref())?;
+        staged.produce(path, |tmp| plot::write_svg(tmp, &svg))?;
     }
     Ok(())
 }
 
 /// Writes the compare plot of a validation.
-pub fn compare_plot(path: &Path, comparisons: &[Comparison], logs: &[Experiment]) -> greybox::Result<()> {
+pub fn compare_plot(
+    staged: &mut Staged,
+    path: &Path,
+    comparisons: &[Comparison],
+    logs: &[Experiment],
+) -> greybox::Result<()> {
     let speeds = speeds(logs, comparisons);
     let context = speeds.as_ref().map(|s| context(s));
-    plot::write_svg(path, &plot::compare_svg(comparisons, context.as_ref())?)
+    let svg = plot::compare_svg(comparisons, context.as_ref())?;
+    staged.produce(path, |tmp| plot::write_svg(tmp, &svg))
 }
 
 /// Writes the observer plot of the runs `(log path, segment, trajectory)` (a segment of a
 /// log split at its gaps is drawn as `LOG#k`), with the truth of each
 /// log read from the JSON beside it when there is one.
-pub fn track_plot(path: &Path, runs: &[(PathBuf, Option<usize>, Trajectory)]) -> greybox::Result<()> {
+pub fn track_plot(
+    staged: &mut Staged,
+    path: &Path,
+    runs: &[(PathBuf, Option<usize>, Trajectory)],
+) -> greybox::Result<()> {
     let names: Vec<String> = runs
         .iter()
         .map(|(p, segment, _)| segment.map_or_else(|| short_name(p), |k| format!("{}#{k}", short_name(p))))
@@ -65,7 +66,8 @@ pub fn track_plot(path: &Path, runs: &[(PathBuf, Option<usize>, Trajectory)]) ->
         .zip(&names)
         .map(|((p, _, tr), name)| TrackRun { name, trajectory: tr, truth: truth(p) })
         .collect();
-    plot::write_svg(path, &track_svg(&runs)?)
+    let svg = track_svg(&runs)?;
+    staged.produce(path, |tmp| plot::write_svg(tmp, &svg))
 }
 
 /// The mechanical speed of each log, when every log has it at the comparison's length.
@@ -95,14 +97,4 @@ fn short_name(p: &Path) -> String {
     let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let name = name.strip_suffix(".gz").unwrap_or(&name);
     name.strip_suffix(".csv").unwrap_or(name).to_string()
-}
-
-/// An output-file error named after its flag.
-fn rename(e: greybox::Error, flag: &str) -> greybox::Error {
-    match e {
-        greybox::Error::InvalidOption { reason, .. } => {
-            greybox::Error::InvalidOption { option: flag.into(), reason }
-        }
-        e => e,
-    }
 }

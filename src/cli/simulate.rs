@@ -4,6 +4,7 @@
 use super::output;
 use clap::{Args, ValueEnum};
 use greybox::Error;
+use greybox::data::staged::Staged;
 use greybox::drive::{DriveConfig, DriveLog, IPM_MOTOR, SCENARIOS, SPM_MOTOR, scenario, simulate_drive};
 use serde_json::Value;
 use std::io::Write as _;
@@ -101,29 +102,32 @@ pub fn run_simulate(a: &SimulateArgs) -> greybox::Result<()> {
         return Err(Error::InvalidOption { option: "output".into(), reason: "give -o LOG.csv".into() });
     };
     let inputs: Vec<PathBuf> = a.config.iter().cloned().collect();
-    output::check_as("output", path, &inputs)?;
-    output::check_as("output", &DriveLog::truth_path(path), &inputs)?;
+    let truth = DriveLog::truth_path(path);
+    output::check_all(&[("--output", Some(path.as_path())), ("--output", Some(truth.as_path()))], &inputs)?;
     let log = simulate_drive(&cfg)?;
-    log.write(path)?;
+    let mut staged = Staged::new();
+    log.stage(&mut staged, path)?;
     let t = &log.truth;
-    println!(
-        "{}: {} samples at h = {} s ({} s) -> {} and {}; plant at start r_s {} ohm, l_d {} H, l_q {} H, psi_f {} V s, \
+    super::output::stdout(
+        &(format!(
+            "{}: {} samples at h = {} s ({} s) -> {} and {}; plant at start r_s {} ohm, l_d {} H, l_q {} H, psi_f {} V s, \
          n_p {}, k_e {:.6} V s/rad{}",
-        t.scenario,
-        t.samples,
-        t.h,
-        cfg.duration,
-        path.display(),
-        DriveLog::truth_path(path).display(),
-        t.start.r_s,
-        t.start.l_d,
-        t.start.l_q,
-        t.start.psi_f,
-        t.start.n_p,
-        t.k_e,
-        if t.time_varying { " (parameters change within the record: see the truth file)" } else { "" }
-    );
-    Ok(())
+            t.scenario,
+            t.samples,
+            t.h,
+            cfg.duration,
+            path.display(),
+            DriveLog::truth_path(path).display(),
+            t.start.r_s,
+            t.start.l_d,
+            t.start.l_q,
+            t.start.psi_f,
+            t.start.n_p,
+            t.k_e,
+            if t.time_varying { " (parameters change within the record: see the truth file)" } else { "" }
+        ) + "\n"),
+    )?;
+    staged.commit()
 }
 
 /// The configuration with the field at the dotted `path` set to `value` (`PATH=VALUE`,
@@ -136,8 +140,33 @@ fn set_field(cfg: &DriveConfig, assignment: &str) -> greybox::Result<DriveConfig
         .map_err(|e| bad(format!("`{assignment}`: the value is not JSON: {e}")))?;
     let mut root = serde_json::to_value(cfg).map_err(|e| bad(e.to_string()))?;
     let pointer = format!("/{}", path.trim().replace('.', "/"));
-    let slot =
-        root.pointer_mut(&pointer).ok_or_else(|| bad(format!("`{path}` is not a field of the scenario")))?;
+    let Some(slot) = root.pointer_mut(&pointer) else {
+        // Name the fields where the path stops matching: the deepest object along it.
+        let parts: Vec<&str> = path.trim().split('.').collect();
+        let mut at = &serde_json::to_value(cfg).map_err(|e| bad(e.to_string()))?;
+        let mut prefix = Vec::new();
+        for part in &parts {
+            match at.get(part) {
+                Some(next) if next.is_object() => {
+                    at = next;
+                    prefix.push(*part);
+                }
+                _ => break,
+            }
+        }
+        let fields: Vec<String> = at
+            .as_object()
+            .map(|o| {
+                o.keys()
+                    .map(|k| prefix.iter().chain([&k.as_str()]).copied().collect::<Vec<_>>().join("."))
+                    .collect()
+            })
+            .unwrap_or_default();
+        return Err(bad(format!(
+            "`{path}` is not a field of the scenario; the fields there are: {} (all of them: --print-config)",
+            fields.join(", ")
+        )));
+    };
     *slot = value;
     serde_json::from_value(root).map_err(|e| bad(format!("`{assignment}`: {e}")))
 }

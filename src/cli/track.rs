@@ -4,6 +4,7 @@
 use super::args::ColumnArgs;
 use super::output;
 use clap::{Args, ValueEnum};
+use greybox::data::staged::Staged;
 use greybox::online::{Adaptation, MrasConfig, Trajectory, track};
 use greybox::pmsm::{CsvOptions, SavedModel, VoltageHold, VoltageInput, applied_experiment};
 use serde_json::{Value, json};
@@ -119,10 +120,8 @@ pub enum TrackHold {
 
 pub fn run_track(a: &TrackArgs) -> greybox::Result<()> {
     // Fail before the work, not after it, when the output cannot be written.
-    if let Some(path) = &a.json {
-        output::check(path, &a.logs)?;
-    }
-    super::plots::check(&[("plot", a.plot.as_ref())], &a.logs)?;
+    let inputs: Vec<PathBuf> = a.logs.iter().chain(&a.params).cloned().collect();
+    output::check_all(&[("--json", a.json.as_deref()), ("--plot", a.plot.as_deref())], &inputs)?;
     let (config, input) = config(a)?;
     let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
     let groups = a.columns.read_logs(&a.logs, &csv, false)?;
@@ -145,28 +144,31 @@ pub fn run_track(a: &TrackArgs) -> greybox::Result<()> {
             runs.push((path.clone(), segment, trajectory));
         }
     }
+    let mut staged = Staged::new();
     if let Some(plot) = &a.plot {
-        super::plots::track_plot(plot, &runs)?;
+        super::plots::track_plot(&mut staged, plot, &runs)?;
     }
     let runs: Vec<(String, Trajectory)> = runs.into_iter().zip(names).map(|((_, _, t), n)| (n, t)).collect();
     let to_stdout = a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
     if !to_stdout && !a.quiet {
         for (name, tr) in &runs {
             let f = &tr.final_estimate;
-            println!(
-                "{name}: K_e = {:.6} V s/rad, K_t = {:.6} N m/A, R_s = {:.6} ohm ({} observer steps, to t = {:.4} s)",
-                f.k_e,
-                f.k_t,
-                f.r_s,
-                tr.t.len(),
-                tr.t.last().copied().unwrap_or(0.0)
-            );
+            super::output::stdout(
+                &(format!(
+                    "{name}: K_e = {:.6} V s/rad, K_t = {:.6} N m/A, R_s = {:.6} ohm ({} observer steps, to t = {:.4} s)",
+                    f.k_e,
+                    f.k_t,
+                    f.r_s,
+                    tr.t.len(),
+                    tr.t.last().copied().unwrap_or(0.0)
+                ) + "\n"),
+            )?;
         }
     }
     if let Some(path) = &a.json {
-        output::write(path, &to_json(&runs, a.max_points))?;
+        output::write(&mut staged, path, &to_json(&runs, a.max_points))?;
     }
-    Ok(())
+    staged.commit()
 }
 
 /// The observer's settings from the flags (and `--params`: its inductances, estimates, hold

@@ -3,6 +3,7 @@
 use super::args::ColumnArgs;
 use super::output;
 use clap::{Args, ValueEnum};
+use greybox::data::staged::Staged;
 use greybox::pmsm::{CsvOptions, SavedModel, VoltageHold};
 use std::path::PathBuf;
 
@@ -45,10 +46,8 @@ pub enum ValidateHold {
 }
 
 pub fn run_validate(a: &ValidateArgs) -> greybox::Result<()> {
-    if let Some(path) = &a.json {
-        output::check(path, &a.logs)?;
-    }
-    super::plots::check(&[("plot", a.plot.as_ref())], &a.logs)?;
+    let inputs: Vec<PathBuf> = a.logs.iter().chain([&a.params]).cloned().collect();
+    output::check_all(&[("--json", a.json.as_deref()), ("--plot", a.plot.as_deref())], &inputs)?;
     if let Some(dir) = a.compare_dir.as_ref().filter(|d| !d.is_dir()) {
         return Err(greybox::Error::InvalidOption {
             option: "compare-dir".into(),
@@ -67,13 +66,15 @@ pub fn run_validate(a: &ValidateArgs) -> greybox::Result<()> {
     let comparisons = saved.validate(&logs)?;
     let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
     if !quiet {
-        println!(
-            "model {} with {} pole pairs, {} hold, θ = {:?}",
-            saved.kind.model_name(),
-            saved.pole_pairs,
-            saved.hold,
-            saved.theta
-        );
+        super::output::stdout(
+            &(format!(
+                "model {} with {} pole pairs, {} hold, θ = {:?}",
+                saved.kind.model_name(),
+                saved.pole_pairs,
+                saved.hold,
+                saved.theta
+            ) + "\n"),
+        )?;
         for c in &comparisons {
             let m = &c.metrics;
             let per = |v: &[f64], d: usize| {
@@ -85,23 +86,27 @@ pub fn run_validate(a: &ValidateArgs) -> greybox::Result<()> {
                 .zip(&m.whiteness)
                 .map(|(n, w)| format!("{n} {:.0} %", 100.0 * w.fraction_outside))
                 .collect();
-            println!(
-                "{}: fit [%] {}; rms residual {}; FPE {:.4e}, AIC {:.1}; lags outside the whiteness bound: {}",
-                c.experiment,
-                per(&m.fit_percent, 4),
-                per(&m.rms_residual, 6),
-                m.fpe,
-                m.aic,
-                white.join(", ")
-            );
+            super::output::stdout(
+                &(format!(
+                    "{}: fit [%] {}; rms residual {}; FPE {:.4e}, AIC {:.1}; lags outside the whiteness bound: {}",
+                    c.experiment,
+                    per(&m.fit_percent, 4),
+                    per(&m.rms_residual, 6),
+                    m.fpe,
+                    m.aic,
+                    white.join(", ")
+                ) + "\n"),
+            )?;
         }
     }
+    let mut staged = Staged::new();
     if let Some(path) = &a.plot {
-        super::plots::compare_plot(path, &comparisons, &logs)?;
+        super::plots::compare_plot(&mut staged, path, &comparisons, &logs)?;
     }
     if let Some(dir) = &a.compare_dir {
         for c in &comparisons {
-            output::write(&dir.join(format!("{}.compare.csv", c.experiment)), c.to_csv().trim_end())?;
+            let path = dir.join(format!("{}.compare.csv", c.experiment));
+            output::write(&mut staged, &path, c.to_csv().trim_end())?;
         }
     }
     if let Some(path) = &a.json {
@@ -116,7 +121,7 @@ pub fn run_validate(a: &ValidateArgs) -> greybox::Result<()> {
             "theta": saved.theta,
             "comparisons": metrics,
         });
-        output::write(path, &serde_json::to_string_pretty(&report).unwrap_or_default())?;
+        output::write(&mut staged, path, &serde_json::to_string_pretty(&report).unwrap_or_default())?;
     }
-    Ok(())
+    staged.commit()
 }

@@ -31,6 +31,8 @@ use crate::error::Result;
 mod arrow_io;
 #[cfg(feature = "parquet")]
 mod check;
+#[cfg(feature = "parquet")]
+mod ipc_scan;
 
 /// File formats of a log, by extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -11,6 +11,7 @@
 pub mod columnar;
 pub mod csv;
 pub mod segments;
+pub mod staged;
 mod time;
 pub mod write;
 

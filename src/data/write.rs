@@ -3,31 +3,20 @@
 //! or a concurrent run never sees half a file and a failure leaves any existing file intact.
 
 use super::Experiment;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use std::io::Write;
 use std::path::Path;
 
-/// Writes what `fill` writes to `path`, atomically.
+/// Writes what `fill` writes to `path`, atomically (a [`super::staged::Staged`] of one
+/// file: a temporary beside it, flushed and synced, then renamed over it).
 ///
 /// # Errors
-/// [`Error::Write`] with the path when the temporary file cannot be created, written,
+/// [`crate::Error::Write`] with the path when the temporary file cannot be created, written,
 /// synced or renamed (the temporary file is then removed).
 pub fn write_atomic(path: &Path, fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result<()> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.{}.{:?}.tmp", std::process::id(), std::thread::current().id()));
-    let result = (|| {
-        let file = std::fs::File::create(&tmp)?;
-        let mut w = std::io::BufWriter::new(file);
-        fill(&mut w)?;
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.map_err(|source| Error::Write { path: path.to_path_buf(), source })
+    let mut staged = super::staged::Staged::new();
+    staged.write(path, fill)?;
+    staged.commit()
 }
 
 /// Writes `e` as CSV to `path`, atomically: a time column `time` \[s\] (`t_k = k h`) and then
@@ -55,7 +44,7 @@ pub fn write_csv(path: &Path, e: &Experiment, time: &str) -> Result<()> {
 /// see [`super::columnar::write`].
 ///
 /// # Errors
-/// Those of [`write_atomic`]; [`Error::Format`] for a columnar extension in a build
+/// Those of [`write_atomic`]; [`crate::Error::Format`] for a columnar extension in a build
 /// without the cargo feature `parquet`.
 pub fn write_log(path: &Path, e: &Experiment, time: &str) -> Result<()> {
     super::columnar::write(path, e, time)

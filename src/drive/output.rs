@@ -2,7 +2,8 @@
 
 use super::sim::DriveLog;
 use crate::data::columnar::Format;
-use crate::data::write::{write_atomic, write_log};
+use crate::data::staged::Staged;
+use crate::data::write::write_log;
 use crate::error::Result;
 use std::path::{Path, PathBuf};
 
@@ -19,16 +20,27 @@ impl DriveLog {
     }
 
     /// Writes the log to `path` (CSV with a time column `t`, gzip for `.gz`; Parquet or Arrow
-    /// IPC by extension, [`write_log`]) and its truth
-    /// to [`DriveLog::truth_path`], each atomically (the CSV first).
+    /// IPC by extension, [`write_log`]) and its truth to [`DriveLog::truth_path`], both or
+    /// neither (staged, then renamed together).
     ///
     /// # Errors
     /// [`crate::Error::Write`] naming the file that could not be written.
     pub fn write(&self, path: &Path) -> Result<()> {
-        write_log(path, &self.experiment, "t")?;
+        let mut staged = Staged::new();
+        self.stage(&mut staged, path)?;
+        staged.commit()
+    }
+
+    /// Stages the log and its truth as [`DriveLog::write`] writes them, for the caller to
+    /// commit with its other outputs.
+    ///
+    /// # Errors
+    /// [`crate::Error::Write`] naming the file that could not be written.
+    pub fn stage(&self, staged: &mut Staged, path: &Path) -> Result<()> {
+        staged.produce(path, |tmp| write_log(tmp, &self.experiment, "t"))?;
         let json =
             serde_json::to_string_pretty(&self.truth).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"));
-        write_atomic(&Self::truth_path(path), |w| {
+        staged.write(&Self::truth_path(path), |w| {
             w.write_all(json.as_bytes())?;
             w.write_all(b"\n")
         })

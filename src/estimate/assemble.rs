@@ -3,8 +3,8 @@
 //! model's derived quantities (MODEL.md §5; Ljung 9.3, 16.4; thesis 5.3).
 
 use super::diagnostics::{DiagnosticThresholds, diagnose};
+use super::gate;
 use super::problem::{FreeKind, MIN_BATCHES, PemProblem, Slot};
-use super::result::Warning;
 use super::result::t_quantile_975;
 use super::{
     DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing, Uncertainty,
@@ -217,7 +217,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     let mut notes = Vec::new();
     let mut diagnostics = diagnostics;
     for (name, f) in fit.outputs.iter().zip(&fit.fit_percent) {
-        if *f < 80.0 {
+        if *f < gate::POOR_FIT_PERCENT {
             let what = model.poor_fit_advice().map(|a| format!(": {a}")).unwrap_or_default();
             diagnostics.advice.push(format!("poor fit of {name} ({f:.1} %){what}"));
         }
@@ -245,7 +245,16 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         .iter()
         .map(|q| order.iter().map(|&g| problem.free()[g].transform.to_theta(q[g])).collect())
         .collect();
-    let warnings = warnings(&solver, &parameters, &fit);
+    let evidence = gate::Evidence {
+        remaining: gate::remaining(&bread_inv, &sums.score, &order, &dtheta, &se_free, &diag_names, |g| {
+            problem.free()[g].transform.to_theta(p[g])
+        }),
+        condition: gate::scaled_condition(&sums.jtj, &order, &diag_names),
+        implausible: gate::implausible(problem, p),
+        white: fit.whiteness.iter().map(|w| w.is_white(n)).collect(),
+        poor_fit_advice: model.poor_fit_advice(),
+    };
+    let warnings = gate::warnings(&solver, &parameters, &fit, &evidence);
     Ok(FitResult {
         model: model.name().to_string(),
         experiments: names,
@@ -263,50 +272,6 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         notes,
         warnings,
     })
-}
-
-/// The generic warnings of a fit: not converged, a parameter at a bound, non-finite
-/// statistics (a constant output has no fit percentage; a zero residual no noise estimate).
-fn warnings(solver: &SolverReport, parameters: &[ParameterEstimate], fit: &FitStatistics) -> Vec<Warning> {
-    let mut out = Vec::new();
-    if !solver.success {
-        out.push(Warning::untrusted(
-            "not_converged",
-            format!(
-                "the solver did not converge ({}): the estimates are where it stopped",
-                solver.termination
-            ),
-        ));
-    }
-    let at_bound: Vec<&str> = parameters.iter().filter(|p| p.at_bound).map(|p| p.name.as_str()).collect();
-    if !at_bound.is_empty() {
-        out.push(Warning::untrusted(
-            "parameter_at_bound",
-            format!(
-                "{} at a bound: the fit is constrained there, the minimum lies beyond it (wrong model, units or \
-                 start?); no interval is given",
-                at_bound.join(", ")
-            ),
-        ));
-    }
-    let stats = fit.fit_percent.iter().chain(&fit.rms_residual).chain([&fit.loss, &fit.mse]);
-    let free_se = parameters.iter().filter(|p| !p.fixed && !p.at_bound).map(|p| &p.std_error);
-    if stats.chain(free_se.clone()).any(|x| !x.is_finite()) {
-        let outputs: Vec<&str> = fit
-            .outputs
-            .iter()
-            .zip(&fit.fit_percent)
-            .filter(|(_, f)| !f.is_finite())
-            .map(|(n, _)| n.as_str())
-            .collect();
-        let why = if outputs.is_empty() {
-            "a standard error is not finite (a parameter the data do not determine)".to_string()
-        } else {
-            format!("the fit percentage of {} is not finite (a constant output?)", outputs.join(", "))
-        };
-        out.push(Warning::untrusted("non_finite_statistics", why));
-    }
-    out
 }
 
 /// The model's derived quantities per experiment's θ and θ-covariance (n_θ × n_θ: the

@@ -9,6 +9,7 @@
 pub mod assemble;
 pub mod diagnostics;
 pub mod filter;
+pub mod gate;
 pub mod iv;
 pub mod linear;
 pub mod problem;

@@ -206,6 +206,13 @@ pub trait GreyBoxModel: Sync {
     fn poor_fit_advice(&self) -> Option<String> {
         None
     }
+    /// Physical constraints the estimate θ (length n_θ, one experiment's) violates, each a
+    /// message naming the parameter, its value and the likely cause (e.g. a negative
+    /// back-EMF constant: a speed column of the other sign). A violation makes the fit
+    /// untrusted (warning `non_physical`). The default declares none.
+    fn implausible(&self, _theta: &[f64]) -> Vec<String> {
+        Vec::new()
+    }
     /// Quantities derived from the parameters θ (length n_θ) with standard errors from
     /// their covariance (n_θ × n_θ rows, θ units; 0 for fixed parameters, ∞ on the diagonal
     /// of an unidentified one) by first-order propagation, `σ_f² = ∇fᵀ C ∇f` (e.g. a torque

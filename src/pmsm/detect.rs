@@ -42,7 +42,12 @@ pub const SPEED_MISMATCH: f64 = 0.05;
 /// Least-squares loss `½ min‖y − Φθ‖²` and θ (model order of `kind`) at `n_p` from the
 /// Gram matrix of [`scan_gram`].
 fn loss_at(g: &DMatrix<f64>, kind: MotorKind, n_p: u32) -> Option<(f64, DVector<f64>)> {
-    let np = f64::from(n_p);
+    loss_at_factor(g, kind, f64::from(n_p))
+}
+
+/// [`loss_at`] with any factor `np` on the speed in the rotation terms (`ω_e = np ω_m`):
+/// a pole-pair number times a speed column's scale.
+pub(crate) fn loss_at_factor(g: &DMatrix<f64>, kind: MotorKind, np: f64) -> Option<(f64, DVector<f64>)> {
     // T maps the parameters to the base columns.
     let t = match kind {
         MotorKind::Spm => DMatrix::from_row_slice(
@@ -228,6 +233,7 @@ pub fn choose_pole_pairs_by_fit(
 pub(crate) fn warnings(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> Vec<Warning> {
     let mut out = Vec::new();
     out.extend(speed_check(experiments, n_p));
+    out.extend(sample_time_check(experiments, n_p, fit));
     out.push(scaling_notice(fit));
     out
 }
@@ -292,6 +298,44 @@ fn speed_check(experiments: &[Experiment], n_p: u32) -> Option<Warning> {
         .copied()
         .unwrap_or((r, "no known unit or frame factor explains it"));
     Some(Warning::untrusted("speed_unit", format!("dθ_m/dt is {r:.4} times w_m (expected 1): {why}")))
+}
+
+/// Largest sample time, in electrical time constants `L/R`, at which the current's
+/// dynamics are still seen (beyond it the current settles within one sample).
+pub const MAX_H_OVER_TAU: f64 = 5.0;
+
+/// A sample time the model cannot resolve: `h` beyond [`MAX_H_OVER_TAU`] electrical time
+/// constants (the inductances then act through the rotation terms alone), or the rotor
+/// turning π electrical radians or more within one sample at the log's top speed (the
+/// angle aliases). Most often a time column in milliseconds read as seconds: the warning
+/// says what `--time-unit ms` would give.
+fn sample_time_check(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> Option<Warning> {
+    let h = experiments.iter().map(Experiment::h).fold(0.0, f64::max);
+    let r = fit.parameter("r_s")?.value;
+    let l = ["l_s", "l_d", "l_q"]
+        .iter()
+        .filter_map(|n| fit.parameter(n).map(|p| p.value))
+        .fold(f64::INFINITY, f64::min);
+    let w = experiments
+        .iter()
+        .filter_map(|e| DqView::try_new(e).ok())
+        .map(|v| v.w_m().iter().fold(0.0f64, |m, x| m.max(x.abs())))
+        .fold(0.0, f64::max);
+    let (tau, turn) = (l / r, f64::from(n_p) * w * h);
+    let slow = tau.is_finite() && tau > 0.0 && h > MAX_H_OVER_TAU * tau;
+    if !slow && turn < std::f64::consts::PI {
+        return None;
+    }
+    Some(Warning::untrusted(
+        "sample_time",
+        format!(
+            "h = {h:e} s is {:.1} electrical time constants L/R ({tau:.3e} s) and the rotor turns up to {turn:.2} \
+             electrical rad in one sample: the model cannot resolve the currents at this rate. A time column in \
+             milliseconds? (--time-unit ms gives h = {:e} s)",
+            h / tau,
+            h * 1e-3
+        ),
+    ))
 }
 
 /// What the estimates would be under the conventions the data cannot tell apart.

@@ -159,7 +159,19 @@ fn fit_beside(
         Some(g) if options.inverter.is_none() => super::detect::check_structure(g, n_p, options.model)?,
         _ => None,
     };
-    let Fitted { fits, mut notes, ls_theta, modulator } = fitted?;
+    let Fitted { fits, mut notes, ls_theta, modulator } = match (fitted, &scan) {
+        (Err(Error::Numerical { context, reason }), Some(g)) if context == "least-squares start" => {
+            let named = super::columns::start_failure(g, experiments, n_p, options.model, options.input);
+            return Err(Error::Numerical {
+                context,
+                reason: match named {
+                    Some(why) => format!("{reason}. Likely cause: {why}"),
+                    None => reason,
+                },
+            });
+        }
+        (fitted, _) => fitted?,
+    };
     let HoldFits { best: (hold, best), others, losses, notes: hold_notes } = fits;
     notes.extend(hold_notes);
     let pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
@@ -219,6 +231,7 @@ fn fit_beside(
         warnings.extend(structure);
         if let Some(g) = &scan {
             warnings.extend(super::detect::pole_pair_warning(g, experiments, options, best.fit.loss));
+            warnings.extend(super::columns::warning(g, experiments, options, best.fit.loss));
         }
     }
     warnings.extend(setup_warnings.into_iter().flatten());

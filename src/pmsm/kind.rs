@@ -63,7 +63,9 @@ const PAIRS: [(&str, &str, &str); 4] = [
 
 /// What to check when a PMSM fit is poor.
 pub const POOR_FIT_ADVICE: &str = "check the pole pairs, the units and frames of the columns, the voltage hold, and \
-                                   that all logs come from one motor";
+                                   that all logs come from one motor; with the reference voltage, the speed estimate \
+                                   behind the modulator's advance (--speed-pll estimate) and the inverter's dead time \
+                                   (--dead-time estimate)";
 
 impl MotorKind {
     /// The parameter table, model order.
@@ -107,6 +109,26 @@ impl MotorKind {
                 upper: f64::INFINITY,
                 fixed: false,
                 nuisance: false,
+            })
+            .collect()
+    }
+    /// The non-physical values of θ (model order; entries beyond the table, such as an
+    /// inverter's, are not looked at): a resistance, inductance or back-EMF constant that
+    /// is not positive. A negative `k_e` fits a log whose speed has the other sign than the
+    /// back-EMF (a flipped speed column, d and q swapped, another angle convention).
+    pub fn implausible(self, theta: &[f64]) -> Vec<String> {
+        self.table()
+            .iter()
+            .zip(theta)
+            .filter(|(_, v)| v.is_nan() || **v <= 0.0)
+            .map(|(p, v)| {
+                let why = if p.name == "k_e" {
+                    "the back-EMF has the other sign than the speed: a speed column of the wrong sign, d and q \
+                     swapped, or voltage and current swapped; check the columns before fitting again"
+                } else {
+                    "a motor's resistance and inductances are positive: check the columns and their units"
+                };
+                format!("{} = {v:.4e} {} is not positive: {why}", p.name, p.unit)
             })
             .collect()
     }

@@ -15,6 +15,7 @@
 
 pub mod augmented;
 pub mod checks;
+mod columns;
 pub mod detect;
 mod elementary;
 pub mod fit;
@@ -99,6 +100,9 @@ macro_rules! pmsm_model_metadata {
         }
         fn poor_fit_advice(&self) -> Option<String> {
             Some($crate::pmsm::kind::POOR_FIT_ADVICE.into())
+        }
+        fn implausible(&self, theta: &[f64]) -> Vec<String> {
+            $kind.implausible(theta)
         }
         fn derived(&self, theta: &[f64], covariance: &[Vec<f64>]) -> Vec<$crate::model::DerivedEstimate> {
             let se: Vec<f64> = (0..theta.len()).map(|j| covariance[j][j].sqrt()).collect();

@@ -52,7 +52,10 @@ pub(crate) fn least_squares_start(
             _ if *v <= 0.0 => {
                 return Err(Error::Numerical {
                     context: "least-squares start".into(),
-                    reason: format!("`{n}` = {v:e} is not positive; give a start value (--start)"),
+                    reason: format!(
+                        "`{n}` = {v:e} is not positive: check the columns first (d and q, voltage and current, the \
+                         speed's sign, unit and frame); only when they are right, give a start value (--start)"
+                    ),
                 });
             }
             _ => {}

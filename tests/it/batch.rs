@@ -163,7 +163,7 @@ fn batch_refuses_an_empty_match_and_joint_fit_flags() {
     let empty_glob = format!("{}/*.parquet", s(&dir));
     for pattern in [s(&dir), empty_glob.as_str()] {
         let out = greybox(&["fit", "--each", pattern, "-p", "4"]);
-        assert_eq!(out.status.code(), Some(1), "{pattern}");
+        assert_eq!(out.status.code(), Some(2), "{pattern}");
         assert!(stderr(&out).contains("`--each`"), "{}", stderr(&out));
     }
     let bad_glob = format!("{}/[", s(&dir));
@@ -182,15 +182,15 @@ fn batch_refuses_an_empty_match_and_joint_fit_flags() {
     }
     // --method ls with --each, and the batch's outputs without it: named errors.
     let out = greybox(&["fit", "--each", s(&dir), "-p", "4", "--method", "ls"]);
-    assert!(out.status.code() == Some(1) && stderr(&out).contains("`--method`"), "{}", stderr(&out));
+    assert!(out.status.code() == Some(2) && stderr(&out).contains("`--method`"), "{}", stderr(&out));
     for flag in ["--summary", "--trend"] {
         let out = greybox(&["fit", "data/sample.csv.gz", "-p", "4", flag, "x"]);
-        assert_eq!(out.status.code(), Some(1));
+        assert_eq!(out.status.code(), Some(2));
         assert!(stderr(&out).contains(&format!("`{flag}`")), "{}", stderr(&out));
     }
     // An output over an input log is refused before any fit.
     std::fs::write(dir.join("a.csv"), "t\n").unwrap();
     let out = greybox(&["fit", "--each", s(&dir), "-p", "4", "--summary", s(&dir.join("a.csv"))]);
-    assert!(out.status.code() == Some(1) && stderr(&out).contains("`--summary`"), "{}", stderr(&out));
+    assert!(out.status.code() == Some(2) && stderr(&out).contains("`--summary`"), "{}", stderr(&out));
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -84,7 +84,7 @@ fn comma_lists_work_where_the_help_shows_them() {
 #[test]
 fn huber_never_swallows_a_log_path() {
     let out = greybox(&["fit", "--huber", "2.0", SAMPLE, "-p", "4", "-q"]);
-    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(out.status.code(), Some(2));
     let err = stderr(&out);
     assert!(err.contains("`2.0`") && err.contains("--huber=2.0"), "{err}");
     for flag in ["--huber=2.0", "--huber"] {
@@ -113,7 +113,7 @@ fn least_squares_start_is_clamped_into_the_bounds() {
     assert!(v["warnings"].to_string().contains("parameter_at_bound"));
     // A start the user gave is theirs: outside the bounds it is still an error.
     let out = greybox(&["fit", SAMPLE, "-p", "4", "--bounds", "r_s:0.95:2", "--start", "0.9,0.0045,0.54"]);
-    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("r_s"));
 }
 
@@ -135,7 +135,7 @@ fn fix_at_a_given_value() {
         assert!(stderr(&out).contains("--fix"), "{bad}: {}", stderr(&out));
     }
     let out = greybox(&["fit", SAMPLE, "-p", "4", "--fix", "l_d=0.004"]);
-    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("`--fix`") && stderr(&out).contains("l_d"), "{}", stderr(&out));
 }
 
@@ -150,7 +150,7 @@ fn errors_name_the_flag_and_the_model_as_typed() {
         (vec!["--bounds", "x:1:2"], "`--bounds`"),
     ] {
         let out = greybox(&[&["fit", SAMPLE, "-p", "4", "-q"][..], &args].concat());
-        assert_eq!(out.status.code(), Some(1), "{args:?}");
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
         let err = stderr(&out);
         assert!(err.contains(flag), "{args:?}: {err}");
         for internal in ["per_experiment", "`fixed`", "`bounds`", "pmsm_spm", "Spm"] {
@@ -185,7 +185,7 @@ fn other_commands_name_their_flags() {
     ] {
         let out = greybox(&args);
         let err = stderr(&out);
-        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
         assert!(err.contains(flag), "{args:?}: {err}");
     }
 }
@@ -196,7 +196,7 @@ fn other_commands_name_their_flags() {
 fn duplicate_logs_are_refused() {
     for second in [SAMPLE, "./data/../data/sample.csv.gz"] {
         let out = greybox(&["fit", SAMPLE, second, "-p", "4", "-q"]);
-        assert_eq!(out.status.code(), Some(1), "{second}");
+        assert_eq!(out.status.code(), Some(2), "{second}");
         let err = stderr(&out);
         assert!(err.contains(second) && err.contains("√2"), "{err}");
     }
@@ -316,6 +316,6 @@ fn a_log_from_standard_input() {
     }
     assert!(stdout(&out).contains("stdin"), "the log is named stdin");
     let out = greybox(&["fit", "-", "-", "-p", "4"]);
-    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("given twice"), "{}", stderr(&out));
 }

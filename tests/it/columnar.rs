@@ -192,6 +192,51 @@ mod with_feature {
     }
 
     #[cfg(feature = "cli")]
+    /// Columnar bombs: 4 million rows of zeros, compressed to kilobytes. One IPC batch that
+    /// large is refused from its header before any decoding; a Parquet row group or an IPC
+    /// stream of many batches is read batch by batch and stops at row 1, whose time step
+    /// is not uniform (as the CSV reader would). Peak memory and time are in the issue note.
+    #[test]
+    fn columnar_bombs_are_refused_before_they_are_decoded() {
+        use arrow_ipc::writer::IpcWriteOptions;
+        let n = 4_000_000;
+        let zero: ArrayRef = Arc::new(Float64Array::from(vec![0.0; n]));
+        let names = ["t", "ud", "uq", "id", "iq", "w_m"];
+        let batch = RecordBatch::try_from_iter(names.iter().map(|n| (*n, zero.clone()))).unwrap();
+        let zstd = || {
+            IpcWriteOptions::default().try_with_compression(Some(arrow_ipc::CompressionType::ZSTD)).unwrap()
+        };
+        let ipc = temp_path("bomb.arrow");
+        let f = std::fs::File::create(&ipc).unwrap();
+        let mut w = arrow_ipc::writer::FileWriter::try_new_with_options(f, &batch.schema(), zstd()).unwrap();
+        w.write(&batch).unwrap();
+        w.finish().unwrap();
+        let stream = temp_path("bomb.arrows");
+        let f = std::fs::File::create(&stream).unwrap();
+        let mut w =
+            arrow_ipc::writer::StreamWriter::try_new_with_options(f, &batch.schema(), zstd()).unwrap();
+        for k in (0..n).step_by(1 << 16) {
+            w.write(&batch.slice(k, (1 << 16).min(n - k))).unwrap();
+        }
+        w.finish().unwrap();
+        let pq = temp_path("bomb.parquet");
+        let props = parquet::file::properties::WriterProperties::builder()
+            .set_compression(parquet::basic::Compression::ZSTD(Default::default()))
+            .set_max_row_group_row_count(Some(n))
+            .build();
+        let f = std::fs::File::create(&pq).unwrap();
+        let mut w = parquet::arrow::ArrowWriter::try_new(f, batch.schema(), Some(props)).unwrap();
+        w.write(&batch).unwrap();
+        w.close().unwrap();
+        for (path, says) in [(&ipc, "decompression bomb"), (&stream, "row 1"), (&pq, "row 1")] {
+            let size = std::fs::metadata(path).unwrap().len();
+            let err = read_log(path, &options()).unwrap_err().to_string();
+            eprintln!("{} ({size} bytes): {err}", path.display());
+            assert!(size < 2 << 20 && err.contains(says), "{err}");
+            std::fs::remove_file(path).ok();
+        }
+    }
+
     #[test]
     fn simulate_writes_parquet_that_fit_reads() {
         let path = temp_path("sim.parquet");

@@ -254,7 +254,7 @@ fn simulate_command_line() {
     ] {
         let out = run(&args);
         let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
         assert!(err.contains(culprit), "{args:?}: {err}");
     }
     assert!(!dir.join("c.csv").exists());

@@ -273,3 +273,37 @@ fn a_sample_dropped_late_in_a_long_log_is_named_by_its_row() {
     let err = Experiment::try_from_time("backwards", "t", &t2, signals.into_channels()).unwrap_err();
     assert!(matches!(err, Error::NonUniformTime { row: 700, .. }), "{err:?}");
 }
+
+/// A standard column under another name: the error gives the flag with the header's own
+/// name (`--col-t "Time [s]"`), exit 2.
+#[test]
+#[cfg(feature = "cli")]
+fn a_renamed_column_gets_the_flag_that_reads_it() {
+    let path = std::env::temp_dir().join(format!("greybox-renamed-{}.csv", std::process::id()));
+    let rows: String = (0..40).map(|k| format!("{},1,1,1,1,1\n", k as f64 * 1e-4)).collect();
+    std::fs::write(&path, format!("Time [s],ud,uq,id,iq,Speed (rad/s)\n{rows}")).unwrap();
+    let out = greybox(&["fit", path.to_str().unwrap(), "-p", "4"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("--col-t \"Time [s]\""), "{err}");
+    let out = greybox(&["fit", path.to_str().unwrap(), "-p", "4", "--col-t", "Time [s]"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--col-w \"Speed (rad/s)\""), "{err}");
+    std::fs::remove_file(&path).ok();
+}
+
+/// A non-finite value names the file as the parse errors do, not only the row.
+#[test]
+#[cfg(feature = "cli")]
+fn a_non_finite_value_names_its_file() {
+    let path = std::env::temp_dir().join(format!("greybox-nan-{}.csv", std::process::id()));
+    let rows: String = (0..40)
+        .map(|k| format!("{},{},1,1,1,1\n", k as f64 * 1e-4, if k == 5 { "nan" } else { "1" }))
+        .collect();
+    std::fs::write(&path, format!("t,ud,uq,id,iq,w_m\n{rows}")).unwrap();
+    let out = greybox(&["fit", path.to_str().unwrap(), "-p", "4"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains(path.to_str().unwrap()) && err.contains("row 5"), "{err}");
+    std::fs::remove_file(&path).ok();
+}

@@ -145,6 +145,13 @@ fn command_line_survives_generated_options() {
             for i in &picked {
                 args.extend(flags[*i].iter().copied());
             }
+            // The report of an exit-0 run is checked against the trust gate's promises.
+            let report = std::env::temp_dir().join(format!("greybox-fuzz-{}.json", std::process::id()));
+            let _ = std::fs::remove_file(&report);
+            let to_file = !args.contains(&"--json");
+            if to_file {
+                args.extend(["--json", report.to_str().unwrap()]);
+            }
             let t0 = Instant::now();
             let out = std::process::Command::new(bin)
                 .args(&args)
@@ -156,6 +163,20 @@ fn command_line_survives_generated_options() {
             prop_assert!(!err.contains("panicked"), "{args:?}: {err}");
             prop_assert!(matches!(out.status.code(), Some(0..=3)), "{args:?}: {:?} {err}", out.status);
             codes.borrow_mut()[out.status.code().unwrap_or(4) as usize] += 1;
+            if out.status.code() == Some(0) && to_file && report.exists() {
+                let v: serde_json::Value =
+                    serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+                for p in v["parameters"].as_array().into_iter().flatten() {
+                    let (name, value) = (p["name"].as_str().unwrap_or(""), p["value"].as_f64());
+                    prop_assert!(value.is_some_and(f64::is_finite), "{args:?}: {p}");
+                    if ["r_s", "l_s", "l_d", "l_q", "k_e"].contains(&name) {
+                        prop_assert!(value.is_some_and(|x| x > 0.0), "{args:?}: exit 0 with {p}");
+                    }
+                }
+                for f in v["fit"]["fit_percent"].as_array().into_iter().flatten() {
+                    prop_assert!(f.as_f64().is_some_and(|f| f >= 80.0), "{args:?}: exit 0 with fit {f}");
+                }
+            }
             prop_assert!(t0.elapsed() < Duration::from_secs(60), "{args:?}");
             Ok(())
         })

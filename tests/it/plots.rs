@@ -306,7 +306,7 @@ fn cli_writes_plot_and_residuals_and_names_a_bad_path() {
         "--plot",
         bad.to_str().unwrap(),
     ]);
-    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("plot") && err.contains("nope"), "{err}");
     // --method ls cannot simulate its estimate: refused, naming the flag.

@@ -139,7 +139,7 @@ mod cli {
         let out = greybox(&["fit", log.to_str().unwrap(), "-p", "4", "--json", log.to_str().unwrap()]);
         assert!(!out.status.success());
         assert!(
-            String::from_utf8_lossy(&out.stderr).contains("input log"),
+            String::from_utf8_lossy(&out.stderr).contains("is an input"),
             "{}",
             String::from_utf8_lossy(&out.stderr)
         );

@@ -105,20 +105,21 @@ fn track_max_points_and_several_logs() {
 #[test]
 fn track_errors_name_the_flag_or_the_log() {
     let l_s = "4.5e-3";
-    for (args, culprit) in [
-        (vec!["track", SAMPLE, "-p", "4"], "--l-s"),
-        (vec!["track", SAMPLE, "-p", "4", "--l-s", "0"], "l-s"),
-        (vec!["track", SAMPLE, "-p", "4", "--l-s", "nan"], "l-s"),
-        (vec!["track", SAMPLE, "-p", "4", "--l-s", l_s, "--gamma-ke", "-1"], "gamma-ke"),
-        (vec!["track", SAMPLE, "-p", "4", "--l-s", l_s, "--gamma-rs", "5"], "gamma-rs"),
-        (vec!["track", SAMPLE, "-p", "4", "--l-s", l_s, "--observer-gain", "inf"], "observer-gain"),
-        (vec!["track", SAMPLE, "-p", "0", "--l-s", l_s], "pole-pairs"),
-        (vec!["track", SAMPLE, "-p", "4", "--l-s", l_s, "--col-uq", "uq_missing"], "uq_missing"),
-        (vec!["track", "no/such/log.csv", "-p", "4", "--l-s", l_s], "no/such/log.csv"),
+    // Exit 2 for an invalid command line, 1 for a log that cannot be read as asked.
+    for (args, culprit, code) in [
+        (vec!["track", SAMPLE, "-p", "4"], "--l-s", 2),
+        (vec!["track", SAMPLE, "-p", "4", "--l-s", "0"], "l-s", 2),
+        (vec!["track", SAMPLE, "-p", "4", "--l-s", "nan"], "l-s", 2),
+        (vec!["track", SAMPLE, "-p", "4", "--l-s", l_s, "--gamma-ke", "-1"], "gamma-ke", 2),
+        (vec!["track", SAMPLE, "-p", "4", "--l-s", l_s, "--gamma-rs", "5"], "gamma-rs", 2),
+        (vec!["track", SAMPLE, "-p", "4", "--l-s", l_s, "--observer-gain", "inf"], "observer-gain", 2),
+        (vec!["track", SAMPLE, "-p", "0", "--l-s", l_s], "pole-pairs", 2),
+        (vec!["track", SAMPLE, "-p", "4", "--l-s", l_s, "--col-uq", "uq_missing"], "uq_missing", 1),
+        (vec!["track", "no/such/log.csv", "-p", "4", "--l-s", l_s], "no/such/log.csv", 1),
     ] {
         let out = greybox(&args);
         let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(out.status.code(), Some(code), "{args:?}: {err}");
         assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
         assert!(err.contains(culprit), "{args:?}: expected `{culprit}` in: {err}");
     }
@@ -134,8 +135,8 @@ fn track_refuses_to_write_over_its_input_log() {
     let err = String::from_utf8_lossy(&out.stderr);
     let after = std::fs::read(&log).unwrap();
     std::fs::remove_file(&log).ok();
-    assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(err.contains("input log"), "{err}");
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("is an input"), "{err}");
     assert!(after == before, "the input log was changed");
 }
 
@@ -225,7 +226,7 @@ fn track_salient_flag_errors() {
     ] {
         let out = greybox(&args);
         let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
         assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
         assert!(err.contains(culprit), "{args:?}: expected `{culprit}` in: {err}");
     }

@@ -28,9 +28,10 @@ fn concurrent_writers_leave_one_valid_report() {
         .unwrap()
         .filter_map(|e| e.ok())
         .filter(|e| {
-            e.file_name()
-                .to_string_lossy()
-                .contains(&format!("greybox-concurrent-{}.json.", std::process::id()))
+            e.file_name().to_string_lossy().starts_with(&format!(".greybox-tmp.{}.", std::process::id()))
+                && e.file_name()
+                    .to_string_lossy()
+                    .ends_with(&format!("greybox-concurrent-{}.json", std::process::id()))
         })
         .count();
     assert_eq!(leftovers, 0, "temporary files left behind");
@@ -61,7 +62,7 @@ fn exit_codes_tell_untrusted_results_apart() {
     assert_eq!(out.status.code(), Some(0));
     std::fs::remove_file(&json).unwrap();
     let out = greybox(&["fit", "data/sample.csv.gz", "-p", "4", "--ftol", "1e300", "--json", j]);
-    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("ftol"));
     assert!(!json.exists());
     let out = greybox(&["fit", "data/sample.csv.gz", "-p", "4", "-q"]);

@@ -236,7 +236,7 @@ fn every_error_of_the_window_and_the_split_names_its_flag() {
                 _ => &["-p", "4", "--l-s", "0.0045"],
             };
             let (code, err) = run(&[&[command, l], extra, args].concat());
-            assert_eq!(code, Some(1), "{command} {args:?}: {err}");
+            assert_eq!(code, Some(2), "{command} {args:?}: {err}");
             assert!(err.contains(flag) && err.contains(words), "{command} {args:?}: {err}");
         }
     }
@@ -244,7 +244,7 @@ fn every_error_of_the_window_and_the_split_names_its_flag() {
     let scraps: Vec<String> = (0..4).flat_map(|k| rows[k * 1000..k * 1000 + 10].to_vec()).collect();
     let bits = write(&dir, "bits.csv", &header, &scraps);
     let (code, err) = run(&["fit", s(&bits), "-p", "4", "--split-gaps"]);
-    assert_eq!(code, Some(1));
+    assert_eq!(code, Some(2));
     assert!(
         err.contains("`--split-gaps`") && err.contains("4 segments") && err.contains("longest has 10"),
         "{err}"

@@ -42,9 +42,10 @@ pub(super) fn read(
     time: TimeCheck,
 ) -> Result<Table> {
     let file = File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+    let streaming = time == TimeCheck::Streaming;
     let (header, index, columns, rows) = match format {
-        Format::Parquet => read_parquet(path, file, wanted, limits)?,
-        _ => read_ipc(path, file, wanted, limits)?,
+        Format::Parquet => read_parquet(path, file, wanted, limits, streaming)?,
+        _ => read_ipc(path, file, wanted, limits, streaming)?,
     };
     // Each wanted column as read, moved rather than copied.
     let values: Vec<Option<Vec<f64>>> = index.iter().zip(columns).map(|(i, c)| i.map(|_| c)).collect();
@@ -79,7 +80,13 @@ fn header(
     Ok((header, index))
 }
 
-fn read_parquet(path: &Path, file: File, wanted: &[(&str, bool)], limits: &ReadLimits) -> Result<Read> {
+fn read_parquet(
+    path: &Path,
+    file: File,
+    wanted: &[(&str, bool)],
+    limits: &ReadLimits,
+    streaming: bool,
+) -> Result<Read> {
     let meta =
         ArrowReaderMetadata::load(&file, ArrowReaderOptions::new()).map_err(|e| format_err(path, e))?;
     let (header, index) = header(path, meta.schema(), wanted, limits)?;
@@ -88,6 +95,38 @@ fn read_parquet(path: &Path, file: File, wanted: &[(&str, bool)], limits: &ReadL
         return Ok((header, index.iter().map(|_| None).collect(), vec![Vec::new(); wanted.len()], rows));
     }
     let picked: Vec<usize> = index.iter().flatten().copied().collect();
+    // The time column streamed first, a batch at a time, before anything the size of the
+    // declared record is allocated: a bad step ends the read there, and the rows up to it
+    // (every wanted column) give the first error in row order, as the CSV reader would.
+    if let (true, Some(Some(t))) = (streaming, index.first()) {
+        let reader = |columns: &[usize], limit: usize| {
+            ParquetRecordBatchReaderBuilder::new_with_metadata(
+                File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?,
+                meta.clone(),
+            )
+            .with_projection(ProjectionMask::roots(meta.parquet_schema(), columns.iter().copied()))
+            .with_batch_size(BATCH)
+            .with_limit(limit)
+            .build()
+            .map_err(|e| format_err(path, e))
+        };
+        let mut steps = crate::data::TimeSteps::new(header[*t].clone());
+        let (mut at, mut failed) = (0, None);
+        for batch in reader(&[*t], usize::MAX)? {
+            let batch = batch.map_err(|e| format_err(path, e))?;
+            let mut values = Vec::with_capacity(batch.num_rows());
+            append(path, &header[*t], batch.column(0), at, &mut values)?;
+            if let Some(bad) = values.iter().position(|v| steps.push(*v).is_err()) {
+                failed = Some(at + bad);
+                break;
+            }
+            at += batch.num_rows();
+        }
+        if let Some(row) = failed {
+            let head = collect(path, reader(&picked, row + 1)?, &header, &index, false)?;
+            return Ok((header, index, head, (row + 1) as u64));
+        }
+    }
     let groups = meta.metadata().num_row_groups();
     let sizes: Vec<usize> =
         meta.metadata().row_groups().iter().map(|g| usize::try_from(g.num_rows()).unwrap_or(0)).collect();
@@ -147,19 +186,58 @@ fn column<'b>(path: &Path, batch: &'b RecordBatch, name: &str) -> Result<&'b Arr
         .ok_or_else(|| format_err(path, format!("column `{name}` missing from a batch")))
 }
 
-fn read_ipc(path: &Path, file: File, wanted: &[(&str, bool)], limits: &ReadLimits) -> Result<Read> {
+/// Bytes a single decoded record batch (its wanted columns) may take when it is also more
+/// than [`BOMB_RATIO`] times the file's size.
+const BATCH_BUDGET: u64 = 128 << 20;
+/// Decoded size over file size beyond which a large batch is a decompression bomb, not a
+/// log: a drive log's noisy floats compress a few times at most.
+const BOMB_RATIO: u64 = 50;
+
+fn read_ipc(
+    path: &Path,
+    file: File,
+    wanted: &[(&str, bool)],
+    limits: &ReadLimits,
+    streaming: bool,
+) -> Result<Read> {
     use arrow_ipc::reader::{FileReader, StreamReader};
     // An IPC file (Feather v2) has a footer to seek; a stream (`.arrows`) has none.
-    let stream = File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
-    let reader: Box<dyn RecordBatchReader> = match FileReader::try_new_buffered(file, None) {
-        Ok(r) => Box::new(r),
-        Err(file_err) => match StreamReader::try_new_buffered(stream, None) {
+    let open = || File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source });
+    let reader = |file: File, projection: Option<Vec<usize>>| -> Result<Box<dyn RecordBatchReader>> {
+        Ok(match FileReader::try_new_buffered(file, projection.clone()) {
             Ok(r) => Box::new(r),
-            Err(_) => return Err(format_err(path, file_err)),
-        },
+            Err(file_err) => match StreamReader::try_new_buffered(open()?, projection) {
+                Ok(r) => Box::new(r),
+                Err(_) => return Err(format_err(path, file_err)),
+            },
+        })
     };
-    let (header, index) = header(path, &reader.schema(), wanted, limits)?;
-    let values = collect(path, reader, &header, &index)?;
+    let size = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let (header, index) = header(path, &reader(file, None)?.schema(), wanted, limits)?;
+    // What the batches declare, before any is decoded.
+    let declared = super::ipc_scan::declared_batches(path)?;
+    let total: u64 = declared.iter().sum();
+    if total > limits.max_rows {
+        return Ok((header, index.iter().map(|_| None).collect(), vec![Vec::new(); wanted.len()], total));
+    }
+    let picked: Vec<usize> = index.iter().flatten().copied().collect();
+    let widest = declared.iter().max().copied().unwrap_or(0);
+    let bytes = widest.saturating_mul(8 * picked.len() as u64);
+    if bytes > BATCH_BUDGET && bytes > BOMB_RATIO.saturating_mul(size) {
+        return Err(format_err(
+            path,
+            format!(
+                "a record batch declares {widest} rows ({} MB decoded) in a file of {} kB, more than {BOMB_RATIO} \
+                 times its size: not read (a decompression bomb?). Write the log in batches of fewer rows",
+                bytes >> 20,
+                size >> 10
+            ),
+        ));
+    }
+    let mut sorted = picked.clone();
+    sorted.sort_unstable();
+    let projected = reader(open()?, Some(sorted))?;
+    let values = collect(path, projected, &header, &index, streaming)?;
     let rows = values.iter().map(Vec::len).max().unwrap_or(0) as u64;
     // Grown batch by batch: the slack goes before the columns outlive the read.
     let values = values
@@ -173,14 +251,18 @@ fn read_ipc(path: &Path, file: File, wanted: &[(&str, bool)], limits: &ReadLimit
 }
 
 /// The wanted columns of every batch, as f64, one vector per wanted column.
+/// With `streaming`, the time column (the first wanted) is checked batch by batch and the
+/// read stops after the batch of its first bad step (the caller's row checks then find it).
 fn collect(
     path: &Path,
     reader: impl Iterator<Item = std::result::Result<RecordBatch, arrow_schema::ArrowError>>,
     header: &[String],
     index: &[Option<usize>],
+    streaming: bool,
 ) -> Result<Vec<Vec<f64>>> {
     let mut out: Vec<Vec<f64>> = vec![Vec::new(); index.len()];
     let mut row = 0;
+    let mut steps = index.first().copied().flatten().map(|t| crate::data::TimeSteps::new(header[t].clone()));
     for batch in reader {
         let batch = batch.map_err(|e| format_err(path, e))?;
         for (v, i) in out.iter_mut().zip(index) {
@@ -191,7 +273,13 @@ fn collect(
                 .ok_or_else(|| format_err(path, format!("column `{name}` missing from a batch")))?;
             append(path, name, column, row, v)?;
         }
+        let first = row;
         row += batch.num_rows();
+        if let (true, Some(steps), Some(t)) = (streaming, steps.as_mut(), out.first())
+            && t.get(first..).is_some_and(|new| new.iter().any(|v| steps.push(*v).is_err()))
+        {
+            break;
+        }
     }
     Ok(out)
 }

@@ -6,7 +6,7 @@ use super::gram::scatter_gram;
 use super::lags::{LagStream, LagSums, WHITENESS_LAGS};
 use super::pass::LocalMap;
 use crate::data::Values;
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 
 /// Sums at the estimate from which the statistics of a fit follow.
 #[derive(Clone, Debug)]
@@ -37,6 +37,9 @@ pub struct Sums {
     /// The batch-means long-run covariance of the score (the meat for residuals that are
     /// not white; see the `batches` module); `None` when too few batches can be formed.
     pub batch_means: Option<BatchMeans>,
+    /// The score `Σ w ψ(ε) ∂ε/∂p` summed over every sample (length n_free, the optimiser's
+    /// coordinates): the cost's gradient at p, for the convergence certificate.
+    pub score: DVector<f64>,
 }
 
 /// Running sums of [`PemProblem::sums`].
@@ -271,6 +274,7 @@ impl Accumulator {
             meat,
             lag_sums: self.lag_sums,
             batch_means: self.scores.batch_means(TARGET_BATCHES),
+            score: self.scores.total(),
         }
     }
 }

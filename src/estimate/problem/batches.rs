@@ -172,6 +172,11 @@ impl ScoreSeries {
         self.experiments.push((counts, sums));
     }
 
+    /// The sum of every recorded block score (length n_free): the total score.
+    pub(crate) fn total(&self) -> DVector<f64> {
+        self.experiments.iter().flat_map(|(_, s)| s).fold(DVector::zeros(self.np), |a, s| a + s)
+    }
+
     /// The batch-means covariance over about `target` batches (module documentation);
     /// `None` when fewer than [`MIN_BATCHES`] batches can be formed, or when no experiment
     /// recorded its scores.

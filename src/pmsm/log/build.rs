@@ -29,7 +29,9 @@ pub(super) fn build(
         Frame::Mechanical => 1.0,
         Frame::Electrical => 1.0 / f64::from(n_p),
     };
-    let speed = frame
+    let sign = if options.negate_speed { -1.0 } else { 1.0 };
+    let speed = sign
+        * frame
         * match options.speed_unit {
             SpeedUnit::RadPerSec => 1.0,
             SpeedUnit::Rpm => std::f64::consts::PI / 30.0,

@@ -183,6 +183,9 @@ pub struct CsvOptions {
     pub speed_unit: SpeedUnit,
     /// Whether speed and angle are mechanical (default) or electrical.
     pub speed_frame: Frame,
+    /// Negate the speed column on reading: a drive that counts its speed the other way
+    /// than its dq frame turns (the angle column is read as it is). Default `false`.
+    pub negate_speed: bool,
     /// Unit of the angle column (default rad).
     pub angle_unit: AngleUnit,
     /// Scaling of the current columns, dq or phase (default peak).

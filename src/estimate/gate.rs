@@ -1,0 +1,225 @@
+//! The trust gate: the checks every fit passes before it is called trusted (`greybox fit`
+//! exits 0 only then), generic over every [`crate::model::GreyBoxModel`].
+//!
+//! A result is untrusted (a [`Warning`] with `untrusted`, each saying what to check) when:
+//! - the solver did not report convergence (`not_converged`);
+//! - it reported convergence, but the estimate is not a stationary point of the criterion:
+//!   the Gauss–Newton step still to go, `δ = A⁻¹ g` (the bread `A` of the sandwich, the
+//!   score `g` summed over the samples, both at the estimate), moves a parameter by more
+//!   than [`STATIONARY_STEP`] of its standard error (`not_stationary`). A run stopped after
+//!   one iteration by a step-size test cannot pass it: the test is on the point, not on the
+//!   path (Dennis & Schnabel, *Numerical Methods for Unconstrained Optimization*, 1983,
+//!   §7.2: stop on a small scaled gradient, not on a small step alone);
+//! - the information matrix `JᵀWJ` in the optimiser's scaled coordinates is numerically
+//!   singular: its condition number exceeds [`SINGULAR_CONDITION`], so some parameter
+//!   combination does not change the prediction at all there (a plateau such as NIST
+//!   StRD BoxBOD's from its first start, where `exp(−b₂x)` has vanished) (`singular`);
+//! - an output's fit is below [`POOR_FIT_PERCENT`] while its residuals fail the Ljung–Box
+//!   test: what the model leaves is structure, not noise (white residuals would make a low
+//!   fit percentage the noise floor) (`poor_fit`);
+//! - the model declares a parameter value non-physical
+//!   ([`crate::model::GreyBoxModel::implausible`]) (`non_physical`);
+//! - a parameter sits at a bound, or a statistic is not finite.
+
+use super::problem::PemProblem;
+use super::result::{FitStatistics, ParameterEstimate, SolverReport, Warning};
+use crate::model::GreyBoxModel;
+use nalgebra::{DMatrix, DVector};
+
+/// Largest Gauss–Newton step still to go at a converged estimate, in standard errors of
+/// the parameter: well inside the interval, so the reported point is the minimum for every
+/// purpose the interval serves.
+pub const STATIONARY_STEP: f64 = 0.1;
+
+/// Steps below this fraction of the parameter's magnitude are rounding, whatever their
+/// standard error (a noise-free fit's is itself of the order of rounding).
+pub const STEP_ROUNDING: f64 = 1e-9;
+
+/// Condition number of the scaled information matrix above which it is numerically
+/// singular: the normal equations lose 12 of double precision's 16 digits.
+pub const SINGULAR_CONDITION: f64 = 1e12;
+
+/// Fit percentage below which an output with coloured residuals is a poor fit (the same
+/// level as the report's "poor fit" advice).
+pub const POOR_FIT_PERCENT: f64 = 80.0;
+
+/// What the gate looks at besides the report's parts.
+#[derive(Debug)]
+pub(crate) struct Evidence {
+    /// Per free model parameter: its report name, the Gauss–Newton step still to go and
+    /// the standard error, both in its unit.
+    pub remaining: Vec<(String, f64, f64, f64)>,
+    /// Condition number of `JᵀWJ` in the optimiser's scaled coordinates over the free model
+    /// parameters (∞ when singular), and the parameters of its least-determined direction.
+    pub condition: (f64, Vec<String>),
+    /// The model's messages on non-physical values.
+    pub implausible: Vec<String>,
+    /// Per output, whether its residuals pass the Ljung–Box test.
+    pub white: Vec<bool>,
+    /// The model's advice for a poor fit ([`crate::model::GreyBoxModel::poor_fit_advice`]).
+    pub poor_fit_advice: Option<String>,
+}
+
+/// The gate's warnings (module documentation), in a fixed order.
+pub(crate) fn warnings(
+    solver: &SolverReport,
+    parameters: &[ParameterEstimate],
+    fit: &FitStatistics,
+    evidence: &Evidence,
+) -> Vec<Warning> {
+    let mut out = Vec::new();
+    if !solver.success {
+        out.push(Warning::untrusted(
+            "not_converged",
+            format!(
+                "the solver did not converge ({}): the estimates are where it stopped",
+                solver.termination
+            ),
+        ));
+    }
+    let at_bound: Vec<&str> = parameters.iter().filter(|p| p.at_bound).map(|p| p.name.as_str()).collect();
+    if !at_bound.is_empty() {
+        out.push(Warning::untrusted(
+            "parameter_at_bound",
+            format!(
+                "{} at a bound: the fit is constrained there, the minimum lies beyond it (wrong model, units or \
+                 start?); no interval is given",
+                at_bound.join(", ")
+            ),
+        ));
+    }
+    if solver.success && at_bound.is_empty() {
+        out.extend(stationarity(&evidence.remaining));
+    }
+    let (condition, weak) = &evidence.condition;
+    if *condition > SINGULAR_CONDITION {
+        out.push(Warning::untrusted(
+            "singular",
+            format!(
+                "the information matrix is numerically singular at the estimate (condition number {condition:.1e} in \
+                 the scaled coordinates): changing {} does not change the prediction there (a plateau, or \
+                 parameters the data cannot separate), so the estimate is one point of many. Start elsewhere, fix \
+                 a parameter, or add data that excite it",
+                if weak.is_empty() { "some parameter combination".to_string() } else { weak.join(" and ") }
+            ),
+        ));
+    }
+    let poor: Vec<String> = fit
+        .outputs
+        .iter()
+        .zip(&fit.fit_percent)
+        .zip(&evidence.white)
+        .filter(|((_, f), white)| **f < POOR_FIT_PERCENT && !**white)
+        .map(|((n, f), _)| format!("{n} {f:.1} %"))
+        .collect();
+    if !poor.is_empty() {
+        out.push(Warning::untrusted(
+            "poor_fit",
+            format!(
+                "poor fit ({}) with residuals that are not white: what the model leaves is structure it lacks, \
+                 not noise: {}",
+                poor.join(", "),
+                evidence.poor_fit_advice.as_deref().unwrap_or("check the columns, units and signs of the log, and the model")
+            ),
+        ));
+    }
+    if !evidence.implausible.is_empty() {
+        out.push(Warning::untrusted("non_physical", evidence.implausible.join("; ")));
+    }
+    let stats = fit.fit_percent.iter().chain(&fit.rms_residual).chain([&fit.loss, &fit.mse]);
+    let free_se = parameters.iter().filter(|p| !p.fixed && !p.at_bound).map(|p| &p.std_error);
+    if stats.chain(free_se.clone()).any(|x| !x.is_finite()) {
+        let outputs: Vec<&str> = fit
+            .outputs
+            .iter()
+            .zip(&fit.fit_percent)
+            .filter(|(_, f)| !f.is_finite())
+            .map(|(n, _)| n.as_str())
+            .collect();
+        let why = if outputs.is_empty() {
+            "a standard error is not finite (a parameter the data do not determine)".to_string()
+        } else {
+            format!("the fit percentage of {} is not finite (a constant output?)", outputs.join(", "))
+        };
+        out.push(Warning::untrusted("non_finite_statistics", why));
+    }
+    out
+}
+
+/// `not_stationary` when a parameter's remaining step exceeds [`STATIONARY_STEP`] standard
+/// errors and [`STEP_ROUNDING`] of its magnitude. `remaining`: (name, value, step, se).
+fn stationarity(remaining: &[(String, f64, f64, f64)]) -> Option<Warning> {
+    let far: Vec<String> = remaining
+        .iter()
+        .filter(|(_, value, step, se)| {
+            se.is_finite() && step.abs() > STATIONARY_STEP * se && step.abs() > STEP_ROUNDING * value.abs()
+        })
+        .map(|(name, _, step, se)| format!("{name} by {:.2} standard errors", step.abs() / se))
+        .collect();
+    (!far.is_empty()).then(|| {
+        Warning::untrusted(
+            "not_stationary",
+            format!(
+                "the solver stopped, but not at a minimum: a Gauss–Newton step from the estimate still moves {} \
+                 (more than {STATIONARY_STEP}); raise --max-iters or tighten --xtol/--gtol",
+                far.join(", ")
+            ),
+        )
+    })
+}
+
+/// Per free model parameter in `order`: (name, value, Gauss–Newton step still to go, its
+/// standard error), the step `A⁻¹ g` mapped to θ units; empty without the bread's inverse.
+pub(crate) fn remaining(
+    bread_inv: &Option<DMatrix<f64>>,
+    score: &DVector<f64>,
+    order: &[usize],
+    dtheta: &[f64],
+    se: &[f64],
+    names: &[String],
+    value: impl Fn(usize) -> f64,
+) -> Vec<(String, f64, f64, f64)> {
+    let Some(ai) = bread_inv.as_ref().filter(|ai| ai.nrows() == score.len()) else { return Vec::new() };
+    let finite =
+        DMatrix::from_fn(
+            ai.nrows(),
+            ai.ncols(),
+            |i, j| if ai[(i, j)].is_finite() { ai[(i, j)] } else { 0.0 },
+        );
+    let step = finite * score;
+    order.iter().zip(names).map(|(&g, name)| (name.clone(), value(g), step[g] * dtheta[g], se[g])).collect()
+}
+
+/// Condition number of `JᵀWJ` (the optimiser's scaled coordinates) over the free model
+/// parameters `order` (∞ when it is singular there) and the names of the parameters that
+/// make up most (|component| ≥ 0.3) of its least-determined direction.
+pub(crate) fn scaled_condition(jtj: &DMatrix<f64>, order: &[usize], names: &[String]) -> (f64, Vec<String>) {
+    let sub = DMatrix::from_fn(order.len(), order.len(), |i, j| jtj[(order[i], order[j])]);
+    if order.is_empty() || !sub.iter().all(|v| v.is_finite()) {
+        return (f64::INFINITY, Vec::new());
+    }
+    let eig = sub.symmetric_eigen();
+    let (mut lo, mut hi, mut at) = (f64::INFINITY, 0.0f64, 0);
+    for (k, &v) in eig.eigenvalues.iter().enumerate() {
+        if v < lo {
+            (lo, at) = (v, k);
+        }
+        hi = hi.max(v);
+    }
+    let direction = eig.eigenvectors.column(at);
+    let weak = direction.iter().zip(names).filter(|(c, _)| c.abs() >= 0.3).map(|(_, n)| n.clone()).collect();
+    (if lo > 0.0 { hi / lo } else { f64::INFINITY }, weak)
+}
+
+/// The model's non-physical findings over every experiment's θ, each message once.
+pub(crate) fn implausible<M: GreyBoxModel>(problem: &PemProblem<'_, M>, p: &DVector<f64>) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for e in 0..problem.terms().len() {
+        for m in problem.model().implausible(&problem.theta(e, p)) {
+            if !out.contains(&m) {
+                out.push(m);
+            }
+        }
+    }
+    out
+}
