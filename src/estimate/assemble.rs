@@ -33,7 +33,16 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     let n = sums.count;
     let n_res = n * ny;
     let dof = n_res.saturating_sub(np);
-    let sse_total: f64 = sums.sse.iter().sum();
+    // The residual figures are over the samples the criterion counts: a sample weighted out
+    // (a dead-time mask) is not fitted and would report the structure it was dropped for.
+    let counted =
+        (sums.n_live.iter().any(|&c| c < n)).then(|| sums.n_live.iter().copied().max().unwrap_or(0));
+    let (sse, n_fig): (Vec<f64>, Vec<usize>) = match counted {
+        Some(_) => (sums.sse_live.clone(), sums.n_live.clone()),
+        None => (sums.sse.clone(), vec![n; ny]),
+    };
+    let n_res_fig: usize = n_fig.iter().sum();
+    let sse_total: f64 = sse.iter().sum();
     // Inverses for the reported covariance and error index (the one explicit inverse,
     // STYLE.md rule 7): bread⁻¹ meat bread⁻¹ (sandwich) and (JᵀWJ)⁻¹.
     // Parameters the data do not see at all (a zero column, e.g. an initial state whose
@@ -203,16 +212,23 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     let fit = FitStatistics {
         outputs: model.outputs().into_iter().map(|o| o.name).collect(),
         output_units: model.outputs().into_iter().map(|o| o.unit).collect(),
-        fit_percent: sums.sse.iter().zip(&sums.sst).map(|(e, t)| metrics::fit_percent(*e, *t)).collect(),
-        rms_residual: sums.sse.iter().map(|e| (e / n as f64).sqrt()).collect(),
+        fit_percent: sse
+            .iter()
+            .zip(&sums.sst)
+            .zip(&n_fig)
+            .map(|((e, t), &c)| metrics::fit_percent(if c == n { *e } else { e * n as f64 / c as f64 }, *t))
+            .collect(),
+        rms_residual: sse.iter().zip(&n_fig).map(|(e, &c)| (e / c as f64).sqrt()).collect(),
         loss: sums.cost,
-        mse: sse_total / n_res as f64,
-        fpe: metrics::fpe(sse_total, n_res, np),
-        aic: metrics::aic(sse_total, n_res, np),
-        bic: metrics::bic(sse_total, n_res, np),
+        mse: sse_total / n_res_fig as f64,
+        fpe: metrics::fpe(sse_total, n_res_fig, np),
+        aic: metrics::aic(sse_total, n_res_fig, np),
+        bic: metrics::bic(sse_total, n_res_fig, np),
         whiteness,
         samples: n,
         dof,
+        counted,
+        horizon: problem.horizon(),
     };
     let mut notes = Vec::new();
     let mut diagnostics = diagnostics;

@@ -166,6 +166,15 @@ pub struct FitStatistics {
     pub samples: usize,
     /// Degrees of freedom `N n_y − n_free`.
     pub dof: usize,
+    /// Samples per output the criterion counts (non-zero weight), when some were weighted
+    /// out (e.g. a dead-time mask); `fit_percent`, `rms_residual`, `mse`, FPE, AIC and BIC
+    /// are then over these samples alone. `None`: every sample counts.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub counted: Option<usize>,
+    /// The k-step-ahead prediction horizon whose residuals these are; `None`: simulation
+    /// (output error).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub horizon: Option<usize>,
 }
 
 pub use crate::estimate::solver::SolverReport;

@@ -74,6 +74,8 @@ impl LinearEstimate {
             whiteness: self.whiteness.clone(),
             samples: self.rows / 2,
             dof: self.dof,
+            counted: None,
+            horizon: None,
         };
         let reason = Termination::ClosedForm;
         FitResult {

@@ -113,6 +113,19 @@ impl Weighting for DeadTimeMaskWeighting<'_> {
     }
 }
 
+/// Per sample of `e`, whether a fit with `inverter` counted it (length N): false where its
+/// [`DeadTimeMask::Current`] weighted the sample out; empty (every sample counts) without a
+/// mask threshold.
+pub(crate) fn counted(inverter: Option<&InverterModel>, n_p: u32, e: &Experiment) -> Vec<bool> {
+    match inverter.and_then(|i| i.mask) {
+        Some(DeadTimeMask::Current(threshold)) => {
+            let mask = DeadTimeMaskWeighting { inner: &crate::estimate::weighting::Uniform, n_p, threshold };
+            (0..e.len()).map(|k| !mask.masked(e, k)).collect()
+        }
+        _ => Vec::new(),
+    }
+}
+
 /// The prediction-error options a masked fit uses: one-step-ahead prediction unless a
 /// horizon is given, with the note that says so.
 pub(crate) fn masked_pem(inverter: Option<&InverterModel>, pem: &PemOptions) -> (PemOptions, Option<String>) {

@@ -2,7 +2,8 @@
 //! currents per log, the data of the fit plot and the residual export
 //! ([`crate::report::residuals`]).
 //!
-//! Each log is simulated (output error, whatever the fit's horizon) at its own θ̂ (shared
+//! Each log is predicted as the fit predicted it (simulated, or k steps ahead with the
+//! fit's horizon; a dead-time mask's periods flagged as not counted) at its own θ̂ (shared
 //! parameters, and its copy of the per-log ones) from its estimated initial state (the
 //! measured first currents when the fit took them as exact), with the fit's hold, voltage
 //! input, cable and inverter model.
@@ -10,7 +11,7 @@
 use super::{MotorKind, PmsmFit, PmsmIpm, PmsmSetup, PmsmSpm};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::report::{Comparison, compare_from};
+use crate::report::{Comparison, compare_predicted};
 
 /// What simulating a fit on its logs takes: the model kind and setup, each log's θ and
 /// initial state, and the number of estimated parameters.
@@ -26,15 +27,22 @@ impl PmsmFit {
     /// missing from it; those of [`compare_from`] (a log without the channels the model reads, a diverging simulation).
     pub fn comparisons(&self, experiments: &[Experiment]) -> Result<Vec<Comparison>> {
         let (kind, setup, logs, n_params) = self.plan(experiments)?;
+        let horizon = self.report.fit.horizon;
         experiments
             .iter()
             .zip(logs)
-            .map(|(log, (theta, x0))| match kind {
-                MotorKind::Spm => {
-                    compare_from(&PmsmSpm::from_setup(setup), log, &theta, x0.as_deref(), n_params)
-                }
-                MotorKind::Ipm => {
-                    compare_from(&PmsmIpm::from_setup(setup), log, &theta, x0.as_deref(), n_params)
+            .map(|(log, (theta, x0))| {
+                let counted = super::mask::counted(self.inverter.as_ref(), self.pole_pairs, log);
+                let x0 = x0.as_deref();
+                match kind {
+                    MotorKind::Spm => {
+                        let m = PmsmSpm::from_setup(setup);
+                        compare_predicted(&m, log, &theta, x0, n_params, horizon, counted)
+                    }
+                    MotorKind::Ipm => {
+                        let m = PmsmIpm::from_setup(setup);
+                        compare_predicted(&m, log, &theta, x0, n_params, horizon, counted)
+                    }
                 }
             })
             .collect()

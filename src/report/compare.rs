@@ -28,8 +28,15 @@ pub struct Comparison {
     pub y: Vec<f64>,
     /// Simulated outputs, row-major `N × n_y`.
     pub y_hat: Vec<f64>,
-    /// Fit statistics of the comparison.
+    /// Fit statistics of the comparison (over the counted samples).
     pub metrics: Metrics,
+    /// Per sample, whether the fit counted it (non-zero weight), length N; empty when every
+    /// sample counts. A sample not counted has a simulated value but no residual.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub counted: Vec<bool>,
+    /// The k-step-ahead prediction horizon of `y_hat`; `None`: simulation (output error).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub horizon: Option<usize>,
 }
 
 impl Comparison {
@@ -56,6 +63,10 @@ impl Comparison {
             return Vec::new();
         }
         self.y_hat.iter().skip(i).step_by(ny).copied().collect()
+    }
+    /// Whether sample k counts (has a residual): see [`Comparison::counted`].
+    pub fn counts(&self, k: usize) -> bool {
+        self.counted.get(k).copied().unwrap_or(true)
     }
     /// Unit of output `i` (empty when unknown).
     pub fn unit(&self, i: usize) -> &str {
@@ -108,11 +119,62 @@ pub fn compare_from<M: GreyBoxModel>(
     x0: Option<&[f64]>,
     n_params: usize,
 ) -> Result<Comparison> {
+    compare_predicted(model, experiment, theta, x0, n_params, None, Vec::new())
+}
+
+/// As [`compare_from`], with the fit's predictor and the samples it counted: `y_hat` the
+/// k-step-ahead prediction (`horizon`, restarting from the measured state every k samples;
+/// `None`: simulation), and `counted` (length N, or empty for all) the samples whose
+/// residuals the metrics take, so that the comparison shows the residual the fit minimised
+/// (Ljung 3.2: the k-step predictor).
+///
+/// # Errors
+/// As [`compare_from`]; [`crate::Error::InvalidOption`] (option `counted`) when `counted`
+/// is neither empty nor of length N, or counts fewer than two samples.
+pub fn compare_predicted<M: GreyBoxModel>(
+    model: &M,
+    experiment: &Experiment,
+    theta: &[f64],
+    x0: Option<&[f64]>,
+    n_params: usize,
+    horizon: Option<usize>,
+    counted: Vec<bool>,
+) -> Result<Comparison> {
     let prep = Prepared::new(model, experiment)?;
-    let y_hat = simulate(model, &prep, theta, &SimOptions { x0, ..SimOptions::default() })?;
+    let y_hat = simulate(model, &prep, theta, &SimOptions { x0, horizon, ..SimOptions::default() })?;
     let (outputs, units): (Vec<String>, Vec<String>) =
         model.outputs().into_iter().map(|o| (o.name, o.unit)).unzip();
     let y = prep.y_rows();
-    let metrics = metrics(&outputs, &y, &y_hat, n_params, WHITENESS_LAGS)?;
-    Ok(Comparison { experiment: prep.name, h: experiment.h(), outputs, units, y, y_hat, metrics })
+    let ny = outputs.len().max(1);
+    let n = y.len() / ny;
+    let metrics = if counted.is_empty() {
+        metrics(&outputs, &y, &y_hat, n_params, WHITENESS_LAGS)?
+    } else {
+        let kept = counted.iter().filter(|c| **c).count();
+        if counted.len() != n || kept < 2 {
+            return Err(crate::Error::InvalidOption {
+                option: "counted".into(),
+                reason: format!("{} flags counting {kept} samples for {n} samples", counted.len()),
+            });
+        }
+        let pick = |v: &[f64]| -> Vec<f64> {
+            v.chunks_exact(ny)
+                .zip(&counted)
+                .filter(|(_, c)| **c)
+                .flat_map(|(r, _)| r.iter().copied())
+                .collect()
+        };
+        metrics(&outputs, &pick(&y), &pick(&y_hat), n_params, WHITENESS_LAGS)?
+    };
+    Ok(Comparison {
+        experiment: prep.name,
+        h: experiment.h(),
+        outputs,
+        units,
+        y,
+        y_hat,
+        metrics,
+        counted,
+        horizon,
+    })
 }

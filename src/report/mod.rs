@@ -12,6 +12,6 @@ pub mod residuals;
 pub mod summary;
 pub mod text;
 
-pub use compare::{Comparison, compare, compare_from};
+pub use compare::{Comparison, compare, compare_from, compare_predicted};
 pub use metrics::{Metrics, Whiteness, metrics};
 pub use text::{Align, Block, Document, Table};

@@ -11,7 +11,10 @@ use std::path::Path;
 /// <output>_residual, …` (output names as in the comparisons, e.g. `id_measured`), then
 /// one row per sample with `t = k h` \[s\] from the log's first sample and the outputs in
 /// their units (SI); the residual is `measured − simulated`. With several comparisons a
-/// first column `log` names each row's log and the logs follow each other in blocks.
+/// first column `log` names each row's log and the logs follow each other in blocks. When
+/// the fit weighted samples out ([`Comparison::counted`]), a last column `counted` (1 or 0)
+/// says which residuals its figures count; `simulated` is the fit's k-step prediction when
+/// it had a horizon ([`Comparison::horizon`]).
 /// Numbers are in shortest round-trip form (read back bit for bit).
 ///
 /// # Errors
@@ -35,6 +38,12 @@ pub fn write_residuals_csv(path: &Path, comparisons: &[Comparison]) -> Result<()
         for o in &first.outputs {
             header.extend(["measured", "simulated", "residual"].map(|s| format!("{o}_{s}")));
         }
+        // Whether the fit counted each sample, when it weighted some out (their residual is
+        // then no part of the fit's figures).
+        let flagged = comparisons.iter().any(|c| !c.counted.is_empty());
+        if flagged {
+            header.push("counted".into());
+        }
         out.write_record(&header)?;
         let ny = first.outputs.len();
         let mut row: Vec<String> = Vec::with_capacity(header.len());
@@ -48,6 +57,9 @@ pub fn write_residuals_csv(path: &Path, comparisons: &[Comparison]) -> Result<()
                 for i in 0..ny {
                     let (y, y_hat) = (c.y[k * ny + i], c.y_hat[k * ny + i]);
                     row.extend([shortest(y), shortest(y_hat), shortest(y - y_hat)]);
+                }
+                if flagged {
+                    row.push(u8::from(c.counts(k)).to_string());
                 }
                 out.write_record(&row)?;
             }

@@ -208,6 +208,14 @@ impl FitResult {
             s.dof
         ));
         d.line("fit %: NRMSE fit 100 (1 − ‖y − ŷ‖/‖y − ȳ‖); whiteness over lags 1–25 (about 5 % for white residuals)");
+        let predictor = s.horizon.map(|k| format!("of the {k}-step-ahead prediction the fit minimised"));
+        let counted = s.counted.map(|c| {
+            format!("over the {c} of {} samples the fit counts (the others weighted out)", s.samples)
+        });
+        if predictor.is_some() || counted.is_some() {
+            let parts: Vec<String> = predictor.into_iter().chain(counted).collect();
+            d.line(format!("residuals: {} (the plot and --residuals show the same)", parts.join(", ")));
+        }
     }
 
     /// Labels of the correlation matrix: the stored ones, or the free parameters in order.

@@ -5,6 +5,7 @@
 
 mod common;
 
+mod agreement;
 mod batch;
 mod blocks;
 mod cli_traps;

@@ -175,6 +175,8 @@ mod svg {
             y,
             y_hat,
             metrics,
+            counted: Vec::new(),
+            horizon: None,
         };
         let svg = plot::compare_svg(std::slice::from_ref(&c), None).unwrap();
         let lines = polyline_points(&svg);

@@ -17,6 +17,11 @@ pub struct Sums {
     pub e2_weighted: f64,
     /// Unweighted residual sum of squares per output, length n_y.
     pub sse: Vec<f64>,
+    /// The same over the samples with non-zero weight (the ones the criterion counts),
+    /// length n_y.
+    pub sse_live: Vec<f64>,
+    /// Samples with non-zero weight per output, length n_y.
+    pub n_live: Vec<usize>,
     /// Number of residual samples per output (same for every output).
     pub count: usize,
     /// `Σ (y − ȳ)²` per output, length n_y.
@@ -267,6 +272,8 @@ impl Accumulator {
             cost: self.cost,
             e2_weighted: self.e2w,
             sse: self.sse,
+            sse_live: self.sse_live,
+            n_live: self.n_live,
             count: self.count,
             sst,
             jtj: self.jtj,

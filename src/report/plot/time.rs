@@ -69,11 +69,15 @@ pub(super) fn draw(areas: &[Area<'_>], comparisons: &[Comparison], context: Opti
         let simulated: Vec<Vec<f64>> = comparisons.iter().map(|c| c.simulated(o)).collect();
         let y = range(measured.iter().chain(&simulated).flat_map(|v| v.iter().copied()));
         let styles = [MEASURED.stroke_width(1), color(0).stroke_width(1)];
+        let predicted = match comparisons[0].horizon {
+            Some(k) => format!("{k}-step prediction"),
+            None => "simulated".to_string(),
+        };
         let keys = [
             (format!("{name} measured"), Key::Line(styles[0].stroke_width(2))),
-            (format!("{name} simulated"), Key::Line(styles[1].stroke_width(2))),
+            (format!("{name} {predicted}"), Key::Line(styles[1].stroke_width(2))),
         ];
-        let caption = format!("{name}: measured and simulated");
+        let caption = format!("{name}: measured and {predicted}");
         let mut ch = chart(take()?, &caption, &keys, x.clone(), y, line.label(), &axis(name, unit))?;
         for (data, style) in [&measured, &simulated].into_iter().zip(styles) {
             for (i, (t, v)) in times.iter().zip(data).enumerate() {
@@ -81,12 +85,16 @@ pub(super) fn draw(areas: &[Area<'_>], comparisons: &[Comparison], context: Opti
             }
         }
         separators(&mut ch, &line)?;
-        // The residual of the output, with ±2σ (σ: the RMS residual over all logs).
-        let residual: Vec<Vec<f64>> = measured
+        // The residual of the output at the samples the fit counted, with ±2σ (σ: their RMS
+        // residual over all logs, the report's figure); samples weighted out are not drawn.
+        let (res_t, residual): (Vec<Vec<f64>>, Vec<Vec<f64>>) = comparisons
             .iter()
-            .zip(&simulated)
-            .map(|(m, s)| m.iter().zip(s).map(|(a, b)| a - b).collect())
-            .collect();
+            .zip(&times)
+            .zip(measured.iter().zip(&simulated))
+            .map(|((c, t), (m, s))| {
+                (0..m.len()).filter(|&k| c.counts(k)).map(|k| (t[k], m[k] - s[k])).unzip()
+            })
+            .unzip();
         let n: usize = residual.iter().map(Vec::len).sum();
         let sigma = (residual.iter().flatten().map(|e| e * e).sum::<f64>() / n.max(1) as f64).sqrt();
         let y = range(residual.iter().flatten().copied().chain([-2.5 * sigma, 2.5 * sigma]));
@@ -96,14 +104,19 @@ pub(super) fn draw(areas: &[Area<'_>], comparisons: &[Comparison], context: Opti
             (format!("ε {name}"), Key::Line(style.stroke_width(2))),
             (format!("±2σ, σ = {}", crate::report::eng::format_eng(sigma, unit, 5)), Key::Band(band)),
         ];
-        let caption = format!("{name} residual (measured − simulated)");
+        let masked = if comparisons.iter().any(|c| !c.counted.is_empty()) {
+            ", weighted-out samples not drawn"
+        } else {
+            ""
+        };
+        let caption = format!("{name} residual (measured − {predicted}{masked})");
         let y_desc = axis(&format!("ε {name}"), unit);
         let mut ch = chart(take()?, &caption, &keys, x.clone(), y, line.label(), &y_desc)?;
         ch.draw_series(std::iter::once(Rectangle::new(
             [(0.0, -2.0 * sigma), (line.end, 2.0 * sigma)],
             band,
         )))?;
-        for (i, (t, v)) in times.iter().zip(&residual).enumerate() {
+        for (i, (t, v)) in res_t.iter().zip(&residual).enumerate() {
             ch.draw_series(LineSeries::new(decimated(&ch, &line, t, v, comparisons, i), style))?;
         }
         for y in [-2.0 * sigma, 2.0 * sigma] {

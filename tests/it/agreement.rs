@@ -1,0 +1,106 @@
+//! Reports and plots agree with each other and with the log (trust issue): one residual
+//! figure wherever it appears, the fit's own predictor and counted samples in the plot and
+//! the residual export, and the observer plot's truth following the plant.
+#![cfg(feature = "cli")]
+
+use crate::errors::greybox;
+use std::path::PathBuf;
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("greybox-agree-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A dead-time-mask fit of an exact PWM-free log with a dead-time voltage: the report's rms
+/// residual, the residual export's counted residuals and the plot's σ are one figure (the
+/// masked periods, whose one-step errors are amperes, are in none of them).
+#[test]
+fn a_masked_fit_reports_plots_and_exports_one_residual() {
+    let dir = temp_dir("mask");
+    let (log, json, csv, svg) =
+        (dir.join("dt.csv"), dir.join("f.json"), dir.join("r.csv"), dir.join("f.svg"));
+    let s = |p: &PathBuf| p.to_str().unwrap().to_string();
+    let out = greybox(&[
+        "simulate",
+        "--scenario",
+        "exp3",
+        "--duration",
+        "2",
+        "--set",
+        "inverter.v_dt=6",
+        "-o",
+        &s(&log),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = greybox(&[
+        "fit",
+        &s(&log),
+        "-p",
+        "4",
+        "-q",
+        "--voltage",
+        "reference",
+        "--dead-time",
+        "estimate",
+        "--dead-time-mask",
+        "auto",
+        "--json",
+        &s(&json),
+        "--residuals",
+        &s(&csv),
+        "--plot",
+        &s(&svg),
+    ]);
+    assert!(matches!(out.status.code(), Some(0 | 3)), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let fit = &v["fit"];
+    assert_eq!(fit["horizon"].as_u64(), Some(1), "{fit}");
+    let counted = fit["counted"].as_u64().expect("counted samples reported") as usize;
+    let n = fit["samples"].as_u64().unwrap() as usize;
+    assert!(counted > 100 && counted < n, "{counted} of {n}");
+    // The export: every sample, a counted flag, the counted residuals' rms the report's.
+    let mut r = csv::Reader::from_path(&csv).unwrap();
+    let header: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let (id_res, flag) = (col("id_residual"), col("counted"));
+    let (mut sum, mut k, mut rows, mut all) = (0.0, 0usize, 0usize, 0.0f64);
+    for rec in r.records() {
+        let rec = rec.unwrap();
+        let e: f64 = rec[id_res].parse().unwrap();
+        rows += 1;
+        all = all.max(e.abs());
+        if &rec[flag] == "1" {
+            sum += e * e;
+            k += 1;
+        }
+    }
+    // The export has every sample; the first (the initial state, no residual in the fit)
+    // may count there besides the fit's.
+    assert!(
+        rows >= n && (counted..=counted + 1).contains(&k),
+        "rows {rows} for {n}, counted {k} for {counted}"
+    );
+    let rms = (sum / k as f64).sqrt();
+    let reported = fit["rms_residual"][0].as_f64().unwrap();
+    assert!((rms - reported).abs() <= 1e-6 * reported.max(1e-300), "export {rms:e}, report {reported:e}");
+    // An exact log: the counted residual is rounding, far below the masked periods' errors.
+    assert!(reported < 1e-6 && all > 1e3 * reported, "report {reported:e}, largest residual {all:e}");
+    // The plot says the same σ (five significant digits, in pA/nA/…) and names the predictor.
+    let plot = std::fs::read_to_string(&svg).unwrap();
+    assert!(plot.contains("1-step prediction"), "the plot does not name the predictor");
+    let sigma = plot.split("σ = ").nth(1).and_then(|t| t.split('<').next()).unwrap().to_string();
+    let (num, unit) = sigma.split_once(' ').unwrap();
+    let scale = match unit.trim().trim_end_matches('A') {
+        "p" => 1e-12,
+        "n" => 1e-9,
+        "µ" | "u" => 1e-6,
+        "m" => 1e-3,
+        "" => 1.0,
+        other => panic!("unit {other}"),
+    };
+    let plotted: f64 = num.parse::<f64>().unwrap() * scale;
+    assert!((plotted - reported).abs() <= 1e-4 * reported, "plot σ {sigma}, report {reported:e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
