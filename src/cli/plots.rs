@@ -4,7 +4,7 @@
 
 use greybox::Experiment;
 use greybox::data::staged::Staged;
-use greybox::drive::DriveLog;
+use greybox::drive::{DriveLog, Truth, plant_at};
 use greybox::online::Trajectory;
 use greybox::online::plot::{TrackRun, TrackTruth, track_svg};
 use greybox::pmsm::{PmsmFit, channel};
@@ -61,10 +61,12 @@ pub fn track_plot(
         .iter()
         .map(|(p, segment, _)| segment.map_or_else(|| short_name(p), |k| format!("{}#{k}", short_name(p))))
         .collect();
+    let truths: Vec<Option<TrackTruth>> = runs.iter().map(|(p, _, tr)| truth(p, tr)).collect();
     let runs: Vec<TrackRun<'_>> = runs
         .iter()
         .zip(&names)
-        .map(|((p, _, tr), name)| TrackRun { name, trajectory: tr, truth: truth(p) })
+        .zip(&truths)
+        .map(|(((_, _, tr), name), truth)| TrackRun { name, trajectory: tr, truth: truth.as_ref() })
         .collect();
     let svg = track_svg(&runs)?;
     staged.produce(path, |tmp| plot::write_svg(tmp, &svg))
@@ -81,15 +83,28 @@ fn context<'a>(speeds: &'a [&'a [f64]]) -> Context<'a> {
     Context { name: "w_m", unit: "rad/s, mechanical", per_log: speeds }
 }
 
-/// The truth of a log from the JSON `greybox simulate` wrote beside it (`k_e`,
-/// `start.r_s`); `None` when there is none or it is not one (another tool's description
-/// of a log is not read: the plot shows no truth then).
-fn truth(log: &Path) -> Option<TrackTruth> {
-    let text = std::fs::read_to_string(DriveLog::truth_path(log)).ok()?;
-    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
-    let k_e = v.get("k_e")?.as_f64()?;
-    let r_s = v.pointer("/start/r_s")?.as_f64()?;
-    Some(TrackTruth { k_e, r_s })
+/// Points of a time-varying truth over the observer's time span.
+const TRUTH_POINTS: usize = 400;
+
+/// The truth of a log from the truth file `greybox simulate` wrote beside it
+/// (`LOG.truth.json`, or `LOG.json` from before that name): the plant's K_e and R_s over the
+/// trajectory's times, following the scenario's ramps and temperatures (`plant_at`) when
+/// they change within the record; `None` when there is no truth file (another tool's
+/// description of a log is not read: the plot shows no truth then).
+fn truth(log: &Path, trajectory: &Trajectory) -> Option<TrackTruth> {
+    let legacy = DriveLog::truth_path(log).with_extension("").with_extension("json");
+    let text = [DriveLog::truth_path(log), legacy].iter().find_map(|p| std::fs::read_to_string(p).ok())?;
+    let truth: Truth = serde_json::from_str(&text).ok()?;
+    if !truth.time_varying {
+        return Some(TrackTruth::constant(truth.k_e, truth.start.r_s));
+    }
+    let (t0, t1) = (trajectory.t.first().copied()?, trajectory.t.last().copied()?);
+    let t: Vec<f64> =
+        (0..TRUTH_POINTS).map(|k| t0 + (t1 - t0) * k as f64 / (TRUTH_POINTS - 1) as f64).collect();
+    let plant: Vec<_> = t.iter().map(|&t| plant_at(&truth.config, t)).collect();
+    // K_e = √(3/2) n_p ψ_f (MODEL.md §2).
+    let k_e = plant.iter().map(|p| (1.5f64).sqrt() * f64::from(p.n_p) * p.psi_f).collect();
+    Some(TrackTruth { t, k_e, r_s: plant.iter().map(|p| p.r_s).collect() })
 }
 
 /// The log's file name without `.gz` and `.csv`.

@@ -24,7 +24,7 @@ pub struct SimulateArgs {
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// The log to write (CSV; gzip when it ends in .gz; Parquet for .parquet, Arrow IPC for
-    /// .arrow/.feather); the truth goes to the same name with .json.
+    /// .arrow/.feather); the truth goes to the same name with .truth.json.
     #[arg(long, short = 'o', required_unless_present = "print_config")]
     pub output: Option<PathBuf>,
     /// The motor of a --scenario: a small surface-magnet servo or an interior-magnet motor.

@@ -94,7 +94,7 @@ pub struct TrackArgs {
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Write the observer plot (SVG) to this file: K_e (K_t) and R_s over time, with the
-    /// truth when the log was written by `greybox simulate` (its truth JSON `LOG.json`
+    /// truth when the log was written by `greybox simulate` (its truth JSON `LOG.truth.json`
     /// beside it).
     #[arg(long, value_name = "PATH.svg")]
     pub plot: Option<PathBuf>,

@@ -8,7 +8,8 @@ use crate::error::Result;
 use std::path::{Path, PathBuf};
 
 impl DriveLog {
-    /// The truth file of a log path: `log.csv` / `log.csv.gz` / `log.parquet` → `log.json`.
+    /// The truth file of a log path: `log.csv` / `log.csv.gz` / `log.parquet` →
+    /// `log.truth.json` (a name no scenario file `log.json` beside the log can take).
     pub fn truth_path(path: &Path) -> PathBuf {
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let stem = name.strip_suffix(".gz").unwrap_or(&name);
@@ -16,7 +17,7 @@ impl DriveLog {
             Format::Csv => stem.strip_suffix(".csv").unwrap_or(stem),
             _ => Path::new(stem).file_stem().and_then(|s| s.to_str()).unwrap_or(stem),
         };
-        path.with_file_name(format!("{stem}.json"))
+        path.with_file_name(format!("{stem}.truth.json"))
     }
 
     /// Writes the log to `path` (CSV with a time column `t`, gzip for `.gz`; Parquet or Arrow

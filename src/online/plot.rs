@@ -17,13 +17,42 @@ const RIGHT_AXIS: u32 = 90;
 /// `K_t = √(3/2) K_e` (MODEL.md §2).
 const KT_PER_KE: f64 = 1.224_744_871_391_589;
 
-/// The true parameters of a (simulated) log.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// The true parameters of a (simulated) log over time, drawn as a polyline through its
+/// points (a plant whose K_e or R_s ramps within the record, as in thesis Exp 1).
+#[derive(Clone, Debug, PartialEq)]
 pub struct TrackTruth {
-    /// Back-EMF constant K_e \[V s/rad\] (line-to-line RMS per mechanical rad/s).
-    pub k_e: f64,
-    /// Stator resistance R_s \[Ω\].
-    pub r_s: f64,
+    /// Times \[s\] of the points, in the log's time, ascending; length n ≥ 1.
+    pub t: Vec<f64>,
+    /// Back-EMF constant K_e \[V s/rad\] (line-to-line RMS per mechanical rad/s) at `t`,
+    /// length n.
+    pub k_e: Vec<f64>,
+    /// Stator resistance R_s \[Ω\] at `t`, length n.
+    pub r_s: Vec<f64>,
+}
+
+impl TrackTruth {
+    /// A truth constant over the record: K_e \[V s/rad\] and R_s \[Ω\] at every time.
+    pub fn constant(k_e: f64, r_s: f64) -> Self {
+        Self { t: vec![0.0], k_e: vec![k_e], r_s: vec![r_s] }
+    }
+
+    /// The polyline of `v` (K_e or R_s) from the first point to `t_end` \[s\] (the last value
+    /// held to the end), and its legend text: the value, or first → last.
+    fn line(&self, v: &[f64], t_end: f64, unit: &str) -> (Vec<(f64, f64)>, String) {
+        let mut pts: Vec<(f64, f64)> = self.t.iter().copied().zip(v.iter().copied()).collect();
+        if let Some(&(t, y)) = pts.last()
+            && t < t_end
+        {
+            pts.push((t_end, y));
+        }
+        let (first, last) = (v.first().copied().unwrap_or(f64::NAN), v.last().copied().unwrap_or(f64::NAN));
+        let text = if first == last {
+            format!("{} {unit}", value(first))
+        } else {
+            format!("{} → {} {unit}", value(first), value(last))
+        };
+        (pts, text)
+    }
 }
 
 /// One log's observer run.
@@ -34,7 +63,7 @@ pub struct TrackRun<'a> {
     /// The estimates over time.
     pub trajectory: &'a Trajectory,
     /// The truth, when known.
-    pub truth: Option<TrackTruth>,
+    pub truth: Option<&'a TrackTruth>,
 }
 
 /// The observer plot as SVG text: K̂_e \[V s/rad\] with K̂_t \[N m/A, peak A\] on the right
@@ -83,7 +112,9 @@ pub fn track_svg(runs: &[TrackRun<'_>]) -> Result<String> {
 fn k_e(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
     let t_end =
         runs.iter().filter_map(|r| r.trajectory.t.last().copied()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
-    let y = range(runs.iter().flat_map(|r| r.trajectory.k_e.iter().copied().chain(r.truth.map(|t| t.k_e))));
+    let y = range(runs.iter().flat_map(|r| {
+        r.trajectory.k_e.iter().copied().chain(r.truth.into_iter().flat_map(|t| t.k_e.iter().copied()))
+    }));
     let (t_fmt, y_fmt) = (move |v: &f64| tick(*v, t_end), |v: &f64| tick(*v, y.end - y.start));
     let kt_fmt = |v: &f64| tick(*v, (y.end - y.start) * KT_PER_KE);
     let mut ch = ChartBuilder::on(area)
@@ -121,8 +152,9 @@ fn k_e(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
             .legend(mark(style));
         if let Some(truth) = r.truth {
             let dash = color(i).stroke_width(1);
-            ch.draw_series(DashedLineSeries::new(vec![(0.0, truth.k_e), (t_end, truth.k_e)], 8, 5, dash))?
-                .label(format!("truth {} V s/rad, {}", value(truth.k_e), r.name))
+            let (pts, text) = truth.line(&truth.k_e, t_end, "V s/rad");
+            ch.draw_series(DashedLineSeries::new(pts, 8, 5, dash))?
+                .label(format!("truth {text}, {}", r.name))
                 .legend(mark(dash));
         }
     }
@@ -139,7 +171,9 @@ fn k_e(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
 fn r_s(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
     let t_end =
         runs.iter().filter_map(|r| r.trajectory.t.last().copied()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
-    let y = range(runs.iter().flat_map(|r| r.trajectory.r_s.iter().copied().chain(r.truth.map(|t| t.r_s))));
+    let y = range(runs.iter().flat_map(|r| {
+        r.trajectory.r_s.iter().copied().chain(r.truth.into_iter().flat_map(|t| t.r_s.iter().copied()))
+    }));
     // The K_e panel's right margin (8) and K_t axis, less the common chart's margin (24).
     let (w, _) = area.dim_in_pixel();
     let (area, _) = area.split_horizontally(w - (RIGHT_AXIS + 8 - 24));
@@ -161,8 +195,9 @@ fn r_s(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
             .legend(mark(style));
         if let Some(truth) = r.truth {
             let dash = color(i).stroke_width(1);
-            ch.draw_series(DashedLineSeries::new(vec![(0.0, truth.r_s), (t_end, truth.r_s)], 8, 5, dash))?
-                .label(format!("truth {} Ω, {}", value(truth.r_s), r.name))
+            let (pts, text) = truth.line(&truth.r_s, t_end, "Ω");
+            ch.draw_series(DashedLineSeries::new(pts, 8, 5, dash))?
+                .label(format!("truth {text}, {}", r.name))
                 .legend(mark(dash));
         }
     }

@@ -104,3 +104,34 @@ fn a_masked_fit_reports_plots_and_exports_one_residual() {
     assert!((plotted - reported).abs() <= 1e-4 * reported, "plot σ {sigma}, report {reported:e}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The observer plot of thesis Exp 1 (K_t ramps down from 5 to 7 s, R_s up from 9 to
+/// 11 s) draws the plant's ramps as the truth, not its start values.
+#[test]
+fn the_track_plot_follows_a_time_varying_truth() {
+    let dir = temp_dir("exp1");
+    let (log, svg) = (dir.join("exp1.csv"), dir.join("exp1.svg"));
+    let s = |p: &PathBuf| p.to_str().unwrap().to_string();
+    let out = greybox(&["simulate", "--scenario", "exp1", "--duration", "12", "-o", &s(&log)]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let truth: greybox::drive::Truth =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("exp1.truth.json")).unwrap()).unwrap();
+    assert!(truth.time_varying);
+    let out = greybox(&["track", &s(&log), "-p", "4", "--l-s", "5e-3", "-q", "--plot", &s(&svg)]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let plot = std::fs::read_to_string(&svg).unwrap();
+    let end = greybox::drive::plant_at(&truth.config, 12.0);
+    let k_e_end = 1.5f64.sqrt() * f64::from(end.n_p) * end.psi_f;
+    for (start, end, unit) in [(truth.k_e, k_e_end, "V s/rad"), (truth.start.r_s, end.r_s, "Ω")] {
+        assert!((end - start).abs() > 0.05 * start, "the scenario ramps: {start} → {end}");
+        let label = format!("truth {} → {} {unit}", fmt5(start), fmt5(end));
+        assert!(plot.contains(&label), "no `{label}` in the plot");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Five significant digits, as the plot's legend writes a value.
+fn fmt5(v: f64) -> String {
+    let digits = (4 - v.abs().log10().floor() as i32).max(0) as usize;
+    format!("{v:.digits$}")
+}

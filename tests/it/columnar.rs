@@ -246,7 +246,7 @@ mod with_feature {
             .output()
             .unwrap();
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-        assert!(path.with_file_name("sim.json").is_file());
+        assert!(path.with_file_name("sim.truth.json").is_file());
         let e = read_log(&path, &options()).unwrap();
         assert_eq!(e.len(), 2001);
     }

@@ -194,7 +194,7 @@ fn logs_are_written_and_bad_configs_refused() {
         assert_eq!(back.channel(name).unwrap(), log.experiment.channel(name).unwrap(), "{name}");
     }
     let truth: greybox::drive::Truth =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("exp5.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(dir.join("exp5.truth.json")).unwrap()).unwrap();
     assert_eq!(truth, log.truth);
     let _ = std::fs::remove_dir_all(&dir);
 
@@ -221,7 +221,7 @@ fn simulate_command_line() {
         run(&["simulate", "--scenario", "exp3", "--duration", "1", "--set", "motor.r_s=1.5", "-o", "a.csv"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let truth: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("a.json")).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(dir.join("a.truth.json")).unwrap()).unwrap();
     assert_eq!(truth["start"]["r_s"].as_f64(), Some(1.5));
     let fit = run(&["fit", "a.csv", "-p", "4", "--json", "fit.json"]);
     assert!(fit.status.success(), "{}", String::from_utf8_lossy(&fit.stderr));
@@ -245,6 +245,23 @@ fn simulate_command_line() {
     std::fs::write(dir.join("exp3.cfg"), &cfg.stdout).unwrap();
     assert!(run(&["simulate", "--config", "exp3.cfg", "-o", "b.csv"]).status.success());
     assert_eq!(std::fs::read(dir.join("a.csv")).unwrap(), std::fs::read(dir.join("b.csv")).unwrap());
+    // The README's own steps: a scenario file `my_cycle.json` and the log `my_cycle.csv`
+    // beside it; the scenario stays, the truth is `my_cycle.truth.json`.
+    std::fs::write(dir.join("my_cycle.json"), &cfg.stdout).unwrap();
+    let out = run(&["simulate", "--config", "my_cycle.json", "-o", "my_cycle.csv", "--seed", "7"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(
+        std::fs::read(dir.join("my_cycle.json")).unwrap(),
+        cfg.stdout,
+        "the scenario file was replaced"
+    );
+    assert!(dir.join("my_cycle.truth.json").is_file());
+    // A scenario file that is the truth's name: refused before any work, naming it.
+    std::fs::write(dir.join("d.truth.json"), &cfg.stdout).unwrap();
+    let out = run(&["simulate", "--config", "d.truth.json", "-o", "d.csv"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("d.truth.json"));
+    assert!(!dir.join("d.csv").exists());
     for (args, culprit) in [
         (vec!["simulate", "--scenario", "exp9", "-o", "c.csv"], "exp9"),
         (vec!["simulate", "--scenario", "exp1", "--set", "motor.x=1", "-o", "c.csv"], "motor.x"),

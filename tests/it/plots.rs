@@ -205,8 +205,8 @@ mod svg {
         let config =
             greybox::online::MrasConfig { n_p: 4, l_s: 4.5e-3, k_e0: 0.3, r_s0: 0.5, ..Default::default() };
         let tr = greybox::online::track(log, &config).unwrap();
-        let truth = TrackTruth { k_e: 0.5389, r_s: 0.9 };
-        let svg = track_svg(&[TrackRun { name: "sample", trajectory: &tr, truth: Some(truth) }]).unwrap();
+        let truth = TrackTruth::constant(0.5389, 0.9);
+        let svg = track_svg(&[TrackRun { name: "sample", trajectory: &tr, truth: Some(&truth) }]).unwrap();
         for label in [
             "K_e [V s/rad]",
             "K_t [N m/A]",
