@@ -77,7 +77,7 @@ fn benches(c: &mut Criterion) {
     let mut g = c.benchmark_group("fit");
     g.sample_size(10);
     g.bench_function(format!("spm fit {spm_stem} (LS start, stator hold)"), |b| {
-        let o = PmsmFitOptions { pole_pairs: 4, hold: HoldChoice::Stator, ..Default::default() };
+        let o = PmsmFitOptions { hold: HoldChoice::Stator, ..PmsmFitOptions::new(4) };
         b.iter(|| black_box(fit_pmsm(std::slice::from_ref(&servo), &o).unwrap()))
     });
     g.finish();

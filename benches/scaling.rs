@@ -27,7 +27,7 @@ fn record(motor: greybox::pmsm::MotorParameters, n: usize) -> Experiment {
 }
 
 fn options(model: MotorKind, n_p: u32, hold: HoldChoice) -> PmsmFitOptions {
-    PmsmFitOptions { pole_pairs: n_p, model, hold, ..Default::default() }
+    PmsmFitOptions { model, hold, ..PmsmFitOptions::new(n_p) }
 }
 
 fn benches(c: &mut Criterion) {

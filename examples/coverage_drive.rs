@@ -72,7 +72,7 @@ fn fit_one(case: &Case, seed: u64, duration: f64) -> greybox::Result<(FitResult,
     let log = simulate_drive(&cfg)?;
     let m = log.truth.start;
     let truth = [m.r_s, m.l_d, log.truth.k_e];
-    let opts = PmsmFitOptions { pole_pairs: m.n_p, ..Default::default() };
+    let opts = PmsmFitOptions::new(m.n_p);
     let fit = match case.estimator {
         Estimator::PredictionError => fit_pmsm(&[log.experiment], &opts)?,
         Estimator::InstrumentalVariables => fit_pmsm_iv(&[log.experiment], &opts)?,

@@ -66,8 +66,7 @@ fn main() -> greybox::Result<()> {
     let rss_before = status_bytes("VmRSS");
 
     // The fit: least-squares start, stator hold, output error with estimated x0.
-    let options =
-        PmsmFitOptions { pole_pairs: SPM_MOTOR.n_p, hold: HoldChoice::Stator, ..Default::default() };
+    let options = PmsmFitOptions { hold: HoldChoice::Stator, ..PmsmFitOptions::new(SPM_MOTOR.n_p) };
     let t1 = Instant::now();
     let fit = fit_pmsm(std::slice::from_ref(&experiment), &options)?;
     let fit_s = t1.elapsed().as_secs_f64();

@@ -70,7 +70,7 @@ fn noisy(clean: &Experiment, seed: u64, first: usize) -> Experiment {
 fn fit_one(clean: &Experiment, scenario: Scenario, r: u64) -> greybox::Result<FitResult> {
     let seed = 0x9e37_79b9_7f4a_7c15u64.wrapping_mul(r + 1);
     let fixed = PemOptions { estimate_x0: false, ..Default::default() };
-    let estimated = PmsmFitOptions { pole_pairs: N_P, hold: HoldChoice::Stator, ..Default::default() };
+    let estimated = PmsmFitOptions { hold: HoldChoice::Stator, ..PmsmFitOptions::new(N_P) };
     let opts = PmsmFitOptions { pem: fixed.clone(), ..estimated.clone() };
     // `fit_pmsm` wraps the generic report with what only a motor fit has; keep the report.
     let pmsm = |e: Experiment, o: &PmsmFitOptions| fit_pmsm(&[e], o).map(|f| f.report);

@@ -47,10 +47,9 @@ fn main() -> greybox::Result<()> {
         );
         for (label, weighting) in weightings.clone() {
             let opts = PmsmFitOptions {
-                pole_pairs: truth.n_p,
                 hold: HoldChoice::Stator,
                 pem: PemOptions { weighting, ..Default::default() },
-                ..Default::default()
+                ..PmsmFitOptions::new(truth.n_p)
             };
             let fit = fit_pmsm(std::slice::from_ref(&log), &opts)?;
             let mut line = format!("{label:<19}");

@@ -29,7 +29,7 @@
 //! # fn main() -> greybox::Result<()> {
 //! // A 2 s log of a servo motor with 4 pole pairs, shipped in the repository.
 //! let log = read_log("data/sample.csv.gz", &Default::default())?;
-//! let fit = fit_pmsm(&[log], &PmsmFitOptions { pole_pairs: 4, ..Default::default() })?;
+//! let fit = fit_pmsm(&[log], &PmsmFitOptions::new(4))?;
 //! assert!(fit.solver.success);
 //! let r_s = fit.parameter("r_s").unwrap();
 //! println!("R_s = {:.6} ± {:.1e} Ω", r_s.value, r_s.std_error);

@@ -63,7 +63,8 @@ fn main() -> ExitCode {
     // Interrupted (SIGINT, SIGTERM, SIGHUP): the temporaries of outputs not yet renamed are
     // removed, the old outputs stay; exit 130 as a shell reports an interrupt.
     let _ = ctrlc::set_handler(|| {
-        greybox::data::staged::remove_temporaries();
+        let removed = greybox::data::staged::remove_temporaries();
+        eprintln!("error: interrupted; {removed} unfinished output file(s) removed, the old outputs kept");
         std::process::exit(130);
     });
     // The exit code: 0, or 3 for an untrusted fit, 4 for a failed log of a batch.

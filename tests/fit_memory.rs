@@ -94,7 +94,7 @@ fn record(motor: MotorParameters, n: usize) -> (Experiment, [f64; 4], usize) {
 fn peak_beyond(e: &Experiment, truth: [f64; 4], model: MotorKind, n_p: u32, hold: HoldChoice) -> usize {
     let before = LIVE.load(Ordering::SeqCst);
     PEAK.store(before, Ordering::SeqCst);
-    let options = PmsmFitOptions { pole_pairs: n_p, model, hold, ..Default::default() };
+    let options = PmsmFitOptions { model, hold, ..PmsmFitOptions::new(n_p) };
     let fit = fit_pmsm(std::slice::from_ref(e), &options).unwrap();
     let beyond = PEAK.load(Ordering::SeqCst) - before;
     // The drive simulator's plant is the stator-held exact step: that hold lands on it.

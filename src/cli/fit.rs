@@ -67,7 +67,7 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
         let names: Vec<String> = logs.iter().map(|e| e.name().to_string()).collect();
         let report = ls.report(&names, n_p, t1.elapsed().as_secs_f64());
         // The prediction-error fit of the same logs tells whether noise biased the regression.
-        let pem = PmsmFitOptions { pole_pairs: n_p, model: plan.kind, ..PmsmFitOptions::default() };
+        let pem = PmsmFitOptions { model: plan.kind, ..PmsmFitOptions::new(n_p) };
         let warnings = match fit_pmsm(
             &logs,
             &PmsmFitOptions { pem: PemOptions { progress: false, ..pem.pem.clone() }, ..pem },

@@ -8,7 +8,9 @@
 //! handler can remove them ([`remove_temporaries`], which `greybox` calls on SIGINT and
 //! SIGTERM); a process killed outright (SIGKILL) cannot clean up, so each new write first
 //! removes the temporaries of its folder whose process no longer runs (Linux: no
-//! `/proc/PID`).
+//! `/proc/PID`). A set of several files is renamed under a manifest (`.commit`, the pairs
+//! to rename): a process killed among its renames leaves it, and the next write in that
+//! folder finishes the renames, so the set ends all new, never part new and part old.
 
 use crate::error::{Error, Result};
 use std::io::Write;
@@ -29,28 +31,98 @@ fn live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
 }
 
 /// Removes every temporary this process has not renamed yet (for a signal handler: the
-/// files of an interrupted command go, the old outputs stay).
-pub fn remove_temporaries() {
-    for tmp in live().drain(..) {
+/// files of an interrupted command go, the old outputs stay). A [`Staged::commit`] under
+/// way holds the registry until all its files are renamed, so this waits for it: the
+/// outputs are then all new, never some new beside some old. Returns how many temporaries
+/// it removed.
+pub fn remove_temporaries() -> usize {
+    let mut live = live();
+    let n = live.len();
+    for tmp in live.drain(..) {
+        let _ = std::fs::remove_file(tmp);
+    }
+    n
+}
+
+/// Ending of a commit's manifest: the `(temporary, target)` pairs of a set being renamed.
+const MANIFEST: &str = ".commit";
+
+/// The temporaries in `dir` of processes that no longer run (Linux; none where `/proc` is
+/// not there to tell), paired with whether each is a commit manifest.
+fn stale(dir: &Path) -> Vec<(PathBuf, bool)> {
+    if !Path::new("/proc/self").exists() {
+        return Vec::new();
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else { return Vec::new() };
+    entries
+        .flatten()
+        .filter_map(|entry| {
+            let name = entry.file_name().to_str()?.to_string();
+            let pid = name.strip_prefix(TEMPORARY_PREFIX)?.split('.').next()?.parse::<u32>().ok()?;
+            let dead = pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists();
+            dead.then(|| (entry.path(), name.ends_with(MANIFEST)))
+        })
+        .collect()
+}
+
+/// Finishes the sets of dead processes whose manifest is in `dir` (a kill during a commit's
+/// renames: the set is rolled forward, every file new), then removes their other
+/// temporaries (a kill before the commit: every file stays old).
+fn sweep_stale(dir: &Path) {
+    let found = stale(dir);
+    for (manifest, _) in found.iter().filter(|(_, m)| *m) {
+        if let Ok(text) = std::fs::read_to_string(manifest) {
+            for (tmp, target) in text.lines().filter_map(|l| l.split_once('\t')) {
+                if Path::new(tmp).exists() {
+                    let _ = std::fs::rename(tmp, target);
+                }
+            }
+        }
+        let _ = std::fs::remove_file(manifest);
+    }
+    for (tmp, _) in found.iter().filter(|(_, m)| !*m) {
         let _ = std::fs::remove_file(tmp);
     }
 }
 
-/// Removes the temporaries in `dir` left by processes that no longer run (Linux; a no-op
-/// where `/proc` is not there to tell).
-fn sweep_stale(dir: &Path) {
-    if !Path::new("/proc/self").exists() {
-        return;
+/// Writes the manifest of `files` (absolute `temporary<TAB>target` lines) into every folder
+/// of the set, each complete or not at all (written as a temporary, synced, renamed), so
+/// that a later [`sweep_stale`] in any of them can finish a commit killed among its renames.
+/// Returns the manifests written (the commit goes on without those that could not be).
+fn write_manifest(files: &[(PathBuf, PathBuf)]) -> Vec<PathBuf> {
+    use std::io::Write as _;
+    let absolute = |p: &Path| std::path::absolute(p).ok().and_then(|p| p.to_str().map(String::from));
+    let mut text = String::new();
+    for (tmp, target) in files {
+        let (Some(tmp), Some(target)) = (absolute(tmp), absolute(target)) else { return Vec::new() };
+        text.push_str(&format!("{tmp}\t{target}\n"));
     }
-    let Ok(entries) = std::fs::read_dir(dir) else { return };
-    for entry in entries.flatten() {
-        let name = entry.file_name();
-        let Some(rest) = name.to_str().and_then(|n| n.strip_prefix(TEMPORARY_PREFIX)) else { continue };
-        let Some(pid) = rest.split('.').next().and_then(|p| p.parse::<u32>().ok()) else { continue };
-        if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
-            let _ = std::fs::remove_file(entry.path());
+    let mut dirs: Vec<&Path> = Vec::new();
+    for (_, target) in files {
+        let dir = target.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        if !dirs.contains(&dir) {
+            dirs.push(dir);
         }
     }
+    let seq = SEQ.fetch_add(1, Ordering::Relaxed);
+    let name = format!("{TEMPORARY_PREFIX}{}.{seq}", std::process::id());
+    let mut written = Vec::new();
+    for dir in dirs {
+        let (part, manifest) = (dir.join(format!("{name}.part")), dir.join(format!("{name}{MANIFEST}")));
+        let result = (|| {
+            let mut f = std::fs::File::create(&part)?;
+            f.write_all(text.as_bytes())?;
+            f.sync_all()?;
+            std::fs::rename(&part, &manifest)
+        })();
+        match result {
+            Ok(()) => written.push(manifest),
+            Err(_) => {
+                let _ = std::fs::remove_file(&part);
+            }
+        }
+    }
+    written
 }
 
 /// Files written together: see the module documentation.
@@ -126,6 +198,13 @@ impl Staged {
     /// renamed are removed).
     pub fn commit(mut self) -> Result<()> {
         let files = std::mem::take(&mut self.files);
+        // The registry is held across all renames: a signal handler's
+        // [`remove_temporaries`] waits until the set is complete.
+        let mut live = live();
+        let mut forget = |tmp: &PathBuf| live.retain(|p| p != tmp);
+        // More than one file: a manifest, so that a kill among the renames is rolled forward.
+        let manifests = if files.len() > 1 { write_manifest(&files) } else { Vec::new() };
+        let _done = Removal(manifests);
         for (i, (tmp, target)) in files.iter().enumerate() {
             let renamed = std::fs::rename(tmp, target);
             forget(tmp);
@@ -141,6 +220,17 @@ impl Staged {
     }
 }
 
+/// Removes the manifests when a commit ends, renamed or failed.
+struct Removal(Vec<PathBuf>);
+
+impl Drop for Removal {
+    fn drop(&mut self) {
+        for m in &self.0 {
+            let _ = std::fs::remove_file(m);
+        }
+    }
+}
+
 /// Unregisters a temporary (renamed or removed).
 fn forget(tmp: &Path) {
     live().retain(|p| p != tmp);
@@ -152,5 +242,56 @@ impl Drop for Staged {
             forget(&tmp);
             let _ = std::fs::remove_file(&tmp);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A dead process (a PID above Linux's largest) killed among its renames: the next
+    /// write in the folder finishes its set; one killed before its commit: its temporary
+    /// goes and the old file stays.
+    #[test]
+    fn a_commit_killed_among_its_renames_is_rolled_forward() {
+        if !Path::new("/proc/self").exists() {
+            eprintln!("skipped: no /proc to tell dead processes");
+            return;
+        }
+        let dir = std::env::temp_dir().join(format!("greybox-staged-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let dead = format!("{TEMPORARY_PREFIX}999999999");
+        let (a, b, c) = (dir.join("a.json"), dir.join("b.csv"), dir.join("c.svg"));
+        for p in [&a, &b, &c] {
+            std::fs::write(p, "old").unwrap();
+        }
+        // Set 1 (a, b): a renamed already, b's temporary still there, the manifest left.
+        let tmp_b = dir.join(format!("{dead}.1.b.csv"));
+        std::fs::write(&a, "new").unwrap();
+        std::fs::write(&tmp_b, "new").unwrap();
+        let lines = format!(
+            "{}\t{}\n{}\t{}\n",
+            dir.join(format!("{dead}.0.a.json")).display(),
+            a.display(),
+            tmp_b.display(),
+            b.display()
+        );
+        std::fs::write(dir.join(format!("{dead}.2{MANIFEST}")), lines).unwrap();
+        // Set 2 (c): killed before its commit.
+        std::fs::write(dir.join(format!("{dead}.3.c.svg")), "new").unwrap();
+        let mut staged = Staged::new();
+        staged.write(&dir.join("d.txt"), |w| w.write_all(b"d")).unwrap();
+        staged.commit().unwrap();
+        let read = |p: &Path| std::fs::read_to_string(p).unwrap();
+        assert_eq!((read(&a), read(&b), read(&c)), ("new".into(), "new".into(), "old".into()));
+        let left: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with(TEMPORARY_PREFIX))
+            .collect();
+        assert!(left.is_empty(), "{left:?}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

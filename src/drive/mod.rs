@@ -20,7 +20,7 @@
 //! let mut cfg = scenario("exp3", SPM_MOTOR)?;
 //! cfg.duration = 1.0;
 //! let log = simulate_drive(&cfg)?;
-//! let options = PmsmFitOptions { pole_pairs: SPM_MOTOR.n_p, ..Default::default() };
+//! let options = PmsmFitOptions::new(SPM_MOTOR.n_p);
 //! let fit = fit_pmsm(&[log.experiment], &options)?;
 //! let r_s = fit.parameter("r_s").unwrap().value;
 //! assert!((r_s / log.truth.start.r_s - 1.0).abs() < 1e-6);

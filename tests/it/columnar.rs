@@ -70,11 +70,7 @@ mod with_feature {
             assert_eq!(bits(r), bits(&read[0]), "{name}");
         }
         let fit = |e: &Experiment| {
-            let f = fit_pmsm(
-                std::slice::from_ref(e),
-                &PmsmFitOptions { pole_pairs: SPM_MOTOR.n_p, ..Default::default() },
-            )
-            .unwrap();
+            let f = fit_pmsm(std::slice::from_ref(e), &PmsmFitOptions::new(SPM_MOTOR.n_p)).unwrap();
             serde_json::to_string(&f.report.parameters).unwrap()
         };
         assert_eq!(fit(&read[0]), fit(&read[2]));

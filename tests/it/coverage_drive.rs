@@ -66,7 +66,7 @@ fn batch_means_match_the_spread_under_coloured_current_noise() {
                 },
                 r,
             );
-            (fit_pmsm(&[e], &PmsmFitOptions { pole_pairs: 4, ..Default::default() }).unwrap().report, t)
+            (fit_pmsm(&[e], &PmsmFitOptions::new(4)).unwrap().report, t)
         })
         .collect();
     let (rows, batch) = study(&fits);
@@ -84,7 +84,7 @@ fn instrumental_variables_cover_the_truth_under_voltage_noise() {
         .into_par_iter()
         .map(|r| {
             let (e, t) = log(|c| c.sensors.voltage_noise = 1.0, r);
-            (fit_pmsm_iv(&[e], &PmsmFitOptions { pole_pairs: 4, ..Default::default() }).unwrap().report, t)
+            (fit_pmsm_iv(&[e], &PmsmFitOptions::new(4)).unwrap().report, t)
         })
         .collect();
     let (rows, _) = study(&fits);
@@ -100,7 +100,7 @@ fn instrumental_variables_cover_the_truth_under_voltage_noise() {
 #[test]
 fn instrumental_variables_are_exact_on_a_noise_free_log() {
     let (e, t) = log(|_| {}, 0);
-    let fit = fit_pmsm_iv(&[e], &PmsmFitOptions { pole_pairs: 4, ..Default::default() }).unwrap();
+    let fit = fit_pmsm_iv(&[e], &PmsmFitOptions::new(4)).unwrap();
     for (name, truth) in NAMES.iter().zip(t) {
         let v = fit.parameter(name).unwrap().value;
         assert!(((v - truth) / truth).abs() < 1e-6, "{name}: {v} for {truth}");
@@ -112,7 +112,7 @@ fn instrumental_variables_are_exact_on_a_noise_free_log() {
         let log = simulate_drive(&cfg).unwrap();
         let m = log.truth.start;
         let truth = [("r_s", m.r_s), ("l_d", m.l_d), ("l_q", m.l_q), ("k_e", log.truth.k_e)];
-        let opts = PmsmFitOptions { pole_pairs: m.n_p, model: MotorKind::Ipm, ..Default::default() };
+        let opts = PmsmFitOptions { model: MotorKind::Ipm, ..PmsmFitOptions::new(m.n_p) };
         let fit = fit_pmsm_iv(&[log.experiment], &opts).unwrap();
         for (name, t) in truth {
             let p = fit.parameter(name).unwrap();
@@ -137,7 +137,7 @@ fn instrumental_variables_are_exact_on_a_noise_free_log() {
 #[test]
 fn voltage_noise_is_not_a_late_voltage() {
     let late = |f: &greybox::pmsm::PmsmFit| f.warnings.iter().any(|w| w.code == "voltage_late");
-    let opts = PmsmFitOptions { pole_pairs: 4, ..Default::default() };
+    let opts = PmsmFitOptions::new(4);
     for noise in [0.0, 1.0, 3.0] {
         let (e, _) = log(
             if noise == 0.0 {

@@ -18,13 +18,7 @@ fn truth_of(t: &greybox::drive::Truth) -> [(&'static str, f64); 5] {
 
 fn options(truth: &greybox::drive::Truth, input: VoltageInput) -> PmsmFitOptions {
     let model = if truth.start.salient() { MotorKind::Ipm } else { MotorKind::Spm };
-    PmsmFitOptions {
-        pole_pairs: truth.start.n_p,
-        model,
-        input,
-        hold: HoldChoice::Stator,
-        ..Default::default()
-    }
+    PmsmFitOptions { model, input, hold: HoldChoice::Stator, ..PmsmFitOptions::new(truth.start.n_p) }
 }
 
 /// exp3 on both motors: the fit from the terminal voltage and from the reference (delay 1,

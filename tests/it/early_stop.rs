@@ -19,11 +19,10 @@ fn noisy_log(sigma: f64) -> Experiment {
 
 fn fit(e: &Experiment, pem: PemOptions) -> PmsmFit {
     let o = PmsmFitOptions {
-        pole_pairs: SPM_MOTOR.n_p,
         model: MotorKind::Spm,
         hold: HoldChoice::Stator,
         pem,
-        ..Default::default()
+        ..PmsmFitOptions::new(SPM_MOTOR.n_p)
     };
     fit_pmsm(std::slice::from_ref(e), &o).unwrap()
 }
@@ -67,10 +66,9 @@ fn a_bad_initial_damping_is_refused_by_name() {
     let e = noisy_log(0.02);
     for bad in [0.0, -1e-3, f64::NAN, f64::INFINITY] {
         let o = PmsmFitOptions {
-            pole_pairs: SPM_MOTOR.n_p,
             hold: HoldChoice::Stator,
             pem: PemOptions { initial_damping: Some(bad), ..Default::default() },
-            ..Default::default()
+            ..PmsmFitOptions::new(SPM_MOTOR.n_p)
         };
         match fit_pmsm(std::slice::from_ref(&e), &o) {
             Err(Error::InvalidOption { option, .. }) => assert_eq!(option, "initial_damping", "{bad}"),

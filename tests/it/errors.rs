@@ -156,9 +156,10 @@ fn option_errors_name_the_option() {
 #[test]
 fn logs_of_different_motors_cannot_be_fitted_jointly() {
     // Logs no longer carry n_p: a joint fit is of one motor by construction, with one
-    // `pole_pairs` option. Leaving it unset (0) is the error naming n_p.
+    // `pole_pairs` option, which the options cannot be built without; 0 is the error naming
+    // n_p.
     let (a, b) = (sample(), sample().renamed("second"));
-    let err = fit_pmsm(&[a, b], &PmsmFitOptions::default()).unwrap_err();
+    let err = fit_pmsm(&[a, b], &PmsmFitOptions::new(0)).unwrap_err();
     assert!(matches!(err, Error::InvalidPolePairs { n_p: 0 }), "{err:?}");
     assert!(err.to_string().contains("n_p"), "{err}");
 }

@@ -117,7 +117,7 @@ pub fn read(
 
 /// Default PMSM fit options for a motor with `n_p` pole pairs.
 pub fn pmsm_options(n_p: u32) -> PmsmFitOptions {
-    PmsmFitOptions { pole_pairs: n_p, ..Default::default() }
+    PmsmFitOptions::new(n_p)
 }
 
 /// Simulated outputs with the default options.
