@@ -95,6 +95,25 @@ fn read_parquet(
         return Ok((header, index.iter().map(|_| None).collect(), vec![Vec::new(); wanted.len()], rows));
     }
     let picked: Vec<usize> = index.iter().flatten().copied().collect();
+    // What decoding would take, from the metadata alone: per row group and wanted column the
+    // larger of its f64 values and its uncompressed pages (a page is decompressed whole).
+    let schema = meta.parquet_schema();
+    let decoded: u64 = meta
+        .metadata()
+        .row_groups()
+        .iter()
+        .map(|g| {
+            let rows = u64::try_from(g.num_rows()).unwrap_or(u64::MAX);
+            (0..g.num_columns())
+                .filter(|&c| picked.contains(&schema.get_column_root_idx(c)))
+                .map(|c| {
+                    rows.saturating_mul(8)
+                        .max(u64::try_from(g.column(c).uncompressed_size()).unwrap_or(u64::MAX))
+                })
+                .fold(0u64, u64::saturating_add)
+        })
+        .fold(0u64, u64::saturating_add);
+    check_budget(path, file.metadata().map(|m| m.len()).unwrap_or(0), rows, decoded)?;
     // The time column streamed first, a batch at a time, before anything the size of the
     // declared record is allocated: a bad step ends the read there, and the rows up to it
     // (every wanted column) give the first error in row order, as the CSV reader would.
@@ -186,12 +205,32 @@ fn column<'b>(path: &Path, batch: &'b RecordBatch, name: &str) -> Result<&'b Arr
         .ok_or_else(|| format_err(path, format!("column `{name}` missing from a batch")))
 }
 
-/// Bytes a single decoded record batch (its wanted columns) may take when it is also more
-/// than [`BOMB_RATIO`] times the file's size.
-const BATCH_BUDGET: u64 = 128 << 20;
-/// Decoded size over file size beyond which a large batch is a decompression bomb, not a
-/// log: a drive log's noisy floats compress a few times at most.
+/// Bytes the wanted columns may take decoded whatever the file's size.
+const DECODE_BUDGET: u64 = 128 << 20;
+/// Decoded size over file size beyond which (and beyond [`DECODE_BUDGET`]) a file is a
+/// decompression bomb, not a log: a drive log's noisy floats compress a few times at most.
 const BOMB_RATIO: u64 = 50;
+
+/// Refuses, before anything is decoded, a file whose wanted columns would take `decoded`
+/// bytes (for `rows` declared rows) beyond [`DECODE_BUDGET`] and [`BOMB_RATIO`] times the
+/// file's `size` \[bytes\].
+///
+/// # Errors
+/// [`Error::Format`] naming the file, the rows and the sizes.
+fn check_budget(path: &Path, size: u64, rows: u64, decoded: u64) -> Result<()> {
+    if decoded <= DECODE_BUDGET || decoded <= BOMB_RATIO.saturating_mul(size) {
+        return Ok(());
+    }
+    Err(format_err(
+        path,
+        format!(
+            "declares {rows} rows ({} MB decoded) in a file of {} kB, more than {BOMB_RATIO} times its size: not \
+             read (a decompression bomb?). A real log of that length is larger: write it without such compression",
+            decoded >> 20,
+            size >> 10
+        ),
+    ))
+}
 
 fn read_ipc(
     path: &Path,
@@ -221,19 +260,7 @@ fn read_ipc(
         return Ok((header, index.iter().map(|_| None).collect(), vec![Vec::new(); wanted.len()], total));
     }
     let picked: Vec<usize> = index.iter().flatten().copied().collect();
-    let widest = declared.iter().max().copied().unwrap_or(0);
-    let bytes = widest.saturating_mul(8 * picked.len() as u64);
-    if bytes > BATCH_BUDGET && bytes > BOMB_RATIO.saturating_mul(size) {
-        return Err(format_err(
-            path,
-            format!(
-                "a record batch declares {widest} rows ({} MB decoded) in a file of {} kB, more than {BOMB_RATIO} \
-                 times its size: not read (a decompression bomb?). Write the log in batches of fewer rows",
-                bytes >> 20,
-                size >> 10
-            ),
-        ));
-    }
+    check_budget(path, size, total, total.saturating_mul(8 * picked.len() as u64))?;
     let mut sorted = picked.clone();
     sorted.sort_unstable();
     let projected = reader(open()?, Some(sorted))?;
