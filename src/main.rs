@@ -62,11 +62,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     // Interrupted (SIGINT, SIGTERM, SIGHUP): the temporaries of outputs not yet renamed are
     // removed, the old outputs stay; exit 130 as a shell reports an interrupt.
-    let _ = ctrlc::set_handler(|| {
-        let removed = greybox::data::staged::remove_temporaries();
-        eprintln!("error: interrupted; {removed} unfinished output file(s) removed, the old outputs kept");
-        std::process::exit(130);
-    });
+    let _ = ctrlc::set_handler(|| greybox::data::staged::exit_removing_temporaries(130));
     // The exit code: 0, or 3 for an untrusted fit, 4 for a failed log of a batch.
     let code = |trusted: bool| if trusted { 0 } else { 3 };
     let r: greybox::Result<u8> = match &cli.command {

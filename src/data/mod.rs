@@ -62,6 +62,8 @@ pub struct Experiment {
     name: String,
     h: f64,
     channels: Vec<Channel>,
+    /// Time of the first sample \[s\] in the log's own clock (0 unless set).
+    t0: f64,
 }
 
 impl Experiment {
@@ -99,7 +101,7 @@ impl Experiment {
                 return Err(Error::NonFinite { column: c.name.clone(), row, value });
             }
         }
-        Ok(Self { name, h, channels })
+        Ok(Self { name, h, channels, t0: 0.0 })
     }
 
     /// Like [`Experiment::try_new`], with the sample time taken from a time vector `t` \[s\].
@@ -131,7 +133,7 @@ impl Experiment {
             return Err(Error::TooShort { name, len: t.len(), min: 2 });
         }
         let h = uniform_step(t, time_name)?;
-        Self::try_new(name, h, channels)
+        Ok(Self::try_new(name, h, channels)?.with_t0(t[0]))
     }
 
     /// Name of the experiment (the log's file stem when read from a file).
@@ -141,6 +143,20 @@ impl Experiment {
     /// Sample time h \[s\].
     pub fn h(&self) -> f64 {
         self.h
+    }
+    /// Time of the first sample \[s\] in the log's own clock (its time column's first value;
+    /// 0 for an experiment built without one): sample k is at `t0 + k h`, the time that
+    /// reports, residual exports and plots give it.
+    pub fn t0(&self) -> f64 {
+        self.t0
+    }
+    /// The same experiment with its first sample at `t0` \[s\] (a finite value; any other
+    /// leaves it as it was).
+    pub fn with_t0(mut self, t0: f64) -> Self {
+        if t0.is_finite() {
+            self.t0 = t0;
+        }
+        self
     }
     /// Number of samples N.
     pub fn len(&self) -> usize {
@@ -212,7 +228,7 @@ impl Experiment {
             .iter()
             .map(|c| Channel::new(c.name.clone(), c.unit.clone(), c.values[range.clone()].to_vec()))
             .collect();
-        Self::try_new(self.name.clone(), self.h, channels)
+        Ok(Self::try_new(self.name.clone(), self.h, channels)?.with_t0(self.t0 + range.start as f64 * self.h))
     }
 }
 

@@ -5,7 +5,7 @@
 //!
 //! Temporaries are named `.greybox-tmp.PID.SEQ.NAME` (the target's own name last, so its
 //! extension still says its format). Every live one is registered, so that a signal
-//! handler can remove them ([`remove_temporaries`], which `greybox` calls on SIGINT and
+//! handler can remove them ([`exit_removing_temporaries`], which `greybox` calls on SIGINT and
 //! SIGTERM); a process killed outright (SIGKILL) cannot clean up, so each new write first
 //! removes the temporaries of its folder whose process no longer runs (Linux: no
 //! `/proc/PID`). A set of several files is renamed under a manifest (`.commit`, the pairs
@@ -30,18 +30,21 @@ fn live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
     LIVE.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
-/// Removes every temporary this process has not renamed yet (for a signal handler: the
-/// files of an interrupted command go, the old outputs stay). A [`Staged::commit`] under
-/// way holds the registry until all its files are renamed, so this waits for it: the
-/// outputs are then all new, never some new beside some old. Returns how many temporaries
-/// it removed.
-pub fn remove_temporaries() -> usize {
+/// Ends the process with exit code `code` after removing every temporary it has not
+/// renamed yet, for a signal handler: the files of an interrupted command go, the old
+/// outputs stay, and a message on stderr says so. A [`Staged::commit`] under way holds the
+/// registry until all its files are renamed, so this waits for it (the outputs are then
+/// all new, never some new beside some old); and it holds the registry until the process
+/// ends, so no other thread creates a temporary after the removal (each is created and
+/// registered under the registry's lock).
+pub fn exit_removing_temporaries(code: i32) -> ! {
     let mut live = live();
     let n = live.len();
     for tmp in live.drain(..) {
         let _ = std::fs::remove_file(tmp);
     }
-    n
+    eprintln!("error: interrupted; {n} unfinished output file(s) removed, the old outputs kept");
+    std::process::exit(code)
 }
 
 /// Ending of a commit's manifest: the `(temporary, target)` pairs of a set being renamed.
@@ -145,7 +148,10 @@ impl Staged {
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let seq = SEQ.fetch_add(1, Ordering::Relaxed);
         let tmp = dir.join(format!("{TEMPORARY_PREFIX}{}.{seq}.{name}", std::process::id()));
-        live().push(tmp.clone());
+        // Created (empty) and registered under one lock: a signal handler sees it or none.
+        let mut live = live();
+        let _ = std::fs::File::create(&tmp);
+        live.push(tmp.clone());
         tmp
     }
 
@@ -199,7 +205,7 @@ impl Staged {
     pub fn commit(mut self) -> Result<()> {
         let files = std::mem::take(&mut self.files);
         // The registry is held across all renames: a signal handler's
-        // [`remove_temporaries`] waits until the set is complete.
+        // [`exit_removing_temporaries`] waits until the set is complete.
         let mut live = live();
         let mut forget = |tmp: &PathBuf| live.retain(|p| p != tmp);
         // More than one file: a manifest, so that a kill among the renames is rolled forward.

@@ -253,7 +253,7 @@ impl Butterworth {
                 Channel { name: c.name.clone(), unit: c.unit.clone(), values }
             })
             .collect();
-        Experiment::try_new(e.name(), e.h(), channels)
+        Ok(Experiment::try_new(e.name(), e.h(), channels)?.with_t0(e.t0()))
     }
 
     /// Initial states per section for a constant input 1 through the whole cascade

@@ -36,10 +36,10 @@ impl TrackTruth {
         Self { t: vec![0.0], k_e: vec![k_e], r_s: vec![r_s] }
     }
 
-    /// The polyline of `v` (K_e or R_s) from the first point to `t_end` \[s\] (the last value
-    /// held to the end), and its legend text: the value, or first → last.
-    fn line(&self, v: &[f64], t_end: f64, unit: &str) -> (Vec<(f64, f64)>, String) {
-        let mut pts: Vec<(f64, f64)> = self.t.iter().copied().zip(v.iter().copied()).collect();
+    /// The polyline of `v` (K_e or R_s) over `[t_start, t_end]` \[s\] (the first and last
+    /// values held to the ends), and its legend text: the value, or first → last.
+    fn line(&self, v: &[f64], t_start: f64, t_end: f64, unit: &str) -> (Vec<(f64, f64)>, String) {
+        let mut pts: Vec<(f64, f64)> = self.t.iter().map(|t| t.max(t_start)).zip(v.iter().copied()).collect();
         if let Some(&(t, y)) = pts.last()
             && t < t_end
         {
@@ -108,14 +108,22 @@ pub fn track_svg(runs: &[TrackRun<'_>]) -> Result<String> {
     Ok(svg)
 }
 
+/// The time axis of the runs: from the earliest first time to the latest last \[s\] (the
+/// logs' own clock), never empty.
+fn span(runs: &[TrackRun<'_>]) -> (f64, f64) {
+    let start = runs.iter().filter_map(|r| r.trajectory.t.first().copied()).fold(f64::INFINITY, f64::min);
+    let start = if start.is_finite() { start } else { 0.0 };
+    let end = runs.iter().filter_map(|r| r.trajectory.t.last().copied()).fold(start, f64::max);
+    (start, end.max(start + f64::MIN_POSITIVE.max(start.abs() * 1e-12)))
+}
+
 /// K̂_e over time with K̂_t on the secondary axis.
 fn k_e(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
-    let t_end =
-        runs.iter().filter_map(|r| r.trajectory.t.last().copied()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    let (t_start, t_end) = span(runs);
     let y = range(runs.iter().flat_map(|r| {
         r.trajectory.k_e.iter().copied().chain(r.truth.into_iter().flat_map(|t| t.k_e.iter().copied()))
     }));
-    let (t_fmt, y_fmt) = (move |v: &f64| tick(*v, t_end), |v: &f64| tick(*v, y.end - y.start));
+    let (t_fmt, y_fmt) = (move |v: &f64| tick(*v, t_end - t_start), |v: &f64| tick(*v, y.end - y.start));
     let kt_fmt = |v: &f64| tick(*v, (y.end - y.start) * KT_PER_KE);
     let mut ch = ChartBuilder::on(area)
         .caption("Back-EMF constant K_e (torque constant K_t = √(3/2) K_e on the right)", (FONT, 17))
@@ -125,8 +133,8 @@ fn k_e(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
         .x_label_area_size(44)
         .y_label_area_size(84)
         .right_y_label_area_size(RIGHT_AXIS)
-        .build_cartesian_2d(0.0..t_end, y.clone())?
-        .set_secondary_coord(0.0..t_end, y.start * KT_PER_KE..y.end * KT_PER_KE);
+        .build_cartesian_2d(t_start..t_end, y.clone())?
+        .set_secondary_coord(t_start..t_end, y.start * KT_PER_KE..y.end * KT_PER_KE);
     ch.configure_mesh()
         .x_desc("t [s]")
         .y_desc("K_e [V s/rad] (line-to-line RMS, mechanical)")
@@ -152,7 +160,7 @@ fn k_e(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
             .legend(mark(style));
         if let Some(truth) = r.truth {
             let dash = color(i).stroke_width(1);
-            let (pts, text) = truth.line(&truth.k_e, t_end, "V s/rad");
+            let (pts, text) = truth.line(&truth.k_e, t_start, t_end, "V s/rad");
             ch.draw_series(DashedLineSeries::new(pts, 8, 5, dash))?
                 .label(format!("truth {text}, {}", r.name))
                 .legend(mark(dash));
@@ -169,8 +177,7 @@ fn k_e(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
 
 /// R̂_s over time.
 fn r_s(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
-    let t_end =
-        runs.iter().filter_map(|r| r.trajectory.t.last().copied()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    let (t_start, t_end) = span(runs);
     let y = range(runs.iter().flat_map(|r| {
         r.trajectory.r_s.iter().copied().chain(r.truth.into_iter().flat_map(|t| t.r_s.iter().copied()))
     }));
@@ -181,7 +188,7 @@ fn r_s(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
         &area,
         "Stator resistance R_s",
         &[],
-        0.0..t_end,
+        t_start..t_end,
         y,
         "t [s]",
         "R_s [Ω]",
@@ -195,7 +202,7 @@ fn r_s(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
             .legend(mark(style));
         if let Some(truth) = r.truth {
             let dash = color(i).stroke_width(1);
-            let (pts, text) = truth.line(&truth.r_s, t_end, "Ω");
+            let (pts, text) = truth.line(&truth.r_s, t_start, t_end, "Ω");
             ch.draw_series(DashedLineSeries::new(pts, 8, 5, dash))?
                 .label(format!("truth {text}, {}", r.name))
                 .legend(mark(dash));

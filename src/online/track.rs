@@ -74,7 +74,7 @@ pub fn track(e: &Experiment, config: &MrasConfig) -> Result<Trajectory> {
         let s =
             Sample { i_d: i_d[k], i_q: i_q[k], u_d: u_d[k], u_q: u_q[k], w_m: 0.5 * (w_m[k] + w_m[k + 1]) };
         let est = mras.update(&s)?;
-        out.t.push(k as f64 * e.h());
+        out.t.push(e.t0() + k as f64 * e.h());
         out.k_e.push(est.k_e);
         out.r_s.push(est.r_s);
         out.final_estimate = est;

@@ -19,6 +19,10 @@ pub struct Comparison {
     pub experiment: String,
     /// Sample time h \[s\].
     pub h: f64,
+    /// Time of the first sample \[s\] in the log's own clock ([`Experiment::t0`]): sample k
+    /// is at `t0 + k h`.
+    #[serde(default)]
+    pub t0: f64,
     /// Output names (channels), length n_y.
     pub outputs: Vec<String>,
     /// Output units (SI), length n_y (empty when read from a comparison saved without them).
@@ -81,7 +85,7 @@ impl Comparison {
         }
         out.push('\n');
         for k in 0..self.y.len() / ny.max(1) {
-            out.push_str(&format!("{}", k as f64 * self.h));
+            out.push_str(&format!("{}", self.t0 + k as f64 * self.h));
             for i in 0..ny {
                 out.push_str(&format!(",{},{}", self.y[k * ny + i], self.y_hat[k * ny + i]));
             }
@@ -169,6 +173,7 @@ pub fn compare_predicted<M: GreyBoxModel>(
     Ok(Comparison {
         experiment: prep.name,
         h: experiment.h(),
+        t0: experiment.t0(),
         outputs,
         units,
         y,

@@ -9,7 +9,7 @@ use std::path::Path;
 /// Writes `comparisons` to `path` as CSV, atomically
 /// ([`write_atomic`]): a header `t, <output>_measured, <output>_simulated,
 /// <output>_residual, …` (output names as in the comparisons, e.g. `id_measured`), then
-/// one row per sample with `t = k h` \[s\] from the log's first sample and the outputs in
+/// one row per sample with `t = t0 + k h` \[s\] in the log's own time and the outputs in
 /// their units (SI); the residual is `measured − simulated`. With several comparisons a
 /// first column `log` names each row's log and the logs follow each other in blocks. When
 /// the fit weighted samples out ([`Comparison::counted`]), a last column `counted` (1 or 0)
@@ -53,7 +53,7 @@ pub fn write_residuals_csv(path: &Path, comparisons: &[Comparison]) -> Result<()
                 if several {
                     row.push(c.experiment.clone());
                 }
-                row.push(shortest(k as f64 * c.h));
+                row.push(shortest(c.t0 + k as f64 * c.h));
                 for i in 0..ny {
                     let (y, y_hat) = (c.y[k * ny + i], c.y_hat[k * ny + i]);
                     row.extend([shortest(y), shortest(y_hat), shortest(y - y_hat)]);

@@ -135,3 +135,29 @@ fn fmt5(v: f64) -> String {
     let digits = (4 - v.abs().log10().floor() as i32).max(0) as usize;
     format!("{v:.digits$}")
 }
+
+/// A log whose time column starts at 0.6 s (the bundled sample) keeps its own time in the
+/// residual export, the fit plot's axis and the observer's trajectory.
+#[test]
+fn outputs_keep_the_logs_own_time() {
+    use std::io::Read;
+    let mut text = String::new();
+    let sample = concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz");
+    flate2::read::GzDecoder::new(std::fs::File::open(sample).unwrap()).read_to_string(&mut text).unwrap();
+    let t0: f64 = text.lines().nth(1).unwrap().split(',').next().unwrap().parse().unwrap();
+    assert!(t0 > 0.1, "the sample should start late: {t0}");
+    let dir = temp_dir("t0");
+    let (csv, svg, track) = (dir.join("r.csv"), dir.join("f.svg"), dir.join("t.json"));
+    let s = |p: &PathBuf| p.to_str().unwrap().to_string();
+    let out = greybox(&["fit", sample, "-p", "4", "-q", "--residuals", &s(&csv), "--plot", &s(&svg)]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let first: f64 =
+        csv::Reader::from_path(&csv).unwrap().records().next().unwrap().unwrap()[0].parse().unwrap();
+    assert_eq!(first, t0);
+    let out = greybox(&["track", sample, "-p", "4", "--l-s", "4.5e-3", "-q", "--json", &s(&track)]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&track).unwrap()).unwrap();
+    let t = v["trajectory"]["t"].as_array().unwrap();
+    assert!((t[0].as_f64().unwrap() - t0).abs() < 1e-9, "{}", t[0]);
+    let _ = std::fs::remove_dir_all(&dir);
+}

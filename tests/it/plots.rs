@@ -170,6 +170,7 @@ mod svg {
         let c = Comparison {
             experiment: "long".into(),
             h: 1e-4,
+            t0: 0.0,
             outputs,
             units: vec!["A".into(), "A".into()],
             y,

@@ -174,5 +174,5 @@ pub fn speed_pll_estimate(theta_m: &[f64], w_m: &[f64], n_p: u32, h: f64, alpha:
 pub fn applied_experiment(e: &Experiment, n_p: u32, input: VoltageInput) -> Result<Experiment> {
     let v = DqView::try_new(e)?;
     let (u_d, u_q) = applied_voltage(&v, n_p, input)?;
-    DqSignals { u_d, u_q, ..v.to_signals() }.into_experiment(e.name(), e.h())
+    Ok(DqSignals { u_d, u_q, ..v.to_signals() }.into_experiment(e.name(), e.h())?.with_t0(e.t0()))
 }

@@ -12,6 +12,8 @@ use plotters::prelude::*;
 pub(super) struct Timeline {
     /// Start of each log \[s\].
     pub starts: Vec<f64>,
+    /// Start of the axis \[s\]: the log's own first time for one log, 0 for several.
+    pub begin: f64,
     /// End of the last log \[s\].
     pub end: f64,
 }
@@ -20,12 +22,17 @@ impl Timeline {
     /// The logs of `comparisons`, one after another.
     pub fn new(comparisons: &[Comparison]) -> Self {
         let mut starts = Vec::with_capacity(comparisons.len());
-        let mut end = 0.0;
+        // One log in its own time; several one after another from 0.
+        let mut end = match comparisons {
+            [c] => c.t0,
+            _ => 0.0,
+        };
+        let begin = end;
         for c in comparisons {
             starts.push(end);
             end += c.len() as f64 * c.h;
         }
-        Self { starts, end }
+        Self { starts, begin, end }
     }
     /// The time axis label.
     pub fn label(&self) -> &'static str {
@@ -50,7 +57,7 @@ pub(super) fn draw(areas: &[Area<'_>], comparisons: &[Comparison], context: Opti
     let mut take = || next.next().ok_or("too few panels");
     let ny = comparisons.first().map_or(0, |c| c.outputs.len());
     let times: Vec<Vec<f64>> = (0..comparisons.len()).map(|i| line.times(comparisons, i)).collect();
-    let x = 0.0..line.end;
+    let x = line.begin..line.end;
     if let Some(ctx) = context {
         let y = range(ctx.per_log.iter().flat_map(|v| v.iter().copied()));
         let style = MEASURED.stroke_width(1);
@@ -113,7 +120,7 @@ pub(super) fn draw(areas: &[Area<'_>], comparisons: &[Comparison], context: Opti
         let y_desc = axis(&format!("ε {name}"), unit);
         let mut ch = chart(take()?, &caption, &keys, x.clone(), y, line.label(), &y_desc)?;
         ch.draw_series(std::iter::once(Rectangle::new(
-            [(0.0, -2.0 * sigma), (line.end, 2.0 * sigma)],
+            [(line.begin, -2.0 * sigma), (line.end, 2.0 * sigma)],
             band,
         )))?;
         for (i, (t, v)) in res_t.iter().zip(&residual).enumerate() {
@@ -142,7 +149,8 @@ fn decimated(
     i: usize,
 ) -> Vec<(f64, f64)> {
     let width = ch.plotting_area().dim_in_pixel().0 as f64;
-    let share = comparisons[i].len() as f64 * comparisons[i].h / line.end.max(f64::MIN_POSITIVE);
+    let share =
+        comparisons[i].len() as f64 * comparisons[i].h / (line.end - line.begin).max(f64::MIN_POSITIVE);
     decimate_min_max(t, v, (width * share).ceil().max(1.0) as usize)
 }
 
