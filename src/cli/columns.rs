@@ -83,7 +83,9 @@ pub struct ColumnArgs {
     /// named LOG#1, LOG#2, ...; segments under 16 samples are dropped with a warning.
     #[arg(long)]
     pub split_gaps: bool,
-    /// Skip the plausibility limits (sample time h in [100 ns, 100 ms]).
+    /// Skip the plausibility limits (sample time h in [100 ns, 100 ms]) and fit a log whose
+    /// sample time the model cannot resolve (h beyond 5 L/R, or half an electrical turn per
+    /// sample), otherwise refused before the fit.
     #[arg(long)]
     pub force: bool,
     /// Longest line of a log in bytes; a longer one stops the read (default 1 MiB).

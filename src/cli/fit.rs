@@ -252,6 +252,7 @@ pub fn plan(a: &FitArgs) -> greybox::Result<Plan> {
         // Set below: given, or chosen by fitting these options at each candidate.
         pole_pairs: 0,
         skip_setup_checks: false,
+        force: a.columns.force,
         input,
         inverter,
         voltage_limit: a.u_dc.map(|u| u / 3f64.sqrt()),

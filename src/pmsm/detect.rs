@@ -310,12 +310,18 @@ pub const MAX_H_OVER_TAU: f64 = 5.0;
 /// angle aliases). Most often a time column in milliseconds read as seconds: the warning
 /// says what `--time-unit ms` would give.
 fn sample_time_check(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> Option<Warning> {
-    let h = experiments.iter().map(Experiment::h).fold(0.0, f64::max);
     let r = fit.parameter("r_s")?.value;
     let l = ["l_s", "l_d", "l_q"]
         .iter()
         .filter_map(|n| fit.parameter(n).map(|p| p.value))
         .fold(f64::INFINITY, f64::min);
+    sample_time_problem(experiments, n_p, r, l).map(|why| Warning::untrusted("sample_time", why))
+}
+
+/// Why the logs' sample time is one the model cannot resolve with resistance `r` \[Ω\] and
+/// smallest inductance `l` \[H\] ([`sample_time_check`]'s conditions), or `None`.
+pub(crate) fn sample_time_problem(experiments: &[Experiment], n_p: u32, r: f64, l: f64) -> Option<String> {
+    let h = experiments.iter().map(Experiment::h).fold(0.0, f64::max);
     let w = experiments
         .iter()
         .filter_map(|e| DqView::try_new(e).ok())
@@ -326,15 +332,12 @@ fn sample_time_check(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> O
     if !slow && turn < std::f64::consts::PI {
         return None;
     }
-    Some(Warning::untrusted(
-        "sample_time",
-        format!(
-            "h = {h:e} s is {:.1} electrical time constants L/R ({tau:.3e} s) and the rotor turns up to {turn:.2} \
-             electrical rad in one sample: the model cannot resolve the currents at this rate. A time column in \
-             milliseconds? (--time-unit ms gives h = {:e} s)",
-            h / tau,
-            h * 1e-3
-        ),
+    Some(format!(
+        "h = {h:e} s is {:.1} electrical time constants L/R ({tau:.3e} s) and the rotor turns up to {turn:.2} \
+         electrical rad in one sample: the model cannot resolve the currents at this rate. A time column in \
+         milliseconds? (--time-unit ms gives h = {:e} s)",
+        h / tau,
+        h * 1e-3
     ))
 }
 

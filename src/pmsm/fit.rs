@@ -97,6 +97,12 @@ pub struct PmsmFitOptions {
     /// and frame): for fits nested in a search, whose final fit runs them.
     #[serde(default)]
     pub skip_setup_checks: bool,
+    /// Fit even a log whose sample time the model cannot resolve (h beyond five electrical
+    /// time constants of the start, or half an electrical turn per sample), which is
+    /// otherwise refused before the fit: such a fit is slow (the exact step's exponential
+    /// of a large matrix) and its estimates are not to be trusted (warning `sample_time`).
+    #[serde(default)]
+    pub force: bool,
 }
 
 impl PmsmFitOptions {
@@ -120,6 +126,7 @@ impl PmsmFitOptions {
             voltage_limit: None,
             pem: PemOptions::default(),
             skip_setup_checks: false,
+            force: false,
         }
     }
 }

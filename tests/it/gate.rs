@@ -234,14 +234,17 @@ fn a_speed_in_rpm_without_the_angle_is_named() {
 }
 
 /// A time column in ms read as seconds without `theta_m` (h = 0.1 s, inside the accepted
-/// range): the fit runs, but `sample_time` says the model cannot resolve the currents at
-/// that rate and names `--time-unit ms`.
+/// range): refused before the fit (the trust issue's log ran for minutes), naming
+/// `--time-unit ms`; forced, the fit runs, and `sample_time` says the model cannot resolve
+/// the currents at that rate.
 #[test]
 fn a_time_column_in_milliseconds_is_named() {
     crate::common::require_shared!();
     let (e, n_p) = rewritten(true, |_| Vec::new());
     let ms = Experiment::try_new("ms", 1e3 * e.h(), e.channels().to_vec()).unwrap();
-    let f = fit_pmsm(&[ms], &pmsm_options(n_p)).unwrap();
+    let err = fit_pmsm(std::slice::from_ref(&ms), &pmsm_options(n_p)).unwrap_err().to_string();
+    assert!(err.contains("--time-unit ms") && err.contains("--force"), "{err}");
+    let f = fit_pmsm(&[ms], &PmsmFitOptions { force: true, ..pmsm_options(n_p) }).unwrap();
     let w = f.warnings.iter().find(|w| w.code == "sample_time" && w.untrusted);
     eprintln!("ms: {:?}", w.map(|w| &w.message));
     assert!(w.is_some_and(|w| w.message.contains("--time-unit ms")), "{:?}", f.warnings);

@@ -107,9 +107,13 @@ fn setup_mistakes_are_named() {
     untrusted(&f, "pole_pairs", "1 pole pairs");
     // rpm read as rad/s.
     untrusted(&fit(&scaled(&e, "w_m", 30.0 / std::f64::consts::PI), t.n_p), "speed_unit", "rpm");
-    // Time in ms read as s: the speed check names the time column.
+    // Time in ms read as s: refused before the fit, naming the unit; forced, the speed
+    // check names the time column.
     let ms = Experiment::try_new("ms", 1e3 * e.h(), e.channels().to_vec()).unwrap();
-    untrusted(&fit(&ms, t.n_p), "speed_unit", "milliseconds");
+    let err = fit_pmsm(std::slice::from_ref(&ms), &pmsm_options(t.n_p)).unwrap_err().to_string();
+    assert!(err.contains("--time-unit ms"), "{err}");
+    let forced = PmsmFitOptions { force: true, ..pmsm_options(t.n_p) };
+    untrusted(&fit_pmsm(std::slice::from_ref(&ms), &forced).unwrap(), "speed_unit", "milliseconds");
     // RMS currents or power-invariant dq cannot be told from the data: a notice gives the
     // estimates under the other conventions.
     let notice = codes(&right).into_iter().find(|(k, u, _)| k == "scaling_assumed" && !u).unwrap();

@@ -91,6 +91,28 @@ pub(super) fn fit_from_start(
         }
     };
     let start = super::super::start::user_start(start, names, options, &mut notes)?;
+    // A sample time the model cannot resolve at the start's R and L: refused before a fit
+    // that would be slow and wrong.
+    let value = |wanted: &[&str]| {
+        names
+            .iter()
+            .zip(&start)
+            .filter(|(n, _)| wanted.contains(n))
+            .map(|(_, v)| *v)
+            .fold(f64::INFINITY, f64::min)
+    };
+    let (r_s, l) = (value(&["r_s"]), value(&["l_s", "l_d", "l_q"]));
+    if !options.skip_setup_checks
+        && !options.force
+        && let Some(why) = super::super::detect::sample_time_problem(experiments, n_p, r_s, l)
+    {
+        return Err(Error::Numerical {
+            context: "sample time".into(),
+            reason: format!(
+                "{why}. Refused before the fit, which would be slow and wrong; --force fits it anyway"
+            ),
+        });
+    }
     let reference = options.input != VoltageInput::Terminal;
     let holds: &[VoltageHold] = match options.hold {
         HoldChoice::Dq if reference => {
