@@ -246,20 +246,26 @@ impl ColumnArgs {
                 dropped: vec![],
             })
         };
-        log.map_err(flag_words).map_err(|e| with_file(path, e))
+        log.map_err(flag_words).map_err(|e| with_file(path, e, csv.delimiter))
     }
 }
 
 /// A data error that names no file (a non-finite value, a time step, a length) with the
-/// log's path in front, as the parse errors have it.
-fn with_file(path: &Path, e: greybox::Error) -> greybox::Error {
+/// log's path in front, as the parse errors have it, and for a row of a CSV log the line of
+/// the file it stands on.
+fn with_file(path: &Path, e: greybox::Error, delimiter: greybox::data::csv::Delimiter) -> greybox::Error {
     use greybox::Error;
+    let line = match &e {
+        Error::NonFinite { row, .. } | Error::NonUniformTime { row, .. } => csv_line(path, *row, delimiter),
+        _ => None,
+    };
+    let at = line.map(|l| format!(" (line {l} of the file)")).unwrap_or_default();
     match e {
         Error::NonFinite { .. }
         | Error::NonUniformTime { .. }
         | Error::LengthMismatch { .. }
         | Error::InvalidSampleTime { .. } => {
-            Error::Format { path: path.to_path_buf(), message: e.to_string() }
+            Error::Format { path: path.to_path_buf(), message: format!("{e}{at}") }
         }
         other => other,
     }
@@ -300,4 +306,26 @@ fn flag_words(e: greybox::Error) -> greybox::Error {
         }
         other => other,
     }
+}
+
+/// The 1-based line of the file on which data row `row` (0-based, header excluded) of the
+/// CSV log at `path` starts (gzip for `.gz`), read again with the `csv` crate on the error
+/// path; `None` for a columnar log or when the file cannot be read so far.
+fn csv_line(path: &Path, row: usize, delimiter: greybox::data::csv::Delimiter) -> Option<u64> {
+    use greybox::data::columnar::Format;
+    if Format::of(path) != Format::Csv {
+        return None;
+    }
+    let file = std::fs::File::open(path).ok()?;
+    let gz = path.extension().is_some_and(|x| x == "gz");
+    let reader: Box<dyn std::io::Read> =
+        if gz { Box::new(flate2::read::GzDecoder::new(file)) } else { Box::new(file) };
+    let mut csv = csv::ReaderBuilder::new().delimiter(delimiter.byte()).flexible(true).from_reader(reader);
+    let mut record = csv::ByteRecord::new();
+    for _ in 0..=row {
+        if !csv.read_byte_record(&mut record).ok()? {
+            return None;
+        }
+    }
+    record.position().map(|p| p.line())
 }

@@ -319,3 +319,25 @@ fn a_log_from_standard_input() {
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("given twice"), "{}", stderr(&out));
 }
+
+/// A data error in a CSV log names the file and the line the user sees in an editor, not
+/// only the 0-based data row (the trust issue: "row 298", file line 300, no file name).
+#[test]
+fn data_errors_name_the_file_and_its_line() {
+    use std::io::Read;
+    let dir = temp_dir("line");
+    let mut text = String::new();
+    flate2::read::GzDecoder::new(std::fs::File::open(SAMPLE).unwrap()).read_to_string(&mut text).unwrap();
+    let mut lines: Vec<String> = text.lines().take(400).map(String::from).collect();
+    // Line 300 of the file (data row 298): its ud not finite.
+    let mut fields: Vec<&str> = lines[299].split(',').collect();
+    fields[1] = "inf";
+    lines[299] = fields.join(",");
+    let path = dir.join("units.csv");
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    let out = greybox(&["fit", path.to_str().unwrap(), "-p", "4", "-q"]);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("units.csv") && err.contains("line 300"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
