@@ -30,6 +30,8 @@ use crate::error::Result;
 #[cfg(feature = "parquet")]
 mod arrow_io;
 #[cfg(feature = "parquet")]
+mod budget;
+#[cfg(feature = "parquet")]
 mod check;
 #[cfg(feature = "parquet")]
 mod ipc_scan;

@@ -18,6 +18,7 @@ use parquet::arrow::arrow_reader::{
 };
 use rayon::prelude::*;
 
+use super::budget::check_budget;
 use super::{Format, check};
 use crate::data::csv::{ReadLimits, Table, experiment_name, find_columns};
 use crate::data::write::write_atomic;
@@ -203,33 +204,6 @@ fn column<'b>(path: &Path, batch: &'b RecordBatch, name: &str) -> Result<&'b Arr
     batch
         .column_by_name(name)
         .ok_or_else(|| format_err(path, format!("column `{name}` missing from a batch")))
-}
-
-/// Bytes the wanted columns may take decoded whatever the file's size.
-const DECODE_BUDGET: u64 = 128 << 20;
-/// Decoded size over file size beyond which (and beyond [`DECODE_BUDGET`]) a file is a
-/// decompression bomb, not a log: a drive log's noisy floats compress a few times at most.
-const BOMB_RATIO: u64 = 50;
-
-/// Refuses, before anything is decoded, a file whose wanted columns would take `decoded`
-/// bytes (for `rows` declared rows) beyond [`DECODE_BUDGET`] and [`BOMB_RATIO`] times the
-/// file's `size` \[bytes\].
-///
-/// # Errors
-/// [`Error::Format`] naming the file, the rows and the sizes.
-fn check_budget(path: &Path, size: u64, rows: u64, decoded: u64) -> Result<()> {
-    if decoded <= DECODE_BUDGET || decoded <= BOMB_RATIO.saturating_mul(size) {
-        return Ok(());
-    }
-    Err(format_err(
-        path,
-        format!(
-            "declares {rows} rows ({} MB decoded) in a file of {} kB, more than {BOMB_RATIO} times its size: not \
-             read (a decompression bomb?). A real log of that length is larger: write it without such compression",
-            decoded >> 20,
-            size >> 10
-        ),
-    ))
 }
 
 fn read_ipc(
