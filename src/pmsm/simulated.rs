@@ -24,7 +24,7 @@ impl PmsmFit {
     /// # Errors
     /// [`Error::InvalidOption`] (option `experiments`) when their number differs from the
     /// fit's, the report is not a PMSM prediction-error fit, or a model parameter is
-    /// missing from it; those of [`compare_from`] (a log without the channels the model reads, a diverging simulation).
+    /// missing from it; those of [`compare_predicted`] (a log without the channels the model reads, a diverging simulation).
     pub fn comparisons(&self, experiments: &[Experiment]) -> Result<Vec<Comparison>> {
         let (kind, setup, logs, n_params) = self.plan(experiments)?;
         let horizon = self.report.fit.horizon;
