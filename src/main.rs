@@ -80,6 +80,10 @@ fn main() -> ExitCode {
             cli::output::stdout(&String::from_utf8_lossy(&script)).map(|()| 0)
         }
     };
+    // A signal arrived: its handler is ending the process with 130 and its message.
+    while greybox::data::staged::interrupted() {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
     // Errors name the flags of the subcommand that ran, as the user typed them.
     let r = r.map_err(|e| {
         let command = Cli::command();

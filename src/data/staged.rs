@@ -38,13 +38,29 @@ fn live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
 /// ends, so no other thread creates a temporary after the removal (each is created and
 /// registered under the registry's lock).
 pub fn exit_removing_temporaries(code: i32) -> ! {
+    INTERRUPTED.store(true, Ordering::SeqCst);
     let mut live = live();
     let n = live.len();
     for tmp in live.drain(..) {
         let _ = std::fs::remove_file(tmp);
     }
-    eprintln!("error: interrupted; {n} unfinished output file(s) removed, the old outputs kept");
+    if n > 0 {
+        eprintln!(
+            "error: interrupted; {n} unfinished output file(s) removed, the files there before unchanged"
+        );
+    } else {
+        eprintln!("error: interrupted; no output file was unfinished");
+    }
     std::process::exit(code)
+}
+
+/// Set when [`exit_removing_temporaries`] has begun: the process is ending with its code.
+static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Whether a signal handler has begun [`exit_removing_temporaries`]: the main thread then
+/// waits for it to end the process rather than racing it with another exit code.
+pub fn interrupted() -> bool {
+    INTERRUPTED.load(Ordering::SeqCst)
 }
 
 /// Ending of a commit's manifest: the `(temporary, target)` pairs of a set being renamed.

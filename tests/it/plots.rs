@@ -97,7 +97,7 @@ mod svg {
             "lag τ [samples]",
             "r(τ) [-]",
             "iteration",
-            "θ / θ̂ [-]",
+            "θ / θ̂ − 1 [-]",
             "95 % interval relative to the estimate [%]",
             // legend entries
             "id measured",

@@ -15,8 +15,8 @@ use plotters::prelude::*;
 
 /// The fit plot as SVG text: for each output measured against simulated over time and the
 /// residual with its ±2σ band (σ the RMS residual), the `context` signal above them (e.g.
-/// the speed), the parameter trace over the solver's iterations (relative to the
-/// estimate), the residual autocorrelation with its 95 % whiteness bound (from
+/// the speed), the parameter trace over the solver's iterations (`θ/θ̂ − 1`, the relative
+/// deviation from the estimate), the residual autocorrelation with its 95 % whiteness bound (from
 /// `fit.fit.whiteness`, else from the comparisons), and the free parameters' estimates with
 /// their 95 % intervals. `comparisons` are the fit's logs simulated at the estimate (e.g.
 /// e.g. a motor fit's `comparisons`), drawn one after another.
@@ -185,10 +185,12 @@ fn trace(area: &Area<'_>, fit: &FitResult, free: &[&crate::estimate::ParameterEs
     // The trace holds the free entries of `parameters` in order; an entry appended after
     // the fit (an estimated input delay) has no column.
     let cols = rows[0].len().min(free.len());
-    let rel = |j: usize, v: f64| if free[j].value != 0.0 { v / free[j].value } else { f64::NAN };
-    let y = range(rows.iter().flat_map(|r| (0..cols).map(move |j| rel(j, r[j]))).chain([1.0]));
+    // Relative deviation from the estimate: short tick labels however close the trace ends
+    // (an exact fit's 1 ± 1e-10 would need eleven digits a tick).
+    let rel = |j: usize, v: f64| if free[j].value != 0.0 { v / free[j].value - 1.0 } else { f64::NAN };
+    let y = range(rows.iter().flat_map(|r| (0..cols).map(move |j| rel(j, r[j]))).chain([0.0]));
     let x = 0.0..(rows.len() - 1).max(1) as f64;
-    let mut ch = chart(area, caption, &[], x, y, "iteration", "θ / θ̂ [-] (1: the estimate)")?;
+    let mut ch = chart(area, caption, &[], x, y, "iteration", "θ / θ̂ − 1 [-] (0: the estimate)")?;
     for j in 0..cols {
         let style = color(j).stroke_width(2);
         let name = match &free[j].experiment {

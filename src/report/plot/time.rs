@@ -94,14 +94,11 @@ pub(super) fn draw(areas: &[Area<'_>], comparisons: &[Comparison], context: Opti
         separators(&mut ch, &line)?;
         // The residual of the output at the samples the fit counted, with ±2σ (σ: their RMS
         // residual over all logs, the report's figure); samples weighted out are not drawn.
-        let (res_t, residual): (Vec<Vec<f64>>, Vec<Vec<f64>>) = comparisons
+        let residual: Vec<Vec<f64>> = comparisons
             .iter()
-            .zip(&times)
             .zip(measured.iter().zip(&simulated))
-            .map(|((c, t), (m, s))| {
-                (0..m.len()).filter(|&k| c.counts(k)).map(|k| (t[k], m[k] - s[k])).unzip()
-            })
-            .unzip();
+            .map(|(c, (m, s))| (0..m.len()).filter(|&k| c.counts(k)).map(|k| m[k] - s[k]).collect())
+            .collect();
         let n: usize = residual.iter().map(Vec::len).sum();
         let sigma = (residual.iter().flatten().map(|e| e * e).sum::<f64>() / n.max(1) as f64).sqrt();
         let y = range(residual.iter().flatten().copied().chain([-2.5 * sigma, 2.5 * sigma]));
@@ -123,8 +120,18 @@ pub(super) fn draw(areas: &[Area<'_>], comparisons: &[Comparison], context: Opti
             [(line.begin, -2.0 * sigma), (line.end, 2.0 * sigma)],
             band,
         )))?;
-        for (i, (t, v)) in res_t.iter().zip(&residual).enumerate() {
-            ch.draw_series(LineSeries::new(decimated(&ch, &line, t, v, comparisons, i), style))?;
+        // Each run of counted samples its own line: a line across a weighted-out period
+        // would look like data.
+        let width = ch.plotting_area().dim_in_pixel().0 as f64;
+        let span = (line.end - line.begin).max(f64::MIN_POSITIVE);
+        for (i, c) in comparisons.iter().enumerate() {
+            let (m, p) = (&measured[i], &simulated[i]);
+            for run in counted_runs(c) {
+                let t = &times[i][run.clone()];
+                let e: Vec<f64> = run.clone().map(|k| m[k] - p[k]).collect();
+                let columns = (width * run.len() as f64 * c.h / span).ceil().max(1.0) as usize;
+                ch.draw_series(LineSeries::new(decimate_min_max(t, &e, columns), style))?;
+            }
         }
         for y in [-2.0 * sigma, 2.0 * sigma] {
             dashed(&mut ch, &x, y, color(0).stroke_width(1), None)?;
@@ -132,6 +139,24 @@ pub(super) fn draw(areas: &[Area<'_>], comparisons: &[Comparison], context: Opti
         separators(&mut ch, &line)?;
     }
     Ok(())
+}
+
+/// The runs of consecutive samples of `c` that its fit counted (all of them, one run, when
+/// every sample counts).
+fn counted_runs(c: &Comparison) -> Vec<std::ops::Range<usize>> {
+    let mut runs = Vec::new();
+    let mut start = None;
+    for k in 0..=c.len() {
+        match (k < c.len() && c.counts(k), start) {
+            (true, None) => start = Some(k),
+            (false, Some(s)) => {
+                runs.push(s..k);
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    runs
 }
 
 /// `name [unit]`, or the name alone without a unit.
