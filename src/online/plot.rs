@@ -117,16 +117,49 @@ fn span(runs: &[TrackRun<'_>]) -> (f64, f64) {
     (start, end.max(start + f64::MIN_POSITIVE.max(start.abs() * 1e-12)))
 }
 
+/// Share of the estimates at each end that may fall outside the value axis: an observer's
+/// start-up transient (a spike of 30 times the value when the torque steps from standstill)
+/// would otherwise squash the converged estimates and the truth into a few pixels.
+const CLIP_SHARE: f64 = 0.01;
+
+/// The value axis of one panel: the truth's values and the estimates between their
+/// [`CLIP_SHARE`] and `1 − CLIP_SHARE` quantiles (over all runs), padded; and whether some
+/// estimates lie outside it (the caption then says so).
+fn robust_range(
+    runs: &[TrackRun<'_>],
+    estimates: fn(&Trajectory) -> &Vec<f64>,
+    truth: fn(&TrackTruth) -> &Vec<f64>,
+) -> (std::ops::Range<f64>, bool) {
+    let mut all: Vec<f64> =
+        runs.iter().flat_map(|r| estimates(r.trajectory).iter().copied()).filter(|v| v.is_finite()).collect();
+    all.sort_by(f64::total_cmp);
+    let at = |q: f64| all.get(((all.len().saturating_sub(1)) as f64 * q).round() as usize).copied();
+    let (lo, hi) = (at(CLIP_SHARE), at(1.0 - CLIP_SHARE));
+    let truths = runs.iter().filter_map(|r| r.truth).flat_map(|t| truth(t).iter().copied());
+    let y = range(lo.into_iter().chain(hi).chain(truths));
+    let clipped = all.first().is_some_and(|v| *v < y.start) || all.last().is_some_and(|v| *v > y.end);
+    (y, clipped)
+}
+
+/// The caption's note when estimates lie outside the value axis.
+fn clip_note(clipped: bool) -> &'static str {
+    if clipped { "; axis clipped to the central 98 % of the estimates" } else { "" }
+}
+
 /// K̂_e over time with K̂_t on the secondary axis.
 fn k_e(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
     let (t_start, t_end) = span(runs);
-    let y = range(runs.iter().flat_map(|r| {
-        r.trajectory.k_e.iter().copied().chain(r.truth.into_iter().flat_map(|t| t.k_e.iter().copied()))
-    }));
+    let (y, clipped) = robust_range(runs, |r| &r.k_e, |t| &t.k_e);
     let (t_fmt, y_fmt) = (move |v: &f64| tick(*v, t_end - t_start), |v: &f64| tick(*v, y.end - y.start));
     let kt_fmt = |v: &f64| tick(*v, (y.end - y.start) * KT_PER_KE);
     let mut ch = ChartBuilder::on(area)
-        .caption("Back-EMF constant K_e (torque constant K_t = √(3/2) K_e on the right)", (FONT, 17))
+        .caption(
+            format!(
+                "Back-EMF constant K_e (torque constant K_t = √(3/2) K_e on the right){}",
+                clip_note(clipped)
+            ),
+            (FONT, 17),
+        )
         .margin_top(4)
         .margin_left(8)
         .margin_right(8)
@@ -178,15 +211,13 @@ fn k_e(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
 /// R̂_s over time.
 fn r_s(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
     let (t_start, t_end) = span(runs);
-    let y = range(runs.iter().flat_map(|r| {
-        r.trajectory.r_s.iter().copied().chain(r.truth.into_iter().flat_map(|t| t.r_s.iter().copied()))
-    }));
+    let (y, clipped) = robust_range(runs, |r| &r.r_s, |t| &t.r_s);
     // The K_e panel's right margin (8) and K_t axis, less the common chart's margin (24).
     let (w, _) = area.dim_in_pixel();
     let (area, _) = area.split_horizontally(w - (RIGHT_AXIS + 8 - 24));
     let mut ch = crate::report::plot::draw::chart(
         &area,
-        "Stator resistance R_s",
+        &format!("Stator resistance R_s{}", clip_note(clipped)),
         &[],
         t_start..t_end,
         y,
