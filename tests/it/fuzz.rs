@@ -142,6 +142,7 @@ fn command_line_survives_generated_options() {
     let strategy = (0..pole_pairs.len(), proptest::collection::vec(0..flags.len(), 0..4), 0..logs.len());
     let total = std::cell::Cell::new(0usize);
     let codes = std::cell::RefCell::new([0usize; 5]);
+    let slowest = std::cell::Cell::new(0.0f64);
     runner
         .run(&strategy, |(p, picked, l)| {
             let log = logs[l].to_str().unwrap();
@@ -188,13 +189,15 @@ fn command_line_survives_generated_options() {
                 }
             }
             prop_assert!(t0.elapsed() < Duration::from_secs(60), "{args:?}");
+            slowest.set(slowest.get().max(t0.elapsed().as_secs_f64()));
             Ok(())
         })
         .unwrap();
     eprintln!(
-        "fuzz: {} generated command lines, no panic; exit codes 0-3: {:?}",
+        "fuzz: {} generated command lines, no panic; exit codes 0-3: {:?}; slowest {:.2} s",
         total.get(),
-        &codes.borrow()[..4]
+        &codes.borrow()[..4],
+        slowest.get()
     );
     let _ = std::fs::remove_dir_all(logs[0].parent().unwrap());
 }

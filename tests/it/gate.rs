@@ -109,6 +109,12 @@ fn a_loose_step_tolerance_does_not_pass_the_gate() {
     let w = loose.warnings.iter().find(|w| w.code == "not_stationary" && w.untrusted);
     assert!(w.is_some_and(|w| w.message.contains("standard errors")), "{:?}", loose.warnings);
     assert!(!loose.trusted());
+    // One iteration (the trust issue's `--max-iters 1`, once "converged: step tolerance"):
+    // untrusted, whatever its termination says.
+    let mut one = PmsmFitOptions { start: options.start.clone(), ..pmsm_options(4) };
+    one.pem.tolerances.max_iters = 1;
+    let one = fit_pmsm(std::slice::from_ref(&e), &one).unwrap();
+    assert!(!one.trusted(), "{}: {:?}", one.solver.termination, one.warnings);
     let tight =
         fit_pmsm(std::slice::from_ref(&e), &PmsmFitOptions { start: options.start, ..pmsm_options(4) })
             .unwrap();
