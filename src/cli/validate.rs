@@ -91,7 +91,16 @@ pub fn run_validate(a: &ValidateArgs) -> greybox::Result<()> {
                     "{}: fit [%] {}; rms residual {}; FPE {:.4e}, AIC {:.1}; lags outside the whiteness bound: {}",
                     c.experiment,
                     per(&m.fit_percent, 4),
-                    per(&m.rms_residual, 6),
+                    m.outputs
+                        .iter()
+                        .zip(&m.rms_residual)
+                        .enumerate()
+                        .map(|(i, (n, x))| format!(
+                            "{n} {}",
+                            greybox::report::eng::format_eng(*x, c.unit(i), 5)
+                        ))
+                        .collect::<Vec<_>>()
+                        .join(", "),
                     m.fpe,
                     m.aic,
                     white.join(", ")
