@@ -37,9 +37,9 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     // (a dead-time mask) is not fitted and would report the structure it was dropped for.
     let counted =
         (sums.n_live.iter().any(|&c| c < n)).then(|| sums.n_live.iter().copied().max().unwrap_or(0));
-    let (sse, n_fig): (Vec<f64>, Vec<usize>) = match counted {
-        Some(_) => (sums.sse_live.clone(), sums.n_live.clone()),
-        None => (sums.sse.clone(), vec![n; ny]),
+    let (sse, n_fig): (&[f64], Vec<usize>) = match counted {
+        Some(_) => (&sums.sse_live, sums.n_live.clone()),
+        None => (&sums.sse, vec![n; ny]),
     };
     let n_res_fig: usize = n_fig.iter().sum();
     let sse_total: f64 = sse.iter().sum();

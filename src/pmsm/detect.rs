@@ -311,11 +311,8 @@ pub const MAX_H_OVER_TAU: f64 = 5.0;
 /// says what `--time-unit ms` would give.
 fn sample_time_check(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> Option<Warning> {
     let r = fit.parameter("r_s")?.value;
-    let l = ["l_s", "l_d", "l_q"]
-        .iter()
-        .filter_map(|n| fit.parameter(n).map(|p| p.value))
-        .fold(f64::INFINITY, f64::min);
-    sample_time_problem(experiments, n_p, r, l).map(|why| Warning::untrusted("sample_time", why))
+    sample_time_problem(experiments, n_p, r, super::kind::smallest_inductance(fit))
+        .map(|why| Warning::untrusted("sample_time", why))
 }
 
 /// Why the logs' sample time is one the model cannot resolve with resistance `r` \[Ω\] and

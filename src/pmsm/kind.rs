@@ -61,6 +61,16 @@ const PAIRS: [(&str, &str, &str); 4] = [
     ("l_q", "r_s", "add current steps of both signs and several levels"),
 ];
 
+/// The smallest inductance estimate of a PMSM fit \[H\]: `l_s`, or the smaller of `l_d`
+/// and `l_q`; ∞ when the fit has none (the electrical time constant `L/R` and the
+/// dead-time mask's threshold take the fastest axis).
+pub(crate) fn smallest_inductance(fit: &crate::estimate::FitResult) -> f64 {
+    ["l_s", "l_d", "l_q"]
+        .iter()
+        .filter_map(|n| fit.parameter(n).map(|p| p.value))
+        .fold(f64::INFINITY, f64::min)
+}
+
 /// What to check when a PMSM fit is poor.
 pub const POOR_FIT_ADVICE: &str = "check the pole pairs, the units and frames of the columns, the voltage hold, and \
                                    that all logs come from one motor; with the reference voltage, the speed estimate \

@@ -150,10 +150,7 @@ pub const FALLBACK_RELATIVE_THRESHOLD: f64 = 0.05;
 /// inductance estimate), or `None` when that is not positive and finite.
 fn auto_threshold(experiments: &[Experiment], fit: &PmsmFit) -> Option<f64> {
     let h = experiments.iter().map(Experiment::h).fold(0.0, f64::max);
-    let l = ["l_s", "l_d", "l_q"]
-        .iter()
-        .filter_map(|n| fit.parameter(n).map(|p| p.value))
-        .fold(f64::INFINITY, f64::min);
+    let l = super::kind::smallest_inductance(fit);
     let v_dt = fit.parameter("v_dt").map_or(f64::NAN, |p| p.value);
     Some(4.0 * h * v_dt / l).filter(|t| t.is_finite() && *t > 0.0)
 }

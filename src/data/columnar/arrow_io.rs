@@ -31,6 +31,14 @@ const ROW_GROUP: usize = 1 << 16;
 /// Rows per decoded batch: 64 KiB a column, reused from the heap rather than mapped anew.
 const BATCH: usize = 1 << 13;
 
+/// The file at `path`, opened for reading.
+///
+/// # Errors
+/// [`Error::Io`] naming the path.
+fn open(path: &Path) -> Result<File> {
+    File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })
+}
+
 fn format_err(path: &Path, e: impl std::fmt::Display) -> Error {
     Error::Format { path: path.to_path_buf(), message: e.to_string() }
 }
@@ -42,7 +50,7 @@ pub(super) fn read(
     limits: &ReadLimits,
     time: TimeCheck,
 ) -> Result<Table> {
-    let file = File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+    let file = open(path)?;
     let streaming = time == TimeCheck::Streaming;
     let (header, index, columns, rows) = match format {
         Format::Parquet => read_parquet(path, file, wanted, limits, streaming)?,
@@ -120,15 +128,12 @@ fn read_parquet(
     // (every wanted column) give the first error in row order, as the CSV reader would.
     if let (true, Some(Some(t))) = (streaming, index.first()) {
         let reader = |columns: &[usize], limit: usize| {
-            ParquetRecordBatchReaderBuilder::new_with_metadata(
-                File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?,
-                meta.clone(),
-            )
-            .with_projection(ProjectionMask::roots(meta.parquet_schema(), columns.iter().copied()))
-            .with_batch_size(BATCH)
-            .with_limit(limit)
-            .build()
-            .map_err(|e| format_err(path, e))
+            ParquetRecordBatchReaderBuilder::new_with_metadata(open(path)?, meta.clone())
+                .with_projection(ProjectionMask::roots(meta.parquet_schema(), columns.iter().copied()))
+                .with_batch_size(BATCH)
+                .with_limit(limit)
+                .build()
+                .map_err(|e| format_err(path, e))
         };
         let mut steps = crate::data::TimeSteps::new(header[*t].clone());
         let (mut at, mut failed) = (0, None);
@@ -170,7 +175,7 @@ fn read_parquet(
     // One reader per row group, each on its own file handle (a cloned handle would share
     // the file offset between threads).
     slices.into_par_iter().enumerate().try_for_each(|(g, mut out)| {
-        let file = File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+        let file = open(path)?;
         let mask = ProjectionMask::roots(meta.parquet_schema(), picked.iter().copied());
         let reader = ParquetRecordBatchReaderBuilder::new_with_metadata(file, meta.clone())
             .with_projection(mask)
@@ -215,11 +220,10 @@ fn read_ipc(
 ) -> Result<Read> {
     use arrow_ipc::reader::{FileReader, StreamReader};
     // An IPC file (Feather v2) has a footer to seek; a stream (`.arrows`) has none.
-    let open = || File::open(path).map_err(|source| Error::Io { path: path.to_path_buf(), source });
     let reader = |file: File, projection: Option<Vec<usize>>| -> Result<Box<dyn RecordBatchReader>> {
         Ok(match FileReader::try_new_buffered(file, projection.clone()) {
             Ok(r) => Box::new(r),
-            Err(file_err) => match StreamReader::try_new_buffered(open()?, projection) {
+            Err(file_err) => match StreamReader::try_new_buffered(open(path)?, projection) {
                 Ok(r) => Box::new(r),
                 Err(_) => return Err(format_err(path, file_err)),
             },
@@ -228,8 +232,7 @@ fn read_ipc(
     let size = file.metadata().map(|m| m.len()).unwrap_or(0);
     let (header, index) = header(path, &reader(file, None)?.schema(), wanted, limits)?;
     // What the batches declare, before any is decoded.
-    let declared = super::ipc_scan::declared_batches(path)?;
-    let total: u64 = declared.iter().sum();
+    let total = super::ipc_scan::declared_rows(path)?;
     if total > limits.max_rows {
         return Ok((header, index.iter().map(|_| None).collect(), vec![Vec::new(); wanted.len()], total));
     }
@@ -237,7 +240,7 @@ fn read_ipc(
     check_budget(path, size, total, total.saturating_mul(8 * picked.len() as u64))?;
     let mut sorted = picked.clone();
     sorted.sort_unstable();
-    let projected = reader(open()?, Some(sorted))?;
+    let projected = reader(open(path)?, Some(sorted))?;
     let values = collect(path, projected, &header, &index, streaming)?;
     let rows = values.iter().map(Vec::len).max().unwrap_or(0) as u64;
     // Grown batch by batch: the slack goes before the columns outlive the read.

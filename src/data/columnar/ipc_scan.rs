@@ -32,12 +32,12 @@ fn batch_rows(path: &Path, meta: &[u8]) -> Result<(Option<u64>, u64)> {
     Ok((rows, u64::try_from(message.bodyLength()).unwrap_or(u64::MAX)))
 }
 
-/// The declared rows of every record batch of the IPC file or stream at `path`, in order.
+/// The rows the record batches of the IPC file or stream at `path` declare, summed.
 ///
 /// # Errors
 /// [`Error::Io`] when the file cannot be read; [`Error::Format`] when its headers are not
 /// Arrow IPC.
-pub(super) fn declared_batches(path: &Path) -> Result<Vec<u64>> {
+pub(super) fn declared_rows(path: &Path) -> Result<u64> {
     let io = |source| Error::Io { path: path.to_path_buf(), source };
     let mut f = File::open(path).map_err(io)?;
     let len = f.metadata().map_err(io)?.len();
@@ -53,7 +53,7 @@ pub(super) fn declared_batches(path: &Path) -> Result<Vec<u64>> {
         f.seek(SeekFrom::Start(at)).map_err(io)?;
         f.read_exact(&mut footer).map_err(io)?;
         let footer = arrow_ipc::root_as_footer(&footer).map_err(|e| bad(path, e))?;
-        let mut out = Vec::new();
+        let mut out = 0u64;
         for block in footer.recordBatches().into_iter().flatten() {
             let meta_len = u64::try_from(block.metaDataLength()).map_err(|_| bad(path, "negative length"))?;
             let offset = u64::try_from(block.offset()).map_err(|_| bad(path, "negative offset"))?;
@@ -63,13 +63,13 @@ pub(super) fn declared_batches(path: &Path) -> Result<Vec<u64>> {
             let mut meta = vec![0u8; meta_len as usize];
             f.seek(SeekFrom::Start(offset)).map_err(io)?;
             f.read_exact(&mut meta).map_err(io)?;
-            out.extend(batch_rows(path, &meta)?.0);
+            out = out.saturating_add(batch_rows(path, &meta)?.0.unwrap_or(0));
         }
         return Ok(out);
     }
     // A stream: message after message.
     f.seek(SeekFrom::Start(0)).map_err(io)?;
-    let mut out = Vec::new();
+    let mut out = 0u64;
     let mut at = 0u64;
     for _ in 0..MAX_MESSAGES {
         let mut word = [0u8; 4];
@@ -92,7 +92,7 @@ pub(super) fn declared_batches(path: &Path) -> Result<Vec<u64>> {
         meta.resize(prefix.len() + meta_len as usize, 0);
         f.read_exact(&mut meta[prefix.len()..]).map_err(io)?;
         let (rows, body) = batch_rows(path, &meta)?;
-        out.extend(rows);
+        out = out.saturating_add(rows.unwrap_or(0));
         at = at.saturating_add(prefix.len() as u64 + meta_len).saturating_add(body);
         if at > len {
             return Err(bad(path, "a message body lies beyond the end of the file"));
