@@ -9,7 +9,7 @@
 
 use greybox::estimate::{PemOptions, fit};
 use greybox::model::{GreyBoxModel, Parameter, Signal};
-use greybox::pmsm::interval::C64;
+use greybox::pmsm::C64;
 use greybox::pmsm::{
     DqView, PmsmSpm, VoltageHold, channel, interval_mean_speed, read_log, rotation, stator_hold_start,
 };

@@ -2,7 +2,8 @@
 
 use clap::{Args, ValueEnum};
 use greybox::estimate::weighting::SpeedShape;
-use greybox::estimate::{Tolerances, WeightingKind};
+use greybox::estimate::{ScalingKind, SolverKind, Tolerances, WeightingKind};
+use greybox::pmsm::{HoldChoice, MotorKind};
 use std::path::PathBuf;
 
 pub use super::columns::ColumnArgs;
@@ -11,7 +12,7 @@ pub use super::columns::ColumnArgs;
 pub struct FitArgs {
     /// Exit with 0 even when the fit did not converge or a warning makes it untrusted (the
     /// default exit code is then 3; the report is written either way).
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub allow_unconverged: bool,
     /// Drive logs (CSV, plain or gzip; Parquet, Arrow IPC). Several logs are fitted jointly
     /// with shared parameters.
@@ -22,154 +23,154 @@ pub struct FitArgs {
     /// .feather, .ipc files) or every file a glob matches (`'runs/*.csv.gz'`, quoted), each
     /// on its own, in parallel, in file-name order; a log that cannot be read or fitted is
     /// reported and skipped. Exit code 4 when any log failed.
-    #[arg(long, value_name = "DIR_OR_GLOB", conflicts_with_all = ["logs", "per_log", "json", "plot", "residuals", "format"])]
+    #[arg(help_heading = "Batch (--each)", long, value_name = "DIR_OR_GLOB", conflicts_with_all = ["logs", "per_log", "json", "plot", "residuals", "format"])]
     pub each: Option<String>,
     /// With --each: write the summary (one row per log: status, parameters with standard
     /// errors, derived quantities, fit %, hold, warnings) to PATH.csv and PATH.json (an
     /// extension .csv or .json given is dropped first).
-    #[arg(long, value_name = "PATH")]
+    #[arg(help_heading = "Batch (--each)", long, value_name = "PATH")]
     pub summary: Option<PathBuf>,
     /// With --each: write the trend plot (SVG) of every parameter over the logs, in file
     /// order, with 95 % intervals.
-    #[arg(long, value_name = "PATH.svg")]
+    #[arg(help_heading = "Batch (--each)", long, value_name = "PATH.svg")]
     pub trend: Option<PathBuf>,
     /// Number of pole pairs n_p of the motor, or `auto` (the lowest least-squares loss of
     /// the voltage equations over 1-32 pole pairs; the report gives the runner-up's ratio).
-    #[arg(long, short = 'p', value_parser = parse_pole_pairs)]
+    #[arg(help_heading = "Motor and model", long, short = 'p', value_parser = parse_pole_pairs)]
     pub pole_pairs: PolePairs,
     /// Machine model: surface (spm: r_s, l_s, k_e) or interior magnets (ipm: r_s, l_d, l_q, k_e).
-    #[arg(long, value_enum, default_value_t = ModelArg::Spm)]
-    pub model: ModelArg,
+    #[arg(help_heading = "Motor and model", long, value_parser = super::values::listed::<MotorKind>(), default_value = "spm")]
+    pub model: MotorKind,
     /// Voltage hold between samples: auto picks the one with the lower loss.
-    #[arg(long, value_enum, default_value_t = HoldArg::Auto)]
-    pub hold: HoldArg,
+    #[arg(help_heading = "Motor and model", long, value_parser = super::values::listed::<HoldChoice>(), default_value = "auto")]
+    pub hold: HoldChoice,
     /// Voltage that drives the model: the measured terminal voltage (actual: columns ud, uq)
     /// or the controller's reference (reference: ud_ref, uq_ref, applied --delay samples later
     /// with an angle advance of --advance ω_e h, stator hold).
-    #[arg(long, value_enum, default_value_t = VoltageArg::Actual)]
+    #[arg(help_heading = "Voltage input", long, value_enum, default_value_t = VoltageArg::Actual)]
     pub voltage: VoltageArg,
     /// Computational delay of the reference [samples], or `estimate` (integer search 0–3 by
     /// the lowest loss).
-    #[arg(long, default_value = "1", value_parser = parse_delay)]
+    #[arg(help_heading = "Voltage input", long, default_value = "1", value_parser = parse_delay)]
     pub delay: Delay,
     /// Modulator angle advance of the reference, in units of ω_e h, or `estimate`
     /// (golden-section search in [-1, 4] by the lowest loss, after the delay).
-    #[arg(long, default_value = "1.5", value_parser = parse_advance)]
+    #[arg(help_heading = "Voltage input", long, default_value = "1.5", value_parser = parse_advance)]
     pub advance: Advance,
     /// The controller advances the reference with a speed estimated from theta_m by a
     /// phase-locked loop of this bandwidth [rad/s], or `estimate` (search by the lowest loss);
     /// default: the logged speed.
-    #[arg(long, value_parser = parse_pll)]
+    #[arg(help_heading = "Voltage input", long, value_parser = parse_pll)]
     pub speed_pll: Option<Pll>,
     /// The inverter's dead-time and device-drop voltage as a nuisance parameter v_dt (per
     /// phase −v_dt·sign(i_x); needs theta_m and --voltage reference): `none`, `estimate`, or
     /// a known value in volts.
-    #[arg(long, default_value = "none", value_parser = parse_dead_time)]
+    #[arg(help_heading = "Inverter and cable", long, default_value = "none", value_parser = parse_dead_time)]
     pub dead_time: DeadTime,
     /// Width of the smooth sign of the dead-time model [A] (default 2 % of the peak current),
     /// or `estimate` (search by the lowest loss).
-    #[arg(long, value_parser = parse_width)]
+    #[arg(help_heading = "Inverter and cable", long, value_parser = parse_width)]
     pub dead_time_width: Option<Pll>,
     /// Weight out the periods in which a phase current comes within this many amperes of
     /// zero (where the switching ripple decides the dead-time voltage's sign), or `auto`
     /// (4 h v_dt / L from the fit); implies --horizon 1 unless a horizon is given. Needs
     /// --dead-time.
-    #[arg(long, value_parser = parse_mask)]
+    #[arg(help_heading = "Inverter and cable", long, value_parser = parse_mask)]
     pub dead_time_mask: Option<greybox::pmsm::DeadTimeMask>,
     /// DC-link voltage [V]: with --voltage reference, samples driven by a reference at the
     /// modulator's limit U_dc/√3 are weighted out.
-    #[arg(long)]
+    #[arg(help_heading = "Inverter and cable", long)]
     pub u_dc: Option<f64>,
     /// Known resistance in series with the winding (cable, connectors) [Ω]: subtracted, so
     /// r_s is the motor's alone.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(help_heading = "Inverter and cable", long, default_value_t = 0.0)]
     pub cable_resistance: f64,
     /// Reference temperature T_0 [°C] of --r-s0 and --psi-f0: the report then derives the
     /// winding temperature (copper) and the magnet temperature (NdFeB).
-    #[arg(long)]
+    #[arg(help_heading = "Temperatures", long)]
     pub t0: Option<f64>,
     /// Winding resistance at T_0 [Ω] (with --t0).
-    #[arg(long)]
+    #[arg(help_heading = "Temperatures", long)]
     pub r_s0: Option<f64>,
     /// Magnet flux ψ_f at T_0 [V s] (with --t0).
-    #[arg(long)]
+    #[arg(help_heading = "Temperatures", long)]
     pub psi_f0: Option<f64>,
     /// Write the JSON report to this file ("-" for stdout, which suppresses the table).
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: Option<PathBuf>,
     /// What to print on stdout: the aligned table, the JSON report, or the table as Markdown.
-    #[arg(long, value_enum, default_value_t = FormatArg::Table)]
+    #[arg(help_heading = "Output", long, value_enum, default_value_t = FormatArg::Table)]
     pub format: FormatArg,
     /// Start values in model order, comma separated, SI units (default: linear least squares).
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    #[arg(help_heading = "Start and parameters", long, value_delimiter = ',', allow_hyphen_values = true)]
     pub start: Option<Vec<f64>>,
     /// Parameters held fixed, comma separated: NAME at its start value (the least-squares
     /// estimate or --start), NAME=VALUE at a value in SI units (e.g. r_s=0.9,k_e).
-    #[arg(long, value_delimiter = ',', value_parser = parse_fix)]
+    #[arg(help_heading = "Start and parameters", long, value_delimiter = ',', value_parser = parse_fix)]
     pub fix: Vec<(String, Option<f64>)>,
     /// Parameters estimated separately per log, comma separated (e.g. r_s).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(help_heading = "Start and parameters", long, value_delimiter = ',')]
     pub per_log: Vec<String>,
     /// Optimiser: Levenberg-Marquardt (lm) or damped Gauss-Newton with line search (gn).
-    #[arg(long, value_enum, default_value_t = SolverArg::Lm)]
-    pub solver: SolverArg,
+    #[arg(help_heading = "Solver", long, value_parser = super::values::listed::<SolverKind>(), default_value = "lm")]
+    pub solver: SolverKind,
     /// Parameter scaling.
-    #[arg(long, value_enum, default_value_t = ScalingArg::Nominal)]
-    pub scaling: ScalingArg,
+    #[arg(help_heading = "Solver", long, value_parser = super::values::listed::<ScalingKind>(), default_value = "nominal")]
+    pub scaling: ScalingKind,
     /// k-step-ahead prediction horizon in samples (default: output error, i.e. pure simulation).
-    #[arg(long)]
+    #[arg(help_heading = "Estimator", long)]
     pub horizon: Option<usize>,
     /// Sample weighting β(ω): uniform, low-speed:W0, high-speed:W0 or band:LO:HI[:FLOOR]
     /// (speeds mechanical, rad/s; thesis eq. 5.11).
-    #[arg(long, default_value = "uniform", value_parser = parse_weighting)]
+    #[arg(help_heading = "Estimator", long, default_value = "uniform", value_parser = parse_weighting)]
     pub weighting: WeightingKind,
     /// Robust fit with Huber's loss, δ = C·σ̂ (C = 1.345 without a value). The value must be
     /// attached with `=` (--huber=2.0): a separate word is read as a log.
-    #[arg(long, value_name = "C", num_args = 0..=1, require_equals = true, default_missing_value = "1.345")]
+    #[arg(help_heading = "Estimator", long, value_name = "C", num_args = 0..=1, require_equals = true, default_missing_value = "1.345")]
     pub huber: Option<f64>,
     /// Output weights Λ for i_d, i_q, comma separated (default 1,1).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(help_heading = "Estimator", long, value_delimiter = ',')]
     pub output_weights: Option<Vec<f64>>,
     /// Bounds of a parameter, NAME:LO:HI in SI units (repeatable), e.g. r_s:0.1:5.
-    #[arg(long, value_parser = parse_bounds)]
+    #[arg(help_heading = "Start and parameters", long, value_parser = parse_bounds)]
     pub bounds: Vec<(String, f64, f64)>,
     /// Take the first measured currents as the exact initial state instead of estimating it.
-    #[arg(long)]
+    #[arg(help_heading = "Start and parameters", long)]
     pub fixed_x0: bool,
     /// Low-pass prefilter cutoff [Hz], 4th-order Butterworth: on the residuals for pem
     /// (causal L(q)), on every signal for ls (zero-phase, forward-backward).
-    #[arg(long)]
+    #[arg(help_heading = "Estimator", long)]
     pub prefilter: Option<f64>,
     /// Estimation method: prediction error (pem), the linear least-squares regression of
     /// the voltage equations (ls; weighted by --weighting, filtered by --prefilter), or
     /// instrumental variables on the exact inverse model (iv: for noise on the logged
     /// voltage or current, errors in variables; terminal voltage).
-    #[arg(long, value_enum, default_value_t = MethodArg::Pem)]
+    #[arg(help_heading = "Estimator", long, value_enum, default_value_t = MethodArg::Pem)]
     pub method: MethodArg,
     /// Maximum number of solver iterations.
-    #[arg(long, default_value_t = Tolerances::default().max_iters)]
+    #[arg(help_heading = "Solver", long, default_value_t = Tolerances::default().max_iters)]
     pub max_iters: u64,
     /// Relative cost-reduction tolerance.
-    #[arg(long, default_value_t = Tolerances::default().ftol)]
+    #[arg(help_heading = "Solver", long, default_value = "1e-12")]
     pub ftol: f64,
     /// Step tolerance (scaled parameters).
-    #[arg(long, default_value_t = Tolerances::default().xtol)]
+    #[arg(help_heading = "Solver", long, default_value = "1e-10")]
     pub xtol: f64,
     /// Gradient tolerance (cosine between residual and Jacobian columns).
-    #[arg(long, default_value_t = Tolerances::default().gtol)]
+    #[arg(help_heading = "Solver", long, default_value = "1e-10")]
     pub gtol: f64,
     /// Do not print the table.
-    #[arg(long, short = 'q')]
+    #[arg(help_heading = "Output", long, short = 'q')]
     pub quiet: bool,
     // Plots and exports (issue 17).
     /// Write the fit plot (SVG) to this file: measured and simulated currents with the
     /// speed, residuals with ±2σ, their autocorrelation, the parameter trace and the
     /// estimates with 95 % intervals.
-    #[arg(long, value_name = "PATH.svg")]
+    #[arg(help_heading = "Output", long, value_name = "PATH.svg")]
     pub plot: Option<PathBuf>,
     /// Write t, <output>_measured, <output>_simulated, <output>_residual of every log (a
     /// `log` column with several) as CSV to this file [s, A].
-    #[arg(long, value_name = "PATH.csv")]
+    #[arg(help_heading = "Output", long, value_name = "PATH.csv")]
     pub residuals: Option<PathBuf>,
     #[command(flatten)]
     pub columns: ColumnArgs,
@@ -184,33 +185,10 @@ pub enum FormatArg {
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum ModelArg {
-    Spm,
-    Ipm,
-}
-#[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum MethodArg {
     Pem,
     Ls,
     Iv,
-}
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum HoldArg {
-    Auto,
-    Dq,
-    Stator,
-}
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum SolverArg {
-    Lm,
-    Gn,
-}
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum ScalingArg {
-    Nominal,
-    Log,
-    ColumnNorm,
-    Identity,
 }
 
 /// Which voltage drives the model.
@@ -383,4 +361,25 @@ fn parse_weighting(s: &str) -> Result<WeightingKind, String> {
     let channel = greybox::pmsm::channel::W_M;
     greybox::estimate::weighting::SpeedWeighting::try_new(channel, shape).map_err(|e| e.to_string())?;
     Ok(WeightingKind::Speed { channel: channel.into(), shape })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Wrap {
+        #[command(flatten)]
+        fit: FitArgs,
+    }
+
+    /// The tolerances' defaults are written out for `--help` (`1e-12`, not
+    /// `0.000000000001`): they must stay the library's.
+    #[test]
+    fn tolerance_defaults_are_the_library_defaults() {
+        let a = Wrap::parse_from(["greybox", "log.csv", "-p", "4"]).fit;
+        let t = Tolerances::default();
+        assert_eq!((a.ftol, a.xtol, a.gtol, a.max_iters), (t.ftol, t.xtol, t.gtol, t.max_iters));
+    }
 }

@@ -2,7 +2,7 @@
 //! frames and scaling, read limits, the time window and the split at gaps; mapped to the
 //! library's [`CsvOptions`].
 
-use clap::{Args, ValueEnum};
+use clap::Args;
 use greybox::Experiment;
 use greybox::data::TimeWindow;
 use greybox::data::csv::Delimiter;
@@ -13,92 +13,102 @@ use std::path::{Path, PathBuf};
 #[derive(Args, Debug)]
 pub struct ColumnArgs {
     /// Time column [s].
-    #[arg(long, default_value = "t")]
+    #[arg(help_heading = "Log columns", long, default_value = "t")]
     pub col_t: String,
     /// d-axis voltage column.
-    #[arg(long, default_value = "ud")]
+    #[arg(help_heading = "Log columns", long, default_value = "ud")]
     pub col_ud: String,
     /// q-axis voltage column.
-    #[arg(long, default_value = "uq")]
+    #[arg(help_heading = "Log columns", long, default_value = "uq")]
     pub col_uq: String,
     /// d-axis current column.
-    #[arg(long, default_value = "id")]
+    #[arg(help_heading = "Log columns", long, default_value = "id")]
     pub col_id: String,
     /// q-axis current column.
-    #[arg(long, default_value = "iq")]
+    #[arg(help_heading = "Log columns", long, default_value = "iq")]
     pub col_iq: String,
     /// Speed column.
-    #[arg(long, default_value = "w_m")]
+    #[arg(help_heading = "Log columns", long, default_value = "w_m")]
     pub col_w: String,
     /// Rotor angle column (optional; needed with --dq-from-phases).
-    #[arg(long, default_value = "theta_m")]
+    #[arg(help_heading = "Log columns", long, default_value = "theta_m")]
     pub col_theta: String,
     /// d-axis voltage reference column (optional).
-    #[arg(long, default_value = "ud_ref")]
+    #[arg(help_heading = "Log columns", long, default_value = "ud_ref")]
     pub col_ud_ref: String,
     /// q-axis voltage reference column (optional).
-    #[arg(long, default_value = "uq_ref")]
+    #[arg(help_heading = "Log columns", long, default_value = "uq_ref")]
     pub col_uq_ref: String,
     /// Phase current columns, three names comma separated (with --dq-from-phases).
-    #[arg(long, value_name = "A,B,C", default_value = "ia,ib,ic", value_parser = parse_phases)]
+    #[arg(help_heading = "Log columns", long, value_name = "A,B,C", default_value = "ia,ib,ic", value_parser = parse_phases)]
     pub col_i_abc: Phases,
     /// Phase voltage columns, three names comma separated (with --dq-from-phases).
-    #[arg(long, value_name = "A,B,C", default_value = "ua,ub,uc", value_parser = parse_phases)]
+    #[arg(help_heading = "Log columns", long, value_name = "A,B,C", default_value = "ua,ub,uc", value_parser = parse_phases)]
     pub col_u_abc: Phases,
     /// Unit of the speed column.
-    #[arg(long, value_enum, default_value_t = SpeedUnitArg::RadS)]
-    pub speed_unit: SpeedUnitArg,
+    #[arg(help_heading = "Units and frames", long, value_parser = super::values::listed::<SpeedUnit>(), default_value = "rad/s")]
+    pub speed_unit: SpeedUnit,
     /// Unit of the angle column.
-    #[arg(long, value_enum, default_value_t = AngleUnitArg::Rad)]
-    pub angle_unit: AngleUnitArg,
+    #[arg(help_heading = "Units and frames", long, value_parser = super::values::listed::<AngleUnit>(), default_value = "rad")]
+    pub angle_unit: AngleUnit,
     /// Whether the speed and angle columns are mechanical or electrical.
-    #[arg(long, value_enum, default_value_t = FrameArg::Mechanical)]
-    pub speed_frame: FrameArg,
+    #[arg(help_heading = "Units and frames", long, value_parser = super::values::listed::<Frame>(), default_value = "mechanical")]
+    pub speed_frame: Frame,
     /// Negate the speed column on reading (a drive whose speed counts the other way than
     /// its dq frame turns; the angle column is read as it is).
-    #[arg(long)]
+    #[arg(help_heading = "Units and frames", long)]
     pub negate_speed: bool,
     /// Scaling of the current columns (peak: |i_dq| = phase peak; rms: |i_dq| = phase RMS).
-    #[arg(long, value_enum, default_value_t = ScaleArg::Peak)]
-    pub current_scale: ScaleArg,
+    #[arg(help_heading = "Units and frames", long, value_parser = super::values::listed::<Scale>(), default_value = "peak")]
+    pub current_scale: Scale,
     /// Scaling of the voltage columns.
-    #[arg(long, value_enum, default_value_t = ScaleArg::Peak)]
-    pub voltage_scale: ScaleArg,
+    #[arg(help_heading = "Units and frames", long, value_parser = super::values::listed::<Scale>(), default_value = "peak")]
+    pub voltage_scale: Scale,
     /// Compute dq currents and voltages from the phase columns and the rotor angle.
-    #[arg(long)]
+    #[arg(help_heading = "Units and frames", long)]
     pub dq_from_phases: bool,
     /// Unit of the time column (--col-t), converted to seconds before the window, the gap
     /// check and the sample-time plausibility limits.
-    #[arg(long, value_enum, default_value_t = TimeUnitArg::S)]
-    pub time_unit: TimeUnitArg,
+    #[arg(help_heading = "Units and frames", long, value_parser = super::values::listed::<TimeUnit>(), default_value = "s")]
+    pub time_unit: TimeUnit,
     /// Keep only the samples with t >= SECONDS (inclusive; time after --time-unit). Must be
     /// before --to; the window must hold at least 16 samples.
-    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    #[arg(
+        help_heading = "Time window and checks",
+        long,
+        value_name = "SECONDS",
+        allow_negative_numbers = true
+    )]
     pub from: Option<f64>,
     /// Keep only the samples with t <= SECONDS (inclusive; time after --time-unit).
-    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    #[arg(
+        help_heading = "Time window and checks",
+        long,
+        value_name = "SECONDS",
+        allow_negative_numbers = true
+    )]
     pub to: Option<f64>,
     /// Split each log at the gaps of its time column (a step back, or one longer than 1.5
     /// times the median step) into segments fitted jointly, each with its own initial state,
     /// named LOG#1, LOG#2, ...; segments under 16 samples are dropped with a warning.
-    #[arg(long)]
+    #[arg(help_heading = "Time window and checks", long)]
     pub split_gaps: bool,
     /// Skip the plausibility limits (sample time h in [100 ns, 100 ms]) and fit a log whose
     /// sample time the model cannot resolve (h beyond 5 L/R, or half an electrical turn per
     /// sample), otherwise refused before the fit.
-    #[arg(long)]
+    #[arg(help_heading = "Time window and checks", long)]
     pub force: bool,
     /// Longest line of a log in bytes; a longer one stops the read (default 1 MiB).
-    #[arg(long, default_value_t = greybox::data::csv::ReadLimits::default().max_line_bytes)]
+    #[arg(help_heading = "Reading limits", long, default_value_t = greybox::data::csv::ReadLimits::default().max_line_bytes)]
     pub max_line_bytes: u64,
     /// Most columns in a log's header (default 4096).
-    #[arg(long, default_value_t = greybox::data::csv::ReadLimits::default().max_fields)]
+    #[arg(help_heading = "Reading limits", long, default_value_t = greybox::data::csv::ReadLimits::default().max_fields)]
     pub max_fields: usize,
     /// Most data rows in a log (default 10^8).
-    #[arg(long, default_value_t = greybox::data::csv::ReadLimits::default().max_rows)]
+    #[arg(help_heading = "Reading limits", long, default_value_t = greybox::data::csv::ReadLimits::default().max_rows)]
     pub max_rows: u64,
     /// Field delimiter of CSV logs: `,` `;` `tab` (or `\t`) `|`; Parquet/Arrow ignore it.
-    #[arg(long, default_value = ",", value_parser = |s: &str| s.parse::<Delimiter>().map_err(|e| e.to_string()))]
+    #[arg(help_heading = "Reading limits", long, default_value = ",", value_parser = |s: &str| s.parse::<Delimiter>().map_err(|e| e.to_string()))]
     pub delimiter: Delimiter,
 }
 
@@ -116,44 +126,8 @@ fn parse_phases(s: &str) -> Result<Phases, String> {
     }
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum SpeedUnitArg {
-    #[value(name = "rad/s", alias = "rad-s")]
-    RadS,
-    Rpm,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum TimeUnitArg {
-    S,
-    Ms,
-    Us,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum AngleUnitArg {
-    Rad,
-    Deg,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum FrameArg {
-    Mechanical,
-    Electrical,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum ScaleArg {
-    Peak,
-    Rms,
-}
-
 impl ColumnArgs {
     pub fn options(&self) -> CsvOptions {
-        let scale = |s: ScaleArg| match s {
-            ScaleArg::Peak => Scale::Peak,
-            ScaleArg::Rms => Scale::Rms,
-        };
         CsvOptions {
             pole_pairs: None,
             columns: ColumnNames {
@@ -173,32 +147,19 @@ impl ColumnArgs {
                 u_b: self.col_u_abc.0[1].clone(),
                 u_c: self.col_u_abc.0[2].clone(),
             },
-            speed_unit: match self.speed_unit {
-                SpeedUnitArg::RadS => SpeedUnit::RadPerSec,
-                SpeedUnitArg::Rpm => SpeedUnit::Rpm,
-            },
-            speed_frame: match self.speed_frame {
-                FrameArg::Mechanical => Frame::Mechanical,
-                FrameArg::Electrical => Frame::Electrical,
-            },
+            speed_unit: self.speed_unit,
+            speed_frame: self.speed_frame,
             negate_speed: self.negate_speed,
-            angle_unit: match self.angle_unit {
-                AngleUnitArg::Rad => AngleUnit::Rad,
-                AngleUnitArg::Deg => AngleUnit::Deg,
-            },
-            current_scale: scale(self.current_scale),
-            voltage_scale: scale(self.voltage_scale),
+            angle_unit: self.angle_unit,
+            current_scale: self.current_scale,
+            voltage_scale: self.voltage_scale,
             source: if self.dq_from_phases { DqSource::Phases } else { DqSource::Dq },
             limits: greybox::data::csv::ReadLimits {
                 max_line_bytes: self.max_line_bytes,
                 max_fields: self.max_fields,
                 max_rows: self.max_rows,
             },
-            time_unit: match self.time_unit {
-                TimeUnitArg::S => TimeUnit::S,
-                TimeUnitArg::Ms => TimeUnit::Ms,
-                TimeUnitArg::Us => TimeUnit::Us,
-            },
+            time_unit: self.time_unit,
             window: TimeWindow { from: self.from, to: self.to },
             force: self.force,
             delimiter: self.delimiter,

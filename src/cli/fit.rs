@@ -1,12 +1,9 @@
 //! `greybox fit`: read the logs, fit, print the table and write the JSON report.
 
-use super::args::{
-    Advance, DeadTime, Delay, FitArgs, FormatArg, HoldArg, MethodArg, ModelArg, Pll, PolePairs, ScalingArg,
-    SolverArg, VoltageArg,
-};
+use super::args::{Advance, DeadTime, Delay, FitArgs, FormatArg, MethodArg, Pll, PolePairs, VoltageArg};
 use super::output;
 use greybox::data::staged::Staged;
-use greybox::estimate::{FitResult, PemOptions, ScalingKind, SolverKind, Timing, Tolerances};
+use greybox::estimate::{FitResult, PemOptions, SolverKind, Timing, Tolerances};
 use greybox::pmsm::ReportOptions;
 use greybox::pmsm::weighted_least_squares;
 use greybox::pmsm::{
@@ -82,7 +79,7 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
             let k = |n: &str| report.parameter(n).map(|p| p.value);
             let kt = report.derived("k_t").map(|q| q.value);
             let conventions =
-                greybox::pmsm::report::conventions(k("k_e"), kt, k("l_d").is_some(), plan.report_options);
+                greybox::pmsm::conventions(k("k_e"), kt, k("l_d").is_some(), plan.report_options);
             print_report(a.format, &report.document(&conventions), &json)?;
         }
         let mut staged = Staged::new();
@@ -175,10 +172,7 @@ pub fn plan(a: &FitArgs) -> greybox::Result<Plan> {
         });
     }
     let report_options = ReportOptions { current_scale: csv.current_scale };
-    let kind = match a.model {
-        ModelArg::Spm => MotorKind::Spm,
-        ModelArg::Ipm => MotorKind::Ipm,
-    };
+    let kind = a.model;
     if let MethodArg::Ls = a.method {
         ls_only(a)?;
         a.weighting.rule()?;
@@ -259,27 +253,15 @@ pub fn plan(a: &FitArgs) -> greybox::Result<Plan> {
         cable_resistance: a.cable_resistance,
         thermal,
         model: kind,
-        hold: match a.hold {
-            HoldArg::Auto => HoldChoice::Auto,
-            HoldArg::Dq => HoldChoice::Dq,
-            HoldArg::Stator => HoldChoice::Stator,
-        },
+        hold: a.hold,
         start: a.start.clone(),
         fixed: a.fix.iter().filter(|(_, v)| v.is_none()).map(|(n, _)| n.clone()).collect(),
         fixed_values: a.fix.iter().filter_map(|(n, v)| v.map(|v| (n.clone(), v))).collect(),
         bounds: a.bounds.clone(),
         pem: PemOptions {
-            solver: match a.solver {
-                SolverArg::Lm => SolverKind::Lm,
-                SolverArg::Gn => SolverKind::Gn,
-            },
+            solver: a.solver,
             tolerances: Tolerances { ftol: a.ftol, xtol: a.xtol, gtol: a.gtol, max_iters: a.max_iters },
-            scaling: match a.scaling {
-                ScalingArg::Nominal => ScalingKind::Nominal,
-                ScalingArg::Log => ScalingKind::Log,
-                ScalingArg::ColumnNorm => ScalingKind::ColumnNorm,
-                ScalingArg::Identity => ScalingKind::Identity,
-            },
+            scaling: a.scaling,
             horizon: a.horizon,
             per_experiment: a.per_log.clone(),
             weighting: a.weighting.clone(),
@@ -296,7 +278,7 @@ pub fn plan(a: &FitArgs) -> greybox::Result<Plan> {
         _ => Estimator::PredictionError,
     };
     if estimator == Estimator::InstrumentalVariables {
-        greybox::pmsm::iv::check_options(&options)?;
+        greybox::pmsm::check_iv_options(&options)?;
     }
     if estimator == Estimator::InstrumentalVariables
         && (search.delay || search.advance || search.speed_pll || search.dead_time_width)
@@ -321,7 +303,7 @@ fn pole_pairs(
     kind: MotorKind,
     options: Option<&PmsmFitOptions>,
 ) -> greybox::Result<(u32, Option<String>)> {
-    use greybox::pmsm::detect::{POLE_PAIR_CANDIDATES as C, choose_pole_pairs, choose_pole_pairs_by_fit};
+    use greybox::pmsm::{POLE_PAIR_CANDIDATES as C, choose_pole_pairs, choose_pole_pairs_by_fit};
     match (given, options) {
         (PolePairs::Given(n), _) => Ok((n, None)),
         (PolePairs::Auto, None) => {
@@ -356,13 +338,13 @@ fn ls_only(a: &FitArgs) -> greybox::Result<()> {
         ("--start", a.start.is_some()),
         ("--fix", !a.fix.is_empty()),
         ("--per-log", !a.per_log.is_empty()),
-        ("--hold", !matches!(a.hold, HoldArg::Auto)),
+        ("--hold", !matches!(a.hold, HoldChoice::Auto)),
         ("--horizon", a.horizon.is_some()),
         ("--huber", a.huber.is_some()),
         ("--output-weights", a.output_weights.is_some()),
         ("--bounds", !a.bounds.is_empty()),
         ("--fixed-x0", a.fixed_x0),
-        ("--solver", !matches!(a.solver, SolverArg::Lm)),
+        ("--solver", !matches!(a.solver, SolverKind::Lm)),
         ("--voltage reference", matches!(a.voltage, VoltageArg::Reference)),
         ("--cable-resistance", a.cable_resistance != 0.0),
         ("--dead-time", !matches!(a.dead_time, DeadTime::None)),

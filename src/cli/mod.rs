@@ -11,3 +11,4 @@ pub mod plots;
 pub mod simulate;
 pub mod track;
 pub mod validate;
+pub mod values;

@@ -5,8 +5,12 @@ use super::output;
 use clap::{Args, ValueEnum};
 use greybox::Error;
 use greybox::data::staged::Staged;
-use greybox::drive::{DriveConfig, DriveLog, IPM_MOTOR, SCENARIOS, SPM_MOTOR, scenario, simulate_drive};
+use greybox::drive::{
+    DriveConfig, DriveLog, IPM_MOTOR, SCENARIOS, SPM_MOTOR, scenario, simulate_drive_with_progress,
+};
+use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::Value;
+use std::io::IsTerminal;
 use std::io::Write as _;
 use std::path::PathBuf;
 
@@ -104,7 +108,13 @@ pub fn run_simulate(a: &SimulateArgs) -> greybox::Result<()> {
     let inputs: Vec<PathBuf> = a.config.iter().cloned().collect();
     let truth = DriveLog::truth_path(path);
     output::check_all(&[("--output", Some(path.as_path())), ("--output", Some(truth.as_path()))], &inputs)?;
-    let log = simulate_drive(&cfg)?;
+    let bar = progress();
+    let log = simulate_drive_with_progress(&cfg, &mut |k, n| {
+        bar.set_length(n as u64);
+        bar.set_position(k as u64);
+    });
+    bar.finish_and_clear();
+    let log = log?;
     let mut staged = Staged::new();
     log.stage(&mut staged, path)?;
     let t = &log.truth;
@@ -169,4 +179,18 @@ fn set_field(cfg: &DriveConfig, assignment: &str) -> greybox::Result<DriveConfig
     };
     *slot = value;
     serde_json::from_value(root).map_err(|e| bad(format!("`{assignment}`: {e}")))
+}
+
+/// A bar of the simulated samples on stderr when it is a terminal (hidden otherwise).
+fn progress() -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(0);
+    if let Ok(style) = ProgressStyle::with_template(
+        "simulating {pos}/{len} samples [{bar:30}] {elapsed_precise} (eta {eta})",
+    ) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
 }

@@ -206,7 +206,7 @@ impl Default for DriveConfig {
     fn default() -> Self {
         Self {
             name: "custom".into(),
-            motor: super::scenario::SPM_MOTOR,
+            motor: super::motors::SPM_MOTOR,
             mechanics: Mechanics::default(),
             control: Control::default(),
             inverter: Inverter::default(),

@@ -29,12 +29,14 @@
 
 pub mod config;
 pub mod control;
+mod motors;
 pub mod output;
 pub mod profile;
 pub mod scenario;
 pub mod sim;
 
 pub use config::{Control, DriveConfig, Inverter, Mechanics, Mode, Sensors, Thermal};
+pub use motors::{IPM_MOTOR, SPM_MOTOR};
 pub use profile::Profile;
-pub use scenario::{IPM_MOTOR, SCENARIOS, SPM_MOTOR, scenario};
-pub use sim::{DriveLog, Truth, plant_at, simulate_drive};
+pub use scenario::{SCENARIOS, scenario};
+pub use sim::{DriveLog, PROGRESS_EVERY, Truth, plant_at, simulate_drive, simulate_drive_with_progress};

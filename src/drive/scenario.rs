@@ -9,12 +9,6 @@ use super::profile::Profile;
 use crate::error::{Error, Result};
 use crate::pmsm::MotorParameters;
 
-/// A small surface-magnet servo motor (the default plant).
-pub const SPM_MOTOR: MotorParameters = MotorParameters { r_s: 1.2, l_d: 5e-3, l_q: 5e-3, psi_f: 0.1, n_p: 4 };
-/// A small interior-magnet motor (`L_q > L_d`).
-pub const IPM_MOTOR: MotorParameters =
-    MotorParameters { r_s: 0.4, l_d: 3e-3, l_q: 7e-3, psi_f: 0.15, n_p: 3 };
-
 /// The scenario names, in order.
 pub const SCENARIOS: [&str; 6] = ["exp1", "exp2", "exp3", "exp4", "exp5", "exp6"];
 

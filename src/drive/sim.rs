@@ -22,10 +22,10 @@ use super::control::{Controller, Measurement};
 use crate::data::{Channel, Experiment};
 use crate::error::{Error, Result};
 use crate::online::Sample;
-use crate::pmsm::transform::{clarke, inverse_clarke, inverse_park, park};
 use crate::pmsm::{
     ALPHA_COPPER, BETA_NDFEB, C64, DqSignals, ExactPlant, MotorParameters, VoltageHold, stator_hold_start,
 };
+use crate::pmsm::{clarke, inverse_clarke, inverse_park, park};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -85,6 +85,21 @@ pub fn plant_at(cfg: &DriveConfig, t: f64) -> MotorParameters {
 /// Those of [`DriveConfig::validate`]; [`Error::SimulationDiverged`] naming the sample when
 /// the state stops being finite (e.g. parameters turned non-physical by a ramp).
 pub fn simulate_drive(cfg: &DriveConfig) -> Result<DriveLog> {
+    simulate_drive_with_progress(cfg, &mut |_, _| {})
+}
+
+/// Samples between two calls of the progress callback of [`simulate_drive_with_progress`].
+pub const PROGRESS_EVERY: usize = 1 << 14;
+
+/// [`simulate_drive`], calling `progress(k, n)` every [`PROGRESS_EVERY`] samples and at
+/// the end (`k` samples of `n` done), e.g. for a progress bar; the log is the same.
+///
+/// # Errors
+/// Those of [`simulate_drive`].
+pub fn simulate_drive_with_progress(
+    cfg: &DriveConfig,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<DriveLog> {
     cfg.validate()?;
     let (h, n, np) = (cfg.control.h, cfg.samples(), f64::from(cfg.motor.n_p));
     let mut plant = ExactPlant::new(cfg.motor.n_p, h, cfg.motor.salient(), VoltageHold::Stator)?;
@@ -122,6 +137,9 @@ pub fn simulate_drive(cfg: &DriveConfig) -> Result<DriveLog> {
         parameters: format!("{p:?}"),
     };
     for k in 0..n {
+        if k % PROGRESS_EVERY == 0 {
+            progress(k, n);
+        }
         let t = k as f64 * h;
         let p = plant_at(cfg, t);
         // 1. Sensors: phase currents with noise and ADC, angle by the encoder.
@@ -226,6 +244,7 @@ pub fn simulate_drive(cfg: &DriveConfig) -> Result<DriveLog> {
         samples: n,
         config: cfg.clone(),
     };
+    progress(n, n);
     Ok(DriveLog { experiment, truth })
 }
 

@@ -10,8 +10,8 @@ use super::{
     DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing, Uncertainty,
 };
 use crate::error::Result;
+use crate::estimate::metrics;
 use crate::model::GreyBoxModel;
-use crate::report::metrics;
 use nalgebra::{DMatrix, DVector};
 
 /// Relative distance (to the larger of the estimate and its start) within which a free

@@ -16,8 +16,8 @@ use super::problem::LagStream;
 use super::problem::{BlockScores, LagSums, ScoreSeries, TARGET_BATCHES, WHITENESS_LAGS};
 use super::result::{Uncertainty, t_quantile_975};
 use crate::error::{Error, Result};
+use crate::estimate::metrics::{self, Whiteness};
 use crate::model::{GreyBoxModel, Prepared};
-use crate::report::metrics::{self, Whiteness};
 use crate::simulate::{SimOptions, simulate};
 use nalgebra::{DMatrix, DVector};
 

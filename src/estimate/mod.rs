@@ -12,6 +12,7 @@ pub mod filter;
 pub mod gate;
 pub mod iv;
 pub mod linear;
+pub mod metrics;
 pub mod problem;
 pub mod result;
 pub mod scaling;
@@ -30,8 +31,9 @@ pub use result::{
 };
 pub use scaling::{ParameterScaling, ScalingKind, Transform};
 pub use solver::gn::{self, GaussNewton};
+pub use solver::lm::DEFAULT_DAMPING;
 pub use solver::lm::{self, LevenbergMarquardt};
-pub use solver::run::{CLOSE_START_DAMPING, DEFAULT_DAMPING, RunOptions, SolverKind, run_solver};
+pub use solver::run::{CLOSE_START_DAMPING, RunOptions, SolverKind, run_solver};
 pub use solver::{LeastSquares, LsState, NormalEquations, ReportsTermination, Termination, Tolerances};
 pub use weighting::{Weighting, WeightingKind};
 

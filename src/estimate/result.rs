@@ -88,7 +88,7 @@ pub struct Uncertainty {
     /// Samples per batch (batch means; 0 otherwise).
     pub batch_samples: usize,
     /// Ljung–Box statistic of each output's residuals over the whiteness lags
-    /// ([`crate::report::Whiteness::ljung_box`]), length n_y.
+    /// ([`crate::estimate::metrics::Whiteness::ljung_box`]), length n_y.
     pub ljung_box: Vec<f64>,
     /// Its 1 % critical value: above it the residuals are not white.
     pub ljung_box_critical: f64,
@@ -99,7 +99,7 @@ impl Uncertainty {
     /// `whiteness`: the batch means `batch_means` when any output fails the Ljung–Box test
     /// and they are given, with `B − 1` degrees of freedom; otherwise white, with `dof`.
     pub fn choose(
-        whiteness: &[crate::report::Whiteness],
+        whiteness: &[crate::estimate::metrics::Whiteness],
         n: usize,
         dof: usize,
         batch_means: Option<&crate::estimate::BatchMeans>,
@@ -115,7 +115,9 @@ impl Uncertainty {
             batches: batch_means.map_or(0, |b| b.batches),
             batch_samples: batch_means.map_or(0, |b| b.batch_samples),
             ljung_box: whiteness.iter().map(|w| w.ljung_box(n)).collect(),
-            ljung_box_critical: whiteness.first().map_or(0.0, crate::report::Whiteness::ljung_box_critical),
+            ljung_box_critical: whiteness
+                .first()
+                .map_or(0.0, crate::estimate::metrics::Whiteness::ljung_box_critical),
         }
     }
 
@@ -161,7 +163,7 @@ pub struct FitStatistics {
     /// Residual whiteness per output (normalised autocorrelation at lags 1–25 and its 95 %
     /// bound; Ljung 16.6), length n_y.
     #[serde(default)]
-    pub whiteness: Vec<crate::report::Whiteness>,
+    pub whiteness: Vec<crate::estimate::metrics::Whiteness>,
     /// Residual samples per output N (first samples excluded).
     pub samples: usize,
     /// Degrees of freedom `N n_y − n_free`.

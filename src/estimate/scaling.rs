@@ -150,6 +150,7 @@ impl ParameterScaling for IdentityScaling {
 }
 
 /// The built-in scalings by name, for configuration files and the command line.
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ScalingKind {

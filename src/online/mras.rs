@@ -105,8 +105,9 @@
 
 use super::config::{Adaptation, MrasConfig};
 use crate::error::{Error, Result};
-use crate::pmsm::interval::cexpm1;
-use crate::pmsm::{C64, ExactPlant, MotorParameters, SQRT_2_3, VoltageHold, rotation, stator_hold_start};
+use crate::pmsm::{
+    C64, ExactPlant, MotorParameters, SQRT_2_3, VoltageHold, cexpm1, rotation, stator_hold_start,
+};
 use serde::{Deserialize, Serialize};
 
 mod gains;

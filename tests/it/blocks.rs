@@ -143,7 +143,7 @@ fn the_spm_block_kernel_is_the_per_sample_path_to_the_bit() {
 #[test]
 fn the_spm_block_kernel_rejects_inputs_shorter_than_the_record() {
     use greybox::model::{Block, BlockContext, BlockKernel, GreyBoxModel, SimState};
-    use greybox::pmsm::spm::SpmInputs;
+    use greybox::pmsm::SpmInputs;
     use greybox::pmsm::{C64, IntervalSource, IntervalVoltage, PmsmSpm, VoltageHold};
     let n = 100;
     let y: Vec<greybox::data::Values> = vec![vec![0.0; n].into(), vec![0.0; n].into()];

@@ -11,12 +11,12 @@ use approx::assert_relative_eq;
 use greybox::Error;
 use greybox::data::csv::{ColumnMap, CsvSpec};
 use greybox::data::{Channel, Experiment};
-use greybox::pmsm::transform::{
-    clarke, currents_to_dq, inverse_clarke, inverse_park, park, stator_held_voltages_to_dq,
-    stator_hold_mean_factor,
-};
 use greybox::pmsm::{
     AngleUnit, CsvOptions, DqSource, DqView, Frame, MIN_SAMPLES, Scale, SpeedUnit, read_logs,
+};
+use greybox::pmsm::{
+    clarke, currents_to_dq, inverse_clarke, inverse_park, park, stator_held_voltages_to_dq,
+    stator_hold_mean_factor,
 };
 use proptest::prelude::*;
 
@@ -798,7 +798,7 @@ proptest::proptest! {
         )
         .unwrap();
         let direct = i_d.iter().zip(&i_q).map(|(d, q)| d.hypot(*q)).fold(0.0, f64::max);
-        let peak = greybox::pmsm::signals::DqView::try_new(&e).unwrap().peak_current();
+        let peak = greybox::pmsm::DqView::try_new(&e).unwrap().peak_current();
         proptest::prop_assert_eq!(peak.to_bits(), direct.to_bits());
     }
 }

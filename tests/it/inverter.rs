@@ -300,8 +300,8 @@ fn dead_time_mask_errors_name_the_culprit() {
 #[test]
 fn windowed_directions_are_the_per_sample_formula_to_the_bit() {
     use greybox::data::Channel;
-    use greybox::pmsm::inverter::dead_time_directions;
-    use greybox::pmsm::transform::{clarke, inverse_clarke};
+    use greybox::pmsm::dead_time_directions;
+    use greybox::pmsm::{clarke, inverse_clarke};
     for n in [255usize, 256, 257, 258, 511, 512, 513, 514, 3000] {
         let th: Vec<f64> = (0..n).map(|k| 0.0131 * k as f64 + if k % 97 == 5 { 3e5 } else { 0.0 }).collect();
         let id: Vec<f64> = (0..n).map(|k| 2.0 * (0.021 * k as f64).sin() - 0.3).collect();

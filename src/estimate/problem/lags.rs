@@ -18,7 +18,7 @@ pub const LAG_CHUNK: usize = 16_384;
 /// experiment), as a fit's statistics stream them ([`Sums::lag_sums`](super::Sums)): enough
 /// for the autocorrelation about any mean (`Σ (e_k − m)(e_{k+τ} − m) = dots[τ] − m
 /// (Σ_{k<n−τ} e_k + Σ_{k≥τ} e_k) + (n − τ) m²`, each partial sum the total less τ values at
-/// an end), which [`whiteness_of`](crate::report::metrics::whiteness_of) takes. O(max_lag)
+/// an end), which [`whiteness_of`](crate::estimate::metrics::whiteness_of) takes. O(max_lag)
 /// memory. Built only by the crate, so its parts always agree.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LagSums {
@@ -71,7 +71,7 @@ impl LagSums {
     }
 
     /// `Σ_k (e_k − m)(e_{k+τ} − m)` over the n − τ pairs at lag `tau ≤ min(max_lag, n)`
-    /// about the mean `m` (callers keep to that range: the crate's [`whiteness_of`](crate::report::metrics::whiteness_of) does).
+    /// about the mean `m` (callers keep to that range: the crate's [`whiteness_of`](crate::estimate::metrics::whiteness_of) does).
     pub(crate) fn centred(&self, tau: usize, m: f64) -> f64 {
         let pairs = self.n - tau;
         // Σ over the first and the last n − τ values: the total less τ values at an end.

@@ -33,6 +33,9 @@ use argmin::core::{KV, Problem, Solver, TerminationStatus};
 use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
 
+/// λ₀ of a run from a start of unknown quality (Madsen, Nielsen & Tingleff 2004, 3.2).
+pub const DEFAULT_DAMPING: f64 = 1e-3;
+
 /// Damping beyond which no step can lower the cost.
 const LAMBDA_MAX: f64 = 1e32;
 
@@ -49,11 +52,11 @@ pub struct LevenbergMarquardt {
 
 impl LevenbergMarquardt {
     /// A solver with the given tolerances and initial damping
-    /// `λ₀ =` [`DEFAULT_DAMPING`](super::run::DEFAULT_DAMPING) (relative to `diag(JᵀWJ)`).
+    /// `λ₀ =` [`DEFAULT_DAMPING`] (relative to `diag(JᵀWJ)`).
     pub fn new(tol: Tolerances) -> Self {
         Self {
             tol,
-            lambda: super::run::DEFAULT_DAMPING,
+            lambda: DEFAULT_DAMPING,
             nu: 2.0,
             monitor: Monitor::default(),
             accepted: 0,

@@ -3,7 +3,7 @@
 
 use super::SolverReport;
 use super::gn::GaussNewton;
-use super::lm::LevenbergMarquardt;
+use super::lm::{DEFAULT_DAMPING, LevenbergMarquardt};
 use super::{LeastSquares, LsState, ReportsTermination, Termination, Tolerances};
 use crate::error::{Error, Result};
 use argmin::core::observers::{Observe, ObserverMode};
@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 use std::sync::{Arc, Mutex};
 
 /// Which optimiser runs the fit.
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SolverKind {
@@ -40,9 +41,6 @@ pub struct RunOptions {
     /// believed close to the minimum and 1e-3 otherwise ([`CLOSE_START_DAMPING`]).
     pub initial_damping: Option<f64>,
 }
-
-/// λ₀ of a run from a start of unknown quality (Madsen, Nielsen & Tingleff 2004, 3.2).
-pub const DEFAULT_DAMPING: f64 = 1e-3;
 
 /// λ₀ of a run from a start believed close to the minimum, e.g. a linear least-squares
 /// estimate on the same data (Madsen, Nielsen & Tingleff 2004, 3.2): the first steps are

@@ -21,9 +21,9 @@ impl<T> Pending<'_, T> {
 
 /// What the checks beside a fit ([`super::fit_pmsm`]) found without its estimate.
 pub(super) struct Beside {
-    /// The setup scan's regression Gram ([`crate::pmsm::detect`]); `None` when the
+    /// The setup scan's regression Gram ([`crate::pmsm::checks::detect`]); `None` when the
     /// setup checks are skipped or the scan cannot read a log.
     pub scan: Option<nalgebra::DMatrix<f64>>,
-    /// The dead-time check, one entry per log ([`crate::pmsm::checks`]).
+    /// The dead-time check, one entry per log ([`crate::pmsm::checks::advice`]).
     pub dead: Vec<Option<Warning>>,
 }

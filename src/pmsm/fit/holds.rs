@@ -2,19 +2,22 @@
 //! given, the user's constraints on it, the holds to fit, the weighting (voltage limit,
 //! dead-time mask) and the fits of those holds (MODEL.md §4–5).
 
-use super::super::hold::{HoldFits, fit_holds_of};
-use super::super::interval::{VoltageHold, VoltageInput};
-use super::super::kind::MotorKind;
-use super::super::limit::{VoltageLimitWeighting, delay_of};
-use super::super::mask::{DeadTimeMask, DeadTimeMaskWeighting, masked_pem};
-use super::super::setup::{PmsmSetup, configure};
-use super::super::signals::channel;
-use super::super::start::least_squares_start;
-use super::super::{PmsmIpm, PmsmSpm};
-use super::{HoldChoice, PmsmFitOptions};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::{CLOSE_START_DAMPING, Weighting};
+use crate::pmsm::checks::limit::{VoltageLimitWeighting, delay_of};
+use crate::pmsm::fit::hold::{HoldFits, fit_holds_of};
+use crate::pmsm::linear::start::least_squares_start;
+use crate::pmsm::log::signals::channel;
+use crate::pmsm::model::interval::{VoltageHold, VoltageInput};
+use crate::pmsm::model::inverter::masked_pem;
+use crate::pmsm::model::ipm::PmsmIpm;
+use crate::pmsm::model::kind::MotorKind;
+use crate::pmsm::model::mask::{DeadTimeMask, DeadTimeMaskWeighting};
+use crate::pmsm::model::setup::PmsmSetup;
+use crate::pmsm::model::spm::PmsmSpm;
+use crate::pmsm::options::configure;
+use crate::pmsm::options::{HoldChoice, PmsmFitOptions};
 use crate::report::eng::format_eng;
 
 /// What [`fit_from_start`] gives the rest of [`super::fit_pmsm`].
@@ -90,7 +93,7 @@ pub(super) fn fit_from_start(
             theta.into_iter().chain(v_dt0.filter(|_| !with_v_dt)).collect()
         }
     };
-    let start = super::super::start::user_start(start, names, options, &mut notes)?;
+    let start = crate::pmsm::linear::start::user_start(start, names, options, &mut notes)?;
     // A sample time the model cannot resolve at the start's R and L: refused before a fit
     // that would be slow and wrong.
     let value = |wanted: &[&str]| {
@@ -104,7 +107,7 @@ pub(super) fn fit_from_start(
     let (r_s, l) = (value(&["r_s"]), value(&["l_s", "l_d", "l_q"]));
     if !options.skip_setup_checks
         && !options.force
-        && let Some(why) = super::super::detect::sample_time_problem(experiments, n_p, r_s, l)
+        && let Some(why) = crate::pmsm::checks::detect::sample_time_problem(experiments, n_p, r_s, l)
     {
         return Err(Error::Numerical {
             context: "sample time".into(),

@@ -2,9 +2,9 @@
 //! [`crate::pmsm::linear`]), streamed interval by interval without forming the row matrix.
 
 use crate::error::Result;
-use crate::pmsm::interval::SQRT_2_3;
-use crate::pmsm::kind::MotorKind;
-use crate::pmsm::signals::DqView;
+use crate::pmsm::log::signals::DqView;
+use crate::pmsm::model::interval::SQRT_2_3;
+use crate::pmsm::model::kind::MotorKind;
 
 /// The regression rows of one experiment, interval by interval, without storing them:
 /// interval `k = 0..N−2` gives a d row and a q row (see the documentation of [`crate::pmsm::linear`]) and the
@@ -33,7 +33,7 @@ pub(crate) fn push_with_dead_time(
     q: &[f64],
     u: [f64; 2],
     cols: usize,
-    dir: crate::pmsm::interval::C64,
+    dir: crate::pmsm::model::interval::C64,
 ) {
     let (mut drow, mut qrow) = ([0.0; MAX_COLS + 1], [0.0; MAX_COLS + 1]);
     drow[..cols].copy_from_slice(&d[..cols]);

@@ -4,8 +4,8 @@
 use super::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::pmsm::signals::{DqSignals, DqView};
-use crate::pmsm::transform::{currents_to_dq, stator_held_voltages_to_dq};
+use crate::pmsm::log::signals::{DqSignals, DqView};
+use crate::pmsm::log::transform::{currents_to_dq, stator_held_voltages_to_dq};
 
 /// Converts units, derives dq from phases if asked, and validates. `cols` are in the
 /// order of [`read_log`](super::read_log)'s request, the time column already in seconds.

@@ -71,17 +71,20 @@ impl Default for ColumnNames {
 }
 
 /// Unit of the speed column.
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SpeedUnit {
     /// Radians per second (default).
     #[default]
+    #[cfg_attr(feature = "cli", value(name = "rad/s", alias = "rad-s"))]
     RadPerSec,
     /// Revolutions per minute; multiplied by `2π/60` on reading.
     Rpm,
 }
 
 /// Unit of the time column; the reader converts it to seconds.
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum TimeUnit {
@@ -116,6 +119,7 @@ impl TimeUnit {
 }
 
 /// Whether the speed and angle columns are mechanical or electrical quantities.
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Frame {
@@ -129,6 +133,7 @@ pub enum Frame {
 }
 
 /// Unit of the angle column.
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum AngleUnit {
@@ -140,6 +145,7 @@ pub enum AngleUnit {
 }
 
 /// Scaling of current or voltage columns (MODEL.md §1).
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Scale {
@@ -161,7 +167,7 @@ pub enum DqSource {
     Dq,
     /// Computed from the phase columns and `theta_m`: currents by Clarke and Park at
     /// `θ_e = n_p θ_m`, voltages as period means of a voltage held in the **stator** frame
-    /// ([`crate::pmsm::transform::stator_held_voltages_to_dq`],
+    /// ([`crate::pmsm::log::transform::stator_held_voltages_to_dq`],
     /// MODEL.md §4). Phase voltages computed from a dq-held voltage (gym-electric-motor)
     /// do not fit this model; read those logs with [`DqSource::Dq`].
     Phases,

@@ -2,10 +2,11 @@
 
 use std::path::Path;
 
-use super::{CsvOptions, Raw, plausible};
+use super::options::CsvOptions;
+use super::reader::{Raw, plausible};
 use crate::data::{Experiment, TimeCheck};
 use crate::error::{Error, Result};
-use crate::pmsm::signals::MIN_SAMPLES;
+use crate::pmsm::log::signals::MIN_SAMPLES;
 
 /// One log read by [`read_log_segments`]: its segments long enough to fit, and the others.
 #[derive(Clone, Debug, PartialEq)]

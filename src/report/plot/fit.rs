@@ -8,9 +8,10 @@ use super::draw::{
 use super::{Context, plot_error, time};
 use crate::error::{Error, Result};
 use crate::estimate::FitResult;
+use crate::estimate::metrics::{self, Whiteness};
+use crate::report::Comparison;
 use crate::report::compare::WHITENESS_LAGS;
 use crate::report::eng::format_eng;
-use crate::report::{Comparison, Whiteness, metrics};
 use plotters::prelude::*;
 
 /// The fit plot as SVG text: for each output measured against simulated over time and the

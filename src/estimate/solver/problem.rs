@@ -1,0 +1,103 @@
+//! What a solver needs from a least-squares problem ([`LeastSquares`]): its normal
+//! equations and cost at a point, and the argmin state the solvers share ([`LsState`]).
+
+use crate::error::{Error, Result};
+use argmin::core::IterState;
+use nalgebra::{DMatrix, DVector};
+
+/// argmin state of the greybox solvers: parameter `p` (scaled space, length n_free), gradient
+/// `∇V = −JᵀWε` (length n_free), "Hessian" `JᵀWJ` (n_free × n_free), cost `V`.
+pub type LsState = IterState<DVector<f64>, DVector<f64>, (), DMatrix<f64>, (), f64>;
+
+/// Cost and normal equations at one point (scaled space, length n_free).
+#[derive(Clone, Debug)]
+pub struct NormalEquations {
+    /// `V = Σ w ρ(ε)` (`½ εᵀWε` for the quadratic loss).
+    pub cost: f64,
+    /// `JᵀWJ` (IRLS-weighted for a robust loss), `n_free × n_free`.
+    pub jtj: DMatrix<f64>,
+    /// `JᵀWψ(ε)` (`JᵀWε` for the quadratic loss), length n_free: the negative gradient `−∇V`.
+    pub jtr: DVector<f64>,
+}
+
+impl NormalEquations {
+    /// Gradient of the cost `∇V = −JᵀWψ(ε)`, length n_free.
+    pub fn gradient(&self) -> DVector<f64> {
+        -&self.jtr
+    }
+}
+
+/// A nonlinear least-squares problem in scaled variables p, as the solvers see it.
+pub trait LeastSquares {
+    /// Number of free parameters n_free.
+    fn n_params(&self) -> usize;
+    /// Cost `V(p) = ½ εᵀWε` with `JᵀWJ` and `JᵀWε` (`J = ∂ŷ/∂p`, `ε = y − ŷ`).
+    ///
+    /// # Errors
+    /// [`Error::SimulationDiverged`] or [`Error::InvalidParameter`] at a point the model
+    /// cannot simulate (the solvers treat these as an infinite cost at trial points);
+    /// anything else aborts the fit.
+    fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations>;
+    /// [`normal_equations`](Self::normal_equations) at a trial point that, once accepted,
+    /// likely ends the run: its step already passes the step test, the cost reduction its
+    /// quadratic model predicts passes the cost test, or the step after it, extrapolated
+    /// from the last two, would pass the step test. The solvers ask this of such points, so that a problem may gather in
+    /// the same pass what its statistics need at the estimate and spare a pass after the
+    /// run ([`PemProblem`](crate::estimate::PemProblem) keeps the residuals' lag sums).
+    /// The returned normal equations are those of `normal_equations(p)` to the bit; by
+    /// default this is `normal_equations(p)`.
+    ///
+    /// # Errors
+    /// As [`normal_equations`](Self::normal_equations).
+    fn normal_equations_likely_last(&self, p: &DVector<f64>) -> Result<NormalEquations> {
+        self.normal_equations(p)
+    }
+    /// Cost `V(p)` alone.
+    ///
+    /// # Errors
+    /// As [`normal_equations`](Self::normal_equations).
+    fn cost(&self, p: &DVector<f64>) -> Result<f64>;
+    /// Projects p onto the feasible box in place.
+    fn project(&self, p: &mut DVector<f64>);
+}
+
+impl<T: LeastSquares + ?Sized> LeastSquares for &T {
+    fn n_params(&self) -> usize {
+        (**self).n_params()
+    }
+    fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations> {
+        (**self).normal_equations(p)
+    }
+    fn normal_equations_likely_last(&self, p: &DVector<f64>) -> Result<NormalEquations> {
+        (**self).normal_equations_likely_last(p)
+    }
+    fn cost(&self, p: &DVector<f64>) -> Result<f64> {
+        (**self).cost(p)
+    }
+    fn project(&self, p: &mut DVector<f64>) {
+        (**self).project(p)
+    }
+}
+
+/// Whether an evaluation error only means "this trial point is unusable".
+pub(crate) fn is_infeasible(e: &Error) -> bool {
+    matches!(e, Error::SimulationDiverged { .. } | Error::InvalidParameter { .. })
+}
+
+/// The normal equations at a trial point by `evaluate` (the problem's `normal_equations`,
+/// or `normal_equations_likely_last` for a trial expected to end the run), counted as
+/// argmin counts them; `None` where the model cannot be simulated there ([`is_infeasible`]).
+///
+/// # Errors
+/// Every other error of `evaluate`.
+pub(crate) fn trial_normal_equations<O: LeastSquares>(
+    problem: &mut argmin::core::Problem<O>,
+    trial: &DVector<f64>,
+    evaluate: fn(&O, &DVector<f64>) -> Result<NormalEquations>,
+) -> std::result::Result<Option<NormalEquations>, argmin::core::Error> {
+    problem.problem("normal_equations_count", |o| match evaluate(o, trial) {
+        Ok(ne) => Ok(Some(ne)),
+        Err(e) if is_infeasible(&e) => Ok(None),
+        Err(e) => Err(e.into()),
+    })
+}

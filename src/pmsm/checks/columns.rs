@@ -1,0 +1,222 @@
+//! Column mistakes named from the voltage equations: d and q swapped, voltages and currents
+//! swapped, the speed of the other sign, in rpm, or electrical (without `theta_m`, whose
+//! speed check in [`crate::pmsm::checks::detect`] names these when it is logged).
+//!
+//! Each hypothesis is a least-squares regression of the voltage equations (thesis 5.2.1)
+//! on the log as the mistake would have it: the speed's scale `c` enters only through
+//! `ω_e = n_p c ω_m` in the rotation terms (its effect on the back-EMF term is absorbed by
+//! `k_e`, which becomes `k_e / c`), so one Gram matrix of the scan gives every speed
+//! hypothesis exactly; swapped columns need their own scan. A hypothesis is named when its
+//! regression leaves [`COLUMN_RATIO`] times less of the voltage unexplained (relative to
+//! the voltage's own energy) with a physical estimate (`R_s`, `L`, `k_e` > 0), and, after
+//! a fit, when the prediction-error fit of the corrected log confirms it with a loss that
+//! much lower (the regression alone is fooled by current noise in `di/dt`).
+
+use crate::data::{Channel, Experiment};
+use crate::error::Result;
+use crate::estimate::Warning;
+use crate::pmsm::checks::detect::{loss_at_factor, scan_gram};
+use crate::pmsm::log::signals::channel;
+use crate::pmsm::model::interval::VoltageInput;
+use crate::pmsm::model::kind::MotorKind;
+use crate::pmsm::options::{PmsmFitOptions, RefitLoss};
+use crate::report::eng::format_eng;
+use nalgebra::{DMatrix, DVector};
+
+/// Factor by which a hypothesis must lower the unexplained share of the voltage (and,
+/// after a fit, the loss) to be named.
+pub const COLUMN_RATIO: f64 = 10.0;
+
+/// A column mistake: what it is, the fix, and how to undo it on a log.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Mistake {
+    /// The speed column is `1/c` times the mechanical speed in rad/s.
+    Speed(f64, &'static str, &'static str),
+    /// d and q columns swapped (voltages and currents).
+    SwapDq,
+    /// Voltage and current columns swapped.
+    SwapUi,
+}
+
+impl Mistake {
+    fn what(self) -> (&'static str, &'static str) {
+        match self {
+            Self::Speed(_, what, fix) => (what, fix),
+            Self::SwapDq => (
+                "the d and q columns are swapped",
+                "--col-id iq --col-iq id --col-ud uq --col-uq ud (with the log's own names)",
+            ),
+            Self::SwapUi => (
+                "the voltage and current columns are swapped",
+                "--col-ud id --col-uq iq --col-id ud --col-iq uq (with the log's own names)",
+            ),
+        }
+    }
+
+    /// The log as the fix reads it.
+    fn undo(self, e: &Experiment) -> Result<Experiment> {
+        let unit = |name: &str| e.get(name).map(|c| c.unit.clone()).unwrap_or_default();
+        let renamed = |from: &str, to: &str| -> Result<Channel> {
+            // The values shared, not copied.
+            Ok(Channel { name: to.into(), unit: unit(from), values: e.values(from)?.clone() })
+        };
+        let pairs: &[(&str, &str)] = match self {
+            Self::Speed(c, ..) => {
+                let values = e.values(channel::W_M)?.iter().map(|v| v * c).collect();
+                return e.clone().with_channel(Channel::new(channel::W_M, unit(channel::W_M), values));
+            }
+            Self::SwapDq => &[
+                (channel::I_D, channel::I_Q),
+                (channel::I_Q, channel::I_D),
+                (channel::U_D, channel::U_Q),
+                (channel::U_Q, channel::U_D),
+            ],
+            Self::SwapUi => &[
+                (channel::I_D, channel::U_D),
+                (channel::I_Q, channel::U_Q),
+                (channel::U_D, channel::I_D),
+                (channel::U_Q, channel::I_Q),
+            ],
+        };
+        let mut out = e.clone();
+        let channels = pairs.iter().map(|(from, to)| renamed(from, to)).collect::<Result<Vec<_>>>()?;
+        for c in channels {
+            out = out.with_channel(c)?;
+        }
+        Ok(out)
+    }
+}
+
+/// The speed hypotheses for `n_p` pole pairs: `(c, what, fix)` with `c` the factor that
+/// turns the logged speed into the mechanical speed in rad/s.
+fn speed_mistakes(n_p: u32) -> Vec<Mistake> {
+    let (np, rpm) = (f64::from(n_p), std::f64::consts::PI / 30.0);
+    let mut out =
+        vec![Mistake::Speed(-1.0, "the speed has the other sign than the dq frame turns", "--negate-speed")];
+    if n_p > 1 {
+        out.push(Mistake::Speed(1.0 / np, "the speed is electrical", "--speed-frame electrical"));
+        out.push(Mistake::Speed(
+            rpm / np,
+            "the speed is electrical and in rpm",
+            "--speed-frame electrical --speed-unit rpm",
+        ));
+    }
+    out.push(Mistake::Speed(rpm, "the speed is in rpm", "--speed-unit rpm"));
+    out
+}
+
+/// Relative unexplained share of the voltage `loss / (½ Σu²)` and the estimate of a scan
+/// Gram at the rotation factor `np`; `k_e` divided by `c`.
+fn regression(g: &DMatrix<f64>, kind: MotorKind, np: f64, c: f64) -> Option<(f64, DVector<f64>)> {
+    let (loss, mut theta) = loss_at_factor(g, kind, np)?;
+    let energy = 0.5 * g[(g.nrows() - 1, g.ncols() - 1)];
+    let last = theta.len() - 1;
+    theta[last] /= c;
+    (energy > 0.0).then_some((loss / energy, theta))
+}
+
+fn physical(theta: &DVector<f64>) -> bool {
+    theta.iter().all(|v| *v > 0.0)
+}
+
+/// A named mistake: the mistake, the unexplained share of the voltage as given and with
+/// the mistake undone, and the regression's estimate then.
+struct Hypothesis {
+    mistake: Mistake,
+    given: f64,
+    loss: f64,
+    theta: DVector<f64>,
+}
+
+impl Hypothesis {
+    /// The mistake, its regression's estimate and how much better it explains the voltage.
+    fn describe(&self, kind: MotorKind) -> String {
+        let values: Vec<String> = kind
+            .table()
+            .iter()
+            .zip(self.theta.iter())
+            .map(|(p, v)| format!("{} {}", p.name, format_eng(*v, p.unit, 4)))
+            .collect();
+        format!(
+            "{}: the voltage equations fit {:.0} times better that way ({})",
+            self.mistake.what().0,
+            self.given / self.loss,
+            values.join(", ")
+        )
+    }
+}
+
+/// The mistake whose regression explains the voltage [`COLUMN_RATIO`] times better than
+/// the log as given, with a physical estimate; `g` the scan Gram of the log as given.
+/// Swapped columns are tried for the terminal voltage only.
+fn best_hypothesis(
+    g: &DMatrix<f64>,
+    experiments: &[Experiment],
+    n_p: u32,
+    kind: MotorKind,
+    input: VoltageInput,
+) -> Option<Hypothesis> {
+    let np = f64::from(n_p);
+    let (given, _) = regression(g, kind, np, 1.0)?;
+    let mut tried: Vec<(Mistake, f64, DVector<f64>)> = speed_mistakes(n_p)
+        .into_iter()
+        .filter_map(|m| {
+            let Mistake::Speed(c, ..) = m else { return None };
+            regression(g, kind, np * c, c).map(|(l, t)| (m, l, t))
+        })
+        .collect();
+    if input == VoltageInput::Terminal {
+        for m in [Mistake::SwapDq, Mistake::SwapUi] {
+            let undone: Option<Vec<Experiment>> = experiments.iter().map(|e| m.undo(e).ok()).collect();
+            let gm = undone.and_then(|u| scan_gram(&u, input).ok());
+            tried.extend(gm.and_then(|gm| regression(&gm, kind, np, 1.0)).map(|(l, t)| (m, l, t)));
+        }
+    }
+    tried
+        .into_iter()
+        .filter(|(_, l, t)| physical(t) && l * COLUMN_RATIO <= given)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(mistake, loss, theta)| Hypothesis { mistake, given, loss, theta })
+}
+
+/// Why the least-squares start failed, when a column mistake explains it: the text to add
+/// to its error, naming the mistake and the fix; `None` when no hypothesis does.
+pub(crate) fn start_failure(
+    g: &DMatrix<f64>,
+    experiments: &[Experiment],
+    n_p: u32,
+    kind: MotorKind,
+    input: VoltageInput,
+) -> Option<String> {
+    let h = best_hypothesis(g, experiments, n_p, kind, input)?;
+    Some(format!("{}; read the log with {}", h.describe(kind), h.mistake.what().1))
+}
+
+/// After a fit of loss `loss`: an untrusted `columns` warning when a column mistake
+/// explains the log [`COLUMN_RATIO`] times better by regression and the fit of the
+/// corrected log confirms it.
+pub(crate) fn warning(
+    g: &DMatrix<f64>,
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+    loss: f64,
+    refit: RefitLoss<'_>,
+) -> Option<Warning> {
+    let (n_p, kind) = (options.pole_pairs, options.model);
+    let h = best_hypothesis(g, experiments, n_p, kind, options.input)?;
+    let undone: Vec<Experiment> =
+        experiments.iter().map(|e| h.mistake.undo(e)).collect::<Result<_>>().ok()?;
+    let other = PmsmFitOptions { start: None, skip_setup_checks: true, ..options.clone() };
+    let alt = refit(&undone, &other)?;
+    (alt * COLUMN_RATIO < loss).then(|| {
+        Warning::untrusted(
+            "columns",
+            format!(
+                "{}, and the fit of the log read so has a {:.0} times lower loss; read the log with {}",
+                h.describe(kind),
+                loss / alt,
+                h.mistake.what().1
+            ),
+        )
+    })
+}

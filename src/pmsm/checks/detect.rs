@@ -1,0 +1,320 @@
+//! Detectors for the setup mistakes that otherwise give a confident wrong answer: a wrong
+//! pole-pair number, a speed in the wrong unit or frame, a surface-magnet model on a
+//! salient machine; and the conventions a fit assumes where the data cannot tell (peak vs
+//! RMS, amplitude- vs power-invariant dq).
+//!
+//! The pole-pair and saliency checks compare least-squares losses of the voltage equations
+//! (thesis 5.2.1). `n_p` enters only through `ω_e = n_p ω_m`, so with the base columns
+//! `i`, `di/dt`, `ω_m i⊥`, `√(2/3) ω_m` the regressors of any `n_p` are fixed combinations
+//! of them: one Gram matrix of the base columns gives every candidate's loss exactly.
+
+use crate::pmsm::model::interval::{SQRT_2_3, VoltageInput};
+use crate::pmsm::model::kind::MotorKind;
+use crate::pmsm::options::{PmsmFitOptions, RefitLoss};
+use crate::report::eng::format_eng;
+use multiversion::multiversion;
+// Base columns of the scan: `i`, `di_d/dt` (d rows), `ω_m i_d` (q rows), `−ω_m i_q` (d rows),
+// `di_q/dt` (q rows), `√(2/3) ω_m` (q rows), then the voltage. The salient regressors are
+// combinations of them at any `n_p`, and so are the surface-magnet ones (`L_s` takes both
+// derivative and both cross columns). The Gram comes from `scan_gram`, streamed.
+use crate::data::Experiment;
+use crate::error::{Error, Result};
+use crate::estimate::{FitResult, Warning};
+use crate::pmsm::checks::scan::BASE;
+pub(crate) use crate::pmsm::checks::scan::scan_gram;
+use crate::pmsm::log::signals::{DqView, channel};
+use nalgebra::{DMatrix, DVector};
+
+/// Candidates of `--pole-pairs auto` and of the pole-pair check.
+pub const POLE_PAIR_CANDIDATES: std::ops::RangeInclusive<u32> = 1..=32;
+/// A given `n_p` whose loss exceeds another candidate's by this factor is flagged.
+pub const POLE_PAIR_RATIO: f64 = 10.0;
+/// Loss ratio (surface-magnet over salient regression) from which a log is salient for
+/// sure (noise-free salient logs give 10⁴–10⁷; noisy ones a few).
+pub const SALIENT_CERTAIN: f64 = 100.0;
+/// Loss ratio from which a warning says the log may be salient.
+pub const SALIENT_LIKELY: f64 = 2.0;
+/// Relative inductance difference that counts as salient.
+pub const SALIENCY: f64 = 0.1;
+/// Relative mismatch of `dθ_m/dt` and `w_m` beyond which the speed check reports.
+pub const SPEED_MISMATCH: f64 = 0.05;
+
+/// Least-squares loss `½ min‖y − Φθ‖²` and θ (model order of `kind`) at `n_p` from the
+/// Gram matrix of [`scan_gram`].
+fn loss_at(g: &DMatrix<f64>, kind: MotorKind, n_p: u32) -> Option<(f64, DVector<f64>)> {
+    loss_at_factor(g, kind, f64::from(n_p))
+}
+
+/// [`loss_at`] with any factor `np` on the speed in the rotation terms (`ω_e = np ω_m`):
+/// a pole-pair number times a speed column's scale.
+pub(crate) fn loss_at_factor(g: &DMatrix<f64>, kind: MotorKind, np: f64) -> Option<(f64, DVector<f64>)> {
+    // T maps the parameters to the base columns.
+    let t = match kind {
+        MotorKind::Spm => DMatrix::from_row_slice(
+            BASE,
+            3,
+            &[1.0, 0., 0., 0., 1.0, 0., 0., np, 0., 0., np, 0., 0., 1.0, 0., 0., 0., 1.0],
+        ),
+        MotorKind::Ipm => DMatrix::from_row_slice(
+            BASE,
+            4,
+            &[
+                1.0, 0., 0., 0., 0., 1.0, 0., 0., 0., np, 0., 0., 0., 0., np, 0., 0., 0., 1.0, 0., 0., 0.,
+                0., 1.0,
+            ],
+        ),
+    };
+    let gcc = g.view((0, 0), (BASE, BASE));
+    let gcy = g.view((0, BASE), (BASE, 1));
+    let a = t.transpose() * gcc * &t;
+    let b = t.transpose() * gcy;
+    let theta = a.clone().cholesky()?.solve(&b);
+    let loss = 0.5 * (g[(BASE, BASE)] - (b.transpose() * &theta)[(0, 0)]);
+    Some((loss.max(0.0), theta.column(0).into_owned()))
+}
+
+/// Every candidate's `(n_p, loss)` from a [`scan_gram`].
+fn losses_from(g: &DMatrix<f64>, kind: MotorKind) -> Vec<(u32, f64)> {
+    POLE_PAIR_CANDIDATES.filter_map(|n| loss_at(g, kind, n).map(|(l, _)| (n, l))).collect()
+}
+
+/// The least-squares loss of the voltage equations at every candidate pole-pair number in
+/// [`POLE_PAIR_CANDIDATES`], `(n_p, loss [V²])`, for the voltage `input`.
+///
+/// # Errors
+/// Those of the regression scan (a missing channel, a log too short for the prefilter).
+pub fn pole_pair_losses(
+    experiments: &[Experiment],
+    kind: MotorKind,
+    input: VoltageInput,
+) -> Result<Vec<(u32, f64)>> {
+    Ok(losses_from(&scan_gram(experiments, input)?, kind))
+}
+
+/// `--pole-pairs auto`: the candidate of lowest loss and the ratio of the runner-up's loss
+/// to it (large: decisive).
+///
+/// # Errors
+/// Those of [`pole_pair_losses`]; [`Error::Numerical`] when no candidate has a loss (no
+/// excitation).
+pub fn choose_pole_pairs(
+    experiments: &[Experiment],
+    kind: MotorKind,
+    input: VoltageInput,
+) -> Result<(u32, f64)> {
+    let mut losses = pole_pair_losses(experiments, kind, input)?;
+    losses.sort_by(|a, b| a.1.total_cmp(&b.1));
+    match losses.as_slice() {
+        [(n, best), (_, second), ..] => Ok((*n, second / best)),
+        [(n, _)] => Ok((*n, f64::INFINITY)),
+        [] => Err(Error::Numerical {
+            context: "pole pairs".into(),
+            reason: "no candidate can be regressed (the log does not excite the voltage equations)".into(),
+        }),
+    }
+}
+
+/// The structure check before a surface-magnet fit: the salient regression lowers the
+/// loss by a factor `ratio` with `L_d`, `L_q` more than [`SALIENCY`] apart. From
+/// [`SALIENT_CERTAIN`] on the log is salient (an error); from [`SALIENT_LIKELY`] on a warning
+/// says so (an unmodelled voltage error, such as dead time, can look salient too). Not run
+/// with the inverter model, whose error the regression does not contain. `g` is the
+/// [`scan_gram`] of the logs.
+///
+/// # Errors
+/// [`Error::InvalidOption`] (`model`) naming both inductances and the loss ratio.
+pub(crate) fn check_structure(g: &DMatrix<f64>, n_p: u32, kind: MotorKind) -> Result<Option<Warning>> {
+    if kind != MotorKind::Spm {
+        return Ok(None);
+    }
+    let (Some((ls, _)), Some((li, th))) = (loss_at(g, MotorKind::Spm, n_p), loss_at(g, MotorKind::Ipm, n_p))
+    else {
+        return Ok(None);
+    };
+    let (l_d, l_q) = (th[1], th[2]);
+    let saliency = (l_d - l_q).abs() / l_d.abs().max(l_q.abs());
+    let ratio = ls / li;
+    let what = format!(
+        "a regression with L_d = {l_d:.4e} H and L_q = {l_q:.4e} H ({:.0} % apart) lowers the loss {ratio:.1} times",
+        100.0 * saliency
+    );
+    if saliency <= SALIENCY || ratio < SALIENT_LIKELY {
+        Ok(None)
+    } else if ratio >= SALIENT_CERTAIN {
+        Err(Error::InvalidOption {
+            option: "model".into(),
+            reason: format!("the log is salient: {what}; fit it with --model ipm"),
+        })
+    } else {
+        Ok(Some(Warning::untrusted(
+            "salient",
+            format!(
+                "{what}: the machine may be salient (--model ipm), or the voltage has an error the model lacks \
+                 (dead time: --dead-time estimate)"
+            ),
+        )))
+    }
+}
+
+/// The pole-pair check: when the least-squares scan prefers another `n_p` by
+/// [`POLE_PAIR_RATIO`], the prediction-error fit at that `n_p` decides (the scan alone is
+/// fooled by current noise in `di/dt`); a warning names it when its loss is that much lower.
+/// `g` is the [`scan_gram`] of `experiments`.
+pub(crate) fn pole_pair_warning(
+    g: &DMatrix<f64>,
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+    loss: f64,
+    refit: RefitLoss<'_>,
+) -> Option<Warning> {
+    let losses = losses_from(g, options.model);
+    let given = losses.iter().find(|(n, _)| *n == options.pole_pairs)?.1;
+    let &(nb, lb) = losses.iter().min_by(|a, b| a.1.total_cmp(&b.1))?;
+    if nb == options.pole_pairs || given <= POLE_PAIR_RATIO * lb {
+        return None;
+    }
+    let other = PmsmFitOptions { pole_pairs: nb, start: None, skip_setup_checks: true, ..options.clone() };
+    let alt = refit(experiments, &other)?;
+    (alt * POLE_PAIR_RATIO < loss).then(|| {
+        Warning::untrusted(
+            "pole_pairs",
+            format!(
+                "a fit with {nb} pole pairs has a {:.0} times lower loss than with the {} given: check -p (or a speed \
+                 logged in the electrical frame: --speed-frame electrical)",
+                loss / alt,
+                options.pole_pairs
+            ),
+        )
+    })
+}
+
+/// The warnings of a PMSM fit from its logs: a speed unit or frame mistake, and the assumed
+/// scaling (checks that cannot run are skipped).
+pub(crate) fn warnings(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> Vec<Warning> {
+    let mut out = Vec::new();
+    out.extend(speed_check(experiments, n_p));
+    out.extend(sample_time_check(experiments, n_p, fit));
+    out.push(scaling_notice(fit));
+    out
+}
+
+/// The sums `(Σ dθ·ω/h, Σ ω²)` of [`speed_check`] continued over one log: per interval the
+/// angle's step `dθ` (wrapped to ±π) and the mean speed ω, where |ω| exceeds 5 % of the
+/// log's peak; compiled for AVX2 as well (the rounding inline, not a library call).
+#[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
+fn speed_sums((mut num, mut den): (f64, f64), th: &[f64], w: &[f64], h: f64) -> (f64, f64) {
+    let peak = w.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    for ((t, w), (t1, w1)) in th.iter().zip(w).zip(th.iter().zip(w).skip(1)) {
+        let d = t1 - t;
+        let d = d - std::f64::consts::TAU * (d / std::f64::consts::TAU).round();
+        let wm = 0.5 * (w + w1);
+        if wm.abs() > 0.05 * peak {
+            num += d / h * wm;
+            den += wm * wm;
+        }
+    }
+    (num, den)
+}
+
+/// Compares `dθ_m/dt` with `w_m` (when `theta_m` is logged) and names the likely mistake
+/// when they differ by a known factor.
+fn speed_check(experiments: &[Experiment], n_p: u32) -> Option<Warning> {
+    let (mut num, mut den) = (0.0, 0.0);
+    for e in experiments {
+        let (Some(th), Ok(v)) = (e.get(channel::THETA_M), DqView::try_new(e)) else { continue };
+        let (w, h) = (v.w_m(), e.h());
+        (num, den) = speed_sums((num, den), &th.values, w, h);
+    }
+    let r = num / den;
+    if !r.is_finite() || (r - 1.0).abs() <= SPEED_MISMATCH {
+        return None;
+    }
+    let np = f64::from(n_p);
+    let rpm = std::f64::consts::PI / 30.0;
+    let deg = std::f64::consts::PI / 180.0;
+    let candidates = [
+        (
+            np,
+            "θ_m turns n_p times faster than w_m says: the angle is electrical while the speed is mechanical (log both in one frame)",
+        ),
+        (
+            1.0 / np,
+            "w_m is n_p times faster than dθ_m/dt: the speed is electrical (--speed-frame electrical)",
+        ),
+        (rpm, "w_m is 30/π times faster than dθ_m/dt: the speed is in rpm (--speed-unit rpm)"),
+        (rpm / np, "the speed is electrical and in rpm (--speed-frame electrical --speed-unit rpm)"),
+        (
+            1.0 / rpm,
+            "w_m is 30/π times slower than dθ_m/dt: the speed is in rad/s, not rpm (drop --speed-unit rpm)",
+        ),
+        (1.0 / deg, "dθ_m/dt is 180/π times w_m: the angle is in degrees (--angle-unit deg)"),
+        (1e-3, "dθ_m/dt is 1000 times smaller than w_m: the time column is in milliseconds"),
+        (1e-6, "dθ_m/dt is 10⁶ times smaller than w_m: the time column is in microseconds"),
+    ];
+    let (_, why) = candidates
+        .iter()
+        .min_by(|a, b| (r / a.0).ln().abs().total_cmp(&(r / b.0).ln().abs()))
+        .filter(|(f, _)| (r / f - 1.0).abs() <= SPEED_MISMATCH)
+        .copied()
+        .unwrap_or((r, "no known unit or frame factor explains it"));
+    Some(Warning::untrusted("speed_unit", format!("dθ_m/dt is {r:.4} times w_m (expected 1): {why}")))
+}
+
+/// Largest sample time, in electrical time constants `L/R`, at which the current's
+/// dynamics are still seen (beyond it the current settles within one sample).
+pub const MAX_H_OVER_TAU: f64 = 5.0;
+
+/// A sample time the model cannot resolve: `h` beyond [`MAX_H_OVER_TAU`] electrical time
+/// constants (the inductances then act through the rotation terms alone), or the rotor
+/// turning π electrical radians or more within one sample at the log's top speed (the
+/// angle aliases). Most often a time column in milliseconds read as seconds: the warning
+/// says what `--time-unit ms` would give.
+fn sample_time_check(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> Option<Warning> {
+    let r = fit.parameter("r_s")?.value;
+    sample_time_problem(experiments, n_p, r, crate::pmsm::model::kind::smallest_inductance(fit))
+        .map(|why| Warning::untrusted("sample_time", why))
+}
+
+/// Why the logs' sample time is one the model cannot resolve with resistance `r` \[Ω\] and
+/// smallest inductance `l` \[H\] ([`sample_time_check`]'s conditions), or `None`.
+pub(crate) fn sample_time_problem(experiments: &[Experiment], n_p: u32, r: f64, l: f64) -> Option<String> {
+    let h = experiments.iter().map(Experiment::h).fold(0.0, f64::max);
+    let w = experiments
+        .iter()
+        .filter_map(|e| DqView::try_new(e).ok())
+        .map(|v| v.w_m().iter().fold(0.0f64, |m, x| m.max(x.abs())))
+        .fold(0.0, f64::max);
+    let (tau, turn) = (l / r, f64::from(n_p) * w * h);
+    let slow = tau.is_finite() && tau > 0.0 && h > MAX_H_OVER_TAU * tau;
+    if !slow && turn < std::f64::consts::PI {
+        return None;
+    }
+    Some(format!(
+        "h = {h:e} s is {:.1} electrical time constants L/R ({tau:.3e} s) and the rotor turns up to {turn:.2} \
+         electrical rad in one sample: the model cannot resolve the currents at this rate. A time column in \
+         milliseconds? (--time-unit ms gives h = {:e} s)",
+        h / tau,
+        h * 1e-3
+    ))
+}
+
+/// What the estimates would be under the conventions the data cannot tell apart.
+fn scaling_notice(fit: &FitResult) -> Warning {
+    let v = |n: &str| fit.parameter(n).map(|p| p.value);
+    let r = v("r_s").unwrap_or(f64::NAN);
+    let k = v("k_e").unwrap_or(f64::NAN);
+    let s2 = std::f64::consts::SQRT_2;
+    Warning::notice(
+        "scaling_assumed",
+        format!(
+            "currents and voltages read as amplitude-invariant dq peak values (MODEL.md §1); the data cannot tell. \
+             If the currents were RMS: r_s {} and the inductances ÷√2; if the voltages were RMS: r_s {}, \
+             inductances and k_e {} ×√2; if the dq transform was power-invariant: k_e {} (÷√(3/2)), r_s and \
+             inductances unchanged",
+            format_eng(r / s2, "ohm", 5),
+            format_eng(r * s2, "ohm", 5),
+            format_eng(k * s2, "V s/rad", 5),
+            format_eng(k * SQRT_2_3, "V s/rad", 5)
+        ),
+    )
+}

@@ -1,0 +1,260 @@
+//! The choice between the two voltage holds (MODEL.md §4) and the advice when the data do
+//! not settle it.
+
+use crate::data::Experiment;
+use crate::error::{Error, Result};
+use crate::estimate::{FitResult, PemOptions, StartedFit, Weighting, fit_with_weighting};
+use crate::model::GreyBoxModel;
+use crate::pmsm::model::interval::VoltageHold;
+use rayon::prelude::*;
+
+/// Factor by which the dq hold's loss must be lower than the stator hold's for
+/// [`HoldChoice::Auto`](crate::pmsm::HoldChoice::Auto) to choose it.
+pub const DQ_DECISIVE: f64 = 2.0;
+
+/// Factor by which the holds' predicted losses (weighed as in the final choice) must differ
+/// for [`HoldChoice::Auto`](crate::pmsm::HoldChoice::Auto) to fit the better hold only; closer
+/// predictions fit both.
+pub const SCREEN_DECISIVE: f64 = 4.0;
+
+pub(crate) fn hold_ambiguity(
+    best: &FitResult,
+    hold: VoltageHold,
+    others: &[(VoltageHold, FitResult)],
+    names: &[&str],
+) -> Option<String> {
+    let (other_hold, other) = others.first()?;
+    let ratio = other.fit.loss / best.fit.loss;
+    if ratio.is_nan() || !(1.0 / DQ_DECISIVE..DQ_DECISIVE).contains(&ratio) {
+        return None;
+    }
+    // Differ by more than their joint uncertainty (3 combined standard errors).
+    let (name, z) = names
+        .iter()
+        .filter_map(|n| {
+            let (a, b) = (best.parameter(n)?, other.parameter(n)?);
+            Some((*n, ((a.value - b.value) / a.std_error.hypot(b.std_error)).abs()))
+        })
+        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+    (z > 3.0).then(|| {
+        format!(
+            "the {hold} and {other_hold} voltage holds fit almost equally well (loss ratio {ratio:.3}) but their {name} \
+             differs by {z:.0} standard errors: the log does not say how the voltage was held; a real \
+             inverter holds it in the stator frame (--hold stator); this fit used the {hold} hold"
+        )
+    })
+}
+
+/// The fits of every hold tried: the chosen one, the others, `(hold, loss, converged)` in
+/// fitting order, and notes on restarts.
+pub(crate) struct HoldFits {
+    pub best: (VoltageHold, FitResult),
+    pub others: Vec<(VoltageHold, FitResult)>,
+    pub losses: Vec<(VoltageHold, f64, bool)>,
+    pub notes: Vec<String>,
+}
+
+/// Whether a fit stalled: not converged, or a parameter at a bound.
+fn stalled(r: &FitResult) -> bool {
+    !r.solver.success || r.parameters.iter().any(|p| p.at_bound)
+}
+
+/// The estimate of `names` in a fit.
+fn estimate_of(r: &FitResult, names: &[&str]) -> Option<Vec<f64>> {
+    names.iter().map(|n| r.parameter(n).map(|p| p.value)).collect()
+}
+
+/// The hold whose predicted loss is at least [`SCREEN_DECISIVE`] times lower than every
+/// other's, the dq hold's weighed by [`DQ_DECISIVE`] when the logs carry a modulator's
+/// reference; `None` when no hold is that clearly better.
+fn screen(predicted: &[(VoltageHold, f64)], modulator: bool) -> Option<VoltageHold> {
+    let weighed =
+        |(h, l): &(VoltageHold, f64)| if *h == VoltageHold::Dq && modulator { DQ_DECISIVE * l } else { *l };
+    let best = predicted.iter().min_by(|a, b| weighed(a).total_cmp(&weighed(b)))?;
+    let clear = predicted
+        .iter()
+        .filter(|p| p.0 != best.0)
+        .all(|p| weighed(p) >= SCREEN_DECISIVE * weighed(best) && weighed(p) > 0.0);
+    clear.then_some(best.0)
+}
+
+/// [`fit_holds_screened`] for the models that `make(hold)` builds: each hold's prediction
+/// is a [`StartedFit`] of `experiments` (options `pem`, `weighting`), and the fit of the
+/// hold it predicted, from the same start, continues it (its start's preparation and
+/// normal-equation pass are not repeated: the estimate is the same bits).
+///
+/// # Errors
+/// Those of `make`; as [`fit_holds`] with [`fit_with_weighting`].
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn fit_holds_of<M: GreyBoxModel>(
+    holds: &[VoltageHold],
+    start: &[f64],
+    names: &[&str],
+    modulator: bool,
+    make: impl Fn(VoltageHold) -> Result<M>,
+    experiments: &[Experiment],
+    pem: &PemOptions,
+    weighting: &dyn Weighting,
+) -> Result<HoldFits> {
+    let models = holds.iter().map(|&h| Ok((h, make(h)?))).collect::<Result<Vec<_>>>()?;
+    let model = |h: VoltageHold| {
+        models
+            .iter()
+            .find(|(m, _)| *m == h)
+            .map(|(_, m)| m)
+            .ok_or_else(|| Error::Solver(format!("no {h} hold model")))
+    };
+    fit_holds_screened(
+        holds,
+        start,
+        names,
+        modulator,
+        |h, s| StartedFit::new(model(h)?, experiments, s, pem, weighting).map(|f| (f.predicted_loss(), f)),
+        |h, s, started: Option<StartedFit<'_, M>>| match started {
+            Some(f) => f.fit(),
+            None => fit_with_weighting(model(h)?, experiments, s, pem, weighting),
+        },
+    )
+}
+
+/// [`fit_holds`] after a screen: when more than one hold is to be tried, each hold's loss
+/// is first predicted at the start by `predict(hold, start)` (one normal-equation pass,
+/// [`crate::estimate::predicted_loss`]), which also gives what the fit of that hold from
+/// that start continues (`fit_hold(hold, start, Some(it))`); when one hold is clearly better
+/// ([`SCREEN_DECISIVE`]) only it is fitted, and if that fit stalls every hold is. A
+/// prediction that fails counts as no evidence.
+///
+/// # Errors
+/// As [`fit_holds`].
+pub(crate) fn fit_holds_screened<P: Send>(
+    holds: &[VoltageHold],
+    start: &[f64],
+    names: &[&str],
+    modulator: bool,
+    predict: impl Fn(VoltageHold, &[f64]) -> Result<(f64, P)> + Sync,
+    mut fit_hold: impl FnMut(VoltageHold, &[f64], Option<P>) -> Result<FitResult>,
+) -> Result<HoldFits> {
+    let mut notes = Vec::new();
+    // What the predictions prepared, each for the first fit of its hold from `start`.
+    let mut seeds: Vec<(VoltageHold, P)> = Vec::new();
+    let mut chosen = None;
+    if holds.len() > 1 {
+        // One normal-equation pass per hold, the holds in parallel.
+        let runs: Vec<Option<(VoltageHold, f64, P)>> =
+            holds.par_iter().map(|&h| predict(h, start).ok().map(|(l, p)| (h, l, p))).collect();
+        let predicted: Option<Vec<(VoltageHold, f64)>> =
+            runs.iter().map(|r| r.as_ref().map(|r| (r.0, r.1))).collect();
+        seeds = runs.into_iter().flatten().map(|(h, _, p)| (h, p)).collect();
+        let listed = |p: &[(VoltageHold, f64)]| {
+            p.iter().map(|(h, l)| format!("{h} {l:.6e}")).collect::<Vec<_>>().join(", ")
+        };
+        if let Some(p) = &predicted
+            && let Some(hold) = screen(p, modulator)
+        {
+            chosen = Some((hold, listed(p)));
+        }
+    }
+    let mut fit_from = |seeds: &mut Vec<(VoltageHold, P)>, h: VoltageHold, s: &[f64]| {
+        let seed = seeds.iter().position(|(sh, _)| *sh == h && s == start).map(|i| seeds.swap_remove(i).1);
+        fit_hold(h, s, seed)
+    };
+    if let Some((hold, listed)) = chosen {
+        seeds.retain(|(h, _)| *h == hold);
+        let mut fits = fit_holds(&[hold], start, names, modulator, |h, s| fit_from(&mut seeds, h, s))?;
+        if !stalled(&fits.best.1) {
+            fits.notes.push(format!(
+                "voltage hold chosen automatically: the {hold} hold, whose loss the Gauss-Newton step from the \
+                 start predicts at least {SCREEN_DECISIVE} times lower{} (predicted losses {listed}); only it was fitted",
+                if modulator { " (the dq hold's weighed ×2: the log carries a modulator's reference)" } else { "" },
+            ));
+            return Ok(fits);
+        }
+        notes.push(format!(
+            "the {hold} hold, chosen from the predicted losses ({listed}), stalled: every hold fitted"
+        ));
+    }
+    // Only the first hold's fit starts from `start` (a restart from it may, later).
+    seeds.retain(|(h, _)| Some(h) == holds.first());
+    let mut fits = fit_holds(holds, start, names, modulator, |h, s| fit_from(&mut seeds, h, s))?;
+    notes.append(&mut fits.notes);
+    fits.notes = notes;
+    Ok(fits)
+}
+
+/// Fits every hold in `holds` with `fit_hold(hold, start)` (the second from the first's
+/// estimate when that converged), restarts a fit that stalled (not converged, or at a bound)
+/// from every other start available (the other hold's estimate, the given start) and keeps
+/// its lowest loss, then chooses: a converged fit over one that is not, else the lower loss,
+/// the dq hold's multiplied by [`DQ_DECISIVE`] when the logs carry a modulator's reference
+/// (`modulator`: an inverter holds its output in the stator frame).
+///
+/// # Errors
+/// Those of `fit_hold`; [`Error::InvalidOption`] for no hold.
+pub(crate) fn fit_holds(
+    holds: &[VoltageHold],
+    start: &[f64],
+    names: &[&str],
+    modulator: bool,
+    mut fit_hold: impl FnMut(VoltageHold, &[f64]) -> Result<FitResult>,
+) -> Result<HoldFits> {
+    let mut fits: Vec<(VoltageHold, FitResult)> = Vec::new();
+    // The start each fit took: a restart from it again would only repeat the fit.
+    let mut used: Vec<Vec<f64>> = Vec::new();
+    for &hold in holds {
+        let s = fits
+            .last()
+            .filter(|(_, r)| !stalled(r))
+            .and_then(|(_, r)| estimate_of(r, names))
+            .unwrap_or_else(|| start.to_vec());
+        fits.push((hold, fit_hold(hold, &s)?));
+        used.push(s);
+    }
+    let mut notes = Vec::new();
+    for i in 0..fits.len() {
+        if !stalled(&fits[i].1) {
+            continue;
+        }
+        let mut starts: Vec<Vec<f64>> = fits
+            .iter()
+            .enumerate()
+            .filter(|(j, (_, r))| *j != i && !stalled(r))
+            .filter_map(|(_, (_, r))| estimate_of(r, names))
+            .collect();
+        starts.push(start.to_vec());
+        starts.retain(|s| *s != used[i]);
+        let before = fits[i].1.fit.loss;
+        if starts.is_empty() {
+            notes.push(format!("the {} hold fit stalled; no other start to restart it from", fits[i].0));
+            continue;
+        }
+        for s in starts {
+            let r = fit_hold(fits[i].0, &s)?;
+            let current = &fits[i].1;
+            if (r.solver.success && !current.solver.success)
+                || (!stalled(&r) && r.fit.loss < current.fit.loss)
+                || (stalled(current) && !stalled(&r))
+            {
+                fits[i].1 = r;
+            }
+        }
+        notes.push(format!(
+            "the {} hold fit stalled ({}); restarted from the other estimates: loss {before:.6e} -> {:.6e}{}",
+            fits[i].0,
+            if fits[i].1.solver.success { "at a bound" } else { "not converged" },
+            fits[i].1.fit.loss,
+            if stalled(&fits[i].1) { ", still stalled" } else { "" }
+        ));
+    }
+    let losses = fits.iter().map(|(h, r)| (*h, r.fit.loss, r.solver.success)).collect();
+    let weighed =
+        |h: VoltageHold, loss: f64| if h == VoltageHold::Dq && modulator { DQ_DECISIVE * loss } else { loss };
+    let key = |(h, r): &(VoltageHold, FitResult)| (stalled(r), weighed(*h, r.fit.loss));
+    let i = (0..fits.len())
+        .min_by(|&a, &b| {
+            let (ka, kb) = (key(&fits[a]), key(&fits[b]));
+            ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+        })
+        .ok_or_else(|| Error::InvalidOption { option: "hold".into(), reason: "no hold fitted".into() })?;
+    let best = fits.remove(i);
+    Ok(HoldFits { best, others: fits, losses, notes })
+}

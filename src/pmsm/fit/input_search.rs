@@ -1,0 +1,313 @@
+//! The nuisance parameters of a reference-voltage input, estimated by search around the
+//! fit: the computational delay (integer, 0–3 samples), the modulator's angle advance
+//! (continuous, golden-section search), the bandwidth of the phase-locked loop whose speed
+//! the controller advances the reference with, and the width of the dead-time model's
+//! smooth sign (golden-section search on their logarithms). Each candidate is a whole fit;
+//! the lowest loss wins (MODEL.md §4: the delay and the controller's angle are properties of
+//! the drive, not of the motor).
+
+use crate::data::Experiment;
+use crate::error::{Error, Result};
+use crate::estimate::{FitResult, ParameterEstimate};
+use crate::pmsm::fit::report::PmsmFit;
+use crate::pmsm::fit::report::delay_parameter;
+use crate::pmsm::fit::workflow::fit_pmsm;
+use crate::pmsm::log::signals::DqView;
+use crate::pmsm::model::interval::VoltageInput;
+use crate::pmsm::model::inverter::InverterModel;
+use crate::pmsm::options::PmsmFitOptions;
+use nalgebra::{DMatrix, DVector};
+
+/// Delays tried \[samples\].
+pub const DELAYS: std::ops::RangeInclusive<usize> = 0..=3;
+/// Range of the modulator angle advance searched \[ω_e h\].
+pub const ADVANCE_RANGE: (f64, f64) = (-1.0, 4.0);
+/// Range of the speed-estimator bandwidth searched \[rad/s\]: 2π·10 Hz to 2π·2 kHz.
+pub const SPEED_PLL_RANGE: (f64, f64) = (62.83185307179586, 12_566.370614359172);
+/// Log-spaced bandwidths of the coarse scan before the golden-section refinement.
+const COARSE: usize = 16;
+/// Golden-section steps (each shrinks the bracket by 0.618: 24 steps ≈ 1e-5 in ln α).
+const GOLDEN_STEPS: usize = 24;
+
+/// What to estimate besides the motor's parameters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct InputSearch {
+    /// The computational delay, 0–3 samples.
+    pub delay: bool,
+    /// The modulator's angle advance, in units of `ω_e h`, in [`ADVANCE_RANGE`] (after the
+    /// delay: the integer delay and the continuous advance together place the voltage).
+    pub advance: bool,
+    /// The bandwidth of the controller's speed estimate (needs `theta_m`).
+    pub speed_pll: bool,
+    /// The width of the dead-time model's smooth sign (with `options.inverter`): the
+    /// current ripple blurs the switch-over, by an amount the log does not say.
+    pub dead_time_width: bool,
+}
+
+/// Fits with the reference voltage of `options.input` (1 sample, 1.5 ω_e h if it is the
+/// terminal voltage), estimating what `search` asks for, and returns the fit with the lowest
+/// loss among those that converged; its notes give the search.
+///
+/// # Errors
+/// Those of [`fit_pmsm`]; [`Error::Numerical`] when no candidate converges.
+pub fn fit_estimating_input(
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+    search: InputSearch,
+) -> Result<PmsmFit> {
+    let (delay0, advance, pll0) = match options.input {
+        VoltageInput::Reference { delay, advance, speed_pll } => (delay, advance, speed_pll),
+        VoltageInput::Terminal => (1, 1.5, None),
+    };
+    // Every candidate starts from the fit at the given input (a least-squares start at a
+    // wrong delay can be unusable, e.g. a negative resistance).
+    let first = fit_pmsm(
+        experiments,
+        &PmsmFitOptions {
+            skip_setup_checks: true,
+            input: VoltageInput::Reference { delay: delay0, advance, speed_pll: pll0 },
+            ..options.clone()
+        },
+    )?;
+    let nuisance = options.inverter.map(|_| "v_dt");
+    let start: Vec<f64> = options
+        .model
+        .parameter_names()
+        .iter()
+        .copied()
+        .chain(nuisance)
+        .map(|n| first.parameter(n).map_or(f64::NAN, |p| p.value))
+        .collect();
+    // The options of a candidate; candidates skip the setup checks, the final fit runs them.
+    let options_at =
+        |delay: usize, advance: f64, speed_pll: Option<f64>, width: Option<f64>| PmsmFitOptions {
+            input: VoltageInput::Reference { delay, advance, speed_pll },
+            inverter: options.inverter.map(|i| InverterModel { width: width.or(i.width), ..i }),
+            start: Some(start.clone()),
+            ..options.clone()
+        };
+    let fit_with = |delay: usize, advance: f64, speed_pll: Option<f64>, width: Option<f64>| {
+        let o = options_at(delay, advance, speed_pll, width);
+        fit_pmsm(experiments, &PmsmFitOptions { skip_setup_checks: true, ..o })
+    };
+    let fit_at = |delay: usize, speed_pll: Option<f64>| fit_with(delay, advance, speed_pll, None);
+    // A candidate that cannot be fitted (diverging simulation, no convergence) loses.
+    let loss = |f: Result<PmsmFit>| match f {
+        Ok(f) if f.solver.success => Ok(f.fit.loss),
+        Ok(_)
+        | Err(Error::Numerical { .. } | Error::SimulationDiverged { .. } | Error::InvalidParameter { .. }) => {
+            Ok(f64::INFINITY)
+        }
+        Err(e) => Err(e),
+    };
+    let mut notes = Vec::new();
+    let mut delays_tried: Vec<(usize, f64)> = Vec::new();
+    let delay = if search.delay {
+        let mut tried = Vec::new();
+        for d in DELAYS {
+            tried.push((d, loss(fit_at(d, pll0))?));
+        }
+        let best = tried.iter().min_by(|a, b| a.1.total_cmp(&b.1)).map_or(delay0, |t| t.0);
+        let text: Vec<String> = tried.iter().map(|(d, l)| format!("{d}: {l:.6e}")).collect();
+        notes.push(format!(
+            "computational delay estimated as {best} sample(s) by the lowest loss ({})",
+            text.join(", ")
+        ));
+        delays_tried = tried;
+        best
+    } else {
+        delay0
+    };
+    let advance = if search.advance {
+        let a = golden_search(ADVANCE_RANGE, false, |a| loss(fit_with(delay, a, pll0, None)))?;
+        notes.push(format!("modulator angle advance estimated as {a:.4} ω_e h by the lowest loss"));
+        a
+    } else {
+        advance
+    };
+    let fit_at = |delay: usize, speed_pll: Option<f64>| fit_with(delay, advance, speed_pll, None);
+    let speed_pll = if search.speed_pll {
+        // Profiled: the motor's estimate and initial states of the fit at this delay and
+        // advance are held while the bandwidth is searched by simulation alone (no fit per
+        // candidate); the fit below then re-estimates them at the best bandwidth.
+        let base = if search.delay || search.advance { fit_at(delay, pll0)? } else { first.clone() };
+        let profile = Profile::new(&base, experiments)?;
+        let alpha = golden_search(SPEED_PLL_RANGE, true, |a| {
+            let input = VoltageInput::Reference { delay, advance, speed_pll: Some(a) };
+            profile.loss(&PmsmFit { input, ..base.clone() }, experiments)
+        })?;
+        notes.push(format!(
+            "speed estimate of the angle advance: phase-locked loop of {alpha:.1} rad/s ({:.1} Hz), by the \
+             lowest loss",
+            alpha / std::f64::consts::TAU
+        ));
+        Some(alpha)
+    } else {
+        pll0
+    };
+    let width = match (search.dead_time_width, options.inverter) {
+        (true, Some(_)) => {
+            let peak = experiments
+                .iter()
+                .filter_map(|e| DqView::try_new(e).ok())
+                .map(|v| v.peak_current())
+                .fold(0.0, f64::max);
+            let range = (1e-3 * peak, 0.3 * peak);
+            let w = golden_search(range, true, |w| loss(fit_with(delay, advance, speed_pll, Some(w))))?;
+            notes.push(format!("dead-time sign width estimated as {w:.4} A by the lowest loss"));
+            Some(w)
+        }
+        (true, None) => {
+            return Err(Error::InvalidOption {
+                option: "dead-time width".into(),
+                reason: "estimating the width needs the inverter model".into(),
+            });
+        }
+        (false, _) => None,
+    };
+    let best = fit_pmsm(experiments, &options_at(delay, advance, speed_pll, width))?;
+    if !best.solver.success && (search.delay || search.advance || search.speed_pll || search.dead_time_width)
+    {
+        return Err(Error::Numerical {
+            context: "input estimate".into(),
+            reason: format!(
+                "the fit at the best delay {delay} does not converge: {}",
+                best.solver.termination
+            ),
+        });
+    }
+    let estimated = (!delays_tried.is_empty()).then(|| delay_set(&delays_tried, delay, best.fit.dof));
+    let PmsmFit { report, mut pmsm_notes, .. } = best.clone();
+    pmsm_notes.append(&mut notes);
+    let parameters = report
+        .parameters
+        .iter()
+        .filter(|p| p.name != "delay_samples")
+        .cloned()
+        .chain(delay_parameter(best.input, estimated))
+        .collect();
+    Ok(PmsmFit { report: FitResult { parameters, ..report }, pmsm_notes, ..best })
+}
+
+/// The loss of a fit whose input changes, with its free parameters and initial states
+/// re-estimated to first order (variable projection; Golub & Pereyra, *SIAM J. Numer.
+/// Anal.* 10 (1973) 413–432): half the part of the simulated output error that the
+/// Jacobian at the base fit cannot explain, `½ (‖r‖² − ‖Qᵀr‖²)`, `J = QR` by central
+/// differences of the simulation in each free entry. A search over the input then costs a
+/// simulation per candidate instead of a fit, and finds the minimum of the fitted loss,
+/// not that of the loss at the base fit's biased estimate.
+struct Profile {
+    q: DMatrix<f64>,
+    /// The measured outputs, stacked as the Jacobian's rows.
+    y: DVector<f64>,
+}
+
+impl Profile {
+    /// The projection at `base` on `experiments`.
+    ///
+    /// # Errors
+    /// Those of [`PmsmFit::comparisons`].
+    fn new(base: &PmsmFit, experiments: &[Experiment]) -> Result<Self> {
+        let outputs = |f: &PmsmFit| -> Result<Vec<f64>> { Ok(f.simulated_outputs(experiments)?.concat()) };
+        let mut columns = Vec::new();
+        let free = |p: &ParameterEstimate| !p.fixed && p.value.is_finite();
+        let n_par = base.parameters.len();
+        for j in 0..n_par + base.initial_states.len() {
+            let entry = |f: &PmsmFit| {
+                if j < n_par { f.parameters[j].clone() } else { f.initial_states[j - n_par].clone() }
+            };
+            if !free(&entry(base)) {
+                continue;
+            }
+            let at = |x: f64| {
+                let mut f = base.clone();
+                let p = if j < n_par {
+                    &mut f.report.parameters[j]
+                } else {
+                    &mut f.report.initial_states[j - n_par]
+                };
+                p.value = x;
+                outputs(&f)
+            };
+            let v = entry(base).value;
+            let step = 1e-6 * v.abs().max(1e-3);
+            let (hi, lo) = (at(v + step)?, at(v - step)?);
+            columns.push(hi.iter().zip(&lo).map(|(a, b)| (a - b) / (2.0 * step)).collect::<Vec<f64>>());
+        }
+        let rows = columns.first().map_or(0, Vec::len);
+        let j = DMatrix::from_fn(rows, columns.len(), |r, c| columns[c][r]);
+        let y = base.comparisons(experiments)?.into_iter().flat_map(|c| c.y).collect::<Vec<f64>>();
+        Ok(Self { q: j.qr().q(), y: DVector::from_vec(y) })
+    }
+
+    /// The projected loss of `fit` (the base fit with another input); ∞ when the simulation
+    /// diverges.
+    ///
+    /// # Errors
+    /// Those of [`PmsmFit::comparisons`] but a diverging simulation.
+    fn loss(&self, fit: &PmsmFit, experiments: &[Experiment]) -> Result<f64> {
+        let y_hat = match fit.simulated_outputs(experiments) {
+            Ok(c) => c.concat(),
+            Err(
+                Error::SimulationDiverged { .. } | Error::InvalidParameter { .. } | Error::Numerical { .. },
+            ) => {
+                return Ok(f64::INFINITY);
+            }
+            Err(e) => return Err(e),
+        };
+        let r = &self.y - DVector::from_vec(y_hat);
+        let explained = self.q.tr_mul(&r);
+        Ok(0.5 * (r.norm_squared() - explained.norm_squared()).max(0.0))
+    }
+}
+
+/// The 95 % set of delays `[lo, hi]` around `best`: those whose loss a likelihood-ratio
+/// test does not reject, `(V_d − V_min) dof / V_min < χ²₁(0.95) = 3.841` (Gaussian errors,
+/// `V = ½E²`, `σ̂² = E²/dof`; Ljung, *System Identification*, 16.4), widened to a contiguous
+/// range.
+fn delay_set(tried: &[(usize, f64)], best: usize, dof: usize) -> [usize; 2] {
+    let v_min = tried.iter().map(|t| t.1).fold(f64::INFINITY, f64::min);
+    let kept =
+        tried.iter().filter(|(_, v)| v_min > 0.0 && (v - v_min) * dof as f64 / v_min < 3.841).map(|t| t.0);
+    let lo = kept.clone().min().unwrap_or(best).min(best);
+    let hi = kept.max().unwrap_or(best).max(best);
+    [lo, hi]
+}
+
+/// The value in `range` with the lowest `loss`: an evenly spaced scan, then a golden-section
+/// search in the bracket around the best point; on the logarithm when `log` (a positive
+/// range).
+fn golden_search(range: (f64, f64), log: bool, mut loss: impl FnMut(f64) -> Result<f64>) -> Result<f64> {
+    type Map = fn(f64) -> f64;
+    let (to, from): (Map, Map) = if log { (f64::ln, f64::exp) } else { (|x| x, |x| x) };
+    let mut loss = move |x: f64| loss(from(x));
+    let (lo, hi) = (to(range.0), to(range.1));
+    let grid: Vec<f64> = (0..COARSE).map(|i| lo + (hi - lo) * i as f64 / (COARSE - 1) as f64).collect();
+    let mut values = Vec::with_capacity(COARSE);
+    for &x in &grid {
+        values.push(loss(x)?);
+    }
+    let i = (0..COARSE).min_by(|&a, &b| values[a].total_cmp(&values[b])).unwrap_or(0);
+    if !values[i].is_finite() {
+        return Err(Error::Numerical {
+            context: "nuisance search".into(),
+            reason: format!("no value in [{:.3e}, {:.3e}] gives a converged fit", range.0, range.1),
+        });
+    }
+    let (mut a, mut b) = (grid[i.saturating_sub(1)], grid[(i + 1).min(COARSE - 1)]);
+    let r = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut c, mut d) = (b - r * (b - a), a + r * (b - a));
+    let (mut fc, mut fd) = (loss(c)?, loss(d)?);
+    for _ in 0..GOLDEN_STEPS {
+        if fc <= fd {
+            (b, d, fd) = (d, c, fc);
+            c = b - r * (b - a);
+            fc = loss(c)?;
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + r * (b - a);
+            fd = loss(d)?;
+        }
+    }
+    Ok(from(if fc <= fd { c } else { d }))
+}

@@ -1,0 +1,16 @@
+//! The PMSM fit: the workflow [`fit_pmsm`](workflow::fit_pmsm) and what builds on it
+//! (the voltage input's search, instrumental variables, the automatic pole pairs), the
+//! hold choice, the report, and a saved fit's validation and simulation.
+
+pub(super) mod auto_mask;
+mod base;
+mod beside;
+pub(super) mod hold;
+mod holds;
+pub(super) mod input_search;
+pub(super) mod iv;
+pub(super) mod pole_pairs;
+pub(super) mod report;
+pub(super) mod simulated;
+pub(super) mod validate;
+pub(super) mod workflow;

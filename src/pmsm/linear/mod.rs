@@ -1,0 +1,11 @@
+//! The linear least-squares estimate on the voltage equations (thesis 5.2.1): the
+//! regression, the start of the prediction-error fit, and its report.
+
+mod least_squares;
+mod regression;
+pub(super) mod report;
+pub(super) mod start;
+
+pub use least_squares::*;
+pub use regression::regressors;
+pub(crate) use regression::{MAX_COLS, Regression, push_with_dead_time};

@@ -1,0 +1,13 @@
+//! A PMSM drive log read and viewed: the reader (CSV, gzip, Parquet, Arrow IPC) with its
+//! units, frames and time window, the typed dq view of the channels, and Clarke and Park.
+
+mod build;
+mod options;
+mod reader;
+pub(super) mod signals;
+mod split;
+pub(super) mod transform;
+
+pub use options::*;
+pub use reader::{read_log, read_logs};
+pub use split::{DroppedSegment, LogSegments, read_log_segments};

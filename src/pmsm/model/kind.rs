@@ -1,0 +1,183 @@
+//! The motor kinds and their parameter table: the single source of truth for parameter
+//! names, units, bounds, what excites each parameter, and the quantities derived from them.
+//!
+//! Advice after MODEL.md §6 (thesis 5.1.1, 6.3): `K_e` needs speed, `R_s` current at low
+//! speed or a d-current injection, `L` current transients or `i_d ≠ 0` at speed. Derived
+//! quantities after MODEL.md §2: `K_t = √(3/2) K_e` \[N m/A\], `ψ_f = √(2/3) K_e / n_p` \[V s\].
+
+use crate::model::DerivedEstimate;
+use crate::model::Parameter;
+use serde::{Deserialize, Serialize};
+
+/// Which machine a model or regression assumes.
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum MotorKind {
+    /// Surface magnets, `θ = (r_s, l_s, k_e)`.
+    #[default]
+    Spm,
+    /// Interior magnets, `θ = (r_s, l_d, l_q, k_e)`.
+    Ipm,
+}
+
+/// One row of a motor kind's parameter table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ParameterInfo {
+    /// Symbol, e.g. `r_s`.
+    pub name: &'static str,
+    /// SI unit, e.g. `ohm` (K_e per mechanical rad/s).
+    pub unit: &'static str,
+    /// Bounded to positive values (the resistance and inductances; `k_e` is unbounded: a
+    /// negative estimate means the log's sign convention differs).
+    pub positive: bool,
+    /// What data determine it, for the advice when it is poorly determined.
+    pub excited_by: &'static str,
+}
+
+const R_S: ParameterInfo = ParameterInfo {
+    name: "r_s",
+    unit: "ohm",
+    positive: true,
+    excited_by: "add low-speed data with current, or a d-current injection",
+};
+const K_E: ParameterInfo =
+    ParameterInfo { name: "k_e", unit: "V s/rad", positive: false, excited_by: "add data at higher speed" };
+const L_EXCITED: &str = "add current transients (steps of the current reference) or i_d ≠ 0 at speed";
+const L_S: ParameterInfo = ParameterInfo { name: "l_s", unit: "H", positive: true, excited_by: L_EXCITED };
+const L_D: ParameterInfo = ParameterInfo { name: "l_d", unit: "H", positive: true, excited_by: L_EXCITED };
+const L_Q: ParameterInfo = ParameterInfo { name: "l_q", unit: "H", positive: true, excited_by: L_EXCITED };
+const SPM: [ParameterInfo; 3] = [R_S, L_S, K_E];
+const IPM: [ParameterInfo; 4] = [R_S, L_D, L_Q, K_E];
+const SPM_NAMES: [&str; 3] = ["r_s", "l_s", "k_e"];
+const IPM_NAMES: [&str; 4] = ["r_s", "l_d", "l_q", "k_e"];
+const SPM_UNITS: [&str; 3] = ["ohm", "H", "V s/rad"];
+const IPM_UNITS: [&str; 4] = ["ohm", "H", "H", "V s/rad"];
+
+/// Advice for a strongly correlated pair, sorted by name.
+const PAIRS: [(&str, &str, &str); 4] = [
+    ("k_e", "r_s", "add low-speed data with current, where R_s acts without back-EMF"),
+    ("l_s", "r_s", "add current steps of both signs and several levels"),
+    ("l_d", "r_s", "add current steps of both signs and several levels"),
+    ("l_q", "r_s", "add current steps of both signs and several levels"),
+];
+
+/// The smallest inductance estimate of a PMSM fit \[H\]: `l_s`, or the smaller of `l_d`
+/// and `l_q`; ∞ when the fit has none (the electrical time constant `L/R` and the
+/// dead-time mask's threshold take the fastest axis).
+pub(crate) fn smallest_inductance(fit: &crate::estimate::FitResult) -> f64 {
+    ["l_s", "l_d", "l_q"]
+        .iter()
+        .filter_map(|n| fit.parameter(n).map(|p| p.value))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// What to check when a PMSM fit is poor.
+pub const POOR_FIT_ADVICE: &str = "check the pole pairs, the units and frames of the columns, the voltage hold, and \
+                                   that all logs come from one motor; with the reference voltage, the speed estimate \
+                                   behind the modulator's advance (--speed-pll estimate) and the inverter's dead time \
+                                   (--dead-time estimate)";
+
+impl MotorKind {
+    /// The parameter table, model order.
+    pub fn table(self) -> &'static [ParameterInfo] {
+        match self {
+            Self::Spm => &SPM,
+            Self::Ipm => &IPM,
+        }
+    }
+    /// Parameter names in order.
+    pub fn parameter_names(self) -> &'static [&'static str] {
+        match self {
+            Self::Spm => &SPM_NAMES,
+            Self::Ipm => &IPM_NAMES,
+        }
+    }
+    /// Parameter units in order (`Ω`, `H`, `V s/rad`; K_e per mechanical rad/s).
+    pub fn parameter_units(self) -> &'static [&'static str] {
+        match self {
+            Self::Spm => &SPM_UNITS,
+            Self::Ipm => &IPM_UNITS,
+        }
+    }
+    /// Model name in reports: `pmsm_spm` or `pmsm_ipm`.
+    pub fn model_name(self) -> &'static str {
+        match self {
+            Self::Spm => "pmsm_spm",
+            Self::Ipm => "pmsm_ipm",
+        }
+    }
+    /// Default parameter metadata: positive parameters bounded below by 1e-12, the scale
+    /// taken from the start value.
+    pub fn parameters(self) -> Vec<Parameter> {
+        self.table()
+            .iter()
+            .map(|p| Parameter {
+                name: p.name.into(),
+                unit: p.unit.into(),
+                nominal: None,
+                lower: if p.positive { 1e-12 } else { f64::NEG_INFINITY },
+                upper: f64::INFINITY,
+                fixed: false,
+                nuisance: false,
+            })
+            .collect()
+    }
+    /// The non-physical values of θ (model order; entries beyond the table, such as an
+    /// inverter's, are not looked at): a resistance, inductance or back-EMF constant that
+    /// is not positive. A negative `k_e` fits a log whose speed has the other sign than the
+    /// back-EMF (a flipped speed column, d and q swapped, another angle convention).
+    pub fn implausible(self, theta: &[f64]) -> Vec<String> {
+        self.table()
+            .iter()
+            .zip(theta)
+            .filter(|(_, v)| v.is_nan() || **v <= 0.0)
+            .map(|(p, v)| {
+                let why = if p.name == "k_e" {
+                    "the back-EMF has the other sign than the speed: a speed column of the wrong sign, d and q \
+                     swapped, or voltage and current swapped; check the columns before fitting again"
+                } else {
+                    "a motor's resistance and inductances are positive: check the columns and their units"
+                };
+                format!("{} = {v:.4e} {} is not positive: {why}", p.name, p.unit)
+            })
+            .collect()
+    }
+    /// Advice for a poorly determined parameter `name` (with or without `[experiment]`).
+    pub fn advice(self, name: &str) -> Option<String> {
+        let base = name.split('[').next().unwrap_or(name);
+        if base == "v_dt" {
+            return Some(format!(
+                "{name} poorly determined: add current reversals at several current levels and low speed, where \
+                 the dead-time voltage is a large part of the voltage"
+            ));
+        }
+        let p = self.table().iter().find(|p| p.name == base)?;
+        Some(format!("{name} poorly determined: {}", p.excited_by))
+    }
+    /// Advice for two strongly correlated parameters.
+    pub fn pair_advice(self, a: &str, b: &str) -> Option<String> {
+        let base = |n: &str| n.split('[').next().unwrap_or(n).to_string();
+        let mut pair = [base(a), base(b)];
+        pair.sort_unstable();
+        PAIRS.iter().find(|(x, y, _)| pair[0] == *x && pair[1] == *y).map(|(_, _, t)| t.to_string())
+    }
+}
+
+/// `k_t` \[N m/A\] and `psi_f` \[V s\] from the `k_e` of θ (model order of `kind`) on a
+/// machine with `n_p` pole pairs, with their standard errors (MODEL.md §2).
+pub fn derived(kind: MotorKind, n_p: u32, theta: &[f64], std_error: &[f64]) -> Vec<DerivedEstimate> {
+    let kt = 1.5f64.sqrt();
+    let psi = (2.0f64 / 3.0).sqrt() / f64::from(n_p.max(1));
+    let Some(j) = kind.parameter_names().iter().position(|n| *n == "k_e") else { return Vec::new() };
+    let (Some(&k_e), Some(&se)) = (theta.get(j), std_error.get(j)) else { return Vec::new() };
+    [("k_t", "N m/A", kt), ("psi_f", "V s", psi)]
+        .map(|(name, unit, f)| DerivedEstimate {
+            name: name.into(),
+            unit: unit.into(),
+            value: f * k_e,
+            std_error: f * se,
+            experiment: None,
+        })
+        .to_vec()
+}

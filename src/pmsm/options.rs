@@ -1,0 +1,144 @@
+//! The options of a PMSM fit ([`PmsmFitOptions`], [`HoldChoice`]), the one struct every
+//! step of [`crate::pmsm::fit_pmsm`] reads, and how they configure a model's parameters.
+
+use crate::data::Experiment;
+use crate::error::{Error, Result};
+use crate::estimate::PemOptions;
+use crate::model::Parameter;
+use crate::pmsm::model::interval::VoltageInput;
+use crate::pmsm::model::inverter::InverterModel;
+use crate::pmsm::model::kind::MotorKind;
+use crate::pmsm::model::temperature::ThermalReference;
+use serde::{Deserialize, Serialize};
+
+/// The loss of a nested fit of other logs or options (`None` when it fails), for the checks
+/// that confirm a suspected setup mistake by fitting the log as the mistake would have it:
+/// given by the workflow above them ([`crate::pmsm::fit_pmsm`]), so the checks need not
+/// know it.
+pub(crate) type RefitLoss<'a> = &'a (dyn Fn(&[Experiment], &PmsmFitOptions) -> Option<f64> + Sync);
+
+/// Which voltage hold the fit assumes.
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HoldChoice {
+    /// Fit both holds and keep the one with the lower loss.
+    #[default]
+    Auto,
+    /// Voltage held constant in dq (e.g. gym-electric-motor).
+    Dq,
+    /// Voltage held constant in the stator frame (a real inverter; motulator).
+    Stator,
+}
+
+/// Options of [`fit_pmsm`], built with the motor's pole pairs by [`PmsmFitOptions::new`]
+/// (there is no default pole-pair number, so none can be forgotten), then changed field by
+/// field: `PmsmFitOptions { model: MotorKind::Ipm, ..PmsmFitOptions::new(2) }`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PmsmFitOptions {
+    /// Pole pairs n_p of the motor (`ω_e = n_p ω_m`); required (0 is an error of
+    /// [`fit_pmsm`]).
+    pub pole_pairs: u32,
+    /// Surface (`spm`) or interior (`ipm`) magnets.
+    #[serde(default)]
+    pub model: MotorKind,
+    /// Voltage hold.
+    #[serde(default)]
+    pub hold: HoldChoice,
+    /// The voltage that drives the model: the measured terminal voltage (default) or the
+    /// controller's reference with its delay and angle advance (stator hold only).
+    #[serde(default)]
+    pub input: VoltageInput,
+    /// Start values in model order (`r_s, l_s, k_e` or `r_s, l_d, l_q, k_e`); `None` =
+    /// linear least-squares estimate.
+    #[serde(default)]
+    pub start: Option<Vec<f64>>,
+    /// Parameters held at their start value, by name.
+    #[serde(default)]
+    pub fixed: Vec<String>,
+    /// Parameters held at a given value `(name, value)` \[SI unit of the parameter\],
+    /// whatever the start (they need not be listed in `fixed`).
+    #[serde(default)]
+    pub fixed_values: Vec<(String, f64)>,
+    /// Bounds `(name, lower, upper)` replacing the model's defaults. A least-squares start
+    /// outside them is clamped into them (with a note); a given start is not.
+    #[serde(default)]
+    pub bounds: Vec<(String, f64, f64)>,
+    /// Known resistance in series with the winding (cable) \[Ω\], subtracted: `r_s` is the
+    /// motor's alone, and the report gives the cable apart.
+    #[serde(default)]
+    pub cable_resistance: f64,
+    /// Reference point of the winding and magnet temperatures derived from `r_s` and `psi_f`.
+    #[serde(default)]
+    pub thermal: Option<ThermalReference>,
+    /// The inverter's voltage error as a nuisance input (`v_dt`, estimated or known); for a
+    /// fit driven by the reference voltage.
+    #[serde(default)]
+    pub inverter: Option<InverterModel>,
+    /// The modulator's voltage limit \[V\] (`U_dc/√3`): with the reference input, samples
+    /// driven by a reference at the limit are weighted out. `None`: not checked.
+    #[serde(default)]
+    pub voltage_limit: Option<f64>,
+    /// Options of the prediction-error fit.
+    #[serde(default)]
+    pub pem: PemOptions,
+    /// Skip the setup checks (a better pole-pair number, a salient log, the speed's unit
+    /// and frame): for fits nested in a search, whose final fit runs them.
+    #[serde(default)]
+    pub skip_setup_checks: bool,
+    /// Fit even a log whose sample time the model cannot resolve (h beyond five electrical
+    /// time constants of the start, or half an electrical turn per sample), which is
+    /// otherwise refused before the fit: such a fit is slow (the exact step's exponential
+    /// of a large matrix) and its estimates are not to be trusted (warning `sample_time`).
+    #[serde(default)]
+    pub force: bool,
+}
+
+impl PmsmFitOptions {
+    /// The defaults for a motor of `pole_pairs` pole pairs n_p: surface magnets, the hold
+    /// chosen from the data, the terminal voltage, a least-squares start, every parameter
+    /// free within the model's bounds, no cable, inverter or thermal model, the default
+    /// prediction-error options, the setup checks on.
+    pub fn new(pole_pairs: u32) -> Self {
+        Self {
+            pole_pairs,
+            model: MotorKind::default(),
+            hold: HoldChoice::default(),
+            input: VoltageInput::default(),
+            start: None,
+            fixed: Vec::new(),
+            fixed_values: Vec::new(),
+            bounds: Vec::new(),
+            cable_resistance: 0.0,
+            thermal: None,
+            inverter: None,
+            voltage_limit: None,
+            pem: PemOptions::default(),
+            skip_setup_checks: false,
+            force: false,
+        }
+    }
+}
+
+/// Applies the fixed flags and bounds of `options` to the model's parameter metadata.
+pub(crate) fn configure(params: &mut [Parameter], options: &PmsmFitOptions) -> Result<()> {
+    let unknown = |n: &str, what: &str| Error::InvalidOption {
+        option: what.into(),
+        reason: format!("no parameter `{n}`; the model has {}", params_list(options.model)),
+    };
+    for name in options.fixed.iter().chain(options.fixed_values.iter().map(|(n, _)| n)) {
+        let p = params.iter_mut().find(|p| &p.name == name).ok_or_else(|| unknown(name, "fixed"))?;
+        p.fixed = true;
+    }
+    for (name, lo, hi) in &options.bounds {
+        let p = params.iter_mut().find(|p| &p.name == name).ok_or_else(|| unknown(name, "bounds"))?;
+        p.lower = *lo;
+        p.upper = *hi;
+        p.check_bounds()?;
+    }
+    Ok(())
+}
+
+fn params_list(kind: MotorKind) -> String {
+    kind.parameter_names().join(", ")
+}
