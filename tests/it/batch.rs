@@ -6,8 +6,8 @@
 //! match and the flags a batch cannot honour are refused, naming the flag.
 #![cfg(feature = "cli")]
 
-use crate::common::rel;
 use crate::errors::greybox;
+use approx::{assert_relative_eq, relative_eq};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -82,11 +82,14 @@ fn batch_fits_each_log_and_reports_the_broken_one() {
             |n: &str| log["parameters"].as_array().unwrap().iter().find(|p| p["name"] == n).unwrap().clone();
         for (n, truth) in [("r_s", r_s), ("l_s", L_S), ("k_e", k_e(psi_f))] {
             let v = p(n)["value"].as_f64().unwrap();
-            assert!(rel(v, truth) < 1e-6, "{name} {n} = {v}, truth {truth}");
+            assert!(relative_eq!(v, truth, max_relative = 1e-6), "{name} {n} = {v}, truth {truth}");
             assert!(p(n)["std_error"].as_f64().unwrap() > 0.0);
         }
         let k_t = log["derived"].as_array().unwrap().iter().find(|d| d["name"] == "k_t").unwrap();
-        assert!(rel(k_t["value"].as_f64().unwrap(), 1.5 * 4.0 * psi_f) < 1e-6, "{k_t}");
+        assert!(
+            relative_eq!(k_t["value"].as_f64().unwrap(), 1.5 * 4.0 * psi_f, max_relative = 1e-6),
+            "{k_t}"
+        );
         assert!(log["fit_percent"].as_array().unwrap().iter().all(|f| f[1].as_f64().unwrap() > 99.9));
         assert!(log["hold"].is_string() && log["pole_pairs"] == 4);
     }
@@ -112,8 +115,10 @@ fn batch_fits_each_log_and_reports_the_broken_one() {
     for (row, (_, r_s, psi_f)) in rows.iter().zip(LOGS) {
         assert_eq!(&row[col("status")], "ok");
         let num = |c: &str| row[col(c)].parse::<f64>().unwrap();
-        assert!(rel(num("r_s [Ω]"), r_s) < 1e-6 && rel(num("k_e [V s/rad]"), k_e(psi_f)) < 1e-6);
-        assert!(rel(num("l_s [H]"), L_S) < 1e-6 && num("r_s_se [Ω]") > 0.0);
+        assert_relative_eq!(num("r_s [Ω]"), r_s, max_relative = 1e-6);
+        assert_relative_eq!(num("k_e [V s/rad]"), k_e(psi_f), max_relative = 1e-6);
+        assert_relative_eq!(num("l_s [H]"), L_S, max_relative = 1e-6);
+        assert!(num("r_s_se [Ω]") > 0.0);
         assert!(num("fit_id [%]") > 99.9 && num("psi_f [V s]") > 0.0 && num("t_magnet [°C]").is_finite());
     }
     assert_eq!(&rows[3][col("status")], "failed");

@@ -4,6 +4,7 @@
 //! of multi-experiment fits.
 
 use crate::common::{Rng, exciting_signals, rel, sim, simulate_into};
+use approx::relative_eq;
 use greybox::estimate::{PemOptions, PemProblem, ProblemOptions, ScalingKind, fit, scaling::NominalScaling};
 use greybox::model::{GreyBoxModel, Parameter, Prepared, Signal};
 use greybox::pmsm::{DqView, PmsmIpm, PmsmSpm, VoltageHold};
@@ -28,7 +29,7 @@ fn assert_recovers(opts: &PemOptions, start: &[f64], tol: f64, label: &str) {
     assert!(r.solver.success, "{label}: {}", r.solver.termination);
     for (n, t) in ["r_s", "l_s", "k_e"].iter().zip(THETA) {
         let v = r.parameter(n).unwrap().value;
-        assert!(rel(v, t) < tol, "{label}: {n} = {v} vs {t} ({:e})", rel(v, t));
+        assert!(relative_eq!(v, t, max_relative = tol), "{label}: {n} = {v} vs {t}");
     }
 }
 

@@ -4,6 +4,7 @@
 //! naming the field.
 
 use crate::common::rel;
+use approx::{assert_relative_eq, relative_eq};
 use greybox::drive::{DriveConfig, IPM_MOTOR, SPM_MOTOR, scenario, simulate_drive};
 use greybox::pmsm::{HoldChoice, MotorKind, PmsmFitOptions, VoltageInput, fit_pmsm};
 
@@ -38,7 +39,7 @@ fn simulated_logs_are_fitted_back_to_their_truth() {
                         "{} {input}: {name} relative error {err:.2e}",
                         if t.start.salient() { "IPM" } else { "SPM" }
                     );
-                    assert!(err < 1e-6, "{name} {input}: {err:e}");
+                    assert!(relative_eq!(p.value, v, max_relative = 1e-6), "{name} {input}: {err:e}");
                 }
             }
         }
@@ -118,7 +119,7 @@ fn exp2_adaptation_lowers_the_speed_error() {
     );
     assert!(end_without < 1e-2 && end_with < 1e-2);
     assert!(with < without);
-    assert!(rel(k_t_end, SPM_MOTOR.k_t()) < 0.01);
+    assert_relative_eq!(k_t_end, SPM_MOTOR.k_t(), max_relative = 0.01);
 }
 
 /// Thesis Exp 3: the speed follows the back-and-forth moves to 280 rad/s.
@@ -169,9 +170,9 @@ fn records_are_deterministic_for_a_seed() {
     let c = simulate_drive(&DriveConfig { seed: 2, ..cfg.clone() }).unwrap();
     assert_ne!(a.experiment, c.experiment);
     let fit = fit_pmsm(&[a.experiment], &options(&a.truth, VoltageInput::Terminal)).unwrap();
-    let err = rel(fit.parameter("k_e").unwrap().value, a.truth.k_e);
-    eprintln!("exp6 IPM with noise and quantisation: k_e relative error {err:.2e}");
-    assert!(err < 0.02);
+    let k_e = fit.parameter("k_e").unwrap().value;
+    eprintln!("exp6 IPM with noise and quantisation: k_e relative error {:.2e}", rel(k_e, a.truth.k_e));
+    assert_relative_eq!(k_e, a.truth.k_e, max_relative = 0.02);
 }
 
 /// The written log reads back with `read_log` as the same experiment, and the truth file
@@ -224,7 +225,7 @@ fn simulate_command_line() {
     let r_s = report["parameters"].as_array().unwrap().iter().find(|p| p["name"] == "r_s").unwrap()["value"]
         .as_f64()
         .unwrap();
-    assert!(rel(r_s, 1.5) < 1e-6, "r_s {r_s}");
+    assert!(relative_eq!(r_s, 1.5, max_relative = 1e-6), "r_s {r_s}");
     // A scenario file from --print-config gives the same log.
     let cfg = run(&[
         "simulate",
@@ -389,7 +390,7 @@ fn every_scenario_is_fitted_back_to_its_truth() {
                     let w = worst.entry(format!("{how} {p}")).or_insert(0.0f64);
                     *w = w.max(err);
                     assert!(
-                        err < tol,
+                        relative_eq!(est.value, v, max_relative = tol),
                         "{name} {} from the {how}: {p} {err:e}",
                         if motor.salient() { "IPM" } else { "SPM" }
                     );

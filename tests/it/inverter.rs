@@ -3,6 +3,7 @@
 //! from the reference voltage.
 
 use crate::common::{Rng, Signals, exciting_signals, pmsm_options, rel, simulate_into};
+use approx::{assert_relative_eq, relative_eq};
 use greybox::Error;
 use greybox::model::{GreyBoxModel, Prepared};
 use greybox::pmsm::{
@@ -111,7 +112,7 @@ fn ipm_dead_time_is_recovered() {
     let fit = fit_pmsm(&[e], &options).unwrap();
     for (j, name) in ["r_s", "l_d", "l_q", "k_e", "v_dt"].iter().enumerate() {
         let v = fit.parameter(name).unwrap().value;
-        assert!(rel(v, THETA_IPM[j]) < 1e-6, "{name}: {:e}", rel(v, THETA_IPM[j]));
+        assert!(relative_eq!(v, THETA_IPM[j], max_relative = 1e-6), "{name}: {v:e} vs {:e}", THETA_IPM[j]);
     }
 }
 
@@ -150,7 +151,12 @@ fn dead_time_voltage_is_recovered() {
     let fit = fit_pmsm(&[record(2)], &options).unwrap();
     for (j, name) in ["r_s", "l_s", "k_e", "v_dt"].iter().enumerate() {
         let p = fit.parameter(name).unwrap();
-        assert!(rel(p.value, THETA[j]) < 1e-6, "{name}: {:e}", rel(p.value, THETA[j]));
+        assert!(
+            relative_eq!(p.value, THETA[j], max_relative = 1e-6),
+            "{name}: {:e} vs {:e}",
+            p.value,
+            THETA[j]
+        );
         assert_eq!(p.nuisance, *name == "v_dt");
     }
     assert!(fit.to_json().contains("\"nuisance\": true"));
@@ -221,7 +227,8 @@ fn pwm_log_from_the_reference_voltage() {
     let best_options = PmsmFitOptions { inverter, ..options.clone() };
     let best = fit_pmsm(&[e], &best_options).unwrap();
     let v_dt = best.parameter("v_dt").unwrap().value;
-    let err = |n: &str, truth: f64| rel(best.parameter(n).unwrap().value, truth);
+    let value = |n: &str| best.parameter(n).unwrap().value;
+    let err = |n: &str, truth: f64| rel(value(n), truth);
     eprintln!(
         "PWM log, dead-time mask: r_s {:.2e}, l_s {:.2e}, k_e {:.2e} relative error, v_dt {v_dt:.4} V ({:?})",
         err("r_s", t.r_s),
@@ -229,8 +236,10 @@ fn pwm_log_from_the_reference_voltage() {
         err("k_e", t.k_e),
         best.pmsm_notes.last()
     );
-    assert!(rel(v_dt, expected) < 0.01, "v_dt {v_dt}");
-    assert!(err("r_s", t.r_s) < 0.01 && err("l_s", t.l_d) < 0.01 && err("k_e", t.k_e) < 1e-3);
+    assert!(relative_eq!(v_dt, expected, max_relative = 0.01), "v_dt {v_dt}");
+    assert_relative_eq!(value("r_s"), t.r_s, max_relative = 0.01);
+    assert_relative_eq!(value("l_s"), t.l_d, max_relative = 0.01);
+    assert_relative_eq!(value("k_e"), t.k_e, max_relative = 1e-3);
     assert!(
         best.inverter.is_some_and(|i| matches!(i.mask, Some(DeadTimeMask::Current(c)) if c > 0.5 && c < 1.5))
     );
@@ -247,7 +256,7 @@ fn pwm_log_from_the_reference_voltage() {
     let w: f64 = note.split_whitespace().find_map(|x| x.parse().ok()).unwrap();
     eprintln!("PWM log: {note}; v_dt {:.3} V", found.parameter("v_dt").unwrap().value);
     assert!((0.3..0.6).contains(&w), "{note}");
-    assert!(rel(found.parameter("v_dt").unwrap().value, expected) < 0.01);
+    assert_relative_eq!(found.parameter("v_dt").unwrap().value, expected, max_relative = 0.01);
 }
 
 /// A saved fit with the reference input, the inverter model and a cable validates as the

@@ -3,7 +3,8 @@
 //! (Misra1a), and a prediction-error fit of a drive log ends on such a pass, whose kept
 //! sums serve the statistics without another simulation.
 
-use crate::solvers::{CurveFit, MISRA1A, misra1a, rel};
+use crate::solvers::{CurveFit, MISRA1A, misra1a};
+use approx::relative_eq;
 use argmin::core::{Executor, State};
 use greybox::estimate::lm::LsState;
 use greybox::estimate::problem::NormalEquations;
@@ -61,7 +62,7 @@ fn solvers_flag_the_evaluation_that_ends_the_run() {
         let flagged = problem.flagged.lock().unwrap();
         assert!(matches!(t, Some(Termination::StepTolerance | Termination::CostTolerance)), "{name}: {t:?}");
         let p = res.state.get_best_param().expect("estimate").as_slice().to_vec();
-        assert!(rel(p[0], MISRA1A[0]) < 1e-8, "{name}: {p:?}");
+        assert!(relative_eq!(p[0], MISRA1A[0], max_relative = 1e-8), "{name}: {p:?}");
         assert_eq!(flagged.last(), Some(&p), "{name}: the last flagged point is the estimate");
         let evaluations = res.state.get_func_counts().get("normal_equations_count").copied().unwrap_or(0);
         assert!(

@@ -3,6 +3,7 @@
 //! prediction-error fit, sample weighting, the zero-phase prefilter, and bad input.
 
 use crate::common::{Signals, Truth, load, pmsm_options, rel};
+use approx::{assert_relative_eq, relative_eq};
 use greybox::estimate::weighting::{CustomWeighting, SpeedShape, SpeedWeighting, Uniform, Weighting};
 use greybox::pmsm::{
     LinearEstimate, LinearOptions, MotorKind, PmsmFitOptions, fit_pmsm, least_squares, weighted_least_squares,
@@ -32,7 +33,10 @@ fn assert_ls_recovers(stem: &str, tol: f64) {
         let est = ls.value(name).unwrap();
         let err = rel(est, truth);
         eprintln!("{stem} {name}: LS {est:.7e}, truth {truth:.7e}, relative error {err:.3e}");
-        assert!(err < tol, "{stem} {name}: {est:e} vs truth {truth:e}: relative error {err:e}");
+        assert!(
+            relative_eq!(est, truth, max_relative = tol),
+            "{stem} {name}: {est:e} vs truth {truth:e}: relative error {err:e}"
+        );
     }
     assert!(ls.std_error.iter().chain(&ls.error_index_percent).all(|v| v.is_finite() && *v > 0.0));
 }
@@ -84,7 +88,7 @@ fn ls_vs_pem(stem: &str, factor: f64) {
         let (l, p) = (ls.value(name).unwrap(), pem.parameter(name).unwrap().value);
         let (el, ep) = (100.0 * (l - truth) / truth, 100.0 * (p - truth) / truth);
         eprintln!("| {name} | {truth:.6e} | {l:.6e} | {p:.6e} | {el:+.3} | {ep:+.4} |");
-        assert!(rel(p, truth) < 2e-3, "{stem} {name}: PEM {p} vs {truth}");
+        assert!(relative_eq!(p, truth, max_relative = 2e-3), "{stem} {name}: PEM {p} vs {truth}");
         if name.starts_with("l_") {
             assert!(
                 rel(l, truth) > factor * rel(p, truth),
@@ -133,7 +137,7 @@ fn speed_weighting_changes_the_error_indices() {
     // Low speed is where R_s shows (MODEL.md §6): relative to K_e, R_s is better determined.
     let ratio = |x: &LinearEstimate| x.error_index_percent[0] / x.error_index_percent[2];
     assert!(ratio(&wls) < ratio(&uni), "P(r_s)/P(k_e): {} vs uniform {}", ratio(&wls), ratio(&uni));
-    assert!(rel(wls.theta[2], t.k_e) < 1e-2);
+    assert_relative_eq!(wls.theta[2], t.k_e, max_relative = 1e-2);
 }
 
 #[test]
@@ -147,11 +151,11 @@ fn constant_weights_equal_uniform() {
     let a = weighted_least_squares(std::slice::from_ref(&e), t.n_p, MotorKind::Spm, &Uniform, &opts).unwrap();
     let b = weighted_least_squares(std::slice::from_ref(&e), t.n_p, MotorKind::Spm, &three, &opts).unwrap();
     for i in 0..3 {
-        assert!(rel(b.theta[i], a.theta[i]) < 1e-10, "{}", a.names[i]);
-        assert!(rel(b.error_index_percent[i], a.error_index_percent[i]) < 1e-8);
-        assert!(rel(b.std_error[i], a.std_error[i]) < 1e-8);
+        assert!(relative_eq!(b.theta[i], a.theta[i], max_relative = 1e-10), "{}", a.names[i]);
+        assert_relative_eq!(b.error_index_percent[i], a.error_index_percent[i], max_relative = 1e-8);
+        assert_relative_eq!(b.std_error[i], a.std_error[i], max_relative = 1e-8);
     }
-    assert!(rel(b.e2, 3.0 * a.e2) < 1e-8);
+    assert_relative_eq!(b.e2, 3.0 * a.e2, max_relative = 1e-8);
 }
 
 #[test]
@@ -173,15 +177,15 @@ fn weights_select_rows() {
     let half = least_squares(&[e.slice(0..cut).unwrap()], t.n_p, MotorKind::Spm).unwrap();
     for i in 0..3 {
         assert!(
-            rel(whole.theta[i], half.theta[i]) < 1e-9,
+            relative_eq!(whole.theta[i], half.theta[i], max_relative = 1e-9),
             "{}: {} vs {}",
             half.names[i],
             whole.theta[i],
             half.theta[i]
         );
-        assert!(rel(whole.error_index_percent[i], half.error_index_percent[i]) < 1e-6);
+        assert_relative_eq!(whole.error_index_percent[i], half.error_index_percent[i], max_relative = 1e-6);
     }
-    assert!(rel(whole.theta[1], t.l_d) < 1e-3);
+    assert_relative_eq!(whole.theta[1], t.l_d, max_relative = 1e-3);
 }
 
 // ---------------------------------------------------------------- (d) prefilter
@@ -223,7 +227,9 @@ fn prefilter_keeps_noise_free_estimates_close() {
         let errs: Vec<f64> = f.theta.iter().zip([t.r_s, t.l_d, t.k_e]).map(|(v, t)| rel(*v, t)).collect();
         let shown: Vec<String> = errs.iter().map(|e| format!("{e:.3e}")).collect();
         eprintln!("noise-free, prefilter {fc} Hz: relative errors (r_s, l_s, k_e) {shown:?}");
-        assert!(errs.iter().all(|e| *e < 1e-2), "{fc} Hz: {errs:?}");
+        for (v, truth) in f.theta.iter().zip([t.r_s, t.l_d, t.k_e]) {
+            assert!(relative_eq!(*v, truth, max_relative = 1e-2), "{fc} Hz: {errs:?}");
+        }
     }
 }
 

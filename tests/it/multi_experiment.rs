@@ -4,6 +4,7 @@
 //! give back both resistances and the temperature difference; one R_s for both must not fit.
 
 use crate::common::{Rng, exciting_signals, experiment, pmsm_options, rel, sim};
+use approx::relative_eq;
 use greybox::estimate::{FitResult, PemOptions};
 use greybox::model::Prepared;
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, PmsmSpm, VoltageHold, fit_pmsm};
@@ -85,7 +86,7 @@ fn per_log_resistance_recovers_the_temperature_difference() {
         ("k_e", fit.parameter("k_e").unwrap().value, K_E),
     ] {
         eprintln!("{name}: {est:.9e}, relative error {:.2e}", rel(est, truth));
-        assert!(rel(est, truth) < 1e-6, "{name}: {est:e} vs {truth:e}");
+        assert!(relative_eq!(est, truth, max_relative = 1e-6), "{name}: {est:e} vs {truth:e}");
     }
     let dt = (r2 / r1 - 1.0) / ALPHA;
     eprintln!("ΔT = {dt:.6} K (truth {DT_HOT} K)");

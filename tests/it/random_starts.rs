@@ -3,7 +3,8 @@
 //! estimate of the fit from the least-squares start (to 1e-6 relative) in ≥ 99 % of the
 //! starts. The truth is used only to centre the random starts, which is the point here.
 
-use crate::common::{Rng, exciting_signals, experiment, load, pmsm_options, rel, simulate_into};
+use crate::common::{Rng, exciting_signals, experiment, load, pmsm_options, simulate_into};
+use approx::relative_eq;
 use greybox::Experiment;
 use greybox::pmsm::{DqView, HoldChoice, PmsmFitOptions, PmsmSpm, VoltageHold, fit_pmsm};
 
@@ -49,7 +50,7 @@ fn success_rate_with(
             Ok(fit) => {
                 iterations += fit.solver.iterations;
                 let end = estimate(&fit);
-                if end.iter().zip(&best).all(|(a, b)| rel(*a, *b) < 1e-6) {
+                if end.iter().zip(&best).all(|(a, b)| relative_eq!(*a, *b, max_relative = 1e-6)) {
                     reached += 1;
                 } else {
                     eprintln!(

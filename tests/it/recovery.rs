@@ -3,6 +3,7 @@
 //! start (never the truth), automatic voltage-hold choice.
 
 use crate::common::{Truth, load, pmsm_options, rel};
+use approx::{assert_relative_eq, relative_eq};
 use greybox::pmsm::{MotorKind, PmsmFit, PmsmFitOptions, fit_pmsm};
 
 fn fit_log(stem: &str) -> (PmsmFit, Truth) {
@@ -28,10 +29,13 @@ fn assert_within(stem: &str, tol: f64) {
         let est = fit.parameter(name).unwrap().value;
         let e = rel(est, truth);
         eprintln!("{stem} {name}: relative error {e:.3e}");
-        assert!(e < tol, "{stem} {name}: {est:e} vs truth {truth:e}: relative error {e:e}");
+        assert!(
+            relative_eq!(est, truth, max_relative = tol),
+            "{stem} {name}: {est:e} vs truth {truth:e}: relative error {e:e}"
+        );
     }
     let psi = fit.derived("psi_f").unwrap().value;
-    assert!(rel(psi, t.psi_f) < tol, "{stem} psi_f {psi} vs {}", t.psi_f);
+    assert!(relative_eq!(psi, t.psi_f, max_relative = tol), "{stem} psi_f {psi} vs {}", t.psi_f);
 }
 
 #[test]
@@ -86,7 +90,7 @@ fn assert_noisy(stem: &str) {
         let p = fit.parameter(name).unwrap();
         let z = (p.value - truth) / p.std_error;
         eprintln!("{stem} {name}: rel {:.3e}, {z:.2} standard errors", rel(p.value, truth));
-        assert!(rel(p.value, truth) < 2e-3, "{stem} {name}: {} vs {truth}", p.value);
+        assert!(relative_eq!(p.value, truth, max_relative = 2e-3), "{stem} {name}: {} vs {truth}", p.value);
         assert!(z.abs() < 3.0, "{stem} {name}: {} ± {} vs {truth} ({z:.2} se)", p.value, p.std_error);
         assert!(p.ci95[0] < p.value && p.value < p.ci95[1]);
     }
@@ -124,14 +128,15 @@ fn pwm_log_keeps_the_stator_hold_and_flags_the_ambiguity() {
     let opts = PmsmFitOptions { hold: greybox::pmsm::HoldChoice::Stator, ..pmsm_options(t.n_p) };
     let stator = fit_pmsm(&[e], &opts).unwrap();
     assert_eq!(stator.parameters, auto.parameters, "auto is the stator fit");
-    let err = |n: &str, truth: f64| rel(stator.parameter(n).unwrap().value, truth);
+    let value = |n: &str| stator.parameter(n).unwrap().value;
+    let err = |n: &str, truth: f64| rel(value(n), truth);
     eprintln!(
         "PWM, stator hold: r_s {:.2e}, l_s {:.2e}, k_e {:.2e}",
         err("r_s", t.r_s),
         err("l_s", t.l_d),
         err("k_e", t.k_e)
     );
-    assert!(err("l_s", t.l_d) < 1.5e-3);
-    assert!(err("r_s", t.r_s) < 2e-4);
-    assert!(err("k_e", t.k_e) < 1e-4);
+    assert_relative_eq!(value("l_s"), t.l_d, max_relative = 1.5e-3);
+    assert_relative_eq!(value("r_s"), t.r_s, max_relative = 2e-4);
+    assert_relative_eq!(value("k_e"), t.k_e, max_relative = 1e-4);
 }

@@ -3,6 +3,7 @@
 //! estimate found by search; and the errors a user gets when the log cannot support it.
 
 use crate::common::{Rng, Signals, exciting_signals, pmsm_options, rel, simulate_into};
+use approx::relative_eq;
 use greybox::Error;
 use greybox::model::{GreyBoxModel, Prepared};
 use greybox::pmsm::{
@@ -55,7 +56,12 @@ fn a_delayed_reference_is_recovered_with_its_delay() {
     assert_eq!(fit.input, input, "{:?}", fit.pmsm_notes);
     for (j, name) in ["r_s", "l_s", "k_e"].iter().enumerate() {
         let p = fit.parameter(name).unwrap();
-        assert!(rel(p.value, THETA[j]) < 1e-7, "{name}: {:e}", rel(p.value, THETA[j]));
+        assert!(
+            relative_eq!(p.value, THETA[j], max_relative = 1e-7),
+            "{name}: {:e} vs {:e}",
+            p.value,
+            THETA[j]
+        );
     }
     // The delay is a nuisance entry of the report, estimated, its 95 % set the delay alone
     // (a noise-free record rejects every other delay).
@@ -135,7 +141,7 @@ fn motulator_logs_from_the_reference_voltage() {
                 "{stem} from the reference: {} relative error {err:.2e} (speed estimate {speed_pll:?} rad/s)",
                 p.name
             );
-            assert!(err < 5e-4, "{stem} {}: {err:e}", p.name);
+            assert!(relative_eq!(p.value, *v, max_relative = 5e-4), "{stem} {}: {err:e}", p.name);
         }
     }
 }
@@ -195,7 +201,7 @@ fn samples_at_the_voltage_limit_are_weighted_out() {
     let n: usize = note.split_whitespace().next().unwrap().parse().unwrap();
     assert!(n > 0 && n < e.len() / 2, "{note}");
     for (j, name) in ["r_s", "l_s", "k_e"].iter().enumerate() {
-        assert!(rel(fit.parameter(name).unwrap().value, THETA[j]) < 1e-7, "{name}");
+        assert!(relative_eq!(fit.parameter(name).unwrap().value, THETA[j], max_relative = 1e-7), "{name}");
     }
     let bad = PmsmFitOptions { voltage_limit: Some(-1.0), ..options };
     assert!(fit_pmsm(&[e], &bad).unwrap_err().to_string().contains("voltage_limit"));
@@ -241,8 +247,8 @@ fn a_log_with_only_the_reference_is_read_and_fitted() {
     let options = PmsmFitOptions { input: VoltageInput::REFERENCE, ..pmsm_options(N_P) };
     let fit = fit_pmsm(std::slice::from_ref(&log), &options).unwrap();
     for (j, name) in ["r_s", "l_s", "k_e"].iter().enumerate() {
-        let err = rel(fit.parameter(name).unwrap().value, THETA[j]);
-        assert!(err < 1e-6, "{name}: {err:e}");
+        let v = fit.parameter(name).unwrap().value;
+        assert!(relative_eq!(v, THETA[j], max_relative = 1e-6), "{name}: {v:e} vs {:e}", THETA[j]);
     }
     match fit_pmsm(std::slice::from_ref(&log), &pmsm_options(N_P)).unwrap_err() {
         Error::MissingChannel { channel, .. } => assert_eq!(channel, "ud"),

@@ -7,6 +7,7 @@
 //! - the cost never increases across iterations; bad options are errors.
 
 use crate::common::{load, pmsm_options};
+use approx::relative_eq;
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Executor, KV, State};
 use greybox::estimate::lm::LsState;
@@ -266,10 +267,6 @@ fn assert_monotone(records: &[Record]) {
     }
 }
 
-pub(crate) fn rel(a: f64, b: f64) -> f64 {
-    ((a - b) / b).abs()
-}
-
 #[test]
 fn gn_recovers_misra1a_certified_values_from_both_nist_starts() {
     let problem = misra1a();
@@ -283,14 +280,14 @@ fn gn_recovers_misra1a_certified_values_from_both_nist_starts() {
         );
         assert!(r.termination.success(), "{:?}", r.termination);
         // The certified values have 11 significant digits.
-        assert!(rel(r.p[0], MISRA1A[0]) < 1e-9, "b1 = {:.12e}", r.p[0]);
-        assert!(rel(r.p[1], MISRA1A[1]) < 1e-9, "b2 = {:.12e}", r.p[1]);
-        assert!(rel(2.0 * r.cost, MISRA1A_RSS) < 1e-9, "RSS = {:.12e}", 2.0 * r.cost);
+        assert!(relative_eq!(r.p[0], MISRA1A[0], max_relative = 1e-9), "b1 = {:.12e}", r.p[0]);
+        assert!(relative_eq!(r.p[1], MISRA1A[1], max_relative = 1e-9), "b2 = {:.12e}", r.p[1]);
+        assert!(relative_eq!(2.0 * r.cost, MISRA1A_RSS, max_relative = 1e-9), "RSS = {:.12e}", 2.0 * r.cost);
         // Along Misra1a's valley (b1, b2 correlated) the cost is flat to rounding over a few
         // 1e-10 relative: the solvers stop at different points of that flat stretch.
         let lm = run(&problem, LevenbergMarquardt::new(Tolerances::default()), &start);
         for j in 0..2 {
-            assert!(rel(r.p[j], lm.p[j]) < 2e-9, "GN {:?} vs LM {:?}", r.p, lm.p);
+            assert!(relative_eq!(r.p[j], lm.p[j], max_relative = 2e-9), "GN {:?} vs LM {:?}", r.p, lm.p);
         }
     }
 }
@@ -350,7 +347,7 @@ fn gn_shifts_a_singular_information_matrix() {
     eprintln!("singular: {:?}, {:?}", r.termination, r.p);
     assert!(r.termination.success(), "{:?}", r.termination);
     let sum_xy = 2.1 + 2.0 * 3.9 + 2.0 * 4.2;
-    assert!(rel(r.p[0] + r.p[1], sum_xy / 9.0) < 1e-10, "a + b = {}", r.p[0] + r.p[1]);
+    assert!(relative_eq!(r.p[0] + r.p[1], sum_xy / 9.0, max_relative = 1e-10), "a + b = {}", r.p[0] + r.p[1]);
     assert!(r.records[1].shift.is_some_and(|s| s > 0.0), "the KV reports the shift: {:?}", r.records[1]);
     assert_monotone(&r.records);
 }
@@ -404,7 +401,12 @@ fn gn_with_custom_line_search_still_recovers_misra1a() {
         .expect("valid options");
     let r = run(&misra1a(), solver, &[500.0, 1e-4]);
     assert!(r.termination.success(), "{:?}", r.termination);
-    assert!(rel(r.p[0], MISRA1A[0]) < 1e-9 && rel(r.p[1], MISRA1A[1]) < 1e-9, "{:?}", r.p);
+    assert!(
+        relative_eq!(r.p[0], MISRA1A[0], max_relative = 1e-9)
+            && relative_eq!(r.p[1], MISRA1A[1], max_relative = 1e-9),
+        "{:?}",
+        r.p
+    );
     assert_monotone(&r.records);
 }
 

@@ -1,6 +1,7 @@
 //! SPM model: exactness of the sampled-data step, sensitivities, recovery of known parameters.
 
-use crate::common::{Rng, Signals, exciting_signals, experiment, pmsm_options, rel, sim, simulate_into};
+use crate::common::{Rng, Signals, exciting_signals, experiment, pmsm_options, sim, simulate_into};
+use approx::relative_eq;
 use greybox::Experiment;
 use greybox::model::{GreyBoxModel, Prepared};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, PmsmSpm, VoltageHold, fit_pmsm};
@@ -181,7 +182,7 @@ proptest! {
         prop_assert!(fit.solver.success, "{}", fit.solver.termination);
         for (name, truth) in [("r_s", r_s), ("l_s", l_s), ("k_e", k_e)] {
             let est = fit.parameter(name).unwrap().value;
-            prop_assert!(rel(est, truth) < 1e-6, "{name}: {est} vs {truth} ({:e})", rel(est, truth));
+            prop_assert!(relative_eq!(est, truth, max_relative = 1e-6), "{name}: {est} vs {truth}");
         }
     }
 }

@@ -1,7 +1,8 @@
 //! What a motor setup adds to a fit (MODEL.md §3, §4): a known cable resistance taken out
 //! of `r_s`, and winding and magnet temperatures derived from `r_s` and `psi_f`.
 
-use crate::common::{Rng, exciting_signals, pmsm_options, rel, simulate_into};
+use crate::common::{Rng, exciting_signals, pmsm_options, simulate_into};
+use approx::{assert_relative_eq, relative_eq};
 use greybox::pmsm::{
     ALPHA_COPPER, BETA_NDFEB, HoldChoice, PmsmFitOptions, PmsmSpm, ThermalReference, VoltageHold, fit_pmsm,
 };
@@ -70,10 +71,10 @@ fn cable_resistance_is_reported_apart() {
         fit_pmsm(std::slice::from_ref(&e), &PmsmFitOptions { cable_resistance: cable, ..options() }).unwrap();
     assert_eq!(fit.cable_resistance, cable);
     let r_s = fit.parameter("r_s").unwrap().value;
-    assert!(rel(r_s, R_S0) < 1e-7, "r_s {r_s}");
+    assert!(relative_eq!(r_s, R_S0, max_relative = 1e-7), "r_s {r_s}");
     // Without the cable the fit sees the sum, and the winding looks hot.
     let naive = fit_pmsm(&[e], &options()).unwrap();
-    assert!(rel(naive.parameter("r_s").unwrap().value, R_S0 + cable) < 1e-7);
+    assert_relative_eq!(naive.parameter("r_s").unwrap().value, R_S0 + cable, max_relative = 1e-7);
     assert!(naive.derived("t_winding").unwrap().value > 100.0);
     // A negative cable is an error naming it.
     let err =

@@ -2,9 +2,9 @@
 
 use super::Loss;
 use super::batches::{BatchMeans, BlockScores, ScoreSeries, TARGET_BATCHES};
-use super::gram::scatter_gram;
 use super::lags::{LagStream, LagSums, WHITENESS_LAGS};
-use super::pass::LocalMap;
+use super::local::LocalMap;
+use super::local::scatter_gram;
 use crate::data::Values;
 use nalgebra::{DMatrix, DVector};
 

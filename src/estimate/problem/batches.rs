@@ -15,7 +15,7 @@
 //! output analysis: Schmeiser, *Oper. Res.* 30 (1982) 556–568). Blocks of the pass are the
 //! atoms: a batch is a run of whole blocks of one experiment, so nothing per sample is kept.
 
-use super::pass::LocalMap;
+use super::local::LocalMap;
 use crate::model::BLOCK_LEN;
 use nalgebra::{DMatrix, DVector};
 

@@ -5,10 +5,8 @@
 //! Every dot product runs in four independent lanes so that it vectorises; the order of
 //! the additions is fixed by the block layout, so a sum is the same for any thread count.
 
-use super::pass::LocalMap;
 use multiversion::multiversion;
 use multiversion::target::target_cfg_f;
-use nalgebra::DMatrix;
 
 /// `Σ_k a_k b_k` over equal-length slices, in eight lanes (FMA where the machine has it:
 /// compiled for AVX-512 and AVX2 as well as the baseline, chosen at run time).
@@ -301,19 +299,6 @@ fn gram_any(cols: &[&[f64]], w: Option<&[f64]>, g: &mut [f64]) {
         }
         for b in a..m {
             g[a * m + b] += dot(&tmp, cols[b]);
-        }
-    }
-}
-
-/// Adds a local Gram's upper triangle (row-major m × m), chained, into `out` (n_free ×
-/// n_free, upper triangle): `out[g_a, g_b] += dθ_a dθ_b local[a, b]`.
-pub(crate) fn scatter_gram(map: &LocalMap, local: &[f64], out: &mut DMatrix<f64>) {
-    let m = map.len();
-    for a in 0..m {
-        for b in a..m {
-            let (ga, gb) = (map.global[a], map.global[b]);
-            let (r, c) = (ga.min(gb), ga.max(gb));
-            out[(r, c)] += map.dtheta[a] * map.dtheta[b] * local[a * m + b];
         }
     }
 }

@@ -1,11 +1,6 @@
 //! Residual losses: quadratic, and Huber's (Huber 1981, *Robust Statistics*, 7.8); the
 //! robust scale of the residuals that sets Huber's thresholds.
 
-use super::PemProblem;
-use super::pass::Pass;
-use crate::error::Result;
-use crate::model::GreyBoxModel;
-use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
 
 /// The loss ρ applied to each residual.
@@ -38,40 +33,4 @@ impl Loss {
             }
         }
     }
-}
-
-impl<M: GreyBoxModel> PemProblem<'_, M> {
-    /// Robust scale `1.4826 × MAD` of each output's residuals at p (length n_y), the
-    /// standard deviation for Gaussian residuals (Huber 1981, 5.1).
-    ///
-    /// # Errors
-    /// As [`cost`](Self::cost).
-    pub fn robust_scale(&self, p: &DVector<f64>) -> Result<Vec<f64>> {
-        let ny = self.model.n_outputs();
-        let mut res: Vec<Vec<f64>> = vec![Vec::new(); ny];
-        for e in 0..self.terms.len() {
-            self.pass(e, p, Pass::RAW_RESIDUALS, |_, eps, _, _| {
-                for (r, &v) in res.iter_mut().zip(eps) {
-                    r.push(v);
-                }
-            })?;
-        }
-        Ok(res.into_iter().map(|r| 1.4826 * mad(r)).collect())
-    }
-}
-
-/// Median absolute deviation from the median (0 for an empty slice).
-fn mad(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let median = |v: &mut Vec<f64>| {
-        let m = v.len() / 2;
-        *v.select_nth_unstable_by(m, f64::total_cmp).1
-    };
-    let med = median(&mut v);
-    for x in v.iter_mut() {
-        *x = (*x - med).abs();
-    }
-    median(&mut v)
 }

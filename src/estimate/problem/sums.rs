@@ -3,9 +3,10 @@
 
 use super::accumulate::{Accumulator, Sums};
 use super::batches::BlockScores;
-use super::best::{ExperimentGrams, Gather, ResidualStreams};
-use super::gram::{dot, gram, scatter_gram, weighted_square_sum};
-use super::pass::{Pass, RawSample, ResidualFilter, columns};
+use super::gram::{dot, gram, weighted_square_sum};
+use super::kept::{ExperimentGrams, Gather, ResidualStreams};
+use super::local::scatter_gram;
+use super::local::{Pass, RawSample, ResidualFilter, columns};
 use super::{Loss, NormalEquations, PemProblem};
 use crate::error::Result;
 use crate::model::BLOCK_LEN;

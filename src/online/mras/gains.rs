@@ -1,7 +1,9 @@
 //! The gains of the adaptation laws (see the parent module's documentation): the thesis'
 //! fixed gains, or the normalised ones of [`Adaptation::Normalised`].
 
-use super::*;
+use super::super::config::Adaptation;
+use super::state::{INFORMATIVE, Mras};
+use crate::pmsm::C64;
 
 impl Mras {
     /// The gains `(γ_K, γ_R)` at current `i` (R̂_s adapting when `r_active`) and the mean

@@ -2,7 +2,12 @@
 //! documentation): the closed-form surface-magnet step and the salient step through
 //! [`ExactPlant`], with the `(1 − e^{−w})/w` functions they use.
 
-use super::*;
+use super::super::config::Adaptation;
+use super::state::{Mras, Sample};
+use crate::error::{Error, Result};
+use crate::pmsm::{
+    C64, ExactPlant, MotorParameters, SQRT_2_3, VoltageHold, cexpm1, rotation, stator_hold_start,
+};
 
 impl Mras {
     /// The exact SPM step from the corrected state `x` at `(k_e, r_s)`: the next

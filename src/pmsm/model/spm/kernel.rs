@@ -1,6 +1,5 @@
-//! The SPM step's per-interval terms, shared by the per-sample step, its sensitivities and
-//! the whole-block kernel (so that the three give the same numbers to the last bit), and
-//! the block kernel itself.
+//! The SPM step's per-interval terms and the whole-block kernel: the per-sample step, its
+//! sensitivities and the kernel share the terms, so the three agree to the last bit.
 //!
 //! Over interval k (module docs of [`super`]; MODEL.md §4, thesis 5.2) with
 //! `z = R_s + j ω_e L_s`, `a = e^{−j ω_e h} e^{−R_s h/L_s}`, `b = (1 − a)/z`,
@@ -14,11 +13,10 @@
 //! with `∂a/∂R_s = −(h/L) a`, `∂a/∂L_s = (R_s h/L²) a`, `∂b/∂R_s = ((h/L) a − b)/z`,
 //! `∂b/∂L_s = (−(R_s h/L²) a − j ω_e b)/z`, `g = (1 − e^{−R_s h/L})/R_s`.
 
+use super::super::interval::half_angle_rotation;
+use super::super::interval::{C64, IntervalData, IntervalVoltage, SQRT_2_3, VoltageHold};
 use super::{PmsmSpm, SpmCoefficients, SpmInputs};
 use crate::model::{BLOCK_LEN, Block, BlockContext, BlockKernel, SimState};
-use crate::pmsm::model::interval::{
-    C64, IntervalData, IntervalVoltage, SQRT_2_3, VoltageHold, half_angle_rotation,
-};
 use multiversion::multiversion;
 
 /// The terms of interval k: the step `i[k+1] = a i[k] + forced`, and with sensitivities
