@@ -117,12 +117,11 @@ pub enum Error {
         /// The value given \[s\].
         h: f64,
     },
-    /// The number of pole pairs is outside `1..=100` (`pmsm::interval::MAX_POLE_PAIRS`).
-    #[error("number of pole pairs n_p must be in 1..=100, got {n_p}")]
-    InvalidPolePairs {
-        /// The value given.
-        n_p: u32,
-    },
+    /// An error of a domain layer built on the generic ones, e.g. a motor's
+    /// [`crate::pmsm::PmsmError`]; its message is the layer's. [`Error::domain`] gives it
+    /// back typed.
+    #[error(transparent)]
+    Domain(Box<dyn std::error::Error + Send + Sync + 'static>),
     /// A parameter value is unusable (non-finite, non-positive where it must be positive).
     #[error("parameter `{name}` = {value}: {reason}")]
     InvalidParameter {
@@ -253,6 +252,17 @@ pub enum Error {
         /// Its type, e.g. `Utf8`.
         found: String,
     },
+}
+
+impl Error {
+    /// The domain layer's error of type `T` inside an [`Error::Domain`], if it is one: e.g.
+    /// `err.domain::<greybox::pmsm::PmsmError>()`.
+    pub fn domain<T: std::error::Error + 'static>(&self) -> Option<&T> {
+        match self {
+            Self::Domain(e) => e.downcast_ref::<T>(),
+            _ => None,
+        }
+    }
 }
 
 /// Short for `std::result::Result<T, greybox::Error>`.

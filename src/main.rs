@@ -113,10 +113,8 @@ fn main() -> ExitCode {
 fn exit_code_of(e: &greybox::Error) -> u8 {
     use greybox::Error;
     match e {
-        Error::InvalidOption { .. }
-        | Error::InvalidPolePairs { .. }
-        | Error::InvalidBounds { .. }
-        | Error::StartOutsideBounds { .. } => 2,
+        Error::InvalidOption { .. } | Error::InvalidBounds { .. } | Error::StartOutsideBounds { .. } => 2,
+        Error::Domain(_) if e.domain::<greybox::pmsm::PmsmError>().is_some() => 2,
         _ => 1,
     }
 }

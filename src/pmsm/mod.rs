@@ -45,7 +45,7 @@ pub use fit::validate::SavedModel;
 pub use fit::workflow::fit_pmsm;
 pub use linear::report::LS_BIAS_UNTRUSTED;
 pub use linear::{LinearEstimate, LinearOptions, least_squares, regressors, weighted_least_squares};
-pub use log::signals::{DqSignals, DqView, MAX_POLE_PAIRS, MIN_SAMPLES, channel};
+pub use log::signals::{DqSignals, DqView, MAX_POLE_PAIRS, MIN_SAMPLES, PmsmError, channel};
 pub use log::transform::{
     clarke, currents_to_dq, inverse_clarke, inverse_park, park, stator_held_voltages_to_dq,
     stator_hold_mean_factor,
@@ -60,7 +60,7 @@ pub use model::interval::{
     applied_voltage, interval_mean_speed, intervals, model_intervals, reference_intervals, rotation,
     stator_hold_start,
 };
-pub use model::inverter::{InverterModel, dead_time_directions};
+pub use model::inverter::{DEFAULT_RELATIVE_WIDTH, InverterModel, dead_time_directions};
 pub use model::ipm::PmsmIpm;
 pub use model::kind::{MotorKind, derived};
 pub use model::mask::{DeadTimeMask, DeadTimeMaskWeighting};

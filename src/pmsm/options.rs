@@ -31,13 +31,13 @@ pub enum HoldChoice {
     Stator,
 }
 
-/// Options of [`fit_pmsm`], built with the motor's pole pairs by [`PmsmFitOptions::new`]
+/// Options of [`fit_pmsm`](crate::pmsm::fit_pmsm), built with the motor's pole pairs by [`PmsmFitOptions::new`]
 /// (there is no default pole-pair number, so none can be forgotten), then changed field by
 /// field: `PmsmFitOptions { model: MotorKind::Ipm, ..PmsmFitOptions::new(2) }`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PmsmFitOptions {
     /// Pole pairs n_p of the motor (`ω_e = n_p ω_m`); required (0 is an error of
-    /// [`fit_pmsm`]).
+    /// [`fit_pmsm`](crate::pmsm::fit_pmsm)).
     pub pole_pairs: u32,
     /// Surface (`spm`) or interior (`ipm`) magnets.
     #[serde(default)]

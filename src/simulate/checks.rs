@@ -15,7 +15,7 @@ pub struct SimOptions<'a> {
     pub horizon: Option<usize>,
     /// Initial state (length n_x); `None` = the measured one ([`Prepared::x0`]).
     pub x0: Option<&'a [f64]>,
-    /// Also give `∂ŷ_k/∂x₀` to [`visit_sensitivities`]'s closure.
+    /// Also give `∂ŷ_k/∂x₀` to [`visit_sensitivities`](super::visit_sensitivities)'s closure.
     pub x0_sensitivity: bool,
     /// Each parameter's scale (length n_θ, positive): sets the finite-difference step
     /// (`∛ε × scale`) for models without analytic sensitivities; `None` = `|θ|` (1 where θ = 0).

@@ -1,4 +1,4 @@
-//! Simulation of a [`GreyBoxModel`]: single shooting from the measured (or a given) first
+//! Simulation of a [`GreyBoxModel`](crate::model::GreyBoxModel): single shooting from the measured (or a given) first
 //! state, with forward sensitivities, streamed sample by sample; one [`SimOptions`] says
 //! how.
 //!

@@ -10,8 +10,8 @@ use crate::model::{GreyBoxModel, Prepared};
 ///
 /// # Errors
 /// Those of [`GreyBoxModel::coefficients`] for an invalid θ;
-/// [`Error::SimulationDiverged`] naming the experiment, the sample and θ when the state
-/// stops being finite; [`Error::InvalidOption`] for θ not of length n_θ, an `x0` not of
+/// [`crate::Error::SimulationDiverged`] naming the experiment, the sample and θ when the state
+/// stops being finite; [`crate::Error::InvalidOption`] for θ not of length n_θ, an `x0` not of
 /// length n_x, prepared data of inconsistent shape, a zero horizon or a horizon on a
 /// model whose state is not its output.
 pub fn simulate<M: GreyBoxModel>(
@@ -56,7 +56,7 @@ pub fn simulate<M: GreyBoxModel>(
 /// zero.
 ///
 /// # Errors
-/// As [`simulate`]; [`Error::InvalidOption`] for `fd_scale` of the wrong length.
+/// As [`simulate`]; [`crate::Error::InvalidOption`] for `fd_scale` of the wrong length.
 pub fn visit_sensitivities<M, F>(
     model: &M,
     prep: &Prepared<M::Inputs>,

@@ -3,6 +3,7 @@
 //! they arrive, cells quoted short, duplicate columns, and the plausibility limits on n_p
 //! and h.
 
+use greybox::pmsm::PmsmError;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -252,7 +253,7 @@ fn pole_pairs_outside_1_to_100_are_refused() {
     let p = temp_file("np", rows(20, 1e-3).as_bytes());
     for n_p in [0, 101] {
         let err = read_log(&p, &CsvOptions { pole_pairs: Some(n_p), ..CsvOptions::default() }).unwrap_err();
-        assert!(matches!(err, Error::InvalidPolePairs { n_p: m } if m == n_p), "{err:?}");
+        assert!(matches!(err.domain(), Some(&PmsmError::InvalidPolePairs { n_p: m }) if m == n_p), "{err:?}");
         assert!(err.to_string().contains("1..=100"), "{err}");
     }
     for n_p in [1, 100] {

@@ -5,6 +5,7 @@
 use crate::common::{Signals, Truth, load, pmsm_options, rel};
 use approx::{assert_relative_eq, relative_eq};
 use greybox::estimate::weighting::{CustomWeighting, SpeedShape, SpeedWeighting, Uniform, Weighting};
+use greybox::pmsm::PmsmError;
 use greybox::pmsm::{
     LinearEstimate, LinearOptions, MotorKind, PmsmFitOptions, fit_pmsm, least_squares, weighted_least_squares,
 };
@@ -305,7 +306,7 @@ fn bad_input_is_a_clear_error() {
     // Experiments no longer carry n_p (one argument for all, so logs of motors with
     // different pole pairs cannot be mixed); n_p = 0 is the error.
     let err = least_squares(std::slice::from_ref(&a), 0, MotorKind::Spm).unwrap_err();
-    assert!(matches!(err, Error::InvalidPolePairs { n_p: 0 }), "{err:?}");
+    assert!(matches!(err.domain(), Some(PmsmError::InvalidPolePairs { n_p: 0 })), "{err:?}");
     // No speed: K_e is not excited.
     let still = synthetic(|k| ((k as f64).sin(), (k as f64).cos(), (0.3 * k as f64).sin(), 1.0, 0.0));
     assert!(numerical_reason(least_squares(&[still], 4, MotorKind::Spm)).contains("`k_e`"));

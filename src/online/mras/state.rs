@@ -19,7 +19,7 @@ pub struct Sample {
     /// q-axis voltage over `[t_k, t_k + h)` \[V\], its period mean.
     pub u_q: f64,
     /// Mechanical speed over the coming period \[rad/s\] (the interval mean
-    /// `(ω_m[k] + ω_m[k+1])/2` when known, as [`super::track()`] passes it; else ω_m\[k\]).
+    /// `(ω_m[k] + ω_m[k+1])/2` when known, as [`crate::online::track()`] passes it; else ω_m\[k\]).
     pub w_m: f64,
 }
 

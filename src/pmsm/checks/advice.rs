@@ -19,8 +19,9 @@ use crate::estimate::linear::StreamedLeastSquares;
 use crate::pmsm::linear::{MAX_COLS, Regression, push_with_dead_time};
 use crate::pmsm::log::signals::{DqView, channel};
 use crate::pmsm::model::interval::{C64, VoltageInput, driving_voltage};
-use crate::pmsm::model::inverter::{DeadTimeStream, Inline, InverterModel, WINDOW};
+use crate::pmsm::model::inverter::{DeadTimeStream, InverterModel, WINDOW};
 use crate::pmsm::model::kind::MotorKind;
+use crate::pmsm::options::PmsmFitOptions;
 
 /// |correlation| above which a check speaks.
 pub const THRESHOLD: f64 = 0.3;
@@ -86,16 +87,12 @@ fn with_regression<R>(
     f(&v, &u_d, &u_q, &reg)
 }
 
-/// The dead-time check of [`advice`], one entry per log: it needs no estimate (only the
-/// number `n_theta` of motor parameters), so it can run beside the fit.
-pub(crate) fn dead_time_advice(
-    experiments: &[Experiment],
-    n_p: u32,
-    kind: MotorKind,
-    input: VoltageInput,
-    n_theta: usize,
-    inverter: bool,
-) -> Vec<Option<Warning>> {
+/// The dead-time check of a fit with `options`, one entry per log: it needs no estimate
+/// (only the number of motor parameters), so it can run beside the fit. No check when the
+/// fit models the inverter.
+pub(crate) fn dead_time_advice(experiments: &[Experiment], options: &PmsmFitOptions) -> Vec<Option<Warning>> {
+    let (n_p, kind, input) = (options.pole_pairs, options.model, options.input);
+    let (n_theta, inverter) = (kind.parameter_names().len(), options.inverter.is_some());
     let cols = n_theta.min(MAX_COLS);
     let check = |e: &Experiment| {
         with_regression(e, n_p, kind, input, n_theta, |v, _, _, reg| {
@@ -107,7 +104,7 @@ pub(crate) fn dead_time_advice(
             let mut dirs = [C64::default(); WINDOW];
             for k0 in (0..reg.intervals()).step_by(WINDOW) {
                 let dirs = &mut dirs[..WINDOW.min(reg.intervals() - k0)];
-                s.directions::<Inline>(&th[k0..], &id[k0..], &iq[k0..], dirs);
+                s.directions(&th[k0..], &id[k0..], &iq[k0..], dirs);
                 for (k, dir) in (k0..).zip(dirs.iter()) {
                     let (d, q, u) = reg.rows(k);
                     push_with_dead_time(&mut ls, &d, &q, u, cols, *dir);
@@ -133,14 +130,14 @@ pub(crate) fn dead_time_advice(
     experiments.iter().map(check).collect()
 }
 
-/// The late-voltage check of [`advice`] at `theta`, one entry per log.
+/// The late-voltage check of a fit with `options` at the motor parameters `theta` (model
+/// order, the whole series resistance), one entry per log.
 pub(crate) fn late_voltage_advice(
     experiments: &[Experiment],
-    n_p: u32,
-    kind: MotorKind,
-    input: VoltageInput,
+    options: &PmsmFitOptions,
     theta: &[f64],
 ) -> Vec<Option<Warning>> {
+    let (n_p, kind, input) = (options.pole_pairs, options.model, options.input);
     let theta = &theta[..theta.len().min(MAX_COLS)];
     let check = |e: &Experiment| {
         with_regression(e, n_p, kind, input, theta.len(), |_, u_d, u_q, reg| {

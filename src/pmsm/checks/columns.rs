@@ -152,10 +152,9 @@ impl Hypothesis {
 fn best_hypothesis(
     g: &DMatrix<f64>,
     experiments: &[Experiment],
-    n_p: u32,
-    kind: MotorKind,
-    input: VoltageInput,
+    options: &PmsmFitOptions,
 ) -> Option<Hypothesis> {
+    let (n_p, kind, input) = (options.pole_pairs, options.model, options.input);
     let np = f64::from(n_p);
     let (given, _) = regression(g, kind, np, 1.0)?;
     let mut tried: Vec<(Mistake, f64, DVector<f64>)> = speed_mistakes(n_p)
@@ -184,12 +183,10 @@ fn best_hypothesis(
 pub(crate) fn start_failure(
     g: &DMatrix<f64>,
     experiments: &[Experiment],
-    n_p: u32,
-    kind: MotorKind,
-    input: VoltageInput,
+    options: &PmsmFitOptions,
 ) -> Option<String> {
-    let h = best_hypothesis(g, experiments, n_p, kind, input)?;
-    Some(format!("{}; read the log with {}", h.describe(kind), h.mistake.what().1))
+    let h = best_hypothesis(g, experiments, options)?;
+    Some(format!("{}; read the log with {}", h.describe(options.model), h.mistake.what().1))
 }
 
 /// After a fit of loss `loss`: an untrusted `columns` warning when a column mistake
@@ -202,8 +199,8 @@ pub(crate) fn warning(
     loss: f64,
     refit: RefitLoss<'_>,
 ) -> Option<Warning> {
-    let (n_p, kind) = (options.pole_pairs, options.model);
-    let h = best_hypothesis(g, experiments, n_p, kind, options.input)?;
+    let kind = options.model;
+    let h = best_hypothesis(g, experiments, options)?;
     let undone: Vec<Experiment> =
         experiments.iter().map(|e| h.mistake.undo(e)).collect::<Result<_>>().ok()?;
     let other = PmsmFitOptions { start: None, skip_setup_checks: true, ..options.clone() };

@@ -37,7 +37,6 @@ pub(super) fn fit(
     refit: RefitLoss<'_>,
 ) -> Result<PmsmFit> {
     let t0 = Instant::now();
-    let n_p = options.pole_pairs;
     let mut names: Vec<&str> = options.model.parameter_names().to_vec();
     if options.inverter.is_some() {
         names.push("v_dt");
@@ -50,11 +49,7 @@ pub(super) fn fit(
         scan: (!options.skip_setup_checks)
             .then(|| crate::pmsm::checks::detect::scan_gram(experiments, options.input).ok())
             .flatten(),
-        dead: {
-            let (kind, input, inverter) = (options.model, options.input, options.inverter.is_some());
-            let n_theta = kind.parameter_names().len();
-            crate::pmsm::checks::advice::dead_time_advice(experiments, n_p, kind, input, n_theta, inverter)
-        },
+        dead: crate::pmsm::checks::advice::dead_time_advice(experiments, options),
     };
     if rayon::current_num_threads() == 1 {
         return fit_beside(experiments, options, refit, t0, &names, Pending::Ready(beside()));
@@ -86,13 +81,7 @@ fn fit_beside(
     };
     let Fitted { fits, mut notes, ls_theta, modulator } = match (fitted, &scan) {
         (Err(Error::Numerical { context, reason }), Some(g)) if context == "least-squares start" => {
-            let named = crate::pmsm::checks::columns::start_failure(
-                g,
-                experiments,
-                n_p,
-                options.model,
-                options.input,
-            );
+            let named = crate::pmsm::checks::columns::start_failure(g, experiments, options);
             return Err(Error::Numerical {
                 context,
                 reason: match named {
@@ -117,15 +106,7 @@ fn fit_beside(
         .collect();
     // The late-voltage check and the setup checks' own warnings need the estimate: side by side.
     let (late, setup_warnings) = rayon::join(
-        || {
-            crate::pmsm::checks::advice::late_voltage_advice(
-                experiments,
-                n_p,
-                options.model,
-                options.input,
-                &motor,
-            )
-        },
+        || crate::pmsm::checks::advice::late_voltage_advice(experiments, options, &motor),
         || {
             (!options.skip_setup_checks)
                 .then(|| crate::pmsm::checks::detect::warnings(experiments, n_p, &best))

@@ -68,7 +68,7 @@ impl SavedModel {
     /// [`Error::InvalidOption`] (option `params`) for text that is not a report, a model
     /// other than `pmsm_spm`/`pmsm_ipm` (and their `_least_squares` variants), a missing
     /// parameter, parameters estimated per log (name the log with a report of one fit), or
-    /// no pole-pair number; [`Error::InvalidPolePairs`] for 0.
+    /// no pole-pair number; [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError::InvalidPolePairs) for 0.
     pub fn from_json(text: &str, pole_pairs: Option<u32>, hold: Option<VoltageHold>) -> Result<Self> {
         let bad = |reason: String| Error::InvalidOption { option: "params".into(), reason };
         let r: Report = serde_json::from_str(text).map_err(|e| bad(format!("not a fit report: {e}")))?;

@@ -13,7 +13,7 @@ use crate::pmsm::options::PmsmFitOptions;
 /// `options.pem.per_experiment`).
 ///
 /// # Errors
-/// [`Error::InvalidPolePairs`] for `options.pole_pairs = 0`; [`Error::MissingChannel`]
+/// [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError::InvalidPolePairs) for `options.pole_pairs = 0`; [`Error::MissingChannel`]
 /// for a log without `ud, uq, id, iq, w_m`;
 /// [`Error::InvalidOption`] for no experiments, a start of the wrong length, an unknown
 /// parameter name in `fixed`/`fixed_values`/`bounds`; [`Error::StartOutsideBounds`] for a

@@ -7,7 +7,7 @@ use crate::pmsm::model::interval::SQRT_2_3;
 use crate::pmsm::model::kind::MotorKind;
 
 /// The regression rows of one experiment, interval by interval, without storing them:
-/// interval `k = 0..N−2` gives a d row and a q row (see the documentation of [`crate::pmsm::linear`]) and the
+/// interval `k = 0..N−2` gives a d row and a q row (thesis 5.2.1; [`least_squares`](crate::pmsm::least_squares)) and the
 /// voltages `(u_d[k], u_q[k])` they explain.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Regression<'a> {
@@ -105,7 +105,7 @@ impl<'a> Regression<'a> {
 /// rows) of one experiment, unfiltered and unweighted. The fits themselves stream these rows
 /// and never form Φ; this is for inspection and tests.
 ///
-/// Rows alternate d, q for every interval `k = 0..N−2` (see the documentation of [`crate::pmsm::linear`]).
+/// Rows alternate d, q for every interval `k = 0..N−2` (thesis 5.2.1; [`least_squares`](crate::pmsm::least_squares)).
 ///
 /// # Errors
 /// [`crate::Error::MissingChannel`] (`ud`) for a log without the terminal voltage (regress on

@@ -25,8 +25,8 @@ use crate::data::columnar::read_table_with;
 use crate::data::csv::name_excerpt;
 use crate::data::segments::{TimeSegments, time_segments};
 use crate::error::{Error, Result};
-use crate::pmsm::log::signals::MIN_SAMPLES;
 use crate::pmsm::log::signals::check_pole_pairs;
+use crate::pmsm::log::signals::{MIN_SAMPLES, PmsmError};
 
 use super::build::{build, rename_columns};
 use super::options::*;
@@ -46,7 +46,7 @@ use super::options::*;
 /// and kept. Row numbers in errors count the file's data rows from 0 either way.
 ///
 /// # Errors
-/// - [`Error::InvalidPolePairs`] for `pole_pairs` outside `Some(1..=100)`, or `None` when
+/// - [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError::InvalidPolePairs) for `pole_pairs` outside `Some(1..=100)`, or `None` when
 ///   the speed is electrical or the dq signals come from phases (before the file is
 ///   opened);
 /// - those of [`read_table_with`], which checks while the file streams and stops at the first
@@ -75,7 +75,7 @@ use super::options::*;
 ///
 /// A gap in the time column ([`crate::data::is_gap`]: a step back or longer than 1.5 h) is
 /// an [`Error::NonUniformTime`] whose message suggests `--split-gaps`; read such a log with
-/// [`read_log_segments`].
+/// [`read_log_segments`](crate::pmsm::read_log_segments).
 ///
 /// Never panics. Source of the conventions: MODEL.md §1, §4.
 pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experiment> {
@@ -126,7 +126,7 @@ impl Raw {
                 check_pole_pairs(n_p)?;
                 n_p
             }
-            None if needs_n_p => return Err(Error::InvalidPolePairs { n_p: 0 }),
+            None if needs_n_p => return Err(PmsmError::InvalidPolePairs { n_p: 0 }.into()),
             None => 1,
         };
         let c = &options.columns;

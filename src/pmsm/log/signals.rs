@@ -230,10 +230,29 @@ impl<'a> DqView<'a> {
 /// generators reach a few tens; more is a typo or a speed in the wrong unit).
 pub const MAX_POLE_PAIRS: u32 = 100;
 
+/// The errors only a motor has, inside [`Error::Domain`] (`err.domain::<PmsmError>()`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PmsmError {
+    /// The number of pole pairs is outside `1..=`[`MAX_POLE_PAIRS`] (or none was given
+    /// where the log's speed or dq currents need it).
+    #[error("number of pole pairs n_p must be in 1..=100, got {n_p}")]
+    InvalidPolePairs {
+        /// The value given (0 for none).
+        n_p: u32,
+    },
+}
+
+impl From<PmsmError> for Error {
+    fn from(e: PmsmError) -> Self {
+        Error::Domain(Box::new(e))
+    }
+}
+
 /// Checks a pole-pair number: `1 ≤ n_p ≤` [`MAX_POLE_PAIRS`].
 ///
 /// # Errors
-/// [`Error::InvalidPolePairs`] for `n_p = 0` or `n_p > 100`.
+/// [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError::InvalidPolePairs) for `n_p = 0` or `n_p > 100`.
 pub(crate) fn check_pole_pairs(n_p: u32) -> Result<()> {
-    if (1..=MAX_POLE_PAIRS).contains(&n_p) { Ok(()) } else { Err(Error::InvalidPolePairs { n_p }) }
+    if (1..=MAX_POLE_PAIRS).contains(&n_p) { Ok(()) } else { Err(PmsmError::InvalidPolePairs { n_p }.into()) }
 }

@@ -21,7 +21,7 @@ use crate::pmsm::log::signals::DqView;
 use crate::pmsm::model::interval::C64;
 pub use crate::pmsm::model::mask::DeadTimeMask;
 use crate::pmsm::model::mask::DeadTimeMaskWeighting;
-pub(crate) use directions::{Elementary, Inline, Library, WINDOW};
+pub(crate) use directions::WINDOW;
 use serde::{Deserialize, Serialize};
 
 mod directions;
@@ -32,7 +32,7 @@ pub const DEFAULT_RELATIVE_WIDTH: f64 = 0.02;
 /// The inverter error model: per-phase `−V_dt tanh(i_x/w)`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Default)]
 pub struct InverterModel {
-    /// Width w of the smooth sign \[A\]; `None`: [`DEFAULT_RELATIVE_WIDTH`] × the largest
+    /// Width w of the smooth sign \[A\]; `None`: [`DEFAULT_RELATIVE_WIDTH`](crate::pmsm::DEFAULT_RELATIVE_WIDTH) × the largest
     /// `|i_dq|` of the log, or a tenth of the [`DeadTimeMask`] threshold.
     pub width: Option<f64>,
     /// A known `V_dt` \[V\], held fixed; `None`: estimated (from 0).
@@ -62,15 +62,15 @@ pub fn dead_time_directions(v: &DqView<'_>, n_p: u32, model: &InverterModel) -> 
     let theta_m = v.experiment().channel(crate::pmsm::channel::THETA_M)?;
     let mut stream = DeadTimeStream::try_new(v, n_p, model)?;
     let mut out = vec![C64::default(); v.len().saturating_sub(1)];
-    stream.directions::<Library>(theta_m, v.i_d(), v.i_q(), &mut out);
+    stream.directions(theta_m, v.i_d(), v.i_q(), &mut out);
     stream.check_crossings()?;
     Ok(out)
 }
 
 /// The dead-time directions of [`dead_time_directions`] a part at a time, for passes that
 /// store nothing per sample: [`directions`](Self::directions) of every part of the record
-/// in order, and [`check_crossings`](Self::check_crossings) at the end. With
-/// [`Library`] the arithmetic is that of [`dead_time_directions`], bit for bit, however the
+/// in order, and [`check_crossings`](Self::check_crossings) at the end. The arithmetic is
+/// that of [`dead_time_directions`], bit for bit, however the
 /// record is cut into windows (each interval's direction depends on its two samples only).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct DeadTimeStream {
@@ -109,31 +109,24 @@ impl DeadTimeStream {
     /// samples each, m = `out.len()`) into `out`, rotated by the angle at the interval's
     /// start; each phase's range is recorded. The phase currents are the inverse Park
     /// transform at `θ_e = n_p θ_m`, the sign `tanh` of their interval mean over the width,
-    /// sines, cosines and tangents taken as `E` says ([`Library`] for the models, [`Inline`]
-    /// for the dead-time check); [`WINDOW`] intervals at a time.
+    /// sines, cosines and tangents the system library's; [`WINDOW`] intervals at a time.
     ///
     /// # Panics
     /// When a slice is shorter than `out.len() + 1`.
-    pub(crate) fn directions<E: Elementary>(
-        &mut self,
-        theta_m: &[f64],
-        i_d: &[f64],
-        i_q: &[f64],
-        out: &mut [C64],
-    ) {
+    pub(crate) fn directions(&mut self, theta_m: &[f64], i_d: &[f64], i_q: &[f64], out: &mut [C64]) {
         for (k0, out) in (0..).step_by(WINDOW).zip(out.chunks_mut(WINDOW)) {
             let n = out.len() + 1;
             let (theta_m, i_d, i_q) = (&theta_m[k0..k0 + n], &i_d[k0..k0 + n], &i_q[k0..k0 + n]);
             let mut phases = [[0.0; WINDOW + 1]; 3];
             let mut sc = [(0.0, 0.0); WINDOW + 1];
-            E::angles(self.np, theta_m, &mut sc[..n]);
+            directions::angles(self.np, theta_m, &mut sc[..n]);
             directions::phases(i_d, i_q, &sc[..n], &mut phases);
             for (x, (lo, hi)) in self.lo.iter_mut().zip(self.hi.iter_mut()).enumerate() {
                 let p = &phases[x][..n];
                 *lo = p.iter().copied().fold(*lo, f64::min);
                 *hi = p.iter().copied().fold(*hi, f64::max);
             }
-            E::signs(self.width, &phases, &sc[..n], out);
+            directions::signs(self.width, &phases, &sc[..n], out);
         }
     }
 

@@ -1,42 +1,4 @@
-//! Interior-magnet (salient) PMSM, `L_d ≠ L_q`, with the exact sampled-data step.
-//!
-//! State and output `x = y = (i_d, i_q)` \[A, peak\]; parameters `θ = (r_s, l_d, l_q, k_e)`
-//! \[Ω, H, H, V s/rad\]. Continuous model (thesis Tenerz 2011, section 2 and eq. 5.1;
-//! MODEL.md §2), with `ω_e = n_p ω_m` and the back-EMF `e = √(2/3) K_e ω_m = ω_e ψ_f`:
-//!
-//! ```text
-//! L_d di_d/dt = v_d − R_s i_d + ω_e L_q i_q
-//! L_q di_q/dt = v_q − R_s i_q − ω_e L_d i_d − e
-//! ```
-//!
-//! `ω_m` is the interval mean `(ω_m[k] + ω_m[k+1])/2`, so the system is linear and
-//! time-invariant over each period `[0, h)`. The voltage over the period (MODEL.md §4) is
-//! `v = u[k]` (dq hold) or, held in the stator frame, `v(s) = u₀ e^{−jω_e s}` in complex dq
-//! notation with `u₀ = u[k] jφ/(1 − e^{−jφ})`, `φ = ω_e h` (`u[k]` is the period mean).
-//!
-//! # Method
-//!
-//! Unlike the SPM there is no scalar complex form, so the step is the exponential of an
-//! augmented autonomous linear system (Van Loan 1978, "Computing integrals involving the
-//! matrix exponential", IEEE TAC 23(3)): `z = (x, S, v, 1)`, `ż = M z`, `z(h) = e^{Mh} z(0)`,
-//! where `v̇ = −jω_e v` (stator hold; `v̇ = 0` for the dq hold) generates the rotating voltage
-//! and `S = ∂x/∂θ` (2 × 4) obeys the forward-sensitivity equations
-//!
-//! ```text
-//! Ṡ_j = A S_j + ∂f/∂θ_j,   f = ẋ,   A = [[−R_s/L_d, ω_e L_q/L_d], [−ω_e L_d/L_q, −R_s/L_q]]
-//! ∂f/∂R_s = (−i_d/L_d, −i_q/L_q)      ∂f/∂L_d = (−f_d/L_d, −ω_e i_d/L_q)
-//! ∂f/∂L_q = (ω_e i_q/L_d, −f_q/L_q)   ∂f/∂K_e = (0, −√(2/3) ω_m/L_q)
-//! ```
-//!
-//! which are linear in `(x, v, 1)`. `S(0)` is the sensitivity at the start of the period, so
-//! `S(h) = ∂x(h)/∂x(0) · S(0) + ∂x(h)/∂θ` is the exact derivative of the exact step.
-//! `e^{Mh} z` is summed as the Taylor series `Σ (Mh)^j z / j!` applied to the vector (only
-//! structured matrix-vector products, no allocation), until two consecutive terms fall below
-//! `10⁻¹⁷` of the sum in every block (x, each column of S, v). When the spectral scale
-//! `ρ = (R_s/min(L_d, L_q) + |ω_e|) h` exceeds 0.5 the period is split into `⌈2ρ⌉` equal
-//! substeps, exact because the augmented system is autonomous; beyond 64 substeps (a very
-//! stiff θ or a huge speed) the 13 × 13 matrix `e^{Mh}` is formed by scaling and squaring
-//! instead, so the cost grows with `log ρ`, not `ρ`.
+//! The interior-magnet (salient) PMSM model, `L_d ≠ L_q`: [`PmsmIpm`] documents it and its exact step.
 
 use crate::pmsm::log::signals::check_pole_pairs;
 use crate::pmsm::model::augmented::{Aug, advance};
@@ -53,12 +15,52 @@ use crate::model::{GreyBoxModel, Parameter, Sensitivities};
 use crate::pmsm::log::signals::DqView;
 use nalgebra::Complex;
 
+/// Interior-magnet (salient) PMSM, `L_d ≠ L_q`, with the exact sampled-data step.
+///
+/// State and output `x = y = (i_d, i_q)` \[A, peak\]; parameters `θ = (r_s, l_d, l_q, k_e)`
+/// \[Ω, H, H, V s/rad\]. Continuous model (thesis Tenerz 2011, section 2 and eq. 5.1;
+/// MODEL.md §2), with `ω_e = n_p ω_m` and the back-EMF `e = √(2/3) K_e ω_m = ω_e ψ_f`:
+///
+/// ```text
+/// L_d di_d/dt = v_d − R_s i_d + ω_e L_q i_q
+/// L_q di_q/dt = v_q − R_s i_q − ω_e L_d i_d − e
+/// ```
+///
+/// `ω_m` is the interval mean `(ω_m[k] + ω_m[k+1])/2`, so the system is linear and
+/// time-invariant over each period `[0, h)`. The voltage over the period (MODEL.md §4) is
+/// `v = u[k]` (dq hold) or, held in the stator frame, `v(s) = u₀ e^{−jω_e s}` in complex dq
+/// notation with `u₀ = u[k] jφ/(1 − e^{−jφ})`, `φ = ω_e h` (`u[k]` is the period mean).
+///
+/// # Method
+///
+/// Unlike the SPM there is no scalar complex form, so the step is the exponential of an
+/// augmented autonomous linear system (Van Loan 1978, "Computing integrals involving the
+/// matrix exponential", IEEE TAC 23(3)): `z = (x, S, v, 1)`, `ż = M z`, `z(h) = e^{Mh} z(0)`,
+/// where `v̇ = −jω_e v` (stator hold; `v̇ = 0` for the dq hold) generates the rotating voltage
+/// and `S = ∂x/∂θ` (2 × 4) obeys the forward-sensitivity equations
+///
+/// ```text
+/// Ṡ_j = A S_j + ∂f/∂θ_j,   f = ẋ,   A = [[−R_s/L_d, ω_e L_q/L_d], [−ω_e L_d/L_q, −R_s/L_q]]
+/// ∂f/∂R_s = (−i_d/L_d, −i_q/L_q)      ∂f/∂L_d = (−f_d/L_d, −ω_e i_d/L_q)
+/// ∂f/∂L_q = (ω_e i_q/L_d, −f_q/L_q)   ∂f/∂K_e = (0, −√(2/3) ω_m/L_q)
+/// ```
+///
+/// which are linear in `(x, v, 1)`. `S(0)` is the sensitivity at the start of the period, so
+/// `S(h) = ∂x(h)/∂x(0) · S(0) + ∂x(h)/∂θ` is the exact derivative of the exact step.
+/// `e^{Mh} z` is summed as the Taylor series `Σ (Mh)^j z / j!` applied to the vector (only
+/// structured matrix-vector products, no allocation), until two consecutive terms fall below
+/// `10⁻¹⁷` of the sum in every block (x, each column of S, v). When the spectral scale
+/// `ρ = (R_s/min(L_d, L_q) + |ω_e|) h` exceeds 0.5 the period is split into `⌈2ρ⌉` equal
+/// substeps, exact because the augmented system is autonomous; beyond 64 substeps (a very
+/// stiff θ or a huge speed) the 13 × 13 matrix `e^{Mh}` is formed by scaling and squaring
+/// instead, so the cost grows with `log ρ`, not `ρ`.
+///
 /// Interior-magnet PMSM model with exact sampled-data step and exact forward sensitivities.
 ///
 /// Parameters `(r_s [Ω], l_d [H], l_q [H], k_e [V s/rad])`; `r_s`, `l_d`, `l_q` bounded
 /// positive, `k_e` unbounded (a negative estimate means the log's sign convention differs).
 /// State and outputs `(i_d, i_q)` \[A\]. Source: thesis Tenerz 2011 sections 2 and 5;
-/// MODEL.md §2, §4; the method is described in the [module docs](self).
+/// MODEL.md §2, §4; the method is described above.
 #[derive(Clone, Debug)]
 pub struct PmsmIpm {
     setup: PmsmSetup,
@@ -68,7 +70,7 @@ pub struct PmsmIpm {
 impl PmsmIpm {
     /// IPM model of a machine with `n_p` pole pairs (`ω_e = n_p ω_m`), the given voltage
     /// hold and default parameter metadata, driven by the terminal voltage. `n_p = 0` is
-    /// reported by [`GreyBoxModel::prepare`] as [`Error::InvalidPolePairs`].
+    /// reported by [`GreyBoxModel::prepare`] as [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError::InvalidPolePairs).
     pub fn new(n_p: u32, hold: VoltageHold) -> Self {
         Self::from_setup(PmsmSetup::new(n_p, hold))
     }

@@ -67,7 +67,7 @@ impl MotorParameters {
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] naming `r_s`, `l_d`, `l_q` (not positive and finite) or
-    /// `psi_f` (not finite); [`Error::InvalidPolePairs`] for `n_p = 0`.
+    /// `psi_f` (not finite); [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError::InvalidPolePairs) for `n_p = 0`.
     pub fn validate(&self) -> Result<()> {
         check_positive("r_s", self.r_s)?;
         check_positive("l_d", self.l_d)?;
@@ -100,7 +100,7 @@ impl ExactPlant {
     /// closed form.
     ///
     /// # Errors
-    /// [`Error::InvalidPolePairs`] for `n_p = 0`; [`Error::InvalidSampleTime`] for `h` not
+    /// [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError::InvalidPolePairs) for `n_p = 0`; [`Error::InvalidSampleTime`] for `h` not
     /// positive and finite.
     pub fn new(n_p: u32, h: f64, salient: bool, hold: VoltageHold) -> Result<Self> {
         check_pole_pairs(n_p)?;
@@ -153,7 +153,7 @@ impl ExactPlant {
     /// [`ExactPlant::step`] of a salient plant together with the exact derivatives of the
     /// end current with respect to `R_s` and `K_e` at the fixed start current `i`: the
     /// forward sensitivities of [`PmsmIpm`]'s augmented exponential started at zero (Van
-    /// Loan 1978; [`crate::pmsm::model::ipm`]), one augmented step, no finite difference. Takes `&self`
+    /// Loan 1978; [`PmsmIpm`]), one augmented step, no finite difference. Takes `&self`
     /// and allocates nothing unless it fails (an observer calls it per sample, see
     /// [`crate::online::Mras`]). Unlike [`ExactPlant::step`] it accepts `R_s = 0` (an
     /// estimate at its bound). `n_p` of `p` is ignored (the plant's own is used).

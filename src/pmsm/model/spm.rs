@@ -1,30 +1,4 @@
-//! Surface-magnet PMSM (`L_d = L_q = L_s`) with the exact zero-order-hold step.
-//!
-//! State and output `x = y = (i_d, i_q)` \[A, peak\]; parameters `θ = (r_s, l_s, k_e)`
-//! \[Ω, H, V s/rad\]. Continuous model (thesis eq. 5.1, MODEL.md §2), in complex form with
-//! `i = i_d + j i_q`, `ω_e = n_p ω_m`:
-//!
-//! ```text
-//! L_s di/dt = u − (R_s + j ω_e L_s) i − j √(2/3) K_e ω_m
-//! ```
-//!
-//! Exact step over one period (MODEL.md §4), `z = R_s + j ω_e L_s`, `a = e^{−z h/L_s}`:
-//!
-//! ```text
-//! dq hold:      i[k+1] = a i[k] + (1 − a)/z · (u[k] − j e)
-//! stator hold:  i[k+1] = a i[k] + u₀ e^{−jφ} (1 − e^{−R_s h/L_s})/R_s − (1 − a)/z · j e
-//! ```
-//!
-//! with `e = √(2/3) K_e ω_m`, `φ = ω_e h`, `u₀ = u[k] jφ/(1 − e^{−jφ})`; `ω_m` is the
-//! interval mean `(ω_m[k] + ω_m[k+1])/2`. The rotation `e^{−jφ}` and `u₀` depend on the
-//! data only; they are formed block by block in the pass from the experiment's own
-//! channels, which [`GreyBoxModel::prepare`] shares rather than copies (one sine and cosine
-//! of `φ/2` an interval, so that a fit of the terminal voltage keeps nothing per sample
-//! beyond the data; a reference input keeps its start-of-period voltages, the inverter
-//! model its error directions, 16 bytes an interval each).
-//! `e^{−R_s h/L_s}` depends on θ only and is computed once per θ. Sensitivities
-//! differentiate this recursion (forward sensitivity), so one pass gives residuals and
-//! gradients.
+//! The surface-magnet PMSM model, `L_d = L_q = L_s`: [`PmsmSpm`] documents it and its exact step.
 
 use crate::pmsm::log::signals::check_pole_pairs;
 use crate::pmsm::model::interval::{
@@ -81,6 +55,34 @@ pub struct SpmCoefficients {
     a_l: f64,
 }
 
+/// Surface-magnet PMSM (`L_d = L_q = L_s`) with the exact zero-order-hold step.
+///
+/// State and output `x = y = (i_d, i_q)` \[A, peak\]; parameters `θ = (r_s, l_s, k_e)`
+/// \[Ω, H, V s/rad\]. Continuous model (thesis eq. 5.1, MODEL.md §2), in complex form with
+/// `i = i_d + j i_q`, `ω_e = n_p ω_m`:
+///
+/// ```text
+/// L_s di/dt = u − (R_s + j ω_e L_s) i − j √(2/3) K_e ω_m
+/// ```
+///
+/// Exact step over one period (MODEL.md §4), `z = R_s + j ω_e L_s`, `a = e^{−z h/L_s}`:
+///
+/// ```text
+/// dq hold:      i[k+1] = a i[k] + (1 − a)/z · (u[k] − j e)
+/// stator hold:  i[k+1] = a i[k] + u₀ e^{−jφ} (1 − e^{−R_s h/L_s})/R_s − (1 − a)/z · j e
+/// ```
+///
+/// with `e = √(2/3) K_e ω_m`, `φ = ω_e h`, `u₀ = u[k] jφ/(1 − e^{−jφ})`; `ω_m` is the
+/// interval mean `(ω_m[k] + ω_m[k+1])/2`. The rotation `e^{−jφ}` and `u₀` depend on the
+/// data only; they are formed block by block in the pass from the experiment's own
+/// channels, which [`GreyBoxModel::prepare`] shares rather than copies (one sine and cosine
+/// of `φ/2` an interval, so that a fit of the terminal voltage keeps nothing per sample
+/// beyond the data; a reference input keeps its start-of-period voltages, the inverter
+/// model its error directions, 16 bytes an interval each).
+/// `e^{−R_s h/L_s}` depends on θ only and is computed once per θ. Sensitivities
+/// differentiate this recursion (forward sensitivity), so one pass gives residuals and
+/// gradients.
+///
 /// Surface-magnet PMSM model with exact sampled-data step and analytic sensitivities.
 ///
 /// Parameters `(r_s [Ω], l_s [H], k_e [V s/rad])`; `r_s` and `l_s` bounded positive,
@@ -95,7 +97,7 @@ pub struct PmsmSpm {
 impl PmsmSpm {
     /// SPM model of a machine with `n_p` pole pairs (`ω_e = n_p ω_m`), the given voltage
     /// hold and default parameter metadata, driven by the terminal voltage. `n_p = 0` is
-    /// reported by [`GreyBoxModel::prepare`] as [`Error::InvalidPolePairs`].
+    /// reported by [`GreyBoxModel::prepare`] as [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError::InvalidPolePairs).
     pub fn new(n_p: u32, hold: VoltageHold) -> Self {
         Self::from_setup(PmsmSetup::new(n_p, hold))
     }
