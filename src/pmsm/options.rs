@@ -17,6 +17,20 @@ use serde::{Deserialize, Serialize};
 /// know it.
 pub(crate) type RefitLoss<'a> = &'a (dyn Fn(&[Experiment], &PmsmFitOptions) -> Option<f64> + Sync);
 
+/// How many times lower than `loss` a nested fit of `experiments` with `other` is (from the
+/// least-squares start, without setup checks of its own), when it is more than `ratio`
+/// times lower: a suspected setup mistake confirmed. `None` otherwise or when it fails.
+pub(crate) fn confirmed(
+    refit: RefitLoss<'_>,
+    experiments: &[Experiment],
+    other: PmsmFitOptions,
+    loss: f64,
+    ratio: f64,
+) -> Option<f64> {
+    let alt = refit(experiments, &PmsmFitOptions { start: None, skip_setup_checks: true, ..other })?;
+    (alt * ratio < loss).then(|| loss / alt)
+}
+
 /// Which voltage hold the fit assumes.
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

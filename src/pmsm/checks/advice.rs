@@ -13,12 +13,12 @@
 //! and without `d`, and sums the residual (shifted by its first value) and the voltage
 //! change, their squares and product for the correlation.
 
-use crate::data::Experiment;
 use crate::estimate::Warning;
 use crate::estimate::linear::StreamedLeastSquares;
+use crate::pmsm::checks::prepared::PreparedLog;
 use crate::pmsm::linear::{MAX_COLS, Regression, push_with_dead_time};
 use crate::pmsm::log::signals::{DqView, channel};
-use crate::pmsm::model::interval::{C64, VoltageInput, driving_voltage};
+use crate::pmsm::model::interval::C64;
 use crate::pmsm::model::inverter::{DeadTimeStream, InverterModel, WINDOW};
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::options::PmsmFitOptions;
@@ -68,34 +68,37 @@ pub(crate) fn merge(dead: Vec<Option<Warning>>, late: Vec<Option<Warning>>) -> V
     dead.into_iter().zip(late).flat_map(|(d, l)| d.into_iter().chain(l)).collect()
 }
 
-/// `f(view, u_d, u_q, regression)` on the regression of log `e` (`n_theta` columns, at most
-/// [`MAX_COLS`]) with its driving voltage; `None` for a log the checks cannot read.
+/// `f(view, u_d, u_q, regression)` on the regression of the prepared log `p` (`n_theta`
+/// columns, at most [`MAX_COLS`]) with its driving voltage; `None` for a log the checks
+/// cannot read.
 fn with_regression<R>(
-    e: &Experiment,
+    p: Option<&PreparedLog<'_>>,
     n_p: u32,
     kind: MotorKind,
-    input: VoltageInput,
     n_theta: usize,
     f: impl FnOnce(&DqView<'_>, &[f64], &[f64], &Regression<'_>) -> Option<R>,
 ) -> Option<R> {
-    let v = DqView::try_new(e).ok()?;
-    let (u_d, u_q) = driving_voltage(&v, n_p, input).ok()?;
-    let reg = Regression::new(&v, &u_d, &u_q, n_p, kind);
+    let PreparedLog { view: v, u_d, u_q } = p?;
+    let reg = Regression::new(v, u_d, u_q, n_p, kind);
     if reg.cols() != n_theta.min(MAX_COLS) {
         return None;
     }
-    f(&v, &u_d, &u_q, &reg)
+    f(v, u_d, u_q, &reg)
 }
 
 /// The dead-time check of a fit with `options`, one entry per log: it needs no estimate
 /// (only the number of motor parameters), so it can run beside the fit. No check when the
 /// fit models the inverter.
-pub(crate) fn dead_time_advice(experiments: &[Experiment], options: &PmsmFitOptions) -> Vec<Option<Warning>> {
-    let (n_p, kind, input) = (options.pole_pairs, options.model, options.input);
+pub(crate) fn dead_time_advice(
+    logs: &[Option<PreparedLog<'_>>],
+    options: &PmsmFitOptions,
+) -> Vec<Option<Warning>> {
+    let (n_p, kind) = (options.pole_pairs, options.model);
     let (n_theta, inverter) = (kind.parameter_names().len(), options.inverter.is_some());
     let cols = n_theta.min(MAX_COLS);
-    let check = |e: &Experiment| {
-        with_regression(e, n_p, kind, input, n_theta, |v, _, _, reg| {
+    let check = |p: &Option<PreparedLog<'_>>| {
+        with_regression(p.as_ref(), n_p, kind, n_theta, |v, _, _, reg| {
+            let e = v.experiment();
             // The dead-time check: the sign of the phase currents as one more column.
             let th = e.get(channel::THETA_M).map(|c| c.values.as_slice()).filter(|_| !inverter)?;
             let mut s = DeadTimeStream::try_new(v, n_p, &InverterModel::default()).ok()?;
@@ -127,20 +130,20 @@ pub(crate) fn dead_time_advice(experiments: &[Experiment], options: &PmsmFitOpti
         })
         })
     };
-    experiments.iter().map(check).collect()
+    logs.iter().map(check).collect()
 }
 
 /// The late-voltage check of a fit with `options` at the motor parameters `theta` (model
 /// order, the whole series resistance), one entry per log.
 pub(crate) fn late_voltage_advice(
-    experiments: &[Experiment],
+    logs: &[Option<PreparedLog<'_>>],
     options: &PmsmFitOptions,
     theta: &[f64],
 ) -> Vec<Option<Warning>> {
-    let (n_p, kind, input) = (options.pole_pairs, options.model, options.input);
+    let (n_p, kind) = (options.pole_pairs, options.model);
     let theta = &theta[..theta.len().min(MAX_COLS)];
-    let check = |e: &Experiment| {
-        with_regression(e, n_p, kind, input, theta.len(), |_, u_d, u_q, reg| {
+    let check = |p: &Option<PreparedLog<'_>>| {
+        with_regression(p.as_ref(), n_p, kind, theta.len(), |v, u_d, u_q, reg| {
             // Sums of the correlation, the residual shifted by the first one (no cancellation
             // when its mean is large against its spread): Σx, Σy, Σx², Σy², Σxy.
             let shift = reg.intervals().checked_sub(1).map_or(0.0, |_| {
@@ -171,10 +174,10 @@ pub(crate) fn late_voltage_advice(
                 "`{}`: the voltage residual follows the voltage's change from the sample before (correlation \
                  {c:+.2}, slope {slope:+.2}): the voltage acts later than the model assumes, as a controller's \
                  reference does (--voltage reference --delay estimate)",
-                e.name()
+                v.experiment().name()
             ))
         })
         })
     };
-    experiments.iter().map(check).collect()
+    logs.iter().map(check).collect()
 }

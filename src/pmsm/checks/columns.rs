@@ -19,7 +19,7 @@ use crate::pmsm::checks::detect::{loss_at_factor, scan_gram};
 use crate::pmsm::log::signals::channel;
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::kind::MotorKind;
-use crate::pmsm::options::{PmsmFitOptions, RefitLoss};
+use crate::pmsm::options::{PmsmFitOptions, RefitLoss, confirmed};
 use crate::report::eng::format_eng;
 use nalgebra::{DMatrix, DVector};
 
@@ -203,17 +203,14 @@ pub(crate) fn warning(
     let h = best_hypothesis(g, experiments, options)?;
     let undone: Vec<Experiment> =
         experiments.iter().map(|e| h.mistake.undo(e)).collect::<Result<_>>().ok()?;
-    let other = PmsmFitOptions { start: None, skip_setup_checks: true, ..options.clone() };
-    let alt = refit(&undone, &other)?;
-    (alt * COLUMN_RATIO < loss).then(|| {
-        Warning::untrusted(
-            "columns",
-            format!(
-                "{}, and the fit of the log read so has a {:.0} times lower loss; read the log with {}",
-                h.describe(kind),
-                loss / alt,
-                h.mistake.what().1
-            ),
-        )
-    })
+    let times = confirmed(refit, &undone, options.clone(), loss, COLUMN_RATIO)?;
+    Some(Warning::untrusted(
+        "columns",
+        format!(
+            "{}, and the fit of the log read so has a {:.0} times lower loss; read the log with {}",
+            h.describe(kind),
+            times,
+            h.mistake.what().1
+        ),
+    ))
 }

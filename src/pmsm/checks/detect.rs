@@ -10,7 +10,7 @@
 
 use crate::pmsm::model::interval::{SQRT_2_3, VoltageInput};
 use crate::pmsm::model::kind::MotorKind;
-use crate::pmsm::options::{PmsmFitOptions, RefitLoss};
+use crate::pmsm::options::{PmsmFitOptions, RefitLoss, confirmed};
 use crate::report::eng::format_eng;
 use multiversion::multiversion;
 // Base columns of the scan: `i`, `di_d/dt` (d rows), `ω_m i_d` (q rows), `−ω_m i_q` (d rows),
@@ -173,19 +173,16 @@ pub(crate) fn pole_pair_warning(
     if nb == options.pole_pairs || given <= POLE_PAIR_RATIO * lb {
         return None;
     }
-    let other = PmsmFitOptions { pole_pairs: nb, start: None, skip_setup_checks: true, ..options.clone() };
-    let alt = refit(experiments, &other)?;
-    (alt * POLE_PAIR_RATIO < loss).then(|| {
-        Warning::untrusted(
-            "pole_pairs",
-            format!(
-                "a fit with {nb} pole pairs has a {:.0} times lower loss than with the {} given: check -p (or a speed \
+    let other = PmsmFitOptions { pole_pairs: nb, ..options.clone() };
+    let times = confirmed(refit, experiments, other, loss, POLE_PAIR_RATIO)?;
+    Some(Warning::untrusted(
+        "pole_pairs",
+        format!(
+            "a fit with {nb} pole pairs has a {:.0} times lower loss than with the {} given: check -p (or a speed \
                  logged in the electrical frame: --speed-frame electrical)",
-                loss / alt,
-                options.pole_pairs
-            ),
-        )
-    })
+            times, options.pole_pairs
+        ),
+    ))
 }
 
 /// The warnings of a PMSM fit from its logs: a speed unit or frame mistake, and the assumed

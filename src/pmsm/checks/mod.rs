@@ -7,4 +7,5 @@ pub(super) mod columns;
 pub(super) mod detect;
 pub(super) mod limit;
 pub(super) mod noise;
+pub(super) mod prepared;
 pub(super) mod scan;

@@ -45,11 +45,15 @@ pub(super) fn fit(
     // the start, the fits and their statistics (which leave a core idle at times): the
     // setup scan (one regression Gram; a log the scan cannot read is not checked) and the
     // dead-time check. On the calling thread when the caller's rayon pool has one thread.
-    let beside = || Beside {
-        scan: (!options.skip_setup_checks)
-            .then(|| crate::pmsm::checks::detect::scan_gram(experiments, options.input).ok())
-            .flatten(),
-        dead: crate::pmsm::checks::advice::dead_time_advice(experiments, options),
+    let beside = || {
+        let logs = crate::pmsm::checks::prepared::prepare(experiments, options);
+        Beside {
+            scan: (!options.skip_setup_checks)
+                .then(|| crate::pmsm::checks::detect::scan_gram(experiments, options.input).ok())
+                .flatten(),
+            dead: crate::pmsm::checks::advice::dead_time_advice(&logs, options),
+            logs,
+        }
     };
     if rayon::current_num_threads() == 1 {
         return fit_beside(experiments, options, refit, t0, &names, Pending::Ready(beside()));
@@ -66,11 +70,11 @@ fn fit_beside(
     refit: RefitLoss<'_>,
     t0: Instant,
     names: &[&str],
-    beside: Pending<'_, Beside>,
+    beside: Pending<'_, Beside<'_>>,
 ) -> Result<PmsmFit> {
     let n_p = options.pole_pairs;
     let fitted = holds::fit_from_start(experiments, options, names);
-    let Beside { scan, dead } = beside.get();
+    let Beside { scan, dead, logs } = beside.get();
     // A salient log fitted without the saliency is an error before any other: the start's,
     // the options', the fits'.
     let structure = match &scan {
@@ -106,7 +110,7 @@ fn fit_beside(
         .collect();
     // The late-voltage check and the setup checks' own warnings need the estimate: side by side.
     let (late, setup_warnings) = rayon::join(
-        || crate::pmsm::checks::advice::late_voltage_advice(experiments, options, &motor),
+        || crate::pmsm::checks::advice::late_voltage_advice(&logs, options, &motor),
         || {
             (!options.skip_setup_checks)
                 .then(|| crate::pmsm::checks::detect::warnings(experiments, n_p, &best))

@@ -1,6 +1,7 @@
 //! The checks that need no estimate, running beside a fit ([`super::fit_pmsm`]).
 
 use crate::estimate::result::Warning;
+use crate::pmsm::checks::prepared::PreparedLog;
 use std::thread::ScopedJoinHandle;
 
 /// A check's result: on its way from a thread of its own, or at hand.
@@ -20,10 +21,13 @@ impl<T> Pending<'_, T> {
 }
 
 /// What the checks beside a fit ([`super::fit_pmsm`]) found without its estimate.
-pub(super) struct Beside {
+pub(super) struct Beside<'a> {
     /// The setup scan's regression Gram ([`crate::pmsm::checks::detect`]); `None` when the
     /// setup checks are skipped or the scan cannot read a log.
     pub scan: Option<nalgebra::DMatrix<f64>>,
     /// The dead-time check, one entry per log ([`crate::pmsm::checks::advice`]).
     pub dead: Vec<Option<Warning>>,
+    /// The logs prepared once for the checks on the voltage equations (the dead-time check
+    /// here, the late-voltage check after the fit).
+    pub logs: Vec<Option<PreparedLog<'a>>>,
 }

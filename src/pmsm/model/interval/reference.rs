@@ -137,7 +137,7 @@ pub(crate) type DqPair<'a> = (Cow<'a, [f64]>, Cow<'a, [f64]>);
 ///
 /// # Errors
 /// Those of [`DqView::terminal_voltage`] and [`applied_voltage`].
-pub(crate) fn driving_voltage<'a>(v: &'a DqView<'_>, n_p: u32, input: VoltageInput) -> Result<DqPair<'a>> {
+pub(crate) fn driving_voltage<'a>(v: &DqView<'a>, n_p: u32, input: VoltageInput) -> Result<DqPair<'a>> {
     if input == VoltageInput::Terminal {
         let (u_d, u_q) = v.terminal_voltage()?;
         return Ok((Cow::Borrowed(u_d), Cow::Borrowed(u_q)));
