@@ -24,7 +24,7 @@ fn benches(c: &mut Criterion) {
     };
     for name in names {
         let path = dir.join(name);
-        greybox::data::write::write_log(&path, &log, "t").unwrap();
+        greybox::data::write_log(&path, &log, "t").unwrap();
         g.bench_function(format!("512000 rows, {name}"), |b| {
             b.iter(|| black_box(read_log(&path, &Default::default()).unwrap()))
         });

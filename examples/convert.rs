@@ -28,7 +28,7 @@ fn main() -> greybox::Result<()> {
     let (input, output) = (PathBuf::from(input), PathBuf::from(output));
     let options = CsvOptions::default();
     let log = read_log(&input, &options)?;
-    greybox::data::write::write_log(&output, &log, "t")?;
+    greybox::data::write_log(&output, &log, "t")?;
     let back = read_log(&output, &options)?;
     let same = log.channels().iter().all(|c| back.get(&c.name).is_some_and(|b| b.values == c.values));
     println!(

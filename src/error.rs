@@ -97,7 +97,7 @@ pub enum Error {
     /// The time column is not uniformly sampled.
     #[error(
         "time column `{column}` is not uniform at row {row}: step {dt:e} s, expected {expected:e} s (relative tolerance {tolerance:e}){}",
-        crate::data::segments::gap_hint(*.dt, *.expected)
+        if *.gap { GAP_HINT } else { "" }
     )]
     NonUniformTime {
         /// Time column name.
@@ -110,6 +110,10 @@ pub enum Error {
         expected: f64,
         /// Relative tolerance applied.
         tolerance: f64,
+        /// Whether the step is a gap (`data::is_gap`: not positive, or longer than 1.5 times
+        /// the mean step), set where the error is made; the message then suggests
+        /// `--split-gaps`.
+        gap: bool,
     },
     /// The sample time is not a positive finite number.
     #[error("sample time h must be positive and finite, got {h} s")]
@@ -277,3 +281,7 @@ impl Error {
         }
     }
 }
+
+/// The end of [`Error::NonUniformTime`]'s message for a step that is a gap.
+const GAP_HINT: &str = "; this is a gap (a step back or longer than 1.5 h): `--split-gaps` (the reader's \
+                        `read_log_segments`) splits the log there into segments fitted jointly";

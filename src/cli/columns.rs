@@ -273,7 +273,7 @@ fn flag_words(e: greybox::Error) -> greybox::Error {
 /// CSV log at `path` starts (gzip for `.gz`), read again with the `csv` crate on the error
 /// path; `None` for a columnar log or when the file cannot be read so far.
 fn csv_line(path: &Path, row: usize, delimiter: greybox::data::csv::Delimiter) -> Option<u64> {
-    use greybox::data::columnar::Format;
+    use greybox::data::Format;
     if Format::of(path) != Format::Csv {
         return None;
     }

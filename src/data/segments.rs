@@ -28,15 +28,12 @@ pub fn is_gap(dt: f64, h: f64) -> bool {
     !(dt > 0.0 && dt <= GAP_FACTOR * h)
 }
 
-/// The hint an error on the time step `dt` \[s\] (mean step `h` \[s\]) carries: how to split
-/// the log when the step is a gap ([`is_gap`]), else nothing.
-pub fn gap_hint(dt: f64, h: f64) -> &'static str {
-    if h > 0.0 && is_gap(dt, h) {
-        "; this is a gap (a step back or longer than 1.5 h): `--split-gaps` (the reader's \
-         `read_log_segments`) splits the log there into segments fitted jointly"
-    } else {
-        ""
-    }
+/// The [`Error::NonUniformTime`] of a step `dt` \[s\] at data row `row` of the time column
+/// `column` against the mean step `expected` \[s\] and the relative tolerance, with its gap
+/// flag set by [`is_gap`] (for a positive mean step).
+pub(crate) fn non_uniform_time(column: &str, row: usize, dt: f64, expected: f64, tolerance: f64) -> Error {
+    let gap = expected > 0.0 && is_gap(dt, expected);
+    Error::NonUniformTime { column: column.to_string(), row, dt, expected, tolerance, gap }
 }
 
 /// A time window `from ≤ t ≤ to` \[s\] on a time column already in seconds; `None` leaves
@@ -162,5 +159,17 @@ mod tests {
         assert!(TimeWindow { from: Some(2.0), to: Some(2.0) }.check().is_err());
         assert!(TimeWindow { from: Some(f64::NAN), to: None }.check().is_err());
         assert!(is_gap(0.0, 1.0) && is_gap(1.51, 1.0) && !is_gap(1.5, 1.0) && is_gap(f64::NAN, 1.0));
+    }
+    /// The time error's message suggests splitting the log exactly at the steps `is_gap`
+    /// calls gaps (the error restates the rule).
+    #[test]
+    fn the_time_error_hints_a_split_exactly_at_gaps() {
+        for dt in [-1.0, 0.0, 1e-9, 0.5, 1.0, 1.25, 1.5, 1.5000001, 2.0, 1e300, f64::INFINITY, f64::NAN] {
+            for h in [1.0, 1e-4] {
+                let (dt, tolerance) = (dt * h, crate::data::TIME_TOLERANCE);
+                let e = non_uniform_time("t", 1, dt, h, tolerance);
+                assert_eq!(e.to_string().contains("--split-gaps"), is_gap(dt, h), "{dt} {h}");
+            }
+        }
     }
 }

@@ -2,6 +2,7 @@
 //! rows stream in ([`TimeSteps`]), and the mean step h of a column.
 
 use super::all_finite;
+use super::segments::non_uniform_time;
 use crate::error::{Error, Result};
 
 /// Uniformity tolerance of a time column, relative to the step h: every step
@@ -13,7 +14,7 @@ use crate::error::{Error, Result};
 /// decimals at any rate up to 100 kHz.
 pub const TIME_TOLERANCE: f64 = 0.25;
 
-/// Whether a table reader ([`super::csv::read_table_with`], [`super::columnar::read_table_with`]) checks
+/// Whether a table reader ([`super::read_table_with`]) checks
 /// the time column (the first wanted column) with [`TimeSteps::push`] while the rows
 /// stream in. Default [`TimeCheck::Streaming`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -73,13 +74,7 @@ impl TimeSteps {
         }
         if row > 0 {
             let dt = t - self.last;
-            let bad = |expected: f64| Error::NonUniformTime {
-                column: self.column.clone(),
-                row,
-                dt,
-                expected,
-                tolerance: TIME_TOLERANCE,
-            };
+            let bad = |expected: f64| non_uniform_time(&self.column, row, dt, expected, TIME_TOLERANCE);
             if dt <= 0.0 {
                 return Err(bad((t - self.first) / row as f64));
             }
@@ -135,13 +130,7 @@ impl TimeSteps {
         if !(h.is_finite() && h > 0.0) {
             return Err(Error::InvalidSampleTime { h });
         }
-        let bad = |row: usize| Error::NonUniformTime {
-            column: self.column.clone(),
-            row,
-            dt: t[row] - t[row - 1],
-            expected: h,
-            tolerance: TIME_TOLERANCE,
-        };
+        let bad = |row: usize| non_uniform_time(&self.column, row, t[row] - t[row - 1], h, TIME_TOLERANCE);
         if let Some(k) = (1..n).find(|&k| ((t[k] - t[k - 1]) - h).abs() > TIME_TOLERANCE * h) {
             return Err(bad(k));
         }

@@ -2,7 +2,7 @@
 //! folder, flushed and synced, then renamed over the target (atomic on POSIX), so a reader
 //! or a concurrent run never sees half a file and a failure leaves any existing file intact.
 
-use super::Experiment;
+use super::experiment::Experiment;
 use crate::error::Result;
 use std::io::Write;
 use std::path::Path;
@@ -37,17 +37,6 @@ pub fn write_csv(path: &Path, e: &Experiment, time: &str) -> Result<()> {
             rows(w, e, time)
         }
     })
-}
-
-/// Writes `e` to `path` atomically in the format of its extension: Parquet (`.parquet`),
-/// Arrow IPC (`.arrow`, `.feather`, `.ipc`) or else CSV as [`write_csv`] (gzip for `.gz`);
-/// see [`super::columnar::write`].
-///
-/// # Errors
-/// Those of [`write_atomic`]; [`crate::Error::Format`] for a columnar extension in a build
-/// without the cargo feature `parquet`.
-pub fn write_log(path: &Path, e: &Experiment, time: &str) -> Result<()> {
-    super::columnar::write(path, e, time)
 }
 
 fn rows(w: &mut dyn Write, e: &Experiment, time: &str) -> std::io::Result<()> {

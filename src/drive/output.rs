@@ -1,9 +1,9 @@
 //! Writing a simulated log: the CSV that `greybox fit` reads and the truth JSON beside it.
 
 use super::sim::DriveLog;
-use crate::data::columnar::Format;
+use crate::data::Format;
 use crate::data::staged::Staged;
-use crate::data::write::write_log;
+use crate::data::write_log;
 use crate::error::Result;
 use std::path::{Path, PathBuf};
 

@@ -47,7 +47,7 @@ mod with_feature {
     use arrow_array::{
         ArrayRef, Float32Array, Float64Array, Int16Array, RecordBatch, StringArray, UInt64Array,
     };
-    use greybox::data::write::write_log;
+    use greybox::data::write_log;
     use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
     use std::sync::Arc;
 
@@ -268,7 +268,7 @@ mod with_feature {
 #[test]
 fn without_the_feature_columnar_files_name_it() {
     let path = temp_path("log.parquet");
-    let err = greybox::data::write::write_log(&path, &log(100), "t").unwrap_err();
+    let err = greybox::data::write_log(&path, &log(100), "t").unwrap_err();
     assert!(matches!(err, Error::Format { .. }) && err.to_string().contains("`parquet`"), "{err}");
     std::fs::write(&path, b"PAR1").unwrap();
     let err = read_log(&path, &options()).unwrap_err();

@@ -10,8 +10,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use crate::common::{Signals, read as read_csv, shared_file};
 use approx::assert_relative_eq;
 use greybox::Error;
-use greybox::data::csv::{ColumnMap, CsvSpec};
 use greybox::data::{Channel, Experiment};
+use greybox::data::{ColumnMap, CsvSpec};
 use greybox::pmsm::{
     AngleUnit, CsvOptions, DqSource, DqView, Frame, MIN_SAMPLES, Scale, SpeedUnit, read_logs,
 };
@@ -738,7 +738,7 @@ fn generic_csv_reads_a_non_motor_experiment() {
         columns: vec![power, ColumnMap::new("T_C", "temperature", "degC"), humidity],
         ..CsvSpec::default()
     };
-    let e = greybox::data::csv::read_csv(&p, &spec).unwrap();
+    let e = greybox::data::read_csv(&p, &spec).unwrap();
     let stem = p.file_stem().unwrap().to_string_lossy().into_owned();
     assert_eq!(e.name(), stem);
     assert_eq!(e.len(), 5);
@@ -753,7 +753,7 @@ fn generic_csv_reads_a_non_motor_experiment() {
     assert!(matches!(&err, Error::MissingChannel { channel, .. } if channel == "ud"), "{err:?}");
     // A required column missing from the header is named.
     let spec = CsvSpec { columns: vec![ColumnMap::new("flow", "flow", "m3/s")], ..spec };
-    let err = greybox::data::csv::read_csv(&p, &spec).unwrap_err();
+    let err = greybox::data::read_csv(&p, &spec).unwrap_err();
     assert!(matches!(&err, Error::MissingColumn { column, .. } if column == "flow"), "{err:?}");
     std::fs::remove_file(p).ok();
 }

@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use greybox::Error;
-use greybox::data::csv::{ColumnMap, CsvSpec, ReadLimits, read_csv};
+use greybox::data::{ColumnMap, CsvSpec, ReadLimits, read_csv};
 use greybox::pmsm::{ColumnNames, CsvOptions, read_log};
 
 const HEADER: &str = "t,ud,uq,id,iq,w_m\n";

@@ -4,7 +4,7 @@
 //! Runs on the shipped `data/sample.csv.gz`.
 
 use greybox::Experiment;
-use greybox::data::csv::{ColumnMap, CsvSpec, read_csv};
+use greybox::data::{ColumnMap, CsvSpec, read_csv};
 use greybox::pmsm::{CsvOptions, PmsmFit, fit_pmsm, read_log};
 use greybox::report::Comparison;
 use greybox::report::residuals::write_residuals_csv;

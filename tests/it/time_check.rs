@@ -20,14 +20,13 @@ const T: [f64; 10] = [0.0, 0.1, 0.2, 0.3, 0.4, 0.15, 0.25, 0.35, 9.0, 9.1];
 
 fn read(path: &PathBuf, time: TimeCheck) -> greybox::Result<Table> {
     let wanted = [("t", true), ("x", true)];
-    greybox::data::columnar::read_table_with(path, &wanted, &ReadLimits::default(), Delimiter::COMMA, time)
+    greybox::data::read_table_with(path, &wanted, &ReadLimits::default(), Delimiter::COMMA, time)
 }
 
 fn check(path: &PathBuf) {
     let wanted = [("t", true), ("x", true)];
     for err in [
-        greybox::data::columnar::read_table(path, &wanted, &ReadLimits::default(), Delimiter::COMMA)
-            .unwrap_err(),
+        greybox::data::read_table(path, &wanted, &ReadLimits::default(), Delimiter::COMMA).unwrap_err(),
         read(path, TimeCheck::Streaming).unwrap_err(),
     ] {
         assert!(

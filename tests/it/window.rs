@@ -260,7 +260,7 @@ fn every_error_of_the_window_and_the_split_names_its_flag() {
 #[cfg(feature = "parquet")]
 #[test]
 fn a_parquet_log_with_a_gap_splits_as_a_csv_log() {
-    use greybox::data::{Channel, write::write_log};
+    use greybox::data::{Channel, write_log};
     let dir = temp_dir("parquet");
     let e = read_log(Path::new(env!("CARGO_MANIFEST_DIR")).join(SAMPLE), &options()).unwrap();
     // A second time column with a 0.3 s pause before row 5000.

@@ -19,10 +19,11 @@ use parquet::arrow::arrow_reader::{
 use rayon::prelude::*;
 
 use super::budget::check_budget;
-use super::{Format, check};
-use crate::data::csv::{ReadLimits, Table, experiment_name, find_columns};
+use super::check;
+use crate::data::experiment::Experiment;
+use crate::data::table::{ReadLimits, Table, experiment_name, find_columns};
+use crate::data::time::{TimeCheck, TimeSteps};
 use crate::data::write::write_atomic;
-use crate::data::{Experiment, TimeCheck};
 use crate::error::{Error, Result};
 
 /// Rows per Parquet row group written: eight groups for 512 000 rows, read in parallel.
@@ -43,18 +44,21 @@ fn format_err(path: &Path, e: impl std::fmt::Display) -> Error {
     Error::Format { path: path.to_path_buf(), message: e.to_string() }
 }
 
-pub(super) fn read(
+/// Reads the `wanted` columns of a Parquet file (`parquet`) or an Arrow IPC one: the
+/// columnar half of [`crate::data::format::read_table_with`], whose errors it returns.
+pub(crate) fn read(
     path: &Path,
-    format: Format,
+    parquet: bool,
     wanted: &[(&str, bool)],
     limits: &ReadLimits,
     time: TimeCheck,
 ) -> Result<Table> {
     let file = open(path)?;
     let streaming = time == TimeCheck::Streaming;
-    let (header, index, columns, rows) = match format {
-        Format::Parquet => read_parquet(path, file, wanted, limits, streaming)?,
-        _ => read_ipc(path, file, wanted, limits, streaming)?,
+    let (header, index, columns, rows) = if parquet {
+        read_parquet(path, file, wanted, limits, streaming)?
+    } else {
+        read_ipc(path, file, wanted, limits, streaming)?
     };
     // Each wanted column as read, moved rather than copied.
     let values: Vec<Option<Vec<f64>>> = index.iter().zip(columns).map(|(i, c)| i.map(|_| c)).collect();
@@ -135,7 +139,7 @@ fn read_parquet(
                 .build()
                 .map_err(|e| format_err(path, e))
         };
-        let mut steps = crate::data::TimeSteps::new(header[*t].clone());
+        let mut steps = TimeSteps::new(header[*t].clone());
         let (mut at, mut failed) = (0, None);
         for batch in reader(&[*t], usize::MAX)? {
             let batch = batch.map_err(|e| format_err(path, e))?;
@@ -266,7 +270,7 @@ fn collect(
 ) -> Result<Vec<Vec<f64>>> {
     let mut out: Vec<Vec<f64>> = vec![Vec::new(); index.len()];
     let mut row = 0;
-    let mut steps = index.first().copied().flatten().map(|t| crate::data::TimeSteps::new(header[t].clone()));
+    let mut steps = index.first().copied().flatten().map(|t| TimeSteps::new(header[t].clone()));
     for batch in reader {
         let batch = batch.map_err(|e| format_err(path, e))?;
         for (v, i) in out.iter_mut().zip(index) {
@@ -344,14 +348,16 @@ fn batch(e: &Experiment, time: &str) -> std::result::Result<RecordBatch, arrow_s
     RecordBatch::try_new(schema, columns)
 }
 
-pub(super) fn write(path: &Path, format: Format, e: &Experiment, time: &str) -> Result<()> {
+/// Writes `e` as a Parquet file (`parquet`) or an Arrow IPC one: the columnar half of
+/// [`crate::data::format::write`], whose errors it returns.
+pub(crate) fn write(path: &Path, parquet: bool, e: &Experiment, time: &str) -> Result<()> {
     let write_err = |e: &dyn std::fmt::Display| Error::Write {
         path: path.to_path_buf(),
         source: std::io::Error::other(e.to_string()),
     };
     let batch = batch(e, time).map_err(|e| write_err(&e))?;
-    match format {
-        Format::Parquet => {
+    match parquet {
+        true => {
             use parquet::basic::Compression;
             use parquet::file::properties::WriterProperties;
             let props = WriterProperties::builder()
@@ -366,7 +372,7 @@ pub(super) fn write(path: &Path, format: Format, e: &Experiment, time: &str) -> 
             let bytes = w.into_inner().map_err(|e| write_err(&e))?;
             write_atomic(path, |out| out.write_all(&bytes))
         }
-        _ => write_atomic(path, |out| {
+        false => write_atomic(path, |out| {
             let mut w = arrow_ipc::writer::FileWriter::try_new(out, &batch.schema())
                 .map_err(std::io::Error::other)?;
             // Batches of `BATCH` rows: a reader then decodes one small batch at a time.

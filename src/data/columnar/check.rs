@@ -2,7 +2,9 @@
 
 use std::path::Path;
 
-use crate::data::{TimeSteps, all_finite};
+use crate::data::channel::all_finite;
+use crate::data::table::experiment_name;
+use crate::data::time::TimeSteps;
 use crate::error::{Error, Result};
 
 /// Checks the wanted columns `values` (in request order, `None` when absent; the first the
@@ -23,7 +25,7 @@ pub(super) fn rows(
 ) -> Result<()> {
     let n = values.iter().flatten().map(Vec::len).next().unwrap_or(0);
     if n == 0 {
-        return Err(Error::TooShort { name: crate::data::csv::experiment_name(path), len: 0, min: 1 });
+        return Err(Error::TooShort { name: experiment_name(path), len: 0, min: 1 });
     }
     // First non-finite value of the other columns (of all, time unchecked), by (row, column).
     let bad = values

@@ -132,8 +132,8 @@ pub(super) fn rename_columns(e: Error, c: &ColumnNames, offset: usize) -> Error 
         Error::NonFinite { column, row, value } => {
             Error::NonFinite { column: map(column), row: row + offset, value }
         }
-        Error::NonUniformTime { column, row, dt, expected, tolerance } => {
-            Error::NonUniformTime { column: map(column), row: row + offset, dt, expected, tolerance }
+        Error::NonUniformTime { column, row, dt, expected, tolerance, gap } => {
+            Error::NonUniformTime { column: map(column), row: row + offset, dt, expected, tolerance, gap }
         }
         other => other,
     }

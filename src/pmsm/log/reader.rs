@@ -21,8 +21,8 @@ use rayon::prelude::*;
 
 use crate::data::Experiment;
 use crate::data::TimeCheck;
-use crate::data::columnar::read_table_with;
 use crate::data::csv::name_excerpt;
+use crate::data::read_table_with;
 use crate::data::segments::{TimeSegments, time_segments};
 use crate::error::{Error, Result};
 use crate::pmsm::log::signals::check_pole_pairs;
@@ -36,7 +36,7 @@ use super::options::*;
 ///
 /// Gzip is detected by the magic bytes `1f 8b`, not by the extension; a `.parquet`,
 /// `.arrow`, `.feather` or `.ipc` file is read as a columnar log
-/// ([`crate::data::columnar::read_table`]) with the same names, units and checks. The
+/// ([`crate::data::read_table`]) with the same names, units and checks. The
 /// experiment's name is the file name without `.csv.gz` / `.csv` / `.parquet` …. Only the needed columns are parsed;
 /// the others may hold anything. Fields may be surrounded by blanks; `nan` and `inf` parse
 /// as numbers and are then rejected by validation. The sample time h \[s\] is the mean step
@@ -148,7 +148,7 @@ impl Raw {
             Err(Error::TooShort { name, len, .. }) => {
                 return Err(Error::TooShort { name, len, min: MIN_SAMPLES });
             }
-            Err(Error::NonUniformTime { column, row, dt, expected, tolerance }) => {
+            Err(Error::NonUniformTime { column, row, dt, expected, tolerance, gap }) => {
                 // The reader saw the file's unit; the message says seconds.
                 let s = options.time_unit.per_second();
                 return Err(Error::NonUniformTime {
@@ -157,6 +157,7 @@ impl Raw {
                     dt: dt / s,
                     expected: expected / s,
                     tolerance,
+                    gap,
                 });
             }
             other => other?,
@@ -226,13 +227,7 @@ impl Raw {
     pub(super) fn gap(&self, row: usize, h: f64, column: &str) -> Error {
         let t = self.t();
         let dt = if row > 0 { t[row] - t[row - 1] } else { f64::NAN };
-        Error::NonUniformTime {
-            column: column.to_string(),
-            row,
-            dt,
-            expected: h,
-            tolerance: crate::data::TIME_TOLERANCE,
-        }
+        crate::data::segments::non_uniform_time(column, row, dt, h, crate::data::TIME_TOLERANCE)
     }
 
     /// The experiment of rows `range` under the log's name, built from the columns
