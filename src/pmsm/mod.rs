@@ -27,6 +27,7 @@ mod options;
 
 pub use checks::advice::{LATE_SLOPE, THRESHOLD as LATE_VOLTAGE_THRESHOLD};
 pub use checks::columns::COLUMN_RATIO;
+pub use checks::delay::DELAY_RATIO;
 pub use checks::detect::{
     MAX_H_OVER_TAU, POLE_PAIR_CANDIDATES, POLE_PAIR_RATIO, SALIENCY, SALIENT_CERTAIN, SALIENT_LIKELY,
     SPEED_MISMATCH, choose_pole_pairs, pole_pair_losses,

@@ -265,3 +265,19 @@ fn a_log_with_only_the_reference_is_read_and_fitted() {
         other => panic!("{other}"),
     }
 }
+
+/// A fit from the reference with the wrong delay is untrusted: the fit at the neighbouring
+/// delay, which the check runs, has a far lower loss. The right delay passes.
+#[test]
+fn a_wrong_delay_is_pointed_out() {
+    let e = reference_record(1);
+    let hold = PmsmFitOptions { hold: HoldChoice::Stator, ..pmsm_options(N_P) };
+    let delay = |f: &greybox::pmsm::PmsmFit| f.warnings.iter().any(|w| w.code == "delay" && w.untrusted);
+    for wrong in [0, 2] {
+        let input = VoltageInput::Reference { delay: wrong, advance: 1.5, speed_pll: None };
+        let fit = fit_pmsm(std::slice::from_ref(&e), &PmsmFitOptions { input, ..hold.clone() }).unwrap();
+        assert!(delay(&fit) && !fit.trusted(), "delay {wrong}: {:?}", fit.warnings);
+    }
+    let right = fit_pmsm(&[e], &PmsmFitOptions { input: VoltageInput::REFERENCE, ..hold }).unwrap();
+    assert!(!delay(&right) && right.trusted(), "{:?}", right.warnings);
+}

@@ -19,7 +19,7 @@ use crate::pmsm::checks::prepared::PreparedLog;
 use crate::pmsm::linear::{MAX_COLS, Regression, push_with_dead_time};
 use crate::pmsm::log::signals::{DqView, channel};
 use crate::pmsm::model::interval::C64;
-use crate::pmsm::model::inverter::{DeadTimeStream, InverterModel, WINDOW};
+use crate::pmsm::model::inverter::{DeadTimeStream, InverterModel, WINDOW, dead_time_directions};
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::options::PmsmFitOptions;
 
@@ -134,24 +134,35 @@ pub(crate) fn dead_time_advice(
 }
 
 /// The late-voltage check of a fit with `options` at the motor parameters `theta` (model
-/// order, the whole series resistance), one entry per log.
+/// order, the whole series resistance), one entry per log. A fit with the inverter model
+/// has its error `v_dt` times the dead-time directions taken off the voltage first (as the
+/// fit does), so that the dead time does not pass for a late voltage.
 pub(crate) fn late_voltage_advice(
     logs: &[Option<PreparedLog<'_>>],
     options: &PmsmFitOptions,
     theta: &[f64],
+    v_dt: Option<f64>,
 ) -> Vec<Option<Warning>> {
     let (n_p, kind) = (options.pole_pairs, options.model);
     let theta = &theta[..theta.len().min(MAX_COLS)];
     let check = |p: &Option<PreparedLog<'_>>| {
         with_regression(p.as_ref(), n_p, kind, theta.len(), |v, u_d, u_q, reg| {
+            // The inverter's error per interval, when the fit models it (none when the log
+            // has no angle: the check then reads the voltage as it is).
+            let inverter = options.inverter.zip(v_dt).and_then(|(m, v_dt)| {
+                let dirs = dead_time_directions(v, n_p, &m).ok()?;
+                Some(move |k: usize, u: [f64; 2]| [u[0] - v_dt * dirs[k].re, u[1] - v_dt * dirs[k].im])
+            });
+            let motor = |k: usize, u: [f64; 2]| inverter.as_ref().map_or(u, |f| f(k, u));
             // Sums of the correlation, the residual shifted by the first one (no cancellation
             // when its mean is large against its spread): Σx, Σy, Σx², Σy², Σxy.
             let shift = reg.intervals().checked_sub(1).map_or(0.0, |_| {
                 let (d, _, u) = reg.rows(0);
-                residual(&d, u[0], theta)
+                residual(&d, motor(0, u)[0], theta)
             });
             let mut sums = [0.0; 5];
             reg.for_each(|k, d, q, u| {
+                let u = motor(k, u);
                 let du = change(u_d, u_q, k);
                 for (x, y) in
                     [(residual(d, u[0], theta) - shift, du[0]), (residual(q, u[1], theta) - shift, du[1])]

@@ -1,9 +1,11 @@
 //! The checks of a log and its fit that name a setup mistake: the setup scan's regression
 //! Gram, the detectors (pole pairs, saliency, speed unit and frame, sample time), column
-//! mistakes, the inverter's dead time and a late voltage, the voltage limit, voltage noise.
+//! mistakes, the reference voltage's delay, the inverter's dead time and a late voltage,
+//! the voltage limit, voltage noise.
 
 pub(super) mod advice;
 pub(super) mod columns;
+pub(super) mod delay;
 pub(super) mod detect;
 pub(super) mod limit;
 pub(super) mod noise;

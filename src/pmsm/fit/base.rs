@@ -110,7 +110,10 @@ fn fit_beside(
         .collect();
     // The late-voltage check and the setup checks' own warnings need the estimate: side by side.
     let (late, setup_warnings) = rayon::join(
-        || crate::pmsm::checks::advice::late_voltage_advice(&logs, options, &motor),
+        || {
+            let v_dt = best.parameter("v_dt").map(|p| p.value);
+            crate::pmsm::checks::advice::late_voltage_advice(&logs, options, &motor, v_dt)
+        },
         || {
             (!options.skip_setup_checks)
                 .then(|| crate::pmsm::checks::detect::warnings(experiments, n_p, &best))
@@ -172,6 +175,7 @@ fn fit_beside(
                 refit,
             ));
         }
+        warnings.extend(crate::pmsm::checks::delay::warning(experiments, options, best.fit.loss, refit));
     }
     warnings.extend(setup_warnings.into_iter().flatten());
     let plain = options.model == MotorKind::Spm
