@@ -5,7 +5,7 @@
 //! `cli` feature); without it these files give [`Error::Format`](crate::Error::Format) naming the feature. A
 //! column of any integer or floating-point type reads as f64 (64-bit integers beyond 2⁵³
 //! round to the nearest f64); any other type is [`Error::ColumnType`](crate::Error::ColumnType) naming the column.
-//! The checks are those of the CSV reader: the header's ([`crate::data::csv::read_table`]),
+//! The checks are those of the CSV reader: the header's ([`crate::data::csv::read_table_with`]),
 //! finite values in the wanted columns ([`Error::NonFinite`](crate::Error::NonFinite) naming column and row) and a
 //! time column that passes [`crate::data::TimeSteps`], in row order (unless
 //! [`read_table_with`](super::read_table_with) is told [`TimeCheck::Skip`](super::TimeCheck::Skip)).

@@ -1,4 +1,4 @@
-//! CSV logs, plain or gzip-compressed: the reader of their columns ([`read_table`]), on
+//! CSV logs, plain or gzip-compressed: the reader of their columns ([`read_table_with`]), on
 //! `csv-core`, the `csv` crate's parser. A log is a CSV file with a header line and one row
 //! per sample `t_k = k h`; only the wanted columns are parsed, the others may hold anything.
 //!
@@ -32,7 +32,9 @@ mod source;
 
 /// Parses the columns `wanted` (`(header name, required)`) of a CSV file, plain or gzip,
 /// its fields separated by `delimiter`; the first is the time column `t_k`, checked as it
-/// streams ([`read_table_with`] and [`TimeCheck::Skip`] leave that check to the caller).
+/// streams with [`TimeCheck::Streaming`], or read as any other wanted column with
+/// [`TimeCheck::Skip`] (its steps left to the caller, and a NaN/Inf in it then an
+/// [`Error::NonFinite`](crate::Error::NonFinite) as for any wanted column).
 ///
 /// Records and fields are the `csv` crate's (quoted fields, `""` escapes, line breaks in
 /// quotes; CR, LF or CRLF; blank lines skipped; a byte order mark dropped), fields trimmed
@@ -67,25 +69,6 @@ mod source;
 ///   row of a NaN/Inf in a wanted column;
 ///   [`Error::NonUniformTime`](crate::Error::NonUniformTime) for a non-increasing or grossly
 ///   irregular time step.
-///
-/// Never panics.
-pub fn read_table(
-    path: impl AsRef<Path>,
-    wanted: &[(&str, bool)],
-    limits: &ReadLimits,
-    delimiter: Delimiter,
-) -> Result<Table> {
-    read_table_with(path, wanted, limits, delimiter, TimeCheck::Streaming)
-}
-
-/// [`read_table`], with `time` saying whether the time column (the first of `wanted`) is
-/// checked as the rows stream in ([`TimeCheck::Streaming`], what [`read_table`] does) or
-/// read as any other wanted column, its steps left to the caller ([`TimeCheck::Skip`]).
-///
-/// # Errors
-/// Those of [`read_table`]; with [`TimeCheck::Skip`] never
-/// [`Error::NonUniformTime`](crate::Error::NonUniformTime), and a NaN/Inf in the time column
-/// is [`Error::NonFinite`](crate::Error::NonFinite) naming it as for any wanted column.
 ///
 /// Never panics.
 pub fn read_table_with(

@@ -51,11 +51,11 @@ impl Format {
 
 /// Parses the columns `wanted` (`(header name, required)`, the first the time column) of a
 /// log in any [`Format`], by extension: a CSV file through
-/// [`crate::data::csv::read_table`] with its fields separated by `delimiter`, a columnar one through the Arrow readers (only the
+/// [`crate::data::csv::read_table_with`] with its fields separated by `delimiter`, a columnar one through the Arrow readers (only the
 /// wanted columns are decoded; Parquet row groups in parallel).
 ///
 /// # Errors
-/// For CSV those of [`crate::data::csv::read_table`]. For a columnar file:
+/// For CSV those of [`crate::data::csv::read_table_with`]. For a columnar file:
 /// [`Error::Format`] when the build lacks the feature `parquet`, for a file that is not
 /// valid Parquet/Arrow IPC, or for a null in a wanted column (naming it and the row);
 /// [`Error::Io`] when it cannot be opened; [`Error::LimitExceeded`] for more columns than

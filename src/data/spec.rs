@@ -76,7 +76,7 @@ impl Default for CsvSpec {
 /// file ([`ReadLimits`]). The path `-` reads standard input.
 ///
 /// # Errors
-/// Those of [`read_table`] (a CSV log: [`super::csv::read_table`], which stops at the first NaN/Inf or
+/// Those of [`read_table`] (a CSV log: [`super::csv::read_table_with`], which stops at the first NaN/Inf or
 /// bad time step), and of
 /// [`Experiment::try_from_time`] with the column names of the file in
 /// [`Error::NonFinite`]; [`Error::InvalidOption`] for a non-finite or zero scale, or a

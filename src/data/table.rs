@@ -48,7 +48,7 @@ pub struct Table {
 }
 
 /// Positions in `header` of the `wanted` columns (`(name, required)`), `None` for an
-/// absent optional one: the header checks of every reader ([`super::csv::read_table`], the columnar one).
+/// absent optional one: the header checks of every reader ([`super::csv::read_table_with`], the columnar one).
 ///
 /// # Errors
 /// [`Error::LimitExceeded`] (line 1) for more than `limits.max_fields` names,

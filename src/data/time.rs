@@ -20,7 +20,7 @@ pub const TIME_TOLERANCE: f64 = 0.25;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum TimeCheck {
     /// The reader checks the time column row by row and stops at the first bad step
-    /// ([`Error::NonUniformTime`]), as [`super::csv::read_table`] always does. The default.
+    /// ([`Error::NonUniformTime`]), as [`super::csv::read_table_with`] always does. The default.
     #[default]
     Streaming,
     /// The reader reads the time column as any other wanted column (each value a finite

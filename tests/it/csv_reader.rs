@@ -10,8 +10,18 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use greybox::Error;
 use greybox::data::TimeSteps;
-use greybox::data::csv::{Delimiter, ReadLimits, Table, read_table};
+use greybox::data::csv::{Delimiter, ReadLimits, Table};
 use proptest::prelude::*;
+
+/// The CSV reader with the time column checked as it streams.
+fn read_table(
+    path: impl AsRef<std::path::Path>,
+    wanted: &[(&str, bool)],
+    limits: &ReadLimits,
+    delimiter: Delimiter,
+) -> greybox::Result<Table> {
+    greybox::data::csv::read_table_with(path, wanted, limits, delimiter, greybox::data::TimeCheck::Streaming)
+}
 
 /// The reader as it was before the fast path (commit ad58799), errors as strings.
 pub mod oracle {
