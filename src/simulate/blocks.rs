@@ -1,5 +1,5 @@
 //! The blocked simulation: [`simulate_blocks`] runs a model over a record
-//! [`BLOCK_LEN`] samples at a time, through the model's [`BlockKernel`] when it has one
+//! [`BLOCK_LEN`] samples at a time, through the model's [`BlockKernel`](crate::model::BlockKernel) when it has one
 //! and sample by sample (analytic or finite-difference sensitivities) otherwise.
 
 use super::fd::fd_sensitivity;

@@ -14,7 +14,7 @@ use greybox::data::csv::{Delimiter, ReadLimits, Table};
 use proptest::prelude::*;
 
 /// The CSV reader with the time column checked as it streams.
-fn read_table(
+pub(crate) fn read_table(
     path: impl AsRef<std::path::Path>,
     wanted: &[(&str, bool)],
     limits: &ReadLimits,

@@ -9,17 +9,7 @@ use greybox::data::csv::{Delimiter, ReadLimits, Table};
 use greybox::pmsm::{CsvOptions, read_log};
 use proptest::prelude::*;
 
-use super::csv_reader::{gzip, limits, temp_path, text, wanted};
-
-/// The CSV reader with the time column checked as it streams.
-fn read_table(
-    path: impl AsRef<std::path::Path>,
-    wanted: &[(&str, bool)],
-    limits: &ReadLimits,
-    delimiter: Delimiter,
-) -> greybox::Result<Table> {
-    greybox::data::csv::read_table_with(path, wanted, limits, delimiter, greybox::data::TimeCheck::Streaming)
-}
+use super::csv_reader::{gzip, limits, read_table, temp_path, text, wanted};
 
 /// The shipped sample log as comma-separated text.
 fn sample_text() -> Vec<u8> {

@@ -47,7 +47,7 @@ pub struct Sums {
     pub score: DVector<f64>,
 }
 
-/// Running sums of [`PemProblem::sums`].
+/// Running sums of [`PemProblem::sums`](super::PemProblem::sums).
 pub(crate) struct Accumulator {
     ny: usize,
     np: usize,

@@ -1,9 +1,9 @@
-//! PMSM fits in one call: least-squares start, voltage-hold selection, prediction-error
-//! fit; the result is the generic report wrapped with what only a motor has.
-//!
-//! This is what the command line runs. The steps (MODEL.md §4–5):
+//! One PMSM fit under [`crate::pmsm::fit_pmsm`] (which calls it once, or per step of the
+//! automatic dead-time mask): least-squares start, voltage-hold selection, prediction-error
+//! fit, the checks beside and after it; the result is the generic report wrapped with what
+//! only a motor has. The steps (MODEL.md §4–5):
 //! 1. start from the linear least-squares estimate (thesis 5.2.1) unless a start is given;
-//! 2. fit with the chosen voltage hold; with [`HoldChoice::Auto`] fit both holds (the
+//! 2. fit with the chosen voltage hold; with [`HoldChoice::Auto`](crate::pmsm::HoldChoice::Auto) fit both holds (the
 //!    second from the first's estimate) and keep the one with the lower loss — the holds
 //!    differ at second order in `ω_e h`, which decides between 10⁻⁴ and 10⁻⁷ accuracy;
 //! 3. the model derives `K_t = √(3/2) K_e` \[N m/A\] and `ψ_f = √(2/3) K_e / n_p` \[V s\] with

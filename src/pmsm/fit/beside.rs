@@ -1,4 +1,4 @@
-//! The checks that need no estimate, running beside a fit ([`super::fit_pmsm`]).
+//! The checks that need no estimate, running beside a fit ([`crate::pmsm::fit_pmsm`]).
 
 use crate::estimate::result::Warning;
 use crate::pmsm::checks::prepared::PreparedLog;
@@ -20,7 +20,7 @@ impl<T> Pending<'_, T> {
     }
 }
 
-/// What the checks beside a fit ([`super::fit_pmsm`]) found without its estimate.
+/// What the checks beside a fit ([`crate::pmsm::fit_pmsm`]) found without its estimate.
 pub(super) struct Beside<'a> {
     /// The setup scan's regression Gram ([`crate::pmsm::checks::detect`]); `None` when the
     /// setup checks are skipped or the scan cannot read a log.

@@ -1,4 +1,4 @@
-//! The fits of [`super::fit_pmsm`] from their start: the least-squares start unless one is
+//! The fits of [`crate::pmsm::fit_pmsm`] from their start: the least-squares start unless one is
 //! given, the user's constraints on it, the holds to fit, the weighting (voltage limit,
 //! dead-time mask) and the fits of those holds (MODEL.md §4–5).
 
@@ -20,7 +20,7 @@ use crate::pmsm::options::configure;
 use crate::pmsm::options::{HoldChoice, PmsmFitOptions};
 use crate::report::eng::format_eng;
 
-/// What [`fit_from_start`] gives the rest of [`super::fit_pmsm`].
+/// What [`fit_from_start`] gives the rest of [`crate::pmsm::fit_pmsm`].
 pub(super) struct Fitted {
     /// The fits of the holds tried, the best first.
     pub fits: HoldFits,
@@ -36,7 +36,7 @@ pub(super) struct Fitted {
 /// order) and the fits of the holds `options.hold` allows.
 ///
 /// # Errors
-/// Those of [`super::fit_pmsm`] but the setup checks': a start of the wrong length, the
+/// Those of [`crate::pmsm::fit_pmsm`] but the setup checks': a start of the wrong length, the
 /// least-squares start's, the user's constraints', the hold or voltage-limit options', and
 /// the fits'.
 pub(super) fn fit_from_start(

@@ -46,7 +46,7 @@ use super::options::*;
 /// and kept. Row numbers in errors count the file's data rows from 0 either way.
 ///
 /// # Errors
-/// - [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError::InvalidPolePairs) for `pole_pairs` outside `Some(1..=100)`, or `None` when
+/// - [`PmsmError::InvalidPolePairs`] for `pole_pairs` outside `Some(1..=100)`, or `None` when
 ///   the speed is electrical or the dq signals come from phases (before the file is
 ///   opened);
 /// - those of [`read_table_with`], which checks while the file streams and stops at the first

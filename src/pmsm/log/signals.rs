@@ -252,7 +252,7 @@ impl From<PmsmError> for Error {
 /// Checks a pole-pair number: `1 ≤ n_p ≤` [`MAX_POLE_PAIRS`].
 ///
 /// # Errors
-/// [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError::InvalidPolePairs) for `n_p = 0` or `n_p > 100`.
+/// [`PmsmError::InvalidPolePairs`] for `n_p = 0` or `n_p > 100`.
 pub(crate) fn check_pole_pairs(n_p: u32) -> Result<()> {
     if (1..=MAX_POLE_PAIRS).contains(&n_p) { Ok(()) } else { Err(PmsmError::InvalidPolePairs { n_p }.into()) }
 }

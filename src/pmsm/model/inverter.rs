@@ -32,7 +32,7 @@ pub const DEFAULT_RELATIVE_WIDTH: f64 = 0.02;
 /// The inverter error model: per-phase `−V_dt tanh(i_x/w)`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Default)]
 pub struct InverterModel {
-    /// Width w of the smooth sign \[A\]; `None`: [`DEFAULT_RELATIVE_WIDTH`](crate::pmsm::DEFAULT_RELATIVE_WIDTH) × the largest
+    /// Width w of the smooth sign \[A\]; `None`: [`DEFAULT_RELATIVE_WIDTH`] × the largest
     /// `|i_dq|` of the log, or a tenth of the [`DeadTimeMask`] threshold.
     pub width: Option<f64>,
     /// A known `V_dt` \[V\], held fixed; `None`: estimated (from 0).

@@ -2,7 +2,7 @@
 //! and voltage channels, shared with the experiment (not copied), with the sample time and
 //! pole pairs; each interval's mean speed, half-angle sine and cosine and start-of-period
 //! voltage follow from them per interval or per block (MODEL.md §4). Both
-//! [`SpmInputs`](crate::pmsm::SpmInputs) and [`IpmInputs`](crate::pmsm::IpmInputs) hold one.
+//! [`SpmInputs`](crate::pmsm::SpmInputs) and [`IpmInputs`](crate::pmsm::model::augmented::IpmInputs) hold one.
 
 use super::{
     C64, DqView, IntervalVoltage, Result, SMALL_ANGLE, SQRT_2_3, VoltageHold, VoltageInput, half_angle,

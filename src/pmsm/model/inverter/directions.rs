@@ -8,7 +8,7 @@ use crate::pmsm::log::transform::{clarke, inverse_clarke};
 use crate::pmsm::model::interval::C64;
 use multiversion::multiversion;
 
-/// Intervals per window of [`DeadTimeStream::directions`]: its scratch is on the stack.
+/// Intervals per window of [`DeadTimeStream::directions`](super::DeadTimeStream::directions): its scratch is on the stack.
 pub(crate) const WINDOW: usize = 256;
 
 /// The phase currents of a window, each phase's samples in a row.
