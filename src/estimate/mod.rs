@@ -7,6 +7,7 @@
 //! it.
 
 pub mod assemble;
+pub mod consistency;
 pub mod diagnostics;
 pub mod filter;
 pub mod gate;

@@ -3,7 +3,7 @@
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::PemOptions;
+use crate::estimate::{FitResult, PemOptions};
 use crate::model::Parameter;
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::inverter::InverterModel;
@@ -16,6 +16,11 @@ use serde::{Deserialize, Serialize};
 /// given by the workflow above them ([`crate::pmsm::fit_pmsm`]), so the checks need not
 /// know it.
 pub(crate) type RefitLoss<'a> = &'a (dyn Fn(&[Experiment], &PmsmFitOptions) -> Option<f64> + Sync);
+
+/// The report of a nested fit of parts of the logs (`None` when it fails), for the check
+/// that the parts agree ([`crate::pmsm::checks`]' segment check); given by the workflow as
+/// [`RefitLoss`] is.
+pub(crate) type RefitReport<'a> = &'a (dyn Fn(&[Experiment], &PmsmFitOptions) -> Option<FitResult> + Sync);
 
 /// How many times lower than `loss` a nested fit of `experiments` with `other` is (from the
 /// least-squares start, without setup checks of its own), when it is more than `ratio`

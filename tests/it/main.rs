@@ -35,6 +35,7 @@ mod multi_experiment;
 mod online;
 mod outputs;
 mod plots;
+mod pwm_trust;
 mod random_starts;
 mod recovery;
 mod reference;

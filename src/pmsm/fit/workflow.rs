@@ -1,13 +1,17 @@
 //! The whole PMSM workflow in one call, [`fit_pmsm`]: the options checked, then the fit
 //! ([`super::base`]) or, with [`DeadTimeMask::Auto`], the fixed-point iteration of masked
 //! fits ([`super::auto_mask`]). It sits above both and gives them itself as the refit that
-//! confirms a suspected setup mistake, so that nothing below calls back up.
+//! confirms a suspected setup mistake, so that nothing below calls back up. A fit from the
+//! reference voltage or with the inverter model is then refitted on the logs' consecutive
+//! parts, whose disagreement makes it untrusted (`checks::segments`), and a masked one with
+//! more current noise, whose shift shows the noise's bias (`checks::noise_bias`).
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::pmsm::fit::report::PmsmFit;
+use crate::pmsm::model::interval::{VoltageHold, VoltageInput};
 use crate::pmsm::model::mask::DeadTimeMask;
-use crate::pmsm::options::PmsmFitOptions;
+use crate::pmsm::options::{HoldChoice, PmsmFitOptions};
 
 /// Fits a PMSM model to one or more logs of one motor (parameters shared unless listed in
 /// `options.pem.per_experiment`).
@@ -37,8 +41,50 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         return Err(Error::InvalidOption { option: "experiments".into(), reason: "no log given".into() });
     }
     let refit = |e: &[Experiment], o: &PmsmFitOptions| fit_pmsm(e, o).ok().map(|f| f.fit.loss);
-    if options.inverter.and_then(|i| i.mask) == Some(DeadTimeMask::Auto) {
-        return super::auto_mask::fit(experiments, options, &refit);
+    let fit = if options.inverter.and_then(|i| i.mask) == Some(DeadTimeMask::Auto) {
+        super::auto_mask::fit(experiments, options, &refit)?
+    } else {
+        super::base::fit(experiments, options, &refit)?
+    };
+    // The measured terminal voltage is the model's input as logged; the reference voltage
+    // and the inverter are modelled, and their model's error is what the parts show.
+    if (options.inverter.is_none() && options.input == VoltageInput::Terminal) || options.skip_setup_checks {
+        return Ok(fit);
     }
-    super::base::fit(experiments, options, &refit)
+    let refit_report = |e: &[Experiment], o: &PmsmFitOptions| fit_pmsm(e, o).ok().map(|f| f.report);
+    let parts = part_options(options, &fit);
+    let masked = fit.inverter.and_then(|i| i.mask).is_some();
+    let (segments, noise) = rayon::join(
+        || crate::pmsm::checks::segments::warning(experiments, &parts, &refit_report),
+        || {
+            masked
+                .then(|| {
+                    crate::pmsm::checks::noise_bias::warning(experiments, &parts, &fit.report, &refit_report)
+                })
+                .flatten()
+        },
+    );
+    if segments.is_none() && noise.is_none() {
+        return Ok(fit);
+    }
+    let warnings = fit.report.warnings.iter().cloned().chain(segments).chain(noise).collect();
+    Ok(PmsmFit { report: crate::estimate::FitResult { warnings, ..fit.report }, ..fit })
+}
+
+/// The options of the segment check's fits of parts of the logs: the fit's own hold, input
+/// and inverter model (the automatic mask's last threshold), started from its estimate,
+/// without setup checks of their own.
+fn part_options(options: &PmsmFitOptions, fit: &PmsmFit) -> PmsmFitOptions {
+    let names = options.model.parameter_names().iter().copied().chain(["v_dt"]);
+    PmsmFitOptions {
+        start: names.map(|n| fit.parameter(n).map(|p| p.value)).collect(),
+        hold: match fit.hold {
+            VoltageHold::Dq => HoldChoice::Dq,
+            VoltageHold::Stator => HoldChoice::Stator,
+        },
+        input: fit.input,
+        inverter: fit.inverter,
+        skip_setup_checks: true,
+        ..options.clone()
+    }
 }

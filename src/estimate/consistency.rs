@@ -1,0 +1,205 @@
+//! Whether fits of parts of the data agree within their intervals: Cochran's Q test of
+//! homogeneity per parameter (Cochran, *Biometrics* 10 (1954) 101–129), the test of
+//! meta-analysis applied to consecutive segments of one record.
+//!
+//! A model that is right up to white or coloured noise gives the same parameters, within
+//! their standard errors, on every long enough part of the data. A model error that
+//! depends on the operating point (an unmodelled nonlinearity, switching ripple, a drifting
+//! parameter) biases each part differently, and the parts disagree. The whole record's
+//! interval cannot show that bias: its covariance describes the noise around the
+//! estimate, not the distance of the estimate from the truth.
+
+use crate::estimate::FitResult;
+use serde::{Deserialize, Serialize};
+
+/// Cochran's Q test of one parameter over the segments' fits.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Homogeneity {
+    /// The parameter's name.
+    pub name: String,
+    /// Inverse-variance pooled estimate `θ̄ = Σ w_k θ_k / Σ w_k`, `w_k = 1/σ_k²` \[unit\].
+    pub pooled: f64,
+    /// The segments' estimates `θ_k` \[unit\], in segment order.
+    pub estimates: Vec<f64>,
+    /// Their standard errors `σ_k` \[unit\], with the floor of [`homogeneity`].
+    pub std_errors: Vec<f64>,
+    /// `Q = Σ w_k (θ_k − θ̄)²` (χ² with K − 1 degrees of freedom when the segments agree).
+    pub q: f64,
+    /// Degrees of freedom K − 1.
+    pub dof: usize,
+    /// `P(χ²_{K−1} ≥ Q)`.
+    pub p_value: f64,
+    /// Largest `|θ_k − θ̄| / |θ̄|` (relative; ∞ for θ̄ = 0).
+    pub relative_spread: f64,
+}
+
+/// Cochran's Q of every free shared parameter the fits `segments` all estimate with a
+/// finite, positive standard error, in the order of the first fit's parameters. Each
+/// standard error is taken at least `floor` (relative) of the parameter's size, in
+/// quadrature (`σ_k² + (floor · mean |θ|)²`): segments that agree to the accuracy of an exact
+/// fit agree, whatever their rounding-sized intervals say. Empty for fewer than two
+/// segments.
+///
+/// Source: Cochran, *Biometrics* 10 (1954) 101–129; the same statistic as the Wald test of
+/// equal parameters across independent samples (Chow, *Econometrica* 28 (1960) 591–605).
+pub fn homogeneity(segments: &[FitResult], floor: f64) -> Vec<Homogeneity> {
+    let Some(first) = segments.first().filter(|_| segments.len() > 1) else {
+        return Vec::new();
+    };
+    first
+        .parameters
+        .iter()
+        .filter(|p| !p.fixed && p.experiment.is_none())
+        .filter_map(|p| {
+            let pairs: Option<Vec<(f64, f64)>> = segments
+                .iter()
+                .map(|s| {
+                    let q = s.parameter(&p.name)?;
+                    (q.std_error.is_finite() && q.std_error > 0.0 && q.value.is_finite())
+                        .then_some((q.value, q.std_error))
+                })
+                .collect();
+            let (estimates, std_errors): (Vec<f64>, Vec<f64>) = pairs?.into_iter().unzip();
+            let size = floor * estimates.iter().map(|t| t.abs()).sum::<f64>() / estimates.len() as f64;
+            let std_errors = std_errors.iter().map(|s| s.hypot(size)).collect();
+            Some(test(&p.name, estimates, std_errors))
+        })
+        .collect()
+}
+
+/// Cochran's Q of one parameter's estimates and standard errors.
+fn test(name: &str, estimates: Vec<f64>, std_errors: Vec<f64>) -> Homogeneity {
+    let w: Vec<f64> = std_errors.iter().map(|s| 1.0 / (s * s)).collect();
+    let pooled = w.iter().zip(&estimates).map(|(w, t)| w * t).sum::<f64>() / w.iter().sum::<f64>();
+    let q = w.iter().zip(&estimates).map(|(w, t)| w * (t - pooled).powi(2)).sum::<f64>();
+    let dof = estimates.len() - 1;
+    let spread = estimates.iter().map(|t| (t - pooled).abs()).fold(0.0, f64::max);
+    Homogeneity {
+        name: name.to_string(),
+        pooled,
+        relative_spread: if pooled == 0.0 { f64::INFINITY } else { spread / pooled.abs() },
+        estimates,
+        std_errors,
+        q,
+        dof,
+        p_value: chi_square_sf(q, dof),
+    }
+}
+
+/// `P(χ²_k ≥ x)`, the χ² survival function for `k ≥ 1` degrees of freedom, in closed form
+/// (Abramowitz & Stegun 26.4.4–26.4.5): a finite sum for even `k`, `erfc` plus one for odd
+/// `k`. 1 for `x ≤ 0`; NaN for `k = 0` or a NaN `x`.
+pub fn chi_square_sf(x: f64, k: usize) -> f64 {
+    if k == 0 || x.is_nan() {
+        return f64::NAN;
+    }
+    if x <= 0.0 {
+        return 1.0;
+    }
+    let half = x / 2.0;
+    let (mut sum, mut term, start) = if k.is_multiple_of(2) {
+        (0.0, 1.0, 0)
+    } else {
+        (erfc(half.sqrt()), (2.0 * x / std::f64::consts::PI).sqrt(), 1)
+    };
+    // Even k: e^{-x/2} Σ_{i<k/2} (x/2)^i / i!. Odd k: erfc(√(x/2)) + e^{-x/2} Σ_{i<(k−1)/2}
+    // √(2x/π) x^i / (3·5···(2i+1)).
+    let mut i = start;
+    while i < k {
+        sum += term * (-half).exp();
+        term *= x / (i + 2) as f64;
+        i += 2;
+    }
+    sum.min(1.0)
+}
+
+/// The complementary error function `erfc(z)`, `z ≥ 0`, as the upper incomplete gamma
+/// function `Γ(1/2, z²)/√π`: its series below `z² = 1.5`, Lentz's continued fraction above
+/// (Press et al., *Numerical Recipes*, 3rd ed., 6.2).
+fn erfc(z: f64) -> f64 {
+    // erfc(z) = Γ(1/2, z²)/√π: the series for z² < 1.5, the continued fraction above.
+    let x = z * z;
+    let sqrt_pi = std::f64::consts::PI.sqrt();
+    if x < 1.5 {
+        // γ(1/2, x) = x^{1/2} e^{-x} Σ x^n / (1/2 (1/2+1) … (1/2+n)).
+        let (mut sum, mut del, mut ap) = (2.0, 2.0, 0.5);
+        for _ in 0..200 {
+            ap += 1.0;
+            del *= x / ap;
+            sum += del;
+            if del.abs() < sum.abs() * 1e-17 {
+                break;
+            }
+        }
+        1.0 - sum * (-x).exp() * x.sqrt() / sqrt_pi
+    } else {
+        // Lentz's continued fraction of Γ(1/2, x).
+        let tiny = 1e-300;
+        let mut b = x + 0.5;
+        let mut c = 1.0 / tiny;
+        let mut d = 1.0 / b;
+        let mut h = d;
+        for i in 1..300 {
+            let an = -(i as f64) * (i as f64 - 0.5);
+            b += 2.0;
+            d = an * d + b;
+            if d.abs() < tiny {
+                d = tiny;
+            }
+            c = b + an / c;
+            if c.abs() < tiny {
+                c = tiny;
+            }
+            d = 1.0 / d;
+            let del = d * c;
+            h *= del;
+            if (del - 1.0).abs() < 1e-16 {
+                break;
+            }
+        }
+        (-x).exp() * x.sqrt() * h / sqrt_pi
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    /// χ² survival values against scipy.stats.chi2.sf.
+    #[test]
+    fn chi_square_sf_matches_scipy() {
+        // scipy.stats.chi2.sf(x, k) for these (x, k).
+        let cases = [
+            (1.0, 1, 0.31731050786291115),
+            (3.84, 1, 0.05004352124870519),
+            (2.0, 2, 0.36787944117144245),
+            (7.814727903251178, 3, 0.05),
+            (32.7, 3, 3.725792120628625e-07),
+            (0.5, 3, 0.9188914116546758),
+            (20.0, 4, 0.0004993992273873336),
+            (11.070497693516351, 5, 0.05000000000000007),
+            (100.0, 7, 1.0787979671702833e-18),
+            (0.001, 1, 0.9747728793699604),
+            (0.3, 9, 0.9999966858902002),
+        ];
+        for (x, k, want) in cases {
+            assert_relative_eq!(chi_square_sf(x, k), want, max_relative = 1e-9);
+        }
+        assert_eq!(chi_square_sf(0.0, 3), 1.0);
+        assert!(chi_square_sf(1.0, 0).is_nan());
+    }
+
+    /// Agreeing estimates give a large p-value, disagreeing ones a small one; Q by hand.
+    #[test]
+    fn q_by_hand() {
+        let h = test("a", vec![1.0, 1.1, 0.9], vec![0.1, 0.1, 0.1]);
+        assert_relative_eq!(h.pooled, 1.0, epsilon = 1e-15);
+        assert_relative_eq!(h.q, 2.0, epsilon = 1e-12);
+        assert_eq!(h.dof, 2);
+        assert_relative_eq!(h.p_value, (-1.0f64).exp(), epsilon = 1e-12);
+        let h = test("a", vec![1.0, 2.0], vec![0.1, 0.1]);
+        assert!(h.p_value < 1e-10, "{}", h.p_value);
+        assert_relative_eq!(h.relative_spread, 0.5 / 1.5, epsilon = 1e-12);
+    }
+}

@@ -1,0 +1,95 @@
+//! Issue 28, PWM: a fit from the reference voltage with the inverter model is trusted only
+//! when its error is inside its intervals. The logs' consecutive parts must agree
+//! (`segments_disagree` otherwise), and a masked fit must not move when more current noise
+//! is added (`noise_bias` otherwise). The drive simulator's exact dead-time logs pass both.
+
+use crate::common::rel;
+use greybox::drive::{DriveConfig, Inverter, SPM_MOTOR, Sensors, scenario, simulate_drive};
+use greybox::pmsm::{
+    DeadTimeMask, HoldChoice, InverterModel, MotorKind, PmsmFit, PmsmFitOptions, VoltageInput, fit_pmsm,
+};
+
+/// The README's option set for a PWM log: the reference voltage, the inverter model, the
+/// automatic dead-time mask.
+fn pwm_options(n_p: u32, model: MotorKind) -> PmsmFitOptions {
+    let inverter = Some(InverterModel { mask: Some(DeadTimeMask::Auto), ..Default::default() });
+    PmsmFitOptions { model, input: VoltageInput::REFERENCE, inverter, ..PmsmFitOptions::new(n_p) }
+}
+
+fn codes(fit: &PmsmFit) -> Vec<&str> {
+    fit.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.as_str()).collect()
+}
+
+/// A drive-simulator log with a 6 V dead-time voltage (the model's own inverter) and
+/// `current_noise` \[A\] on the phase currents.
+fn dead_time_log(name: &str, v_dt: f64, current_noise: f64) -> (greybox::Experiment, greybox::drive::Truth) {
+    let cfg = scenario(name, SPM_MOTOR).unwrap();
+    let cfg = DriveConfig {
+        inverter: Inverter { v_dt, ..cfg.inverter.clone() },
+        sensors: Sensors { current_noise, ..cfg.sensors.clone() },
+        seed: 11,
+        ..cfg
+    };
+    let log = simulate_drive(&cfg).unwrap();
+    (log.experiment, log.truth)
+}
+
+/// Noise-free: the masked fit is exact, both checks stay silent, the fit is trusted (exp3
+/// with 9.2 V, the issue's case that once exited 3 for a late voltage).
+#[test]
+fn exact_dead_time_logs_pass_both_checks() {
+    let (e, t) = dead_time_log("exp3", 9.2, 0.0);
+    let fit = fit_pmsm(&[e], &PmsmFitOptions { hold: HoldChoice::Stator, ..pwm_options(4, MotorKind::Spm) })
+        .unwrap();
+    assert!(rel(fit.parameter("r_s").unwrap().value, t.start.r_s) < 1e-6);
+    assert!(fit.trusted(), "{:?}", fit.warnings);
+}
+
+/// 0.05 A of current noise biases the masked one-step fit (r_s about 12 % high at 5 standard
+/// errors on this scenario): the noise check makes it untrusted.
+#[test]
+fn current_noise_bias_of_a_masked_fit_is_untrusted() {
+    let (e, t) = dead_time_log("exp6", 6.0, 0.05);
+    let fit = fit_pmsm(&[e], &pwm_options(4, MotorKind::Spm)).unwrap();
+    let r_s = fit.parameter("r_s").unwrap();
+    let z = (r_s.value - t.start.r_s) / r_s.std_error;
+    eprintln!(
+        "exp6, 0.05 A: r_s {:+.2} % ({z:+.1} se); untrusted: {:?}",
+        100.0 * (r_s.value / t.start.r_s - 1.0),
+        codes(&fit)
+    );
+    assert!(codes(&fit).contains(&"noise_bias"), "{:?}", fit.warnings);
+    let w = fit.warnings.iter().find(|w| w.code == "noise_bias").unwrap();
+    assert!(w.message.contains("r_s by +"), "{}", w.message);
+}
+
+/// The three development PWM logs with the one option set: each is either within the issue's
+/// tolerances with the truth inside its 95 % intervals, or untrusted. Measured: all three
+/// untrusted by the segment check (r_s, l_s off by up to 2.8 % and 1.1 %, |z| up to 6.5).
+#[test]
+fn pwm_logs_are_right_or_untrusted() {
+    crate::common::require_shared!();
+    for (stem, model) in [
+        ("servo_spm_pwm_deadtime_idinj", MotorKind::Spm),
+        ("servo_spm_pwm_deadtime_lowdrop", MotorKind::Spm),
+        ("ipm_pwm_deadtime_idinj", MotorKind::Ipm),
+    ] {
+        let (e, t) = crate::common::load(stem);
+        let fit = fit_pmsm(&[e], &pwm_options(t.n_p, model)).unwrap();
+        let truth: &[(&str, f64, f64)] = match model {
+            MotorKind::Spm => &[("r_s", t.r_s, 5e-3), ("l_s", t.l_d, 5e-3), ("k_e", t.k_e, 5e-4)],
+            MotorKind::Ipm => {
+                &[("r_s", t.r_s, 5e-3), ("l_d", t.l_d, 5e-3), ("l_q", t.l_q, 5e-3), ("k_e", t.k_e, 5e-4)]
+            }
+        };
+        let right = truth.iter().all(|(n, v, tol)| {
+            let p = fit.parameter(n).unwrap();
+            rel(p.value, *v) <= *tol && p.ci95[0] <= *v && *v <= p.ci95[1]
+        });
+        eprintln!("{stem}: right {right}, untrusted {:?}", codes(&fit));
+        assert!(right || !fit.trusted(), "{stem}: wrong and trusted: {:?}", fit.warnings);
+        if !right {
+            assert!(codes(&fit).contains(&"segments_disagree"), "{stem}: {:?}", fit.warnings);
+        }
+    }
+}
