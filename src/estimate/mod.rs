@@ -6,7 +6,9 @@
 //! statistics of the estimate. Domain workflows (e.g. [`crate::pmsm::fit_pmsm`]) build on
 //! it.
 
+pub mod arrowhead;
 pub mod assemble;
+mod covariance;
 pub mod diagnostics;
 pub mod filter;
 pub mod gate;
@@ -34,7 +36,7 @@ pub use solver::gn::{self, GaussNewton};
 pub use solver::lm::DEFAULT_DAMPING;
 pub use solver::lm::{self, LevenbergMarquardt};
 pub use solver::run::{CLOSE_START_DAMPING, RunOptions, SolverKind, run_solver};
-pub use solver::{LeastSquares, LsState, NormalEquations, ReportsTermination, Termination, Tolerances};
+pub use solver::{Gram, LeastSquares, LsState, NormalEquations, ReportsTermination, Termination, Tolerances};
 pub use weighting::{Weighting, WeightingKind};
 
 use crate::data::Experiment;
@@ -304,7 +306,7 @@ impl<'m, M: GreyBoxModel> StartedFit<'m, M> {
         let t0 = Instant::now();
         let (problem, popts) = build_problem(model, experiments, start, options, weighting)?;
         let ne = problem.seeded_normal_equations(&problem.start_vector(start))?;
-        let drop = ne.jtj.clone().cholesky().map(|c| 0.5 * ne.jtr.dot(&c.solve(&ne.jtr))).unwrap_or(0.0);
+        let drop = ne.jtj.solve(&ne.jtr).map(|x| 0.5 * ne.jtr.dot(&x)).unwrap_or(0.0);
         let predicted = (ne.cost - drop).max(0.0);
         Ok(Self { problem, popts, options: options.clone(), weighting, start: start.to_vec(), predicted, t0 })
     }

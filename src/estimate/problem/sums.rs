@@ -5,10 +5,11 @@ use super::accumulate::{Accumulator, Sums};
 use super::batches::BlockScores;
 use super::gram::{dot, gram, weighted_square_sum};
 use super::kept::{ExperimentGrams, Gather, ResidualStreams};
-use super::local::scatter_gram;
-use super::local::{Pass, RawSample, ResidualFilter, columns};
+use super::local::{LocalMap, Pass, RawSample, ResidualFilter, columns};
+use super::local::{scatter_arrow, scatter_gram};
 use super::{Loss, NormalEquations, PemProblem};
 use crate::error::Result;
+use crate::estimate::arrowhead::{ArrowLayout, Arrowhead};
 use crate::model::BLOCK_LEN;
 use crate::model::GreyBoxModel;
 use nalgebra::{DMatrix, DVector};
@@ -31,10 +32,32 @@ impl LocalGrams {
     }
 }
 
-/// One experiment's share of the cost and normal equations: cost, `JᵀWJ` (upper
-/// triangle, n_free × n_free) and `JᵀWψ`; and its Grams when the statistics can take them
-/// (see the `best` module).
-type Partial = (f64, DMatrix<f64>, DVector<f64>, Option<ExperimentGrams>);
+/// One experiment's share of the cost and normal equations: cost, its local columns, per
+/// output the chained local `JᵀWJ` (row-major m × m, upper triangle) and `JᵀWψ` terms
+/// (length m, each `dθ/dp` times the local sum); and its Grams when the statistics can take
+/// them (see the `best` module).
+struct Partial {
+    cost: f64,
+    map: LocalMap,
+    jtj: Vec<Vec<f64>>,
+    jtr: Vec<Vec<f64>>,
+    grams: Option<ExperimentGrams>,
+}
+
+impl Partial {
+    /// `JᵀWJ` (upper triangle, n_free × n_free) and `JᵀWψ` of the experiment alone.
+    fn dense(&self, np: usize) -> (DMatrix<f64>, DVector<f64>) {
+        let mut jtj = DMatrix::zeros(np, np);
+        let mut jtr = DVector::zeros(np);
+        for (local, terms) in self.jtj.iter().zip(&self.jtr) {
+            scatter_gram(&self.map, local, &mut jtj);
+            for (&g, v) in self.map.global.iter().zip(terms) {
+                jtr[g] += v;
+            }
+        }
+        (jtj, jtr)
+    }
+}
 
 impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// Cost `V(p)` and normal equations `JᵀWJ`, `JᵀWψ` in one pass per experiment
@@ -59,24 +82,65 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         gather: Gather,
     ) -> Result<NormalEquations> {
         let np = self.free.len();
+        if let Some(layout) = &self.layout {
+            return self.structured_normal_equations(p, gather, layout);
+        }
+        let parts: Vec<Result<_>> = (0..self.terms.len())
+            .into_par_iter()
+            .map(|e| {
+                let part = self.experiment_normal_equations(e, p, gather)?;
+                let (jtj, jtr) = part.dense(np);
+                Ok((part.cost, jtj, jtr, part.grams))
+            })
+            .collect();
+        let (mut cost, mut jtj, mut jtr) = (0.0, DMatrix::zeros(np, np), DVector::zeros(np));
+        let mut grams = Vec::with_capacity(parts.len());
+        for part in parts {
+            let (c, j, r, g) = part?;
+            cost += c;
+            jtj += j;
+            jtr += r;
+            grams.extend(g);
+        }
+        jtj.fill_lower_triangle_with_upper_triangle();
+        if grams.len() == self.terms.len() {
+            self.best.offer(p, cost, grams);
+        }
+        Ok(NormalEquations { cost, jtj: jtj.into(), jtr })
+    }
+
+    /// [`normal_equations_gathering`](Self::normal_equations_gathering) with `JᵀWJ` kept
+    /// by the blocks of its arrowhead `layout`: every experiment's local Grams are added
+    /// into its own block, its coupling to the shared columns and the shared block, in
+    /// experiment order (identical for any thread count); nothing n_free × n_free is formed.
+    fn structured_normal_equations(
+        &self,
+        p: &DVector<f64>,
+        gather: Gather,
+        layout: &std::sync::Arc<ArrowLayout>,
+    ) -> Result<NormalEquations> {
         let parts: Vec<Result<Partial>> = (0..self.terms.len())
             .into_par_iter()
             .map(|e| self.experiment_normal_equations(e, p, gather))
             .collect();
-        let mut out = NormalEquations { cost: 0.0, jtj: DMatrix::zeros(np, np), jtr: DVector::zeros(np) };
+        let mut jtj = Arrowhead::zeros(std::sync::Arc::clone(layout));
+        let (mut cost, mut jtr) = (0.0, DVector::zeros(self.free.len()));
         let mut grams = Vec::with_capacity(parts.len());
         for part in parts {
-            let (c, jtj, jtr, g) = part?;
-            out.cost += c;
-            out.jtj += jtj;
-            out.jtr += jtr;
-            grams.extend(g);
+            let part = part?;
+            cost += part.cost;
+            for (local, terms) in part.jtj.iter().zip(&part.jtr) {
+                scatter_arrow(&part.map, local, &mut jtj);
+                for (&g, v) in part.map.global.iter().zip(terms) {
+                    jtr[g] += v;
+                }
+            }
+            grams.extend(part.grams);
         }
-        out.jtj.fill_lower_triangle_with_upper_triangle();
         if grams.len() == self.terms.len() {
-            self.best.offer(p, out.cost, grams);
+            self.best.offer(p, cost, grams);
         }
-        Ok(out)
+        Ok(NormalEquations { cost, jtj: jtj.into(), jtr })
     }
 
     /// Experiment e's share of [`normal_equations`](Self::normal_equations): per output
@@ -86,7 +150,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// last (and, for the quadratic loss, twice the cost in its corner); with
     /// [`Gather::GramsAndResiduals`], and where the Grams are kept, the raw residuals' lag sums too.
     fn experiment_normal_equations(&self, e: usize, p: &DVector<f64>, gather: Gather) -> Result<Partial> {
-        let (ny, np) = (self.model.n_outputs(), self.free.len());
+        let ny = self.model.n_outputs();
         let quadratic = matches!(self.loss, Loss::Quadratic);
         let unweighted = quadratic && self.terms[e].weights.is_none();
         let keeps = unweighted && self.prefilters.is_empty();
@@ -132,8 +196,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                 s.push_gram_growth(n, &g, &self.output_weights, &mut before);
             }
         })?;
-        let mut jtj = DMatrix::zeros(np, np);
-        let mut jtr = DVector::zeros(np);
+        let (mut jtj, mut jtr) = (Vec::with_capacity(ny), Vec::with_capacity(ny));
         let mut cost = huber_cost;
         let m = map.len();
         let keep = keeps && !g.is_empty();
@@ -144,19 +207,15 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             if quadratic {
                 cost += 0.5 * scale * gi[m * m1 + m];
             }
-            let local: Vec<f64> = (0..m)
-                .flat_map(|a| (0..m).map(move |b| (a, b)))
-                .map(|(a, b)| scale * gi[a * m1 + b])
-                .collect();
-            scatter_gram(&map, &local, &mut jtj);
-            for a in 0..m {
-                jtr[map.global[a]] += map.dtheta[a] * scale * gi[a * m1 + m];
-            }
+            jtj.push(
+                (0..m).flat_map(|a| (0..m).map(move |b| (a, b))).map(|(a, b)| scale * gi[a * m1 + b]).collect(),
+            );
+            jtr.push((0..m).map(|a| map.dtheta[a] * scale * gi[a * m1 + m]).collect());
         }
         let residuals = streams.map(ResidualStreams::finish);
         let scores = scores.unwrap_or_default();
-        let grams = keep.then_some(ExperimentGrams { map, grams: g, residuals, scores });
-        Ok((cost, jtj, jtr, grams))
+        let grams = keep.then(|| ExperimentGrams { map: map.clone(), grams: g, residuals, scores });
+        Ok(Partial { cost, map, jtj, jtr, grams })
     }
 
     /// Cost `V(p)` only (simulation without sensitivities).
@@ -217,7 +276,10 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// As [`normal_equations`](Self::normal_equations).
     pub fn sums(&self, p: &DVector<f64>) -> Result<Sums> {
         let (ny, np) = (self.model.n_outputs(), self.free.len());
-        let mut acc = Accumulator::new(ny, np);
+        let mut acc = match &self.layout {
+            Some(layout) => Accumulator::structured(ny, layout),
+            None => Accumulator::new(ny, np),
+        };
         let kept = self.best.at(p);
         for e in 0..self.terms.len() {
             let term = &self.terms[e];
