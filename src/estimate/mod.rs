@@ -89,6 +89,12 @@ pub struct PemOptions {
     /// the linear least-squares estimate. Dimensionless (relative to `diag(JᵀWJ)`); a value
     /// not positive and finite is [`Error::InvalidOption`] naming `initial_damping`.
     pub initial_damping: Option<f64>,
+    /// Free parameters above which the normal equations and statistics are kept by the
+    /// blocks of their arrowhead structure ([`arrowhead`]); `None`:
+    /// [`problem::STRUCTURED_ABOVE`] (64). Not serialised: how the sums are stored, not
+    /// what is fitted.
+    #[serde(skip)]
+    pub structured_above: Option<usize>,
 }
 
 impl PemOptions {
@@ -119,6 +125,7 @@ impl Default for PemOptions {
             diagnostics: DiagnosticThresholds::default(),
             progress: false,
             initial_damping: None,
+            structured_above: None,
         }
     }
 }
@@ -256,6 +263,7 @@ fn build_problem<'m, M: GreyBoxModel>(
         output_weights: options.output_weights.clone().or_else(|| weighting.output_weights()),
         loss: Loss::Quadratic,
         estimate_x0: options.estimate_x0,
+        structured_above: options.structured_above,
         prefilters: match options.prefilter {
             None => Vec::new(),
             Some(fc) => experiments

@@ -24,6 +24,7 @@ mod filter;
 mod fuzz;
 mod gate;
 mod inverter;
+mod joint;
 mod ipm;
 mod kept_sums;
 mod last_pass;

@@ -164,7 +164,8 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                 ),
             ));
         }
-        let layout = if free.len() > super::STRUCTURED_ABOVE && options.prefilters.is_empty() {
+        let above = options.structured_above.unwrap_or(super::STRUCTURED_ABOVE);
+        let layout = if free.len() > above && options.prefilters.is_empty() {
             let owner = free.iter().map(|f| f.experiment).collect();
             Some(std::sync::Arc::new(ArrowLayout::try_new(owner, n_exp)?))
         } else {

@@ -30,6 +30,10 @@ pub struct ProblemOptions {
     /// Residual prefilter L(q), one per experiment (its sample time), or empty for none:
     /// `ε_f = L(q) ε` and `J_f = L(q) J`, causal, from rest (MODEL.md §5).
     pub prefilters: Vec<Butterworth>,
+    /// Free parameters above which `JᵀWJ` and the statistics are kept by arrowhead blocks;
+    /// `None`: [`STRUCTURED_ABOVE`]. (`Some(usize::MAX)` keeps every problem dense, for
+    /// comparisons.)
+    pub structured_above: Option<usize>,
 }
 
 /// Where each model parameter of one experiment comes from.
