@@ -2,6 +2,7 @@
 //! covariance, intervals, error index, correlation, diagnostics, fit statistics and the
 //! model's derived quantities (MODEL.md §5; Ljung 9.3, 16.4; thesis 5.3).
 
+use super::covariance::{Covariance, Inverse, Meat};
 use super::diagnostics::{DiagnosticThresholds, diagnose};
 use super::gate;
 use super::problem::{FreeKind, MIN_BATCHES, PemProblem, Slot};
@@ -13,7 +14,6 @@ use crate::error::Result;
 use crate::estimate::metrics;
 use crate::model::GreyBoxModel;
 use nalgebra::{DMatrix, DVector};
-use super::covariance::{Covariance, Inverse, Meat};
 
 /// Relative distance (to the larger of the estimate and its start) within which a free
 /// parameter counts as at its bound.
@@ -192,17 +192,21 @@ pub(crate) fn assemble<M: GreyBoxModel>(
             None => params[j].name.clone(),
         }
     };
-    let diag_names: Vec<String> = order
-        .iter()
-        .map(|&g| name_of(g))
-        .collect();
+    let diag_names: Vec<String> = order.iter().map(|&g| name_of(g)).collect();
     let rel = |g: usize| problem.free()[g].transform.to_theta(p[g]) / dtheta[g];
     let info_rel = DMatrix::from_fn(order.len(), order.len(), |a, b| {
         let (ga, gb) = (order[a], order[b]);
         sums.jtj[(ga, gb)] * rel(ga) * rel(gb)
     });
-    let free_index: Vec<f64> =
-        parameters.iter().filter(|q| !q.fixed).map(|q| q.error_index_percent).collect();
+    // The free parameters' error indices are in the order of `order_all`; the diagnostics
+    // take those of `order`.
+    let free_index: Vec<f64> = parameters
+        .iter()
+        .filter(|q| !q.fixed)
+        .zip(&order_all)
+        .filter(|(_, g)| !structured || order.contains(g))
+        .map(|(q, _)| q.error_index_percent)
+        .collect();
     let diagnostics = diagnose(
         &info_rel,
         &diag_names,
@@ -264,7 +268,8 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         .iter()
         .map(|q| order_all.iter().map(|&g| problem.free()[g].transform.to_theta(q[g])).collect())
         .collect();
-    let all_names: Vec<String> = if structured { order_all.iter().map(|&g| name_of(g)).collect() } else { diag_names.clone() };
+    let all_names: Vec<String> =
+        if structured { order_all.iter().map(|&g| name_of(g)).collect() } else { diag_names.clone() };
     let evidence = gate::Evidence {
         remaining: gate::remaining(&bread_inv, &sums.score, &order_all, &dtheta, &se_free, &all_names, |g| {
             problem.free()[g].transform.to_theta(p[g])

@@ -35,11 +35,9 @@ impl Inverse {
     pub(crate) fn apply_finite(&self, x: &DVector<f64>) -> DVector<f64> {
         match self {
             Self::Dense(ai) => {
-                let finite = DMatrix::from_fn(
-                    ai.nrows(),
-                    ai.ncols(),
-                    |i, j| if ai[(i, j)].is_finite() { ai[(i, j)] } else { 0.0 },
-                );
+                let finite = DMatrix::from_fn(ai.nrows(), ai.ncols(), |i, j| {
+                    if ai[(i, j)].is_finite() { ai[(i, j)] } else { 0.0 }
+                });
                 finite * x
             }
             Self::Arrow(a) => a.apply(x),
@@ -60,7 +58,9 @@ impl Covariance {
     pub(crate) fn sandwich(bread_inv: &Option<Inverse>, meat: Meat<'_>, dtheta: &[f64]) -> Option<Self> {
         match (bread_inv.as_ref()?, meat) {
             (Inverse::Dense(ai), Meat::Gram(Gram::Dense(meat))) => Some(dense_sandwich(ai, meat, dtheta)),
-            (Inverse::Dense(ai), Meat::Batches(b)) if b.arrow.is_none() => Some(dense_sandwich(ai, &b.meat, dtheta)),
+            (Inverse::Dense(ai), Meat::Batches(b)) if b.arrow.is_none() => {
+                Some(dense_sandwich(ai, &b.meat, dtheta))
+            }
             (Inverse::Arrow(ai), Meat::Gram(Gram::Arrow(meat))) => {
                 Some(Self::Arrow(Box::new(ai.sandwich(meat, &LowRank::new())), dtheta.to_vec()))
             }

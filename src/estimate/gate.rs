@@ -23,8 +23,8 @@
 
 use super::covariance::Inverse;
 use super::problem::PemProblem;
-use super::solver::Gram;
 use super::result::{FitStatistics, ParameterEstimate, SolverReport, Warning};
+use super::solver::Gram;
 use crate::model::GreyBoxModel;
 use nalgebra::{DMatrix, DVector};
 

@@ -69,7 +69,14 @@ fn statistics_after_the_normal_equations_equal_a_full_pass() {
         // normal equations to the bit, and the statistics without another pass.
         let ne_last = LeastSquares::normal_equations_likely_last(&gathered, &p).unwrap();
         assert_eq!(ne_last.cost.to_bits(), ne.cost.to_bits());
-        assert!(ne_last.jtj.to_dense().iter().zip(ne.jtj.to_dense().iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(
+            ne_last
+                .jtj
+                .to_dense()
+                .iter()
+                .zip(ne.jtj.to_dense().iter())
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        );
         assert!(ne_last.jtr.iter().zip(ne.jtr.iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
         assert!(gathered.statistics_kept(&p) && !kept.statistics_kept(&p) && !fresh.statistics_kept(&p));
         assert_same(&gathered.sums(&p).unwrap(), &full);

@@ -25,7 +25,7 @@ mod inverse;
 mod solve;
 
 pub use inverse::{ArrowInverse, LowRank, Sandwich};
-pub use solve::{SolveTiming, Singular, solve_timing};
+pub use solve::{Singular, SolveTiming, solve_timing};
 
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, DVector};
@@ -155,7 +155,9 @@ impl Arrowhead {
                 match m.layout.slot(r, c) {
                     Slot::Shared(i, j) => m.shared[(i, j)] = a[(r, c)],
                     Slot::Own(b, i, j) => m.own[b][(i, j)] = a[(r, c)],
-                    Slot::Coupling(b, i, j) if m.layout.owner[r].is_some() => m.coupling[b][(i, j)] = a[(r, c)],
+                    Slot::Coupling(b, i, j) if m.layout.owner[r].is_some() => {
+                        m.coupling[b][(i, j)] = a[(r, c)]
+                    }
                     _ => {}
                 }
             }

@@ -124,7 +124,12 @@ impl Arrowhead {
     ///
     /// # Panics
     /// If d or g is not of length n.
-    pub fn damped_solve(&self, d: &DVector<f64>, lambda: f64, g: &DVector<f64>) -> Result<DVector<f64>, Singular> {
+    pub fn damped_solve(
+        &self,
+        d: &DVector<f64>,
+        lambda: f64,
+        g: &DVector<f64>,
+    ) -> Result<DVector<f64>, Singular> {
         let t0 = Instant::now();
         let out = self.schur_solve(d, lambda, g);
         SOLVES.fetch_add(1, Ordering::Relaxed);
@@ -134,7 +139,13 @@ impl Arrowhead {
 
     fn schur_solve(&self, d: &DVector<f64>, lambda: f64, g: &DVector<f64>) -> Result<DVector<f64>, Singular> {
         let l = &self.layout;
-        assert!(d.len() == l.n() && g.len() == l.n(), "damped solve of {} with {} and {}", l.n(), d.len(), g.len());
+        assert!(
+            d.len() == l.n() && g.len() == l.n(),
+            "damped solve of {} with {} and {}",
+            l.n(),
+            d.len(),
+            g.len()
+        );
         let ps = l.shared.len();
         let mut reduced = self.shared.clone();
         for (i, &c) in l.shared.iter().enumerate() {

@@ -5,11 +5,11 @@ use super::batches::{BatchMeans, BlockScores, ScoreSeries, TARGET_BATCHES};
 use super::lags::{LagStream, LagSums, WHITENESS_LAGS};
 use super::local::LocalMap;
 use super::local::{scatter_arrow, scatter_gram};
+use crate::data::Values;
 use crate::estimate::arrowhead::{ArrowLayout, Arrowhead};
 use crate::estimate::solver::Gram;
-use std::sync::Arc;
-use crate::data::Values;
 use nalgebra::{DMatrix, DVector};
+use std::sync::Arc;
 
 /// Sums at the estimate from which the statistics of a fit follow.
 #[derive(Clone, Debug)]

@@ -264,7 +264,13 @@ impl ScoreSeries {
         if let Some((layout, globals)) = &self.local {
             let arrow = structured_meat(layout, globals, &per_experiment, &batches, total, self.np);
             let meat = DMatrix::zeros(0, 0);
-            return Some(BatchMeans { meat, batches: b, batch_samples: total / b, per_experiment, arrow: Some(arrow) });
+            return Some(BatchMeans {
+                meat,
+                batches: b,
+                batch_samples: total / b,
+                per_experiment,
+                arrow: Some(arrow),
+            });
         }
         let sum = batches.iter().fold(DVector::zeros(self.np), |a, (_, s)| a + s);
         let mut meat = DMatrix::zeros(self.np, self.np);

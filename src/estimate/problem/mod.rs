@@ -34,4 +34,6 @@ pub(crate) use gram::lagged_dots;
 pub(crate) use lags::LagStream;
 pub use lags::{LAG_CHUNK, LagSums, WHITENESS_LAGS};
 pub use loss::Loss;
-pub use pem::{FreeKind, FreeParameter, PemProblem, ProblemOptions, STRUCTURED_ABOVE, Slot, Term, WeightedData};
+pub use pem::{
+    FreeKind, FreeParameter, PemProblem, ProblemOptions, STRUCTURED_ABOVE, Slot, Term, WeightedData,
+};

@@ -208,7 +208,10 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                 cost += 0.5 * scale * gi[m * m1 + m];
             }
             jtj.push(
-                (0..m).flat_map(|a| (0..m).map(move |b| (a, b))).map(|(a, b)| scale * gi[a * m1 + b]).collect(),
+                (0..m)
+                    .flat_map(|a| (0..m).map(move |b| (a, b)))
+                    .map(|(a, b)| scale * gi[a * m1 + b])
+                    .collect(),
             );
             jtr.push((0..m).map(|a| map.dtheta[a] * scale * gi[a * m1 + m]).collect());
         }

@@ -31,12 +31,12 @@
 //! (Armijo condition, backtracking) and 10.3 (Gauss-Newton); Björck, *Numerical Methods
 //! for Least Squares Problems*, 1996, section 9.2 (damped Gauss-Newton) and 5.2 (bounds).
 
+use super::Gram;
 use super::{
     LeastSquares, LsState, Monitor, NormalEquations, ReportsTermination, Termination, Tolerances,
     damped_solve, init_state, is_infeasible, missing, status, trial_normal_equations,
 };
 use argmin::core::{KV, Problem, Solver, TerminationStatus};
-use super::Gram;
 use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
 
@@ -198,8 +198,15 @@ impl GaussNewton {
                 let (d, mu) = match jtj {
                     Gram::Dense(m) => {
                         let h = Gram::Dense(m.select_rows(&free).select_columns(&free));
-                        let Some((d, mu)) = shifted_solve(&h, &jtr.select_rows(&free)) else { return Ok(None) };
-                        (DVector::from_fn(n, |j, _| free.iter().position(|&f| f == j).map_or(0.0, |k| d[k])), mu)
+                        let Some((d, mu)) = shifted_solve(&h, &jtr.select_rows(&free)) else {
+                            return Ok(None);
+                        };
+                        (
+                            DVector::from_fn(n, |j, _| {
+                                free.iter().position(|&f| f == j).map_or(0.0, |k| d[k])
+                            }),
+                            mu,
+                        )
                     }
                     // The held components as identity rows with a zero right-hand side.
                     Gram::Arrow(a) => {

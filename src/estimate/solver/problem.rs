@@ -1,9 +1,9 @@
 //! What a solver needs from a least-squares problem ([`LeastSquares`]): its normal
 //! equations and cost at a point, and the argmin state the solvers share ([`LsState`]).
 
+use super::Gram;
 use crate::error::{Error, Result};
 use argmin::core::IterState;
-use super::Gram;
 use nalgebra::DVector;
 
 /// argmin state of the greybox solvers: parameter `p` (scaled space, length n_free), gradient

@@ -213,6 +213,11 @@ fn scaled_gradient(jtj: &Gram, jtr: &DVector<f64>, cost: f64) -> f64 {
 
 /// Solves `(H + λ D) δ = g` by Cholesky (an arrowhead H by its Schur complement); `None`
 /// when the matrix is not positive definite.
-pub(crate) fn damped_solve(h: &Gram, d: &DVector<f64>, lambda: f64, g: &DVector<f64>) -> Option<DVector<f64>> {
+pub(crate) fn damped_solve(
+    h: &Gram,
+    d: &DVector<f64>,
+    lambda: f64,
+    g: &DVector<f64>,
+) -> Option<DVector<f64>> {
     h.damped_solve(d, lambda, g)
 }
