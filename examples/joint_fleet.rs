@@ -4,8 +4,8 @@
 //! share of the structured solve (`estimate::arrowhead`, the Schur complement and `faer`'s
 //! Cholesky of the reduced system) and the shared K_e against the mean of per-log fits.
 //!
-//! Run: `cargo run --release --example joint_fleet -- DIR N [--per-log-fits]` with DIR a
-//! folder of logs (`.parquet`, `.csv`, `.csv.gz`; the first N in name order are fitted).
+//! Run: `cargo run --release --example joint_fleet -- DIR N [--per-log-fits]
+//! [--structured-above K]` with DIR a (`.parquet`, `.csv`, `.csv.gz`; the first N in name order are fitted).
 //! Logs like the measurement's (exp3 moves, 60 001 samples at 10 kHz, R_s of copper at
 //! 20–100 °C, 0.02 A current noise):
 //!
@@ -14,7 +14,8 @@
 //!     --set sensors.current_noise=0.02 -o DIR/logI.parquet
 //! ```
 //!
-//! With `--per-log-fits` every log is also fitted alone (in parallel) after the joint fit,
+//! `--structured-above K` keeps the sums by arrowhead blocks above K free parameters (0:
+//! always; default 64, `PemOptions::structured_above`). With `--per-log-fits` every log is also fitted alone (in parallel) after the joint fit,
 //! and the mean of their K_e and standard errors printed. The peak memory printed (VmHWM
 //! of /proc/self/status, Linux) is read before those fits: the joint fit's, logs included.
 
@@ -40,6 +41,13 @@ fn main() -> greybox::Result<()> {
     };
     let n: usize = n.parse().map_err(|_| bad(format!("`{n}` is not a number of logs")))?;
     let per_log_fits = args.iter().any(|a| a == "--per-log-fits");
+    let structured_above = match args.iter().position(|a| a == "--structured-above") {
+        None => None,
+        Some(i) => {
+            let k = args.get(i + 1).ok_or_else(|| bad("--structured-above needs a number".into()))?;
+            Some(k.parse().map_err(|_| bad(format!("`{k}` is not a number of parameters")))?)
+        }
+    };
     let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
         .map_err(|e| bad(format!("{dir}: {e}")))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -59,7 +67,11 @@ fn main() -> greybox::Result<()> {
     let read_s = t0.elapsed().as_secs_f64();
     let samples: usize = logs.iter().map(|l| l.len()).sum();
     let options = PmsmFitOptions {
-        pem: greybox::estimate::PemOptions { per_experiment: vec!["r_s".into()], ..Default::default() },
+        pem: greybox::estimate::PemOptions {
+            per_experiment: vec!["r_s".into()],
+            structured_above,
+            ..Default::default()
+        },
         ..PmsmFitOptions::new(4)
     };
     let before = solve_timing();

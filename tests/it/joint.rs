@@ -7,7 +7,7 @@
 use crate::common::{Rng, exciting_signals, experiment, sim};
 use greybox::Experiment;
 use greybox::estimate::arrowhead::{ArrowLayout, Arrowhead, Singular};
-use greybox::estimate::{FitResult, PemOptions, fit};
+use greybox::estimate::{CovarianceMethod, FitResult, PemOptions, fit};
 use greybox::model::Prepared;
 use greybox::pmsm::{PmsmSpm, VoltageHold};
 use nalgebra::DVector;
@@ -136,8 +136,9 @@ const H: f64 = 1e-4;
 const SIGMA: f64 = 0.05;
 
 /// Log `i` of a fleet: its own winding temperature (R_s from 0.9 Ω up by the copper law
-/// over 0..75 K), its own exciting input, white noise σ on i_d, i_q.
-fn fleet_log(i: usize, n: usize) -> (Experiment, f64) {
+/// over 0..75 K), its own exciting input, noise of standard deviation σ on i_d, i_q: white
+/// (`rho = 0`) or AR(1) with coefficient `rho`.
+fn fleet_log(i: usize, n: usize, rho: f64) -> (Experiment, f64) {
     let r_s = 0.9 * (1.0 + 0.00393 * (i as f64 * 37.0 % 75.0));
     let model = PmsmSpm::new(N_P, VoltageHold::Stator);
     let mut rng = Rng(1000 + i as u64);
@@ -146,8 +147,17 @@ fn fleet_log(i: usize, n: usize) -> (Experiment, f64) {
     let prep = Prepared::new(&model, &e).expect("prepare");
     let y = sim(&model, &prep, &[r_s, L_S, K_E]).expect("simulate");
     let mut noise = Rng(0xdead_beef ^ i as u64);
-    s.i_d = (0..n).map(|k| y[2 * k] + SIGMA * noise.normal()).collect();
-    s.i_q = (0..n).map(|k| y[2 * k + 1] + SIGMA * noise.normal()).collect();
+    let mut state = [0.0; 2];
+    let mut next = |c: usize| {
+        state[c] = rho * state[c] + (1.0 - rho * rho).sqrt() * SIGMA * noise.normal();
+        state[c]
+    };
+    let (mut i_d, mut i_q) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for k in 0..n {
+        i_d.push(y[2 * k] + next(0));
+        i_q.push(y[2 * k + 1] + next(1));
+    }
+    (s.i_d, s.i_q) = (i_d, i_q);
     (experiment(&format!("log{i}"), H, s), r_s)
 }
 
@@ -161,12 +171,20 @@ fn joint_fit(logs: &[Experiment], structured_above: Option<usize>) -> FitResult 
 
 /// 30 logs, per-log R_s and initial states: 30 × 3 + 2 = 92 free parameters, past the
 /// threshold (64) of the structured path. The dense path on the same problem gives the
-/// same estimates and standard errors.
+/// same estimates and standard errors: with white noise (the white sandwich) and with
+/// coloured noise (the batch means, one batch a log, their centring outside the blocks).
 #[test]
 fn a_mid_size_joint_fit_is_the_dense_one() {
-    let (logs, _): (Vec<Experiment>, Vec<f64>) = (0..30).map(|i| fleet_log(i, 3000)).unzip();
-    let structured = joint_fit(&logs, None);
-    let dense = joint_fit(&logs, Some(usize::MAX));
+    for (rho, method) in [(0.0, CovarianceMethod::White), (0.97, CovarianceMethod::BatchMeans)] {
+        let (logs, _): (Vec<Experiment>, Vec<f64>) = (0..30).map(|i| fleet_log(i, 3000, rho)).unzip();
+        let structured = joint_fit(&logs, None);
+        let dense = joint_fit(&logs, Some(usize::MAX));
+        assert_eq!(structured.uncertainty.method, method, "noise AR({rho})");
+        same_fit(&structured, &dense);
+    }
+}
+
+fn same_fit(structured: &FitResult, dense: &FitResult) {
     assert_eq!(structured.parameters.len(), dense.parameters.len());
     let close = |a: f64, b: f64, tol: f64| (a - b).abs() <= tol * b.abs().max(f64::MIN_POSITIVE);
     for (s, d) in structured
@@ -197,7 +215,7 @@ fn a_mid_size_joint_fit_is_the_dense_one() {
 /// within their 95 % intervals, all but a few of the R_s (binomial: 80 × 5 %).
 #[test]
 fn a_fleet_recovers_shared_k_e_and_per_log_r_s() {
-    let (logs, r_true): (Vec<Experiment>, Vec<f64>) = (0..80).map(|i| fleet_log(i, 4000)).unzip();
+    let (logs, r_true): (Vec<Experiment>, Vec<f64>) = (0..80).map(|i| fleet_log(i, 4000, 0.0)).unzip();
     let f = joint_fit(&logs, None);
     for (name, truth) in [("k_e", K_E), ("l_s", L_S)] {
         let p = f.parameter(name).unwrap();

@@ -51,7 +51,12 @@ impl Arrowhead {
     /// complement is not positive definite there.
     pub fn inverse_on_support(&self) -> Option<ArrowInverse> {
         let l = &self.layout;
-        let unseen: Vec<bool> = (0..l.n()).map(|g| !(self.get(g, g) > 0.0)).collect();
+        let unseen: Vec<bool> = (0..l.n())
+            .map(|g| {
+                let d = self.get(g, g);
+                d.is_nan() || d <= 0.0
+            })
+            .collect();
         let a = self.with_identity_at(&unseen);
         let ps = l.shared.len();
         let mut sigma = a.shared.clone();

@@ -19,6 +19,7 @@ mod lags;
 mod local;
 mod loss;
 mod map;
+mod normal;
 mod pass;
 mod pem;
 mod sums;

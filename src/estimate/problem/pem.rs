@@ -1,5 +1,5 @@
 //! The prediction-error problem's data ([`PemProblem`]): its experiments' terms, free
-//! parameters and options. It is built in `build` and passed over in `pass`, `sums`,
+//! parameters and options. It is built in `build` and passed over in `pass`, `normal`, `sums`,
 //! `best` and `map`.
 
 use super::kept::BestPass;
