@@ -48,8 +48,11 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     // STYLE.md rule 7): bread⁻¹ meat bread⁻¹ (sandwich) and (JᵀWJ)⁻¹.
     // Parameters the data do not see at all (a zero column, e.g. an initial state whose
     // transient is weighted out) are left out of the inversion and get an infinite error.
-    let info_inv = Inverse::of(&sums.jtj);
-    let bread_inv = Inverse::of(&sums.bread);
+    let (info_inv, bread_inv) = (Inverse::of(&sums.jtj), Inverse::of(&sums.bread));
+    // Kept by arrowhead blocks, where the elimination failed: a column of one experiment's
+    // block (a per-experiment parameter or initial state) or of the shared system.
+    let singular_at = info_inv.as_ref().err().or(bread_inv.as_ref().err()).copied().flatten();
+    let (info_inv, bread_inv) = (info_inv.ok(), bread_inv.ok());
     let dtheta: Vec<f64> =
         problem.free().iter().enumerate().map(|(g, f)| f.transform.dtheta_dp(p[g])).collect();
     let sandwich = |meat: Meat<'_>| Covariance::sandwich(&bread_inv, meat, &dtheta);
@@ -258,10 +261,21 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         ));
     }
     if info_inv.is_none() || bread_inv.is_none() {
-        notes.push(
-            "information matrix JᵀWJ is singular: some parameters are not identifiable from these data"
-                .into(),
-        );
+        let at = singular_at.map(|g| {
+            let f = &problem.free()[g];
+            let name = match f.kind {
+                FreeKind::Parameter(j) => params[j].name.clone(),
+                FreeKind::InitialState(i) => format!("x0_{}", states[i].name),
+            };
+            match f.experiment {
+                Some(e) => format!(" (the block of experiment `{}` is singular at `{name}`)", names[e]),
+                None => format!(" (the shared parameters' reduced system is singular, from `{name}` on)"),
+            }
+        });
+        notes.push(format!(
+            "information matrix JᵀWJ is singular: some parameters are not identifiable from these data{}",
+            at.unwrap_or_default()
+        ));
     }
     let derived = derived(problem, p, cov_theta.as_ref(), &se_free, &names);
     let parameter_trace = std::mem::take(&mut solver.trace)

@@ -15,11 +15,12 @@ pub(crate) enum Inverse {
 }
 
 impl Inverse {
-    /// `None` when the supported part is not positive definite.
-    pub(crate) fn of(a: &Gram) -> Option<Self> {
+    /// `Err` when the supported part is not positive definite: for an arrowhead, with the
+    /// column where its elimination failed (its block's, or the first shared one).
+    pub(crate) fn of(a: &Gram) -> Result<Self, Option<usize>> {
         match a {
-            Gram::Dense(m) => inverse_on_support(m).map(Self::Dense),
-            Gram::Arrow(m) => m.inverse_on_support().map(Self::Arrow),
+            Gram::Dense(m) => inverse_on_support(m).map(Self::Dense).ok_or(None),
+            Gram::Arrow(m) => m.inverse_on_support().map(Self::Arrow).map_err(|s| Some(s.column)),
         }
     }
 

@@ -8,7 +8,7 @@
 //! block diagonal. Each entry costs `O(p_s²)`.
 
 use super::solve::{faer_llt, small_cholesky, small_solve};
-use super::{ArrowLayout, Arrowhead};
+use super::{ArrowLayout, Arrowhead, Singular};
 use faer::linalg::solvers::DenseSolveCore;
 use nalgebra::{DMatrix, DVector};
 use std::sync::Arc;
@@ -47,9 +47,12 @@ pub struct Sandwich {
 }
 
 impl Arrowhead {
-    /// Its inverse on the support (see [`ArrowInverse`]); `None` when a block or the Schur
-    /// complement is not positive definite there.
-    pub fn inverse_on_support(&self) -> Option<ArrowInverse> {
+    /// Its inverse on the support (see [`ArrowInverse`]).
+    ///
+    /// # Errors
+    /// [`Singular`] naming the block and column where a block, or the Schur complement,
+    /// is not positive definite on the support.
+    pub fn inverse_on_support(&self) -> Result<ArrowInverse, Singular> {
         let l = &self.layout;
         let unseen: Vec<bool> = (0..l.n())
             .map(|g| {
@@ -63,7 +66,7 @@ impl Arrowhead {
         let (mut own_inv, mut w) = (Vec::new(), Vec::new());
         for (b, cols) in l.blocks.iter().enumerate() {
             let mut f = a.own[b].clone();
-            small_cholesky(&mut f).ok()?;
+            small_cholesky(&mut f).map_err(|i| Singular { block: Some(b), column: cols[i] })?;
             let mut inv = DMatrix::identity(cols.len(), cols.len());
             small_solve(&f, &mut inv);
             let wb = -(&inv * &a.coupling[b]);
@@ -75,10 +78,11 @@ impl Arrowhead {
             DMatrix::zeros(0, 0)
         } else {
             // The reported covariance's one explicit inverse (p_s × p_s).
-            let inv = faer_llt(&sigma)?.inverse();
+            let singular = Singular { block: None, column: l.shared[0] };
+            let inv = faer_llt(&sigma).ok_or(singular)?.inverse();
             DMatrix::from_fn(ps, ps, |i, j| inv[(i, j)])
         };
-        Some(ArrowInverse { layout: Arc::clone(l), own_inv, w, sigma_inv, unseen })
+        Ok(ArrowInverse { layout: Arc::clone(l), own_inv, w, sigma_inv, unseen })
     }
 }
 
