@@ -201,12 +201,11 @@ impl GaussNewton {
                         let Some((d, mu)) = shifted_solve(&h, &jtr.select_rows(&free)) else {
                             return Ok(None);
                         };
-                        (
-                            DVector::from_fn(n, |j, _| {
-                                free.iter().position(|&f| f == j).map_or(0.0, |k| d[k])
-                            }),
-                            mu,
-                        )
+                        let mut full = DVector::zeros(n);
+                        for (k, &j) in free.iter().enumerate() {
+                            full[j] = d[k];
+                        }
+                        (full, mu)
                     }
                     // The held components as identity rows with a zero right-hand side.
                     Gram::Arrow(a) => {
