@@ -2,6 +2,7 @@
 //! covariance, intervals, error index, correlation, diagnostics, fit statistics and the
 //! model's derived quantities (MODEL.md §5; Ljung 9.3, 16.4; thesis 5.3).
 
+use super::covariance::{Covariance, Inverse, Meat};
 use super::diagnostics::{DiagnosticThresholds, diagnose};
 use super::gate;
 use super::problem::{FreeKind, MIN_BATCHES, PemProblem, Slot};
@@ -47,16 +48,14 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     // STYLE.md rule 7): bread⁻¹ meat bread⁻¹ (sandwich) and (JᵀWJ)⁻¹.
     // Parameters the data do not see at all (a zero column, e.g. an initial state whose
     // transient is weighted out) are left out of the inversion and get an infinite error.
-    let info_inv = inverse_on_support(&sums.jtj);
-    let bread_inv = inverse_on_support(&sums.bread);
+    let (info_inv, bread_inv) = (Inverse::of(&sums.jtj), Inverse::of(&sums.bread));
+    // Kept by arrowhead blocks, where the elimination failed: a column of one experiment's
+    // block (a per-experiment parameter or initial state) or of the shared system.
+    let singular_at = info_inv.as_ref().err().or(bread_inv.as_ref().err()).copied().flatten();
+    let (info_inv, bread_inv) = (info_inv.ok(), bread_inv.ok());
     let dtheta: Vec<f64> =
         problem.free().iter().enumerate().map(|(g, f)| f.transform.dtheta_dp(p[g])).collect();
-    let sandwich = |meat: &DMatrix<f64>| {
-        bread_inv.as_ref().map(|ai| {
-            let cov_p = ai * meat * ai;
-            DMatrix::from_fn(np, np, |i, j| cov_p[(i, j)] * dtheta[i] * dtheta[j])
-        })
-    };
+    let sandwich = |meat: Meat<'_>| Covariance::sandwich(&bread_inv, meat, &dtheta);
     // Residual whiteness from the lag sums of the raw output errors of every experiment
     // (streamed by the statistics pass), lags kept within each experiment; residuals that
     // fail it take the score's batch-means covariance (see `problem::batches`).
@@ -65,18 +64,16 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     let offered = sums.batch_means.as_ref().filter(|_| dof > 0);
     let uncertainty = Uncertainty::choose(&whiteness, n, dof, offered);
     let batch_means = uncertainty.taken(offered);
-    let cov_white = sandwich(&sums.meat);
-    let cov_theta = match batch_means {
-        Some(b) => sandwich(&b.meat),
-        None => cov_white.clone(),
-    };
+    let cov_white = sandwich(Meat::Gram(&sums.meat));
+    let cov_batches = batch_means.map(|b| sandwich(Meat::Batches(b)));
+    let cov_theta = cov_batches.as_ref().unwrap_or(&cov_white);
     let tq = t_quantile_975(uncertainty.dof);
-    let standard_errors = |cov: &Option<DMatrix<f64>>| -> Vec<f64> {
+    let standard_errors = |cov: &Option<Covariance>| -> Vec<f64> {
         (0..np)
             .map(|g| {
                 let unseen = sums.bread[(g, g)].is_nan() || sums.bread[(g, g)] <= 0.0;
                 match cov {
-                    Some(c) if !unseen && dof > 0 => c[(g, g)].max(0.0).sqrt(),
+                    Some(c) if !unseen && dof > 0 => c.entry(g, g).max(0.0).sqrt(),
                     _ => f64::INFINITY,
                 }
             })
@@ -92,7 +89,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         batch_means
             .is_some_and(|b| e.is_some_and(|e| b.per_experiment.get(e).is_none_or(|&n| n < MIN_BATCHES)))
     };
-    let se_free: Vec<f64> = standard_errors(&cov_theta)
+    let se_free: Vec<f64> = standard_errors(cov_theta)
         .into_iter()
         .zip(&se_white)
         .zip(problem.free())
@@ -111,7 +108,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         let value = f.transform.to_theta(p[g]);
         let se = se_free[g];
         let idx = info_inv.as_ref().map_or(f64::INFINITY, |ai| {
-            100.0 * (sums.e2_weighted * ai[(g, g)]).max(0.0).sqrt() * dtheta[g].abs() / value.abs()
+            100.0 * (sums.e2_weighted * ai.entry(g, g)).max(0.0).sqrt() * dtheta[g].abs() / value.abs()
         });
         // At a bound the quadratic model of the loss does not hold (the gradient is not zero
         // there): no standard error, no interval, and the flag says why.
@@ -175,31 +172,44 @@ pub(crate) fn assemble<M: GreyBoxModel>(
             initial_states.push(estimate(g, format!("x0_{}", s.name), s.unit.clone(), x0));
         }
     }
-    let correlation = match &cov_theta {
+    // Kept by arrowhead blocks, the correlation and the identifiability diagnostics are
+    // of the shared parameters (a per-experiment parameter's correlations would make the
+    // report grow with the square of the experiments).
+    let structured = problem.layout().is_some();
+    let order_all = order.clone();
+    if structured {
+        order.retain(|&g| problem.free()[g].experiment.is_none());
+    }
+    let correlation = match cov_theta {
         Some(c) => order
             .iter()
-            .map(|&a| order.iter().map(|&b| c[(a, b)] / (c[(a, a)] * c[(b, b)]).sqrt()).collect())
+            .map(|&a| order.iter().map(|&b| c.entry(a, b) / (c.entry(a, a) * c.entry(b, b)).sqrt()).collect())
             .collect(),
         None => vec![vec![f64::NAN; order.len()]; order.len()],
     };
-    let diag_names: Vec<String> = order
-        .iter()
-        .map(|&g| {
-            let f = &problem.free()[g];
-            let FreeKind::Parameter(j) = f.kind else { unreachable!("order holds model parameters only") };
-            match f.experiment {
-                Some(e) => format!("{}[{}]", params[j].name, names[e]),
-                None => params[j].name.clone(),
-            }
-        })
-        .collect();
+    let name_of = |g: usize| {
+        let f = &problem.free()[g];
+        let FreeKind::Parameter(j) = f.kind else { unreachable!("order holds model parameters only") };
+        match f.experiment {
+            Some(e) => format!("{}[{}]", params[j].name, names[e]),
+            None => params[j].name.clone(),
+        }
+    };
+    let diag_names: Vec<String> = order.iter().map(|&g| name_of(g)).collect();
     let rel = |g: usize| problem.free()[g].transform.to_theta(p[g]) / dtheta[g];
     let info_rel = DMatrix::from_fn(order.len(), order.len(), |a, b| {
         let (ga, gb) = (order[a], order[b]);
         sums.jtj[(ga, gb)] * rel(ga) * rel(gb)
     });
-    let free_index: Vec<f64> =
-        parameters.iter().filter(|q| !q.fixed).map(|q| q.error_index_percent).collect();
+    // The free parameters' error indices are in the order of `order_all`; the diagnostics
+    // take those of `order`.
+    let free_index: Vec<f64> = parameters
+        .iter()
+        .filter(|q| !q.fixed)
+        .zip(&order_all)
+        .filter(|(_, g)| !structured || order.contains(g))
+        .map(|(q, _)| q.error_index_percent)
+        .collect();
     let diagnostics = diagnose(
         &info_rel,
         &diag_names,
@@ -251,18 +261,31 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         ));
     }
     if info_inv.is_none() || bread_inv.is_none() {
-        notes.push(
-            "information matrix JᵀWJ is singular: some parameters are not identifiable from these data"
-                .into(),
-        );
+        let at = singular_at.map(|g| {
+            let f = &problem.free()[g];
+            let name = match f.kind {
+                FreeKind::Parameter(j) => params[j].name.clone(),
+                FreeKind::InitialState(i) => format!("x0_{}", states[i].name),
+            };
+            match f.experiment {
+                Some(e) => format!(" (the block of experiment `{}` is singular at `{name}`)", names[e]),
+                None => format!(" (the shared parameters' reduced system is singular, from `{name}` on)"),
+            }
+        });
+        notes.push(format!(
+            "information matrix JᵀWJ is singular: some parameters are not identifiable from these data{}",
+            at.unwrap_or_default()
+        ));
     }
     let derived = derived(problem, p, cov_theta.as_ref(), &se_free, &names);
     let parameter_trace = std::mem::take(&mut solver.trace)
         .iter()
-        .map(|q| order.iter().map(|&g| problem.free()[g].transform.to_theta(q[g])).collect())
+        .map(|q| order_all.iter().map(|&g| problem.free()[g].transform.to_theta(q[g])).collect())
         .collect();
+    let all_names: Vec<String> =
+        if structured { order_all.iter().map(|&g| name_of(g)).collect() } else { diag_names.clone() };
     let evidence = gate::Evidence {
-        remaining: gate::remaining(&bread_inv, &sums.score, &order, &dtheta, &se_free, &diag_names, |g| {
+        remaining: gate::remaining(&bread_inv, &sums.score, &order_all, &dtheta, &se_free, &all_names, |g| {
             problem.free()[g].transform.to_theta(p[g])
         }),
         condition: gate::scaled_condition(&sums.jtj, &order, &diag_names),
@@ -296,7 +319,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
 fn derived<M: GreyBoxModel>(
     problem: &PemProblem<'_, M>,
     p: &DVector<f64>,
-    cov: Option<&DMatrix<f64>>,
+    cov: Option<&Covariance>,
     se: &[f64],
     names: &[String],
 ) -> Vec<DerivedEstimate> {
@@ -315,7 +338,7 @@ fn derived<M: GreyBoxModel>(
                         .map(|j| match (free(i), free(j)) {
                             (Some(g), Some(_)) if i == j => se[g] * se[g],
                             (Some(g), Some(h)) if se[g].is_finite() && se[h].is_finite() => {
-                                cov.map_or(f64::NAN, |c| c[(g, h)])
+                                cov.map_or(f64::NAN, |c| c.entry(g, h))
                             }
                             (Some(_), Some(_)) => f64::NAN,
                             _ => 0.0,
@@ -334,26 +357,4 @@ fn derived<M: GreyBoxModel>(
             .flat_map(|(d, e)| d.into_iter().map(|q| DerivedEstimate { experiment: Some(e.clone()), ..q }))
             .collect(),
     }
-}
-
-/// Inverse of a symmetric positive semi-definite matrix on the rows/columns with a
-/// non-zero diagonal (Cholesky); the others get ∞ on the diagonal and 0 elsewhere. `None`
-/// when the supported block is not positive definite.
-fn inverse_on_support(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
-    let n = a.nrows();
-    let live: Vec<usize> = (0..n).filter(|&i| a[(i, i)] > 0.0).collect();
-    let sub = DMatrix::from_fn(live.len(), live.len(), |i, j| a[(live[i], live[j])]);
-    let inv = sub.cholesky()?.inverse();
-    let mut out = DMatrix::zeros(n, n);
-    for i in 0..n {
-        if a[(i, i)] <= 0.0 {
-            out[(i, i)] = f64::INFINITY;
-        }
-    }
-    for (i, &r) in live.iter().enumerate() {
-        for (j, &c) in live.iter().enumerate() {
-            out[(r, c)] = inv[(i, j)];
-        }
-    }
-    Some(out)
 }

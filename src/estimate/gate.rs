@@ -21,8 +21,10 @@
 //!   ([`crate::model::GreyBoxModel::implausible`]) (`non_physical`);
 //! - a parameter sits at a bound, or a statistic is not finite.
 
+use super::covariance::Inverse;
 use super::problem::PemProblem;
 use super::result::{FitStatistics, ParameterEstimate, SolverReport, Warning};
+use super::solver::Gram;
 use crate::model::GreyBoxModel;
 use nalgebra::{DMatrix, DVector};
 
@@ -171,7 +173,7 @@ fn stationarity(remaining: &[(String, f64, f64, f64)]) -> Option<Warning> {
 /// Per free model parameter in `order`: (name, value, Gauss–Newton step still to go, its
 /// standard error), the step `A⁻¹ g` mapped to θ units; empty without the bread's inverse.
 pub(crate) fn remaining(
-    bread_inv: &Option<DMatrix<f64>>,
+    bread_inv: &Option<Inverse>,
     score: &DVector<f64>,
     order: &[usize],
     dtheta: &[f64],
@@ -179,21 +181,15 @@ pub(crate) fn remaining(
     names: &[String],
     value: impl Fn(usize) -> f64,
 ) -> Vec<(String, f64, f64, f64)> {
-    let Some(ai) = bread_inv.as_ref().filter(|ai| ai.nrows() == score.len()) else { return Vec::new() };
-    let finite =
-        DMatrix::from_fn(
-            ai.nrows(),
-            ai.ncols(),
-            |i, j| if ai[(i, j)].is_finite() { ai[(i, j)] } else { 0.0 },
-        );
-    let step = finite * score;
+    let Some(ai) = bread_inv.as_ref().filter(|_| dtheta.len() == score.len()) else { return Vec::new() };
+    let step = ai.apply_finite(score);
     order.iter().zip(names).map(|(&g, name)| (name.clone(), value(g), step[g] * dtheta[g], se[g])).collect()
 }
 
 /// Condition number of `JᵀWJ` (the optimiser's scaled coordinates) over the free model
 /// parameters `order` (∞ when it is singular there) and the names of the parameters that
 /// make up most (|component| ≥ 0.3) of its least-determined direction.
-pub(crate) fn scaled_condition(jtj: &DMatrix<f64>, order: &[usize], names: &[String]) -> (f64, Vec<String>) {
+pub(crate) fn scaled_condition(jtj: &Gram, order: &[usize], names: &[String]) -> (f64, Vec<String>) {
     let sub = DMatrix::from_fn(order.len(), order.len(), |i, j| jtj[(order[i], order[j])]);
     if order.is_empty() || !sub.iter().all(|v| v.is_finite()) {
         return (f64::INFINITY, Vec::new());

@@ -6,8 +6,10 @@
 //! statistics of the estimate. Domain workflows (e.g. [`crate::pmsm::fit_pmsm`]) build on
 //! it.
 
+pub mod arrowhead;
 pub mod assemble;
 pub mod consistency;
+mod covariance;
 pub mod diagnostics;
 pub mod filter;
 pub mod gate;
@@ -35,7 +37,7 @@ pub use solver::gn::{self, GaussNewton};
 pub use solver::lm::DEFAULT_DAMPING;
 pub use solver::lm::{self, LevenbergMarquardt};
 pub use solver::run::{CLOSE_START_DAMPING, RunOptions, SolverKind, run_solver};
-pub use solver::{LeastSquares, LsState, NormalEquations, ReportsTermination, Termination, Tolerances};
+pub use solver::{Gram, LeastSquares, LsState, NormalEquations, ReportsTermination, Termination, Tolerances};
 pub use weighting::{Weighting, WeightingKind};
 
 use crate::data::Experiment;
@@ -88,6 +90,12 @@ pub struct PemOptions {
     /// the linear least-squares estimate. Dimensionless (relative to `diag(JᵀWJ)`); a value
     /// not positive and finite is [`Error::InvalidOption`] naming `initial_damping`.
     pub initial_damping: Option<f64>,
+    /// Free parameters above which the normal equations and statistics are kept by the
+    /// blocks of their arrowhead structure ([`arrowhead`]); `None`:
+    /// [`problem::STRUCTURED_ABOVE`] (64). Not serialised: how the sums are stored, not
+    /// what is fitted.
+    #[serde(skip)]
+    pub structured_above: Option<usize>,
 }
 
 impl PemOptions {
@@ -118,6 +126,7 @@ impl Default for PemOptions {
             diagnostics: DiagnosticThresholds::default(),
             progress: false,
             initial_damping: None,
+            structured_above: None,
         }
     }
 }
@@ -255,6 +264,7 @@ fn build_problem<'m, M: GreyBoxModel>(
         output_weights: options.output_weights.clone().or_else(|| weighting.output_weights()),
         loss: Loss::Quadratic,
         estimate_x0: options.estimate_x0,
+        structured_above: options.structured_above,
         prefilters: match options.prefilter {
             None => Vec::new(),
             Some(fc) => experiments
@@ -305,7 +315,7 @@ impl<'m, M: GreyBoxModel> StartedFit<'m, M> {
         let t0 = Instant::now();
         let (problem, popts) = build_problem(model, experiments, start, options, weighting)?;
         let ne = problem.seeded_normal_equations(&problem.start_vector(start))?;
-        let drop = ne.jtj.clone().cholesky().map(|c| 0.5 * ne.jtr.dot(&c.solve(&ne.jtr))).unwrap_or(0.0);
+        let drop = ne.jtj.solve(&ne.jtr).map(|x| 0.5 * ne.jtr.dot(&x)).unwrap_or(0.0);
         let predicted = (ne.cost - drop).max(0.0);
         Ok(Self { problem, popts, options: options.clone(), weighting, start: start.to_vec(), predicted, t0 })
     }

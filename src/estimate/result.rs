@@ -211,7 +211,10 @@ pub struct FitResult {
     /// Goodness of fit.
     pub fit: FitStatistics,
     /// Correlation matrix of the free model parameters (order of the free entries of
-    /// `parameters`; initial states excluded).
+    /// `parameters`; initial states excluded). A fit kept by arrowhead blocks (more than
+    /// [`STRUCTURED_ABOVE`](crate::estimate::problem::STRUCTURED_ABOVE) free parameters)
+    /// gives that of the shared parameters only, as its identifiability diagnostics: the
+    /// per-experiment ones would make it grow with the square of the experiments.
     pub correlation: Vec<Vec<f64>>,
     /// Labels of the rows and columns of `correlation` (`name` or `name[experiment]`);
     /// empty in reports written before the field existed.
@@ -225,7 +228,7 @@ pub struct FitResult {
     pub solver: SolverReport,
     /// The free model parameters after each solver iteration, the start first [their
     /// units]: rows 1 + iterations (a robust fit: the quadratic run's, then the Huber
-    /// run's), each row the free entries of `parameters` in order (as `correlation`); empty
+    /// run's), each row the free entries of `parameters` in order; empty
     /// when there was no iteration (closed form, all parameters fixed).
     #[serde(default)]
     pub parameter_trace: Vec<Vec<f64>>,

@@ -25,6 +25,7 @@ mod fuzz;
 mod gate;
 mod inverter;
 mod ipm;
+mod joint;
 mod kept_sums;
 mod last_pass;
 mod limits;

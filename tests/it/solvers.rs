@@ -149,16 +149,16 @@ impl LeastSquares for CurveFit {
     fn normal_equations(&self, p: &DVector<f64>) -> greybox::Result<NormalEquations> {
         self.check(p)?;
         let n = self.n_params();
-        let mut ne = NormalEquations { cost: 0.0, jtj: DMatrix::zeros(n, n), jtr: DVector::zeros(n) };
+        let (mut cost, mut jtj, mut jtr) = (0.0, DMatrix::zeros(n, n), DVector::zeros(n));
         for (&x, &y) in self.x.iter().zip(&self.y) {
             let (yhat, j) = (self.f)(p.as_slice(), x);
             let j = DVector::from_vec(j);
             let e = y - yhat;
-            ne.cost += 0.5 * e * e;
-            ne.jtr += &j * e;
-            ne.jtj += &j * j.transpose();
+            cost += 0.5 * e * e;
+            jtr += &j * e;
+            jtj += &j * j.transpose();
         }
-        Ok(ne)
+        Ok(NormalEquations { cost, jtj: jtj.into(), jtr })
     }
     fn cost(&self, p: &DVector<f64>) -> greybox::Result<f64> {
         self.check(p)?;

@@ -4,9 +4,12 @@ use super::Loss;
 use super::batches::{BatchMeans, BlockScores, ScoreSeries, TARGET_BATCHES};
 use super::lags::{LagStream, LagSums, WHITENESS_LAGS};
 use super::local::LocalMap;
-use super::local::scatter_gram;
+use super::local::{scatter_arrow, scatter_gram};
 use crate::data::Values;
+use crate::estimate::arrowhead::{ArrowLayout, Arrowhead};
+use crate::estimate::solver::Gram;
 use nalgebra::{DMatrix, DVector};
+use std::sync::Arc;
 
 /// Sums at the estimate from which the statistics of a fit follow.
 #[derive(Clone, Debug)]
@@ -26,15 +29,16 @@ pub struct Sums {
     pub count: usize,
     /// `Σ (y − ȳ)²` per output, length n_y.
     pub sst: Vec<f64>,
-    /// `JᵀWJ` (scaled space): the information matrix of the error index and diagnostics.
-    pub jtj: DMatrix<f64>,
+    /// `JᵀWJ` (scaled space): the information matrix of the error index and diagnostics
+    /// (by arrowhead blocks when the problem keeps them so, as the two below).
+    pub jtj: Gram,
     /// Bread `A = Σ w ψ'(ε) JᵀJ` of the sandwich covariance `A⁻¹ B A⁻¹`.
-    pub bread: DMatrix<f64>,
+    pub bread: Gram,
     /// Meat `B`: `Σ_i σ̂_i² Σ_k w² J_kiᵀJ_ki` (quadratic), `N/(N − n_free) Σ w² ψ² JᵀJ` (Huber);
     /// with a residual prefilter L(q), `Σ_i σ̂_i² gᵢᵀgᵢ` with `gᵢ = Lᵀ(W J_f)` (the
     /// time-reversed filter applied to the weighted filtered Jacobian) and σ̂ from the raw
     /// residuals: exact for white raw residuals.
-    pub meat: DMatrix<f64>,
+    pub meat: Gram,
     /// The lag sums of the raw output errors `y − ŷ` of the counted samples, per output
     /// and experiment (`lag_sums[i][e]`, up to lag [`WHITENESS_LAGS`]): the whiteness test
     /// without the residuals kept or another simulation.
@@ -75,11 +79,27 @@ pub(crate) struct Accumulator {
     gathered: Option<Vec<LagSums>>,
     // Every experiment's score summed per block, for the batch means.
     scores: ScoreSeries,
+    // JᵀWJ, the bread and each output's meat by arrowhead blocks (the dense ones above
+    // are then empty).
+    arrow: Option<(Arrowhead, Arrowhead, Vec<Arrowhead>)>,
 }
 
 impl Accumulator {
     pub(crate) fn new(ny: usize, np: usize) -> Self {
-        let z = DMatrix::zeros(np, np);
+        Self::with_dense(ny, np, np)
+    }
+
+    /// Sums whose Gram matrices are kept by the blocks of the arrowhead `layout`.
+    pub(crate) fn structured(ny: usize, layout: &Arc<ArrowLayout>) -> Self {
+        let mut acc = Self::with_dense(ny, layout.n(), 0);
+        let z = Arrowhead::zeros(Arc::clone(layout));
+        acc.arrow = Some((z.clone(), z.clone(), vec![z; ny]));
+        acc.scores = ScoreSeries::structured(Arc::clone(layout));
+        acc
+    }
+
+    fn with_dense(ny: usize, np: usize, dense: usize) -> Self {
+        let z = DMatrix::zeros(dense, dense);
         Self {
             ny,
             np,
@@ -102,6 +122,7 @@ impl Accumulator {
             streams: Vec::new(),
             gathered: None,
             scores: ScoreSeries::new(np),
+            arrow: None,
         }
     }
 
@@ -199,6 +220,14 @@ impl Accumulator {
     /// Adds an experiment's Gram matrices in its local columns (row-major m × m, upper
     /// triangle; `meat` one per output), chained to the optimiser's coordinates by `map`.
     pub(crate) fn add_local(&mut self, map: &LocalMap, jtj: &[f64], bread: &[f64], meat: &[Vec<f64>]) {
+        if let Some((a_jtj, a_bread, a_meat)) = &mut self.arrow {
+            scatter_arrow(map, jtj, a_jtj);
+            scatter_arrow(map, bread, a_bread);
+            for (mi, local) in a_meat.iter_mut().zip(meat) {
+                scatter_arrow(map, local, mi);
+            }
+            return;
+        }
         scatter_gram(map, jtj, &mut self.jtj);
         scatter_gram(map, bread, &mut self.bread);
         for (mi, local) in self.meat_i.iter_mut().zip(meat) {
@@ -253,21 +282,35 @@ impl Accumulator {
     pub(crate) fn finish(mut self, loss: &Loss, prefiltered: bool) -> Sums {
         let (ny, np, n) = (self.ny, self.np, self.count as f64);
         let sst = (0..ny).map(|i| (self.sum_y2[i] - self.sum_y[i] * self.sum_y[i] / n).max(0.0)).collect();
-        let mut meat = DMatrix::zeros(np, np);
-        for (i, mi) in self.meat_i.iter().enumerate() {
+        let factor = |i: usize| {
             let live = self.n_live[i] as f64;
             let dof = (live - np as f64 / ny as f64).max(1.0);
-            let factor = match loss {
+            match loss {
                 // Huber without prefilter: ψ² is already in the meat.
                 Loss::Huber { .. } if !prefiltered => live / dof,
                 // σ̂_i² = E_i²/(N − n_free/n_y) of the raw residuals with non-zero weight.
                 _ => self.sse_live[i] / dof,
-            };
-            meat += mi * factor;
-        }
-        for m in [&mut self.jtj, &mut self.bread, &mut meat] {
-            m.fill_lower_triangle_with_upper_triangle();
-        }
+            }
+        };
+        let (jtj, bread, meat): (Gram, Gram, Gram) = match self.arrow.take() {
+            Some((jtj, bread, meat_i)) => {
+                let mut meat = Arrowhead::zeros(Arc::clone(jtj.layout()));
+                for (i, mi) in meat_i.iter().enumerate() {
+                    meat.add_scaled(mi, factor(i));
+                }
+                (jtj.into(), bread.into(), meat.into())
+            }
+            None => {
+                let mut meat = DMatrix::zeros(np, np);
+                for (i, mi) in self.meat_i.iter().enumerate() {
+                    meat += mi * factor(i);
+                }
+                for m in [&mut self.jtj, &mut self.bread, &mut meat] {
+                    m.fill_lower_triangle_with_upper_triangle();
+                }
+                (self.jtj.into(), self.bread.into(), meat.into())
+            }
+        };
         Sums {
             cost: self.cost,
             e2_weighted: self.e2w,
@@ -276,8 +319,8 @@ impl Accumulator {
             n_live: self.n_live,
             count: self.count,
             sst,
-            jtj: self.jtj,
-            bread: self.bread,
+            jtj,
+            bread,
             meat,
             lag_sums: self.lag_sums,
             batch_means: self.scores.batch_means(TARGET_BATCHES),

@@ -16,8 +16,10 @@
 //! atoms: a batch is a run of whole blocks of one experiment, so nothing per sample is kept.
 
 use super::local::LocalMap;
+use crate::estimate::arrowhead::{ArrowLayout, Arrowhead, LowRank};
 use crate::model::BLOCK_LEN;
 use nalgebra::{DMatrix, DVector};
+use std::sync::Arc;
 
 /// Batches the long-run covariance aims at (the t quantile of 31 degrees of freedom is
 /// 2.04, 4 % above the normal one; more batches would shorten them against a slow
@@ -124,24 +126,49 @@ pub struct BatchMeans {
     /// Batches of each experiment, in order: a parameter of one experiment alone (per-log,
     /// or its initial state) is seen by its experiment's batches only.
     pub per_experiment: Vec<usize>,
+    /// For a problem kept by arrowhead blocks: `B̂` as an arrowhead matrix (the batches'
+    /// uncentred products, each within its experiment's columns and the shared ones) and
+    /// the rank-two centring term outside that structure; `meat` is then empty (0 × 0).
+    pub(crate) arrow: Option<(Arrowhead, LowRank)>,
 }
 
 /// Every experiment's block scores in the optimiser's coordinates, in time order.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct ScoreSeries {
     np: usize,
-    /// Per experiment: the block counts and their n_free-long scores.
+    /// Per experiment: the block counts and their n_free-long scores (or, kept by
+    /// arrowhead blocks, their local columns' chained scores, length m).
     experiments: Vec<(Vec<usize>, Vec<DVector<f64>>)>,
+    /// The arrowhead layout, and each experiment's local columns (in the optimiser's
+    /// coordinates), when the scores are kept by local columns.
+    local: Option<(Arc<ArrowLayout>, Vec<Vec<usize>>)>,
 }
 
 impl ScoreSeries {
     pub(crate) fn new(np: usize) -> Self {
-        Self { np, experiments: Vec::new() }
+        Self { np, experiments: Vec::new(), local: None }
+    }
+
+    /// Scores kept by each experiment's local columns (memory `O(blocks · m)`, not
+    /// `O(blocks · n_free)`), for a problem of arrowhead `layout`.
+    pub(crate) fn structured(layout: Arc<ArrowLayout>) -> Self {
+        Self { np: layout.n(), experiments: Vec::new(), local: Some((layout, Vec::new())) }
     }
 
     /// Adds one experiment's block scores, chained by `map` into the optimiser's coordinates.
     pub(crate) fn add(&mut self, map: &LocalMap, blocks: &BlockScores) {
         let m = blocks.m;
+        if let Some((_, globals)) = &mut self.local {
+            let scores = blocks
+                .values
+                .chunks_exact(m.max(1))
+                .take(blocks.counts.len())
+                .map(|local| DVector::from_iterator(m, local.iter().zip(&map.dtheta).map(|(v, d)| d * v)))
+                .collect();
+            globals.push(map.global.clone());
+            self.experiments.push((blocks.counts.clone(), scores));
+            return;
+        }
         let scores = blocks
             .values
             .chunks_exact(m.max(1))
@@ -174,7 +201,20 @@ impl ScoreSeries {
 
     /// The sum of every recorded block score (length n_free): the total score.
     pub(crate) fn total(&self) -> DVector<f64> {
-        self.experiments.iter().flat_map(|(_, s)| s).fold(DVector::zeros(self.np), |a, s| a + s)
+        match &self.local {
+            None => self.experiments.iter().flat_map(|(_, s)| s).fold(DVector::zeros(self.np), |a, s| a + s),
+            Some((_, globals)) => {
+                let mut total = DVector::zeros(self.np);
+                for ((_, scores), global) in self.experiments.iter().zip(globals) {
+                    for s in scores {
+                        for (&g, v) in global.iter().zip(s.iter()) {
+                            total[g] += v;
+                        }
+                    }
+                }
+                total
+            }
+        }
     }
 
     /// The batch-means covariance over about `target` batches (module documentation);
@@ -192,13 +232,14 @@ impl ScoreSeries {
         for (counts, scores) in &self.experiments {
             let first = batches.len();
             cuts.push(first);
-            let (mut n, mut s) = (0, DVector::zeros(self.np));
+            let dim = if self.local.is_some() { scores.first().map_or(0, DVector::len) } else { self.np };
+            let (mut n, mut s) = (0, DVector::zeros(dim));
             for (&c, v) in counts.iter().zip(scores) {
                 n += c;
                 s += v;
                 // Cut at the block boundary nearest the length aimed at.
                 if n + c / 2 >= length {
-                    batches.push((n, std::mem::replace(&mut s, DVector::zeros(self.np))));
+                    batches.push((n, std::mem::replace(&mut s, DVector::zeros(dim))));
                     n = 0;
                 }
             }
@@ -219,7 +260,18 @@ impl ScoreSeries {
         if b < MIN_BATCHES {
             return None;
         }
-        let per_experiment = cuts.windows(2).map(|w| w[1] - w[0]).collect();
+        let per_experiment: Vec<usize> = cuts.windows(2).map(|w| w[1] - w[0]).collect();
+        if let Some((layout, globals)) = &self.local {
+            let arrow = structured_meat(layout, globals, &per_experiment, &batches, total, self.np);
+            let meat = DMatrix::zeros(0, 0);
+            return Some(BatchMeans {
+                meat,
+                batches: b,
+                batch_samples: total / b,
+                per_experiment,
+                arrow: Some(arrow),
+            });
+        }
         let sum = batches.iter().fold(DVector::zeros(self.np), |a, (_, s)| a + s);
         let mut meat = DMatrix::zeros(self.np, self.np);
         for (n, s) in &batches {
@@ -227,8 +279,42 @@ impl ScoreSeries {
             meat += &d * d.transpose();
         }
         meat *= b as f64 / (b - 1) as f64;
-        Some(BatchMeans { meat, batches: b, batch_samples: total / b, per_experiment })
+        Some(BatchMeans { meat, batches: b, batch_samples: total / b, per_experiment, arrow: None })
     }
+}
+
+/// The batch-means meat of scores kept by local columns: with `S_b` the batch sums (each
+/// in its experiment's columns `globals[e]`), `α_b = n_b/N` and `S = Σ_b S_b`,
+/// `B̂ = B/(B − 1) Σ_b (S_b − α_b S)(S_b − α_b S)ᵀ = c [Σ_b S_b S_bᵀ − T Sᵀ − S Tᵀ + σ S Sᵀ]`
+/// with `T = Σ_b α_b S_b`, `σ = Σ_b α_b²`: the first sum is of arrowhead structure, the
+/// rest a rank-two term.
+fn structured_meat(
+    layout: &Arc<ArrowLayout>,
+    globals: &[Vec<usize>],
+    per_experiment: &[usize],
+    batches: &[(usize, DVector<f64>)],
+    total: usize,
+    np: usize,
+) -> (Arrowhead, LowRank) {
+    let b = batches.len();
+    let c = b as f64 / (b - 1) as f64;
+    let mut arrow = Arrowhead::zeros(Arc::clone(layout));
+    let (mut sum, mut t, mut sigma) = (DVector::zeros(np), DVector::zeros(np), 0.0);
+    let owners = per_experiment.iter().enumerate().flat_map(|(e, &k)| std::iter::repeat_n(e, k));
+    for ((n, s), e) in batches.iter().zip(owners) {
+        let global = &globals[e];
+        let alpha = *n as f64 / total as f64;
+        sigma += alpha * alpha;
+        for (x, (&g, &v)) in global.iter().zip(s.iter()).enumerate() {
+            sum[g] += v;
+            t[g] += alpha * v;
+            for (&h, &w) in global.iter().zip(s.iter()).skip(x) {
+                arrow.add_symmetric(g, h, c * v * w);
+            }
+        }
+    }
+    let low = vec![(-c, t.clone(), sum.clone()), (-c, sum.clone(), t), (c * sigma, sum.clone(), sum)];
+    (arrow, low)
 }
 
 #[cfg(test)]

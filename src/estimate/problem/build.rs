@@ -6,6 +6,7 @@ use super::kept::{BestPass, Gather, same_point};
 use super::{FreeKind, FreeParameter, PemProblem, ProblemOptions, Slot, Term, WeightedData};
 use super::{Loss, gram};
 use crate::error::{Error, Result};
+use crate::estimate::arrowhead::ArrowLayout;
 use crate::estimate::scaling::{ParameterScaling, Transform};
 use crate::estimate::solver::{LeastSquares, NormalEquations};
 use crate::model::GreyBoxModel;
@@ -163,6 +164,13 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
                 ),
             ));
         }
+        let above = options.structured_above.unwrap_or(super::STRUCTURED_ABOVE);
+        let layout = if free.len() > above && options.prefilters.is_empty() {
+            let owner = free.iter().map(|f| f.experiment).collect();
+            Some(std::sync::Arc::new(ArrowLayout::try_new(owner, n_exp)?))
+        } else {
+            None
+        };
         let mut problem = Self {
             model,
             terms,
@@ -173,6 +181,7 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             prefilters: options.prefilters.clone(),
             best: BestPass::default(),
             seed: std::sync::Mutex::default(),
+            layout,
         };
         if scaling.needs_column_norms() {
             problem.rescale_by_column_norms(start, scaling)?;

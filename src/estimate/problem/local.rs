@@ -2,6 +2,7 @@
 //! block of residuals and local Jacobian columns ([`Chunk`]), the experiment's local
 //! columns ([`LocalMap`]) and the residual prefilter ([`ResidualFilter`]); no pass here.
 
+use crate::estimate::arrowhead::Arrowhead;
 use crate::estimate::filter::Butterworth;
 use crate::model::{BLOCK_LEN, Block};
 use nalgebra::DMatrix;
@@ -195,6 +196,18 @@ pub(crate) fn scatter_gram(map: &LocalMap, local: &[f64], out: &mut DMatrix<f64>
             let (ga, gb) = (map.global[a], map.global[b]);
             let (r, c) = (ga.min(gb), ga.max(gb));
             out[(r, c)] += map.dtheta[a] * map.dtheta[b] * local[a * m + b];
+        }
+    }
+}
+
+/// [`scatter_gram`] into an arrowhead matrix (both triangles of its blocks): the local
+/// columns of one experiment are shared ones and its own.
+pub(crate) fn scatter_arrow(map: &LocalMap, local: &[f64], out: &mut Arrowhead) {
+    let m = map.len();
+    for a in 0..m {
+        for b in a..m {
+            let v = map.dtheta[a] * map.dtheta[b] * local[a * m + b];
+            out.add_symmetric(map.global[a], map.global[b], v);
         }
     }
 }

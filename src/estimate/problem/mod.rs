@@ -19,6 +19,7 @@ mod lags;
 mod local;
 mod loss;
 mod map;
+mod normal;
 mod pass;
 mod pem;
 mod sums;
@@ -34,4 +35,6 @@ pub(crate) use gram::lagged_dots;
 pub(crate) use lags::LagStream;
 pub use lags::{LAG_CHUNK, LagSums, WHITENESS_LAGS};
 pub use loss::Loss;
-pub use pem::{FreeKind, FreeParameter, PemProblem, ProblemOptions, Slot, Term, WeightedData};
+pub use pem::{
+    FreeKind, FreeParameter, PemProblem, ProblemOptions, STRUCTURED_ABOVE, Slot, Term, WeightedData,
+};

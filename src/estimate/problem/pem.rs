@@ -1,9 +1,10 @@
 //! The prediction-error problem's data ([`PemProblem`]): its experiments' terms, free
-//! parameters and options. It is built in `build` and passed over in `pass`, `sums`,
+//! parameters and options. It is built in `build` and passed over in `pass`, `normal`, `sums`,
 //! `best` and `map`.
 
 use super::kept::BestPass;
 use super::loss::Loss;
+use crate::estimate::arrowhead::ArrowLayout;
 use crate::estimate::filter::Butterworth;
 use crate::estimate::scaling::Transform;
 use crate::estimate::solver::NormalEquations;
@@ -29,6 +30,10 @@ pub struct ProblemOptions {
     /// Residual prefilter L(q), one per experiment (its sample time), or empty for none:
     /// `ε_f = L(q) ε` and `J_f = L(q) J`, causal, from rest (MODEL.md §5).
     pub prefilters: Vec<Butterworth>,
+    /// Free parameters above which `JᵀWJ` and the statistics are kept by arrowhead blocks;
+    /// `None`: [`STRUCTURED_ABOVE`]. (`Some(usize::MAX)` keeps every problem dense, for
+    /// comparisons.)
+    pub structured_above: Option<usize>,
 }
 
 /// Where each model parameter of one experiment comes from.
@@ -91,7 +96,17 @@ pub struct PemProblem<'m, M: GreyBoxModel> {
     /// A normal-equation pass already made (at its point p), handed to the solver's first
     /// request at that very point instead of a second pass.
     pub(super) seed: std::sync::Mutex<Option<(DVector<f64>, NormalEquations)>>,
+    /// The block-arrowhead layout of `JᵀWJ` (each free parameter shared or one
+    /// experiment's), when the sums are kept by its blocks (more than
+    /// [`STRUCTURED_ABOVE`] free parameters, no prefilter); `None`: dense.
+    pub(super) layout: Option<std::sync::Arc<ArrowLayout>>,
 }
+
+/// Free parameters above which a problem keeps `JᵀWJ` and the statistics' sums by the
+/// blocks of their arrowhead structure ([`crate::estimate::arrowhead`]) and solves by the
+/// Schur complement; at most this many, dense (and the same bits as before the structure
+/// existed).
+pub const STRUCTURED_ABOVE: usize = 64;
 
 impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
     /// The model.
@@ -117,6 +132,10 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
     /// The residual loss.
     pub fn loss(&self) -> &Loss {
         &self.loss
+    }
+    /// The arrowhead layout of `JᵀWJ` when it is kept by blocks (see [`STRUCTURED_ABOVE`]).
+    pub fn layout(&self) -> Option<&std::sync::Arc<ArrowLayout>> {
+        self.layout.as_ref()
     }
 
     /// Gives the experiments' data back (to build a problem with other options).

@@ -1,13 +1,11 @@
-//! Sums over the passes: the cost, the normal equations, the statistics' sums, the robust
-//! scale, and the full residual and Jacobian matrices for diagnostics.
+//! Sums over the passes: the cost, the statistics' sums, the robust scale, and the full
+//! residual and Jacobian matrices for diagnostics (the normal equations: `normal`).
 
 use super::accumulate::{Accumulator, Sums};
 use super::batches::BlockScores;
 use super::gram::{dot, gram, weighted_square_sum};
-use super::kept::{ExperimentGrams, Gather, ResidualStreams};
-use super::local::scatter_gram;
 use super::local::{Pass, RawSample, ResidualFilter, columns};
-use super::{Loss, NormalEquations, PemProblem};
+use super::{Loss, PemProblem};
 use crate::error::Result;
 use crate::model::BLOCK_LEN;
 use crate::model::GreyBoxModel;
@@ -31,134 +29,7 @@ impl LocalGrams {
     }
 }
 
-/// One experiment's share of the cost and normal equations: cost, `JᵀWJ` (upper
-/// triangle, n_free × n_free) and `JᵀWψ`; and its Grams when the statistics can take them
-/// (see the `best` module).
-type Partial = (f64, DMatrix<f64>, DVector<f64>, Option<ExperimentGrams>);
-
 impl<M: GreyBoxModel> PemProblem<'_, M> {
-    /// Cost `V(p)` and normal equations `JᵀWJ`, `JᵀWψ` in one pass per experiment
-    /// (experiments in parallel, summed in a fixed order: identical for any thread count).
-    ///
-    /// # Errors
-    /// Those of the simulation: invalid θ, [`crate::Error::SimulationDiverged`].
-    pub fn normal_equations(&self, p: &DVector<f64>) -> Result<NormalEquations> {
-        self.normal_equations_gathering(p, Gather::Grams)
-    }
-
-    /// [`normal_equations`](Self::normal_equations); with [`Gather::GramsAndResiduals`], the pass also
-    /// streams the raw residuals into the whiteness test's lag sums and keeps them with its
-    /// Grams, so that [`sums`](Self::sums) at this point needs no pass at all (see the
-    /// `best` module).
-    ///
-    /// # Errors
-    /// As [`normal_equations`](Self::normal_equations).
-    pub(crate) fn normal_equations_gathering(
-        &self,
-        p: &DVector<f64>,
-        gather: Gather,
-    ) -> Result<NormalEquations> {
-        let np = self.free.len();
-        let parts: Vec<Result<Partial>> = (0..self.terms.len())
-            .into_par_iter()
-            .map(|e| self.experiment_normal_equations(e, p, gather))
-            .collect();
-        let mut out = NormalEquations { cost: 0.0, jtj: DMatrix::zeros(np, np), jtr: DVector::zeros(np) };
-        let mut grams = Vec::with_capacity(parts.len());
-        for part in parts {
-            let (c, jtj, jtr, g) = part?;
-            out.cost += c;
-            out.jtj += jtj;
-            out.jtr += jtr;
-            grams.extend(g);
-        }
-        out.jtj.fill_lower_triangle_with_upper_triangle();
-        if grams.len() == self.terms.len() {
-            self.best.offer(p, out.cost, grams);
-        }
-        Ok(out)
-    }
-
-    /// Experiment e's share of [`normal_equations`](Self::normal_equations): per output
-    /// i the weighted Gram of its local columns and its residual,
-    /// `G_i = Σ_k w_k [J_k ε_k]ᵀ[J_k ε_k]` with `w = β Λ_i ψ(ε)/ε` (IRLS weights; `ψ(ε) =
-    /// ε` for the quadratic loss), holds `JᵀWJ` in its first m columns and `JᵀWψ` in its
-    /// last (and, for the quadratic loss, twice the cost in its corner); with
-    /// [`Gather::GramsAndResiduals`], and where the Grams are kept, the raw residuals' lag sums too.
-    fn experiment_normal_equations(&self, e: usize, p: &DVector<f64>, gather: Gather) -> Result<Partial> {
-        let (ny, np) = (self.model.n_outputs(), self.free.len());
-        let quadratic = matches!(self.loss, Loss::Quadratic);
-        let unweighted = quadratic && self.terms[e].weights.is_none();
-        let keeps = unweighted && self.prefilters.is_empty();
-        let mut streams = (gather == Gather::GramsAndResiduals && keeps).then(|| ResidualStreams::new(ny));
-        let mut huber_cost = 0.0;
-        let mut g: Vec<Vec<f64>> = Vec::new();
-        let mut wq = vec![0.0; BLOCK_LEN];
-        // The kept Grams' block scores (their Jᵀε column's growth per block), for the batch means.
-        let mut scores: Option<BlockScores> = None;
-        let mut before = Vec::new();
-        let map = self.pass_blocks(e, p, Pass::CRITERION, |ch| {
-            let m1 = ch.m + 1;
-            if let Some(s) = streams.as_mut() {
-                s.push(ch);
-            }
-            if g.is_empty() {
-                g = vec![vec![0.0; m1 * m1]; ny];
-                before = vec![0.0; ny * ch.m];
-                scores = keeps.then(|| BlockScores::new(ch.m));
-            }
-            let n = ch.len - ch.lo;
-            for (i, gi) in g.iter_mut().enumerate() {
-                let lambda = self.output_weights[i];
-                let mut spill = Vec::new();
-                let cols = columns(ch, i, Some(ch.eps(i)), &mut spill);
-                if unweighted {
-                    gram(cols.as_ref(), None, gi);
-                    continue;
-                }
-                for (t, (&ek, &bk)) in ch.eps(i).iter().zip(ch.beta()).enumerate() {
-                    let w = bk * lambda;
-                    if quadratic {
-                        wq[t] = w;
-                    } else {
-                        let (rho, _, irls, _) = self.loss.eval(i, ek);
-                        huber_cost += w * rho;
-                        wq[t] = w * irls;
-                    }
-                }
-                gram(cols.as_ref(), Some(&wq[..n]), gi);
-            }
-            if let Some(s) = scores.as_mut() {
-                s.push_gram_growth(n, &g, &self.output_weights, &mut before);
-            }
-        })?;
-        let mut jtj = DMatrix::zeros(np, np);
-        let mut jtr = DVector::zeros(np);
-        let mut cost = huber_cost;
-        let m = map.len();
-        let keep = keeps && !g.is_empty();
-        for (i, gi) in g.iter().enumerate() {
-            // Unit weights were summed without Λ_i: it scales the whole Gram.
-            let scale = if unweighted { self.output_weights[i] } else { 1.0 };
-            let m1 = m + 1;
-            if quadratic {
-                cost += 0.5 * scale * gi[m * m1 + m];
-            }
-            let local: Vec<f64> = (0..m)
-                .flat_map(|a| (0..m).map(move |b| (a, b)))
-                .map(|(a, b)| scale * gi[a * m1 + b])
-                .collect();
-            scatter_gram(&map, &local, &mut jtj);
-            for a in 0..m {
-                jtr[map.global[a]] += map.dtheta[a] * scale * gi[a * m1 + m];
-            }
-        }
-        let residuals = streams.map(ResidualStreams::finish);
-        let scores = scores.unwrap_or_default();
-        let grams = keep.then_some(ExperimentGrams { map, grams: g, residuals, scores });
-        Ok((cost, jtj, jtr, grams))
-    }
-
     /// Cost `V(p)` only (simulation without sensitivities).
     ///
     /// # Errors
@@ -217,7 +88,10 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// As [`normal_equations`](Self::normal_equations).
     pub fn sums(&self, p: &DVector<f64>) -> Result<Sums> {
         let (ny, np) = (self.model.n_outputs(), self.free.len());
-        let mut acc = Accumulator::new(ny, np);
+        let mut acc = match &self.layout {
+            Some(layout) => Accumulator::structured(ny, layout),
+            None => Accumulator::new(ny, np),
+        };
         let kept = self.best.at(p);
         for e in 0..self.terms.len() {
             let term = &self.terms[e];

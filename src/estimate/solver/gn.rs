@@ -31,12 +31,13 @@
 //! (Armijo condition, backtracking) and 10.3 (Gauss-Newton); Björck, *Numerical Methods
 //! for Least Squares Problems*, 1996, section 9.2 (damped Gauss-Newton) and 5.2 (bounds).
 
+use super::Gram;
 use super::{
     LeastSquares, LsState, Monitor, NormalEquations, ReportsTermination, Termination, Tolerances,
     damped_solve, init_state, is_infeasible, missing, status, trial_normal_equations,
 };
 use argmin::core::{KV, Problem, Solver, TerminationStatus};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
 
 /// First Levenberg-style shift μ tried when `JᵀWJ` is not positive definite (relative to
@@ -135,9 +136,9 @@ fn open_unit(option: &str, v: f64) -> crate::Result<f64> {
 
 /// Solves `H δ = g` by Cholesky, shifted by `μ diag(H)` with μ = 0, 1e-12, 1e-11, … while
 /// `H` is not positive definite. Returns δ and μ; `None` only for non-finite entries.
-fn shifted_solve(h: &DMatrix<f64>, g: &DVector<f64>) -> Option<(DVector<f64>, f64)> {
-    if let Some(c) = h.clone().cholesky() {
-        return Some((c.solve(g), 0.0));
+fn shifted_solve(h: &Gram, g: &DVector<f64>) -> Option<(DVector<f64>, f64)> {
+    if let Some(delta) = h.solve(g) {
+        return Some((delta, 0.0));
     }
     let dmax = h.diagonal().iter().copied().filter(|d| d.is_finite()).fold(0.0, f64::max);
     let fill = if dmax > 0.0 { dmax } else { 1.0 };
@@ -174,7 +175,7 @@ impl GaussNewton {
     fn direction<O: LeastSquares>(
         problem: &mut Problem<O>,
         p: &DVector<f64>,
-        jtj: &DMatrix<f64>,
+        jtj: &Gram,
         jtr: &DVector<f64>,
     ) -> Result<Option<Direction>, argmin::core::Error> {
         let n = p.len();
@@ -194,12 +195,29 @@ impl GaussNewton {
             let free: Vec<usize> = (0..n).filter(|&j| !held[j]).collect();
             let mut delta = DVector::zeros(n);
             if !free.is_empty() {
-                let h = jtj.select_rows(&free).select_columns(&free);
-                let g = jtr.select_rows(&free);
-                let Some((d, mu)) = shifted_solve(&h, &g) else { return Ok(None) };
+                let (d, mu) = match jtj {
+                    Gram::Dense(m) => {
+                        let h = Gram::Dense(m.select_rows(&free).select_columns(&free));
+                        let Some((d, mu)) = shifted_solve(&h, &jtr.select_rows(&free)) else {
+                            return Ok(None);
+                        };
+                        let mut full = DVector::zeros(n);
+                        for (k, &j) in free.iter().enumerate() {
+                            full[j] = d[k];
+                        }
+                        (full, mu)
+                    }
+                    // The held components as identity rows with a zero right-hand side.
+                    Gram::Arrow(a) => {
+                        let h = Gram::from(a.with_identity_at(&held));
+                        let g = DVector::from_fn(n, |j, _| if held[j] { 0.0 } else { jtr[j] });
+                        let Some(found) = shifted_solve(&h, &g) else { return Ok(None) };
+                        found
+                    }
+                };
                 shift = shift.max(mu);
-                for (k, &j) in free.iter().enumerate() {
-                    delta[j] = d[k];
+                for &j in &free {
+                    delta[j] = d[j];
                 }
             }
             let blocked = outward(&delta)?;
@@ -275,7 +293,7 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
             Ok::<_, argmin::core::Error>(x)
         };
         // Decrease of the quadratic model along a step.
-        let predicted = |step: &DVector<f64>| step.dot(&jtr) - 0.5 * step.dot(&(&jtj * step));
+        let predicted = |step: &DVector<f64>| step.dot(&jtr) - 0.5 * step.dot(&jtj.mul(step));
 
         let full = project(problem, &p + &delta)?;
         let mut alpha = 1.0;

@@ -142,7 +142,7 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
             Ok(())
         })?;
         let step = &trial - &p;
-        let predicted = step.dot(&jtr) - 0.5 * step.dot(&(&jtj * &step));
+        let predicted = step.dot(&jtr) - 0.5 * step.dot(&jtj.mul(&step));
         let evaluate: fn(&O, &DVector<f64>) -> crate::Result<NormalEquations> =
             if self.monitor.likely_last(&self.tol, &step, &trial, predicted / cost) {
                 O::normal_equations_likely_last
@@ -170,7 +170,7 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
                     self.stop(self.monitor.certify(Termination::GradientTolerance, &ne.jtj, ne.cost));
                 } else if damped_solve(&ne.jtj, self.monitor.diag(), self.lambda, &ne.jtr).is_some_and(
                     |next| {
-                        let predicted = next.dot(&ne.jtr) - 0.5 * next.dot(&(&ne.jtj * &next));
+                        let predicted = next.dot(&ne.jtr) - 0.5 * next.dot(&ne.jtj.mul(&next));
                         self.monitor.small_step(&self.tol, &next, &trial)
                             && predicted <= self.tol.ftol * ne.cost
                     },

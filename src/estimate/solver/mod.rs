@@ -13,6 +13,7 @@
 //! gradient slot of the solvers' state ([`LsState`]) holds `∇V`, as argmin documents it.
 
 pub mod gn;
+mod gram;
 pub mod lm;
 mod problem;
 pub mod run;
@@ -21,6 +22,7 @@ mod termination;
 
 pub(crate) use stopping::{Monitor, damped_solve, init_state, missing, status};
 
+pub use gram::Gram;
 pub use problem::{LeastSquares, LsState, NormalEquations};
 pub(crate) use problem::{is_infeasible, trial_normal_equations};
 pub use termination::{ReportsTermination, SolverReport, Termination, Tolerances};

@@ -1,21 +1,23 @@
 //! What a solver needs from a least-squares problem ([`LeastSquares`]): its normal
 //! equations and cost at a point, and the argmin state the solvers share ([`LsState`]).
 
+use super::Gram;
 use crate::error::{Error, Result};
 use argmin::core::IterState;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DVector;
 
 /// argmin state of the greybox solvers: parameter `p` (scaled space, length n_free), gradient
-/// `∇V = −JᵀWε` (length n_free), "Hessian" `JᵀWJ` (n_free × n_free), cost `V`.
-pub type LsState = IterState<DVector<f64>, DVector<f64>, (), DMatrix<f64>, (), f64>;
+/// `∇V = −JᵀWε` (length n_free), "Hessian" `JᵀWJ` (n_free × n_free, [`Gram`]), cost `V`.
+pub type LsState = IterState<DVector<f64>, DVector<f64>, (), Gram, (), f64>;
 
 /// Cost and normal equations at one point (scaled space, length n_free).
 #[derive(Clone, Debug)]
 pub struct NormalEquations {
     /// `V = Σ w ρ(ε)` (`½ εᵀWε` for the quadratic loss).
     pub cost: f64,
-    /// `JᵀWJ` (IRLS-weighted for a robust loss), `n_free × n_free`.
-    pub jtj: DMatrix<f64>,
+    /// `JᵀWJ` (IRLS-weighted for a robust loss), `n_free × n_free`: dense, or by the blocks
+    /// of its arrowhead structure.
+    pub jtj: Gram,
     /// `JᵀWψ(ε)` (`JᵀWε` for the quadratic loss), length n_free: the negative gradient `−∇V`.
     pub jtr: DVector<f64>,
 }

@@ -22,10 +22,10 @@
 //! far from zero (`V > ε_mach V₀`) is reported as [`Termination::ZeroJacobian`], never as
 //! success.
 
-use super::{LeastSquares, LsState, Termination, Tolerances};
+use super::{Gram, LeastSquares, LsState, Termination, Tolerances};
 use crate::error::Error;
 use argmin::core::{Problem, TerminationReason, TerminationStatus};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
 
 /// The error for a state the solver should have filled in `init` (never a panic).
@@ -59,7 +59,7 @@ pub(crate) struct Reductions {
 
 impl Monitor {
     /// Starts a run at cost V₀ and `JᵀWJ` at the start.
-    fn start(&mut self, cost0: f64, jtj: &DMatrix<f64>) {
+    fn start(&mut self, cost0: f64, jtj: &Gram) {
         self.cost0 = cost0;
         self.last_step = None;
         self.peak = jtj.diagonal().map(|d| d.max(0.0));
@@ -67,7 +67,7 @@ impl Monitor {
     }
 
     /// Takes in `JᵀWJ` at a new point (the running maxima).
-    pub fn observe(&mut self, jtj: &DMatrix<f64>) {
+    pub fn observe(&mut self, jtj: &Gram) {
         if self.diag.len() != jtj.nrows() {
             self.start(self.cost0, jtj);
             return;
@@ -138,13 +138,13 @@ impl Monitor {
     }
 
     /// MINPACK's `gtol` test at a point.
-    pub fn gradient_converged(tol: &Tolerances, jtj: &DMatrix<f64>, jtr: &DVector<f64>, cost: f64) -> bool {
+    pub fn gradient_converged(tol: &Tolerances, jtj: &Gram, jtr: &DVector<f64>, cost: f64) -> bool {
         scaled_gradient(jtj, jtr, cost) <= tol.gtol
     }
 
     /// `t`, unless it claims convergence at a point where the Jacobian has vanished at a
     /// cost far from zero: then [`Termination::ZeroJacobian`].
-    pub fn certify(&self, t: Termination, jtj: &DMatrix<f64>, cost: f64) -> Termination {
+    pub fn certify(&self, t: Termination, jtj: &Gram, cost: f64) -> Termination {
         let claims = t.success() && t != Termination::ZeroResidual;
         let far = cost > f64::EPSILON * self.cost0;
         let vanished = (0..jtj.nrows()).all(|j| {
@@ -201,7 +201,7 @@ pub(crate) fn init_state<O: LeastSquares>(
 
 /// MINPACK's scaled gradient norm: `max_j |g_j| / (√H_jj ‖r‖)`, with `‖r‖² = 2 cost`;
 /// columns with `H_jj = 0` are left out.
-fn scaled_gradient(jtj: &DMatrix<f64>, jtr: &DVector<f64>, cost: f64) -> f64 {
+fn scaled_gradient(jtj: &Gram, jtr: &DVector<f64>, cost: f64) -> f64 {
     let rnorm = (2.0 * cost).sqrt();
     (0..jtr.len())
         .map(|j| {
@@ -211,16 +211,13 @@ fn scaled_gradient(jtj: &DMatrix<f64>, jtr: &DVector<f64>, cost: f64) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Solves `(H + λ D) δ = g` by Cholesky; `None` when the matrix is not positive definite.
+/// Solves `(H + λ D) δ = g` by Cholesky (an arrowhead H by its Schur complement); `None`
+/// when the matrix is not positive definite.
 pub(crate) fn damped_solve(
-    h: &DMatrix<f64>,
+    h: &Gram,
     d: &DVector<f64>,
     lambda: f64,
     g: &DVector<f64>,
 ) -> Option<DVector<f64>> {
-    let mut a = h.clone();
-    for j in 0..a.nrows() {
-        a[(j, j)] += lambda * d[j];
-    }
-    a.cholesky().map(|c| c.solve(g))
+    h.damped_solve(d, lambda, g)
 }
