@@ -112,7 +112,7 @@ pub fn read_batches_with(
     limits: &ReadLimits,
     time: TimeCheck,
 ) -> Result<Table> {
-    super::columnar::arrow_io::read_batches(name, schema, batches, wanted, limits, time)
+    super::columnar::memory::read_batches(name, schema, batches, wanted, limits, time)
 }
 
 /// The experiment `e` as one Arrow record batch (feature `parquet`): a time column `time`

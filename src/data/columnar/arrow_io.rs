@@ -77,44 +77,12 @@ pub(crate) fn read(
     Ok(Table { name: experiment_name(path), header, columns: values })
 }
 
-/// Reads the `wanted` columns of Arrow record `batches` in memory (e.g. a table handed over
-/// by Python through the Arrow C stream interface, not copied before this conversion to
-/// f64) as [`read`] reads a file's: the same header, type, null, finiteness, row-limit and
-/// time checks, with `name` standing for the path in errors and naming the table.
-pub(crate) fn read_batches(
-    name: &str,
-    schema: &Schema,
-    batches: &[RecordBatch],
-    wanted: &[(&str, bool)],
-    limits: &ReadLimits,
-    time: TimeCheck,
-) -> Result<Table> {
-    let path = Path::new(name);
-    let (header, index) = header(path, schema, wanted, limits)?;
-    let rows: u64 = batches.iter().map(|b| b.num_rows() as u64).sum();
-    if rows > limits.max_rows {
-        return Err(Error::LimitExceeded {
-            path: path.to_path_buf(),
-            line: limits.max_rows.saturating_add(2),
-            what: format!("more than {} data rows", limits.max_rows),
-            limit: "max_rows".into(),
-            max: limits.max_rows,
-        });
-    }
-    let streaming = time == TimeCheck::Streaming;
-    let values = collect(path, batches.iter().cloned().map(Ok), &header, &index, streaming)?;
-    let values: Vec<Option<Vec<f64>>> = index.iter().zip(values).map(|(i, c)| i.map(|_| c)).collect();
-    let time = streaming.then(|| wanted.first().map_or("", |w| w.0));
-    check::rows(path, time, &header, &index, &values)?;
-    Ok(Table { name: name.to_string(), header, columns: values })
-}
-
 /// The header, the wanted columns' positions in it, one vector per wanted column, and the
 /// row count.
 type Read = (Vec<String>, Vec<Option<usize>>, Vec<Vec<f64>>, u64);
 
 /// The schema's names and the wanted columns' positions in it.
-fn header(
+pub(super) fn header(
     path: &Path,
     schema: &Schema,
     wanted: &[(&str, bool)],
@@ -293,7 +261,7 @@ fn read_ipc(
 /// The wanted columns of every batch, as f64, one vector per wanted column.
 /// With `streaming`, the time column (the first wanted) is checked batch by batch and the
 /// read stops after the batch of its first bad step (the caller's row checks then find it).
-fn collect(
+pub(super) fn collect(
     path: &Path,
     reader: impl Iterator<Item = std::result::Result<RecordBatch, arrow_schema::ArrowError>>,
     header: &[String],
