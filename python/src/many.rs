@@ -62,15 +62,15 @@ pub fn fit_records(
         .collect()
 }
 
+/// One column of the summary: header, Arrow type name, one value per log.
+type Column = (String, &'static str, Vec<Py<PyAny>>);
+
 /// The columns of `--summary` for the records (JSON, as [`fit_records`] returns them):
 /// `(header, arrow type name, values)` with `None` for an empty cell.
 ///
 /// Errors: `Error` for a record that is not one of [`fit_records`]'s.
 #[pyfunction]
-pub fn summary_columns(
-    py: Python<'_>,
-    records: Vec<String>,
-) -> PyResult<Vec<(String, &'static str, Vec<Py<PyAny>>)>> {
+pub fn summary_columns(py: Python<'_>, records: Vec<String>) -> PyResult<Vec<Column>> {
     let records: Vec<Record> = records
         .iter()
         .map(|r| {

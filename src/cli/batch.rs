@@ -40,7 +40,7 @@ pub const EXIT_FAILED: u8 = 4;
 pub const EXIT_UNTRUSTED: u8 = 3;
 
 /// File-name endings of the logs taken from a folder (lower case).
-const LOG_ENDINGS: [&str; 8] =
+pub const LOG_ENDINGS: [&str; 8] =
     [".csv", ".csv.gz", ".parquet", ".pq", ".arrow", ".arrows", ".feather", ".ipc"];
 
 /// Runs `greybox fit --each PATTERN`; returns the exit code (see the module doc).

@@ -117,7 +117,7 @@ pub fn read_batches_with(
 
 /// The experiment `e` as one Arrow record batch (feature `parquet`): a time column `time`
 /// \[s\] (`t_k = k h`) and every channel in order, all f64 of length N, each field's unit in
-/// its metadata (`unit`); what [`write`] puts in a Parquet or Arrow file.
+/// its metadata (`unit`); what [`write()`] puts in a Parquet or Arrow file.
 ///
 /// # Errors
 /// [`Error::Format`] (path `memory`) if Arrow refuses the columns (it does not for a valid

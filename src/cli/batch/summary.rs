@@ -198,7 +198,7 @@ pub enum Cell {
     Flag(bool),
     /// A number in SI units, `None` when not finite (written `{:e}`, or empty).
     Number(Option<f64>),
-    /// A time [s] (written with 3 decimals).
+    /// A time \[s\] (written with 3 decimals).
     Seconds(f64),
     /// No value for this log (an empty cell).
     Missing,
@@ -231,12 +231,13 @@ pub fn columns(records: &[Record]) -> Vec<(String, Vec<Cell>)> {
         ("converged".into(), records.iter().map(|r| r.converged.map_or(Cell::Missing, Cell::Flag)).collect()),
     ];
     let num = |v: f64| Cell::Number(v.is_finite().then_some(v));
-    let lists: [(fn(&Record) -> &[Quantity], _); 2] =
-        [(|r| &r.parameters, &params), (|r| &r.derived, &derived)];
-    for (list, names) in lists {
+    for (derived_list, names) in [(false, &params), (true, &derived)] {
         for (n, u) in names.iter() {
             let u = display_unit(u).0;
-            let q = |r: &Record| list(r).iter().find(|q| q.name == *n).cloned();
+            let q = |r: &Record| {
+                let list = if derived_list { &r.derived } else { &r.parameters };
+                list.iter().find(|q| q.name == *n).cloned()
+            };
             out.push((
                 format!("{n} [{u}]"),
                 records.iter().map(|r| q(r).map_or(Cell::Missing, |q| num(q.value))).collect(),
