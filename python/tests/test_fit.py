@@ -160,3 +160,36 @@ def test_shared_logs_equal_the_cli_to_the_bit(shared, cli, log, n_p, model, extr
     flags = [w for kv in extra for w in ("--" + kv.split("=")[0].replace("_", "-"), kv.split("=")[1])]
     expected = cli_json(cli, str(shared / log), "-p", str(n_p), "--model", model, *flags)
     assert _without_timing(fit.to_json()) == _without_timing(expected)
+
+
+def test_bad_table_values_name_the_table_and_row(sample):
+    table = _table(sample)
+    iq = table.column("iq").to_pylist()
+    iq[5] = float("nan")
+    bad = table.set_column(table.schema.get_field_index("iq"), "iq", pa.array(iq))
+    with pytest.raises(greybox.DataError, match=r"run: .*`iq` is not finite at row 5"):
+        greybox.fit(bad, pole_pairs=4, name="run")
+    text = table.set_column(0, "t", pa.array([str(x) for x in table.column("t").to_pylist()]))
+    with pytest.raises(greybox.DataError, match="column `t` holds"):
+        greybox.fit(text, pole_pairs=4)
+
+
+def test_fits_in_threads_equal_fits_in_a_loop(sample):
+    from concurrent.futures import ThreadPoolExecutor
+
+    options = [dict(hold="dq"), dict(hold="stator"), dict(to=1.5), dict(from_=0.8)]
+    alone = [greybox.fit(sample, pole_pairs=4, **o).parameters for o in options]
+    with ThreadPoolExecutor(4) as pool:
+        threaded = list(pool.map(lambda o: greybox.fit(sample, pole_pairs=4, **o).parameters, options))
+    assert all(a.equals(b) for a, b in zip(alone, threaded))
+
+
+def test_record_batch_reader_and_split_gaps(sample):
+    table = _table(sample)
+    reader = pa.RecordBatchReader.from_batches(table.schema, table.to_batches(max_chunksize=3000))
+    assert greybox.fit(reader, pole_pairs=4).parameters.equals(greybox.fit(table, pole_pairs=4).parameters)
+    gap = pa.concat_tables([table.slice(0, 8000), table.slice(9000)])
+    with pytest.raises(greybox.DataError, match="split-gaps"):
+        greybox.fit(gap, pole_pairs=4)
+    fit = greybox.fit(gap, pole_pairs=4, split_gaps=True, name="gap")
+    assert fit.to_dict()["experiments"] == ["gap#1", "gap#2"]

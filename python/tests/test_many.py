@@ -86,3 +86,17 @@ def test_threads_against_a_loop(logs, capsys):
     assert table.num_rows == len(good)
     with capsys.disabled():
         print(f"\n{len(good)} logs: loop of fit {loop:.3f} s, fit_many {many:.3f} s")
+
+
+def test_shared_logs_threads_against_a_loop(shared, capsys):
+    """fit_many on the development logs against a loop of fit (timings printed, not asserted)."""
+    paths = sorted(shared.glob("servo_spm_*.csv.gz"))
+    t0 = time.perf_counter()
+    loop = [greybox.fit(p, pole_pairs=4).value("r_s") for p in paths]
+    t_loop = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    table = greybox.fit_many(paths, pole_pairs=4)
+    t_many = time.perf_counter() - t0
+    assert table.column("r_s [Ω]").to_pylist() == loop
+    with capsys.disabled():
+        print(f"\n{len(paths)} shared logs: loop of fit {t_loop:.2f} s, fit_many {t_many:.2f} s")
