@@ -50,6 +50,17 @@ def test_fleet_equals_fit_many(client, sample, tmp_path, group_size):
     assert fleet.column("status").to_pylist() == ["ok", "ok", "ok", "failed"]
 
 
+def test_fleet_without_a_client(sample, tmp_path):
+    """client=None: the current client if there is one, else Dask's default scheduler."""
+    import greybox.dask
+
+    paths = [tmp_path / "a.csv.gz", tmp_path / "b.csv.gz"]
+    for p in paths:
+        shutil.copy(sample, p)
+    fleet = greybox.dask.fit_fleet(paths, pole_pairs=4)
+    assert _drop_time(fleet).equals(_drop_time(greybox.fit_many(paths, pole_pairs=4)))
+
+
 def test_fleet_options_checked_once(client, sample):
     import greybox.dask
 

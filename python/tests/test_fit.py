@@ -145,14 +145,24 @@ def test_gil_released_during_fit(sample):
     assert end - start < 0.01 or len(during) >= 3, (len(during), end - start)
 
 
+SHARED = [
+    ("servo_spm_moves", 4, "spm"),
+    ("servo_spm_moves_idinj", 4, "spm"),
+    ("servo_spm_moves_idinj_noisy", 4, "spm"),
+    ("servo_spm_pwm_deadtime_idinj", 4, "spm"),
+    ("servo_spm_pwm_deadtime_lowdrop", 4, "spm"),
+    ("gem_spm_moves_idinj", 4, "spm"),
+    ("ipm_moves_idinj", 2, "ipm"),
+    ("ipm_pwm_deadtime_idinj", 2, "ipm"),
+    ("gem_ipm_moves_idinj", 4, "ipm"),
+    ("gem_ipm_moves_idinj_noisy", 4, "ipm"),
+]
+
+
 @pytest.mark.parametrize(
     "log,n_p,model,extra",
-    [
-        ("servo_spm_moves_idinj.csv.gz", 4, "spm", []),
-        ("ipm_moves_idinj.csv.gz", 2, "ipm", []),
-        ("gem_spm_moves_idinj.csv.gz", 4, "spm", []),
-        ("servo_spm_pwm_deadtime_idinj.csv.gz", 4, "spm", ["voltage=reference", "dead_time=estimate"]),
-    ],
+    [(f"{name}.csv.gz", n_p, model, []) for name, n_p, model in SHARED]
+    + [("servo_spm_pwm_deadtime_idinj.csv.gz", 4, "spm", ["voltage=reference", "dead_time=estimate"])],
 )
 def test_shared_logs_equal_the_cli_to_the_bit(shared, cli, log, n_p, model, extra):
     options = dict(kv.split("=") for kv in extra)
