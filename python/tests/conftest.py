@@ -6,7 +6,6 @@ from __future__ import annotations
 import os
 import pathlib
 import subprocess
-import sys
 
 import pytest
 
@@ -21,19 +20,13 @@ def shared_dir() -> pathlib.Path:
     return pathlib.Path(env) if env else ROOT.parent / "shared" / "data"
 
 
-_skipped_once: set[str] = set()
-
-
 @pytest.fixture(scope="session")
 def shared() -> pathlib.Path:
-    """The development logs' folder; the test is skipped (one line on stderr) without it."""
+    """The development logs' folder; without it the test is skipped with one reason (shown
+    once per test file by ``pytest -rs``)."""
     d = shared_dir()
     if not d.is_dir():
-        reason = f"{d} not found (development logs are not part of the repository; set GREYBOX_SHARED_DATA)"
-        if reason not in _skipped_once:
-            _skipped_once.add(reason)
-            print(f"skipped: {reason}", file=sys.stderr)
-        pytest.skip(reason)
+        pytest.skip(f"{d} not found (development logs are not part of the repository; set GREYBOX_SHARED_DATA)")
     return d
 
 
