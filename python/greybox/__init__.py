@@ -128,7 +128,7 @@ def _paths(logs: Union[PathLike, Iterable[PathLike]]) -> list[str]:
     return [os.fspath(p) for p in logs]  # type: ignore[union-attr]
 
 
-def summary_table(records: list[str]) -> pa.Table:
+def _summary_table(records: list[str]) -> pa.Table:
     """The ``--summary`` table of summary records (JSON, from the native ``fit_records``)."""
     columns = _greybox.summary_columns(records)
     types = {"string": pa.string(), "int64": pa.int64(), "bool": pa.bool_(), "float64": pa.float64()}
@@ -159,7 +159,7 @@ def fit_many(
     paths = _paths(logs)
     argv = to_argv(_flags(pole_pairs=pole_pairs, model=model, **options), paths)
     names = _greybox.log_names(paths)
-    return summary_table(_greybox.fit_records(paths, names, argv, threads))
+    return _summary_table(_greybox.fit_records(paths, names, argv, threads))
 
 
 def _params_file(params: Any, stack: Any) -> str:

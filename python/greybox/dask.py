@@ -15,7 +15,7 @@ from typing import Any, Iterable, Optional, Union
 
 import pyarrow as pa
 
-from . import PathLike, _flags, _greybox, _paths, summary_table
+from . import PathLike, _flags, _greybox, _paths, _summary_table
 from ._options import to_argv
 
 __all__ = ["fit_fleet"]
@@ -69,4 +69,4 @@ def fit_fleet(
     else:
         tasks = [dask.delayed(_fit_group)(p, n, flags) for p, n in groups]
         results = dask.compute(*tasks)
-    return summary_table([r for group in results for r in group])
+    return _summary_table([r for group in results for r in group])

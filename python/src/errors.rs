@@ -59,14 +59,14 @@ pub fn to_py(e: E) -> PyErr {
 }
 
 /// A clap error (unknown flag, bad value) as an `OptionError` with the command line's
-/// message, without its `error: ` and its usage lines.
+/// message, without its `error: `, its usage lines and its tips (which speak of the shell).
 pub fn from_clap(e: clap::Error) -> PyErr {
     let text = e.render().to_string();
     let text = text.strip_prefix("error: ").unwrap_or(&text);
     let message: Vec<&str> = text
         .lines()
         .take_while(|l| !l.starts_with("Usage:") && !l.starts_with("For more information"))
-        .filter(|l| !l.trim().is_empty())
+        .filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with("tip:"))
         .collect();
     OptionError::new_err(message.join("\n"))
 }
