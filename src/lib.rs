@@ -40,6 +40,10 @@
 // Units are written in brackets, `[V]`, `[rad/s]`, as in the field's texts; rustdoc would
 // read them as links.
 
+/// The command-line tool's modules (feature `cli`): flags, commands, report files; the
+/// `greybox` binary and the Python package are thin over them.
+#[cfg(feature = "cli")]
+pub mod cli;
 pub mod data;
 pub mod drive;
 pub mod error;

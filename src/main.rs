@@ -10,10 +10,9 @@
 //! ```
 //! The library does the work; this file only maps flags to options and prints.
 
-mod cli;
-
 use clap::{CommandFactory, Parser, Subcommand};
-use cli::args::FitArgs;
+use greybox::cli;
+use greybox::cli::args::FitArgs;
 use std::process::ExitCode;
 
 // The command line's allocator keeps freed pages for the next large buffer: a fit allocates

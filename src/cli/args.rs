@@ -1,13 +1,15 @@
 //! Command-line arguments of `greybox fit` and their mapping to library options.
 
+use crate::estimate::weighting::SpeedShape;
+use crate::estimate::{ScalingKind, SolverKind, Tolerances, WeightingKind};
+use crate::pmsm::{HoldChoice, MotorKind};
 use clap::{Args, ValueEnum};
-use greybox::estimate::weighting::SpeedShape;
-use greybox::estimate::{ScalingKind, SolverKind, Tolerances, WeightingKind};
-use greybox::pmsm::{HoldChoice, MotorKind};
 use std::path::PathBuf;
 
 pub use super::columns::ColumnArgs;
 
+/// The flags of `greybox fit` (and of `fit --each`), as parsed; [`super::fit::plan`] turns
+/// them into library options.
 #[derive(Args, Debug)]
 pub struct FitArgs {
     /// Exit with 0 even when the fit did not converge or a warning makes it untrusted (the
@@ -76,7 +78,7 @@ pub struct FitArgs {
     /// (4 h v_dt / L from the fit); implies --horizon 1 unless a horizon is given. Needs
     /// --dead-time.
     #[arg(help_heading = "Inverter and cable", long, value_parser = parse_mask)]
-    pub dead_time_mask: Option<greybox::pmsm::DeadTimeMask>,
+    pub dead_time_mask: Option<crate::pmsm::DeadTimeMask>,
     /// DC-link voltage [V]: with --voltage reference, samples driven by a reference at the
     /// modulator's limit U_dc/√3 are weighted out.
     #[arg(help_heading = "Inverter and cable", long)]
@@ -172,11 +174,15 @@ pub struct FitArgs {
     /// `log` column with several) as CSV to this file [s, A].
     #[arg(help_heading = "Output", long, value_name = "PATH.csv")]
     pub residuals: Option<PathBuf>,
+    /// The log-reading flags (columns, units, window, limits).
     #[command(flatten)]
     pub columns: ColumnArgs,
 }
 
-/// What `greybox fit` prints on stdout.
+/// What `greybox fit` prints on stdout (`--format`): the aligned table, the JSON report,
+/// the table as Markdown.
+// The values' clap docs would become `--help` text of their own: the enum's doc says them.
+#[allow(missing_docs)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum FormatArg {
     Table,
@@ -184,6 +190,10 @@ pub enum FormatArg {
     Markdown,
 }
 
+/// The estimation method (`--method`): prediction error (`pem`), linear least squares
+/// (`ls`), instrumental variables (`iv`).
+// The values' clap docs would become `--help` text of their own: the enum's doc says them.
+#[allow(missing_docs)]
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum MethodArg {
     Pem,
@@ -191,7 +201,10 @@ pub enum MethodArg {
     Iv,
 }
 
-/// Which voltage drives the model.
+/// Which voltage drives the model (`--voltage`): the measured terminal voltage (`actual`)
+/// or the controller's reference (`reference`).
+// The values' clap docs would become `--help` text of their own: the enum's doc says them.
+#[allow(missing_docs)]
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum VoltageArg {
     Actual,
@@ -201,15 +214,20 @@ pub enum VoltageArg {
 /// A delay in samples, or to be estimated.
 #[derive(Clone, Copy, Debug)]
 pub enum Delay {
+    /// This many samples.
     Samples(usize),
+    /// Searched by the lowest loss.
     Estimate,
 }
 
 /// The dead-time model: off, estimated, or known [V].
 #[derive(Clone, Copy, Debug)]
 pub enum DeadTime {
+    /// No inverter model.
     None,
+    /// The voltage estimated as a nuisance parameter.
     Estimate,
+    /// A known voltage [V].
     Volts(f64),
 }
 
@@ -230,7 +248,9 @@ fn parse_dead_time(s: &str) -> Result<DeadTime, String> {
 /// A pole-pair number, or to be chosen from the data.
 #[derive(Clone, Copy, Debug)]
 pub enum PolePairs {
+    /// This many pole pairs.
     Given(u32),
+    /// Chosen by the lowest loss.
     Auto,
 }
 
@@ -245,7 +265,9 @@ fn parse_pole_pairs(s: &str) -> Result<PolePairs, String> {
 /// A modulator angle advance [ω_e h], or to be estimated.
 #[derive(Clone, Copy, Debug)]
 pub enum Advance {
+    /// This advance [ω_e h].
     Value(f64),
+    /// Searched by the lowest loss.
     Estimate,
 }
 
@@ -263,14 +285,14 @@ fn parse_advance(s: &str) -> Result<Advance, String> {
 }
 
 /// Parses `auto` or a current ≥ 0 [A].
-fn parse_mask(s: &str) -> Result<greybox::pmsm::DeadTimeMask, String> {
+fn parse_mask(s: &str) -> Result<crate::pmsm::DeadTimeMask, String> {
     match s {
-        "auto" => Ok(greybox::pmsm::DeadTimeMask::Auto),
+        "auto" => Ok(crate::pmsm::DeadTimeMask::Auto),
         _ => s
             .parse()
             .ok()
             .filter(|v: &f64| v.is_finite() && *v >= 0.0)
-            .map(greybox::pmsm::DeadTimeMask::Current)
+            .map(crate::pmsm::DeadTimeMask::Current)
             .ok_or_else(|| format!("`{s}`: expected auto or a current ≥ 0 in amperes")),
     }
 }
@@ -279,7 +301,9 @@ fn parse_mask(s: &str) -> Result<greybox::pmsm::DeadTimeMask, String> {
 /// estimated.
 #[derive(Clone, Copy, Debug)]
 pub enum Pll {
+    /// This value (bandwidth [rad/s] or width [A]).
     Bandwidth(f64),
+    /// Searched by the lowest loss.
     Estimate,
 }
 
@@ -358,8 +382,8 @@ fn parse_weighting(s: &str) -> Result<WeightingKind, String> {
             ));
         }
     };
-    let channel = greybox::pmsm::channel::W_M;
-    greybox::estimate::weighting::SpeedWeighting::try_new(channel, shape).map_err(|e| e.to_string())?;
+    let channel = crate::pmsm::channel::W_M;
+    crate::estimate::weighting::SpeedWeighting::try_new(channel, shape).map_err(|e| e.to_string())?;
     Ok(WeightingKind::Speed { channel: channel.into(), shape })
 }
 

@@ -17,16 +17,16 @@
 //! error before any fit (no log matched, a flag the batch cannot honour, an output that
 //! cannot be written).
 
-mod summary;
+pub mod summary;
 mod trend;
 
 use super::args::FitArgs;
 use super::columns::named;
 use super::fit::{Plan, fit_logs, plan};
 use super::output;
-use greybox::Error;
-use greybox::data::staged::Staged;
-use greybox::pmsm::PmsmFit;
+use crate::Error;
+use crate::data::staged::Staged;
+use crate::pmsm::PmsmFit;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -40,7 +40,7 @@ pub const EXIT_FAILED: u8 = 4;
 pub const EXIT_UNTRUSTED: u8 = 3;
 
 /// File-name endings of the logs taken from a folder (lower case).
-const LOG_ENDINGS: [&str; 8] =
+pub const LOG_ENDINGS: [&str; 8] =
     [".csv", ".csv.gz", ".parquet", ".pq", ".arrow", ".arrows", ".feather", ".ipc"];
 
 /// Runs `greybox fit --each PATTERN`; returns the exit code (see the module doc).
@@ -50,16 +50,9 @@ const LOG_ENDINGS: [&str; 8] =
 /// naming `--method` for `--method ls`, naming `--summary`/`--trend` for an output that
 /// cannot be written (checked before any fit); the errors of [`plan`]; [`Error::Write`]
 /// when an output cannot be written after the fits.
-pub fn run_batch(a: &FitArgs, pattern: &str) -> greybox::Result<u8> {
+pub fn run_batch(a: &FitArgs, pattern: &str) -> crate::Result<u8> {
     let t0 = Instant::now();
-    let plan = plan(a)?;
-    if plan.pem.is_none() {
-        return Err(Error::InvalidOption {
-            option: "--method".into(),
-            reason: "--each fits each log by the prediction-error method; --method ls is for one fit (drop --each)"
-                .into(),
-        });
-    }
+    let plan = batch_plan(a)?;
     let paths = expand(pattern)?;
     let summary_paths = a.summary.as_deref().map(summary_paths);
     let (csv, json) =
@@ -68,10 +61,8 @@ pub fn run_batch(a: &FitArgs, pattern: &str) -> greybox::Result<u8> {
     let stems: Vec<String> = paths.iter().map(|p| stem(p)).collect();
     let names = super::logs::unique_names(&paths, &stems);
     let bar = progress(a.quiet, paths.len());
-    let one = |k: usize| {
-        let (path, name) = (&paths[k], &names[k]);
-        let result = fit_one(a, &plan, path, name);
-        if let Err(e) = &result {
+    let records = fit_each(a, &plan, &paths, &names, rayon::current_num_threads(), |path, result| {
+        if let Err(e) = result {
             // The reader's errors name the file already.
             let shown = path.display().to_string();
             let e = e.to_string();
@@ -79,9 +70,7 @@ pub fn run_batch(a: &FitArgs, pattern: &str) -> greybox::Result<u8> {
             bar.suspend(|| eprintln!("error: {line}"));
         }
         bar.inc(1);
-        Record::new(path, name, result)
-    };
-    let records = queue(paths.len(), rayon::current_num_threads(), one);
+    });
     bar.finish_and_clear();
     let wall_s = t0.elapsed().as_secs_f64();
     let count = |s: Status| records.iter().filter(|r| r.status == s).count();
@@ -96,7 +85,7 @@ pub fn run_batch(a: &FitArgs, pattern: &str) -> greybox::Result<u8> {
     }
     if let Some(p) = &a.trend {
         let svg = trend::svg(pattern, &records)?;
-        staged.produce(p, |tmp| greybox::report::plot::write_svg(tmp, &svg))?;
+        staged.produce(p, |tmp| crate::report::plot::write_svg(tmp, &svg))?;
     }
     staged.commit()?;
     eprintln!("{} logs in {wall_s:.2} s: {ok} ok, {untrusted} untrusted, {failed} failed", records.len());
@@ -111,9 +100,47 @@ pub fn run_batch(a: &FitArgs, pattern: &str) -> greybox::Result<u8> {
     })
 }
 
+/// The [`Plan`] of a batch's flags: [`plan`]'s, `--method ls` refused.
+///
+/// # Errors
+/// Those of [`plan`]; [`Error::InvalidOption`] naming `--method` for `--method ls`.
+pub fn batch_plan(a: &FitArgs) -> crate::Result<Plan> {
+    let plan = plan(a)?;
+    if plan.pem.is_none() {
+        return Err(Error::InvalidOption {
+            option: "--method".into(),
+            reason: "--each fits each log by the prediction-error method; --method ls is for one fit (drop --each)"
+                .into(),
+        });
+    }
+    Ok(plan)
+}
+
+/// Fits every log of `paths` on its own as `greybox fit --each` does, named `names`, on
+/// `threads` plain threads (see the module doc), with the flags `a` planned into `plan`;
+/// `done` hears of each log's result as it finishes (in any order). A log that cannot be
+/// read or fitted is a [`Status::Failed`] record, never an error; the records in the order
+/// of `paths`.
+pub fn fit_each(
+    a: &FitArgs,
+    plan: &Plan,
+    paths: &[PathBuf],
+    names: &[String],
+    threads: usize,
+    done: impl Fn(&Path, &crate::Result<PmsmFit>) + Sync,
+) -> Vec<Record> {
+    let one = |k: usize| {
+        let (path, name) = (&paths[k], &names[k]);
+        let result = fit_one(a, plan, path, name);
+        done(path, &result);
+        Record::new(path, name, result)
+    };
+    queue(paths.len(), threads, one)
+}
+
 /// Reads and fits one log as `greybox fit LOG` would (without its spinner), named `name`;
 /// a panic inside becomes an error, so that the other logs are still fitted.
-fn fit_one(a: &FitArgs, plan: &Plan, path: &Path, name: &str) -> greybox::Result<PmsmFit> {
+fn fit_one(a: &FitArgs, plan: &Plan, path: &Path, name: &str) -> crate::Result<PmsmFit> {
     let run = || {
         let t0 = Instant::now();
         // One experiment, or with --split-gaps one per segment (`name#1`, `name#2`, …).
@@ -143,7 +170,7 @@ fn fit_one(a: &FitArgs, plan: &Plan, path: &Path, name: &str) -> greybox::Result
 /// # Errors
 /// [`Error::InvalidOption`] naming `--each` for a malformed glob, an unreadable folder or
 /// entry, or no log at all.
-fn expand(pattern: &str) -> greybox::Result<Vec<PathBuf>> {
+pub fn expand(pattern: &str) -> crate::Result<Vec<PathBuf>> {
     let bad = |reason: String| Error::InvalidOption { option: "--each".into(), reason };
     let dir = Path::new(pattern);
     let mut paths: Vec<PathBuf> = if dir.is_dir() {
@@ -181,7 +208,7 @@ fn expand(pattern: &str) -> greybox::Result<Vec<PathBuf>> {
 
 /// The name of a log as the reader gives it: the file name without `.gz` and a log
 /// extension.
-fn stem(p: &Path) -> String {
+pub fn stem(p: &Path) -> String {
     let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let name = name.strip_suffix(".gz").unwrap_or(&name);
     match name.rsplit_once('.') {

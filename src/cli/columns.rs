@@ -2,14 +2,15 @@
 //! frames and scaling, read limits, the time window and the split at gaps; mapped to the
 //! library's [`CsvOptions`].
 
+use crate::Experiment;
+use crate::data::TimeWindow;
+use crate::data::csv::Delimiter;
+use crate::pmsm::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit, TimeUnit};
+use crate::pmsm::{LogSegments, LogSource};
 use clap::Args;
-use greybox::Experiment;
-use greybox::data::TimeWindow;
-use greybox::data::csv::Delimiter;
-use greybox::pmsm::LogSegments;
-use greybox::pmsm::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit, TimeUnit};
 use std::path::{Path, PathBuf};
 
+/// The log-reading flags shared by `fit`, `validate` and `track` (see the module doc).
 #[derive(Args, Debug)]
 pub struct ColumnArgs {
     /// Time column [s].
@@ -99,13 +100,13 @@ pub struct ColumnArgs {
     #[arg(help_heading = "Time window and checks", long)]
     pub force: bool,
     /// Longest line of a log in bytes; a longer one stops the read (default 1 MiB).
-    #[arg(help_heading = "Reading limits", long, default_value_t = greybox::data::csv::ReadLimits::default().max_line_bytes)]
+    #[arg(help_heading = "Reading limits", long, default_value_t = crate::data::csv::ReadLimits::default().max_line_bytes)]
     pub max_line_bytes: u64,
     /// Most columns in a log's header (default 4096).
-    #[arg(help_heading = "Reading limits", long, default_value_t = greybox::data::csv::ReadLimits::default().max_fields)]
+    #[arg(help_heading = "Reading limits", long, default_value_t = crate::data::csv::ReadLimits::default().max_fields)]
     pub max_fields: usize,
     /// Most data rows in a log (default 10^8).
-    #[arg(help_heading = "Reading limits", long, default_value_t = greybox::data::csv::ReadLimits::default().max_rows)]
+    #[arg(help_heading = "Reading limits", long, default_value_t = crate::data::csv::ReadLimits::default().max_rows)]
     pub max_rows: u64,
     /// Field delimiter of CSV logs: `,` `;` `tab` (or `\t`) `|`; Parquet/Arrow ignore it.
     #[arg(help_heading = "Reading limits", long, default_value = ",", value_parser = |s: &str| s.parse::<Delimiter>().map_err(|e| e.to_string()))]
@@ -127,6 +128,7 @@ fn parse_phases(s: &str) -> Result<Phases, String> {
 }
 
 impl ColumnArgs {
+    /// The reader's options of these flags (pole pairs `None`: the command sets them).
     pub fn options(&self) -> CsvOptions {
         CsvOptions {
             pole_pairs: None,
@@ -154,7 +156,7 @@ impl ColumnArgs {
             current_scale: self.current_scale,
             voltage_scale: self.voltage_scale,
             source: if self.dq_from_phases { DqSource::Phases } else { DqSource::Dq },
-            limits: greybox::data::csv::ReadLimits {
+            limits: crate::data::csv::ReadLimits {
                 max_line_bytes: self.max_line_bytes,
                 max_fields: self.max_fields,
                 max_rows: self.max_rows,
@@ -179,8 +181,8 @@ impl ColumnArgs {
         paths: &[PathBuf],
         csv: &CsvOptions,
         unique: bool,
-    ) -> greybox::Result<Vec<Vec<Experiment>>> {
-        let logs = paths.iter().map(|p| self.read_segments(p, csv)).collect::<greybox::Result<Vec<_>>>()?;
+    ) -> crate::Result<Vec<Vec<Experiment>>> {
+        let logs = paths.iter().map(|p| self.read_segments(p, csv)).collect::<crate::Result<Vec<_>>>()?;
         let stems: Vec<String> = logs.iter().map(|l| l.name.clone()).collect();
         let names = if unique { super::logs::unique_names(paths, &stems) } else { stems };
         Ok(logs
@@ -197,27 +199,43 @@ impl ColumnArgs {
     /// # Errors
     /// The reader's, with the options named by their flags (`--from`, `--to`,
     /// `--from/--to`, `--split-gaps`).
-    pub fn read_segments(&self, path: &Path, csv: &CsvOptions) -> greybox::Result<LogSegments> {
+    pub fn read_segments(&self, path: &Path, csv: &CsvOptions) -> crate::Result<LogSegments> {
+        self.read_segments_from(LogSource::Path(path), csv)
+    }
+
+    /// [`ColumnArgs::read_segments`] of a file or an Arrow table in memory.
+    ///
+    /// # Errors
+    /// Those of [`ColumnArgs::read_segments`], a table named by its name.
+    pub fn read_segments_from(&self, source: LogSource<'_>, csv: &CsvOptions) -> crate::Result<LogSegments> {
         let log = if self.split_gaps {
-            greybox::pmsm::read_log_segments(path, csv)
+            crate::pmsm::read_log_segments_from(source, csv)
         } else {
-            greybox::pmsm::read_log(path, csv).map(|e| LogSegments {
+            crate::pmsm::read_log_from(source, csv).map(|e| LogSegments {
                 name: e.name().to_string(),
                 experiments: vec![e],
                 dropped: vec![],
             })
         };
-        log.map_err(flag_words).map_err(|e| with_file(path, e, csv.delimiter))
+        let file = matches!(source, LogSource::Path(_));
+        log.map_err(flag_words).map_err(|e| with_file(source.path(), e, csv.delimiter, file))
     }
 }
 
 /// A data error that names no file (a non-finite value, a time step, a length) with the
-/// log's path in front, as the parse errors have it, and for a row of a CSV log the line of
-/// the file it stands on.
-fn with_file(path: &Path, e: greybox::Error, delimiter: greybox::data::csv::Delimiter) -> greybox::Error {
-    use greybox::Error;
+/// log's path in front, as the parse errors have it, and for a row of a CSV log (`file`:
+/// not a table in memory) the line of the file it stands on.
+fn with_file(
+    path: &Path,
+    e: crate::Error,
+    delimiter: crate::data::csv::Delimiter,
+    file: bool,
+) -> crate::Error {
+    use crate::Error;
     let line = match &e {
-        Error::NonFinite { row, .. } | Error::NonUniformTime { row, .. } => csv_line(path, *row, delimiter),
+        Error::NonFinite { row, .. } | Error::NonUniformTime { row, .. } if file => {
+            csv_line(path, *row, delimiter)
+        }
         _ => None,
     };
     let at = line.map(|l| format!(" (line {l} of the file)")).unwrap_or_default();
@@ -242,7 +260,7 @@ pub fn named(path: &Path, log: LogSegments, name: &str) -> Vec<Experiment> {
             d.from,
             d.to,
             d.samples,
-            greybox::pmsm::MIN_SAMPLES
+            crate::pmsm::MIN_SAMPLES
         );
     }
     let one = log.experiments.len() == 1;
@@ -253,17 +271,17 @@ pub fn named(path: &Path, log: LogSegments, name: &str) -> Vec<Experiment> {
 }
 
 /// The reader's option names as the flags that set them.
-fn flag_words(e: greybox::Error) -> greybox::Error {
+fn flag_words(e: crate::Error) -> crate::Error {
     match e {
-        greybox::Error::InvalidOption { option, reason } => {
+        crate::Error::InvalidOption { option, reason } => {
             let flag = match option.as_str() {
                 "from" => "--from",
                 "to" => "--to",
                 "window" => "--from/--to",
                 "split_gaps" => "--split-gaps",
-                _ => return greybox::Error::InvalidOption { option, reason },
+                _ => return crate::Error::InvalidOption { option, reason },
             };
-            greybox::Error::InvalidOption { option: flag.into(), reason }
+            crate::Error::InvalidOption { option: flag.into(), reason }
         }
         other => other,
     }
@@ -272,8 +290,8 @@ fn flag_words(e: greybox::Error) -> greybox::Error {
 /// The 1-based line of the file on which data row `row` (0-based, header excluded) of the
 /// CSV log at `path` starts (gzip for `.gz`), read again with the `csv` crate on the error
 /// path; `None` for a columnar log or when the file cannot be read so far.
-fn csv_line(path: &Path, row: usize, delimiter: greybox::data::csv::Delimiter) -> Option<u64> {
-    use greybox::data::Format;
+fn csv_line(path: &Path, row: usize, delimiter: crate::data::csv::Delimiter) -> Option<u64> {
+    use crate::data::Format;
     if Format::of(path) != Format::Csv {
         return None;
     }

@@ -2,7 +2,7 @@
 //! names (`per_experiment`) and its models by their report names (`pmsm_spm`); the user
 //! typed `--per-log` and `--model spm`.
 
-use greybox::Error;
+use crate::Error;
 
 /// The flag of a library option name, or `None` when the name is not an option the command
 /// line sets.

@@ -1,16 +1,16 @@
 //! `greybox fit`: read the logs, fit, print the table and write the JSON report.
 
 use super::args::{Advance, DeadTime, Delay, FitArgs, FormatArg, MethodArg, Pll, PolePairs, VoltageArg};
+use super::fitted::{FitOutcome, fit_experiments};
 use super::output;
-use greybox::data::staged::Staged;
-use greybox::estimate::{FitResult, PemOptions, SolverKind, Timing, Tolerances};
-use greybox::pmsm::ReportOptions;
-use greybox::pmsm::weighted_least_squares;
-use greybox::pmsm::{
-    CsvOptions, DqSource, Estimator, Frame, HoldChoice, InputSearch, InverterModel, LinearOptions, MotorKind,
-    PmsmFit, PmsmFitOptions, ThermalReference, VoltageInput, fit_estimating_input, fit_pmsm, fit_pmsm_iv,
+use crate::data::staged::Staged;
+use crate::estimate::{FitResult, PemOptions, SolverKind, Timing, Tolerances};
+use crate::pmsm::ReportOptions;
+use crate::pmsm::{
+    CsvOptions, DqSource, Estimator, Frame, HoldChoice, InputSearch, InverterModel, MotorKind, PmsmFit,
+    PmsmFitOptions, ThermalReference, VoltageInput, fit_estimating_input, fit_pmsm, fit_pmsm_iv,
 };
-use greybox::report::Document;
+use crate::report::Document;
 use std::time::Instant;
 
 /// What `greybox fit` does to every log, decided from the flags before any log is read:
@@ -31,11 +31,11 @@ pub struct Plan {
 
 /// Runs `greybox fit`; `Ok(false)` when the report was written but the result is not
 /// trustworthy (not converged, or an untrusted warning) and `--allow-unconverged` is off.
-pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
+pub fn run_fit(a: &FitArgs) -> crate::Result<bool> {
     let t0 = Instant::now();
     for (flag, given) in [("--summary", a.summary.is_some()), ("--trend", a.trend.is_some())] {
         if given {
-            return Err(greybox::Error::InvalidOption {
+            return Err(crate::Error::InvalidOption {
                 option: flag.into(),
                 reason: "belongs to a batch (--each DIR_OR_GLOB); one fit writes --json and --plot".into(),
             });
@@ -55,53 +55,20 @@ pub fn run_fit(a: &FitArgs) -> greybox::Result<bool> {
     super::logs::check_paths(&a.logs)?;
     let logs: Vec<_> = a.columns.read_logs(&a.logs, &plan.csv, true)?.into_iter().flatten().collect();
     let read_s = t0.elapsed().as_secs_f64();
-    let Some((options, search, estimator)) = &plan.pem else {
-        let t1 = Instant::now();
-        let rule = a.weighting.rule()?;
-        let opts = LinearOptions { prefilter: a.prefilter, ..LinearOptions::default() };
-        let (n_p, _) = pole_pairs(a.pole_pairs, &logs, plan.kind, None)?;
-        let ls = weighted_least_squares(&logs, n_p, plan.kind, rule.as_ref(), &opts)?;
-        let names: Vec<String> = logs.iter().map(|e| e.name().to_string()).collect();
-        let report = ls.report(&names, n_p, t1.elapsed().as_secs_f64());
-        // The prediction-error fit of the same logs tells whether noise biased the regression.
-        let pem = PmsmFitOptions { model: plan.kind, ..PmsmFitOptions::new(n_p) };
-        let warnings = match fit_pmsm(
-            &logs,
-            &PmsmFitOptions { pem: PemOptions { progress: false, ..pem.pem.clone() }, ..pem },
-        ) {
-            Ok(fit) => ls.disagreement(&fit.report).into_iter().collect(),
-            Err(_) => Vec::new(),
-        };
-        let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..report.timing.clone() };
-        let report = FitResult { timing, warnings, ..report };
-        let json = report.to_json();
-        if !quiet {
-            let k = |n: &str| report.parameter(n).map(|p| p.value);
-            let kt = report.derived("k_t").map(|q| q.value);
-            let conventions =
-                greybox::pmsm::conventions(k("k_e"), kt, k("l_d").is_some(), plan.report_options);
-            print_report(a.format, &report.document(&conventions), &json)?;
-        }
-        let mut staged = Staged::new();
-        if let Some(path) = &a.json {
-            output::write(&mut staged, path, &json)?;
-        }
-        staged.commit()?;
-        return Ok(trusted(&report, a.allow_unconverged));
-    };
-    let result = fit_logs(a.pole_pairs, options, *search, *estimator, &logs, t0, read_s)?;
-    let json = result.to_json();
+    let fitted = fit_experiments(a, &plan, &logs, t0, read_s)?;
     // Every output file staged, the report printed, then all renamed at once.
     let mut staged = Staged::new();
-    super::plots::fit_outputs(&mut staged, a.plot.as_deref(), a.residuals.as_deref(), &result, &logs)?;
+    if let FitOutcome::Pem(fit) = &fitted.outcome {
+        super::plots::fit_outputs(&mut staged, a.plot.as_deref(), a.residuals.as_deref(), fit, &logs)?;
+    }
     if !quiet {
-        print_report(a.format, &result.document(plan.report_options), &json)?;
+        print_report(a.format, &fitted.document, &fitted.json)?;
     }
     if let Some(path) = &a.json {
-        output::write(&mut staged, path, &json)?;
+        output::write(&mut staged, path, &fitted.json)?;
     }
     staged.commit()?;
-    Ok(trusted(&result, a.allow_unconverged))
+    Ok(trusted(fitted.report(), a.allow_unconverged))
 }
 
 /// Whether `report` is trusted, saying why not on stderr; `allow` (--allow-unconverged)
@@ -131,10 +98,10 @@ pub fn fit_logs(
     options: &PmsmFitOptions,
     search: InputSearch,
     estimator: Estimator,
-    logs: &[greybox::Experiment],
+    logs: &[crate::Experiment],
     t0: Instant,
     read_s: f64,
-) -> greybox::Result<PmsmFit> {
+) -> crate::Result<PmsmFit> {
     let (n_p, auto_note) = pole_pairs(pole_pairs_arg, logs, options.model, Some(options))?;
     let options = PmsmFitOptions { pole_pairs: n_p, ..options.clone() };
     let fit = if search.delay || search.advance || search.speed_pll || search.dead_time_width {
@@ -152,19 +119,19 @@ pub fn fit_logs(
 /// The [`Plan`] of the flags `a`, every combination the fit cannot honour refused.
 ///
 /// # Errors
-/// [`greybox::Error::InvalidOption`] naming the flag: `--pole-pairs auto` with an
+/// [`crate::Error::InvalidOption`] naming the flag: `--pole-pairs auto` with an
 /// electrical speed or dq from phases, options `--method ls` cannot honour, input searches
 /// with `--voltage actual`, `--r-s0`/`--psi-f0` without `--t0`, a dead-time mask without
 /// the dead-time model, a dead-time model with the measured voltage; and those of
 /// [`ThermalReference::try_new`] and the `--weighting` rule.
-pub fn plan(a: &FitArgs) -> greybox::Result<Plan> {
+pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
     let given = match a.pole_pairs {
         PolePairs::Given(n) => Some(n),
         PolePairs::Auto => None,
     };
     let csv = CsvOptions { pole_pairs: given, ..a.columns.options() };
     if given.is_none() && (csv.speed_frame == Frame::Electrical || csv.source == DqSource::Phases) {
-        return Err(greybox::Error::InvalidOption {
+        return Err(crate::Error::InvalidOption {
             option: "pole-pairs".into(),
             reason:
                 "auto cannot be used with an electrical speed or dq from phases, which need n_p to be read"
@@ -202,7 +169,7 @@ pub fn plan(a: &FitArgs) -> greybox::Result<Plan> {
     if matches!(a.voltage, VoltageArg::Actual)
         && (search.delay || search.advance || search.speed_pll || a.speed_pll.is_some())
     {
-        return Err(greybox::Error::InvalidOption {
+        return Err(crate::Error::InvalidOption {
             option: "voltage".into(),
             reason: "--delay estimate, --advance estimate and --speed-pll apply to --voltage reference"
                 .into(),
@@ -212,7 +179,7 @@ pub fn plan(a: &FitArgs) -> greybox::Result<Plan> {
         (None, None, None) => None,
         (Some(t0), r_s0, psi_f0) => Some(ThermalReference::try_new(t0, r_s0, psi_f0)?),
         (None, _, _) => {
-            return Err(greybox::Error::InvalidOption {
+            return Err(crate::Error::InvalidOption {
                 option: "t0".into(),
                 reason: "--r-s0 and --psi-f0 are values at a reference temperature: give it with --t0".into(),
             });
@@ -228,14 +195,14 @@ pub fn plan(a: &FitArgs) -> greybox::Result<Plan> {
         DeadTime::Volts(v) => Some(InverterModel { width, known: Some(v), mask: a.dead_time_mask }),
     };
     if inverter.is_none() && a.dead_time_mask.is_some() {
-        return Err(greybox::Error::InvalidOption {
+        return Err(crate::Error::InvalidOption {
             option: "dead-time-mask".into(),
             reason: "the mask belongs to the dead-time model: add --dead-time estimate (or a known voltage)"
                 .into(),
         });
     }
     if inverter.is_some() && matches!(a.voltage, VoltageArg::Actual) {
-        return Err(greybox::Error::InvalidOption {
+        return Err(crate::Error::InvalidOption {
             option: "dead-time".into(),
             reason:
                 "the measured terminal voltage already contains the inverter's error: use --voltage reference"
@@ -278,12 +245,12 @@ pub fn plan(a: &FitArgs) -> greybox::Result<Plan> {
         _ => Estimator::PredictionError,
     };
     if estimator == Estimator::InstrumentalVariables {
-        greybox::pmsm::check_iv_options(&options)?;
+        crate::pmsm::check_iv_options(&options)?;
     }
     if estimator == Estimator::InstrumentalVariables
         && (search.delay || search.advance || search.speed_pll || search.dead_time_width)
     {
-        return Err(greybox::Error::InvalidOption {
+        return Err(crate::Error::InvalidOption {
             option: "method".into(),
             reason:
                 "iv inverts the measured terminal voltage: it takes no input search (--delay, --advance, \
@@ -297,13 +264,13 @@ pub fn plan(a: &FitArgs) -> greybox::Result<Plan> {
 /// The pole pairs given, or chosen by `--pole-pairs auto` with a note on how decisively:
 /// the least-squares loss alone for `--method ls`, else the prediction-error loss of the
 /// best least-squares candidates fitted with `options`.
-fn pole_pairs(
+pub(super) fn pole_pairs(
     given: PolePairs,
-    logs: &[greybox::Experiment],
+    logs: &[crate::Experiment],
     kind: MotorKind,
     options: Option<&PmsmFitOptions>,
-) -> greybox::Result<(u32, Option<String>)> {
-    use greybox::pmsm::{POLE_PAIR_CANDIDATES as C, choose_pole_pairs, choose_pole_pairs_by_fit};
+) -> crate::Result<(u32, Option<String>)> {
+    use crate::pmsm::{POLE_PAIR_CANDIDATES as C, choose_pole_pairs, choose_pole_pairs_by_fit};
     match (given, options) {
         (PolePairs::Given(n), _) => Ok((n, None)),
         (PolePairs::Auto, None) => {
@@ -332,7 +299,7 @@ fn pole_pairs(
 }
 
 /// Refuses the options that linear least squares cannot honour, naming them.
-fn ls_only(a: &FitArgs) -> greybox::Result<()> {
+fn ls_only(a: &FitArgs) -> crate::Result<()> {
     let mut bad = Vec::new();
     let given = [
         ("--start", a.start.is_some()),
@@ -368,7 +335,7 @@ fn ls_only(a: &FitArgs) -> greybox::Result<()> {
     if bad.is_empty() {
         Ok(())
     } else {
-        Err(greybox::Error::InvalidOption {
+        Err(crate::Error::InvalidOption {
             option: "method".into(),
             reason: format!("--method ls cannot honour {}: drop them or use --method pem", bad.join(", ")),
         })
@@ -378,8 +345,8 @@ fn ls_only(a: &FitArgs) -> greybox::Result<()> {
 /// Prints the report on stdout in the `--format` asked for.
 ///
 /// # Errors
-/// [`greybox::Error::Write`] when stdout cannot take it (not a closed pipe).
-fn print_report(format: FormatArg, doc: &Document, json: &str) -> greybox::Result<()> {
+/// [`crate::Error::Write`] when stdout cannot take it (not a closed pipe).
+fn print_report(format: FormatArg, doc: &Document, json: &str) -> crate::Result<()> {
     super::output::stdout(&match format {
         FormatArg::Table => doc.to_text(),
         FormatArg::Markdown => doc.to_markdown(),

@@ -1,7 +1,7 @@
 //! The log paths of a command line: refused when given twice or when a word meant as a
 //! flag's value landed among them; named by the shortest path suffix that tells them apart.
 
-use greybox::Error;
+use crate::Error;
 use std::path::{Component, Path, PathBuf};
 
 /// Checks the log paths before anything is read.
@@ -12,7 +12,7 @@ use std::path::{Component, Path, PathBuf};
 ///   `--huber` takes its value only as `--huber=2.0`);
 /// - when the same log is given twice, as typed or after resolving `.`, `..` and links
 ///   (fitting it twice would shrink the standard errors by √2).
-pub fn check_paths(paths: &[PathBuf]) -> greybox::Result<()> {
+pub fn check_paths(paths: &[PathBuf]) -> crate::Result<()> {
     let bad = |reason: String| Error::InvalidOption { option: "LOG".into(), reason };
     for p in paths {
         let s = p.to_string_lossy();

@@ -2,8 +2,8 @@
 //! file), staged and renamed together after it succeeds; stdout that fails is an error,
 //! a closed pipe quiet.
 
-use greybox::Error;
-use greybox::data::staged::Staged;
+use crate::Error;
+use crate::data::staged::Staged;
 use std::path::{Path, PathBuf};
 
 /// Checks before any work that the output given by the flag `flag` (its long name, e.g.
@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 /// # Errors
 /// [`Error::InvalidOption`] (option `flag`) naming the path when it is an input or its
 /// folder is missing.
-pub fn check_as(flag: &str, path: &Path, inputs: &[PathBuf]) -> greybox::Result<()> {
+pub fn check_as(flag: &str, path: &Path, inputs: &[PathBuf]) -> crate::Result<()> {
     if path.as_os_str() == "-" {
         return Ok(());
     }
@@ -40,7 +40,7 @@ pub fn check_as(flag: &str, path: &Path, inputs: &[PathBuf]) -> greybox::Result<
 ///
 /// # Errors
 /// [`Error::InvalidOption`] naming the flag and the path.
-pub fn check_all(outputs: &[(&str, Option<&Path>)], inputs: &[PathBuf]) -> greybox::Result<()> {
+pub fn check_all(outputs: &[(&str, Option<&Path>)], inputs: &[PathBuf]) -> crate::Result<()> {
     let given: Vec<(&str, &Path)> =
         outputs.iter().filter_map(|(f, p)| p.filter(|p| p.as_os_str() != "-").map(|p| (*f, p))).collect();
     for (i, (flag, path)) in given.iter().enumerate() {
@@ -72,7 +72,7 @@ fn same_file(a: &Path, b: &Path) -> bool {
 ///
 /// # Errors
 /// [`Error::Write`] with the path when the temporary file cannot be written.
-pub fn write(staged: &mut Staged, path: &Path, text: &str) -> greybox::Result<()> {
+pub fn write(staged: &mut Staged, path: &Path, text: &str) -> crate::Result<()> {
     if path.as_os_str() == "-" {
         return stdout(&format!("{text}\n"));
     }
@@ -88,7 +88,7 @@ pub fn write(staged: &mut Staged, path: &Path, text: &str) -> greybox::Result<()
 ///
 /// # Errors
 /// [`Error::Write`] (path `stdout`) with the cause.
-pub fn stdout(text: &str) -> greybox::Result<()> {
+pub fn stdout(text: &str) -> crate::Result<()> {
     use std::io::Write;
     let mut out = std::io::stdout().lock();
     match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {

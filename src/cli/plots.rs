@@ -2,14 +2,14 @@
 //! residual export, with the speed of each log as context and the truth beside a
 //! simulated log.
 
-use greybox::Experiment;
-use greybox::data::staged::Staged;
-use greybox::drive::{DriveLog, Truth, plant_at};
-use greybox::online::Trajectory;
-use greybox::online::plot::{TrackRun, TrackTruth, track_svg};
-use greybox::pmsm::{PmsmFit, channel};
-use greybox::report::Comparison;
-use greybox::report::plot::{self, Context};
+use crate::Experiment;
+use crate::data::staged::Staged;
+use crate::drive::{DriveLog, Truth, plant_at};
+use crate::online::Trajectory;
+use crate::online::plot::{TrackRun, TrackTruth, track_svg};
+use crate::pmsm::{PmsmFit, channel};
+use crate::report::Comparison;
+use crate::report::plot::{self, Context};
 use std::path::{Path, PathBuf};
 
 /// Writes the fit plot and the residual CSV of `fit` on its `logs`, where asked.
@@ -19,21 +19,33 @@ pub fn fit_outputs(
     residuals: Option<&Path>,
     fit: &PmsmFit,
     logs: &[Experiment],
-) -> greybox::Result<()> {
+) -> crate::Result<()> {
     if plot_path.is_none() && residuals.is_none() {
         return Ok(());
     }
     let comparisons = fit.comparisons(logs)?;
     if let Some(path) = residuals {
-        staged.produce(path, |tmp| greybox::report::residuals::write_residuals_csv(tmp, &comparisons))?;
+        staged.produce(path, |tmp| crate::report::residuals::write_residuals_csv(tmp, &comparisons))?;
     }
     if let Some(path) = plot_path {
-        let speeds = speeds(logs, &comparisons);
-        let context = speeds.as_ref().map(|s| context(s));
-        let svg = plot::fit_svg(fit, &comparisons, context.as_ref())?;
+        let svg = fit_plot(fit, &comparisons, logs)?;
         staged.produce(path, |tmp| plot::write_svg(tmp, &svg))?;
     }
     Ok(())
+}
+
+/// The fit plot (SVG text, what `--plot` writes) of `fit` on its `logs`.
+///
+/// # Errors
+/// Those of [`PmsmFit::comparisons`] and [`plot::fit_svg`].
+pub fn fit_svg(fit: &PmsmFit, logs: &[Experiment]) -> crate::Result<String> {
+    fit_plot(fit, &fit.comparisons(logs)?, logs)
+}
+
+fn fit_plot(fit: &PmsmFit, comparisons: &[Comparison], logs: &[Experiment]) -> crate::Result<String> {
+    let speeds = speeds(logs, comparisons);
+    let context = speeds.as_ref().map(|s| context(s));
+    plot::fit_svg(fit, comparisons, context.as_ref())
 }
 
 /// Writes the compare plot of a validation.
@@ -42,7 +54,7 @@ pub fn compare_plot(
     path: &Path,
     comparisons: &[Comparison],
     logs: &[Experiment],
-) -> greybox::Result<()> {
+) -> crate::Result<()> {
     let speeds = speeds(logs, comparisons);
     let context = speeds.as_ref().map(|s| context(s));
     let svg = plot::compare_svg(comparisons, context.as_ref())?;
@@ -56,7 +68,7 @@ pub fn track_plot(
     staged: &mut Staged,
     path: &Path,
     runs: &[(PathBuf, Option<usize>, Trajectory)],
-) -> greybox::Result<()> {
+) -> crate::Result<()> {
     let names: Vec<String> = runs
         .iter()
         .map(|(p, segment, _)| segment.map_or_else(|| short_name(p), |k| format!("{}#{k}", short_name(p))))

@@ -2,12 +2,12 @@
 //! with its truth JSON beside it.
 
 use super::output;
-use clap::{Args, ValueEnum};
-use greybox::Error;
-use greybox::data::staged::Staged;
-use greybox::drive::{
+use crate::Error;
+use crate::data::staged::Staged;
+use crate::drive::{
     DriveConfig, DriveLog, IPM_MOTOR, SCENARIOS, SPM_MOTOR, scenario, simulate_drive_with_progress,
 };
+use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::Value;
 use std::io::IsTerminal;
@@ -49,7 +49,10 @@ pub struct SimulateArgs {
     pub print_config: bool,
 }
 
-/// The motor of a thesis scenario.
+/// The motor of a thesis scenario (`--motor`): `spm` (a small surface-magnet servo) or
+/// `ipm` (an interior-magnet motor).
+// The values' clap docs would become `--help` text of their own: the enum's doc says them.
+#[allow(missing_docs)]
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum MotorArg {
     Spm,
@@ -62,40 +65,8 @@ pub enum MotorArg {
 /// An unknown scenario or field, an unreadable or invalid scenario file, a value of the
 /// wrong type, a configuration [`DriveConfig::validate`] refuses, a diverging simulation,
 /// an output that cannot be written (nothing is written then).
-pub fn run_simulate(a: &SimulateArgs) -> greybox::Result<()> {
-    let mut cfg = match (&a.scenario, &a.config) {
-        (Some(name), _) => {
-            let motor = match a.motor {
-                MotorArg::Spm => SPM_MOTOR,
-                MotorArg::Ipm => IPM_MOTOR,
-            };
-            scenario(name, motor)?
-        }
-        (None, Some(path)) => {
-            let text =
-                std::fs::read_to_string(path).map_err(|source| Error::Io { path: path.clone(), source })?;
-            serde_json::from_str::<DriveConfig>(&text).map_err(|e| Error::InvalidOption {
-                option: "config".into(),
-                reason: format!("{}: {e}", path.display()),
-            })?
-        }
-        (None, None) => {
-            return Err(Error::InvalidOption {
-                option: "scenario".into(),
-                reason: format!("give --scenario ({}) or --config FILE", SCENARIOS.join(", ")),
-            });
-        }
-    };
-    if let Some(seed) = a.seed {
-        cfg.seed = seed;
-    }
-    if let Some(d) = a.duration {
-        cfg.duration = d;
-    }
-    for s in &a.set {
-        cfg = set_field(&cfg, s)?;
-    }
-    cfg.validate()?;
+pub fn run_simulate(a: &SimulateArgs) -> crate::Result<()> {
+    let cfg = config(a)?;
     if a.print_config {
         // A closed pipe (`| head`) ends the output, not the program.
         let text = serde_json::to_string_pretty(&cfg).unwrap_or_default();
@@ -140,9 +111,52 @@ pub fn run_simulate(a: &SimulateArgs) -> greybox::Result<()> {
     staged.commit()
 }
 
+/// The scenario of `greybox simulate`'s flags: the thesis scenario or the scenario file,
+/// with `--seed`, `--duration` and every `--set` applied, validated.
+///
+/// # Errors
+/// An unknown scenario or field, an unreadable or invalid scenario file, a value of the
+/// wrong type, a configuration [`DriveConfig::validate`] refuses.
+pub fn config(a: &SimulateArgs) -> crate::Result<DriveConfig> {
+    let mut cfg = match (&a.scenario, &a.config) {
+        (Some(name), _) => {
+            let motor = match a.motor {
+                MotorArg::Spm => SPM_MOTOR,
+                MotorArg::Ipm => IPM_MOTOR,
+            };
+            scenario(name, motor)?
+        }
+        (None, Some(path)) => {
+            let text =
+                std::fs::read_to_string(path).map_err(|source| Error::Io { path: path.clone(), source })?;
+            serde_json::from_str::<DriveConfig>(&text).map_err(|e| Error::InvalidOption {
+                option: "config".into(),
+                reason: format!("{}: {e}", path.display()),
+            })?
+        }
+        (None, None) => {
+            return Err(Error::InvalidOption {
+                option: "scenario".into(),
+                reason: format!("give --scenario ({}) or --config FILE", SCENARIOS.join(", ")),
+            });
+        }
+    };
+    if let Some(seed) = a.seed {
+        cfg.seed = seed;
+    }
+    if let Some(d) = a.duration {
+        cfg.duration = d;
+    }
+    for s in &a.set {
+        cfg = set_field(&cfg, s)?;
+    }
+    cfg.validate()?;
+    Ok(cfg)
+}
+
 /// The configuration with the field at the dotted `path` set to `value` (`PATH=VALUE`,
 /// the value as JSON, e.g. a number, `null` or `[[0, 1], [2, 3]]`).
-fn set_field(cfg: &DriveConfig, assignment: &str) -> greybox::Result<DriveConfig> {
+fn set_field(cfg: &DriveConfig, assignment: &str) -> crate::Result<DriveConfig> {
     let bad = |reason: String| Error::InvalidOption { option: "set".into(), reason };
     let (path, value) =
         assignment.split_once('=').ok_or_else(|| bad(format!("`{assignment}`: expected PATH=VALUE")))?;

@@ -3,10 +3,10 @@
 
 use super::args::ColumnArgs;
 use super::output;
+use crate::data::staged::Staged;
+use crate::online::{Adaptation, MrasConfig, Trajectory, track};
+use crate::pmsm::{CsvOptions, SavedModel, VoltageHold, VoltageInput, applied_experiment};
 use clap::{Args, ValueEnum};
-use greybox::data::staged::Staged;
-use greybox::online::{Adaptation, MrasConfig, Trajectory, track};
-use greybox::pmsm::{CsvOptions, SavedModel, VoltageHold, VoltageInput, applied_experiment};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 
@@ -101,10 +101,14 @@ pub struct TrackArgs {
     /// Print nothing on stdout (the JSON and the plot are still written).
     #[arg(long, short = 'q')]
     pub quiet: bool,
+    /// The log-reading flags (columns, units, window, limits).
     #[command(flatten)]
     pub columns: ColumnArgs,
 }
 
+/// The observer's adaptation law (`--adaptation`): `normalised`, `lyapunov`, `relay`.
+// The values' clap docs would become `--help` text of their own: the enum's doc says them.
+#[allow(missing_docs)]
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum AdaptationArg {
     Normalised,
@@ -112,38 +116,26 @@ pub enum AdaptationArg {
     Relay,
 }
 
+/// The observer's voltage hold (`--hold`): `stator` or `dq`.
+// The values' clap docs would become `--help` text of their own: the enum's doc says them.
+#[allow(missing_docs)]
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum TrackHold {
     Stator,
     Dq,
 }
 
-pub fn run_track(a: &TrackArgs) -> greybox::Result<()> {
+/// Runs `greybox track`: the observer over every log, the summary lines on stdout, the JSON
+/// and the plot where asked.
+///
+/// # Errors
+/// An output that cannot be written, an invalid observer setting (naming its flag), an
+/// unreadable `--params` or log, an observer that fails on a log.
+pub fn run_track(a: &TrackArgs) -> crate::Result<()> {
     // Fail before the work, not after it, when the output cannot be written.
     let inputs: Vec<PathBuf> = a.logs.iter().chain(&a.params).cloned().collect();
     output::check_all(&[("--json", a.json.as_deref()), ("--plot", a.plot.as_deref())], &inputs)?;
-    let (config, input) = config(a)?;
-    let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
-    let groups = a.columns.read_logs(&a.logs, &csv, false)?;
-    let (mut runs, mut names) = (Vec::with_capacity(a.logs.len()), Vec::with_capacity(a.logs.len()));
-    for (path, group) in a.logs.iter().zip(groups) {
-        // With --split-gaps, each segment is tracked on its own: `LOG#1`, `LOG#2`, ….
-        let one = group.len() == 1;
-        for (k, log) in group.iter().enumerate() {
-            // A fit from the reference voltage (--params) drives the observer with the voltage
-            // its delay and advance apply, as it drove the fit.
-            let applied = match input {
-                VoltageInput::Terminal => None,
-                _ => Some(applied_experiment(log, a.pole_pairs, input).map_err(|e| flag_error(e, path))?),
-            };
-            let trajectory =
-                track(applied.as_ref().unwrap_or(log), &config).map_err(|e| flag_error(e, path))?;
-            let segment = (!one).then_some(k + 1);
-            let name = path.display().to_string();
-            names.push(segment.map_or_else(|| name.clone(), |k| format!("{name}#{k}")));
-            runs.push((path.clone(), segment, trajectory));
-        }
-    }
+    let (runs, names) = track_logs(a)?;
     let mut staged = Staged::new();
     if let Some(plot) = &a.plot {
         super::plots::track_plot(&mut staged, plot, &runs)?;
@@ -171,14 +163,50 @@ pub fn run_track(a: &TrackArgs) -> greybox::Result<()> {
     staged.commit()
 }
 
+/// One observer run: the log's path, its segment (`--split-gaps`, from 1) and the trajectory.
+pub type TrackRun = (PathBuf, Option<usize>, Trajectory);
+
+/// The observer of `greybox track` over every log of `a` (each segment of a log split at
+/// its gaps on its own), with the run names the command prints (`LOG` or `LOG#k`), in the
+/// order of the logs.
+///
+/// # Errors
+/// An invalid observer setting (naming its flag), an unreadable `--params` or log, an
+/// observer that fails on a log.
+pub fn track_logs(a: &TrackArgs) -> crate::Result<(Vec<TrackRun>, Vec<String>)> {
+    let (config, input) = config(a)?;
+    let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
+    let groups = a.columns.read_logs(&a.logs, &csv, false)?;
+    let (mut runs, mut names) = (Vec::with_capacity(a.logs.len()), Vec::with_capacity(a.logs.len()));
+    for (path, group) in a.logs.iter().zip(groups) {
+        // With --split-gaps, each segment is tracked on its own: `LOG#1`, `LOG#2`, ….
+        let one = group.len() == 1;
+        for (k, log) in group.iter().enumerate() {
+            // A fit from the reference voltage (--params) drives the observer with the voltage
+            // its delay and advance apply, as it drove the fit.
+            let applied = match input {
+                VoltageInput::Terminal => None,
+                _ => Some(applied_experiment(log, a.pole_pairs, input).map_err(|e| flag_error(e, path))?),
+            };
+            let trajectory =
+                track(applied.as_ref().unwrap_or(log), &config).map_err(|e| flag_error(e, path))?;
+            let segment = (!one).then_some(k + 1);
+            let name = path.display().to_string();
+            names.push(segment.map_or_else(|| name.clone(), |k| format!("{name}#{k}")));
+            runs.push((path.clone(), segment, trajectory));
+        }
+    }
+    Ok((runs, names))
+}
+
 /// The observer's settings from the flags (and `--params`: its inductances, estimates, hold
 /// and voltage input), validated before any log is read; errors name the flag.
-fn config(a: &TrackArgs) -> greybox::Result<(MrasConfig, VoltageInput)> {
+fn config(a: &TrackArgs) -> crate::Result<(MrasConfig, VoltageInput)> {
     let saved = match &a.params {
         None => None,
         Some(p) => {
-            let text = std::fs::read_to_string(p)
-                .map_err(|source| greybox::Error::Io { path: p.clone(), source })?;
+            let text =
+                std::fs::read_to_string(p).map_err(|source| crate::Error::Io { path: p.clone(), source })?;
             Some(SavedModel::from_json(&text, Some(a.pole_pairs), None)?)
         }
     };
@@ -188,7 +216,7 @@ fn config(a: &TrackArgs) -> greybox::Result<(MrasConfig, VoltageInput)> {
         let i = s.kind.parameter_names().iter().position(|n| *n == name)?;
         s.theta.get(i).copied()
     };
-    let l_s = a.l_s.or(from_report("l_s")).or(from_report("l_d")).ok_or_else(|| greybox::Error::InvalidOption {
+    let l_s = a.l_s.or(from_report("l_s")).or(from_report("l_d")).ok_or_else(|| crate::Error::InvalidOption {
         option: "l-s".into(),
         reason: "the observer needs the stator inductance: give --l-s H (with --l-q: L_d) or --params REPORT.json of a fit"
             .into(),
@@ -220,7 +248,7 @@ fn config(a: &TrackArgs) -> greybox::Result<(MrasConfig, VoltageInput)> {
     };
     config.validate().map_err(|e| flag_error(e, &PathBuf::new()))?;
     if saved.as_ref().is_some_and(|s| s.inverter.is_some()) {
-        return Err(greybox::Error::InvalidOption {
+        return Err(crate::Error::InvalidOption {
             option: "params".into(),
             reason: "the fit modelled the inverter's dead time, which the observer does not: give the report of a \
                      fit from the terminal voltage, or of one from the reference without --dead-time"
@@ -232,9 +260,9 @@ fn config(a: &TrackArgs) -> greybox::Result<(MrasConfig, VoltageInput)> {
 
 /// Renames a [`MrasConfig`] field in an error to the flag that sets it; other errors name
 /// the log (`log` empty: none).
-fn flag_error(e: greybox::Error, log: &std::path::Path) -> greybox::Error {
+fn flag_error(e: crate::Error, log: &std::path::Path) -> crate::Error {
     match e {
-        greybox::Error::InvalidOption { option, reason } => {
+        crate::Error::InvalidOption { option, reason } => {
             let flag = match option.as_str() {
                 "n_p" => "pole-pairs",
                 "l_s" => "l-s",
@@ -249,13 +277,13 @@ fn flag_error(e: greybox::Error, log: &std::path::Path) -> greybox::Error {
                 "r_s0" => "r-s0",
                 other => other,
             };
-            greybox::Error::InvalidOption { option: flag.into(), reason }
+            crate::Error::InvalidOption { option: flag.into(), reason }
         }
         // The observer's own failures name the sample, not the log.
-        e @ (greybox::Error::NonFinite { .. } | greybox::Error::Numerical { .. })
+        e @ (crate::Error::NonFinite { .. } | crate::Error::Numerical { .. })
             if !log.as_os_str().is_empty() =>
         {
-            greybox::Error::Numerical {
+            crate::Error::Numerical {
                 context: format!("the observer over {}", log.display()),
                 reason: e.to_string(),
             }

@@ -2,11 +2,14 @@
 
 use super::args::ColumnArgs;
 use super::output;
+use crate::Experiment;
+use crate::data::staged::Staged;
+use crate::pmsm::{CsvOptions, SavedModel, VoltageHold};
+use crate::report::Comparison;
 use clap::{Args, ValueEnum};
-use greybox::data::staged::Staged;
-use greybox::pmsm::{CsvOptions, SavedModel, VoltageHold};
 use std::path::PathBuf;
 
+/// Arguments of `greybox validate`.
 #[derive(Args, Debug)]
 pub struct ValidateArgs {
     /// Drive logs to validate on (CSV, plain or gzip), each compared on its own.
@@ -35,35 +38,36 @@ pub struct ValidateArgs {
     /// Print nothing but errors.
     #[arg(long, short = 'q')]
     pub quiet: bool,
+    /// The log-reading flags (columns, units, window, limits).
     #[command(flatten)]
     pub columns: ColumnArgs,
 }
 
+/// The voltage hold of a validation (`--hold`): `dq` or `stator`.
+// The values' clap docs would become `--help` text of their own: the enum's doc says them.
+#[allow(missing_docs)]
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum ValidateHold {
     Dq,
     Stator,
 }
 
-pub fn run_validate(a: &ValidateArgs) -> greybox::Result<()> {
+/// Runs `greybox validate`: the saved fit simulated on every log, the metrics on stdout,
+/// the JSON, the comparison CSVs and the plot where asked.
+///
+/// # Errors
+/// An output that cannot be written, an unreadable or invalid `--params`, an unreadable
+/// log, a simulation that fails.
+pub fn run_validate(a: &ValidateArgs) -> crate::Result<()> {
     let inputs: Vec<PathBuf> = a.logs.iter().chain([&a.params]).cloned().collect();
     output::check_all(&[("--json", a.json.as_deref()), ("--plot", a.plot.as_deref())], &inputs)?;
     if let Some(dir) = a.compare_dir.as_ref().filter(|d| !d.is_dir()) {
-        return Err(greybox::Error::InvalidOption {
+        return Err(crate::Error::InvalidOption {
             option: "compare-dir".into(),
             reason: format!("{} is not a folder", dir.display()),
         });
     }
-    let text = std::fs::read_to_string(&a.params)
-        .map_err(|source| greybox::Error::Io { path: a.params.clone(), source })?;
-    let hold = a.hold.map(|h| match h {
-        ValidateHold::Dq => VoltageHold::Dq,
-        ValidateHold::Stator => VoltageHold::Stator,
-    });
-    let saved = SavedModel::from_json(&text, a.pole_pairs, hold)?;
-    let csv = CsvOptions { pole_pairs: Some(saved.pole_pairs), ..a.columns.options() };
-    let logs: Vec<_> = a.columns.read_logs(&a.logs, &csv, false)?.into_iter().flatten().collect();
-    let comparisons = saved.validate(&logs)?;
+    let (saved, logs, comparisons) = compare(a)?;
     let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
     if !quiet {
         super::output::stdout(
@@ -97,7 +101,7 @@ pub fn run_validate(a: &ValidateArgs) -> greybox::Result<()> {
                         .enumerate()
                         .map(|(i, (n, x))| format!(
                             "{n} {}",
-                            greybox::report::eng::format_eng(*x, c.unit(i), 5)
+                            crate::report::eng::format_eng(*x, c.unit(i), 5)
                         ))
                         .collect::<Vec<_>>()
                         .join(", "),
@@ -119,18 +123,42 @@ pub fn run_validate(a: &ValidateArgs) -> greybox::Result<()> {
         }
     }
     if let Some(path) = &a.json {
-        let metrics: Vec<serde_json::Value> = comparisons
-            .iter()
-            .map(|c| serde_json::json!({ "experiment": c.experiment, "metrics": c.metrics }))
-            .collect();
-        let report = serde_json::json!({
-            "model": saved.kind.model_name(),
-            "pole_pairs": saved.pole_pairs,
-            "hold": saved.hold,
-            "theta": saved.theta,
-            "comparisons": metrics,
-        });
-        output::write(&mut staged, path, &serde_json::to_string_pretty(&report).unwrap_or_default())?;
+        output::write(&mut staged, path, &to_json(&saved, &comparisons))?;
     }
     staged.commit()
+}
+
+/// The saved fit of `--params`, the logs read, and the comparison of its simulation with
+/// each log, as `greybox validate` computes them.
+///
+/// # Errors
+/// An unreadable or invalid `--params`, an unreadable log, a simulation that fails.
+pub fn compare(a: &ValidateArgs) -> crate::Result<(SavedModel, Vec<Experiment>, Vec<Comparison>)> {
+    let text = std::fs::read_to_string(&a.params)
+        .map_err(|source| crate::Error::Io { path: a.params.clone(), source })?;
+    let hold = a.hold.map(|h| match h {
+        ValidateHold::Dq => VoltageHold::Dq,
+        ValidateHold::Stator => VoltageHold::Stator,
+    });
+    let saved = SavedModel::from_json(&text, a.pole_pairs, hold)?;
+    let csv = CsvOptions { pole_pairs: Some(saved.pole_pairs), ..a.columns.options() };
+    let logs: Vec<_> = a.columns.read_logs(&a.logs, &csv, false)?.into_iter().flatten().collect();
+    let comparisons = saved.validate(&logs)?;
+    Ok((saved, logs, comparisons))
+}
+
+/// The JSON of a validation (`--json`): model, pole pairs, hold, θ and each log's metrics.
+pub fn to_json(saved: &SavedModel, comparisons: &[Comparison]) -> String {
+    let metrics: Vec<serde_json::Value> = comparisons
+        .iter()
+        .map(|c| serde_json::json!({ "experiment": c.experiment, "metrics": c.metrics }))
+        .collect();
+    let report = serde_json::json!({
+        "model": saved.kind.model_name(),
+        "pole_pairs": saved.pole_pairs,
+        "hold": saved.hold,
+        "theta": saved.theta,
+        "comparisons": metrics,
+    });
+    serde_json::to_string_pretty(&report).unwrap_or_default()
 }

@@ -21,3 +21,5 @@ mod budget;
 mod check;
 #[cfg(feature = "parquet")]
 mod ipc_scan;
+#[cfg(feature = "parquet")]
+pub(super) mod memory;

@@ -97,6 +97,37 @@ pub fn read_table_with(
     }
 }
 
+/// [`read_table_with`] for Arrow record `batches` in memory with `schema` (feature
+/// `parquet`): the wanted columns converted to f64 under the same checks as a columnar
+/// file's, `name` standing for the file's path in errors and naming the [`Table`].
+///
+/// # Errors
+/// Those of [`read_table_with`] for a columnar file but [`Error::Io`], each naming `name`.
+#[cfg(feature = "parquet")]
+pub fn read_batches_with(
+    name: &str,
+    schema: &arrow_schema::Schema,
+    batches: &[arrow_array::RecordBatch],
+    wanted: &[(&str, bool)],
+    limits: &ReadLimits,
+    time: TimeCheck,
+) -> Result<Table> {
+    super::columnar::memory::read_batches(name, schema, batches, wanted, limits, time)
+}
+
+/// The experiment `e` as one Arrow record batch (feature `parquet`): a time column `time`
+/// \[s\] (`t_k = k h`) and every channel in order, all f64 of length N, each field's unit in
+/// its metadata (`unit`); what [`write()`] puts in a Parquet or Arrow file.
+///
+/// # Errors
+/// [`Error::Format`] (path `memory`) if Arrow refuses the columns (it does not for a valid
+/// experiment).
+#[cfg(feature = "parquet")]
+pub fn to_record_batch(e: &Experiment, time: &str) -> Result<arrow_array::RecordBatch> {
+    super::columnar::arrow_io::batch(e, time)
+        .map_err(|err| Error::Format { path: "memory".into(), message: err.to_string() })
+}
+
 /// Writes `e` to `path` in the [`Format`] of its extension, atomically
 /// ([`crate::data::write::write_atomic`]): a time column `time` \[s\] (`t_k = k h`) and every
 /// channel in order, all f64, so that [`read_table`] reads back the same values bit for

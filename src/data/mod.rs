@@ -32,6 +32,8 @@ pub use channel::{Channel, Values};
 pub use delimiter::Delimiter;
 pub use experiment::{Experiment, MIN_SAMPLES};
 pub use format::{Format, read_table, read_table_with, write as write_log};
+#[cfg(feature = "parquet")]
+pub use format::{read_batches_with, to_record_batch};
 pub use segments::{GAP_FACTOR, TimeWindow, is_gap};
 pub use spec::{ColumnMap, CsvSpec, read_csv, read_csv_many};
 pub use table::{QUOTE_CHARS, ReadLimits, Table};

@@ -52,8 +52,9 @@ pub use log::transform::{
     stator_hold_mean_factor,
 };
 pub use log::{
-    AngleUnit, ColumnNames, CsvOptions, DqSource, DroppedSegment, Frame, LogSegments, MAX_SAMPLE_TIME,
-    MIN_SAMPLE_TIME, Scale, SpeedUnit, TimeUnit, read_log, read_log_segments, read_logs,
+    AngleUnit, ColumnNames, CsvOptions, DqSource, DroppedSegment, Frame, LogSegments, LogSource,
+    MAX_SAMPLE_TIME, MIN_SAMPLE_TIME, Scale, SpeedUnit, TimeUnit, read_log, read_log_from, read_log_segments,
+    read_log_segments_from, read_logs,
 };
 pub(crate) use model::interval::cexpm1;
 pub use model::interval::{

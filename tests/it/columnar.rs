@@ -77,6 +77,47 @@ mod with_feature {
         assert_eq!(fit(&read[0]), fit(&read[3]));
     }
 
+    /// A table in memory (`LogSource::Arrow`, what the Python package hands over) reads as
+    /// its Parquet file does, bit for bit, split into batches or not; its errors name the
+    /// table and the row.
+    #[test]
+    fn record_batches_in_memory_read_as_the_file() {
+        use greybox::data::to_record_batch;
+        use greybox::pmsm::{LogSource, read_log_from};
+        let e = log(4_000);
+        let path = temp_path("log.parquet");
+        write_log(&path, &e, "t").unwrap();
+        let from_file = read_log(&path, &options()).unwrap();
+        std::fs::remove_file(&path).ok();
+        let batch = to_record_batch(&e, "t").unwrap();
+        let schema = batch.schema();
+        let pieces: Vec<RecordBatch> = (0..4).map(|k| batch.slice(k * 1_000, 1_000)).collect();
+        for batches in [vec![batch.clone()], pieces] {
+            let source = LogSource::Arrow { name: "log", schema: &schema, batches: &batches };
+            assert_eq!(bits(&read_log_from(source, &options()).unwrap()), bits(&from_file));
+        }
+        let mut iq: Vec<f64> = e.channel("iq").unwrap().to_vec();
+        iq[17] = f64::NAN;
+        let columns: Vec<(String, ArrayRef)> = schema
+            .fields()
+            .iter()
+            .zip(batch.columns())
+            .map(|(f, c)| {
+                let c = if f.name() == "iq" {
+                    Arc::new(Float64Array::from(iq.clone())) as ArrayRef
+                } else {
+                    c.clone()
+                };
+                (f.name().clone(), c)
+            })
+            .collect();
+        let bad = RecordBatch::try_from_iter(columns).unwrap();
+        let source =
+            LogSource::Arrow { name: "table", schema: &bad.schema(), batches: std::slice::from_ref(&bad) };
+        let err = read_log_from(source, &options()).unwrap_err();
+        assert!(matches!(&err, Error::NonFinite { column, row: 17, .. } if column == "iq"), "{err}");
+    }
+
     /// Writes `columns` (name, array) as Parquet and as Arrow IPC; both paths.
     fn columnar(tag: &str, columns: Vec<(&str, ArrayRef)>) -> [PathBuf; 2] {
         let batch = RecordBatch::try_from_iter(columns).unwrap();

@@ -1,13 +1,13 @@
 //! The batch summary: one record per log, built once from its fit or its error, written as
 //! CSV (one row per log, a column per figure) and JSON, and printed as a table.
 
-use greybox::pmsm::PmsmFit;
-use greybox::report::eng::{UnitScale, decimals_for, display_unit};
-use serde::Serialize;
+use crate::pmsm::PmsmFit;
+use crate::report::eng::{UnitScale, decimals_for, display_unit};
+use serde::{Deserialize, Deserializer, Serialize};
 use std::path::Path;
 
 /// How a log's fit ended.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Status {
     /// Fitted, converged, no untrusted warning.
@@ -16,6 +16,20 @@ pub enum Status {
     Untrusted,
     /// Could not be read or fitted.
     Failed,
+}
+
+// JSON writes a non-finite number as null: read back as NaN (the summary shows neither).
+fn nan_if_null<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+}
+
+fn nan_if_null_2<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 2], D::Error> {
+    Ok(<[Option<f64>; 2]>::deserialize(d)?.map(|v| v.unwrap_or(f64::NAN)))
+}
+
+fn nan_if_null_pairs<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<(String, f64)>, D::Error> {
+    let v = Vec::<(String, Option<f64>)>::deserialize(d)?;
+    Ok(v.into_iter().map(|(n, f)| (n, f.unwrap_or(f64::NAN))).collect())
 }
 
 impl Status {
@@ -29,24 +43,27 @@ impl Status {
 }
 
 /// An estimate with its standard error and 95 % interval, in the library's unit.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Quantity {
     /// Symbol, e.g. `r_s`, `k_t`, `t_winding`.
     pub name: String,
     /// Unit, as the library spells it (`ohm`, `H`, `V s/rad`).
     pub unit: String,
     /// Estimate \[unit\].
+    #[serde(deserialize_with = "nan_if_null")]
     pub value: f64,
     /// Standard error \[unit\].
+    #[serde(deserialize_with = "nan_if_null")]
     pub std_error: f64,
     /// 95 % interval \[unit\]; for a derived quantity, value ± 1.96 standard errors.
+    #[serde(deserialize_with = "nan_if_null_2")]
     pub ci95: [f64; 2],
     /// Held at its start or given value (no standard error).
     pub fixed: bool,
 }
 
 /// A warning of a fit.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct WarningRecord {
     /// Short code, e.g. `not_converged`.
     pub code: String,
@@ -57,7 +74,7 @@ pub struct WarningRecord {
 }
 
 /// The summary of one log.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Record {
     /// The log's path as found.
     pub log: String,
@@ -66,7 +83,7 @@ pub struct Record {
     /// How its fit ended.
     pub status: Status,
     /// The error of a failed log.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
     /// Pole pairs used (given or chosen).
     pub pole_pairs: Option<u32>,
@@ -79,6 +96,7 @@ pub struct Record {
     /// Derived quantities: `k_t`, `psi_f`, and with `--t0` the temperatures.
     pub derived: Vec<Quantity>,
     /// Fit percentage of each output `(output, %)`: `100 (1 − ‖y − ŷ‖/‖y − ȳ‖)`.
+    #[serde(deserialize_with = "nan_if_null_pairs")]
     pub fit_percent: Vec<(String, f64)>,
     /// The fit's warnings.
     pub warnings: Vec<WarningRecord>,
@@ -88,7 +106,7 @@ pub struct Record {
 
 impl Record {
     /// The record of the log at `path` named `name` from its fit or its error.
-    pub fn new(path: &Path, name: &str, result: greybox::Result<PmsmFit>) -> Self {
+    pub fn new(path: &Path, name: &str, result: crate::Result<PmsmFit>) -> Self {
         let base = |status, error| Record {
             log: path.display().to_string(),
             name: name.to_string(),
@@ -156,7 +174,7 @@ impl Record {
 }
 
 /// Names (and units) of a list of quantities over all records, in first-seen order.
-fn columns<'a>(
+fn quantities<'a>(
     records: &'a [Record],
     list: impl Fn(&'a Record) -> &'a [Quantity],
 ) -> Vec<(&'a str, &'a str)> {
@@ -169,62 +187,105 @@ fn columns<'a>(
     out
 }
 
-/// The summary as CSV: `log, name, status, error, pole_pairs, hold, converged`, then for
-/// each parameter and derived quantity `NAME [unit]` and `NAME_se [unit]` (SI units, no
-/// prefix), `fit_OUTPUT [%]`, `warnings` (`code: message`, `; ` between them), `time [s]`.
-/// Cells a log has no value for are empty.
-///
-/// # Errors
-/// [`greybox::Error::Write`] if the CSV writer fails (it writes to memory).
-pub fn csv(records: &[Record]) -> greybox::Result<String> {
-    let params = columns(records, |r| &r.parameters);
-    let derived = columns(records, |r| &r.derived);
+/// One cell of the summary.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Cell {
+    /// Text (path, name, status, error, hold, warnings).
+    Text(String),
+    /// A count (pole pairs).
+    Count(u32),
+    /// A yes/no (converged).
+    Flag(bool),
+    /// A number in SI units, `None` when not finite (written `{:e}`, or empty).
+    Number(Option<f64>),
+    /// A time \[s\] (written with 3 decimals).
+    Seconds(f64),
+    /// No value for this log (an empty cell).
+    Missing,
+}
+
+/// The summary's columns, `(header, one cell per record)`: `log, name, status, error,
+/// pole_pairs, hold, converged`, then for each parameter and derived quantity `NAME [unit]`
+/// and `NAME_se [unit]` (SI units, no prefix; the standard error of a fixed parameter
+/// missing), `fit_OUTPUT [%]`, `warnings` (`code: message`, `; ` between them), `time [s]`.
+pub fn columns(records: &[Record]) -> Vec<(String, Vec<Cell>)> {
+    let params = quantities(records, |r| &r.parameters);
+    let derived = quantities(records, |r| &r.derived);
     let mut outputs: Vec<&str> = Vec::new();
     for (o, _) in records.iter().flat_map(|r| &r.fit_percent) {
         if !outputs.contains(&o.as_str()) {
             outputs.push(o);
         }
     }
-    let mut header: Vec<String> =
-        ["log", "name", "status", "error", "pole_pairs", "hold", "converged"].map(String::from).to_vec();
-    for (n, u) in params.iter().chain(&derived) {
-        let u = display_unit(u).0;
-        header.push(format!("{n} [{u}]"));
-        header.push(format!("{n}_se [{u}]"));
+    let text = |s: &Option<String>| s.clone().map_or(Cell::Missing, Cell::Text);
+    let mut out: Vec<(String, Vec<Cell>)> = vec![
+        ("log".into(), records.iter().map(|r| Cell::Text(r.log.clone())).collect()),
+        ("name".into(), records.iter().map(|r| Cell::Text(r.name.clone())).collect()),
+        ("status".into(), records.iter().map(|r| Cell::Text(r.status.word().into())).collect()),
+        ("error".into(), records.iter().map(|r| text(&r.error)).collect()),
+        (
+            "pole_pairs".into(),
+            records.iter().map(|r| r.pole_pairs.map_or(Cell::Missing, Cell::Count)).collect(),
+        ),
+        ("hold".into(), records.iter().map(|r| text(&r.hold)).collect()),
+        ("converged".into(), records.iter().map(|r| r.converged.map_or(Cell::Missing, Cell::Flag)).collect()),
+    ];
+    let num = |v: f64| Cell::Number(v.is_finite().then_some(v));
+    for (derived_list, names) in [(false, &params), (true, &derived)] {
+        for (n, u) in names.iter() {
+            let u = display_unit(u).0;
+            let q = |r: &Record| {
+                let list = if derived_list { &r.derived } else { &r.parameters };
+                list.iter().find(|q| q.name == *n).cloned()
+            };
+            out.push((
+                format!("{n} [{u}]"),
+                records.iter().map(|r| q(r).map_or(Cell::Missing, |q| num(q.value))).collect(),
+            ));
+            let se = |q: Quantity| if q.fixed { Cell::Missing } else { num(q.std_error) };
+            out.push((
+                format!("{n}_se [{u}]"),
+                records.iter().map(|r| q(r).map_or(Cell::Missing, se)).collect(),
+            ));
+        }
     }
-    header.extend(outputs.iter().map(|o| format!("fit_{o} [%]")));
-    header.extend(["warnings".to_string(), "time [s]".to_string()]);
+    for o in &outputs {
+        let f =
+            |r: &Record| r.fit_percent.iter().find(|(n, _)| n == o).map_or(Cell::Missing, |(_, f)| num(*f));
+        out.push((format!("fit_{o} [%]"), records.iter().map(f).collect()));
+    }
+    let warnings = |r: &Record| {
+        let w: Vec<String> = r.warnings.iter().map(|w| format!("{}: {}", w.code, w.message)).collect();
+        Cell::Text(w.join("; "))
+    };
+    out.push(("warnings".into(), records.iter().map(warnings).collect()));
+    out.push((
+        "time [s]".into(),
+        records.iter().map(|r| r.time_s.map_or(Cell::Missing, Cell::Seconds)).collect(),
+    ));
+    out
+}
+
+/// The summary as CSV: the [`columns`], a row per log; cells a log has no value for are
+/// empty.
+///
+/// # Errors
+/// [`crate::Error::Write`] if the CSV writer fails (it writes to memory).
+pub fn csv(records: &[Record]) -> crate::Result<String> {
+    let columns = columns(records);
     let mut w = csv::Writer::from_writer(Vec::new());
-    let err = |e: csv::Error| greybox::Error::Write { path: "summary CSV".into(), source: e.into() };
-    w.write_record(&header).map_err(err)?;
-    let num = |v: f64| if v.is_finite() { format!("{v:e}") } else { String::new() };
-    for r in records {
-        let mut row = vec![
-            r.log.clone(),
-            r.name.clone(),
-            r.status.word().to_string(),
-            r.error.clone().unwrap_or_default(),
-            r.pole_pairs.map(|n| n.to_string()).unwrap_or_default(),
-            r.hold.clone().unwrap_or_default(),
-            r.converged.map(|c| c.to_string()).unwrap_or_default(),
-        ];
-        for (list, names) in [(&r.parameters, &params), (&r.derived, &derived)] {
-            for (n, _) in names.iter() {
-                match list.iter().find(|q| q.name == *n) {
-                    Some(q) => {
-                        row.extend([num(q.value), if q.fixed { String::new() } else { num(q.std_error) }])
-                    }
-                    None => row.extend([String::new(), String::new()]),
-                }
-            }
-        }
-        for o in &outputs {
-            row.push(r.fit_percent.iter().find(|(n, _)| n == o).map(|(_, f)| num(*f)).unwrap_or_default());
-        }
-        let warnings: Vec<String> = r.warnings.iter().map(|w| format!("{}: {}", w.code, w.message)).collect();
-        row.push(warnings.join("; "));
-        row.push(r.time_s.map(|t| format!("{t:.3}")).unwrap_or_default());
-        w.write_record(&row).map_err(err)?;
+    let err = |e: csv::Error| crate::Error::Write { path: "summary CSV".into(), source: e.into() };
+    w.write_record(columns.iter().map(|(h, _)| h)).map_err(err)?;
+    for k in 0..records.len() {
+        let row = columns.iter().map(|(_, cells)| match &cells[k] {
+            Cell::Text(s) => s.clone(),
+            Cell::Count(n) => n.to_string(),
+            Cell::Flag(b) => b.to_string(),
+            Cell::Number(Some(v)) => format!("{v:e}"),
+            Cell::Seconds(t) => format!("{t:.3}"),
+            Cell::Number(None) | Cell::Missing => String::new(),
+        });
+        w.write_record(row).map_err(err)?;
     }
     let bytes = w.into_inner().map_err(|e| err(e.into_error().into()))?;
     Ok(String::from_utf8_lossy(&bytes).into_owned())
@@ -248,7 +309,7 @@ pub fn json(pattern: &str, records: &[Record], wall_s: f64) -> String {
 /// parameters (each column in one SI-prefixed unit), the lowest fit % and the hold;
 /// failed logs with their error below.
 pub fn table(records: &[Record]) -> String {
-    let params: Vec<(&str, &str)> = columns(records, |r| &r.parameters)
+    let params: Vec<(&str, &str)> = quantities(records, |r| &r.parameters)
         .into_iter()
         .filter(|(n, _)| records.iter().flat_map(|r| &r.parameters).any(|q| q.name == *n && !q.fixed))
         .collect();

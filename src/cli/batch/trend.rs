@@ -1,10 +1,10 @@
 //! The batch's trend plot: the motor's parameters over the logs (file-name order), drawn
-//! by the generic [`greybox::report::plot::trend_svg`] with the units and labels chosen
+//! by the generic [`crate::report::plot::trend_svg`] with the units and labels chosen
 //! here.
 
 use super::summary::{Record, Status};
-use greybox::report::eng::UnitScale;
-use greybox::report::plot::{Trend, TrendPoint, TrendSeries, trend_svg};
+use crate::report::eng::UnitScale;
+use crate::report::plot::{Trend, TrendPoint, TrendSeries, trend_svg};
 
 /// The trend plot of the records' parameters (every parameter some log estimated, fixed
 /// ones and per-log nuisance parameters included when estimated), each in one SI-prefixed
@@ -14,7 +14,7 @@ use greybox::report::plot::{Trend, TrendPoint, TrendSeries, trend_svg};
 ///
 /// # Errors
 /// Those of [`trend_svg`] (a drawing failure; no log fitted leaves the panels empty).
-pub fn svg(pattern: &str, records: &[Record]) -> greybox::Result<String> {
+pub fn svg(pattern: &str, records: &[Record]) -> crate::Result<String> {
     let mut names: Vec<(&str, &str)> = Vec::new();
     for q in records.iter().flat_map(|r| r.parameters.iter().filter(|q| !q.fixed)) {
         if !names.iter().any(|(n, _)| *n == q.name) {

@@ -82,7 +82,7 @@ pub(crate) fn read(
 type Read = (Vec<String>, Vec<Option<usize>>, Vec<Vec<f64>>, u64);
 
 /// The schema's names and the wanted columns' positions in it.
-fn header(
+pub(super) fn header(
     path: &Path,
     schema: &Schema,
     wanted: &[(&str, bool)],
@@ -261,7 +261,7 @@ fn read_ipc(
 /// The wanted columns of every batch, as f64, one vector per wanted column.
 /// With `streaming`, the time column (the first wanted) is checked batch by batch and the
 /// read stops after the batch of its first bad step (the caller's row checks then find it).
-fn collect(
+pub(super) fn collect(
     path: &Path,
     reader: impl Iterator<Item = std::result::Result<RecordBatch, arrow_schema::ArrowError>>,
     header: &[String],
@@ -335,7 +335,10 @@ fn convert(path: &Path, name: &str, array: &ArrayRef, row: usize, out: &mut [f64
 }
 
 /// The experiment as one batch: `time` then the channels, f64, units in field metadata.
-fn batch(e: &Experiment, time: &str) -> std::result::Result<RecordBatch, arrow_schema::ArrowError> {
+pub(crate) fn batch(
+    e: &Experiment,
+    time: &str,
+) -> std::result::Result<RecordBatch, arrow_schema::ArrowError> {
     let unit = |u: &str| std::collections::HashMap::from([("unit".to_string(), u.to_string())]);
     let mut fields = vec![Field::new(time, DataType::Float64, false).with_metadata(unit("s"))];
     let mut columns: Vec<ArrayRef> =

@@ -9,5 +9,5 @@ mod split;
 pub(super) mod transform;
 
 pub use options::*;
-pub use reader::{read_log, read_logs};
-pub use split::{DroppedSegment, LogSegments, read_log_segments};
+pub use reader::{LogSource, read_log, read_log_from, read_logs};
+pub use split::{DroppedSegment, LogSegments, read_log_segments, read_log_segments_from};

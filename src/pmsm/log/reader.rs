@@ -79,9 +79,63 @@ use super::options::*;
 ///
 /// Never panics. Source of the conventions: MODEL.md §1, §4.
 pub fn read_log(path: impl AsRef<Path>, options: &CsvOptions) -> Result<Experiment> {
-    let path = path.as_ref();
+    read_log_from(LogSource::Path(path.as_ref()), options)
+}
+
+/// Where a log comes from: a file, or (feature `parquet`) Arrow record batches in memory.
+#[derive(Clone, Copy, Debug)]
+pub enum LogSource<'a> {
+    /// A log file, its format by extension ([`read_log`]).
+    Path(&'a Path),
+    /// An Arrow table in memory (a pyarrow, polars or pandas table handed over by Python),
+    /// read as a columnar file with the same column names, units and checks.
+    #[cfg(feature = "parquet")]
+    Arrow {
+        /// The log's name: the experiment's, and the path errors name.
+        name: &'a str,
+        /// The table's schema (column names and types).
+        schema: &'a arrow_schema::Schema,
+        /// Its rows, batch after batch.
+        batches: &'a [arrow_array::RecordBatch],
+    },
+}
+
+impl LogSource<'_> {
+    /// The path of a file, or the name of a table (what errors name).
+    pub fn path(&self) -> &Path {
+        match self {
+            Self::Path(p) => p,
+            #[cfg(feature = "parquet")]
+            Self::Arrow { name, .. } => Path::new(name),
+        }
+    }
+
+    /// The wanted columns (see [`read_table_with`]).
+    fn table(
+        &self,
+        wanted: &[(&str, bool)],
+        options: &CsvOptions,
+        time: TimeCheck,
+    ) -> Result<crate::data::Table> {
+        match *self {
+            Self::Path(path) => read_table_with(path, wanted, &options.limits, options.delimiter, time),
+            #[cfg(feature = "parquet")]
+            Self::Arrow { name, schema, batches } => {
+                crate::data::read_batches_with(name, schema, batches, wanted, &options.limits, time)
+            }
+        }
+    }
+}
+
+/// [`read_log`] of a file or an Arrow table in memory: the same columns, units, window and
+/// checks; a table's experiment is named by its `name`.
+///
+/// # Errors
+/// Those of [`read_log`], naming the table's `name` where they name a path.
+pub fn read_log_from(source: LogSource<'_>, options: &CsvOptions) -> Result<Experiment> {
+    let path = source.path();
     let time = if options.window.is_open() { TimeCheck::Streaming } else { TimeCheck::Skip };
-    let raw = Raw::read(path, options, time)?;
+    let raw = Raw::read(source, options, time)?;
     if options.window.is_open() {
         let rows = raw.rows;
         return plausible(path, raw.into_experiment(0..rows, options)?, options);
@@ -118,7 +172,8 @@ impl Raw {
     /// Reads the wanted columns, the time column checked by the reader as `time` says
     /// ([`TimeCheck::Skip`] for a window or a split at gaps, which check the rows they keep:
     /// the time column is then split or windowed here).
-    pub(super) fn read(path: &Path, options: &CsvOptions, time: TimeCheck) -> Result<Self> {
+    pub(super) fn read(source: LogSource<'_>, options: &CsvOptions, time: TimeCheck) -> Result<Self> {
+        let path = source.path();
         options.window.check()?;
         let needs_n_p = options.speed_frame == Frame::Electrical || options.source == DqSource::Phases;
         let n_p = match options.pole_pairs {
@@ -144,7 +199,7 @@ impl Raw {
             wanted.push((&c.theta_m, false));
         }
         wanted.extend([(c.u_d_ref.as_str(), false), (c.u_q_ref.as_str(), false)]);
-        let mut table = match read_table_with(path, &wanted, &options.limits, options.delimiter, time) {
+        let mut table = match source.table(&wanted, options, time) {
             Err(Error::TooShort { name, len, .. }) => {
                 return Err(Error::TooShort { name, len, min: MIN_SAMPLES });
             }

@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use super::options::CsvOptions;
-use super::reader::{Raw, plausible};
+use super::reader::{LogSource, Raw, plausible};
 use crate::data::{Experiment, TimeCheck};
 use crate::error::{Error, Result};
 use crate::pmsm::log::signals::MIN_SAMPLES;
@@ -66,8 +66,16 @@ pub struct DroppedSegment {
 /// # Ok::<(), greybox::Error>(())
 /// ```
 pub fn read_log_segments(path: impl AsRef<Path>, options: &CsvOptions) -> Result<LogSegments> {
-    let path = path.as_ref();
-    let raw = Raw::read(path, options, TimeCheck::Skip)?;
+    read_log_segments_from(LogSource::Path(path.as_ref()), options)
+}
+
+/// [`read_log_segments`] of a file or an Arrow table in memory (see [`read_log_from`](super::read_log_from)).
+///
+/// # Errors
+/// Those of [`read_log_segments`], naming the table's name where they name a path.
+pub fn read_log_segments_from(source: LogSource<'_>, options: &CsvOptions) -> Result<LogSegments> {
+    let path = source.path();
+    let raw = Raw::read(source, options, TimeCheck::Skip)?;
     let cut = raw.window(options)?;
     let t = raw.t();
     let (kept, short): (Vec<_>, Vec<_>) = cut.segments.into_iter().partition(|s| s.len() >= MIN_SAMPLES);

@@ -1,0 +1,250 @@
+"""greybox: permanent-magnet synchronous motor parameters from drive logs.
+
+Estimates the stator resistance ``r_s`` [Ω], the inductance ``l_s`` (or ``l_d``, ``l_q``)
+[H] and the back-EMF constant ``k_e`` [V s/rad, mechanical], hence the torque constant
+``k_t`` [N m/A] and the magnet flux ``psi_f`` [V s], by the prediction-error method on an
+exact sampled-data model (Tenerz 2011, sections 5.2–5.3). The work is done by the Rust
+library; options are the command line's flags as keyword arguments (``dead_time="estimate"``
+for ``--dead-time estimate``, ``fixed_x0=True`` for ``--fixed-x0``), read by its own parser,
+so that every default, check and message is the command line's (docs/options.md).
+
+>>> import greybox
+>>> fit = greybox.fit("data/sample.csv.gz", pole_pairs=4)  # doctest: +SKIP
+>>> fit.parameters.to_pandas()  # doctest: +SKIP
+
+Errors are :class:`Error` subclasses: :class:`DataError` (a log that cannot be read or
+used), :class:`OptionError` (an invalid option), :class:`FitError` (the fit failed).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from typing import Any, Iterable, NamedTuple, Optional, Sequence, Union
+
+import pyarrow as pa
+
+from . import _greybox
+from ._fit import Fit
+from ._greybox import DataError, Error, FitError, OptionError
+from ._options import to_argv
+
+__all__ = [
+    "DataError",
+    "Error",
+    "Fit",
+    "FitError",
+    "OptionError",
+    "TrackRun",
+    "fit",
+    "fit_many",
+    "simulate",
+    "track",
+    "validate",
+]
+
+__version__: str = _greybox.__version__
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+def _is_path(obj: Any) -> bool:
+    return isinstance(obj, (str, os.PathLike))
+
+
+def _arrow(obj: Any) -> Any:
+    """An object offering ``__arrow_c_stream__``: the table itself (pyarrow, polars ≥ 1.0,
+    pandas ≥ 2.2 and any other Arrow PyCapsule producer), else converted by pyarrow."""
+    if hasattr(obj, "__arrow_c_stream__"):
+        return obj
+    if hasattr(obj, "to_arrow"):  # polars before the PyCapsule interface
+        return obj.to_arrow()
+    try:
+        import pandas as pd
+
+        if isinstance(obj, pd.DataFrame):
+            return pa.Table.from_pandas(obj, preserve_index=False)
+    except ImportError:
+        pass
+    try:
+        return pa.table(obj)
+    except (TypeError, ValueError, pa.ArrowException) as e:
+        raise DataError(f"not a log: {type(obj).__name__} is neither a path nor an Arrow-like table ({e})") from None
+
+
+def fit(
+    log: Union[PathLike, Any, Sequence[Union[PathLike, Any]]],
+    *,
+    pole_pairs: Union[int, str],
+    model: str = "spm",
+    name: Optional[str] = None,
+    **options: Any,
+) -> Fit:
+    """Fits a PMSM model to one drive log, or to several jointly (shared parameters).
+
+    ``log``: a path (CSV plain or gzip, Parquet, Arrow IPC), an Arrow-like table in memory
+    (pyarrow Table or RecordBatchReader, polars or pandas DataFrame; columns ``t`` [s],
+    ``ud, uq`` [V], ``id, iq`` [A], ``w_m`` [rad/s, mechanical], optional ``theta_m``
+    [rad, mechanical], ``ud_ref, uq_ref`` [V]; other names by ``col_*`` options), or a list
+    of them. ``pole_pairs``: n_p, or ``"auto"``. ``model``: ``"spm"`` (r_s, l_s, k_e) or
+    ``"ipm"`` (r_s, l_d, l_q, k_e). ``name``: the name of a table in the report (default
+    ``"table"``). ``options``: the flags of ``greybox fit`` (docs/cli.md) as keywords, e.g.
+    ``voltage="reference"``, ``delay="estimate"``, ``dead_time="estimate"``,
+    ``hold="stator"``, ``fix={"r_s": 0.9}``, ``bounds={"l_s": (1e-4, 1e-2)}``,
+    ``from_=0.5`` (``from`` is a Python keyword: a trailing underscore is dropped).
+    The file outputs (``json``, ``plot``, ``residuals``) are refused: see :class:`Fit`.
+
+    The GIL is released while the logs are read and fitted: fits in threads run in parallel.
+
+    Raises :class:`OptionError` for an invalid option, :class:`DataError` for a log that
+    cannot be read, :class:`FitError` when the fit fails; messages are the command line's.
+    """
+    logs = list(log) if isinstance(log, (list, tuple)) else [log]
+    sources = [os.fspath(x) if _is_path(x) else _arrow(x) for x in logs]
+    tables = sum(1 for x in logs if not _is_path(x))
+    base = name or "table"
+    names = _fill([base if tables == 1 else f"{base}{k + 1}" for k in range(tables)], sources)
+    argv = to_argv(_flags(pole_pairs=pole_pairs, model=model, **options), names)
+    return Fit(_greybox.fit(sources, names, argv))
+
+
+def _fill(names: list[str], sources: list[Any]) -> list[str]:
+    """A name per source: the table names in the tables' positions, the paths themselves."""
+    it = iter(names)
+    return [s if isinstance(s, str) else next(it) for s in sources]
+
+
+def _flags(**options: Any) -> dict[str, Any]:
+    """The options with a trailing underscore dropped (``from_`` → ``from``)."""
+    return {k[:-1] if k.endswith("_") else k: v for k, v in options.items()}
+
+
+def _paths(logs: Union[PathLike, Iterable[PathLike]]) -> list[str]:
+    """A folder or glob (as ``fit --each``), a path, or a list of paths."""
+    if _is_path(logs):
+        path = os.fspath(logs)  # type: ignore[arg-type]
+        return [path] if os.path.isfile(path) else list(_greybox.expand_logs(path))
+    return [os.fspath(p) for p in logs]  # type: ignore[union-attr]
+
+
+def _summary_table(records: list[str]) -> pa.Table:
+    """The ``--summary`` table of summary records (JSON, from the native ``fit_records``)."""
+    columns = _greybox.summary_columns(records)
+    types = {"string": pa.string(), "int64": pa.int64(), "bool": pa.bool_(), "float64": pa.float64()}
+    return pa.table({n: pa.array(v, type=types[t]) for n, t, v in columns})
+
+
+def fit_many(
+    logs: Union[PathLike, Iterable[PathLike]],
+    *,
+    pole_pairs: Union[int, str],
+    model: str = "spm",
+    threads: Optional[int] = None,
+    **options: Any,
+) -> pa.Table:
+    """Fits each log on its own with the same options, in parallel, as ``greybox fit --each``.
+
+    ``logs``: a list of paths, or a folder or glob (its logs as ``--each`` finds them).
+    ``threads``: how many logs at a time (default ``RAYON_NUM_THREADS`` or the cores).
+    Returns one row per log with the columns of ``--summary`` (docs/cli.md): ``log, name,
+    status`` (``ok``, ``untrusted``, ``failed``), ``error``, ``pole_pairs, hold, converged``,
+    ``NAME [unit]`` and ``NAME_se [unit]`` per parameter and derived quantity (SI),
+    ``fit_OUTPUT [%]``, ``warnings``, ``time [s]``. A log that cannot be read or fitted is a
+    ``failed`` row with its ``error``, never an exception.
+
+    Raises :class:`OptionError` for an invalid option (before any log is read) or a folder
+    or glob without logs.
+    """
+    paths = _paths(logs)
+    argv = to_argv(_flags(pole_pairs=pole_pairs, model=model, **options), paths)
+    names = _greybox.log_names(paths)
+    return _summary_table(_greybox.fit_records(paths, names, argv, threads))
+
+
+def _params_file(params: Any, stack: Any) -> str:
+    """A path to the JSON report of ``params`` (a path, a :class:`Fit` or a report dict)."""
+    if _is_path(params):
+        return os.fspath(params)
+    text = params.to_json() if isinstance(params, Fit) else json.dumps(params)
+    f = stack.enter_context(tempfile.NamedTemporaryFile("w", suffix=".json", delete=False))
+    f.write(text)
+    f.close()
+    stack.callback(os.unlink, f.name)
+    return f.name
+
+
+def validate(log: Union[PathLike, Sequence[PathLike]], *, params: Any, **options: Any) -> dict[str, Any]:
+    """Compares a saved fit with logs it was not fitted on, as ``greybox validate``.
+
+    ``params``: a :class:`Fit`, its report dict, or the path of a report (``--json``).
+    ``options``: the flags of ``greybox validate`` (``pole_pairs``, ``hold``, ``from_``, …).
+    Returns the report of ``validate --json``: ``model, pole_pairs, hold, theta`` and per
+    log its ``metrics`` (fit [%], residual RMS [A], FPE, AIC, whiteness).
+
+    Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
+    """
+    import contextlib
+
+    paths = [os.fspath(p) for p in (log if isinstance(log, (list, tuple)) else [log])]
+    with contextlib.ExitStack() as stack:
+        argv = to_argv(_flags(params=_params_file(params, stack), **options), paths)
+        return json.loads(_greybox.validate(argv))
+
+
+class TrackRun(NamedTuple):
+    """One log (or segment) tracked by the online MRAS observer."""
+
+    #: The log's path as given (``PATH#k`` for segment k of a log split at its gaps).
+    name: str
+    #: The estimates after the last sample: ``k_e`` [V s/rad], ``k_t`` [N m/A], ``r_s`` [Ω].
+    final: dict[str, float]
+    #: Every observer step: ``t`` [s], ``k_e`` [V s/rad], ``r_s`` [Ω].
+    trajectory: pa.Table
+
+
+def track(log: Union[PathLike, Sequence[PathLike]], *, pole_pairs: int, **options: Any) -> list[TrackRun]:
+    """Runs the online MRAS observer (thesis 5.1) over each log, as ``greybox track``.
+
+    ``options``: its flags, e.g. ``l_s=5e-3`` [H] or ``params=`` a :class:`Fit`, a report
+    dict or path; ``adaptation``, ``tau_ke`` [s], …. Returns one :class:`TrackRun` per log.
+
+    Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
+    """
+    import contextlib
+
+    paths = [os.fspath(p) for p in (log if isinstance(log, (list, tuple)) else [log])]
+    with contextlib.ExitStack() as stack:
+        if options.get("params") is not None:
+            options["params"] = _params_file(options["params"], stack)
+        argv = to_argv(_flags(pole_pairs=pole_pairs, **options), paths)
+        runs = _greybox.track(argv)
+    return [
+        TrackRun(name, {"k_e": k_e, "k_t": k_t, "r_s": r_s}, pa.Table.from_batches([batch]))
+        for name, (k_e, k_t, r_s), batch in runs
+    ]
+
+
+def simulate(scenario: Optional[str] = None, **options: Any) -> tuple[pa.Table, dict[str, Any]]:
+    """Simulates a closed-loop servo drive (thesis ch. 4), as ``greybox simulate``.
+
+    ``scenario``: ``"exp1"`` … ``"exp6"``; or ``config=`` a scenario dict or file.
+    ``options``: ``motor`` (``"spm"``, ``"ipm"``), ``seed``, ``duration`` [s],
+    ``set={"motor.r_s": 1.1}`` (each field by its path). Returns the log as a table (``t``
+    [s], then ``ud, uq`` [V], ``id, iq`` [A], ``w_m`` [rad/s], …, as the written log) and the
+    truth (the ``.truth.json`` file's dict).
+
+    Raises :class:`OptionError` for an unknown scenario, field or value, :class:`FitError`
+    when the simulation diverges.
+    """
+    import contextlib
+
+    with contextlib.ExitStack() as stack:
+        config = options.pop("config", None)
+        if config is not None:
+            options["config"] = _params_file(config, stack)
+        if isinstance(options.get("set"), dict):
+            options["set"] = [f"{k}={json.dumps(v)}" for k, v in options["set"].items()]
+        argv = to_argv(_flags(scenario=scenario, **options))
+        batch, truth = _greybox.simulate(argv)
+    return pa.Table.from_batches([batch]), json.loads(truth)

@@ -1,0 +1,100 @@
+//! `greybox.validate`, `greybox.track` and `greybox.simulate`: the command line's
+//! subcommands with their results handed back instead of printed or written.
+
+use crate::errors::{from_clap, refused, to_py};
+use arrow_array::{ArrayRef, Float64Array, RecordBatch};
+use arrow_pyarrow::ToPyArrow;
+use greybox::cli::errors::in_cli_words;
+use greybox::cli::simulate::SimulateArgs;
+use greybox::cli::track::TrackArgs;
+use greybox::cli::validate::ValidateArgs;
+use greybox::cli::{command, parse};
+use pyo3::prelude::*;
+use std::sync::Arc;
+
+/// `e` in the words of the subcommand `name` with the flags of `T`, as a Python exception.
+fn words<T: clap::Args>(name: &'static str) -> impl Fn(greybox::Error) -> PyErr {
+    move |e| to_py(in_cli_words(e, &command::<T>(name)))
+}
+
+/// Validates the saved fit of `--params` on the logs of `argv` (the flags of `greybox
+/// validate`), the GIL released; the JSON of `validate --json`.
+///
+/// Errors: `OptionError`, `DataError`, `FitError` with the command line's messages.
+#[pyfunction]
+pub fn validate(py: Python<'_>, argv: Vec<String>) -> PyResult<String> {
+    let a: ValidateArgs = parse("validate", &argv).map_err(from_clap)?;
+    for (flag, given) in [
+        ("--json", a.json.is_some()),
+        ("--plot", a.plot.is_some()),
+        ("--compare-dir", a.compare_dir.is_some()),
+    ] {
+        if given {
+            return Err(refused(flag, "the Python functions write no files: validate() returns the report"));
+        }
+    }
+    let (saved, _, comparisons) =
+        py.detach(|| greybox::cli::validate::compare(&a)).map_err(words::<ValidateArgs>("validate"))?;
+    Ok(greybox::cli::validate::to_json(&saved, &comparisons))
+}
+
+/// One observer run: its name, its final estimates `(k_e, k_t, r_s)` and its trajectory as
+/// a pyarrow RecordBatch `t [s], k_e [V s/rad], r_s [Ω]`.
+type Run = (String, (f64, f64, f64), Py<PyAny>);
+
+/// Runs the MRAS observer of `greybox track` (the flags `argv`) over each log, the GIL
+/// released; every point of each trajectory.
+///
+/// Errors: `OptionError`, `DataError`, `FitError` with the command line's messages.
+#[pyfunction]
+pub fn track(py: Python<'_>, argv: Vec<String>) -> PyResult<Vec<Run>> {
+    let a: TrackArgs = parse("track", &argv).map_err(from_clap)?;
+    for (flag, given) in [("--json", a.json.is_some()), ("--plot", a.plot.is_some())] {
+        if given {
+            return Err(refused(
+                flag,
+                "the Python functions write no files: track() returns the trajectories",
+            ));
+        }
+    }
+    let (runs, names) =
+        py.detach(|| greybox::cli::track::track_logs(&a)).map_err(words::<TrackArgs>("track"))?;
+    runs.into_iter()
+        .zip(names)
+        .map(|((_, _, tr), name)| {
+            let f = &tr.final_estimate;
+            let column = |v: Vec<f64>| Arc::new(Float64Array::from(v)) as ArrayRef;
+            let batch = RecordBatch::try_from_iter([
+                ("t", column(tr.t.clone())),
+                ("k_e", column(tr.k_e.clone())),
+                ("r_s", column(tr.r_s.clone())),
+            ])
+            .map_err(|e| crate::errors::Error::new_err(e.to_string()))?;
+            Ok((name, (f.k_e, f.k_t, f.r_s), batch.to_pyarrow(py)?.unbind()))
+        })
+        .collect()
+}
+
+/// Simulates the closed-loop drive of `greybox simulate` (the flags `argv`), the GIL
+/// released: the log as a pyarrow RecordBatch (time column `t` [s], then the channels, as
+/// the written Parquet/Arrow log) and the truth as JSON (the `.truth.json` file's).
+///
+/// Errors: `OptionError` for an unknown scenario or field or a bad value, `FitError` for a
+/// diverging simulation.
+#[pyfunction]
+pub fn simulate(py: Python<'_>, argv: Vec<String>) -> PyResult<(Py<PyAny>, String)> {
+    // `--print-config` only lifts the parser's need of `-o`: the scenario is built the same.
+    let mut argv = argv;
+    argv.push("--print-config".into());
+    let a: SimulateArgs = parse("simulate", &argv).map_err(from_clap)?;
+    if a.output.is_some() {
+        return Err(refused("--output", "the Python functions write no files: simulate() returns the log"));
+    }
+    let cfg = greybox::cli::simulate::config(&a).map_err(words::<SimulateArgs>("simulate"))?;
+    let log =
+        py.detach(|| greybox::drive::simulate_drive(&cfg)).map_err(words::<SimulateArgs>("simulate"))?;
+    let batch = greybox::data::to_record_batch(&log.experiment, "t").map_err(to_py)?;
+    let truth =
+        serde_json::to_string_pretty(&log.truth).map_err(|e| crate::errors::Error::new_err(e.to_string()))?;
+    Ok((batch.to_pyarrow(py)?.unbind(), truth))
+}

@@ -1,0 +1,48 @@
+"""greybox.validate, track and simulate."""
+
+from __future__ import annotations
+
+import pyarrow as pa
+import pytest
+
+import greybox
+
+
+def test_simulate_then_fit_recovers_the_truth():
+    log, truth = greybox.simulate("exp3", seed=1, duration=1.0)
+    assert isinstance(log, pa.Table)
+    assert log.column_names[0] == "t" and {"ud", "uq", "id", "iq", "w_m"} <= set(log.column_names)
+    assert truth["scenario"] and truth["start"]["r_s"] > 0
+    fit = greybox.fit(log, pole_pairs=truth["start"]["n_p"])
+    assert fit.value("r_s") == pytest.approx(truth["start"]["r_s"], rel=0.05)
+
+
+def test_simulate_errors():
+    with pytest.raises(greybox.OptionError, match="exp9|scenario"):
+        greybox.simulate("exp9")
+    with pytest.raises(greybox.OptionError, match="not a field"):
+        greybox.simulate("exp1", set={"motor.x_s": 1.0})
+    with pytest.raises(greybox.OptionError, match="--output"):
+        greybox.simulate("exp1", output="x.csv")
+
+
+def test_validate_with_a_fit(sample):
+    fit = greybox.fit(sample, pole_pairs=4, to=1.6)
+    report = greybox.validate(sample, params=fit, from_=1.6)
+    assert report["model"] == "pmsm_spm" and report["pole_pairs"] == 4
+    (comparison,) = report["comparisons"]
+    assert min(comparison["metrics"]["fit_percent"]) > 90
+    assert greybox.validate(sample, params=fit.to_dict(), from_=1.6) == report
+    with pytest.raises(greybox.OptionError, match="--params`: not a fit report"):
+        greybox.validate(sample, params={"model": "nothing"})
+
+
+def test_track(sample):
+    fit = greybox.fit(sample, pole_pairs=4)
+    (run,) = greybox.track(sample, pole_pairs=4, params=fit)
+    assert run.name.endswith("sample.csv.gz")
+    assert run.trajectory.column_names == ["t", "k_e", "r_s"]
+    assert run.trajectory.num_rows > 1000
+    assert run.final["k_e"] == run.trajectory.column("k_e")[-1].as_py()
+    with pytest.raises(greybox.OptionError, match="--l-s"):
+        greybox.track(sample, pole_pairs=4)
