@@ -13,8 +13,9 @@ Two motors are faulty from their 4th log on (log index 3): one demagnetises (psi
 T_w plus a per-log sensor error (σ = 1 K) plus per-sample noise (σ = 0.5 K). Currents carry
 sensor noise (σ = 0.01 A).
 
-Writes ``motorMMM_logLL.parquet`` (or ``.csv.gz``) and ``truth.csv`` (one row per log) to
-the output folder. Usage::
+Writes ``motorMMM_logLL.parquet`` (or ``.csv.gz``) and ``truth.tsv`` (one row per log,
+tab-separated: a ``.csv`` would be read as a log by ``greybox fit --each DIR``) to the
+output folder. Usage::
 
     python scripts/fleet_logs.py /tmp/fleet-logs --motors 40 --logs 6
     python scripts/fleet_logs.py DIR --motors 4 --logs 4 --demagnetised 1 --fault 2
@@ -140,11 +141,11 @@ def main(argv: list[str] | None = None) -> int:
     rows = plan(a.motors, a.logs, a.seed, a.demagnetised, a.fault)
     with ThreadPoolExecutor(a.jobs) as pool:
         done = list(pool.map(lambda r: write_log(r, a.out, a.format, a.scenario, a.duration), rows))
-    with open(os.path.join(a.out, "truth.csv"), "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(done[0]))
+    with open(os.path.join(a.out, "truth.tsv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(done[0]), delimiter="\t")
         w.writeheader()
         w.writerows(done)
-    print(f"{len(done)} logs ({a.motors} motors × {a.logs}) in {a.out}; truth in {a.out}/truth.csv", file=sys.stderr)
+    print(f"{len(done)} logs ({a.motors} motors × {a.logs}) in {a.out}; truth in {a.out}/truth.tsv", file=sys.stderr)
     return 0
 
 
