@@ -108,3 +108,17 @@ def test_bad_input_is_named(fleet, tmp_path):
         greybox.fleet.fleet_view(summary, motor_id=MOTOR, r_s0={"motor000": 1.2})
     with pytest.raises(greybox.DataError, match="no column `r_s"):
         greybox.fleet.fleet_view(summary.select(["log", "status"]), motor_id=MOTOR)
+
+
+def test_view_of_the_command_lines_summary(fleet, cli, tmp_path):
+    """``greybox fit --each DIR --summary S``, read with pyarrow.csv, gives the same view."""
+    import subprocess
+
+    import pyarrow.csv as pacsv
+
+    out, summary, truth = fleet
+    run = subprocess.run([str(cli), "fit", "--each", str(out), "-p", "4", "--summary", str(tmp_path / "s.csv")])
+    assert run.returncode == 0
+    from_cli = pacsv.read_csv(tmp_path / "s.csv")
+    opts = dict(motor_id=MOTOR, temperature="t_winding", magnet_offset=15)
+    assert greybox.fleet.fleet_view(from_cli, **opts).equals(greybox.fleet.fleet_view(summary, **opts))
