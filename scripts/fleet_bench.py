@@ -43,7 +43,9 @@ def cli_each(binary: str, folder: str, threads: int) -> tuple[float, object]:
     with tempfile.TemporaryDirectory() as d:
         env = {**os.environ, "RAYON_NUM_THREADS": str(threads)}
         t = time.perf_counter()
-        out = subprocess.run([binary, "fit", "--each", folder, "-p", "4", "--summary", f"{d}/s.csv"], env=env, capture_output=True)
+        out = subprocess.run(
+            [binary, "fit", "--each", folder, "-p", "4", "--summary", f"{d}/s.csv"], env=env, capture_output=True
+        )
         dt = time.perf_counter() - t
         if out.returncode not in (0, 3):
             sys.exit(f"greybox fit --each exited {out.returncode}: {out.stderr.decode()[-2000:]}")
@@ -82,7 +84,7 @@ def main() -> int:
         rows.append((what, seconds, n / seconds if seconds else float("nan"), note))
         print(f"{what}: {seconds:.3f} s", file=sys.stderr)
 
-    t_serial, serial = best(a.repeat, lambda: greybox.fit_many(paths, pole_pairs=4, threads=1))
+    t_serial, _ = best(a.repeat, lambda: greybox.fit_many(paths, pole_pairs=4, threads=1))
     row("fit_many, 1 thread", t_serial, f"{1000 * t_serial / n:.1f} ms per log")
     t_many, many = best(a.repeat, lambda: greybox.fit_many(paths, pole_pairs=4, threads=a.workers))
     row(f"fit_many, {a.workers} threads", t_many)

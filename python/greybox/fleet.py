@@ -73,7 +73,9 @@ def _motor_ids(summary: pa.Table, motor_id: str) -> list[str]:
     try:
         pattern = re.compile(motor_id)
     except re.error as e:
-        raise OptionError(f"invalid option `motor_id`: {motor_id!r} is no column and no regular expression ({e})") from None
+        raise OptionError(
+            f"invalid option `motor_id`: {motor_id!r} is no column and no regular expression ({e})"
+        ) from None
     if pattern.groups != 1:
         raise OptionError(
             f"invalid option `motor_id`: {motor_id!r} is no column of the summary and not a regular expression "
@@ -143,7 +145,9 @@ def _reference(rows: list[dict], key: str, coef: float, t0: float, sd_t: float, 
     return ref, math.sqrt(se2)
 
 
-def _check(value, se, ref, ref_se, coef, temp, t0, sd_t, z, sign) -> tuple[Optional[float], Optional[float], Optional[bool]]:
+def _check(
+    value, se, ref, ref_se, coef, temp, t0, sd_t, z, sign
+) -> tuple[Optional[float], Optional[float], Optional[bool]]:
     """The expected value at ``temp``, the deviation in standard errors (``sign`` +1: above,
     −1: below) and whether it is beyond ``z``."""
     if not _ok(value, se, ref):
@@ -237,7 +241,9 @@ def fleet_view(
         given_r, given_p = _given(r_s0, motor, "r_s0"), _given(psi_f0, motor, "psi_f0")
         ref_r = (given_r, 0.0) if given_r is not None else _reference(group, "r_s", alpha_cu, t0, sd_t, reference_logs)
         mags = [{**r, "temp": r["t_mag"]} for r in group]
-        ref_p = (given_p, 0.0) if given_p is not None else _reference(mags, "psi_f", beta_magnet, t0, sd_t, reference_logs)
+        ref_p = (
+            (given_p, 0.0) if given_p is not None else _reference(mags, "psi_f", beta_magnet, t0, sd_t, reference_logs)
+        )
         for r in group:
             r["r_s0"], r["psi_f0"] = ref_r[0], ref_p[0]
             r["r_exp"], r["r_z"], r["r_flag"] = _check(

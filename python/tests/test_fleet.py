@@ -43,11 +43,13 @@ def fleet(tmp_path_factory):
 
 
 def _flagged(view, flag):
-    return [log.rsplit("/", 1)[-1] for log, f in zip(view.column("log").to_pylist(), view.column(flag).to_pylist()) if f]
+    return [
+        log.rsplit("/", 1)[-1] for log, f in zip(view.column("log").to_pylist(), view.column(flag).to_pylist()) if f
+    ]
 
 
 def test_flags_find_the_faulty_motors_and_no_other(fleet):
-    out, summary, truth = fleet
+    _, summary, truth = fleet
     view = greybox.fleet.fleet_view(summary, motor_id=MOTOR, t0=20, temperature="t_winding", magnet_offset=15)
     assert view.column("motor").to_pylist()[::4] == ["motor000", "motor001", "motor002", "motor003"]
     assert _flagged(view, "demagnetised") == [t["path"] for t in truth if t["demagnetised"] == "True"]
@@ -70,7 +72,7 @@ def _temperature_errors(view, truth):
 
 
 def test_inferred_temperatures(fleet):
-    out, summary, truth = fleet
+    _, summary, truth = fleet
     view = greybox.fleet.fleet_view(summary, motor_id=MOTOR, t0=20, temperature="t_winding", magnet_offset=15)
     dw, dm = _temperature_errors(view, truth)
     assert dw < TOL_REFERENCED and dm < TOL_REFERENCED, (dw, dm)
@@ -88,7 +90,7 @@ def test_inferred_temperatures(fleet):
 
 def test_motor_column_and_temperature_table(fleet):
     """The motor id from a column and the temperatures from a table give the same view."""
-    out, summary, truth = fleet
+    _, summary, truth = fleet
     by_path = greybox.fleet.fleet_view(summary, motor_id=MOTOR, temperature="t_winding", magnet_offset=15)
     temps = pa.table({"log": summary.column("log"), "temperature": by_path.column("temperature [°C]")})
     with_column = summary.append_column("unit", pa.array([t["motor"] for t in truth]))
@@ -96,8 +98,8 @@ def test_motor_column_and_temperature_table(fleet):
     assert by_column.equals(by_path)
 
 
-def test_bad_input_is_named(fleet, tmp_path):
-    out, summary, truth = fleet
+def test_bad_input_is_named(fleet):
+    _, summary, _ = fleet
     with pytest.raises(greybox.OptionError, match="does not match the log '.*motor000_log00.parquet'"):
         greybox.fleet.fleet_view(summary, motor_id=r"(pump\d+)")
     with pytest.raises(greybox.OptionError, match="exactly one group"):
@@ -116,7 +118,7 @@ def test_view_of_the_command_lines_summary(fleet, cli, tmp_path):
 
     import pyarrow.csv as pacsv
 
-    out, summary, truth = fleet
+    out, summary, _ = fleet
     run = subprocess.run([str(cli), "fit", "--each", str(out), "-p", "4", "--summary", str(tmp_path / "s.csv")])
     assert run.returncode == 0
     from_cli = pacsv.read_csv(tmp_path / "s.csv")
