@@ -13,6 +13,8 @@ the order of the paths, written to ``--out`` (Parquet) if given; the times are p
 from __future__ import annotations
 
 import argparse
+import glob
+import os
 import sys
 import time
 
@@ -27,9 +29,15 @@ def fit_batch(batch: pa.Table, options: dict) -> pa.Table:
     return greybox.fit_many(paths, threads=1, **options)
 
 
+def log_paths(folder: str) -> list[str]:
+    """The Parquet logs of a folder, or the files of a glob, sorted."""
+    pattern = os.path.join(folder, "*.parquet") if os.path.isdir(folder) else folder
+    return sorted(glob.glob(pattern))
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("folder", help="a folder or glob of logs")
+    p.add_argument("folder", help="a folder of Parquet logs, or a glob")
     p.add_argument("--logs", type=int, default=None, help="only the first N logs")
     p.add_argument("--batch", type=int, default=4, help="logs per Ray task")
     p.add_argument("--cpus", type=int, default=2)
@@ -38,7 +46,7 @@ def main() -> int:
     a = p.parse_args()
     import ray
 
-    paths = list(greybox._paths(a.folder))[: a.logs]
+    paths = log_paths(a.folder)[: a.logs]
     options = {"pole_pairs": a.pole_pairs}
     t = time.perf_counter()
     ray.init(num_cpus=a.cpus, include_dashboard=False, log_to_driver=False)

@@ -18,6 +18,7 @@ of both and their agreement with ``fit_many`` are printed.
 from __future__ import annotations
 
 import argparse
+import glob
 import os
 import sys
 import time
@@ -53,6 +54,12 @@ def fit_group(table: pa.Table, pole_pairs: str) -> pa.Table:
     return pa.table(row)
 
 
+def log_paths(folder: str) -> list[str]:
+    """The Parquet logs of a folder, or the files of a glob, sorted."""
+    pattern = os.path.join(folder, "*.parquet") if os.path.isdir(folder) else folder
+    return sorted(glob.glob(pattern))
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("folder", help="a folder or glob of Parquet logs")
@@ -66,7 +73,7 @@ def main() -> int:
     from pyspark.sql import functions as F
     from pyspark.sql.pandas.types import from_arrow_schema
 
-    paths = sorted(greybox._paths(a.folder))[: a.logs]
+    paths = log_paths(a.folder)[: a.logs]
     pp = a.pole_pairs
     t = time.perf_counter()
     spark = (
