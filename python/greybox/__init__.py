@@ -38,6 +38,7 @@ __all__ = [
     "OptionError",
     "TrackRun",
     "fit",
+    "fleet",
     "fit_many",
     "simulate",
     "track",
@@ -248,3 +249,6 @@ def simulate(scenario: Optional[str] = None, **options: Any) -> tuple[pa.Table, 
         argv = to_argv(_flags(scenario=scenario, **options))
         batch, truth = _greybox.simulate(argv)
     return pa.Table.from_batches([batch]), json.loads(truth)
+
+
+from . import fleet  # noqa: E402  (uses the errors above; pyarrow only)
