@@ -62,16 +62,7 @@ pub(crate) fn read(
     };
     // Each wanted column as read, moved rather than copied.
     let values: Vec<Option<Vec<f64>>> = index.iter().zip(columns).map(|(i, c)| i.map(|_| c)).collect();
-    if rows > limits.max_rows {
-        return Err(Error::LimitExceeded {
-            path: path.to_path_buf(),
-            // The line of the first row too many, were the log a CSV file with a header.
-            line: limits.max_rows.saturating_add(2),
-            what: format!("more than {} data rows", limits.max_rows),
-            limit: "max_rows".into(),
-            max: limits.max_rows,
-        });
-    }
+    check_rows(path, rows, limits)?;
     let time = (time == TimeCheck::Streaming).then(|| wanted.first().map_or("", |w| w.0));
     check::rows(path, time, &header, &index, &values)?;
     Ok(Table { name: experiment_name(path), header, columns: values })
@@ -82,6 +73,21 @@ pub(crate) fn read(
 type Read = (Vec<String>, Vec<Option<usize>>, Vec<Vec<f64>>, u64);
 
 /// The schema's names and the wanted columns' positions in it.
+/// [`Error::LimitExceeded`] when a table of `rows` rows holds more than `limits.max_rows`.
+pub(super) fn check_rows(path: &Path, rows: u64, limits: &ReadLimits) -> Result<()> {
+    if rows <= limits.max_rows {
+        return Ok(());
+    }
+    Err(Error::LimitExceeded {
+        path: path.to_path_buf(),
+        // The line of the first row too many, were the log a CSV file with a header.
+        line: limits.max_rows.saturating_add(2),
+        what: format!("more than {} data rows", limits.max_rows),
+        limit: "max_rows".into(),
+        max: limits.max_rows,
+    })
+}
+
 pub(super) fn header(
     path: &Path,
     schema: &Schema,

@@ -7,11 +7,11 @@ use std::path::Path;
 use arrow_array::RecordBatch;
 use arrow_schema::Schema;
 
-use super::arrow_io::{collect, header};
+use super::arrow_io::{check_rows, collect, header};
 use super::check;
 use crate::data::table::{ReadLimits, Table};
 use crate::data::time::TimeCheck;
-use crate::error::{Error, Result};
+use crate::error::Result;
 
 /// Reads the `wanted` columns of Arrow record `batches` in memory (e.g. a table handed over
 /// by Python through the Arrow C stream interface, not copied before this conversion to
@@ -28,15 +28,7 @@ pub(crate) fn read_batches(
     let path = Path::new(name);
     let (header, index) = header(path, schema, wanted, limits)?;
     let rows: u64 = batches.iter().map(|b| b.num_rows() as u64).sum();
-    if rows > limits.max_rows {
-        return Err(Error::LimitExceeded {
-            path: path.to_path_buf(),
-            line: limits.max_rows.saturating_add(2),
-            what: format!("more than {} data rows", limits.max_rows),
-            limit: "max_rows".into(),
-            max: limits.max_rows,
-        });
-    }
+    check_rows(path, rows, limits)?;
     let streaming = time == TimeCheck::Streaming;
     let values = collect(path, batches.iter().cloned().map(Ok), &header, &index, streaming)?;
     let values: Vec<Option<Vec<f64>>> = index.iter().zip(values).map(|(i, c)| i.map(|_| c)).collect();
