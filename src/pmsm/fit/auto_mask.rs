@@ -77,8 +77,7 @@ pub(super) fn fit(
             }
         };
         trail.push(format!("{threshold:.4}"));
-        let names = options.model.parameter_names().iter().copied().chain(["v_dt"]);
-        let start: Option<Vec<f64>> = names.map(|n| fit.parameter(n).map(|p| p.value)).collect();
+        let start = fit.inverter_start(options.model);
         let last = step + 1 == AUTO_ITERATIONS;
         let o = with_mask(Some(DeadTimeMask::Current(threshold)), start);
         fit = super::base::fit(

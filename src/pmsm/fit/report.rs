@@ -63,6 +63,12 @@ impl std::ops::Deref for PmsmFit {
 }
 
 impl PmsmFit {
+    /// The estimate as the start of a fit with the inverter model: the values of `model`'s
+    /// parameters, then `v_dt` \[SI units\]; `None` when one of them was not estimated.
+    pub(crate) fn inverter_start(&self, model: crate::pmsm::model::kind::MotorKind) -> Option<Vec<f64>> {
+        let names = model.parameter_names().iter().copied().chain(["v_dt"]);
+        names.map(|n| self.parameter(n).map(|p| p.value)).collect()
+    }
     /// The JSON report (pretty-printed; non-finite numbers as `null`).
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))

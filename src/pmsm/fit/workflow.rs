@@ -75,9 +75,8 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
 /// and inverter model (the automatic mask's last threshold), started from its estimate,
 /// without setup checks of their own.
 fn part_options(options: &PmsmFitOptions, fit: &PmsmFit) -> PmsmFitOptions {
-    let names = options.model.parameter_names().iter().copied().chain(["v_dt"]);
     PmsmFitOptions {
-        start: names.map(|n| fit.parameter(n).map(|p| p.value)).collect(),
+        start: fit.inverter_start(options.model),
         hold: match fit.hold {
             VoltageHold::Dq => HoldChoice::Dq,
             VoltageHold::Stator => HoldChoice::Stator,
