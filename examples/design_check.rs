@@ -16,7 +16,8 @@ fn main() -> greybox::Result<()> {
     for name in &plans {
         let mut cfg = scenario(name, SPM_MOTOR)?;
         cfg.duration = duration;
-        cfg.sensors.current_noise = 0.05;
+        cfg.sensors.current_noise =
+            std::env::var("DESIGN_NOISE").ok().and_then(|s| s.parse().ok()).unwrap_or(0.05);
         // DESIGN_POLE=a: AR(1) current noise with pole a.
         cfg.sensors.current_noise_pole =
             std::env::var("DESIGN_POLE").ok().and_then(|s| s.parse().ok()).unwrap_or(0.0);
