@@ -29,6 +29,7 @@
 
 pub mod config;
 pub mod control;
+pub mod design;
 mod motors;
 pub mod output;
 pub mod profile;

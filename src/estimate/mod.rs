@@ -10,6 +10,7 @@ pub mod arrowhead;
 pub mod assemble;
 pub mod consistency;
 mod covariance;
+pub mod design;
 pub mod diagnostics;
 pub mod filter;
 pub mod gate;

@@ -16,6 +16,7 @@ mod criteria;
 mod csv_reader;
 mod data;
 mod delimiter;
+mod design;
 mod drive;
 mod early_stop;
 mod errors;
