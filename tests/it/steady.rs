@@ -43,7 +43,11 @@ fn slow_drive(motor: MotorParameters) -> (Experiment, greybox::drive::Truth) {
             load: greybox::drive::Profile::constant(0.2 * t_max),
             ..base.mechanics.clone()
         },
-        sensors: greybox::drive::Sensors { current_noise: 0.02, voltage_noise: 0.5, ..Default::default() },
+        sensors: if std::env::var("STEADY_NOISE_FREE").is_ok() {
+            greybox::drive::Sensors::default()
+        } else {
+            greybox::drive::Sensors { current_noise: 0.02, voltage_noise: 0.5, ..Default::default() }
+        },
         duration: 31.3,
         ..base
     };
@@ -128,4 +132,37 @@ fn steady_state_refuses_bad_input() {
     assert!(steady_state(one, 0, MotorKind::Spm, &SteadyOptions::default()).is_err());
     let short = e.slice(0..3).unwrap();
     assert!(steady_state(&[short], t.start.n_p, MotorKind::Spm, &SteadyOptions::default()).is_err());
+}
+
+/// Probe of the 100 Hz bias (not a check; `--ignored --nocapture`): point-sampled against
+/// period-midpoint currents. Measured: identical with `STEADY_NOISE_FREE=1` (R_s +3.7e-5,
+/// L_s −1.41e-3, K_e −8.3e-4), so the bias is deterministic and not current ripple.
+#[test]
+#[ignore = "a probe that prints, for the successor"]
+fn probe_bias_cause() {
+    for mid in [false, true] {
+        let (mut fast, t) = slow_drive(SPM_MOTOR);
+        if mid {
+            for name in ["id", "iq"] {
+                let x = fast.channel(name).unwrap().to_vec();
+                let m: Vec<f64> = (0..x.len()).map(|k| 0.5 * (x[k] + x[(k + 1).min(x.len() - 1)])).collect();
+                let chans: Vec<Channel> = fast
+                    .channels()
+                    .iter()
+                    .map(|c| if c.name == name { Channel::new(name, "A", m.clone()) } else { c.clone() })
+                    .collect();
+                fast = Experiment::try_new("m", fast.h(), chans).unwrap();
+            }
+        }
+        let e = decimate(&fast, 100);
+        let est =
+            steady_state(std::slice::from_ref(&e), t.start.n_p, MotorKind::Spm, &SteadyOptions::default())
+                .unwrap();
+        eprintln!(
+            "mid {mid}: r_s {:+.3e} l_s {:+.3e} k_e {:+.3e}",
+            est.value("r_s").unwrap() / t.start.r_s - 1.0,
+            est.value("l_s").unwrap() / t.start.l_q - 1.0,
+            est.value("k_e").unwrap() / t.k_e - 1.0
+        );
+    }
 }
