@@ -45,7 +45,10 @@ pub use fit::report::{PmsmFit, ReportOptions, StartComparison, conventions};
 pub use fit::validate::SavedModel;
 pub use fit::workflow::fit_pmsm;
 pub use linear::report::LS_BIAS_UNTRUSTED;
-pub use linear::{LinearEstimate, LinearOptions, least_squares, regressors, weighted_least_squares};
+pub use linear::{
+    LinearEstimate, LinearOptions, STEADY_UNIDENTIFIABLE, SteadyEstimate, SteadyOptions, least_squares,
+    regressors, steady_state, weighted_least_squares,
+};
 pub use log::signals::{DqSignals, DqView, MAX_POLE_PAIRS, MIN_SAMPLES, PmsmError, channel};
 pub use log::transform::{
     clarke, currents_to_dq, inverse_clarke, inverse_park, park, stator_held_voltages_to_dq,

@@ -45,6 +45,7 @@ mod reports;
 mod robust;
 mod solvers;
 mod spm;
+mod steady;
 mod streamed;
 mod thermal;
 mod time_check;

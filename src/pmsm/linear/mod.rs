@@ -5,7 +5,9 @@ mod least_squares;
 mod regression;
 pub(super) mod report;
 pub(super) mod start;
+mod steady;
 
 pub use least_squares::*;
 pub use regression::regressors;
 pub(crate) use regression::{MAX_COLS, Regression, push_with_dead_time};
+pub use steady::{SteadyEstimate, SteadyOptions, UNIDENTIFIABLE as STEADY_UNIDENTIFIABLE, steady_state};
