@@ -6,6 +6,7 @@ mod regression;
 pub(super) mod report;
 pub(super) mod start;
 mod steady;
+mod steady_model;
 
 pub use least_squares::*;
 pub use regression::regressors;

@@ -26,12 +26,11 @@
 //! [`crate::estimate::iv::IvSums`] (Söderström & Stoica, *System Identification*, 1989, 8.2),
 //! with its covariance: white, or batch means when the equation errors are not white.
 
+use super::steady_model::{SteadyEquations, SteadyLog};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::Uncertainty;
-use crate::estimate::iv::IvSums;
 use crate::pmsm::log::signals::{DqView, check_pole_pairs};
-use crate::pmsm::model::interval::SQRT_2_3;
 use crate::pmsm::model::kind::MotorKind;
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -47,11 +46,27 @@ pub struct SteadyOptions {
     /// Floor of the change allowed \[A\] relative to the peak current, for noise-free logs
     /// (σ_i = 0). Default 1e-4.
     pub relative_floor: f64,
+    /// The drive's control (PWM) period h_c \[s\], when known: the point-sampled currents
+    /// are then related to the period-mean voltage exactly (the periodic steady state of
+    /// the stator-held step, [`super::steady_model`]); `None`: the continuous equations,
+    /// whose back-EMF reads low by up to `(ω_e h_c)²/12` at the log's top speed.
+    pub control_period: Option<f64>,
+    /// Parameters estimated per log (by name, e.g. `r_s` for a winding temperature per
+    /// log), the others shared.
+    pub per_experiment: Vec<String>,
+    /// Known series (cable) resistance \[Ω\], taken out of `r_s`.
+    pub cable_resistance: f64,
 }
 
 impl Default for SteadyOptions {
     fn default() -> Self {
-        Self { steady_sigmas: 4.0, relative_floor: 1e-4 }
+        Self {
+            steady_sigmas: 4.0,
+            relative_floor: 1e-4,
+            control_period: None,
+            per_experiment: Vec::new(),
+            cable_resistance: 0.0,
+        }
     }
 }
 
@@ -60,8 +75,14 @@ impl Default for SteadyOptions {
 pub struct SteadyEstimate {
     /// The model (SPM: `r_s, l_s, k_e`; IPM: `r_s, l_d, l_q, k_e`).
     pub kind: MotorKind,
-    /// Parameter names, length n_θ.
+    /// Parameter names, length n_θ (per-log parameters once per log).
     pub names: Vec<String>,
+    /// The log of each per-log parameter (`None`: shared), length n_θ.
+    pub experiment: Vec<Option<String>>,
+    /// IV iterations made (1 without a control period: the equations are then linear).
+    pub iterations: usize,
+    /// The control period the equations assumed \[s\] (`None`: continuous).
+    pub control_period: Option<f64>,
     /// Parameter units, length n_θ.
     pub units: Vec<String>,
     /// Estimates θ̂ \[Ω, H, V s/rad\], length n_θ.
@@ -78,6 +99,16 @@ pub struct SteadyEstimate {
     pub samples: usize,
     /// Current noise σ_i estimated per experiment \[A\], `[d, q]` each.
     pub current_noise: Vec<[f64; 2]>,
+    /// The white-noise standard errors (units of θ̂), length n_θ.
+    pub std_error_white: Vec<f64>,
+    /// Correlation of the estimates (n_θ × n_θ).
+    pub correlation: Vec<Vec<f64>>,
+    /// Whiteness of the d and q equation errors over the steady samples.
+    pub whiteness: Vec<crate::estimate::metrics::Whiteness>,
+    /// RMS equation error of the d and q voltages over the steady samples \[V\].
+    pub rms_residual: [f64; 2],
+    /// NRMSE fit of the d and q voltages over the steady samples \[%\].
+    pub fit_percent: [f64; 2],
     /// What the steady samples cannot tell (a parameter whose relative standard error
     /// exceeds [`UNIDENTIFIABLE`], with the reason in the motor's terms).
     pub notes: Vec<String>,
@@ -125,15 +156,6 @@ impl fmt::Display for SteadyEstimate {
     }
 }
 
-/// The d and q rows at currents `(i_d, i_q)` \[A\] and mechanical speed `w_m` \[rad/s\].
-fn rows(kind: MotorKind, np: f64, i_d: f64, i_q: f64, w_m: f64) -> ([f64; 4], [f64; 4]) {
-    let w_e = np * w_m;
-    match kind {
-        MotorKind::Spm => ([i_d, -w_e * i_q, 0.0, 0.0], [i_q, w_e * i_d, SQRT_2_3 * w_m, 0.0]),
-        MotorKind::Ipm => ([i_d, 0.0, -w_e * i_q, 0.0], [i_q, w_e * i_d, 0.0, SQRT_2_3 * w_m]),
-    }
-}
-
 /// Noise σ \[A\] of a sampled current from the lower 20 % quantile of `|x[k+1] − x[k]|`.
 fn noise_sigma(x: &[f64]) -> f64 {
     let mut d: Vec<f64> = x.windows(2).map(|w| (w[1] - w[0]).abs()).filter(|v| v.is_finite()).collect();
@@ -158,37 +180,69 @@ fn steady_indices(i_d: &[f64], i_q: &[f64], thr: [f64; 2]) -> Vec<usize> {
         .collect()
 }
 
-/// Sums of the IV equations at θ over the steady samples (`steady[e]` of experiment e).
-fn sums(
-    views: &[DqView<'_>],
-    steady: &[Vec<usize>],
-    kind: MotorKind,
-    np: f64,
-    theta: &[f64],
-) -> Result<IvSums> {
-    let nth = kind.parameter_names().len();
-    let mut acc = IvSums::new(2, nth);
-    let (mut d, mut z) = (vec![0.0; 2 * nth], vec![0.0; 2 * nth]);
-    for (v, ks) in views.iter().zip(steady) {
-        let (u_d, u_q) = v.terminal_voltage()?;
-        let (i_d, i_q, w_m) = (v.i_d(), v.i_q(), v.w_m());
-        acc.start_experiment();
-        for &k in ks {
-            let (rd, rq) = rows(kind, np, i_d[k], i_q[k], w_m[k]);
-            let mean = |x: &[f64]| 0.5 * (x[k - 1] + x[k + 1]);
-            let (zd, zq) = rows(kind, np, mean(i_d), mean(i_q), mean(w_m));
-            let dot = |r: &[f64; 4]| r[..nth].iter().zip(theta).map(|(a, b)| a * b).sum::<f64>();
-            let eps = [u_d[k] - dot(&rd), u_q[k] - dot(&rq)];
-            for j in 0..nth {
-                (d[j], d[nth + j]) = (-rd[j], -rq[j]);
-                (z[j], z[nth + j]) = (-zd[j], -zq[j]);
-            }
-            acc.add(&eps, &d, &z);
-        }
-        acc.end_experiment();
+/// Checks the options' numbers.
+fn check_options(options: &SteadyOptions, kind: MotorKind) -> Result<()> {
+    let bad = |option: &str, reason: String| Err(Error::InvalidOption { option: option.into(), reason });
+    if !(options.steady_sigmas.is_finite() && options.steady_sigmas > 0.0) {
+        return bad("steady_sigmas", format!("{} is not a positive number", options.steady_sigmas));
     }
-    Ok(acc)
+    if !(options.relative_floor.is_finite() && options.relative_floor >= 0.0) {
+        return bad("relative_floor", format!("{} is not a non-negative number", options.relative_floor));
+    }
+    if let Some(h) = options.control_period.filter(|h| !(h.is_finite() && *h > 0.0)) {
+        return bad("control_period", format!("{h} s is not a positive sample time"));
+    }
+    if !(options.cable_resistance.is_finite() && options.cable_resistance >= 0.0) {
+        return bad(
+            "cable_resistance",
+            format!("{} ohm is not a non-negative resistance", options.cable_resistance),
+        );
+    }
+    if let Some(n) = options.per_experiment.iter().find(|n| !kind.parameter_names().contains(&n.as_str())) {
+        return bad(
+            "per_experiment",
+            format!(
+                "{n} is not a parameter of the {} model ({})",
+                kind.model_name(),
+                kind.parameter_names().join(", ")
+            ),
+        );
+    }
+    Ok(())
 }
+
+/// The full parameter vector's names, logs and each log's columns: the model's parameters
+/// in order, a per-log one once per log where it stands.
+fn layout(
+    kind: MotorKind,
+    per: &[String],
+    logs: &[String],
+) -> (Vec<String>, Vec<Option<String>>, Vec<Vec<usize>>) {
+    let (mut names, mut of) = (Vec::new(), Vec::new());
+    let mut columns = vec![Vec::new(); logs.len()];
+    for name in kind.parameter_names() {
+        if per.iter().any(|p| p == name) {
+            for (e, log) in logs.iter().enumerate() {
+                columns[e].push(names.len());
+                names.push((*name).to_string());
+                of.push(Some(log.clone()));
+            }
+        } else {
+            for c in &mut columns {
+                c.push(names.len());
+            }
+            names.push((*name).to_string());
+            of.push(None);
+        }
+    }
+    (names, of, columns)
+}
+
+/// Most IV iterations (the equations are linear without a control period: one step).
+const MAX_ITERATIONS: usize = 20;
+
+/// Relative step below which the iteration has converged.
+const STEP_TOLERANCE: f64 = 1e-12;
 
 /// The steady-state fit of `experiments` (one motor, `n_p` pole pairs, model `kind`): R_s,
 /// L (SPM) or L_d, L_q (IPM), K_e \[Ω, H, V s/rad\] by instrumental variables on the steady
@@ -197,7 +251,7 @@ fn sums(
 ///
 /// # Errors
 /// [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError) for `n_p` out of range;
-/// [`Error::InvalidOption`] for non-positive options;
+/// [`Error::InvalidOption`] for non-positive options or an unknown per-log parameter;
 /// [`Error::MissingChannel`] for a log without the dq channels or the terminal voltage;
 /// [`Error::Numerical`] when fewer steady samples than parameters remain, or they do not
 /// determine every parameter (e.g. no speed at all).
@@ -208,62 +262,116 @@ pub fn steady_state(
     options: &SteadyOptions,
 ) -> Result<SteadyEstimate> {
     check_pole_pairs(n_p)?;
-    if !(options.steady_sigmas.is_finite() && options.steady_sigmas > 0.0) {
-        return Err(Error::InvalidOption {
-            option: "steady_sigmas".into(),
-            reason: format!("{} is not a positive number", options.steady_sigmas),
-        });
-    }
-    if !(options.relative_floor.is_finite() && options.relative_floor >= 0.0) {
-        return Err(Error::InvalidOption {
-            option: "relative_floor".into(),
-            reason: format!("{} is not a non-negative number", options.relative_floor),
-        });
-    }
-    let views = experiments.iter().map(DqView::try_new).collect::<Result<Vec<_>>>()?;
-    let mut steady = Vec::with_capacity(views.len());
-    let mut current_noise = Vec::with_capacity(views.len());
-    for v in &views {
-        v.terminal_voltage()?;
-        let sigma = [noise_sigma(v.i_d()), noise_sigma(v.i_q())];
-        let floor = options.relative_floor * v.peak_current();
+    check_options(options, kind)?;
+    let mut logs = Vec::with_capacity(experiments.len());
+    let mut current_noise = Vec::with_capacity(experiments.len());
+    let log_names: Vec<String> = experiments.iter().map(|e| e.name().to_string()).collect();
+    let (names, experiment, columns) = layout(kind, &options.per_experiment, &log_names);
+    for (e, columns) in experiments.iter().zip(columns) {
+        let view = DqView::try_new(e)?;
+        view.terminal_voltage()?;
+        let sigma = [noise_sigma(view.i_d()), noise_sigma(view.i_q())];
+        let floor = options.relative_floor * view.peak_current();
         let thr = sigma.map(|s| (options.steady_sigmas * std::f64::consts::SQRT_2 * s).max(floor));
-        steady.push(steady_indices(v.i_d(), v.i_q(), thr));
+        let steady = steady_indices(view.i_d(), view.i_q(), thr);
+        logs.push(SteadyLog { view, steady, columns });
         current_noise.push(sigma);
     }
-    let nth = kind.parameter_names().len();
-    let used: usize = steady.iter().map(Vec::len).sum();
-    if used <= nth {
+    let nth = names.len();
+    if let Some(log) = logs.iter().position(|l| l.steady.len() <= kind.parameter_names().len()) {
         return Err(Error::Numerical {
             context: "steady-state fit".into(),
             reason: format!(
-                "{used} steady samples for {nth} parameters: the log never settles between samples"
+                "{} has {} steady samples for {} parameters: the log never settles between samples",
+                log_names[log],
+                logs[log].steady.len(),
+                kind.parameter_names().len()
             ),
         });
     }
-    let np = f64::from(n_p);
-    // The equations are linear in θ: one IV step from zero is the IV solution.
+    let mut eq = SteadyEquations::new(kind, n_p, options.cable_resistance, None)?;
+    // The continuous equations are linear in θ: one IV step from zero is their root.
     let mut theta = vec![0.0; nth];
-    let step = sums(&views, &steady, kind, np, &theta)?.step()?;
+    let step = eq.sums(&logs, &theta)?.step()?;
     theta.iter_mut().zip(step.iter()).for_each(|(t, s)| *t += s);
-    let cov = sums(&views, &steady, kind, np, &theta)?.covariance()?;
+    let mut iterations = 1;
+    if options.control_period.is_some() {
+        eq = SteadyEquations::new(kind, n_p, options.cable_resistance, options.control_period)?;
+        loop {
+            let step = eq.sums(&logs, &theta)?.step()?;
+            theta.iter_mut().zip(step.iter()).for_each(|(t, s)| *t += s);
+            iterations += 1;
+            let small = step
+                .iter()
+                .zip(&theta)
+                .all(|(s, t)| s.abs() <= STEP_TOLERANCE * t.abs().max(f64::MIN_POSITIVE));
+            if small || iterations >= MAX_ITERATIONS {
+                break;
+            }
+        }
+    }
+    let sums = eq.sums(&logs, &theta)?;
+    let cov = sums.covariance()?;
     let t = cov.t_quantile();
     let std_error: Vec<f64> = (0..nth).map(|i| cov.cov[(i, i)].max(0.0).sqrt()).collect();
-    let names: Vec<String> = kind.parameter_names().iter().map(|s| (*s).to_string()).collect();
     let notes = notes(kind, &names, &theta, &std_error);
+    let units = names.iter().map(|n| unit_of(kind, n).to_string()).collect();
+    let used = sums.count;
+    let fit = goodness(&logs, &sums.sse);
     Ok(SteadyEstimate {
         kind,
-        units: kind.parameter_units().iter().map(|s| (*s).to_string()).collect(),
+        units,
         ci95: std_error.iter().map(|s| t * s).collect(),
+        std_error_white: (0..nth).map(|i| cov.cov_white[(i, i)].max(0.0).sqrt()).collect(),
+        correlation: (0..nth)
+            .map(|a| (0..nth).map(|b| cov.cov[(a, b)] / (std_error[a] * std_error[b])).collect())
+            .collect(),
         names,
+        experiment,
+        iterations,
+        control_period: options.control_period,
         theta,
         std_error,
         uncertainty: cov.uncertainty,
+        whiteness: cov.whiteness,
+        rms_residual: fit.0,
+        fit_percent: fit.1,
         steady_samples: used,
-        samples: views.iter().map(DqView::len).sum(),
+        samples: logs.iter().map(|l| l.view.len()).sum(),
         current_noise,
         notes,
     })
+}
+
+/// The RMS equation error \[V\] and NRMSE fit \[%\] of the d and q voltages over the steady
+/// samples, from the sums' squared errors `sse`.
+fn goodness(logs: &[SteadyLog<'_>], sse: &[f64]) -> ([f64; 2], [f64; 2]) {
+    let (mut n, mut s, mut s2) = (0.0f64, [0.0; 2], [0.0; 2]);
+    for log in logs {
+        let Ok((u_d, u_q)) = log.view.terminal_voltage() else { continue };
+        for &k in &log.steady {
+            n += 1.0;
+            for (a, u) in [u_d[k], u_q[k]].into_iter().enumerate() {
+                s[a] += u;
+                s2[a] += u * u;
+            }
+        }
+    }
+    let rms = [0, 1].map(|a| (sse[a] / n.max(1.0)).sqrt());
+    let fit = [0, 1].map(|a| {
+        let spread = (s2[a] - s[a] * s[a] / n.max(1.0)).max(0.0);
+        100.0 * (1.0 - (sse[a] / spread).sqrt())
+    });
+    (rms, fit)
+}
+
+/// The unit of parameter `name` of `kind`.
+fn unit_of(kind: MotorKind, name: &str) -> &'static str {
+    kind.parameter_names()
+        .iter()
+        .zip(kind.parameter_units())
+        .find(|(n, _)| **n == name)
+        .map_or("", |(_, u)| u)
 }
 
 /// The parameters the steady samples leave undetermined (relative standard error above
