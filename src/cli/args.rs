@@ -2,11 +2,12 @@
 
 use crate::estimate::weighting::SpeedShape;
 use crate::estimate::{ScalingKind, SolverKind, Tolerances, WeightingKind};
-use crate::pmsm::{HoldChoice, MotorKind};
-use clap::{Args, ValueEnum};
+use crate::pmsm::HoldChoice;
+use clap::Args;
 use std::path::PathBuf;
 
 pub use super::columns::ColumnArgs;
+pub use super::values::{FormatArg, MethodArg, ModelArg, VoltageArg};
 
 /// The flags of `greybox fit` (and of `fit --each`), as parsed; [`super::fit::plan`] turns
 /// them into library options.
@@ -40,9 +41,17 @@ pub struct FitArgs {
     /// the voltage equations over 1-32 pole pairs; the report gives the runner-up's ratio).
     #[arg(help_heading = "Motor and model", long, short = 'p', value_parser = parse_pole_pairs)]
     pub pole_pairs: PolePairs,
-    /// Machine model: surface (spm: r_s, l_s, k_e) or interior magnets (ipm: r_s, l_d, l_q, k_e).
-    #[arg(help_heading = "Motor and model", long, value_parser = super::values::listed::<MotorKind>(), default_value = "spm")]
-    pub model: MotorKind,
+    /// Machine model: surface (spm: r_s, l_s, k_e) or interior magnets (ipm: r_s, l_d, l_q, k_e),
+    /// dynamic unless the sample time is too long for it (then the steady-state equations,
+    /// with a note); spm-steady, ipm-steady: the steady-state equations of slow telemetry
+    /// (1-100 Hz; sample times up to 10 s).
+    #[arg(help_heading = "Motor and model", long, value_enum, default_value_t = ModelArg::Spm)]
+    pub model: ModelArg,
+    /// The drive's control (PWM) period [s] for the steady-state equations: point-sampled
+    /// currents are related to the period-mean voltage exactly (without it the back-EMF
+    /// reads low by up to (w_e h_c)^2/12).
+    #[arg(help_heading = "Motor and model", long, value_name = "SECONDS")]
+    pub control_period: Option<f64>,
     /// Voltage hold between samples: auto picks the one with the lower loss.
     #[arg(help_heading = "Motor and model", long, value_parser = super::values::listed::<HoldChoice>(), default_value = "auto")]
     pub hold: HoldChoice,
@@ -177,38 +186,6 @@ pub struct FitArgs {
     /// The log-reading flags (columns, units, window, limits).
     #[command(flatten)]
     pub columns: ColumnArgs,
-}
-
-/// What `greybox fit` prints on stdout (`--format`): the aligned table, the JSON report,
-/// the table as Markdown.
-// The values' clap docs would become `--help` text of their own: the enum's doc says them.
-#[allow(missing_docs)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum FormatArg {
-    Table,
-    Json,
-    Markdown,
-}
-
-/// The estimation method (`--method`): prediction error (`pem`), linear least squares
-/// (`ls`), instrumental variables (`iv`).
-// The values' clap docs would become `--help` text of their own: the enum's doc says them.
-#[allow(missing_docs)]
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum MethodArg {
-    Pem,
-    Ls,
-    Iv,
-}
-
-/// Which voltage drives the model (`--voltage`): the measured terminal voltage (`actual`)
-/// or the controller's reference (`reference`).
-// The values' clap docs would become `--help` text of their own: the enum's doc says them.
-#[allow(missing_docs)]
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum VoltageArg {
-    Actual,
-    Reference,
 }
 
 /// A delay in samples, or to be estimated.

@@ -164,6 +164,7 @@ impl ColumnArgs {
             time_unit: self.time_unit,
             window: TimeWindow { from: self.from, to: self.to },
             force: self.force,
+            steady_state: false,
             delimiter: self.delimiter,
         }
     }

@@ -129,7 +129,8 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
         PolePairs::Given(n) => Some(n),
         PolePairs::Auto => None,
     };
-    let csv = CsvOptions { pole_pairs: given, ..a.columns.options() };
+    let steady_state = a.model.dynamics() == crate::pmsm::Dynamics::Steady;
+    let csv = CsvOptions { pole_pairs: given, steady_state, ..a.columns.options() };
     if given.is_none() && (csv.speed_frame == Frame::Electrical || csv.source == DqSource::Phases) {
         return Err(crate::Error::InvalidOption {
             option: "pole-pairs".into(),
@@ -139,7 +140,7 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
         });
     }
     let report_options = ReportOptions { current_scale: csv.current_scale };
-    let kind = a.model;
+    let kind = a.model.kind();
     if let MethodArg::Ls = a.method {
         ls_only(a)?;
         a.weighting.rule()?;
@@ -220,6 +221,8 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
         cable_resistance: a.cable_resistance,
         thermal,
         model: kind,
+        dynamics: a.model.dynamics(),
+        control_period: a.control_period,
         hold: a.hold,
         start: a.start.clone(),
         fixed: a.fix.iter().filter(|(_, v)| v.is_none()).map(|(n, _)| n.clone()).collect(),

@@ -56,8 +56,8 @@ pub use log::transform::{
 };
 pub use log::{
     AngleUnit, ColumnNames, CsvOptions, DqSource, DroppedSegment, Frame, LogSegments, LogSource,
-    MAX_SAMPLE_TIME, MIN_SAMPLE_TIME, Scale, SpeedUnit, TimeUnit, read_log, read_log_from, read_log_segments,
-    read_log_segments_from, read_logs,
+    MAX_SAMPLE_TIME, MAX_STEADY_SAMPLE_TIME, MIN_SAMPLE_TIME, Scale, SpeedUnit, TimeUnit, read_log,
+    read_log_from, read_log_segments, read_log_segments_from, read_logs,
 };
 pub(crate) use model::interval::cexpm1;
 pub use model::interval::{
@@ -73,4 +73,4 @@ pub use model::plant::{ExactPlant, MotorParameters, StepDerivatives};
 pub use model::setup::PmsmSetup;
 pub use model::spm::{PmsmSpm, SpmInputs};
 pub use model::temperature::{ALPHA_COPPER, BETA_NDFEB, ThermalReference};
-pub use options::{HoldChoice, PmsmFitOptions};
+pub use options::{Dynamics, HoldChoice, PmsmFitOptions};

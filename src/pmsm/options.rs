@@ -50,6 +50,24 @@ pub enum HoldChoice {
     Stator,
 }
 
+/// Which equations a fit takes: the dynamic model (the exact sampled-data step), the
+/// steady-state equations of slow logs ([`crate::pmsm::steady_state`]), or chosen from the
+/// logs' sample time.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Dynamics {
+    /// The dynamic model, unless the sample time is one it cannot resolve (beyond five
+    /// electrical time constants, or half an electrical turn per sample) and the log is
+    /// not a fast log with its time column in other units: then the steady-state
+    /// equations, with a note saying why.
+    #[default]
+    Auto,
+    /// The dynamic model (`--model spm|ipm` with `--force` on a slow log).
+    Dynamic,
+    /// The steady-state equations (`--model spm-steady|ipm-steady`).
+    Steady,
+}
+
 /// Options of [`fit_pmsm`](crate::pmsm::fit_pmsm), built with the motor's pole pairs by [`PmsmFitOptions::new`]
 /// (there is no default pole-pair number, so none can be forgotten), then changed field by
 /// field: `PmsmFitOptions { model: MotorKind::Ipm, ..PmsmFitOptions::new(2) }`.
@@ -111,6 +129,14 @@ pub struct PmsmFitOptions {
     /// of a large matrix) and its estimates are not to be trusted (warning `sample_time`).
     #[serde(default)]
     pub force: bool,
+    /// Which equations: dynamic, steady state, or chosen from the sample time (default).
+    #[serde(default)]
+    pub dynamics: Dynamics,
+    /// The drive's control (PWM) period h_c \[s\] for the steady-state equations: the
+    /// point-sampled currents are then related to the period-mean voltage exactly; `None`:
+    /// the continuous equations (their back-EMF reads low by up to `(ω_e h_c)²/12`).
+    #[serde(default)]
+    pub control_period: Option<f64>,
 }
 
 impl PmsmFitOptions {
@@ -135,6 +161,8 @@ impl PmsmFitOptions {
             pem: PemOptions::default(),
             skip_setup_checks: false,
             force: false,
+            dynamics: Dynamics::Auto,
+            control_period: None,
         }
     }
 }

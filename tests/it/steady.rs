@@ -1,12 +1,15 @@
 //! The steady-state fit of slow logs (issue 32, part 2): a drive-simulator log at 10 kHz
 //! with current and voltage noise, decimated to 100 Hz and 2 Hz by point samples (a host
 //! logger reads the drive's latest values; it does not average), fitted by
-//! [`steady_state`]; the plain regression over all samples and the dynamic fit on the same
-//! log for contrast; bad input.
+//! [`steady_state`] and by [`fit_pmsm`]'s automatic choice; the plain regression over all
+//! samples and the dynamic fit on the same log for contrast; a fast log with its time column
+//! in ms named as such; per-log R_s; the command line; bad input.
 
 use crate::common::rel;
 use greybox::drive::{DriveConfig, IPM_MOTOR, SPM_MOTOR, scenario, simulate_drive};
-use greybox::pmsm::{MotorKind, MotorParameters, PmsmFitOptions, SteadyOptions, fit_pmsm, steady_state};
+use greybox::pmsm::{
+    Dynamics, MotorKind, MotorParameters, PmsmFitOptions, SteadyOptions, fit_pmsm, steady_state,
+};
 use greybox::{Channel, Experiment};
 
 /// Every `factor`-th sample of `e` (point samples), sample time `factor h`.
@@ -26,6 +29,16 @@ pub fn decimate(e: &Experiment, factor: usize) -> Experiment {
 /// gravity arm would make i_q swing with the angle) and −0.3 i_max on the d axis through
 /// the holds at 100 and 190 rad/s (L_d); current noise 0.02 A, voltage noise 0.5 V. 31.3 s.
 fn slow_drive(motor: MotorParameters) -> (Experiment, greybox::drive::Truth) {
+    slow_drive_seed(motor, 1)
+}
+
+/// [`slow_drive`] with noise seed `seed`.
+fn slow_drive_seed(motor: MotorParameters, seed: u64) -> (Experiment, greybox::drive::Truth) {
+    slow_drive_with(motor, seed, true)
+}
+
+/// [`slow_drive`] with noise seed `seed`, with or without the sensor noise.
+fn slow_drive_with(motor: MotorParameters, seed: u64, noisy: bool) -> (Experiment, greybox::drive::Truth) {
     let base = scenario("exp3", motor).unwrap();
     let c = base.control.clone();
     let t_max = motor.k_t() * c.i_max;
@@ -43,12 +56,13 @@ fn slow_drive(motor: MotorParameters) -> (Experiment, greybox::drive::Truth) {
             load: greybox::drive::Profile::constant(0.2 * t_max),
             ..base.mechanics.clone()
         },
-        sensors: if std::env::var("STEADY_NOISE_FREE").is_ok() {
-            greybox::drive::Sensors::default()
-        } else {
+        sensors: if noisy {
             greybox::drive::Sensors { current_noise: 0.02, voltage_noise: 0.5, ..Default::default() }
+        } else {
+            greybox::drive::Sensors::default()
         },
         duration: 31.3,
+        seed,
         ..base
     };
     let log = simulate_drive(&cfg).unwrap();
@@ -70,13 +84,11 @@ fn truth_of(t: &greybox::drive::Truth) -> [(&'static str, f64); 4] {
     [("r_s", t.start.r_s), ("l_s", t.start.l_q), ("l_q", t.start.l_q), ("k_e", t.k_e)]
 }
 
-/// 100 Hz and 2 Hz on both motors. At 2 Hz every parameter within its 95 % interval. At
-/// 100 Hz R_s within its interval and 0.5 %, K_e within 0.2 % only (WIP, the issue asks
-/// 0.05 % and the interval): measured K_e −0.105 % (SPM, 3.4 half widths), −0.076 % (IPM,
-/// 2.5), SPM L_s −0.33 % (1.4). Suspected cause: the point sample of the current at the
-/// drive's PWM instant against the period-mean (fundamental) voltage, a ripple offset of
-/// order u h_pwm²ω/L that the steady-state equations do not model; the exact sampled-data
-/// model's periodic fixed point `i = step(i, u, θ)` would. `STEADY_REPORT=1` prints only.
+/// 100 Hz and 2 Hz on both motors, with the drive's control period: R_s and K_e within
+/// their 95 % intervals, and at 100 Hz within 0.5 % and 0.05 %; the inductances within
+/// theirs unless the fit notes them not identifiable. Measured (seed 1): 100 Hz SPM R_s
+/// +0.078 %, K_e −0.023 %; IPM R_s +0.073 %, K_e −0.027 %; all within 0.9 half widths.
+/// `STEADY_REPORT=1` prints only.
 #[test]
 fn steady_state_recovers_slow_logs() {
     for motor in [SPM_MOTOR, IPM_MOTOR] {
@@ -87,46 +99,139 @@ fn steady_state_recovers_slow_logs() {
             eprintln!("{} at {} Hz:\n{est}", kind(&t).model_name(), 1.0 / e.h());
             for (name, v) in truth_of(&t) {
                 let Some((x, ci)) = est.interval(name) else { continue };
-                let err = rel(x, v);
                 eprintln!(
-                    "  {name}: {x:.6e} truth {v:.6e} rel {err:+.3e} ({:.2} half widths)",
+                    "  {name}: {x:.6e} truth {v:.6e} rel {:+.3e} ({:.2} half widths)",
+                    x / v - 1.0,
                     (x - v).abs() / ci
                 );
-                // At 100 Hz only R_s is asserted within its interval (see the test's doc).
-                if std::env::var("STEADY_REPORT").is_err() && (!tight || name == "r_s") {
+                let noted = est.notes.iter().any(|n| n.starts_with(name));
+                if std::env::var("STEADY_REPORT").is_err() && !noted {
                     assert!((x - v).abs() <= ci, "{name} at {factor}: {x} ± {ci} vs {v}");
                 }
             }
             if tight && std::env::var("STEADY_REPORT").is_err() {
                 assert!(rel(est.value("r_s").unwrap(), t.start.r_s).abs() < 5e-3);
-                // WIP: the issue's target is 5e-4; measured 1.05e-3 (SPM), 0.76e-3 (IPM).
-                assert!(rel(est.value("k_e").unwrap(), t.k_e).abs() < 2e-3);
+                assert!(rel(est.value("k_e").unwrap(), t.k_e).abs() < 5e-4);
             }
         }
     }
 }
 
-/// For contrast on the 100 Hz log: the plain least squares over all samples (transients
-/// and noise in the regressors) and the dynamic fit.
+/// The cause of the continuous equations' K_e bias, noise-free at 100 Hz: the point-sampled
+/// current against the period-mean voltage reads the back-EMF low by `(ω_e h_c)²/12`
+/// (1.05e-3 at the top speed; the log's mix of speeds gives less); the exact periodic
+/// steady state at the control period removes it to 1e-5.
 #[test]
-fn plain_regression_and_dynamic_fit_on_the_100_hz_log() {
+fn control_period_removes_the_point_sample_bias() {
+    let (clean, t) = slow_drive_with(SPM_MOTOR, 1, false);
+    let e = decimate(&clean, 100);
+    let one = std::slice::from_ref(&e);
+    let cont = steady_state(one, t.start.n_p, MotorKind::Spm, &SteadyOptions::default()).unwrap();
+    let exact = steady_state(
+        one,
+        t.start.n_p,
+        MotorKind::Spm,
+        &SteadyOptions { control_period: Some(1e-4), ..Default::default() },
+    )
+    .unwrap();
+    let signed = |x: f64| x / t.k_e - 1.0;
+    let (kc, kx) = (signed(cont.value("k_e").unwrap()), signed(exact.value("k_e").unwrap()));
+    eprintln!("noise-free 100 Hz: k_e continuous {kc:+.3e}, at the control period {kx:+.3e}");
+    let top = (4.0f64 * 280.0 * 1e-4).powi(2) / 12.0;
+    assert!(kc < -0.3 * top && kc > -top, "continuous k_e {kc:+.3e} vs −(ω_e h)²/12 = {:+.3e}", -top);
+    assert!(kx.abs() < 1e-5, "exact k_e {kx:+.3e}");
+    assert!(exact.iterations > 1 && cont.iterations == 1);
+}
+
+/// For contrast on the 100 Hz log: the plain least squares over all samples (transients
+/// and noise in the regressors), the dynamic fit refused (the rotor turns 11 electrical rad
+/// per sample) and, forced, untrusted; the automatic choice fits the steady-state equations
+/// with a note saying why.
+#[test]
+fn automatic_choice_plain_regression_and_dynamic_fit_on_the_100_hz_log() {
     let (fast, t) = slow_drive(SPM_MOTOR);
     let e = decimate(&fast, 100);
-    let ls = greybox::pmsm::least_squares(std::slice::from_ref(&e), t.start.n_p, MotorKind::Spm).unwrap();
+    let one = std::slice::from_ref(&e);
+    let ls = greybox::pmsm::least_squares(one, t.start.n_p, MotorKind::Spm).unwrap();
     eprintln!(
         "plain LS at 100 Hz: r_s {:+.3e}, k_e {:+.3e}",
         rel(ls.value("r_s").unwrap(), t.start.r_s),
         rel(ls.value("k_e").unwrap(), t.k_e)
     );
-    let dynamic = fit_pmsm(std::slice::from_ref(&e), &PmsmFitOptions::new(t.start.n_p));
-    match &dynamic {
-        Ok(f) => eprintln!("dynamic fit at 100 Hz:\n{f}"),
-        Err(err) => eprintln!("dynamic fit at 100 Hz refused: {err}"),
-    }
-    assert!(dynamic.is_err(), "the sample-time check refuses the dynamic model at 100 Hz");
+    let auto = fit_pmsm(one, &PmsmFitOptions::new(t.start.n_p)).unwrap();
+    assert_eq!(auto.report.model, "pmsm_spm_steady");
+    assert!(auto.pmsm_notes.iter().any(|n| n.contains("steady-state model chosen")), "{:?}", auto.pmsm_notes);
+    assert!(auto.trusted(), "{:?}", auto.warnings);
+    let dynamic = PmsmFitOptions { dynamics: Dynamics::Dynamic, ..PmsmFitOptions::new(t.start.n_p) };
+    let refused = fit_pmsm(one, &dynamic).unwrap_err().to_string();
+    assert!(refused.contains("sample time"), "{refused}");
+    let forced = fit_pmsm(one, &PmsmFitOptions { force: true, ..dynamic }).unwrap();
+    eprintln!("dynamic fit at 100 Hz, forced:\n{forced}");
+    assert!(!forced.trusted(), "the forced dynamic fit of a 100 Hz log must not pass as trusted");
 }
 
-/// Bad input: too few steady samples, bad options, no voltage.
+/// A 10 kHz log whose time column was in ms, read as s (h = 0.1 s): named as such by the
+/// angle (when logged) and by the currents' dynamics (without the angle), not fitted as
+/// steady state, whether the equations were chosen or asked for.
+#[test]
+fn fast_log_in_milliseconds_is_named_not_fitted_as_steady() {
+    let (fast, t) = slow_drive(SPM_MOTOR);
+    let part = fast.slice(0..60_000).unwrap();
+    let with_angle = Experiment::try_new("ms", part.h() * 1e3, part.channels().to_vec()).unwrap();
+    let without: Vec<Channel> = part.channels().iter().filter(|c| c.name != "theta_m").cloned().collect();
+    let without = Experiment::try_new("ms", part.h() * 1e3, without).unwrap();
+    for e in [with_angle, without] {
+        for dynamics in [Dynamics::Auto, Dynamics::Steady] {
+            let o = PmsmFitOptions { dynamics, ..PmsmFitOptions::new(t.start.n_p) };
+            let err = match fit_pmsm(std::slice::from_ref(&e), &o) {
+                Ok(f) => {
+                    panic!("{} channels, {dynamics:?}: fitted as {}", e.channels().len(), f.report.model)
+                }
+                Err(err) => err.to_string(),
+            };
+            assert!(err.contains("milliseconds") && err.contains("--time-unit ms"), "{err}");
+        }
+    }
+}
+
+/// Per-log R_s in a joint steady-state fit of a cold and a warm log (R_s 1.2 and 1.32 Ω,
+/// the winding 25 K warmer), L and K_e shared: each R_s within 3 standard errors of its
+/// truth and the temperature rise within 3 of its own (one seed: an honest interval fails
+/// this with probability 0.3 %; the intervals' coverage is measured by Monte Carlo in
+/// `examples/steady_coverage.rs`, 0.95 for R_s), the winding temperatures derived per log.
+#[test]
+fn per_log_resistance_and_winding_temperature() {
+    let warm = MotorParameters { r_s: 1.32, ..SPM_MOTOR };
+    let (cold_log, t) = slow_drive_seed(SPM_MOTOR, 2);
+    let (warm_log, tw) = slow_drive_seed(warm, 3);
+    let logs = [decimate(&cold_log, 100), decimate(&warm_log, 100)];
+    let logs = [
+        Experiment::try_new("cold", logs[0].h(), logs[0].channels().to_vec()).unwrap(),
+        Experiment::try_new("warm", logs[1].h(), logs[1].channels().to_vec()).unwrap(),
+    ];
+    let o = PmsmFitOptions {
+        dynamics: Dynamics::Steady,
+        control_period: Some(1e-4),
+        thermal: Some(greybox::pmsm::ThermalReference::try_new(20.0, Some(1.2), None).unwrap()),
+        pem: greybox::estimate::PemOptions { per_experiment: vec!["r_s".into()], ..Default::default() },
+        ..PmsmFitOptions::new(t.start.n_p)
+    };
+    let fit = fit_pmsm(&logs, &o).unwrap();
+    eprintln!("{fit}");
+    let r: Vec<_> = fit.parameters.iter().filter(|p| p.name == "r_s").collect();
+    assert_eq!(r.len(), 2);
+    for (p, truth) in r.iter().zip([t.start.r_s, tw.start.r_s]) {
+        assert!((p.value - truth).abs() <= 3.0 * p.std_error, "{} ± {} vs {truth}", p.value, p.std_error);
+    }
+    let temps: Vec<_> = fit.derived.iter().filter(|d| d.name == "t_winding").collect();
+    assert_eq!(temps.len(), 2);
+    let rise = temps[1].value - temps[0].value;
+    let se = (temps[0].std_error.powi(2) + temps[1].std_error.powi(2)).sqrt();
+    let true_rise = (1.32 / 1.2 - 1.0) / greybox::pmsm::ALPHA_COPPER;
+    assert!((rise - true_rise).abs() <= 3.0 * se, "rise {rise} ± {se} vs {true_rise}");
+}
+
+/// Bad input: too few steady samples, bad options, options the equations do not take.
 #[test]
 fn steady_state_refuses_bad_input() {
     let (fast, t) = slow_drive(SPM_MOTOR);
@@ -134,83 +239,23 @@ fn steady_state_refuses_bad_input() {
     let one = std::slice::from_ref(&e);
     let bad = SteadyOptions { steady_sigmas: -1.0, ..Default::default() };
     assert!(steady_state(one, t.start.n_p, MotorKind::Spm, &bad).is_err());
+    let bad = SteadyOptions { control_period: Some(0.0), ..Default::default() };
+    assert!(
+        steady_state(one, t.start.n_p, MotorKind::Spm, &bad)
+            .unwrap_err()
+            .to_string()
+            .contains("control_period")
+    );
+    let bad = SteadyOptions { per_experiment: vec!["l_d".into()], ..Default::default() };
+    assert!(steady_state(one, t.start.n_p, MotorKind::Spm, &bad).unwrap_err().to_string().contains("l_d"));
     assert!(steady_state(one, 0, MotorKind::Spm, &SteadyOptions::default()).is_err());
     let short = e.slice(0..3).unwrap();
     assert!(steady_state(&[short], t.start.n_p, MotorKind::Spm, &SteadyOptions::default()).is_err());
-}
-
-/// Probe of the 100 Hz bias (not a check; `--ignored --nocapture`): point-sampled against
-/// period-midpoint currents. Measured: identical with `STEADY_NOISE_FREE=1` (R_s +3.7e-5,
-/// L_s −1.41e-3, K_e −8.3e-4), so the bias is deterministic and not current ripple.
-#[test]
-#[ignore = "a probe that prints, for the successor"]
-fn probe_bias_cause() {
-    for mid in [false, true] {
-        let (mut fast, t) = slow_drive(SPM_MOTOR);
-        if mid {
-            for name in ["id", "iq"] {
-                let x = fast.channel(name).unwrap().to_vec();
-                let m: Vec<f64> = (0..x.len()).map(|k| 0.5 * (x[k] + x[(k + 1).min(x.len() - 1)])).collect();
-                let chans: Vec<Channel> = fast
-                    .channels()
-                    .iter()
-                    .map(|c| if c.name == name { Channel::new(name, "A", m.clone()) } else { c.clone() })
-                    .collect();
-                fast = Experiment::try_new("m", fast.h(), chans).unwrap();
-            }
-        }
-        let e = decimate(&fast, 100);
-        let est =
-            steady_state(std::slice::from_ref(&e), t.start.n_p, MotorKind::Spm, &SteadyOptions::default())
-                .unwrap();
-        eprintln!(
-            "mid {mid}: r_s {:+.3e} l_s {:+.3e} k_e {:+.3e}",
-            est.value("r_s").unwrap() / t.start.r_s - 1.0,
-            est.value("l_s").unwrap() / t.start.l_q - 1.0,
-            est.value("k_e").unwrap() / t.k_e - 1.0
-        );
-    }
-}
-
-/// Probe (ignored): the logged voltage times the stator-hold mean factor at the drive's
-/// period 1e-4 s (`power` = 1: times, −1: divided by), noise-free with `STEADY_NOISE_FREE=1`.
-/// Measured: ×: R_s −8.0 %, L_s −2.9 %, K_e −0.26 %; ÷: R_s +7.9 %, L_s +2.2 %, K_e −0.16 %:
-/// the hold factor is not the cause of the −0.083 % in K_e (both directions are worse).
-#[test]
-#[ignore = "a probe that prints, for the successor"]
-fn probe_hold_factor() {
-    let (fast, t) = slow_drive(SPM_MOTOR);
-    let e = decimate(&fast, 100);
-    for power in [1.0, -1.0] {
-        let (ud, uq, w) = (e.channel("ud").unwrap(), e.channel("uq").unwrap(), e.channel("w_m").unwrap());
-        let (mut nd, mut nq) = (Vec::new(), Vec::new());
-        for k in 0..ud.len() {
-            let (fr, fi) = greybox::pmsm::stator_hold_mean_factor(f64::from(t.start.n_p) * w[k] * 1e-4);
-            let (fr, fi) = if power > 0.0 {
-                (fr, fi)
-            } else {
-                let m = fr * fr + fi * fi;
-                (fr / m, -fi / m)
-            };
-            nd.push(ud[k] * fr - uq[k] * fi);
-            nq.push(ud[k] * fi + uq[k] * fr);
-        }
-        let chans: Vec<Channel> = e
-            .channels()
-            .iter()
-            .map(|c| match c.name.as_str() {
-                "ud" => Channel::new("ud", "V", nd.clone()),
-                "uq" => Channel::new("uq", "V", nq.clone()),
-                _ => c.clone(),
-            })
-            .collect();
-        let e2 = Experiment::try_new("f", e.h(), chans).unwrap();
-        let est = steady_state(&[e2], t.start.n_p, MotorKind::Spm, &SteadyOptions::default()).unwrap();
-        eprintln!(
-            "power {power}: r_s {:+.3e} l_s {:+.3e} k_e {:+.3e}",
-            est.value("r_s").unwrap() / t.start.r_s - 1.0,
-            est.value("l_s").unwrap() / t.start.l_q - 1.0,
-            est.value("k_e").unwrap() / t.k_e - 1.0
-        );
-    }
+    let o = PmsmFitOptions {
+        dynamics: Dynamics::Steady,
+        start: Some(vec![1.0, 5e-3, 0.5]),
+        ..PmsmFitOptions::new(t.start.n_p)
+    };
+    let err = fit_pmsm(one, &o).unwrap_err().to_string();
+    assert!(err.contains("a start"), "{err}");
 }

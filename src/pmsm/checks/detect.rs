@@ -195,11 +195,28 @@ pub(crate) fn warnings(experiments: &[Experiment], n_p: u32, fit: &FitResult) ->
     out
 }
 
+/// The warnings of a steady-state fit: the speed check where the angle does not alias (a
+/// slow log's angle turns by more than π between samples and cannot be compared), and the
+/// assumed scaling.
+pub(crate) fn steady_warnings(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> Vec<Warning> {
+    let turn = experiments
+        .iter()
+        .filter_map(|e| DqView::try_new(e).ok().map(|v| (e.h(), v)))
+        .map(|(h, v)| f64::from(n_p) * h * v.w_m().iter().fold(0.0f64, |m, x| m.max(x.abs())))
+        .fold(0.0, f64::max);
+    let mut out = Vec::new();
+    if turn < std::f64::consts::PI {
+        out.extend(speed_check(experiments, n_p));
+    }
+    out.push(scaling_notice(fit));
+    out
+}
+
 /// The sums `(Σ dθ·ω/h, Σ ω²)` of [`speed_check`] continued over one log: per interval the
 /// angle's step `dθ` (wrapped to ±π) and the mean speed ω, where |ω| exceeds 5 % of the
 /// log's peak; compiled for AVX2 as well (the rounding inline, not a library call).
 #[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
-fn speed_sums((mut num, mut den): (f64, f64), th: &[f64], w: &[f64], h: f64) -> (f64, f64) {
+pub(super) fn speed_sums((mut num, mut den): (f64, f64), th: &[f64], w: &[f64], h: f64) -> (f64, f64) {
     let peak = w.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     for ((t, w), (t1, w1)) in th.iter().zip(w).zip(th.iter().zip(w).skip(1)) {
         let d = t1 - t;

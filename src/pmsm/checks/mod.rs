@@ -14,3 +14,4 @@ pub(super) mod noise_bias;
 pub(super) mod prepared;
 pub(super) mod scan;
 pub(super) mod segments;
+pub(super) mod time_unit;

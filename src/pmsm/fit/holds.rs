@@ -110,7 +110,7 @@ pub(super) fn fit_from_start(
         && let Some(why) = crate::pmsm::checks::detect::sample_time_problem(experiments, n_p, r_s, l)
     {
         return Err(Error::Numerical {
-            context: "sample time".into(),
+            context: super::steady::SAMPLE_TIME.into(),
             reason: format!(
                 "{why}. Refused before the fit, which would be slow and wrong; --force fits it anyway"
             ),

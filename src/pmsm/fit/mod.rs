@@ -12,5 +12,6 @@ pub(super) mod iv;
 pub(super) mod pole_pairs;
 pub(super) mod report;
 pub(super) mod simulated;
+pub(super) mod steady;
 pub(super) mod validate;
 pub(super) mod workflow;

@@ -124,15 +124,22 @@ impl PmsmFit {
     /// conventions in words, the least-squares start against the estimate, remarks.
     pub fn document(&self, options: ReportOptions) -> Document {
         let mut d = Document::default();
-        let kind = if self.report.model.ends_with("ipm") {
+        let kind = if self.report.model.starts_with("pmsm_ipm") {
             "interior magnets (ipm)"
         } else {
             "surface magnets (spm)"
         };
-        d.line(format!(
-            "PMSM, {kind}, {} pole pairs, {} voltage hold, driven by the {}",
-            self.pole_pairs, self.hold, self.input
-        ));
+        d.line(if self.report.model.ends_with("_steady") {
+            format!(
+                "PMSM, {kind}, {} pole pairs, steady-state equations on the {}",
+                self.pole_pairs, self.input
+            )
+        } else {
+            format!(
+                "PMSM, {kind}, {} pole pairs, {} voltage hold, driven by the {}",
+                self.pole_pairs, self.hold, self.input
+            )
+        });
         if self.cable_resistance != 0.0 {
             d.line(format!(
                 "known cable resistance {} in series, not part of r_s",

@@ -11,7 +11,7 @@ use crate::error::{Error, Result};
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::model::interval::{VoltageHold, VoltageInput};
 use crate::pmsm::model::mask::DeadTimeMask;
-use crate::pmsm::options::{HoldChoice, PmsmFitOptions};
+use crate::pmsm::options::{Dynamics, HoldChoice, PmsmFitOptions};
 
 /// Fits a PMSM model to one or more logs of one motor (parameters shared unless listed in
 /// `options.pem.per_experiment`).
@@ -40,11 +40,26 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     if experiments.is_empty() {
         return Err(Error::InvalidOption { option: "experiments".into(), reason: "no log given".into() });
     }
+    if let Some(why) = super::steady::chosen_up_front(experiments, options) {
+        return super::steady::fit(experiments, options, why);
+    }
     let refit = |e: &[Experiment], o: &PmsmFitOptions| fit_pmsm(e, o).ok().map(|f| f.fit.loss);
     let fit = if options.inverter.and_then(|i| i.mask) == Some(DeadTimeMask::Auto) {
         super::auto_mask::fit(experiments, options, &refit)?
     } else {
-        super::base::fit(experiments, options, &refit)?
+        match super::base::fit(experiments, options, &refit) {
+            // A sample time the dynamic model cannot resolve: the steady-state equations,
+            // unless they were ruled out (`--force`, nested fits, the dynamic model asked for).
+            Err(Error::Numerical { context, reason })
+                if context == super::steady::SAMPLE_TIME
+                    && options.dynamics == Dynamics::Auto
+                    && !options.skip_setup_checks =>
+            {
+                let why = reason.split(". A time column").next().unwrap_or(&reason).to_string();
+                return super::steady::fit(experiments, options, Some(why));
+            }
+            other => other?,
+        }
     };
     // The measured terminal voltage is the model's input as logged; the reference voltage
     // and the inverter are modelled, and their model's error is what the parts show.

@@ -213,6 +213,10 @@ pub struct CsvOptions {
     /// Skip the plausibility limit on the sample time ([`MIN_SAMPLE_TIME`] ≤ h ≤
     /// [`MAX_SAMPLE_TIME`]). Default `false`.
     pub force: bool,
+    /// The log is for the steady-state equations (`--model spm-steady|ipm-steady`): the
+    /// longest plausible sample time is then [`MAX_STEADY_SAMPLE_TIME`] (slow telemetry),
+    /// not [`MAX_SAMPLE_TIME`]. Default `false`.
+    pub steady_state: bool,
     /// The field delimiter of a CSV log ([`Delimiter`]: `,` by default, `;`, tab or `|`);
     /// Parquet and Arrow logs ignore it.
     pub delimiter: Delimiter,
@@ -226,3 +230,7 @@ pub const MIN_SAMPLE_TIME: f64 = 1e-7;
 /// electrical dynamics the models describe). A longer h is most likely a time column in
 /// ms read as s.
 pub const MAX_SAMPLE_TIME: f64 = 0.1;
+
+/// Longest plausible sample time of a log for the steady-state equations: 10 s (0.1 Hz,
+/// the slowest fleet telemetry; the Paderborn motor-temperature set logs at 2 Hz).
+pub const MAX_STEADY_SAMPLE_TIME: f64 = 10.0;

@@ -320,7 +320,8 @@ impl Raw {
 /// [`Error::ImplausibleSampleTime`] with the time unit that would explain h, if one does.
 pub(super) fn plausible(path: &Path, e: Experiment, options: &CsvOptions) -> Result<Experiment> {
     let h = e.h();
-    let range = MIN_SAMPLE_TIME..=MAX_SAMPLE_TIME;
+    let max = if options.steady_state { MAX_STEADY_SAMPLE_TIME } else { MAX_SAMPLE_TIME };
+    let range = MIN_SAMPLE_TIME..=max;
     if options.force || range.contains(&h) {
         return Ok(e);
     }
@@ -334,11 +335,12 @@ pub(super) fn plausible(path: &Path, e: Experiment, options: &CsvOptions) -> Res
             || format!("a time column in other units than {}? ", given.name()),
             |(u, h)| format!("the time column in {0}? `--time-unit {0}` gives h = {h:e} s; ", u.name()),
         );
-    Err(Error::ImplausibleSampleTime {
-        path: path.to_path_buf(),
-        h,
-        min: MIN_SAMPLE_TIME,
-        max: MAX_SAMPLE_TIME,
-        hint,
-    })
+    // A log slower than the dynamic model's range but within the steady-state one: slow
+    // telemetry, if its time column is right.
+    let hint = if !options.steady_state && h > max && h <= MAX_STEADY_SAMPLE_TIME {
+        format!("{hint}or slow telemetry for the steady-state equations: `--model spm-steady|ipm-steady`; ")
+    } else {
+        hint
+    };
+    Err(Error::ImplausibleSampleTime { path: path.to_path_buf(), h, min: MIN_SAMPLE_TIME, max, hint })
 }

@@ -1,0 +1,305 @@
+//! The steady-state fit in the PMSM workflow (issue 32): asked for
+//! ([`Dynamics::Steady`], `--model spm-steady|ipm-steady`) or chosen for a log whose sample
+//! time the dynamic model cannot resolve ([`Dynamics::Auto`]), unless the log is a fast one
+//! with its time column in other units ([`time_unit_mistake`]); the estimate of
+//! [`steady_state`] as the report every fit gives ([`PmsmFit`]), so that tables, JSON,
+//! batches (`--each`, per-log R_s and its temperature trend) and the Python package read
+//! one format.
+
+use crate::data::Experiment;
+use crate::error::{Error, Result};
+use crate::estimate::diagnostics::{DiagnosticThresholds, diagnose};
+use crate::estimate::{
+    DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing, metrics,
+};
+use crate::pmsm::checks::detect::steady_warnings;
+use crate::pmsm::checks::time_unit::time_unit_mistake;
+use crate::pmsm::fit::report::PmsmFit;
+use crate::pmsm::linear::{SteadyEstimate, SteadyOptions, steady_state};
+use crate::pmsm::log::signals::DqView;
+use crate::pmsm::model::interval::{SQRT_2_3, VoltageHold, VoltageInput};
+use crate::pmsm::model::kind::{MotorKind, derived};
+use crate::pmsm::options::{Dynamics, HoldChoice, PmsmFitOptions};
+use nalgebra::DMatrix;
+
+/// Context of the error that refuses a sample time the dynamic model cannot resolve (the
+/// automatic choice takes the steady-state equations on it).
+pub(crate) const SAMPLE_TIME: &str = "sample time";
+
+/// Whether the rotor turns half an electrical turn or more within one sample somewhere in
+/// the logs: no dynamic model of a held voltage can follow such a log.
+pub(crate) fn turns_within_sample(experiments: &[Experiment], n_p: u32) -> bool {
+    experiments.iter().filter_map(|e| DqView::try_new(e).ok().map(|v| (e.h(), v))).any(|(h, v)| {
+        f64::from(n_p) * h * v.w_m().iter().fold(0.0f64, |m, x| m.max(x.abs())) >= std::f64::consts::PI
+    })
+}
+
+/// Refuses the options the steady-state equations cannot honour, naming them.
+///
+/// # Errors
+/// [`Error::InvalidOption`] (option `model`) listing them.
+fn check_options(options: &PmsmFitOptions) -> Result<()> {
+    let pem = &options.pem;
+    let given = [
+        ("a start", options.start.is_some()),
+        ("fixed parameters", !options.fixed.is_empty() || !options.fixed_values.is_empty()),
+        ("bounds", !options.bounds.is_empty()),
+        ("the reference voltage", options.input != VoltageInput::Terminal),
+        ("the inverter model", options.inverter.is_some()),
+        ("a voltage hold", options.hold != HoldChoice::Auto),
+        ("a voltage limit", options.voltage_limit.is_some()),
+        ("a prediction horizon", pem.horizon.is_some()),
+        ("a prefilter", pem.prefilter.is_some()),
+        ("the Huber loss", pem.huber.is_some()),
+        ("output weights", pem.output_weights.is_some()),
+    ];
+    let bad: Vec<&str> = given.iter().filter(|(_, set)| *set).map(|(what, _)| *what).collect();
+    if bad.is_empty() {
+        return Ok(());
+    }
+    Err(Error::InvalidOption {
+        option: "model".into(),
+        reason: format!(
+            "the steady-state equations (instrumental variables on the steady samples of a slow log) do not take {}",
+            bad.join(", ")
+        ),
+    })
+}
+
+/// The steady-state fit of `experiments` as a [`PmsmFit`]; `why` is the automatic choice's
+/// reason (a note), `None` when it was asked for.
+///
+/// # Errors
+/// [`Error::Numerical`] (context `sample time`) for a fast log whose time column is in ms
+/// or µs (unless `options.force`); [`Error::InvalidOption`] for options the equations do
+/// not take; those of [`steady_state`].
+pub(crate) fn fit(
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+    why: Option<String>,
+) -> Result<PmsmFit> {
+    let t0 = std::time::Instant::now();
+    if !options.force
+        && let Some(mistake) = time_unit_mistake(experiments, options.pole_pairs)
+    {
+        return Err(Error::Numerical {
+            context: SAMPLE_TIME.into(),
+            reason: format!(
+                "{}this is a fast log, not one for the steady-state equations: {mistake}",
+                why.map_or(String::new(), |w| format!("{w}; but "))
+            ),
+        });
+    }
+    check_options(options)?;
+    let steady = SteadyOptions {
+        control_period: options.control_period,
+        per_experiment: options.pem.per_experiment.clone(),
+        cable_resistance: options.cable_resistance,
+        ..SteadyOptions::default()
+    };
+    let est = steady_state(experiments, options.pole_pairs, options.model, &steady)?;
+    let mut report = report(&est, experiments, options, t0.elapsed().as_secs_f64());
+    let warnings = steady_warnings(experiments, options.pole_pairs, &report);
+    report.warnings.extend(warnings);
+    let mut pmsm_notes = Vec::new();
+    if let Some(w) = why {
+        pmsm_notes.push(format!(
+            "steady-state model chosen: {w}. The steady-state equations are fitted instead (--model {}; \
+             --force fits the dynamic model anyway)",
+            flag(options.model)
+        ));
+    }
+    Ok(PmsmFit {
+        report,
+        pole_pairs: options.pole_pairs,
+        hold: VoltageHold::Stator,
+        input: VoltageInput::Terminal,
+        cable_resistance: options.cable_resistance,
+        inverter: None,
+        hold_losses: Vec::new(),
+        start_comparison: Vec::new(),
+        pmsm_advice: est.notes.clone(),
+        pmsm_notes,
+    })
+}
+
+/// Whether the steady-state equations are what `options` ask for, or the automatic choice
+/// to make for a log the rotor turns half a turn in (before any dynamic fit).
+pub(crate) fn chosen_up_front(
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+) -> Option<Option<String>> {
+    match options.dynamics {
+        Dynamics::Steady => Some(None),
+        Dynamics::Auto if !options.force && !options.skip_setup_checks => turns_within_sample(
+            experiments,
+            options.pole_pairs,
+        )
+        .then(|| {
+            Some(format!(
+                "the rotor turns half an electrical turn or more within one sample (h = {:.4e} s), which no \
+                     dynamic model of a held voltage can follow",
+                experiments.iter().map(Experiment::h).fold(0.0, f64::max)
+            ))
+        }),
+        _ => None,
+    }
+}
+
+/// The estimate `est` of `experiments` as the generic report (parameters with intervals,
+/// derived quantities and temperatures, diagnostics, goodness of fit over the steady
+/// samples, the IV iterations as the solver), `fit_s` \[s\] the time it took.
+fn report(
+    est: &SteadyEstimate,
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+    fit_s: f64,
+) -> FitResult {
+    let n = est.theta.len();
+    let label = |j: usize| match &est.experiment[j] {
+        Some(e) => format!("{}[{e}]", est.names[j]),
+        None => est.names[j].clone(),
+    };
+    let relative: Vec<f64> = (0..n).map(|j| 100.0 * est.std_error[j] / est.theta[j].abs()).collect();
+    let parameters: Vec<ParameterEstimate> = (0..n)
+        .map(|j| ParameterEstimate {
+            name: est.names[j].clone(),
+            unit: est.units[j].clone(),
+            value: est.theta[j],
+            std_error: est.std_error[j],
+            std_error_white: est.std_error_white[j],
+            ci95: [est.theta[j] - est.ci95[j], est.theta[j] + est.ci95[j]],
+            // The error index belongs to the output-error criterion.
+            error_index_percent: f64::NAN,
+            fixed: false,
+            nuisance: false,
+            at_bound: false,
+            experiment: est.experiment[j].clone(),
+            start: est.theta[j],
+        })
+        .collect();
+    let cov = DMatrix::from_fn(n, n, |a, b| est.correlation[a][b] * est.std_error[a] * est.std_error[b]);
+    let info_rel = cov
+        .try_inverse()
+        .map(|m| DMatrix::from_fn(n, n, |a, b| m[(a, b)] * est.theta[a] * est.theta[b]))
+        .unwrap_or_else(|| DMatrix::from_element(n, n, f64::NAN));
+    let labels: Vec<String> = (0..n).map(label).collect();
+    let kind = est.kind;
+    let diagnostics = diagnose(
+        &info_rel,
+        &labels,
+        &relative,
+        &est.correlation,
+        &DiagnosticThresholds::default(),
+        &|name| kind.advice(name),
+        &|a, b| kind.pair_advice(a, b),
+    );
+    let rows = 2 * est.steady_samples;
+    let sse: f64 = est.rms_residual.iter().map(|r| r * r * est.steady_samples as f64).sum();
+    let fit = FitStatistics {
+        outputs: vec!["ud".into(), "uq".into()],
+        output_units: vec!["V".into(), "V".into()],
+        fit_percent: est.fit_percent.to_vec(),
+        rms_residual: est.rms_residual.to_vec(),
+        loss: 0.5 * sse,
+        mse: sse / rows as f64,
+        aic: metrics::aic(sse, rows, n),
+        bic: metrics::bic(sse, rows, n),
+        fpe: metrics::fpe(sse, rows, n),
+        whiteness: est.whiteness.clone(),
+        samples: est.steady_samples,
+        dof: rows.saturating_sub(n),
+        counted: None,
+        horizon: None,
+    };
+    let reason = Termination::StepTolerance;
+    let hc = est.control_period.map_or_else(
+        || "continuous (no --control-period: the back-EMF reads low by up to (ω_e h_c)²/12 of the drive's period h_c)".into(),
+        |h| format!("at the drive's control period {h:e} s (exact periodic steady state of the stator-held step)"),
+    );
+    FitResult {
+        model: format!("{}_steady", kind.model_name()),
+        experiments: experiments.iter().map(|e| e.name().to_string()).collect(),
+        derived: derived_all(est, options),
+        parameters,
+        initial_states: Vec::new(),
+        diagnostics,
+        fit,
+        correlation: est.correlation.clone(),
+        correlation_names: labels,
+        uncertainty: est.uncertainty.clone(),
+        solver: SolverReport {
+            name: "iv".into(),
+            iterations: est.iterations as u64,
+            termination: reason.to_string(),
+            success: true,
+            reason,
+            evaluations: est.iterations as u64 + 1,
+            accepted_iterations: est.iterations as u64,
+            trace: Vec::new(),
+        },
+        parameter_trace: Vec::new(),
+        timing: Timing { read_s: 0.0, fit_s, total_s: fit_s },
+        notes: vec![format!(
+            "steady-state equations u_d = R_s i_d − ω_e L_q i_q, u_q = R_s i_q + ω_e L_d i_d + √(2/3) ω_m K_e on the \
+             {} steady samples of {} (each current within {}·√2 σ_i of both neighbours), by instrumental variables \
+             (instruments: the mean of the neighbouring samples); equations {hc}",
+            est.steady_samples,
+            est.samples,
+            SteadyOptions::default().steady_sigmas
+        )],
+        warnings: Vec::new(),
+    }
+}
+
+/// `k_t`, `psi_f` of every `k_e` entry, and the winding and magnet temperatures of every
+/// `r_s` and `k_e` entry when a thermal reference is given (per log where they are).
+fn derived_all(est: &SteadyEstimate, options: &PmsmFitOptions) -> Vec<DerivedEstimate> {
+    let kind = est.kind;
+    let n_p = options.pole_pairs;
+    let idx = |name: &str| -> Vec<usize> { (0..est.names.len()).filter(|&j| est.names[j] == name).collect() };
+    let mut out = Vec::new();
+    let model = |j: usize| -> (Vec<f64>, Vec<f64>) {
+        let names = kind.parameter_names();
+        let pick = |v: &Vec<f64>| {
+            names
+                .iter()
+                .map(|n| {
+                    let same = |i: &usize| est.names[*i] == *n;
+                    let of =
+                        |i: &usize| est.experiment[*i].is_none() || est.experiment[*i] == est.experiment[j];
+                    (0..est.names.len()).find(|i| same(i) && of(i)).map_or(f64::NAN, |i| v[i])
+                })
+                .collect()
+        };
+        (pick(&est.theta), pick(&est.std_error))
+    };
+    for j in idx("k_e") {
+        let (t, s) = model(j);
+        out.extend(
+            derived(kind, n_p, &t, &s)
+                .into_iter()
+                .map(|d| DerivedEstimate { experiment: est.experiment[j].clone(), ..d }),
+        );
+    }
+    if let Some(th) = options.thermal {
+        let per = |n: &str| idx(n).iter().any(|&j| est.experiment[j].is_some());
+        let entries = if per("r_s") { idx("r_s") } else { idx("k_e") };
+        for j in entries {
+            let (t, s) = model(j);
+            let psi = SQRT_2_3 / f64::from(n_p);
+            let k = kind.parameter_names().len() - 1;
+            out.extend(
+                th.temperatures(t[0], s[0], psi * t[k], psi * s[k])
+                    .into_iter()
+                    .map(|d| DerivedEstimate { experiment: est.experiment[j].clone(), ..d }),
+            );
+        }
+    }
+    out
+}
+
+/// `kind`'s steady-state model name, e.g. `spm-steady`, for messages.
+pub(crate) fn flag(kind: MotorKind) -> String {
+    format!("{}-steady", kind.model_name().trim_start_matches("pmsm_"))
+}
