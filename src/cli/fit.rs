@@ -141,6 +141,9 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
     }
     let report_options = ReportOptions { current_scale: csv.current_scale };
     let kind = a.model.kind();
+    if steady_state {
+        steady_only(a)?;
+    }
     if let MethodArg::Ls = a.method {
         ls_only(a)?;
         a.weighting.rule()?;
@@ -329,6 +332,7 @@ fn ls_only(a: &FitArgs) -> crate::Result<()> {
         ("--t0", a.t0.is_some()),
         ("--plot", a.plot.is_some()),
         ("--residuals", a.residuals.is_some()),
+        ("--control-period", a.control_period.is_some()),
     ];
     for (flag, set) in given {
         if set {
@@ -343,6 +347,29 @@ fn ls_only(a: &FitArgs) -> crate::Result<()> {
             reason: format!("--method ls cannot honour {}: drop them or use --method pem", bad.join(", ")),
         })
     }
+}
+
+/// Refuses the flags the steady-state equations (`--model spm-steady|ipm-steady`) cannot
+/// honour, naming them; the fit's own options are checked by the library.
+fn steady_only(a: &FitArgs) -> crate::Result<()> {
+    let given = [
+        ("--method ls", matches!(a.method, MethodArg::Ls)),
+        ("--method iv", matches!(a.method, MethodArg::Iv)),
+        ("--plot", a.plot.is_some()),
+        ("--residuals", a.residuals.is_some()),
+    ];
+    let bad: Vec<&str> = given.iter().filter(|(_, set)| *set).map(|(flag, _)| *flag).collect();
+    if bad.is_empty() {
+        return Ok(());
+    }
+    Err(crate::Error::InvalidOption {
+        option: "model".into(),
+        reason: format!(
+            "the steady-state equations are fitted by instrumental variables and simulate no currents: they cannot \
+             honour {}",
+            bad.join(", ")
+        ),
+    })
 }
 
 /// Prints the report on stdout in the `--format` asked for.

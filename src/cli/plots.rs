@@ -23,6 +23,14 @@ pub fn fit_outputs(
     if plot_path.is_none() && residuals.is_none() {
         return Ok(());
     }
+    if fit.report.model.ends_with("_steady") {
+        return Err(crate::Error::InvalidOption {
+            option: if plot_path.is_some() { "plot" } else { "residuals" }.into(),
+            reason: "the log was fitted by the steady-state equations (its sample time is too long for the dynamic \
+                     model), which simulate no currents to plot: drop --plot and --residuals"
+                .into(),
+        });
+    }
     let comparisons = fit.comparisons(logs)?;
     if let Some(path) = residuals {
         staged.produce(path, |tmp| crate::report::residuals::write_residuals_csv(tmp, &comparisons))?;

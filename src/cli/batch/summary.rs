@@ -87,7 +87,7 @@ pub struct Record {
     pub error: Option<String>,
     /// Pole pairs used (given or chosen).
     pub pole_pairs: Option<u32>,
-    /// The voltage hold of the reported fit (`dq` or `stator`).
+    /// The voltage hold of the reported fit (`dq` or `stator`; `steady` for the steady-state equations).
     pub hold: Option<String>,
     /// Whether the solver converged.
     pub converged: Option<bool>,
@@ -153,7 +153,12 @@ impl Record {
         let stats = &fit.fit;
         Record {
             pole_pairs: Some(fit.pole_pairs),
-            hold: Some(fit.hold.to_string()),
+            // The steady-state equations have no hold: the column names the model instead.
+            hold: Some(if fit.report.model.ends_with("_steady") {
+                "steady".into()
+            } else {
+                fit.hold.to_string()
+            }),
             converged: Some(fit.solver.success),
             parameters,
             derived,
