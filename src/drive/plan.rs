@@ -201,3 +201,69 @@ impl LimitUse {
         }
     }
 }
+
+/// The knob grid of a design search: every combination of injection, speed scale and
+/// record length (the injections: the base plan's own, then each amplitude constant and
+/// in pulses of each length; a zero amplitude only once, as `i_d = 0`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Grid {
+    /// Injection amplitudes \[fraction of i_max\].
+    pub amplitudes: Vec<f64>,
+    /// Pulse lengths \[s\]; 0 stands for a constant injection.
+    pub pulses: Vec<f64>,
+    /// Time between pulse starts \[s\] (at least the pulse length).
+    pub period: f64,
+    /// Speed scales \[-\].
+    pub speed_scales: Vec<f64>,
+    /// Record lengths \[s\].
+    pub durations: Vec<f64>,
+}
+
+impl Default for Grid {
+    fn default() -> Self {
+        Self {
+            amplitudes: vec![0.0, 0.2, 0.5],
+            pulses: vec![0.0, 0.2],
+            period: 0.4,
+            speed_scales: vec![0.5, 1.0, 1.5],
+            durations: vec![0.5, 1.0, 2.0, 4.0, 8.0],
+        }
+    }
+}
+
+impl Grid {
+    /// Every knob combination, in the order injection × speed scale × duration.
+    ///
+    /// # Errors
+    /// [`Error::InvalidOption`] (`injection`, `speed-scales`, `durations`) for an invalid
+    /// amplitude, pulse, period, a non-positive speed scale or record length, or an empty
+    /// list.
+    pub fn candidates(&self) -> Result<Vec<Knobs>> {
+        let bad = |option: &str, reason: &str| Error::InvalidOption { option: option.into(), reason: reason.into() };
+        if self.speed_scales.is_empty() || self.speed_scales.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(bad("speed-scales", "give positive speed scales"));
+        }
+        if self.durations.is_empty() || self.durations.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(bad("durations", "give positive record lengths [s]"));
+        }
+        let mut injections = vec![None];
+        for &amplitude in &self.amplitudes {
+            for &pulse in &self.pulses {
+                let pulse = (pulse != 0.0 && amplitude != 0.0).then_some(pulse);
+                let inj = Injection { amplitude, pulse, period: self.period.max(pulse.unwrap_or(0.0)), start: 0.3 };
+                inj.validate()?;
+                if !injections.contains(&Some(inj)) {
+                    injections.push(Some(inj));
+                }
+            }
+        }
+        Ok(injections
+            .iter()
+            .flat_map(|&injection| {
+                self.speed_scales.iter().flat_map(move |&speed_scale| {
+                    self.durations.iter().map(move |&duration| Knobs { injection, speed_scale, duration })
+                })
+            })
+            .collect())
+    }
+}
