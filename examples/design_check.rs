@@ -1,5 +1,6 @@
 //! Predicted against realised standard errors (issue 32): for each plan (a thesis scenario
-//! or a named planned injection, `greybox::drive::plan::PLANS`), the design prediction from
+//! a named planned injection, `greybox::drive::plan::PLANS`, or a scenario file `*.json`
+//! such as `greybox design --search --best-config` writes), the design prediction from
 //! one noise-free simulation, then `N` noisy simulations (seeds 1..=N) fitted with
 //! `fit_pmsm`; prints predicted se, realised sd and their ratio per parameter as Markdown
 //! rows, then the plans ranked by the predicted D-criterion and by the realised one
@@ -25,7 +26,13 @@ fn main() -> greybox::Result<()> {
     println!("| plan | cond | D | param | predicted se | realised sd | ratio |");
     println!("|---|---|---|---|---|---|---|");
     for name in &plans {
-        let mut cfg = planned_drive(name, SPM_MOTOR)?;
+        let mut cfg = if name.ends_with(".json") {
+            let text = std::fs::read_to_string(name).map_err(|source| greybox::Error::Io { path: name.into(), source })?;
+            serde_json::from_str::<greybox::drive::DriveConfig>(&text)
+                .map_err(|e| greybox::Error::InvalidOption { option: "config".into(), reason: e.to_string() })?
+        } else {
+            planned_drive(name, SPM_MOTOR)?
+        };
         cfg.duration = duration;
         cfg.sensors.current_noise = env("DESIGN_NOISE", 0.05);
         cfg.sensors.current_noise_pole = env("DESIGN_POLE", 0.0);

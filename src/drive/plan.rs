@@ -67,6 +67,7 @@ impl Injection {
     /// A short label, e.g. `id -0.2 imax` or `id -0.3 imax 0.2 s/0.8 s`.
     pub fn label(&self) -> String {
         match self.pulse {
+            _ if self.amplitude == 0.0 => "id 0".into(),
             None => format!("id -{} imax", self.amplitude),
             Some(w) => format!("id -{} imax {w} s/{} s", self.amplitude, self.period),
         }
