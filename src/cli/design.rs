@@ -152,7 +152,11 @@ pub struct SearchedCandidate {
 pub fn run_design(a: &DesignArgs) -> crate::Result<()> {
     let inputs: Vec<PathBuf> = a.config.iter().chain(&a.params).cloned().collect();
     output::check_all(
-        &[("--json", a.json.as_deref()), ("--plot", a.plot.as_deref()), ("--best-config", a.best_config.as_deref())],
+        &[
+            ("--json", a.json.as_deref()),
+            ("--plot", a.plot.as_deref()),
+            ("--best-config", a.best_config.as_deref()),
+        ],
         &inputs,
     )?;
     let (plans, noise_source) = plans(a)?;
@@ -164,7 +168,8 @@ pub fn run_design(a: &DesignArgs) -> crate::Result<()> {
     let predictions = plans.iter().map(predict_plan).collect::<crate::Result<Vec<_>>>()?;
     let scores: Vec<_> = predictions.iter().map(|p| p.prediction.clone()).collect();
     let ranking = criterion.rank(&scores).into_iter().map(|i| predictions[i].plan.clone()).collect();
-    let (search, best_config) = if a.search { search(a, &plans).map(|(r, c)| (Some(r), c))? } else { (None, None) };
+    let (search, best_config) =
+        if a.search { search(a, &plans).map(|(r, c)| (Some(r), c))? } else { (None, None) };
     let report = DesignReport { criterion, noise_source, plans: predictions, ranking, search };
     if !(a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-")) {
         output::stdout(&text(&report, &plans))?;
@@ -205,7 +210,8 @@ pub fn plans(a: &DesignArgs) -> crate::Result<(Vec<DriveConfig>, String)> {
     }
     let mut plans = a.scenario.iter().map(|n| planned_drive(n, motor)).collect::<crate::Result<Vec<_>>>()?;
     for path in &a.config {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io { path: path.clone(), source })?;
+        let text =
+            std::fs::read_to_string(path).map_err(|source| Error::Io { path: path.clone(), source })?;
         let mut cfg: DriveConfig = serde_json::from_str(&text).map_err(|e| Error::InvalidOption {
             option: "config".into(),
             reason: format!("{}: {e}", path.display()),
@@ -230,7 +236,8 @@ pub fn plans(a: &DesignArgs) -> crate::Result<(Vec<DriveConfig>, String)> {
             (cfg.sensors.current_noise, cfg.sensors.current_noise_pole) = (sd, pole);
             source = "flags".into();
         } else if let Some((_, Some((sd, pole)))) = &report {
-            (cfg.sensors.current_noise, cfg.sensors.current_noise_pole) = (*sd, a.current_noise_pole.unwrap_or(*pole));
+            (cfg.sensors.current_noise, cfg.sensors.current_noise_pole) =
+                (*sd, a.current_noise_pole.unwrap_or(*pole));
             source = "params (residuals of the fit report)".into();
         } else if let Some(pole) = a.current_noise_pole {
             cfg.sensors.current_noise_pole = pole;
@@ -263,10 +270,12 @@ pub fn plans(a: &DesignArgs) -> crate::Result<(Vec<DriveConfig>, String)> {
 /// residuals' lag-1 autocorrelation (mean over the outputs, clamped to \[0, 0.99\]).
 fn read_report(path: &Path, n_p: u32) -> crate::Result<(SavedModel, Option<(f64, f64)>)> {
     let text = std::fs::read_to_string(path).map_err(|source| Error::Io { path: path.into(), source })?;
-    let saved = SavedModel::from_json(&text, None, None).or_else(|_| SavedModel::from_json(&text, Some(n_p), None))?;
+    let saved = SavedModel::from_json(&text, None, None)
+        .or_else(|_| SavedModel::from_json(&text, Some(n_p), None))?;
     let value: serde_json::Value = serde_json::from_str(&text).unwrap_or_default();
     let fit = &value["fit"];
-    let rms: Vec<f64> = fit["rms_residual"].as_array().into_iter().flatten().filter_map(|v| v.as_f64()).collect();
+    let rms: Vec<f64> =
+        fit["rms_residual"].as_array().into_iter().flatten().filter_map(|v| v.as_f64()).collect();
     let lag1: Vec<f64> = fit["whiteness"]
         .as_array()
         .into_iter()
@@ -290,7 +299,13 @@ fn nominal(saved: &SavedModel) -> crate::pmsm::MotorParameters {
         MotorKind::Ipm => (t[1], t[2], t[3]),
     };
     let n_p = saved.pole_pairs;
-    crate::pmsm::MotorParameters { r_s: t[0], l_d, l_q, psi_f: (2.0f64 / 3.0).sqrt() * k_e / f64::from(n_p), n_p }
+    crate::pmsm::MotorParameters {
+        r_s: t[0],
+        l_d,
+        l_q,
+        psi_f: (2.0f64 / 3.0).sqrt() * k_e / f64::from(n_p),
+        n_p,
+    }
 }
 
 /// The knob search around every plan: the report and the winner's scenario.
@@ -351,9 +366,14 @@ fn text(r: &DesignReport, plans: &[DriveConfig]) -> String {
             p.current_noise_pole,
             100.0 * p.limits.current,
             100.0 * p.limits.voltage,
-            p.limits.reached().map_or(String::new(), |l| format!(" ({l}: the run would not follow its references)"))
+            p.limits
+                .reached()
+                .map_or(String::new(), |l| format!(" ({l}: the run would not follow its references)"))
         );
-        s += &format!("  {:<6} {:>18} {:>16} {:>44} {:>10}\n", "param", "nominal", "se", "95 % interval", "index [%]");
+        s += &format!(
+            "  {:<6} {:>18} {:>16} {:>44} {:>10}\n",
+            "param", "nominal", "se", "95 % interval", "index [%]"
+        );
         for x in &q.parameters {
             s += &format!(
                 "  {:<6} {:>18} {:>16} {:>44} {:>10.4}\n",
@@ -377,7 +397,11 @@ fn text(r: &DesignReport, plans: &[DriveConfig]) -> String {
     if let Some(search) = &r.search {
         let goal: Vec<String> =
             search.targets.iter().map(|t| format!("{} ±{} %", t.parameter, 100.0 * t.half_width)).collect();
-        s += &format!("search for {} (95 %): {} candidates evaluated\n", goal.join(", "), search.candidates.len());
+        s += &format!(
+            "search for {} (95 %): {} candidates evaluated\n",
+            goal.join(", "),
+            search.candidates.len()
+        );
         for c in &search.candidates {
             let what = match &c.rejected {
                 Some(reason) => format!("rejected: {reason}"),
@@ -390,7 +414,9 @@ fn text(r: &DesignReport, plans: &[DriveConfig]) -> String {
         }
         s += &match &search.best {
             Some(b) => format!("shortest plan reaching the targets: {} ({} s)\n", b.plan, b.duration),
-            None => "no candidate reaches the targets: longer records, more injection or other plans\n".into(),
+            None => {
+                "no candidate reaches the targets: longer records, more injection or other plans\n".into()
+            }
         };
     }
     s
@@ -400,8 +426,11 @@ fn text(r: &DesignReport, plans: &[DriveConfig]) -> String {
 /// nominal value \[%\].
 fn plot(r: &DesignReport) -> crate::Result<String> {
     let runs: Vec<String> = r.plans.iter().map(|p| p.plan.clone()).collect();
-    let names: Vec<String> =
-        r.plans.first().map(|p| p.prediction.parameters.iter().map(|q| q.name.clone()).collect()).unwrap_or_default();
+    let names: Vec<String> = r
+        .plans
+        .first()
+        .map(|p| p.prediction.parameters.iter().map(|q| q.name.clone()).collect())
+        .unwrap_or_default();
     let series: Vec<TrendSeries> = names
         .iter()
         .map(|n| TrendSeries {

@@ -83,9 +83,13 @@ impl Injection {
         if !(0.0..1.0).contains(&self.amplitude) {
             return Err(bad(format!("amplitude {} is outside [0, 1) (a fraction of i_max)", self.amplitude)));
         }
-        if self.pulse.is_some_and(|w| !(w.is_finite() && w > 0.0)) || !(self.period.is_finite() && self.period > 0.0)
+        if self.pulse.is_some_and(|w| !(w.is_finite() && w > 0.0))
+            || !(self.period.is_finite() && self.period > 0.0)
         {
-            return Err(bad(format!("pulse {:?} s and period {} s must be positive", self.pulse, self.period)));
+            return Err(bad(format!(
+                "pulse {:?} s and period {} s must be positive",
+                self.pulse, self.period
+            )));
         }
         if !(self.start.is_finite() && self.start >= 0.0) {
             return Err(bad(format!("start {} s must be non-negative", self.start)));
@@ -240,7 +244,10 @@ impl Grid {
     /// amplitude, pulse, period, a non-positive speed scale or record length, or an empty
     /// list.
     pub fn candidates(&self) -> Result<Vec<Knobs>> {
-        let bad = |option: &str, reason: &str| Error::InvalidOption { option: option.into(), reason: reason.into() };
+        let bad = |option: &str, reason: &str| Error::InvalidOption {
+            option: option.into(),
+            reason: reason.into(),
+        };
         if self.speed_scales.is_empty() || self.speed_scales.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
             return Err(bad("speed-scales", "give positive speed scales"));
         }
@@ -251,7 +258,8 @@ impl Grid {
         for &amplitude in &self.amplitudes {
             for &pulse in &self.pulses {
                 let pulse = (pulse != 0.0 && amplitude != 0.0).then_some(pulse);
-                let inj = Injection { amplitude, pulse, period: self.period.max(pulse.unwrap_or(0.0)), start: 0.3 };
+                let inj =
+                    Injection { amplitude, pulse, period: self.period.max(pulse.unwrap_or(0.0)), start: 0.3 };
                 inj.validate()?;
                 if !injections.contains(&Some(inj)) {
                     injections.push(Some(inj));

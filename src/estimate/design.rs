@@ -252,8 +252,9 @@ impl std::str::FromStr for Target {
     /// positive number.
     fn from_str(s: &str) -> Result<Self> {
         let bad = |reason: String| Error::InvalidOption { option: "target".into(), reason };
-        let (name, value) =
-            s.split_once('=').ok_or_else(|| bad(format!("`{s}`: expected NAME=HALF_WIDTH, e.g. r_s=0.5%")))?;
+        let (name, value) = s
+            .split_once('=')
+            .ok_or_else(|| bad(format!("`{s}`: expected NAME=HALF_WIDTH, e.g. r_s=0.5%")))?;
         let (value, scale) = match value.trim().strip_suffix('%') {
             Some(v) => (v, 0.01),
             None => (value.trim(), 1.0),
@@ -334,9 +335,13 @@ pub fn search_shortest(
             break;
         }
         let candidate = match evaluate(i)? {
-            Err(reason) => {
-                Candidate { index: i, length: lengths[i], achieved: Vec::new(), rejected: Some(reason), reaches: false }
-            }
+            Err(reason) => Candidate {
+                index: i,
+                length: lengths[i],
+                achieved: Vec::new(),
+                rejected: Some(reason),
+                reaches: false,
+            },
             Ok(p) => {
                 let achieved = targets.iter().map(|t| t.achieved(&p)).collect::<Result<Vec<f64>>>()?;
                 let worst = achieved.iter().zip(targets).map(|(a, t)| a / t.half_width).fold(0.0, f64::max);
