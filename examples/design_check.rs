@@ -27,9 +27,11 @@ fn main() -> greybox::Result<()> {
     println!("|---|---|---|---|---|---|---|");
     for name in &plans {
         let mut cfg = if name.ends_with(".json") {
-            let text = std::fs::read_to_string(name).map_err(|source| greybox::Error::Io { path: name.into(), source })?;
-            serde_json::from_str::<greybox::drive::DriveConfig>(&text)
-                .map_err(|e| greybox::Error::InvalidOption { option: "config".into(), reason: e.to_string() })?
+            let text = std::fs::read_to_string(name)
+                .map_err(|source| greybox::Error::Io { path: name.into(), source })?;
+            serde_json::from_str::<greybox::drive::DriveConfig>(&text).map_err(|e| {
+                greybox::Error::InvalidOption { option: "config".into(), reason: e.to_string() }
+            })?
         } else {
             planned_drive(name, SPM_MOTOR)?
         };
@@ -53,14 +55,21 @@ fn main() -> greybox::Result<()> {
         // Sample covariance of the relative estimates θ̂/θ.
         let cov = DMatrix::from_fn(m, m, |a, b| {
             let (va, vb) = (p.parameters[a].value, p.parameters[b].value);
-            draws[a].iter().zip(&draws[b]).map(|(x, y)| (x - mean[a]) * (y - mean[b]) / (va * vb)).sum::<f64>()
+            draws[a]
+                .iter()
+                .zip(&draws[b])
+                .map(|(x, y)| (x - mean[a]) * (y - mean[b]) / (va * vb))
+                .sum::<f64>()
                 / (n as f64 - 1.0)
         });
         let realised_d = -cov.determinant().ln();
         for (j, (q, pp)) in names.iter().zip(&p.parameters).enumerate() {
             let sd = (cov[(j, j)]).sqrt() * pp.value.abs();
             let head = if j == 0 {
-                format!("| {name} | {:.1} | {:.3} (realised {realised_d:.3})", p.condition_number, p.d_criterion)
+                format!(
+                    "| {name} | {:.1} | {:.3} (realised {realised_d:.3})",
+                    p.condition_number, p.d_criterion
+                )
             } else {
                 "| | |".to_string()
             };
