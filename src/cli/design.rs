@@ -358,11 +358,11 @@ fn text(r: &DesignReport, plans: &[DriveConfig]) -> String {
     for (p, cfg) in r.plans.iter().zip(plans) {
         let q = &p.prediction;
         s += &format!(
-            "{}: {} s ({} samples), phase-current noise {} A (pole {}); limits used: current {:.0} %, voltage {:.0} %{}\n",
+            "{}: {} s ({} samples), phase-current noise {} (pole {:.3}); limits used: current {:.0} %, voltage {:.0} %{}\n",
             p.plan,
             p.duration,
             q.samples,
-            p.current_noise,
+            format_eng(p.current_noise, "A", 4),
             p.current_noise_pole,
             100.0 * p.limits.current,
             100.0 * p.limits.voltage,

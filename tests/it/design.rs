@@ -321,6 +321,11 @@ fn limits_flag_plans_the_drive_cannot_follow() {
     let slow = Knobs { injection: None, speed_scale: 0.5, duration: 0.5 }.apply(&base);
     let log = simulate_drive(&slow).unwrap();
     assert_eq!(LimitUse::of(&log.experiment, &slow).unwrap().reached(), None);
+    // exp3 on a 60 V DC link: the back-EMF at 100 rad/s needs more than U_dc/√3.
+    let mut low = planned_drive("exp3", SPM_MOTOR).unwrap();
+    (low.duration, low.control.u_dc) = (2.0, 60.0);
+    let log = simulate_drive(&low).unwrap();
+    assert!(LimitUse::of(&log.experiment, &low).unwrap().reached().unwrap().contains("voltage limit"));
     // The grid: the base's own injection, i_d = 0 once, each amplitude constant and pulsed.
     let grid = Grid {
         amplitudes: vec![0.0, 0.5],
