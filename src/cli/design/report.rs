@@ -83,8 +83,19 @@ pub(super) fn text(r: &DesignReport, plans: &[DriveConfig]) -> String {
                 x.error_index_percent
             );
         }
+        // The most correlated pair (the full matrix is in the JSON).
+        let n = q.parameters.len();
+        let pair = (0..n)
+            .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+            .max_by(|&(a, b), &(c, d)| q.correlation[a][b].abs().total_cmp(&q.correlation[c][d].abs()));
+        let corr = pair.map_or(String::new(), |(i, j)| {
+            format!(
+                "; largest correlation {}-{} {:+.3}",
+                q.parameters[i].name, q.parameters[j].name, q.correlation[i][j]
+            )
+        });
         s += &format!(
-            "  condition number {:.1}; D {:.3}, A {:.4e}, E {:.4e}\n",
+            "  condition number {:.1}; D {:.3}, A {:.4e}, E {:.4e}{corr}\n",
             q.condition_number, q.d_criterion, q.a_criterion, q.e_criterion
         );
         if cfg.sensors.voltage_noise > 0.0 || cfg.sensors.speed_noise > 0.0 {
