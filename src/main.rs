@@ -48,6 +48,8 @@ enum Command {
     Track(Box<cli::track::TrackArgs>),
     /// Simulate a closed-loop servo drive (thesis scenarios exp1-exp6 or a scenario file): a log `greybox fit` reads, with its truth JSON.
     Simulate(Box<cli::simulate::SimulateArgs>),
+    /// Predict the standard errors and 95 % intervals of planned experiments before running them, rank them, search design knobs.
+    Design(Box<cli::design::DesignArgs>),
     /// Print a shell completion script on stdout, e.g. `greybox completions bash > /etc/bash_completion.d/greybox`
     /// or `greybox completions zsh > ~/.zfunc/_greybox`.
     Completions {
@@ -72,6 +74,7 @@ fn main() -> ExitCode {
         Command::Validate(a) => cli::validate::run_validate(a).map(|()| 0),
         Command::Track(a) => cli::track::run_track(a).map(|()| 0),
         Command::Simulate(a) => cli::simulate::run_simulate(a).map(|()| 0),
+        Command::Design(a) => cli::design::run_design(a).map(|()| 0),
         Command::Completions { shell } => {
             // Into a buffer first: clap_complete panics when stdout is closed early (`| head`).
             let mut script = Vec::new();
@@ -91,6 +94,7 @@ fn main() -> ExitCode {
             Command::Validate(_) => "validate",
             Command::Track(_) => "track",
             Command::Simulate(_) => "simulate",
+            Command::Design(_) => "design",
             Command::Completions { .. } => "completions",
         };
         match command.find_subcommand(name) {

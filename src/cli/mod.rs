@@ -6,6 +6,7 @@
 pub mod args;
 pub mod batch;
 pub mod columns;
+pub mod design;
 pub mod errors;
 pub mod fit;
 pub mod fitted;

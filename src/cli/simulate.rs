@@ -156,7 +156,11 @@ pub fn config(a: &SimulateArgs) -> crate::Result<DriveConfig> {
 
 /// The configuration with the field at the dotted `path` set to `value` (`PATH=VALUE`,
 /// the value as JSON, e.g. a number, `null` or `[[0, 1], [2, 3]]`).
-fn set_field(cfg: &DriveConfig, assignment: &str) -> crate::Result<DriveConfig> {
+///
+/// # Errors
+/// [`Error::InvalidOption`] (`set`) for text without `=`, a value that is not JSON, a path
+/// that is not a field (naming the fields there), a value of the wrong type.
+pub fn set_field(cfg: &DriveConfig, assignment: &str) -> crate::Result<DriveConfig> {
     let bad = |reason: String| Error::InvalidOption { option: "set".into(), reason };
     let (path, value) =
         assignment.split_once('=').ok_or_else(|| bad(format!("`{assignment}`: expected PATH=VALUE")))?;

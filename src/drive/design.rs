@@ -10,6 +10,7 @@
 //! variables, a bias and a spread this bound does not show).
 
 use super::config::DriveConfig;
+use super::plan::LimitUse;
 use super::sim::simulate_drive;
 use crate::error::Result;
 use crate::estimate::design::{DesignOptions, Prediction, predict};
@@ -35,18 +36,31 @@ pub struct PlanPrediction {
     pub current_noise_pole: f64,
     /// The prediction.
     pub prediction: Prediction,
+    /// How much of the current and voltage limits the noise-free run used.
+    pub limits: LimitUse,
 }
 
 /// Predicts the uncertainty of [`crate::pmsm::fit_pmsm`] on the drive `cfg` (its motor is
-/// the nominal θ, its `sensors.current_noise` and pole the noise; σ > 0 is required).
+/// the nominal θ, its `sensors.current_noise` and pole the noise; σ > 0 is required), and
+/// how much of the drive's current and voltage limits the plan uses ([`LimitUse`]).
 ///
 /// # Errors
 /// Those of [`simulate_drive`] and [`predict`] (a zero current noise is an
-/// [`crate::Error::InvalidOption`]).
+/// [`crate::Error::InvalidOption`] naming `sensors.current_noise`).
 pub fn predict_plan(cfg: &DriveConfig) -> Result<PlanPrediction> {
+    if !(cfg.sensors.current_noise.is_finite() && cfg.sensors.current_noise > 0.0) {
+        return Err(crate::Error::InvalidOption {
+            option: "sensors.current_noise".into(),
+            reason: format!(
+                "{} A: the prediction needs the phase-current noise σ > 0 (a noise-free fit has no spread)",
+                cfg.sensors.current_noise
+            ),
+        });
+    }
     let mut clean = cfg.clone();
     clean.sensors = super::config::Sensors::default();
     let log = simulate_drive(&clean)?;
+    let limits = LimitUse::of(&log.experiment, cfg)?;
     let s = &cfg.sensors;
     let sd = (DQ_PER_PHASE_VARIANCE).sqrt() * s.current_noise;
     let options =
@@ -67,6 +81,7 @@ pub fn predict_plan(cfg: &DriveConfig) -> Result<PlanPrediction> {
         current_noise: s.current_noise,
         current_noise_pole: s.current_noise_pole,
         prediction,
+        limits,
     })
 }
 

@@ -32,6 +32,7 @@ pub mod control;
 pub mod design;
 mod motors;
 pub mod output;
+pub mod plan;
 pub mod profile;
 pub mod scenario;
 pub mod sim;

@@ -15,6 +15,9 @@
 //! sensitivities vary slowly against the noise's correlation time `h/(1 − a)` (the
 //! sandwich `M⁻¹ JᵀΛΣJ M⁻¹` with `JᵀΣJ ≈ σ² (1+a)/(1−a) JᵀJ`), and an approximation
 //! otherwise; it is what the batch-means covariance of the fit estimates.
+//!
+//! [`search_shortest`] searches a list of candidate experiments for the shortest one whose
+//! predicted intervals reach [`Target`]s (the caller builds and predicts the candidates).
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
@@ -227,4 +230,129 @@ impl Criterion {
         idx.sort_by(|&a, &b| self.score(&predictions[a]).total_cmp(&self.score(&predictions[b])));
         idx
     }
+}
+
+/// A target interval: the relative 95 % half-width `1.96 se/|θ|` a parameter must reach,
+/// e.g. `r_s=0.5%` (0.005) or `r_s=0.005`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Target {
+    /// Parameter name.
+    pub parameter: String,
+    /// Relative 95 % half-width \[-\] (0.005 = ±0.5 %).
+    pub half_width: f64,
+}
+
+impl std::str::FromStr for Target {
+    type Err = Error;
+
+    /// Parses `NAME=VALUE` or `NAME=VALUE%`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidOption`] (`target`) for text without `=`, or a value that is not a
+    /// positive number.
+    fn from_str(s: &str) -> Result<Self> {
+        let bad = |reason: String| Error::InvalidOption { option: "target".into(), reason };
+        let (name, value) = s
+            .split_once('=')
+            .ok_or_else(|| bad(format!("`{s}`: expected NAME=HALF_WIDTH, e.g. r_s=0.5%")))?;
+        let (value, scale) = match value.trim().strip_suffix('%') {
+            Some(v) => (v, 0.01),
+            None => (value.trim(), 1.0),
+        };
+        let v: f64 = value.trim().parse().map_err(|_| bad(format!("`{s}`: `{value}` is not a number")))?;
+        if !(v.is_finite() && v > 0.0) || name.trim().is_empty() {
+            return Err(bad(format!("`{s}`: need a parameter name and a positive half-width")));
+        }
+        Ok(Self { parameter: name.trim().into(), half_width: v * scale })
+    }
+}
+
+impl Target {
+    /// The predicted relative 95 % half-width of the target's parameter (∞ when it is not
+    /// identifiable).
+    ///
+    /// # Errors
+    /// [`Error::InvalidOption`] (`target`) when the prediction has no such parameter.
+    pub fn achieved(&self, p: &Prediction) -> Result<f64> {
+        let q = p.parameter(&self.parameter).ok_or_else(|| Error::InvalidOption {
+            option: "target".into(),
+            reason: format!(
+                "`{}` is not a parameter of the model ({})",
+                self.parameter,
+                p.parameters.iter().map(|q| q.name.as_str()).collect::<Vec<_>>().join(", ")
+            ),
+        })?;
+        Ok(1.96 * q.std_error / q.value.abs())
+    }
+}
+
+/// One candidate of a [`search_shortest`]: its prediction or why it was rejected, and
+/// whether it reached every target.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Candidate {
+    /// Index of the candidate in the caller's list.
+    pub index: usize,
+    /// Its record length \[s\].
+    pub length: f64,
+    /// The achieved relative half-width per target (empty when rejected).
+    pub achieved: Vec<f64>,
+    /// Why the candidate was not predicted (e.g. a limit it reaches), if it was not.
+    pub rejected: Option<String>,
+    /// Whether it reaches every target.
+    pub reaches: bool,
+}
+
+/// The result of [`search_shortest`]: every candidate evaluated (shortest first) and the
+/// winner.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SearchOutcome {
+    /// Candidates evaluated, by increasing length (those longer than the winner's length
+    /// are not evaluated).
+    pub evaluated: Vec<Candidate>,
+    /// Index (into the caller's list) of the shortest candidate reaching every target; among
+    /// equally long ones the one with the smallest worst ratio `achieved/target`.
+    pub best: Option<usize>,
+}
+
+/// Searches `lengths.len()` candidates (record lengths `lengths[i]` \[s\]) for the shortest
+/// that reaches every target: candidates are evaluated by increasing length, group by
+/// group of equal length, until a group has one that does. `evaluate(i)` predicts candidate
+/// i, or returns `Ok(Err(reason))` to reject it (a plan outside the experiment's limits).
+///
+/// # Errors
+/// An error of `evaluate`, or of [`Target::achieved`] (a target naming no parameter).
+pub fn search_shortest(
+    lengths: &[f64],
+    targets: &[Target],
+    mut evaluate: impl FnMut(usize) -> Result<std::result::Result<Prediction, String>>,
+) -> Result<SearchOutcome> {
+    let mut order: Vec<usize> = (0..lengths.len()).collect();
+    order.sort_by(|&a, &b| lengths[a].total_cmp(&lengths[b]));
+    let mut evaluated: Vec<Candidate> = Vec::new();
+    let mut best: Option<(usize, f64)> = None;
+    for (pos, &i) in order.iter().enumerate() {
+        if best.is_some() && pos > 0 && lengths[i] > lengths[order[pos - 1]] {
+            break;
+        }
+        let candidate = match evaluate(i)? {
+            Err(reason) => Candidate {
+                index: i,
+                length: lengths[i],
+                achieved: Vec::new(),
+                rejected: Some(reason),
+                reaches: false,
+            },
+            Ok(p) => {
+                let achieved = targets.iter().map(|t| t.achieved(&p)).collect::<Result<Vec<f64>>>()?;
+                let worst = achieved.iter().zip(targets).map(|(a, t)| a / t.half_width).fold(0.0, f64::max);
+                let reaches = worst <= 1.0;
+                if reaches && best.is_none_or(|(_, w)| worst < w) {
+                    best = Some((i, worst));
+                }
+                Candidate { index: i, length: lengths[i], achieved, rejected: None, reaches }
+            }
+        };
+        evaluated.push(candidate);
+    }
+    Ok(SearchOutcome { evaluated, best: best.map(|(i, _)| i) })
 }
