@@ -127,7 +127,8 @@ class Fit:
     def svg(self) -> Optional[str]:
         """The fit plot as SVG text (what ``--plot`` writes): measured and simulated currents
         with the speed, residuals, their autocorrelation, the parameter trace and the
-        estimates with 95 % intervals; ``None`` for ``method="ls"``."""
+        estimates with 95 % intervals; ``None`` for ``method="ls"`` and for the steady-state
+        equations (``model="spm-steady"``, or chosen for a slow log), which simulate no currents."""
         return self._native.svg()
 
     def __str__(self) -> str:

@@ -54,6 +54,10 @@ impl NativeFit {
     /// draws none.
     fn svg(&self, py: Python<'_>) -> PyResult<Option<String>> {
         let Some(fit) = &self.fit else { return Ok(None) };
+        // The steady-state equations simulate no currents: no plot, as for `method="ls"`.
+        if fit.report.model.ends_with("_steady") {
+            return Ok(None);
+        }
         py.detach(|| greybox::cli::plots::fit_svg(fit, &self.logs)).map(Some).map_err(to_py)
     }
 }

@@ -17,6 +17,24 @@ def test_simulate_then_fit_recovers_the_truth():
     assert fit.value("r_s") == pytest.approx(truth["start"]["r_s"], rel=0.05)
 
 
+def test_slow_log_is_fitted_by_the_steady_state_equations():
+    # A 100 Hz host log: every 100th row of a 10 kHz drive log (point samples).
+    log, truth = greybox.simulate("exp3", seed=1, duration=6.0)
+    slow = log.take(list(range(0, log.num_rows, 100))).select(["t", "ud", "uq", "id", "iq", "w_m"])
+    n_p = truth["start"]["n_p"]
+    fit = greybox.fit(slow, pole_pairs=n_p)
+    assert fit.to_dict()["model"] == "pmsm_spm_steady"
+    assert any("steady-state model chosen" in n for n in fit.to_dict()["pmsm_notes"])
+    asked = greybox.fit(slow, pole_pairs=n_p, model="spm-steady", control_period=1e-4)
+    (k_e,) = [p for p in asked.to_dict()["parameters"] if p["name"] == "k_e"]
+    # One seed: within 3 standard errors (an honest interval fails this with probability
+    # 0.3 %; coverage is measured by examples/steady_coverage.rs).
+    assert abs(k_e["value"] - truth["k_e"]) <= 3 * k_e["std_error"]
+    assert asked.svg() is None
+    with pytest.raises(greybox.OptionError, match="steady-state"):
+        greybox.fit(slow, pole_pairs=n_p, model="spm-steady", method="ls")
+
+
 def test_simulate_errors():
     with pytest.raises(greybox.OptionError, match="exp9|scenario"):
         greybox.simulate("exp9")

@@ -80,8 +80,8 @@ fn kind(t: &greybox::drive::Truth) -> MotorKind {
     if t.start.salient() { MotorKind::Ipm } else { MotorKind::Spm }
 }
 
-fn truth_of(t: &greybox::drive::Truth) -> [(&'static str, f64); 4] {
-    [("r_s", t.start.r_s), ("l_s", t.start.l_q), ("l_q", t.start.l_q), ("k_e", t.k_e)]
+fn truth_of(t: &greybox::drive::Truth) -> [(&'static str, f64); 5] {
+    [("r_s", t.start.r_s), ("l_s", t.start.l_q), ("l_d", t.start.l_d), ("l_q", t.start.l_q), ("k_e", t.k_e)]
 }
 
 /// 100 Hz and 2 Hz on both motors, with the drive's control period: R_s and K_e within
