@@ -12,7 +12,7 @@ use crate::estimate::diagnostics::{DiagnosticThresholds, diagnose};
 use crate::estimate::{
     DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing, metrics,
 };
-use crate::pmsm::checks::detect::steady_warnings;
+use crate::pmsm::checks::detect::{sample_time_problem, steady_warnings};
 use crate::pmsm::checks::time_unit::time_unit_mistake;
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::linear::{SteadyEstimate, SteadyOptions, steady_state};
@@ -85,7 +85,7 @@ pub(crate) fn fit(
         return Err(Error::Numerical {
             context: SAMPLE_TIME.into(),
             reason: format!(
-                "{}this is a fast log, not one for the steady-state equations: {mistake}",
+                "{}this is a fast log, not one for the steady-state equations: {mistake}. --force fits it anyway",
                 why.map_or(String::new(), |w| format!("{w}; but "))
             ),
         });
@@ -99,16 +99,10 @@ pub(crate) fn fit(
     };
     let est = steady_state(experiments, options.pole_pairs, options.model, &steady)?;
     let mut report = report(&est, experiments, options, t0.elapsed().as_secs_f64());
-    let warnings = steady_warnings(experiments, options.pole_pairs, &report);
-    report.warnings.extend(warnings);
-    let mut pmsm_notes = Vec::new();
-    if let Some(w) = why {
-        pmsm_notes.push(format!(
-            "steady-state model chosen: {w}. The steady-state equations are fitted instead (--model {}; \
-             --force fits the dynamic model anyway)",
-            flag(options.model)
-        ));
-    }
+    let warnings =
+        gate(&est, &report).into_iter().chain(steady_warnings(experiments, options.pole_pairs, &report));
+    report.warnings = warnings.collect();
+    let pmsm_notes = why.iter().map(|w| chosen_note(w, options.model)).collect();
     Ok(PmsmFit {
         report,
         pole_pairs: options.pole_pairs,
@@ -121,6 +115,48 @@ pub(crate) fn fit(
         pmsm_advice: est.notes.clone(),
         pmsm_notes,
     })
+}
+
+/// The automatic choice after the dynamic fit refused the sample time (`why`, judged at the
+/// least-squares start, which current noise biases): the steady-state fit when its own
+/// R_s and inductance confirm that the dynamic model cannot resolve the log, with the note
+/// saying why; the time-unit mistake's error when the log is a fast one in ms; `None`
+/// (the refusal stands) when the steady-state fit fails or does not confirm it (a noisy
+/// fast log).
+pub(crate) fn fit_if_slow(
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+    why: &str,
+) -> Option<Result<PmsmFit>> {
+    if !options.force
+        && let Some(mistake) = time_unit_mistake(experiments, options.pole_pairs)
+    {
+        return Some(Err(Error::Numerical {
+            context: SAMPLE_TIME.into(),
+            reason: format!("{why}; but this is a fast log: {mistake}. --force fits it anyway"),
+        }));
+    }
+    let fit = fit(experiments, options, None).ok()?;
+    let value = |names: &[&str]| {
+        fit.parameters
+            .iter()
+            .filter(|p| names.contains(&p.name.as_str()))
+            .map(|p| p.value)
+            .fold(f64::INFINITY, f64::min)
+    };
+    let confirmed =
+        sample_time_problem(experiments, options.pole_pairs, value(&["r_s"]), value(&["l_s", "l_d", "l_q"]))?;
+    let why = confirmed.split(". A time column").next().unwrap_or(&confirmed);
+    Some(Ok(PmsmFit { pmsm_notes: vec![chosen_note(why, options.model)], ..fit }))
+}
+
+/// The note of the automatic choice, `why` the reason.
+fn chosen_note(why: &str, kind: MotorKind) -> String {
+    format!(
+        "steady-state model chosen: {why}. The steady-state equations are fitted instead (--model {}; --force fits \
+         the dynamic model anyway)",
+        flag(kind)
+    )
 }
 
 /// Whether the steady-state equations are what `options` ask for, or the automatic choice
@@ -144,6 +180,33 @@ pub(crate) fn chosen_up_front(
         }),
         _ => None,
     }
+}
+
+/// The trust gate every fit passes ([`crate::estimate::gate`]): a poor fit with coloured
+/// equation errors, non-positive parameters (each entry, per log too), non-finite
+/// statistics, a singular information matrix.
+fn gate(est: &SteadyEstimate, report: &FitResult) -> Vec<crate::estimate::Warning> {
+    let implausible = (0..est.theta.len())
+        .flat_map(|j| {
+            let mut theta = vec![1.0; est.kind.parameter_names().len()];
+            if let Some(k) = est.kind.parameter_names().iter().position(|n| *n == est.names[j]) {
+                theta[k] = est.theta[j];
+            }
+            est.kind.implausible(&theta)
+        })
+        .collect();
+    let evidence = crate::estimate::gate::Evidence {
+        remaining: Vec::new(),
+        condition: (report.diagnostics.condition_number, Vec::new()),
+        implausible,
+        white: est.whiteness.iter().map(|w| w.is_white(est.steady_samples)).collect(),
+        poor_fit_advice: Some(
+            "the steady samples do not follow the steady-state equations: check the columns, units and signs, \
+             and whether the log is a fast one (its currents resolved between samples: the dynamic model)"
+                .into(),
+        ),
+    };
+    crate::estimate::gate::warnings(&report.solver, &report.parameters, &report.fit, &evidence)
 }
 
 /// The estimate `est` of `experiments` as the generic report (parameters with intervals,

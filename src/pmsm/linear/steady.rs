@@ -48,7 +48,7 @@ pub struct SteadyOptions {
     pub relative_floor: f64,
     /// The drive's control (PWM) period h_c \[s\], when known: the point-sampled currents
     /// are then related to the period-mean voltage exactly (the periodic steady state of
-    /// the stator-held step, [`super::steady_model`]); `None`: the continuous equations,
+    /// the stator-held step, MODEL.md §4); `None`: the continuous equations,
     /// whose back-EMF reads low by up to `(ω_e h_c)²/12` at the log's top speed.
     pub control_period: Option<f64>,
     /// Parameters estimated per log (by name, e.g. `r_s` for a winding temperature per
