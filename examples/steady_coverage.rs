@@ -12,18 +12,6 @@ use greybox::drive::{
     Control, DriveConfig, IPM_MOTOR, Mechanics, Profile, SPM_MOTOR, Sensors, scenario, simulate_drive,
 };
 use greybox::pmsm::{MotorKind, SteadyOptions, steady_state};
-use greybox::{Channel, Experiment};
-
-fn decimate(e: &Experiment, factor: usize) -> greybox::Result<Experiment> {
-    let channels = e
-        .channels()
-        .iter()
-        .map(|c| {
-            Channel::new(c.name.clone(), c.unit.clone(), c.values.iter().step_by(factor).copied().collect())
-        })
-        .collect();
-    Experiment::try_new(format!("{} /{factor}", e.name()), e.h() * factor as f64, channels)
-}
 
 fn main() -> greybox::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -61,7 +49,7 @@ fn main() -> greybox::Result<()> {
     for seed in 1..=n {
         cfg.seed = seed;
         let log = simulate_drive(&cfg)?;
-        let e = decimate(&log.experiment, factor)?;
+        let e = log.experiment.decimate(factor)?;
         let est = steady_state(&[e], motor.n_p, kind, &options)?;
         let truth = |name: &str| match name {
             "r_s" => motor.r_s,

@@ -188,4 +188,32 @@ impl Experiment {
             .collect();
         Ok(Self::try_new(self.name.clone(), self.h, channels)?.with_t0(self.t0 + range.start as f64 * self.h))
     }
+
+    /// Every `factor`-th sample (point samples from the first on, as a slow logger reads a
+    /// drive's latest values; no averaging), sample time `factor h`, named `NAME /factor`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidOption`] (option `factor`) for 0; [`Error::TooShort`] when fewer
+    /// samples than an experiment needs remain.
+    pub fn decimate(&self, factor: usize) -> Result<Self> {
+        if factor == 0 {
+            return Err(Error::InvalidOption {
+                option: "factor".into(),
+                reason: "0 keeps no sample; give 1 or more".into(),
+            });
+        }
+        let channels = self
+            .channels
+            .iter()
+            .map(|c| {
+                Channel::new(
+                    c.name.clone(),
+                    c.unit.clone(),
+                    c.values.iter().step_by(factor).copied().collect(),
+                )
+            })
+            .collect();
+        Ok(Self::try_new(format!("{} /{factor}", self.name), self.h * factor as f64, channels)?
+            .with_t0(self.t0))
+    }
 }

@@ -12,18 +12,6 @@ use greybox::pmsm::{
 };
 use greybox::{Channel, Experiment};
 
-/// Every `factor`-th sample of `e` (point samples), sample time `factor h`.
-pub fn decimate(e: &Experiment, factor: usize) -> Experiment {
-    let channels = e
-        .channels()
-        .iter()
-        .map(|c| {
-            Channel::new(c.name.clone(), c.unit.clone(), c.values.iter().step_by(factor).copied().collect())
-        })
-        .collect();
-    Experiment::try_new(format!("{} /{factor}", e.name()), e.h() * factor as f64, channels).unwrap()
-}
-
 /// exp3's motor and controller, with long holds (3 s at ±30, 100, 190, 280 rad/s, 1 s at
 /// rest), a constant load of 20 % of the peak torque (load current at every speed; exp3's
 /// gravity arm would make i_q swing with the angle) and −0.3 i_max on the d axis through
@@ -94,7 +82,7 @@ fn steady_state_recovers_slow_logs() {
     for motor in [SPM_MOTOR, IPM_MOTOR] {
         let (fast, t) = slow_drive(motor);
         for (factor, tight) in [(100, true), (5000, false)] {
-            let e = decimate(&fast, factor);
+            let e = fast.decimate(factor).unwrap();
             let est = steady_state(std::slice::from_ref(&e), t.start.n_p, kind(&t), &options()).unwrap();
             eprintln!("{} at {} Hz:\n{est}", kind(&t).model_name(), 1.0 / e.h());
             for (name, v) in truth_of(&t) {
@@ -124,7 +112,7 @@ fn steady_state_recovers_slow_logs() {
 #[test]
 fn control_period_removes_the_point_sample_bias() {
     let (clean, t) = slow_drive_with(SPM_MOTOR, 1, false);
-    let e = decimate(&clean, 100);
+    let e = clean.decimate(100).unwrap();
     let one = std::slice::from_ref(&e);
     let cont = steady_state(one, t.start.n_p, MotorKind::Spm, &SteadyOptions::default()).unwrap();
     let exact = steady_state(
@@ -150,7 +138,7 @@ fn control_period_removes_the_point_sample_bias() {
 #[test]
 fn automatic_choice_plain_regression_and_dynamic_fit_on_the_100_hz_log() {
     let (fast, t) = slow_drive(SPM_MOTOR);
-    let e = decimate(&fast, 100);
+    let e = fast.decimate(100).unwrap();
     let one = std::slice::from_ref(&e);
     let ls = greybox::pmsm::least_squares(one, t.start.n_p, MotorKind::Spm).unwrap();
     eprintln!(
@@ -204,7 +192,7 @@ fn per_log_resistance_and_winding_temperature() {
     let warm = MotorParameters { r_s: 1.32, ..SPM_MOTOR };
     let (cold_log, t) = slow_drive_seed(SPM_MOTOR, 2);
     let (warm_log, tw) = slow_drive_seed(warm, 3);
-    let logs = [decimate(&cold_log, 100), decimate(&warm_log, 100)];
+    let logs = [cold_log.decimate(100).unwrap(), warm_log.decimate(100).unwrap()];
     let logs = [
         Experiment::try_new("cold", logs[0].h(), logs[0].channels().to_vec()).unwrap(),
         Experiment::try_new("warm", logs[1].h(), logs[1].channels().to_vec()).unwrap(),
@@ -235,7 +223,7 @@ fn per_log_resistance_and_winding_temperature() {
 #[test]
 fn steady_state_refuses_bad_input() {
     let (fast, t) = slow_drive(SPM_MOTOR);
-    let e = decimate(&fast, 100);
+    let e = fast.decimate(100).unwrap();
     let one = std::slice::from_ref(&e);
     let bad = SteadyOptions { steady_sigmas: -1.0, ..Default::default() };
     assert!(steady_state(one, t.start.n_p, MotorKind::Spm, &bad).is_err());
