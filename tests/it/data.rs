@@ -803,3 +803,16 @@ proptest::proptest! {
         proptest::prop_assert_eq!(peak.to_bits(), direct.to_bits());
     }
 }
+
+/// `decimate` keeps every k-th sample from the first, multiplies h by k and keeps the start
+/// time; 0 is refused.
+#[test]
+fn decimate_keeps_point_samples() {
+    let x: Vec<f64> = (0..10).map(f64::from).collect();
+    let e = greybox::Experiment::try_new("e", 0.5, vec![greybox::Channel::new("x", "A", x)]).unwrap();
+    let d = e.decimate(3).unwrap();
+    assert_eq!(d.channel("x").unwrap(), &[0.0, 3.0, 6.0, 9.0]);
+    assert_eq!(d.h(), 1.5);
+    assert_eq!(d.name(), "e /3");
+    assert!(e.decimate(0).unwrap_err().to_string().contains("factor"));
+}
