@@ -47,7 +47,7 @@ pub use fit::workflow::fit_pmsm;
 pub use linear::report::LS_BIAS_UNTRUSTED;
 pub use linear::{
     LinearEstimate, LinearOptions, STEADY_UNIDENTIFIABLE, SteadyEstimate, SteadyOptions, least_squares,
-    regressors, steady_state, weighted_least_squares,
+    regressors, steady_advice, steady_state, weighted_least_squares,
 };
 pub use log::signals::{DqSignals, DqView, MAX_POLE_PAIRS, MIN_SAMPLES, PmsmError, channel};
 pub use log::transform::{

@@ -15,7 +15,7 @@ use crate::estimate::{
 use crate::pmsm::checks::detect::{sample_time_problem, steady_warnings};
 use crate::pmsm::checks::time_unit::time_unit_mistake;
 use crate::pmsm::fit::report::PmsmFit;
-use crate::pmsm::linear::{SteadyEstimate, SteadyOptions, steady_state};
+use crate::pmsm::linear::{SteadyEstimate, SteadyOptions, steady_advice, steady_state};
 use crate::pmsm::log::signals::DqView;
 use crate::pmsm::model::interval::{SQRT_2_3, VoltageHold, VoltageInput};
 use crate::pmsm::model::kind::{MotorKind, derived};
@@ -112,7 +112,8 @@ pub(crate) fn fit(
         inverter: None,
         hold_losses: Vec::new(),
         start_comparison: Vec::new(),
-        pmsm_advice: est.notes.clone(),
+        // What the steady samples cannot tell is the diagnostics' advice (`steady_advice`).
+        pmsm_advice: Vec::new(),
         pmsm_notes,
     })
 }
@@ -254,7 +255,7 @@ fn report(
         &relative,
         &est.correlation,
         &DiagnosticThresholds::default(),
-        &|name| kind.advice(name),
+        &|name| Some(format!("{name} not identifiable at steady state: {}", steady_advice(kind, name))),
         &|a, b| kind.pair_advice(a, b),
     );
     let rows = 2 * est.steady_samples;

@@ -11,4 +11,6 @@ mod steady_model;
 pub use least_squares::*;
 pub use regression::regressors;
 pub(crate) use regression::{MAX_COLS, Regression, push_with_dead_time};
-pub use steady::{SteadyEstimate, SteadyOptions, UNIDENTIFIABLE as STEADY_UNIDENTIFIABLE, steady_state};
+pub use steady::{
+    SteadyEstimate, SteadyOptions, UNIDENTIFIABLE as STEADY_UNIDENTIFIABLE, steady_advice, steady_state,
+};

@@ -377,7 +377,18 @@ fn unit_of(kind: MotorKind, name: &str) -> &'static str {
 /// The parameters the steady samples leave undetermined (relative standard error above
 /// [`UNIDENTIFIABLE`]), each with what it would take.
 fn notes(kind: MotorKind, names: &[String], theta: &[f64], se: &[f64]) -> Vec<String> {
-    let why = |name: &str| match (kind, name) {
+    names
+        .iter()
+        .zip(theta.iter().zip(se))
+        .filter(|(_, (t, s))| s.is_nan() || **s > UNIDENTIFIABLE * t.abs())
+        .map(|(n, _)| format!("{n} not identifiable from these steady samples: {}", steady_advice(kind, n)))
+        .collect()
+}
+
+/// What parameter `name` of `kind` needs at steady state (the advice of a poorly determined
+/// parameter of a steady-state fit).
+pub fn steady_advice(kind: MotorKind, name: &str) -> &'static str {
+    match (kind, name.split('[').next().unwrap_or(name)) {
         (_, "r_s") => {
             "at steady state R_s is seen only through R_s i against the back-EMF; at high speed u ≫ R_s i: add steady samples at low speed and high current"
         }
@@ -388,11 +399,5 @@ fn notes(kind: MotorKind, names: &[String], theta: &[f64], se: &[f64]) -> Vec<St
             "L_q enters only as ω_e L_q i_q: it needs load current at speed"
         }
         _ => "K_e needs steady samples at speed",
-    };
-    names
-        .iter()
-        .zip(theta.iter().zip(se))
-        .filter(|(_, (t, s))| s.is_nan() || **s > UNIDENTIFIABLE * t.abs())
-        .map(|(n, _)| format!("{n} not identifiable from these steady samples: {}", why(n)))
-        .collect()
+    }
 }
