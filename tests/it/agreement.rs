@@ -3,14 +3,12 @@
 //! the residual export, and the observer plot's truth following the plant.
 #![cfg(feature = "cli")]
 
+use crate::common::TempDir;
 use crate::errors::greybox;
 use std::path::PathBuf;
 
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("greybox-agree-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn temp_dir(name: &str) -> TempDir {
+    TempDir::new(&format!("agree-{name}"))
 }
 
 /// A dead-time-mask fit of an exact PWM-free log with a dead-time voltage: the report's rms

@@ -6,10 +6,11 @@
 //! match and the flags a batch cannot honour are refused, naming the flag.
 #![cfg(feature = "cli")]
 
+use crate::common::TempDir;
 use crate::errors::greybox;
 use approx::{assert_relative_eq, relative_eq};
 use serde_json::Value;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The simulated logs: file name, r_s [Ω], ψ_f [V s] (l_s 5 mH, n_p 4 for all).
 const LOGS: [(&str, f64, f64); 3] =
@@ -19,10 +20,8 @@ const L_S: f64 = 5e-3;
 
 /// A fresh temporary folder with the three simulated logs (and their truth JSONs, which
 /// the folder expansion must skip).
-fn logs_dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("greybox-batch-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
+fn logs_dir(tag: &str) -> TempDir {
+    let d = TempDir::new(&format!("batch-{tag}"));
     for (name, r_s, psi_f) in LOGS {
         let (r, p) = (format!("motor.r_s={r_s}"), format!("motor.psi_f={psi_f}"));
         let o = d.join(name);
@@ -161,9 +160,7 @@ fn batch_of_good_logs_exits_0_and_an_untrusted_fit_3() {
 
 #[test]
 fn batch_refuses_an_empty_match_and_joint_fit_flags() {
-    let dir = std::env::temp_dir().join(format!("greybox-batch-empty-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = TempDir::new("batch-empty");
     std::fs::write(dir.join("notes.txt"), "not a log").unwrap();
     let empty_glob = format!("{}/*.parquet", s(&dir));
     for pattern in [s(&dir), empty_glob.as_str()] {

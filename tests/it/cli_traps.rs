@@ -6,19 +6,16 @@
 //! the report's table, Markdown and JSON forms.
 #![cfg(feature = "cli")]
 
+use crate::common::TempDir;
 use crate::errors::greybox;
 use serde_json::Value;
 use std::io::{BufRead, Write};
-use std::path::PathBuf;
 
 const SAMPLE: &str = "data/sample.csv.gz";
 
 /// A fresh temporary folder for one test.
-fn temp_dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("greybox-traps-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn temp_dir(tag: &str) -> TempDir {
+    TempDir::new(&format!("traps-{tag}"))
 }
 
 fn stderr(out: &std::process::Output) -> String {

@@ -8,20 +8,17 @@
 //! `Error::Format` naming the feature: `without_the_feature_columnar_files_name_it` below,
 //! compiled only then.
 
-use std::path::PathBuf;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use crate::common::TempFile;
 
 use greybox::Error;
 use greybox::data::Experiment;
 use greybox::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
 use greybox::pmsm::{CsvOptions, read_log};
 
-fn temp_path(name: &str) -> PathBuf {
-    static COUNTER: AtomicUsize = AtomicUsize::new(0);
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let dir = std::env::temp_dir().join(format!("greybox-columnar-{}-{n}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// The path `name` in a fresh folder `greybox-columnar-…` (the file's stem is the log's
+/// name; a simulated log's truth is written beside it), removed with it on drop.
+fn temp_path(name: &str) -> TempFile {
+    TempFile::in_dir("columnar", name)
 }
 
 /// A short exp3 log from the drive simulator: `n` samples at 10 kHz.
@@ -119,7 +116,7 @@ mod with_feature {
     }
 
     /// Writes `columns` (name, array) as Parquet and as Arrow IPC; both paths.
-    fn columnar(tag: &str, columns: Vec<(&str, ArrayRef)>) -> [PathBuf; 2] {
+    fn columnar(tag: &str, columns: Vec<(&str, ArrayRef)>) -> [TempFile; 2] {
         let batch = RecordBatch::try_from_iter(columns).unwrap();
         let pq = temp_path(&format!("{tag}.parquet"));
         let mut w =

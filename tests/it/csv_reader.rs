@@ -4,9 +4,9 @@
 //! parsed in parallel, with one fault placed anywhere); and its number parser against
 //! `str::parse::<f64>` on random texts, bit for bit.
 
+use crate::common::TempFile;
 use std::io::{BufRead, BufReader, Read, Write};
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::path::Path;
 
 use greybox::Error;
 use greybox::data::TimeSteps;
@@ -244,10 +244,8 @@ pub mod oracle {
     }
 }
 
-pub fn temp_path(ext: &str) -> PathBuf {
-    static COUNTER: AtomicUsize = AtomicUsize::new(0);
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    std::env::temp_dir().join(format!("greybox-csvreader-{}-{n}.{ext}", std::process::id()))
+pub fn temp_path(ext: &str) -> TempFile {
+    TempFile::new("csvreader", &format!("file.{ext}"))
 }
 
 pub fn gzip(bytes: &[u8]) -> Vec<u8> {

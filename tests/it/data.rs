@@ -1,11 +1,11 @@
 //! Data-input layer: CSV reading of the development logs, unit options, Clarke/Park,
 //! dq from phase quantities, and a clear error for every kind of bad input.
 
+use crate::common::TempFile;
 use greybox::pmsm::PmsmError;
 use std::f64::consts::{PI, SQRT_2};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::LazyLock;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::common::{Signals, read as read_csv, shared_file};
 use approx::assert_relative_eq;
@@ -28,14 +28,12 @@ static GEM_NOISY: LazyLock<String> = LazyLock::new(|| shared_file("gem_ipm_moves
 const SAMPLE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz");
 
 /// A fresh file path under the system temp dir, unique per process and call.
-fn temp_path(tag: &str, ext: &str) -> PathBuf {
-    static COUNTER: AtomicUsize = AtomicUsize::new(0);
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    std::env::temp_dir().join(format!("greybox-test-{}-{n}-{tag}.{ext}", std::process::id()))
+fn temp_path(tag: &str, ext: &str) -> TempFile {
+    TempFile::new("test", &format!("{tag}.{ext}"))
 }
 
 /// Writes `contents` to a fresh temp file and returns its path.
-fn temp_file(tag: &str, contents: &[u8]) -> PathBuf {
+fn temp_file(tag: &str, contents: &[u8]) -> TempFile {
     let p = temp_path(tag, "csv");
     std::fs::write(&p, contents).expect("write temp file");
     p

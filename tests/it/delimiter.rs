@@ -24,7 +24,7 @@ fn with(text: &[u8], d: u8) -> Vec<u8> {
 }
 
 /// `text` written to a fresh file (gzip-compressed if asked).
-fn file(text: &[u8], gz: bool) -> std::path::PathBuf {
+fn file(text: &[u8], gz: bool) -> crate::common::TempFile {
     let path = temp_path(if gz { "csv.gz" } else { "csv" });
     std::fs::write(&path, if gz { gzip(text) } else { text.to_vec() }).unwrap();
     path

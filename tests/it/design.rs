@@ -1,6 +1,7 @@
 //! `greybox design` (issue 32): the predicted standard errors of exp3 and exp6 against the
 //! issue's numbers (4 s, 0.05 A current noise), and the plans' D-ranking.
 
+use crate::common::TempDir;
 use greybox::drive::design::predict_plan;
 use greybox::drive::{SPM_MOTOR, scenario};
 use greybox::estimate::design::Criterion;
@@ -37,11 +38,8 @@ use greybox::drive::simulate_drive;
 use greybox::estimate::design::{PredictedParameter, Prediction, Target, search_shortest};
 use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
 
-fn temp_dir(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("greybox-design-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn temp_dir(name: &str) -> TempDir {
+    TempDir::new(&format!("design-{name}"))
 }
 
 #[cfg(feature = "cli")]

@@ -180,8 +180,7 @@ fn records_are_deterministic_for_a_seed() {
 #[test]
 fn logs_are_written_and_bad_configs_refused() {
     let log = simulate_drive(&short("exp5", SPM_MOTOR, 0.2)).unwrap();
-    let dir = std::env::temp_dir().join(format!("greybox-drive-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::common::TempDir::new("drive");
     let path = dir.join("exp5.csv.gz");
     log.write(&path).unwrap();
     let back = greybox::pmsm::read_log(&path, &Default::default()).unwrap();
@@ -209,8 +208,7 @@ fn logs_are_written_and_bad_configs_refused() {
 #[test]
 fn simulate_command_line() {
     let bin = env!("CARGO_BIN_EXE_greybox");
-    let dir = std::env::temp_dir().join(format!("greybox-simulate-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::common::TempDir::new("simulate-cli");
     let run = |args: &[&str]| std::process::Command::new(bin).args(args).current_dir(&dir).output().unwrap();
     let out =
         run(&["simulate", "--scenario", "exp3", "--duration", "1", "--set", "motor.r_s=1.5", "-o", "a.csv"]);

@@ -220,7 +220,7 @@ fn cli_reports_bad_input_without_panicking() {
 #[test]
 #[cfg(feature = "cli")]
 fn cli_fit_prints_a_table_and_writes_the_json_report() {
-    let json = std::env::temp_dir().join(format!("greybox-cli-{}.json", std::process::id()));
+    let json = crate::common::TempFile::new("cli", "report.json");
     let out = greybox(&["fit", "data/sample.csv.gz", "-p", "4", "--json", json.to_str().unwrap()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let table = String::from_utf8_lossy(&out.stdout);
@@ -281,7 +281,7 @@ fn a_sample_dropped_late_in_a_long_log_is_named_by_its_row() {
 #[test]
 #[cfg(feature = "cli")]
 fn a_renamed_column_gets_the_flag_that_reads_it() {
-    let path = std::env::temp_dir().join(format!("greybox-renamed-{}.csv", std::process::id()));
+    let path = crate::common::TempFile::new("renamed", "log.csv");
     let rows: String = (0..40).map(|k| format!("{},1,1,1,1,1\n", k as f64 * 1e-4)).collect();
     std::fs::write(&path, format!("Time [s],ud,uq,id,iq,Speed (rad/s)\n{rows}")).unwrap();
     let out = greybox(&["fit", path.to_str().unwrap(), "-p", "4"]);
@@ -298,7 +298,7 @@ fn a_renamed_column_gets_the_flag_that_reads_it() {
 #[test]
 #[cfg(feature = "cli")]
 fn a_non_finite_value_names_its_file() {
-    let path = std::env::temp_dir().join(format!("greybox-nan-{}.csv", std::process::id()));
+    let path = crate::common::TempFile::new("nan", "log.csv");
     let rows: String = (0..40)
         .map(|k| format!("{},{},1,1,1,1\n", k as f64 * 1e-4, if k == 5 { "nan" } else { "1" }))
         .collect();

@@ -75,8 +75,7 @@ fn options() -> impl Strategy<Value = CsvOptions> {
 
 #[test]
 fn reader_survives_generated_logs() {
-    let dir = std::env::temp_dir().join(format!("greybox-fuzz-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::common::TempDir::new("fuzz");
     let path = dir.join("log.csv");
     let mut runner = TestRunner::new(Config { cases: cases("GREYBOX_FUZZ_CASES", 256), ..Config::default() });
     let (ok, total) = (std::cell::Cell::new(0usize), std::cell::Cell::new(0usize));
@@ -136,7 +135,7 @@ fn command_line_survives_generated_options() {
         vec!["-q"],
     ];
     let bin = env!("CARGO_BIN_EXE_greybox");
-    let logs = mistaken_logs();
+    let (dir, logs) = mistaken_logs();
     let mut runner =
         TestRunner::new(Config { cases: cases("GREYBOX_FUZZ_CLI_CASES", 48), ..Config::default() });
     let strategy = (0..pole_pairs.len(), proptest::collection::vec(0..flags.len(), 0..4), 0..logs.len());
@@ -151,7 +150,7 @@ fn command_line_survives_generated_options() {
                 args.extend(flags[*i].iter().copied());
             }
             // The report of an exit-0 run is checked against the trust gate's promises.
-            let report = std::env::temp_dir().join(format!("greybox-fuzz-{}.json", std::process::id()));
+            let report = dir.join("report.json");
             let _ = std::fs::remove_file(&report);
             let to_file = !args.contains(&"--json");
             if to_file {
@@ -199,17 +198,17 @@ fn command_line_survives_generated_options() {
         &codes.borrow()[..4],
         slowest.get()
     );
-    let _ = std::fs::remove_dir_all(logs[0].parent().unwrap());
+    drop(dir);
 }
 
 /// The bundled sample as it is and as users' mistakes make it (the trust issue's cases):
 /// d and q swapped, voltages and currents swapped, the speed negated, in rpm or electrical
 /// without `theta_m`, the time in ms, cut to 25 rows, 0.5 A of current noise.
 #[cfg(feature = "cli")]
-fn mistaken_logs() -> Vec<std::path::PathBuf> {
+/// The logs are in the returned folder, removed when it drops.
+fn mistaken_logs() -> (crate::common::TempDir, Vec<std::path::PathBuf>) {
     use std::io::Read;
-    let dir = std::env::temp_dir().join(format!("greybox-fuzz-logs-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::common::TempDir::new("fuzz-logs");
     let mut text = String::new();
     flate2::read::GzDecoder::new(
         std::fs::File::open(concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz")).unwrap(),
@@ -262,7 +261,7 @@ fn mistaken_logs() -> Vec<std::path::PathBuf> {
             }),
         ),
     ];
-    edits
+    let logs = edits
         .into_iter()
         .map(|(name, edit)| {
             let (mut h, mut r) = (header.clone(), rows.clone());
@@ -276,5 +275,6 @@ fn mistaken_logs() -> Vec<std::path::PathBuf> {
             std::fs::write(&path, out).unwrap();
             path
         })
-        .collect()
+        .collect();
+    (dir, logs)
 }

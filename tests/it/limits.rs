@@ -3,10 +3,10 @@
 //! they arrive, cells quoted short, duplicate columns, and the plausibility limits on n_p
 //! and h.
 
+use crate::common::TempFile;
 use greybox::pmsm::PmsmError;
 use std::io::Write;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::path::Path;
 use std::time::Instant;
 
 use greybox::Error;
@@ -15,13 +15,11 @@ use greybox::pmsm::{ColumnNames, CsvOptions, read_log};
 
 const HEADER: &str = "t,ud,uq,id,iq,w_m\n";
 
-fn temp_path(tag: &str, ext: &str) -> PathBuf {
-    static COUNTER: AtomicUsize = AtomicUsize::new(0);
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    std::env::temp_dir().join(format!("greybox-limits-{}-{n}-{tag}.{ext}", std::process::id()))
+fn temp_path(tag: &str, ext: &str) -> TempFile {
+    TempFile::new("limits", &format!("{tag}.{ext}"))
 }
 
-fn temp_file(tag: &str, contents: &[u8]) -> PathBuf {
+fn temp_file(tag: &str, contents: &[u8]) -> TempFile {
     let p = temp_path(tag, "csv");
     std::fs::write(&p, contents).expect("write temp file");
     p
@@ -42,7 +40,7 @@ fn read(p: &Path) -> greybox::Result<greybox::data::Experiment> {
 
 /// Writes `head` then `block` repeated until `total` bytes, gzip-compressed, streaming
 /// (the test holds one block in memory, never the file).
-fn gzip_bomb(tag: &str, head: &[u8], block: &[u8], total: usize) -> PathBuf {
+fn gzip_bomb(tag: &str, head: &[u8], block: &[u8], total: usize) -> TempFile {
     let p = temp_path(tag, "csv.gz");
     let file = std::io::BufWriter::new(std::fs::File::create(&p).unwrap());
     let mut gz = flate2::write::GzEncoder::new(file, flate2::Compression::best());

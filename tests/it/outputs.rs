@@ -3,15 +3,13 @@
 //! interrupted and killed runs leave no temporary and no half-written output.
 #![cfg(feature = "cli")]
 
+use crate::common::TempDir;
 use crate::errors::greybox;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("greybox-outputs-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn temp_dir(name: &str) -> TempDir {
+    TempDir::new(&format!("outputs-{name}"))
 }
 
 fn temporaries(dir: &Path) -> Vec<String> {

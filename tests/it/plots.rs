@@ -3,12 +3,13 @@
 //! for drawing, and the residual CSV reads back with residual = measured − simulated.
 //! Runs on the shipped `data/sample.csv.gz`.
 
+use crate::common::TempDir;
 use greybox::Experiment;
 use greybox::data::{ColumnMap, CsvSpec, read_csv};
 use greybox::pmsm::{CsvOptions, PmsmFit, fit_pmsm, read_log};
 use greybox::report::Comparison;
 use greybox::report::residuals::write_residuals_csv;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::OnceLock;
 
 /// The shipped sample log (servo SPM, 4 pole pairs).
@@ -28,12 +29,9 @@ fn fitted() -> &'static (Experiment, PmsmFit, Vec<Comparison>) {
     })
 }
 
-/// A fresh, empty folder for one test.
-fn folder(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("greybox-plots-{}-{tag}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh, empty folder for one test, removed when the guard drops.
+fn folder(tag: &str) -> TempDir {
+    TempDir::new(&format!("plots-{tag}"))
 }
 
 #[test]

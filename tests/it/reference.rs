@@ -240,7 +240,7 @@ fn a_log_with_only_the_reference_is_read_and_fitted() {
             .collect();
         text.push_str(&(row.join(",") + "\n"));
     }
-    let path = std::env::temp_dir().join(format!("greybox-refonly-{}.csv", std::process::id()));
+    let path = crate::common::TempFile::new("refonly", "log.csv");
     std::fs::write(&path, &text).unwrap();
     let log = greybox::pmsm::read_log(&path, &Default::default()).unwrap();
     assert!(log.get("ud").is_none() && log.get("ud_ref").is_some());

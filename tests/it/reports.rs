@@ -101,8 +101,9 @@ fn least_squares_and_pem_reports_share_their_keys() {
 mod cli {
     use crate::errors::greybox;
 
-    fn temp(name: &str) -> std::path::PathBuf {
-        std::env::temp_dir().join(format!("greybox-reports-{}-{name}", std::process::id()))
+    /// A fresh path in the temporary folder, unique to this call, removed on drop.
+    fn temp(name: &str) -> crate::common::TempFile {
+        crate::common::TempFile::new("reports", name)
     }
 
     #[test]

@@ -2,28 +2,29 @@
 //! back or jumps is refused by default (`read_table`, `read_table_with(.., Streaming)`) and
 //! read as it is, every row, when the caller says it checks the steps itself.
 
-use std::path::PathBuf;
+use std::path::Path;
+
+use crate::common::TempFile;
 
 use greybox::Error;
 use greybox::data::csv::{Delimiter, ReadLimits, Table};
 use greybox::data::{TimeCheck, TimeSteps};
 use proptest::prelude::*;
 
-fn temp_path(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("greybox-timecheck-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A fresh path `greybox-timecheck-…-{name}` in the temp folder, removed on drop.
+fn temp_path(name: &str) -> TempFile {
+    TempFile::new("timecheck", name)
 }
 
 /// A time column that is uniform for 5 rows, then steps back (row 5) and jumps (row 8).
 const T: [f64; 10] = [0.0, 0.1, 0.2, 0.3, 0.4, 0.15, 0.25, 0.35, 9.0, 9.1];
 
-fn read(path: &PathBuf, time: TimeCheck) -> greybox::Result<Table> {
+fn read(path: &Path, time: TimeCheck) -> greybox::Result<Table> {
     let wanted = [("t", true), ("x", true)];
     greybox::data::read_table_with(path, &wanted, &ReadLimits::default(), Delimiter::COMMA, time)
 }
 
-fn check(path: &PathBuf) {
+fn check(path: &Path) {
     let wanted = [("t", true), ("x", true)];
     for err in [
         greybox::data::read_table(path, &wanted, &ReadLimits::default(), Delimiter::COMMA).unwrap_err(),

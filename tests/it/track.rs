@@ -1,15 +1,15 @@
 //! `greybox track`: the MRAS over a log from the command line, its JSON and its errors.
 #![cfg(feature = "cli")] // the `greybox` binary needs the `cli` feature
 
+use crate::common::TempFile;
 use crate::errors::greybox;
 use serde_json::Value;
-use std::path::PathBuf;
 
 const SAMPLE: &str = "data/sample.csv.gz";
 
-/// A fresh path in the temporary folder, unique to this process and `tag`.
-fn temp(tag: &str) -> PathBuf {
-    std::env::temp_dir().join(format!("greybox-track-{}-{tag}", std::process::id()))
+/// A fresh path in the temporary folder, unique to this call, removed on drop.
+fn temp(tag: &str) -> TempFile {
+    TempFile::new("track", tag)
 }
 
 /// Runs `greybox` and parses the JSON it wrote to stdout (`--json -`).

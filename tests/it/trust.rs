@@ -10,7 +10,8 @@ use greybox::pmsm::{HoldChoice, MotorKind, PmsmFitOptions, VoltageInput, fit_pms
 /// 200 threads writing different reports to one path leave one whole report, never a mix.
 #[test]
 fn concurrent_writers_leave_one_valid_report() {
-    let path = std::env::temp_dir().join(format!("greybox-concurrent-{}.json", std::process::id()));
+    let dir = crate::common::TempDir::new("concurrent");
+    let path = dir.join(format!("greybox-concurrent-{}.json", std::process::id()));
     std::thread::scope(|s| {
         for i in 0..200 {
             let path = &path;
@@ -24,7 +25,7 @@ fn concurrent_writers_leave_one_valid_report() {
     let i = v["writer"].as_u64().unwrap() as usize;
     assert_eq!(v["pad"].as_str().unwrap().len(), 1000 + 37 * i);
     let _ = std::fs::remove_file(&path);
-    let leftovers = std::fs::read_dir(std::env::temp_dir())
+    let leftovers = std::fs::read_dir(&dir)
         .unwrap()
         .filter_map(|e| e.ok())
         .filter(|e| {
@@ -44,7 +45,8 @@ fn concurrent_writers_leave_one_valid_report() {
 #[test]
 fn exit_codes_tell_untrusted_results_apart() {
     use crate::errors::greybox;
-    let json = std::env::temp_dir().join(format!("greybox-exit-{}.json", std::process::id()));
+    let dir = crate::common::TempDir::new("exit");
+    let json = dir.join("exit.json");
     let j = json.to_str().unwrap();
     // One iteration from a poor start: the fit stops unconverged.
     let stopped = ["fit", "data/sample.csv.gz", "-p", "4", "-q", "--max-iters", "1", "--start", "2,0.01,0.8"];

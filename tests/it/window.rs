@@ -5,6 +5,7 @@
 //! bit-identical estimates as the files cut by hand, and every error naming its flag.
 #![cfg(feature = "cli")]
 
+use crate::common::TempDir;
 use crate::errors::greybox;
 use greybox::Error;
 use greybox::data::TimeWindow;
@@ -16,11 +17,8 @@ use std::path::{Path, PathBuf};
 const SAMPLE: &str = "data/sample.csv.gz";
 
 /// A fresh temporary folder for one test.
-fn temp_dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("greybox-window-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn temp_dir(tag: &str) -> TempDir {
+    TempDir::new(&format!("window-{tag}"))
 }
 
 /// The sample's header and data lines.

@@ -187,3 +187,104 @@ pub fn simulate_into<M: GreyBoxModel>(model: &M, theta: &[f64], h: f64, mut sign
     signals.i_q = (0..e.len()).map(|k| y[k * ny + 1]).collect();
     experiment("synthetic", h, signals)
 }
+
+/// A fresh directory under the system temp folder, removed with everything in it when the
+/// guard drops (also when the test panics). The name is `greybox-{prefix}-{pid}-{n}` with a
+/// per-process counter `n`, so tests running in parallel never share a directory.
+pub struct TempDir(PathBuf);
+
+impl TempDir {
+    pub fn new(prefix: &str) -> TempDir {
+        static COUNTER: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let dir = std::env::temp_dir().join(format!("greybox-{prefix}-{}-{n}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("create temp dir");
+        TempDir(dir)
+    }
+    pub fn path(&self) -> &std::path::Path {
+        &self.0
+    }
+    pub fn join(&self, name: impl AsRef<std::path::Path>) -> PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl std::ops::Deref for TempDir {
+    type Target = std::path::Path;
+    fn deref(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::path::Path> for TempDir {
+    fn as_ref(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for TempDir {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// A path `greybox-{prefix}-{pid}-{n}-{name}` under the system temp folder (nothing is
+/// created; `name` keeps its extension), removed when the guard drops, whether something
+/// made it a file or a directory. Dereferences to the path. [`TempFile::in_dir`] keeps
+/// `name` as it is, in a fresh [`TempDir`] of its own.
+pub struct TempFile(PathBuf, Option<TempDir>);
+
+impl TempFile {
+    pub fn new(prefix: &str, name: &str) -> TempFile {
+        static COUNTER: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        TempFile(
+            std::env::temp_dir().join(format!("greybox-{prefix}-{}-{n}-{name}", std::process::id())),
+            None,
+        )
+    }
+    /// The path `name` in a fresh directory (see [`TempDir::new`]), removed with it.
+    pub fn in_dir(prefix: &str, name: &str) -> TempFile {
+        let dir = TempDir::new(prefix);
+        TempFile(dir.join(name), Some(dir))
+    }
+    pub fn path(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl std::ops::Deref for TempFile {
+    type Target = std::path::Path;
+    fn deref(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::path::Path> for TempFile {
+    fn as_ref(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for TempFile {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        if self.0.is_dir() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        } else {
+            let _ = std::fs::remove_file(&self.0);
+        }
+    }
+}
