@@ -241,7 +241,7 @@ fn cli_fit_prints_a_table_and_writes_the_json_report() {
     }
     let derived: Vec<&str> =
         v["derived"].as_array().unwrap().iter().map(|p| p["name"].as_str().unwrap()).collect();
-    assert_eq!(derived, ["k_t", "psi_f"]);
+    assert_eq!(derived, ["k_t", "psi_f", "k_t_rms", "k_v", "k_m"]);
     for key in ["fit_percent", "rms_residual", "loss", "aic", "bic"] {
         assert!(!v["fit"][key].is_null(), "fit lacks {key}");
     }

@@ -39,6 +39,7 @@ mod outputs;
 mod plots;
 mod pwm_trust;
 mod random_starts;
+mod ratings;
 mod recovery;
 mod reference;
 mod reports;

@@ -94,7 +94,10 @@ fn least_squares_and_pem_reports_share_their_keys() {
     assert_eq!(first(&ls_report.to_json()), first(&pem.to_json()));
     let r_s = ls_report.parameter("r_s").unwrap();
     assert!(r_s.ci95[0] < r_s.value && r_s.value < r_s.ci95[1]);
-    assert_eq!(ls_report.derived.iter().map(|d| d.name.as_str()).collect::<Vec<_>>(), ["k_t", "psi_f"]);
+    assert_eq!(
+        ls_report.derived.iter().map(|d| d.name.as_str()).collect::<Vec<_>>(),
+        ["k_t", "psi_f", "k_t_rms", "k_v", "k_m"]
+    );
 }
 
 #[cfg(feature = "cli")]

@@ -261,7 +261,7 @@ fn report(oe: PmsmFit, (theta, cov, iterations, converged): Solved, fit_s: f64) 
         ));
     }
     let report = crate::estimate::FitResult {
-        derived: derived(kind, oe.pole_pairs, &theta, &se),
+        derived: derived(kind, oe.pole_pairs, &theta, &se, cov.cov[(0, n - 1)] / (se[0] * se[n - 1])),
         parameters,
         correlation,
         uncertainty: cov.uncertainty.clone(),

@@ -116,6 +116,12 @@ pub fn conventions(k_e: Option<f64>, k_t: Option<f64>, salient: bool, options: R
         ));
     }
     out.push("psi_f: magnet flux linkage, peak per phase [V s]".into());
+    out.push(
+        "ratings: k_t_rms = √2 k_t per ampere of RMS phase current [N m/A]; k_v = 60/(2π √2 k_e) mechanical rpm \
+         per volt of peak line-to-line back-EMF [rpm/V] (ODrive/VESC: k_t = 8.27/k_v); k_m = k_t/√(1.5 r_s) = \
+         k_e/√r_s, torque per √W of copper loss 3 r_s I_rms² [N m/√W]"
+            .into(),
+    );
     out
 }
 

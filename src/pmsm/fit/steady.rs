@@ -316,48 +316,45 @@ fn report(
     }
 }
 
-/// `k_t`, `psi_f` of every `k_e` entry, and the winding and magnet temperatures of every
-/// `r_s` and `k_e` entry when a thermal reference is given (per log where they are).
+/// The derived quantities ([`derived`]: `k_t`, `psi_f`, the ratings) and, with a thermal
+/// reference, the winding and magnet temperatures: one set per log when a parameter is
+/// estimated per log, else one.
 fn derived_all(est: &SteadyEstimate, options: &PmsmFitOptions) -> Vec<DerivedEstimate> {
     let kind = est.kind;
-    let n_p = options.pole_pairs;
-    let idx = |name: &str| -> Vec<usize> { (0..est.names.len()).filter(|&j| est.names[j] == name).collect() };
-    let mut out = Vec::new();
-    let model = |j: usize| -> (Vec<f64>, Vec<f64>) {
-        let names = kind.parameter_names();
-        let pick = |v: &Vec<f64>| {
-            names
-                .iter()
-                .map(|n| {
-                    let same = |i: &usize| est.names[*i] == *n;
-                    let of =
-                        |i: &usize| est.experiment[*i].is_none() || est.experiment[*i] == est.experiment[j];
-                    (0..est.names.len()).find(|i| same(i) && of(i)).map_or(f64::NAN, |i| v[i])
-                })
-                .collect()
-        };
-        (pick(&est.theta), pick(&est.std_error))
-    };
-    for j in idx("k_e") {
-        let (t, s) = model(j);
-        out.extend(
-            derived(kind, n_p, &t, &s)
-                .into_iter()
-                .map(|d| DerivedEstimate { experiment: est.experiment[j].clone(), ..d }),
-        );
+    // One set per log when a parameter is per log, else one shared set.
+    let mut logs: Vec<Option<String>> = Vec::new();
+    for e in est.experiment.iter().flatten() {
+        if !logs.iter().flatten().any(|l| l == e) {
+            logs.push(Some(e.clone()));
+        }
     }
-    if let Some(th) = options.thermal {
-        let per = |n: &str| idx(n).iter().any(|&j| est.experiment[j].is_some());
-        let entries = if per("r_s") { idx("r_s") } else { idx("k_e") };
-        for j in entries {
-            let (t, s) = model(j);
-            let psi = SQRT_2_3 / f64::from(n_p);
-            let k = kind.parameter_names().len() - 1;
-            out.extend(
-                th.temperatures(t[0], s[0], psi * t[k], psi * s[k])
-                    .into_iter()
-                    .map(|d| DerivedEstimate { experiment: est.experiment[j].clone(), ..d }),
-            );
+    if logs.is_empty() {
+        logs.push(None);
+    }
+    let mut out = Vec::new();
+    for log in logs {
+        // The full vector's entry of each model parameter for this log.
+        let at: Vec<usize> = kind
+            .parameter_names()
+            .iter()
+            .filter_map(|n| {
+                (0..est.names.len()).find(|&i| {
+                    est.names[i] == *n && (est.experiment[i].is_none() || est.experiment[i] == log)
+                })
+            })
+            .collect();
+        if at.len() != kind.parameter_names().len() {
+            continue;
+        }
+        let t: Vec<f64> = at.iter().map(|&i| est.theta[i]).collect();
+        let s: Vec<f64> = at.iter().map(|&i| est.std_error[i]).collect();
+        let corr = est.correlation[at[0]][at[at.len() - 1]];
+        let with_log = |d: DerivedEstimate| DerivedEstimate { experiment: log.clone(), ..d };
+        out.extend(derived(kind, options.pole_pairs, &t, &s, corr).into_iter().map(with_log));
+        if let Some(th) = options.thermal {
+            let psi = SQRT_2_3 / f64::from(options.pole_pairs);
+            let k = t.len() - 1;
+            out.extend(th.temperatures(t[0], s[0], psi * t[k], psi * s[k]).into_iter().map(with_log));
         }
     }
     out

@@ -81,7 +81,7 @@ impl LinearEstimate {
         FitResult {
             model: format!("{}_least_squares", kind.model_name()),
             experiments: experiments.to_vec(),
-            derived: derived(kind, n_p, &self.theta, &self.std_error),
+            derived: derived(kind, n_p, &self.theta, &self.std_error, correlation[0][n - 1]),
             parameters,
             initial_states: Vec::new(),
             diagnostics,

@@ -164,20 +164,49 @@ impl MotorKind {
     }
 }
 
-/// `k_t` \[N m/A\] and `psi_f` \[V s\] from the `k_e` of θ (model order of `kind`) on a
-/// machine with `n_p` pole pairs, with their standard errors (MODEL.md §2).
-pub fn derived(kind: MotorKind, n_p: u32, theta: &[f64], std_error: &[f64]) -> Vec<DerivedEstimate> {
-    let kt = 1.5f64.sqrt();
-    let psi = (2.0f64 / 3.0).sqrt() / f64::from(n_p.max(1));
+/// The quantities derived from θ (model order of `kind`) on a machine with `n_p` pole
+/// pairs, with their standard errors (first-order propagation; `corr_rk` is the
+/// correlation of the `r_s` and `k_e` estimates, 0 when unknown):
+/// - `k_t` \[N m/A\]: torque per ampere of peak phase current, `√(3/2) K_e` (MODEL.md §2);
+/// - `psi_f` \[V s\]: `√(2/3) K_e / n_p`;
+/// - `k_t_rms` \[N m/A\]: torque per ampere of RMS phase current, `√2 k_t = √3 K_e` (the
+///   datasheet convention);
+/// - `k_v` \[rpm/V\]: mechanical rpm per volt of peak line-to-line back-EMF,
+///   `60/(2π √2 K_e)` (the hobby/ODrive/VESC convention: `k_t = 8.27/k_v`, 8.27 =
+///   `(60/2π)(√3/2)`);
+/// - `k_m` \[N m/√W\]: the motor constant, torque per square root of copper loss,
+///   `k_t/√(1.5 R_s) = K_e/√R_s` (copper loss `3 R_s I_rms² = 1.5 R_s |i_dq|²`).
+pub fn derived(
+    kind: MotorKind,
+    n_p: u32,
+    theta: &[f64],
+    std_error: &[f64],
+    corr_rk: f64,
+) -> Vec<DerivedEstimate> {
     let Some(j) = kind.parameter_names().iter().position(|n| *n == "k_e") else { return Vec::new() };
     let (Some(&k_e), Some(&se)) = (theta.get(j), std_error.get(j)) else { return Vec::new() };
-    [("k_t", "N m/A", kt), ("psi_f", "V s", psi)]
-        .map(|(name, unit, f)| DerivedEstimate {
-            name: name.into(),
-            unit: unit.into(),
-            value: f * k_e,
-            std_error: f * se,
-            experiment: None,
-        })
-        .to_vec()
+    let make = |name: &str, unit: &str, value: f64, std_error: f64| DerivedEstimate {
+        name: name.into(),
+        unit: unit.into(),
+        value,
+        std_error,
+        experiment: None,
+    };
+    let kt = 1.5f64.sqrt();
+    let psi = (2.0f64 / 3.0).sqrt() / f64::from(n_p.max(1));
+    let k_v = 60.0 / (2.0 * std::f64::consts::PI * std::f64::consts::SQRT_2 * k_e);
+    let mut out = vec![
+        make("k_t", "N m/A", kt * k_e, kt * se),
+        make("psi_f", "V s", psi * k_e, psi * se),
+        make("k_t_rms", "N m/A", 3f64.sqrt() * k_e, 3f64.sqrt() * se),
+        make("k_v", "rpm/V", k_v, (k_v * se / k_e).abs()),
+    ];
+    if let (Some(&r), Some(&se_r)) = (theta.first(), std_error.first()) {
+        // k_m = K_e/√R: ∂/∂K_e = 1/√R, ∂/∂R = −K_e/(2 R^{3/2}).
+        let (a, b) = (1.0 / r.sqrt(), -k_e / (2.0 * r.powf(1.5)));
+        let c = if corr_rk.is_finite() { corr_rk } else { 0.0 };
+        let var = a * a * se * se + b * b * se_r * se_r + 2.0 * a * b * c * se * se_r;
+        out.push(make("k_m", "N m/sqrt(W)", k_e / r.sqrt(), var.max(0.0).sqrt()));
+    }
+    out
 }
