@@ -199,17 +199,22 @@ pub(crate) fn warnings(experiments: &[Experiment], n_p: u32, fit: &FitResult) ->
 /// slow log's angle turns by more than π between samples and cannot be compared), and the
 /// assumed scaling.
 pub(crate) fn steady_warnings(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> Vec<Warning> {
-    let turn = experiments
-        .iter()
-        .filter_map(|e| DqView::try_new(e).ok().map(|v| (e.h(), v)))
-        .map(|(h, v)| f64::from(n_p) * h * v.w_m().iter().fold(0.0f64, |m, x| m.max(x.abs())))
-        .fold(0.0, f64::max);
     let mut out = Vec::new();
-    if turn < std::f64::consts::PI {
+    if max_turn(experiments, n_p) < std::f64::consts::PI {
         out.extend(speed_check(experiments, n_p));
     }
     out.push(scaling_notice(fit));
     out
+}
+
+/// The most electrical radians the rotor turns within one sample in any of the logs at
+/// `n_p` pole pairs, `max_e n_p h_e max|w_m|` \[rad\] (logs without the dq channels left out).
+pub(crate) fn max_turn(experiments: &[Experiment], n_p: u32) -> f64 {
+    experiments
+        .iter()
+        .filter_map(|e| DqView::try_new(e).ok().map(|v| (e.h(), v)))
+        .map(|(h, v)| f64::from(n_p) * h * v.w_m().iter().fold(0.0f64, |m, x| m.max(x.abs())))
+        .fold(0.0, f64::max)
 }
 
 /// The sums `(Σ dθ·ω/h, Σ ω²)` of [`speed_check`] continued over one log: per interval the
@@ -290,8 +295,18 @@ fn sample_time_check(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> O
 }
 
 /// Why the logs' sample time is one the model cannot resolve with resistance `r` \[Ω\] and
-/// smallest inductance `l` \[H\] ([`sample_time_check`]'s conditions), or `None`.
+/// smallest inductance `l` \[H\] ([`sample_time_check`]'s conditions), or `None`: the
+/// facts of [`sample_time_facts`] and the question whether the time column is in ms.
 pub(crate) fn sample_time_problem(experiments: &[Experiment], n_p: u32, r: f64, l: f64) -> Option<String> {
+    let h = experiments.iter().map(Experiment::h).fold(0.0, f64::max);
+    sample_time_facts(experiments, n_p, r, l).map(|facts| {
+        format!("{facts}. A time column in milliseconds? (--time-unit ms gives h = {:e} s)", h * 1e-3)
+    })
+}
+
+/// The facts of [`sample_time_problem`] alone: the sample time in electrical time
+/// constants and the rotor's turn per sample, when the model cannot resolve them.
+pub(crate) fn sample_time_facts(experiments: &[Experiment], n_p: u32, r: f64, l: f64) -> Option<String> {
     let h = experiments.iter().map(Experiment::h).fold(0.0, f64::max);
     let w = experiments
         .iter()
@@ -305,10 +320,8 @@ pub(crate) fn sample_time_problem(experiments: &[Experiment], n_p: u32, r: f64, 
     }
     Some(format!(
         "h = {h:e} s is {:.1} electrical time constants L/R ({tau:.3e} s) and the rotor turns up to {turn:.2} \
-         electrical rad in one sample: the model cannot resolve the currents at this rate. A time column in \
-         milliseconds? (--time-unit ms gives h = {:e} s)",
-        h / tau,
-        h * 1e-3
+         electrical rad in one sample: the model cannot resolve the currents at this rate",
+        h / tau
     ))
 }
 

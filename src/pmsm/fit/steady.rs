@@ -12,27 +12,18 @@ use crate::estimate::diagnostics::{DiagnosticThresholds, diagnose};
 use crate::estimate::{
     DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing, metrics,
 };
-use crate::pmsm::checks::detect::{sample_time_problem, steady_warnings};
+use crate::pmsm::checks::detect::{max_turn, sample_time_facts, steady_warnings};
 use crate::pmsm::checks::time_unit::time_unit_mistake;
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::linear::{SteadyEstimate, SteadyOptions, steady_advice, steady_state};
-use crate::pmsm::log::signals::DqView;
 use crate::pmsm::model::interval::{SQRT_2_3, VoltageHold, VoltageInput};
-use crate::pmsm::model::kind::{MotorKind, derived};
+use crate::pmsm::model::kind::{MotorKind, derived, smallest_inductance};
 use crate::pmsm::options::{Dynamics, HoldChoice, PmsmFitOptions};
 use nalgebra::DMatrix;
 
 /// Context of the error that refuses a sample time the dynamic model cannot resolve (the
 /// automatic choice takes the steady-state equations on it).
 pub(crate) const SAMPLE_TIME: &str = "sample time";
-
-/// Whether the rotor turns half an electrical turn or more within one sample somewhere in
-/// the logs: no dynamic model of a held voltage can follow such a log.
-pub(crate) fn turns_within_sample(experiments: &[Experiment], n_p: u32) -> bool {
-    experiments.iter().filter_map(|e| DqView::try_new(e).ok().map(|v| (e.h(), v))).any(|(h, v)| {
-        f64::from(n_p) * h * v.w_m().iter().fold(0.0f64, |m, x| m.max(x.abs())) >= std::f64::consts::PI
-    })
-}
 
 /// Refuses the options the steady-state equations cannot honour, naming them.
 ///
@@ -118,37 +109,17 @@ pub(crate) fn fit(
     })
 }
 
-/// The automatic choice after the dynamic fit refused the sample time (`why`, judged at the
-/// least-squares start, which current noise biases): the steady-state fit when its own
-/// R_s and inductance confirm that the dynamic model cannot resolve the log, with the note
-/// saying why; the time-unit mistake's error when the log is a fast one in ms; `None`
-/// (the refusal stands) when the steady-state fit fails or does not confirm it (a noisy
-/// fast log).
-pub(crate) fn fit_if_slow(
-    experiments: &[Experiment],
-    options: &PmsmFitOptions,
-    why: &str,
-) -> Option<Result<PmsmFit>> {
-    if !options.force
-        && let Some(mistake) = time_unit_mistake(experiments, options.pole_pairs)
-    {
-        return Some(Err(Error::Numerical {
-            context: SAMPLE_TIME.into(),
-            reason: format!("{why}; but this is a fast log: {mistake}. --force fits it anyway"),
-        }));
-    }
+/// The automatic choice after the dynamic fit refused the sample time (judged at the
+/// least-squares start, which current noise biases): the steady-state fit when its own R_s
+/// and smallest inductance confirm that the dynamic model cannot resolve the log, with the
+/// note saying why; `None` (the refusal, which asks whether the time column is in ms,
+/// stands) when the steady-state fit fails, e.g. on a fast log in ms ([`fit`]'s check), or
+/// does not confirm it (a noisy fast log).
+pub(crate) fn fit_if_slow(experiments: &[Experiment], options: &PmsmFitOptions) -> Option<PmsmFit> {
     let fit = fit(experiments, options, None).ok()?;
-    let value = |names: &[&str]| {
-        fit.parameters
-            .iter()
-            .filter(|p| names.contains(&p.name.as_str()))
-            .map(|p| p.value)
-            .fold(f64::INFINITY, f64::min)
-    };
-    let confirmed =
-        sample_time_problem(experiments, options.pole_pairs, value(&["r_s"]), value(&["l_s", "l_d", "l_q"]))?;
-    let why = confirmed.split(". A time column").next().unwrap_or(&confirmed);
-    Some(Ok(PmsmFit { pmsm_notes: vec![chosen_note(why, options.model)], ..fit }))
+    let r_s = fit.parameter("r_s")?.value;
+    let why = sample_time_facts(experiments, options.pole_pairs, r_s, smallest_inductance(&fit.report))?;
+    Some(PmsmFit { pmsm_notes: vec![chosen_note(&why, options.model)], ..fit })
 }
 
 /// The note of the automatic choice, `why` the reason.
@@ -168,17 +139,15 @@ pub(crate) fn chosen_up_front(
 ) -> Option<Option<String>> {
     match options.dynamics {
         Dynamics::Steady => Some(None),
-        Dynamics::Auto if !options.force && !options.skip_setup_checks => turns_within_sample(
-            experiments,
-            options.pole_pairs,
-        )
-        .then(|| {
+        Dynamics::Auto if !options.force && !options.skip_setup_checks => {
+            (max_turn(experiments, options.pole_pairs) >= std::f64::consts::PI).then(|| {
             Some(format!(
                 "the rotor turns half an electrical turn or more within one sample (h = {:.4e} s), which no \
                      dynamic model of a held voltage can follow",
                 experiments.iter().map(Experiment::h).fold(0.0, f64::max)
             ))
-        }),
+            })
+        }
         _ => None,
     }
 }

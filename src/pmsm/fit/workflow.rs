@@ -55,9 +55,8 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                     && options.dynamics == Dynamics::Auto
                     && !options.skip_setup_checks =>
             {
-                let why = reason.split(". A time column").next().unwrap_or(&reason);
-                return super::steady::fit_if_slow(experiments, options, why)
-                    .unwrap_or(Err(Error::Numerical { context, reason }));
+                return super::steady::fit_if_slow(experiments, options)
+                    .ok_or(Error::Numerical { context, reason });
             }
             other => other?,
         }
