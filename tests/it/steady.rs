@@ -247,3 +247,17 @@ fn steady_state_refuses_bad_input() {
     let err = fit_pmsm(one, &o).unwrap_err().to_string();
     assert!(err.contains("a start"), "{err}");
 }
+
+/// A control period that is not positive is refused whichever equations the log gets (a
+/// dynamic fit would otherwise ignore it silently).
+#[test]
+fn a_bad_control_period_is_refused_for_any_log() {
+    let log = greybox::pmsm::read_log(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz"),
+        &Default::default(),
+    )
+    .unwrap();
+    let o = PmsmFitOptions { control_period: Some(-1e-4), ..PmsmFitOptions::new(4) };
+    let err = fit_pmsm(&[log], &o).unwrap_err().to_string();
+    assert!(err.contains("control_period"), "{err}");
+}

@@ -19,7 +19,7 @@ use crate::pmsm::options::{Dynamics, HoldChoice, PmsmFitOptions};
 /// # Errors
 /// [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError::InvalidPolePairs) for `options.pole_pairs = 0`; [`Error::MissingChannel`]
 /// for a log without `ud, uq, id, iq, w_m`;
-/// [`Error::InvalidOption`] for no experiments, a start of the wrong length, an unknown
+/// [`Error::InvalidOption`] for no experiments, a control period not positive, a start of the wrong length, an unknown
 /// parameter name in `fixed`/`fixed_values`/`bounds`; [`Error::StartOutsideBounds`] for a
 /// given start or fixed value outside the bounds;
 /// [`Error::Numerical`] when the least-squares start cannot be computed (no excitation)
@@ -39,6 +39,13 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     crate::pmsm::log::signals::check_pole_pairs(options.pole_pairs)?;
     if experiments.is_empty() {
         return Err(Error::InvalidOption { option: "experiments".into(), reason: "no log given".into() });
+    }
+    // Checked here, not only by the steady-state fit: a dynamic fit would ignore a bad one.
+    if let Some(h) = options.control_period.filter(|h| !(h.is_finite() && *h > 0.0)) {
+        return Err(Error::InvalidOption {
+            option: "control_period".into(),
+            reason: format!("{h} s is not a positive sample time (the drive's control period)"),
+        });
     }
     if let Some(why) = super::steady::chosen_up_front(experiments, options) {
         return super::steady::fit(experiments, options, why);
