@@ -50,6 +50,10 @@ enum Command {
     Simulate(Box<cli::simulate::SimulateArgs>),
     /// Predict the standard errors and 95 % intervals of planned experiments before running them, rank them, search design knobs.
     Design(Box<cli::design::DesignArgs>),
+    /// Fit the saturation model (with cross-saturation) to a measured flux map: coefficients with standard errors, residuals, inductances.
+    Fluxmap(Box<cli::fluxmap::FluxMapArgs>),
+    /// Fit the saturated IPM model (cross-saturation) to drive logs beside the linear IPM fit: coefficients, inductances at the operating points.
+    Saturation(Box<cli::saturation::SaturationArgs>),
     /// Print a shell completion script on stdout, e.g. `greybox completions bash > /etc/bash_completion.d/greybox`
     /// or `greybox completions zsh > ~/.zfunc/_greybox`.
     Completions {
@@ -75,6 +79,8 @@ fn main() -> ExitCode {
         Command::Track(a) => cli::track::run_track(a).map(|()| 0),
         Command::Simulate(a) => cli::simulate::run_simulate(a).map(|()| 0),
         Command::Design(a) => cli::design::run_design(a).map(|()| 0),
+        Command::Fluxmap(a) => cli::fluxmap::run_fluxmap(a).map(|()| 0),
+        Command::Saturation(a) => cli::saturation::run_saturation(a).map(|()| 0),
         Command::Completions { shell } => {
             // Into a buffer first: clap_complete panics when stdout is closed early (`| head`).
             let mut script = Vec::new();
@@ -95,6 +101,8 @@ fn main() -> ExitCode {
             Command::Track(_) => "track",
             Command::Simulate(_) => "simulate",
             Command::Design(_) => "design",
+            Command::Fluxmap(_) => "fluxmap",
+            Command::Saturation(_) => "saturation",
             Command::Completions { .. } => "completions",
         };
         match command.find_subcommand(name) {

@@ -156,6 +156,14 @@ pub fn plans(a: &DesignArgs) -> crate::Result<(Vec<DriveConfig>, String)> {
     let motor = match a.motor {
         MotorArg::Spm => SPM_MOTOR,
         MotorArg::Ipm => IPM_MOTOR,
+        MotorArg::IpmSat => {
+            return Err(Error::InvalidOption {
+                option: "--motor".into(),
+                reason:
+                    "ipm-sat: the design predicts the linear fits of `greybox fit`; plan with --motor ipm"
+                        .into(),
+            });
+        }
     };
     if a.scenario.is_empty() && a.config.is_empty() {
         return Err(Error::InvalidOption {

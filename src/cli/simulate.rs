@@ -5,7 +5,8 @@ use super::output;
 use crate::Error;
 use crate::data::staged::Staged;
 use crate::drive::{
-    DriveConfig, DriveLog, IPM_MOTOR, SCENARIOS, SPM_MOTOR, scenario, simulate_drive_with_progress,
+    DriveConfig, DriveLog, IPM_MOTOR, IPM_SATURATION, SATURATED_IPM_MOTOR, SCENARIOS, SPM_MOTOR, scenario,
+    simulate_drive_with_progress,
 };
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -49,14 +50,16 @@ pub struct SimulateArgs {
     pub print_config: bool,
 }
 
-/// The motor of a thesis scenario (`--motor`): `spm` (a small surface-magnet servo) or
-/// `ipm` (an interior-magnet motor).
+/// The motor of a thesis scenario (`--motor`): `spm` (a small surface-magnet servo),
+/// `ipm` (an interior-magnet motor) or `ipm-sat` (a saturating interior-magnet motor,
+/// [`crate::drive::IPM_SATURATION`]).
 // The values' clap docs would become `--help` text of their own: the enum's doc says them.
 #[allow(missing_docs)]
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum MotorArg {
     Spm,
     Ipm,
+    IpmSat,
 }
 
 /// Runs `greybox simulate`.
@@ -123,8 +126,10 @@ pub fn config(a: &SimulateArgs) -> crate::Result<DriveConfig> {
             let motor = match a.motor {
                 MotorArg::Spm => SPM_MOTOR,
                 MotorArg::Ipm => IPM_MOTOR,
+                MotorArg::IpmSat => SATURATED_IPM_MOTOR,
             };
-            scenario(name, motor)?
+            let saturation = matches!(a.motor, MotorArg::IpmSat).then_some(IPM_SATURATION);
+            DriveConfig { saturation, ..scenario(name, motor)? }
         }
         (None, Some(path)) => {
             let text =

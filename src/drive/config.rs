@@ -5,7 +5,7 @@
 
 use super::profile::Profile;
 use crate::error::{Error, Result};
-use crate::pmsm::MotorParameters;
+use crate::pmsm::{MotorParameters, Saturation};
 use serde::{Deserialize, Serialize};
 
 /// Mechanics and load: `J dω_m/dt = T_e − B ω_m − T_c tanh(ω_m/ω_c) − m g l sin θ_m − T_L(t)`.
@@ -200,6 +200,12 @@ pub struct DriveConfig {
     pub duration: f64,
     /// Seed of the noise.
     pub seed: u64,
+    /// Magnetic saturation of the plant (absent: linear magnetics, `motor.l_d`, `motor.l_q`,
+    /// `motor.psi_f`). When present the plant's flux follows this model
+    /// ([`crate::pmsm::saturated_step`]) with `R_s` from `motor` (and its temperature and
+    /// ramp); `motor`'s inductances and `ψ_f` are then what the controller assumes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub saturation: Option<Saturation>,
 }
 
 impl Default for DriveConfig {
@@ -216,6 +222,7 @@ impl Default for DriveConfig {
             psi_f_factor: Profile::default(),
             duration: 2.0,
             seed: 1,
+            saturation: None,
         }
     }
 }
@@ -291,6 +298,20 @@ impl DriveConfig {
         }
         if self.control.position_filter * self.control.h > 0.5 {
             return Err(bad("control.position_filter", self.control.position_filter, "at most 0.5/h"));
+        }
+        if let Some(sat) = &self.saturation {
+            sat.check()
+                .map_err(|e| Error::InvalidOption { option: "saturation".into(), reason: e.to_string() })?;
+            let constant = |p: &Profile| p.0.iter().all(|&(_, v)| v == 1.0);
+            if !constant(&self.psi_f_factor) || !self.thermal.magnet.0.is_empty() {
+                return Err(Error::InvalidOption {
+                    option: "saturation".into(),
+                    reason:
+                        "the saturated plant has no ψ_f ramp or magnet temperature: remove psi_f_factor and \
+                             thermal.magnet"
+                            .into(),
+                });
+            }
         }
         if self.control.adaptation.is_some() && self.motor.salient() {
             return Err(Error::InvalidOption {

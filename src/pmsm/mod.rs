@@ -35,6 +35,7 @@ pub use checks::detect::{
 pub use checks::limit::VoltageLimitWeighting;
 pub use checks::noise::NEGLIGIBLE_VOLTAGE_NOISE;
 pub use fit::auto_mask::FALLBACK_RELATIVE_THRESHOLD;
+pub use fit::flux_map::{ExponentCandidate, FLUX_MAP_REFINED, FluxMapFit, FluxMapOptions, fit_flux_map};
 pub use fit::hold::{DQ_DECISIVE, SCREEN_DECISIVE};
 pub use fit::input_search::{ADVANCE_RANGE, DELAYS, InputSearch, SPEED_PLL_RANGE, fit_estimating_input};
 pub use fit::iv::{
@@ -42,6 +43,7 @@ pub use fit::iv::{
 };
 pub use fit::pole_pairs::{AUTO_CANDIDATES, AutoPolePairs, choose_pole_pairs_by_fit};
 pub use fit::report::{PmsmFit, ReportOptions, StartComparison, conventions};
+pub use fit::saturated::{SaturatedFit, fit_saturated};
 pub use fit::validate::SavedModel;
 pub use fit::workflow::fit_pmsm;
 pub use linear::report::LS_BIAS_UNTRUSTED;
@@ -49,6 +51,7 @@ pub use linear::{
     LinearEstimate, LinearOptions, STEADY_UNIDENTIFIABLE, SteadyEstimate, SteadyOptions, least_squares,
     regressors, steady_advice, steady_state, weighted_least_squares,
 };
+pub use log::flux_map::{NPZ_ARRAYS, read_flux_map};
 pub use log::signals::{DqSignals, DqView, MAX_POLE_PAIRS, MIN_SAMPLES, PmsmError, channel};
 pub use log::transform::{
     clarke, currents_to_dq, inverse_clarke, inverse_park, park, stator_held_voltages_to_dq,
@@ -59,6 +62,7 @@ pub use log::{
     MAX_SAMPLE_TIME, MAX_STEADY_SAMPLE_TIME, MIN_SAMPLE_TIME, Scale, SpeedUnit, TimeUnit, read_log,
     read_log_from, read_log_segments, read_log_segments_from, read_logs,
 };
+pub use model::flux_map::{FLUX_MAP_CHANNELS, FluxMapModel};
 pub(crate) use model::interval::cexpm1;
 pub use model::interval::{
     C64, Interval, IntervalSource, IntervalVoltage, SQRT_2_3, VoltageHold, VoltageInput, applied_experiment,
@@ -70,6 +74,12 @@ pub use model::ipm::PmsmIpm;
 pub use model::kind::{MotorKind, derived};
 pub use model::mask::{DeadTimeMask, DeadTimeMaskWeighting};
 pub use model::plant::{ExactPlant, MotorParameters, StepDerivatives};
+pub use model::saturated::{
+    PmsmSaturated, SATURATED_SUBSTEP_RHO, SaturatedCoefficients, saturated_step, saturated_substeps,
+};
+pub use model::saturation::{
+    CurrentDerivatives, Inductances, SATURATION_PARAMETERS, Saturation, SaturationExponents,
+};
 pub use model::setup::PmsmSetup;
 pub use model::spm::{PmsmSpm, SpmInputs};
 pub use model::temperature::{ALPHA_COPPER, BETA_NDFEB, ThermalReference};

@@ -5,12 +5,14 @@
 pub(super) mod auto_mask;
 mod base;
 mod beside;
+pub(super) mod flux_map;
 pub(super) mod hold;
 mod holds;
 pub(super) mod input_search;
 pub(super) mod iv;
 pub(super) mod pole_pairs;
 pub(super) mod report;
+pub(super) mod saturated;
 pub(super) mod simulated;
 pub(super) mod steady;
 pub(super) mod validate;

@@ -2,6 +2,7 @@
 //! units, frames and time window, the typed dq view of the channels, and Clarke and Park.
 
 mod build;
+pub(super) mod flux_map;
 mod options;
 mod reader;
 pub(super) mod signals;

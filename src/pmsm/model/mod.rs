@@ -5,6 +5,7 @@
 
 pub(super) mod augmented;
 mod elementary;
+pub(super) mod flux_map;
 pub(super) mod interval;
 pub(super) mod inverter;
 pub(super) mod ipm;
@@ -12,6 +13,8 @@ pub(super) mod kind;
 pub(super) mod mask;
 mod metadata;
 pub(super) mod plant;
+pub(super) mod saturated;
+pub(super) mod saturation;
 pub(super) mod setup;
 pub(super) mod spm;
 pub(super) mod temperature;
