@@ -44,6 +44,7 @@ mod recovery;
 mod reference;
 mod reports;
 mod robust;
+mod saturation;
 mod solvers;
 mod spm;
 mod steady;
