@@ -248,13 +248,24 @@ impl std::fmt::Display for FluxMapFit {
             self.max_residual.1[1]
         )?;
         let u = &self.fit.uncertainty;
-        let method = match u.method {
-            crate::estimate::CovarianceMethod::White => "white residuals".to_string(),
+        let worst = u.ljung_box.iter().copied().fold(0.0, f64::max);
+        match u.method {
             crate::estimate::CovarianceMethod::BatchMeans => {
-                format!("batch means over {} batches (the residuals are not white: model error)", u.batches)
+                writeln!(f, "standard errors: batch means over {} batches (residuals not white)", u.batches)?
             }
-        };
-        writeln!(f, "standard errors: {method}")?;
+            _ if worst > u.ljung_box_critical => writeln!(
+                f,
+                "standard errors: white residuals assumed, but the residuals are not white (Ljung–Box {worst:.0} > \
+                 {:.0}): model error dominates them, so the standard errors understate the coefficients' \
+                 uncertainty (the map is too small for batch means)",
+                u.ljung_box_critical
+            )?,
+            _ => writeln!(
+                f,
+                "standard errors: white residuals (Ljung–Box {worst:.1} ≤ {:.1})",
+                u.ljung_box_critical
+            )?,
+        }
         f.write_str(&inductance_table(&self.operating_points))?;
         let refined: Vec<String> = self
             .candidates
@@ -307,7 +318,8 @@ pub(super) fn estimate_lines(result: &FitResult) -> String {
         } else {
             format!("[{:.6e}, {:.6e}]", p.ci95[0], p.ci95[1])
         };
-        t += &format!("{:<8} {:>14.6e} {:>12.3e}   {interval}  {}\n", p.name, p.value, p.std_error, p.unit);
+        let se = if p.at_bound { "-".to_string() } else { format!("{:.3e}", p.std_error) };
+        t += &format!("{:<8} {:>14.6e} {:>12}   {interval}  {}\n", p.name, p.value, se, p.unit);
     }
     for d in &result.derived {
         t += &format!("{:<8} {:>14.6e} {:>12.3e}   {}\n", d.name, d.value, d.std_error, d.unit);
