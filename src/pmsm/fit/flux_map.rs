@@ -46,7 +46,7 @@ pub struct FluxMapFit {
     pub points: usize,
     /// The chosen exponents.
     pub exponents: SaturationExponents,
-    /// The prediction-error fit in the flux (coefficients in [`SATURATION_PARAMETERS`] order).
+    /// The prediction-error fit in the flux (coefficients in [`SATURATION_PARAMETERS`](crate::pmsm::SATURATION_PARAMETERS) order).
     pub fit: FitResult,
     /// The fitted model.
     pub model: Saturation,
