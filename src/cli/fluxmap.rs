@@ -4,7 +4,6 @@
 
 use super::output;
 use crate::Error;
-use crate::data::staged::Staged;
 use crate::pmsm::{FluxMapOptions, SaturationExponents, fit_flux_map, read_flux_map};
 use clap::Args;
 use std::path::PathBuf;
@@ -37,14 +36,7 @@ pub fn run_fluxmap(a: &FluxMapArgs) -> crate::Result<()> {
     let exponents = a.exponents.as_deref().map(parse_exponents).transpose()?;
     let map = read_flux_map(&a.map)?;
     let fit = fit_flux_map(&map, &FluxMapOptions { exponents })?;
-    if !(a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-")) {
-        output::stdout(&fit.to_string())?;
-    }
-    let mut staged = Staged::new();
-    if let Some(path) = &a.json {
-        output::write(&mut staged, path, &serde_json::to_string_pretty(&fit).unwrap_or_default())?;
-    }
-    staged.commit()
+    output::text_and_json(&fit.to_string(), &fit, a.json.as_deref(), a.quiet)
 }
 
 /// The exponents `S,T,U,V` of `--exponents`.

@@ -96,3 +96,24 @@ pub fn stdout(text: &str) -> crate::Result<()> {
         r => r.map_err(|source| Error::Write { path: "stdout".into(), source }),
     }
 }
+
+/// The report of a command: `text` on stdout (unless `quiet` or the JSON goes there) and
+/// `value` as JSON to `json` (`-`: stdout), committed together.
+///
+/// # Errors
+/// [`Error::Write`] naming the output that could not be written (nothing is written then).
+pub fn text_and_json<T: serde::Serialize>(
+    text: &str,
+    value: &T,
+    json: Option<&Path>,
+    quiet: bool,
+) -> crate::Result<()> {
+    if !(quiet || json.is_some_and(|p| p.as_os_str() == "-")) {
+        stdout(text)?;
+    }
+    let mut staged = Staged::new();
+    if let Some(path) = json {
+        write(&mut staged, path, &serde_json::to_string_pretty(value).unwrap_or_default())?;
+    }
+    staged.commit()
+}

@@ -5,7 +5,6 @@
 use super::columns::ColumnArgs;
 use super::fluxmap::parse_exponents;
 use super::output;
-use crate::data::staged::Staged;
 use crate::pmsm::{CsvOptions, PmsmFitOptions, SaturationExponents, fit_saturated};
 use clap::Args;
 use std::path::PathBuf;
@@ -50,12 +49,5 @@ pub fn run_saturation(a: &SaturationArgs) -> crate::Result<()> {
     let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
     let logs: Vec<_> = a.columns.read_logs(&a.logs, &csv, false)?.into_iter().flatten().collect();
     let fit = fit_saturated(&logs, &PmsmFitOptions::new(a.pole_pairs), exponents)?;
-    if !(a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-")) {
-        output::stdout(&fit.to_string())?;
-    }
-    let mut staged = Staged::new();
-    if let Some(path) = &a.json {
-        output::write(&mut staged, path, &serde_json::to_string_pretty(&fit).unwrap_or_default())?;
-    }
-    staged.commit()
+    output::text_and_json(&fit.to_string(), &fit, a.json.as_deref(), a.quiet)
 }

@@ -4,7 +4,7 @@
 use crate::data::{Experiment, Values};
 use crate::error::Result;
 use crate::model::{DerivedEstimate, GreyBoxModel, Parameter, Sensitivities, Signal};
-use crate::pmsm::model::saturation::{SATURATION_PARAMETERS, Saturation, SaturationExponents};
+use crate::pmsm::model::saturation::{Saturation, SaturationExponents, saturation_parameters};
 
 /// Channel names of a flux map: the currents `i_d`, `i_q` \[A, peak\] in, the flux linkages
 /// `psi_d`, `psi_q` \[V s\] out.
@@ -31,19 +31,7 @@ impl FluxMapModel {
     /// The flux-map model with the given exponents; `nominal` sets each coefficient's scale
     /// (e.g. the start values), `SATURATION_PARAMETERS` order.
     pub fn new(exponents: SaturationExponents, nominal: &[f64; 6]) -> Self {
-        let params = SATURATION_PARAMETERS
-            .iter()
-            .zip(nominal)
-            .enumerate()
-            .map(|(j, ((name, unit), &n))| {
-                let scale = if n.abs() > 0.0 { n.abs() } else { 1.0 };
-                let mut p = Parameter::free(name, unit, scale);
-                if j < 5 {
-                    p.lower = if j == 0 || j == 2 { 1e-9 * scale } else { 0.0 };
-                }
-                p
-            })
-            .collect();
+        let params = saturation_parameters(nominal);
         Self { exponents, params }
     }
 

@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use crate::model::{DerivedEstimate, GreyBoxModel, Parameter, Signal};
 use crate::pmsm::log::signals::{DqView, check_pole_pairs};
 use crate::pmsm::model::interval::{C64, IntervalSource, SQRT_2_3, VoltageHold, VoltageInput};
-use crate::pmsm::model::saturation::{SATURATION_PARAMETERS, Saturation, SaturationExponents};
+use crate::pmsm::model::saturation::{Saturation, SaturationExponents, saturation_parameters};
 
 /// The largest `(R_s Γ + |ω_e|) h` of one RK4 substep: the local error per substep is about
 /// `ρ⁵/120 ≈ 8·10⁻¹¹` of the flux.
@@ -81,7 +81,7 @@ pub fn saturated_substeps(m: &Saturation, r_s: f64, i_max: f64, w_e_max: f64, h:
 ///
 /// State and output `x = y = (i_d, i_q)` \[A, peak\] (the flux is recovered from the current
 /// at each step, so the first measurement is the initial state whatever θ); parameters
-/// `θ = (r_s, a_d0, a_dd, a_q0, a_qq, a_dq, psi_f)` \[Ω, then [`SATURATION_PARAMETERS`]\]
+/// `θ = (r_s, a_d0, a_dd, a_q0, a_qq, a_dq, psi_f)` \[Ω, then [`SATURATION_PARAMETERS`](crate::pmsm::SATURATION_PARAMETERS)\]
 /// with fixed exponents `(S, T, U, V)`. One step is [`saturated_step`] with the terminal
 /// voltage held in the stator frame and a fixed number of RK4 substeps (set once per fit,
 /// so that the step is a smooth function of θ); sensitivities by central finite
@@ -108,14 +108,7 @@ impl PmsmSaturated {
     /// per period (see [`saturated_substeps`]) and parameter scales `nominal` (θ order).
     pub fn new(n_p: u32, exponents: SaturationExponents, substeps: usize, nominal: &[f64; 7]) -> Self {
         let mut params = vec![Parameter::positive("r_s", "ohm", nominal[0])];
-        for (j, (name, unit)) in SATURATION_PARAMETERS.iter().enumerate() {
-            let n = nominal[j + 1].abs();
-            let mut p = Parameter::free(name, unit, if n > 0.0 { n } else { 1.0 });
-            if j < 5 {
-                p.lower = if j == 0 || j == 2 { 1e-9 * n } else { 0.0 };
-            }
-            params.push(p);
-        }
+        params.extend(saturation_parameters(&nominal[1..]));
         Self { n_p, exponents, substeps: substeps.max(1), params }
     }
 

@@ -12,6 +12,7 @@
 //! published fits to measured machines to compare with.
 
 use crate::error::{Error, Result};
+use crate::model::Parameter;
 use serde::{Deserialize, Serialize};
 
 /// The integer exponents `(S, T, U, V)` of the algebraic saturation model: d-axis
@@ -107,6 +108,25 @@ pub struct Inductances {
     pub l_qq: f64,
     /// Incremental cross term `∂ψ_d/∂i_q = ∂ψ_q/∂i_d` \[H\].
     pub l_dq: f64,
+}
+
+/// The coefficients' parameter metadata in [`SATURATION_PARAMETERS`] order, scaled by
+/// `nominal` (e.g. the start values): `a_d0`, `a_q0` positive, the saturation terms
+/// non-negative, `ψ_f` free.
+pub fn saturation_parameters(nominal: &[f64]) -> Vec<Parameter> {
+    SATURATION_PARAMETERS
+        .iter()
+        .zip(nominal)
+        .enumerate()
+        .map(|(j, ((name, unit), &n))| {
+            let scale = if n.abs() > 0.0 { n.abs() } else { 1.0 };
+            let mut p = Parameter::free(name, unit, scale);
+            if j < 5 {
+                p.lower = if j == 0 || j == 2 { 1e-9 * scale } else { 0.0 };
+            }
+            p
+        })
+        .collect()
 }
 
 fn pow(x: f64, n: u32) -> f64 {
