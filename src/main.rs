@@ -54,6 +54,8 @@ enum Command {
     Fluxmap(Box<cli::fluxmap::FluxMapArgs>),
     /// Fit the saturated IPM model (cross-saturation) to drive logs beside the linear IPM fit: coefficients, inductances at the operating points.
     Saturation(Box<cli::saturation::SaturationArgs>),
+    /// Fit R_s, the inductances and the inverter's voltage error to locked-rotor logs (the firmware's power-up test); the injection length for R_s to ±1 %.
+    Standstill(Box<cli::standstill::StandstillArgs>),
     /// Print a shell completion script on stdout, e.g. `greybox completions bash > /etc/bash_completion.d/greybox`
     /// or `greybox completions zsh > ~/.zfunc/_greybox`.
     Completions {
@@ -80,7 +82,8 @@ fn main() -> ExitCode {
         Command::Simulate(a) => cli::simulate::run_simulate(a).map(|()| 0),
         Command::Design(a) => cli::design::run_design(a).map(|()| 0),
         Command::Fluxmap(a) => cli::fluxmap::run_fluxmap(a).map(|()| 0),
-        Command::Saturation(a) => cli::saturation::run_saturation(a).map(|()| 0),
+        Command::Saturation(a) => cli::saturation::run_saturation(a).map(code),
+        Command::Standstill(a) => cli::standstill::run_standstill(a).map(code),
         Command::Completions { shell } => {
             // Into a buffer first: clap_complete panics when stdout is closed early (`| head`).
             let mut script = Vec::new();
@@ -103,6 +106,7 @@ fn main() -> ExitCode {
             Command::Design(_) => "design",
             Command::Fluxmap(_) => "fluxmap",
             Command::Saturation(_) => "saturation",
+            Command::Standstill(_) => "standstill",
             Command::Completions { .. } => "completions",
         };
         match command.find_subcommand(name) {

@@ -148,6 +148,7 @@ impl ColumnArgs {
                 u_a: self.col_u_abc.0[0].clone(),
                 u_b: self.col_u_abc.0[1].clone(),
                 u_c: self.col_u_abc.0[2].clone(),
+                extra: Vec::new(),
             },
             speed_unit: self.speed_unit,
             speed_frame: self.speed_frame,

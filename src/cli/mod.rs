@@ -16,6 +16,7 @@ pub mod output;
 pub mod plots;
 pub mod saturation;
 pub mod simulate;
+pub mod standstill;
 pub mod track;
 pub mod validate;
 pub mod values;

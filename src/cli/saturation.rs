@@ -37,17 +37,25 @@ pub struct SaturationArgs {
     pub columns: ColumnArgs,
 }
 
-/// Runs `greybox saturation`.
+/// Runs `greybox saturation`; whether the saturated fit is trusted ([`crate::pmsm::SaturatedFit::trusted`]).
 ///
 /// # Errors
 /// Unreadable logs, bad exponents, a failed linear or saturated fit, an output that cannot
 /// be written (nothing is written then).
-pub fn run_saturation(a: &SaturationArgs) -> crate::Result<()> {
+pub fn run_saturation(a: &SaturationArgs) -> crate::Result<bool> {
     super::logs::check_paths(&a.logs)?;
     output::check_all(&[("--json", a.json.as_deref())], &a.logs)?;
     let exponents: SaturationExponents = parse_exponents(&a.exponents)?;
     let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
     let logs: Vec<_> = a.columns.read_logs(&a.logs, &csv, false)?.into_iter().flatten().collect();
     let fit = fit_saturated(&logs, &PmsmFitOptions::new(a.pole_pairs), exponents)?;
-    output::text_and_json(&fit.to_string(), &fit, a.json.as_deref(), a.quiet)
+    output::text_and_json(&fit.to_string(), &fit, a.json.as_deref(), a.quiet)?;
+    let trusted = fit.trusted();
+    if !trusted {
+        eprintln!(
+            "warning: the saturated fit is not to be trusted ({}); exit code 3",
+            fit.untrusted_reasons().join(", ")
+        );
+    }
+    Ok(trusted)
 }

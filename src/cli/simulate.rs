@@ -22,7 +22,7 @@ exp2 position step with K_t 20 % too high in the controller, exp3 back-and-forth
 exp4 exp3 on a warm motor, exp5 low acceleration, exp6 material-handling cycle with d-current injections. \
 Write one out with --print-config to start your own, and run it with --config.")]
 pub struct SimulateArgs {
-    /// A thesis scenario: exp1 … exp6.
+    /// A thesis scenario (exp1 … exp6) or a commissioning one (standstill: a locked-rotor test).
     #[arg(long, required_unless_present = "config", conflicts_with = "config")]
     pub scenario: Option<String>,
     /// A scenario file (JSON, as --print-config writes it); missing fields take the defaults.
@@ -142,7 +142,11 @@ pub fn config(a: &SimulateArgs) -> crate::Result<DriveConfig> {
         (None, None) => {
             return Err(Error::InvalidOption {
                 option: "scenario".into(),
-                reason: format!("give --scenario ({}) or --config FILE", SCENARIOS.join(", ")),
+                reason: format!(
+                    "give --scenario ({}, {}) or --config FILE",
+                    SCENARIOS.join(", "),
+                    crate::drive::COMMISSIONING.join(", ")
+                ),
             });
         }
     };

@@ -26,6 +26,18 @@ pub struct Mechanics {
     pub load: Profile,
     /// RK4 sub-steps of the mechanics per sample period.
     pub substeps: usize,
+    /// A locked rotor (a standstill test on a brake or a blocked shaft): the speed stays 0
+    /// and the angle where it starts, whatever the torque.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub locked: bool,
+    /// Rotor angle θ_m at t = 0 \[rad, mechanical\].
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub theta0: f64,
+}
+
+/// Whether `x` is 0 (a field left out of the scenario file then).
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 impl Default for Mechanics {
@@ -38,6 +50,8 @@ impl Default for Mechanics {
             gravity: 0.0,
             load: Profile::default(),
             substeps: 4,
+            locked: false,
+            theta0: 0.0,
         }
     }
 }
@@ -153,6 +167,10 @@ pub struct Sensors {
     pub adc_range: f64,
     /// Encoder counts per mechanical revolution; `None`: exact angle.
     pub encoder_counts: Option<u32>,
+    /// Log the winding temperature \[°C\] of `thermal.winding` (channel `t_winding`, as a
+    /// winding sensor would; exact).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub winding_temperature: bool,
 }
 
 /// Temperatures \[°C\] acting on `R_s(T) = R_s0 (1 + α (T − T_0))` and
@@ -266,6 +284,7 @@ impl DriveConfig {
         ];
         let finite = [
             ("mechanics.gravity", self.mechanics.gravity),
+            ("mechanics.theta0", self.mechanics.theta0),
             ("control.i_d_ratio", self.control.i_d_ratio),
             ("inverter.advance", self.inverter.advance),
             ("thermal.t0", self.thermal.t0),

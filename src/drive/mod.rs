@@ -40,5 +40,5 @@ pub mod sim;
 pub use config::{Control, DriveConfig, Inverter, Mechanics, Mode, Sensors, Thermal};
 pub use motors::{IPM_MOTOR, IPM_SATURATION, SATURATED_IPM_MOTOR, SPM_MOTOR};
 pub use profile::Profile;
-pub use scenario::{SCENARIOS, scenario};
+pub use scenario::{COMMISSIONING, SCENARIOS, scenario};
 pub use sim::{DriveLog, PROGRESS_EVERY, Truth, plant_at, simulate_drive, simulate_drive_with_progress};

@@ -12,7 +12,11 @@ use crate::pmsm::MotorParameters;
 /// The scenario names, in order.
 pub const SCENARIOS: [&str; 6] = ["exp1", "exp2", "exp3", "exp4", "exp5", "exp6"];
 
-/// The drive of scenario `name` (one of [`SCENARIOS`]) on `motor`.
+/// Commissioning scenarios (not thesis experiments; [`scenario`] builds them too):
+/// `standstill`, a locked-rotor test as drive firmware runs at power-up.
+pub const COMMISSIONING: [&str; 1] = ["standstill"];
+
+/// The drive of scenario `name` (one of [`SCENARIOS`] or [`COMMISSIONING`]) on `motor`.
 ///
 /// # Errors
 /// [`Error::InvalidOption`] (`scenario`) for an unknown name, listing the known ones.
@@ -119,10 +123,54 @@ pub fn scenario(name: &str, motor: MotorParameters) -> Result<DriveConfig> {
                 ..base
             }
         }
+        // Standstill commissioning (issue 33): the rotor locked at θ_e = 15° (no phase current
+        // near zero while either axis carries current, so the dead-time error's sign is
+        // certain); the current loop
+        // steps i_d through ±20 % and ±50 % of i_max (0.1 s each), then i_q (a torque
+        // reference) through ±30 %; a 2 V dead-time error, current noise 1 % of i_max, and the
+        // winding temperature logged (constant at T_0 unless `thermal.winding` says otherwise).
+        "standstill" => {
+            let steps = |levels: &[f64], t0: f64| {
+                let mut p = vec![(0.0, 0.0), (t0, 0.0)];
+                for (j, l) in levels.iter().enumerate() {
+                    let t = t0 + 0.1 * j as f64;
+                    p.extend([(t, p.last().map_or(0.0, |x| x.1)), (t, *l)]);
+                }
+                let end = t0 + 0.1 * levels.len() as f64;
+                p.extend([(end, p.last().map_or(0.0, |x| x.1)), (end, 0.0)]);
+                Profile(p)
+            };
+            let i = c.i_max;
+            DriveConfig {
+                control: super::config::Control {
+                    mode: Mode::Torque,
+                    reference: steps(&[0.3 * t_max, -0.3 * t_max, 0.15 * t_max, -0.15 * t_max], 0.55),
+                    i_d: steps(&[0.2 * i, 0.5 * i, -0.5 * i, -0.2 * i], 0.05),
+                    ..c
+                },
+                mechanics: super::config::Mechanics {
+                    locked: true,
+                    theta0: std::f64::consts::PI / 12.0 / f64::from(motor.n_p),
+                    ..base.mechanics.clone()
+                },
+                inverter: super::config::Inverter { v_dt: 2.0, ..base.inverter.clone() },
+                sensors: super::config::Sensors {
+                    current_noise: 0.01 * i,
+                    winding_temperature: true,
+                    ..base.sensors.clone()
+                },
+                duration: 1.0,
+                ..base
+            }
+        }
         _ => {
             return Err(Error::InvalidOption {
                 option: "scenario".into(),
-                reason: format!("`{name}` is not one of {}", SCENARIOS.join(", ")),
+                reason: format!(
+                    "`{name}` is not one of {}, {}",
+                    SCENARIOS.join(", "),
+                    COMMISSIONING.join(", ")
+                ),
             });
         }
     })

@@ -57,7 +57,8 @@ pub struct Truth {
 /// A simulated drive log: the experiment (channels `ud, uq, id, iq, w_m, theta_m, ud_ref,
 /// uq_ref, id_ref, iq_ref`, as `greybox fit` reads them, plus `w_ref` [rad/s], the speed
 /// loop's reference, in speed and position modes, and `k_t_ctrl` \[N m/A\], the controller's
-/// `K_t`, with adaptation) and its truth.
+/// `K_t`, with adaptation, and `t_winding` \[°C\] with `sensors.winding_temperature`) and
+/// its truth.
 #[derive(Clone, Debug)]
 pub struct DriveLog {
     /// The log.
@@ -115,7 +116,7 @@ pub fn simulate_drive_with_progress(
         }
         None => None,
     };
-    let (mut w_refs, mut k_ts) = (Vec::new(), Vec::new());
+    let (mut w_refs, mut k_ts, mut t_winding) = (Vec::new(), Vec::new(), Vec::new());
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let gauss = |rng: &mut ChaCha8Rng, s: f64| {
         if s > 0.0 { Normal::new(0.0, s).map_or(0.0, |d| d.sample(rng)) } else { 0.0 }
@@ -137,7 +138,7 @@ pub fn simulate_drive_with_progress(
     };
     let inv = &cfg.inverter;
     let mut log = [(); 10].map(|_| Vec::with_capacity(n));
-    let (mut i, mut w, mut theta) = ([0.0; 2], 0.0, 0.0);
+    let (mut i, mut w, mut theta) = ([0.0; 2], 0.0, cfg.mechanics.theta0);
     // The phase-current noise of phases a and b (AR(1) with pole `current_noise_pole`).
     let mut noise = [0.0; 2];
     // The commands and the controller's angle and speed of the last d + 1 samples.
@@ -183,6 +184,13 @@ pub fn simulate_drive_with_progress(
             let sample = Sample { i_d: id_m, i_q: iq_m, u_d: mean.re, u_q: mean.im, w_m: w_meas };
             ctrl.adapt(&sample).map_err(|_| diverged(k, &p))?;
             k_ts.push(ctrl.k_t());
+        }
+        if s.winding_temperature {
+            t_winding.push(if cfg.thermal.winding.0.is_empty() {
+                cfg.thermal.t0
+            } else {
+                cfg.thermal.winding.at(t)
+            });
         }
         if let Some(w) = cmd.w_ref {
             w_refs.push(w);
@@ -249,6 +257,9 @@ pub fn simulate_drive_with_progress(
     if k_ts.len() == n {
         channels.push(Channel::new("k_t_ctrl", "N m/A", k_ts));
     }
+    if t_winding.len() == n {
+        channels.push(Channel::new(crate::pmsm::WINDING_TEMPERATURE, "°C", t_winding));
+    }
     let experiment = Experiment::try_new(cfg.name.clone(), h, channels)?;
     let (start, end) = (plant_at(cfg, 0.0), plant_at(cfg, (n - 1) as f64 * h));
     let time_varying = (0..=100).any(|j| plant_at(cfg, cfg.duration * f64::from(j) / 100.0) != start);
@@ -269,9 +280,12 @@ pub fn simulate_drive_with_progress(
 
 /// ω_m at the end of the period from `w` at `t` \[s\], angle `theta` \[rad\], with the motor
 /// torque `t_e` \[N m\] held: RK4 sub-steps of `J ω̇ = T_e − B ω − T_c tanh(ω/ω_c) − m g l
-/// sin θ − T_L(t)`, `θ̇ = ω`.
+/// sin θ − T_L(t)`, `θ̇ = ω`; 0 for a locked rotor.
 fn mechanics(cfg: &DriveConfig, t: f64, t_e: f64, theta: f64, w: f64) -> f64 {
     let m = &cfg.mechanics;
+    if m.locked {
+        return 0.0;
+    }
     let f = |t: f64, th: f64, w: f64| {
         (t_e - m.viscous * w - m.coulomb * (w / m.coulomb_speed).tanh() - m.gravity * th.sin() - m.load.at(t))
             / m.inertia

@@ -43,7 +43,8 @@ pub use fit::iv::{
 };
 pub use fit::pole_pairs::{AUTO_CANDIDATES, AutoPolePairs, choose_pole_pairs_by_fit};
 pub use fit::report::{PmsmFit, ReportOptions, StartComparison, conventions};
-pub use fit::saturated::{SaturatedFit, fit_saturated};
+pub use fit::saturated::{LOCAL_MINIMUM_EXCESS, SaturatedFit, fit_saturated};
+pub use fit::standstill::{STANDSTILL_T0, StandstillFit, StandstillOptions, UNEXCITED_AXIS, fit_standstill};
 pub use fit::validate::SavedModel;
 pub use fit::workflow::fit_pmsm;
 pub use linear::report::LS_BIAS_UNTRUSTED;
@@ -82,5 +83,8 @@ pub use model::saturation::{
 };
 pub use model::setup::PmsmSetup;
 pub use model::spm::{PmsmSpm, SpmInputs};
+pub use model::standstill::{
+    StandstillCoefficients, StandstillInputs, StandstillModel, StandstillSetup, WINDING_TEMPERATURE,
+};
 pub use model::temperature::{ALPHA_COPPER, BETA_NDFEB, ThermalReference};
 pub use options::{Dynamics, HoldChoice, PmsmFitOptions};

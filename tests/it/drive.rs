@@ -163,6 +163,7 @@ fn records_are_deterministic_for_a_seed() {
         adc_range: 20.0,
         encoder_counts: Some(4096),
         current_noise_pole: 0.5,
+        winding_temperature: false,
     };
     let a = simulate_drive(&cfg).unwrap();
     let b = simulate_drive(&cfg).unwrap();

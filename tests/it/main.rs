@@ -47,6 +47,7 @@ mod robust;
 mod saturation;
 mod solvers;
 mod spm;
+mod standstill;
 mod steady;
 mod streamed;
 mod thermal;

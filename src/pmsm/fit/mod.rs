@@ -14,6 +14,7 @@ pub(super) mod pole_pairs;
 pub(super) mod report;
 pub(super) mod saturated;
 pub(super) mod simulated;
+pub(super) mod standstill;
 pub(super) mod steady;
 pub(super) mod validate;
 pub(super) mod workflow;

@@ -88,7 +88,18 @@ pub fn fit_saturated(
     let h = experiments.first().map_or(1.0, Experiment::h);
     let substeps = saturated_substeps(&start_model, r_s, 1.5 * i_max, f64::from(n_p) * w_max, h)?;
     let model = PmsmSaturated::new(n_p, e, substeps, &start);
-    let result = fit(&model, experiments, &start, &options.pem)?;
+    // Two starts: the guess above, and the linear model itself (saturation coefficients 0),
+    // which the saturated model nests. A minimum above the linear fit's residual is a local
+    // one; the second start then runs, and the lower of the two is kept.
+    let mut result = fit(&model, experiments, &start, &options.pem)?;
+    if !below_linear(&result, &linear.report) {
+        let linear_start = [r_s, theta[0], 0.0, theta[2], 0.0, 0.0, theta[5]];
+        if let Ok(second) = fit(&model, experiments, &linear_start, &options.pem)
+            && mean_square(&second) < mean_square(&result)
+        {
+            result = second;
+        }
+    }
     let values: Vec<f64> = result.parameters.iter().map(|p| p.value).collect();
     let magnetics = model.magnetics(&values);
     let operating_points = [[0.0, 0.0], [0.0, 0.5 * i_q_max], [0.0, i_q_max], [i_d_min, i_q_max]]
@@ -96,6 +107,44 @@ pub fn fit_saturated(
         .map(|i| magnetics.inductances(i))
         .collect::<Result<Vec<_>>>()?;
     Ok(SaturatedFit { linear: linear.report, fit: result, model: magnetics, substeps, operating_points })
+}
+
+/// The mean of the outputs' squared rms residuals \[A²\].
+fn mean_square(r: &FitResult) -> f64 {
+    let rms = &r.fit.rms_residual;
+    rms.iter().map(|x| x * x).sum::<f64>() / rms.len().max(1) as f64
+}
+
+/// Relative excess of the saturated fit's mean-square residual over the linear fit's above
+/// which the saturated fit (which nests the linear model) is a local minimum: 1 %.
+pub const LOCAL_MINIMUM_EXCESS: f64 = 0.01;
+
+/// Whether `saturated` fits at least as well as `linear` (within [`LOCAL_MINIMUM_EXCESS`]).
+fn below_linear(saturated: &FitResult, linear: &FitResult) -> bool {
+    mean_square(saturated) <= (1.0 + LOCAL_MINIMUM_EXCESS) * mean_square(linear)
+}
+
+impl SaturatedFit {
+    /// Whether the saturated fit is to be trusted: its own gate passed
+    /// ([`FitResult::trusted`]) and its residual is no larger than the linear fit's (which
+    /// it nests; a larger one is a local minimum).
+    pub fn trusted(&self) -> bool {
+        self.fit.trusted() && below_linear(&self.fit, &self.linear)
+    }
+
+    /// Why the fit is not to be trusted: the gate's warning codes, `local_minimum`; empty
+    /// when trusted.
+    pub fn untrusted_reasons(&self) -> Vec<String> {
+        let mut out: Vec<String> =
+            self.fit.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.clone()).collect();
+        if !self.fit.solver.success && !out.iter().any(|c| c == "not_converged") {
+            out.push("not_converged".into());
+        }
+        if !below_linear(&self.fit, &self.linear) {
+            out.push("local_minimum".into());
+        }
+        out
+    }
 }
 
 impl std::fmt::Display for SaturatedFit {
@@ -120,6 +169,23 @@ impl std::fmt::Display for SaturatedFit {
         )?;
         let verdict = if self.fit.solver.success { "converged" } else { "did NOT converge" };
         writeln!(f, "saturated fit {verdict}: {} iterations", self.fit.solver.iterations)?;
+        if !below_linear(&self.fit, &self.linear) {
+            writeln!(
+                f,
+                "the saturated fit's residual exceeds the linear fit's, which it contains: a local minimum, not to be \
+                 trusted (try other exponents)"
+            )?;
+        }
+        let zero: Vec<&str> =
+            self.fit.parameters.iter().filter(|p| p.at_bound).map(|p| p.name.as_str()).collect();
+        if !zero.is_empty() {
+            writeln!(
+                f,
+                "{} at zero: the logs show no saturation of that kind (or too little current to see it); where all \
+                 are, the linear fit describes the logs",
+                zero.join(", ")
+            )?;
+        }
         f.write_str(&inductance_table(&self.operating_points))
     }
 }

@@ -24,6 +24,13 @@ pub(super) fn build(
     let mut theta_m = if phases { main.get(6).cloned() } else { next() };
     let mut u_d_ref = next();
     let mut u_q_ref = next();
+    let extra: Vec<(String, Vec<f64>)> = options
+        .columns
+        .extra
+        .iter()
+        .zip(cols.by_ref())
+        .filter_map(|(name, c)| c.map(|c| (name.clone(), c)))
+        .collect();
 
     let frame = match options.speed_frame {
         Frame::Mechanical => 1.0,
@@ -91,7 +98,9 @@ pub(super) fn build(
         }
     };
     let signals = DqSignals { u_d, u_q, i_d, i_q, w_m, theta_m, u_d_ref, u_q_ref };
-    let e = Experiment::try_from_time(name, "t", &t, signals.into_channels())?;
+    let mut channels = signals.into_channels();
+    channels.extend(extra.into_iter().map(|(name, c)| crate::data::Channel::new(&name, "", c)));
+    let e = Experiment::try_from_time(name, "t", &t, channels)?;
     DqView::try_new(&e)?;
     Ok(e)
 }

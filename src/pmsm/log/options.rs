@@ -45,6 +45,11 @@ pub struct ColumnNames {
     /// Phase-c to neutral voltage, period mean (required for [`DqSource::Phases`]).
     /// Default `uc`.
     pub u_c: String,
+    /// Further columns carried through unscaled as channels under their header names, when
+    /// present (absent ones are skipped): e.g. a winding temperature `t_winding` \[°C\] for
+    /// the standstill fit. Default none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub extra: Vec<String>,
 }
 
 impl Default for ColumnNames {
@@ -66,6 +71,7 @@ impl Default for ColumnNames {
             u_a: s("ua"),
             u_b: s("ub"),
             u_c: s("uc"),
+            extra: Vec::new(),
         }
     }
 }

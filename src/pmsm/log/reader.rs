@@ -199,6 +199,8 @@ impl Raw {
             wanted.push((&c.theta_m, false));
         }
         wanted.extend([(c.u_d_ref.as_str(), false), (c.u_q_ref.as_str(), false)]);
+        let n_extra = c.extra.len();
+        wanted.extend(c.extra.iter().map(|x| (x.as_str(), false)));
         let mut table = match source.table(&wanted, options, time) {
             Err(Error::TooShort { name, len, .. }) => {
                 return Err(Error::TooShort { name, len, min: MIN_SAMPLES });
@@ -219,7 +221,7 @@ impl Raw {
         };
         if dq {
             let has = |i: usize| table.columns[i].is_some();
-            let n = table.columns.len();
+            let n = table.columns.len() - n_extra;
             let (terminal, reference) = (has(1) && has(2), has(n - 2) && has(n - 1));
             if !terminal && (!reference || has(1) || has(2)) {
                 let missing = if has(1) { &c.u_q } else { &c.u_d };

@@ -17,4 +17,5 @@ pub(super) mod saturated;
 pub(super) mod saturation;
 pub(super) mod setup;
 pub(super) mod spm;
+pub(super) mod standstill;
 pub(super) mod temperature;
