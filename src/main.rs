@@ -56,6 +56,8 @@ enum Command {
     Saturation(Box<cli::saturation::SaturationArgs>),
     /// Fit R_s, the inductances and the inverter's voltage error to locked-rotor logs (the firmware's power-up test); the injection length for R_s to ±1 %.
     Standstill(Box<cli::standstill::StandstillArgs>),
+    /// Fit inertia, viscous and Coulomb friction, gravity and a constant load to the speed and angle of drive logs, driven by the fitted electrical model's torque; friction per log.
+    Mechanics(Box<cli::mechanics::MechanicsArgs>),
     /// Print a shell completion script on stdout, e.g. `greybox completions bash > /etc/bash_completion.d/greybox`
     /// or `greybox completions zsh > ~/.zfunc/_greybox`.
     Completions {
@@ -84,6 +86,7 @@ fn main() -> ExitCode {
         Command::Fluxmap(a) => cli::fluxmap::run_fluxmap(a).map(|()| 0),
         Command::Saturation(a) => cli::saturation::run_saturation(a).map(code),
         Command::Standstill(a) => cli::standstill::run_standstill(a).map(code),
+        Command::Mechanics(a) => cli::mechanics::run_mechanics(a).map(code),
         Command::Completions { shell } => {
             // Into a buffer first: clap_complete panics when stdout is closed early (`| head`).
             let mut script = Vec::new();
@@ -107,6 +110,7 @@ fn main() -> ExitCode {
             Command::Fluxmap(_) => "fluxmap",
             Command::Saturation(_) => "saturation",
             Command::Standstill(_) => "standstill",
+            Command::Mechanics(_) => "mechanics",
             Command::Completions { .. } => "completions",
         };
         match command.find_subcommand(name) {

@@ -12,6 +12,7 @@ pub mod fit;
 pub mod fitted;
 pub mod fluxmap;
 pub mod logs;
+pub mod mechanics;
 pub mod output;
 pub mod plots;
 pub mod saturation;

@@ -62,7 +62,7 @@ pub fn run_standstill(a: &StandstillArgs) -> crate::Result<bool> {
         .read_logs(&a.logs, &csv, false)?
         .into_iter()
         .flatten()
-        .map(|e| rename_temperature(e, &a.col_temperature))
+        .map(|e| renamed_channel(e, &a.col_temperature, WINDING_TEMPERATURE, "°C"))
         .collect::<crate::Result<_>>()?;
     let options = StandstillOptions {
         pole_pairs: a.pole_pairs,
@@ -81,11 +81,20 @@ pub fn run_standstill(a: &StandstillArgs) -> crate::Result<bool> {
     Ok(trusted)
 }
 
-/// The log with its temperature column (if any) under the name the fit reads.
-fn rename_temperature(e: crate::data::Experiment, column: &str) -> crate::Result<crate::data::Experiment> {
+/// The log with its column `column` (if any) also under `name` \[`unit`\], the name the fit
+/// reads.
+///
+/// # Errors
+/// Those of [`crate::data::Experiment::with_channel`].
+pub(super) fn renamed_channel(
+    e: crate::data::Experiment,
+    column: &str,
+    name: &str,
+    unit: &str,
+) -> crate::Result<crate::data::Experiment> {
     match e.get(column) {
-        Some(c) if column != WINDING_TEMPERATURE => {
-            let channel = crate::data::Channel::new(WINDING_TEMPERATURE, "°C", c.values.as_slice().to_vec());
+        Some(c) if column != name => {
+            let channel = crate::data::Channel::new(name, unit, c.values.as_slice().to_vec());
             e.with_channel(channel)
         }
         _ => Ok(e),

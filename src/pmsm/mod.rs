@@ -41,8 +41,11 @@ pub use fit::input_search::{ADVANCE_RANGE, DELAYS, InputSearch, SPEED_PLL_RANGE,
 pub use fit::iv::{
     Estimator, IV_MAX_ITERATIONS, IV_STEP_TOLERANCE, check_options as check_iv_options, fit_pmsm_iv,
 };
+pub use fit::mechanics::{
+    LOAD_TORQUE, MIN_WINDOWS, MechanicsFit, MechanicsOptions, fit_mechanics, mechanics_windows,
+};
 pub use fit::pole_pairs::{AUTO_CANDIDATES, AutoPolePairs, choose_pole_pairs_by_fit};
-pub use fit::report::{PmsmFit, ReportOptions, StartComparison, conventions};
+pub use fit::report::{PmsmFit, ReportOptions, StartComparison, conventions, estimate_table};
 pub use fit::saturated::{LOCAL_MINIMUM_EXCESS, SaturatedFit, fit_saturated};
 pub use fit::standstill::{STANDSTILL_T0, StandstillFit, StandstillOptions, UNEXCITED_AXIS, fit_standstill};
 pub use fit::validate::SavedModel;
@@ -74,6 +77,7 @@ pub use model::inverter::{DEFAULT_RELATIVE_WIDTH, InverterModel, dead_time_direc
 pub use model::ipm::PmsmIpm;
 pub use model::kind::{MotorKind, derived};
 pub use model::mask::{DeadTimeMask, DeadTimeMaskWeighting};
+pub use model::mechanics::{MECHANICS_CHANNELS, MechanicsInputs, MechanicsModel, MechanicsTerms};
 pub use model::plant::{ExactPlant, MotorParameters, StepDerivatives};
 pub use model::saturated::{
     PmsmSaturated, SATURATED_SUBSTEP_RHO, SaturatedCoefficients, saturated_step, saturated_substeps,

@@ -31,6 +31,7 @@ mod kept_sums;
 mod last_pass;
 mod limits;
 mod linear;
+mod mechanics;
 mod mgh;
 mod mgh_problems;
 mod multi_experiment;

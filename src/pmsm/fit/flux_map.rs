@@ -5,6 +5,7 @@
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::{FitResult, PemOptions, fit};
+use crate::pmsm::fit::report::estimate_table;
 use crate::pmsm::model::flux_map::FluxMapModel;
 use crate::pmsm::model::saturation::{Inductances, Saturation, SaturationExponents};
 use nalgebra::{DMatrix, DVector};
@@ -236,7 +237,7 @@ impl std::fmt::Display for FluxMapFit {
             "Saturation model (Hinkkanen et al. 2017, PM as a d-axis MMF), exponents S = {}, T = {}, U = {}, V = {}",
             e.s, e.t, e.u, e.v
         )?;
-        write!(f, "\n{}", estimate_lines(&self.fit))?;
+        write!(f, "\n{}", estimate_table(&self.fit))?;
         writeln!(
             f,
             "\nrms flux residual {:.3e} V s = {:.3} % of the map's range {:.4} V s; largest {:.3e} V s at i = ({:.1}, {:.1}) A",
@@ -305,24 +306,6 @@ pub(super) fn inductance_table(points: &[Inductances]) -> String {
             1e3 * p.l_qq,
             1e3 * p.l_dq
         );
-    }
-    t
-}
-
-/// One line per estimate: name, value, standard error, 95 % interval (or "at bound"), unit.
-pub(super) fn estimate_lines(result: &FitResult) -> String {
-    let mut t = format!("{:<8} {:>14} {:>12} {:>30}\n", "", "value", "std error", "95 % interval");
-    for p in &result.parameters {
-        let interval = if p.at_bound {
-            "at its bound".to_string()
-        } else {
-            format!("[{:.6e}, {:.6e}]", p.ci95[0], p.ci95[1])
-        };
-        let se = if p.at_bound { "-".to_string() } else { format!("{:.3e}", p.std_error) };
-        t += &format!("{:<8} {:>14.6e} {:>12}   {interval}  {}\n", p.name, p.value, se, p.unit);
-    }
-    for d in &result.derived {
-        t += &format!("{:<8} {:>14.6e} {:>12.3e}   {}\n", d.name, d.value, d.std_error, d.unit);
     }
     t
 }

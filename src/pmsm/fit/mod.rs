@@ -10,6 +10,7 @@ pub(super) mod hold;
 mod holds;
 pub(super) mod input_search;
 pub(super) mod iv;
+pub(super) mod mechanics;
 pub(super) mod pole_pairs;
 pub(super) mod report;
 pub(super) mod saturated;

@@ -213,3 +213,23 @@ pub(crate) fn delay_parameter(
         start: d,
     })
 }
+
+/// The estimates of a fit as text, one line per estimate: name, value, standard error, 95 % interval (or "at bound"), unit,
+/// and the log of a per-log estimate.
+pub fn estimate_table(result: &FitResult) -> String {
+    let mut t = format!("{:<8} {:>14} {:>12} {:>30}\n", "", "value", "std error", "95 % interval");
+    for p in &result.parameters {
+        let interval = if p.at_bound {
+            "at its bound".to_string()
+        } else {
+            format!("[{:.6e}, {:.6e}]", p.ci95[0], p.ci95[1])
+        };
+        let se = if p.at_bound { "-".to_string() } else { format!("{:.3e}", p.std_error) };
+        let log = p.experiment.as_ref().map_or(String::new(), |e| format!("  (log {e})"));
+        t += &format!("{:<8} {:>14.6e} {:>12}   {interval}  {}{log}\n", p.name, p.value, se, p.unit);
+    }
+    for d in &result.derived {
+        t += &format!("{:<8} {:>14.6e} {:>12.3e}   {}\n", d.name, d.value, d.std_error, d.unit);
+    }
+    t
+}

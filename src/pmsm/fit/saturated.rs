@@ -5,8 +5,9 @@
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::{FitResult, fit};
-use crate::pmsm::fit::flux_map::{estimate_lines, inductance_table};
+use crate::pmsm::fit::flux_map::inductance_table;
 use crate::pmsm::fit::report::PmsmFit;
+use crate::pmsm::fit::report::estimate_table;
 use crate::pmsm::fit::workflow::fit_pmsm;
 use crate::pmsm::model::interval::SQRT_2_3;
 use crate::pmsm::model::kind::MotorKind;
@@ -151,13 +152,13 @@ impl std::fmt::Display for SaturatedFit {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let e = self.model.exponents;
         writeln!(f, "Magnetically linear IPM fit (the start):")?;
-        write!(f, "{}", estimate_lines(&self.linear))?;
+        write!(f, "{}", estimate_table(&self.linear))?;
         writeln!(
             f,
             "\nSaturated IPM fit (Hinkkanen et al. 2017, exponents S = {}, T = {}, U = {}, V = {}; RK4, {} substeps per period):",
             e.s, e.t, e.u, e.v, self.substeps
         )?;
-        write!(f, "{}", estimate_lines(&self.fit))?;
+        write!(f, "{}", estimate_table(&self.fit))?;
         let rms = |r: &FitResult| {
             r.fit.rms_residual.iter().map(|x| format!("{x:.4e}")).collect::<Vec<_>>().join(", ")
         };

@@ -5,7 +5,7 @@
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::{FitResult, PemOptions, fit};
-use crate::pmsm::fit::flux_map::estimate_lines;
+use crate::pmsm::fit::report::estimate_table;
 use crate::pmsm::model::inverter::DEFAULT_RELATIVE_WIDTH;
 use crate::pmsm::model::standstill::{StandstillModel, StandstillSetup, WINDING_TEMPERATURE};
 use crate::pmsm::model::temperature::ALPHA_COPPER;
@@ -192,7 +192,7 @@ impl std::fmt::Display for StandstillFit {
             self.duration,
             self.t0.map_or(String::new(), |t| format!("; r_s at {t} °C from the winding temperature"))
         )?;
-        write!(f, "{}", estimate_lines(&self.fit))?;
+        write!(f, "{}", estimate_table(&self.fit))?;
         let rms: Vec<String> = self.fit.fit.rms_residual.iter().map(|x| format!("{x:.4e}")).collect();
         writeln!(f, "\nrms current residual [A]: {}", rms.join(", "))?;
         if self.fit.parameter("v_dt").is_some() {

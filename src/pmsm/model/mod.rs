@@ -11,6 +11,7 @@ pub(super) mod inverter;
 pub(super) mod ipm;
 pub(super) mod kind;
 pub(super) mod mask;
+pub(super) mod mechanics;
 mod metadata;
 pub(super) mod plant;
 pub(super) mod saturated;

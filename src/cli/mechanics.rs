@@ -1,0 +1,148 @@
+//! `greybox mechanics`: inertia, viscous and Coulomb friction, gravity and a constant load
+//! from the speed and angle of drive logs, driven by the torque of the electrical model
+//! fitted to the same logs (or of a given `K_t`), with the friction per log for a trend
+//! (issue 33).
+
+use super::columns::ColumnArgs;
+use super::output;
+use crate::data::Experiment;
+use crate::estimate::FitResult;
+use crate::pmsm::{
+    CsvOptions, LOAD_TORQUE, MechanicsFit, MechanicsOptions, MechanicsTerms, MotorParameters, PmsmFitOptions,
+    SQRT_2_3, fit_mechanics, fit_pmsm,
+};
+use clap::Args;
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// Arguments of `greybox mechanics`.
+#[derive(Args, Debug)]
+#[command(
+    after_help = "The logs are read as by `greybox fit`; without --k-t the electrical model is fitted to them \
+first (jointly) and its torque 1.5 n_p (ψ_f i_q + (L_d − L_q) i_d i_q) drives the shaft. A load-torque column \
+(--col-load) is subtracted when every log has it. The intervals take the torque model as exact. See \
+docs/mechanics.md."
+)]
+pub struct MechanicsArgs {
+    /// Drive logs (CSV, plain or gzip; Parquet, Arrow IPC), fitted jointly.
+    #[arg(required = true)]
+    pub logs: Vec<PathBuf>,
+    /// Number of pole pairs n_p of the motor.
+    #[arg(long, short = 'p')]
+    pub pole_pairs: u32,
+    /// A known torque constant K_t [N m/A, peak dq current] instead of the electrical fit.
+    #[arg(long, value_name = "N m/A")]
+    pub k_t: Option<f64>,
+    /// A gravity load m g l sin θ_m (angle 0 hanging down).
+    #[arg(long)]
+    pub gravity: bool,
+    /// A constant load torque t_0.
+    #[arg(long)]
+    pub constant_load: bool,
+    /// Viscous and Coulomb friction per log (inertia and loads shared): the friction trend.
+    #[arg(long)]
+    pub per_log: bool,
+    /// Window length [s].
+    #[arg(long, default_value_t = 0.01, value_name = "S")]
+    pub window: f64,
+    /// Speed [rad/s] over which the Coulomb friction changes sign.
+    #[arg(long, default_value_t = 1.0, value_name = "RAD/S")]
+    pub coulomb_speed: f64,
+    /// Column of a load torque [N m], used when every log has it.
+    #[arg(long, default_value = LOAD_TORQUE, value_name = "NAME")]
+    pub col_load: String,
+    /// Write the fit as JSON ("-" for stdout).
+    #[arg(long, value_name = "PATH.json")]
+    pub json: Option<PathBuf>,
+    /// Print nothing on stdout but the JSON (if it goes there).
+    #[arg(long, short)]
+    pub quiet: bool,
+    /// Log columns and units (as `greybox fit`).
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+}
+
+/// The joint electrical and mechanical report.
+#[derive(Serialize)]
+struct Joint<'a> {
+    /// The electrical fit that gave the torque model (none with `--k-t`).
+    electrical: Option<&'a FitResult>,
+    /// The torque model.
+    motor: MotorParameters,
+    /// The mechanical fit.
+    mechanics: &'a MechanicsFit,
+}
+
+/// Runs `greybox mechanics`; whether both fits are trusted.
+///
+/// # Errors
+/// Unreadable logs, a bad `--k-t`, window or ω_c, a failed fit, an output that cannot be
+/// written (nothing is written then).
+pub fn run_mechanics(a: &MechanicsArgs) -> crate::Result<bool> {
+    super::logs::check_paths(&a.logs)?;
+    output::check_all(&[("--json", a.json.as_deref())], &a.logs)?;
+    let mut csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
+    csv.columns.extra = vec![a.col_load.clone()];
+    let logs: Vec<Experiment> = a
+        .columns
+        .read_logs(&a.logs, &csv, false)?
+        .into_iter()
+        .flatten()
+        .map(|e| super::standstill::renamed_channel(e, &a.col_load, LOAD_TORQUE, "N m"))
+        .collect::<crate::Result<_>>()?;
+    let n_p = a.pole_pairs;
+    let (electrical, motor) = match a.k_t {
+        Some(k_t) if k_t.is_finite() && k_t != 0.0 => {
+            (None, MotorParameters { r_s: 0.0, l_d: 0.0, l_q: 0.0, psi_f: k_t / (1.5 * f64::from(n_p)), n_p })
+        }
+        Some(k_t) => {
+            return Err(crate::Error::InvalidOption {
+                option: "--k-t".into(),
+                reason: format!("{k_t}: K_t must be finite and non-zero"),
+            });
+        }
+        None => {
+            let fit = fit_pmsm(&logs, &PmsmFitOptions::new(n_p))?.report;
+            let motor = motor_of(&fit, n_p);
+            (Some(fit), motor)
+        }
+    };
+    let options = MechanicsOptions {
+        window: a.window,
+        coulomb_speed: a.coulomb_speed,
+        terms: MechanicsTerms { gravity: a.gravity, constant: a.constant_load },
+        per_log_friction: a.per_log,
+        ..MechanicsOptions::new(motor)
+    };
+    let mechanics = fit_mechanics(&logs, &options)?;
+    let mut text = String::new();
+    if let Some(e) = &electrical {
+        text += &format!("Electrical fit (the torque model):\n{}\n", crate::pmsm::estimate_table(e));
+    }
+    text += &mechanics.to_string();
+    output::text_and_json(
+        &text,
+        &Joint { electrical: electrical.as_ref(), motor, mechanics: &mechanics },
+        a.json.as_deref(),
+        a.quiet,
+    )?;
+    let trusted = mechanics.fit.trusted() && electrical.as_ref().is_none_or(FitResult::trusted);
+    if !trusted {
+        eprintln!("warning: the fit is not to be trusted (see the report); exit code 3");
+    }
+    Ok(trusted)
+}
+
+/// The torque model of an electrical fit: `ψ_f = K_e √(2/3) / n_p` (MODEL.md §1), the
+/// inductances `l_d, l_q` (or `l_s` for both).
+fn motor_of(fit: &FitResult, n_p: u32) -> MotorParameters {
+    let value = |name: &str| fit.parameter(name).map(|p| p.value);
+    let l_s = value("l_s").unwrap_or(0.0);
+    MotorParameters {
+        r_s: value("r_s").unwrap_or(0.0),
+        l_d: value("l_d").unwrap_or(l_s),
+        l_q: value("l_q").unwrap_or(l_s),
+        psi_f: value("k_e").unwrap_or(f64::NAN) * SQRT_2_3 / f64::from(n_p),
+        n_p,
+    }
+}

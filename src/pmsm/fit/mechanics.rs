@@ -1,0 +1,237 @@
+//! The mechanical fit: drive logs cut into windows ([`mechanics_windows`]), the torque from
+//! the electrical model, and [`MechanicsModel`] fitted to all logs jointly, optionally with
+//! the friction per log (its trend is how a gearbox announces wear).
+
+use crate::data::{Channel, Experiment};
+use crate::error::{Error, Result};
+use crate::estimate::{FitResult, PemOptions, fit};
+use crate::pmsm::fit::report::estimate_table;
+use crate::pmsm::model::mechanics::{MECHANICS_CHANNELS, MechanicsModel, MechanicsTerms};
+use crate::pmsm::model::plant::MotorParameters;
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+/// Name of the load-torque channel \[N m\] a log may carry (subtracted when present in every
+/// log).
+pub const LOAD_TORQUE: &str = "t_load";
+
+/// Fewest windows a log must give.
+pub const MIN_WINDOWS: usize = 16;
+
+/// Options of [`fit_mechanics`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MechanicsOptions {
+    /// The electrical model whose torque `T_e = 1.5 n_p (ψ_f i_q + (L_d − L_q) i_d i_q)`
+    /// drives the shaft (from an electrical fit, or `ψ_f = K_t / (1.5 n_p)` with
+    /// `L_d = L_q` for a given `K_t`). `r_s` is not used.
+    pub motor: MotorParameters,
+    /// Window length \[s\] (rounded to whole samples, at least one).
+    pub window: f64,
+    /// Speed ω_c \[rad/s\] over which the Coulomb friction changes sign (`tanh(ω/ω_c)`).
+    pub coulomb_speed: f64,
+    /// Gravity and constant-load terms.
+    pub terms: MechanicsTerms,
+    /// The viscous and Coulomb friction (`b`, `t_c`) estimated per log; inertia and the
+    /// loads shared.
+    pub per_log_friction: bool,
+    /// The prediction-error options (`per_experiment` is set by `per_log_friction`).
+    pub pem: PemOptions,
+}
+
+impl MechanicsOptions {
+    /// Defaults for `motor`: 10 ms windows, ω_c = 1 rad/s, no gravity or constant load,
+    /// shared friction.
+    pub fn new(motor: MotorParameters) -> Self {
+        Self {
+            motor,
+            window: 0.01,
+            coulomb_speed: 1.0,
+            terms: MechanicsTerms::default(),
+            per_log_friction: false,
+            pem: PemOptions::default(),
+        }
+    }
+}
+
+/// A mechanical fit.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct MechanicsFit {
+    /// The fit (`j`, `b`, `t_c`, then `mgl`, `t_0`; `b` and `t_c` per log with
+    /// `per_log_friction`).
+    pub fit: FitResult,
+    /// Windows fitted (all logs).
+    pub windows: usize,
+    /// Window length \[s\].
+    pub window: f64,
+    /// `K_t` of the torque model \[N m/A\].
+    pub k_t: f64,
+    /// ω_c \[rad/s\].
+    pub coulomb_speed: f64,
+    /// Whether a load-torque channel was subtracted.
+    pub load_channel: bool,
+}
+
+/// The window experiment of drive log `e` (channels `id, iq` \[A\], `w_m` \[rad/s\], and
+/// `theta_m` \[rad\] with a gravity term; [`LOAD_TORQUE`] \[N m\] when `load`): windows of
+/// `m = round(window/h)` periods starting every `m + 1` samples (no shared ends), per
+/// window `Δω = ω[k+m] − ω[k]` and the integrals of [`MECHANICS_CHANNELS`] (the torque held
+/// over each period as the drive applies it: `h Σ T_e[k]`; the others by the trapezoid
+/// rule). Its sample time is the window start spacing `(m + 1) h`; `x_1` holds `m h`.
+///
+/// # Errors
+/// [`Error::MissingChannel`] naming a channel; [`Error::InvalidOption`] (`window`) for a
+/// window that is not positive or leaves fewer than [`MIN_WINDOWS`] windows.
+pub fn mechanics_windows(e: &Experiment, options: &MechanicsOptions, load: bool) -> Result<Experiment> {
+    let h = e.h();
+    if !(options.window.is_finite() && options.window > 0.0) {
+        return Err(Error::InvalidOption {
+            option: "window".into(),
+            reason: format!("{} s: the window must be positive", options.window),
+        });
+    }
+    let m = ((options.window / h).round() as usize).max(1);
+    // Windows `[a, a + m]` start every `m + 1` samples: no two share an end, so the speed
+    // noise at the ends leaves the windows' residuals independent (white).
+    let n_windows = e.len() / (m + 1);
+    if n_windows < MIN_WINDOWS {
+        return Err(Error::InvalidOption {
+            option: "window".into(),
+            reason: format!(
+                "{}: {} windows of {m} samples; at least {MIN_WINDOWS} are needed: a shorter window",
+                e.name(),
+                n_windows
+            ),
+        });
+    }
+    let (i_d, i_q, w) = (e.channel("id")?, e.channel("iq")?, e.channel("w_m")?);
+    let zero = vec![0.0; e.len()];
+    let theta = if options.terms.gravity { e.channel("theta_m")? } else { &zero };
+    let t_l = if load { e.channel(LOAD_TORQUE)? } else { &zero };
+    let w_c = options.coulomb_speed;
+    let trapezoid =
+        |f: &dyn Fn(usize) -> f64, a: usize| h * (a..a + m).map(|k| 0.5 * (f(k) + f(k + 1))).sum::<f64>();
+    let mut cols: [Vec<f64>; 7] = Default::default();
+    for j in 0..n_windows {
+        let a = j * (m + 1);
+        let row = [
+            w[a + m] - w[a],
+            h * (a..a + m).map(|k| options.motor.torque(i_d[k], i_q[k])).sum::<f64>(),
+            trapezoid(&|k| w[k], a),
+            trapezoid(&|k| (w[k] / w_c).tanh(), a),
+            trapezoid(&|k| theta[k].sin(), a),
+            m as f64 * h,
+            trapezoid(&|k| t_l[k], a),
+        ];
+        for (c, v) in cols.iter_mut().zip(row) {
+            c.push(v);
+        }
+    }
+    let units = ["rad/s", "N m s", "rad", "s", "s", "s", "N m s"];
+    let channels = MECHANICS_CHANNELS
+        .into_iter()
+        .zip(units)
+        .zip(cols)
+        .map(|((n, u), c)| Channel::new(n, u, c))
+        .collect();
+    Experiment::try_new(e.name(), (m + 1) as f64 * h, channels)
+}
+
+/// Fits the mechanics to drive logs (jointly): [`mechanics_windows`] of each, a linear
+/// least-squares start (the model is linear in `1/J, B/J, T_c/J, …`), then the
+/// prediction-error fit of [`MechanicsModel`]. The standard errors are those of
+/// [`fit`] (batch means when the windows' residuals are not white); they are conditional on
+/// the torque model: a relative error of `K_t` scales `J`, `B`, `T_c` and the loads alike.
+///
+/// # Errors
+/// Those of [`mechanics_windows`] and [`fit`]; [`Error::InvalidOption`] (`coulomb_speed`)
+/// for a ω_c that is not positive.
+pub fn fit_mechanics(experiments: &[Experiment], options: &MechanicsOptions) -> Result<MechanicsFit> {
+    if !(options.coulomb_speed.is_finite() && options.coulomb_speed > 0.0) {
+        return Err(Error::InvalidOption {
+            option: "coulomb_speed".into(),
+            reason: format!("{} rad/s must be positive", options.coulomb_speed),
+        });
+    }
+    let load = !experiments.is_empty() && experiments.iter().all(|e| e.get(LOAD_TORQUE).is_some());
+    let windows =
+        experiments.iter().map(|e| mechanics_windows(e, options, load)).collect::<Result<Vec<_>>>()?;
+    let start = least_squares_start(&windows, options.terms)?;
+    let mut nominal = [start[0], start[1], start[2], 1.0, 1.0];
+    for (j, v) in start.iter().enumerate().skip(3) {
+        nominal[if j == 3 && options.terms.gravity { 3 } else { 4 }] = *v;
+    }
+    let model = MechanicsModel::new(options.terms, nominal);
+    let mut pem = options.pem.clone();
+    if options.per_log_friction && experiments.len() > 1 {
+        pem.per_experiment = vec!["b".into(), "t_c".into()];
+    }
+    let result = fit(&model, &windows, &start, &pem)?;
+    Ok(MechanicsFit {
+        fit: result,
+        windows: windows.iter().map(Experiment::len).sum(),
+        window: windows.first().map_or(options.window, |w| w.channel("x_1").map_or(f64::NAN, |x| x[0])),
+        k_t: options.motor.k_t(),
+        coulomb_speed: options.coulomb_speed,
+        load_channel: load,
+    })
+}
+
+/// `[j, b, t_c, (mgl), (t_0)]` from the least squares of `Δω = c_T X_T − Σ c_i X_i`
+/// (`c_T = 1/J`, `c_i = p_i/J`) over all windows, solved by SVD.
+fn least_squares_start(windows: &[Experiment], terms: MechanicsTerms) -> Result<Vec<f64>> {
+    let mut cols = vec![1, 2, 3];
+    if terms.gravity {
+        cols.push(4);
+    }
+    if terms.constant {
+        cols.push(5);
+    }
+    let (mut rows, mut rhs) = (Vec::new(), Vec::new());
+    for e in windows {
+        let ch: Vec<&[f64]> = MECHANICS_CHANNELS.iter().map(|c| e.channel(c)).collect::<Result<_>>()?;
+        rows.extend((0..e.len()).map(|k| {
+            let mut row = vec![ch[1][k] - ch[6][k]];
+            row.extend(cols[1..].iter().map(|&c| -ch[c][k]));
+            row
+        }));
+        rhs.extend_from_slice(ch[0]);
+    }
+    let x = DMatrix::from_fn(rows.len(), cols.len(), |r, c| rows[r][c]);
+    let c = x.svd(true, true).solve(&DVector::from_vec(rhs), 1e-14).map_err(|m| Error::Numerical {
+        context: "mechanics start (least squares)".into(),
+        reason: m.into(),
+    })?;
+    let j = 1.0 / c[0];
+    if !(j > 0.0 && j.is_finite()) {
+        return Err(Error::Numerical {
+            context: "mechanics start (least squares)".into(),
+            reason: format!(
+                "the inertia comes out {j:e} kg m^2: the speed does not follow the torque (check the torque \
+                 model's K_t and sign, the speed column and its unit)"
+            ),
+        });
+    }
+    Ok(std::iter::once(j).chain(c.iter().skip(1).map(|v| v * j)).collect())
+}
+
+impl std::fmt::Display for MechanicsFit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "Mechanics (J dω/dt = T_e − B ω − T_c tanh(ω/{:.3} rad/s) − m g l sin θ − T_0{}; K_t {:.6} N m/A; {} \
+             windows of {:.4} s):",
+            self.coulomb_speed,
+            if self.load_channel { " − T_L (logged)" } else { "" },
+            self.k_t,
+            self.windows,
+            self.window
+        )?;
+        write!(f, "{}", estimate_table(&self.fit))?;
+        writeln!(
+            f,
+            "the intervals take K_t as exact: its relative error scales every parameter above alike"
+        )?;
+        let verdict = if self.fit.trusted() { "trusted" } else { "NOT to be trusted" };
+        writeln!(f, "fit {verdict}")
+    }
+}

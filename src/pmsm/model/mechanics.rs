@@ -1,0 +1,205 @@
+//! The mechanics behind the shaft as a static regression through the generic trait: the
+//! speed change over a window predicted from the integrals of the torques acting in it
+//! ([`MechanicsModel`]).
+//!
+//! `J dω_m/dt = T_e − B ω_m − T_c tanh(ω_m/ω_c) − m g l sin θ_m − T_0 − T_L(t)` integrated
+//! over a window `[t_a, t_b]`:
+//! `J (ω_m(t_b) − ω_m(t_a)) = X_T − B X_ω − T_c X_c − m g l X_g − T_0 X_1 − X_L`, with
+//! `X_T = ∫T_e`, `X_ω = ∫ω_m`, `X_c = ∫tanh(ω_m/ω_c)`, `X_g = ∫sin θ_m`, `X_1 = t_b − t_a`,
+//! `X_L = ∫T_L`. Integrating instead of differentiating keeps the speed noise out of the
+//! regressors (it enters only the two ends of `Δω`), which is why the windows, not the
+//! samples, are the observations (the integral method of system identification: Young,
+//! *Recursive Estimation and Time-Series Analysis*, 2nd ed. 2011, ch. 8; Gawthrop,
+//! "Continuous-time identification", in Garnier & Wang (eds.) 2008).
+
+use crate::data::{Experiment, Values};
+use crate::error::Result;
+use crate::model::{DerivedEstimate, GreyBoxModel, Parameter, Sensitivities, Signal};
+
+/// Channels of a window experiment: the output `dw` \[rad/s\], then the regressors `x_t`
+/// \[N m s\], `x_w` \[rad\], `x_c` \[s\], `x_g` \[s\], `x_1` \[s\], `x_l` \[N m s\].
+pub const MECHANICS_CHANNELS: [&str; 7] = ["dw", "x_t", "x_w", "x_c", "x_g", "x_1", "x_l"];
+
+/// Which torques the mechanical model has besides inertia, viscous and Coulomb friction.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct MechanicsTerms {
+    /// A gravity load `m g l sin θ_m` (parameter `mgl` \[N m\]; an arm whose angle is 0
+    /// hanging down).
+    pub gravity: bool,
+    /// A constant load torque (parameter `t_0` \[N m\]; a vertical axis' weight, a constant
+    /// process force).
+    pub constant: bool,
+}
+
+/// The window model: `Δω = (X_T − X_L − b X_ω − t_c X_c − mgl X_g − t_0 X_1) / j` per
+/// window, parameters `j` \[kg m²\], `b` \[N m s/rad\], `t_c` \[N m\], then `mgl` \[N m\] and
+/// `t_0` \[N m\] as [`MechanicsTerms`] asks. Linear in all but `j`; exact sensitivities.
+#[derive(Clone, Debug)]
+pub struct MechanicsModel {
+    terms: MechanicsTerms,
+    params: Vec<Parameter>,
+}
+
+impl MechanicsModel {
+    /// The model with `terms`; `nominal` = `[j, b, t_c, mgl, t_0]` sets the parameters' scales
+    /// (non-zero magnitudes).
+    pub fn new(terms: MechanicsTerms, nominal: [f64; 5]) -> Self {
+        let scale = |x: f64| if x.abs() > 0.0 && x.is_finite() { x.abs() } else { 1.0 };
+        let mut params = vec![
+            Parameter::positive("j", "kg m^2", scale(nominal[0])),
+            Parameter::free("b", "N m s/rad", scale(nominal[1])),
+            Parameter::free("t_c", "N m", scale(nominal[2])),
+        ];
+        if terms.gravity {
+            params.push(Parameter::free("mgl", "N m", scale(nominal[3])));
+        }
+        if terms.constant {
+            params.push(Parameter::free("t_0", "N m", scale(nominal[4])));
+        }
+        Self { terms, params }
+    }
+
+    /// The terms.
+    pub fn terms(&self) -> MechanicsTerms {
+        self.terms
+    }
+
+    /// The regressor columns (indices into the inputs) of the parameters after `j`.
+    fn columns(&self) -> Vec<usize> {
+        let mut c = vec![1, 2];
+        if self.terms.gravity {
+            c.push(3);
+        }
+        if self.terms.constant {
+            c.push(4);
+        }
+        c
+    }
+}
+
+/// The regressors of a window experiment, shared with it (`x_t, x_w, x_c, x_g, x_1, x_l`).
+#[derive(Clone, Debug)]
+pub struct MechanicsInputs {
+    x: Vec<Values>,
+}
+
+impl MechanicsInputs {
+    /// `(X_T − X_L, [X_ω, X_c, X_g, X_1])` of window `k`.
+    fn at(&self, k: usize) -> (f64, [f64; 4]) {
+        let x = &self.x;
+        (x[0][k] - x[5][k], [x[1][k], x[2][k], x[3][k], x[4][k]])
+    }
+}
+
+impl GreyBoxModel for MechanicsModel {
+    type Inputs = MechanicsInputs;
+    type Coefficients = Vec<f64>;
+
+    fn name(&self) -> &str {
+        "mechanics"
+    }
+
+    fn n_states(&self) -> usize {
+        0
+    }
+
+    fn outputs(&self) -> Vec<Signal> {
+        vec![Signal::new("dw", "rad/s")]
+    }
+
+    fn input_channels(&self) -> Vec<String> {
+        MECHANICS_CHANNELS[1..].iter().map(|s| (*s).to_string()).collect()
+    }
+
+    fn parameters(&self) -> &[Parameter] {
+        &self.params
+    }
+
+    fn advice(&self, name: &str) -> Option<String> {
+        match name {
+            "b" | "t_c" => Some(
+                "viscous and Coulomb friction separate only over a range of speeds of both signs: move at \
+                 several speeds"
+                    .into(),
+            ),
+            "mgl" => Some("the gravity load needs the angle to move over a good part of a turn".into()),
+            "t_0" => {
+                Some("a constant load and the gravity load separate only over a wide range of angles".into())
+            }
+            "j" => Some("inertia needs accelerations: start, stop and reverse".into()),
+            _ => None,
+        }
+    }
+
+    fn derived(&self, theta: &[f64], covariance: &[Vec<f64>]) -> Vec<DerivedEstimate> {
+        // The mechanical time constant J/B (delta method), when B > 0.
+        let var = |i: usize, j: usize| covariance.get(i).and_then(|r| r.get(j)).copied().unwrap_or(f64::NAN);
+        let (j, b) = (theta[0], theta[1]);
+        if b <= 0.0 {
+            return Vec::new();
+        }
+        let tau = j / b;
+        let (dj, db) = (1.0 / b, -j / (b * b));
+        let v = dj * dj * var(0, 0) + 2.0 * dj * db * var(0, 1) + db * db * var(1, 1);
+        vec![DerivedEstimate {
+            name: "tau_m".into(),
+            unit: "s".into(),
+            value: tau,
+            std_error: v.max(0.0).sqrt(),
+            experiment: None,
+        }]
+    }
+
+    fn prepare(&self, e: &Experiment) -> Result<MechanicsInputs> {
+        let x = MECHANICS_CHANNELS[1..].iter().map(|c| e.values(c).cloned()).collect::<Result<Vec<_>>>()?;
+        Ok(MechanicsInputs { x })
+    }
+
+    fn coefficients(&self, theta: &[f64], _inputs: &MechanicsInputs) -> Result<Vec<f64>> {
+        Ok(theta.to_vec())
+    }
+
+    fn step(&self, _c: &Vec<f64>, _inputs: &MechanicsInputs, _k: usize, _x: &[f64], _x_next: &mut [f64]) {}
+
+    fn output(&self, c: &Vec<f64>, inputs: &MechanicsInputs, k: usize, _x: &[f64], y: &mut [f64]) {
+        let (drive, x) = inputs.at(k);
+        let losses: f64 = self.columns().iter().zip(&c[1..]).map(|(&col, p)| p * x[col - 1]).sum();
+        y[0] = (drive - losses) / c[0];
+    }
+
+    fn sensitivities(&self) -> Option<&dyn Sensitivities<MechanicsInputs, Vec<f64>>> {
+        Some(self)
+    }
+}
+
+impl Sensitivities<MechanicsInputs, Vec<f64>> for MechanicsModel {
+    fn step_sensitivity(
+        &self,
+        _c: &Vec<f64>,
+        _inputs: &MechanicsInputs,
+        _k: usize,
+        _x: &[f64],
+        _s: &[f64],
+        _x_next: &mut [f64],
+        _s_next: &mut [f64],
+    ) {
+    }
+
+    fn output_sensitivity(
+        &self,
+        c: &Vec<f64>,
+        inputs: &MechanicsInputs,
+        k: usize,
+        x: &[f64],
+        _s: &[f64],
+        dy: &mut [f64],
+    ) {
+        let mut y = [0.0];
+        self.output(c, inputs, k, x, &mut y);
+        let (_, r) = inputs.at(k);
+        dy[0] = -y[0] / c[0];
+        for (j, &col) in self.columns().iter().enumerate() {
+            dy[1 + j] = -r[col - 1] / c[0];
+        }
+    }
+}
