@@ -248,3 +248,27 @@ fn the_linear_fit_is_the_start_and_stays_available() {
     let e = fit_saturated(&[log], &PmsmFitOptions::new(0), IPM_SATURATION.exponents).unwrap_err();
     assert!(e.to_string().contains("pole"), "{e}");
 }
+
+/// A linear machine's log (motulator's `ipm_moves_idinj`, linear magnetics): the default
+/// start ends in a local minimum far above the linear fit (a_dd ≈ 6.5e3, residual 1000×
+/// the linear one); the second start, from the linear model the saturated one contains,
+/// finds the machine, and the verdict says why it is not trusted: a coefficient at its
+/// bound zero, not a local minimum.
+#[test]
+fn a_linear_log_gives_the_linear_machine_back() {
+    require_shared!();
+    let options = greybox::pmsm::CsvOptions { pole_pairs: Some(2), ..Default::default() };
+    let log = greybox::pmsm::read_log(data("ipm_moves_idinj.csv.gz"), &options).unwrap();
+    let fit = fit_saturated(&[log], &PmsmFitOptions::new(2), SaturationExponents::default()).unwrap();
+    let reasons = fit.untrusted_reasons();
+    assert!(!reasons.iter().any(|r| r == "local_minimum"), "{reasons:?}\n{fit}");
+    assert!(!fit.trusted() && reasons.iter().any(|r| r == "parameter_at_bound"), "{reasons:?}\n{fit}");
+    let derived = |name: &str| fit.fit.derived(name).unwrap().value;
+    for (value, truth) in [(derived("l_d0"), 3.2e-3), (derived("l_q0"), 7.5e-3), (fit.model.psi_f, 0.17)] {
+        assert!((value / truth - 1.0).abs() < 1e-4, "{value} vs {truth}\n{fit}");
+    }
+    for name in ["a_dd", "a_qq", "a_dq"] {
+        let p = fit.fit.parameter(name).unwrap();
+        assert!(p.at_bound || (p.ci95[0] <= 0.0 && 0.0 <= p.ci95[1]), "{name}: {p:?}\n{fit}");
+    }
+}
