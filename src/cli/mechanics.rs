@@ -8,8 +8,8 @@ use super::output;
 use crate::data::Experiment;
 use crate::estimate::FitResult;
 use crate::pmsm::{
-    CsvOptions, LOAD_TORQUE, MechanicsFit, MechanicsOptions, MechanicsTerms, MotorParameters, PmsmFitOptions,
-    SQRT_2_3, fit_mechanics, fit_pmsm,
+    LOAD_TORQUE, MechanicsFit, MechanicsOptions, MechanicsTerms, MotorParameters, PmsmFitOptions, SQRT_2_3,
+    fit_mechanics, fit_pmsm,
 };
 use clap::Args;
 use serde::Serialize;
@@ -79,17 +79,13 @@ struct Joint<'a> {
 /// Unreadable logs, a bad `--k-t`, window or ω_c, a failed fit, an output that cannot be
 /// written (nothing is written then).
 pub fn run_mechanics(a: &MechanicsArgs) -> crate::Result<bool> {
-    super::logs::check_paths(&a.logs)?;
-    output::check_all(&[("--json", a.json.as_deref())], &a.logs)?;
-    let mut csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
-    csv.columns.extra = vec![a.col_load.clone()];
-    let logs: Vec<Experiment> = a
-        .columns
-        .read_logs(&a.logs, &csv, false)?
-        .into_iter()
-        .flatten()
-        .map(|e| super::standstill::renamed_channel(e, &a.col_load, LOAD_TORQUE, "N m"))
-        .collect::<crate::Result<_>>()?;
+    let extra = (a.col_load.as_str(), LOAD_TORQUE, "N m");
+    let logs: Vec<Experiment> =
+        super::standstill::read_with_channel(&a.logs, a.pole_pairs, &a.columns, a.json.as_deref(), extra)?;
+    // The angle a gravity term needs, before the electrical fit spends its time.
+    for e in logs.iter().filter(|_| a.gravity) {
+        e.channel("theta_m")?;
+    }
     let n_p = a.pole_pairs;
     let (electrical, motor) = match a.k_t {
         Some(k_t) if k_t.is_finite() && k_t != 0.0 => {

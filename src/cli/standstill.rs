@@ -4,6 +4,7 @@
 
 use super::columns::ColumnArgs;
 use super::output;
+use crate::data::{Channel, Experiment};
 use crate::pmsm::{CsvOptions, StandstillOptions, WINDING_TEMPERATURE, fit_standstill};
 use clap::Args;
 use std::path::PathBuf;
@@ -53,17 +54,8 @@ pub struct StandstillArgs {
 /// Unreadable logs, a bad width, a failed fit, an output that cannot be written (nothing is
 /// written then).
 pub fn run_standstill(a: &StandstillArgs) -> crate::Result<bool> {
-    super::logs::check_paths(&a.logs)?;
-    output::check_all(&[("--json", a.json.as_deref())], &a.logs)?;
-    let mut csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
-    csv.columns.extra = vec![a.col_temperature.clone()];
-    let logs: Vec<_> = a
-        .columns
-        .read_logs(&a.logs, &csv, false)?
-        .into_iter()
-        .flatten()
-        .map(|e| renamed_channel(e, &a.col_temperature, WINDING_TEMPERATURE, "°C"))
-        .collect::<crate::Result<_>>()?;
+    let extra = (a.col_temperature.as_str(), WINDING_TEMPERATURE, "°C");
+    let logs = read_with_channel(&a.logs, a.pole_pairs, &a.columns, a.json.as_deref(), extra)?;
     let options = StandstillOptions {
         pole_pairs: a.pole_pairs,
         reference_delay: (!a.terminal).then_some(a.delay),
@@ -81,22 +73,31 @@ pub fn run_standstill(a: &StandstillArgs) -> crate::Result<bool> {
     Ok(trusted)
 }
 
-/// The log with its column `column` (if any) also under `name` \[`unit`\], the name the fit
-/// reads.
+/// The logs at `paths` (checked first, with the `--json` output), read as `greybox fit`
+/// reads them with `pole_pairs`, plus the optional column `extra = (column, name, unit)`
+/// under the channel name `name` the fit reads.
 ///
 /// # Errors
-/// Those of [`crate::data::Experiment::with_channel`].
-pub(super) fn renamed_channel(
-    e: crate::data::Experiment,
-    column: &str,
-    name: &str,
-    unit: &str,
-) -> crate::Result<crate::data::Experiment> {
-    match e.get(column) {
-        Some(c) if column != name => {
-            let channel = crate::data::Channel::new(name, unit, c.values.as_slice().to_vec());
-            e.with_channel(channel)
-        }
-        _ => Ok(e),
-    }
+/// Those of reading the logs; an output that would overwrite a log.
+pub(super) fn read_with_channel(
+    paths: &[PathBuf],
+    pole_pairs: u32,
+    columns: &ColumnArgs,
+    json: Option<&std::path::Path>,
+    extra: (&str, &str, &str),
+) -> crate::Result<Vec<Experiment>> {
+    super::logs::check_paths(paths)?;
+    output::check_all(&[("--json", json)], paths)?;
+    let (column, name, unit) = extra;
+    let mut csv = CsvOptions { pole_pairs: Some(pole_pairs), ..columns.options() };
+    csv.columns.extra = vec![column.to_string()];
+    columns
+        .read_logs(paths, &csv, false)?
+        .into_iter()
+        .flatten()
+        .map(|e| match e.get(column).map(|c| c.values.as_slice().to_vec()) {
+            Some(values) if column != name => e.with_channel(Channel::new(name, unit, values)),
+            _ => Ok(e),
+        })
+        .collect()
 }

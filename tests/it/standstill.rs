@@ -129,3 +129,34 @@ fn d_axis_only_and_bad_logs() {
         .to_string();
     assert!(e.contains("current is zero"), "{e}");
 }
+
+/// The command lines: `simulate --scenario standstill` then `standstill` (exit 0, the JSON's
+/// `r_s` near the truth), `mechanics` with `--k-t` on an exp3 log (exit 0) and with the
+/// electrical fit as torque model; a gravity term without the angle column refused naming
+/// it (exit 1, no JSON written).
+#[test]
+fn standstill_and_mechanics_command_lines() {
+    let bin = env!("CARGO_BIN_EXE_greybox");
+    let dir = crate::common::TempDir::new("standstill-cli");
+    let run = |args: &[&str]| std::process::Command::new(bin).args(args).current_dir(&dir).output().unwrap();
+    let ok = |out: &std::process::Output| {
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr))
+    };
+    ok(&run(&["simulate", "--scenario", "standstill", "-o", "s.csv"]));
+    ok(&run(&["standstill", "s.csv", "-p", "4", "--json", "s.json", "-q"]));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("s.json")).unwrap()).unwrap();
+    let r_s = json["fit"]["parameters"][0]["value"].as_f64().unwrap();
+    assert!((r_s / SPM_MOTOR.r_s - 1.0).abs() < 0.01, "{r_s}");
+    ok(&run(&["simulate", "--scenario", "exp3", "--duration", "2", "-o", "e.csv"]));
+    ok(&run(&["mechanics", "e.csv", "-p", "4", "--k-t", "0.6", "--gravity", "-q"]));
+    let out = run(&["mechanics", "e.csv", "-p", "4", "--gravity", "--json", "m.json"]);
+    ok(&out);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("Electrical fit") && text.contains("Mechanics"), "{text}");
+    let out =
+        run(&["mechanics", "s.csv", "-p", "4", "--gravity", "--col-theta", "nope", "--json", "bad.json"]);
+    assert_eq!(out.status.code(), Some(1), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("theta_m"));
+    assert!(!dir.join("bad.json").exists());
+}
