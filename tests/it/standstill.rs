@@ -160,3 +160,20 @@ fn standstill_and_mechanics_command_lines() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("theta_m"));
     assert!(!dir.join("bad.json").exists());
 }
+
+/// The injection length for `R_s` to ±1 % rests on the half-width shrinking as `1/√N`: four
+/// tests fitted jointly give half the standard error of one (within 15 %), and the same
+/// injection length (within 30 %).
+#[test]
+fn injection_length_scales_as_claimed() {
+    let logs: Vec<_> =
+        (0..4).map(|s| simulate_drive(&config(SPM_MOTOR, 0.1, 50 + s)).unwrap().experiment).collect();
+    let options = StandstillOptions::new(SPM_MOTOR.n_p);
+    let one = fit_standstill(&logs[..1], &options).unwrap();
+    let four = fit_standstill(&logs, &options).unwrap();
+    let se = |f: &greybox::pmsm::StandstillFit| f.fit.parameter("r_s").unwrap().std_error;
+    let ratio = se(&one) / se(&four);
+    assert!((ratio / 2.0 - 1.0).abs() < 0.15, "{ratio}");
+    let (a, b) = (one.injection_for_one_percent, four.injection_for_one_percent);
+    assert!((a / b - 1.0).abs() < 0.3, "{a} s vs {b} s");
+}
