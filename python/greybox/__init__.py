@@ -36,11 +36,16 @@ __all__ = [
     "Fit",
     "FitError",
     "OptionError",
+    "Report",
     "TrackRun",
     "fit",
     "fleet",
     "fit_many",
+    "fluxmap",
+    "mechanics",
+    "saturation",
     "simulate",
+    "standstill",
     "track",
     "validate",
 ]
@@ -249,6 +254,104 @@ def simulate(scenario: Optional[str] = None, **options: Any) -> tuple[pa.Table, 
         argv = to_argv(_flags(scenario=scenario, **options))
         batch, truth = _greybox.simulate(argv)
     return pa.Table.from_batches([batch]), json.loads(truth)
+
+
+class Report(NamedTuple):
+    """The report of a fit of issue 33 (``fluxmap``, ``saturation``, ``standstill``,
+    ``mechanics``): its JSON as a dict, and why it is not to be trusted."""
+
+    #: The report, as the command's ``--json`` writes it.
+    report: dict[str, Any]
+    #: The codes of the reasons it is not to be trusted (the command line's exit code 3);
+    #: empty when trusted.
+    untrusted: list[str]
+
+    @property
+    def trusted(self) -> bool:
+        """Whether the fit is to be trusted (``untrusted`` empty)."""
+        return not self.untrusted
+
+
+def _report(command: str, logs: Any, options: dict[str, Any]) -> Report:
+    """Runs the fitting subcommand ``command`` on ``logs`` (paths, or Arrow tables written
+    to temporary Parquet files first) with ``options`` as its flags."""
+    import contextlib
+
+    items = logs if isinstance(logs, (list, tuple)) else [logs]
+    with contextlib.ExitStack() as stack:
+        paths = []
+        for item in items:
+            if _is_path(item):
+                paths.append(os.fspath(item))
+                continue
+            import pyarrow.parquet as pq
+
+            folder = stack.enter_context(tempfile.TemporaryDirectory(prefix="greybox-"))
+            path = os.path.join(folder, f"log{len(paths)}.parquet")
+            pq.write_table(pa.table(_arrow(item)), path)
+            paths.append(path)
+        text, untrusted = _greybox.report(command, to_argv(_flags(**options), paths))
+    return Report(json.loads(text), list(untrusted))
+
+
+def fluxmap(map: PathLike, **options: Any) -> Report:
+    """Fits the saturation model with cross-saturation (Hinkkanen et al., IEEE Trans. Ind.
+    Appl. 53(3) 2017) to a measured flux map (``.npz`` or CSV with ``i_d, i_q`` [A],
+    ``psi_d, psi_q`` [V s]), as ``greybox fluxmap``.
+
+    ``options``: ``exponents=(S, T, U, V)``. Returns a :class:`Report`: coefficients with
+    standard errors, the rms flux residual against the map's range, inductances.
+
+    Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
+    """
+    exponents = options.pop("exponents", None)
+    if exponents is not None:
+        options["exponents"] = ",".join(str(x) for x in exponents)
+    return _report("fluxmap", map, options)
+
+
+def saturation(log: Any, *, pole_pairs: int, **options: Any) -> Report:
+    """Fits the saturated IPM model to drive logs beside the linear IPM fit that starts it,
+    as ``greybox saturation`` (docs/saturation.md).
+
+    ``log``: a path, an Arrow table, or a list of them (fitted jointly). ``options``:
+    ``exponents=(S, T, U, V)`` and the column and unit flags of :func:`fit`. Returns a
+    :class:`Report` (``linear``, ``fit``, ``model``, ``operating_points``).
+
+    Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
+    """
+    exponents = options.pop("exponents", None)
+    if exponents is not None:
+        options["exponents"] = ",".join(str(x) for x in exponents)
+    return _report("saturation", log, dict(pole_pairs=pole_pairs, **options))
+
+
+def standstill(log: Any, *, pole_pairs: int, **options: Any) -> Report:
+    """Fits ``R_s`` [Ω], the excited axes' inductances [H] and the inverter's voltage error
+    ``v_dt`` [V] to locked-rotor logs, as ``greybox standstill`` (docs/standstill.md).
+
+    ``options``: ``terminal=True`` (the measured voltage), ``delay`` [samples], ``width``
+    [A], ``col_temperature`` (a winding-temperature column [°C]: ``r_s`` at 20 °C). Returns
+    a :class:`Report` (``fit``, ``axes``, ``injection_for_one_percent`` [s], …).
+
+    Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
+    """
+    return _report("standstill", log, dict(pole_pairs=pole_pairs, **options))
+
+
+def mechanics(log: Any, *, pole_pairs: int, **options: Any) -> Report:
+    """Fits inertia ``j`` [kg m²], viscous ``b`` [N m s/rad] and Coulomb ``t_c`` [N m]
+    friction, and on request a gravity load ``mgl`` and a constant load ``t_0`` [N m], to
+    the speed and angle of drive logs, as ``greybox mechanics`` (docs/mechanics.md).
+
+    ``options``: ``k_t`` [N m/A] (else the electrical model is fitted first), ``gravity``,
+    ``constant_load``, ``per_log`` (friction per log), ``window`` [s], ``coulomb_speed``
+    [rad/s], ``col_load``. Returns a :class:`Report` (``electrical``, ``motor``,
+    ``mechanics``).
+
+    Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
+    """
+    return _report("mechanics", log, dict(pole_pairs=pole_pairs, **options))
 
 
 from . import fleet  # noqa: E402  (uses the errors above; pyarrow only)

@@ -61,3 +61,7 @@ def track(argv: list[str]) -> list[tuple[str, tuple[float, float, float], pa.Rec
 
 def simulate(argv: list[str]) -> tuple[pa.RecordBatch, str]:
     """``greybox simulate``: the log as a batch and the truth as JSON."""
+
+def report(command: str, argv: list[str]) -> tuple[str, list[str]]:
+    """``greybox fluxmap|saturation|standstill|mechanics``: the JSON report and the codes
+    of the reasons it is not to be trusted."""

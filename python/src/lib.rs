@@ -31,6 +31,7 @@ fn _greybox(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(tools::validate, m)?)?;
     m.add_function(wrap_pyfunction!(tools::track, m)?)?;
     m.add_function(wrap_pyfunction!(tools::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(tools::report, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -64,3 +64,30 @@ def test_track(sample):
     assert run.final["k_e"] == run.trajectory.column("k_e")[-1].as_py()
     with pytest.raises(greybox.OptionError, match="--l-s"):
         greybox.track(sample, pole_pairs=4)
+
+
+def test_standstill_and_mechanics_from_simulated_tables():
+    log, truth = greybox.simulate("standstill", seed=3)
+    r = greybox.standstill(log, pole_pairs=truth["start"]["n_p"])
+    assert r.trusted, r.untrusted
+    params = {p["name"]: p for p in r.report["fit"]["parameters"]}
+    for name in ["r_s", "l_d", "l_q"]:
+        p = params[name]
+        # One seed: within 3 standard errors (coverage: tests/it/standstill.rs).
+        assert abs(p["value"] - truth["start"][name]) <= 3 * p["std_error"], (name, p)
+    assert r.report["injection_for_one_percent"] > 0
+    # A noise-free exp3 log: the inertia to the windows' integration accuracy (1e-4).
+    log, truth = greybox.simulate("exp3", seed=3, duration=2.0)
+    m = greybox.mechanics(log, pole_pairs=truth["start"]["n_p"], gravity=True)
+    assert m.trusted, m.untrusted
+    j = next(p for p in m.report["mechanics"]["fit"]["parameters"] if p["name"] == "j")
+    assert j["value"] == pytest.approx(truth["config"]["mechanics"]["inertia"], rel=1e-4)
+    assert m.report["electrical"]["parameters"][0]["name"] == "r_s"
+
+
+def test_issue33_fits_refuse_files_and_bad_flags():
+    log, truth = greybox.simulate("standstill", seed=3, duration=0.3)
+    with pytest.raises(greybox.OptionError, match="--json"):
+        greybox.standstill(log, pole_pairs=4, json="x.json")
+    with pytest.raises(greybox.OptionError, match="window"):
+        greybox.mechanics(log, pole_pairs=4, k_t=0.6, window=10.0)

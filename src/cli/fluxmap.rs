@@ -33,10 +33,19 @@ pub struct FluxMapArgs {
 /// cannot be written.
 pub fn run_fluxmap(a: &FluxMapArgs) -> crate::Result<()> {
     output::check_all(&[("--json", a.json.as_deref())], std::slice::from_ref(&a.map))?;
+    fluxmap_outcome(a)?.emit(a.json.as_deref(), a.quiet, "flux-map fit").map(|_| ())
+}
+
+/// The fit of `greybox fluxmap` and its reports, nothing printed or written. The exit code
+/// stays 0 (the map's model choice: a coefficient at its bound zero is a finding).
+///
+/// # Errors
+/// As [`run_fluxmap`] but for the output.
+pub fn fluxmap_outcome(a: &FluxMapArgs) -> crate::Result<output::Outcome> {
     let exponents = a.exponents.as_deref().map(parse_exponents).transpose()?;
     let map = read_flux_map(&a.map)?;
     let fit = fit_flux_map(&map, &FluxMapOptions { exponents })?;
-    output::text_and_json(&fit.to_string(), &fit, a.json.as_deref(), a.quiet)
+    Ok(output::Outcome::new(fit.to_string(), &fit, Vec::new()))
 }
 
 /// The exponents `S,T,U,V` of `--exponents`.

@@ -79,9 +79,19 @@ struct Joint<'a> {
 /// Unreadable logs, a bad `--k-t`, window or ω_c, a failed fit, an output that cannot be
 /// written (nothing is written then).
 pub fn run_mechanics(a: &MechanicsArgs) -> crate::Result<bool> {
+    super::logs::check_paths(&a.logs)?;
+    output::check_all(&[("--json", a.json.as_deref())], &a.logs)?;
+    mechanics_outcome(a)?.emit(a.json.as_deref(), a.quiet, "fit")
+}
+
+/// The fits of `greybox mechanics` and their joint report, nothing printed or written.
+///
+/// # Errors
+/// As [`run_mechanics`] but for the output.
+pub fn mechanics_outcome(a: &MechanicsArgs) -> crate::Result<output::Outcome> {
     let extra = (a.col_load.as_str(), LOAD_TORQUE, "N m");
     let logs: Vec<Experiment> =
-        super::standstill::read_with_channel(&a.logs, a.pole_pairs, &a.columns, a.json.as_deref(), extra)?;
+        super::standstill::read_with_channel(&a.logs, a.pole_pairs, &a.columns, extra)?;
     // The angle a gravity term needs, before the electrical fit spends its time.
     for e in logs.iter().filter(|_| a.gravity) {
         e.channel("theta_m")?;
@@ -116,17 +126,17 @@ pub fn run_mechanics(a: &MechanicsArgs) -> crate::Result<bool> {
         text += &format!("Electrical fit (the torque model):\n{}\n", crate::pmsm::estimate_table(e));
     }
     text += &mechanics.to_string();
-    output::text_and_json(
-        &text,
-        &Joint { electrical: electrical.as_ref(), motor, mechanics: &mechanics },
-        a.json.as_deref(),
-        a.quiet,
-    )?;
-    let trusted = mechanics.fit.trusted() && electrical.as_ref().is_none_or(FitResult::trusted);
-    if !trusted {
-        eprintln!("warning: the fit is not to be trusted (see the report); exit code 3");
-    }
-    Ok(trusted)
+    let mut untrusted: Vec<String> = electrical
+        .as_ref()
+        .map(|e| {
+            super::standstill::untrusted_codes(e).into_iter().map(|c| format!("electrical {c}")).collect()
+        })
+        .unwrap_or_default();
+    untrusted.extend(
+        super::standstill::untrusted_codes(&mechanics.fit).into_iter().map(|c| format!("mechanics {c}")),
+    );
+    let joint = Joint { electrical: electrical.as_ref(), motor, mechanics: &mechanics };
+    Ok(output::Outcome::new(text, &joint, untrusted))
 }
 
 /// The torque model of an electrical fit: `ψ_f = K_e √(2/3) / n_p` (MODEL.md §1), the

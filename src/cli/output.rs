@@ -97,23 +97,45 @@ pub fn stdout(text: &str) -> crate::Result<()> {
     }
 }
 
-/// The report of a command: `text` on stdout (unless `quiet` or the JSON goes there) and
-/// `value` as JSON to `json` (`-`: stdout), committed together.
-///
-/// # Errors
-/// [`Error::Write`] naming the output that could not be written (nothing is written then).
-pub fn text_and_json<T: serde::Serialize>(
-    text: &str,
-    value: &T,
-    json: Option<&Path>,
-    quiet: bool,
-) -> crate::Result<()> {
-    if !(quiet || json.is_some_and(|p| p.as_os_str() == "-")) {
-        stdout(text)?;
+/// What a fitting subcommand (`fluxmap`, `saturation`, `standstill`, `mechanics`) produced:
+/// its text report, its JSON report, and whether it is trusted (why not, if not).
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    /// The text report (stdout).
+    pub text: String,
+    /// The JSON report (`--json`).
+    pub json: String,
+    /// The codes of the reasons it is not to be trusted; empty when trusted.
+    pub untrusted: Vec<String>,
+}
+
+impl Outcome {
+    /// The outcome of `text` and the JSON of `value`, untrusted for `untrusted`.
+    pub fn new<T: serde::Serialize>(text: String, value: &T, untrusted: Vec<String>) -> Self {
+        Self { text, json: serde_json::to_string_pretty(value).unwrap_or_default(), untrusted }
     }
-    let mut staged = Staged::new();
-    if let Some(path) = json {
-        write(&mut staged, path, &serde_json::to_string_pretty(value).unwrap_or_default())?;
+
+    /// Prints the text (unless `quiet` or the JSON goes to stdout), writes the JSON to
+    /// `json` (all or nothing), says on stderr why the `what` is not to be trusted; whether
+    /// it is.
+    ///
+    /// # Errors
+    /// An output that cannot be written (nothing is written then).
+    pub fn emit(&self, json: Option<&Path>, quiet: bool, what: &str) -> crate::Result<bool> {
+        if !(quiet || json.is_some_and(|p| p.as_os_str() == "-")) {
+            stdout(&self.text)?;
+        }
+        let mut staged = Staged::new();
+        if let Some(path) = json {
+            write(&mut staged, path, &self.json)?;
+        }
+        staged.commit()?;
+        if !self.untrusted.is_empty() {
+            eprintln!(
+                "warning: the {what} is not to be trusted ({}); exit code 3",
+                self.untrusted.join(", ")
+            );
+        }
+        Ok(self.untrusted.is_empty())
     }
-    staged.commit()
 }

@@ -37,7 +37,8 @@ pub struct SaturationArgs {
     pub columns: ColumnArgs,
 }
 
-/// Runs `greybox saturation`; whether the saturated fit is trusted ([`crate::pmsm::SaturatedFit::trusted`]).
+/// Runs `greybox saturation`; whether the saturated fit is trusted
+/// ([`crate::pmsm::SaturatedFit::trusted`]).
 ///
 /// # Errors
 /// Unreadable logs, bad exponents, a failed linear or saturated fit, an output that cannot
@@ -45,17 +46,17 @@ pub struct SaturationArgs {
 pub fn run_saturation(a: &SaturationArgs) -> crate::Result<bool> {
     super::logs::check_paths(&a.logs)?;
     output::check_all(&[("--json", a.json.as_deref())], &a.logs)?;
+    saturation_outcome(a)?.emit(a.json.as_deref(), a.quiet, "saturated fit")
+}
+
+/// The fits of `greybox saturation` and their reports, nothing printed or written.
+///
+/// # Errors
+/// As [`run_saturation`] but for the output.
+pub fn saturation_outcome(a: &SaturationArgs) -> crate::Result<output::Outcome> {
     let exponents: SaturationExponents = parse_exponents(&a.exponents)?;
     let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
     let logs: Vec<_> = a.columns.read_logs(&a.logs, &csv, false)?.into_iter().flatten().collect();
     let fit = fit_saturated(&logs, &PmsmFitOptions::new(a.pole_pairs), exponents)?;
-    output::text_and_json(&fit.to_string(), &fit, a.json.as_deref(), a.quiet)?;
-    let trusted = fit.trusted();
-    if !trusted {
-        eprintln!(
-            "warning: the saturated fit is not to be trusted ({}); exit code 3",
-            fit.untrusted_reasons().join(", ")
-        );
-    }
-    Ok(trusted)
+    Ok(output::Outcome::new(fit.to_string(), &fit, fit.untrusted_reasons()))
 }

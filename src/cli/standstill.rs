@@ -54,8 +54,18 @@ pub struct StandstillArgs {
 /// Unreadable logs, a bad width, a failed fit, an output that cannot be written (nothing is
 /// written then).
 pub fn run_standstill(a: &StandstillArgs) -> crate::Result<bool> {
+    super::logs::check_paths(&a.logs)?;
+    output::check_all(&[("--json", a.json.as_deref())], &a.logs)?;
+    standstill_outcome(a)?.emit(a.json.as_deref(), a.quiet, "standstill fit")
+}
+
+/// The fit of `greybox standstill` and its reports, nothing printed or written.
+///
+/// # Errors
+/// As [`run_standstill`] but for the output.
+pub fn standstill_outcome(a: &StandstillArgs) -> crate::Result<output::Outcome> {
     let extra = (a.col_temperature.as_str(), WINDING_TEMPERATURE, "°C");
-    let logs = read_with_channel(&a.logs, a.pole_pairs, &a.columns, a.json.as_deref(), extra)?;
+    let logs = read_with_channel(&a.logs, a.pole_pairs, &a.columns, extra)?;
     let options = StandstillOptions {
         pole_pairs: a.pole_pairs,
         reference_delay: (!a.terminal).then_some(a.delay),
@@ -63,31 +73,32 @@ pub fn run_standstill(a: &StandstillArgs) -> crate::Result<bool> {
         ..StandstillOptions::default()
     };
     let fit = fit_standstill(&logs, &options)?;
-    output::text_and_json(&fit.to_string(), &fit, a.json.as_deref(), a.quiet)?;
-    let trusted = fit.fit.trusted();
-    if !trusted {
-        let codes: Vec<&str> =
-            fit.fit.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.as_str()).collect();
-        eprintln!("warning: the standstill fit is not to be trusted ({}); exit code 3", codes.join(", "));
-    }
-    Ok(trusted)
+    Ok(output::Outcome::new(fit.to_string(), &fit, untrusted_codes(&fit.fit)))
 }
 
-/// The logs at `paths` (checked first, with the `--json` output), read as `greybox fit`
-/// reads them with `pole_pairs`, plus the optional column `extra = (column, name, unit)`
-/// under the channel name `name` the fit reads.
+/// The codes of the untrusted warnings of `fit`, `not_converged` first when the solver
+/// did not converge.
+pub(super) fn untrusted_codes(fit: &crate::estimate::FitResult) -> Vec<String> {
+    let mut codes: Vec<String> =
+        fit.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.clone()).collect();
+    if !fit.solver.success && !codes.iter().any(|c| c == "not_converged") {
+        codes.insert(0, "not_converged".into());
+    }
+    codes
+}
+
+/// The logs at `paths`, read as `greybox fit` reads them with `pole_pairs`, plus the
+/// optional column `extra = (column, name, unit)` under the channel name `name` the fit
+/// reads.
 ///
 /// # Errors
-/// Those of reading the logs; an output that would overwrite a log.
+/// Those of reading the logs.
 pub(super) fn read_with_channel(
     paths: &[PathBuf],
     pole_pairs: u32,
     columns: &ColumnArgs,
-    json: Option<&std::path::Path>,
     extra: (&str, &str, &str),
 ) -> crate::Result<Vec<Experiment>> {
-    super::logs::check_paths(paths)?;
-    output::check_all(&[("--json", json)], paths)?;
     let (column, name, unit) = extra;
     let mut csv = CsvOptions { pole_pairs: Some(pole_pairs), ..columns.options() };
     csv.columns.extra = vec![column.to_string()];
