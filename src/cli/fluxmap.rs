@@ -18,12 +18,9 @@ pub struct FluxMapArgs {
     /// The exponents S,T,U,V of the model (default: chosen from 1..9 × 1..9 × 0..2 × 0..2).
     #[arg(long, value_delimiter = ',', num_args = 4, value_name = "S,T,U,V")]
     pub exponents: Option<Vec<u32>>,
-    /// Write the fit as JSON ("-" for stdout).
-    #[arg(long, value_name = "PATH.json")]
-    pub json: Option<PathBuf>,
-    /// Print nothing on stdout but the JSON (if it goes there).
-    #[arg(long, short)]
-    pub quiet: bool,
+    /// The report's outputs.
+    #[command(flatten)]
+    pub report: output::ReportArgs,
 }
 
 /// Runs `greybox fluxmap`.
@@ -32,8 +29,7 @@ pub struct FluxMapArgs {
 /// An unreadable map, exponents that are not four integers, a failed fit, an output that
 /// cannot be written.
 pub fn run_fluxmap(a: &FluxMapArgs) -> crate::Result<()> {
-    output::check_all(&[("--json", a.json.as_deref())], std::slice::from_ref(&a.map))?;
-    fluxmap_outcome(a)?.emit(a.json.as_deref(), a.quiet, "flux-map fit").map(|_| ())
+    a.report.run(std::slice::from_ref(&a.map), "flux-map fit", || fluxmap_outcome(a)).map(|_| ())
 }
 
 /// The fit of `greybox fluxmap` and its reports, nothing printed or written. The exit code

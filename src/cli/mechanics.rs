@@ -51,12 +51,9 @@ pub struct MechanicsArgs {
     /// Column of a load torque [N m], used when every log has it.
     #[arg(long, default_value = LOAD_TORQUE, value_name = "NAME")]
     pub col_load: String,
-    /// Write the fit as JSON ("-" for stdout).
-    #[arg(long, value_name = "PATH.json")]
-    pub json: Option<PathBuf>,
-    /// Print nothing on stdout but the JSON (if it goes there).
-    #[arg(long, short)]
-    pub quiet: bool,
+    /// The report's outputs.
+    #[command(flatten)]
+    pub report: output::ReportArgs,
     /// Log columns and units (as `greybox fit`).
     #[command(flatten)]
     pub columns: ColumnArgs,
@@ -79,9 +76,7 @@ struct Joint<'a> {
 /// Unreadable logs, a bad `--k-t`, window or ω_c, a failed fit, an output that cannot be
 /// written (nothing is written then).
 pub fn run_mechanics(a: &MechanicsArgs) -> crate::Result<bool> {
-    super::logs::check_paths(&a.logs)?;
-    output::check_all(&[("--json", a.json.as_deref())], &a.logs)?;
-    mechanics_outcome(a)?.emit(a.json.as_deref(), a.quiet, "fit")
+    a.report.run(&a.logs, "fit", || mechanics_outcome(a))
 }
 
 /// The fits of `greybox mechanics` and their joint report, nothing printed or written.

@@ -97,6 +97,36 @@ pub fn stdout(text: &str) -> crate::Result<()> {
     }
 }
 
+/// The report flags of the fitting subcommands (`fluxmap`, `saturation`, `standstill`,
+/// `mechanics`).
+#[derive(clap::Args, Debug)]
+pub struct ReportArgs {
+    /// Write the fit as JSON ("-" for stdout).
+    #[arg(long, value_name = "PATH.json")]
+    pub json: Option<PathBuf>,
+    /// Print nothing on stdout but the JSON (if it goes there).
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+impl ReportArgs {
+    /// Checks the `inputs` and that the JSON output overwrites none of them, then reports
+    /// the `outcome` ([`Outcome::emit`]); whether the `what` is trusted.
+    ///
+    /// # Errors
+    /// Those of [`super::logs::check_paths`], [`check_all`], `outcome` and the output.
+    pub fn run(
+        &self,
+        inputs: &[PathBuf],
+        what: &str,
+        outcome: impl FnOnce() -> crate::Result<Outcome>,
+    ) -> crate::Result<bool> {
+        super::logs::check_paths(inputs)?;
+        check_all(&[("--json", self.json.as_deref())], inputs)?;
+        outcome()?.emit(self.json.as_deref(), self.quiet, what)
+    }
+}
+
 /// What a fitting subcommand (`fluxmap`, `saturation`, `standstill`, `mechanics`) produced:
 /// its text report, its JSON report, and whether it is trusted (why not, if not).
 #[derive(Clone, Debug)]

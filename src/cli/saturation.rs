@@ -26,12 +26,9 @@ pub struct SaturationArgs {
     /// The exponents S,T,U,V of the saturation model.
     #[arg(long, value_delimiter = ',', num_args = 4, value_name = "S,T,U,V", default_values_t = [4, 2, 1, 0])]
     pub exponents: Vec<u32>,
-    /// Write the fit as JSON ("-" for stdout).
-    #[arg(long, value_name = "PATH.json")]
-    pub json: Option<PathBuf>,
-    /// Print nothing on stdout but the JSON (if it goes there).
-    #[arg(long, short)]
-    pub quiet: bool,
+    /// The report's outputs.
+    #[command(flatten)]
+    pub report: output::ReportArgs,
     /// Log columns and units (as `greybox fit`).
     #[command(flatten)]
     pub columns: ColumnArgs,
@@ -44,9 +41,7 @@ pub struct SaturationArgs {
 /// Unreadable logs, bad exponents, a failed linear or saturated fit, an output that cannot
 /// be written (nothing is written then).
 pub fn run_saturation(a: &SaturationArgs) -> crate::Result<bool> {
-    super::logs::check_paths(&a.logs)?;
-    output::check_all(&[("--json", a.json.as_deref())], &a.logs)?;
-    saturation_outcome(a)?.emit(a.json.as_deref(), a.quiet, "saturated fit")
+    a.report.run(&a.logs, "saturated fit", || saturation_outcome(a))
 }
 
 /// The fits of `greybox saturation` and their reports, nothing printed or written.

@@ -37,12 +37,9 @@ pub struct StandstillArgs {
     /// Column of the winding temperature [°C], used when present.
     #[arg(long, default_value = WINDING_TEMPERATURE, value_name = "NAME")]
     pub col_temperature: String,
-    /// Write the fit as JSON ("-" for stdout).
-    #[arg(long, value_name = "PATH.json")]
-    pub json: Option<PathBuf>,
-    /// Print nothing on stdout but the JSON (if it goes there).
-    #[arg(long, short)]
-    pub quiet: bool,
+    /// The report's outputs.
+    #[command(flatten)]
+    pub report: output::ReportArgs,
     /// Log columns and units (as `greybox fit`).
     #[command(flatten)]
     pub columns: ColumnArgs,
@@ -54,9 +51,7 @@ pub struct StandstillArgs {
 /// Unreadable logs, a bad width, a failed fit, an output that cannot be written (nothing is
 /// written then).
 pub fn run_standstill(a: &StandstillArgs) -> crate::Result<bool> {
-    super::logs::check_paths(&a.logs)?;
-    output::check_all(&[("--json", a.json.as_deref())], &a.logs)?;
-    standstill_outcome(a)?.emit(a.json.as_deref(), a.quiet, "standstill fit")
+    a.report.run(&a.logs, "standstill fit", || standstill_outcome(a))
 }
 
 /// The fit of `greybox standstill` and its reports, nothing printed or written.
