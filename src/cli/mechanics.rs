@@ -108,7 +108,13 @@ pub fn mechanics_outcome(a: &MechanicsArgs) -> crate::Result<output::Outcome> {
             (Some(fit), motor)
         }
     };
+    // K_t's relative standard error from the electrical fit (0 for a given K_t).
+    let k_t_relative_se = electrical
+        .as_ref()
+        .and_then(|e| e.derived("k_t"))
+        .map_or(0.0, |k| if k.std_error.is_finite() { (k.std_error / k.value).abs() } else { 0.0 });
     let options = MechanicsOptions {
+        k_t_relative_se,
         window: a.window,
         coulomb_speed: a.coulomb_speed,
         terms: MechanicsTerms { gravity: a.gravity, constant: a.constant_load },

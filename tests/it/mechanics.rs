@@ -93,8 +93,13 @@ fn friction_per_log_in_a_batch() {
             simulate_drive(&cfg).unwrap().experiment
         })
         .collect();
-    let fit = fit_mechanics(&logs, &MechanicsOptions { per_log_friction: true, ..options(motor) }).unwrap();
+    let with_k_t = MechanicsOptions { per_log_friction: true, k_t_relative_se: 0.01, ..options(motor) };
+    let fit = fit_mechanics(&logs, &with_k_t).unwrap();
     assert!(fit.fit.trusted(), "{fit}");
+    // K_t's 1 % scales every parameter: its standard error with the torque model's.
+    for (p, s) in fit.fit.parameters.iter().zip(&fit.std_errors_with_torque) {
+        assert!((s / p.std_error.hypot(0.01 * p.value) - 1.0).abs() < 1e-12, "{}", p.name);
+    }
     let cfg = exp3(motor, [0.0; 2], 0);
     let near = |name: &str, log: Option<&str>, value: f64| {
         let p = fit

@@ -36,6 +36,11 @@ pub struct MechanicsOptions {
     pub per_log_friction: bool,
     /// The prediction-error options (`per_experiment` is set by `per_log_friction`).
     pub pem: PemOptions,
+    /// Relative standard error of the torque model's `K_t` (e.g. the electrical fit's
+    /// `σ_k_t / k_t`); 0: taken as exact. Every mechanical parameter scales with `K_t`, so
+    /// it adds `(value · this)²` to each variance ([`MechanicsFit::std_errors_with_torque`]).
+    #[serde(default)]
+    pub k_t_relative_se: f64,
 }
 
 impl MechanicsOptions {
@@ -49,6 +54,7 @@ impl MechanicsOptions {
             terms: MechanicsTerms::default(),
             per_log_friction: false,
             pem: PemOptions::default(),
+            k_t_relative_se: 0.0,
         }
     }
 }
@@ -69,6 +75,13 @@ pub struct MechanicsFit {
     pub coulomb_speed: f64,
     /// Whether a load-torque channel was subtracted.
     pub load_channel: bool,
+    /// Relative standard error of `K_t` the torque model carries (0: exact).
+    pub k_t_relative_se: f64,
+    /// Per parameter of `fit` (same order), its standard error with the torque model's
+    /// uncertainty: `√(σ² + (θ · σ_K_t/K_t)²)` \[its unit\]: every parameter scales with
+    /// `K_t` (exact for surface magnets, whose torque is `K_t i_q`; for interior magnets an
+    /// approximation that treats the reluctance torque's error as the magnet torque's).
+    pub std_errors_with_torque: Vec<f64>,
 }
 
 /// The window experiment of drive log `e` (channels `id, iq` \[A\], `w_m` \[rad/s\], and
@@ -167,12 +180,18 @@ pub fn fit_mechanics(experiments: &[Experiment], options: &MechanicsOptions) -> 
     }
     let result = fit(&model, &windows, &start, &pem)?;
     Ok(MechanicsFit {
-        fit: result,
         windows: windows.iter().map(Experiment::len).sum(),
         window: windows.first().map_or(options.window, |w| w.channel("x_1").map_or(f64::NAN, |x| x[0])),
         k_t: options.motor.k_t(),
         coulomb_speed: options.coulomb_speed,
         load_channel: load,
+        k_t_relative_se: options.k_t_relative_se,
+        std_errors_with_torque: result
+            .parameters
+            .iter()
+            .map(|p| p.std_error.hypot(p.value * options.k_t_relative_se))
+            .collect(),
+        fit: result,
     })
 }
 
@@ -227,10 +246,27 @@ impl std::fmt::Display for MechanicsFit {
             self.window
         )?;
         write!(f, "{}", estimate_table(&self.fit))?;
-        writeln!(
-            f,
-            "the intervals take K_t as exact: its relative error scales every parameter above alike"
-        )?;
+        if self.k_t_relative_se > 0.0 {
+            let se: Vec<String> = self
+                .fit
+                .parameters
+                .iter()
+                .zip(&self.std_errors_with_torque)
+                .map(|(p, s)| format!("{} {s:.3e}", p.name))
+                .collect();
+            writeln!(
+                f,
+                "the intervals take K_t as exact; with its relative standard error {:.2e} (it scales every \
+                 parameter alike) the standard errors are: {}",
+                self.k_t_relative_se,
+                se.join(", ")
+            )?;
+        } else {
+            writeln!(
+                f,
+                "the intervals take K_t as exact: its relative error scales every parameter above alike"
+            )?;
+        }
         let verdict = if self.fit.trusted() { "trusted" } else { "NOT to be trusted" };
         writeln!(f, "fit {verdict}")
     }
