@@ -76,11 +76,9 @@ pub fn run_fit(a: &FitArgs) -> crate::Result<bool> {
 fn trusted(report: &FitResult, allow: bool) -> bool {
     let trusted = report.trusted();
     if !trusted {
-        let codes: Vec<&str> =
-            report.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.as_str()).collect();
         eprintln!(
             "warning: the estimates are not to be trusted ({}){}",
-            codes.join(", "),
+            report.untrusted_codes().join(", "),
             if allow { "" } else { "; exit code 3 (--allow-unconverged: 0)" }
         );
     }

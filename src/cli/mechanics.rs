@@ -85,8 +85,7 @@ pub fn run_mechanics(a: &MechanicsArgs) -> crate::Result<bool> {
 /// As [`run_mechanics`] but for the output.
 pub fn mechanics_outcome(a: &MechanicsArgs) -> crate::Result<output::Outcome> {
     let extra = (a.col_load.as_str(), LOAD_TORQUE, "N m");
-    let logs: Vec<Experiment> =
-        super::standstill::read_with_channel(&a.logs, a.pole_pairs, &a.columns, extra)?;
+    let logs: Vec<Experiment> = a.columns.read_logs_with_channel(&a.logs, a.pole_pairs, extra)?;
     // The angle a gravity term needs, before the electrical fit spends its time.
     for e in logs.iter().filter(|_| a.gravity) {
         e.channel("theta_m")?;
@@ -129,13 +128,9 @@ pub fn mechanics_outcome(a: &MechanicsArgs) -> crate::Result<output::Outcome> {
     text += &mechanics.to_string();
     let mut untrusted: Vec<String> = electrical
         .as_ref()
-        .map(|e| {
-            super::standstill::untrusted_codes(e).into_iter().map(|c| format!("electrical {c}")).collect()
-        })
+        .map(|e| e.untrusted_codes().into_iter().map(|c| format!("electrical {c}")).collect())
         .unwrap_or_default();
-    untrusted.extend(
-        super::standstill::untrusted_codes(&mechanics.fit).into_iter().map(|c| format!("mechanics {c}")),
-    );
+    untrusted.extend(mechanics.fit.untrusted_codes().into_iter().map(|c| format!("mechanics {c}")));
     let joint = Joint { electrical: electrical.as_ref(), motor, mechanics: &mechanics };
     Ok(output::Outcome::new(text, &joint, untrusted))
 }

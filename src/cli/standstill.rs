@@ -4,8 +4,7 @@
 
 use super::columns::ColumnArgs;
 use super::output;
-use crate::data::{Channel, Experiment};
-use crate::pmsm::{CsvOptions, StandstillOptions, WINDING_TEMPERATURE, fit_standstill};
+use crate::pmsm::{StandstillOptions, WINDING_TEMPERATURE, fit_standstill};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -60,7 +59,7 @@ pub fn run_standstill(a: &StandstillArgs) -> crate::Result<bool> {
 /// As [`run_standstill`] but for the output.
 pub fn standstill_outcome(a: &StandstillArgs) -> crate::Result<output::Outcome> {
     let extra = (a.col_temperature.as_str(), WINDING_TEMPERATURE, "°C");
-    let logs = read_with_channel(&a.logs, a.pole_pairs, &a.columns, extra)?;
+    let logs = a.columns.read_logs_with_channel(&a.logs, a.pole_pairs, extra)?;
     let options = StandstillOptions {
         pole_pairs: a.pole_pairs,
         reference_delay: (!a.terminal).then_some(a.delay),
@@ -68,42 +67,5 @@ pub fn standstill_outcome(a: &StandstillArgs) -> crate::Result<output::Outcome> 
         ..StandstillOptions::default()
     };
     let fit = fit_standstill(&logs, &options)?;
-    Ok(output::Outcome::new(fit.to_string(), &fit, untrusted_codes(&fit.fit)))
-}
-
-/// The codes of the untrusted warnings of `fit`, `not_converged` first when the solver
-/// did not converge.
-pub(super) fn untrusted_codes(fit: &crate::estimate::FitResult) -> Vec<String> {
-    let mut codes: Vec<String> =
-        fit.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.clone()).collect();
-    if !fit.solver.success && !codes.iter().any(|c| c == "not_converged") {
-        codes.insert(0, "not_converged".into());
-    }
-    codes
-}
-
-/// The logs at `paths`, read as `greybox fit` reads them with `pole_pairs`, plus the
-/// optional column `extra = (column, name, unit)` under the channel name `name` the fit
-/// reads.
-///
-/// # Errors
-/// Those of reading the logs.
-pub(super) fn read_with_channel(
-    paths: &[PathBuf],
-    pole_pairs: u32,
-    columns: &ColumnArgs,
-    extra: (&str, &str, &str),
-) -> crate::Result<Vec<Experiment>> {
-    let (column, name, unit) = extra;
-    let mut csv = CsvOptions { pole_pairs: Some(pole_pairs), ..columns.options() };
-    csv.columns.extra = vec![column.to_string()];
-    columns
-        .read_logs(paths, &csv, false)?
-        .into_iter()
-        .flatten()
-        .map(|e| match e.get(column).map(|c| c.values.as_slice().to_vec()) {
-            Some(values) if column != name => e.with_channel(Channel::new(name, unit, values)),
-            _ => Ok(e),
-        })
-        .collect()
+    Ok(output::Outcome::new(fit.to_string(), &fit, fit.fit.untrusted_codes()))
 }

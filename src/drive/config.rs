@@ -192,6 +192,14 @@ impl Default for Thermal {
     }
 }
 
+impl Thermal {
+    /// The temperature \[°C\] of `profile` (`winding` or `magnet`) at time `t` \[s\]: `t0`
+    /// for an empty profile.
+    pub fn at(&self, profile: &Profile, t: f64) -> f64 {
+        if profile.0.is_empty() { self.t0 } else { profile.at(t) }
+    }
+}
+
 /// A whole drive: the plant, its controller and everything between them.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]

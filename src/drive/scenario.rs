@@ -125,10 +125,10 @@ pub fn scenario(name: &str, motor: MotorParameters) -> Result<DriveConfig> {
         }
         // Standstill commissioning (issue 33): the rotor locked at θ_e = 15° (no phase current
         // near zero while either axis carries current, so the dead-time error's sign is
-        // certain); the current loop
-        // steps i_d through ±20 % and ±50 % of i_max (0.1 s each), then i_q (a torque
-        // reference) through ±30 %; a 2 V dead-time error, current noise 1 % of i_max, and the
-        // winding temperature logged (constant at T_0 unless `thermal.winding` says otherwise).
+        // certain); the current loop steps i_d through ±20 % and ±50 % of i_max (0.1 s each),
+        // then i_q (a torque reference) through ±30 % and ±15 %; a 2 V dead-time error,
+        // current noise 1 % of i_max, and the winding temperature logged (constant at T_0
+        // unless `thermal.winding` says otherwise).
         "standstill" => {
             let steps = |levels: &[f64], t0: f64| {
                 let mut p = vec![(0.0, 0.0), (t0, 0.0)];

@@ -70,7 +70,7 @@ pub struct DriveLog {
 /// The plant's parameters at time `t` \[s\]: thermal values, then the ramps.
 pub fn plant_at(cfg: &DriveConfig, t: f64) -> MotorParameters {
     let th = &cfg.thermal;
-    let temp = |p: &super::Profile| if p.0.is_empty() { th.t0 } else { p.at(t) };
+    let temp = |p: &super::Profile| th.at(p, t);
     let factor = |p: &super::Profile| if p.0.is_empty() { 1.0 } else { p.at(t) };
     let m = &cfg.motor;
     MotorParameters {
@@ -186,11 +186,7 @@ pub fn simulate_drive_with_progress(
             k_ts.push(ctrl.k_t());
         }
         if s.winding_temperature {
-            t_winding.push(if cfg.thermal.winding.0.is_empty() {
-                cfg.thermal.t0
-            } else {
-                cfg.thermal.winding.at(t)
-            });
+            t_winding.push(cfg.thermal.at(&cfg.thermal.winding, t));
         }
         if let Some(w) = cmd.w_ref {
             w_refs.push(w);

@@ -271,6 +271,17 @@ impl FitResult {
     pub fn trusted(&self) -> bool {
         self.solver.success && self.warnings.iter().all(|w| !w.untrusted)
     }
+    /// Why the fit is not trusted: the codes of its untrusted warnings, with
+    /// `not_converged` first when the solver did not converge and no warning says so;
+    /// empty exactly when [`FitResult::trusted`].
+    pub fn untrusted_codes(&self) -> Vec<String> {
+        let mut codes: Vec<String> =
+            self.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.clone()).collect();
+        if !self.solver.success && !codes.iter().any(|c| c == "not_converged") {
+            codes.insert(0, "not_converged".into());
+        }
+        codes
+    }
     /// The estimate of the parameter called `name` (first match), if any.
     pub fn parameter(&self, name: &str) -> Option<&ParameterEstimate> {
         self.parameters.iter().find(|p| p.name == name)

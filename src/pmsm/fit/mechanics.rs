@@ -198,24 +198,18 @@ pub fn fit_mechanics(experiments: &[Experiment], options: &MechanicsOptions) -> 
 /// `[j, b, t_c, (mgl), (t_0)]` from the least squares of `Δω = c_T X_T − Σ c_i X_i`
 /// (`c_T = 1/J`, `c_i = p_i/J`) over all windows, solved by SVD.
 fn least_squares_start(windows: &[Experiment], terms: MechanicsTerms) -> Result<Vec<f64>> {
-    let mut cols = vec![1, 2, 3];
-    if terms.gravity {
-        cols.push(4);
-    }
-    if terms.constant {
-        cols.push(5);
-    }
+    let loss = terms.loss_channels();
     let (mut rows, mut rhs) = (Vec::new(), Vec::new());
     for e in windows {
         let ch: Vec<&[f64]> = MECHANICS_CHANNELS.iter().map(|c| e.channel(c)).collect::<Result<_>>()?;
         rows.extend((0..e.len()).map(|k| {
             let mut row = vec![ch[1][k] - ch[6][k]];
-            row.extend(cols[1..].iter().map(|&c| -ch[c][k]));
+            row.extend(loss.iter().map(|&c| -ch[c][k]));
             row
         }));
         rhs.extend_from_slice(ch[0]);
     }
-    let x = DMatrix::from_fn(rows.len(), cols.len(), |r, c| rows[r][c]);
+    let x = DMatrix::from_fn(rows.len(), 1 + loss.len(), |r, c| rows[r][c]);
     let c = x.svd(true, true).solve(&DVector::from_vec(rhs), 1e-14).map_err(|m| Error::Numerical {
         context: "mechanics start (least squares)".into(),
         reason: m.into(),

@@ -214,8 +214,9 @@ pub(crate) fn delay_parameter(
     })
 }
 
-/// The estimates of a fit as text, one line per estimate: name, value, standard error, 95 % interval (or "at bound"), unit,
-/// and the log of a per-log estimate.
+/// The estimates of a fit as text, one line per estimate: name, value, standard error, 95 %
+/// interval (or "at its bound"), unit, and the log of a per-log estimate; then the derived
+/// quantities.
 pub fn estimate_table(result: &FitResult) -> String {
     let mut t = format!("{:<8} {:>14} {:>12} {:>30}\n", "", "value", "std error", "95 % interval");
     for p in &result.parameters {

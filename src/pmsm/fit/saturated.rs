@@ -136,11 +136,7 @@ impl SaturatedFit {
     /// Why the fit is not to be trusted: the gate's warning codes, `local_minimum`; empty
     /// when trusted.
     pub fn untrusted_reasons(&self) -> Vec<String> {
-        let mut out: Vec<String> =
-            self.fit.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.clone()).collect();
-        if !self.fit.solver.success && !out.iter().any(|c| c == "not_converged") {
-            out.push("not_converged".into());
-        }
+        let mut out = self.fit.untrusted_codes();
         if !below_linear(&self.fit, &self.linear) {
             out.push("local_minimum".into());
         }

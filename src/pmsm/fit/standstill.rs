@@ -5,6 +5,7 @@
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::{FitResult, PemOptions, fit};
+use crate::model::GreyBoxModel;
 use crate::pmsm::fit::report::estimate_table;
 use crate::pmsm::model::inverter::DEFAULT_RELATIVE_WIDTH;
 use crate::pmsm::model::standstill::{StandstillModel, StandstillSetup, WINDING_TEMPERATURE};
@@ -142,18 +143,19 @@ pub fn fit_standstill(experiments: &[Experiment], options: &StandstillOptions) -
     })
 }
 
-/// The start (without the width): per axis the equation-error least squares of `Δi[k] = (h/L) (u − R f i + V_dt
-/// e)[k]` (forward Euler; `f` the temperature factor), solved by SVD; `R_s` and `V_dt` from
-/// the first axis. Non-positive values (a log too noisy for the Euler regression) fall back
+/// The start (without the width): per axis the equation-error least squares of
+/// `Δi[k] = (h/L) (u − R f i + V_dt e)[k]` (forward Euler; `f` the temperature factor),
+/// solved by SVD; `R_s` and `V_dt` from the first axis. Non-positive values (a log too noisy for the Euler regression) fall back
 /// to magnitudes of the data.
 fn equation_error_start(model: &StandstillModel, experiments: &[Experiment], width: f64) -> Result<Vec<f64>> {
-    let setup = model.setup().clone();
+    let setup = model.setup();
     let with_v = setup.reference_delay.is_some();
+    let prepared = experiments.iter().map(|e| model.prepare(e)).collect::<Result<Vec<_>>>()?;
+    let h = experiments.first().map_or(1.0, Experiment::h);
     let mut out = vec![f64::NAN; 1 + setup.axes.len() + usize::from(with_v)];
     for (j, &a) in setup.axes.iter().enumerate() {
         let (mut rows, mut rhs) = (Vec::new(), Vec::new());
-        for e in experiments {
-            let inputs = crate::model::GreyBoxModel::prepare(model, e)?;
+        for (e, inputs) in experiments.iter().zip(&prepared) {
             let i = e.channel(if a == 0 { "id" } else { "iq" })?;
             for k in 0..e.len().saturating_sub(1) {
                 let (u, dir, f) = inputs.at(a, k, width);
@@ -168,7 +170,6 @@ fn equation_error_start(model: &StandstillModel, experiments: &[Experiment], wid
             context: "standstill start (least squares)".into(),
             reason: m.into(),
         })?;
-        let h = experiments.first().map_or(1.0, Experiment::h);
         let l = h / c[0];
         let r = c[1] / c[0];
         out[1 + j] = if l > 0.0 && l.is_finite() { l } else { 1e-3 };

@@ -93,7 +93,7 @@ impl GreyBoxModel for FluxMapModel {
 
     fn coefficients(&self, theta: &[f64], _inputs: &FluxMapInputs) -> Result<Saturation> {
         let m = Saturation::from_theta(theta, self.exponents);
-        m.check()?;
+        m.check_usable()?;
         Ok(m)
     }
 

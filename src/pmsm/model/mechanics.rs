@@ -31,6 +31,22 @@ pub struct MechanicsTerms {
     pub constant: bool,
 }
 
+impl MechanicsTerms {
+    /// The [`MECHANICS_CHANNELS`] indices of the regressors of the parameters after `j`, in
+    /// parameter order: `x_w` (`b`), `x_c` (`t_c`), then `x_g` (`mgl`) and `x_1` (`t_0`) as
+    /// asked.
+    pub(crate) fn loss_channels(self) -> Vec<usize> {
+        let mut c = vec![2, 3];
+        if self.gravity {
+            c.push(4);
+        }
+        if self.constant {
+            c.push(5);
+        }
+        c
+    }
+}
+
 /// The window model: `Δω = (X_T − X_L − b X_ω − t_c X_c − mgl X_g − t_0 X_1) / j` per
 /// window, parameters `j` \[kg m²\], `b` \[N m s/rad\], `t_c` \[N m\], then `mgl` \[N m\] and
 /// `t_0` \[N m\] as [`MechanicsTerms`] asks. Linear in all but `j`; exact sensitivities.
@@ -38,6 +54,8 @@ pub struct MechanicsTerms {
 pub struct MechanicsModel {
     terms: MechanicsTerms,
     params: Vec<Parameter>,
+    /// [`MechanicsTerms::loss_channels`], fixed with the terms.
+    loss: Vec<usize>,
 }
 
 impl MechanicsModel {
@@ -56,24 +74,12 @@ impl MechanicsModel {
         if terms.constant {
             params.push(Parameter::free("t_0", "N m", scale(nominal[4])));
         }
-        Self { terms, params }
+        Self { terms, params, loss: terms.loss_channels() }
     }
 
     /// The terms.
     pub fn terms(&self) -> MechanicsTerms {
         self.terms
-    }
-
-    /// The regressor columns (indices into the inputs) of the parameters after `j`.
-    fn columns(&self) -> Vec<usize> {
-        let mut c = vec![1, 2];
-        if self.terms.gravity {
-            c.push(3);
-        }
-        if self.terms.constant {
-            c.push(4);
-        }
-        c
     }
 }
 
@@ -84,10 +90,14 @@ pub struct MechanicsInputs {
 }
 
 impl MechanicsInputs {
-    /// `(X_T − X_L, [X_ω, X_c, X_g, X_1])` of window `k`.
-    fn at(&self, k: usize) -> (f64, [f64; 4]) {
-        let x = &self.x;
-        (x[0][k] - x[5][k], [x[1][k], x[2][k], x[3][k], x[4][k]])
+    /// Of window `k`: the driving impulse `X_T − X_L` \[N m s\].
+    fn drive(&self, k: usize) -> f64 {
+        self.x[0][k] - self.x[5][k]
+    }
+
+    /// Of window `k`: the regressor of [`MECHANICS_CHANNELS`] index `channel` (≥ 1).
+    fn regressor(&self, channel: usize, k: usize) -> f64 {
+        self.x[channel - 1][k]
     }
 }
 
@@ -162,9 +172,8 @@ impl GreyBoxModel for MechanicsModel {
     fn step(&self, _c: &Vec<f64>, _inputs: &MechanicsInputs, _k: usize, _x: &[f64], _x_next: &mut [f64]) {}
 
     fn output(&self, c: &Vec<f64>, inputs: &MechanicsInputs, k: usize, _x: &[f64], y: &mut [f64]) {
-        let (drive, x) = inputs.at(k);
-        let losses: f64 = self.columns().iter().zip(&c[1..]).map(|(&col, p)| p * x[col - 1]).sum();
-        y[0] = (drive - losses) / c[0];
+        let losses: f64 = self.loss.iter().zip(&c[1..]).map(|(&ch, p)| p * inputs.regressor(ch, k)).sum();
+        y[0] = (inputs.drive(k) - losses) / c[0];
     }
 
     fn sensitivities(&self) -> Option<&dyn Sensitivities<MechanicsInputs, Vec<f64>>> {
@@ -196,10 +205,9 @@ impl Sensitivities<MechanicsInputs, Vec<f64>> for MechanicsModel {
     ) {
         let mut y = [0.0];
         self.output(c, inputs, k, x, &mut y);
-        let (_, r) = inputs.at(k);
         dy[0] = -y[0] / c[0];
-        for (j, &col) in self.columns().iter().enumerate() {
-            dy[1 + j] = -r[col - 1] / c[0];
+        for (j, &ch) in self.loss.iter().enumerate() {
+            dy[1 + j] = -inputs.regressor(ch, k) / c[0];
         }
     }
 }

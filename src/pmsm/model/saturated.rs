@@ -193,7 +193,7 @@ impl GreyBoxModel for PmsmSaturated {
             });
         }
         let magnetics = self.magnetics(theta);
-        magnetics.check()?;
+        magnetics.check_usable()?;
         Ok(SaturatedCoefficients { magnetics, r_s: theta[0], h: inputs.h })
     }
 

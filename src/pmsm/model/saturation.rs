@@ -159,22 +159,40 @@ impl Saturation {
         }
     }
 
-    /// Checks the coefficients: all finite, `a_d0`, `a_q0` positive. With the saturation
-    /// terms non-negative (the fits' bounds) `∂i/∂ψ` is positive definite everywhere and the
-    /// flux of a current unique; slightly negative ones (a finite-difference probe at the
-    /// bound) stay usable near zero flux, and [`Saturation::flux`] reports where they are not.
+    /// Checks the coefficients: `a_d0`, `a_q0` positive, the saturation terms non-negative,
+    /// all finite (then `∂i/∂ψ` is positive definite everywhere and the flux of a current
+    /// is unique).
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] naming the coefficient.
     pub fn check(&self) -> Result<()> {
+        self.check_with(true)
+    }
+
+    /// [`Saturation::check`] without the sign of the saturation terms: slightly negative
+    /// ones (a fit's finite-difference probe at their bound zero) stay usable near zero
+    /// flux, and [`Saturation::flux`] reports where they are not.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming the coefficient.
+    pub(crate) fn check_usable(&self) -> Result<()> {
+        self.check_with(false)
+    }
+
+    fn check_with(&self, signs: bool) -> Result<()> {
         let names = SATURATION_PARAMETERS;
         for (j, v) in self.theta().into_iter().enumerate() {
-            let bad = !v.is_finite() || ((j == 0 || j == 2) && v <= 0.0);
+            let bad = !v.is_finite() || (signs && j < 5 && v < 0.0) || ((j == 0 || j == 2) && v <= 0.0);
             if bad {
                 return Err(Error::InvalidParameter {
                     name: names[j].0.into(),
                     value: v,
-                    reason: "the saturation model needs finite coefficients with a_d0, a_q0 > 0".into(),
+                    reason: if signs {
+                        "the saturation model needs finite a_d0, a_q0 > 0 and a_dd, a_qq, a_dq ≥ 0"
+                    } else {
+                        "the saturation model needs finite coefficients with a_d0, a_q0 > 0"
+                    }
+                    .into(),
                 });
             }
         }
@@ -229,11 +247,12 @@ impl Saturation {
     /// co-energy, so the solution is unique), to `1e-13` of the flux scale.
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] for invalid coefficients ([`Saturation::check`]);
-    /// [`Error::InvalidOption`] (`current`) for a non-finite current or no convergence in 100
-    /// steps.
+    /// [`Error::InvalidParameter`] for non-finite coefficients or `a_d0`, `a_q0` not
+    /// positive; [`Error::InvalidOption`] (`current`) for a non-finite current or no
+    /// convergence in 100 steps (also where negative saturation terms leave `∂i/∂ψ` not
+    /// positive definite).
     pub fn flux(&self, i: [f64; 2]) -> Result<[f64; 2]> {
-        self.check()?;
+        self.check_usable()?;
         if !(i[0].is_finite() && i[1].is_finite()) {
             return Err(Error::InvalidOption {
                 option: "current".into(),
