@@ -186,6 +186,9 @@ pub struct FitArgs {
     /// The log-reading flags (columns, units, window, limits).
     #[command(flatten)]
     pub columns: ColumnArgs,
+    /// The switching-resolved PWM inverter's flags.
+    #[command(flatten)]
+    pub pwm: super::pwm_args::PwmArgs,
 }
 
 /// A delay in samples, or to be estimated.

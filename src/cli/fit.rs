@@ -211,6 +211,16 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
                     .into(),
         });
     }
+    let pwm = a.pwm.inverter(a.u_dc)?;
+    if pwm.is_some() && (inverter.is_some() || !matches!(a.voltage, VoltageArg::Reference)) {
+        return Err(crate::Error::InvalidOption {
+            option: "inverter".into(),
+            reason:
+                "--inverter pwm models the inverter between the voltage reference and the motor: it needs \
+                     --voltage reference and replaces the averaged --dead-time model"
+                    .into(),
+        });
+    }
     let options = PmsmFitOptions {
         // Set below: given, or chosen by fitting these options at each candidate.
         pole_pairs: 0,
@@ -218,7 +228,9 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
         force: a.columns.force,
         input,
         inverter,
-        voltage_limit: a.u_dc.map(|u| u / 3f64.sqrt()),
+        // The PWM model applies the modulator's limit itself.
+        voltage_limit: a.u_dc.filter(|_| pwm.is_none()).map(|u| u / 3f64.sqrt()),
+        pwm,
         cable_resistance: a.cable_resistance,
         thermal,
         model: kind,

@@ -15,6 +15,7 @@ pub mod logs;
 pub mod mechanics;
 pub mod output;
 pub mod plots;
+pub mod pwm_args;
 pub mod saturation;
 pub mod simulate;
 pub mod standstill;

@@ -45,6 +45,23 @@ pub struct SimulateArgs {
     /// `inverter.v_dt=9.2`, `sensors.current_noise=0.05`, `control.h=1.25e-4` (repeatable).
     #[arg(long = "set", value_name = "PATH=VALUE")]
     pub set: Vec<String>,
+    /// The inverter: the averaged one (none: its `inverter.v_dt` error, 0 by default) or
+    /// pwm, switching-resolved (carrier at 1/(2h), min-max modulation, the DC link
+    /// `control.u_dc`) with --t-d, --u-th, --leg-state-width, --pwm-levels.
+    #[arg(long, value_enum, default_value_t = super::pwm_args::InverterArg::None)]
+    pub inverter: super::pwm_args::InverterArg,
+    /// Dead time t_d of --inverter pwm [s].
+    #[arg(long, default_value_t = 2e-6)]
+    pub t_d: f64,
+    /// Device threshold voltage u_th of --inverter pwm [V].
+    #[arg(long, default_value_t = 1.0)]
+    pub u_th: f64,
+    /// Width i_w of the smooth leg state (2/π)·atan(i/i_w) of --inverter pwm [A]; 0: the sign.
+    #[arg(long, default_value_t = 0.0)]
+    pub leg_state_width: f64,
+    /// Levels of the PWM counter of --inverter pwm; 0: continuous duty ratios.
+    #[arg(long, default_value_t = 0)]
+    pub pwm_levels: u32,
     /// Print the scenario (after --set, --seed, --duration) as JSON to stdout and stop.
     #[arg(long)]
     pub print_config: bool,
@@ -150,6 +167,14 @@ pub fn config(a: &SimulateArgs) -> crate::Result<DriveConfig> {
             });
         }
     };
+    if a.inverter == super::pwm_args::InverterArg::Pwm {
+        cfg.inverter.pwm = Some(crate::drive::PwmPlant {
+            t_d: a.t_d,
+            u_th: a.u_th,
+            i_w: a.leg_state_width,
+            levels: a.pwm_levels,
+        });
+    }
     if let Some(seed) = a.seed {
         cfg.seed = seed;
     }

@@ -140,11 +140,30 @@ pub struct Inverter {
     pub v_dt: f64,
     /// Width of the smooth sign \[A\].
     pub width: f64,
+    /// A switching-resolved PWM inverter instead of the averaged one (`v_dt` then unused):
+    /// the fit's own model of [`crate::pmsm::PmsmPwm`], at the DC link `control.u_dc`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pwm: Option<PwmPlant>,
+}
+
+/// The switching-resolved inverter of the simulator: min-max modulation, double update
+/// (the carrier at `1/(2h)`), dead time, device threshold and leg-state width.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(default)]
+pub struct PwmPlant {
+    /// Dead time t_d \[s\].
+    pub t_d: f64,
+    /// Device threshold voltage u_th \[V\].
+    pub u_th: f64,
+    /// Width i_w \[A\] of the smooth leg state `(2/π) atan(i/i_w)`; 0: the sign.
+    pub i_w: f64,
+    /// Levels of the PWM counter; 0: continuous duty ratios.
+    pub levels: u32,
 }
 
 impl Default for Inverter {
     fn default() -> Self {
-        Self { delay: 1, advance: 1.5, v_dt: 0.0, width: 0.05 }
+        Self { delay: 1, advance: 1.5, v_dt: 0.0, width: 0.05, pwm: None }
     }
 }
 
@@ -284,6 +303,9 @@ impl DriveConfig {
             ("control.k_position", self.control.k_position),
             ("control.position_filter", self.control.position_filter),
             ("inverter.v_dt", self.inverter.v_dt),
+            ("inverter.pwm.t_d", self.inverter.pwm.map_or(0.0, |p| p.t_d)),
+            ("inverter.pwm.u_th", self.inverter.pwm.map_or(0.0, |p| p.u_th)),
+            ("inverter.pwm.i_w", self.inverter.pwm.map_or(0.0, |p| p.i_w)),
             ("sensors.current_noise", self.sensors.current_noise),
             ("sensors.speed_noise", self.sensors.speed_noise),
             ("sensors.voltage_noise", self.sensors.voltage_noise),

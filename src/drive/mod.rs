@@ -37,7 +37,7 @@ pub mod profile;
 pub mod scenario;
 pub mod sim;
 
-pub use config::{Control, DriveConfig, Inverter, Mechanics, Mode, Sensors, Thermal};
+pub use config::{Control, DriveConfig, Inverter, Mechanics, Mode, PwmPlant, Sensors, Thermal};
 pub use motors::{IPM_MOTOR, IPM_SATURATION, SATURATED_IPM_MOTOR, SPM_MOTOR};
 pub use profile::Profile;
 pub use scenario::{COMMISSIONING, SCENARIOS, scenario};

@@ -137,6 +137,18 @@ pub fn simulate_drive_with_progress(
         None => th,
     };
     let inv = &cfg.inverter;
+    let mut pwm_plant = crate::pmsm::PwmPlantStep::default();
+    let pwm_model = inv.pwm.map(|p| crate::pmsm::PwmInverter {
+        levels: (p.levels > 0).then_some(p.levels),
+        ..crate::pmsm::PwmInverter::default()
+    });
+    if inv.pwm.is_some() && saturated.is_some() {
+        return Err(Error::InvalidOption {
+            option: "inverter.pwm".into(),
+            reason: "the switching-resolved inverter drives the linear motor models, not the saturated one"
+                .into(),
+        });
+    }
     let mut log = [(); 10].map(|_| Vec::with_capacity(n));
     let (mut i, mut w, mut theta) = ([0.0; 2], 0.0, cfg.mechanics.theta0);
     // The phase-current noise of phases a and b (AR(1) with pole `current_noise_pole`).
@@ -191,7 +203,7 @@ pub fn simulate_drive_with_progress(
         if let Some(w) = cmd.w_ref {
             w_refs.push(w);
         }
-        if inv.v_dt > 0.0 {
+        if inv.v_dt > 0.0 && inv.pwm.is_none() {
             let sign = |x: f64| -(x / inv.width).tanh();
             // The true phase currents at t_k (not the measured ones).
             let (ea, eb) = clarke(sign(ia), sign(ib), sign(ic));
@@ -206,7 +218,25 @@ pub fn simulate_drive_with_progress(
         let w_next = mechanics(cfg, t, t_e, theta, w);
         let w_mean = 0.5 * (w + w_next);
         let phi = np * w_mean * h;
-        let mean = u0 / stator_hold_start(C64::new(1.0, 0.0), phi);
+        let pwm_step = match (inv.pwm, &pwm_model) {
+            (Some(pp), Some(model)) => Some(pwm_plant.step(
+                model,
+                [p.r_s, p.l_d, p.l_q, p.k_e()],
+                [pp.t_d, pp.u_th, pp.i_w],
+                i,
+                th_e,
+                np * w_mean,
+                w_mean,
+                [u_s.re, u_s.im],
+                cfg.control.u_dc,
+                h,
+            )),
+            _ => None,
+        };
+        let mean = match pwm_step {
+            Some((_, m)) => C64::new(m[0], m[1]),
+            None => u0 / stator_hold_start(C64::new(1.0, 0.0), phi),
+        };
         for (c, v) in log.iter_mut().zip([
             mean.re + gauss(&mut rng, s.voltage_noise),
             mean.im + gauss(&mut rng, s.voltage_noise),
@@ -222,9 +252,11 @@ pub fn simulate_drive_with_progress(
             c.push(v);
         }
         // 5. Electrical step.
-        i = match saturated {
-            Some((sat, m)) => saturated_step(sat, p.r_s, i, u0, np * w_mean, h, m),
-            None => plant.step(&p, i, u0, w_mean),
+        i = match (pwm_step, saturated) {
+            (Some((next, _)), _) if next.iter().all(|x| x.is_finite()) => Ok(next),
+            (Some(_), _) => return Err(diverged(k, &p)),
+            (None, Some((sat, m))) => saturated_step(sat, p.r_s, i, u0, np * w_mean, h, m),
+            (None, None) => plant.step(&p, i, u0, w_mean),
         }
         .map_err(|_| diverged(k, &p))?;
         theta += h * w_mean;

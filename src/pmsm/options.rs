@@ -8,6 +8,7 @@ use crate::model::Parameter;
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::inverter::InverterModel;
 use crate::pmsm::model::kind::MotorKind;
+use crate::pmsm::model::pwm::PwmInverter;
 use crate::pmsm::model::temperature::ThermalReference;
 use serde::{Deserialize, Serialize};
 
@@ -112,6 +113,11 @@ pub struct PmsmFitOptions {
     /// fit driven by the reference voltage.
     #[serde(default)]
     pub inverter: Option<InverterModel>,
+    /// The switching-resolved PWM inverter between the reference and the motor
+    /// ([`PmsmPwm`](crate::pmsm::PmsmPwm)): its `t_d`, `u_th` (and `i_w`) join the
+    /// parameters; for a fit driven by the reference voltage, instead of `inverter`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pwm: Option<PwmInverter>,
     /// The modulator's voltage limit \[V\] (`U_dc/√3`): with the reference input, samples
     /// driven by a reference at the limit are weighted out. `None`: not checked.
     #[serde(default)]
@@ -157,6 +163,7 @@ impl PmsmFitOptions {
             cable_resistance: 0.0,
             thermal: None,
             inverter: None,
+            pwm: None,
             voltage_limit: None,
             pem: PemOptions::default(),
             skip_setup_checks: false,

@@ -38,6 +38,7 @@ mod multi_experiment;
 mod online;
 mod outputs;
 mod plots;
+mod pwm_model;
 mod pwm_trust;
 mod random_starts;
 mod ratings;

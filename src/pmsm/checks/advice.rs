@@ -94,7 +94,9 @@ pub(crate) fn dead_time_advice(
     options: &PmsmFitOptions,
 ) -> Vec<Option<Warning>> {
     let (n_p, kind) = (options.pole_pairs, options.model);
-    let (n_theta, inverter) = (kind.parameter_names().len(), options.inverter.is_some());
+    // A model with an inverter (averaged or switching-resolved) has the dead time already.
+    let (n_theta, inverter) =
+        (kind.parameter_names().len(), options.inverter.is_some() || options.pwm.is_some());
     let cols = n_theta.min(MAX_COLS);
     let check = |p: &Option<PreparedLog<'_>>| {
         with_regression(p.as_ref(), n_p, kind, n_theta, |v, _, _, reg| {
@@ -122,8 +124,8 @@ pub(crate) fn dead_time_advice(
             Warning::untrusted("dead_time", format!(
                 "`{}`: the sign of the phase currents explains {:.0} % of the voltage residual the motor's \
                  parameters leave: an inverter dead-time voltage the model does not have (it biases r_s); fit \
-                 the reference voltage with the inverter model (--voltage reference --dead-time estimate), or \
-                 use the measured terminal voltage",
+                 the reference voltage through the switching-resolved inverter (--voltage reference --inverter \
+                 pwm --u-dc U_dc, docs/options.md), or use the measured terminal voltage",
                 e.name(),
                 100.0 * gain
             ))

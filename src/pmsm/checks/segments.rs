@@ -77,9 +77,15 @@ pub(crate) fn warning(
         })
         .collect();
     let advice = match options.input {
-        VoltageInput::Reference { speed_pll: None, .. } if options.inverter.is_none() => {
+        VoltageInput::Reference { speed_pll: None, .. }
+            if options.inverter.is_none() && options.pwm.is_none() =>
+        {
             "model the controller's speed estimate behind the modulator's angle advance (--speed-pll estimate, \
              which needs theta_m), or fit the measured terminal voltage if the drive logs it (--voltage actual)"
+        }
+        _ if options.pwm.is_some() => {
+            "fit the measured terminal voltage if the drive logs it (--voltage actual), or check the PWM settings \
+             (--u-dc, --pwm-update, --pwm-levels, --leg-state-width; docs/options.md)"
         }
         _ if options.inverter.is_some() => {
             "fit the measured terminal voltage if the drive logs it (--voltage actual), or compare \

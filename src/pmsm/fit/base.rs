@@ -41,6 +41,9 @@ pub(super) fn fit(
     if options.inverter.is_some() {
         names.push("v_dt");
     }
+    if let Some(pwm) = &options.pwm {
+        names.extend(pwm.parameter_names());
+    }
     // The checks that need no estimate run on a thread of their own from the start, beside
     // the start, the fits and their statistics (which leave a core idle at times): the
     // setup scan (one regression Gram; a log the scan cannot read is not checked) and the
@@ -78,12 +81,12 @@ fn fit_beside(
     // A salient log fitted without the saliency is an error before any other: the start's,
     // the options', the fits'.
     let structure = match &scan {
-        Some(g) if options.inverter.is_none() => {
+        Some(g) if options.inverter.is_none() && options.pwm.is_none() => {
             crate::pmsm::checks::detect::check_structure(g, n_p, options.model)?
         }
         _ => None,
     };
-    let Fitted { fits, mut notes, ls_theta, modulator } = match (fitted, &scan) {
+    let Fitted { fits, mut notes, ls_theta, modulator, pwm } = match (fitted, &scan) {
         (Err(Error::Numerical { context, reason }), Some(g)) if context == "least-squares start" => {
             let named = crate::pmsm::checks::columns::start_failure(g, experiments, options);
             return Err(Error::Numerical {
@@ -198,6 +201,7 @@ fn fit_beside(
         input: options.input,
         cable_resistance: options.cable_resistance,
         inverter: options.inverter,
+        pwm,
         hold_losses: losses.iter().map(|(h, l, _)| (*h, *l)).collect(),
         start_comparison,
         pmsm_advice,

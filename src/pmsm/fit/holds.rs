@@ -14,6 +14,7 @@ use crate::pmsm::model::inverter::masked_pem;
 use crate::pmsm::model::ipm::PmsmIpm;
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::model::mask::{DeadTimeMask, DeadTimeMaskWeighting};
+use crate::pmsm::model::pwm::{PmsmPwm, PwmInverter};
 use crate::pmsm::model::setup::PmsmSetup;
 use crate::pmsm::model::spm::PmsmSpm;
 use crate::pmsm::options::configure;
@@ -30,6 +31,8 @@ pub(super) struct Fitted {
     pub ls_theta: Option<Vec<f64>>,
     /// Whether every log carries a modulator's reference `ud_ref, uq_ref`.
     pub modulator: bool,
+    /// The PWM inverter fitted through, its first carrier edge resolved.
+    pub pwm: Option<crate::pmsm::model::pwm::PwmInverter>,
 }
 
 /// The start of the fits of `experiments` under `options` (fitted parameters `names`, model
@@ -49,8 +52,13 @@ pub(super) fn fit_from_start(
     let v_dt0 = options.inverter.map(|i| i.known.unwrap_or(0.0));
     let mut notes = Vec::new();
     let mut ls_theta = None;
-    let start = match &options.start {
-        Some(s) => {
+    let start = match (&options.start, &options.pwm) {
+        (None, Some(pwm)) => {
+            let (s, note) = super::pwm_start::start(experiments, options, pwm)?;
+            notes.push(note);
+            s
+        }
+        (Some(s), _) => {
             let s: Vec<f64> = match v_dt0 {
                 Some(v) if s.len() + 1 == names.len() => s.iter().copied().chain([v]).collect(),
                 _ => s.clone(),
@@ -70,7 +78,7 @@ pub(super) fn fit_from_start(
             notes.push("start given by the user".to_string());
             s
         }
-        None => {
+        (None, None) => {
             let (ls_names, theta) = least_squares_start(
                 experiments,
                 n_p,
@@ -173,6 +181,16 @@ pub(super) fn fit_from_start(
             m.threshold
         ));
     }
+    let skip = options.pwm.map(|_| super::pwm_start::SkipStart {
+        inner: weighting,
+        skip: crate::pmsm::checks::limit::delay_of(options.input)
+            + 1
+            + super::pwm_start::UNKNOWN_CARRIER_SAMPLES,
+    });
+    let weighting: &dyn Weighting = match &skip {
+        Some(s) => s,
+        None => weighting,
+    };
     let (mut pem, pem_note) = masked_pem(options.inverter.as_ref(), &options.pem);
     notes.extend(pem_note);
     if ls_theta.is_some() {
@@ -207,14 +225,69 @@ pub(super) fn fit_from_start(
             )
         };
     }
-    let fits = match options.model {
-        MotorKind::Spm => fit_holds!(PmsmSpm),
-        MotorKind::Ipm => fit_holds!(PmsmIpm),
+    let pwm = match options.pwm {
+        Some(pwm) => {
+            let (pwm, note) = super::pwm_start::resolve_edge(
+                experiments,
+                setup(VoltageHold::Stator),
+                options,
+                pwm,
+                &start,
+            )?;
+            notes.extend(note);
+            Some(pwm)
+        }
+        None => None,
+    };
+    let fits = match (pwm, options.model) {
+        (Some(pwm), kind) => {
+            let fit = |pwm: PwmInverter, start: &[f64], names: &[&str]| {
+                fit_holds_of(
+                    holds,
+                    start,
+                    names,
+                    modulator,
+                    |h| {
+                        let mut m = PmsmPwm::new(setup(h), kind, pwm);
+                        configure(m.parameters_mut(), options)?;
+                        Ok(m)
+                    },
+                    experiments,
+                    &pem,
+                    weighting,
+                )
+            };
+            // The loss is rough where a predicted current crosses zero at a switching
+            // instant: the fits of a smooth leg state of decreasing width lead to it.
+            let mut theta = start.clone();
+            let mut last: Option<(crate::estimate::FitResult, Option<f64>)> = None;
+            // Also from a given start: a nested fit of a part of the log that started at the
+            // whole fit's estimate would stay in its basin, and the parts' agreement would not
+            // test whether that basin is the minimum.
+            for (stage, stage_names) in super::pwm_start::continuation(experiments, &pwm, names) {
+                let s = super::pwm_start::carried(last.as_ref().map(|l| &l.0), &stage_names, &theta, names);
+                let fitted = fit(stage, &s, &stage_names)?;
+                last = Some((fitted.best.1, stage.i_w));
+            }
+            if let Some((prev, width)) = &last {
+                let (t, note) = super::pwm_start::from_continuation(prev, *width, names, &pwm, &theta);
+                theta = t;
+                notes.push(note);
+            }
+            fit(pwm, &theta, names)
+        }
+        (None, MotorKind::Spm) => fit_holds!(PmsmSpm),
+        (None, MotorKind::Ipm) => fit_holds!(PmsmIpm),
     }?;
-    Ok(Fitted { fits, notes, ls_theta, modulator })
+    Ok(Fitted { fits, notes, ls_theta, modulator, pwm })
 }
 
 /// The unit of parameter `name` of `kind`, `V` for the dead-time voltage `v_dt`.
 fn unit_of(kind: MotorKind, name: &str) -> &'static str {
-    kind.table().iter().find(|p| p.name == name).map_or("V", |p| p.unit)
+    let nuisance = match name {
+        "t_d" => "s",
+        "i_w" => "A",
+        _ => "V",
+    };
+    kind.table().iter().find(|p| p.name == name).map_or(nuisance, |p| p.unit)
 }

@@ -44,6 +44,10 @@ pub struct PmsmFit {
     /// The inverter model the fit used (its `v_dt` is among the parameters).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub inverter: Option<InverterModel>,
+    /// The PWM inverter the fit resolved (its `t_d`, `u_th` are among the parameters; the
+    /// carrier's first edge as chosen).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pwm: Option<crate::pmsm::model::pwm::PwmInverter>,
     /// Loss of every hold fitted, in fitting order.
     pub hold_losses: Vec<(VoltageHold, f64)>,
     /// The least-squares start against the estimate, when the fit started from LS.
@@ -66,7 +70,11 @@ impl PmsmFit {
     /// The estimate as the start of a fit with the inverter model: the values of `model`'s
     /// parameters, then `v_dt` \[SI units\]; `None` when one of them was not estimated.
     pub(crate) fn inverter_start(&self, model: crate::pmsm::model::kind::MotorKind) -> Option<Vec<f64>> {
-        let names = model.parameter_names().iter().copied().chain(["v_dt"]);
+        let nuisance = match &self.pwm {
+            Some(p) => p.parameter_names(),
+            None => vec!["v_dt"],
+        };
+        let names = model.parameter_names().iter().copied().chain(nuisance);
         names.map(|n| self.parameter(n).map(|p| p.value)).collect()
     }
     /// The JSON report (pretty-printed; non-finite numbers as `null`).

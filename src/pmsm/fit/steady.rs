@@ -101,6 +101,7 @@ pub(crate) fn fit(
         input: VoltageInput::Terminal,
         cable_resistance: options.cable_resistance,
         inverter: None,
+        pwm: None,
         hold_losses: Vec::new(),
         start_comparison: Vec::new(),
         // What the steady samples cannot tell is the diagnostics' advice (`steady_advice`).

@@ -82,7 +82,7 @@ impl GreyBoxModel for PmsmIpm {
     type Inputs = IpmInputs;
     type Coefficients = IpmCoefficients;
 
-    crate::pmsm::model::metadata::pmsm_model_metadata!(KIND);
+    crate::pmsm::model::metadata::pmsm_model_metadata!(|_: &Self| KIND);
 
     fn prepare(&self, e: &Experiment) -> Result<IpmInputs> {
         check_pole_pairs(self.setup.n_p)?;

@@ -14,6 +14,7 @@ pub(super) mod mask;
 pub(super) mod mechanics;
 mod metadata;
 pub(super) mod plant;
+pub(super) mod pwm;
 pub(super) mod saturated;
 pub(super) mod saturation;
 pub(super) mod setup;

@@ -118,7 +118,7 @@ impl GreyBoxModel for PmsmSpm {
     type Inputs = SpmInputs;
     type Coefficients = SpmCoefficients;
 
-    crate::pmsm::model::metadata::pmsm_model_metadata!(KIND);
+    crate::pmsm::model::metadata::pmsm_model_metadata!(|_: &Self| KIND);
 
     fn prepare(&self, e: &Experiment) -> Result<SpmInputs> {
         check_pole_pairs(self.setup.n_p)?;

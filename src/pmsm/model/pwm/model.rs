@@ -1,0 +1,280 @@
+//! [`PmsmPwm`]: the SPM or IPM current equations driven through the switching-resolved
+//! inverter, as a [`GreyBoxModel`] with exact sensitivities.
+
+use super::modulator::{Carrier, duty_ratios, halves};
+use super::*;
+
+/// The data of the PWM-resolved step, independent of θ: per interval the angle, speeds,
+/// DC link and the carrier's plan (about 200 bytes an interval).
+#[derive(Clone, Debug)]
+pub struct PwmInputs {
+    periods: Vec<Period>,
+    /// The measured dq current at each sample \[A\], for the predictor's correction.
+    measured: Vec<[f64; 2]>,
+}
+
+/// θ-dependent coefficients: the parameters in the step's order.
+#[derive(Clone, Copy, Debug)]
+pub struct PwmCoefficients {
+    q: Params<f64>,
+    /// The predictor's gain k_o.
+    k_o: f64,
+    /// Number of parameters n_θ.
+    nth: usize,
+}
+
+/// A surface- or interior-magnet PMSM (`θ = (r_s, l_s, k_e)` or `(r_s, l_d, l_q, k_e)`,
+/// then `t_d` \[s\], `u_th` \[V\], when estimated `i_w` \[A\], and the predictor gain `k_o`)
+/// whose voltage is the controller's reference through a switching-resolved PWM inverter.
+/// State and output: the predicted dq current `x̂[k]` \[A, peak\].
+///
+/// From each period's reference (after the delay and angle advance of
+/// [`VoltageInput::Reference`]) the modulator's duty ratios (min-max zero sequence or sine),
+/// the carrier comparison's switching instants (double or single update), the dead time
+/// that blanks each leg after its switching instant with the leg following the direction
+/// of its phase current as the model predicts it at that instant, the threshold `u_th` of
+/// the conducting device; between those instants the phase voltages are constant and each
+/// piece is an exact step of the current equations (the rotating particular solution and
+/// the 2×2 exponential; MODEL.md §2, §4; Moler & Van Loan 2003). Sensitivities are exact
+/// by forward-mode differentiation, including those through the switching instants.
+///
+/// The step is a one-step predictor in innovation form (Ljung, *System Identification*,
+/// 2nd ed., 4.3 and 7.2): `x̂[k+1] = f(x̂[k] + k_o (y[k] − x̂[k]))`, with `y` the measured
+/// current. With `k_o = 1` it restarts every period from the measurement (equation error),
+/// with 0 it simulates (output error). Neither alone suits a PWM log: a simulation's current
+/// drifts from the measured one and, near a zero crossing, the dead time's sign then
+/// follows the drift, while a restart from a noisy measurement takes the noise as the
+/// state. The gain between them is estimated with the other parameters, as the prediction
+/// error method does for a Kalman predictor's gain.
+///
+/// Reads `id`, `iq`, `w_m`, `theta_m`, `ud_ref`, `uq_ref` (and `u_dc` unless the inverter
+/// gives it).
+#[derive(Clone, Debug)]
+pub struct PmsmPwm {
+    setup: PmsmSetup,
+    kind: MotorKind,
+    inverter: PwmInverter,
+    params: Vec<Parameter>,
+}
+
+impl PmsmPwm {
+    /// The model of `kind` for `setup` (its input must be the reference voltage) through
+    /// `inverter`, with default parameter metadata.
+    pub fn new(setup: PmsmSetup, kind: MotorKind, inverter: PwmInverter) -> Self {
+        let mut params = kind.parameters();
+        params.extend(inverter.parameters());
+        Self { setup, kind, inverter, params }
+    }
+    /// The inverter.
+    pub fn inverter(&self) -> &PwmInverter {
+        &self.inverter
+    }
+    /// The setup (pole pairs, input, cable, thermal reference).
+    pub fn setup(&self) -> &PmsmSetup {
+        &self.setup
+    }
+    /// Mutable parameter metadata (bounds, fixed flags, nominal values).
+    pub fn parameters_mut(&mut self) -> &mut [Parameter] {
+        &mut self.params
+    }
+
+    /// The step's parameters in scalar `T` from θ, `make(value, index)` forming each.
+    fn params<T: Scalar>(&self, theta: &[f64], make: impl Fn(f64, usize) -> T) -> Params<T> {
+        let m = self.kind.parameter_names().len();
+        let r = make(theta[0] + self.setup.cable_resistance + self.inverter.r_on, 0);
+        let (l_d, l_q, k_e) = match self.kind {
+            MotorKind::Spm => (make(theta[1], 1), make(theta[1], 1), make(theta[2], 2)),
+            MotorKind::Ipm => (make(theta[1], 1), make(theta[2], 2), make(theta[3], 3)),
+        };
+        let i_w = if self.inverter.estimate_i_w {
+            Some(make(theta[m + 2], m + 2))
+        } else {
+            self.inverter.i_w.filter(|w| *w > 0.0).map(T::cst)
+        };
+        Params { r, l_d, l_q, k_e, t_d: make(theta[m], m), u_th: make(theta[m + 1], m + 1), i_w }
+    }
+}
+
+impl GreyBoxModel for PmsmPwm {
+    type Inputs = PwmInputs;
+    type Coefficients = PwmCoefficients;
+
+    crate::pmsm::model::metadata::pmsm_model_metadata!(|m: &Self| m.kind);
+
+    fn prepare(&self, e: &Experiment) -> Result<PwmInputs> {
+        check_pole_pairs(self.setup.n_p)?;
+        let VoltageInput::Reference { delay, advance, speed_pll } = self.setup.input else {
+            return Err(Error::InvalidOption {
+                option: "inverter".into(),
+                reason: "the PWM inverter model is driven by the voltage reference (--voltage reference)"
+                    .into(),
+            });
+        };
+        let v = DqView::try_new(e)?;
+        let (h, np) = (v.h(), f64::from(self.setup.n_p));
+        self.inverter.carrier(h)?;
+        let theta_m = e.channel(channel::THETA_M)?;
+        let (ud, uq) = (e.channel(channel::U_D_REF)?, e.channel(channel::U_Q_REF)?);
+        let n = v.len();
+        if delay + 1 >= n || !advance.is_finite() {
+            return Err(Error::InvalidOption {
+                option: "voltage".into(),
+                reason: format!("reference delay {delay} and advance {advance} for a log of {n} samples"),
+            });
+        }
+        let u_dc: Vec<f64> = match self.inverter.u_dc {
+            Some(u) if u.is_finite() && u > 0.0 => vec![u; n],
+            Some(u) => {
+                return Err(Error::InvalidOption {
+                    option: "u_dc".into(),
+                    reason: format!("{u} V is not a positive DC-link voltage"),
+                });
+            }
+            None => {
+                let col = e.channel(U_DC).map_err(|_| Error::InvalidOption {
+                    option: "u_dc".into(),
+                    reason: "the PWM inverter needs the DC-link voltage: a column `u_dc` [V] or --u-dc"
+                        .into(),
+                })?;
+                if let Some(k) = col.iter().position(|u| !(u.is_finite() && *u > 0.0)) {
+                    return Err(Error::InvalidOption {
+                        option: "u_dc".into(),
+                        reason: format!(
+                            "column `u_dc` row {k}: {} V is not a positive DC-link voltage",
+                            col[k]
+                        ),
+                    });
+                }
+                col.to_vec()
+            }
+        };
+        let w_adv: Vec<f64> = match speed_pll {
+            None => v.w_m().iter().map(|w| np * w).collect(),
+            Some(a) => speed_pll_estimate(theta_m, v.w_m(), self.setup.n_p, h, a),
+        };
+        let rising0 = self.inverter.first_edge != Some(CarrierEdge::Falling);
+        let mut carrier = Carrier::default();
+        let w_m = v.w_m();
+        let periods = (0..n - 1)
+            .map(|k| {
+                let j = k.saturating_sub(delay);
+                let angle = np * theta_m[j] + advance * w_adv[j] * h;
+                let (s, c) = angle.sin_cos();
+                let (alpha, beta) = (c * ud[j] - s * uq[j], s * ud[j] + c * uq[j]);
+                let d = duty_ratios(&self.inverter, alpha, beta, u_dc[j]);
+                let rising = match self.inverter.update {
+                    PwmUpdate::Double => k.is_multiple_of(2) == rising0,
+                    PwmUpdate::Single => rising0,
+                };
+                let (halves, n) = halves(&self.inverter, &mut carrier, d, rising, h);
+                let w = mean_speed(&w_m[k..k + 2]);
+                Period {
+                    theta: np * theta_m[k],
+                    w_e: np * w,
+                    emf: SQRT_2_3 * w,
+                    u_dc: u_dc[k],
+                    halves,
+                    n: n as u8,
+                }
+            })
+            .collect();
+        let measured = v.i_d().iter().zip(v.i_q()).map(|(d, q)| [*d, *q]).collect();
+        Ok(PwmInputs { periods, measured })
+    }
+
+    fn coefficients(&self, theta: &[f64], _inputs: &PwmInputs) -> Result<PwmCoefficients> {
+        let nth = self.params.len();
+        if theta.len() != nth {
+            return Err(Error::InvalidOption {
+                option: "theta".into(),
+                reason: format!("{} values for the {nth} parameters of `{}`", theta.len(), self.name()),
+            });
+        }
+        let q: Params<f64> = self.params(theta, |v, _| v);
+        crate::pmsm::model::interval::check_positive("r_s", theta[0])?;
+        crate::pmsm::model::interval::check_positive("l_d", q.l_d)?;
+        crate::pmsm::model::interval::check_positive("l_q", q.l_q)?;
+        crate::pmsm::model::interval::check_finite("k_e", q.k_e)?;
+        for (name, v) in self.params.iter().zip(theta).skip(self.kind.parameter_names().len()) {
+            if !(v.is_finite() && *v >= 0.0) {
+                return Err(Error::InvalidParameter {
+                    name: name.name.clone(),
+                    value: *v,
+                    reason: "an inverter parameter is finite and not negative".into(),
+                });
+            }
+        }
+        let k_o = self.inverter.predictor_gain.unwrap_or(theta[nth - 1]);
+        Ok(PwmCoefficients { q, k_o, nth })
+    }
+
+    #[inline]
+    fn step(&self, c: &PwmCoefficients, inp: &PwmInputs, k: usize, x: &[f64], x_next: &mut [f64]) {
+        let y = inp.measured[k];
+        let x = [x[0] + c.k_o * (y[0] - x[0]), x[1] + c.k_o * (y[1] - x[1])];
+        let [d, q] = period::step(&c.q, &inp.periods[k], x);
+        x_next[0] = d;
+        x_next[1] = q;
+    }
+
+    fn sensitivities(&self) -> Option<&dyn Sensitivities<PwmInputs, PwmCoefficients>> {
+        (self.params.len() <= N).then_some(self as _)
+    }
+}
+
+impl Sensitivities<PwmInputs, PwmCoefficients> for PmsmPwm {
+    fn step_sensitivity(
+        &self,
+        c: &PwmCoefficients,
+        inp: &PwmInputs,
+        k: usize,
+        x: &[f64],
+        s: &[f64],
+        x_next: &mut [f64],
+        s_next: &mut [f64],
+    ) {
+        let m = c.nth;
+        let theta = theta_of(&c.q, self);
+        let q: Params<Dual> = self.params(&theta, Dual::seed);
+        let row = |i: usize| std::array::from_fn(|j| if j < m { s[i * m + j] } else { 0.0 });
+        let k_o = match self.inverter.predictor_gain {
+            Some(g) => Dual::cst(g),
+            None => Dual::seed(c.k_o, m - 1),
+        };
+        let y = inp.measured[k];
+        let x0 = [Dual::new(x[0], row(0)), Dual::new(x[1], row(1))];
+        let x0 = [x0[0] + k_o * (Dual::cst(y[0]) - x0[0]), x0[1] + k_o * (Dual::cst(y[1]) - x0[1])];
+        let xn = period::step(&q, &inp.periods[k], x0);
+        for (i, v) in xn.iter().enumerate() {
+            x_next[i] = v.v;
+            s_next[i * m..(i + 1) * m].copy_from_slice(&v.d[..m]);
+        }
+    }
+
+    fn output_sensitivity(
+        &self,
+        _c: &PwmCoefficients,
+        _inp: &PwmInputs,
+        _k: usize,
+        _x: &[f64],
+        s: &[f64],
+        dy: &mut [f64],
+    ) {
+        let n = dy.len();
+        dy.copy_from_slice(&s[..n]);
+    }
+}
+
+/// θ back from the coefficients (model order), for the sensitivity pass's seeds.
+fn theta_of(q: &Params<f64>, m: &PmsmPwm) -> Vec<f64> {
+    let mut t = vec![q.r - m.setup.cable_resistance - m.inverter.r_on];
+    match m.kind {
+        MotorKind::Spm => t.extend([q.l_d, q.k_e]),
+        MotorKind::Ipm => t.extend([q.l_d, q.l_q, q.k_e]),
+    }
+    t.extend([q.t_d, q.u_th]);
+    if m.inverter.estimate_i_w {
+        t.push(q.i_w.unwrap_or(0.0));
+    }
+    t
+}
