@@ -210,7 +210,10 @@ fn the_command_line_names_the_missing_pwm_flag() {
     for (extra, names) in [
         (&["--inverter", "pwm", "--u-dc", "320"][..], "--voltage reference"),
         (&["--voltage", "reference", "--inverter", "pwm"][..], "--u-dc"),
-        (&["--voltage", "reference", "--inverter", "pwm", "--u-dc", "320", "--carrier-hz", "8000"][..], "--carrier-hz"),
+        (
+            &["--voltage", "reference", "--inverter", "pwm", "--u-dc", "320", "--carrier-hz", "8000"][..],
+            "--carrier-hz",
+        ),
         (&["--voltage", "reference", "--pwm-levels", "4096"][..], "--inverter pwm"),
     ] {
         let (code, err) = run(extra);

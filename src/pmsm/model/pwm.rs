@@ -216,7 +216,7 @@ impl PwmInverter {
             PwmUpdate::Single => 1.0 / h,
         };
         match self.carrier_hz {
-            Some(c) if (c - f).abs().partial_cmp(&(1e-6 * f)) != Some(std::cmp::Ordering::Less) => Err(Error::InvalidOption {
+            Some(c) if c.is_nan() || (c - f).abs() > 1e-6 * f => Err(Error::InvalidOption {
                 option: "carrier_hz".into(),
                 reason: format!(
                     "{c} Hz, but a log sampled every {h:e} s at the carrier's {} has a {f} Hz carrier; give the \
