@@ -284,10 +284,5 @@ pub(super) fn fit_from_start(
 
 /// The unit of parameter `name` of `kind`, `V` for the dead-time voltage `v_dt`.
 fn unit_of(kind: MotorKind, name: &str) -> &'static str {
-    let nuisance = match name {
-        "t_d" => "s",
-        "i_w" => "A",
-        _ => "V",
-    };
-    kind.table().iter().find(|p| p.name == name).map_or(nuisance, |p| p.unit)
+    kind.table().iter().find(|p| p.name == name).map_or("V", |p| p.unit)
 }

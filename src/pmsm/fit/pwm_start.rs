@@ -5,12 +5,12 @@
 //! when not given, as the one whose one-step prediction at that start fits the logs better.
 
 use crate::data::Experiment;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::model::GreyBoxModel;
 use crate::pmsm::linear::start::least_squares_start;
 use crate::pmsm::log::signals::channel;
 use crate::pmsm::model::inverter::InverterModel;
-use crate::pmsm::model::pwm::{CarrierEdge, PmsmPwm, PwmInverter, U_DC};
+use crate::pmsm::model::pwm::{CarrierEdge, PmsmPwm, PwmInverter};
 use crate::pmsm::model::setup::PmsmSetup;
 use crate::pmsm::options::PmsmFitOptions;
 
@@ -38,16 +38,8 @@ pub(crate) fn start(
     let v_dt = names.iter().position(|n| n == "v_dt").map_or(1.0, |j| theta[j]);
     let e = &experiments[0];
     let f_sw = pwm.carrier(e.h())?;
-    let u_dc = match pwm.u_dc {
-        Some(u) => u,
-        None => {
-            let col = e.channel(U_DC).map_err(|_| Error::InvalidOption {
-                option: "u_dc".into(),
-                reason: "the PWM inverter needs the DC-link voltage: a column `u_dc` [V] or --u-dc".into(),
-            })?;
-            col.iter().sum::<f64>() / col.len().max(1) as f64
-        }
-    };
+    let u_dc = pwm.u_dc_samples(e)?;
+    let u_dc = u_dc.iter().sum::<f64>() / u_dc.len().max(1) as f64;
     let nuisance = pwm.start(v_dt, f_sw, u_dc);
     let note = format!(
         "PWM inverter start from the averaged least-squares regression: v_dt = {v_dt:.4} V at {f_sw:.0} Hz and \
@@ -158,15 +150,11 @@ pub(crate) fn from_continuation(
     pwm: &PwmInverter,
     theta: &[f64],
 ) -> (Vec<f64>, String) {
-    let start: Vec<f64> = names
-        .iter()
-        .enumerate()
-        .map(|(j, n)| match (*n, last.parameter(n)) {
-            (_, Some(p)) => p.value,
-            ("i_w", None) => width.unwrap_or(theta[j]),
-            _ => theta[j],
-        })
-        .collect();
+    let mut start = carried(Some(last), names, theta, names);
+    if let (Some(j), Some(w)) = (names.iter().position(|n| *n == "i_w"), width) {
+        // The stages hold the width fixed: the estimate starts at the last one.
+        start[j] = w;
+    }
     let note = format!(
         "PWM inverter: the fit follows a continuation of the leg state (2/π) atan(i/i_w) over widths {} of the \
          largest current (loss at the last {:.6e}), then {}",

@@ -1,9 +1,10 @@
 //! The metadata every PMSM model shares, as a macro over the motor kind's table.
 
 /// The part of [`crate::model::GreyBoxModel`] every PMSM model shares, from its motor
-/// kind's table (`$kind`: a function of the model giving its [`MotorKind`](crate::pmsm::MotorKind)): name, the dq current state and outputs `id`, `iq` \[A\], the channels read
-/// (`ud`, `uq`, `w_m`), parameter metadata (`self.params`), advice, and `k_t`, `psi_f`
-/// derived with `self.n_p` pole pairs.
+/// kind's table (`$kind`: a function of the model giving its
+/// [`MotorKind`](crate::pmsm::MotorKind)): name, the dq current state and outputs `id`,
+/// `iq` \[A\], the channels read (`ud`, `uq`, `w_m`), parameter metadata (`self.params`),
+/// advice, and `k_t`, `psi_f` derived with `self.n_p` pole pairs.
 macro_rules! pmsm_model_metadata {
     ($kind:expr) => {
         fn name(&self) -> &str {

@@ -22,7 +22,7 @@ use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::model::{GreyBoxModel, Parameter, Sensitivities};
 use crate::pmsm::log::signals::{DqView, channel, check_pole_pairs};
-use crate::pmsm::model::interval::{SQRT_2_3, VoltageInput, mean_speed, speed_pll_estimate};
+use crate::pmsm::model::interval::{SQRT_2_3, VoltageInput, mean_speed, reference_channels};
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::model::setup::PmsmSetup;
 use serde::{Deserialize, Serialize};
@@ -34,8 +34,8 @@ pub(crate) mod period;
 use dual::{Dual, N, Scalar};
 use period::{Params, Period};
 
-/// Start of the estimated predictor gain k_o: the correction halfway between the
-/// measured current and the model's prediction.
+/// Start of the estimated predictor gain k_o: the restart from the measured current, the
+/// gain of the default fit.
 pub const PREDICTOR_GAIN_START: f64 = 1.0;
 
 /// The DC-link voltage column a log may carry \[V\].
@@ -151,32 +151,33 @@ impl Default for PwmInverter {
 
 impl PwmInverter {
     /// The nuisance parameters this inverter adds after the motor's: `t_d` \[s\] and `u_th`
-    /// \[V\] (fixed when known), and `i_w` \[A\] when estimated.
+    /// \[V\] (fixed when known), `i_w` \[A\] when estimated, the predictor gain `k_o` \[1\]
+    /// when estimated; in the order of [`parameter_names`](Self::parameter_names).
     pub fn parameters(&self) -> Vec<Parameter> {
-        let mut p = vec![
-            Parameter {
-                lower: 0.0,
-                nuisance: true,
-                fixed: self.t_d.is_some(),
-                ..Parameter::free("t_d", "s", 1e-6)
-            },
-            Parameter {
-                lower: 0.0,
-                nuisance: true,
-                fixed: self.u_th.is_some(),
-                ..Parameter::free("u_th", "V", 1.0)
-            },
-        ];
-        if self.estimate_i_w {
-            p.push(Parameter { nuisance: true, ..Parameter::positive("i_w", "A", 0.1) });
-        }
-        if self.predictor_gain.is_none() {
-            p.push(Parameter { lower: 0.0, upper: 2.0, nuisance: true, ..Parameter::free("k_o", "1", 1.0) });
-        }
-        p
+        self.parameter_names()
+            .into_iter()
+            .map(|name| match name {
+                "t_d" => Parameter {
+                    lower: 0.0,
+                    nuisance: true,
+                    fixed: self.t_d.is_some(),
+                    ..Parameter::free("t_d", "s", 1e-6)
+                },
+                "u_th" => Parameter {
+                    lower: 0.0,
+                    nuisance: true,
+                    fixed: self.u_th.is_some(),
+                    ..Parameter::free("u_th", "V", 1.0)
+                },
+                "i_w" => Parameter { nuisance: true, ..Parameter::positive("i_w", "A", 0.1) },
+                _ => Parameter { lower: 0.0, upper: 2.0, nuisance: true, ..Parameter::free("k_o", "1", 1.0) },
+            })
+            .collect()
     }
 
-    /// Names of [`parameters`](Self::parameters).
+    /// Names of the nuisance parameters, in θ's order after the motor's: `t_d`, `u_th`, then
+    /// `i_w` and `k_o` when estimated. The one list [`parameters`](Self::parameters) and
+    /// [`start`](Self::start) follow.
     pub fn parameter_names(&self) -> Vec<&'static str> {
         let mut n = vec!["t_d", "u_th"];
         if self.estimate_i_w {
@@ -195,14 +196,41 @@ impl PwmInverter {
         let v_dt = if v_dt.is_finite() && v_dt > 0.0 { v_dt } else { 1.0 };
         let u_th = self.u_th.unwrap_or((0.2 * v_dt).min(1.0));
         let t_d = self.t_d.unwrap_or(((v_dt - u_th).max(0.1 * v_dt) / (f_sw * u_dc)).max(1e-8));
-        let mut s = vec![t_d, u_th];
-        if self.estimate_i_w {
-            s.push(self.i_w.unwrap_or(0.05));
+        self.parameter_names()
+            .into_iter()
+            .map(|name| match name {
+                "t_d" => t_d,
+                "u_th" => u_th,
+                "i_w" => self.i_w.unwrap_or(0.05),
+                _ => PREDICTOR_GAIN_START,
+            })
+            .collect()
+    }
+
+    /// The DC-link voltage \[V\] at every sample of `e` (length N): the inverter's `u_dc`, or
+    /// the log's column `u_dc`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidOption`] naming `u_dc` when neither is given, or a value is not a
+    /// positive, finite voltage (with its row).
+    pub fn u_dc_samples(&self, e: &Experiment) -> Result<Vec<f64>> {
+        let bad = |reason: String| Error::InvalidOption { option: "u_dc".into(), reason };
+        match self.u_dc {
+            Some(u) if u.is_finite() && u > 0.0 => Ok(vec![u; e.len()]),
+            Some(u) => Err(bad(format!("{u} V is not a positive DC-link voltage"))),
+            None => {
+                let col = e.channel(U_DC).map_err(|_| {
+                    bad("the PWM inverter needs the DC-link voltage: a column `u_dc` [V] or --u-dc".into())
+                })?;
+                match col.iter().position(|u| !(u.is_finite() && *u > 0.0)) {
+                    Some(k) => Err(bad(format!(
+                        "column `u_dc` row {k}: {} V is not a positive DC-link voltage",
+                        col[k]
+                    ))),
+                    None => Ok(col.to_vec()),
+                }
+            }
         }
-        if self.predictor_gain.is_none() {
-            s.push(PREDICTOR_GAIN_START);
-        }
-        s
     }
 
     /// The carrier frequency \[Hz\] of a log of sample time `h` \[s\].
@@ -267,8 +295,8 @@ impl PwmPlantStep {
         let d = modulator::duty_ratios(inv, u_ab[0], u_ab[1], u_dc);
         let rising = self.k.is_multiple_of(2);
         self.k += 1;
-        let (halves, n) = modulator::halves(inv, &mut self.carrier, d, rising, h);
-        let per = Period { theta: theta_e, w_e, emf: SQRT_2_3 * w_m, u_dc, halves, n: n as u8 };
+        let per =
+            Period::new(theta_e, w_e, w_m, u_dc, modulator::halves(inv, &mut self.carrier, d, rising, h));
         let [r, l_d, l_q, k_e] = motor;
         let [t_d, u_th, i_w] = inverter;
         let q = Params { r, l_d, l_q, k_e, t_d, u_th, i_w: (i_w > 0.0).then_some(i_w) };

@@ -41,19 +41,8 @@ fn reference_start_voltages(
     advance: f64,
     speed_pll: Option<f64>,
 ) -> Result<Vec<C64>> {
-    let e = v.experiment();
-    let (ud, uq) = (e.channel(crate::pmsm::channel::U_D_REF)?, e.channel(crate::pmsm::channel::U_Q_REF)?);
-    if !advance.is_finite() || delay + 1 >= v.len() {
-        return Err(Error::InvalidOption {
-            option: "voltage".into(),
-            reason: format!("reference delay {delay} and advance {advance} for a log of {} samples", v.len()),
-        });
-    }
+    let (ud, uq, w_adv) = reference_channels(v, n_p, delay, advance, speed_pll)?;
     let (h, np) = (v.h(), f64::from(n_p));
-    let w_adv: Vec<f64> = match speed_pll {
-        None => v.w_m().iter().map(|w| np * w).collect(),
-        Some(a) => speed_pll_estimate(e.channel(crate::pmsm::channel::THETA_M)?, v.w_m(), n_p, h, a),
-    };
     // φ_k = ω_e h of each interval, as `motion` forms ω_e.
     let phis: Vec<f64> = v.w_m().windows(2).map(|w| np * mean_speed(w) * h).collect();
     Ok((0..phis.len())
@@ -64,6 +53,38 @@ fn reference_start_voltages(
             C64::new(ud[j], uq[j]) * C64::new(angle.cos(), angle.sin())
         })
         .collect())
+}
+
+/// The reference `ud_ref, uq_ref` \[V\] of a log driven by it, checked against its delay
+/// and advance, with the electrical speed \[rad/s\] the controller advances each sample's
+/// reference by: the logged one, or that of a phase-locked loop of bandwidth `speed_pll` on
+/// `theta_m` ([`speed_pll_estimate`]); length N each.
+///
+/// # Errors
+/// [`Error::MissingChannel`] when the log has no `ud_ref`/`uq_ref` (or no `theta_m` for the
+/// loop); [`Error::InvalidOption`] for a non-finite advance or a delay not shorter than
+/// the log.
+pub(crate) fn reference_channels<'a>(
+    v: &DqView<'a>,
+    n_p: u32,
+    delay: usize,
+    advance: f64,
+    speed_pll: Option<f64>,
+) -> Result<(&'a [f64], &'a [f64], Vec<f64>)> {
+    let e = v.experiment();
+    let (ud, uq) = (e.channel(crate::pmsm::channel::U_D_REF)?, e.channel(crate::pmsm::channel::U_Q_REF)?);
+    if !advance.is_finite() || delay + 1 >= v.len() {
+        return Err(Error::InvalidOption {
+            option: "voltage".into(),
+            reason: format!("reference delay {delay} and advance {advance} for a log of {} samples", v.len()),
+        });
+    }
+    let np = f64::from(n_p);
+    let w_adv: Vec<f64> = match speed_pll {
+        None => v.w_m().iter().map(|w| np * w).collect(),
+        Some(a) => speed_pll_estimate(e.channel(crate::pmsm::channel::THETA_M)?, v.w_m(), n_p, v.h(), a),
+    };
+    Ok((ud, uq, w_adv))
 }
 
 /// The intervals of a log for the given hold and voltage input: [`intervals`] for the

@@ -9,14 +9,18 @@ use super::*;
 #[derive(Clone, Debug)]
 pub struct PwmInputs {
     periods: Vec<Period>,
-    /// The measured dq current at each sample \[A\], for the predictor's correction.
-    measured: Vec<[f64; 2]>,
+    /// The measured dq current at each sample \[A\], for the predictor's correction (the
+    /// experiment's channels, shared, not copied).
+    i_d: crate::data::Values,
+    i_q: crate::data::Values,
 }
 
 /// θ-dependent coefficients: the parameters in the step's order.
 #[derive(Clone, Copy, Debug)]
 pub struct PwmCoefficients {
     q: Params<f64>,
+    /// θ itself, padded: the values the sensitivity pass seeds its dual numbers with.
+    theta: [f64; N],
     /// The predictor's gain k_o.
     k_o: f64,
     /// Number of parameters n_θ.
@@ -24,7 +28,8 @@ pub struct PwmCoefficients {
 }
 
 /// A surface- or interior-magnet PMSM (`θ = (r_s, l_s, k_e)` or `(r_s, l_d, l_q, k_e)`,
-/// then `t_d` \[s\], `u_th` \[V\], when estimated `i_w` \[A\], and the predictor gain `k_o`)
+/// then `t_d` \[s\], `u_th` \[V\], and, when estimated, `i_w` \[A\] and the predictor gain
+/// `k_o`; [`PwmInverter::parameter_names`])
 /// whose voltage is the controller's reference through a switching-resolved PWM inverter.
 /// State and output: the predicted dq current `x̂[k]` \[A, peak\].
 ///
@@ -44,8 +49,8 @@ pub struct PwmCoefficients {
 /// with 0 it simulates (output error). Neither alone suits a PWM log: a simulation's current
 /// drifts from the measured one and, near a zero crossing, the dead time's sign then
 /// follows the drift, while a restart from a noisy measurement takes the noise as the
-/// state. The gain between them is estimated with the other parameters, as the prediction
-/// error method does for a Kalman predictor's gain.
+/// state. The gain is 1 by default ([`PwmInverter::predictor_gain`]), or estimated with the
+/// other parameters, as the prediction error method does for a Kalman predictor's gain.
 ///
 /// Reads `id`, `iq`, `w_m`, `theta_m`, `ud_ref`, `uq_ref` (and `u_dc` unless the inverter
 /// gives it).
@@ -114,48 +119,12 @@ impl GreyBoxModel for PmsmPwm {
         let (h, np) = (v.h(), f64::from(self.setup.n_p));
         self.inverter.carrier(h)?;
         let theta_m = e.channel(channel::THETA_M)?;
-        let (ud, uq) = (e.channel(channel::U_D_REF)?, e.channel(channel::U_Q_REF)?);
-        let n = v.len();
-        if delay + 1 >= n || !advance.is_finite() {
-            return Err(Error::InvalidOption {
-                option: "voltage".into(),
-                reason: format!("reference delay {delay} and advance {advance} for a log of {n} samples"),
-            });
-        }
-        let u_dc: Vec<f64> = match self.inverter.u_dc {
-            Some(u) if u.is_finite() && u > 0.0 => vec![u; n],
-            Some(u) => {
-                return Err(Error::InvalidOption {
-                    option: "u_dc".into(),
-                    reason: format!("{u} V is not a positive DC-link voltage"),
-                });
-            }
-            None => {
-                let col = e.channel(U_DC).map_err(|_| Error::InvalidOption {
-                    option: "u_dc".into(),
-                    reason: "the PWM inverter needs the DC-link voltage: a column `u_dc` [V] or --u-dc"
-                        .into(),
-                })?;
-                if let Some(k) = col.iter().position(|u| !(u.is_finite() && *u > 0.0)) {
-                    return Err(Error::InvalidOption {
-                        option: "u_dc".into(),
-                        reason: format!(
-                            "column `u_dc` row {k}: {} V is not a positive DC-link voltage",
-                            col[k]
-                        ),
-                    });
-                }
-                col.to_vec()
-            }
-        };
-        let w_adv: Vec<f64> = match speed_pll {
-            None => v.w_m().iter().map(|w| np * w).collect(),
-            Some(a) => speed_pll_estimate(theta_m, v.w_m(), self.setup.n_p, h, a),
-        };
+        let (ud, uq, w_adv) = reference_channels(&v, self.setup.n_p, delay, advance, speed_pll)?;
+        let u_dc = self.inverter.u_dc_samples(e)?;
         let rising0 = self.inverter.first_edge != Some(CarrierEdge::Falling);
         let mut carrier = Carrier::default();
         let w_m = v.w_m();
-        let periods = (0..n - 1)
+        let periods = (0..v.len() - 1)
             .map(|k| {
                 let j = k.saturating_sub(delay);
                 let angle = np * theta_m[j] + advance * w_adv[j] * h;
@@ -166,20 +135,17 @@ impl GreyBoxModel for PmsmPwm {
                     PwmUpdate::Double => k.is_multiple_of(2) == rising0,
                     PwmUpdate::Single => rising0,
                 };
-                let (halves, n) = halves(&self.inverter, &mut carrier, d, rising, h);
                 let w = mean_speed(&w_m[k..k + 2]);
-                Period {
-                    theta: np * theta_m[k],
-                    w_e: np * w,
-                    emf: SQRT_2_3 * w,
-                    u_dc: u_dc[k],
-                    halves,
-                    n: n as u8,
-                }
+                Period::new(
+                    np * theta_m[k],
+                    np * w,
+                    w,
+                    u_dc[k],
+                    halves(&self.inverter, &mut carrier, d, rising, h),
+                )
             })
             .collect();
-        let measured = v.i_d().iter().zip(v.i_q()).map(|(d, q)| [*d, *q]).collect();
-        Ok(PwmInputs { periods, measured })
+        Ok(PwmInputs { periods, i_d: e.values(channel::I_D)?.clone(), i_q: e.values(channel::I_Q)?.clone() })
     }
 
     fn coefficients(&self, theta: &[f64], _inputs: &PwmInputs) -> Result<PwmCoefficients> {
@@ -191,7 +157,7 @@ impl GreyBoxModel for PmsmPwm {
             });
         }
         let q: Params<f64> = self.params(theta, |v, _| v);
-        crate::pmsm::model::interval::check_positive("r_s", theta[0])?;
+        self.setup.series_resistance(theta[0])?;
         crate::pmsm::model::interval::check_positive("l_d", q.l_d)?;
         crate::pmsm::model::interval::check_positive("l_q", q.l_q)?;
         crate::pmsm::model::interval::check_finite("k_e", q.k_e)?;
@@ -205,12 +171,13 @@ impl GreyBoxModel for PmsmPwm {
             }
         }
         let k_o = self.inverter.predictor_gain.unwrap_or(theta[nth - 1]);
-        Ok(PwmCoefficients { q, k_o, nth })
+        let theta = std::array::from_fn(|j| theta.get(j).copied().unwrap_or(0.0));
+        Ok(PwmCoefficients { q, theta, k_o, nth })
     }
 
     #[inline]
     fn step(&self, c: &PwmCoefficients, inp: &PwmInputs, k: usize, x: &[f64], x_next: &mut [f64]) {
-        let y = inp.measured[k];
+        let y = [inp.i_d[k], inp.i_q[k]];
         let x = [x[0] + c.k_o * (y[0] - x[0]), x[1] + c.k_o * (y[1] - x[1])];
         let [d, q] = period::step(&c.q, &inp.periods[k], x);
         x_next[0] = d;
@@ -234,14 +201,13 @@ impl Sensitivities<PwmInputs, PwmCoefficients> for PmsmPwm {
         s_next: &mut [f64],
     ) {
         let m = c.nth;
-        let theta = theta_of(&c.q, self);
-        let q: Params<Dual> = self.params(&theta, Dual::seed);
+        let q: Params<Dual> = self.params(&c.theta, Dual::seed);
         let row = |i: usize| std::array::from_fn(|j| if j < m { s[i * m + j] } else { 0.0 });
         let k_o = match self.inverter.predictor_gain {
             Some(g) => Dual::cst(g),
             None => Dual::seed(c.k_o, m - 1),
         };
-        let y = inp.measured[k];
+        let y = [inp.i_d[k], inp.i_q[k]];
         let x0 = [Dual::new(x[0], row(0)), Dual::new(x[1], row(1))];
         let x0 = [x0[0] + k_o * (Dual::cst(y[0]) - x0[0]), x0[1] + k_o * (Dual::cst(y[1]) - x0[1])];
         let xn = period::step(&q, &inp.periods[k], x0);
@@ -263,18 +229,4 @@ impl Sensitivities<PwmInputs, PwmCoefficients> for PmsmPwm {
         let n = dy.len();
         dy.copy_from_slice(&s[..n]);
     }
-}
-
-/// θ back from the coefficients (model order), for the sensitivity pass's seeds.
-fn theta_of(q: &Params<f64>, m: &PmsmPwm) -> Vec<f64> {
-    let mut t = vec![q.r - m.setup.cable_resistance - m.inverter.r_on];
-    match m.kind {
-        MotorKind::Spm => t.extend([q.l_d, q.k_e]),
-        MotorKind::Ipm => t.extend([q.l_d, q.l_q, q.k_e]),
-    }
-    t.extend([q.t_d, q.u_th]);
-    if m.inverter.estimate_i_w {
-        t.push(q.i_w.unwrap_or(0.0));
-    }
-    t
 }

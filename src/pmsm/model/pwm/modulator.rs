@@ -36,18 +36,12 @@ pub(crate) struct HalfPlan {
     pub carry: [f64; 3],
 }
 
-/// Phase voltages of a stator vector `(α, β)` \[V\], inverse amplitude-invariant Clarke.
-#[inline]
-pub(crate) fn phases(alpha: f64, beta: f64) -> [f64; 3] {
-    let s = 0.5 * 3f64.sqrt() * beta;
-    [alpha, -0.5 * alpha + s, -0.5 * alpha - s]
-}
-
 /// The duty ratios `d_a, d_b, d_c` in `[0, 1]` of the stator voltage reference `(α, β)`
 /// \[V\] at DC-link voltage `u_dc` \[V\] for the inverter's modulator, quantised to its
 /// counter's levels if it has them (round half to even, as a counter compare register).
 pub(crate) fn duty_ratios(inv: &PwmInverter, alpha: f64, beta: f64, u_dc: f64) -> [f64; 3] {
-    let mut u = phases(alpha, beta);
+    let (a, b, c) = crate::pmsm::log::transform::inverse_clarke(alpha, beta);
+    let mut u = [a, b, c];
     if inv.modulator == Modulator::MinMax {
         let (hi, lo) = u.iter().fold((f64::NEG_INFINITY, f64::INFINITY), |(h, l), &x| (h.max(x), l.min(x)));
         let u0 = 0.5 * (hi + lo);

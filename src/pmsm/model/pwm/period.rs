@@ -61,6 +61,21 @@ pub(crate) struct Period {
     pub n: u8,
 }
 
+impl Period {
+    /// The period starting at electrical angle `theta` \[rad\] at interval-mean electrical
+    /// and mechanical speeds `w_e`, `w_m` \[rad/s\] and DC link `u_dc` \[V\], of the carrier's
+    /// half periods `(plans, n)` ([`super::modulator::halves`]).
+    pub(crate) fn new(
+        theta: f64,
+        w_e: f64,
+        w_m: f64,
+        u_dc: f64,
+        (halves, n): ([HalfPlan; 2], usize),
+    ) -> Self {
+        Self { theta, w_e, emf: super::SQRT_2_3 * w_m, u_dc, halves, n: n as u8 }
+    }
+}
+
 /// A complex number over the pass's scalar.
 #[derive(Clone, Copy, Debug)]
 struct Cx<T> {
@@ -256,27 +271,26 @@ fn half_step<T: Scalar>(
         let u_alpha = (u[0] - (u[1] + u[2]) * 0.5) * (2.0 / 3.0);
         let u_beta = (u[1] - u[2]) * (1.0 / 3f64.sqrt());
         let v = [c * u_alpha + s * u_beta, c * u_beta - s * u_alpha];
+        let rot = (tau * w).sin_cos();
         if let Some(acc) = acc.as_deref_mut() {
             // ∫₀^τ R(−ω s) v ds = (S v_d + C v_q, S v_q − C v_d), S = sin ωτ/ω, C = (1 − cos ωτ)/ω.
-            let wt = (tau * w).val();
-            let (sw, cw) = if wt.abs() < 1e-6 {
+            let (sw, cw) = if (tau * w).val().abs() < 1e-6 {
                 (tau, tau * tau * (0.5 * w))
             } else {
-                let (sn, cs) = (tau * w).sin_cos();
-                (sn * (1.0 / w), (T::cst(1.0) - cs) * (1.0 / w))
+                (rot.0 * (1.0 / w), (T::cst(1.0) - rot.1) * (1.0 / w))
             };
             acc[0] = acc[0] + sw * v[0] + cw * v[1];
             acc[1] = acc[1] + sw * v[1] - cw * v[0];
         }
-        x = piece(sys, x, v, w, tau);
+        x = piece(sys, x, v, rot, tau);
     }
     x
 }
 
 /// The exact step over a piece of length `tau` \[s\] with the dq voltage `v` at its start
-/// (module docs).
+/// and `(sin ω_e τ, cos ω_e τ)` (module docs).
 #[inline]
-fn piece<T: Scalar>(sys: &System<T>, x: [T; 2], v: [T; 2], w: f64, tau: T) -> [T; 2] {
+fn piece<T: Scalar>(sys: &System<T>, x: [T; 2], v: [T; 2], (sr, cr): (T, T), tau: T) -> [T; 2] {
     let p = &sys.p;
     let pv = [p[0][0] * v[0] + p[0][1] * v[1], p[1][0] * v[0] + p[1][1] * v[1]];
     let y = [x[0] - pv[0] - sys.xc[0], x[1] - pv[1] - sys.xc[1]];
@@ -284,7 +298,6 @@ fn piece<T: Scalar>(sys: &System<T>, x: [T; 2], v: [T; 2], w: f64, tau: T) -> [T
     let e = (sys.mu * tau).exp();
     let a = &sys.a;
     let ay = [(a[0][0] - sys.mu) * y[0] + a[0][1] * y[1], a[1][0] * y[0] + (a[1][1] - sys.mu) * y[1]];
-    let (sr, cr) = (tau * w).sin_cos();
     let vr = [v[0] * cr + v[1] * sr, v[1] * cr - v[0] * sr];
     let pvr = [p[0][0] * vr[0] + p[0][1] * vr[1], p[1][0] * vr[0] + p[1][1] * vr[1]];
     [e * (c * y[0] + s * ay[0]) + pvr[0] + sys.xc[0], e * (c * y[1] + s * ay[1]) + pvr[1] + sys.xc[1]]
