@@ -69,8 +69,8 @@ pub struct FitArgs {
     #[arg(help_heading = "Voltage input", long, default_value = "1.5", value_parser = parse_advance)]
     pub advance: Advance,
     /// The controller advances the reference with a speed estimated from theta_m by a
-    /// phase-locked loop of this bandwidth [rad/s], or `estimate` (search by the lowest loss);
-    /// default: the logged speed.
+    /// phase-locked loop of this bandwidth [rad/s], `estimate` (search by the lowest loss) or
+    /// `logged` (the logged speed); default: `logged`, `estimate` with --inverter pwm.
     #[arg(help_heading = "Voltage input", long, value_parser = parse_pll)]
     pub speed_pll: Option<Pll>,
     /// The inverter's dead-time and device-drop voltage as a nuisance parameter v_dt (per
@@ -279,30 +279,35 @@ fn parse_mask(s: &str) -> Result<crate::pmsm::DeadTimeMask, String> {
 
 /// A positive value (a speed-estimator bandwidth [rad/s], a sign width [A]), or to be
 /// estimated.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Pll {
     /// This value (bandwidth [rad/s] or width [A]).
     Bandwidth(f64),
     /// Searched by the lowest loss.
     Estimate,
+    /// None: the logged speed (`--speed-pll logged`).
+    Logged,
 }
 
-/// Parses a bandwidth or `estimate`.
+/// Parses a bandwidth, `estimate` or `logged`.
 fn parse_pll(s: &str) -> Result<Pll, String> {
     match s {
         "estimate" => Ok(Pll::Estimate),
-        _ => s
-            .parse()
-            .ok()
-            .filter(|a: &f64| a.is_finite() && *a > 0.0)
-            .map(Pll::Bandwidth)
-            .ok_or_else(|| format!("`{s}`: expected a positive bandwidth in rad/s or `estimate`")),
+        "logged" => Ok(Pll::Logged),
+        _ => {
+            s.parse().ok().filter(|a: &f64| a.is_finite() && *a > 0.0).map(Pll::Bandwidth).ok_or_else(|| {
+                format!("`{s}`: expected a positive bandwidth in rad/s, `estimate` or `logged`")
+            })
+        }
     }
 }
 
 /// Parses a sign width [A] or `estimate`.
 fn parse_width(s: &str) -> Result<Pll, String> {
-    parse_pll(s).map_err(|_| format!("`{s}`: expected a positive width in A or `estimate`"))
+    parse_pll(s)
+        .ok()
+        .filter(|p| *p != Pll::Logged)
+        .ok_or_else(|| format!("`{s}`: expected a positive width in A or `estimate`"))
 }
 
 /// Parses `N` or `estimate`.

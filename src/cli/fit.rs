@@ -165,7 +165,12 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
     let search = InputSearch {
         delay: matches!(a.delay, Delay::Estimate),
         advance: matches!(a.advance, Advance::Estimate),
-        speed_pll: matches!(a.speed_pll, Some(Pll::Estimate)),
+        // A PWM fit estimates the controller's speed by default (it reads theta_m anyway):
+        // the logged speed biases L by about 0.3 % where the controller advances its own.
+        speed_pll: matches!(a.speed_pll, Some(Pll::Estimate))
+            || (a.speed_pll.is_none()
+                && matches!(a.voltage, VoltageArg::Reference)
+                && matches!(a.pwm.inverter, super::pwm_args::InverterArg::Pwm)),
         dead_time_width: matches!(a.dead_time_width, Some(Pll::Estimate)),
     };
     if matches!(a.voltage, VoltageArg::Actual)

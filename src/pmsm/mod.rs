@@ -80,7 +80,9 @@ pub use model::mask::{DeadTimeMask, DeadTimeMaskWeighting};
 pub use model::mechanics::{MECHANICS_CHANNELS, MechanicsInputs, MechanicsModel, MechanicsTerms};
 pub use model::plant::{ExactPlant, MotorParameters, StepDerivatives};
 pub(crate) use model::pwm::PwmPlantStep;
-pub use model::pwm::{CarrierEdge, Modulator, PmsmPwm, PwmCoefficients, PwmInputs, PwmInverter, PwmUpdate};
+pub use model::pwm::{
+    CarrierEdge, Modulator, PmsmPwm, PwmCoefficients, PwmInputs, PwmInverter, PwmUpdate, SignMargin,
+};
 pub use model::saturated::{
     PmsmSaturated, SATURATED_SUBSTEP_RHO, SaturatedCoefficients, saturated_step, saturated_substeps,
 };

@@ -23,6 +23,12 @@ fn pwm_log(name: &str, duration: f64, t_d: f64, u_th: f64, i_w: f64) -> (greybox
     (simulate_drive(&cfg).unwrap().experiment, cfg)
 }
 
+/// A shared log (`NAME.csv.gz`) with the default columns.
+fn shared_log(name: &str) -> greybox::Experiment {
+    greybox::pmsm::read_log(crate::common::shared_file(&format!("{name}.csv.gz")), &Default::default())
+        .unwrap()
+}
+
 fn model(cfg: &DriveConfig, inverter: PwmInverter) -> PmsmPwm {
     let setup = greybox::pmsm::PmsmSetup {
         input: VoltageInput::REFERENCE,
@@ -119,7 +125,7 @@ fn the_pwm_fit_recovers_the_motor_and_the_inverter() {
         skip_setup_checks: true,
         ..PmsmFitOptions::new(cfg.motor.n_p)
     };
-    let fit = fit_pmsm(&[e], &options).unwrap();
+    let fit = fit_pmsm(std::slice::from_ref(&e), &options).unwrap();
     let want = truth(&cfg, 3e-6, 1.0);
     let names = ["r_s", "l_s", "k_e", "t_d", "u_th"];
     for (n, (w, tol)) in names.iter().zip(want.iter().zip([3e-3, 3e-3, 5e-4, 0.05, 0.1])) {
@@ -127,6 +133,16 @@ fn the_pwm_fit_recovers_the_motor_and_the_inverter() {
         eprintln!("{n}: relative error {err:.2e}");
         assert!(err < tol, "{n}: {err:e}");
     }
+    // The fit's comparison (the plot, --residuals) is the PWM model's one-step prediction,
+    // not the averaged model's simulation: its residual is the fit's.
+    let c = &fit.comparisons(std::slice::from_ref(&e)).unwrap()[0];
+    let counted: Vec<f64> = (0..c.y.len())
+        .filter(|i| c.counted.is_empty() || c.counted[i / c.outputs.len()])
+        .map(|i| c.y[i] - c.y_hat[i])
+        .collect();
+    let rms = (counted.iter().map(|r| r * r).sum::<f64>() / counted.len() as f64).sqrt();
+    eprintln!("comparison residual rms {rms:.2e} A");
+    assert!(rms < 1e-2, "{rms:e}");
 }
 
 /// The ripple near the currents' zero crossings: on motulator's PWM log with the lower
@@ -136,11 +152,7 @@ fn the_pwm_fit_recovers_the_motor_and_the_inverter() {
 #[test]
 fn the_ripple_is_in_the_pwm_model_and_not_in_the_averaged_one() {
     crate::common::require_shared!();
-    let e = greybox::pmsm::read_log(
-        crate::common::shared_file("servo_spm_pwm_deadtime_lowdrop.csv.gz"),
-        &Default::default(),
-    )
-    .unwrap();
+    let e = shared_log("servo_spm_pwm_deadtime_lowdrop");
     let base =
         PmsmFitOptions { input: VoltageInput::REFERENCE, skip_setup_checks: true, ..PmsmFitOptions::new(4) };
     let averaged = PmsmFitOptions {
@@ -166,11 +178,7 @@ fn the_ripple_is_in_the_pwm_model_and_not_in_the_averaged_one() {
 #[test]
 fn the_pwm_step_predicts_motulators_pwm_logs() {
     crate::common::require_shared!();
-    let e = greybox::pmsm::read_log(
-        crate::common::shared_file("servo_spm_pwm_deadtime_idinj.csv.gz"),
-        &Default::default(),
-    )
-    .unwrap();
+    let e = shared_log("servo_spm_pwm_deadtime_idinj");
     let setup = greybox::pmsm::PmsmSetup {
         input: VoltageInput::REFERENCE,
         ..greybox::pmsm::PmsmSetup::new(4, VoltageHold::Stator)
@@ -186,6 +194,35 @@ fn the_pwm_step_predicts_motulators_pwm_logs() {
     eprintln!("median one-step error: {counter:.2e} A with the counter, {continuous:.2e} A without");
     assert!(counter < 2e-5, "{counter:e}");
     assert!(continuous < 3e-3, "{continuous:e}");
+}
+
+/// The controller's frame: motulator's sensored controller transforms its reference with
+/// its observer's angle, a phase-locked loop on the encoder (`k_θ = 2 α`, `k_ω = α²`, α the
+/// matched pole of 2π·400 rad/s at 100 µs, 2223.9 rad/s). With that frame and the log's
+/// 12-bit counter the step predicts the shared log at the true parameters to rounding in
+/// 99 % of its periods; with the logged angle, a period in ten is off by a milliampere.
+#[test]
+fn the_controller_frame_is_the_loops() {
+    crate::common::require_shared!();
+    let e = shared_log("servo_spm_pwm_deadtime_idinj");
+    let theta = [0.9, 4.5e-3, 0.538_887_743_412_299_2, 3e-6, 0.8];
+    let alpha = (1.0 - (-std::f64::consts::TAU * 400.0 * 1e-4_f64).exp()) / 1e-4;
+    let quantile = |speed_pll: Option<f64>, q: f64| {
+        let setup = greybox::pmsm::PmsmSetup {
+            input: VoltageInput::Reference { delay: 1, advance: 1.5, speed_pll },
+            ..greybox::pmsm::PmsmSetup::new(4, VoltageHold::Stator)
+        };
+        let inv = PwmInverter { u_dc: Some(560.0), levels: Some(4096), ..Default::default() };
+        let mut err = one_step_errors(&PmsmPwm::new(setup, MotorKind::Spm, inv), &e, &theta, 2);
+        err.sort_by(f64::total_cmp);
+        err[(q * err.len() as f64) as usize]
+    };
+    let (frame, logged) = (quantile(Some(alpha), 0.99), quantile(None, 0.9));
+    eprintln!(
+        "one-step error: 99th percentile {frame:.2e} A in the loop's frame, 90th {logged:.2e} A logged"
+    );
+    assert!(frame < 1e-4, "{frame:e}");
+    assert!(logged > 1e-3, "{logged:e}");
 }
 
 /// The command line refuses a PWM model it cannot run, naming the flag: without the

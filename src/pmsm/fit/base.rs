@@ -86,7 +86,7 @@ fn fit_beside(
         }
         _ => None,
     };
-    let Fitted { fits, mut notes, ls_theta, modulator, pwm } = match (fitted, &scan) {
+    let Fitted { fits, mut notes, ls_theta, modulator, pwm, input } = match (fitted, &scan) {
         (Err(Error::Numerical { context, reason }), Some(g)) if context == "least-squares start" => {
             let named = crate::pmsm::checks::columns::start_failure(g, experiments, options);
             return Err(Error::Numerical {
@@ -198,7 +198,7 @@ fn fit_beside(
         },
         pole_pairs: n_p,
         hold,
-        input: options.input,
+        input,
         cable_resistance: options.cable_resistance,
         inverter: options.inverter,
         pwm,

@@ -33,6 +33,8 @@ pub(super) struct Fitted {
     pub modulator: bool,
     /// The PWM inverter fitted through, its first carrier edge resolved.
     pub pwm: Option<crate::pmsm::model::pwm::PwmInverter>,
+    /// The voltage input of the fits: the options', or with the controller's loop found.
+    pub input: VoltageInput,
 }
 
 /// The start of the fits of `experiments` under `options` (fitted parameters `names`, model
@@ -183,9 +185,7 @@ pub(super) fn fit_from_start(
     }
     let skip = options.pwm.map(|_| super::pwm_start::SkipStart {
         inner: weighting,
-        skip: crate::pmsm::checks::limit::delay_of(options.input)
-            + 1
-            + super::pwm_start::UNKNOWN_CARRIER_SAMPLES,
+        skip: super::pwm_start::skipped(options.input),
     });
     let weighting: &dyn Weighting = match &skip {
         Some(s) => s,
@@ -239,17 +239,26 @@ pub(super) fn fit_from_start(
         }
         None => None,
     };
+    let mut input = options.input;
     let fits = match (pwm, options.model) {
         (Some(pwm), kind) => {
-            let fit = |pwm: PwmInverter, start: &[f64], names: &[&str]| {
+            let fit = |pwm: PwmInverter,
+                       input: VoltageInput,
+                       start: &[f64],
+                       names: &[&str],
+                       weighting: &dyn Weighting,
+                       held: &[&str]| {
                 fit_holds_of(
                     holds,
                     start,
                     names,
                     modulator,
                     |h| {
-                        let mut m = PmsmPwm::new(setup(h), kind, pwm);
+                        let mut m = PmsmPwm::new(PmsmSetup { input, ..setup(h) }, kind, pwm);
                         configure(m.parameters_mut(), options)?;
+                        for p in m.parameters_mut().iter_mut().filter(|p| held.contains(&p.name.as_str())) {
+                            p.fixed = true;
+                        }
                         Ok(m)
                     },
                     experiments,
@@ -257,29 +266,29 @@ pub(super) fn fit_from_start(
                     weighting,
                 )
             };
-            // The loss is rough where a predicted current crosses zero at a switching
-            // instant: the fits of a smooth leg state of decreasing width lead to it.
-            let mut theta = start.clone();
-            let mut last: Option<(crate::estimate::FitResult, Option<f64>)> = None;
-            // Also from a given start: a nested fit of a part of the log that started at the
-            // whole fit's estimate would stay in its basin, and the parts' agreement would not
-            // test whether that basin is the minimum.
-            for (stage, stage_names) in super::pwm_start::continuation(experiments, &pwm, names) {
-                let s = super::pwm_start::carried(last.as_ref().map(|l| &l.0), &stage_names, &theta, names);
-                let fitted = fit(stage, &s, &stage_names)?;
-                last = Some((fitted.best.1, stage.i_w));
-            }
-            if let Some((prev, width)) = &last {
-                let (t, note) = super::pwm_start::from_continuation(prev, *width, names, &pwm, &theta);
-                theta = t;
-                notes.push(note);
-            }
-            fit(pwm, &theta, names)
+            let model = |pwm: PwmInverter, input: VoltageInput| -> Result<PmsmPwm> {
+                let mut m = PmsmPwm::new(PmsmSetup { input, ..setup(VoltageHold::Stator) }, kind, pwm);
+                configure(m.parameters_mut(), options)?;
+                Ok(m)
+            };
+            let (fits, chosen) = super::pwm_fit::stages(
+                experiments,
+                &pwm,
+                options.input,
+                &start,
+                names,
+                weighting,
+                &model,
+                &fit,
+                &mut notes,
+            )?;
+            input = chosen;
+            Ok(fits)
         }
         (None, MotorKind::Spm) => fit_holds!(PmsmSpm),
         (None, MotorKind::Ipm) => fit_holds!(PmsmIpm),
     }?;
-    Ok(Fitted { fits, notes, ls_theta, modulator, pwm })
+    Ok(Fitted { fits, notes, ls_theta, modulator, pwm, input })
 }
 
 /// The unit of parameter `name` of `kind`, `V` for the dead-time voltage `v_dt`.

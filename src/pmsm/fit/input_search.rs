@@ -55,6 +55,9 @@ pub fn fit_estimating_input(
     options: &PmsmFitOptions,
     search: InputSearch,
 ) -> Result<PmsmFit> {
+    if options.pwm.is_some() {
+        return super::pwm_fit::with_drive_timing(experiments, options, search);
+    }
     let (delay0, advance, pll0) = match options.input {
         VoltageInput::Reference { delay, advance, speed_pll } => (delay, advance, speed_pll),
         VoltageInput::Terminal => (1, 1.5, None),
@@ -277,7 +280,11 @@ fn delay_set(tried: &[(usize, f64)], best: usize, dof: usize) -> [usize; 2] {
 /// The value in `range` with the lowest `loss`: an evenly spaced scan, then a golden-section
 /// search in the bracket around the best point; on the logarithm when `log` (a positive
 /// range).
-fn golden_search(range: (f64, f64), log: bool, mut loss: impl FnMut(f64) -> Result<f64>) -> Result<f64> {
+pub(crate) fn golden_search(
+    range: (f64, f64),
+    log: bool,
+    mut loss: impl FnMut(f64) -> Result<f64>,
+) -> Result<f64> {
     type Map = fn(f64) -> f64;
     let (to, from): (Map, Map) = if log { (f64::ln, f64::exp) } else { (|x| x, |x| x) };
     let mut loss = move |x: f64| loss(from(x));

@@ -12,6 +12,8 @@ pub(super) mod input_search;
 pub(super) mod iv;
 pub(super) mod mechanics;
 pub(super) mod pole_pairs;
+mod pwm_fit;
+mod pwm_mask;
 mod pwm_start;
 pub(super) mod report;
 pub(super) mod saturated;

@@ -170,6 +170,12 @@ pub(crate) fn from_continuation(
 /// the first periods' switching is not the model's.
 pub(crate) const UNKNOWN_CARRIER_SAMPLES: usize = 2;
 
+/// The samples at a log's start a PWM fit weights out with the voltage `input`: the
+/// reference's delay, the sample it acts on and [`UNKNOWN_CARRIER_SAMPLES`].
+pub(crate) fn skipped(input: crate::pmsm::model::interval::VoltageInput) -> usize {
+    crate::pmsm::checks::limit::delay_of(input) + 1 + UNKNOWN_CARRIER_SAMPLES
+}
+
 /// A weighting that weights out the first `skip` samples of every log.
 #[derive(Debug)]
 pub(crate) struct SkipStart<'a> {

@@ -6,13 +6,15 @@
 //! fit's horizon; a dead-time mask's periods flagged as not counted) at its own θ̂ (shared
 //! parameters, and its copy of the per-log ones) from its estimated initial state (the
 //! measured first currents when the fit took them as exact), with the fit's hold, voltage
-//! input, cable and inverter model.
+//! input, cable and inverter model; a fit through the PWM inverter as its one-step
+//! predictor ([`PmsmPwm`]), the carrier's unknown first samples not counted.
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::model::ipm::PmsmIpm;
 use crate::pmsm::model::kind::MotorKind;
+use crate::pmsm::model::pwm::PmsmPwm;
 use crate::pmsm::model::setup::PmsmSetup;
 use crate::pmsm::model::spm::PmsmSpm;
 use crate::report::{Comparison, compare_predicted};
@@ -39,6 +41,11 @@ impl PmsmFit {
                 let counted =
                     crate::pmsm::model::inverter::counted(self.inverter.as_ref(), self.pole_pairs, log);
                 let x0 = x0.as_deref();
+                if let Some(pwm) = self.pwm {
+                    let m = PmsmPwm::new(setup, kind, pwm);
+                    let counted = pwm_counted(&m, self.input, log, &theta)?;
+                    return compare_predicted(&m, log, &theta, x0, n_params, None, counted);
+                }
                 match kind {
                     MotorKind::Spm => {
                         let m = PmsmSpm::from_setup(setup);
@@ -77,9 +84,10 @@ impl PmsmFit {
         experiments
             .iter()
             .zip(logs)
-            .map(|(log, (theta, x0))| match kind {
-                MotorKind::Spm => run(&PmsmSpm::from_setup(setup), log, &theta, x0.as_deref()),
-                MotorKind::Ipm => run(&PmsmIpm::from_setup(setup), log, &theta, x0.as_deref()),
+            .map(|(log, (theta, x0))| match (self.pwm, kind) {
+                (Some(pwm), _) => run(&PmsmPwm::new(setup, kind, pwm), log, &theta, x0.as_deref()),
+                (None, MotorKind::Spm) => run(&PmsmSpm::from_setup(setup), log, &theta, x0.as_deref()),
+                (None, MotorKind::Ipm) => run(&PmsmIpm::from_setup(setup), log, &theta, x0.as_deref()),
             })
             .collect()
     }
@@ -98,6 +106,9 @@ impl PmsmFit {
         let mut names: Vec<&str> = kind.parameter_names().to_vec();
         if self.inverter.is_some() {
             names.push("v_dt");
+        }
+        if let Some(pwm) = &self.pwm {
+            names.extend(pwm.parameter_names());
         }
         // Per-log copies follow each other in log order; a shared parameter has one entry.
         let theta_of = |e: usize| -> Result<Vec<f64>> {
@@ -134,4 +145,30 @@ impl PmsmFit {
             .collect::<Result<_>>()?;
         Ok((kind, setup, logs, n_params))
     }
+}
+
+/// The samples a PWM fit counts on `log` at its estimate `theta`: all but the first, which
+/// the fit weights out (the reference's delay, and the carrier's state before the log;
+/// `pwm_start::SkipStart`), and, where the fit masked signs (a leg state not given), those
+/// the sign mask's rule weights out at the estimate (`pwm_mask`; the fit took it at the
+/// unmasked estimate, so the two sets may differ by a few samples).
+///
+/// # Errors
+/// Those of the sign mask.
+fn pwm_counted(
+    m: &PmsmPwm,
+    input: crate::pmsm::model::interval::VoltageInput,
+    log: &Experiment,
+    theta: &[f64],
+) -> Result<Vec<bool>> {
+    use crate::estimate::Weighting;
+    let skip = super::pwm_start::SkipStart {
+        inner: &crate::estimate::weighting::Uniform,
+        skip: super::pwm_start::skipped(input),
+    };
+    if m.inverter().i_w.is_some() {
+        return Ok((0..log.len()).map(|k| skip.sample_weight(log, k) > 0.0).collect());
+    }
+    let (mask, _) = super::pwm_mask::sign_mask(std::slice::from_ref(log), m, theta, &skip)?;
+    Ok((0..log.len()).map(|k| mask.sample_weight(log, k) > 0.0).collect())
 }

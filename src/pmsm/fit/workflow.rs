@@ -94,7 +94,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
 }
 
 /// The options of the segment check's fits of parts of the logs: the fit's own hold, input
-/// and inverter model (the automatic mask's last threshold), started from its estimate,
+/// and inverter model (the automatic mask's last threshold; the PWM inverter's loop found by the fit), started from its estimate,
 /// without setup checks of their own.
 fn part_options(options: &PmsmFitOptions, fit: &PmsmFit) -> PmsmFitOptions {
     PmsmFitOptions {
@@ -105,6 +105,8 @@ fn part_options(options: &PmsmFitOptions, fit: &PmsmFit) -> PmsmFitOptions {
         },
         input: fit.input,
         inverter: fit.inverter,
+        // The controller's loop is the drive's: the parts keep the whole log's.
+        pwm: options.pwm.map(|p| crate::pmsm::model::pwm::PwmInverter { search_speed_pll: false, ..p }),
         skip_setup_checks: true,
         ..options.clone()
     }

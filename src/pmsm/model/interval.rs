@@ -16,7 +16,7 @@ mod reference;
 mod source;
 mod voltage;
 pub use reference::{applied_experiment, applied_voltage, model_intervals, reference_intervals};
-pub(crate) use reference::{driving_voltage, model_start_voltages, reference_channels};
+pub(crate) use reference::{controller_frame, driving_voltage, model_start_voltages, reference_channels};
 pub(crate) use source::IntervalData;
 pub use source::IntervalSource;
 pub use voltage::IntervalVoltage;

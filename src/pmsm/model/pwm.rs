@@ -22,7 +22,9 @@ use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::model::{GreyBoxModel, Parameter, Sensitivities};
 use crate::pmsm::log::signals::{DqView, channel, check_pole_pairs};
-use crate::pmsm::model::interval::{SQRT_2_3, VoltageInput, mean_speed, reference_channels};
+use crate::pmsm::model::interval::{
+    SQRT_2_3, VoltageInput, controller_frame, mean_speed, reference_channels,
+};
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::model::setup::PmsmSetup;
 use serde::{Deserialize, Serialize};
@@ -124,6 +126,11 @@ pub struct PwmInverter {
     /// `None`: estimated as a nuisance parameter (for logs with current noise).
     #[serde(default = "one")]
     pub predictor_gain: Option<f64>,
+    /// Whether the fit searches the bandwidth of the controller's phase-locked loop
+    /// (`--speed-pll estimate`): after the continuation, by the one-step loss over
+    /// [`crate::pmsm::SPEED_PLL_RANGE`] and against the logged angle and speed.
+    #[serde(default)]
+    pub search_speed_pll: bool,
 }
 
 fn one() -> Option<f64> {
@@ -145,6 +152,7 @@ impl Default for PwmInverter {
             estimate_i_w: false,
             r_on: 0.0,
             predictor_gain: one(),
+            search_speed_pll: false,
         }
     }
 }
@@ -261,7 +269,7 @@ impl PwmInverter {
 }
 
 mod model;
-pub use model::{PmsmPwm, PwmCoefficients, PwmInputs};
+pub use model::{PmsmPwm, PwmCoefficients, PwmInputs, SignMargin};
 
 /// The switching-resolved inverter as a drive simulator's plant: the carrier's state
 /// between periods and the step of one period.

@@ -187,6 +187,34 @@ pub fn speed_pll_estimate(theta_m: &[f64], w_m: &[f64], n_p: u32, h: f64, alpha:
         .collect()
 }
 
+/// The frame a sensored controller transforms its voltage reference with: its rotor-angle
+/// estimate `θ̂_c` \[rad, electrical\] and the frame's speed `ω_c` \[rad/s, electrical\] it
+/// advances the reference by, at every sample (length N each), from a phase-locked loop of
+/// bandwidth `alpha` \[rad/s\] on the logged angle `theta_m` \[rad, mechanical\], started
+/// at the logged angle and speed `w_m` \[rad/s\]: `e = θ_e − θ̂_c` (wrapped),
+/// `ω_c = ω̂ + 2 α e`, `θ̂_c ← θ̂_c + h ω_c`, `ω̂ ← ω̂ + h α² e` (critically damped; the
+/// sensored speed and flux observer of motulator, `drive/control/_sm_observers.py`,
+/// `k_θ = 2 α_o`, `k_ω = α_o²`; Hinkkanen et al., *IEEE Trans. Ind. Appl.* 54(6), 2018).
+/// [`speed_pll_estimate`] is the same loop's `ω̂`, for a controller that transforms with the
+/// logged angle.
+pub fn controller_frame(theta_m: &[f64], w_m: &[f64], n_p: u32, h: f64, alpha: f64) -> (Vec<f64>, Vec<f64>) {
+    let np = f64::from(n_p);
+    let (mut theta, mut w) =
+        (np * theta_m.first().copied().unwrap_or(0.0), np * w_m.first().copied().unwrap_or(0.0));
+    theta_m
+        .iter()
+        .map(|&t| {
+            let d = np * t - theta;
+            let err = d.sin().atan2(d.cos());
+            let w_c = w + 2.0 * alpha * err;
+            let out = (theta, w_c);
+            theta += h * w_c;
+            w += h * alpha * alpha * err;
+            out
+        })
+        .unzip()
+}
+
 /// The experiment with its `ud, uq` replaced by the applied period-mean voltage of
 /// [`applied_voltage`] (for a regression on the voltage equations).
 ///

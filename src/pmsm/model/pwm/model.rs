@@ -15,6 +15,19 @@ pub struct PwmInputs {
     i_q: crate::data::Values,
 }
 
+/// How far one period of the one-step predictor is from a switching decision the data
+/// cannot tell ([`PmsmPwm::sign_margins`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SignMargin {
+    /// The residual's norm `|y[k] − x̂[k]|` \[A\].
+    pub residual: f64,
+    /// The smallest phase-current magnitude at a piece's start, where a leg state takes
+    /// that current's sign \[A\].
+    pub current: f64,
+    /// The smallest duty ratio's distance to 0 or 1 \[1\] (0 for a clamped leg).
+    pub duty: f64,
+}
+
 /// θ-dependent coefficients: the parameters in the step's order.
 #[derive(Clone, Copy, Debug)]
 pub struct PwmCoefficients {
@@ -52,6 +65,12 @@ pub struct PwmCoefficients {
 /// state. The gain is 1 by default ([`PwmInverter::predictor_gain`]), or estimated with the
 /// other parameters, as the prediction error method does for a Kalman predictor's gain.
 ///
+/// The reference is transformed to the stator frame with the logged angle and advanced
+/// with the logged speed, or, with a phase-locked loop in the input
+/// ([`VoltageInput::Reference`]'s `speed_pll`), with that loop's angle and speed: a
+/// sensored controller's frame (`controller_frame` in the interval module; unlike the
+/// averaged model's loop, which advances with the loop's speed only).
+///
 /// Reads `id`, `iq`, `w_m`, `theta_m`, `ud_ref`, `uq_ref` (and `u_dc` unless the inverter
 /// gives it).
 #[derive(Clone, Debug)]
@@ -81,6 +100,29 @@ impl PmsmPwm {
     /// Mutable parameter metadata (bounds, fixed flags, nominal values).
     pub fn parameters_mut(&mut self) -> &mut [Parameter] {
         &mut self.params
+    }
+
+    /// The one-step predictor at `theta` over a prepared log (N samples) from its measured
+    /// first current: per sample k its [`SignMargin`] (the period before it; at k = 0 a
+    /// residual of 0 and infinite margins).
+    ///
+    /// # Errors
+    /// Those of [`coefficients`](GreyBoxModel::coefficients) (θ of the wrong length, an
+    /// invalid θ).
+    pub fn sign_margins(&self, theta: &[f64], inputs: &PwmInputs) -> Result<Vec<SignMargin>> {
+        let c = self.coefficients(theta, inputs)?;
+        let mut out = Vec::with_capacity(inputs.periods.len() + 1);
+        out.push(SignMargin { residual: 0.0, current: f64::INFINITY, duty: f64::INFINITY });
+        let mut x = [inputs.i_d[0], inputs.i_q[0]];
+        for (k, per) in inputs.periods.iter().enumerate() {
+            let y = [inputs.i_d[k], inputs.i_q[k]];
+            let from = [x[0] + c.k_o * (y[0] - x[0]), x[1] + c.k_o * (y[1] - x[1])];
+            let (next, current) = period::step_nearest(&c.q, per, from);
+            x = next;
+            let residual = (inputs.i_d[k + 1] - x[0]).hypot(inputs.i_q[k + 1] - x[1]);
+            out.push(SignMargin { residual, current, duty: per.duty_margin });
+        }
+        Ok(out)
     }
 
     /// The step's parameters in scalar `T` from θ, `make(value, index)` forming each.
@@ -119,15 +161,21 @@ impl GreyBoxModel for PmsmPwm {
         let (h, np) = (v.h(), f64::from(self.setup.n_p));
         self.inverter.carrier(h)?;
         let theta_m = e.channel(channel::THETA_M)?;
-        let (ud, uq, w_adv) = reference_channels(&v, self.setup.n_p, delay, advance, speed_pll)?;
+        let (ud, uq, w_adv) = reference_channels(&v, self.setup.n_p, delay, advance, None)?;
         let u_dc = self.inverter.u_dc_samples(e)?;
+        // The controller's frame: the logged angle and the advance speed, or a sensored
+        // drive's angle estimate that tracks the encoder through a phase-locked loop.
+        let frame = speed_pll.map(|alpha| controller_frame(theta_m, v.w_m(), self.setup.n_p, h, alpha));
         let rising0 = self.inverter.first_edge != Some(CarrierEdge::Falling);
         let mut carrier = Carrier::default();
         let w_m = v.w_m();
         let periods = (0..v.len() - 1)
             .map(|k| {
                 let j = k.saturating_sub(delay);
-                let angle = np * theta_m[j] + advance * w_adv[j] * h;
+                let angle = match &frame {
+                    Some((theta_c, w_c)) => theta_c[j] + advance * w_c[j] * h,
+                    None => np * theta_m[j] + advance * w_adv[j] * h,
+                };
                 let (s, c) = angle.sin_cos();
                 let (alpha, beta) = (c * ud[j] - s * uq[j], s * ud[j] + c * uq[j]);
                 let d = duty_ratios(&self.inverter, alpha, beta, u_dc[j]);

@@ -59,6 +59,10 @@ pub(crate) struct Period {
     /// The half carrier periods, `n` of them.
     pub halves: [HalfPlan; 2],
     pub n: u8,
+    /// The smallest duty ratio's distance to 0 or 1 over the legs and halves \[1\]: a leg
+    /// this close to a clamp switches for a pulse the counter's resolution or a driver's
+    /// minimum pulse may drop (0 for a clamped leg).
+    pub duty_margin: f64,
 }
 
 impl Period {
@@ -72,7 +76,11 @@ impl Period {
         u_dc: f64,
         (halves, n): ([HalfPlan; 2], usize),
     ) -> Self {
-        Self { theta, w_e, emf: super::SQRT_2_3 * w_m, u_dc, halves, n: n as u8 }
+        let duty_margin = halves[..n]
+            .iter()
+            .flat_map(|h| h.t_sw.map(|t| if t.is_finite() { t.min(h.len - t) / h.len } else { 0.0 }))
+            .fold(f64::INFINITY, f64::min);
+        Self { theta, w_e, emf: super::SQRT_2_3 * w_m, u_dc, halves, n: n as u8, duty_margin }
     }
 }
 
@@ -175,6 +183,13 @@ const EVENTS: usize = 10;
 
 /// The dq current at the end of the period from `x` at its start \[A\].
 pub(crate) fn step<T: Scalar>(q: &Params<T>, per: &Period, x: [T; 2]) -> [T; 2] {
+    step_with(q, per, x, None).0
+}
+
+/// [`step`], and the smallest magnitude of a phase current at the start of a piece, where
+/// the leg states take its sign \[A\]: how far the period is from a sign the smallest error
+/// of the predicted current would turn.
+pub(crate) fn step_nearest(q: &Params<f64>, per: &Period, x: [f64; 2]) -> ([f64; 2], f64) {
     step_with(q, per, x, None)
 }
 
@@ -182,17 +197,24 @@ pub(crate) fn step<T: Scalar>(q: &Params<T>, per: &Period, x: [T; 2]) -> [T; 2] 
 /// log's `ud, uq`).
 pub(crate) fn step_mean(q: &Params<f64>, per: &Period, x: [f64; 2], h: f64) -> ([f64; 2], [f64; 2]) {
     let mut acc = [0.0; 2];
-    let x = step_with(q, per, x, Some(&mut acc));
+    let (x, _) = step_with(q, per, x, Some(&mut acc));
     (x, [acc[0] / h, acc[1] / h])
 }
 
-fn step_with<T: Scalar>(q: &Params<T>, per: &Period, x: [T; 2], mut acc: Option<&mut [T; 2]>) -> [T; 2] {
+/// The step, and the smallest phase current magnitude at a piece's start \[A\].
+fn step_with<T: Scalar>(
+    q: &Params<T>,
+    per: &Period,
+    x: [T; 2],
+    mut acc: Option<&mut [T; 2]>,
+) -> ([T; 2], f64) {
     let sys = system(q, per.w_e, per.emf);
     let mut x = x;
+    let mut nearest = f64::INFINITY;
     for half in &per.halves[..usize::from(per.n)] {
-        x = half_step(q, &sys, per, half, x, acc.as_deref_mut());
+        x = half_step(q, &sys, per, half, x, acc.as_deref_mut(), &mut nearest);
     }
-    x
+    (x, nearest)
 }
 
 fn half_step<T: Scalar>(
@@ -202,6 +224,7 @@ fn half_step<T: Scalar>(
     half: &HalfPlan,
     mut x: [T; 2],
     mut acc: Option<&mut [T; 2]>,
+    nearest: &mut f64,
 ) -> [T; 2] {
     let zero = T::cst(0.0);
     let len = half.len;
@@ -263,6 +286,7 @@ fn half_step<T: Scalar>(
         let i_beta = s * x[0] + c * x[1];
         let r3 = 0.5 * 3f64.sqrt();
         let phase = [i_alpha, i_alpha * -0.5 + i_beta * r3, i_alpha * -0.5 - i_beta * r3];
+        *nearest = phase.iter().fold(*nearest, |m, i| m.min(i.val().abs()));
         let u: [T; 3] = std::array::from_fn(|k| {
             let sg = sign(phase[k], q.i_w);
             let leg = if blanked[k] { (T::cst(1.0) - sg) * 0.5 } else { T::cst(state[k]) };

@@ -1,0 +1,169 @@
+//! The stages of a fit through the switching-resolved PWM inverter: the continuation over
+//! smooth leg states ([`super::pwm_start::continuation`]), the fit of the model asked for,
+//! then its sign mask ([`super::pwm_mask`]) and the final fit without the masked samples.
+
+use crate::data::Experiment;
+use crate::error::Result;
+use crate::estimate::{FitResult, Weighting};
+use crate::model::GreyBoxModel;
+use crate::pmsm::fit::hold::HoldFits;
+use crate::pmsm::fit::input_search::{InputSearch, SPEED_PLL_RANGE, fit_estimating_input, golden_search};
+use crate::pmsm::fit::report::PmsmFit;
+use crate::pmsm::fit::workflow::fit_pmsm;
+use crate::pmsm::model::interval::VoltageInput;
+use crate::pmsm::model::inverter::InverterModel;
+use crate::pmsm::model::mask::DeadTimeMask;
+use crate::pmsm::model::pwm::{PmsmPwm, PwmInverter};
+use crate::pmsm::options::PmsmFitOptions;
+
+/// The fits of a PWM model from `start` (parameters `names`, model order) at the voltage
+/// `input`, in stages; `model` makes the model of an inverter and input as configured by
+/// the options, `fit` fits one (inverter, input, start, names, weighting, parameters held at
+/// their start); notes in order. Returns the fits and the input of the final ones (the
+/// controller's loop bandwidth searched when `pwm.search_speed_pll`).
+///
+/// A width `i_w` estimated by the unmasked fit is held at its estimate in the masked one:
+/// only the samples near a zero crossing tell it, and the mask weights those out.
+///
+/// # Errors
+/// Those of the fits, of the loop's search and of [`super::pwm_mask::sign_mask`].
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn stages(
+    experiments: &[Experiment],
+    pwm: &PwmInverter,
+    input: VoltageInput,
+    start: &[f64],
+    names: &[&str],
+    weighting: &dyn Weighting,
+    model: &dyn Fn(PwmInverter, VoltageInput) -> Result<PmsmPwm>,
+    fit: &Fit<'_>,
+    notes: &mut Vec<String>,
+) -> Result<(HoldFits, VoltageInput)> {
+    // The loss is rough where a predicted current crosses zero at a switching instant: the
+    // fits of a smooth leg state of decreasing width lead to it. Also from a given start: a
+    // nested fit of a part of the log that started at the whole fit's estimate would stay in
+    // its basin, and the parts' agreement would not test whether that basin is the minimum.
+    let mut last: Option<(FitResult, PwmInverter)> = None;
+    for (stage, stage_names) in super::pwm_start::continuation(experiments, pwm, names) {
+        let s = super::pwm_start::carried(last.as_ref().map(|l| &l.0), &stage_names, start, names);
+        let fitted = fit(stage, input, &s, &stage_names, weighting, &[])?;
+        last = Some((fitted.best.1, stage));
+    }
+    let Some((prev, stage)) = &last else {
+        return Ok((fit(*pwm, input, start, names, weighting, &[])?, input));
+    };
+    let (theta, note) = super::pwm_start::from_continuation(prev, stage.i_w, names, pwm, start);
+    notes.push(note);
+    let unmasked = fit(*pwm, input, &theta, names, weighting, &[])?;
+    let theta = super::pwm_start::carried(Some(&unmasked.best.1), names, &theta, names);
+    // The controller's loop where the model is closest to the log: at the unmasked estimate.
+    let input = if pwm.search_speed_pll {
+        let (input, note) = search_speed_pll(experiments, input, &theta, weighting, &|i| model(*pwm, i))?;
+        notes.push(note);
+        input
+    } else {
+        input
+    };
+    // The samples whose sign is a coin toss at that estimate, weighted out.
+    let (mask, note) = super::pwm_mask::sign_mask(experiments, &model(*pwm, input)?, &theta, weighting)?;
+    notes.push(note);
+    let held: &[&str] = if pwm.estimate_i_w { &["i_w"] } else { &[] };
+    Ok((fit(*pwm, input, &theta, names, &mask, held)?, input))
+}
+
+/// One PWM fit: (inverter, input, start, names, weighting, parameters held at their start).
+pub(crate) type Fit<'a> =
+    dyn Fn(PwmInverter, VoltageInput, &[f64], &[&str], &dyn Weighting, &[&str]) -> Result<HoldFits> + 'a;
+
+/// The bandwidth of the controller's phase-locked loop ([`controller_frame`]) by the lowest
+/// one-step loss of `model` at `theta` (weighted by `weighting`) over [`SPEED_PLL_RANGE`]
+/// (a scan and a golden-section search on its logarithm), or the logged angle and speed if
+/// those predict better; the input and a note.
+///
+/// # Errors
+/// Those of the model's `prepare` and [`PmsmPwm::sign_margins`].
+///
+/// [`controller_frame`]: crate::pmsm::model::interval::controller_frame
+fn search_speed_pll(
+    experiments: &[Experiment],
+    input: VoltageInput,
+    theta: &[f64],
+    weighting: &dyn Weighting,
+    model: &dyn Fn(VoltageInput) -> Result<PmsmPwm>,
+) -> Result<(VoltageInput, String)> {
+    let VoltageInput::Reference { delay, advance, .. } = input else {
+        return Ok((input, String::new()));
+    };
+    let at = |speed_pll: Option<f64>| VoltageInput::Reference { delay, advance, speed_pll };
+    let loss = |speed_pll: Option<f64>| -> Result<f64> {
+        let m = model(at(speed_pll))?;
+        let mut sum = 0.0;
+        for e in experiments {
+            let margins = m.sign_margins(theta, &m.prepare(e)?)?;
+            sum += margins
+                .iter()
+                .enumerate()
+                .map(|(k, s)| weighting.sample_weight(e, k) * s.residual.powi(2))
+                .sum::<f64>();
+        }
+        Ok(0.5 * sum)
+    };
+    let alpha = golden_search(SPEED_PLL_RANGE, true, |a| loss(Some(a)))?;
+    let (with, logged) = (loss(Some(alpha))?, loss(None)?);
+    let chosen = if with < logged { Some(alpha) } else { None };
+    let note = format!(
+        "the controller's frame: a phase-locked loop of {alpha:.1} rad/s on theta_m (one-step loss {with:.6e}) \
+         against the logged angle and speed ({logged:.6e}): {}",
+        if chosen.is_some() { "the loop" } else { "the logged" }
+    );
+    Ok((at(chosen), note))
+}
+
+/// A PWM fit (`options.pwm`) at the drive's timing (`search`: the computational delay, the
+/// angle advance, the controller's speed estimate) found with the averaged inverter model
+/// (`--dead-time estimate --dead-time-mask auto`, whose search costs about a second where
+/// one through the PWM model costs a fit of a minute per candidate): the delay and the
+/// controller's angle are the drive's, not the inverter's (MODEL.md §4). The timing fit's
+/// `delay_samples` and a note on where the timing came from join the PWM fit's report.
+///
+/// # Errors
+/// Those of [`fit_estimating_input`] and [`fit_pmsm`]; [`crate::Error::InvalidOption`] for a
+/// search of the averaged model's dead-time width (the PWM model has its own leg state).
+pub(crate) fn with_drive_timing(
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+    search: InputSearch,
+) -> Result<PmsmFit> {
+    if search.dead_time_width {
+        return Err(crate::Error::InvalidOption {
+            option: "dead-time-width".into(),
+            reason: "the PWM inverter has its own leg state: drop --dead-time-width, see --leg-state-width"
+                .into(),
+        });
+    }
+    let pwm = options.pwm.map(|p| PwmInverter { search_speed_pll: search.speed_pll, ..p });
+    if !(search.delay || search.advance) {
+        return fit_pmsm(experiments, &PmsmFitOptions { pwm, ..options.clone() });
+    }
+    let averaged = PmsmFitOptions {
+        pwm: None,
+        inverter: Some(InverterModel { width: None, known: None, mask: Some(DeadTimeMask::Auto) }),
+        start: None,
+        skip_setup_checks: true,
+        ..options.clone()
+    };
+    let timing = fit_estimating_input(experiments, &averaged, InputSearch { speed_pll: false, ..search })?;
+    let fit = fit_pmsm(experiments, &PmsmFitOptions { input: timing.input, pwm, ..options.clone() })?;
+    let VoltageInput::Reference { delay, advance, .. } = timing.input else {
+        return Ok(fit);
+    };
+    let note = format!(
+        "the drive's timing from a fit of the averaged inverter model (dead time estimated, its mask auto): delay \
+         {delay} sample(s), angle advance {advance:.4} ω_e h"
+    );
+    let delay = timing.parameter("delay_samples").cloned();
+    let parameters =
+        fit.report.parameters.iter().filter(|p| p.name != "delay_samples").cloned().chain(delay).collect();
+    let pmsm_notes = std::iter::once(note).chain(fit.pmsm_notes.iter().cloned()).collect();
+    Ok(PmsmFit { report: FitResult { parameters, ..fit.report.clone() }, pmsm_notes, ..fit })
+}
