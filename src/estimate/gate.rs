@@ -19,7 +19,10 @@
 //!   fit percentage the noise floor) (`poor_fit`);
 //! - the model declares a parameter value non-physical
 //!   ([`crate::model::GreyBoxModel::implausible`]) (`non_physical`);
-//! - a parameter sits at a bound, or a statistic is not finite.
+//! - a parameter sits at a bound, or a statistic is not finite;
+//! - a free parameter's standard error is exactly 0 while the loss is not
+//!   (`zero_width_interval`): its interval claims a certainty the residual denies (the
+//!   covariance's sums under- or overflowed).
 
 use super::covariance::Inverse;
 use super::problem::PemProblem;
@@ -144,6 +147,21 @@ pub(crate) fn warnings(
             format!("the fit percentage of {} is not finite (a constant output?)", outputs.join(", "))
         };
         out.push(Warning::untrusted("non_finite_statistics", why));
+    }
+    let zero: Vec<&str> = parameters
+        .iter()
+        .filter(|p| !p.fixed && !p.at_bound && p.std_error == 0.0)
+        .map(|p| p.name.as_str())
+        .collect();
+    if !zero.is_empty() && fit.loss > 0.0 {
+        out.push(Warning::untrusted(
+            "zero_width_interval",
+            format!(
+                "the standard error of {} is exactly 0 while the residual is not: the covariance's sums under- or \
+                 overflowed, so no interval is known (output weights far from 1? scale them towards 1)",
+                zero.join(", ")
+            ),
+        ));
     }
     out
 }

@@ -26,8 +26,8 @@ pub mod weighting;
 #[cfg(test)]
 pub(crate) use problem::lagged_dots;
 pub use problem::{
-    BatchMeans, LAG_CHUNK, LagSums, Loss, MIN_BATCHES, PemProblem, ProblemOptions, TARGET_BATCHES,
-    WHITENESS_LAGS,
+    BatchMeans, LAG_CHUNK, LagSums, Loss, MIN_BATCHES, OUTPUT_WEIGHT_RANGE, PemProblem, ProblemOptions,
+    TARGET_BATCHES, WHITENESS_LAGS,
 };
 pub use result::{
     CovarianceMethod, DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing,

@@ -145,6 +145,13 @@ fn option_errors_name_the_option() {
             },
             "output_weights",
         ),
+        (
+            PmsmFitOptions {
+                pem: PemOptions { output_weights: Some(vec![1e200, 1e200]), ..Default::default() },
+                ..pmsm_options(4)
+            },
+            "output_weights",
+        ),
     ];
     for (opts, culprit) in cases {
         let err = fit_pmsm(std::slice::from_ref(&e), &opts).unwrap_err();
@@ -152,6 +159,31 @@ fn option_errors_name_the_option() {
     }
     let err = fit_pmsm(&[], &pmsm_options(4)).unwrap_err();
     assert!(err.to_string().contains("no log"), "{err}");
+}
+
+/// The output weights' common scale changes neither the estimate nor its interval, up to
+/// the accepted range's edge (where, past it, the covariance's sums overflowed and the
+/// intervals had zero width with exit 0).
+#[test]
+fn output_weights_common_scale_changes_no_interval() {
+    let e = sample();
+    let fit = |w: f64| {
+        let pem = PemOptions { output_weights: Some(vec![w, w]), ..Default::default() };
+        fit_pmsm(std::slice::from_ref(&e), &PmsmFitOptions { pem, ..pmsm_options(4) }).unwrap()
+    };
+    let (one, big) = (fit(1.0), fit(1e100));
+    for (a, b) in one.parameters.iter().zip(&big.parameters) {
+        assert!(b.std_error > 0.0, "{}: zero width", b.name);
+        assert!((a.value - b.value).abs() <= 1e-9 * a.value.abs(), "{}: {} vs {}", a.name, a.value, b.value);
+        assert!(
+            (a.std_error - b.std_error).abs() <= 1e-6 * a.std_error,
+            "{}: {} vs {}",
+            a.name,
+            a.std_error,
+            b.std_error
+        );
+    }
+    assert!(big.untrusted_codes().is_empty() == one.untrusted_codes().is_empty());
 }
 
 #[test]

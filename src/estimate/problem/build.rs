@@ -12,6 +12,11 @@ use crate::estimate::solver::{LeastSquares, NormalEquations};
 use crate::model::GreyBoxModel;
 use nalgebra::DVector;
 
+/// Range of an output weight Λ_i: the estimate and its intervals do not depend on the
+/// weights' common scale, and a weight beyond 1e±100 overflows or underflows the sums of the
+/// covariance (`Λ²` in the sandwich's meat), which then reports intervals of zero width.
+pub const OUTPUT_WEIGHT_RANGE: (f64, f64) = (1e-100, 1e100);
+
 impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
     /// Builds the problem: `start` (length n_θ) are the model parameters' start values,
     /// shared by all experiments; parameters named in `options.per_experiment` get one free
@@ -21,7 +26,8 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
     ///
     /// # Errors
     /// [`Error::InvalidOption`] for a wrong `start` length, an unknown name in
-    /// `per_experiment`, wrong weight lengths, a non-positive output weight or Huber
+    /// `per_experiment`, wrong weight lengths, a non-positive output weight (or one outside
+    /// [`crate::estimate::OUTPUT_WEIGHT_RANGE`]) or Huber
     /// threshold, no experiment; [`Error::InvalidBounds`], [`Error::StartOutsideBounds`],
     /// [`Error::InvalidParameter`] for unusable bounds or starts; those of the scaling rule.
     pub fn new(
@@ -64,6 +70,18 @@ impl<'m, M: GreyBoxModel> PemProblem<'m, M> {
             return Err(invalid(
                 "output_weights",
                 format!("need {ny} positive finite weights, got {output_weights:?}"),
+            ));
+        }
+        if let Some(w) =
+            output_weights.iter().find(|w| !(OUTPUT_WEIGHT_RANGE.0..=OUTPUT_WEIGHT_RANGE.1).contains(*w))
+        {
+            return Err(invalid(
+                "output_weights",
+                format!(
+                    "{w:e} is outside [{:e}, {:e}]: the estimates and intervals do not depend on the weights' common \
+                     scale, and one this far from 1 overflows the covariance's sums; give their ratios (e.g. 1,4)",
+                    OUTPUT_WEIGHT_RANGE.0, OUTPUT_WEIGHT_RANGE.1
+                ),
             ));
         }
         if let Loss::Huber { delta } = &options.loss

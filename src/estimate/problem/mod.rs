@@ -28,6 +28,7 @@ pub use crate::estimate::solver::NormalEquations;
 pub use accumulate::Sums;
 pub use batches::{BatchMeans, MIN_BATCHES, TARGET_BATCHES};
 pub(crate) use batches::{BlockScores, ScoreSeries};
+pub use build::OUTPUT_WEIGHT_RANGE;
 #[cfg(test)]
 pub(crate) use gram::dot;
 #[cfg(test)]
