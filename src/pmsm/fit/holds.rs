@@ -242,6 +242,12 @@ pub(super) fn fit_from_start(
     let mut input = options.input;
     let fits = match (pwm, options.model) {
         (Some(pwm), kind) => {
+            // The PWM model of an inverter and input at a hold, as the options configure it.
+            let model_at = |h: VoltageHold, pwm: PwmInverter, input: VoltageInput| -> Result<PmsmPwm> {
+                let mut m = PmsmPwm::new(PmsmSetup { input, ..setup(h) }, kind, pwm);
+                configure(m.parameters_mut(), options)?;
+                Ok(m)
+            };
             let fit = |pwm: PwmInverter,
                        input: VoltageInput,
                        start: &[f64],
@@ -254,8 +260,7 @@ pub(super) fn fit_from_start(
                     names,
                     modulator,
                     |h| {
-                        let mut m = PmsmPwm::new(PmsmSetup { input, ..setup(h) }, kind, pwm);
-                        configure(m.parameters_mut(), options)?;
+                        let mut m = model_at(h, pwm, input)?;
                         for p in m.parameters_mut().iter_mut().filter(|p| held.contains(&p.name.as_str())) {
                             p.fixed = true;
                         }
@@ -266,11 +271,7 @@ pub(super) fn fit_from_start(
                     weighting,
                 )
             };
-            let model = |pwm: PwmInverter, input: VoltageInput| -> Result<PmsmPwm> {
-                let mut m = PmsmPwm::new(PmsmSetup { input, ..setup(VoltageHold::Stator) }, kind, pwm);
-                configure(m.parameters_mut(), options)?;
-                Ok(m)
-            };
+            let model = |pwm: PwmInverter, input: VoltageInput| model_at(VoltageHold::Stator, pwm, input);
             let (fits, chosen) = super::pwm_fit::stages(
                 experiments,
                 &pwm,

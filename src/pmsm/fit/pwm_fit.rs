@@ -59,7 +59,7 @@ pub(crate) fn stages(
     // The controller's loop where the model is closest to the log: at the unmasked estimate.
     let input = if pwm.search_speed_pll {
         let (input, note) = search_speed_pll(experiments, input, &theta, weighting, &|i| model(*pwm, i))?;
-        notes.push(note);
+        notes.extend(note);
         input
     } else {
         input
@@ -78,7 +78,8 @@ pub(crate) type Fit<'a> =
 /// The bandwidth of the controller's phase-locked loop ([`controller_frame`]) by the lowest
 /// one-step loss of `model` at `theta` (weighted by `weighting`) over [`SPEED_PLL_RANGE`]
 /// (a scan and a golden-section search on its logarithm), or the logged angle and speed if
-/// those predict better; the input and a note.
+/// those predict better; the input and a note (none for the terminal voltage, which has no
+/// controller's frame).
 ///
 /// # Errors
 /// Those of the model's `prepare` and [`PmsmPwm::sign_margins`].
@@ -90,9 +91,9 @@ fn search_speed_pll(
     theta: &[f64],
     weighting: &dyn Weighting,
     model: &dyn Fn(VoltageInput) -> Result<PmsmPwm>,
-) -> Result<(VoltageInput, String)> {
+) -> Result<(VoltageInput, Option<String>)> {
     let VoltageInput::Reference { delay, advance, .. } = input else {
-        return Ok((input, String::new()));
+        return Ok((input, None));
     };
     let at = |speed_pll: Option<f64>| VoltageInput::Reference { delay, advance, speed_pll };
     let loss = |speed_pll: Option<f64>| -> Result<f64> {
@@ -116,7 +117,7 @@ fn search_speed_pll(
          against the logged angle and speed ({logged:.6e}): {}",
         if chosen.is_some() { "the loop" } else { "the logged" }
     );
-    Ok((at(chosen), note))
+    Ok((at(chosen), Some(note)))
 }
 
 /// A PWM fit (`options.pwm`) at the drive's timing (`search`: the computational delay, the
