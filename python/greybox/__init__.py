@@ -346,7 +346,8 @@ def mechanics(log: Any, *, pole_pairs: int, **options: Any) -> Report:
 
     ``options``: ``k_t`` [N m/A] (else the electrical model is fitted first), ``gravity``,
     ``constant_load``, ``per_log`` (friction per log), ``window`` [s], ``coulomb_speed``
-    [rad/s], ``col_load``. Returns a :class:`Report` (``electrical``, ``motor``,
+    [rad/s] or ``"estimate"`` (the default: the lowest loss over the logs' speed range),
+    ``col_load``. Returns a :class:`Report` (``electrical``, ``motor``,
     ``mechanics``).
 
     Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.

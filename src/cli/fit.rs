@@ -128,7 +128,10 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
         PolePairs::Auto => None,
     };
     let steady_state = a.model.dynamics() == crate::pmsm::Dynamics::Steady;
-    let csv = CsvOptions { pole_pairs: given, steady_state, ..a.columns.options() };
+    // The reader accepts slow telemetry's sample times whenever the model may be chosen
+    // automatically: the fit decides between the dynamic and the steady-state equations
+    // (and tells a fast log whose time column is in other units apart), not the reader.
+    let csv = CsvOptions { pole_pairs: given, steady_state: true, ..a.columns.options() };
     if given.is_none() && (csv.speed_frame == Frame::Electrical || csv.source == DqSource::Phases) {
         return Err(crate::Error::InvalidOption {
             option: "pole-pairs".into(),

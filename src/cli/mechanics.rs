@@ -45,9 +45,10 @@ pub struct MechanicsArgs {
     /// Window length [s].
     #[arg(long, default_value_t = 0.01, value_name = "S")]
     pub window: f64,
-    /// Speed [rad/s] over which the Coulomb friction changes sign.
-    #[arg(long, default_value_t = 1.0, value_name = "RAD/S")]
-    pub coulomb_speed: f64,
+    /// Speed [rad/s] over which the Coulomb friction changes sign, or `estimate` (the lowest
+    /// loss between 1e-4 and 1 times the logs' peak speed).
+    #[arg(long, default_value = "estimate", value_name = "RAD/S|estimate")]
+    pub coulomb_speed: String,
     /// Column of a load torque [N m], used when every log has it.
     #[arg(long, default_value = LOAD_TORQUE, value_name = "NAME")]
     pub col_load: String,
@@ -115,7 +116,13 @@ pub fn mechanics_outcome(a: &MechanicsArgs) -> crate::Result<output::Outcome> {
     let options = MechanicsOptions {
         k_t_relative_se,
         window: a.window,
-        coulomb_speed: a.coulomb_speed,
+        coulomb_speed: match a.coulomb_speed.trim() {
+            "estimate" => None,
+            v => Some(v.parse::<f64>().map_err(|_| crate::Error::InvalidOption {
+                option: "--coulomb-speed".into(),
+                reason: format!("`{v}`: a speed in rad/s or `estimate`"),
+            })?),
+        },
         terms: MechanicsTerms { gravity: a.gravity, constant: a.constant_load },
         per_log_friction: a.per_log,
         ..MechanicsOptions::new(motor)

@@ -42,7 +42,8 @@ pub use fit::iv::{
     Estimator, IV_MAX_ITERATIONS, IV_STEP_TOLERANCE, check_options as check_iv_options, fit_pmsm_iv,
 };
 pub use fit::mechanics::{
-    LOAD_TORQUE, MIN_WINDOWS, MechanicsFit, MechanicsOptions, fit_mechanics, mechanics_windows,
+    COULOMB_SPEED_RANGE, LOAD_TORQUE, MIN_WINDOWS, MechanicsFit, MechanicsOptions, fit_mechanics,
+    mechanics_windows,
 };
 pub use fit::pole_pairs::{AUTO_CANDIDATES, AutoPolePairs, choose_pole_pairs_by_fit};
 pub use fit::report::{PmsmFit, ReportOptions, StartComparison, conventions, estimate_table};

@@ -35,6 +35,9 @@ fn noise_free_mechanics_are_recovered() {
         let cfg = exp3(motor, [0.0; 2], 1);
         let log: Experiment = simulate_drive(&cfg).unwrap().experiment;
         let fit = fit_mechanics(&[log], &options(motor)).unwrap();
+        // The Coulomb speed estimated by default (issue 43): the simulator's.
+        assert!(fit.coulomb_speed_estimated, "{fit}");
+        assert!((fit.coulomb_speed / cfg.mechanics.coulomb_speed - 1.0).abs() < 1e-3, "{fit}");
         for (name, value) in truth(&cfg) {
             let p = fit.fit.parameter(name).unwrap();
             assert!((p.value - value).abs() < 1e-4 * value.abs(), "{name}: {} vs {value}\n{fit}", p.value);
@@ -139,7 +142,7 @@ fn mechanics_errors_name_the_culprit() {
     let long = MechanicsOptions { window: 1.0, ..options(SPM_MOTOR) };
     let e = fit_mechanics(std::slice::from_ref(&log), &long).unwrap_err().to_string();
     assert!(e.contains("window") && e.contains("shorter"), "{e}");
-    let bad = MechanicsOptions { coulomb_speed: 0.0, ..options(SPM_MOTOR) };
+    let bad = MechanicsOptions { coulomb_speed: Some(0.0), ..options(SPM_MOTOR) };
     let e = fit_mechanics(std::slice::from_ref(&log), &bad).unwrap_err().to_string();
     assert!(e.contains("coulomb_speed"), "{e}");
     // The torque of the wrong sign: the speed does not follow it; refused, saying what to check.
@@ -149,4 +152,27 @@ fn mechanics_errors_name_the_culprit() {
     };
     let e = fit_mechanics(&[log], &wrong).unwrap_err().to_string();
     assert!(e.contains("K_t"), "{e}");
+}
+
+/// Issue 43: the friction's own checks. A Coulomb speed far above the logged speeds makes
+/// `tanh(ω/ω_c)` linear over them, so B and T_c are one term (the reported case: B = −52 909
+/// and T_c = +53 542 at correlation −1.000 with "fit trusted"); untrusted, naming
+/// `--coulomb-speed` and a value. At the default the same log is trusted and the report says
+/// which covariance its intervals come from.
+#[test]
+fn confounded_friction_is_not_trusted() {
+    let cfg = exp3(SPM_MOTOR, [0.1, 0.05], 11);
+    let log = simulate_drive(&cfg).unwrap().experiment;
+    let peak = log.channel("w_m").unwrap().iter().fold(0.0_f64, |m, w| m.max(w.abs()));
+    let fit = fit_mechanics(std::slice::from_ref(&log), &options(SPM_MOTOR)).unwrap();
+    assert!(fit.fit.trusted(), "{fit}");
+    let text = fit.to_string();
+    assert!(text.contains("intervals from"), "{text}");
+    let far = MechanicsOptions { coulomb_speed: Some(50.0 * peak), ..options(SPM_MOTOR) };
+    let fit = fit_mechanics(&[log], &far).unwrap();
+    let text = fit.to_string();
+    assert!(!fit.fit.trusted(), "{text}");
+    let w = fit.fit.warnings.iter().find(|w| w.code == "friction_confounded").expect(&text);
+    assert!(w.untrusted && w.message.contains("--coulomb-speed"), "{}", w.message);
+    assert!(text.contains("friction_confounded"), "{text}");
 }

@@ -51,6 +51,18 @@ fn one_step_errors(m: &PmsmPwm, e: &greybox::Experiment, theta: &[f64], from: us
         .collect()
 }
 
+/// The PWM fit of `e` from its reference through `inverter` at the log's DC link, without
+/// the setup checks.
+fn pwm_fit(e: &greybox::Experiment, cfg: &DriveConfig, inverter: PwmInverter) -> greybox::pmsm::PmsmFit {
+    let options = PmsmFitOptions {
+        input: VoltageInput::REFERENCE,
+        pwm: Some(PwmInverter { u_dc: Some(cfg.control.u_dc), ..inverter }),
+        skip_setup_checks: true,
+        ..PmsmFitOptions::new(cfg.motor.n_p)
+    };
+    fit_pmsm(std::slice::from_ref(e), &options).unwrap()
+}
+
 fn truth(cfg: &DriveConfig, t_d: f64, u_th: f64) -> Vec<f64> {
     let p = &cfg.motor;
     vec![p.r_s, p.l_d, p.k_e(), t_d, u_th]
@@ -118,14 +130,7 @@ fn the_pwm_sensitivities_are_the_steps_derivatives() {
 #[test]
 fn the_pwm_fit_recovers_the_motor_and_the_inverter() {
     let (e, cfg) = pwm_log("exp3", 2.0, 3e-6, 1.0, 0.0);
-    let pwm = PwmInverter { u_dc: Some(cfg.control.u_dc), ..Default::default() };
-    let options = PmsmFitOptions {
-        input: VoltageInput::REFERENCE,
-        pwm: Some(pwm),
-        skip_setup_checks: true,
-        ..PmsmFitOptions::new(cfg.motor.n_p)
-    };
-    let fit = fit_pmsm(std::slice::from_ref(&e), &options).unwrap();
+    let fit = pwm_fit(&e, &cfg, PwmInverter::default());
     let want = truth(&cfg, 3e-6, 1.0);
     let names = ["r_s", "l_s", "k_e", "t_d", "u_th"];
     for (n, (w, tol)) in names.iter().zip(want.iter().zip([3e-3, 3e-3, 5e-4, 0.05, 0.1])) {
@@ -223,6 +228,35 @@ fn the_controller_frame_is_the_loops() {
     );
     assert!(frame < 1e-4, "{frame:e}");
     assert!(logged > 1e-3, "{logged:e}");
+}
+
+/// Noise on the measured current: the unmasked fit's leg-state width holds the noise (a
+/// one-step prediction from a noisy current turns its signs near zero as a wide leg state
+/// would), and held in the masked fit its atan tail pulled r_s 2.5 % low on motulator's
+/// noisy logs. The masked fit of the sign on the same samples has the lower loss on a log
+/// whose inverter switches hard (the simulator's), and the motor's parameters are within
+/// their intervals at 0.01 A (at 0.05 A on this low-current log the restart from the noisy
+/// current biases r_s by 12 %, errors in the variables, which docs/options.md reports).
+#[test]
+fn a_noisy_current_leaves_the_leg_state_the_sign() {
+    let cfg = scenario("exp3", SPM_MOTOR).unwrap();
+    let mut inverter = cfg.inverter.clone();
+    inverter.pwm = Some(PwmPlant { t_d: 3e-6, u_th: 1.0, i_w: 0.0, levels: 0 });
+    let sensors = greybox::drive::Sensors { current_noise: 0.01, ..Default::default() };
+    let cfg = DriveConfig { inverter, sensors, duration: 2.0, seed: 5, ..cfg };
+    let e = simulate_drive(&cfg).unwrap().experiment;
+    let fit = pwm_fit(&e, &cfg, PwmInverter { estimate_i_w: true, ..Default::default() });
+    let note =
+        fit.pmsm_notes.iter().find(|n| n.contains("leg state on the masked")).expect("the leg-state choice");
+    eprintln!("{note}");
+    assert!(fit.pwm.is_some_and(|p| !p.estimate_i_w && p.i_w.is_none()), "{note}");
+    assert!(fit.parameter("i_w").is_none());
+    for (n, w) in ["r_s", "l_s", "k_e"].iter().zip(truth(&cfg, 3e-6, 1.0)) {
+        let p = fit.parameter(n).unwrap();
+        let z = (p.value - w) / p.std_error;
+        eprintln!("{n}: relative error {:.2e}, z {z:.2}", rel(p.value, w));
+        assert!(z.abs() < 3.0, "{n}: z {z}");
+    }
 }
 
 /// The command line refuses a PWM model it cannot run, naming the flag: without the

@@ -240,6 +240,7 @@ pub(super) fn fit_from_start(
         None => None,
     };
     let mut input = options.input;
+    let mut fitted_pwm = pwm;
     let fits = match (pwm, options.model) {
         (Some(pwm), kind) => {
             // The PWM model of an inverter and input at a hold, as the options configure it.
@@ -272,7 +273,7 @@ pub(super) fn fit_from_start(
                 )
             };
             let model = |pwm: PwmInverter, input: VoltageInput| model_at(VoltageHold::Stator, pwm, input);
-            let (fits, chosen) = super::pwm_fit::stages(
+            let (fits, chosen, inverter) = super::pwm_fit::stages(
                 experiments,
                 &pwm,
                 options.input,
@@ -284,12 +285,13 @@ pub(super) fn fit_from_start(
                 &mut notes,
             )?;
             input = chosen;
+            fitted_pwm = Some(inverter);
             Ok(fits)
         }
         (None, MotorKind::Spm) => fit_holds!(PmsmSpm),
         (None, MotorKind::Ipm) => fit_holds!(PmsmIpm),
     }?;
-    Ok(Fitted { fits, notes, ls_theta, modulator, pwm, input })
+    Ok(Fitted { fits, notes, ls_theta, modulator, pwm: fitted_pwm, input })
 }
 
 /// The unit of parameter `name` of `kind`, `V` for the dead-time voltage `v_dt`.

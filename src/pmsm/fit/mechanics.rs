@@ -27,8 +27,10 @@ pub struct MechanicsOptions {
     pub motor: MotorParameters,
     /// Window length \[s\] (rounded to whole samples, at least one).
     pub window: f64,
-    /// Speed ω_c \[rad/s\] over which the Coulomb friction changes sign (`tanh(ω/ω_c)`).
-    pub coulomb_speed: f64,
+    /// Speed ω_c \[rad/s\] over which the Coulomb friction changes sign (`tanh(ω/ω_c)`);
+    /// `None`: estimated, the lowest loss over \[10⁻⁴, 1\] × the logs' peak speed
+    /// ([`COULOMB_SPEED_RANGE`]; a scan and a golden-section search on its logarithm).
+    pub coulomb_speed: Option<f64>,
     /// Gravity and constant-load terms.
     pub terms: MechanicsTerms,
     /// The viscous and Coulomb friction (`b`, `t_c`) estimated per log; inertia and the
@@ -44,13 +46,13 @@ pub struct MechanicsOptions {
 }
 
 impl MechanicsOptions {
-    /// Defaults for `motor`: 10 ms windows, ω_c = 1 rad/s, no gravity or constant load,
+    /// Defaults for `motor`: 10 ms windows, ω_c estimated, no gravity or constant load,
     /// shared friction.
     pub fn new(motor: MotorParameters) -> Self {
         Self {
             motor,
             window: 0.01,
-            coulomb_speed: 1.0,
+            coulomb_speed: None,
             terms: MechanicsTerms::default(),
             per_log_friction: false,
             pem: PemOptions::default(),
@@ -73,6 +75,9 @@ pub struct MechanicsFit {
     pub k_t: f64,
     /// ω_c \[rad/s\].
     pub coulomb_speed: f64,
+    /// Whether ω_c was estimated (its uncertainty is not in the intervals).
+    #[serde(default)]
+    pub coulomb_speed_estimated: bool,
     /// Whether a load-torque channel was subtracted.
     pub load_channel: bool,
     /// Relative standard error of `K_t` the torque model carries (0: exact).
@@ -95,6 +100,11 @@ pub struct MechanicsFit {
 /// [`Error::MissingChannel`] naming a channel; [`Error::InvalidOption`] (`window`) for a
 /// window that is not positive or leaves fewer than [`MIN_WINDOWS`] windows.
 pub fn mechanics_windows(e: &Experiment, options: &MechanicsOptions, load: bool) -> Result<Experiment> {
+    windows_at(e, options, load, options.coulomb_speed.unwrap_or(1.0))
+}
+
+/// [`mechanics_windows`] at the Coulomb speed `w_c` \[rad/s\].
+fn windows_at(e: &Experiment, options: &MechanicsOptions, load: bool, w_c: f64) -> Result<Experiment> {
     let h = e.h();
     if !(options.window.is_finite() && options.window > 0.0) {
         return Err(Error::InvalidOption {
@@ -120,7 +130,6 @@ pub fn mechanics_windows(e: &Experiment, options: &MechanicsOptions, load: bool)
     let zero = vec![0.0; e.len()];
     let theta = if options.terms.gravity { e.channel("theta_m")? } else { &zero };
     let t_l = if load { e.channel(LOAD_TORQUE)? } else { &zero };
-    let w_c = options.coulomb_speed;
     let trapezoid =
         |f: &dyn Fn(usize) -> f64, a: usize| h * (a..a + m).map(|k| 0.5 * (f(k) + f(k + 1))).sum::<f64>();
     let mut cols: [Vec<f64>; 7] = Default::default();
@@ -157,17 +166,71 @@ pub fn mechanics_windows(e: &Experiment, options: &MechanicsOptions, load: bool)
 ///
 /// # Errors
 /// Those of [`mechanics_windows`] and [`fit`]; [`Error::InvalidOption`] (`coulomb_speed`)
-/// for a ω_c that is not positive.
+/// for a ω_c that is not positive, or to be estimated from logs that never move.
 pub fn fit_mechanics(experiments: &[Experiment], options: &MechanicsOptions) -> Result<MechanicsFit> {
-    if !(options.coulomb_speed.is_finite() && options.coulomb_speed > 0.0) {
+    if let Some(w_c) = options.coulomb_speed.filter(|w| !(w.is_finite() && *w > 0.0)) {
         return Err(Error::InvalidOption {
             option: "coulomb_speed".into(),
-            reason: format!("{} rad/s must be positive", options.coulomb_speed),
+            reason: format!("{w_c} rad/s must be positive"),
         });
     }
     let load = !experiments.is_empty() && experiments.iter().all(|e| e.get(LOAD_TORQUE).is_some());
+    let peak = experiments
+        .iter()
+        .filter_map(|e| e.channel("w_m").ok())
+        .flat_map(|w| w.iter().map(|v| v.abs()))
+        .fold(0.0, f64::max);
+    let w_c = match options.coulomb_speed {
+        Some(w_c) => w_c,
+        None if peak > 0.0 && peak.is_finite() => {
+            let range = (COULOMB_SPEED_RANGE.0 * peak, COULOMB_SPEED_RANGE.1 * peak);
+            // The log's own faults (a missing channel, a window too long, a torque the
+            // speed does not follow) named as they are, before the search.
+            fit_at(experiments, options, load, (range.0 * range.1).sqrt())?;
+            crate::pmsm::fit::input_search::golden_search(range, true, |w_c| {
+                Ok(fit_at(experiments, options, load, w_c).map_or(f64::INFINITY, |(_, r)| r.fit.loss))
+            })?
+        }
+        None => {
+            return Err(Error::InvalidOption {
+                option: "coulomb_speed".into(),
+                reason: "the logs' speed is zero throughout: no Coulomb speed can be estimated (give one)"
+                    .into(),
+            });
+        }
+    };
+    let (windows, fitted) = fit_at(experiments, options, load, w_c)?;
+    let warnings = fitted.warnings.iter().cloned().chain(super::friction::warnings(&fitted, peak, w_c));
+    let result = FitResult { warnings: warnings.collect(), ..fitted };
+    Ok(MechanicsFit {
+        windows: windows.iter().map(Experiment::len).sum(),
+        window: windows.first().map_or(options.window, |w| w.channel("x_1").map_or(f64::NAN, |x| x[0])),
+        k_t: options.motor.k_t(),
+        coulomb_speed: w_c,
+        coulomb_speed_estimated: options.coulomb_speed.is_none(),
+        load_channel: load,
+        k_t_relative_se: options.k_t_relative_se,
+        std_errors_with_torque: result
+            .parameters
+            .iter()
+            .map(|p| p.std_error.hypot(p.value * options.k_t_relative_se))
+            .collect(),
+        fit: result,
+    })
+}
+
+/// The range of an estimated Coulomb speed, relative to the logs' peak speed.
+pub const COULOMB_SPEED_RANGE: (f64, f64) = (1e-4, 1.0);
+
+/// The windows and the fit at the Coulomb speed `w_c` \[rad/s\].
+fn fit_at(
+    experiments: &[Experiment],
+    options: &MechanicsOptions,
+    load: bool,
+    w_c: f64,
+) -> Result<(Vec<Experiment>, FitResult)> {
     let windows =
-        experiments.iter().map(|e| mechanics_windows(e, options, load)).collect::<Result<Vec<_>>>()?;
+        experiments.iter().map(|e| windows_at(e, options, load, w_c)).collect::<Result<Vec<_>>>()?;
     let start = least_squares_start(&windows, options.terms)?;
     let mut nominal = [start[0], start[1], start[2], 1.0, 1.0];
     for (j, v) in start.iter().enumerate().skip(3) {
@@ -178,21 +241,8 @@ pub fn fit_mechanics(experiments: &[Experiment], options: &MechanicsOptions) -> 
     if options.per_log_friction && experiments.len() > 1 {
         pem.per_experiment = vec!["b".into(), "t_c".into()];
     }
-    let result = fit(&model, &windows, &start, &pem)?;
-    Ok(MechanicsFit {
-        windows: windows.iter().map(Experiment::len).sum(),
-        window: windows.first().map_or(options.window, |w| w.channel("x_1").map_or(f64::NAN, |x| x[0])),
-        k_t: options.motor.k_t(),
-        coulomb_speed: options.coulomb_speed,
-        load_channel: load,
-        k_t_relative_se: options.k_t_relative_se,
-        std_errors_with_torque: result
-            .parameters
-            .iter()
-            .map(|p| p.std_error.hypot(p.value * options.k_t_relative_se))
-            .collect(),
-        fit: result,
-    })
+    let fitted = fit(&model, &windows, &start, &pem)?;
+    Ok((windows, fitted))
 }
 
 /// `[j, b, t_c, (mgl), (t_0)]` from the least squares of `Δω = c_T X_T − Σ c_i X_i`
@@ -231,9 +281,12 @@ impl std::fmt::Display for MechanicsFit {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         writeln!(
             f,
-            "Mechanics (J dω/dt = T_e − B ω − T_c tanh(ω/{:.3} rad/s) − m g l sin θ − T_0{}; K_t {:.6} N m/A; {} \
-             windows of {:.4} s):",
+            "Mechanics (J dω/dt = T_e − B ω − T_c tanh(ω/{:.4e} rad/s{}){}{}{}; K_t {:.6} N m/A; {} windows of \
+             {:.4} s):",
             self.coulomb_speed,
+            if self.coulomb_speed_estimated { ", ω_c estimated by the lowest loss" } else { "" },
+            if self.fit.parameter("mgl").is_some() { " − m g l sin θ" } else { "" },
+            if self.fit.parameter("t_0").is_some() { " − T_0" } else { "" },
             if self.load_channel { " − T_L (logged)" } else { "" },
             self.k_t,
             self.windows,
@@ -260,6 +313,24 @@ impl std::fmt::Display for MechanicsFit {
                 f,
                 "the intervals take K_t as exact: its relative error scales every parameter above alike"
             )?;
+        }
+        let u = &self.fit.uncertainty;
+        let q = u.ljung_box.iter().copied().fold(0.0, f64::max);
+        match u.method {
+            crate::estimate::CovarianceMethod::BatchMeans => writeln!(
+                f,
+                "intervals from batch means over {} batches of {} windows (the residuals are not white: Ljung–Box \
+                 {q:.1} against {:.1})",
+                u.batches, u.batch_samples, u.ljung_box_critical
+            )?,
+            _ => writeln!(
+                f,
+                "intervals from the white-noise covariance (Ljung–Box {q:.1} against {:.1})",
+                u.ljung_box_critical
+            )?,
+        }
+        for w in &self.fit.warnings {
+            writeln!(f, "{}{}: {}", if w.untrusted { "untrusted, " } else { "" }, w.code, w.message)?;
         }
         let verdict = if self.fit.trusted() { "trusted" } else { "NOT to be trusted" };
         writeln!(f, "fit {verdict}")

@@ -6,6 +6,7 @@ pub(super) mod auto_mask;
 mod base;
 mod beside;
 pub(super) mod flux_map;
+mod friction;
 pub(super) mod hold;
 mod holds;
 pub(super) mod input_search;

@@ -20,10 +20,13 @@ use crate::pmsm::options::PmsmFitOptions;
 /// `input`, in stages; `model` makes the model of an inverter and input as configured by
 /// the options, `fit` fits one (inverter, input, start, names, weighting, parameters held at
 /// their start); notes in order. Returns the fits and the input of the final ones (the
-/// controller's loop bandwidth searched when `pwm.search_speed_pll`).
+/// controller's loop bandwidth searched when `pwm.search_speed_pll`) and the inverter of the
+/// final fits (its leg state chosen).
 ///
 /// A width `i_w` estimated by the unmasked fit is held at its estimate in the masked one:
-/// only the samples near a zero crossing tell it, and the mask weights those out.
+/// only the samples near a zero crossing tell it, and the mask weights those out. That fit
+/// is then compared with the sign's on the same samples, and the lower loss kept (the
+/// unmasked width also holds the current's noise).
 ///
 /// # Errors
 /// Those of the fits, of the loop's search and of [`super::pwm_mask::sign_mask`].
@@ -38,7 +41,7 @@ pub(crate) fn stages(
     model: &dyn Fn(PwmInverter, VoltageInput) -> Result<PmsmPwm>,
     fit: &Fit<'_>,
     notes: &mut Vec<String>,
-) -> Result<(HoldFits, VoltageInput)> {
+) -> Result<(HoldFits, VoltageInput, PwmInverter)> {
     // The loss is rough where a predicted current crosses zero at a switching instant: the
     // fits of a smooth leg state of decreasing width lead to it. Also from a given start: a
     // nested fit of a part of the log that started at the whole fit's estimate would stay in
@@ -50,7 +53,7 @@ pub(crate) fn stages(
         last = Some((fitted.best.1, stage));
     }
     let Some((prev, stage)) = &last else {
-        return Ok((fit(*pwm, input, start, names, weighting, &[])?, input));
+        return Ok((fit(*pwm, input, start, names, weighting, &[])?, input, *pwm));
     };
     let (theta, note) = super::pwm_start::from_continuation(prev, stage.i_w, names, pwm, start);
     notes.push(note);
@@ -68,7 +71,28 @@ pub(crate) fn stages(
     let (mask, note) = super::pwm_mask::sign_mask(experiments, &model(*pwm, input)?, &theta, weighting)?;
     notes.push(note);
     let held: &[&str] = if pwm.estimate_i_w { &["i_w"] } else { &[] };
-    Ok((fit(*pwm, input, &theta, names, &mask, held)?, input))
+    let fits = fit(*pwm, input, &theta, names, &mask, held)?;
+    if !pwm.estimate_i_w {
+        return Ok((fits, input, *pwm));
+    }
+    // The width the unmasked fit finds holds the measured current's noise as well as the
+    // legs' parasitic capacitances (a one-step prediction from a noisy current turns its
+    // signs near zero as a wide leg state would), and the atan's slow tail then reaches the
+    // kept samples: 0.05 A of noise gave i_w = 0.015 A and r_s 2.5 % low. The sign's fit on
+    // the same samples decides, by the lower loss.
+    let sign = PwmInverter { i_w: None, estimate_i_w: false, ..*pwm };
+    let sign_names: Vec<&str> = names.iter().copied().filter(|n| *n != "i_w").collect();
+    let sign_start = super::pwm_start::carried(Some(&fits.best.1), &sign_names, &theta, names);
+    let sign_fits = fit(sign, input, &sign_start, &sign_names, &mask, &[])?;
+    let (width, hard) = (fits.best.1.fit.loss, sign_fits.best.1.fit.loss);
+    let i_w = fits.best.1.parameter("i_w").map_or(f64::NAN, |p| p.value);
+    let keep_sign = hard <= width;
+    notes.push(format!(
+        "PWM leg state on the masked samples: the width i_w = {i_w:.3e} A of the unmasked fit held (loss \
+         {width:.6e}) against the sign ({hard:.6e}): {}",
+        if keep_sign { "the sign" } else { "the width" }
+    ));
+    Ok(if keep_sign { (sign_fits, input, sign) } else { (fits, input, *pwm) })
 }
 
 /// One PWM fit: (inverter, input, start, names, weighting, parameters held at their start).

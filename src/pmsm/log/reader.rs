@@ -340,7 +340,7 @@ pub(super) fn plausible(path: &Path, e: Experiment, options: &CsvOptions) -> Res
     // A log slower than the dynamic model's range but within the steady-state one: slow
     // telemetry, if its time column is right.
     let hint = if !options.steady_state && h > max && h <= MAX_STEADY_SAMPLE_TIME {
-        format!("{hint}or slow telemetry for the steady-state equations: `--model spm-steady|ipm-steady`; ")
+        format!("{hint}or slow telemetry, which `greybox fit` reads (the steady-state equations); ")
     } else {
         hint
     };
