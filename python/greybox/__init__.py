@@ -52,6 +52,12 @@ __all__ = [
 
 __version__: str = _greybox.__version__
 
+
+def __dir__() -> list[str]:
+    """The package's public names (``__all__`` and ``__version__``), not the modules it
+    imports for its own use (PEP 562)."""
+    return sorted([*__all__, "__version__"])
+
 PathLike = Union[str, "os.PathLike[str]"]
 
 

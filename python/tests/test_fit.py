@@ -204,3 +204,10 @@ def test_record_batch_reader_and_split_gaps(sample):
         greybox.fit(gap, pole_pairs=4)
     fit = greybox.fit(gap, pole_pairs=4, split_gaps=True, name="gap")
     assert fit.to_dict()["experiments"] == ["gap#1", "gap#2"]
+
+
+def test_dir_lists_the_public_names_only():
+    names = dir(greybox)
+    assert "fit" in names and "__version__" in names
+    for private in ("os", "json", "tempfile", "Any", "pa"):
+        assert private not in names, private

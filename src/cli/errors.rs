@@ -72,13 +72,32 @@ pub fn in_cli_words(e: Error, command: &clap::Command) -> Error {
             Error::InvalidOption { option: flag.unwrap_or(option), reason: model_words(&reason) }
         }
         Error::MissingColumn { path, column, available } => match column_hint(&column, &available, command) {
-            Some((flag, found)) => Error::InvalidOption {
-                option: flag.clone(),
-                reason: format!(
-                    "{}: no column `{column}` in the header ({available}); `{found}` looks like it: {flag} \"{found}\"",
-                    path.display()
-                ),
-            },
+            Some((flag, found)) => {
+                // Every standard column the header names otherwise, in one run (a log
+                // with `Id, Iq, Ud, Uq, speed_rpm` took one run per column).
+                let all: Vec<String> = command
+                    .get_arguments()
+                    .filter_map(|a| {
+                        let long = a.get_long()?;
+                        let default = a.get_default_values().first()?.to_str()?;
+                        let absent = !available.split(", ").any(|h| h == default);
+                        (long.starts_with("col-") && absent)
+                            .then(|| column_hint(default, &available, command))
+                            .flatten()
+                    })
+                    .map(|(f, h)| format!("{f} \"{h}\""))
+                    .chain(speed_unit_hint(&available, command))
+                    .collect();
+                Error::InvalidOption {
+                    option: flag.clone(),
+                    reason: format!(
+                        "{}: no column `{column}` in the header ({available}); `{found}` looks like it. The header's names \
+                         as flags: {}",
+                        path.display(),
+                        all.join(" ")
+                    ),
+                }
+            }
             None => Error::MissingColumn { path, column, available },
         },
         other => other,
@@ -96,6 +115,25 @@ const COLUMN_ALIASES: [(&str, &[&str]); 7] = [
     ("w_m", &["wm", "w", "omega", "omegam", "speed", "velocity"]),
     ("theta_m", &["thetam", "theta", "angle", "position", "pos"]),
 ];
+
+/// Units a speed column's name may end in, and the `--speed-unit` each asks for (`None`:
+/// the default rad/s).
+const SPEED_UNIT_SUFFIXES: [(&str, Option<&str>); 3] =
+    [("rpm", Some("rpm")), ("rads", None), ("radpers", None)];
+
+/// `--speed-unit U` when the header's speed column says its unit in its name (`speed_rpm`)
+/// and the command takes the flag.
+fn speed_unit_hint(available: &str, command: &clap::Command) -> Option<String> {
+    command.get_arguments().find(|a| a.get_long() == Some("speed-unit"))?;
+    available.split(", ").find_map(|h| {
+        let n = normalised(h);
+        SPEED_UNIT_SUFFIXES.iter().find_map(|(suffix, unit)| {
+            let stem = n.strip_suffix(suffix)?;
+            let speed = COLUMN_ALIASES.iter().find(|(c, _)| *c == "w_m")?.1.contains(&stem);
+            speed.then(|| unit.map(|u| format!("--speed-unit {u}"))).flatten()
+        })
+    })
+}
 
 /// A header name without case, units in brackets or parentheses, and punctuation.
 fn normalised(name: &str) -> String {
@@ -124,7 +162,12 @@ fn column_hint(column: &str, available: &str, command: &clap::Command) -> Option
                 .flat_map(|(_, a)| a.iter().map(|s| s.to_string())),
         )
         .collect();
-    let found = available.split(", ").find(|h| names.contains(&normalised(h)))?;
+    // A name that ends in a unit (`speed_rpm`) is the column without it.
+    let bare = |h: &str| {
+        let n = normalised(h);
+        SPEED_UNIT_SUFFIXES.iter().find_map(|(s, _)| n.strip_suffix(s).map(str::to_string)).unwrap_or(n)
+    };
+    let found = available.split(", ").find(|h| names.contains(&normalised(h)) || names.contains(&bare(h)))?;
     let flag = command.get_arguments().find(|a| {
         a.get_long().is_some_and(|l| l.starts_with("col-")) && a.get_default_values() == [column]
     })?;

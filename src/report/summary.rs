@@ -14,6 +14,13 @@ pub const ERROR_INDEX_LEGEND: &str = "index %: parametric error index P = 100 δ
      the parameter, the others re-optimised, that doubles the residual sum of squares; small = well excited, \
      above ~10 % poorly determined";
 
+/// Why a free parameter's index is `—`: the estimator has no residual sum of squares of the
+/// prediction-error criterion to double (the steady-state equations' regression,
+/// instrumental variables).
+pub const NO_ERROR_INDEX: &str = "index % —: not defined for this estimator (the index doubles the prediction-error \
+     criterion's residual sum of squares, which the steady-state regression and instrumental variables do not \
+     minimise)";
+
 /// The heading of the advice, notes and warnings at the end of a report.
 pub const REMARKS: &str = "remarks";
 
@@ -69,6 +76,7 @@ fn parameter_row(p: &ParameterEstimate, index: bool) -> Vec<String> {
     let idx = match p.error_index_percent {
         _ if p.fixed || !index => "—".to_string(),
         i if i.is_finite() => format!("{i:.4}"),
+        i if i.is_nan() => "—".to_string(),
         i => super::eng::format_figure(i, ""),
     };
     let mut status = Vec::new();
@@ -118,6 +126,9 @@ impl FitResult {
         }
         d.table(t);
         d.line(ERROR_INDEX_LEGEND);
+        if self.parameters.iter().any(|p| !p.fixed && p.error_index_percent.is_nan()) {
+            d.line(NO_ERROR_INDEX);
+        }
         if let Some(line) = self.uncertainty_line() {
             d.line(line);
         }
@@ -145,11 +156,15 @@ impl FitResult {
                 ("quantity", Align::Left),
                 ("value", Align::Right),
                 ("std error", Align::Right),
+                ("95 % interval", Align::Right),
                 ("unit", Align::Left),
             ]);
+            // The parameters' interval: Student's t at the covariance's degrees of freedom.
+            let tq = crate::estimate::result::t_quantile_975(self.uncertainty.dof);
             for q in &self.derived {
-                let [v, se, _, unit] = estimate_cells(q.value, q.std_error, None, &q.unit, false);
-                t.push(vec![label(&q.name, q.experiment.as_deref()), v, se, unit]);
+                let ci = [q.value - tq * q.std_error, q.value + tq * q.std_error];
+                let [v, se, ci, unit] = estimate_cells(q.value, q.std_error, Some(ci), &q.unit, false);
+                t.push(vec![label(&q.name, q.experiment.as_deref()), v, se, ci, unit]);
             }
             d.table(t);
         }

@@ -150,7 +150,12 @@ impl Document {
                 Block::Heading(h) => out.push_str(&format!("\n### {}\n\n", esc(h))),
                 Block::Line(l) => out.push_str(&format!("{}\n\n", esc(l))),
                 Block::Table(t) => {
-                    let n = t.cols();
+                    // Trailing columns empty in the header and every row (a status column
+                    // with nothing to say) are left out, not drawn empty.
+                    let blank = |j: usize| {
+                        std::iter::once(&t.header).chain(&t.rows).all(|r| Table::cell(r, j).trim().is_empty())
+                    };
+                    let n = (0..t.cols()).rev().find(|&j| !blank(j)).map_or(0, |j| j + 1);
                     let row = |r: &[String]| {
                         let cells: Vec<String> = (0..n).map(|j| esc(Table::cell(r, j))).collect();
                         format!("| {} |\n", cells.join(" | "))
@@ -187,6 +192,16 @@ mod tests {
         d.table(t);
         d.line("a|b");
         d
+    }
+
+    #[test]
+    fn markdown_leaves_out_an_empty_trailing_column() {
+        let mut d = Document::default();
+        let mut t = Table::new(&[("parameter", Align::Left), ("estimate", Align::Right), ("", Align::Left)]);
+        t.push(vec!["r_s".into(), "1".into(), String::new()]);
+        d.table(t);
+        let md = d.to_markdown();
+        assert!(md.starts_with("| parameter | estimate |\n| :--- | ---: |\n| r_s | 1 |"), "{md}");
     }
 
     #[test]

@@ -76,6 +76,57 @@ fn comma_lists_work_where_the_help_shows_them() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Issue 44: a log whose columns are all named otherwise (`t,Id,Iq,Ud,Uq,speed_rpm`) took
+/// seven runs, one per column and one for the unit. The first error now names every flag
+/// the header calls for, `--speed-unit rpm` from the speed column's name among them, and
+/// the command line it gives fits the log.
+#[test]
+fn one_error_names_every_renamed_column() {
+    let dir = temp_dir("renamed");
+    let log = dir.join("renamed.csv");
+    let raw = std::fs::File::open(SAMPLE).unwrap();
+    let lines = std::io::BufReader::new(flate2::read::GzDecoder::new(raw)).lines();
+    let mut w = std::io::BufWriter::new(std::fs::File::create(&log).unwrap());
+    writeln!(w, "t,Ud,Uq,Id,Iq,speed_rpm").unwrap();
+    for line in lines.skip(1) {
+        let f: Vec<f64> = line.unwrap().split(',').map(|x| x.parse().unwrap()).collect();
+        writeln!(w, "{},{},{},{},{},{}", f[0], f[1], f[2], f[3], f[4], f[5] * 30.0 / std::f64::consts::PI)
+            .unwrap();
+    }
+    drop(w);
+    let l = log.to_str().unwrap();
+    let out = greybox(&["fit", l, "-p", "4", "-q"]);
+    let err = stderr(&out);
+    assert_ne!(out.status.code(), Some(0), "{err}");
+    for flag in [
+        "--col-ud \"Ud\"",
+        "--col-uq \"Uq\"",
+        "--col-id \"Id\"",
+        "--col-iq \"Iq\"",
+        "--col-w \"speed_rpm\"",
+        "--speed-unit rpm",
+    ] {
+        assert!(err.contains(flag), "{flag}: {err}");
+    }
+    let given = [
+        "--col-ud",
+        "Ud",
+        "--col-uq",
+        "Uq",
+        "--col-id",
+        "Id",
+        "--col-iq",
+        "Iq",
+        "--col-w",
+        "speed_rpm",
+        "--speed-unit",
+        "rpm",
+    ];
+    let out = greybox(&[&["fit", l, "-p", "4", "-q"][..], &given[..]].concat());
+    assert!(matches!(out.status.code(), Some(0 | 3)), "{}", stderr(&out));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `--huber 2.0 LOG` does not read `2.0` as a log: the error names the word and says to
 /// write `--huber=2.0`, which works, as does `--huber` alone before a log.
 #[test]

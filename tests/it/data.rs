@@ -56,6 +56,7 @@ fn read_default(p: &Path) -> greybox::Result<Experiment> {
 // ---------------------------------------------------------------- real logs
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn reads_motulator_log() {
     crate::common::require_shared!();
     let e = read_csv(&*SERVO, 4, &CsvOptions::default()).unwrap();
@@ -79,6 +80,7 @@ fn reads_motulator_log() {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn reads_gem_log_without_references() {
     crate::common::require_shared!();
     let e = read_csv(&*GEM, 4, &CsvOptions::default()).unwrap();
@@ -92,6 +94,7 @@ fn reads_gem_log_without_references() {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn reads_many_in_order() {
     crate::common::require_shared!();
     let v = read_logs(&[&*GEM, &*SERVO], &CsvOptions::default()).unwrap();
@@ -104,6 +107,7 @@ fn reads_many_in_order() {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn sample_log_is_a_verbatim_cut_of_the_servo_log() {
     crate::common::require_shared!();
     let sample = read_csv(SAMPLE, 4, &CsvOptions::default()).unwrap();
@@ -165,6 +169,7 @@ fn dq_error(
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn phases_reproduce_motulator_dq_signals() {
     crate::common::require_shared!();
     let dq = read_csv(&*SERVO, 4, &CsvOptions::default()).unwrap();
@@ -228,6 +233,7 @@ fn phases_reproduce_motulator_dq_signals() {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn phases_reproduce_gem_noisy_currents() {
     crate::common::require_shared!();
     // GEM's phase voltages come from a dq-held voltage, so only the currents are compared.

@@ -277,6 +277,7 @@ fn simulate_command_line() {
 /// two are one step (identical to 1e-12 of the current scale), and both follow the log to
 /// its writing precision (motulator: stator hold; gym-electric-motor: dq hold).
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn plant_reproduces_the_development_logs_open_loop() {
     use greybox::model::Prepared;
     use greybox::pmsm::{C64, ExactPlant, MotorParameters, PmsmIpm, PmsmSpm, VoltageHold, stator_hold_start};

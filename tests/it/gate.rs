@@ -124,6 +124,7 @@ fn a_loose_step_tolerance_does_not_pass_the_gate() {
 /// d and q swapped, fitted from a start (as the least-squares error used to advise): the
 /// fit "converges" to a negative k_e with a poor fit; both are untrusted.
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn swapped_axes_from_a_start_are_untrusted() {
     crate::common::require_shared!();
     let (e, t) = load("servo_spm_moves_idinj");
@@ -181,6 +182,7 @@ fn column(e: &Experiment, name: &str) -> Vec<f64> {
 /// (instead of advising a start value that would lead to a wrong fit), or the fit ends
 /// untrusted with a `columns` warning that names them.
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn column_mistakes_are_named_with_their_fix() {
     crate::common::require_shared!();
     let cases: [(&str, bool, Rewrite); 3] = [
@@ -225,6 +227,7 @@ fn column_mistakes_are_named_with_their_fix() {
 /// warning names rpm, confirmed by the fit of the corrected log; read in rad/s the same
 /// log passes without it.
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn a_speed_in_rpm_without_the_angle_is_named() {
     crate::common::require_shared!();
     let rpm = 30.0 / std::f64::consts::PI;
@@ -244,6 +247,7 @@ fn a_speed_in_rpm_without_the_angle_is_named() {
 /// `--time-unit ms`; forced, the fit runs, and `sample_time` says the model cannot resolve
 /// the currents at that rate.
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn a_time_column_in_milliseconds_is_named() {
     crate::common::require_shared!();
     let (e, n_p) = rewritten(true, |_| Vec::new());

@@ -194,6 +194,7 @@ fn dead_time_errors_name_the_culprit() {
 /// 7.98 V (expected 9.2 V); with the mask (0.813 A, one-step prediction): r_s −0.09 %,
 /// l_s +0.26 %, k_e −0.05 %, v_dt 9.2016 V.
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn pwm_log_from_the_reference_voltage() {
     crate::common::require_shared!();
     let (e, t) = crate::common::load("servo_spm_pwm_deadtime_idinj");

@@ -43,30 +43,35 @@ fn assert_ls_recovers(stem: &str, tol: f64) {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn ls_servo_spm_moves() {
     crate::common::require_shared!();
     assert_ls_recovers("servo_spm_moves", 1e-3);
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn ls_servo_spm_moves_idinj() {
     crate::common::require_shared!();
     assert_ls_recovers("servo_spm_moves_idinj", 1e-3);
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn ls_ipm_moves_idinj() {
     crate::common::require_shared!();
     assert_ls_recovers("ipm_moves_idinj", 1e-3);
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn ls_gem_spm_moves_idinj() {
     crate::common::require_shared!();
     assert_ls_recovers("gem_spm_moves_idinj", 1e-3);
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn ls_gem_ipm_moves_idinj() {
     crate::common::require_shared!();
     assert_ls_recovers("gem_ipm_moves_idinj", 1e-3);
@@ -101,12 +106,14 @@ fn ls_vs_pem(stem: &str, factor: f64) {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn ls_vs_pem_servo_noisy() {
     crate::common::require_shared!();
     ls_vs_pem("servo_spm_moves_idinj_noisy", 50.0);
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn ls_vs_pem_gem_ipm_noisy() {
     crate::common::require_shared!();
     ls_vs_pem("gem_ipm_moves_idinj_noisy", 50.0);
@@ -115,6 +122,7 @@ fn ls_vs_pem_gem_ipm_noisy() {
 // ---------------------------------------------------------------- (c) weighting
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn speed_weighting_changes_the_error_indices() {
     crate::common::require_shared!();
     let (e, t) = load("servo_spm_moves_idinj_noisy");
@@ -142,6 +150,7 @@ fn speed_weighting_changes_the_error_indices() {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn constant_weights_equal_uniform() {
     crate::common::require_shared!();
     // β = 3 everywhere (not flagged uniform) must give the LS estimate and error index:
@@ -160,6 +169,7 @@ fn constant_weights_equal_uniform() {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn weights_select_rows() {
     crate::common::require_shared!();
     // Zero weight on the second half of a log = LS on the first half (rows of intervals
@@ -192,6 +202,7 @@ fn weights_select_rows() {
 // ---------------------------------------------------------------- (d) prefilter
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn prefilter_changes_the_noisy_estimate() {
     crate::common::require_shared!();
     let (e, t) = load("servo_spm_moves_idinj_noisy");
@@ -216,6 +227,7 @@ fn prefilter_changes_the_noisy_estimate() {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn prefilter_keeps_noise_free_estimates_close() {
     crate::common::require_shared!();
     // Filtering every signal alike commutes with the linear terms; only the products
@@ -245,6 +257,7 @@ fn option_of<T: std::fmt::Debug>(r: Result<T>) -> String {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn bad_prefilter_options_are_errors() {
     crate::common::require_shared!();
     let (e, t) = load("servo_spm_moves_idinj");
@@ -347,6 +360,7 @@ impl Weighting for Short {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn display_and_serde() {
     crate::common::require_shared!();
     let (e, t) = load("ipm_moves_idinj");

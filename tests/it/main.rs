@@ -1,7 +1,8 @@
 //! The integration tests, one module per topic, in one test binary (`it`): one link
 //! instead of one per file. Tests that read the development logs in `../shared/data`
-//! (not part of the repository) skip with one line on stderr when the folder is absent;
-//! see `common::require_shared!`.
+//! (not part of the repository) are reported as ignored when the folder is absent (the
+//! build script's cfg `shared_data`), and skip with one line on stderr if it goes missing
+//! after the build; see `common::require_shared!`.
 
 mod common;
 

@@ -261,6 +261,7 @@ fn trajectory_decimates_keeping_the_last_point() {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn servo_log_with_d_injection() {
     require_shared!();
     let (e, truth) = crate::common::load("servo_spm_moves_idinj");
@@ -483,6 +484,7 @@ fn salient_settings_validate_and_old_configs_parse() {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn salient_logs_with_d_injection() {
     require_shared!();
     // Gains per log. motulator's machine (L_q = 7.5 mH, up to 230 rad/s): the thesis

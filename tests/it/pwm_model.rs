@@ -155,6 +155,7 @@ fn the_pwm_fit_recovers_the_motor_and_the_inverter() {
 /// model with its automatic mask misses R_s by more than 1 %, the switching-resolved one
 /// is within 0.3 % (both from the reference voltage, without the setup checks).
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn the_ripple_is_in_the_pwm_model_and_not_in_the_averaged_one() {
     crate::common::require_shared!();
     let e = shared_log("servo_spm_pwm_deadtime_lowdrop");
@@ -181,6 +182,7 @@ fn the_ripple_is_in_the_pwm_model_and_not_in_the_averaged_one() {
 /// current to a few µA in the median period (the rest: the logs' 12-bit duty-ratio counter
 /// and their seven digits), where the averaged reference is off by about a milliampere.
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn the_pwm_step_predicts_motulators_pwm_logs() {
     crate::common::require_shared!();
     let e = shared_log("servo_spm_pwm_deadtime_idinj");
@@ -207,6 +209,7 @@ fn the_pwm_step_predicts_motulators_pwm_logs() {
 /// 12-bit counter the step predicts the shared log at the true parameters to rounding in
 /// 99 % of its periods; with the logged angle, a period in ten is off by a milliampere.
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn the_controller_frame_is_the_loops() {
     crate::common::require_shared!();
     let e = shared_log("servo_spm_pwm_deadtime_idinj");

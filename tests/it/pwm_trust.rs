@@ -67,6 +67,7 @@ fn current_noise_bias_of_a_masked_fit_is_untrusted() {
 /// tolerances with the truth inside its 95 % intervals, or untrusted. Measured: all three
 /// untrusted by the segment check (r_s, l_s off by up to 2.8 % and 1.1 %, |z| up to 6.5).
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn pwm_logs_are_right_or_untrusted() {
     crate::common::require_shared!();
     for (stem, model) in [

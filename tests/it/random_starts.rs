@@ -95,6 +95,7 @@ fn simulated_record_from_400_random_starts() {
 /// The first 2.5 s of the servo log: ±30 rad/s, +100 rad/s and the whole −4 A
 /// d-current injection (0.9–1.7 s).
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn servo_log_from_200_random_starts() {
     crate::common::require_shared!();
     let (log, t) = load("servo_spm_moves_idinj");
@@ -109,6 +110,7 @@ fn servo_log_from_200_random_starts() {
 /// now restarted from the other hold's estimate: ≥ 99.5 % of the starts reach the minimum.
 /// `GREYBOX_STARTS` sets the number of starts (default 200; the note reports 1000).
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn servo_log_automatic_hold_from_random_starts() {
     crate::common::require_shared!();
     let (log, t) = load("servo_spm_moves_idinj");

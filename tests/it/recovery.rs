@@ -39,30 +39,35 @@ fn assert_within(stem: &str, tol: f64) {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn servo_spm_moves() {
     crate::common::require_shared!();
     assert_within("servo_spm_moves", 1e-4);
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn servo_spm_moves_idinj() {
     crate::common::require_shared!();
     assert_within("servo_spm_moves_idinj", 1e-4);
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn ipm_moves_idinj() {
     crate::common::require_shared!();
     assert_within("ipm_moves_idinj", 1e-4);
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn gem_spm_moves_idinj() {
     crate::common::require_shared!();
     assert_within("gem_spm_moves_idinj", 1e-4);
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn gem_ipm_moves_idinj() {
     crate::common::require_shared!();
     assert_within("gem_ipm_moves_idinj", 1e-4);
@@ -71,6 +76,7 @@ fn gem_ipm_moves_idinj() {
 /// Motulator logs hold the voltage in the stator frame, GEM logs in dq: the automatic
 /// choice must find that from the data alone.
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn automatic_hold_matches_the_simulator() {
     crate::common::require_shared!();
     use greybox::pmsm::VoltageHold;
@@ -97,12 +103,14 @@ fn assert_noisy(stem: &str) {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn servo_spm_moves_idinj_noisy() {
     crate::common::require_shared!();
     assert_noisy("servo_spm_moves_idinj_noisy");
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn gem_ipm_moves_idinj_noisy() {
     crate::common::require_shared!();
     assert_noisy("gem_ipm_moves_idinj_noisy");
@@ -114,6 +122,7 @@ fn gem_ipm_moves_idinj_noisy() {
 /// says that the holds' estimates differ; the stator hold lands where the data README says
 /// (L_s within 0.15 %, R_s and K_e within ≈ 1e-4).
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn pwm_log_keeps_the_stator_hold_and_flags_the_ambiguity() {
     crate::common::require_shared!();
     let (e, t) = load("servo_spm_pwm_deadtime_idinj");

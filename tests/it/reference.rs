@@ -117,6 +117,7 @@ fn reference_input_errors_name_the_culprit() {
 /// The motulator logs fitted from their reference voltage, delay and the controller's speed
 /// estimate found by search: delay 1 on every log, every parameter within 0.05 % of truth.
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn motulator_logs_from_the_reference_voltage() {
     crate::common::require_shared!();
     for stem in ["servo_spm_moves", "servo_spm_moves_idinj", "ipm_moves_idinj"] {
@@ -166,6 +167,7 @@ fn a_late_voltage_is_pointed_out() {
 /// On the development logs: the PWM log fitted from its reference without the inverter
 /// model is told about the dead time, and not with it; the averaged log is told nothing.
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn residual_checks_on_the_development_logs() {
     crate::common::require_shared!();
     let (pwm, t) = crate::common::load("servo_spm_pwm_deadtime_idinj");
@@ -210,6 +212,7 @@ fn samples_at_the_voltage_limit_are_weighted_out() {
 /// The delay search finds 1 sample on the noisy and the PWM motulator logs too (the PWM log
 /// with the inverter model), so on every motulator log.
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn delay_is_one_sample_on_every_motulator_log() {
     crate::common::require_shared!();
     for (stem, inverter) in

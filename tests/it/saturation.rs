@@ -220,6 +220,7 @@ fn a_csv_flux_map_reads_like_the_experiment_and_bad_maps_are_named() {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn the_measured_flux_map_is_fitted() {
     require_shared!();
     let map = read_flux_map(data("real/baldor_400rpm_map.npz")).unwrap();
@@ -255,6 +256,7 @@ fn the_linear_fit_is_the_start_and_stays_available() {
 /// finds the machine, and the verdict says why it is not trusted: a coefficient at its
 /// bound zero, not a local minimum.
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn a_linear_log_gives_the_linear_machine_back() {
     require_shared!();
     let options = greybox::pmsm::CsvOptions { pole_pairs: Some(2), ..Default::default() };

@@ -66,48 +66,56 @@ fn assert_lm_gn_agree(stem: &str) {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn lm_gn_agree_servo_spm_moves() {
     crate::common::require_shared!();
     assert_lm_gn_agree("servo_spm_moves");
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn lm_gn_agree_servo_spm_moves_idinj() {
     crate::common::require_shared!();
     assert_lm_gn_agree("servo_spm_moves_idinj");
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn lm_gn_agree_servo_spm_moves_idinj_noisy() {
     crate::common::require_shared!();
     assert_lm_gn_agree("servo_spm_moves_idinj_noisy");
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn lm_gn_agree_servo_spm_pwm_deadtime_idinj() {
     crate::common::require_shared!();
     assert_lm_gn_agree("servo_spm_pwm_deadtime_idinj");
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn lm_gn_agree_ipm_moves_idinj() {
     crate::common::require_shared!();
     assert_lm_gn_agree("ipm_moves_idinj");
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn lm_gn_agree_gem_spm_moves_idinj() {
     crate::common::require_shared!();
     assert_lm_gn_agree("gem_spm_moves_idinj");
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn lm_gn_agree_gem_ipm_moves_idinj() {
     crate::common::require_shared!();
     assert_lm_gn_agree("gem_ipm_moves_idinj");
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn lm_gn_agree_gem_ipm_moves_idinj_noisy() {
     crate::common::require_shared!();
     assert_lm_gn_agree("gem_ipm_moves_idinj_noisy");

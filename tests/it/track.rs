@@ -147,6 +147,7 @@ fn final_of(args: &[&str]) -> (f64, f64) {
 }
 
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn track_salient_logs_with_l_q_or_an_ipm_report() {
     crate::common::require_shared!();
     use crate::common::{data, rel, truth};
@@ -237,6 +238,7 @@ fn track_salient_flag_errors() {
 /// tracked with the fit's report: K_e within 1 %, R_s within 5 % of the truth, no gain
 /// given (the thesis' gains leave R_s of the interior-magnet log at +270 %).
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn track_defaults_survive_the_noisy_logs() {
     crate::common::require_shared!();
     for (name, p, model, k_e, r_s) in [

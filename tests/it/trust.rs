@@ -84,6 +84,7 @@ fn codes(fit: &greybox::pmsm::PmsmFit) -> Vec<(String, bool, String)> {
 /// The silent-wrongness cases of the trust issue on the servo log: each gives an untrusted
 /// warning (exit code 3) naming the likely mistake, or an error; the right setup gives none.
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn setup_mistakes_are_named() {
     crate::common::require_shared!();
     let (e, t) = load("servo_spm_moves_idinj");

@@ -175,6 +175,10 @@ pub fn fit_mechanics(experiments: &[Experiment], options: &MechanicsOptions) -> 
         });
     }
     let load = !experiments.is_empty() && experiments.iter().all(|e| e.get(LOAD_TORQUE).is_some());
+    // The logs' own faults (a missing channel, a window too long) named first, whatever ω_c.
+    for e in experiments {
+        windows_at(e, options, load, options.coulomb_speed.unwrap_or(1.0))?;
+    }
     let peak = experiments
         .iter()
         .filter_map(|e| e.channel("w_m").ok())
