@@ -302,12 +302,23 @@ fn parse_pll(s: &str) -> Result<Pll, String> {
     }
 }
 
-/// Parses a sign width [A] or `estimate`.
-fn parse_width(s: &str) -> Result<Pll, String> {
+/// Parses a positive value or `estimate` (not `logged`), naming `what` it expected in the
+/// error (e.g. `a positive width in A`).
+fn positive_or_estimate(s: &str, what: &str) -> Result<Pll, String> {
     parse_pll(s)
         .ok()
         .filter(|p| *p != Pll::Logged)
-        .ok_or_else(|| format!("`{s}`: expected a positive width in A or `estimate`"))
+        .ok_or_else(|| format!("`{s}`: expected {what} or `estimate`"))
+}
+
+/// Parses a sign width [A] or `estimate`.
+fn parse_width(s: &str) -> Result<Pll, String> {
+    positive_or_estimate(s, "a positive width in A")
+}
+
+/// Parses a speed [rad/s] (the Coulomb friction's, `greybox mechanics`) or `estimate`.
+pub(super) fn parse_speed(s: &str) -> Result<Pll, String> {
+    positive_or_estimate(s, "a positive speed in rad/s")
 }
 
 /// Parses `N` or `estimate`.

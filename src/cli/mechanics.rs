@@ -47,8 +47,8 @@ pub struct MechanicsArgs {
     pub window: f64,
     /// Speed [rad/s] over which the Coulomb friction changes sign, or `estimate` (the lowest
     /// loss between 1e-4 and 1 times the logs' peak speed).
-    #[arg(long, default_value = "estimate", value_name = "RAD/S|estimate")]
-    pub coulomb_speed: String,
+    #[arg(long, default_value = "estimate", value_name = "RAD/S|estimate", value_parser = super::args::parse_speed)]
+    pub coulomb_speed: super::args::Pll,
     /// Column of a load torque [N m], used when every log has it.
     #[arg(long, default_value = LOAD_TORQUE, value_name = "NAME")]
     pub col_load: String,
@@ -116,12 +116,9 @@ pub fn mechanics_outcome(a: &MechanicsArgs) -> crate::Result<output::Outcome> {
     let options = MechanicsOptions {
         k_t_relative_se,
         window: a.window,
-        coulomb_speed: match a.coulomb_speed.trim() {
-            "estimate" => None,
-            v => Some(v.parse::<f64>().map_err(|_| crate::Error::InvalidOption {
-                option: "--coulomb-speed".into(),
-                reason: format!("`{v}`: a speed in rad/s or `estimate`"),
-            })?),
+        coulomb_speed: match a.coulomb_speed {
+            super::args::Pll::Bandwidth(w_c) => Some(w_c),
+            _ => None,
         },
         terms: MechanicsTerms { gravity: a.gravity, constant: a.constant_load },
         per_log_friction: a.per_log,

@@ -169,10 +169,17 @@ fn confounded_friction_is_not_trusted() {
     let text = fit.to_string();
     assert!(text.contains("intervals from"), "{text}");
     let far = MechanicsOptions { coulomb_speed: Some(50.0 * peak), ..options(SPM_MOTOR) };
-    let fit = fit_mechanics(&[log], &far).unwrap();
+    let fit = fit_mechanics(std::slice::from_ref(&log), &far).unwrap();
     let text = fit.to_string();
     assert!(!fit.fit.trusted(), "{text}");
     let w = fit.fit.warnings.iter().find(|w| w.code == "friction_confounded").expect(&text);
     assert!(w.untrusted && w.message.contains("--coulomb-speed"), "{}", w.message);
     assert!(text.contains("friction_confounded"), "{text}");
+    // Friction per log: each log's pair, by the correlation's labels.
+    let other = simulate_drive(&exp3(SPM_MOTOR, [0.1, 0.05], 12)).unwrap().experiment.renamed("other");
+    let per_log = MechanicsOptions { per_log_friction: true, ..far };
+    let fit = fit_mechanics(&[log, other], &per_log).unwrap();
+    let w =
+        fit.fit.warnings.iter().find(|w| w.code == "friction_confounded").unwrap_or_else(|| panic!("{fit}"));
+    assert!(w.message.contains("b[") && w.message.contains("t_c["), "{}", w.message);
 }

@@ -24,15 +24,18 @@ pub(crate) const EXACT_FIT_PERCENT: f64 = 99.99;
 /// ([`EXACT_FIT_PERCENT`]).
 pub(crate) fn warnings(result: &FitResult, peak: f64, coulomb_speed: f64) -> Vec<Warning> {
     let mut out = Vec::new();
-    let names: Vec<&str> = result.parameters.iter().map(|p| p.name.as_str()).collect();
-    let confounded: Vec<String> = names
+    // Each viscous friction with the Coulomb friction of the same log (`b`, `t_c`, or
+    // `b[LOG]`, `t_c[LOG]` per log), by the correlation's own labels: its rows are the free
+    // parameters only.
+    let labels = &result.correlation_names;
+    let confounded: Vec<String> = labels
         .iter()
         .enumerate()
-        .filter_map(|(a, n)| {
-            let suffix = n.strip_prefix('b')?;
-            let c = names.iter().position(|m| m.strip_prefix("t_c") == Some(suffix))?;
+        .filter_map(|(a, l)| {
+            let log = l.strip_prefix('b').filter(|s| s.is_empty() || s.starts_with('['))?;
+            let c = labels.iter().position(|m| m.strip_prefix("t_c") == Some(log))?;
             let r = result.correlation.get(a)?.get(c).copied()?;
-            (r.abs() > FRICTION_CORRELATION).then(|| format!("{n} and t_c{suffix} {r:+.5}"))
+            (r.abs() > FRICTION_CORRELATION).then(|| format!("{l} and t_c{log} {r:+.5}"))
         })
         .collect();
     if !confounded.is_empty() {
@@ -51,7 +54,7 @@ pub(crate) fn warnings(result: &FitResult, peak: f64, coulomb_speed: f64) -> Vec
     let negative: Vec<String> = result
         .parameters
         .iter()
-        .filter(|p| (p.name.starts_with('b') || p.name.starts_with("t_c")) && !p.fixed && p.ci95[1] < 0.0)
+        .filter(|p| (p.name == "b" || p.name == "t_c") && !p.fixed && p.ci95[1] < 0.0)
         .map(|p| format!("{} = {:.4e} {} (95 % interval up to {:.3e})", p.name, p.value, p.unit, p.ci95[1]))
         .collect();
     if !negative.is_empty() {

@@ -175,10 +175,6 @@ pub fn fit_mechanics(experiments: &[Experiment], options: &MechanicsOptions) -> 
         });
     }
     let load = !experiments.is_empty() && experiments.iter().all(|e| e.get(LOAD_TORQUE).is_some());
-    // The logs' own faults (a missing channel, a window too long) named first, whatever ω_c.
-    for e in experiments {
-        windows_at(e, options, load, options.coulomb_speed.unwrap_or(1.0))?;
-    }
     let peak = experiments
         .iter()
         .filter_map(|e| e.channel("w_m").ok())
@@ -186,22 +182,7 @@ pub fn fit_mechanics(experiments: &[Experiment], options: &MechanicsOptions) -> 
         .fold(0.0, f64::max);
     let w_c = match options.coulomb_speed {
         Some(w_c) => w_c,
-        None if peak > 0.0 && peak.is_finite() => {
-            let range = (COULOMB_SPEED_RANGE.0 * peak, COULOMB_SPEED_RANGE.1 * peak);
-            // The log's own faults (a missing channel, a window too long, a torque the
-            // speed does not follow) named as they are, before the search.
-            fit_at(experiments, options, load, (range.0 * range.1).sqrt())?;
-            crate::pmsm::fit::input_search::golden_search(range, true, |w_c| {
-                Ok(fit_at(experiments, options, load, w_c).map_or(f64::INFINITY, |(_, r)| r.fit.loss))
-            })?
-        }
-        None => {
-            return Err(Error::InvalidOption {
-                option: "coulomb_speed".into(),
-                reason: "the logs' speed is zero throughout: no Coulomb speed can be estimated (give one)"
-                    .into(),
-            });
-        }
+        None => estimated_coulomb_speed(experiments, options, load, peak)?,
     };
     let (windows, fitted) = fit_at(experiments, options, load, w_c)?;
     let warnings = fitted.warnings.iter().cloned().chain(super::friction::warnings(&fitted, peak, w_c));
@@ -225,6 +206,37 @@ pub fn fit_mechanics(experiments: &[Experiment], options: &MechanicsOptions) -> 
 
 /// The range of an estimated Coulomb speed, relative to the logs' peak speed.
 pub const COULOMB_SPEED_RANGE: (f64, f64) = (1e-4, 1.0);
+
+/// The Coulomb speed \[rad/s\] of the lowest loss over [`COULOMB_SPEED_RANGE`] × `peak`
+/// (the logs' largest |ω| \[rad/s\]). The logs' own faults are named first, as they are:
+/// a missing channel or a window too long (whatever ω_c), a speed that is zero throughout,
+/// a torque the speed does not follow (the fit at the range's geometric middle); inside the
+/// search a failed fit is a loss of ∞.
+///
+/// # Errors
+/// Those of the windows and of the fit; [`Error::InvalidOption`] (`coulomb_speed`) for logs
+/// that never move; [`Error::Numerical`] when no candidate fits.
+fn estimated_coulomb_speed(
+    experiments: &[Experiment],
+    options: &MechanicsOptions,
+    load: bool,
+    peak: f64,
+) -> Result<f64> {
+    for e in experiments {
+        windows_at(e, options, load, 1.0)?;
+    }
+    if !(peak > 0.0 && peak.is_finite()) {
+        return Err(Error::InvalidOption {
+            option: "coulomb_speed".into(),
+            reason: "the logs' speed is zero throughout: no Coulomb speed can be estimated (give one)".into(),
+        });
+    }
+    let range = (COULOMB_SPEED_RANGE.0 * peak, COULOMB_SPEED_RANGE.1 * peak);
+    fit_at(experiments, options, load, (range.0 * range.1).sqrt())?;
+    crate::pmsm::fit::input_search::golden_search(range, true, |w_c| {
+        Ok(fit_at(experiments, options, load, w_c).map_or(f64::INFINITY, |(_, r)| r.fit.loss))
+    })
+}
 
 /// The windows and the fit at the Coulomb speed `w_c` \[rad/s\].
 fn fit_at(

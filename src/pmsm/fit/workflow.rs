@@ -108,30 +108,22 @@ fn part_options(options: &PmsmFitOptions, fit: &PmsmFit) -> PmsmFitOptions {
         inverter: fit.inverter,
         // The controller's loop is the drive's: the parts keep the whole log's, and its leg
         // state (the carrier's first edge is each part's own).
-        pwm: options.pwm.map(|p| crate::pmsm::model::pwm::PwmInverter {
+        pwm: options.pwm.zip(fit.pwm).map(|(p, f)| crate::pmsm::model::pwm::PwmInverter {
             search_speed_pll: false,
-            i_w: fit.pwm.map_or(p.i_w, |f| f.i_w),
-            estimate_i_w: fit.pwm.is_some_and(|f| f.estimate_i_w),
+            i_w: f.i_w,
+            estimate_i_w: f.estimate_i_w,
             ..p
         }),
         // The inverter is the same hardware along the log: its nuisance parameters held at
         // the whole fit's estimate, the parts test the motor's. Under current noise a part
         // cannot tell the dead time's timing from the threshold's constant drop (0.05 A put
         // t_d at 0 and u_th at the whole V_dt in two of four parts, and r_s, l_s 5 % off).
-        fixed: match fit.pwm {
-            Some(p) => options
-                .fixed
-                .iter()
-                .cloned()
-                .chain(
-                    p.parameter_names()
-                        .into_iter()
-                        .filter(|n| matches!(*n, "t_d" | "u_th"))
-                        .map(String::from),
-                )
-                .collect(),
-            None => options.fixed.clone(),
-        },
+        fixed: options
+            .fixed
+            .iter()
+            .cloned()
+            .chain(fit.pwm.iter().flat_map(|_| ["t_d", "u_th"].map(String::from)))
+            .collect(),
         skip_setup_checks: true,
         ..options.clone()
     }

@@ -219,9 +219,9 @@ pub struct CsvOptions {
     /// Skip the plausibility limit on the sample time ([`MIN_SAMPLE_TIME`] ≤ h ≤
     /// [`MAX_SAMPLE_TIME`]). Default `false`.
     pub force: bool,
-    /// The log is for the steady-state equations (`--model spm-steady|ipm-steady`): the
-    /// longest plausible sample time is then [`MAX_STEADY_SAMPLE_TIME`] (slow telemetry),
-    /// not [`MAX_SAMPLE_TIME`]. Default `false`.
+    /// The log may be for the steady-state equations (`greybox fit`, which chooses them for
+    /// a slow log or is asked for them): the longest plausible sample time is then
+    /// [`MAX_STEADY_SAMPLE_TIME`] (slow telemetry), not [`MAX_SAMPLE_TIME`]. Default `false`.
     pub steady_state: bool,
     /// The field delimiter of a CSV log ([`Delimiter`]: `,` by default, `;`, tab or `|`);
     /// Parquet and Arrow logs ignore it.
