@@ -5,8 +5,9 @@
 //! intervals that cover the truth, the mean and standard deviation of the standardised
 //! error `(θ̂ − θ)/se` (0 and 1 when honest) and the mean relative error.
 //!
-//! Usage: `cargo run --release --example steady_coverage -- [N] [factor] [spm|ipm] [r_s]`
-//! (defaults 100, 100 (10 kHz → 100 Hz), spm, the motor's own R_s).
+//! Usage: `cargo run --release --example steady_coverage -- [N] [factor] [spm|ipm] [r_s] [given|estimated]`
+//! (defaults 100, 100 (10 kHz → 100 Hz), spm, the motor's own R_s, the control period
+//! given; `estimated`: the default fit, which estimates its effect as the nuisance `h_c2`).
 
 use greybox::drive::{
     Control, DriveConfig, IPM_MOTOR, Mechanics, Profile, SPM_MOTOR, Sensors, scenario, simulate_drive,
@@ -42,7 +43,8 @@ fn main() -> greybox::Result<()> {
         duration: 31.3,
         ..base
     };
-    let options = SteadyOptions { control_period: Some(c.h), ..Default::default() };
+    let given = args.get(4).is_none_or(|s| s != "estimated");
+    let options = SteadyOptions { control_period: given.then_some(c.h), ..Default::default() };
     let mut z: Vec<Vec<f64>> = Vec::new();
     let mut errors: Vec<Vec<f64>> = Vec::new();
     let mut names = Vec::new();
@@ -55,6 +57,7 @@ fn main() -> greybox::Result<()> {
             "r_s" => motor.r_s,
             "l_s" | "l_d" => motor.l_d,
             "l_q" => motor.l_q,
+            greybox::pmsm::PERIOD_TERM => c.h * c.h,
             _ => motor.k_e(),
         };
         names.clone_from(&est.names);

@@ -73,7 +73,7 @@ pub struct ColumnArgs {
     #[arg(help_heading = "Units and frames", long, value_parser = super::values::listed::<TimeUnit>(), default_value = "s")]
     pub time_unit: TimeUnit,
     /// Keep only the samples with t >= SECONDS (inclusive; time after --time-unit). Must be
-    /// before --to; the window must hold at least 16 samples.
+    /// before --to; the window must hold at least 8 samples.
     #[arg(
         help_heading = "Time window and checks",
         long,
@@ -91,7 +91,7 @@ pub struct ColumnArgs {
     pub to: Option<f64>,
     /// Split each log at the gaps of its time column (a step back, or one longer than 1.5
     /// times the median step) into segments fitted jointly, each with its own initial state,
-    /// named LOG#1, LOG#2, ...; segments under 16 samples are dropped with a warning.
+    /// named LOG#1, LOG#2, ...; segments under 8 samples (`MIN_SAMPLES`) are dropped with a warning.
     #[arg(help_heading = "Time window and checks", long)]
     pub split_gaps: bool,
     /// Skip the plausibility limits (sample time h in [100 ns, 100 ms]) and fit a log whose

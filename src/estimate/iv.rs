@@ -43,6 +43,8 @@ pub struct IvSums {
     blocks: BlockScores,
     /// One sample's score (scratch).
     sample: Vec<f64>,
+    /// Samples per block of the batch means.
+    block: usize,
 }
 
 /// The covariance of an IV estimate and how it was formed.
@@ -62,6 +64,13 @@ impl IvSums {
     /// Empty sums for `ny` equation errors per sample and `nth` parameters (shapes of
     /// [`add`](Self::add)).
     pub fn new(ny: usize, nth: usize) -> Self {
+        Self::with_block_len(ny, nth, crate::model::BLOCK_LEN)
+    }
+
+    /// Empty sums as [`new`](Self::new), the score kept in blocks of `block` samples (at
+    /// least 1) for the batch means: short blocks for a short record, whose batches would
+    /// otherwise be too few (fewer than 8 batches of whole blocks: the white covariance).
+    pub fn with_block_len(ny: usize, nth: usize, block: usize) -> Self {
         Self {
             ny,
             nth,
@@ -73,8 +82,9 @@ impl IvSums {
             lags: vec![Vec::new(); ny],
             streams: Vec::new(),
             scores: ScoreSeries::new(nth),
-            blocks: BlockScores::new(nth),
+            blocks: BlockScores::with_len(nth, block),
             sample: vec![0.0; nth],
+            block: block.max(1),
         }
     }
 
@@ -82,7 +92,7 @@ impl IvSums {
     /// its first [`add`](Self::add)).
     pub fn start_experiment(&mut self) {
         self.streams = (0..self.ny).map(|_| LagStream::new(WHITENESS_LAGS)).collect();
-        self.blocks = BlockScores::new(self.nth);
+        self.blocks = BlockScores::with_len(self.nth, self.block);
     }
 
     /// Adds sample k: equation error `eps` (n_y, the outputs' units), its Jacobian `d` and

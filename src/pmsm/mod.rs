@@ -53,8 +53,8 @@ pub use fit::validate::SavedModel;
 pub use fit::workflow::fit_pmsm;
 pub use linear::report::LS_BIAS_UNTRUSTED;
 pub use linear::{
-    LinearEstimate, LinearOptions, STEADY_UNIDENTIFIABLE, SteadyEstimate, SteadyOptions, least_squares,
-    regressors, steady_advice, steady_state, weighted_least_squares,
+    LinearEstimate, LinearOptions, PERIOD_TERM, STEADY_UNIDENTIFIABLE, SteadyEstimate, SteadyOptions,
+    least_squares, regressors, steady_advice, steady_state, weighted_least_squares,
 };
 pub use log::flux_map::{NPZ_ARRAYS, read_flux_map};
 pub use log::signals::{DqSignals, DqView, MAX_POLE_PAIRS, MIN_SAMPLES, PmsmError, channel};

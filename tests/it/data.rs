@@ -655,7 +655,7 @@ fn error_try_new_bad_sample_time() {
 // ---------------------------------------------------------------- generic data layer
 
 #[test]
-fn generic_minimum_is_one_sample_pmsm_minimum_is_sixteen() {
+fn generic_minimum_is_one_sample_pmsm_minimum_is_eight() {
     // A generic experiment needs one sample; none is TooShort with min 1.
     let e = Experiment::try_new("one", 1e-3, vec![Channel::new("x", "", vec![1.0])]).unwrap();
     assert_eq!(e.len(), 1);
@@ -664,7 +664,8 @@ fn generic_minimum_is_one_sample_pmsm_minimum_is_sixteen() {
     assert!(matches!(&err, Error::TooShort { name, len: 0, min: 1 } if name == "none"), "{err:?}");
     let err = Experiment::try_new("no-channel", 1e-3, vec![]).unwrap_err();
     assert!(matches!(err, Error::TooShort { len: 0, min: 1, .. }), "{err:?}");
-    // The PMSM view still wants MIN_SAMPLES = 16.
+    // The PMSM view still wants MIN_SAMPLES = 8.
+    assert_eq!(MIN_SAMPLES, 8);
     let short = Experiment::try_new("short", 1e-3, signals(MIN_SAMPLES - 1).into_channels()).unwrap();
     let err = DqView::try_new(&short).unwrap_err();
     assert!(
@@ -672,7 +673,7 @@ fn generic_minimum_is_one_sample_pmsm_minimum_is_sixteen() {
         "{err:?}"
     );
     let err = signals(MIN_SAMPLES - 1).into_experiment("short", 1e-3).unwrap_err();
-    assert!(matches!(err, Error::TooShort { min: 16, .. }), "{err:?}");
+    assert!(matches!(err, Error::TooShort { min: 8, .. }), "{err:?}");
 }
 
 #[test]

@@ -53,6 +53,7 @@ mod spm;
 mod standstill;
 mod steady;
 mod streamed;
+mod telemetry;
 mod thermal;
 mod time_check;
 mod track;

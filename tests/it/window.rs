@@ -239,12 +239,12 @@ fn every_error_of_the_window_and_the_split_names_its_flag() {
         }
     }
     // Every segment too short: the split names its flag and the longest segment.
-    let scraps: Vec<String> = (0..4).flat_map(|k| rows[k * 1000..k * 1000 + 10].to_vec()).collect();
+    let scraps: Vec<String> = (0..4).flat_map(|k| rows[k * 1000..k * 1000 + 6].to_vec()).collect();
     let bits = write(&dir, "bits.csv", &header, &scraps);
     let (code, err) = run(&["fit", s(&bits), "-p", "4", "--split-gaps"]);
     assert_eq!(code, Some(2));
     assert!(
-        err.contains("`--split-gaps`") && err.contains("4 segments") && err.contains("longest has 10"),
+        err.contains("`--split-gaps`") && err.contains("4 segments") && err.contains("longest has 6"),
         "{err}"
     );
     // The library names the options as fields.

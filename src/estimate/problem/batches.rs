@@ -33,7 +33,7 @@ pub const MIN_BATCHES: usize = 8;
 /// One experiment's score summed over each block of a pass, in the experiment's local
 /// columns (before the chain factor `dθ/dp`): block `c` counted `counts[c]` samples and
 /// summed to `values[c m .. (c + 1) m]`.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub(crate) struct BlockScores {
     m: usize,
     counts: Vec<usize>,
@@ -41,12 +41,26 @@ pub(crate) struct BlockScores {
     /// The block [`add`](Self::add) fills, and its samples so far.
     open: Vec<f64>,
     open_n: usize,
+    /// Samples a block holds ([`BLOCK_LEN`] unless [`with_len`](Self::with_len)).
+    len: usize,
+}
+
+impl Default for BlockScores {
+    fn default() -> Self {
+        Self::new(0)
+    }
 }
 
 impl BlockScores {
     /// Empty sums for m local columns.
     pub(crate) fn new(m: usize) -> Self {
-        Self { m, counts: Vec::new(), values: Vec::new(), open: vec![0.0; m], open_n: 0 }
+        Self::with_len(m, BLOCK_LEN)
+    }
+
+    /// Empty sums for m local columns in blocks of `len` samples (at least 1): shorter
+    /// blocks than a pass's let a short record form its batches.
+    pub(crate) fn with_len(m: usize, len: usize) -> Self {
+        Self { m, counts: Vec::new(), values: Vec::new(), open: vec![0.0; m], open_n: 0, len: len.max(1) }
     }
 
     /// Adds one sample's score (length m) to the open block, then [`count`](Self::count)s it.
@@ -63,11 +77,11 @@ impl BlockScores {
         &mut self.open
     }
 
-    /// Ends the current sample; the open block is appended once it holds [`BLOCK_LEN`]
+    /// Ends the current sample; the open block is appended once it holds its length's
     /// samples (and by [`close`](Self::close)).
     pub(crate) fn count(&mut self) {
         self.open_n += 1;
-        if self.open_n == BLOCK_LEN {
+        if self.open_n == self.len {
             self.close();
         }
     }

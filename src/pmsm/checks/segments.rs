@@ -17,8 +17,8 @@
 
 use crate::data::Experiment;
 use crate::error::Result;
-use crate::estimate::Warning;
 use crate::estimate::consistency::{Homogeneity, homogeneity};
+use crate::estimate::{FitResult, Warning};
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::options::{PmsmFitOptions, RefitReport};
 use rayon::prelude::*;
@@ -53,29 +53,7 @@ pub(crate) fn warning(
 ) -> Option<Warning> {
     let parts = split(experiments).ok()?;
     let fits: Vec<_> = parts.par_iter().filter_map(|logs| refit(logs, options)).collect();
-    let tests = homogeneity(&fits, EXACT_SPREAD);
-    let level = FAMILY_LEVEL / tests.len().max(1) as f64;
-    let failed: Vec<&Homogeneity> =
-        tests.iter().filter(|h| h.p_value < level && h.relative_spread > EXACT_SPREAD).collect();
-    if failed.is_empty() {
-        return None;
-    }
-    let detail: Vec<String> = failed
-        .iter()
-        .map(|h| {
-            let values: Vec<String> =
-                h.estimates.iter().zip(&h.std_errors).map(|(v, s)| format!("{v:.6e} ± {s:.1e}")).collect();
-            format!(
-                "{} {} ({:.2e} apart relative; Q {:.1} on {} degrees of freedom, p {:.1e})",
-                h.name,
-                values.join(", "),
-                h.relative_spread,
-                h.q,
-                h.dof,
-                h.p_value
-            )
-        })
-        .collect();
+    let detail = disagreement(&fits, EXACT_SPREAD)?;
     let advice = match options.input {
         VoltageInput::Reference { speed_pll: None, .. }
             if options.inverter.is_none() && options.pwm.is_none() =>
@@ -100,9 +78,41 @@ pub(crate) fn warning(
              model applies (the reference's delay and angle advance, the inverter) misses something that changes \
              along the log, so the estimates carry a model error the intervals do not show; {advice}",
             fits.len(),
-            detail.join("; ")
+            detail
         ),
     ))
+}
+
+/// The parameters on which the fits of consecutive parts `fits` disagree beyond their
+/// intervals (Cochran's Q at [`FAMILY_LEVEL`] over the parameters tested, the standard
+/// errors taken at least `floor` relative, and a spread above `floor`: the accuracy of an
+/// exact fit, [`EXACT_SPREAD`] for the exact sampled-data models), each with the parts'
+/// estimates and the test, joined by `; `; `None` when they agree.
+pub(crate) fn disagreement(fits: &[FitResult], floor: f64) -> Option<String> {
+    let tests = homogeneity(fits, floor);
+    let level = FAMILY_LEVEL / tests.len().max(1) as f64;
+    let failed: Vec<&Homogeneity> =
+        tests.iter().filter(|h| h.p_value < level && h.relative_spread > floor).collect();
+    if failed.is_empty() {
+        return None;
+    }
+    let detail: Vec<String> = failed
+        .iter()
+        .map(|h| {
+            let values: Vec<String> =
+                h.estimates.iter().zip(&h.std_errors).map(|(v, s)| format!("{v:.6e} ± {s:.1e}")).collect();
+            format!(
+                "{} {} ({:.2e} apart relative; Q {:.1} on {} degrees of freedom, p {:.1e})",
+                h.name,
+                values.join(", "),
+                h.relative_spread,
+                h.q,
+                h.dof,
+                h.p_value
+            )
+        })
+        .collect();
+    Some(detail.join("; "))
 }
 
 /// The logs cut into [`SEGMENTS`] consecutive parts: part k holds the k-th part of every
@@ -111,11 +121,20 @@ pub(crate) fn warning(
 /// # Errors
 /// [`crate::Error::TooShort`] when a part would hold fewer than [`MIN_SEGMENT_SAMPLES`].
 fn split(experiments: &[Experiment]) -> Result<Vec<Vec<Experiment>>> {
-    if let Some(short) = experiments.iter().find(|e| e.len() / SEGMENTS < MIN_SEGMENT_SAMPLES) {
+    split_at_least(experiments, MIN_SEGMENT_SAMPLES)
+}
+
+/// The logs cut into [`SEGMENTS`] consecutive parts of at least `min` samples each: part k
+/// holds the k-th part of every log, named `LOG@k`.
+///
+/// # Errors
+/// [`crate::Error::TooShort`] when a part would hold fewer than `min`.
+pub(crate) fn split_at_least(experiments: &[Experiment], min: usize) -> Result<Vec<Vec<Experiment>>> {
+    if let Some(short) = experiments.iter().find(|e| e.len() / SEGMENTS < min) {
         return Err(crate::Error::TooShort {
             name: short.name().to_string(),
             len: short.len(),
-            min: SEGMENTS * MIN_SEGMENT_SAMPLES,
+            min: SEGMENTS * min,
         });
     }
     (0..SEGMENTS)

@@ -31,6 +31,12 @@ const ANGLE_WITHIN: f64 = 1.5;
 /// logs give ratios of either sign below 100 in size (−1.8 at 100 Hz, −86 at 2 Hz).
 const DERIVATIVE_WITHIN: f64 = 10.0;
 
+/// Fewest samples (all logs) for the derivative's sign: a fast log read in ms holds
+/// thousands, while a few dozen rows of slow telemetry (every 2000th row of a drive
+/// cycle: 36) give a ratio of any size from their few steady-looking intervals (172 on
+/// one, which a 10 kHz log read in ms would give as well).
+const DERIVATIVE_MIN_SAMPLES: usize = 500;
+
 /// The unit a positive ratio `r` (seen / expected) points to within `within`, if any.
 fn unit_of(r: f64, within: f64) -> Option<(f64, &'static str)> {
     FACTORS.into_iter().find(|(f, _)| r.is_finite() && r > 0.0 && (r / f).ln().abs() < within.ln())
@@ -75,6 +81,9 @@ pub(crate) fn time_unit_mistake(experiments: &[Experiment], n_p: u32) -> Option<
             r,
             fix(f, unit)
         ));
+    }
+    if experiments.iter().map(Experiment::len).sum::<usize>() < DERIVATIVE_MIN_SAMPLES {
+        return None;
     }
     let q = derivative_ratio(experiments, n_p)?;
     unit_of(q, DERIVATIVE_WITHIN).map(|(f, unit)| {

@@ -21,5 +21,6 @@ pub(super) mod saturated;
 pub(super) mod simulated;
 pub(super) mod standstill;
 pub(super) mod steady;
+mod steady_checks;
 pub(super) mod validate;
 pub(super) mod workflow;

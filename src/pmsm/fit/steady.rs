@@ -15,7 +15,7 @@ use crate::estimate::{
 use crate::pmsm::checks::detect::{max_turn, sample_time_facts, steady_warnings};
 use crate::pmsm::checks::time_unit::time_unit_mistake;
 use crate::pmsm::fit::report::PmsmFit;
-use crate::pmsm::linear::{SteadyEstimate, SteadyOptions, steady_advice, steady_state};
+use crate::pmsm::linear::{PERIOD_TERM, SteadyEstimate, SteadyOptions, steady_advice, steady_state};
 use crate::pmsm::model::interval::{SQRT_2_3, VoltageHold, VoltageInput};
 use crate::pmsm::model::kind::{MotorKind, derived, smallest_inductance};
 use crate::pmsm::options::{Dynamics, HoldChoice, PmsmFitOptions};
@@ -89,9 +89,14 @@ pub(crate) fn fit(
         ..SteadyOptions::default()
     };
     let est = steady_state(experiments, options.pole_pairs, options.model, &steady)?;
+    let part = |e: &SteadyEstimate, logs: &[Experiment]| report(e, logs, options, 0.0);
+    let checks = super::steady_checks::warnings(experiments, options, &steady, &est, &part);
     let mut report = report(&est, experiments, options, t0.elapsed().as_secs_f64());
-    let warnings =
-        gate(&est, &report).into_iter().chain(steady_warnings(experiments, options.pole_pairs, &report));
+    let warnings = gate(&est, &report).into_iter().chain(checks).chain(steady_warnings(
+        experiments,
+        options.pole_pairs,
+        &report,
+    ));
     report.warnings = warnings.collect();
     let pmsm_notes = why.iter().map(|w| chosen_note(w, options.model)).collect();
     Ok(PmsmFit {
@@ -192,24 +197,28 @@ fn report(
     let n = est.theta.len();
     let label = |j: usize| match &est.experiment[j] {
         Some(e) => format!("{}[{e}]", est.names[j]),
+        None if est.names[j] == PERIOD_TERM => PERIOD_SHOWN.to_string(),
         None => est.names[j].clone(),
     };
     let relative: Vec<f64> = (0..n).map(|j| 100.0 * est.std_error[j] / est.theta[j].abs()).collect();
     let parameters: Vec<ParameterEstimate> = (0..n)
-        .map(|j| ParameterEstimate {
-            name: est.names[j].clone(),
-            unit: est.units[j].clone(),
-            value: est.theta[j],
-            std_error: est.std_error[j],
-            std_error_white: est.std_error_white[j],
-            ci95: [est.theta[j] - est.ci95[j], est.theta[j] + est.ci95[j]],
-            // The error index belongs to the output-error criterion.
-            error_index_percent: f64::NAN,
-            fixed: false,
-            nuisance: false,
-            at_bound: false,
-            experiment: est.experiment[j].clone(),
-            start: est.theta[j],
+        .map(|j| {
+            let p = ParameterEstimate {
+                name: est.names[j].clone(),
+                unit: est.units[j].clone(),
+                value: est.theta[j],
+                std_error: est.std_error[j],
+                std_error_white: est.std_error_white[j],
+                ci95: [est.theta[j] - est.ci95[j], est.theta[j] + est.ci95[j]],
+                // The error index belongs to the output-error criterion.
+                error_index_percent: f64::NAN,
+                fixed: false,
+                nuisance: false,
+                at_bound: false,
+                experiment: est.experiment[j].clone(),
+                start: est.theta[j],
+            };
+            if est.names[j] == PERIOD_TERM { control_period(p) } else { p }
         })
         .collect();
     let cov = DMatrix::from_fn(n, n, |a, b| est.correlation[a][b] * est.std_error[a] * est.std_error[b]);
@@ -248,8 +257,15 @@ fn report(
     };
     let reason = Termination::StepTolerance;
     let hc = est.control_period.map_or_else(
-        || "continuous (no --control-period: the back-EMF reads low by up to (ω_e h_c)²/12 of the drive's period h_c)".into(),
-        |h| format!("at the drive's control period {h:e} s (exact periodic steady state of the stator-held step)"),
+        || {
+            "continuous (no --control-period: the control period's first-order effect estimated, see below)"
+                .into()
+        },
+        |h| {
+            format!(
+                "at the drive's control period {h:e} s (exact periodic steady state of the stator-held step)"
+            )
+        },
     );
     FitResult {
         model: format!("{}_steady", kind.model_name()),
@@ -274,14 +290,17 @@ fn report(
         },
         parameter_trace: Vec::new(),
         timing: Timing { read_s: 0.0, fit_s, total_s: fit_s },
-        notes: vec![format!(
-            "steady-state equations u_d = R_s i_d − ω_e L_q i_q, u_q = R_s i_q + ω_e L_d i_d + √(2/3) ω_m K_e on the \
-             {} steady samples of {} (each current within {}·√2 σ_i of both neighbours), by instrumental variables \
-             (instruments: the mean of the neighbouring samples); equations {hc}",
+        notes: std::iter::once(format!(
+            "steady-state equations u_d = R_s i_d + L_d di_d/dt − ω_e L_q i_q, u_q = R_s i_q + L_q di_q/dt + ω_e L_d \
+             i_d + √(2/3) ω_m K_e on the {} smooth samples of {} (each current's second difference within {}·√6 σ_i; \
+             di/dt by central differences at the log's rate), by instrumental variables (instruments: the mean and \
+             slope over the samples two away); equations {hc}",
             est.steady_samples,
             est.samples,
             SteadyOptions::default().steady_sigmas
-        )],
+        ))
+        .chain(est.notes.iter().filter(|n| n.contains("control period")).cloned())
+        .collect(),
         warnings: Vec::new(),
     }
 }
@@ -328,6 +347,29 @@ fn derived_all(est: &SteadyEstimate, options: &PmsmFitOptions) -> Vec<DerivedEst
         }
     }
     out
+}
+
+/// The name the report gives the period term: the control period itself.
+const PERIOD_SHOWN: &str = "h_c";
+
+/// The control period `h_c = √h_c2` \[s\] as the report's nuisance parameter, from the
+/// estimate `p` of `h_c2` \[s²\]: its interval the square roots of `h_c2`'s (clipped at
+/// 0), its standard error by the delta method `se(h_c2)/(2 h_c)`, or `√se(h_c2)` when the
+/// estimate is not positive (the period one standard error of `h_c2` amounts to).
+fn control_period(p: ParameterEstimate) -> ParameterEstimate {
+    let root = |v: f64| v.max(0.0).sqrt();
+    let se = |s: f64| if p.value > 0.0 { s / (2.0 * p.value.sqrt()) } else { s.sqrt() };
+    ParameterEstimate {
+        name: PERIOD_SHOWN.into(),
+        unit: "s".into(),
+        value: root(p.value),
+        std_error: se(p.std_error),
+        std_error_white: se(p.std_error_white),
+        ci95: p.ci95.map(root),
+        nuisance: true,
+        start: root(p.start),
+        ..p
+    }
 }
 
 /// `kind`'s steady-state model name, e.g. `spm-steady`, for messages.

@@ -7,10 +7,12 @@ pub(super) mod report;
 pub(super) mod start;
 mod steady;
 mod steady_model;
+mod steady_solve;
 
 pub use least_squares::*;
 pub use regression::regressors;
 pub(crate) use regression::{MAX_COLS, Regression, push_with_dead_time};
 pub use steady::{
-    SteadyEstimate, SteadyOptions, UNIDENTIFIABLE as STEADY_UNIDENTIFIABLE, steady_advice, steady_state,
+    PERIOD_TERM, SteadyEstimate, SteadyOptions, UNIDENTIFIABLE as STEADY_UNIDENTIFIABLE, steady_advice,
+    steady_state,
 };

@@ -2,22 +2,33 @@
 //! period, and their instrumental-variable sums over the steady samples of the logs
 //! ([`super::steady`]).
 //!
-//! Continuous (the period means of a drive at constant speed and currents, MODEL.md §2):
+//! Continuous (the period means of a drive at slowly varying speed and currents, MODEL.md
+//! §2), with the currents' drift `di/dt` at the log's rate (central differences of the
+//! point samples, `(i[k+1] − i[k−1])/(2h)`: the short plateaus and ramps of a real drive
+//! cycle are not constant):
 //!
 //! ```text
-//! u_d = R_s i_d − ω_e L_q i_q
-//! u_q = R_s i_q + ω_e L_d i_d + √(2/3) ω_m K_e
+//! u_d = R_s i_d + L_d di_d/dt − ω_e L_q i_q
+//! u_q = R_s i_q + L_q di_q/dt + ω_e L_d i_d + √(2/3) ω_m K_e
 //! ```
 //!
 //! A logger's current is a point sample at the start of a control period, and a voltage
 //! held in the stator frame turns backwards in dq by `ω_e h_c` over the period, so the dq
 //! current ripples about its period mean even in steady state: at the period's start it is
-//! off by `−j ω_e u h_c²/(12 L)` (to first order), which the continuous equations read as a
-//! back-EMF lower by `(ω_e h_c)²/12` (−0.1 % at `ω_e h_c` = 0.11). With the control period
-//! `h_c` given, the predicted voltage is the exact one: the start voltage `u₀` whose
-//! stator-held step leaves the measured current where it was (`i = step(i, u₀)`, the
-//! periodic steady state of the offline models' exact step, [`ExactPlant`]), as the dq
-//! period mean `ū = u₀ (1 − e^{−jφ})/(jφ)`, `φ = ω_e h_c` (MODEL.md §4).
+//! off by `−j ω_e ū h_c²/(12 L)` (to first order), which the continuous equations read as a
+//! back-EMF lower by `(ω_e h_c)²/12` (−0.1 % at `ω_e h_c` = 0.11). Two ways to model it:
+//!
+//! - `h_c` given: the exact periodic steady state of the stator-held step: the start
+//!   voltage `u₀` whose step leaves the measured current where it was (`i = step(i, u₀)`,
+//!   [`ExactPlant`]), as the dq period mean `ū = u₀ (1 − e^{−jφ})/(jφ)`, `φ = ω_e h_c`
+//!   (MODEL.md §4), plus the drift terms.
+//! - `h_c` unknown (the default): its first-order effect as a nuisance parameter
+//!   `h_c2 = h_c²` of the regression. With `c = h_c²/12` and `ī = i − ω_e c (ū_q/L_d,
+//!   −ū_d/L_q)` the period-mean current, `ū = Z ī + jω_e ψ` gives the columns `−c ω_e² ū`
+//!   and the small terms `−(R_s/L_d) ω_e c ū_q` (d), `+(R_s/L_q) ω_e c ū_d` (q), and the
+//!   speed's period mean `ω̄ = ω_k + (h_c/2) dω/dt` in every speed term; the small terms are
+//!   evaluated at the current estimate and the instrumental-variable step iterated
+//!   (a gym-electric-motor log, whose dq voltage is held in dq, gives `h_c2 ≈ 0`).
 
 use crate::error::{Error, Result};
 use crate::estimate::iv::IvSums;
@@ -26,8 +37,45 @@ use crate::pmsm::model::interval::{C64, SQRT_2_3, VoltageHold, stator_hold_start
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::model::plant::{ExactPlant, MotorParameters};
 
+/// Most model parameters: IPM `r_s, l_d, l_q, k_e` and the period term.
+const MAX_COLUMNS: usize = 5;
+
+/// One steady sample: the point-sampled currents and speed, their drift at the log's rate
+/// and the logged (period-mean) voltage.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Sample {
+    /// `[i_d, i_q]` \[A\].
+    pub i: [f64; 2],
+    /// `[di_d/dt, di_q/dt]` \[A/s\].
+    pub di: [f64; 2],
+    /// Mechanical speed \[rad/s\].
+    pub w_m: f64,
+    /// Its derivative \[rad/s²\].
+    pub dw: f64,
+    /// `[u_d, u_q]` \[V\].
+    pub u: [f64; 2],
+}
+
+impl Sample {
+    /// Sample k of `view` (sample time `h` \[s\]): values at k, derivatives by central
+    /// differences over `k ± a` (`a = 1` for the regressors, `a = 2` with the means of
+    /// `k ± 2` for the instruments, whose noise is not that of samples `k − 1 … k + 1`).
+    fn at(view: &DqView<'_>, u: (&[f64], &[f64]), k: usize, a: usize, h: f64) -> Self {
+        let (i_d, i_q, w_m) = (view.i_d(), view.i_q(), view.w_m());
+        let slope = |x: &[f64]| (x[k + a] - x[k - a]) / (2.0 * a as f64 * h);
+        let level = |x: &[f64]| if a == 1 { x[k] } else { 0.5 * (x[k + a] + x[k - a]) };
+        Self {
+            i: [level(i_d), level(i_q)],
+            di: [slope(i_d), slope(i_q)],
+            w_m: level(w_m),
+            dw: slope(w_m),
+            u: [level(u.0), level(u.1)],
+        }
+    }
+}
+
 /// The steady-state equations of a motor kind with `n_p` pole pairs, a known series
-/// resistance, and optionally the drive's control period.
+/// resistance, and the drive's control period given or estimated.
 pub(crate) struct SteadyEquations {
     kind: MotorKind,
     n_p: u32,
@@ -35,11 +83,16 @@ pub(crate) struct SteadyEquations {
     /// The exact plant at the control period, when it is given.
     plant: Option<ExactPlant>,
     h_c: f64,
+    /// Whether the continuous equations estimate the period term.
+    estimate: bool,
 }
 
-/// One log's view and the indices of its steady samples.
+/// One log's view, its sample time and the indices of its steady samples.
 pub(crate) struct SteadyLog<'a> {
     pub view: DqView<'a>,
+    /// Sample time \[s\].
+    pub h: f64,
+    /// Steady samples k (each with samples `k ± 2` in the log).
     pub steady: Vec<usize>,
     /// The columns of the full parameter vector that model parameter j takes in this log
     /// (length n_θ of the model).
@@ -48,51 +101,85 @@ pub(crate) struct SteadyLog<'a> {
 
 impl SteadyEquations {
     /// The equations of `kind`, `n_p` pole pairs, cable resistance `cable` \[Ω\], control
-    /// period `h_c` \[s\] (`None`: continuous).
+    /// period `h_c` \[s\] (`None`: continuous, with the nuisance `h_c2` when `estimate`).
     ///
     /// # Errors
     /// Those of [`ExactPlant::new`] (a control period not positive and finite).
-    pub fn new(kind: MotorKind, n_p: u32, cable: f64, h_c: Option<f64>) -> Result<Self> {
+    pub fn new(kind: MotorKind, n_p: u32, cable: f64, h_c: Option<f64>, estimate: bool) -> Result<Self> {
         let plant =
             h_c.map(|h| ExactPlant::new(n_p, h, kind == MotorKind::Ipm, VoltageHold::Stator)).transpose()?;
-        Ok(Self { kind, n_p, cable, plant, h_c: h_c.unwrap_or(0.0) })
+        Ok(Self { kind, n_p, cable, plant, h_c: h_c.unwrap_or(0.0), estimate })
     }
 
-    /// The continuous equations' d and q rows at currents `(i_d, i_q)` \[A\] and mechanical
-    /// speed `w_m` \[rad/s\] (model order; `u = row · θ`), with the cable's voltage apart.
-    pub fn rows(&self, i_d: f64, i_q: f64, w_m: f64) -> ([f64; 4], [f64; 4]) {
-        let w_e = f64::from(self.n_p) * w_m;
+    /// Whether the period term `h_c2` is a parameter (continuous equations that estimate it).
+    pub fn estimates_period(&self) -> bool {
+        self.plant.is_none() && self.estimate
+    }
+
+    /// Model parameters: the kind's, then `h_c2` when it is estimated.
+    pub fn n_columns(&self) -> usize {
+        self.kind.parameter_names().len() + usize::from(self.estimates_period())
+    }
+
+    /// The d and q rows at sample `s` (model order, SI; `u = row · θ` up to the small
+    /// terms), with the cable's voltage apart.
+    pub fn rows(&self, s: &Sample) -> ([f64; MAX_COLUMNS], [f64; MAX_COLUMNS]) {
+        let w_e = f64::from(self.n_p) * s.w_m;
+        let [i_d, i_q] = s.i;
+        let [di_d, di_q] = s.di;
+        let (mut rd, mut rq) = match self.kind {
+            MotorKind::Spm => {
+                ([i_d, di_d - w_e * i_q, 0.0, 0.0, 0.0], [i_q, di_q + w_e * i_d, SQRT_2_3 * s.w_m, 0.0, 0.0])
+            }
+            MotorKind::Ipm => {
+                ([i_d, di_d, -w_e * i_q, 0.0, 0.0], [i_q, w_e * i_d, di_q, SQRT_2_3 * s.w_m, 0.0])
+            }
+        };
+        if self.estimates_period() {
+            let c = self.kind.parameter_names().len();
+            (rd[c], rq[c]) = (-w_e * w_e * s.u[0] / 12.0, -w_e * w_e * s.u[1] / 12.0);
+        }
+        (rd, rq)
+    }
+
+    /// `(R_s + cable, L_d, L_q, K_e)` of model parameters `theta`.
+    fn motor(&self, theta: &[f64]) -> (f64, f64, f64, f64) {
         match self.kind {
-            MotorKind::Spm => ([i_d, -w_e * i_q, 0.0, 0.0], [i_q, w_e * i_d, SQRT_2_3 * w_m, 0.0]),
-            MotorKind::Ipm => ([i_d, 0.0, -w_e * i_q, 0.0], [i_q, w_e * i_d, 0.0, SQRT_2_3 * w_m]),
+            MotorKind::Spm => (theta[0] + self.cable, theta[1], theta[1], theta[2]),
+            MotorKind::Ipm => (theta[0] + self.cable, theta[1], theta[2], theta[3]),
         }
     }
 
     /// The predicted dq voltage `[u_d, u_q]` \[V\] at model parameters `theta` (model order,
-    /// SI), current `i` \[A\] and speed `w_m` \[rad/s\]: continuous, or the exact periodic
-    /// steady state at the control period (module documentation).
+    /// SI) and sample `s` (module documentation).
     ///
     /// # Errors
     /// Those of [`ExactPlant::step`] (parameters out of range); [`Error::Numerical`] when
     /// the step does not depend on the voltage (a singular input matrix).
-    pub fn voltage(&mut self, theta: &[f64], i: [f64; 2], w_m: f64) -> Result<[f64; 2]> {
-        let Some(plant) = self.plant.as_mut() else {
-            let (rd, rq) = self.rows(i[0], i[1], w_m);
-            let dot = |r: &[f64; 4]| r.iter().zip(theta).map(|(a, b)| a * b).sum::<f64>();
-            return Ok([dot(&rd) + self.cable * i[0], dot(&rq) + self.cable * i[1]]);
-        };
-        let (l_d, l_q, k_e) = match self.kind {
-            MotorKind::Spm => (theta[1], theta[1], theta[2]),
-            MotorKind::Ipm => (theta[1], theta[2], theta[3]),
-        };
+    pub fn voltage(&mut self, theta: &[f64], s: &Sample) -> Result<[f64; 2]> {
+        let (r, l_d, l_q, k_e) = self.motor(theta);
         let np = f64::from(self.n_p);
-        let p = MotorParameters {
-            r_s: theta[0] + self.cable,
-            l_d,
-            l_q,
-            psi_f: k_e * SQRT_2_3 / np,
-            n_p: self.n_p,
+        let Some(plant) = self.plant.as_mut() else {
+            let (rd, rq) = self.rows(s);
+            let dot = |row: &[f64; MAX_COLUMNS]| row.iter().zip(theta).map(|(a, b)| a * b).sum::<f64>();
+            // The small terms at the current estimate: the ripple's rotation and the
+            // speed's period mean.
+            let c = match self.estimates_period() {
+                true => theta[self.kind.parameter_names().len()].max(0.0) / 12.0,
+                false => 0.0,
+            };
+            let (mut d, mut q) = (dot(&rd) + self.cable * s.i[0], dot(&rq) + self.cable * s.i[1]);
+            if c > 0.0 {
+                let w_e = np * s.w_m;
+                let dw = 0.5 * (12.0 * c).sqrt() * s.dw;
+                d += -r / l_d * w_e * c * s.u[1] - np * dw * l_q * s.i[1];
+                q += r / l_q * w_e * c * s.u[0] + np * dw * l_d * s.i[0] + SQRT_2_3 * k_e * dw;
+            }
+            return Ok([d, q]);
         };
+        let w_m = s.w_m + 0.5 * self.h_c * s.dw;
+        let p = MotorParameters { r_s: r, l_d, l_q, psi_f: k_e * SQRT_2_3 / np, n_p: self.n_p };
+        let i = s.i;
         // step(i, u₀) − i is affine in u₀: its value at 0 and along 1 and j.
         let g0 = plant.step(&p, i, C64::new(0.0, 0.0), w_m)?;
         let g1 = plant.step(&p, i, C64::new(1.0, 0.0), w_m)?;
@@ -103,7 +190,7 @@ impl SteadyEquations {
         let u0 = C64::new((d * r0 - b * r1) / det, (a * r1 - c * r0) / det);
         let mean = u0 / stator_hold_start(C64::new(1.0, 0.0), np * w_m * self.h_c);
         if mean.re.is_finite() && mean.im.is_finite() {
-            Ok([mean.re, mean.im])
+            Ok([mean.re + l_d * s.di[0], mean.im + l_q * s.di[1]])
         } else {
             Err(Error::Numerical {
                 context: "steady-state fit".into(),
@@ -115,40 +202,40 @@ impl SteadyEquations {
     }
 
     /// The IV sums at the full parameter vector `theta` over the steady samples of `logs`:
-    /// equation error `ū − û(θ; i_k, ω_k)`, Jacobian the continuous rows at sample k (exact
-    /// without a control period, within `(ω_e h_c)²` with one: the iteration converges to
-    /// the exact equations' root all the same), instruments the rows at the mean of the
-    /// neighbouring samples `k ± 1`, whose noise is not sample k's.
+    /// equation error `ū − û(θ; sample k)`, Jacobian the rows at sample k (without the
+    /// small terms, and without a control period's exact correction: the iteration
+    /// converges to the equations' root all the same), instruments the rows at the means
+    /// and slopes over `k ± 2`, whose noise is not that of the samples the equation error
+    /// holds. The score is kept in blocks of `block` samples, so that a short log still
+    /// gives the batch means of a coloured equation error.
     ///
     /// # Errors
     /// Those of [`Self::voltage`]; [`Error::MissingChannel`] for a log without the
     /// terminal voltage.
-    pub fn sums(&mut self, logs: &[SteadyLog<'_>], theta: &[f64]) -> Result<IvSums> {
-        let n = self.kind.parameter_names().len();
+    pub fn sums(&mut self, logs: &[SteadyLog<'_>], theta: &[f64], block: usize) -> Result<IvSums> {
         let nth = theta.len();
-        let mut acc = IvSums::new(2, nth);
+        let mut acc = IvSums::with_block_len(2, nth, block);
         let (mut d, mut z) = (vec![0.0; 2 * nth], vec![0.0; 2 * nth]);
-        let mut local = vec![0.0; n];
+        let mut local = vec![0.0; self.n_columns()];
         for log in logs {
             let v = &log.view;
-            let (u_d, u_q) = v.terminal_voltage()?;
-            let (i_d, i_q, w_m) = (v.i_d(), v.i_q(), v.w_m());
+            let u = v.terminal_voltage()?;
             for (l, &c) in local.iter_mut().zip(&log.columns) {
                 *l = theta[c];
             }
             acc.start_experiment();
             for &k in &log.steady {
-                let (rd, rq) = self.rows(i_d[k], i_q[k], w_m[k]);
-                let mean = |x: &[f64]| 0.5 * (x[k - 1] + x[k + 1]);
-                let (zd, zq) = self.rows(mean(i_d), mean(i_q), mean(w_m));
-                let u = self.voltage(&local, [i_d[k], i_q[k]], w_m[k])?;
+                let sample = Sample::at(v, u, k, 1, log.h);
+                let (rd, rq) = self.rows(&sample);
+                let (zd, zq) = self.rows(&Sample::at(v, u, k, 2, log.h));
+                let p = self.voltage(&local, &sample)?;
                 d.fill(0.0);
                 z.fill(0.0);
                 for (j, &c) in log.columns.iter().enumerate() {
                     (d[c], d[nth + c]) = (-rd[j], -rq[j]);
                     (z[c], z[nth + c]) = (-zd[j], -zq[j]);
                 }
-                acc.add(&[u_d[k] - u[0], u_q[k] - u[1]], &d, &z);
+                acc.add(&[sample.u[0] - p[0], sample.u[1] - p[1]], &d, &z);
             }
             acc.end_experiment();
         }
@@ -165,12 +252,14 @@ mod tests {
     #[test]
     fn control_period_correction_matches_first_order() {
         let (r, l, k_e, n_p) = (1.2, 5e-3, 0.49, 4);
-        let mut exact = SteadyEquations::new(MotorKind::Spm, n_p, 0.0, Some(1e-4)).unwrap();
-        let mut cont = SteadyEquations::new(MotorKind::Spm, n_p, 0.0, None).unwrap();
+        let mut exact = SteadyEquations::new(MotorKind::Spm, n_p, 0.0, Some(1e-4), false).unwrap();
+        let mut cont = SteadyEquations::new(MotorKind::Spm, n_p, 0.0, None, true).unwrap();
+        assert_eq!(cont.n_columns(), 4);
         let (i, w_m) = ([0.0, 3.0], 280.0);
         let theta = [r, l, k_e];
-        let ue = exact.voltage(&theta, i, w_m).unwrap();
-        let uc = cont.voltage(&theta, i, w_m).unwrap();
+        let at = |u: [f64; 2]| Sample { i, di: [0.0; 2], w_m, dw: 0.0, u };
+        let ue = exact.voltage(&theta, &at([0.0; 2])).unwrap();
+        let uc = cont.voltage(&[r, l, k_e, 0.0], &at(ue)).unwrap();
         // First order: ū = Z (i − δ) + jω_eψ with δ = −jω_e ū h²/(12 L), so ū − u_cont = −Z δ.
         let w_e = f64::from(n_p) * w_m;
         let ubar = C64::new(ue[0], ue[1]);
@@ -180,5 +269,23 @@ mod tests {
         assert!((got - predicted).norm() < 0.05 * predicted.norm(), "{got} vs {predicted}");
         // And it is the back-EMF's (ω_e h)²/12 in size.
         assert!((predicted.norm() / (uc[1]) / ((w_e * 1e-4).powi(2) / 12.0) - 1.0).abs() < 0.2);
+    }
+
+    /// The estimated period term reproduces the exact periodic steady state to first order:
+    /// with `h_c2 = h_c²` the continuous equations' prediction at the exact voltage lands on
+    /// it far closer than without.
+    #[test]
+    fn period_term_matches_the_exact_steady_state() {
+        let (r, l, k_e, n_p, h_c) = (1.2, 5e-3, 0.49, 4, 1e-4);
+        let mut exact = SteadyEquations::new(MotorKind::Spm, n_p, 0.0, Some(h_c), false).unwrap();
+        let mut cont = SteadyEquations::new(MotorKind::Spm, n_p, 0.0, None, true).unwrap();
+        for (i, w_m) in [([0.0, 3.0], 280.0), ([2.0, -4.0], -150.0), ([-1.0, 6.0], 60.0)] {
+            let at = |u: [f64; 2]| Sample { i, di: [0.0; 2], w_m, dw: 0.0, u };
+            let ue = exact.voltage(&[r, l, k_e], &at([0.0; 2])).unwrap();
+            let with = cont.voltage(&[r, l, k_e, h_c * h_c], &at(ue)).unwrap();
+            let without = cont.voltage(&[r, l, k_e, 0.0], &at(ue)).unwrap();
+            let err = |p: [f64; 2]| (p[0] - ue[0]).hypot(p[1] - ue[1]);
+            assert!(err(with) < 0.02 * err(without), "{} vs {} at {w_m}", err(with), err(without));
+        }
     }
 }

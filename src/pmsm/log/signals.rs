@@ -29,8 +29,9 @@ pub mod channel {
 }
 
 /// Fewest samples of a PMSM log: below this a fit of 3–4 parameters and 2 initial
-/// states from two outputs has too few residuals to say anything.
-pub const MIN_SAMPLES: usize = 16;
+/// states from two outputs has too few residuals to say anything. Slow telemetry can be
+/// this short: every 5000th row of a 7 s log at 10 kHz holds 15.
+pub const MIN_SAMPLES: usize = 8;
 
 /// Raw signals of one PMSM log before validation; all vectors have one entry per sample.
 ///

@@ -1,0 +1,54 @@
+//! Slow telemetry cut from drive cycles (issue 43): every 40th and 160th row (250 Hz and
+//! 62.5 Hz) of the shared 10 kHz logs of moves, whose plateaus are short and whose currents
+//! drift along ramps and a varying load. The automatic choice fits the steady-state
+//! equations (with the currents' drift and the control period's effect); before, every 40th
+//! row gave R_s +0.47 % at |z| 19 and K_e −0.077 % at |z| 63 with exit 0. An IPM log fitted
+//! with the SPM equations is untrusted (`salient`), and right with the IPM ones.
+
+use crate::common::{load, rel};
+use greybox::pmsm::{MotorKind, PmsmFitOptions, fit_pmsm};
+
+/// R_s within 0.5 % and K_e within 0.05 % (issue 43), trusted; on the noisy log both within
+/// 3 standard errors as well (the noise-free log's are at the data's 7 digits: 1e-4).
+#[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
+fn drive_cycle_telemetry_is_fitted_by_the_steady_state_equations() {
+    for (stem, noisy) in [("servo_spm_moves", false), ("servo_spm_moves_idinj_noisy", true)] {
+        let (fast, t) = load(stem);
+        for every in [40, 160] {
+            let e = fast.decimate(every).unwrap();
+            let fit = fit_pmsm(std::slice::from_ref(&e), &PmsmFitOptions::new(t.n_p)).unwrap();
+            assert_eq!(fit.report.model, "pmsm_spm_steady");
+            for (name, truth, within) in [("r_s", t.r_s, 5e-3), ("k_e", t.k_e, 5e-4)] {
+                let p = fit.parameter(name).unwrap();
+                let z = (p.value - truth) / p.std_error;
+                eprintln!("{stem} every {every}th row: {name} {:+.3e} (z {z:+.1})", rel(p.value, truth));
+                assert!(rel(p.value, truth).abs() < if noisy { within } else { 1e-4 }, "{name}");
+                if noisy {
+                    assert!(z.abs() <= 3.0, "{stem} {every}: {name} z {z}");
+                }
+            }
+            assert!(fit.trusted(), "{stem} every {every}th row: {:?}", fit.warnings);
+        }
+    }
+}
+
+/// Every 80th row of the IPM log of moves: the SPM equations untrusted (`salient`), the IPM
+/// ones trusted and right.
+#[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
+fn salient_telemetry_is_named_under_the_spm_equations() {
+    let (fast, t) = load("ipm_moves_idinj");
+    let e = fast.decimate(80).unwrap();
+    let one = std::slice::from_ref(&e);
+    let spm = fit_pmsm(one, &PmsmFitOptions::new(t.n_p)).unwrap();
+    assert!(spm.warnings.iter().any(|w| w.code == "salient" && w.untrusted), "{:?}", spm.warnings);
+    assert!(!spm.trusted());
+    let ipm = fit_pmsm(one, &PmsmFitOptions { model: MotorKind::Ipm, ..PmsmFitOptions::new(t.n_p) }).unwrap();
+    assert!(ipm.trusted(), "{:?}", ipm.warnings);
+    for (name, truth) in [("r_s", t.r_s), ("l_d", t.l_d), ("l_q", t.l_q), ("k_e", t.k_e)] {
+        let p = ipm.parameter(name).unwrap();
+        eprintln!("ipm every 80th row: {name} {:+.3e}", rel(p.value, truth));
+        assert!(rel(p.value, truth).abs() < 1e-3, "{name}");
+    }
+}
