@@ -83,7 +83,7 @@ fn main() -> ExitCode {
         Command::Track(a) => cli::track::run_track(a).map(|()| 0),
         Command::Simulate(a) => cli::simulate::run_simulate(a).map(|()| 0),
         Command::Design(a) => cli::design::run_design(a).map(|()| 0),
-        Command::Fluxmap(a) => cli::fluxmap::run_fluxmap(a).map(|()| 0),
+        Command::Fluxmap(a) => cli::fluxmap::run_fluxmap(a).map(code),
         Command::Saturation(a) => cli::saturation::run_saturation(a).map(code),
         Command::Standstill(a) => cli::standstill::run_standstill(a).map(code),
         Command::Mechanics(a) => cli::mechanics::run_mechanics(a).map(code),

@@ -23,25 +23,28 @@ pub struct FluxMapArgs {
     pub report: output::ReportArgs,
 }
 
-/// Runs `greybox fluxmap`.
+/// Runs `greybox fluxmap`; whether the fit is trusted (exit 3 if not).
 ///
 /// # Errors
 /// An unreadable map, exponents that are not four integers, a failed fit, an output that
 /// cannot be written.
-pub fn run_fluxmap(a: &FluxMapArgs) -> crate::Result<()> {
-    a.report.run(std::slice::from_ref(&a.map), "flux-map fit", || fluxmap_outcome(a)).map(|_| ())
+pub fn run_fluxmap(a: &FluxMapArgs) -> crate::Result<bool> {
+    a.report.run(std::slice::from_ref(&a.map), "flux-map fit", || fluxmap_outcome(a))
 }
 
-/// The fit of `greybox fluxmap` and its reports, nothing printed or written. The exit code
-/// stays 0 (the map's model choice: a coefficient at its bound zero is a finding).
+/// The fit of `greybox fluxmap` and its reports, nothing printed or written. Untrusted (exit
+/// 3) when the reported no-load flux or inductances miss the map's own values
+/// (`no_load_flux`, `inductance_mismatch`); a coefficient at its bound zero is a finding,
+/// not a fault.
 ///
 /// # Errors
 /// As [`run_fluxmap`] but for the output.
 pub fn fluxmap_outcome(a: &FluxMapArgs) -> crate::Result<output::Outcome> {
     let exponents = a.exponents.as_deref().map(parse_exponents).transpose()?;
     let map = read_flux_map(&a.map)?;
-    let fit = fit_flux_map(&map, &FluxMapOptions { exponents })?;
-    Ok(output::Outcome::new(fit.to_string(), &fit, Vec::new()))
+    let fit = fit_flux_map(&map, &FluxMapOptions { exponents, ..Default::default() })?;
+    let untrusted = fit.check.iter().flat_map(|c| &c.warnings).map(|w| w.code.clone()).collect();
+    Ok(output::Outcome::new(fit.to_string(), &fit, untrusted))
 }
 
 /// The exponents `S,T,U,V` of `--exponents`.

@@ -21,6 +21,7 @@ pub mod problem;
 pub mod result;
 pub mod scaling;
 pub mod solver;
+pub mod spline;
 pub mod weighting;
 
 #[cfg(test)]

@@ -36,6 +36,7 @@ pub use checks::limit::VoltageLimitWeighting;
 pub use checks::noise::NEGLIGIBLE_VOLTAGE_NOISE;
 pub use fit::auto_mask::FALLBACK_RELATIVE_THRESHOLD;
 pub use fit::flux_map::{ExponentCandidate, FLUX_MAP_REFINED, FluxMapFit, FluxMapOptions, fit_flux_map};
+pub use fit::flux_map_check::{INDUCTANCE_WITHIN, MapCheck, MapModel, NO_LOAD_WITHIN, PointCheck};
 pub use fit::hold::{DQ_DECISIVE, SCREEN_DECISIVE};
 pub use fit::input_search::{ADVANCE_RANGE, DELAYS, InputSearch, SPEED_PLL_RANGE, fit_estimating_input};
 pub use fit::iv::{

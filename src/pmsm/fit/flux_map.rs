@@ -5,6 +5,7 @@
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::{FitResult, PemOptions, fit};
+use crate::pmsm::fit::flux_map_check::{MapCheck, check};
 use crate::pmsm::fit::report::estimate_table;
 use crate::pmsm::model::flux_map::FluxMapModel;
 use crate::pmsm::model::saturation::{Inductances, Saturation, SaturationExponents};
@@ -19,6 +20,10 @@ pub struct FluxMapOptions {
     /// `U, V ∈ 0..=2` is fitted by linear least squares in the current, and the
     /// [`FLUX_MAP_REFINED`] best are refined in the flux; the smallest flux residual wins.
     pub exponents: Option<SaturationExponents>,
+    /// Leave out the check against the map (`flux_map_check`: the held-out choice of the
+    /// model, the no-load flux and the inductances against the map's own values), for
+    /// Monte Carlo studies of the coefficients alone. Default false.
+    pub skip_check: bool,
 }
 
 /// How many exponent candidates (best by the linear start) get the flux fit.
@@ -59,9 +64,14 @@ pub struct FluxMapFit {
     pub range: f64,
     /// The candidates tried, best linear start first.
     pub candidates: Vec<ExponentCandidate>,
-    /// Apparent and incremental inductances at zero current, at the map's largest `|i_q|`
-    /// (half and full, `i_d = 0`) and at its most negative `i_d` with the largest `i_q`.
+    /// Apparent and incremental inductances of the saturation model at zero current, at the
+    /// map's largest `|i_q|` (half and full, `i_d = 0`) and at its most negative `i_d` with
+    /// the largest `i_q` (on the map's grid, where it has one).
     pub operating_points: Vec<Inductances>,
+    /// The figures a user reads off the map (no-load flux, incremental inductances with
+    /// intervals) from the model with the least held-out error, checked against the map
+    /// (`None` with [`FluxMapOptions::skip_check`]).
+    pub check: Option<MapCheck>,
 }
 
 /// Fits the saturation model ([`Saturation`]) to a flux map read by
@@ -130,10 +140,12 @@ pub fn fit_flux_map(map: &Experiment, options: &FluxMapOptions) -> Result<FluxMa
     };
     let q_max = i_q.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
     let d_min = i_d.iter().copied().fold(0.0_f64, f64::min);
-    let operating_points = [[0.0, 0.0], [0.0, 0.5 * q_max], [0.0, q_max], [d_min, q_max]]
-        .into_iter()
-        .map(|i| model.inductances(i))
-        .collect::<Result<Vec<_>>>()?;
+    let at = [[0.0, 0.0], [0.0, 0.5 * q_max], [0.0, q_max], [d_min, q_max]];
+    let check = (!options.skip_check).then(|| check(map, exponents, &result, &at)).transpose()?;
+    let operating_points = match &check {
+        Some(c) => c.points.iter().map(|p| model.inductances(p.i)).collect::<Result<Vec<_>>>()?,
+        None => at.into_iter().map(|i| model.inductances(i)).collect::<Result<Vec<_>>>()?,
+    };
     let candidates = starts
         .iter()
         .zip(rms_flux)
@@ -154,6 +166,7 @@ pub fn fit_flux_map(map: &Experiment, options: &FluxMapOptions) -> Result<FluxMa
         range: span(psi_d).max(span(psi_q)),
         candidates,
         operating_points,
+        check,
     })
 }
 
@@ -280,6 +293,9 @@ impl std::fmt::Display for FluxMapFit {
             .collect();
         if self.candidates.len() > 1 {
             writeln!(f, "\nexponents (S,T,U,V) refined, rms flux residual: {}", refined.join("; "))?;
+        }
+        if let Some(c) = &self.check {
+            write!(f, "{c}")?;
         }
         Ok(())
     }

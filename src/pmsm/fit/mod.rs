@@ -6,6 +6,7 @@ pub(super) mod auto_mask;
 mod base;
 mod beside;
 pub(super) mod flux_map;
+pub(super) mod flux_map_check;
 mod friction;
 pub(super) mod hold;
 mod holds;
