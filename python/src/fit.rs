@@ -127,7 +127,7 @@ pub fn fit(
 ) -> PyResult<NativeFit> {
     let t0 = Instant::now();
     let a = parse_fit(&argv)?;
-    let mut plan = greybox::cli::fit::plan(&a).map_err(|e| to_py(in_fit_words(e)))?;
+    let mut plan = greybox::cli::plan::plan(&a).map_err(|e| to_py(in_fit_words(e)))?;
     if let Some((options, ..)) = plan.pem.as_mut() {
         options.pem.progress = false;
     }

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 pub use super::columns::ColumnArgs;
 pub use super::values::{FormatArg, MethodArg, ModelArg, VoltageArg};
 
-/// The flags of `greybox fit` (and of `fit --each`), as parsed; [`super::fit::plan`] turns
+/// The flags of `greybox fit` (and of `fit --each`), as parsed; [`super::plan::plan`] turns
 /// them into library options.
 #[derive(Args, Debug)]
 pub struct FitArgs {

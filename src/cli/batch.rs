@@ -22,8 +22,8 @@ mod trend;
 
 use super::args::FitArgs;
 use super::columns::named;
-use super::fit::{Plan, fit_logs, plan};
 use super::output;
+use super::plan::{Plan, fit_logs, plan};
 use crate::Error;
 use crate::data::staged::Staged;
 use crate::pmsm::PmsmFit;

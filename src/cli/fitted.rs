@@ -3,7 +3,7 @@
 //! to hand over.
 
 use super::args::FitArgs;
-use super::fit::{Plan, fit_logs, pole_pairs};
+use super::plan::{Plan, fit_logs, pole_pairs};
 use crate::Experiment;
 use crate::estimate::{FitResult, PemOptions, Timing};
 use crate::pmsm::{LinearOptions, LogSource, PmsmFit, PmsmFitOptions, fit_pmsm, weighted_least_squares};

@@ -14,6 +14,7 @@ pub mod fluxmap;
 pub mod logs;
 pub mod mechanics;
 pub mod output;
+pub mod plan;
 pub mod plots;
 pub mod pwm_args;
 pub mod saturation;

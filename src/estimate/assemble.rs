@@ -19,6 +19,11 @@ use nalgebra::{DMatrix, DVector};
 /// parameter counts as at its bound.
 pub const AT_BOUND: f64 = 1e-6;
 
+/// A static model's self-consistency check at the estimate θ (model order): `None` when it
+/// cannot run, `Some(None)` when the fits of consecutive parts agree, `Some(Some(why))`
+/// when they do not.
+pub(crate) type PartsCheck<'a> = dyn Fn(&[f64]) -> Option<Option<String>> + 'a;
+
 /// Computes the statistics at p̂ and fills a [`FitResult`].
 pub(crate) fn assemble<M: GreyBoxModel>(
     problem: &PemProblem<'_, M>,
@@ -26,6 +31,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     start: &[f64],
     mut solver: SolverReport,
     thresholds: &DiagnosticThresholds,
+    parts: Option<&PartsCheck<'_>>,
 ) -> Result<FitResult> {
     let model = problem.model();
     let params = model.parameters();
@@ -292,6 +298,11 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         implausible: gate::implausible(problem, p),
         white: fit.whiteness.iter().map(|w| w.is_white(n)).collect(),
         poor_fit_advice: model.poor_fit_advice(),
+        // A static model's poor fit: do fits of consecutive parts agree? (Structure left
+        // shows there whatever the samples' order.)
+        parts: parts
+            .filter(|_| model.n_states() == 0 && fit.fit_percent.iter().any(|f| *f < gate::POOR_FIT_PERCENT))
+            .and_then(|check| check(&problem.theta(0, p))),
     };
     let warnings = gate::warnings(&solver, &parameters, &fit, &evidence);
     Ok(FitResult {

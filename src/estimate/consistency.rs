@@ -67,6 +67,107 @@ pub fn homogeneity(segments: &[FitResult], floor: f64) -> Vec<Homogeneity> {
         .collect()
 }
 
+/// The parameters on which the fits of consecutive parts `fits` disagree beyond their
+/// intervals: Cochran's Q of each (standard errors taken at least `floor` relative, the
+/// accuracy of an exact fit) below `family_level` divided by the number of parameters
+/// tested (Bonferroni), with a spread above `floor`; each with the parts' estimates and the
+/// test, joined by `; `. `None` when they agree (or fewer than two fits).
+pub fn disagreement(fits: &[FitResult], floor: f64, family_level: f64) -> Option<String> {
+    let tests = homogeneity(fits, floor);
+    let level = family_level / tests.len().max(1) as f64;
+    let failed: Vec<&Homogeneity> =
+        tests.iter().filter(|h| h.p_value < level && h.relative_spread > floor).collect();
+    if failed.is_empty() {
+        return None;
+    }
+    let detail: Vec<String> = failed
+        .iter()
+        .map(|h| {
+            let values: Vec<String> =
+                h.estimates.iter().zip(&h.std_errors).map(|(v, s)| format!("{v:.6e} ± {s:.1e}")).collect();
+            format!(
+                "{} {} ({:.2e} apart relative; Q {:.1} on {} degrees of freedom, p {:.1e})",
+                h.name,
+                values.join(", "),
+                h.relative_spread,
+                h.q,
+                h.dof,
+                h.p_value
+            )
+        })
+        .collect();
+    Some(detail.join("; "))
+}
+
+/// Parts a static model's data are cut into by [`static_parts`].
+pub const PARTS: usize = 4;
+
+/// Accuracy of an exact fit (relative) for [`static_parts`]: standard errors are taken at
+/// least this large, and smaller spreads agree.
+pub const PARTS_FLOOR: f64 = 1e-5;
+
+/// Family-wise level of [`static_parts`]'s test (Bonferroni over the parameters).
+pub const PARTS_LEVEL: f64 = 1e-3;
+
+/// A fit of some experiments from a start (model order): the refit of [`static_parts`].
+pub type Refit<'a> = dyn Fn(&[crate::data::Experiment], &[f64]) -> crate::Result<FitResult> + 'a;
+
+/// A static model's self-consistency at its estimate `theta`: `experiments` cut into
+/// [`PARTS`] consecutive parts ([`consecutive_parts`]), each part fitted by
+/// `refit(part, theta)`, and [`disagreement`] of the fits. `None` when a part is too short
+/// (fewer samples than twice the parameters) or fewer than two parts can be fitted;
+/// `Some(None)` when they agree; `Some(Some(why))` when not.
+///
+/// Why: a wrong model leaves structure that a whiteness test along the data's order finds
+/// only when the regressors vary along that order; fits of parts name the parameters the
+/// structure moves (NIST StRD's Nelson: b3 from −0.009 to −0.065 over its four aging-time
+/// quarters, its replicates' lack-of-fit F 11.0 on (29, 96)).
+pub fn static_parts(
+    experiments: &[crate::data::Experiment],
+    theta: &[f64],
+    refit: &Refit<'_>,
+) -> Option<Option<String>> {
+    let parts = consecutive_parts(experiments, PARTS, 2 * theta.len().max(1)).ok()?;
+    let fits: Vec<FitResult> = parts.iter().filter_map(|part| refit(part, theta).ok()).collect();
+    (fits.len() >= 2).then(|| disagreement(&fits, PARTS_FLOOR, PARTS_LEVEL))
+}
+
+/// `experiments` cut into `parts` consecutive parts of at least `min` samples each: part k
+/// holds the k-th part of every experiment, named `NAME@k`.
+///
+/// # Errors
+/// [`crate::Error::TooShort`] when a part would hold fewer than `min` samples; those of
+/// [`crate::data::Experiment::slice`].
+pub fn consecutive_parts(
+    experiments: &[crate::data::Experiment],
+    parts: usize,
+    min: usize,
+) -> crate::Result<Vec<Vec<crate::data::Experiment>>> {
+    let parts = parts.max(1);
+    if let Some(short) = experiments.iter().find(|e| e.len() / parts < min) {
+        return Err(crate::Error::TooShort {
+            name: short.name().to_string(),
+            len: short.len(),
+            min: parts * min,
+        });
+    }
+    (0..parts)
+        .map(|k| {
+            experiments
+                .iter()
+                .map(|e| {
+                    let n = e.len();
+                    Ok(e.slice(k * n / parts..(k + 1) * n / parts)?.renamed(format!(
+                        "{}@{}",
+                        e.name(),
+                        k + 1
+                    )))
+                })
+                .collect()
+        })
+        .collect()
+}
+
 /// Cochran's Q of one parameter's estimates and standard errors.
 fn test(name: &str, estimates: Vec<f64>, std_errors: Vec<f64>) -> Homogeneity {
     let w: Vec<f64> = std_errors.iter().map(|s| 1.0 / (s * s)).collect();

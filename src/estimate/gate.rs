@@ -16,7 +16,10 @@
 //!   StRD BoxBOD's from its first start, where `exp(−b₂x)` has vanished) (`singular`);
 //! - an output's fit is below [`POOR_FIT_PERCENT`] while its residuals fail the Ljung–Box
 //!   test: what the model leaves is structure, not noise (white residuals would make a low
-//!   fit percentage the noise floor) (`poor_fit`);
+//!   fit percentage the noise floor) (`poor_fit`). For a static model such a poor fit also
+//!   refits four consecutive parts of the data ([`super::consistency::static_parts`]): a
+//!   disagreement by Cochran's Q is structure too, whatever the order of the samples, and
+//!   the warning names the parameters that disagree;
 //! - the model declares a parameter value non-physical
 //!   ([`crate::model::GreyBoxModel::implausible`]) (`non_physical`);
 //! - a parameter sits at a bound, or a statistic is not finite;
@@ -63,6 +66,10 @@ pub(crate) struct Evidence {
     pub white: Vec<bool>,
     /// The model's advice for a poor fit ([`crate::model::GreyBoxModel::poor_fit_advice`]).
     pub poor_fit_advice: Option<String>,
+    /// A static model's check of a poor fit (`crate::estimate::consistency::static_parts`):
+    /// `Some(None)` the fits of consecutive parts agree, `Some(Some(why))` they do not (a
+    /// poor fit is then structure even with white residuals); `None` not run.
+    pub parts: Option<Option<String>>,
 }
 
 /// The gate's warnings (module documentation), in a fixed order.
@@ -114,17 +121,27 @@ pub(crate) fn warnings(
         .iter()
         .zip(&fit.fit_percent)
         .zip(&evidence.white)
-        .filter(|((_, f), white)| **f < POOR_FIT_PERCENT && !**white)
+        .filter(|((_, f), white)| {
+            let disagree = matches!(&evidence.parts, Some(Some(_)));
+            let structured = !**white || disagree;
+            **f < POOR_FIT_PERCENT && structured
+        })
         .map(|((n, f), _)| format!("{n} {f:.1} %"))
         .collect();
     if !poor.is_empty() {
+        let what = match &evidence.parts {
+            Some(Some(why)) => format!("and fits of consecutive parts of the data that disagree ({why})"),
+            _ => "with residuals that are not white".into(),
+        };
         out.push(Warning::untrusted(
             "poor_fit",
             format!(
-                "poor fit ({}) with residuals that are not white: what the model leaves is structure it lacks, \
-                 not noise: {}",
+                "poor fit ({}) {what}: what the model leaves is structure it lacks, not noise: {}",
                 poor.join(", "),
-                evidence.poor_fit_advice.as_deref().unwrap_or("check the columns, units and signs of the log, and the model")
+                evidence
+                    .poor_fit_advice
+                    .as_deref()
+                    .unwrap_or("check the columns, units and signs of the log, and the model")
             ),
         ));
     }

@@ -176,11 +176,19 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
 ) -> Result<FitResult> {
     let t0 = Instant::now();
     let (problem, popts) = build_problem(model, experiments, start, options, weighting)?;
-    finish(problem, popts, start, options, weighting, t0)
+    let parts = |theta: &[f64]| {
+        consistency::static_parts(experiments, theta, &|part, at| {
+            let (problem, popts) = build_problem(model, part, at, options, weighting)?;
+            finish(problem, popts, at, options, weighting, Instant::now(), None)
+        })
+    };
+    finish(problem, popts, start, options, weighting, t0, Some(&parts))
 }
 
 /// Runs the solver on `problem` from `start` and assembles the result (the Huber refit
-/// included): the common end of [`fit_with_weighting`] and [`StartedFit::fit`].
+/// included): the common end of [`fit_with_weighting`] and [`StartedFit::fit`]. `parts`:
+/// a static model's self-consistency check ([`consistency::static_parts`]), which the gate
+/// consults on a poor fit in place of the residuals' whiteness along the data's order.
 fn finish<M: GreyBoxModel>(
     problem: PemProblem<'_, M>,
     mut popts: ProblemOptions,
@@ -188,6 +196,7 @@ fn finish<M: GreyBoxModel>(
     options: &PemOptions,
     weighting: &dyn Weighting,
     t0: Instant,
+    parts: Option<&assemble::PartsCheck<'_>>,
 ) -> Result<FitResult> {
     let model = problem.model();
     let uniform = weighting.is_uniform();
@@ -226,7 +235,7 @@ fn finish<M: GreyBoxModel>(
             robust
         }
     };
-    let mut result = assemble(&problem, &p_hat, start, report, &options.diagnostics)?;
+    let mut result = assemble(&problem, &p_hat, start, report, &options.diagnostics, parts)?;
     result.notes.append(&mut notes);
     if !uniform {
         result.notes.push(format!("sample weighting: {}", weighting.name()));
@@ -341,7 +350,7 @@ impl<'m, M: GreyBoxModel> StartedFit<'m, M> {
     /// # Errors
     /// As [`fit_with_weighting`].
     pub fn fit(self) -> Result<FitResult> {
-        finish(self.problem, self.popts, &self.start, &self.options, self.weighting, self.t0)
+        finish(self.problem, self.popts, &self.start, &self.options, self.weighting, self.t0, None)
     }
 }
 

@@ -17,12 +17,14 @@ use serde::{Deserialize, Serialize};
 /// The knot intervals per axis tried by [`SplineSurface::fit_chosen`].
 pub const SPLINE_INTERVALS: [usize; 11] = [1, 2, 3, 4, 5, 6, 8, 10, 12, 15, 18];
 
-/// A fitted tensor-product cubic B-spline surface on `[x0, x1] × [y0, y1]`.
+/// A fitted tensor-product cubic B-spline surface on `[x0, x1] × [y0, y1]` (a regression
+/// spline: least squares on a fixed uniform knot grid, no roughness penalty). Outside the
+/// ranges the surface is held at its edge value (no extrapolation).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SplineSurface {
-    /// The x range `[x0, x1]` and its knot intervals.
+    /// The x range `[x0, x1]` \[unit of x\] and its knot intervals.
     pub x: ([f64; 2], usize),
-    /// The y range `[y0, y1]` and its knot intervals.
+    /// The y range `[y0, y1]` \[unit of y\] and its knot intervals.
     pub y: ([f64; 2], usize),
     /// Coefficients, `(m_x + 3) (m_y + 3)`, x-major.
     pub coefficients: Vec<f64>,
@@ -37,6 +39,7 @@ pub struct SplineSurface {
 /// The four uniform cubic B-splines that are non-zero at `v` on `[lo, hi]` cut into `m`
 /// intervals: the first index and the values and the derivatives (per unit of `v`).
 fn basis(v: f64, [lo, hi]: [f64; 2], m: usize) -> (usize, [f64; 4], [f64; 4]) {
+    let m = m.max(1);
     let h = (hi - lo) / m as f64;
     let s = ((v - lo) / h).clamp(0.0, m as f64);
     let j = (s.floor() as usize).min(m - 1);
@@ -65,10 +68,14 @@ impl SplineSurface {
         row(p, self.x, self.y, dx, dy)
     }
 
-    /// `(value, standard error)` of `z` (`dx = dy = false`), `∂z/∂x` or `∂z/∂y` at `p`.
+    /// `(value, standard error)` of `z` (`dx = dy = false`), `∂z/∂x` or `∂z/∂y` at `p`;
+    /// NaN for a surface whose coefficients do not match its knots (a bad deserialised one).
     fn with_error(&self, p: [f64; 2], dx: bool, dy: bool) -> (f64, f64) {
-        let r = self.row(p, dx, dy);
         let n = self.size();
+        if self.coefficients.len() != n || self.covariance.len() != n * n {
+            return (f64::NAN, f64::NAN);
+        }
+        let r = self.row(p, dx, dy);
         let v = r.iter().map(|&(i, w)| w * self.coefficients[i]).sum();
         let var: f64 = r
             .iter()
@@ -92,13 +99,24 @@ impl SplineSurface {
         self.with_error(p, false, true)
     }
 
-    /// The least-squares surface through `points` (`[x, y]`) and values `z` with `m_x`,
-    /// `m_y` knot intervals on the points' ranges.
+    /// The least-squares surface through `points` (`[x, y]`, n) and values `z` (n) with
+    /// `m_x`, `m_y` knot intervals on the points' ranges.
     ///
     /// # Errors
-    /// [`Error::Numerical`] when the normal matrix is singular (a knot interval without
-    /// points, fewer points than coefficients, a range of zero width).
+    /// [`Error::InvalidOption`] (`z`) when `z` and `points` differ in length or hold a
+    /// non-finite number; [`Error::Numerical`] when the normal matrix is singular (a knot
+    /// interval without points, fewer points than coefficients, a range of zero width).
     pub fn fit(points: &[[f64; 2]], z: &[f64], m_x: usize, m_y: usize) -> Result<Self> {
+        if z.len() != points.len() || z.iter().chain(points.iter().flatten()).any(|v| !v.is_finite()) {
+            return Err(Error::InvalidOption {
+                option: "z".into(),
+                reason: format!(
+                    "{} values for {} points, or a value that is not finite: one finite value per point",
+                    z.len(),
+                    points.len()
+                ),
+            });
+        }
         let range = |k: usize| {
             points.iter().fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], p| [lo.min(p[k]), hi.max(p[k])])
         };
@@ -162,7 +180,8 @@ impl SplineSurface {
         for m_x in SPLINE_INTERVALS {
             for m_y in SPLINE_INTERVALS {
                 let Ok(s) = Self::fit(points, z, m_x, m_y) else { continue };
-                if best.as_ref().is_none_or(|b| s.held_out_rms < b.held_out_rms) {
+                if s.held_out_rms.is_finite() && best.as_ref().is_none_or(|b| s.held_out_rms < b.held_out_rms)
+                {
                     best = Some(s);
                 }
             }
@@ -171,6 +190,36 @@ impl SplineSurface {
             context: "spline surface".into(),
             reason: "no knot intervals fit the points (too few points, or all on a line)".into(),
         })
+    }
+}
+
+impl SplineSurface {
+    /// The rms error over `points` of surfaces with this one's knot intervals fitted without
+    /// each fold (`fold(k)` in `0..folds` the fold of point k) and evaluated on it \[unit of
+    /// z\]; `None` when a fold's fit fails. The same split as another model's
+    /// cross-validation makes the two comparable (leave-one-out favours the model it is
+    /// computed for).
+    pub fn cross_validated(
+        &self,
+        points: &[[f64; 2]],
+        z: &[f64],
+        folds: usize,
+        fold: &dyn Fn(usize) -> usize,
+    ) -> Option<f64> {
+        let (mut sse, mut n) = (0.0, 0usize);
+        for f in 0..folds {
+            let (train, test): (Vec<usize>, Vec<usize>) = (0..points.len()).partition(|&k| fold(k) != f);
+            let pick = |idx: &[usize]| -> (Vec<[f64; 2]>, Vec<f64>) {
+                idx.iter().map(|&k| (points[k], z[k])).unzip()
+            };
+            let (p, v) = pick(&train);
+            let s = Self::fit(&p, &v, self.x.1, self.y.1).ok()?;
+            for k in test {
+                sse += (s.value(points[k]).0 - z[k]).powi(2);
+                n += 1;
+            }
+        }
+        (n > 0).then(|| (sse / n as f64).sqrt())
     }
 }
 

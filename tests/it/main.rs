@@ -51,6 +51,7 @@ mod saturation;
 mod solvers;
 mod spm;
 mod standstill;
+mod static_gate;
 mod steady;
 mod streamed;
 mod telemetry;

@@ -17,7 +17,6 @@
 
 use crate::data::Experiment;
 use crate::error::Result;
-use crate::estimate::consistency::{Homogeneity, homogeneity};
 use crate::estimate::{FitResult, Warning};
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::options::{PmsmFitOptions, RefitReport};
@@ -84,35 +83,10 @@ pub(crate) fn warning(
 }
 
 /// The parameters on which the fits of consecutive parts `fits` disagree beyond their
-/// intervals (Cochran's Q at [`FAMILY_LEVEL`] over the parameters tested, the standard
-/// errors taken at least `floor` relative, and a spread above `floor`: the accuracy of an
-/// exact fit, [`EXACT_SPREAD`] for the exact sampled-data models), each with the parts'
-/// estimates and the test, joined by `; `; `None` when they agree.
+/// intervals at [`FAMILY_LEVEL`] ([`crate::estimate::consistency::disagreement`]), `floor`
+/// the accuracy of an exact fit ([`EXACT_SPREAD`] for the exact sampled-data models).
 pub(crate) fn disagreement(fits: &[FitResult], floor: f64) -> Option<String> {
-    let tests = homogeneity(fits, floor);
-    let level = FAMILY_LEVEL / tests.len().max(1) as f64;
-    let failed: Vec<&Homogeneity> =
-        tests.iter().filter(|h| h.p_value < level && h.relative_spread > floor).collect();
-    if failed.is_empty() {
-        return None;
-    }
-    let detail: Vec<String> = failed
-        .iter()
-        .map(|h| {
-            let values: Vec<String> =
-                h.estimates.iter().zip(&h.std_errors).map(|(v, s)| format!("{v:.6e} ± {s:.1e}")).collect();
-            format!(
-                "{} {} ({:.2e} apart relative; Q {:.1} on {} degrees of freedom, p {:.1e})",
-                h.name,
-                values.join(", "),
-                h.relative_spread,
-                h.q,
-                h.dof,
-                h.p_value
-            )
-        })
-        .collect();
-    Some(detail.join("; "))
+    crate::estimate::consistency::disagreement(fits, floor, FAMILY_LEVEL)
 }
 
 /// The logs cut into [`SEGMENTS`] consecutive parts: part k holds the k-th part of every
@@ -124,29 +98,11 @@ fn split(experiments: &[Experiment]) -> Result<Vec<Vec<Experiment>>> {
     split_at_least(experiments, MIN_SEGMENT_SAMPLES)
 }
 
-/// The logs cut into [`SEGMENTS`] consecutive parts of at least `min` samples each: part k
-/// holds the k-th part of every log, named `LOG@k`.
+/// The logs cut into [`SEGMENTS`] consecutive parts of at least `min` samples each
+/// ([`crate::estimate::consistency::consecutive_parts`]).
 ///
 /// # Errors
 /// [`crate::Error::TooShort`] when a part would hold fewer than `min`.
 pub(crate) fn split_at_least(experiments: &[Experiment], min: usize) -> Result<Vec<Vec<Experiment>>> {
-    if let Some(short) = experiments.iter().find(|e| e.len() / SEGMENTS < min) {
-        return Err(crate::Error::TooShort {
-            name: short.name().to_string(),
-            len: short.len(),
-            min: SEGMENTS * min,
-        });
-    }
-    (0..SEGMENTS)
-        .map(|k| {
-            experiments
-                .iter()
-                .map(|e| {
-                    let n = e.len();
-                    let part = e.slice(k * n / SEGMENTS..(k + 1) * n / SEGMENTS)?;
-                    Ok(part.renamed(format!("{}@{}", e.name(), k + 1)))
-                })
-                .collect()
-        })
-        .collect()
+    crate::estimate::consistency::consecutive_parts(experiments, SEGMENTS, min)
 }

@@ -10,9 +10,12 @@
 //! against the map's 0.444 V s (+12 %) with ψ_f ± 0.6 %, and exit 0; the model family is too
 //! stiff for real maps at low current, and its residual alone could not say so.
 //!
-//! Held-out errors: the splines' leave-one-out residuals; the saturation model's by 5-fold
-//! cross-validation (refitted at the chosen exponents without each fifth of the points).
+//! Held-out errors: both models by the same 5-fold cross-validation (the saturation model
+//! refitted at its chosen exponents, the splines at their knot intervals, without each
+//! fifth of the points, the folds scattered over the map by a hash of the point's index);
+//! the splines' knot intervals themselves chosen by leave-one-out.
 
+use super::flux_map_grid::Grid;
 use crate::data::{Channel, Experiment};
 use crate::error::Result;
 use crate::estimate::spline::SplineSurface;
@@ -40,7 +43,7 @@ pub type Figure = (f64, f64);
 pub enum MapModel {
     /// The saturation model (its coefficients are the fit's).
     Saturation,
-    /// Smoothing splines of `ψ_d` and `ψ_q`.
+    /// Regression splines (least-squares cubic B-splines) of `ψ_d` and `ψ_q`.
     Spline,
 }
 
@@ -64,7 +67,8 @@ pub struct PointCheck {
 pub struct MapCheck {
     /// The model chosen by held-out error.
     pub chosen: MapModel,
-    /// RMS held-out flux error of the saturation model and of the splines \[V s\].
+    /// RMS held-out flux error (5-fold) of the saturation model and of the splines \[V s\]
+    /// (∞ when a fold's fit failed).
     pub held_out_rms: [f64; 2],
     /// The splines (ψ_d, ψ_q), when they could be fitted.
     pub splines: Option<[SplineSurface; 2]>,
@@ -77,64 +81,6 @@ pub struct MapCheck {
     pub points: Vec<PointCheck>,
     /// Untrusted warnings: `no_load_flux`, `inductance_mismatch`.
     pub warnings: Vec<Warning>,
-}
-
-/// The map's points as a grid `ψ[j][k]` at `i_d = d[j]`, `i_q = q[k]`, when they form one.
-struct Grid {
-    d: Vec<f64>,
-    q: Vec<f64>,
-    psi: Vec<Vec<[f64; 2]>>,
-}
-
-impl Grid {
-    /// The grid of the points, or `None` when they are not a full grid.
-    fn of(i: &[[f64; 2]], psi: &[[f64; 2]]) -> Option<Self> {
-        let axis = |k: usize| {
-            let mut v: Vec<f64> = i.iter().map(|p| p[k]).collect();
-            v.sort_by(f64::total_cmp);
-            v.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * (1.0 + b.abs()));
-            v
-        };
-        let (d, q) = (axis(0), axis(1));
-        if d.len() * q.len() != i.len() || d.len() < 2 || q.len() < 2 {
-            return None;
-        }
-        let at = |v: &[f64], x: f64| v.iter().position(|a| (a - x).abs() <= 1e-9 * (1.0 + x.abs()));
-        let mut grid = vec![vec![[f64::NAN; 2]; q.len()]; d.len()];
-        for (p, s) in i.iter().zip(psi) {
-            grid[at(&d, p[0])?][at(&q, p[1])?] = *s;
-        }
-        grid.iter().flatten().all(|s| s[0].is_finite()).then_some(Self { d, q, psi: grid })
-    }
-
-    /// The index of `x` on axis `v`, if it is a grid value.
-    fn index(v: &[f64], x: f64) -> Option<usize> {
-        v.iter().position(|a| (a - x).abs() <= 1e-9 * (1.0 + x.abs()))
-    }
-
-    /// Central differences `[∂ψ_d/∂i_d, ∂ψ_q/∂i_q, ∂ψ_d/∂i_q]` at grid point `p` (one-sided
-    /// at the grid's edges) of the flux `psi` at the grid's currents: the map's own, or a
-    /// model's on the same stencil.
-    fn differences(&self, p: [f64; 2], psi: &dyn Fn([f64; 2]) -> Option<[f64; 2]>) -> Option<[f64; 3]> {
-        let (j, k) = (Self::index(&self.d, p[0])?, Self::index(&self.q, p[1])?);
-        let span = |n: usize, x: usize| (x.saturating_sub(1), (x + 1).min(n - 1));
-        let ((j0, j1), (k0, k1)) = (span(self.d.len(), j), span(self.q.len(), k));
-        let at = |a: usize, b: usize| psi([self.d[a], self.q[b]]);
-        let dd = (at(j1, k)?[0] - at(j0, k)?[0]) / (self.d[j1] - self.d[j0]);
-        let qq = (at(j, k1)?[1] - at(j, k0)?[1]) / (self.q[k1] - self.q[k0]);
-        let dq = (at(j, k1)?[0] - at(j, k0)?[0]) / (self.q[k1] - self.q[k0]);
-        Some([dd, qq, dq])
-    }
-
-    /// The map's flux at a grid current.
-    fn psi(&self, p: [f64; 2]) -> Option<[f64; 2]> {
-        Some(self.psi[Self::index(&self.d, p[0])?][Self::index(&self.q, p[1])?])
-    }
-
-    /// The grid value of axis `v` nearest `x`.
-    fn nearest(v: &[f64], x: f64) -> f64 {
-        v.iter().copied().min_by(|a, b| (a - x).abs().total_cmp(&(b - x).abs())).unwrap_or(x)
-    }
 }
 
 /// `g(θ)` and its standard error by the delta method, the gradient by central differences
@@ -175,6 +121,12 @@ fn delta(result: &FitResult, g: &dyn Fn(&[f64]) -> Option<f64>) -> Option<Figure
     Some((v, var.max(0.0).sqrt()))
 }
 
+/// The fold of point `k`: a multiplicative hash, so that no fold is a whole row or column
+/// of a map's grid.
+fn fold(k: usize) -> usize {
+    ((k as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 32) as usize % FOLDS
+}
+
 /// The saturation model's rms flux error over the points each fold leaves out, refitted at
 /// exponents `e` from `result`'s estimate without them \[V s\] (`None` when a fold fails).
 fn cross_validated(map: &Experiment, e: SaturationExponents, result: &FitResult) -> Option<f64> {
@@ -182,7 +134,7 @@ fn cross_validated(map: &Experiment, e: SaturationExponents, result: &FitResult)
     let names = ["i_d", "i_q", "psi_d", "psi_q"];
     let (mut sse, mut count) = (0.0, 0usize);
     for f in 0..FOLDS {
-        let keep = |k: &usize| k % FOLDS != f;
+        let keep = |k: &usize| fold(*k) != f;
         let channels: Vec<Channel> = names
             .iter()
             .map(|n| {
@@ -228,8 +180,13 @@ pub(crate) fn check(
     let splines = SplineSurface::fit_chosen(&i, psi_d)
         .and_then(|d| Ok([d, SplineSurface::fit_chosen(&i, psi_q)?]))
         .ok();
-    let spline_rms =
-        splines.as_ref().map_or(f64::INFINITY, |[d, q]| d.held_out_rms.hypot(q.held_out_rms) / 2f64.sqrt());
+    let spline_rms = splines
+        .as_ref()
+        .and_then(|[d, q]| {
+            let cv = |s: &SplineSurface, z: &[f64]| s.cross_validated(&i, z, FOLDS, &fold);
+            Some(cv(d, psi_d)?.hypot(cv(q, psi_q)?) / 2f64.sqrt())
+        })
+        .unwrap_or(f64::INFINITY);
     let model_rms = cross_validated(map, e, result).unwrap_or(f64::INFINITY);
     let chosen = if spline_rms < model_rms { MapModel::Spline } else { MapModel::Saturation };
     let flux =
@@ -338,15 +295,15 @@ impl std::fmt::Display for MapCheck {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let [model, spline] = self.held_out_rms;
         let knots = self.splines.as_ref().map_or(String::new(), |[d, q]| {
-            format!(" (knot intervals ψ_d {}×{}, ψ_q {}×{})", d.x.1, d.y.1, q.x.1, q.y.1)
+            format!(" (knot intervals by leave-one-out: ψ_d {}×{}, ψ_q {}×{})", d.x.1, d.y.1, q.x.1, q.y.1)
         });
         writeln!(
             f,
-            "\nheld-out flux error (rms): saturation model {model:.3e} V s ({FOLDS}-fold), splines {spline:.3e} V s \
-             (leave-one-out){knots}: the figures below are the {}'s",
+            "\nheld-out flux error (rms, the same {FOLDS} folds): saturation model {model:.3e} V s, regression splines \
+             {spline:.3e} V s{knots}: the figures below are the {}",
             match self.chosen {
-                MapModel::Saturation => "saturation model",
-                MapModel::Spline => "spline",
+                MapModel::Saturation => "saturation model's",
+                MapModel::Spline => "regression splines'",
             }
         )?;
         let ci = |x: Figure| format!("{:.4} ± {:.4}", x.0, 1.96 * x.1);

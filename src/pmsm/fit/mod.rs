@@ -7,6 +7,7 @@ mod base;
 mod beside;
 pub(super) mod flux_map;
 pub(super) mod flux_map_check;
+mod flux_map_grid;
 mod friction;
 pub(super) mod hold;
 mod holds;

@@ -181,6 +181,7 @@ fn gate(est: &SteadyEstimate, report: &FitResult) -> Vec<crate::estimate::Warnin
              and whether the log is a fast one (its currents resolved between samples: the dynamic model)"
                 .into(),
         ),
+        parts: None,
     };
     crate::estimate::gate::warnings(&report.solver, &report.parameters, &report.fit, &evidence)
 }
@@ -222,9 +223,15 @@ fn report(
         })
         .collect();
     let cov = DMatrix::from_fn(n, n, |a, b| est.correlation[a][b] * est.std_error[a] * est.std_error[b]);
+    // Relative information: by θ; the period term by the larger of its estimate and its
+    // standard error (its estimate is about 0 on a log whose voltage is held in dq).
+    let size = |j: usize| match est.names[j] == PERIOD_TERM {
+        true => est.theta[j].abs().max(est.std_error[j]),
+        false => est.theta[j],
+    };
     let info_rel = cov
         .try_inverse()
-        .map(|m| DMatrix::from_fn(n, n, |a, b| m[(a, b)] * est.theta[a] * est.theta[b]))
+        .map(|m| DMatrix::from_fn(n, n, |a, b| m[(a, b)] * size(a) * size(b)))
         .unwrap_or_else(|| DMatrix::from_element(n, n, f64::NAN));
     let labels: Vec<String> = (0..n).map(label).collect();
     let kind = est.kind;
@@ -255,12 +262,9 @@ fn report(
         counted: None,
         horizon: None,
     };
-    let reason = Termination::StepTolerance;
+    let reason = if est.converged { Termination::StepTolerance } else { Termination::MaxIterations };
     let hc = est.control_period.map_or_else(
-        || {
-            "continuous (no --control-period: the control period's first-order effect estimated, see below)"
-                .into()
-        },
+        || "continuous (no --control-period: see the note on the control period)".into(),
         |h| {
             format!(
                 "at the drive's control period {h:e} s (exact periodic steady state of the stator-held step)"
@@ -282,7 +286,7 @@ fn report(
             name: "iv".into(),
             iterations: est.iterations as u64,
             termination: reason.to_string(),
-            success: true,
+            success: est.converged,
             reason,
             evaluations: est.iterations as u64 + 1,
             accepted_iterations: est.iterations as u64,
@@ -357,7 +361,7 @@ const PERIOD_SHOWN: &str = "h_c";
 /// 0), its standard error by the delta method `se(h_c2)/(2 h_c)`, or `√se(h_c2)` when the
 /// estimate is not positive (the period one standard error of `h_c2` amounts to).
 fn control_period(p: ParameterEstimate) -> ParameterEstimate {
-    let root = |v: f64| v.max(0.0).sqrt();
+    let root = |v: f64| if v.is_nan() { v } else { v.max(0.0).sqrt() };
     let se = |s: f64| if p.value > 0.0 { s / (2.0 * p.value.sqrt()) } else { s.sqrt() };
     ParameterEstimate {
         name: PERIOD_SHOWN.into(),

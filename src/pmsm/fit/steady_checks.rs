@@ -49,8 +49,9 @@ pub(crate) fn warnings(
         let steady = &SteadyOptions { control_period: h_c.or(steady.control_period), ..steady.clone() };
         let fits: Vec<FitResult> = parts
             .iter()
-            .filter_map(|logs| steady_state(logs, options.pole_pairs, est.kind, steady).ok())
-            .map(|e| report(&e, experiments))
+            .filter_map(|logs| {
+                steady_state(logs, options.pole_pairs, est.kind, steady).ok().map(|e| report(&e, logs))
+            })
             .collect();
         if let Some(detail) = disagreement(&fits, EQUATIONS_ACCURACY) {
             out.push(Warning::untrusted(
@@ -76,10 +77,13 @@ pub(crate) fn warnings(
 /// [`SALIENCY`] and [`SALIENT_Z`] standard errors apart.
 fn salient(experiments: &[Experiment], options: &PmsmFitOptions, steady: &SteadyOptions) -> Option<Warning> {
     let ipm = steady_state(experiments, options.pole_pairs, MotorKind::Ipm, steady).ok()?;
-    let (l_d, s_d) = ipm.interval("l_d").map(|(v, _)| (v, se(&ipm, "l_d")))?;
-    let (l_q, s_q) = ipm.interval("l_q").map(|(v, _)| (v, se(&ipm, "l_q")))?;
+    let at = |name: &str| ipm.names.iter().position(|n| n == name);
+    let (d, q) = (at("l_d")?, at("l_q")?);
+    let (l_d, l_q, s_d, s_q) = (ipm.theta[d], ipm.theta[q], ipm.std_error[d], ipm.std_error[q]);
     let apart = (l_d - l_q).abs() / l_d.abs().max(l_q.abs());
-    let z = (l_d - l_q).abs() / s_d.hypot(s_q);
+    // The difference's standard error with the estimates' correlation.
+    let var = s_d * s_d + s_q * s_q - 2.0 * ipm.correlation[d][q] * s_d * s_q;
+    let z = (l_d - l_q).abs() / var.max(0.0).sqrt();
     (apart > SALIENCY && z > SALIENT_Z).then(|| {
         Warning::untrusted(
             "salient",
@@ -91,9 +95,4 @@ fn salient(experiments: &[Experiment], options: &PmsmFitOptions, steady: &Steady
             ),
         )
     })
-}
-
-/// The standard error of parameter `name` of `est` (NaN when absent).
-fn se(est: &SteadyEstimate, name: &str) -> f64 {
-    est.names.iter().position(|n| n == name).map_or(f64::NAN, |i| est.std_error[i])
 }

@@ -1,14 +1,17 @@
-//! The steady-state fit of slow logs (issue 32, part 2): the dq voltage equations without
-//! the derivative term, for logs whose sample time is long against the electrical time
-//! constant L/R (a host logger at 100 Hz or 2 Hz), where the exact sampled-data model
-//! cannot follow the currents between samples.
+//! The steady-state fit of slow logs (issues 32 and 43): the dq voltage equations with the
+//! currents' drift at the log's rate, for logs whose sample time is long against the
+//! electrical time constant L/R (a host logger at 100 Hz or 2 Hz), where the exact
+//! sampled-data model cannot follow the currents between samples.
 //!
 //! ```text
-//! u_d = R_s i_d − ω_e L_q i_q
-//! u_q = R_s i_q + ω_e (L_d i_d + ψ_f),   ω_e ψ_f = √(2/3) ω_m K_e  (MODEL.md, K_e = √(3/2) n_p ψ_f)
-//! SPM, θ = (R_s, L_s, K_e):        d [ i_d, −ω_e i_q, 0 ]     q [ i_q, ω_e i_d, √(2/3) ω_m ]
-//! IPM, θ = (R_s, L_d, L_q, K_e):   d [ i_d, 0, −ω_e i_q, 0 ]  q [ i_q, ω_e i_d, 0, √(2/3) ω_m ]
+//! u_d = R_s i_d + L_d di_d/dt − ω_e L_q i_q
+//! u_q = R_s i_q + L_q di_q/dt + ω_e (L_d i_d + ψ_f),   ω_e ψ_f = √(2/3) ω_m K_e  (MODEL.md, K_e = √(3/2) n_p ψ_f)
+//! SPM, θ = (R_s, L_s, K_e):        d [ i_d, di_d/dt − ω_e i_q, 0 ]     q [ i_q, di_q/dt + ω_e i_d, √(2/3) ω_m ]
+//! IPM, θ = (R_s, L_d, L_q, K_e):   d [ i_d, di_d/dt, −ω_e i_q, 0 ]     q [ i_q, ω_e i_d, di_q/dt, √(2/3) ω_m ]
 //! ```
+//!
+//! and, without `--control-period`, the nuisance `h_c2 = h_c²` \[s²\] of the control
+//! period's first-order effect ([`super::steady_model`]).
 //!
 //! One d and one q row per *steady* sample k: the samples are point samples (a logger
 //! reads the drive's latest values), and the equations (with the currents' drift `L di/dt`
@@ -33,7 +36,7 @@
 //! (blocks short enough for 32 batches on a short log).
 
 use super::steady_model::SteadyLog;
-pub use super::steady_solve::PERIOD_TERM;
+pub use super::steady_solve::{PERIOD_TERM, SteadyOptions};
 use super::steady_solve::{Solved, period_note, solve};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
@@ -42,43 +45,6 @@ use crate::pmsm::log::signals::{DqView, check_pole_pairs};
 use crate::pmsm::model::kind::MotorKind;
 use serde::{Deserialize, Serialize};
 use std::fmt;
-
-/// Options of [`steady_state`]. Plain data with defaults; serialisable.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
-pub struct SteadyOptions {
-    /// A sample is steady when each current's second difference is at most this many
-    /// `√6 σ_i` (σ_i the current's noise, estimated per experiment). Default 4: a smooth
-    /// sample is rejected with probability ≈ 6e-5 per current.
-    pub steady_sigmas: f64,
-    /// Floor of the change allowed \[A\] relative to the peak current, for noise-free logs
-    /// (σ_i = 0). Default 1e-4.
-    pub relative_floor: f64,
-    /// The drive's control (PWM) period h_c \[s\], when known: the point-sampled currents
-    /// are then related to the period-mean voltage exactly (the periodic steady state of
-    /// the stator-held step, MODEL.md §4); `None`: the continuous equations with the
-    /// period's first-order effect (a back-EMF low by `(ω_e h_c)²/12`) estimated as the
-    /// nuisance parameter `h_c2 = h_c²`, or neglected where the steady samples' speeds
-    /// cannot tell it from K_e (one speed).
-    pub control_period: Option<f64>,
-    /// Parameters estimated per log (by name, e.g. `r_s` for a winding temperature per
-    /// log), the others shared.
-    pub per_experiment: Vec<String>,
-    /// Known series (cable) resistance \[Ω\], taken out of `r_s`.
-    pub cable_resistance: f64,
-}
-
-impl Default for SteadyOptions {
-    fn default() -> Self {
-        Self {
-            steady_sigmas: 4.0,
-            relative_floor: 1e-4,
-            control_period: None,
-            per_experiment: Vec::new(),
-            cable_resistance: 0.0,
-        }
-    }
-}
 
 /// The result of [`steady_state`].
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -93,11 +59,15 @@ pub struct SteadyEstimate {
     /// IV iterations made (the small terms of the period and the exact control period's
     /// equations are evaluated at the previous estimate).
     pub iterations: usize,
+    /// Whether the iteration's step fell below its tolerance (else it stopped at its
+    /// iteration limit: the fit is reported as not converged).
+    #[serde(default = "converged_default")]
+    pub converged: bool,
     /// The control period the equations assumed \[s\] (`None`: estimated or neglected).
     pub control_period: Option<f64>,
     /// Parameter units, length n_θ.
     pub units: Vec<String>,
-    /// Estimates θ̂ \[Ω, H, V s/rad\], length n_θ.
+    /// Estimates θ̂ \[Ω, H, V s/rad; s² for `h_c2`\], length n_θ.
     pub theta: Vec<f64>,
     /// Standard errors of θ̂ (units of θ̂), length n_θ.
     pub std_error: Vec<f64>,
@@ -105,7 +75,7 @@ pub struct SteadyEstimate {
     pub ci95: Vec<f64>,
     /// How the covariance was formed.
     pub uncertainty: Uncertainty,
-    /// Samples used (steady, with steady neighbours), all experiments.
+    /// Samples used (smooth, with samples k ± 2 in the log), all experiments.
     pub steady_samples: usize,
     /// Samples in all experiments.
     pub samples: usize,
@@ -124,6 +94,11 @@ pub struct SteadyEstimate {
     /// What the steady samples cannot tell (a parameter whose relative standard error
     /// exceeds [`UNIDENTIFIABLE`], with the reason in the motor's terms).
     pub notes: Vec<String>,
+}
+
+/// Reports written before the field existed converged.
+fn converged_default() -> bool {
+    true
 }
 
 /// Relative standard error above which a parameter is named not identifiable at steady state.
@@ -148,7 +123,7 @@ impl fmt::Display for SteadyEstimate {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "steady-state {} ({} of {} samples steady; instruments: neighbouring samples; covariance {:?})",
+            "steady-state {} ({} of {} samples smooth; instruments: samples k ± 2; covariance {:?})",
             self.kind.model_name(),
             self.steady_samples,
             self.samples,
@@ -275,7 +250,7 @@ pub fn steady_state(
         true => solve(&mut logs, experiments, n_p, kind, options, false)?,
         false => solved,
     };
-    let Solved { names, experiment, theta, cov, sums, iterations, period } = solved;
+    let Solved { names, experiment, theta, cov, sums, iterations, converged, period } = solved;
     let nth = names.len();
     let t = cov.t_quantile();
     let std_error: Vec<f64> = (0..nth).map(|i| cov.cov[(i, i)].max(0.0).sqrt()).collect();
@@ -295,6 +270,7 @@ pub fn steady_state(
         names,
         experiment,
         iterations,
+        converged,
         control_period: options.control_period,
         theta,
         std_error,

@@ -3,11 +3,48 @@
 //! choice to estimate the control period's first-order effect (`h_c2`) or neglect it where
 //! one speed cannot tell it from K_e.
 
-use super::steady::SteadyOptions;
 use super::steady_model::{SteadyEquations, SteadyLog};
 use crate::data::Experiment;
 use crate::error::Result;
 use crate::pmsm::model::kind::MotorKind;
+use serde::{Deserialize, Serialize};
+
+/// Options of [`steady_state`](super::steady_state). Plain data with defaults; serialisable.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SteadyOptions {
+    /// A sample is steady when each current's second difference is at most this many
+    /// `√6 σ_i` (σ_i the current's noise, estimated per experiment). Default 4: a smooth
+    /// sample is rejected with probability ≈ 6e-5 per current.
+    pub steady_sigmas: f64,
+    /// Floor of the second difference allowed, as a fraction of the peak current (so
+    /// \[A\] once multiplied by it), for noise-free logs (σ_i = 0). Default 1e-4.
+    pub relative_floor: f64,
+    /// The drive's control (PWM) period h_c \[s\], when known: the point-sampled currents
+    /// are then related to the period-mean voltage exactly (the periodic steady state of
+    /// the stator-held step, MODEL.md §4); `None`: the continuous equations with the
+    /// period's first-order effect (a back-EMF low by `(ω_e h_c)²/12`) estimated as the
+    /// nuisance parameter `h_c2 = h_c²`, or neglected where the steady samples' speeds
+    /// cannot tell it from K_e (one speed).
+    pub control_period: Option<f64>,
+    /// Parameters estimated per log (by name, e.g. `r_s` for a winding temperature per
+    /// log), the others shared.
+    pub per_experiment: Vec<String>,
+    /// Known series (cable) resistance \[Ω\], taken out of `r_s`.
+    pub cable_resistance: f64,
+}
+
+impl Default for SteadyOptions {
+    fn default() -> Self {
+        Self {
+            steady_sigmas: 4.0,
+            relative_floor: 1e-4,
+            control_period: None,
+            per_experiment: Vec::new(),
+            cable_resistance: 0.0,
+        }
+    }
+}
 
 /// The full parameter vector's names, logs and each log's columns: the model's parameters
 /// in order, a per-log one once per log where it stands.
@@ -39,6 +76,9 @@ fn layout(
 /// Most IV iterations (the small terms and the exact equations are nearly linear).
 const MAX_ITERATIONS: usize = 20;
 
+/// A step below this many standard errors of every parameter has converged too.
+const STEP_IN_ERRORS: f64 = 1e-3;
+
 /// Relative step below which the iteration has converged.
 const STEP_TOLERANCE: f64 = 1e-12;
 
@@ -68,6 +108,8 @@ pub(super) struct Solved {
     pub cov: crate::estimate::iv::IvCovariance,
     pub sums: crate::estimate::iv::IvSums,
     pub iterations: usize,
+    /// Whether the step fell below [`STEP_TOLERANCE`] before [`MAX_ITERATIONS`].
+    pub converged: bool,
     pub period: Period,
 }
 
@@ -120,7 +162,7 @@ pub(super) fn solve(
     let mut eq = SteadyEquations::new(kind, n_p, options.cable_resistance, None, estimate)?;
     let mut theta = vec![0.0; nth];
     let mut iterations = 0;
-    loop {
+    let converged = loop {
         let step = eq.sums(logs, &theta, block)?.step()?;
         theta.iter_mut().zip(step.iter()).for_each(|(t, s)| *t += s);
         iterations += 1;
@@ -128,12 +170,19 @@ pub(super) fn solve(
             eq = SteadyEquations::new(kind, n_p, options.cable_resistance, options.control_period, false)?;
             continue;
         }
-        let small =
+        let rounding =
             step.iter().zip(&theta).all(|(s, t)| s.abs() <= STEP_TOLERANCE * t.abs().max(f64::MIN_POSITIVE));
+        // Or a step within a small fraction of every standard error: converged for every
+        // purpose the interval serves (a short log's poorly determined period term makes
+        // the fixed point contract slowly near h_c2 = 0).
+        let small = rounding || {
+            let cov = eq.sums(logs, &theta, block)?.covariance()?;
+            step.iter().enumerate().all(|(j, s)| s.abs() <= STEP_IN_ERRORS * cov.cov[(j, j)].max(0.0).sqrt())
+        };
         if small || iterations >= MAX_ITERATIONS {
-            break;
+            break small;
         }
-    }
+    };
     let sums = eq.sums(logs, &theta, block)?;
     let cov = sums.covariance()?;
     let period = match (estimate, options.control_period) {
@@ -141,7 +190,7 @@ pub(super) fn solve(
         (false, Some(_)) => Period::Given,
         (false, None) => Period::Neglected,
     };
-    Ok(Solved { names, experiment, theta, cov, sums, iterations, period })
+    Ok(Solved { names, experiment, theta, cov, sums, iterations, converged, period })
 }
 
 /// The note of the period term: the control period estimated, or why it was neglected.

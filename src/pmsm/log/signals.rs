@@ -28,9 +28,10 @@ pub mod channel {
     pub const U_Q_REF: &str = "uq_ref";
 }
 
-/// Fewest samples of a PMSM log: below this a fit of 3–4 parameters and 2 initial
-/// states from two outputs has too few residuals to say anything. Slow telemetry can be
-/// this short: every 5000th row of a 7 s log at 10 kHz holds 15.
+/// Fewest samples of a PMSM log: 16 residuals (two outputs) for at most 6 unknowns of a
+/// dynamic fit (3–4 parameters and 2 initial states), whose intervals are then wide and
+/// say so. Slow telemetry can be this short: every 5000th row of a 7 s log at 10 kHz
+/// holds 15 (it was 16 before slow telemetry from drive cycles was fitted).
 pub const MIN_SAMPLES: usize = 8;
 
 /// Raw signals of one PMSM log before validation; all vectors have one entry per sample.
