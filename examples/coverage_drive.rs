@@ -16,14 +16,17 @@
 //! - (b) 1 V white noise on the logged voltages (errors in variables: output error is
 //!   biased; the table gives the bias against the standard error);
 //! - (c) AR(1) current noise with pole 0.9, stationary σ = 0.05 A;
-//! - (d) both (a) and (b).
+//! - (d) both (a) and (b);
+//! - (e) 1 V on the voltages and 0.03 A on the currents (issue 43's Monte Carlo).
 //!
-//! (a), (b) and (d) are fitted by output error (`pem`, the default) and by instrumental
-//! variables (`iv`, `--method iv`).
+//! (a), (b), (d) and (e) are fitted by output error (`pem`, `--method pem`) and by
+//! instrumental variables (`iv`, `--method iv`); (b), (d) and (e) also by the default
+//! `auto` (output error, or instrumental variables where its fit finds the voltage noise
+//! biasing it: `voltage_noise_bias`).
 
 use greybox::drive::{SPM_MOTOR, scenario, simulate_drive};
 use greybox::estimate::{CovarianceMethod, FitResult};
-use greybox::pmsm::{Estimator, PmsmFitOptions, fit_pmsm, fit_pmsm_iv};
+use greybox::pmsm::{Estimator, PmsmFitOptions, fit_pmsm_by};
 use rayon::prelude::*;
 
 const NAMES: [&str; 3] = ["r_s", "l_s", "k_e"];
@@ -37,6 +40,7 @@ struct Case {
 
 const PEM: Estimator = Estimator::PredictionError;
 const IV: Estimator = Estimator::InstrumentalVariables;
+const AUTO: Estimator = Estimator::Auto;
 
 fn white_u(c: &mut greybox::drive::DriveConfig) {
     c.sensors.voltage_noise = 1.0;
@@ -47,11 +51,17 @@ fn both(c: &mut greybox::drive::DriveConfig) {
     c.sensors.current_noise = 0.05;
 }
 
-const CASES: [Case; 7] = [
+fn issue_43(c: &mut greybox::drive::DriveConfig) {
+    c.sensors.voltage_noise = 1.0;
+    c.sensors.current_noise = 0.03;
+}
+
+const CASES: [Case; 12] = [
     Case { label: "(a) white i, pem", set: |c| c.sensors.current_noise = 0.05, estimator: PEM },
     Case { label: "(a) white i, iv", set: |c| c.sensors.current_noise = 0.05, estimator: IV },
     Case { label: "(b) white u, pem", set: white_u, estimator: PEM },
     Case { label: "(b) white u, iv", set: white_u, estimator: IV },
+    Case { label: "(b) white u, auto", set: white_u, estimator: AUTO },
     Case {
         label: "(c) AR(1) i, pem",
         set: |c| {
@@ -62,6 +72,10 @@ const CASES: [Case; 7] = [
     },
     Case { label: "(d) u + i, pem", set: both, estimator: PEM },
     Case { label: "(d) u + i, iv", set: both, estimator: IV },
+    Case { label: "(d) u + i, auto", set: both, estimator: AUTO },
+    Case { label: "(e) 1 V + 0.03 A, pem", set: issue_43, estimator: PEM },
+    Case { label: "(e) 1 V + 0.03 A, iv", set: issue_43, estimator: IV },
+    Case { label: "(e) 1 V + 0.03 A, auto", set: issue_43, estimator: AUTO },
 ];
 
 fn fit_one(case: &Case, seed: u64, duration: f64) -> greybox::Result<(FitResult, [f64; 3])> {
@@ -73,10 +87,7 @@ fn fit_one(case: &Case, seed: u64, duration: f64) -> greybox::Result<(FitResult,
     let m = log.truth.start;
     let truth = [m.r_s, m.l_d, log.truth.k_e];
     let opts = PmsmFitOptions::new(m.n_p);
-    let fit = match case.estimator {
-        Estimator::PredictionError => fit_pmsm(&[log.experiment], &opts)?,
-        Estimator::InstrumentalVariables => fit_pmsm_iv(&[log.experiment], &opts)?,
-    };
+    let fit = fit_pmsm_by(&[log.experiment], &opts, case.estimator)?;
     Ok((fit.report, truth))
 }
 
@@ -89,7 +100,7 @@ fn main() -> greybox::Result<()> {
     let band = 1.96 * (0.95f64 * 0.05 / realisations as f64).sqrt() * 100.0;
     println!("exp3, {duration} s, {realisations} realisations; coverage expected 95 ± {band:.1} %");
     println!(
-        "{:<20} {:<5} {:>11} {:>10} {:>10} {:>10} {:>6} {:>9} {:>9} {:>9}",
+        "{:<24} {:<5} {:>11} {:>10} {:>10} {:>10} {:>6} {:>9} {:>9} {:>9}",
         "case",
         "param",
         "bias/truth",
@@ -123,7 +134,7 @@ fn main() -> greybox::Result<()> {
             let se_white = rows.iter().map(|r| r.2).sum::<f64>() / n;
             let hits = rows.iter().filter(|r| r.3).count();
             println!(
-                "{:<20} {:<5} {:>+11.2e} {:>10.3e} {:>10.3e} {:>10.3e} {:>6.2} {:>8.1} % {:>+9.2} {:>9}",
+                "{:<24} {:<5} {:>+11.2e} {:>10.3e} {:>10.3e} {:>10.3e} {:>6.2} {:>8.1} % {:>+9.2} {:>9}",
                 case.label,
                 name,
                 bias / truth,

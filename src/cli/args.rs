@@ -153,10 +153,12 @@ pub struct FitArgs {
     #[arg(help_heading = "Estimator", long)]
     pub prefilter: Option<f64>,
     /// Estimation method: prediction error (pem), the linear least-squares regression of
-    /// the voltage equations (ls; weighted by --weighting, filtered by --prefilter), or
+    /// the voltage equations (ls; weighted by --weighting, filtered by --prefilter),
     /// instrumental variables on the exact inverse model (iv: for noise on the logged
-    /// voltage or current, errors in variables; terminal voltage).
-    #[arg(help_heading = "Estimator", long, value_enum, default_value_t = MethodArg::Pem)]
+    /// voltage or current, errors in variables; terminal voltage), or pem unless its fit
+    /// finds the logged voltage's noise biasing it (voltage_noise_bias), then iv where the
+    /// options allow it (auto).
+    #[arg(help_heading = "Estimator", long, value_enum, default_value_t = MethodArg::Auto)]
     pub method: MethodArg,
     /// Maximum number of solver iterations.
     #[arg(help_heading = "Solver", long, default_value_t = Tolerances::default().max_iters)]

@@ -4,20 +4,41 @@
 
 use super::output;
 use crate::Error;
-use crate::pmsm::{FluxMapOptions, SaturationExponents, fit_flux_map, read_flux_map};
+use crate::data::Delimiter;
+use crate::pmsm::{
+    FluxMapColumns, FluxMapFit, FluxMapOptions, SaturationExponents, fit_flux_map, read_flux_map_with,
+};
 use clap::Args;
+use serde::Serialize;
 use std::path::PathBuf;
 
 /// Arguments of `greybox fluxmap`.
 #[derive(Args, Debug)]
 #[command(after_help = "A flux map is a NumPy .npz with the complex arrays i_s_dq [A] and psi_s_dq [V s] \
-(d + j q, amplitude-invariant), or a CSV with the columns i_d, i_q, psi_d, psi_q. See docs/saturation.md.")]
+(d + j q, amplitude-invariant), or a CSV (Parquet, Arrow) with one point per row and the columns i_d, i_q, psi_d, \
+psi_q (renamed with --col-*). Points with a missing value (empty, NaN) are left out and counted. See \
+docs/saturation.md.")]
 pub struct FluxMapArgs {
     /// The flux map (.npz or .csv[.gz]).
     pub map: PathBuf,
     /// The exponents S,T,U,V of the model (default: chosen from 1..9 × 1..9 × 0..2 × 0..2).
     #[arg(long, value_delimiter = ',', num_args = 4, value_name = "S,T,U,V")]
     pub exponents: Option<Vec<u32>>,
+    /// Column of the d-axis current [A, peak dq] in a CSV, Parquet or Arrow map.
+    #[arg(long, default_value = "i_d", value_name = "NAME")]
+    pub col_id: String,
+    /// Column of the q-axis current [A, peak dq].
+    #[arg(long, default_value = "i_q", value_name = "NAME")]
+    pub col_iq: String,
+    /// Column of the d-axis flux linkage [V s].
+    #[arg(long, default_value = "psi_d", value_name = "NAME")]
+    pub col_psid: String,
+    /// Column of the q-axis flux linkage [V s].
+    #[arg(long, default_value = "psi_q", value_name = "NAME")]
+    pub col_psiq: String,
+    /// Field delimiter of a CSV map: `,` `;` `tab` (or `\t`) `|`.
+    #[arg(long, default_value = ",", value_parser = |s: &str| s.parse::<Delimiter>().map_err(|e| e.to_string()))]
+    pub delimiter: Delimiter,
     /// The report's outputs.
     #[command(flatten)]
     pub report: output::ReportArgs,
@@ -41,10 +62,54 @@ pub fn run_fluxmap(a: &FluxMapArgs) -> crate::Result<bool> {
 /// As [`run_fluxmap`] but for the output.
 pub fn fluxmap_outcome(a: &FluxMapArgs) -> crate::Result<output::Outcome> {
     let exponents = a.exponents.as_deref().map(parse_exponents).transpose()?;
-    let map = read_flux_map(&a.map)?;
-    let fit = fit_flux_map(&map, &FluxMapOptions { exponents, ..Default::default() })?;
+    let columns = FluxMapColumns {
+        i_d: a.col_id.clone(),
+        i_q: a.col_iq.clone(),
+        psi_d: a.col_psid.clone(),
+        psi_q: a.col_psiq.clone(),
+        delimiter: a.delimiter,
+    };
+    let read = read_flux_map_with(&a.map, &columns).map_err(|e| match e {
+        Error::MissingColumn { column, available, .. } => Error::InvalidOption {
+            option: flag_of(&columns, &column).into(),
+            reason: format!(
+                "no column `{column}` in the map's header ({available}): name the column with this flag"
+            ),
+        },
+        e => e,
+    })?;
+    let fit = fit_flux_map(&read.map, &FluxMapOptions { exponents, ..Default::default() })?;
     let untrusted = fit.check.iter().flat_map(|c| &c.warnings).map(|w| w.code.clone()).collect();
-    Ok(output::Outcome::new(fit.to_string(), &fit, untrusted))
+    let mut text = String::new();
+    if let Some(first) = read.first_skipped {
+        text = format!(
+            "{} of the map's {} points left out for a missing value (empty, NaN or inf), the first at point {first}\n",
+            read.skipped,
+            read.skipped + read.map.len()
+        );
+    }
+    text += &fit.to_string();
+    let report = Report { skipped_points: read.skipped, fit: &fit };
+    Ok(output::Outcome::new(text, &report, untrusted))
+}
+
+/// The JSON report of `greybox fluxmap`: the fit and the points the reader left out.
+#[derive(Serialize)]
+struct Report<'a> {
+    /// Points left out for a missing value.
+    skipped_points: usize,
+    #[serde(flatten)]
+    fit: &'a FluxMapFit,
+}
+
+/// The `--col-*` flag of the map column `column`.
+fn flag_of(c: &FluxMapColumns, column: &str) -> &'static str {
+    match column {
+        x if x == c.i_d => "--col-id",
+        x if x == c.i_q => "--col-iq",
+        x if x == c.psi_d => "--col-psid",
+        _ => "--col-psiq",
+    }
 }
 
 /// The exponents `S,T,U,V` of `--exponents`.

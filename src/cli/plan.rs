@@ -8,7 +8,7 @@ use crate::estimate::{FitResult, PemOptions, SolverKind, Timing, Tolerances};
 use crate::pmsm::ReportOptions;
 use crate::pmsm::{
     CsvOptions, DqSource, Estimator, Frame, HoldChoice, InputSearch, InverterModel, MotorKind, PmsmFit,
-    PmsmFitOptions, ThermalReference, VoltageInput, fit_estimating_input, fit_pmsm, fit_pmsm_iv,
+    PmsmFitOptions, ThermalReference, VoltageInput, fit_estimating_input, fit_pmsm_by,
 };
 use std::time::Instant;
 
@@ -33,7 +33,7 @@ pub struct Plan {
 /// one, and the timing from `t0` with the `read_s` seconds it took to read the logs.
 ///
 /// # Errors
-/// Those of [`fit_pmsm`], [`fit_estimating_input`] and the pole-pair choice.
+/// Those of [`fit_pmsm`](crate::pmsm::fit_pmsm), [`fit_estimating_input`] and the pole-pair choice.
 pub fn fit_logs(
     pole_pairs_arg: PolePairs,
     options: &PmsmFitOptions,
@@ -47,10 +47,8 @@ pub fn fit_logs(
     let options = PmsmFitOptions { pole_pairs: n_p, ..options.clone() };
     let fit = if search.delay || search.advance || search.speed_pll || search.dead_time_width {
         fit_estimating_input(logs, &options, search)?
-    } else if estimator == Estimator::InstrumentalVariables {
-        fit_pmsm_iv(logs, &options)?
     } else {
-        fit_pmsm(logs, &options)?
+        fit_pmsm_by(logs, &options, estimator)?
     };
     let timing = Timing { read_s, total_s: t0.elapsed().as_secs_f64(), ..fit.report.timing.clone() };
     let pmsm_notes = fit.pmsm_notes.iter().cloned().chain(auto_note).collect();
@@ -209,6 +207,7 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
     };
     let estimator = match a.method {
         MethodArg::Iv => Estimator::InstrumentalVariables,
+        MethodArg::Auto => Estimator::Auto,
         _ => Estimator::PredictionError,
     };
     if estimator == Estimator::InstrumentalVariables {

@@ -25,12 +25,14 @@ pub enum FormatArg {
     Markdown,
 }
 
-/// The estimation method (`--method`): prediction error (`pem`), linear least squares
-/// (`ls`), instrumental variables (`iv`).
+/// The estimation method (`--method`): prediction error, or instrumental variables where
+/// the logged voltage's noise biases it (`auto`), prediction error (`pem`), linear least
+/// squares (`ls`), instrumental variables (`iv`).
 // The values' clap docs would become `--help` text of their own: the enum's doc says them.
 #[allow(missing_docs)]
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum MethodArg {
+    Auto,
     Pem,
     Ls,
     Iv,

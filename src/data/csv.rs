@@ -78,5 +78,21 @@ pub fn read_table_with(
     delimiter: Delimiter,
     time: TimeCheck,
 ) -> Result<Table> {
-    read::read(path.as_ref(), wanted, limits, delimiter, time)
+    read::read(path.as_ref(), wanted, limits, delimiter, time, false)
+}
+
+/// As [`read_table_with`] with [`TimeCheck::Skip`], except that a wanted cell that is empty,
+/// `nan` or ±`inf` reads as NaN instead of an error: for a table whose caller drops its
+/// missing values and counts them (a measured flux map's unmeasured points).
+///
+/// # Errors
+/// Those of [`read_table_with`] but for [`Error::NonFinite`](crate::Error::NonFinite) and
+/// [`Error::NonUniformTime`](crate::Error::NonUniformTime).
+pub fn read_table_with_missing(
+    path: impl AsRef<Path>,
+    wanted: &[(&str, bool)],
+    limits: &ReadLimits,
+    delimiter: Delimiter,
+) -> Result<Table> {
+    read::read(path.as_ref(), wanted, limits, delimiter, TimeCheck::Skip, true)
 }

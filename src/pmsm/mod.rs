@@ -35,12 +35,14 @@ pub use checks::detect::{
 pub use checks::limit::VoltageLimitWeighting;
 pub use checks::noise::NEGLIGIBLE_VOLTAGE_NOISE;
 pub use fit::auto_mask::FALLBACK_RELATIVE_THRESHOLD;
+pub use fit::auto_method::fit_pmsm_by;
 pub use fit::flux_map::{ExponentCandidate, FLUX_MAP_REFINED, FluxMapFit, FluxMapOptions, fit_flux_map};
 pub use fit::flux_map_check::{INDUCTANCE_WITHIN, MapCheck, MapModel, NO_LOAD_WITHIN, PointCheck};
-pub use fit::hold::{DQ_DECISIVE, SCREEN_DECISIVE};
+pub use fit::hold::{DQ_DECISIVE, HOLD_TIE_Z, SCREEN_DECISIVE};
 pub use fit::input_search::{ADVANCE_RANGE, DELAYS, InputSearch, SPEED_PLL_RANGE, fit_estimating_input};
 pub use fit::iv::{
     Estimator, IV_MAX_ITERATIONS, IV_STEP_TOLERANCE, check_options as check_iv_options, fit_pmsm_iv,
+    fit_pmsm_iv_after,
 };
 pub use fit::mechanics::{
     COULOMB_SPEED_RANGE, LOAD_TORQUE, MIN_WINDOWS, MechanicsFit, MechanicsOptions, fit_mechanics,
@@ -57,7 +59,7 @@ pub use linear::{
     LinearEstimate, LinearOptions, PERIOD_TERM, STEADY_UNIDENTIFIABLE, SteadyEstimate, SteadyOptions,
     least_squares, regressors, steady_advice, steady_state, weighted_least_squares,
 };
-pub use log::flux_map::{NPZ_ARRAYS, read_flux_map};
+pub use log::flux_map::{FluxMapColumns, FluxMapRead, NPZ_ARRAYS, read_flux_map, read_flux_map_with};
 pub use log::signals::{DqSignals, DqView, MAX_POLE_PAIRS, MIN_SAMPLES, PmsmError, channel};
 pub use log::transform::{
     clarke, currents_to_dq, inverse_clarke, inverse_park, park, stator_held_voltages_to_dq,

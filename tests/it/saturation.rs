@@ -134,7 +134,7 @@ fn linear_fit_drifts_with_load_and_the_saturated_fit_recovers_the_truth() {
 
 /// A flux map of `m` on the current grid i_d ∈ −20…20, i_q ∈ −26…26 (step 2 A), with
 /// Gaussian flux noise σ \[V s\].
-fn synthetic_map(m: &Saturation, sigma: f64, rng: &mut Rng) -> Experiment {
+pub(crate) fn synthetic_map(m: &Saturation, sigma: f64, rng: &mut Rng) -> Experiment {
     let mut cols = vec![Vec::new(); 4];
     for a in 0..21 {
         for b in 0..27 {
@@ -154,7 +154,7 @@ fn synthetic_map(m: &Saturation, sigma: f64, rng: &mut Rng) -> Experiment {
 
 /// A saturating machine in the flux map's range: the Baldor-like PM-assisted SyRM's order
 /// of magnitude (L_d0 ≈ 25 mH, L_q0 ≈ 140 mH, ψ_f = 0.45 V s).
-const MAP_MOTOR: Saturation = Saturation {
+pub(crate) const MAP_MOTOR: Saturation = Saturation {
     a_d0: 40.0,
     a_dd: 30.0,
     a_q0: 7.0,

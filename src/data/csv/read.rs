@@ -30,6 +30,8 @@ struct State<'a> {
     values: Vec<Vec<f64>>,
     /// The streaming check of the time column; `None` for [`TimeCheck::Skip`].
     time: Option<TimeSteps>,
+    /// Whether an empty or non-finite wanted cell reads as NaN (else it is an error).
+    missing: bool,
     rows: usize,
     /// `\n` merged, and the line of the next record (after the break that ended the last).
     newlines: u64,
@@ -48,6 +50,7 @@ pub(super) fn read(
     limits: &ReadLimits,
     delimiter: Delimiter,
     time: TimeCheck,
+    missing: bool,
 ) -> Result<Table> {
     let mut s = State {
         path,
@@ -58,6 +61,7 @@ pub(super) fn read(
         index: Vec::new(),
         values: vec![Vec::new(); wanted.len()],
         time: (time == TimeCheck::Streaming).then(|| TimeSteps::new(wanted.first().map_or("", |w| w.0))),
+        missing,
         rows: 0,
         newlines: 0,
         next_line: 1,
@@ -155,7 +159,8 @@ impl State<'_> {
             self.next_line = *base + rec.last_break.unwrap_or(0);
         }
         let index = self.index.clone();
-        let layout = Layout { fields: self.header.as_ref().map_or(0, Vec::len), index: &index };
+        let layout =
+            Layout { fields: self.header.as_ref().map_or(0, Vec::len), index: &index, missing: self.missing };
         let p = parse(rec, &chunk[pos..], eof, &layout, self.cap());
         let base = *base;
         self.merge(chunk.len() - pos, p, base)?;
@@ -167,7 +172,8 @@ impl State<'_> {
     /// them in order.
     fn batch(&mut self, batch: &[Vec<u8>]) -> Result<()> {
         let index = self.index.clone();
-        let layout = Layout { fields: self.header.as_ref().map_or(0, Vec::len), index: &index };
+        let layout =
+            Layout { fields: self.header.as_ref().map_or(0, Vec::len), index: &index, missing: self.missing };
         let d = self.delimiter.byte();
         let parse = |rec: &mut Records, chunk: &[u8], cap| parse(rec.reset(), chunk, true, &layout, cap);
         let cap = self.cap();

@@ -51,6 +51,8 @@ pub(super) struct Parsed {
 pub(super) struct Layout<'a> {
     pub fields: usize,
     pub index: &'a [Option<usize>],
+    /// Whether an empty or non-finite wanted field reads as NaN instead of an error.
+    pub missing: bool,
 }
 
 /// A `csv-core` parser fed input piece by piece, and its last record.
@@ -147,10 +149,12 @@ impl Records {
         for (column, idx) in columns.iter_mut().zip(layout.index) {
             let Some(idx) = *idx else { continue };
             let field = self.field(idx);
-            let Some(x) = parse_f64(field) else {
-                return Some(RecordError::Number { line, row, idx, cell: quote(field) });
+            let x = match parse_f64(field) {
+                Some(x) => x,
+                None if layout.missing && field.is_empty() => f64::NAN,
+                None => return Some(RecordError::Number { line, row, idx, cell: quote(field) }),
             };
-            if !x.is_finite() {
+            if !x.is_finite() && !layout.missing {
                 return Some(RecordError::NonFinite { row, idx, value: x });
             }
             column.push(x);

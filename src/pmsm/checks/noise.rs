@@ -19,15 +19,18 @@ use crate::pmsm::model::spm::PmsmSpm;
 /// digits, say) is not worth a word.
 pub const NEGLIGIBLE_VOLTAGE_NOISE: f64 = 1e-4;
 
-/// A notice (code `input_noise`) when the inverse model's voltage errors at θ = (r_s, l_s,
-/// k_e) of an SPM model driven by the terminal voltage are white in every log and not
-/// negligible, for a fit whose own residuals are not white; `None` otherwise, or for a log
-/// the inverse model cannot read.
-pub(crate) fn input_noise_notice(
-    experiments: &[Experiment],
-    setup: PmsmSetup,
-    theta: &[f64],
-) -> Option<Warning> {
+/// The inverse model's voltage errors at θ over every log: their sum of squares, the
+/// voltages' sum of squares, how many periods, and the errors' whiteness per axis.
+struct VoltageErrors {
+    sse: f64,
+    suu: f64,
+    n: usize,
+    whiteness: [metrics::Whiteness; 2],
+}
+
+/// [`VoltageErrors`] of an SPM model at θ = (r_s, l_s, k_e); `None` for a log the inverse
+/// model cannot read.
+fn voltage_errors(experiments: &[Experiment], setup: PmsmSetup, theta: &[f64]) -> Option<VoltageErrors> {
     let model = PmsmSpm::from_setup(setup);
     let (mut sse, mut suu, mut n) = (0.0, 0.0, 0usize);
     let mut lags = [Vec::new(), Vec::new()];
@@ -50,7 +53,44 @@ pub(crate) fn input_noise_notice(
             all.push(s.finish());
         }
     }
-    let whiteness = lags.map(|l| metrics::whiteness_of(&l));
+    Some(VoltageErrors { sse, suu, n, whiteness: lags.map(|l| metrics::whiteness_of(&l)) })
+}
+
+/// The white noise on the logged voltage, σ \[V\] per axis, read off the inverse model's
+/// voltage errors ε at θ of an SPM model (module documentation) by their autocovariances
+/// γ₀ … γ₃. ε holds the voltage noise (white, σ²), the currents' noise through the difference
+/// `(L/h)(n[k+1] − a n[k])` (lags 0 and 1 only, `γ₁ = −a c² σ_n²` with `a ≈ 1`) and the
+/// model's slow error (a smooth autocovariance `S (1 − c k² + …)`), so
+/// `σ² ≈ γ₀ + 2γ₁ − 5γ₂ + 2γ₃`, which is exact for the first two and cancels the third to
+/// its quartic term (a Gaussian-shaped error of correlation time T leaves `10.5 S/T⁴`).
+/// Returns `(σ, √γ₀, rms)`: the noise, the errors' RMS value and the voltages' per axis
+/// \[V\]; `None` for a log the inverse model cannot read.
+pub(crate) fn voltage_noise(
+    experiments: &[Experiment],
+    setup: PmsmSetup,
+    theta: &[f64],
+) -> Option<(f64, f64, f64)> {
+    let v = voltage_errors(experiments, setup, theta)?;
+    let m = (2 * v.n.max(1)) as f64;
+    let gamma_0 = v.sse / m;
+    // The axes' mean autocorrelation at `lag` ≥ 1 (the whiteness holds lags 1, 2, …).
+    let rho = |lag: usize| {
+        v.whiteness.iter().map(|w| w.autocorrelation.get(lag - 1).copied().unwrap_or(0.0)).sum::<f64>() / 2.0
+    };
+    let sigma_2 = gamma_0 * (1.0 + 2.0 * rho(1) - 5.0 * rho(2) + 2.0 * rho(3));
+    Some((sigma_2.max(0.0).sqrt(), gamma_0.sqrt(), (v.suu / m).sqrt()))
+}
+
+/// A notice (code `input_noise`) when the inverse model's voltage errors at θ = (r_s, l_s,
+/// k_e) of an SPM model driven by the terminal voltage are white in every log and not
+/// negligible, for a fit whose own residuals are not white; `None` otherwise, or for a log
+/// the inverse model cannot read.
+pub(crate) fn input_noise_notice(
+    experiments: &[Experiment],
+    setup: PmsmSetup,
+    theta: &[f64],
+) -> Option<Warning> {
+    let VoltageErrors { sse, suu, n, whiteness } = voltage_errors(experiments, setup, theta)?;
     let sigma = (sse / (2 * n.max(1)) as f64).sqrt();
     let rms = (suu / (2 * n.max(1)) as f64).sqrt();
     (whiteness.iter().all(|w| w.is_white(n)) && sigma > NEGLIGIBLE_VOLTAGE_NOISE * rms).then(|| {

@@ -43,33 +43,10 @@ pub(crate) fn warning(
     if s_d == 0.0 && s_q == 0.0 {
         return None;
     }
-    let fits: Option<Vec<FitResult>> = (0..REPLICATES)
-        .into_par_iter()
-        .map(|seed| {
-            let noisier = with_noise(experiments, s_d, s_q, seed)?;
-            refit(&noisier, options)
-        })
-        .collect();
-    let fits = fits?;
-    let shifts: Vec<(String, f64, f64)> = fit
-        .parameters
+    let biased: Vec<String> = simex_shifts(experiments, &[(I_D, s_d), (I_Q, s_q)], options, fit, refit)?
         .iter()
-        .filter(|p| !p.fixed && p.experiment.is_none() && p.std_error > 0.0 && p.std_error.is_finite())
-        .filter_map(|p| {
-            let moved: Vec<f64> = fits.iter().filter_map(|f| f.parameter(&p.name)).map(|q| q.value).collect();
-            (moved.len() == fits.len()).then(|| {
-                let shift = moved.iter().sum::<f64>() / moved.len() as f64 - p.value;
-                (p.name.clone(), shift, shift / p.std_error)
-            })
-        })
-        .collect();
-    let biased: Vec<String> = shifts
-        .iter()
-        .filter(|(_, _, z)| z.abs() > BIAS_Z)
-        .map(|(n, s, z)| {
-            let p = fit.parameter(n).map_or(f64::NAN, |p| p.value);
-            format!("{n} by {:+.2} % ({z:+.1} standard errors)", 100.0 * s / p)
-        })
+        .filter(|s| s.z.abs() > BIAS_Z)
+        .map(Shift::describe)
         .collect();
     if biased.is_empty() {
         return None;
@@ -86,6 +63,61 @@ pub(crate) fn warning(
     ))
 }
 
+/// How far one parameter moved when noise was added once more ([`simex_shifts`]).
+pub(crate) struct Shift {
+    /// The parameter.
+    pub name: String,
+    /// Its estimate \[its unit\].
+    pub value: f64,
+    /// The refits' mean shift from it \[its unit\].
+    pub shift: f64,
+    /// The shift in the fit's standard errors.
+    pub z: f64,
+}
+
+impl Shift {
+    /// `name by +x.xx % (+z.z standard errors)`.
+    pub fn describe(&self) -> String {
+        format!("{} by {:+.2} % ({:+.1} standard errors)", self.name, 100.0 * self.shift / self.value, self.z)
+    }
+}
+
+/// The first step of SIMEX (Cook & Stefanski 1994): the mean shift of every free, shared
+/// parameter of `fit` over [`REPLICATES`] refits of `experiments` with `options`, each with
+/// fresh white Gaussian noise of the standard deviations `noise` (`(channel, σ)`) added. For
+/// noise whose bias grows with its variance, the shift is about the bias itself. `None` when
+/// a refit fails or a log lacks a channel.
+pub(crate) fn simex_shifts(
+    experiments: &[Experiment],
+    noise: &[(&str, f64)],
+    options: &PmsmFitOptions,
+    fit: &FitResult,
+    refit: RefitReport<'_>,
+) -> Option<Vec<Shift>> {
+    let fits: Option<Vec<FitResult>> = (0..REPLICATES)
+        .into_par_iter()
+        .map(|seed| {
+            let noisier = with_noise(experiments, noise, seed)?;
+            refit(&noisier, options)
+        })
+        .collect();
+    let fits = fits?;
+    Some(
+        fit.parameters
+            .iter()
+            .filter(|p| !p.fixed && p.experiment.is_none() && p.std_error > 0.0 && p.std_error.is_finite())
+            .filter_map(|p| {
+                let moved: Vec<f64> =
+                    fits.iter().filter_map(|f| f.parameter(&p.name)).map(|q| q.value).collect();
+                (moved.len() == fits.len()).then(|| {
+                    let shift = moved.iter().sum::<f64>() / moved.len() as f64 - p.value;
+                    Shift { name: p.name.clone(), value: p.value, shift, z: shift / p.std_error }
+                })
+            })
+            .collect(),
+    )
+}
+
 /// The measurement noise σ \[A\] of output `name` read off a one-step fit's residuals,
 /// `√(−ρ₁) × rms` (0 when the lag-1 autocorrelation ρ₁ is not negative or not reported).
 fn sigma(fit: &FitResult, name: &str) -> f64 {
@@ -99,18 +131,19 @@ fn sigma(fit: &FitResult, name: &str) -> f64 {
     read().unwrap_or(0.0)
 }
 
-/// The logs with white Gaussian noise of standard deviations `s_d`, `s_q` \[A\] added to
-/// their dq currents (the same for a given `seed`). `None` when a log lacks them.
-fn with_noise(experiments: &[Experiment], s_d: f64, s_q: f64, seed: u64) -> Option<Vec<Experiment>> {
+/// The logs with white Gaussian noise of the standard deviations `noise` (`(channel, σ)`, σ in
+/// the channel's unit) added to those channels (the same for a given `seed`). `None` when a
+/// log lacks one.
+fn with_noise(experiments: &[Experiment], noise: &[(&str, f64)], seed: u64) -> Option<Vec<Experiment>> {
     let mut rng = ChaCha8Rng::seed_from_u64(0x5eed_0000 + seed);
     experiments
         .iter()
         .map(|e| {
             let mut e = e.clone();
-            for (name, s) in [(I_D, s_d), (I_Q, s_q)] {
-                let noise = Normal::new(0.0, s).ok()?;
+            for &(name, s) in noise {
+                let normal = Normal::new(0.0, s).ok()?;
                 let c = e.get(name)?;
-                let values: Vec<f64> = c.values.iter().map(|v| v + noise.sample(&mut rng)).collect();
+                let values: Vec<f64> = c.values.iter().map(|v| v + normal.sample(&mut rng)).collect();
                 let unit = c.unit.clone();
                 e = e.with_channel(Channel::new(name, unit, values)).ok()?;
             }

@@ -12,7 +12,7 @@
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::{CovarianceMethod, FitResult, Timing};
-use crate::pmsm::fit::hold::{DQ_DECISIVE, HoldFits, hold_ambiguity};
+use crate::pmsm::fit::hold::{DQ_DECISIVE, HOLD_TIE_Z, HoldFits, hold_ambiguity};
 use crate::pmsm::fit::report::delay_parameter;
 use crate::pmsm::fit::report::{PmsmFit, StartComparison};
 use crate::pmsm::model::interval::{VoltageHold, VoltageInput};
@@ -99,7 +99,7 @@ fn fit_beside(
         }
         (fitted, _) => fitted?,
     };
-    let HoldFits { best: (hold, best), others, losses, notes: hold_notes } = fits;
+    let HoldFits { best: (hold, best), others, losses, notes: hold_notes, tied } = fits;
     notes.extend(hold_notes);
     let pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
     // The regression sees the whole series resistance.
@@ -133,7 +133,14 @@ fn fit_beside(
                 "the dq hold, whose loss is more than {DQ_DECISIVE} times lower than the stator hold's although the \
                  log carries a modulator's reference"
             ),
-            (h, false) => format!("the {h} hold by the lower loss (no modulator reference in the log)"),
+            (h, false) => match tied {
+                Some(z) => format!(
+                    "the {h} hold: the holds' losses differ by no more than the residuals' noise explains ({z:.1} \
+                     of its standard deviations, below {HOLD_TIE_Z}), and an inverter holds its output in the stator \
+                     frame (no modulator reference in the log)"
+                ),
+                None => format!("the {h} hold by the lower loss (no modulator reference in the log)"),
+            },
         };
         notes.push(format!(
             "voltage hold chosen automatically: {why} (losses {})",
@@ -181,6 +188,17 @@ fn fit_beside(
         warnings.extend(crate::pmsm::checks::delay::warning(experiments, options, best.fit.loss, refit));
     }
     warnings.extend(setup_warnings.into_iter().flatten());
+    // Holds the noise ties whose estimates differ: the log cannot say which is right.
+    if let (Some(z), Some(advice)) = (tied, pmsm_advice.first()) {
+        warnings.push(crate::estimate::Warning::untrusted(
+            "hold_ambiguous",
+            format!(
+                "{advice}; their losses differ by {z:.1} standard deviations of the residuals' noise, so the \
+                 data cannot choose: give the hold (--hold stator for a drive's inverter, --hold dq for a \
+                 simulator that holds the dq voltage)"
+            ),
+        ));
+    }
     let plain = options.model == MotorKind::Spm
         && options.input == VoltageInput::Terminal
         && options.inverter.is_none();

@@ -58,6 +58,9 @@ pub struct FluxMapFit {
     pub model: Saturation,
     /// The rms flux residual over both axes \[V s\].
     pub rms_residual: f64,
+    /// The rms flux residual of `ψ_d` and of `ψ_q` \[V s\].
+    #[serde(default)]
+    pub rms_residual_dq: [f64; 2],
     /// The largest flux residual \[V s\] and the current `[i_d, i_q]` \[A\] where it is.
     pub max_residual: (f64, [f64; 2]),
     /// The map's flux range: the largest of `max ψ_d − min ψ_d` and `max ψ_q − min ψ_q` \[V s\].
@@ -72,6 +75,10 @@ pub struct FluxMapFit {
     /// intervals) from the model with the least held-out error, checked against the map
     /// (`None` with [`FluxMapOptions::skip_check`]).
     pub check: Option<MapCheck>,
+    /// What a reader should know about the fit: an exponent chosen at the edge of the
+    /// searched range, a printed operating point outside the map's currents.
+    #[serde(default)]
+    pub notes: Vec<String>,
 }
 
 /// Fits the saturation model ([`Saturation`]) to a flux map read by
@@ -142,6 +149,12 @@ pub fn fit_flux_map(map: &Experiment, options: &FluxMapOptions) -> Result<FluxMa
     let d_min = i_d.iter().copied().fold(0.0_f64, f64::min);
     let at = [[0.0, 0.0], [0.0, 0.5 * q_max], [0.0, q_max], [d_min, q_max]];
     let check = (!options.skip_check).then(|| check(map, exponents, &result, &at)).transpose()?;
+    // The points whose figures the report prints: the no-load flux's zero current and the
+    // inductances' operating points.
+    let printed: Vec<[f64; 2]> = match &check {
+        Some(c) => std::iter::once([0.0, 0.0]).chain(c.points.iter().map(|p| p.i)).collect(),
+        None => at.to_vec(),
+    };
     let operating_points = match &check {
         Some(c) => c.points.iter().map(|p| model.inductances(p.i)).collect::<Result<Vec<_>>>()?,
         None => at.into_iter().map(|i| model.inductances(i)).collect::<Result<Vec<_>>>()?,
@@ -159,7 +172,6 @@ pub fn fit_flux_map(map: &Experiment, options: &FluxMapOptions) -> Result<FluxMa
         map: map.name().into(),
         points: map.len(),
         exponents,
-        fit: result,
         model,
         rms_residual,
         max_residual,
@@ -167,7 +179,52 @@ pub fn fit_flux_map(map: &Experiment, options: &FluxMapOptions) -> Result<FluxMa
         candidates,
         operating_points,
         check,
+        notes: notes(options.exponents.is_none(), exponents, &printed, i_d, i_q),
+        rms_residual_dq: [0, 1].map(|k| result.fit.rms_residual.get(k).copied().unwrap_or(f64::NAN)),
+        fit: result,
     })
+}
+
+/// The notes of a fit ([`FluxMapFit::notes`]): with the exponents `searched`, any of
+/// `e` at the edge of the search's range (`S` or `T` 9, `U` or `V` 2: a wider range might
+/// fit better); any `printed` point outside the map's range of `i_d` or `i_q`.
+fn notes(
+    searched: bool,
+    e: SaturationExponents,
+    printed: &[[f64; 2]],
+    i_d: &[f64],
+    i_q: &[f64],
+) -> Vec<String> {
+    let mut notes = Vec::new();
+    let edge: Vec<String> = [("S", e.s, 9), ("T", e.t, 9), ("U", e.u, 2), ("V", e.v, 2)]
+        .iter()
+        .filter(|(_, x, top)| searched && x == top)
+        .map(|(n, x, _)| format!("{n} = {x}"))
+        .collect();
+    if !edge.is_empty() {
+        notes.push(format!(
+            "exponent {} at the edge of the searched range (S, T 1..9; U, V 0..2): a larger one may fit better; \
+             try it with --exponents",
+            edge.join(", ")
+        ));
+    }
+    let range =
+        |v: &[f64]| v.iter().fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], x| [lo.min(*x), hi.max(*x)]);
+    let (d, q) = (range(i_d), range(i_q));
+    for (j, p) in printed.iter().enumerate() {
+        if printed[..j].contains(p) {
+            continue;
+        }
+        let inside = |x: f64, [lo, hi]: [f64; 2]| x >= lo - 1e-9 * (hi - lo) && x <= hi + 1e-9 * (hi - lo);
+        if !(inside(p[0], d) && inside(p[1], q)) {
+            notes.push(format!(
+                "the point i = ({:.2}, {:.2}) A, whose figures the report prints, lies outside the map (i_d {:.2} … {:.2} A, i_q {:.2} … {:.2} A): \
+                 its figures are the model's extrapolation",
+                p[0], p[1], d[0], d[1], q[0], q[1]
+            ));
+        }
+    }
+    notes
 }
 
 /// The rms residual over both outputs of a fit \[their unit\].
@@ -253,7 +310,10 @@ impl std::fmt::Display for FluxMapFit {
         write!(f, "\n{}", estimate_table(&self.fit))?;
         writeln!(
             f,
-            "\nrms flux residual {:.3e} V s = {:.3} % of the map's range {:.4} V s; largest {:.3e} V s at i = ({:.1}, {:.1}) A",
+            "\nrms flux residual ψ_d {:.3e} V s, ψ_q {:.3e} V s (together {:.3e} V s = {:.3} % of the map's range {:.4} \
+             V s); largest |ψ − ψ_map| {:.3e} V s at i = ({:.1}, {:.1}) A",
+            self.rms_residual_dq[0],
+            self.rms_residual_dq[1],
             self.rms_residual,
             100.0 * self.rms_residual / self.range,
             self.range,
@@ -296,6 +356,9 @@ impl std::fmt::Display for FluxMapFit {
         }
         if let Some(c) = &self.check {
             write!(f, "{c}")?;
+        }
+        for n in &self.notes {
+            writeln!(f, "note: {n}")?;
         }
         Ok(())
     }

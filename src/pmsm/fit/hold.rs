@@ -46,12 +46,53 @@ pub(crate) fn hold_ambiguity(
 }
 
 /// The fits of every hold tried: the chosen one, the others, `(hold, loss, converged)` in
-/// fitting order, and notes on restarts.
+/// fitting order, notes on restarts, and the noise z of the losses' difference when the
+/// noise tied them and the stator hold was taken ([`noise_z`]).
 pub(crate) struct HoldFits {
     pub best: (VoltageHold, FitResult),
     pub others: Vec<(VoltageHold, FitResult)>,
     pub losses: Vec<(VoltageHold, f64, bool)>,
     pub notes: Vec<String>,
+    pub tied: Option<f64>,
+}
+
+/// The noise z below which two holds' losses are tied: their difference `|ΔL|` against its
+/// standard deviation under the residuals' noise, `√(N |ΔL|/L) / (2 √τ)` (`N` residuals,
+/// the lower loss `L`, their integrated autocorrelation time τ; Vuong, *Econometrica* 57
+/// (1989) 307–333). Below it the stator hold (how an inverter holds its output, MODEL.md
+/// §4) is chosen.
+pub const HOLD_TIE_Z: f64 = 2.0;
+
+/// How many standard deviations of its noise two fits' loss difference is: `‖δ‖ / (2 σ √τ)`,
+/// with `‖δ‖² = N σ² |ΔL| / L` the squared difference of the two models' predictions that
+/// the lower loss `L` implies (`N` residuals of variance `σ²`), and `τ = 1 + 2 Σ ρ_k` the
+/// residuals' integrated autocorrelation time (their lags, with a geometric tail beyond the
+/// last): the difference of two sums of squares `Σ (r + δ)² − Σ r²` has the mean `‖δ‖²` and
+/// the standard deviation `2 σ ‖δ‖ √τ` (the variance of a log-likelihood ratio, as in
+/// Vuong's test of non-nested models, *Econometrica* 57 (1989) 307–333). `None` for fits
+/// without a positive loss or whiteness.
+pub(crate) fn noise_z(a: &FitResult, b: &FitResult) -> Option<f64> {
+    let (la, lb) = (a.fit.loss, b.fit.loss);
+    let low = la.min(lb);
+    let n = (a.fit.samples * a.fit.whiteness.len()) as f64;
+    let tau = |r: &FitResult| {
+        let t: Vec<f64> = r.fit.whiteness.iter().map(|w| integrated_time(&w.autocorrelation)).collect();
+        (!t.is_empty()).then(|| t.iter().sum::<f64>() / t.len() as f64)
+    };
+    let tau = tau(a)?.max(tau(b)?);
+    (low > 0.0 && n > 0.0 && la.is_finite() && lb.is_finite())
+        .then(|| (n * (la - lb).abs() / low).sqrt() / (2.0 * tau.sqrt()))
+}
+
+/// `1 + 2 Σ ρ_k` over the lags `rho`, with the geometric tail `ρ_K r / (1 − r)`,
+/// `r = ρ_K / ρ_{K−1}`, when the last two decay; at least 1.
+fn integrated_time(rho: &[f64]) -> f64 {
+    let sum: f64 = rho.iter().sum();
+    let tail = match rho {
+        [.., p, q] if *q > 0.0 && q < p => q * (q / p) / (1.0 - q / p),
+        _ => 0.0,
+    };
+    (1.0 + 2.0 * (sum + tail)).max(1.0)
 }
 
 /// Whether a fit stalled: not converged, or a parameter at a bound.
@@ -249,12 +290,42 @@ pub(crate) fn fit_holds(
     let weighed =
         |h: VoltageHold, loss: f64| if h == VoltageHold::Dq && modulator { DQ_DECISIVE * loss } else { loss };
     let key = |(h, r): &(VoltageHold, FitResult)| (stalled(r), weighed(*h, r.fit.loss));
-    let i = (0..fits.len())
-        .min_by(|&a, &b| {
+    // Two unstalled holds whose losses the noise ties, without a modulator's reference to
+    // weigh them: the stator hold.
+    let stator = fits.iter().position(|(h, _)| *h == VoltageHold::Stator);
+    let tied = match &fits[..] {
+        [(_, a), (_, b)] if !modulator && !stalled(a) && !stalled(b) && stator.is_some() => {
+            noise_z(a, b).filter(|z| *z < HOLD_TIE_Z)
+        }
+        _ => None,
+    };
+    let i = match (tied, stator) {
+        (Some(_), Some(i)) => Some(i),
+        _ => (0..fits.len()).min_by(|&a, &b| {
             let (ka, kb) = (key(&fits[a]), key(&fits[b]));
             ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
-        })
-        .ok_or_else(|| Error::InvalidOption { option: "hold".into(), reason: "no hold fitted".into() })?;
+        }),
+    }
+    .ok_or_else(|| Error::InvalidOption { option: "hold".into(), reason: "no hold fitted".into() })?;
     let best = fits.remove(i);
-    Ok(HoldFits { best, others: fits, losses, notes })
+    Ok(HoldFits { best, others: fits, losses, notes, tied })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::integrated_time;
+
+    /// AR(1) residuals `ρ_k = a^k`: `1 + 2 Σ a^k = (1 + a)/(1 − a)`, the lags held and the
+    /// geometric tail beyond them; white residuals 1; an oscillating tail adds nothing.
+    #[test]
+    fn the_integrated_time_of_ar1_residuals() {
+        for a in [0.3, 0.9, 0.98] {
+            let rho: Vec<f64> = (1..=25).map(|k| f64::powi(a, k)).collect();
+            let tau = integrated_time(&rho);
+            assert!((tau / ((1.0 + a) / (1.0 - a)) - 1.0).abs() < 1e-9, "a {a}: τ {tau}");
+        }
+        assert_eq!(integrated_time(&[0.0; 25]), 1.0);
+        assert!((integrated_time(&[0.2, -0.1, 0.05]) - 1.3).abs() < 1e-12);
+        assert_eq!(integrated_time(&[-0.4, 0.1, -0.05]), 1.0);
+    }
 }

@@ -45,8 +45,12 @@ use crate::simulate::{SimOptions, simulate};
 /// Which criterion a PMSM fit minimises or solves.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Estimator {
-    /// The prediction-error method ([`fit_pmsm`]).
+    /// The prediction-error method ([`fit_pmsm`]), or refined instrumental variables
+    /// ([`fit_pmsm_iv_after`]) when its fit finds the logged voltage's noise biasing it
+    /// (warning `voltage_noise_bias`) and the options allow them ([`check_options`]).
     #[default]
+    Auto,
+    /// The prediction-error method ([`fit_pmsm`]).
     PredictionError,
     /// Refined instrumental variables on the inverse model ([`fit_pmsm_iv`]).
     InstrumentalVariables,
@@ -139,8 +143,24 @@ fn sums(model: &PmsmSpm, logs: &[Log], theta: &[f64]) -> Result<IvSums> {
 /// parameter or the iteration leaves the positive parameters.
 pub fn fit_pmsm_iv(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<PmsmFit> {
     check_options(options)?;
-    let t0 = std::time::Instant::now();
     let oe = fit_pmsm(experiments, options)?;
+    fit_pmsm_iv_after(oe, experiments, options)
+}
+
+/// [`fit_pmsm_iv`] from the output-error fit `oe` of the same `experiments` and `options`
+/// (the automatic choice of [`Estimator::Auto`] has it already): the IV estimate started
+/// from it, its hold, checks, warnings (but `input_noise` and `voltage_noise_bias`, which
+/// this method is for) and goodness of fit kept.
+///
+/// # Errors
+/// As [`fit_pmsm_iv`].
+pub fn fit_pmsm_iv_after(
+    oe: PmsmFit,
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+) -> Result<PmsmFit> {
+    check_options(options)?;
+    let t0 = std::time::Instant::now();
     let setup =
         PmsmSetup { cable_resistance: options.cable_resistance, ..PmsmSetup::new(oe.pole_pairs, oe.hold) };
     let names = options.model.parameter_names();
@@ -252,8 +272,13 @@ fn report(oe: PmsmFit, (theta, cov, iterations, converged): Solved, fit_s: f64) 
         start.join(", ")
     ));
     // The input noise the output-error fit was told of is what this method is for.
-    let mut warnings: Vec<_> =
-        oe.report.warnings.iter().filter(|w| w.code != "input_noise").cloned().collect();
+    let mut warnings: Vec<_> = oe
+        .report
+        .warnings
+        .iter()
+        .filter(|w| w.code != "input_noise" && w.code != "voltage_noise_bias")
+        .cloned()
+        .collect();
     if !converged {
         warnings.push(crate::estimate::Warning::untrusted(
             "not_converged",

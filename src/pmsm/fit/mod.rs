@@ -3,6 +3,7 @@
 //! hold choice, the report, and a saved fit's validation and simulation.
 
 pub(super) mod auto_mask;
+pub(super) mod auto_method;
 mod base;
 mod beside;
 pub(super) mod flux_map;

@@ -68,13 +68,25 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             other => other?,
         }
     };
-    // The measured terminal voltage is the model's input as logged; the reference voltage
-    // and the inverter are modelled, and their model's error is what the parts show.
-    if (options.inverter.is_none() && options.input == VoltageInput::Terminal) || options.skip_setup_checks {
+    if options.skip_setup_checks {
         return Ok(fit);
     }
     let refit_report = |e: &[Experiment], o: &PmsmFitOptions| fit_pmsm(e, o).ok().map(|f| f.report);
     let parts = part_options(options, &fit);
+    // The measured terminal voltage is the model's input as logged, with its noise; the
+    // reference voltage and the inverter are modelled, and their model's error is what the
+    // parts show.
+    if options.inverter.is_none() && options.input == VoltageInput::Terminal {
+        let bias =
+            crate::pmsm::checks::voltage_bias::warning(experiments, options, &fit, &parts, &refit_report);
+        return Ok(match bias {
+            None => fit,
+            Some(w) => {
+                let warnings = fit.report.warnings.iter().cloned().chain([w]).collect();
+                PmsmFit { report: crate::estimate::FitResult { warnings, ..fit.report }, ..fit }
+            }
+        });
+    }
     let masked = fit.inverter.and_then(|i| i.mask).is_some();
     let (segments, noise) = rayon::join(
         || crate::pmsm::checks::segments::warning(experiments, &parts, &refit_report),

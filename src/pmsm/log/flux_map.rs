@@ -1,7 +1,8 @@
 //! A measured flux map read into an experiment with the channels `i_d`, `i_q` \[A\] and
 //! `psi_d`, `psi_q` \[V s\] (one point per sample; the sample time means nothing).
 
-use crate::data::{Channel, Delimiter, Experiment, ReadLimits, TimeCheck, read_table_with};
+use crate::data::csv::read_table_with_missing;
+use crate::data::{Channel, Delimiter, Experiment, Format, ReadLimits, TimeCheck, read_table_with};
 use crate::error::{Error, Result};
 use nalgebra::Complex;
 
@@ -13,20 +14,81 @@ use std::path::Path;
 /// values (`d + j q`), the layout of motulator's measured maps.
 pub const NPZ_ARRAYS: [&str; 2] = ["i_s_dq", "psi_s_dq"];
 
-/// Reads a flux map: a NumPy `.npz` with the complex128 arrays `i_s_dq` \[A, peak\] and
-/// `psi_s_dq` \[V s\] of one shape (any; flattened in C order), or a CSV (gzip with `.gz`)
-/// with the columns `i_d`, `i_q`, `psi_d`, `psi_q`, one operating point per row.
+/// How a flux map's CSV is read: the names of its four columns and its field delimiter
+/// (a `.npz` holds the arrays [`NPZ_ARRAYS`] whatever these say). Default `i_d, i_q, psi_d,
+/// psi_q` \[A, A, V s, V s\], peak dq, separated by `,`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FluxMapColumns {
+    /// d-axis current \[A\]. Default `i_d`.
+    pub i_d: String,
+    /// q-axis current \[A\]. Default `i_q`.
+    pub i_q: String,
+    /// d-axis flux linkage \[V s\]. Default `psi_d`.
+    pub psi_d: String,
+    /// q-axis flux linkage \[V s\]. Default `psi_q`.
+    pub psi_q: String,
+    /// The CSV's field delimiter. Default `,`.
+    pub delimiter: Delimiter,
+}
+
+impl Default for FluxMapColumns {
+    fn default() -> Self {
+        let [i_d, i_q, psi_d, psi_q] = CHANNELS.map(String::from);
+        Self { i_d, i_q, psi_d, psi_q, delimiter: Delimiter::default() }
+    }
+}
+
+/// The channels of a flux map read ([`read_flux_map_with`]).
+const CHANNELS: [&str; 4] = ["i_d", "i_q", "psi_d", "psi_q"];
+
+/// A flux map read by [`read_flux_map_with`]: the measured points and those left out.
+#[derive(Clone, Debug)]
+pub struct FluxMapRead {
+    /// The points with all four values finite, channels `i_d`, `i_q` \[A\] and `psi_d`,
+    /// `psi_q` \[V s\], in the file's order.
+    pub map: Experiment,
+    /// How many points were left out for a missing value (empty, NaN or ±inf in any of the
+    /// four): a measured map's unmeasured points.
+    pub skipped: usize,
+    /// The 0-based index of the first point left out (a CSV's data row, an `.npz` array's
+    /// flat C-order index).
+    pub first_skipped: Option<usize>,
+}
+
+/// Reads a flux map as [`read_flux_map_with`] does with the default columns, and refuses a
+/// point with a missing value instead of leaving it out.
 ///
 /// # Errors
-/// [`Error::Io`] for a file that cannot be opened; [`Error::Format`] naming the missing
-/// array, a dtype that is not complex128, or arrays of different sizes; the CSV reader's
-/// errors ([`read_table_with`]); [`Error::NonFinite`] naming the array and point of a NaN;
-/// [`Error::TooShort`] for fewer than 8 points (the model has 6 coefficients).
+/// Those of [`read_flux_map_with`]; [`Error::NonFinite`] naming the channel and point of a
+/// NaN or ±inf.
 pub fn read_flux_map(path: impl AsRef<Path>) -> Result<Experiment> {
+    let read = read_flux_map_with(path, &FluxMapColumns::default())?;
+    match read.first_skipped {
+        None => Ok(read.map),
+        Some(row) => Err(Error::NonFinite { column: "a flux map's point".into(), row, value: f64::NAN }),
+    }
+}
+
+/// Reads a flux map: a NumPy `.npz` with the complex128 arrays `i_s_dq` \[A, peak\] and
+/// `psi_s_dq` \[V s\] of one shape (any; flattened in C order), or a CSV (gzip detected by
+/// its bytes), Parquet or Arrow IPC file with the four `columns`, one operating point per
+/// row. A point with a missing value (an empty CSV cell, NaN, ±inf) is left out and
+/// counted, as measured maps mark the points they could not reach.
+///
+/// # Errors
+/// [`Error::Io`] for a file that cannot be opened; [`Error::Format`] for a MATLAB `.mat` file
+/// (saying how to convert it), naming the missing array, a dtype that is not complex128, or
+/// arrays of different sizes; the CSV reader's errors
+/// ([`read_table_with_missing`](crate::data::csv::read_table_with_missing): a missing column
+/// listed with the header, a cell that is no number with its line; a columnar file's
+/// [`read_table_with`], which refuses a null); [`Error::TooShort`] for
+/// fewer than 8 points left (the model has 6 coefficients).
+pub fn read_flux_map_with(path: impl AsRef<Path>, columns: &FluxMapColumns) -> Result<FluxMapRead> {
     let path = path.as_ref();
     let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    refuse_matlab(path)?;
     let is_npz = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npz"));
-    let [i_d, i_q, psi_d, psi_q] = if is_npz {
+    let [i_d, i_q, psi_d, psi_q]: [Vec<f64>; 4] = if is_npz {
         let [i, psi] = NPZ_ARRAYS.map(|a| read_npz_array(path, a));
         let (i, psi) = (i?, psi?);
         if i.len() != psi.len() {
@@ -46,29 +108,55 @@ pub fn read_flux_map(path: impl AsRef<Path>) -> Result<Experiment> {
             psi.iter().map(|c| c.im).collect(),
         ]
     } else {
-        let wanted = [("i_d", true), ("i_q", true), ("psi_d", true), ("psi_q", true)];
-        let table =
-            read_table_with(path, &wanted, &ReadLimits::default(), Delimiter::default(), TimeCheck::Skip)?;
+        let c = columns;
+        let wanted = [
+            (c.i_d.as_str(), true),
+            (c.i_q.as_str(), true),
+            (c.psi_d.as_str(), true),
+            (c.psi_q.as_str(), true),
+        ];
+        let limits = ReadLimits::default();
+        let table = match Format::of(path) {
+            Format::Csv => read_table_with_missing(path, &wanted, &limits, c.delimiter)?,
+            _ => read_table_with(path, &wanted, &limits, c.delimiter, TimeCheck::Skip)?,
+        };
         let mut columns = table.columns.into_iter().map(Option::unwrap_or_default);
         [(); 4].map(|()| columns.next().unwrap_or_default())
     };
-    let names = ["i_d", "i_q", "psi_d", "psi_q"];
-    for (column, values) in names.iter().zip([&i_d, &i_q, &psi_d, &psi_q]) {
-        if let Some(row) = values.iter().position(|v: &f64| !v.is_finite()) {
-            return Err(Error::NonFinite { column: (*column).into(), row, value: values[row] });
-        }
+    let kept: Vec<usize> =
+        (0..i_d.len()).filter(|&k| [&i_d, &i_q, &psi_d, &psi_q].iter().all(|v| v[k].is_finite())).collect();
+    let first_skipped = (0..i_d.len()).find(|k| kept.binary_search(k).is_err());
+    let skipped = i_d.len() - kept.len();
+    if kept.len() < 8 {
+        return Err(Error::TooShort { name, len: kept.len(), min: 8 });
     }
-    if i_d.len() < 8 {
-        return Err(Error::TooShort { name, len: i_d.len(), min: 8 });
-    }
-    let units = ["A", "A", "V s", "V s"];
-    let channels = names
+    let channels = CHANNELS
         .iter()
-        .zip(units)
+        .zip(["A", "A", "V s", "V s"])
         .zip([i_d, i_q, psi_d, psi_q])
-        .map(|((n, u), v)| Channel::new(*n, u, v))
+        .map(|((n, u), v)| Channel::new(*n, u, kept.iter().map(|&k| v[k]).collect()))
         .collect();
-    Experiment::try_new(name, 1.0, channels)
+    Ok(FluxMapRead { map: Experiment::try_new(name, 1.0, channels)?, skipped, first_skipped })
+}
+
+/// Refuses a MATLAB `.mat` file (by its extension or its header text, v4 to v7.3) with how
+/// to convert it.
+fn refuse_matlab(path: &Path) -> Result<()> {
+    let mut head = [0u8; 128];
+    let n = std::fs::File::open(path).and_then(|mut f| f.read(&mut head)).unwrap_or(0);
+    let by_header = head[..n].windows(6).any(|w| w == b"MATLAB");
+    let by_name = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("mat"));
+    if !(by_header || by_name) {
+        return Ok(());
+    }
+    Err(format_error(
+        path,
+        "a MATLAB .mat file: greybox reads a flux map as a NumPy .npz (complex arrays i_s_dq, psi_s_dq) or a CSV \
+         with one point per row; write one from MATLAB with writetable(table(id(:), iq(:), psid(:), psiq(:), \
+         'VariableNames', {'i_d', 'i_q', 'psi_d', 'psi_q'}), 'map.csv') or from Python with scipy.io.loadmat and \
+         numpy.savez"
+            .into(),
+    ))
 }
 
 fn format_error(path: &Path, message: String) -> Error {

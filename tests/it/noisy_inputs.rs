@@ -1,0 +1,93 @@
+//! Noise on the logged voltage and current (issue 43): the automatic voltage hold (MODEL.md
+//! §4) keeps the stator hold when the two holds' losses differ by no more than the
+//! residuals' noise explains (before, one noisy stator-held log in forty took the dq hold
+//! by 0.06 % of its loss and gave K_e 7 standard errors off with exit 0); the output-error
+//! fit finds the voltage noise's bias (`voltage_noise_bias`) and `--method auto` then takes
+//! instrumental variables.
+
+use crate::common::Rng;
+use greybox::data::{Channel, Experiment};
+use greybox::pmsm::{CsvOptions, Estimator, PmsmFitOptions, VoltageHold, fit_pmsm, fit_pmsm_by, read_log};
+
+/// The shipped sample log (stator-held, 10 kHz) without its modulator reference, with white
+/// noise of `sigma_u` \[V\] on the voltages and `sigma_i` \[A\] on the currents.
+fn noisy_sample(seed: u64, sigma_u: f64, sigma_i: f64) -> Experiment {
+    let e =
+        read_log(concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz"), &CsvOptions::default()).unwrap();
+    let mut rng = Rng(seed);
+    let channels = e
+        .channels()
+        .iter()
+        .filter(|c| !c.name.ends_with("_ref"))
+        .map(|c| {
+            let sigma = match c.name.as_str() {
+                "ud" | "uq" => sigma_u,
+                "id" | "iq" => sigma_i,
+                _ => 0.0,
+            };
+            Channel::new(
+                &c.name,
+                &c.unit,
+                c.values.as_slice().iter().map(|v| v + sigma * rng.normal()).collect(),
+            )
+        })
+        .collect();
+    Experiment::try_new(e.name(), e.h(), channels).unwrap()
+}
+
+#[test]
+fn holds_the_noise_ties_keep_the_stator_hold() {
+    let mut dq_lower = 0;
+    for seed in 1..=6 {
+        let fit = fit_pmsm(&[noisy_sample(seed, 3.0, 0.05)], &PmsmFitOptions::new(4)).unwrap();
+        let note =
+            fit.pmsm_notes.iter().find(|n| n.contains("voltage hold chosen")).cloned().unwrap_or_default();
+        assert_eq!(fit.hold, VoltageHold::Stator, "seed {seed}: {note}");
+        // Losses as the note lists them: "(losses stator A, dq B)".
+        let losses = note.rsplit("(losses ").next().unwrap_or("");
+        let loss = |h: &str| -> f64 {
+            let at = losses.find(&format!("{h} ")).map(|i| &losses[i + h.len() + 1..]).unwrap_or("");
+            at.split([',', ')']).next().unwrap_or("").trim().parse().unwrap_or(f64::NAN)
+        };
+        if loss("dq") < loss("stator") {
+            dq_lower += 1;
+            assert!(note.contains("noise explains"), "seed {seed}: {note}");
+        }
+    }
+    // The rule was exercised: some seed's dq loss was the lower.
+    assert!(dq_lower > 0, "no seed tied the holds");
+}
+
+/// 3 V of voltage noise on the sample log: the output-error fit reads the noise's level off
+/// its voltage equations (within 10 %), finds it biasing the estimate and is untrusted; the
+/// automatic method takes instrumental variables, whose estimates lie within 3 standard
+/// errors of the truth (R_s 0.9 Ω, L_s 4.5 mH, K_e 0.538888 V s/rad). Without the noise
+/// neither happens.
+#[test]
+fn voltage_noise_takes_the_default_to_instrumental_variables() {
+    let options = PmsmFitOptions::new(4);
+    let noisy = [noisy_sample(1, 3.0, 0.05)];
+    let oe = fit_pmsm(&noisy, &options).unwrap();
+    let bias =
+        oe.report.warnings.iter().find(|w| w.code == "voltage_noise_bias").expect("voltage_noise_bias");
+    assert!(bias.untrusted, "{bias:?}");
+    let sigma: f64 =
+        bias.message.split("σ ≈ ").nth(1).and_then(|r| r.split(' ').next()).unwrap().parse().unwrap();
+    assert!((sigma / 3.0 - 1.0).abs() < 0.1, "σ {sigma}");
+    let auto = fit_pmsm_by(&noisy, &options, Estimator::Auto).unwrap();
+    assert!(
+        auto.report.notes.iter().any(|n| n.contains("took instrumental variables")),
+        "{:?}",
+        auto.report.notes
+    );
+    assert!(auto.report.warnings.iter().all(|w| w.code != "voltage_noise_bias"));
+    for (name, truth) in [("r_s", 0.9), ("l_s", 4.5e-3), ("k_e", 0.538888)] {
+        let p = auto.report.parameter(name).unwrap();
+        assert!((p.value - truth).abs() < 3.0 * p.std_error, "{name} {} ± {}", p.value, p.std_error);
+    }
+    let pem = fit_pmsm_by(&noisy, &options, Estimator::PredictionError).unwrap();
+    assert!(pem.report.warnings.iter().any(|w| w.code == "voltage_noise_bias"));
+    let clean = fit_pmsm_by(&[noisy_sample(1, 0.0, 0.0)], &options, Estimator::Auto).unwrap();
+    assert!(clean.report.warnings.iter().all(|w| w.code != "voltage_noise_bias"));
+    assert!(clean.report.notes.iter().all(|n| !n.contains("took instrumental variables")));
+}
