@@ -5,11 +5,11 @@
 
 use super::columns::ColumnArgs;
 use super::output;
-use crate::data::Experiment;
+use crate::data::{ColumnMap, CsvSpec, Experiment, read_csv};
 use crate::estimate::FitResult;
 use crate::pmsm::{
-    LOAD_TORQUE, MechanicsFit, MechanicsOptions, MechanicsTerms, MotorParameters, PmsmFitOptions, SQRT_2_3,
-    fit_mechanics, fit_pmsm,
+    AngleUnit, Frame, LOAD_TORQUE, MechanicsFit, MechanicsOptions, MechanicsTerms, MotorParameters,
+    PmsmFitOptions, SQRT_2_3, Scale, SpeedUnit, fit_mechanics, fit_pmsm,
 };
 use clap::Args;
 use serde::Serialize;
@@ -30,7 +30,8 @@ pub struct MechanicsArgs {
     /// Number of pole pairs n_p of the motor.
     #[arg(long, short = 'p')]
     pub pole_pairs: u32,
-    /// A known torque constant K_t [N m/A, peak dq current] instead of the electrical fit.
+    /// A known torque constant K_t [N m/A, peak dq current] instead of the electrical fit:
+    /// then only the time, iq, the speed (and the angle with --gravity) are read.
     #[arg(long, value_name = "N m/A")]
     pub k_t: Option<f64>,
     /// A gravity load m g l sin θ_m (angle 0 hanging down).
@@ -86,7 +87,10 @@ pub fn run_mechanics(a: &MechanicsArgs) -> crate::Result<bool> {
 /// As [`run_mechanics`] but for the output.
 pub fn mechanics_outcome(a: &MechanicsArgs) -> crate::Result<output::Outcome> {
     let extra = (a.col_load.as_str(), LOAD_TORQUE, "N m");
-    let logs: Vec<Experiment> = a.columns.read_logs_with_channel(&a.logs, a.pole_pairs, extra)?;
+    let logs: Vec<Experiment> = match a.k_t {
+        Some(_) => read_mechanical_logs(a)?,
+        None => a.columns.read_logs_with_channel(&a.logs, a.pole_pairs, extra)?,
+    };
     // The angle a gravity term needs, before the electrical fit spends its time.
     for e in logs.iter().filter(|_| a.gravity) {
         e.channel("theta_m")?;
@@ -137,6 +141,101 @@ pub fn mechanics_outcome(a: &MechanicsArgs) -> crate::Result<output::Outcome> {
     untrusted.extend(mechanics.fit.untrusted_codes().into_iter().map(|c| format!("mechanics {c}")));
     let joint = Joint { electrical: electrical.as_ref(), motor, mechanics: &mechanics };
     Ok(output::Outcome::new(text, &joint, untrusted))
+}
+
+/// The logs of `--k-t`, which needs no electrical fit: only the time, `iq`, the speed, the
+/// angle with `--gravity` and the load column where present are read (the voltages and `id`
+/// may be absent), with the units, frames and scales of `greybox fit`'s flags, and
+/// `--from`/`--to` keep their rows.
+///
+/// # Errors
+/// [`crate::Error::InvalidOption`] for `--dq-from-phases` or `--split-gaps`, which need the
+/// electrical reader, and for a window that keeps fewer than 2 rows; those of
+/// [`read_csv`] (a missing column named with its flag).
+fn read_mechanical_logs(a: &MechanicsArgs) -> crate::Result<Vec<Experiment>> {
+    let c = &a.columns;
+    for (flag, set) in [("--dq-from-phases", c.dq_from_phases), ("--split-gaps", c.split_gaps)] {
+        if set {
+            return Err(crate::Error::InvalidOption {
+                option: flag.into(),
+                reason: "not with --k-t, which reads iq and the speed only: give the dq current column"
+                    .into(),
+            });
+        }
+    }
+    let frame = if c.speed_frame == Frame::Electrical { 1.0 / f64::from(a.pole_pairs) } else { 1.0 };
+    let speed = match c.speed_unit {
+        SpeedUnit::Rpm => std::f64::consts::PI / 30.0,
+        SpeedUnit::RadPerSec => 1.0,
+    } * frame
+        * if c.negate_speed { -1.0 } else { 1.0 };
+    let angle = if c.angle_unit == AngleUnit::Deg { std::f64::consts::PI / 180.0 } else { 1.0 } * frame;
+    let current = if c.current_scale == Scale::Rms { std::f64::consts::SQRT_2 } else { 1.0 };
+    let column = |col: &str, channel: &str, unit: &str, scale: f64, required: bool| ColumnMap {
+        scale,
+        required,
+        ..ColumnMap::new(col, channel, unit)
+    };
+    let spec = CsvSpec {
+        time: c.col_t.clone(),
+        time_scale: 1.0 / c.time_unit.per_second(),
+        columns: vec![
+            column(&c.col_iq, "iq", "A", current, true),
+            column(&c.col_w, "w_m", "rad/s", speed, true),
+            column(&c.col_theta, "theta_m", "rad", angle, a.gravity),
+            column(&a.col_load, LOAD_TORQUE, "N m", 1.0, false),
+        ],
+        limits: crate::data::csv::ReadLimits {
+            max_line_bytes: c.max_line_bytes,
+            max_fields: c.max_fields,
+            max_rows: c.max_rows,
+        },
+        delimiter: c.delimiter,
+    };
+    let flag = |col: &str| match col {
+        x if x == c.col_iq => "--col-iq",
+        x if x == c.col_w => "--col-w",
+        x if x == c.col_theta => "--col-theta",
+        x if x == c.col_t => "--col-t",
+        _ => "--col-load",
+    };
+    a.logs
+        .iter()
+        .map(|path| {
+            let e = read_csv(path, &spec).map_err(|e| match e {
+                crate::Error::MissingColumn { path, column, available } => crate::Error::InvalidOption {
+                    option: flag(&column).into(),
+                    reason: format!("{}: no column `{column}` (header: {available})", path.display()),
+                },
+                e => e,
+            })?;
+            windowed(e, c.from, c.to)
+        })
+        .collect()
+}
+
+/// The rows of `e` with `from ≤ t ≤ to` \[s\] (both optional), the log's own times `t0 + k h`.
+///
+/// # Errors
+/// [`crate::Error::InvalidOption`] (`--from/--to`) when fewer than 2 rows are kept.
+fn windowed(e: Experiment, from: Option<f64>, to: Option<f64>) -> crate::Result<Experiment> {
+    if from.is_none() && to.is_none() {
+        return Ok(e);
+    }
+    let t = |k: usize| e.t0() + k as f64 * e.h();
+    let first = (0..e.len()).find(|&k| from.is_none_or(|f| t(k) >= f)).unwrap_or(e.len());
+    let end = (first..e.len()).take_while(|&k| to.is_none_or(|x| t(k) <= x)).last().map_or(first, |k| k + 1);
+    if end < first + 2 {
+        return Err(crate::Error::InvalidOption {
+            option: "--from/--to".into(),
+            reason: format!(
+                "{}: the window keeps {} rows; it needs at least 2",
+                e.name(),
+                end.saturating_sub(first)
+            ),
+        });
+    }
+    e.slice(first..end)
 }
 
 /// The torque model of an electrical fit: `ψ_f = K_e √(2/3) / n_p` (MODEL.md §1), the

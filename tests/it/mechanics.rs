@@ -183,3 +183,63 @@ fn confounded_friction_is_not_trusted() {
         fit.fit.warnings.iter().find(|w| w.code == "friction_confounded").unwrap_or_else(|| panic!("{fit}"));
     assert!(w.message.contains("b[") && w.message.contains("t_c["), "{}", w.message);
 }
+
+/// Issue 43: `--k-t` needs no electrical columns. A log with only a time in ms, `Iq`, the
+/// speed in rpm and the angle in degrees (no voltages, no `id`) gives the simulator's inertia
+/// and gravity arm; a missing current column is named with its flag.
+#[cfg(feature = "cli")]
+#[test]
+fn a_given_torque_constant_reads_the_mechanical_columns_only() {
+    use crate::common::TempDir;
+    use crate::errors::greybox;
+    let cfg = exp3(SPM_MOTOR, [0.0; 2], 1);
+    let log = simulate_drive(&cfg).unwrap().experiment;
+    let c = |n: &str| log.channel(n).unwrap().to_vec();
+    let (iq, w, th) = (c("iq"), c("w_m"), c("theta_m"));
+    let mut text = String::from("time_ms,Iq,speed_rpm,angle_deg\n");
+    for k in 0..log.len() {
+        let t = 1e3 * (log.t0() + k as f64 * log.h());
+        text += &format!("{t},{},{},{}\n", iq[k], w[k] * 30.0 / std::f64::consts::PI, th[k].to_degrees());
+    }
+    let dir = TempDir::new("mechanics-kt");
+    let path = dir.join("axis.csv");
+    std::fs::write(&path, text).unwrap();
+    let json = dir.join("fit.json");
+    let k_t = (1.5 * f64::from(SPM_MOTOR.n_p) * SPM_MOTOR.psi_f).to_string();
+    let args = [
+        "mechanics",
+        path.to_str().unwrap(),
+        "-p",
+        "4",
+        "--k-t",
+        &k_t,
+        "--gravity",
+        "--col-t",
+        "time_ms",
+        "--time-unit",
+        "ms",
+        "--col-iq",
+        "Iq",
+        "--col-w",
+        "speed_rpm",
+        "--speed-unit",
+        "rpm",
+        "--col-theta",
+        "angle_deg",
+        "--angle-unit",
+        "deg",
+    ];
+    let out = greybox(&[&args[..], &["--json", json.to_str().unwrap()]].concat());
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let params = report["mechanics"]["fit"]["parameters"].as_array().unwrap();
+    for (name, value) in [("j", cfg.mechanics.inertia), ("mgl", cfg.mechanics.gravity)] {
+        let p = params.iter().find(|p| p["name"] == name).unwrap()["value"].as_f64().unwrap();
+        assert!((p / value - 1.0).abs() < 1e-3, "{name}: {p} vs {value}");
+    }
+    let renamed: Vec<&str> = args.iter().map(|a| if *a == "Iq" { "I_q" } else { a }).collect();
+    let out = greybox(&renamed);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{e}");
+    assert!(e.contains("--col-iq") && e.contains("I_q"), "{e}");
+}

@@ -89,7 +89,8 @@ pub struct MechanicsFit {
     pub std_errors_with_torque: Vec<f64>,
 }
 
-/// The window experiment of drive log `e` (channels `id, iq` \[A\], `w_m` \[rad/s\], and
+/// The window experiment of drive log `e` (channels `iq` \[A\], `id` for a salient motor,
+/// `w_m` \[rad/s\], and
 /// `theta_m` \[rad\] with a gravity term; [`LOAD_TORQUE`] \[N m\] when `load`): windows of
 /// `m = round(window/h)` periods starting every `m + 1` samples (no shared ends), per
 /// window `Δω = ω[k+m] − ω[k]` and the integrals of [`MECHANICS_CHANNELS`] (the torque held
@@ -126,8 +127,10 @@ fn windows_at(e: &Experiment, options: &MechanicsOptions, load: bool, w_c: f64) 
             ),
         });
     }
-    let (i_d, i_q, w) = (e.channel("id")?, e.channel("iq")?, e.channel("w_m")?);
+    let (i_q, w) = (e.channel("iq")?, e.channel("w_m")?);
     let zero = vec![0.0; e.len()];
+    // A torque without reluctance (L_d = L_q: surface magnets, or a given K_t) reads no i_d.
+    let i_d = if options.motor.salient() { e.channel("id")? } else { &zero };
     let theta = if options.terms.gravity { e.channel("theta_m")? } else { &zero };
     let t_l = if load { e.channel(LOAD_TORQUE)? } else { &zero };
     let trapezoid =
