@@ -5,11 +5,11 @@
 
 use super::columns::ColumnArgs;
 use super::output;
-use crate::data::{ColumnMap, CsvSpec, Experiment, read_csv};
+use crate::data::{ColumnMap, CsvSpec, Experiment, TimeWindow, read_csv};
 use crate::estimate::FitResult;
 use crate::pmsm::{
-    AngleUnit, Frame, LOAD_TORQUE, MechanicsFit, MechanicsOptions, MechanicsTerms, MotorParameters,
-    PmsmFitOptions, SQRT_2_3, Scale, SpeedUnit, fit_mechanics, fit_pmsm,
+    LOAD_TORQUE, MechanicsFit, MechanicsOptions, MechanicsTerms, MotorParameters, PmsmFitOptions, SQRT_2_3,
+    fit_mechanics, fit_pmsm,
 };
 use clap::Args;
 use serde::Serialize;
@@ -163,14 +163,8 @@ fn read_mechanical_logs(a: &MechanicsArgs) -> crate::Result<Vec<Experiment>> {
             });
         }
     }
-    let frame = if c.speed_frame == Frame::Electrical { 1.0 / f64::from(a.pole_pairs) } else { 1.0 };
-    let speed = match c.speed_unit {
-        SpeedUnit::Rpm => std::f64::consts::PI / 30.0,
-        SpeedUnit::RadPerSec => 1.0,
-    } * frame
-        * if c.negate_speed { -1.0 } else { 1.0 };
-    let angle = if c.angle_unit == AngleUnit::Deg { std::f64::consts::PI / 180.0 } else { 1.0 } * frame;
-    let current = if c.current_scale == Scale::Rms { std::f64::consts::SQRT_2 } else { 1.0 };
+    let o = c.options();
+    let n_p = a.pole_pairs;
     let column = |col: &str, channel: &str, unit: &str, scale: f64, required: bool| ColumnMap {
         scale,
         required,
@@ -178,19 +172,15 @@ fn read_mechanical_logs(a: &MechanicsArgs) -> crate::Result<Vec<Experiment>> {
     };
     let spec = CsvSpec {
         time: c.col_t.clone(),
-        time_scale: 1.0 / c.time_unit.per_second(),
+        time_scale: 1.0 / o.time_unit.per_second(),
         columns: vec![
-            column(&c.col_iq, "iq", "A", current, true),
-            column(&c.col_w, "w_m", "rad/s", speed, true),
-            column(&c.col_theta, "theta_m", "rad", angle, a.gravity),
+            column(&c.col_iq, "iq", "A", o.current_scale.factor(), true),
+            column(&c.col_w, "w_m", "rad/s", o.speed_factor(n_p), true),
+            column(&c.col_theta, "theta_m", "rad", o.angle_factor(n_p), a.gravity),
             column(&a.col_load, LOAD_TORQUE, "N m", 1.0, false),
         ],
-        limits: crate::data::csv::ReadLimits {
-            max_line_bytes: c.max_line_bytes,
-            max_fields: c.max_fields,
-            max_rows: c.max_rows,
-        },
-        delimiter: c.delimiter,
+        limits: o.limits,
+        delimiter: o.delimiter,
     };
     let flag = |col: &str| match col {
         x if x == c.col_iq => "--col-iq",
@@ -209,30 +199,27 @@ fn read_mechanical_logs(a: &MechanicsArgs) -> crate::Result<Vec<Experiment>> {
                 },
                 e => e,
             })?;
-            windowed(e, c.from, c.to)
+            windowed(e, &o.window)
         })
         .collect()
 }
 
-/// The rows of `e` with `from ≤ t ≤ to` \[s\] (both optional), the log's own times `t0 + k h`.
+/// The rows of `e` whose times `t0 + k h` \[s\] the window keeps (`from ≤ t ≤ to`, both
+/// optional: [`TimeWindow::contains`]).
 ///
 /// # Errors
 /// [`crate::Error::InvalidOption`] (`--from/--to`) when fewer than 2 rows are kept.
-fn windowed(e: Experiment, from: Option<f64>, to: Option<f64>) -> crate::Result<Experiment> {
-    if from.is_none() && to.is_none() {
+fn windowed(e: Experiment, window: &TimeWindow) -> crate::Result<Experiment> {
+    if window.from.is_none() && window.to.is_none() {
         return Ok(e);
     }
-    let t = |k: usize| e.t0() + k as f64 * e.h();
-    let first = (0..e.len()).find(|&k| from.is_none_or(|f| t(k) >= f)).unwrap_or(e.len());
-    let end = (first..e.len()).take_while(|&k| to.is_none_or(|x| t(k) <= x)).last().map_or(first, |k| k + 1);
+    let kept = |k: &usize| window.contains(e.t0() + *k as f64 * e.h());
+    let first = (0..e.len()).find(kept).unwrap_or(e.len());
+    let end = (first..e.len()).take_while(kept).last().map_or(first, |k| k + 1);
     if end < first + 2 {
         return Err(crate::Error::InvalidOption {
             option: "--from/--to".into(),
-            reason: format!(
-                "{}: the window keeps {} rows; it needs at least 2",
-                e.name(),
-                end.saturating_sub(first)
-            ),
+            reason: format!("{}: the window keeps {} rows; it needs at least 2", e.name(), end - first),
         });
     }
     e.slice(first..end)

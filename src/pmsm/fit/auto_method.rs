@@ -5,7 +5,7 @@
 use crate::data::Experiment;
 use crate::error::Result;
 use crate::estimate::{FitResult, Warning};
-use crate::pmsm::fit::hold::DQ_DECISIVE;
+use crate::pmsm::fit::hold::{DQ_DECISIVE, GIVE_THE_HOLD, largest_difference};
 use crate::pmsm::fit::iv::{Estimator, check_options, fit_pmsm_iv, fit_pmsm_iv_after};
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::fit::workflow::fit_pmsm;
@@ -43,7 +43,7 @@ pub fn fit_pmsm_by(
     let notes = iv.report.notes.iter().cloned().chain([note]).collect();
     let mut warnings = iv.report.warnings.clone();
     if !warnings.iter().any(|w| w.code == "hold_ambiguous") {
-        warnings.extend(other.and_then(|other| hold_ambiguous(&iv, &other)));
+        warnings.extend(other.and_then(|other| hold_ambiguous(&iv, &other, options)));
     }
     Ok(PmsmFit { report: FitResult { notes, warnings, ..iv.report }, ..iv })
 }
@@ -70,24 +70,15 @@ fn other_hold_fit(
 
 /// An untrusted `hold_ambiguous` warning when the IV estimates at the two holds differ by
 /// more than 3 combined standard errors in any parameter.
-fn hold_ambiguous(iv: &PmsmFit, other: &PmsmFit) -> Option<Warning> {
-    let (name, z) = iv
-        .report
-        .parameters
-        .iter()
-        .filter_map(|p| {
-            let q = other.report.parameter(&p.name)?;
-            Some((p.name.clone(), ((p.value - q.value) / p.std_error.hypot(q.std_error)).abs()))
-        })
-        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+fn hold_ambiguous(iv: &PmsmFit, other: &PmsmFit, options: &PmsmFitOptions) -> Option<Warning> {
+    let (name, z) = largest_difference(&iv.report, &other.report, options.model.parameter_names())?;
     (z > 3.0).then(|| {
         Warning::untrusted(
             "hold_ambiguous",
             format!(
                 "the instrumental-variable estimates at the {} and {} voltage holds, whose output-error losses are \
                  close, differ in {name} by {z:.1} standard errors: the log does not say how the voltage was held; \
-                 give the hold (--hold stator for a drive's inverter, --hold dq for a simulator that holds the dq \
-                 voltage)",
+                 {GIVE_THE_HOLD}",
                 iv.hold, other.hold
             ),
         )

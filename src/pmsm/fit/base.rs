@@ -12,7 +12,7 @@
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::{CovarianceMethod, FitResult, Timing};
-use crate::pmsm::fit::hold::{DQ_DECISIVE, HOLD_TIE_Z, HoldFits, hold_ambiguity};
+use crate::pmsm::fit::hold::{DQ_DECISIVE, GIVE_THE_HOLD, HOLD_TIE_Z, HoldFits, hold_ambiguity};
 use crate::pmsm::fit::report::delay_parameter;
 use crate::pmsm::fit::report::{PmsmFit, StartComparison};
 use crate::pmsm::model::interval::{VoltageHold, VoltageInput};
@@ -194,8 +194,7 @@ fn fit_beside(
             "hold_ambiguous",
             format!(
                 "{advice}; their losses differ by {z:.1} standard deviations of the residuals' noise, so the \
-                 data cannot choose: give the hold (--hold stator for a drive's inverter, --hold dq for a \
-                 simulator that holds the dq voltage)"
+                 data cannot choose: {GIVE_THE_HOLD}"
             ),
         ));
     }

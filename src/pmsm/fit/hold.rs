@@ -29,13 +29,7 @@ pub(crate) fn hold_ambiguity(
         return None;
     }
     // Differ by more than their joint uncertainty (3 combined standard errors).
-    let (name, z) = names
-        .iter()
-        .filter_map(|n| {
-            let (a, b) = (best.parameter(n)?, other.parameter(n)?);
-            Some((*n, ((a.value - b.value) / a.std_error.hypot(b.std_error)).abs()))
-        })
-        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+    let (name, z) = largest_difference(best, other, names)?;
     (z > 3.0).then(|| {
         format!(
             "the {hold} and {other_hold} voltage holds fit almost equally well (loss ratio {ratio:.3}) but their {name} \
@@ -44,6 +38,26 @@ pub(crate) fn hold_ambiguity(
         )
     })
 }
+
+/// The parameter of `names` whose estimates in fits `a` and `b` differ by the most combined
+/// standard errors, `|θ_a − θ_b| / √(se_a² + se_b²)`, and that many; `None` when no name is
+/// in both.
+pub(crate) fn largest_difference<'n>(
+    a: &FitResult,
+    b: &FitResult,
+    names: &[&'n str],
+) -> Option<(&'n str, f64)> {
+    names
+        .iter()
+        .filter_map(|n| {
+            let (p, q) = (a.parameter(n)?, b.parameter(n)?);
+            Some((*n, ((p.value - q.value) / p.std_error.hypot(q.std_error)).abs()))
+        })
+        .max_by(|x, y| x.1.total_cmp(&y.1))
+}
+
+/// What a user does about holds the log cannot tell apart.
+pub(crate) const GIVE_THE_HOLD: &str = "give the hold (--hold stator for a drive's inverter, --hold dq for a simulator that holds the dq voltage)";
 
 /// The fits of every hold tried: the chosen one, the others, `(hold, loss, converged)` in
 /// fitting order, notes on restarts, and the noise z of the losses' difference when the

@@ -1,7 +1,7 @@
 //! From the parsed columns of a log to a validated [`Experiment`]: units, frames and
 //! scaling converted, dq derived from phases if asked, errors in the configured names.
 
-use super::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit};
+use super::{ColumnNames, CsvOptions, DqSource};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::pmsm::log::signals::{DqSignals, DqView};
@@ -32,27 +32,8 @@ pub(super) fn build(
         .filter_map(|(name, c)| c.map(|c| (name.clone(), c)))
         .collect();
 
-    let frame = match options.speed_frame {
-        Frame::Mechanical => 1.0,
-        Frame::Electrical => 1.0 / f64::from(n_p),
-    };
-    let sign = if options.negate_speed { -1.0 } else { 1.0 };
-    let speed = sign
-        * frame
-        * match options.speed_unit {
-            SpeedUnit::RadPerSec => 1.0,
-            SpeedUnit::Rpm => std::f64::consts::PI / 30.0,
-        };
-    let angle = frame
-        * match options.angle_unit {
-            AngleUnit::Rad => 1.0,
-            AngleUnit::Deg => std::f64::consts::PI / 180.0,
-        };
-    let scale = |s: Scale| match s {
-        Scale::Peak => 1.0,
-        Scale::Rms => std::f64::consts::SQRT_2,
-    };
-    let (i_scale, u_scale) = (scale(options.current_scale), scale(options.voltage_scale));
+    let (speed, angle) = (options.speed_factor(n_p), options.angle_factor(n_p));
+    let (i_scale, u_scale) = (options.current_scale.factor(), options.voltage_scale.factor());
     scale_in_place(&mut w_m, speed);
     if let Some(v) = theta_m.as_mut() {
         scale_in_place(v, angle);

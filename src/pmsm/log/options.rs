@@ -164,6 +164,16 @@ pub enum Scale {
     Rms,
 }
 
+impl Scale {
+    /// Factor from a column in this scaling to amplitude-invariant peak values: 1 or `√2`.
+    pub fn factor(self) -> f64 {
+        match self {
+            Self::Peak => 1.0,
+            Self::Rms => std::f64::consts::SQRT_2,
+        }
+    }
+}
+
 /// Where the dq currents and voltages come from.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -226,6 +236,38 @@ pub struct CsvOptions {
     /// The field delimiter of a CSV log ([`Delimiter`]: `,` by default, `;`, tab or `|`);
     /// Parquet and Arrow logs ignore it.
     pub delimiter: Delimiter,
+}
+
+impl CsvOptions {
+    /// Factor from the speed column to the mechanical speed \[rad/s\] of a motor with `n_p`
+    /// pole pairs: the sign of [`CsvOptions::negate_speed`], `1/n_p` for an electrical speed,
+    /// `π/30` for rpm.
+    pub fn speed_factor(&self, n_p: u32) -> f64 {
+        let sign = if self.negate_speed { -1.0 } else { 1.0 };
+        sign * self.frame_factor(n_p)
+            * match self.speed_unit {
+                SpeedUnit::RadPerSec => 1.0,
+                SpeedUnit::Rpm => std::f64::consts::PI / 30.0,
+            }
+    }
+
+    /// Factor from the angle column to the mechanical angle \[rad\] of a motor with `n_p`
+    /// pole pairs: `1/n_p` for an electrical angle, `π/180` for degrees.
+    pub fn angle_factor(&self, n_p: u32) -> f64 {
+        self.frame_factor(n_p)
+            * match self.angle_unit {
+                AngleUnit::Rad => 1.0,
+                AngleUnit::Deg => std::f64::consts::PI / 180.0,
+            }
+    }
+
+    /// `1/n_p` for electrical speed and angle columns, else 1.
+    fn frame_factor(&self, n_p: u32) -> f64 {
+        match self.speed_frame {
+            Frame::Mechanical => 1.0,
+            Frame::Electrical => 1.0 / f64::from(n_p),
+        }
+    }
 }
 
 /// Shortest plausible sample time of a drive log: 100 ns (10 MHz, beyond any drive's
