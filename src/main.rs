@@ -69,9 +69,21 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    greybox::estimate::solver::run::set_progress_observer(Box::new(cli::progress::Spinner::default()));
     // Interrupted (SIGINT, SIGTERM, SIGHUP): the temporaries of outputs not yet renamed are
     // removed, the old outputs stay; exit 130 as a shell reports an interrupt.
-    let _ = ctrlc::set_handler(|| greybox::data::staged::exit_removing_temporaries(130));
+    let _ = ctrlc::set_handler(|| {
+        greybox::data::staged::interrupt_removing_temporaries(|n| {
+            if n > 0 {
+                eprintln!(
+                    "error: interrupted; {n} unfinished output file(s) removed, the files there before unchanged"
+                );
+            } else {
+                eprintln!("error: interrupted; no output file was unfinished");
+            }
+            std::process::exit(130)
+        })
+    });
     // The exit code: 0, or 3 for an untrusted fit, 4 for a failed log of a batch.
     let code = |trusted: bool| if trusted { 0 } else { 3 };
     let r: greybox::Result<u8> = match &cli.command {

@@ -16,6 +16,7 @@ pub mod mechanics;
 pub mod output;
 pub mod plan;
 pub mod plots;
+pub mod progress;
 pub mod pwm_args;
 pub mod saturation;
 pub mod simulate;

@@ -5,8 +5,8 @@
 //!
 //! Temporaries are named `.greybox-tmp.PID.SEQ.NAME` (the target's own name last, so its
 //! extension still says its format). Every live one is registered, so that a signal
-//! handler can remove them ([`exit_removing_temporaries`], which `greybox` calls on SIGINT and
-//! SIGTERM); a process killed outright (SIGKILL) cannot clean up, so each new write first
+//! handler can remove them ([`interrupt_removing_temporaries`], which `greybox` calls on SIGINT
+//! and SIGTERM, ending the process itself); a process killed outright (SIGKILL) cannot clean up, so each new write first
 //! removes the temporaries of its folder whose process no longer runs (Linux: no
 //! `/proc/PID`). A set of several files is renamed under a manifest (`.commit`, the pairs
 //! to rename): a process killed among its renames leaves it, and the next write in that
@@ -30,34 +30,28 @@ fn live() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
     LIVE.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
-/// Ends the process with exit code `code` after removing every temporary it has not
-/// renamed yet, for a signal handler: the files of an interrupted command go, the old
-/// outputs stay, and a message on stderr says so. A [`Staged::commit`] under way holds the
-/// registry until all its files are renamed, so this waits for it (the outputs are then
-/// all new, never some new beside some old); and it holds the registry until the process
-/// ends, so no other thread creates a temporary after the removal (each is created and
+/// For a signal handler: removes every temporary the process has not renamed yet, then
+/// calls `end` with how many it removed, still holding the registry; `end` is the caller's
+/// way to end the process (it cannot return: [`std::convert::Infallible`]) (the command line's: a message on stderr and its exit code), so
+/// the files of an interrupted command go and the old outputs stay. A [`Staged::commit`]
+/// under way holds the registry until all its files are renamed, so this waits for it (the
+/// outputs are then all new, never some new beside some old); and, as `end` does not
+/// return, no other thread creates a temporary after the removal (each is created and
 /// registered under the registry's lock).
-pub fn exit_removing_temporaries(code: i32) -> ! {
+pub fn interrupt_removing_temporaries(end: impl FnOnce(usize) -> std::convert::Infallible) -> ! {
     INTERRUPTED.store(true, Ordering::SeqCst);
     let mut live = live();
     let n = live.len();
     for tmp in live.drain(..) {
         let _ = std::fs::remove_file(tmp);
     }
-    if n > 0 {
-        eprintln!(
-            "error: interrupted; {n} unfinished output file(s) removed, the files there before unchanged"
-        );
-    } else {
-        eprintln!("error: interrupted; no output file was unfinished");
-    }
-    std::process::exit(code)
+    match end(n) {}
 }
 
-/// Set when [`exit_removing_temporaries`] has begun: the process is ending with its code.
+/// Set when [`interrupt_removing_temporaries`] has begun: the process is ending with its code.
 static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
-/// Whether a signal handler has begun [`exit_removing_temporaries`]: the main thread then
+/// Whether a signal handler has begun [`interrupt_removing_temporaries`]: the main thread then
 /// waits for it to end the process rather than racing it with another exit code.
 pub fn interrupted() -> bool {
     INTERRUPTED.load(Ordering::SeqCst)
@@ -221,7 +215,7 @@ impl Staged {
     pub fn commit(mut self) -> Result<()> {
         let files = std::mem::take(&mut self.files);
         // The registry is held across all renames: a signal handler's
-        // [`exit_removing_temporaries`] waits until the set is complete.
+        // [`interrupt_removing_temporaries`] waits until the set is complete.
         let mut live = live();
         let mut forget = |tmp: &PathBuf| live.retain(|p| p != tmp);
         // More than one file: a manifest, so that a kill among the renames is rolled forward.

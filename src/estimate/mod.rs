@@ -84,8 +84,9 @@ pub struct PemOptions {
     pub estimate_x0: bool,
     /// Thresholds of the identifiability diagnostics.
     pub diagnostics: DiagnosticThresholds,
-    /// Show a progress spinner on stderr (only when stderr is a terminal). Has an effect
-    /// only with the `cli` feature (which brings in `indicatif`); ignored without it.
+    /// Report the solver's iterations to the process's
+    /// [`ProgressObserver`](solver::run::ProgressObserver) (the command line installs a
+    /// spinner on stderr, shown only when stderr is a terminal); none installed: no effect.
     pub progress: bool,
     /// Levenberg-Marquardt's initial damping λ₀ ([`RunOptions::initial_damping`]); `None`:
     /// [`DEFAULT_DAMPING`] here, [`CLOSE_START_DAMPING`] in the PMSM fits that start from

@@ -39,7 +39,7 @@ pub use fit::auto_method::fit_pmsm_by;
 pub use fit::flux_map::{ExponentCandidate, FLUX_MAP_REFINED, FluxMapFit, FluxMapOptions, fit_flux_map};
 pub use fit::flux_map_check::{INDUCTANCE_WITHIN, MapCheck, MapModel, NO_LOAD_WITHIN, PointCheck};
 pub use fit::hold::{DQ_DECISIVE, HOLD_TIE_Z, SCREEN_DECISIVE};
-pub use fit::input_search::{ADVANCE_RANGE, DELAYS, InputSearch, SPEED_PLL_RANGE, fit_estimating_input};
+pub use fit::input_search::{ADVANCE_RANGE, DELAYS, InputSearch, fit_estimating_input};
 pub use fit::iv::{
     Estimator, IV_MAX_ITERATIONS, IV_STEP_TOLERANCE, check_options as check_iv_options, fit_pmsm_iv,
     fit_pmsm_iv_after,
@@ -51,6 +51,7 @@ pub use fit::mechanics::{
 pub use fit::pole_pairs::{AUTO_CANDIDATES, AutoPolePairs, choose_pole_pairs_by_fit};
 pub use fit::report::{PmsmFit, ReportOptions, StartComparison, conventions, estimate_table};
 pub use fit::saturated::{LOCAL_MINIMUM_EXCESS, SaturatedFit, fit_saturated};
+pub use fit::search::SPEED_PLL_RANGE;
 pub use fit::standstill::{STANDSTILL_T0, StandstillFit, StandstillOptions, UNEXCITED_AXIS, fit_standstill};
 pub use fit::validate::SavedModel;
 pub use fit::workflow::fit_pmsm;

@@ -41,6 +41,7 @@ mod noisy_inputs;
 mod online;
 mod outputs;
 mod plots;
+mod progress;
 mod pwm_model;
 mod pwm_trust;
 mod random_starts;

@@ -48,7 +48,7 @@ use nalgebra::{DMatrix, DVector};
 use std::fmt::Write as _;
 
 /// A test problem as the solvers see it.
-struct Mgh<'a>(&'a dyn MghProblem);
+pub(crate) struct Mgh<'a>(pub(crate) &'a dyn MghProblem);
 
 impl Mgh<'_> {
     fn residuals(&self, p: &DVector<f64>) -> Vec<f64> {
@@ -77,7 +77,7 @@ impl LeastSquares for Mgh<'_> {
 }
 
 /// MINPACK's driver tolerances for a problem with n variables.
-fn driver_tolerances(n: usize) -> Tolerances {
+pub(crate) fn driver_tolerances(n: usize) -> Tolerances {
     let tol = f64::EPSILON.sqrt();
     Tolerances { ftol: tol, xtol: tol, gtol: 0.0, max_iters: 100 * (n as u64 + 1) - 1 }
 }

@@ -10,7 +10,7 @@ use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Executor, Solver, State, TerminationReason};
 use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// Which optimiser runs the fit.
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
@@ -24,7 +24,7 @@ pub enum SolverKind {
     Gn,
 }
 
-/// How [`run_solver`] runs: the solver, its tolerances, and whether to show progress.
+/// How [`run_solver`] runs: the solver, its tolerances, and whether to report progress.
 /// Plain data with defaults; serialisable.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -33,7 +33,8 @@ pub struct RunOptions {
     pub solver: SolverKind,
     /// Stopping tolerances.
     pub tolerances: Tolerances,
-    /// Show a progress spinner on stderr (only when stderr is a terminal).
+    /// Report the run's iterations to the installed [`ProgressObserver`] (none installed:
+    /// no effect).
     pub progress: bool,
     /// Levenberg-Marquardt's initial damping λ₀, relative to `diag(JᵀWJ)` (> 0; no effect
     /// on Gauss-Newton). `None`: [`DEFAULT_DAMPING`]. Madsen, Nielsen & Tingleff (*Methods
@@ -111,9 +112,10 @@ where
     let exec = Executor::new(problem, solver)
         .configure(|s| s.param(p0).max_iters(options.tolerances.max_iters).counting(true))
         .add_observer(Trace(Arc::clone(&trace)), ObserverMode::Always);
-    // The spinner needs the `cli` feature (indicatif); without it `progress` has no effect.
-    #[cfg(feature = "cli")]
-    let exec = if options.progress { exec.add_observer(Progress::new(), ObserverMode::Always) } else { exec };
+    let exec = match OBSERVER.get().filter(|_| options.progress) {
+        Some(o) => exec.add_observer(Progress(o.as_ref()), ObserverMode::Always),
+        None => exec,
+    };
     let res = exec.run().map_err(Error::from_argmin)?;
     let counts = res.state.get_func_counts();
     let evaluations = ["normal_equations_count", "cost_count"].iter().filter_map(|k| counts.get(*k)).sum();
@@ -171,40 +173,45 @@ impl<I: State<Param = DVector<f64>>> Observe<I> for Trace {
     }
 }
 
-/// A spinner on stderr showing iteration and cost (hidden when stderr is not a terminal).
-#[cfg(feature = "cli")]
-struct Progress {
-    bar: indicatif::ProgressBar,
+/// What a solver run reports as it goes, for a caller that shows it (the command line's
+/// spinner): installed once per process with [`set_progress_observer`], called by every run
+/// whose [`RunOptions::progress`] is set. The library itself shows nothing.
+pub trait ProgressObserver: Send + Sync {
+    /// After each iteration: the iterations done before it (argmin's counter, 0 after the
+    /// first) and the best cost so far (units of the cost).
+    fn iteration(&self, iteration: u64, cost: f64);
+    /// The run has ended (converged, stopped, or failed).
+    fn finished(&self);
 }
 
-#[cfg(feature = "cli")]
-impl Progress {
-    fn new() -> Self {
-        let bar = indicatif::ProgressBar::new_spinner();
-        bar.set_draw_target(indicatif::ProgressDrawTarget::stderr());
-        Self { bar }
-    }
+/// The process's observer of solver runs, if one was installed.
+static OBSERVER: OnceLock<Box<dyn ProgressObserver>> = OnceLock::new();
+
+/// Installs the observer that runs with [`RunOptions::progress`] report to, once per
+/// process; `false` (and `observer` dropped) when one was installed before.
+pub fn set_progress_observer(observer: Box<dyn ProgressObserver>) -> bool {
+    OBSERVER.set(observer).is_ok()
 }
 
-#[cfg(feature = "cli")]
+/// The argmin observer that forwards a run's iterations to the installed observer.
+struct Progress(&'static dyn ProgressObserver);
+
 impl<I: State<Float = f64>> Observe<I> for Progress {
     fn observe_iter(
         &mut self,
         state: &I,
         _kv: &argmin::core::KV,
     ) -> std::result::Result<(), argmin::core::Error> {
-        self.bar.set_message(format!("iteration {}: cost {:.6e}", state.get_iter(), state.get_best_cost()));
-        self.bar.tick();
+        self.0.iteration(state.get_iter(), state.get_best_cost());
         if state.terminated() {
-            self.bar.finish_and_clear();
+            self.0.finished();
         }
         Ok(())
     }
 }
 
-#[cfg(feature = "cli")]
 impl Drop for Progress {
     fn drop(&mut self) {
-        self.bar.finish_and_clear();
+        self.0.finished();
     }
 }

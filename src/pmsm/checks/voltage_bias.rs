@@ -14,10 +14,9 @@
 //! white noise from the currents' noise and the model's slow error.
 
 use crate::data::Experiment;
-use crate::estimate::{CovarianceMethod, Warning};
+use crate::estimate::{CovarianceMethod, FitResult, Warning};
 use crate::pmsm::checks::noise::{NEGLIGIBLE_VOLTAGE_NOISE, voltage_noise};
 use crate::pmsm::checks::noise_bias::{Shift, simex_shifts};
-use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::log::signals::channel::{U_D, U_Q};
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::model::setup::PmsmSetup;
@@ -39,8 +38,8 @@ pub const VOLTAGE_BIAS_Z: f64 = 1.0;
 /// motulator log: a share of about 0.008).
 pub const VOLTAGE_NOISE_SHARE: f64 = 0.1;
 
-/// After an output-error fit `fit` of surface-magnet motors' `experiments` from their
-/// terminal voltage: an
+/// After an output-error fit (its report `fit`, its `setup`'s pole pairs and hold) of
+/// surface-magnet motors' `experiments` from their terminal voltage: an
 /// untrusted `voltage_noise_bias` warning when the logged voltage carries noise that is not
 /// negligible (over [`NEGLIGIBLE_VOLTAGE_NOISE`] of its RMS value and
 /// [`VOLTAGE_NOISE_SHARE`] of the voltage errors') and adding noise of that
@@ -51,14 +50,15 @@ pub const VOLTAGE_NOISE_SHARE: f64 = 0.1;
 pub(crate) fn warning(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
-    fit: &PmsmFit,
+    fit: &FitResult,
+    setup: PmsmSetup,
     parts: &PmsmFitOptions,
     refit: RefitReport<'_>,
 ) -> Option<Warning> {
-    if fit.report.uncertainty.method != CovarianceMethod::BatchMeans {
+    if fit.uncertainty.method != CovarianceMethod::BatchMeans {
         return None;
     }
-    let value = |n: &str| fit.report.parameter(n).map(|p| p.value);
+    let value = |n: &str| fit.parameter(n).map(|p| p.value);
     // The SPM inverse model only: with an IPM's mean inductance it leaves the saliency's
     // error, which follows the currents' steps and is no smooth error the noise estimate
     // cancels (it took the noise-free gym-electric-motor IPM log for a noisy one).
@@ -66,11 +66,11 @@ pub(crate) fn warning(
         return None;
     }
     let theta = [value("r_s")? + options.cable_resistance, value("l_s")?, value("k_e")?];
-    let (sigma, errors, rms) = voltage_noise(experiments, PmsmSetup::new(fit.pole_pairs, fit.hold), &theta)?;
+    let (sigma, errors, rms) = voltage_noise(experiments, setup, &theta)?;
     if !(sigma > NEGLIGIBLE_VOLTAGE_NOISE * rms && sigma > VOLTAGE_NOISE_SHARE * errors) {
         return None;
     }
-    let shifts = simex_shifts(experiments, &[(U_D, sigma), (U_Q, sigma)], parts, &fit.report, refit)?;
+    let shifts = simex_shifts(experiments, &[(U_D, sigma), (U_Q, sigma)], parts, fit, refit)?;
     let biased: Vec<String> =
         shifts.iter().filter(|s| s.z.abs() > VOLTAGE_BIAS_Z).map(Shift::describe).collect();
     (!biased.is_empty()).then(|| {

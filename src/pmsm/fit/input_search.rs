@@ -11,10 +11,13 @@ use crate::error::{Error, Result};
 use crate::estimate::{FitResult, ParameterEstimate};
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::fit::report::delay_parameter;
+use crate::pmsm::fit::search::{SPEED_PLL_RANGE, golden_search};
 use crate::pmsm::fit::workflow::fit_pmsm;
 use crate::pmsm::log::signals::DqView;
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::inverter::InverterModel;
+use crate::pmsm::model::mask::DeadTimeMask;
+use crate::pmsm::model::pwm::PwmInverter;
 use crate::pmsm::options::PmsmFitOptions;
 use nalgebra::{DMatrix, DVector};
 
@@ -22,12 +25,6 @@ use nalgebra::{DMatrix, DVector};
 pub const DELAYS: std::ops::RangeInclusive<usize> = 0..=3;
 /// Range of the modulator angle advance searched \[ω_e h\].
 pub const ADVANCE_RANGE: (f64, f64) = (-1.0, 4.0);
-/// Range of the speed-estimator bandwidth searched \[rad/s\]: 2π·10 Hz to 2π·2 kHz.
-pub const SPEED_PLL_RANGE: (f64, f64) = (62.83185307179586, 12_566.370614359172);
-/// Log-spaced bandwidths of the coarse scan before the golden-section refinement.
-const COARSE: usize = 16;
-/// Golden-section steps (each shrinks the bracket by 0.618: 24 steps ≈ 1e-5 in ln α).
-const GOLDEN_STEPS: usize = 24;
 
 /// What to estimate besides the motor's parameters.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -56,7 +53,7 @@ pub fn fit_estimating_input(
     search: InputSearch,
 ) -> Result<PmsmFit> {
     if options.pwm.is_some() {
-        return super::pwm_fit::with_drive_timing(experiments, options, search);
+        return with_drive_timing(experiments, options, search);
     }
     let (delay0, advance, pll0) = match options.input {
         VoltageInput::Reference { delay, advance, speed_pll } => (delay, advance, speed_pll),
@@ -277,44 +274,51 @@ fn delay_set(tried: &[(usize, f64)], best: usize, dof: usize) -> [usize; 2] {
     [lo, hi]
 }
 
-/// The value in `range` with the lowest `loss`: an evenly spaced scan, then a golden-section
-/// search in the bracket around the best point; on the logarithm when `log` (a positive
-/// range).
-pub(crate) fn golden_search(
-    range: (f64, f64),
-    log: bool,
-    mut loss: impl FnMut(f64) -> Result<f64>,
-) -> Result<f64> {
-    type Map = fn(f64) -> f64;
-    let (to, from): (Map, Map) = if log { (f64::ln, f64::exp) } else { (|x| x, |x| x) };
-    let mut loss = move |x: f64| loss(from(x));
-    let (lo, hi) = (to(range.0), to(range.1));
-    let grid: Vec<f64> = (0..COARSE).map(|i| lo + (hi - lo) * i as f64 / (COARSE - 1) as f64).collect();
-    let mut values = Vec::with_capacity(COARSE);
-    for &x in &grid {
-        values.push(loss(x)?);
-    }
-    let i = (0..COARSE).min_by(|&a, &b| values[a].total_cmp(&values[b])).unwrap_or(0);
-    if !values[i].is_finite() {
-        return Err(Error::Numerical {
-            context: "nuisance search".into(),
-            reason: format!("no value in [{:.3e}, {:.3e}] gives a converged fit", range.0, range.1),
+/// A PWM fit (`options.pwm`) at the drive's timing (`search`: the computational delay, the
+/// angle advance, the controller's speed estimate) found with the averaged inverter model
+/// (`--dead-time estimate --dead-time-mask auto`, whose search costs about a second where
+/// one through the PWM model costs a fit of a minute per candidate): the delay and the
+/// controller's angle are the drive's, not the inverter's (MODEL.md §4). The timing fit's
+/// `delay_samples` and a note on where the timing came from join the PWM fit's report.
+///
+/// # Errors
+/// Those of [`fit_estimating_input`] and [`fit_pmsm`]; [`crate::Error::InvalidOption`] for a
+/// search of the averaged model's dead-time width (the PWM model has its own leg state).
+fn with_drive_timing(
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+    search: InputSearch,
+) -> Result<PmsmFit> {
+    if search.dead_time_width {
+        return Err(crate::Error::InvalidOption {
+            option: "dead-time-width".into(),
+            reason: "the PWM inverter has its own leg state: drop --dead-time-width, see --leg-state-width"
+                .into(),
         });
     }
-    let (mut a, mut b) = (grid[i.saturating_sub(1)], grid[(i + 1).min(COARSE - 1)]);
-    let r = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut c, mut d) = (b - r * (b - a), a + r * (b - a));
-    let (mut fc, mut fd) = (loss(c)?, loss(d)?);
-    for _ in 0..GOLDEN_STEPS {
-        if fc <= fd {
-            (b, d, fd) = (d, c, fc);
-            c = b - r * (b - a);
-            fc = loss(c)?;
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + r * (b - a);
-            fd = loss(d)?;
-        }
+    let pwm = options.pwm.map(|p| PwmInverter { search_speed_pll: search.speed_pll, ..p });
+    if !(search.delay || search.advance) {
+        return fit_pmsm(experiments, &PmsmFitOptions { pwm, ..options.clone() });
     }
-    Ok(from(if fc <= fd { c } else { d }))
+    let averaged = PmsmFitOptions {
+        pwm: None,
+        inverter: Some(InverterModel { width: None, known: None, mask: Some(DeadTimeMask::Auto) }),
+        start: None,
+        skip_setup_checks: true,
+        ..options.clone()
+    };
+    let timing = fit_estimating_input(experiments, &averaged, InputSearch { speed_pll: false, ..search })?;
+    let fit = fit_pmsm(experiments, &PmsmFitOptions { input: timing.input, pwm, ..options.clone() })?;
+    let VoltageInput::Reference { delay, advance, .. } = timing.input else {
+        return Ok(fit);
+    };
+    let note = format!(
+        "the drive's timing from a fit of the averaged inverter model (dead time estimated, its mask auto): delay \
+         {delay} sample(s), angle advance {advance:.4} ω_e h"
+    );
+    let delay = timing.parameter("delay_samples").cloned();
+    let parameters =
+        fit.report.parameters.iter().filter(|p| p.name != "delay_samples").cloned().chain(delay).collect();
+    let pmsm_notes = std::iter::once(note).chain(fit.pmsm_notes.iter().cloned()).collect();
+    Ok(PmsmFit { report: FitResult { parameters, ..fit.report.clone() }, pmsm_notes, ..fit })
 }

@@ -236,7 +236,7 @@ fn estimated_coulomb_speed(
     }
     let range = (COULOMB_SPEED_RANGE.0 * peak, COULOMB_SPEED_RANGE.1 * peak);
     fit_at(experiments, options, load, (range.0 * range.1).sqrt())?;
-    crate::pmsm::fit::input_search::golden_search(range, true, |w_c| {
+    crate::pmsm::fit::search::golden_search(range, true, |w_c| {
         Ok(fit_at(experiments, options, load, w_c).map_or(f64::INFINITY, |(_, r)| r.fit.loss))
     })
 }

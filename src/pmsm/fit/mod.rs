@@ -21,6 +21,7 @@ mod pwm_mask;
 mod pwm_start;
 pub(super) mod report;
 pub(super) mod saturated;
+pub(super) mod search;
 pub(super) mod simulated;
 pub(super) mod standstill;
 pub(super) mod steady;

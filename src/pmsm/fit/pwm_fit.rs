@@ -7,14 +7,9 @@ use crate::error::Result;
 use crate::estimate::{FitResult, Weighting};
 use crate::model::GreyBoxModel;
 use crate::pmsm::fit::hold::HoldFits;
-use crate::pmsm::fit::input_search::{InputSearch, SPEED_PLL_RANGE, fit_estimating_input, golden_search};
-use crate::pmsm::fit::report::PmsmFit;
-use crate::pmsm::fit::workflow::fit_pmsm;
+use crate::pmsm::fit::search::{SPEED_PLL_RANGE, golden_search};
 use crate::pmsm::model::interval::VoltageInput;
-use crate::pmsm::model::inverter::InverterModel;
-use crate::pmsm::model::mask::DeadTimeMask;
 use crate::pmsm::model::pwm::{PmsmPwm, PwmInverter};
-use crate::pmsm::options::PmsmFitOptions;
 
 /// The fits of a PWM model from `start` (parameters `names`, model order) at the voltage
 /// `input`, in stages; `model` makes the model of an inverter and input as configured by
@@ -142,53 +137,4 @@ fn search_speed_pll(
         if chosen.is_some() { "the loop" } else { "the logged" }
     );
     Ok((at(chosen), Some(note)))
-}
-
-/// A PWM fit (`options.pwm`) at the drive's timing (`search`: the computational delay, the
-/// angle advance, the controller's speed estimate) found with the averaged inverter model
-/// (`--dead-time estimate --dead-time-mask auto`, whose search costs about a second where
-/// one through the PWM model costs a fit of a minute per candidate): the delay and the
-/// controller's angle are the drive's, not the inverter's (MODEL.md §4). The timing fit's
-/// `delay_samples` and a note on where the timing came from join the PWM fit's report.
-///
-/// # Errors
-/// Those of [`fit_estimating_input`] and [`fit_pmsm`]; [`crate::Error::InvalidOption`] for a
-/// search of the averaged model's dead-time width (the PWM model has its own leg state).
-pub(crate) fn with_drive_timing(
-    experiments: &[Experiment],
-    options: &PmsmFitOptions,
-    search: InputSearch,
-) -> Result<PmsmFit> {
-    if search.dead_time_width {
-        return Err(crate::Error::InvalidOption {
-            option: "dead-time-width".into(),
-            reason: "the PWM inverter has its own leg state: drop --dead-time-width, see --leg-state-width"
-                .into(),
-        });
-    }
-    let pwm = options.pwm.map(|p| PwmInverter { search_speed_pll: search.speed_pll, ..p });
-    if !(search.delay || search.advance) {
-        return fit_pmsm(experiments, &PmsmFitOptions { pwm, ..options.clone() });
-    }
-    let averaged = PmsmFitOptions {
-        pwm: None,
-        inverter: Some(InverterModel { width: None, known: None, mask: Some(DeadTimeMask::Auto) }),
-        start: None,
-        skip_setup_checks: true,
-        ..options.clone()
-    };
-    let timing = fit_estimating_input(experiments, &averaged, InputSearch { speed_pll: false, ..search })?;
-    let fit = fit_pmsm(experiments, &PmsmFitOptions { input: timing.input, pwm, ..options.clone() })?;
-    let VoltageInput::Reference { delay, advance, .. } = timing.input else {
-        return Ok(fit);
-    };
-    let note = format!(
-        "the drive's timing from a fit of the averaged inverter model (dead time estimated, its mask auto): delay \
-         {delay} sample(s), angle advance {advance:.4} ω_e h"
-    );
-    let delay = timing.parameter("delay_samples").cloned();
-    let parameters =
-        fit.report.parameters.iter().filter(|p| p.name != "delay_samples").cloned().chain(delay).collect();
-    let pmsm_notes = std::iter::once(note).chain(fit.pmsm_notes.iter().cloned()).collect();
-    Ok(PmsmFit { report: FitResult { parameters, ..fit.report.clone() }, pmsm_notes, ..fit })
 }

@@ -11,6 +11,7 @@ use crate::error::{Error, Result};
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::model::interval::{VoltageHold, VoltageInput};
 use crate::pmsm::model::mask::DeadTimeMask;
+use crate::pmsm::model::setup::PmsmSetup;
 use crate::pmsm::options::{Dynamics, HoldChoice, PmsmFitOptions};
 
 /// Fits a PMSM model to one or more logs of one motor (parameters shared unless listed in
@@ -77,8 +78,14 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     // reference voltage and the inverter are modelled, and their model's error is what the
     // parts show.
     if options.inverter.is_none() && options.input == VoltageInput::Terminal {
-        let bias =
-            crate::pmsm::checks::voltage_bias::warning(experiments, options, &fit, &parts, &refit_report);
+        let bias = crate::pmsm::checks::voltage_bias::warning(
+            experiments,
+            options,
+            &fit.report,
+            PmsmSetup::new(fit.pole_pairs, fit.hold),
+            &parts,
+            &refit_report,
+        );
         return Ok(match bias {
             None => fit,
             Some(w) => {

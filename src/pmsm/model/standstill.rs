@@ -7,7 +7,7 @@
 use crate::data::{Experiment, Values};
 use crate::error::{Error, Result};
 use crate::model::{GreyBoxModel, Parameter, Signal};
-use crate::pmsm::{clarke, inverse_clarke, inverse_park, park};
+use crate::pmsm::log::transform::{clarke, inverse_clarke, inverse_park, park};
 
 /// Name of the winding-temperature channel \[°C\] a standstill log may carry.
 pub const WINDING_TEMPERATURE: &str = "t_winding";
