@@ -24,7 +24,8 @@ pub const AT_BOUND: f64 = 1e-6;
 /// when they do not.
 pub(crate) type PartsCheck<'a> = dyn Fn(&[f64]) -> Option<Option<String>> + 'a;
 
-/// Computes the statistics at p̂ and fills a [`FitResult`].
+/// Computes the statistics at p̂ and fills a [`FitResult`]; `correction`: the term the
+/// criterion was compensated by, if any.
 pub(crate) fn assemble<M: GreyBoxModel>(
     problem: &PemProblem<'_, M>,
     p: &DVector<f64>,
@@ -32,6 +33,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     mut solver: SolverReport,
     thresholds: &DiagnosticThresholds,
     parts: Option<&PartsCheck<'_>>,
+    correction: Option<&dyn crate::estimate::CriterionCorrection>,
 ) -> Result<FitResult> {
     let model = problem.model();
     let params = model.parameters();
@@ -72,6 +74,16 @@ pub(crate) fn assemble<M: GreyBoxModel>(
     let batch_means = uncertainty.taken(offered);
     let cov_white = sandwich(Meat::Gram(&sums.meat));
     let cov_batches = batch_means.map(|b| sandwich(Meat::Batches(b)));
+    // A compensated criterion's estimate also depends on the noise through what the
+    // compensation and the model's own choices read off the data (its noise level, which
+    // samples count), which the score's long-run covariance does not see: each parameter
+    // keeps the larger of the two standard errors, with the batch means' correlations.
+    let cov_batches = match (cov_batches, &cov_white, correction) {
+        (Some(Some(Covariance::Dense(b))), Some(Covariance::Dense(w)), Some(_)) => {
+            Some(Some(Covariance::Dense(crate::estimate::correction::larger_errors(&b, w))))
+        }
+        (other, _, _) => other,
+    };
     let cov_theta = cov_batches.as_ref().unwrap_or(&cov_white);
     let tq = t_quantile_975(uncertainty.dof);
     let standard_errors = |cov: &Option<Covariance>| -> Vec<f64> {
@@ -290,8 +302,16 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         .collect();
     let all_names: Vec<String> =
         if structured { order_all.iter().map(|&g| name_of(g)).collect() } else { diag_names.clone() };
+    // A compensated criterion is stationary where the score equals the correction's
+    // gradient ([`crate::estimate::correction`]).
+    let score = match correction {
+        Some(c) => {
+            &sums.score + crate::estimate::correction::Compensated { problem, correction: c }.correction(p)?.1
+        }
+        None => sums.score.clone(),
+    };
     let evidence = gate::Evidence {
-        remaining: gate::remaining(&bread_inv, &sums.score, &order_all, &dtheta, &se_free, &all_names, |g| {
+        remaining: gate::remaining(&bread_inv, &score, &order_all, &dtheta, &se_free, &all_names, |g| {
             problem.free()[g].transform.to_theta(p[g])
         }),
         condition: gate::scaled_condition(&sums.jtj, &order, &diag_names),

@@ -9,6 +9,7 @@
 pub mod arrowhead;
 pub mod assemble;
 pub mod consistency;
+pub mod correction;
 mod covariance;
 pub mod design;
 pub mod diagnostics;
@@ -24,6 +25,7 @@ pub mod solver;
 pub mod spline;
 pub mod weighting;
 
+pub use correction::CriterionCorrection;
 #[cfg(test)]
 pub(crate) use problem::lagged_dots;
 pub use problem::{
@@ -203,7 +205,7 @@ fn finish<M: GreyBoxModel>(
     let uniform = weighting.is_uniform();
     let scaling = options.scaling.rule();
     let p0 = problem.start_vector(start);
-    let (mut p_hat, mut report) = run_solver(&problem, p0, &options.run_options())?;
+    let (mut p_hat, mut report) = solve(&problem, p0, options, weighting)?;
     let mut notes = Vec::new();
     let problem = match options.huber {
         None => problem,
@@ -230,13 +232,21 @@ fn finish<M: GreyBoxModel>(
             // The quadratic run's trace, in the robust problem's scaled space, before its own.
             let mut trace: Vec<Vec<f64>> =
                 trace_values.iter().map(|v| robust.point_from_values(v).as_slice().to_vec()).collect();
-            (p_hat, report) = run_solver(&robust, p1, &options.run_options())?;
+            (p_hat, report) = solve(&robust, p1, options, weighting)?;
             trace.append(&mut report.trace);
             report.trace = trace;
             robust
         }
     };
-    let mut result = assemble(&problem, &p_hat, start, report, &options.diagnostics, parts)?;
+    let mut result = assemble(
+        &problem,
+        &p_hat,
+        start,
+        report,
+        &options.diagnostics,
+        parts,
+        weighting.criterion_correction(),
+    )?;
     result.notes.append(&mut notes);
     if !uniform {
         result.notes.push(format!("sample weighting: {}", weighting.name()));
@@ -244,6 +254,22 @@ fn finish<M: GreyBoxModel>(
     result.timing.fit_s = t0.elapsed().as_secs_f64();
     result.timing.total_s = result.timing.fit_s;
     Ok(result)
+}
+
+/// Runs the solver on `problem` from `p0`, its criterion compensated by the weighting's
+/// [`CriterionCorrection`] if it has one.
+fn solve<M: GreyBoxModel>(
+    problem: &PemProblem<'_, M>,
+    p0: nalgebra::DVector<f64>,
+    options: &PemOptions,
+    weighting: &dyn Weighting,
+) -> Result<(nalgebra::DVector<f64>, SolverReport)> {
+    match weighting.criterion_correction() {
+        Some(correction) => {
+            run_solver(&correction::Compensated { problem, correction }, p0, &options.run_options())
+        }
+        None => run_solver(problem, p0, &options.run_options()),
+    }
 }
 
 /// The prediction-error problem of a fit: the experiments prepared, their weights, the

@@ -24,6 +24,11 @@ pub trait Weighting: Send + Sync + std::fmt::Debug {
     fn output_weights(&self) -> Option<Vec<f64>> {
         None
     }
+    /// A term the fit subtracts from its criterion (bias-compensated least squares,
+    /// [`crate::estimate::correction`]); `None` (the default): the plain criterion.
+    fn criterion_correction(&self) -> Option<&dyn crate::estimate::CriterionCorrection> {
+        None
+    }
     /// Checks that `e` holds what the rule reads (called before the weights).
     ///
     /// # Errors

@@ -16,8 +16,8 @@ fn sample() -> Experiment {
 }
 
 /// `x[k+1] = a x[k] + u[k]`, output x: unstable for |a| > 1.
-struct Scalar {
-    p: Vec<Parameter>,
+pub(crate) struct Scalar {
+    pub(crate) p: Vec<Parameter>,
 }
 impl GreyBoxModel for Scalar {
     type Inputs = Vec<f64>;

@@ -5,6 +5,7 @@
 //! after the build; see `common::require_shared!`.
 
 mod common;
+mod compensated;
 
 mod agreement;
 mod batch;

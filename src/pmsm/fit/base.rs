@@ -86,19 +86,20 @@ fn fit_beside(
         }
         _ => None,
     };
-    let Fitted { fits, mut notes, ls_theta, modulator, pwm, input } = match (fitted, &scan) {
-        (Err(Error::Numerical { context, reason }), Some(g)) if context == "least-squares start" => {
-            let named = crate::pmsm::checks::columns::start_failure(g, experiments, options);
-            return Err(Error::Numerical {
-                context,
-                reason: match named {
-                    Some(why) => format!("{reason}. Likely cause: {why}"),
-                    None => reason,
-                },
-            });
-        }
-        (fitted, _) => fitted?,
-    };
+    let Fitted { fits, mut notes, ls_theta, modulator, pwm, input, warnings: stage_warnings } =
+        match (fitted, &scan) {
+            (Err(Error::Numerical { context, reason }), Some(g)) if context == "least-squares start" => {
+                let named = crate::pmsm::checks::columns::start_failure(g, experiments, options);
+                return Err(Error::Numerical {
+                    context,
+                    reason: match named {
+                        Some(why) => format!("{reason}. Likely cause: {why}"),
+                        None => reason,
+                    },
+                });
+            }
+            (fitted, _) => fitted?,
+        };
     let HoldFits { best: (hold, best), others, losses, notes: hold_notes, tied } = fits;
     notes.extend(hold_notes);
     let pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
@@ -188,6 +189,7 @@ fn fit_beside(
         warnings.extend(crate::pmsm::checks::delay::warning(experiments, options, best.fit.loss, refit));
     }
     warnings.extend(setup_warnings.into_iter().flatten());
+    warnings.extend(stage_warnings);
     // Holds the noise ties whose estimates differ: the log cannot say which is right.
     if let (Some(z), Some(advice)) = (tied, pmsm_advice.first()) {
         warnings.push(crate::estimate::Warning::untrusted(

@@ -35,6 +35,8 @@ pub(super) struct Fitted {
     pub pwm: Option<crate::pmsm::model::pwm::PwmInverter>,
     /// The voltage input of the fits: the options', or with the controller's loop found.
     pub input: VoltageInput,
+    /// Warnings of the PWM fit's stages (the controller's loop not pinned by the log).
+    pub warnings: Vec<crate::estimate::Warning>,
 }
 
 /// The start of the fits of `experiments` under `options` (fitted parameters `names`, model
@@ -241,6 +243,7 @@ pub(super) fn fit_from_start(
     };
     let mut input = options.input;
     let mut fitted_pwm = pwm;
+    let mut warnings = Vec::new();
     let fits = match (pwm, options.model) {
         (Some(pwm), kind) => {
             // The PWM model of an inverter and input at a hold, as the options configure it.
@@ -283,6 +286,7 @@ pub(super) fn fit_from_start(
                 &model,
                 &fit,
                 &mut notes,
+                &mut warnings,
             )?;
             input = chosen;
             fitted_pwm = Some(inverter);
@@ -291,7 +295,7 @@ pub(super) fn fit_from_start(
         (None, MotorKind::Spm) => fit_holds!(PmsmSpm),
         (None, MotorKind::Ipm) => fit_holds!(PmsmIpm),
     }?;
-    Ok(Fitted { fits, notes, ls_theta, modulator, pwm: fitted_pwm, input })
+    Ok(Fitted { fits, notes, ls_theta, modulator, pwm: fitted_pwm, input, warnings })
 }
 
 /// The unit of parameter `name` of `kind`, `V` for the dead-time voltage `v_dt`.

@@ -14,7 +14,9 @@
 //!
 //! So, after the continuation ([`super::pwm_start::continuation`]), the predictor at its
 //! estimate gives each sample's residual and the smallest phase current at a piece's start
-//! in the period before it ([`PmsmPwm::sign_margins`]); a sample is weighted out when that
+//! in the period before it, that period started from the previous period's prediction so
+//! that the choice does not depend on the measured current's noise at the period's start
+//! ([`PmsmPwm::sign_margins`]); a sample is weighted out when that
 //! current is within [`MARGIN_SCALES`] × the residuals' trimmed rms of zero (the prediction's
 //! error inside the period is of the residual's size; the trimmed rms leaves out the spikes
 //! themselves, [`TRIMMED`]); so is a sample whose period holds a duty ratio within
@@ -25,7 +27,7 @@
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::Weighting;
+use crate::estimate::{CriterionCorrection, Weighting};
 use crate::model::GreyBoxModel;
 use crate::pmsm::model::pwm::PmsmPwm;
 
@@ -51,6 +53,21 @@ pub(crate) struct SignMask<'a> {
     logs: Vec<(usize, Vec<bool>)>,
     /// The threshold \[A\].
     pub margin: f64,
+    /// The criterion's compensation for the noise on the predictor's start, if any
+    /// ([`super::pwm_noise`]).
+    correction: Option<Box<dyn CriterionCorrection>>,
+}
+
+impl<'a> SignMask<'a> {
+    /// The same mask with the criterion compensated by `correction`.
+    pub(crate) fn compensated(&self, correction: Box<dyn CriterionCorrection>) -> SignMask<'a> {
+        SignMask {
+            inner: self.inner,
+            logs: self.logs.clone(),
+            margin: self.margin,
+            correction: Some(correction),
+        }
+    }
 }
 
 impl Weighting for SignMask<'_> {
@@ -73,6 +90,9 @@ impl Weighting for SignMask<'_> {
     }
     fn check(&self, e: &Experiment) -> Result<()> {
         self.inner.check(e)
+    }
+    fn criterion_correction(&self) -> Option<&dyn CriterionCorrection> {
+        self.correction.as_deref()
     }
 }
 
@@ -123,5 +143,5 @@ pub(crate) fn sign_mask<'a>(
          largest {:.0} % left out) or a duty ratio within {duty:.1e} of 0 or 1",
         TRIMMED * 100.0
     );
-    Ok((SignMask { inner, logs, margin }, note))
+    Ok((SignMask { inner, logs, margin, correction: None }, note))
 }

@@ -326,3 +326,65 @@ fn piece<T: Scalar>(sys: &System<T>, x: [T; 2], v: [T; 2], (sr, cr): (T, T), tau
     let pvr = [p[0][0] * vr[0] + p[0][1] * vr[1], p[1][0] * vr[0] + p[1][1] * vr[1]];
     [e * (c * y[0] + s * ay[0]) + pvr[0] + sys.xc[0], e * (c * y[1] + s * ay[1]) + pvr[1] + sys.xc[1]]
 }
+
+/// The period's state transition `Φ = ∂x(h)/∂x(0) = e^{A h}` (row-major), `h` the period's
+/// length: the pieces share `A` and their voltages do not depend on the start where the leg
+/// states are hard signs (Moler & Van Loan 2003, §2: the 2×2 case).
+pub(crate) fn transition<T: Scalar>(q: &Params<T>, per: &Period) -> [T; 4] {
+    let s = system(q, per.w_e, per.emf);
+    let h: f64 = per.halves[..usize::from(per.n)].iter().map(|p| p.len).sum();
+    let (c, sv) = c_s(s.delta, T::cst(h));
+    let e = (s.mu * h).exp();
+    [
+        e * (c + sv * (s.a[0][0] - s.mu)),
+        e * (sv * s.a[0][1]),
+        e * (sv * s.a[1][0]),
+        e * (c + sv * (s.a[1][1] - s.mu)),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::PwmInverter;
+    use super::super::dual::Dual;
+    use super::super::modulator::{Carrier, halves};
+    use super::*;
+
+    /// With hard leg states the period's Jacobian with respect to its start current, by
+    /// forward mode through every piece, is `e^{A h}` ([`transition`]): a salient machine
+    /// turning, a dead time and a threshold, currents away from zero.
+    #[test]
+    fn the_transition_is_the_steps_jacobian() {
+        let q = Params { r: 0.35, l_d: 3.2e-3, l_q: 7.5e-3, k_e: 0.42, t_d: 2e-6, u_th: 1.2, i_w: None };
+        let inverter = PwmInverter::default();
+        let mut carrier = Carrier::default();
+        for (rising, w_e) in [(true, 400.0), (false, -250.0)] {
+            let per = Period::new(
+                0.3,
+                w_e,
+                w_e / 2.0,
+                400.0,
+                halves(&inverter, &mut carrier, [0.3, 0.55, 0.7], rising, 2e-4),
+            );
+            let qd = Params {
+                r: Dual::cst(q.r),
+                l_d: Dual::cst(q.l_d),
+                l_q: Dual::cst(q.l_q),
+                k_e: Dual::cst(q.k_e),
+                t_d: Dual::cst(q.t_d),
+                u_th: Dual::cst(q.u_th),
+                i_w: None,
+            };
+            let next = step(&qd, &per, [Dual::seed(-6.0, 0), Dual::seed(9.0, 1)]);
+            let phi = transition(&q, &per);
+            let jac = [next[0].d[0], next[0].d[1], next[1].d[0], next[1].d[1]];
+            for (a, b) in phi.iter().zip(jac) {
+                assert!((a - b).abs() < 1e-12, "{phi:?} against {jac:?}");
+            }
+            assert!(
+                (phi[0] - 1.0).abs() > 1e-3 && phi[1].abs() > 1e-3,
+                "a transition that is not the identity"
+            );
+        }
+    }
+}
