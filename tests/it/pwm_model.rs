@@ -239,7 +239,9 @@ fn the_controller_frame_is_the_loops() {
 /// noisy logs. The masked fit of the sign on the same samples has the lower loss on a log
 /// whose inverter switches hard (the simulator's), and the motor's parameters are within
 /// their intervals at 0.01 A (at 0.05 A on this low-current log the restart from the noisy
-/// current biases r_s by 12 %, errors in the variables, which docs/options.md reports).
+/// current biased r_s by 12 %, errors in the variables; with the criterion compensated,
+/// docs/options.md step 6, r_s is within 0.01 %, but u_th goes to its bound 0 and the fit
+/// is untrusted).
 #[test]
 fn a_noisy_current_leaves_the_leg_state_the_sign() {
     let cfg = scenario("exp3", SPM_MOTOR).unwrap();
