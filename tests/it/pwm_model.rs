@@ -124,6 +124,64 @@ fn the_pwm_sensitivities_are_the_steps_derivatives() {
     }
 }
 
+/// The blocked pass of a predictor that restarts every period (the default gain 1) steps
+/// the periods of each block in parallel: its outputs, sensitivities and initial-state
+/// directions are the per-sample step's to the bit, for a log longer than several blocks.
+#[test]
+fn the_parallel_pwm_pass_is_the_per_sample_step() {
+    let (e, cfg) = pwm_log("exp3", 0.2, 2e-6, 1.0, 0.0);
+    let m = model(
+        &cfg,
+        PwmInverter { first_edge: Some(greybox::pmsm::CarrierEdge::Rising), ..Default::default() },
+    );
+    let theta = truth(&cfg, 2e-6, 1.0);
+    let prep = greybox::model::Prepared::new(&m, &e).unwrap();
+    assert!(m.block_kernel().is_some() && prep.n > 3 * greybox::model::BLOCK_LEN, "{} samples", prep.n);
+    let c = m.coefficients(&theta, &prep.inputs).unwrap();
+    let sens = m.sensitivities().expect("analytic sensitivities");
+    let n = theta.len();
+    // The per-sample recursion: the state is the output, restarted from the measurement.
+    let (mut x, mut s) = (prep.x0.clone(), vec![0.0; 2 * n]);
+    let mut expected = Vec::with_capacity(prep.n);
+    for k in 0..prep.n {
+        expected.push((x.clone(), s.clone()));
+        if k + 1 < prep.n {
+            let (mut xn, mut sn) = (vec![0.0; 2], vec![0.0; 2 * n]);
+            sens.step_sensitivity(&c, &prep.inputs, k, &x, &s, &mut xn, &mut sn);
+            (x, s) = (xn, sn);
+        }
+    }
+    for x0_sensitivity in [false, true] {
+        let options = greybox::simulate::SimOptions { x0_sensitivity, ..Default::default() };
+        let mut seen = 0;
+        greybox::simulate::simulate_blocks(&m, &prep, &theta, &options, true, |b| {
+            for t in 0..b.len {
+                let (x, s) = &expected[b.k0 + t];
+                for i in 0..2 {
+                    assert_eq!(b.y(i)[t].to_bits(), x[i].to_bits(), "ŷ_{i} at {}", b.k0 + t);
+                    for j in 0..n {
+                        assert_eq!(
+                            b.dy(i, j)[t].to_bits(),
+                            s[i * n + j].to_bits(),
+                            "∂ŷ_{i}/∂θ_{j} at {}",
+                            b.k0 + t
+                        );
+                    }
+                    for mm in 0..b.n_x0() {
+                        // ∂ŷ/∂x₀: the identity at the start, then nothing (every period restarts).
+                        let want = if b.k0 + t == 0 { f64::from(u8::from(i == mm)) } else { 0.0 };
+                        assert!((b.dy0(i, mm)[t] - want).abs() < 1e-9, "∂ŷ_{i}/∂x₀_{mm} at {}", b.k0 + t);
+                    }
+                }
+            }
+            seen += b.len;
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(seen, prep.n);
+    }
+}
+
 /// The PWM fit recovers the motor and the inverter from the reference voltage of the
 /// simulator's switching inverter, to the tolerances (R_s, L_s 0.3 %, K_e 0.05 %,
 /// t_d 5 %, u_th 10 %).

@@ -4,6 +4,8 @@
 use super::modulator::{Carrier, duty_ratios, halves};
 use super::*;
 
+mod kernel;
+
 /// The data of the PWM-resolved step, independent of θ: per interval the angle, speeds,
 /// DC link and the carrier's plan (about 200 bytes an interval).
 #[derive(Clone, Debug)]
@@ -115,19 +117,30 @@ impl PmsmPwm {
     /// Those of [`coefficients`](GreyBoxModel::coefficients) (θ of the wrong length, an
     /// invalid θ).
     pub fn sign_margins(&self, theta: &[f64], inputs: &PwmInputs) -> Result<Vec<SignMargin>> {
+        use rayon::prelude::*;
         let c = self.coefficients(theta, inputs)?;
-        let mut out = Vec::with_capacity(inputs.periods.len() + 1);
-        out.push(SignMargin { residual: 0.0, current: f64::INFINITY, duty: f64::INFINITY });
-        let mut x = [inputs.i_d[0], inputs.i_q[0]];
-        for (k, per) in inputs.periods.iter().enumerate() {
-            let y = [inputs.i_d[k], inputs.i_q[k]];
-            let from = [x[0] + c.k_o * (y[0] - x[0]), x[1] + c.k_o * (y[1] - x[1])];
-            let (next, _) = period::step_nearest(&c.q, per, from);
-            let (_, current) = period::step_nearest(&c.q, per, x);
-            x = next;
-            let residual = (inputs.i_d[k + 1] - x[0]).hypot(inputs.i_q[k + 1] - x[1]);
-            out.push(SignMargin { residual, current, duty: per.duty_margin });
-        }
+        let (n, periods) = (inputs.periods.len(), &inputs.periods);
+        let measured = |k: usize| [inputs.i_d[k], inputs.i_q[k]];
+        let mut out = vec![SignMargin { residual: 0.0, current: f64::INFINITY, duty: f64::INFINITY }; n + 1];
+        // A restarting predictor's prediction at k is the step from the measurement at
+        // k − 1 alone: the log is cut into parts stepped in parallel, each started by that
+        // one step; any other gain carries the prediction from the log's start.
+        let part = if self.restarts() { 2048 } else { n.max(1) };
+        out[1..].par_chunks_mut(part).enumerate().for_each(|(i, chunk)| {
+            let k0 = i * part;
+            let mut x = match k0 {
+                0 => measured(0),
+                _ => period::step_nearest(&c.q, &periods[k0 - 1], measured(k0 - 1)).0,
+            };
+            for (j, o) in chunk.iter_mut().enumerate() {
+                let (k, per) = (k0 + j, &periods[k0 + j]);
+                let (next, _) = period::step_nearest(&c.q, per, self.start_of(c.k_o, x, measured(k)));
+                let (_, current) = period::step_nearest(&c.q, per, x);
+                x = next;
+                let residual = (inputs.i_d[k + 1] - x[0]).hypot(inputs.i_q[k + 1] - x[1]);
+                *o = SignMargin { residual, current, duty: per.duty_margin };
+            }
+        });
         Ok(out)
     }
 
@@ -145,6 +158,21 @@ impl PmsmPwm {
             self.inverter.i_w.filter(|w| *w > 0.0).map(T::cst)
         };
         Params { r, l_d, l_q, k_e, t_d: make(theta[m], m), u_th: make(theta[m + 1], m + 1), i_w }
+    }
+
+    /// Whether the predictor restarts every period from the measured current (the gain
+    /// `k_o` held at 1): then a period's step depends on that current only, not on the
+    /// prediction before it, and the periods are independent of each other.
+    pub(crate) fn restarts(&self) -> bool {
+        self.inverter.predictor_gain == Some(1.0)
+    }
+
+    /// The period's start `x̂ + k_o (y − x̂)` from the prediction `x` and the measured `y`
+    /// \[A\]; exactly `y` when the predictor [`restarts`](Self::restarts) (the sum would
+    /// round it by the prediction's last bits).
+    #[inline]
+    pub(crate) fn start_of(&self, k_o: f64, x: [f64; 2], y: [f64; 2]) -> [f64; 2] {
+        if self.restarts() { y } else { [x[0] + k_o * (y[0] - x[0]), x[1] + k_o * (y[1] - x[1])] }
     }
 }
 
@@ -232,14 +260,17 @@ impl GreyBoxModel for PmsmPwm {
     #[inline]
     fn step(&self, c: &PwmCoefficients, inp: &PwmInputs, k: usize, x: &[f64], x_next: &mut [f64]) {
         let y = [inp.i_d[k], inp.i_q[k]];
-        let x = [x[0] + c.k_o * (y[0] - x[0]), x[1] + c.k_o * (y[1] - x[1])];
-        let [d, q] = period::step(&c.q, &inp.periods[k], x);
+        let [d, q] = period::step(&c.q, &inp.periods[k], self.start_of(c.k_o, [x[0], x[1]], y));
         x_next[0] = d;
         x_next[1] = q;
     }
 
     fn sensitivities(&self) -> Option<&dyn Sensitivities<PwmInputs, PwmCoefficients>> {
         (self.params.len() <= N).then_some(self as _)
+    }
+
+    fn block_kernel(&self) -> Option<&dyn crate::model::BlockKernel<PwmInputs, PwmCoefficients>> {
+        (self.restarts() && self.params.len() <= N).then_some(self as _)
     }
 }
 
@@ -262,9 +293,13 @@ impl Sensitivities<PwmInputs, PwmCoefficients> for PmsmPwm {
             None => Dual::seed(c.k_o, m - 1),
         };
         let y = [inp.i_d[k], inp.i_q[k]];
-        let x0 = [Dual::new(x[0], row(0)), Dual::new(x[1], row(1))];
-        let x0 = [x0[0] + k_o * (Dual::cst(y[0]) - x0[0]), x0[1] + k_o * (Dual::cst(y[1]) - x0[1])];
-        let xn = period::step(&q, &inp.periods[k], x0);
+        let x0 = if self.restarts() {
+            y.map(Dual::cst)
+        } else {
+            let x0 = [Dual::new(x[0], row(0)), Dual::new(x[1], row(1))];
+            [x0[0] + k_o * (Dual::cst(y[0]) - x0[0]), x0[1] + k_o * (Dual::cst(y[1]) - x0[1])]
+        };
+        let xn = period::step_dual(&q, &inp.periods[k], x0);
         for (i, v) in xn.iter().enumerate() {
             x_next[i] = v.v;
             s_next[i * m..(i + 1) * m].copy_from_slice(&v.d[..m]);
@@ -299,7 +334,7 @@ impl PmsmPwm {
         let mut x = [inputs.i_d[0], inputs.i_q[0]];
         for (k, per) in inputs.periods.iter().enumerate() {
             let y = [inputs.i_d[k], inputs.i_q[k]];
-            let from = [x[0] + c.k_o * (y[0] - x[0]), x[1] + c.k_o * (y[1] - x[1])];
+            let from = self.start_of(c.k_o, x, y);
             let next = period::step(&q, per, [Dual::seed(from[0], 0), Dual::seed(from[1], 1)]);
             x = [next[0].v, next[1].v];
             let r = [inputs.i_d[k + 1] - x[0], inputs.i_q[k + 1] - x[1]];

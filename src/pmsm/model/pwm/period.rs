@@ -92,13 +92,16 @@ struct Cx<T> {
 }
 
 impl<T: Scalar> Cx<T> {
+    #[inline(always)]
     fn mul(self, o: Self) -> Self {
         Self { re: self.re * o.re - self.im * o.im, im: self.re * o.im + self.im * o.re }
     }
+    #[inline(always)]
     fn div(self, o: Self) -> Self {
         let n = o.re * o.re + o.im * o.im;
         Self { re: (self.re * o.re + self.im * o.im) / n, im: (self.im * o.re - self.re * o.im) / n }
     }
+    #[inline(always)]
     fn sub(self, o: Self) -> Self {
         Self { re: self.re - o.re, im: self.im - o.im }
     }
@@ -113,6 +116,7 @@ struct System<T> {
     xc: [T; 2],
 }
 
+#[inline(always)]
 fn system<T: Scalar>(q: &Params<T>, w: f64, emf: f64) -> System<T> {
     let a11 = -q.r / q.l_d;
     let a22 = -q.r / q.l_q;
@@ -140,7 +144,7 @@ fn system<T: Scalar>(q: &Params<T>, w: f64, emf: f64) -> System<T> {
 }
 
 /// `C(τ)` and `S(τ)` of `e^{Aτ}` for `δ` (module docs).
-#[inline]
+#[inline(always)]
 fn c_s<T: Scalar>(delta: T, tau: T) -> (T, T) {
     let x = delta * tau * tau;
     if x.val().abs() < 1e-3 {
@@ -160,7 +164,7 @@ fn c_s<T: Scalar>(delta: T, tau: T) -> (T, T) {
 }
 
 /// The smooth or hard leg-state sign of a phase current \[A\].
-#[inline]
+#[inline(always)]
 fn sign<T: Scalar>(i: T, i_w: Option<T>) -> T {
     match i_w {
         Some(w) => (i / w).atan() * std::f64::consts::FRAC_2_PI,
@@ -201,7 +205,21 @@ pub(crate) fn step_mean(q: &Params<f64>, per: &Period, x: [f64; 2], h: f64) -> (
     (x, [acc[0] / h, acc[1] / h])
 }
 
+/// [`step`] in dual numbers (the pass with sensitivities), compiled for AVX2 as well as
+/// the baseline and chosen at run time: the derivative arrays' arithmetic is the same
+/// operations in wider registers (no contraction into fused multiply-adds), so the numbers
+/// are the baseline's to the bit.
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+pub(crate) fn step_dual(
+    q: &Params<super::dual::Dual>,
+    per: &Period,
+    x: [super::dual::Dual; 2],
+) -> [super::dual::Dual; 2] {
+    step_with(q, per, x, None).0
+}
+
 /// The step, and the smallest phase current magnitude at a piece's start \[A\].
+#[inline(always)]
 fn step_with<T: Scalar>(
     q: &Params<T>,
     per: &Period,
@@ -217,6 +235,7 @@ fn step_with<T: Scalar>(
     (x, nearest)
 }
 
+#[inline(always)]
 fn half_step<T: Scalar>(
     q: &Params<T>,
     sys: &System<T>,
@@ -313,7 +332,7 @@ fn half_step<T: Scalar>(
 
 /// The exact step over a piece of length `tau` \[s\] with the dq voltage `v` at its start
 /// and `(sin ω_e τ, cos ω_e τ)` (module docs).
-#[inline]
+#[inline(always)]
 fn piece<T: Scalar>(sys: &System<T>, x: [T; 2], v: [T; 2], (sr, cr): (T, T), tau: T) -> [T; 2] {
     let p = &sys.p;
     let pv = [p[0][0] * v[0] + p[0][1] * v[1], p[1][0] * v[0] + p[1][1] * v[1]];
