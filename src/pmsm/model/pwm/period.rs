@@ -205,11 +205,11 @@ pub(crate) fn step_mean(q: &Params<f64>, per: &Period, x: [f64; 2], h: f64) -> (
     (x, [acc[0] / h, acc[1] / h])
 }
 
-/// [`step`] in dual numbers (the pass with sensitivities), compiled for AVX2 as well as
-/// the baseline and chosen at run time: the derivative arrays' arithmetic is the same
-/// operations in wider registers (no contraction into fused multiply-adds), so the numbers
-/// are the baseline's to the bit.
-#[multiversion::multiversion(targets("x86_64+avx2"))]
+/// [`step`] in dual numbers (the pass with sensitivities), compiled for AVX-512 and AVX2
+/// as well as the baseline and chosen at run time: the derivative arrays' arithmetic is the
+/// same operations in wider registers (no contraction into fused multiply-adds), so the
+/// numbers are the baseline's to the bit.
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
 pub(crate) fn step_dual(
     q: &Params<super::dual::Dual>,
     per: &Period,
