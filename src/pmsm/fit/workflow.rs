@@ -78,6 +78,18 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     // reference voltage and the inverter are modelled, and their model's error is what the
     // parts show.
     if options.inverter.is_none() && options.input == VoltageInput::Terminal {
+        let fit = match point_sampled(experiments, options, &fit, &refit_report) {
+            None => fit,
+            // The steady-state equations take the samples as points: chosen when the choice is
+            // automatic, as for a log too slow for the dynamic model.
+            Some(why) if options.dynamics == Dynamics::Auto && !options.force => {
+                match super::steady::fit(experiments, options, Some(why.clone())) {
+                    Ok(steady) => return Ok(steady),
+                    Err(e) => with_warning(fit, point_sampled_warning(&why, Some(&e))),
+                }
+            }
+            Some(why) => with_warning(fit, point_sampled_warning(&why, None)),
+        };
         let bias = crate::pmsm::checks::voltage_bias::warning(
             experiments,
             options,
@@ -88,10 +100,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         );
         return Ok(match bias {
             None => fit,
-            Some(w) => {
-                let warnings = fit.report.warnings.iter().cloned().chain([w]).collect();
-                PmsmFit { report: crate::estimate::FitResult { warnings, ..fit.report }, ..fit }
-            }
+            Some(w) => with_warning(fit, w),
         });
     }
     let masked = fit.inverter.and_then(|i| i.mask).is_some();
@@ -110,6 +119,42 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     }
     let warnings = fit.report.warnings.iter().cloned().chain(segments).chain(noise).collect();
     Ok(PmsmFit { report: crate::estimate::FitResult { warnings, ..fit.report }, ..fit })
+}
+
+/// `fit` with `warning` added to its report's.
+fn with_warning(fit: PmsmFit, warning: crate::estimate::Warning) -> PmsmFit {
+    let warnings = fit.report.warnings.iter().cloned().chain([warning]).collect();
+    PmsmFit { report: crate::estimate::FitResult { warnings, ..fit.report }, ..fit }
+}
+
+/// The voltage-sampling check of a dynamic fit `fit` from the terminal voltage
+/// ([`crate::pmsm::checks::sampling::point_sampled`]) at its hold and estimate.
+fn point_sampled(
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+    fit: &PmsmFit,
+    refit: crate::pmsm::options::RefitReport<'_>,
+) -> Option<String> {
+    let start: Option<Vec<f64>> =
+        options.model.parameter_names().iter().map(|n| fit.parameter(n).map(|p| p.value)).collect();
+    let setup =
+        PmsmSetup { cable_resistance: options.cable_resistance, ..PmsmSetup::new(fit.pole_pairs, fit.hold) };
+    crate::pmsm::checks::sampling::point_sampled(experiments, options, &fit.report, setup, start?, refit)
+}
+
+/// The untrusted `point_sampled_voltage` warning saying `why`, and why the steady-state
+/// equations were not fitted instead (`steady`'s error, or the dynamic model asked for).
+fn point_sampled_warning(why: &str, steady: Option<&Error>) -> crate::estimate::Warning {
+    let instead = match steady {
+        Some(e) => format!("the steady-state equations, which take the samples as points, could not be fitted ({e})"),
+        None => "the dynamic model was asked for (--force); the steady-state equations take the samples as points \
+                 (--model spm-steady or ipm-steady)"
+            .into(),
+    };
+    crate::estimate::Warning::untrusted(
+        "point_sampled_voltage",
+        format!("{why}, so the estimates carry the model's error; {instead}"),
+    )
 }
 
 /// The options of the segment check's fits of parts of the logs: the fit's own hold, input
