@@ -23,11 +23,11 @@ pub fn fit_outputs(
     if plot_path.is_none() && residuals.is_none() {
         return Ok(());
     }
-    if fit.report.model.ends_with("_steady") {
+    if fit.steady_state() {
         return Err(crate::Error::InvalidOption {
             option: if plot_path.is_some() { "plot" } else { "residuals" }.into(),
             reason: "the log was fitted by the steady-state equations (its sample time is too long for the dynamic \
-                     model), which simulate no currents to plot: drop --plot and --residuals"
+                     model, or its voltage is point-sampled: the report's note says which), which simulate no currents to plot: drop --plot and --residuals"
                 .into(),
         });
     }

@@ -276,7 +276,8 @@ fn a_bad_control_period_is_refused_for_any_log() {
 /// the shared logs: the voltage-sampling check sees the trapezoidal voltage fit better than
 /// the held one, and the automatic choice takes the steady-state equations (r_s within 0.5 %,
 /// k_e within 0.05 %, trusted); the dynamic model forced is untrusted
-/// (`point_sampled_voltage`). A drive controlled at 1 kHz, whose logged voltage is held over
+/// (`point_sampled_voltage`); `--method iv` keeps the steady-state fit (itself instrumental
+/// variables). A drive controlled at 1 kHz, whose logged voltage is held over
 /// each period, keeps the dynamic model and no such warning.
 #[test]
 fn point_sampled_telemetry_is_fitted_by_the_steady_state_equations() {
@@ -293,6 +294,11 @@ fn point_sampled_telemetry_is_fitted_by_the_steady_state_equations() {
         eprintln!("every 20th row: {name} {:+.3e}", rel(p.value, truth));
         assert!(rel(p.value, truth).abs() < within, "{name}");
     }
+    // Instrumental variables asked for: the steady-state equations are fitted by them already
+    // (the dynamic recursion from their estimate gave l_s +170 % with exit 0).
+    let iv = greybox::pmsm::fit_pmsm_iv(one, &PmsmFitOptions::new(t.start.n_p)).unwrap();
+    assert_eq!(iv.report.model, "pmsm_spm_steady");
+    assert_eq!(iv.parameter("l_s").unwrap().value, auto.parameter("l_s").unwrap().value);
     let forced = fit_pmsm(one, &PmsmFitOptions { force: true, ..PmsmFitOptions::new(t.start.n_p) }).unwrap();
     assert_eq!(forced.report.model, "pmsm_spm");
     assert!(

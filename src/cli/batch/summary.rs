@@ -154,11 +154,7 @@ impl Record {
         Record {
             pole_pairs: Some(fit.pole_pairs),
             // The steady-state equations have no hold: the column names the model instead.
-            hold: Some(if fit.report.model.ends_with("_steady") {
-                "steady".into()
-            } else {
-                fit.hold.to_string()
-            }),
+            hold: Some(if fit.steady_state() { "steady".into() } else { fit.hold.to_string() }),
             converged: Some(fit.solver.success),
             parameters,
             derived,

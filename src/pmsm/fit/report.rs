@@ -67,6 +67,13 @@ impl std::ops::Deref for PmsmFit {
 }
 
 impl PmsmFit {
+    /// Whether the steady-state equations were fitted ([`crate::pmsm::steady_state`], chosen
+    /// for a log the dynamic model cannot resolve or whose voltage is point-sampled, or asked
+    /// for), not the dynamic model: such a fit simulates no currents.
+    pub fn steady_state(&self) -> bool {
+        self.report.model.ends_with("_steady")
+    }
+
     /// The estimate as the start of a fit with the inverter model: the values of `model`'s
     /// parameters, then `v_dt` \[SI units\]; `None` when one of them was not estimated.
     pub(crate) fn inverter_start(&self, model: crate::pmsm::model::kind::MotorKind) -> Option<Vec<f64>> {
@@ -143,7 +150,7 @@ impl PmsmFit {
         } else {
             "surface magnets (spm)"
         };
-        d.line(if self.report.model.ends_with("_steady") {
+        d.line(if self.steady_state() {
             format!(
                 "PMSM, {kind}, {} pole pairs, steady-state equations on the {}",
                 self.pole_pairs, self.input
