@@ -277,6 +277,7 @@ pub(super) fn fit_from_start(
             };
             let model = |pwm: PwmInverter, input: VoltageInput| model_at(VoltageHold::Stator, pwm, input);
             let (fits, chosen, inverter) = super::pwm_fit::stages(
+                !options.skip_setup_checks,
                 experiments,
                 &pwm,
                 options.input,

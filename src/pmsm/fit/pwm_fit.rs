@@ -21,10 +21,15 @@ use crate::pmsm::model::pwm::{PmsmPwm, PwmInverter};
 /// is then compared with the sign's on the same samples, and the lower loss kept (the
 /// unmasked width also holds the current's noise).
 ///
+/// With `checked` false (a nested fit without setup checks) the loop's likelihood-ratio set
+/// is not scanned and the fit not repeated at its ends (`loop_ambiguous` is a check): the
+/// same final fit, without the ~25 one-step passes of each scan.
+///
 /// # Errors
 /// Those of the fits, of the loop's search and of [`super::pwm_mask::sign_mask`].
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn stages(
+    checked: bool,
     experiments: &[Experiment],
     pwm: &PwmInverter,
     input: VoltageInput,
@@ -61,8 +66,14 @@ pub(crate) fn stages(
     let (input, set) = if pwm.search_speed_pll {
         let (coin_tosses, _) =
             super::pwm_mask::sign_mask(experiments, &model(*pwm, input)?, &theta, weighting)?;
-        let found =
-            super::pwm_loop::search_speed_pll(experiments, input, &theta, &coin_tosses, &|i| model(*pwm, i))?;
+        let found = super::pwm_loop::search_speed_pll(
+            experiments,
+            input,
+            &theta,
+            &coin_tosses,
+            &|i| model(*pwm, i),
+            checked,
+        )?;
         notes.extend(found.note);
         (found.input, found.set)
     } else {
@@ -93,9 +104,14 @@ pub(crate) fn stages(
     let start = super::pwm_start::carried(Some(&last.fits.best.1), &last.names, &last.start, &last.names);
     // The loop again at the final estimate: at the unmasked one the search's bandwidth also
     // made up for that estimate's bias (0.05 A per phase: 6700 rad/s for the drive's 2224).
-    let again = super::pwm_loop::search_speed_pll(experiments, input, &start, final_weighting, &|i| {
-        model(last.inverter, i)
-    })?;
+    let again = super::pwm_loop::search_speed_pll(
+        experiments,
+        input,
+        &start,
+        final_weighting,
+        &|i| model(last.inverter, i),
+        checked,
+    )?;
     let moved = match (again.input, input) {
         (
             VoltageInput::Reference { speed_pll: Some(a), .. },
@@ -113,7 +129,7 @@ pub(crate) fn stages(
             None => return Ok((last.fits, input, last.inverter)),
         };
     }
-    if let VoltageInput::Reference { delay, advance, speed_pll: Some(alpha) } = input {
+    if let (true, VoltageInput::Reference { delay, advance, speed_pll: Some(alpha) }) = (checked, input) {
         let inverter_names = last.inverter.parameter_names();
         let motor: Vec<&str> = last.names.iter().copied().filter(|n| !inverter_names.contains(n)).collect();
         let start = super::pwm_start::carried(Some(&last.fits.best.1), &last.names, &last.start, &last.names);

@@ -48,7 +48,8 @@ pub(crate) struct LoopSearch {
 /// better; and the bandwidths whose loss `V` the likelihood-ratio test does not reject,
 /// `(V − V_min) n / V_min < χ²₁(0.95)` (`n` counted residuals; Ljung, *System
 /// Identification*, 2nd ed., 16.4), over a log-spaced scan (none for the terminal voltage,
-/// which has no controller's frame).
+/// which has no controller's frame). Without `scan_set` (a nested fit, which runs no
+/// checks) the set is the bandwidth found alone, and the scan is saved.
 ///
 /// # Errors
 /// Those of the model's `prepare` and [`PmsmPwm::sign_margins`].
@@ -58,6 +59,7 @@ pub(crate) fn search_speed_pll(
     theta: &[f64],
     weighting: &dyn Weighting,
     model: &dyn Fn(VoltageInput) -> Result<PmsmPwm>,
+    scan_set: bool,
 ) -> Result<LoopSearch> {
     let VoltageInput::Reference { delay, advance, .. } = input else {
         return Ok(LoopSearch { input, note: None, set: None });
@@ -88,6 +90,7 @@ pub(crate) fn search_speed_pll(
     );
     let set = match chosen {
         None => None,
+        Some(alpha) if !scan_set => Some([alpha, alpha]),
         Some(alpha) => {
             let (lo, hi) = (SPEED_PLL_RANGE.0.ln(), SPEED_PLL_RANGE.1.ln());
             let grid = (0..SET_SCAN).map(|i| (lo + (hi - lo) * i as f64 / (SET_SCAN - 1) as f64).exp());
