@@ -51,6 +51,16 @@ pub enum HoldChoice {
     Stator,
 }
 
+impl From<crate::pmsm::model::interval::VoltageHold> for HoldChoice {
+    /// The choice that fixes a fit's hold (for a refit at the hold a fit found).
+    fn from(hold: crate::pmsm::model::interval::VoltageHold) -> Self {
+        match hold {
+            crate::pmsm::model::interval::VoltageHold::Dq => Self::Dq,
+            crate::pmsm::model::interval::VoltageHold::Stator => Self::Stator,
+        }
+    }
+}
+
 /// Which equations a fit takes: the dynamic model (the exact sampled-data step), the
 /// steady-state equations of slow logs ([`crate::pmsm::steady_state`]), or chosen from the
 /// logs' sample time.

@@ -33,12 +33,11 @@ use crate::data::{Channel, Experiment};
 use crate::estimate::FitResult;
 use crate::model::{GreyBoxModel, Prepared};
 use crate::pmsm::log::signals::channel::{U_D, U_Q};
-use crate::pmsm::model::interval::VoltageHold;
 use crate::pmsm::model::ipm::PmsmIpm;
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::model::setup::PmsmSetup;
 use crate::pmsm::model::spm::PmsmSpm;
-use crate::pmsm::options::{HoldChoice, PmsmFitOptions, RefitReport};
+use crate::pmsm::options::{PmsmFitOptions, RefitReport};
 use crate::simulate::{SimOptions, simulate};
 
 /// How many times lower the trapezoid's mean squared residual must be than the fit's for
@@ -52,38 +51,42 @@ pub const POINT_SAMPLE_RATIO: f64 = 2.0;
 pub const PRETEST_SAMPLES: usize = 8192;
 
 /// After a dynamic fit `fit` of `experiments` from the terminal voltage, with the model's
-/// `setup` (its pole pairs, hold and cable) and the motor's estimates `start` (model
-/// order): `Some(text)` saying why the logged voltage reads as point samples when the refit
-/// with the trapezoidal voltage (`refit`, from that estimate and hold, without setup checks)
-/// has a mean squared residual [`POINT_SAMPLE_RATIO`] times lower. `None` otherwise: when
-/// the trapezoid does not already simulate the logs better at the estimate, or when a
-/// simulation or the refit fails. (Not only after coloured residuals: every 25th row of the
+/// `setup` (its pole pairs, hold and cable): `Some(text)` saying why the logged voltage
+/// reads as point samples when the refit with the trapezoidal voltage (`refit`, from the
+/// fit's estimate of the motor's parameters and at its hold, without setup checks) has a
+/// mean squared residual [`POINT_SAMPLE_RATIO`] times lower. `None` otherwise: when the
+/// trapezoid does not already simulate the logs better at the estimate, when a motor
+/// parameter is missing from the fit, or when a simulation or the refit fails. (Not only after coloured residuals: every 25th row of the
 /// shared IPM log passed the whiteness test with a fit of 85 %.)
 pub(crate) fn point_sampled(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
     fit: &FitResult,
     setup: PmsmSetup,
-    start: Vec<f64>,
     refit: RefitReport<'_>,
 ) -> Option<String> {
+    // The motor's estimates in model order: the simulations' θ and the refit's start.
+    let start: Option<Vec<f64>> =
+        options.model.parameter_names().iter().map(|n| fit.parameter(n).map(|p| p.value)).collect();
+    let start = start?;
     let heads: Option<Vec<Experiment>> =
         experiments.iter().map(|e| e.slice(0..e.len().min(PRETEST_SAMPLES)).ok()).collect();
     let heads = heads?;
     let head_trapezoid = trapezoid(&heads)?;
     let better_at_estimate = match options.model {
-        MotorKind::Spm => better_at(&PmsmSpm::from_setup(setup), &heads, &head_trapezoid, fit),
-        MotorKind::Ipm => better_at(&PmsmIpm::from_setup(setup), &heads, &head_trapezoid, fit),
+        MotorKind::Spm => better_at(&PmsmSpm::from_setup(setup), &heads, &head_trapezoid, &start),
+        MotorKind::Ipm => better_at(&PmsmIpm::from_setup(setup), &heads, &head_trapezoid, &start),
     };
     if better_at_estimate != Some(true) {
         return None;
     }
     let trapezoid = trapezoid(experiments)?;
-    let hold = match setup.hold {
-        VoltageHold::Dq => HoldChoice::Dq,
-        VoltageHold::Stator => HoldChoice::Stator,
+    let options = PmsmFitOptions {
+        start: Some(start),
+        hold: setup.hold.into(),
+        skip_setup_checks: true,
+        ..options.clone()
     };
-    let options = PmsmFitOptions { start: Some(start), hold, skip_setup_checks: true, ..options.clone() };
     let other = refit(&trapezoid, &options)?;
     let (held, mean) = (fit.fit.mse, other.fit.mse);
     (mean * POINT_SAMPLE_RATIO < held).then(|| {
@@ -117,24 +120,20 @@ fn trapezoid(experiments: &[Experiment]) -> Option<Vec<Experiment>> {
         .collect()
 }
 
-/// Whether `model` at the fit's estimate (its parameters by name) simulates the
-/// `trapezoid` logs with a lower residual sum of squares than the logged `experiments`
-/// (each from its measured first current); `None` when a parameter is missing or a
-/// simulation fails.
+/// Whether `model` at `theta` (its parameters, model order) simulates the `trapezoid` logs
+/// with a lower residual sum of squares than the logged `experiments` (each from its
+/// measured first current); `None` when a simulation fails.
 fn better_at<M: GreyBoxModel>(
     model: &M,
     experiments: &[Experiment],
     trapezoid: &[Experiment],
-    fit: &FitResult,
+    theta: &[f64],
 ) -> Option<bool> {
-    let theta: Option<Vec<f64>> =
-        model.parameters().iter().map(|p| fit.parameter(&p.name).map(|q| q.value)).collect();
-    let theta = theta?;
     let squares = |logs: &[Experiment]| -> Option<f64> {
         logs.iter()
             .map(|e| {
                 let prep = Prepared::new(model, e).ok()?;
-                let y_hat = simulate(model, &prep, &theta, &SimOptions::default()).ok()?;
+                let y_hat = simulate(model, &prep, theta, &SimOptions::default()).ok()?;
                 Some(prep.y_rows().iter().zip(&y_hat).map(|(y, s)| (y - s).powi(2)).sum::<f64>())
             })
             .sum()

@@ -9,10 +9,10 @@
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::pmsm::fit::report::PmsmFit;
-use crate::pmsm::model::interval::{VoltageHold, VoltageInput};
+use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::mask::DeadTimeMask;
 use crate::pmsm::model::setup::PmsmSetup;
-use crate::pmsm::options::{Dynamics, HoldChoice, PmsmFitOptions};
+use crate::pmsm::options::{Dynamics, PmsmFitOptions};
 
 /// Fits a PMSM model to one or more logs of one motor (parameters shared unless listed in
 /// `options.pem.per_experiment`).
@@ -85,10 +85,10 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             Some(why) if options.dynamics == Dynamics::Auto && !options.force => {
                 match super::steady::fit(experiments, options, Some(why.clone())) {
                     Ok(steady) => return Ok(steady),
-                    Err(e) => with_warning(fit, point_sampled_warning(&why, Some(&e))),
+                    Err(e) => with_warnings(fit, [point_sampled_warning(&why, Some(&e))]),
                 }
             }
-            Some(why) => with_warning(fit, point_sampled_warning(&why, None)),
+            Some(why) => with_warnings(fit, [point_sampled_warning(&why, None)]),
         };
         let bias = crate::pmsm::checks::voltage_bias::warning(
             experiments,
@@ -100,7 +100,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
         );
         return Ok(match bias {
             None => fit,
-            Some(w) => with_warning(fit, w),
+            Some(w) => with_warnings(fit, [w]),
         });
     }
     let masked = fit.inverter.and_then(|i| i.mask).is_some();
@@ -117,29 +117,26 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
     if segments.is_none() && noise.is_none() {
         return Ok(fit);
     }
-    let warnings = fit.report.warnings.iter().cloned().chain(segments).chain(noise).collect();
-    Ok(PmsmFit { report: crate::estimate::FitResult { warnings, ..fit.report }, ..fit })
+    Ok(with_warnings(fit, segments.into_iter().chain(noise)))
 }
 
-/// `fit` with `warning` added to its report's.
-fn with_warning(fit: PmsmFit, warning: crate::estimate::Warning) -> PmsmFit {
-    let warnings = fit.report.warnings.iter().cloned().chain([warning]).collect();
+/// `fit` with `warnings` added after its report's.
+fn with_warnings(fit: PmsmFit, warnings: impl IntoIterator<Item = crate::estimate::Warning>) -> PmsmFit {
+    let warnings = fit.report.warnings.iter().cloned().chain(warnings).collect();
     PmsmFit { report: crate::estimate::FitResult { warnings, ..fit.report }, ..fit }
 }
 
 /// The voltage-sampling check of a dynamic fit `fit` from the terminal voltage
-/// ([`crate::pmsm::checks::sampling::point_sampled`]) at its hold and estimate.
+/// ([`crate::pmsm::checks::sampling::point_sampled`]) at its pole pairs, hold and cable.
 fn point_sampled(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
     fit: &PmsmFit,
     refit: crate::pmsm::options::RefitReport<'_>,
 ) -> Option<String> {
-    let start: Option<Vec<f64>> =
-        options.model.parameter_names().iter().map(|n| fit.parameter(n).map(|p| p.value)).collect();
     let setup =
         PmsmSetup { cable_resistance: options.cable_resistance, ..PmsmSetup::new(fit.pole_pairs, fit.hold) };
-    crate::pmsm::checks::sampling::point_sampled(experiments, options, &fit.report, setup, start?, refit)
+    crate::pmsm::checks::sampling::point_sampled(experiments, options, &fit.report, setup, refit)
 }
 
 /// The untrusted `point_sampled_voltage` warning saying `why`, and why the steady-state
@@ -164,10 +161,7 @@ fn point_sampled_warning(why: &str, steady: Option<&Error>) -> crate::estimate::
 fn part_options(options: &PmsmFitOptions, fit: &PmsmFit) -> PmsmFitOptions {
     PmsmFitOptions {
         start: fit.inverter_start(options.model),
-        hold: match fit.hold {
-            VoltageHold::Dq => HoldChoice::Dq,
-            VoltageHold::Stator => HoldChoice::Stator,
-        },
+        hold: fit.hold.into(),
         input: fit.input,
         inverter: fit.inverter,
         // The controller's loop is the drive's: the parts keep the whole log's, and its leg
