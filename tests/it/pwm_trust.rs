@@ -94,3 +94,35 @@ fn pwm_logs_are_right_or_untrusted() {
         }
     }
 }
+
+/// A switching-resolved fit from the reference with the wrong computational delay is
+/// untrusted (`delay`): the check's neighbours, each through the fit's stages from the
+/// least-squares start, find a far lower loss at the drive's delay of one sample; the right
+/// delay passes without the warning (the drive simulator's switching inverter, 3 µs and
+/// 1 V, noise-free).
+#[test]
+fn a_wrong_delay_is_named_on_a_pwm_fit() {
+    let cfg = scenario("exp3", SPM_MOTOR).unwrap();
+    let mut inverter = cfg.inverter.clone();
+    inverter.pwm = Some(greybox::drive::PwmPlant { t_d: 3e-6, u_th: 1.0, i_w: 0.0, levels: 0 });
+    let cfg = DriveConfig { inverter, duration: 0.6, seed: 3, ..cfg };
+    let e = simulate_drive(&cfg).unwrap().experiment;
+    let delay_warned = |delay: usize| {
+        let options = PmsmFitOptions {
+            input: VoltageInput::Reference { delay, advance: 1.5, speed_pll: None },
+            pwm: Some(greybox::pmsm::PwmInverter { u_dc: Some(cfg.control.u_dc), ..Default::default() }),
+            ..PmsmFitOptions::new(cfg.motor.n_p)
+        };
+        let fit = fit_pmsm(std::slice::from_ref(&e), &options).unwrap();
+        let warned = fit.warnings.iter().any(|w| w.code == "delay" && w.untrusted);
+        eprintln!("delay {delay}: untrusted {:?}", codes(&fit));
+        (warned, fit)
+    };
+    for wrong in [0, 2] {
+        let (warned, fit) = delay_warned(wrong);
+        assert!(warned && !fit.trusted(), "delay {wrong}: {:?}", fit.warnings);
+    }
+    let (warned, fit) = delay_warned(1);
+    assert!(!warned, "{:?}", fit.warnings);
+    assert!(rel(fit.parameter("r_s").unwrap().value, cfg.motor.r_s) < 3e-3, "{:?}", fit.parameters);
+}

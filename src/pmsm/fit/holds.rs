@@ -4,7 +4,7 @@
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::{CLOSE_START_DAMPING, Weighting};
+use crate::estimate::{CLOSE_START_DAMPING, PemOptions, Weighting};
 use crate::pmsm::checks::limit::{VoltageLimitWeighting, delay_of};
 use crate::pmsm::fit::hold::{HoldFits, fit_holds_of};
 use crate::pmsm::linear::start::least_squares_start;
@@ -252,12 +252,13 @@ pub(super) fn fit_from_start(
                 configure(m.parameters_mut(), options)?;
                 Ok(m)
             };
-            let fit = |pwm: PwmInverter,
-                       input: VoltageInput,
-                       start: &[f64],
-                       names: &[&str],
-                       weighting: &dyn Weighting,
-                       held: &[&str]| {
+            let fit_by = |pem: &PemOptions,
+                          pwm: PwmInverter,
+                          input: VoltageInput,
+                          start: &[f64],
+                          names: &[&str],
+                          weighting: &dyn Weighting,
+                          held: &[&str]| {
                 fit_holds_of(
                     holds,
                     start,
@@ -271,9 +272,25 @@ pub(super) fn fit_from_start(
                         Ok(m)
                     },
                     experiments,
-                    &pem,
+                    pem,
                     weighting,
                 )
+            };
+            let stage_pem = super::pwm_fit::stage_options(&pem);
+            let fit =
+                |pwm: PwmInverter,
+                 input: VoltageInput,
+                 start: &[f64],
+                 names: &[&str],
+                 weighting: &dyn Weighting,
+                 held: &[&str]| fit_by(&pem, pwm, input, start, names, weighting, held);
+            let stage_fit = |pwm: PwmInverter,
+                             input: VoltageInput,
+                             start: &[f64],
+                             names: &[&str],
+                             weighting: &dyn Weighting,
+                             held: &[&str]| {
+                fit_by(&stage_pem, pwm, input, start, names, weighting, held)
             };
             let model = |pwm: PwmInverter, input: VoltageInput| model_at(VoltageHold::Stator, pwm, input);
             let (fits, chosen, inverter) = super::pwm_fit::stages(
@@ -286,6 +303,7 @@ pub(super) fn fit_from_start(
                 weighting,
                 &model,
                 &fit,
+                &stage_fit,
                 &mut notes,
                 &mut warnings,
             )?;

@@ -70,6 +70,13 @@ impl<'a> SignMask<'a> {
     }
 }
 
+impl SignMask<'_> {
+    /// Whether `other` weights out the same samples of the same logs.
+    pub(crate) fn same_samples(&self, other: &SignMask<'_>) -> bool {
+        self.logs == other.logs
+    }
+}
+
 impl Weighting for SignMask<'_> {
     fn name(&self) -> String {
         format!(
