@@ -68,9 +68,7 @@ impl<'a> SignMask<'a> {
             correction: Some(correction),
         }
     }
-}
 
-impl SignMask<'_> {
     /// Whether `other` weights out the same samples of the same logs.
     pub(crate) fn same_samples(&self, other: &SignMask<'_>) -> bool {
         self.logs == other.logs
