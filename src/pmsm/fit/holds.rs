@@ -276,7 +276,7 @@ pub(super) fn fit_from_start(
                     weighting,
                 )
             };
-            let stage_pem = super::pwm_fit::stage_options(&pem);
+            let stage_pem = crate::pmsm::options::stage_options(&pem);
             let fit =
                 |pwm: PwmInverter,
                  input: VoltageInput,

@@ -12,7 +12,7 @@ use crate::pmsm::model::pwm::{PmsmPwm, PwmInverter};
 /// The fits of a PWM model from `start` (parameters `names`, model order) at the voltage
 /// `input`, in stages; `model` makes the model of an inverter and input as configured by
 /// the options, `fit` fits one (inverter, input, start, names, weighting, parameters held at
-/// their start), `stage_fit` the same at [`stage_options`]' tolerances for the fits that
+/// their start), `stage_fit` the same at [`crate::pmsm::options::stage_options`]' tolerances for the fits that
 /// lead to the final one (the continuation's and the unmasked fit); notes in order.
 /// Returns the fits and the input of the final ones (the controller's loop bandwidth
 /// searched when `pwm.search_speed_pll`) and the inverter of the final fits (its leg state
@@ -85,12 +85,14 @@ pub(crate) fn stages(
     // The samples whose sign is a coin toss at that estimate, weighted out.
     let (mask, note) = super::pwm_mask::sign_mask(experiments, &model(*pwm, input)?, &theta, weighting)?;
     notes.push(note);
-    let held: &[&str] = if pwm.estimate_i_w { &["i_w"] } else { &[] };
-    let fits = fit(*pwm, input, &theta, names, &mask, held)?;
     let names = names.to_vec();
     let mut last = if pwm.estimate_i_w {
+        // At the width held, the masked fit is a start (of the sign's fit) and a loss to
+        // compare with the sign's: at the stages' tolerance, converged only if it is kept.
+        let fits = stage_fit(*pwm, input, &theta, &names, &mask, &["i_w"])?;
         leg_state(experiments, fits, pwm, input, &names, &theta, &mask, model, fit, notes)?
     } else {
+        let fits = fit(*pwm, input, &theta, &names, &mask, &[])?;
         match compensate(experiments, &fits, *pwm, input, &names, &theta, &mask, model, fit, notes)? {
             Some((fits, compensated)) => {
                 Final { fits, inverter: *pwm, names, start: theta, own_mask: Some(compensated) }
@@ -124,13 +126,15 @@ pub(crate) fn stages(
     let start = super::pwm_start::carried(Some(&last.fits.best.1), &last.names, &last.start, &last.names);
     // The loop again at the final estimate: at the unmasked one the search's bandwidth also
     // made up for that estimate's bias (0.05 A per phase: 6700 rad/s for the drive's 2224).
+    // Its likelihood-ratio set is scanned only if it moves (the first search's set holds
+    // otherwise).
     let again = super::pwm_loop::search_speed_pll(
         experiments,
         input,
         &start,
         final_weighting,
         &|i| model(last.inverter, i),
-        checked,
+        false,
     )?;
     let moved = match (again.input, input) {
         (
@@ -144,7 +148,16 @@ pub(crate) fn stages(
         notes.extend(again.note.map(|n| format!("at the final estimate, {n}: refitted there")));
         last.fits = fit(last.inverter, again.input, &start, &last.names, final_weighting, held)?;
         input = again.input;
-        set = match again.set {
+        // The set of the search that moved (scanned only now: unused when it does not).
+        let scanned = match (checked, again.set) {
+            (true, Some(_)) => {
+                super::pwm_loop::scanned_set(experiments, input, &start, final_weighting, &|i| {
+                    model(last.inverter, i)
+                })?
+            }
+            (_, found) => found,
+        };
+        set = match scanned {
             Some(s) => s,
             None => return Ok((last.fits, input, last.inverter)),
         };
@@ -176,7 +189,8 @@ struct Final<'w, 'n> {
 }
 
 /// The leg state of a fit whose width `i_w` the unmasked fit estimated (`fits`, the masked
-/// fit at that width held, parameters `names` from `theta`): the width kept or the sign
+/// fit at that width held at the stages' tolerance, converged here if the width is kept;
+/// parameters `names` from `theta`): the width kept or the sign
 /// taken, by the lower loss on the masked samples, or the sign where the measured current's
 /// noise is material (the width holds it) with its criterion compensated.
 ///
@@ -227,7 +241,10 @@ fn leg_state<'w, 'n>(
             Final { fits: sign_fits, inverter: sign, names: sign_names, start: sign_start, own_mask: None }
         }
         (false, _) => {
-            Final { fits, inverter: *pwm, names: names.to_vec(), start: theta.to_vec(), own_mask: None }
+            // Converged from the stages' tolerance.
+            let start = super::pwm_start::carried(Some(&fits.best.1), names, theta, names);
+            let fits = fit(*pwm, input, &start, names, mask, &["i_w"])?;
+            Final { fits, inverter: *pwm, names: names.to_vec(), start, own_mask: None }
         }
     })
 }
@@ -266,29 +283,6 @@ fn compensate<'w>(
     let compensated = mask.compensated(correction);
     Ok(Some((fit(inverter, input, &start, names, &compensated, &[])?, compensated)))
 }
-
-/// The options of the fits that lead to the final one (the continuation's at smooth leg
-/// states, [`super::pwm_start::continuation`], and the unmasked fit): `pem` with its
-/// relative tolerances `ftol` and `xtol` no tighter than [`STAGE_TOLERANCE`]. Their
-/// estimates are only starts (of the next stage, of the loop's search, of the sign mask);
-/// the fits on the mask converge at `pem`'s own tolerances, the last on the mask taken
-/// again at its own estimate.
-pub(crate) fn stage_options(pem: &crate::estimate::PemOptions) -> crate::estimate::PemOptions {
-    let mut o = pem.clone();
-    o.tolerances.ftol = o.tolerances.ftol.max(STAGE_TOLERANCE);
-    o.tolerances.xtol = o.tolerances.xtol.max(STAGE_TOLERANCE);
-    o
-}
-
-/// The relative tolerance (`ftol`, `xtol`) of the fits that lead to the final one. On the
-/// first 1.5 s of the shared 3 µs log (noise-free) the continuation's fits take 9, 9 and 4
-/// iterations where they took 17, 27 and 20, and the unmasked fit, whose loss is rough
-/// where a predicted current crosses zero at a switching instant, stops after 13 where it
-/// crept on to the limit of 200 with its estimate moving by 1e-5; the final estimate moves
-/// by less than 0.02 of its standard errors there. On the whole shared IPM log it moves by
-/// up to 2.4 of its noise-free standard errors (`l_d` +0.0003 → +0.0008 %): the loss is
-/// rough there, and the fit before stopped at another point of it.
-pub(crate) const STAGE_TOLERANCE: f64 = 1e-4;
 
 /// One PWM fit: (inverter, input, start, names, weighting, parameters held at their start).
 pub(crate) type Fit<'a> =

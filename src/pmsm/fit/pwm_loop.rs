@@ -19,7 +19,7 @@ use crate::data::Experiment;
 use crate::error::Result;
 use crate::estimate::{FitResult, Warning, Weighting};
 use crate::model::GreyBoxModel;
-use crate::pmsm::fit::search::{SPEED_PLL_RANGE, golden_search};
+use crate::pmsm::fit::search::{SPEED_PLL_RANGE, brent_search};
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::pwm::PmsmPwm;
 
@@ -27,32 +27,92 @@ use crate::pmsm::model::pwm::PmsmPwm;
 /// may differ from the fit's before the fit is untrusted (`loop_ambiguous`).
 pub const LOOP_AMBIGUOUS_Z: f64 = 3.0;
 
-/// Log-spaced bandwidths of the scan that finds the set.
+/// Log-spaced bandwidths of the scan that finds the set (the search's own scan then).
 const SET_SCAN: usize = 25;
+
+/// Log-spaced bandwidths of the search's scan when no set is wanted.
+const SCAN: usize = 16;
 
 /// χ²₁(0.95): the likelihood-ratio bound of the set.
 const CHI2_1_95: f64 = 3.841;
 
 /// The loop's search: the chosen input, a note, and the set of bandwidths the
 /// likelihood-ratio test does not reject (`[lo, hi]` \[rad/s\], `None` when the logged
-/// frame predicts better).
+/// frame predicts better, `[α, α]` when the set was not scanned).
 pub(crate) struct LoopSearch {
     pub input: VoltageInput,
     pub note: Option<String>,
     pub set: Option<[f64; 2]>,
 }
 
+/// The one-step loss of a PWM model along the controller's loop bandwidth: `model` at
+/// `theta`, the samples weighted by `weighting`.
+struct LoopLoss<'a> {
+    experiments: &'a [Experiment],
+    theta: &'a [f64],
+    weighting: &'a dyn Weighting,
+    model: &'a dyn Fn(VoltageInput) -> Result<PmsmPwm>,
+    delay: usize,
+    advance: f64,
+}
+
+impl LoopLoss<'_> {
+    /// The input at bandwidth `speed_pll` \[rad/s\] (`None`: the logged angle and speed).
+    fn at(&self, speed_pll: Option<f64>) -> VoltageInput {
+        VoltageInput::Reference { delay: self.delay, advance: self.advance, speed_pll }
+    }
+
+    /// Half the weighted sum of squared one-step residuals at `speed_pll`, and the
+    /// residuals counted (weight above 0, not the first sample).
+    fn loss(&self, speed_pll: Option<f64>) -> Result<(f64, usize)> {
+        let m = (self.model)(self.at(speed_pll))?;
+        let (mut sum, mut n) = (0.0, 0);
+        for e in self.experiments {
+            let residuals = m.one_step_residuals(self.theta, &m.prepare(e)?)?;
+            for (k, r) in residuals.iter().enumerate() {
+                let w = self.weighting.sample_weight(e, k);
+                sum += w * r.powi(2);
+                n += usize::from(w > 0.0 && k > 0);
+            }
+        }
+        Ok((0.5 * sum, n))
+    }
+
+    /// The bandwidths whose loss `V` the likelihood-ratio test does not reject against the
+    /// loss `with` at `alpha` over `counted` residuals, among the points `scan` (bandwidth
+    /// \[rad/s\], loss) of a log-spaced scan of [`SET_SCAN`] ([`set_scan`](Self::set_scan)):
+    /// `[lo, hi]` \[rad/s\].
+    fn set(alpha: f64, with: f64, counted: usize, scan: &[(f64, f64)]) -> [f64; 2] {
+        let n = (2 * counted) as f64;
+        let kept = scan.iter().filter(|(_, v)| (v - with) * n / with < CHI2_1_95).map(|(a, _)| *a);
+        kept.fold([alpha, alpha], |[lo, hi], a| [lo.min(a), hi.max(a)])
+    }
+
+    /// The losses of the log-spaced scan of [`SET_SCAN`] bandwidths over
+    /// [`SPEED_PLL_RANGE`] (those of [`brent_search`]'s scan of as many points).
+    fn set_scan(&self) -> Result<Vec<(f64, f64)>> {
+        let (lo, hi) = (SPEED_PLL_RANGE.0.ln(), SPEED_PLL_RANGE.1.ln());
+        (0..SET_SCAN)
+            .map(|i| {
+                let a = (lo + (hi - lo) * i as f64 / (SET_SCAN - 1) as f64).exp();
+                Ok((a, self.loss(Some(a))?.0))
+            })
+            .collect()
+    }
+}
+
 /// The bandwidth of the controller's phase-locked loop by the lowest one-step loss of
-/// `model` at `theta` (weighted by `weighting`) over [`SPEED_PLL_RANGE`] (a scan and a
-/// golden-section search on its logarithm), or the logged angle and speed if those predict
+/// `model` at `theta` (weighted by `weighting`) over [`SPEED_PLL_RANGE`] (a scan and
+/// Brent's method on its logarithm, [`brent_search`]), or the logged angle and speed if those predict
 /// better; and the bandwidths whose loss `V` the likelihood-ratio test does not reject,
 /// `(V − V_min) n / V_min < χ²₁(0.95)` (`n` counted residuals; Ljung, *System
 /// Identification*, 2nd ed., 16.4), over a log-spaced scan (none for the terminal voltage,
 /// which has no controller's frame). Without `scan_set` (a nested fit, which runs no
-/// checks) the set is the bandwidth found alone, and the scan is saved.
+/// checks, or a search whose set is wanted only if it moves, [`scanned_set`]) the set is
+/// the bandwidth found alone, and the scan is saved.
 ///
 /// # Errors
-/// Those of the model's `prepare` and [`PmsmPwm::sign_margins`].
+/// Those of the model's `prepare` and [`PmsmPwm::one_step_residuals`].
 pub(crate) fn search_speed_pll(
     experiments: &[Experiment],
     input: VoltageInput,
@@ -64,24 +124,12 @@ pub(crate) fn search_speed_pll(
     let VoltageInput::Reference { delay, advance, .. } = input else {
         return Ok(LoopSearch { input, note: None, set: None });
     };
-    let at = |speed_pll: Option<f64>| VoltageInput::Reference { delay, advance, speed_pll };
-    let counted = std::cell::Cell::new(0usize);
-    let loss = |speed_pll: Option<f64>| -> Result<f64> {
-        let m = model(at(speed_pll))?;
-        let (mut sum, mut n) = (0.0, 0);
-        for e in experiments {
-            let margins = m.sign_margins(theta, &m.prepare(e)?)?;
-            for (k, s) in margins.iter().enumerate() {
-                let w = weighting.sample_weight(e, k);
-                sum += w * s.residual.powi(2);
-                n += usize::from(w > 0.0 && k > 0);
-            }
-        }
-        counted.set(n);
-        Ok(0.5 * sum)
-    };
-    let alpha = golden_search(SPEED_PLL_RANGE, true, |a| loss(Some(a)))?;
-    let (with, logged) = (loss(Some(alpha))?, loss(None)?);
+    let loss = LoopLoss { experiments, theta, weighting, model, delay, advance };
+    // The scan for the set is the search's own when the set is wanted.
+    let points = if scan_set { SET_SCAN } else { SCAN };
+    let found = brent_search(SPEED_PLL_RANGE, true, points, |a| Ok(loss.loss(Some(a))?.0))?;
+    let (alpha, with) = (found.best, found.loss);
+    let (logged, counted) = loss.loss(None)?;
     let chosen = if with < logged { Some(alpha) } else { None };
     let note = format!(
         "the controller's frame: a phase-locked loop of {alpha:.1} rad/s on theta_m (one-step loss {with:.6e}) \
@@ -91,20 +139,30 @@ pub(crate) fn search_speed_pll(
     let set = match chosen {
         None => None,
         Some(alpha) if !scan_set => Some([alpha, alpha]),
-        Some(alpha) => {
-            let (lo, hi) = (SPEED_PLL_RANGE.0.ln(), SPEED_PLL_RANGE.1.ln());
-            let grid = (0..SET_SCAN).map(|i| (lo + (hi - lo) * i as f64 / (SET_SCAN - 1) as f64).exp());
-            let mut kept = vec![alpha];
-            let n = (2 * counted.get()) as f64;
-            for a in grid {
-                if (loss(Some(a))? - with) * n / with < CHI2_1_95 {
-                    kept.push(a);
-                }
-            }
-            Some([kept.iter().copied().fold(alpha, f64::min), kept.iter().copied().fold(alpha, f64::max)])
-        }
+        Some(alpha) => Some(LoopLoss::set(alpha, with, counted, &found.scan)),
     };
-    Ok(LoopSearch { input: at(chosen), note: Some(note), set })
+    Ok(LoopSearch { input: loss.at(chosen), note: Some(note), set })
+}
+
+/// The likelihood-ratio set of [`search_speed_pll`] for a search done without it: the
+/// scan at the bandwidth `input` holds (`None` for the logged frame or the terminal
+/// voltage).
+///
+/// # Errors
+/// As [`search_speed_pll`].
+pub(crate) fn scanned_set(
+    experiments: &[Experiment],
+    input: VoltageInput,
+    theta: &[f64],
+    weighting: &dyn Weighting,
+    model: &dyn Fn(VoltageInput) -> Result<PmsmPwm>,
+) -> Result<Option<[f64; 2]>> {
+    let VoltageInput::Reference { delay, advance, speed_pll: Some(alpha) } = input else {
+        return Ok(None);
+    };
+    let loss = LoopLoss { experiments, theta, weighting, model, delay, advance };
+    let (with, counted) = loss.loss(Some(alpha))?;
+    Ok(Some(LoopLoss::set(alpha, with, counted, &loss.set_scan()?)))
 }
 
 /// After the final fit `fit` at the loop's bandwidth `alpha` with its set `set`, the same

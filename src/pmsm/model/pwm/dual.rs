@@ -61,6 +61,8 @@ pub(crate) trait Scalar:
     fn sqrt(self) -> Self;
     fn atan(self) -> Self;
     fn sin_cos(self) -> (Self, Self);
+    /// Whether the value and every derivative are 0.
+    fn is_zero(self) -> bool;
     fn sinh_cosh(self) -> (Self, Self) {
         let e = self.exp();
         let inv = Self::cst(1.0) / e;
@@ -93,6 +95,10 @@ impl Scalar for f64 {
     fn sin_cos(self) -> (Self, Self) {
         f64::sin_cos(self)
     }
+    #[inline(always)]
+    fn is_zero(self) -> bool {
+        self == 0.0
+    }
 }
 
 impl Scalar for Dual {
@@ -122,6 +128,10 @@ impl Scalar for Dual {
     fn sin_cos(self) -> (Self, Self) {
         let (s, c) = self.v.sin_cos();
         (self.chain(s, c), self.chain(c, -s))
+    }
+    #[inline(always)]
+    fn is_zero(self) -> bool {
+        self.v == 0.0 && self.d.iter().all(|d| *d == 0.0)
     }
 }
 

@@ -117,6 +117,22 @@ impl PmsmPwm {
     /// Those of [`coefficients`](GreyBoxModel::coefficients) (θ of the wrong length, an
     /// invalid θ).
     pub fn sign_margins(&self, theta: &[f64], inputs: &PwmInputs) -> Result<Vec<SignMargin>> {
+        self.predict(theta, inputs, true)
+    }
+
+    /// The one-step predictor's residual norms `|y[k] − x̂[k]|` \[A\] at `theta` over a
+    /// prepared log (N samples; 0 at k = 0): [`sign_margins`](Self::sign_margins)' residuals
+    /// without the margins, at half its cost (one step a period, not two).
+    ///
+    /// # Errors
+    /// As [`sign_margins`](Self::sign_margins).
+    pub fn one_step_residuals(&self, theta: &[f64], inputs: &PwmInputs) -> Result<Vec<f64>> {
+        Ok(self.predict(theta, inputs, false)?.into_iter().map(|m| m.residual).collect())
+    }
+
+    /// The predictor of [`sign_margins`](Self::sign_margins), the current margins stepped
+    /// only when `margins` (infinite otherwise).
+    fn predict(&self, theta: &[f64], inputs: &PwmInputs, margins: bool) -> Result<Vec<SignMargin>> {
         use rayon::prelude::*;
         let c = self.coefficients(theta, inputs)?;
         let (n, periods) = (inputs.periods.len(), &inputs.periods);
@@ -135,7 +151,7 @@ impl PmsmPwm {
             for (j, o) in chunk.iter_mut().enumerate() {
                 let (k, per) = (k0 + j, &periods[k0 + j]);
                 let (next, _) = period::step_nearest(&c.q, per, self.start_of(c.k_o, x, measured(k)));
-                let (_, current) = period::step_nearest(&c.q, per, x);
+                let current = if margins { period::step_nearest(&c.q, per, x).1 } else { f64::INFINITY };
                 x = next;
                 let residual = (inputs.i_d[k + 1] - x[0]).hypot(inputs.i_q[k + 1] - x[1]);
                 *o = SignMargin { residual, current, duty: per.duty_margin };

@@ -107,13 +107,17 @@ impl<T: Scalar> Cx<T> {
     }
 }
 
-/// The period's matrices: `A`, `μ`, `δ`, `P` and `x_c`.
+/// The period's matrices: `A`, `μ`, `δ`, `P` and `x_c`; `round` when `A`'s diagonal is one
+/// value with one set of derivatives (`L_d = L_q` as one parameter, the surface magnet's):
+/// then `δ = −ω_e²`, and `e^{Aτ}`'s `C = cos ω_e τ`, `S = sin ω_e τ / ω_e` are the piece's
+/// rotation, no sine and cosine of their own.
 struct System<T> {
     a: [[T; 2]; 2],
     mu: T,
     delta: T,
     p: [[T; 2]; 2],
     xc: [T; 2],
+    round: bool,
 }
 
 #[inline(always)]
@@ -140,14 +144,19 @@ fn system<T: Scalar>(q: &Params<T>, w: f64, emf: f64) -> System<T> {
     let det_a = a11 * a22 - a12 * a21;
     let c2 = -(q.k_e * emf / q.l_q);
     let xc = [c2 * a12 / det_a, -(c2 * a11 / det_a)];
-    System { a: [[a11, a12], [a21, a22]], mu, delta, p: [[z1.re, z1.im], [z2.re, z2.im]], xc }
+    let round = half_diff.is_zero();
+    System { a: [[a11, a12], [a21, a22]], mu, delta, p: [[z1.re, z1.im], [z2.re, z2.im]], xc, round }
 }
 
-/// `C(τ)` and `S(τ)` of `e^{Aτ}` for `δ` (module docs).
+/// `C(τ)` and `S(τ)` of `e^{Aτ}` for `δ` (module docs); with `rotation`
+/// `((sin ω_e τ, cos ω_e τ), ω_e)` of a round system (`δ = −ω_e²`, [`System`]) taken from it.
 #[inline(always)]
-fn c_s<T: Scalar>(delta: T, tau: T) -> (T, T) {
+fn c_s<T: Scalar>(delta: T, tau: T, rotation: Option<((T, T), f64)>) -> (T, T) {
     let x = delta * tau * tau;
-    if x.val().abs() < 1e-3 {
+    if let (Some(((sr, cr), w)), false) = (rotation, x.val().abs() < 1e-3) {
+        // |ω_e τ| ≥ 0.03 here, so ω_e ≠ 0.
+        (cr, sr * (1.0 / w))
+    } else if x.val().abs() < 1e-3 {
         let c = T::cst(1.0) + x * (T::cst(0.5) + x * (T::cst(1.0 / 24.0) + x * (1.0 / 720.0)));
         let s =
             tau * (T::cst(1.0) + x * (T::cst(1.0 / 6.0) + x * (T::cst(1.0 / 120.0) + x * (1.0 / 5040.0))));
@@ -285,6 +294,9 @@ fn half_step<T: Scalar>(
     }
     let ev = &ev[..m];
     let w = per.w_e;
+    // (sin, cos) of the piece's electrical angle: the half's first from its own, each later
+    // one rotated on from the one before.
+    let mut angle: Option<(T, T)> = None;
     for (i, &t) in ev.iter().enumerate() {
         let end = ev.get(i + 1).copied().unwrap_or(T::cst(len));
         let tau = end - t;
@@ -299,8 +311,10 @@ fn half_step<T: Scalar>(
             let on = if switched { !half.cmd[k] } else { half.cmd[k] };
             state[k] = if on && !blanked[k] { 1.0 } else { 0.0 };
         }
-        let theta = (t + half.offset) * w + per.theta;
-        let (s, c) = theta.sin_cos();
+        let (s, c) = match angle {
+            Some(sc) => sc,
+            None => ((t + half.offset) * w + per.theta).sin_cos(),
+        };
         let i_alpha = c * x[0] - s * x[1];
         let i_beta = s * x[0] + c * x[1];
         let r3 = 0.5 * 3f64.sqrt();
@@ -325,19 +339,21 @@ fn half_step<T: Scalar>(
             acc[0] = acc[0] + sw * v[0] + cw * v[1];
             acc[1] = acc[1] + sw * v[1] - cw * v[0];
         }
-        x = piece(sys, x, v, rot, tau);
+        x = piece(sys, x, v, rot, tau, w);
+        // The next piece's angle θ + ω_e τ by the rotation at hand.
+        angle = Some((s * rot.1 + c * rot.0, c * rot.1 - s * rot.0));
     }
     x
 }
 
 /// The exact step over a piece of length `tau` \[s\] with the dq voltage `v` at its start
-/// and `(sin ω_e τ, cos ω_e τ)` (module docs).
+/// and `(sin ω_e τ, cos ω_e τ)` at the electrical speed `w` \[rad/s\] (module docs).
 #[inline(always)]
-fn piece<T: Scalar>(sys: &System<T>, x: [T; 2], v: [T; 2], (sr, cr): (T, T), tau: T) -> [T; 2] {
+fn piece<T: Scalar>(sys: &System<T>, x: [T; 2], v: [T; 2], (sr, cr): (T, T), tau: T, w: f64) -> [T; 2] {
     let p = &sys.p;
     let pv = [p[0][0] * v[0] + p[0][1] * v[1], p[1][0] * v[0] + p[1][1] * v[1]];
     let y = [x[0] - pv[0] - sys.xc[0], x[1] - pv[1] - sys.xc[1]];
-    let (c, s) = c_s(sys.delta, tau);
+    let (c, s) = c_s(sys.delta, tau, sys.round.then_some(((sr, cr), w)));
     let e = (sys.mu * tau).exp();
     let a = &sys.a;
     let ay = [(a[0][0] - sys.mu) * y[0] + a[0][1] * y[1], a[1][0] * y[0] + (a[1][1] - sys.mu) * y[1]];
@@ -352,7 +368,7 @@ fn piece<T: Scalar>(sys: &System<T>, x: [T; 2], v: [T; 2], (sr, cr): (T, T), tau
 pub(crate) fn transition<T: Scalar>(q: &Params<T>, per: &Period) -> [T; 4] {
     let s = system(q, per.w_e, per.emf);
     let h: f64 = per.halves[..usize::from(per.n)].iter().map(|p| p.len).sum();
-    let (c, sv) = c_s(s.delta, T::cst(h));
+    let (c, sv) = c_s(s.delta, T::cst(h), None);
     let e = (s.mu * h).exp();
     [
         e * (c + sv * (s.a[0][0] - s.mu)),
