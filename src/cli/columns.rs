@@ -46,6 +46,18 @@ pub struct ColumnArgs {
     /// Phase voltage columns, three names comma separated (with --dq-from-phases).
     #[arg(help_heading = "Log columns", long, value_name = "A,B,C", default_value = "ua,ub,uc", value_parser = parse_phases)]
     pub col_u_abc: Phases,
+    /// All renamed columns in one flag: STANDARD=HEADER pairs, comma separated, e.g.
+    /// `--columns id=Id,iq=Iq,ud=Ud,uq=Uq,w_m=speed_rpm`; the standard names are the
+    /// per-column flags' defaults (t, ud, uq, id, iq, w_m, theta_m, ud_ref, uq_ref, ia, ib,
+    /// ic, ua, ub, uc). Not together with those flags.
+    #[arg(
+        help_heading = "Log columns",
+        long,
+        value_name = "STD=NAME,...",
+        value_parser = parse_columns,
+        conflicts_with_all = ["col_t", "col_ud", "col_uq", "col_id", "col_iq", "col_w", "col_theta", "col_ud_ref", "col_uq_ref", "col_i_abc", "col_u_abc"]
+    )]
+    pub columns: Option<ColumnMap>,
     /// Unit of the speed column.
     #[arg(help_heading = "Units and frames", long, value_parser = super::values::listed::<SpeedUnit>(), default_value = "rad/s")]
     pub speed_unit: SpeedUnit,
@@ -127,29 +139,76 @@ fn parse_phases(s: &str) -> Result<Phases, String> {
     }
 }
 
+/// The pairs of `--columns`: (standard name, header name), each standard name once.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ColumnMap(pub Vec<(String, String)>);
+
+/// Parses `STD=NAME,...` ([`ColumnNames::STANDARD`] names on the left, non-empty header
+/// names on the right, each standard name once).
+fn parse_columns(s: &str) -> Result<ColumnMap, String> {
+    let mut pairs: Vec<(String, String)> = Vec::new();
+    for item in s.split(',') {
+        let Some((key, name)) = item.split_once('=') else {
+            return Err(format!("`{item}`: expected STANDARD=HEADER, e.g. id=Id"));
+        };
+        let (key, name) = (key.trim(), name.trim());
+        if ColumnNames::default().column_mut(key).is_none() {
+            return Err(format!(
+                "`{key}` is not a standard column name; one of {}",
+                ColumnNames::STANDARD.join(", ")
+            ));
+        }
+        if name.is_empty() {
+            return Err(format!("`{item}`: the header name after `=` is empty"));
+        }
+        if pairs.iter().any(|(k, _)| k == key) {
+            return Err(format!("`{key}` is given twice"));
+        }
+        pairs.push((key.to_string(), name.to_string()));
+    }
+    Ok(ColumnMap(pairs))
+}
+
 impl ColumnArgs {
     /// The reader's options of these flags (pole pairs `None`: the command sets them).
     pub fn options(&self) -> CsvOptions {
+        let mut columns = self.column_names();
+        for (key, name) in self.columns.iter().flat_map(|m| &m.0) {
+            // Every key was checked when the flag was parsed.
+            if let Some(column) = columns.column_mut(key) {
+                column.clone_from(name);
+            }
+        }
+        CsvOptions { columns, ..self.options_with_flags() }
+    }
+
+    /// The header names of the per-column flags.
+    fn column_names(&self) -> ColumnNames {
+        ColumnNames {
+            t: self.col_t.clone(),
+            u_d: self.col_ud.clone(),
+            u_q: self.col_uq.clone(),
+            i_d: self.col_id.clone(),
+            i_q: self.col_iq.clone(),
+            w_m: self.col_w.clone(),
+            theta_m: self.col_theta.clone(),
+            u_d_ref: self.col_ud_ref.clone(),
+            u_q_ref: self.col_uq_ref.clone(),
+            i_a: self.col_i_abc.0[0].clone(),
+            i_b: self.col_i_abc.0[1].clone(),
+            i_c: self.col_i_abc.0[2].clone(),
+            u_a: self.col_u_abc.0[0].clone(),
+            u_b: self.col_u_abc.0[1].clone(),
+            u_c: self.col_u_abc.0[2].clone(),
+            extra: Vec::new(),
+        }
+    }
+
+    /// The reader's options of every flag but `--columns`.
+    fn options_with_flags(&self) -> CsvOptions {
         CsvOptions {
             pole_pairs: None,
-            columns: ColumnNames {
-                t: self.col_t.clone(),
-                u_d: self.col_ud.clone(),
-                u_q: self.col_uq.clone(),
-                i_d: self.col_id.clone(),
-                i_q: self.col_iq.clone(),
-                w_m: self.col_w.clone(),
-                theta_m: self.col_theta.clone(),
-                u_d_ref: self.col_ud_ref.clone(),
-                u_q_ref: self.col_uq_ref.clone(),
-                i_a: self.col_i_abc.0[0].clone(),
-                i_b: self.col_i_abc.0[1].clone(),
-                i_c: self.col_i_abc.0[2].clone(),
-                u_a: self.col_u_abc.0[0].clone(),
-                u_b: self.col_u_abc.0[1].clone(),
-                u_c: self.col_u_abc.0[2].clone(),
-                extra: Vec::new(),
-            },
+            columns: self.column_names(),
             speed_unit: self.speed_unit,
             speed_frame: self.speed_frame,
             negate_speed: self.negate_speed,

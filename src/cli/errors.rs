@@ -75,26 +75,38 @@ pub fn in_cli_words(e: Error, command: &clap::Command) -> Error {
             Some((flag, found)) => {
                 // Every standard column the header names otherwise, in one run (a log
                 // with `Id, Iq, Ud, Uq, speed_rpm` took one run per column).
-                let all: Vec<String> = command
+                let hints: Vec<(String, String, &str)> = command
                     .get_arguments()
                     .filter_map(|a| {
                         let long = a.get_long()?;
                         let default = a.get_default_values().first()?.to_str()?;
                         let absent = !available.split(", ").any(|h| h == default);
-                        (long.starts_with("col-") && absent)
+                        let (f, h) = (long.starts_with("col-") && absent)
                             .then(|| column_hint(default, &available, command))
-                            .flatten()
+                            .flatten()?;
+                        Some((f, h, default))
                     })
-                    .map(|(f, h)| format!("{f} \"{h}\""))
-                    .chain(speed_unit_hint(&available, command))
                     .collect();
+                let unit = speed_unit_hint(&available, command);
+                let all: Vec<String> =
+                    hints.iter().map(|(f, h, _)| format!("{f} \"{h}\"")).chain(unit.clone()).collect();
+                // The same in `--columns`' one flag, where the command has it.
+                let one = command.get_arguments().any(|a| a.get_long() == Some("columns")).then(|| {
+                    let pairs: Vec<String> = hints.iter().map(|(_, h, d)| format!("{d}={h}")).collect();
+                    let one = format!("--columns \"{}\"", pairs.join(","));
+                    format!(
+                        "; or in one flag: {}",
+                        [Some(one), unit].into_iter().flatten().collect::<Vec<_>>().join(" ")
+                    )
+                });
                 Error::InvalidOption {
                     option: flag.clone(),
                     reason: format!(
                         "{}: no column `{column}` in the header ({available}); `{found}` looks like it. The header's names \
-                         as flags: {}",
+                         as flags: {}{}",
                         path.display(),
-                        all.join(" ")
+                        all.join(" "),
+                        one.unwrap_or_default()
                     ),
                 }
             }

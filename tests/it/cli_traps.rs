@@ -124,7 +124,48 @@ fn one_error_names_every_renamed_column() {
     ];
     let out = greybox(&[&["fit", l, "-p", "4", "-q"][..], &given[..]].concat());
     assert!(matches!(out.status.code(), Some(0 | 3)), "{}", stderr(&out));
+    // The same in one flag, as the message also gives it; the per-column report identical.
+    let one = "--columns \"ud=Ud,uq=Uq,id=Id,iq=Iq,w_m=speed_rpm\" --speed-unit rpm";
+    assert!(err.contains(one), "{one}: {err}");
+    let json = |extra: &[&str], name: &str| {
+        let path = dir.join(name);
+        let p = path.to_str().unwrap().to_string();
+        let out = greybox(&[&["fit", l, "-p", "4", "-q", "--json", &p][..], extra].concat());
+        assert!(matches!(out.status.code(), Some(0 | 3)), "{}", stderr(&out));
+        let mut v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        v.as_object_mut().unwrap().remove("timing");
+        v
+    };
+    let columns = ["--columns", "ud=Ud,uq=Uq,id=Id,iq=Iq,w_m=speed_rpm", "--speed-unit", "rpm"];
+    assert_eq!(json(&columns, "one.json"), json(&given, "flags.json"));
+    // A name that is not standard, a key given twice and the flag beside a per-column one:
+    // exit 2, each saying why.
+    for (bad, says) in [
+        (&["--columns", "Id=Id"][..], "not a standard column name; one of t, ud, uq, id"),
+        (&["--columns", "id=Id,id=Iq"][..], "`id` is given twice"),
+        (&["--columns", "id=Id", "--col-iq", "Iq"][..], "cannot be used with"),
+        (&["--columns", "id="][..], "empty"),
+    ] {
+        let out = greybox(&[&["fit", l, "-p", "4", "-q"][..], bad].concat());
+        assert_eq!(out.status.code(), Some(2), "{bad:?}");
+        assert!(stderr(&out).contains(says), "{bad:?}: {}", stderr(&out));
+    }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Every standard column name of `--columns` sets the field whose default header it is.
+#[test]
+fn the_standard_column_names_are_the_defaults() {
+    let defaults = greybox::pmsm::ColumnNames::default();
+    for key in greybox::pmsm::ColumnNames::STANDARD {
+        let mut names = defaults.clone();
+        let column = names.column_mut(key).expect(key);
+        assert_eq!(column, key);
+        *column = "renamed".into();
+        assert_ne!(names, defaults, "{key}");
+    }
+    assert!(defaults.clone().column_mut("Id").is_none());
 }
 
 /// `--huber 2.0 LOG` does not read `2.0` as a log: the error names the word and says to

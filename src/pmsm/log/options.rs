@@ -76,6 +76,40 @@ impl Default for ColumnNames {
     }
 }
 
+impl ColumnNames {
+    /// The standard names of the columns, each the default header name of one field: `t`,
+    /// `ud`, `uq`, `id`, `iq`, `w_m`, `theta_m`, `ud_ref`, `uq_ref`, `ia`, `ib`, `ic`, `ua`,
+    /// `ub`, `uc` (the keys of [`ColumnNames::column_mut`] and of the command line's
+    /// `--columns id=Id,…`).
+    pub const STANDARD: [&'static str; 15] = [
+        "t", "ud", "uq", "id", "iq", "w_m", "theta_m", "ud_ref", "uq_ref", "ia", "ib", "ic", "ua", "ub", "uc",
+    ];
+
+    /// The header name read for the column whose standard name is `standard`
+    /// ([`ColumnNames::STANDARD`]), to set it: `names.column_mut("id")` is `names.i_d`.
+    /// `None` for a name that is not standard.
+    pub fn column_mut(&mut self, standard: &str) -> Option<&mut String> {
+        Some(match standard {
+            "t" => &mut self.t,
+            "ud" => &mut self.u_d,
+            "uq" => &mut self.u_q,
+            "id" => &mut self.i_d,
+            "iq" => &mut self.i_q,
+            "w_m" => &mut self.w_m,
+            "theta_m" => &mut self.theta_m,
+            "ud_ref" => &mut self.u_d_ref,
+            "uq_ref" => &mut self.u_q_ref,
+            "ia" => &mut self.i_a,
+            "ib" => &mut self.i_b,
+            "ic" => &mut self.i_c,
+            "ua" => &mut self.u_a,
+            "ub" => &mut self.u_b,
+            "uc" => &mut self.u_c,
+            _ => return None,
+        })
+    }
+}
+
 /// Unit of the speed column.
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
