@@ -182,6 +182,26 @@ fn the_parallel_pwm_pass_is_the_per_sample_step() {
     }
 }
 
+/// The loop search's residuals without the margins are the sign margins' residuals to the
+/// bit (one step a period where the margins take two).
+#[test]
+fn the_one_step_residuals_are_the_sign_margins_residuals() {
+    let (e, cfg) = pwm_log("exp3", 0.2, 2e-6, 1.0, 0.0);
+    let m = model(
+        &cfg,
+        PwmInverter { first_edge: Some(greybox::pmsm::CarrierEdge::Rising), ..Default::default() },
+    );
+    let theta = truth(&cfg, 2e-6, 1.0);
+    let inputs = m.prepare(&e).unwrap();
+    let margins = m.sign_margins(&theta, &inputs).unwrap();
+    let residuals = m.one_step_residuals(&theta, &inputs).unwrap();
+    assert_eq!(residuals.len(), margins.len());
+    assert!(residuals.iter().skip(1).any(|r| *r > 0.0));
+    for (k, (r, s)) in residuals.iter().zip(&margins).enumerate() {
+        assert_eq!(r.to_bits(), s.residual.to_bits(), "sample {k}");
+    }
+}
+
 /// The PWM fit recovers the motor and the inverter from the reference voltage of the
 /// simulator's switching inverter, to the tolerances (R_s, L_s 0.3 %, K_e 0.05 %,
 /// t_d 5 %, u_th 10 %).

@@ -122,3 +122,55 @@ pub(crate) fn brent_search(
     let scan = grid.iter().zip(values).map(|(&x, v)| (from(x), v)).collect();
     Ok(Searched { best: from(best), loss: value, scan })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Brent's method finds a smooth minimum on the logarithm to its tolerance in fewer
+    /// evaluations than the golden sections, and a scan of 25 returns its points.
+    #[test]
+    fn brent_finds_the_minimum_in_few_evaluations() {
+        let count = std::cell::Cell::new(0);
+        let loss = |a: f64| {
+            count.set(count.get() + 1);
+            let x = (a / 2224.0).ln();
+            Ok(1.0 + x * x * (1.0 + 0.1 * x))
+        };
+        let found = brent_search(SPEED_PLL_RANGE, true, 25, loss).unwrap();
+        assert!((found.best / 2224.0).ln().abs() < 3.0 * BRENT_TOLERANCE, "{}", found.best);
+        assert_eq!(found.scan.len(), 25);
+        assert!(
+            (found.scan[0].0 - SPEED_PLL_RANGE.0).abs() < 1e-9
+                && (found.scan[24].0 - SPEED_PLL_RANGE.1).abs() < 1e-6
+        );
+        let brent = count.get() - 25;
+        assert!(brent < 26, "{brent} evaluations after the scan");
+        let golden = std::cell::Cell::new(0);
+        let best = golden_search(SPEED_PLL_RANGE, true, |a| {
+            golden.set(golden.get() + 1);
+            loss(a)
+        })
+        .unwrap();
+        assert!((best / found.best).ln().abs() < 1e-4, "{best} against {}", found.best);
+    }
+
+    /// A failing loss inside Brent's steps is the loss's own error, not a solver's string;
+    /// a scan with no finite value is a numerical error.
+    #[test]
+    fn brent_passes_the_loss_errors_on() {
+        let failing = |a: f64| {
+            if (a / 2224.0).ln().abs() < 0.1 {
+                Err(Error::InvalidOption { option: "speed_pll".into(), reason: "test".into() })
+            } else {
+                Ok((a / 2224.0).ln().powi(2))
+            }
+        };
+        match brent_search(SPEED_PLL_RANGE, true, 16, failing) {
+            Err(Error::InvalidOption { option, .. }) => assert_eq!(option, "speed_pll"),
+            other => panic!("{:?}", other.map(|s| s.best)),
+        }
+        let nan = brent_search(SPEED_PLL_RANGE, true, 16, |_| Ok(f64::NAN));
+        assert!(matches!(nan, Err(Error::Numerical { .. })), "{:?}", nan.map(|s| s.best));
+    }
+}
