@@ -89,9 +89,17 @@ fn start_noise(
     Ok((sigma, if residual > 0.0 { sigma.trace() / residual } else { 0.0 }))
 }
 
+/// The start's noise of [`compensation`]: the criterion's compensation (`None` where the
+/// noise is below [`START_NOISE_SHARE`] of the residual), a note, and the noise's rms per
+/// axis `√(tr Σ / 2)` \[A\].
+pub(crate) struct StartCompensation {
+    pub correction: Option<Box<dyn CriterionCorrection>>,
+    pub note: String,
+    pub rms: f64,
+}
+
 /// The compensation of `model`'s one-step criterion at the estimate `fit` over the samples
-/// `weighting` counts, or `None` where the start's noise is below [`START_NOISE_SHARE`]
-/// of the residual; with a note.
+/// `weighting` counts ([`StartCompensation`]).
 ///
 /// # Errors
 /// Those of the model's `prepare`, [`PmsmPwm::noise_terms`] and the weighting's weights.
@@ -100,7 +108,7 @@ pub(crate) fn compensation(
     model: &PmsmPwm,
     fit: &FitResult,
     weighting: &dyn Weighting,
-) -> Result<(Option<Box<dyn CriterionCorrection>>, String)> {
+) -> Result<StartCompensation> {
     let theta: Vec<f64> =
         model.parameters().iter().map(|p| fit.parameter(&p.name).map_or(f64::NAN, |e| e.value)).collect();
     let (sigma, share) = start_noise(experiments, model, &theta, weighting)?;
@@ -113,8 +121,10 @@ pub(crate) fn compensation(
         sigma[(1, 1)],
         share
     );
+    let rms = (0.5 * (sigma[(0, 0)] + sigma[(1, 1)])).max(0.0).sqrt();
     if share < START_NOISE_SHARE {
-        return Ok((None, format!("{text}: below {START_NOISE_SHARE}, the criterion is not compensated")));
+        let note = format!("{text}: below {START_NOISE_SHARE}, the criterion is not compensated");
+        return Ok(StartCompensation { correction: None, note, rms });
     }
     let lambda = weighting.output_weights().map_or([1.0, 1.0], |l| [l[0], l.get(1).copied().unwrap_or(1.0)]);
     let inputs = experiments.iter().map(|e| model.prepare(e)).collect::<Result<Vec<_>>>()?;
@@ -126,11 +136,12 @@ pub(crate) fn compensation(
         sigma: [sigma[(0, 0)], sigma[(0, 1)], sigma[(1, 0)], sigma[(1, 1)]],
         lambda,
     };
-    Ok((
-        Some(Box::new(correction)),
-        format!(
+    Ok(StartCompensation {
+        correction: Some(Box::new(correction)),
+        note: format!(
             "{text}: the final fit subtracts its share from the criterion (bias-compensated least squares), and \
              each standard error is the larger of the white and the batch-means one"
         ),
-    ))
+        rms,
+    })
 }
