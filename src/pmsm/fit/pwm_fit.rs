@@ -12,8 +12,9 @@ use crate::pmsm::model::pwm::{PmsmPwm, PwmInverter};
 /// The fits of a PWM model from `start` (parameters `names`, model order) at the voltage
 /// `input`, in stages; `model` makes the model of an inverter and input as configured by
 /// the options, `fit` fits one (inverter, input, start, names, weighting, parameters held at
-/// their start), `stage_fit` the same at [`crate::pmsm::options::stage_options`]' tolerances for the fits that
-/// lead to the final one (the continuation's and the unmasked fit); notes in order.
+/// their start), `stage_fit` the same at [`crate::pmsm::options::stage_options`]'
+/// tolerances for the fits that lead to the final one (the continuation's, the unmasked
+/// fit and the masked fit at an estimated width); notes and warnings in order.
 /// Returns the fits and the input of the final ones (the controller's loop bandwidth
 /// searched when `pwm.search_speed_pll`) and the inverter of the final fits (its leg state
 /// chosen).
@@ -309,7 +310,7 @@ fn compensate<'w>(
 /// at `i_w = σ √(2/π)`. On five logs whose inverter switches hard, with 0.05 A of noise per
 /// phase (σ 0.041 A), the unmasked fit's width was 0.013–0.017 A (0.3–0.4 σ) in every seed;
 /// on one whose legs switch softly over 0.05 A it was 0.052–0.056 A (1.3–1.4 σ).
-pub const NOISE_WIDTH: f64 = 0.797_884_560_802_865_4;
+pub(crate) const NOISE_WIDTH: f64 = 0.797_884_560_802_865_4;
 
 /// One PWM fit: (inverter, input, start, names, weighting, parameters held at their start).
 pub(crate) type Fit<'a> =
