@@ -152,7 +152,7 @@ fn parse_columns(s: &str) -> Result<ColumnMap, String> {
             return Err(format!("`{item}`: expected STANDARD=HEADER, e.g. id=Id"));
         };
         let (key, name) = (key.trim(), name.trim());
-        if ColumnNames::default().column_mut(key).is_none() {
+        if !ColumnNames::STANDARD.contains(&key) {
             return Err(format!(
                 "`{key}` is not a standard column name; one of {}",
                 ColumnNames::STANDARD.join(", ")
@@ -172,40 +172,6 @@ fn parse_columns(s: &str) -> Result<ColumnMap, String> {
 impl ColumnArgs {
     /// The reader's options of these flags (pole pairs `None`: the command sets them).
     pub fn options(&self) -> CsvOptions {
-        let mut columns = self.column_names();
-        for (key, name) in self.columns.iter().flat_map(|m| &m.0) {
-            // Every key was checked when the flag was parsed.
-            if let Some(column) = columns.column_mut(key) {
-                column.clone_from(name);
-            }
-        }
-        CsvOptions { columns, ..self.options_with_flags() }
-    }
-
-    /// The header names of the per-column flags.
-    fn column_names(&self) -> ColumnNames {
-        ColumnNames {
-            t: self.col_t.clone(),
-            u_d: self.col_ud.clone(),
-            u_q: self.col_uq.clone(),
-            i_d: self.col_id.clone(),
-            i_q: self.col_iq.clone(),
-            w_m: self.col_w.clone(),
-            theta_m: self.col_theta.clone(),
-            u_d_ref: self.col_ud_ref.clone(),
-            u_q_ref: self.col_uq_ref.clone(),
-            i_a: self.col_i_abc.0[0].clone(),
-            i_b: self.col_i_abc.0[1].clone(),
-            i_c: self.col_i_abc.0[2].clone(),
-            u_a: self.col_u_abc.0[0].clone(),
-            u_b: self.col_u_abc.0[1].clone(),
-            u_c: self.col_u_abc.0[2].clone(),
-            extra: Vec::new(),
-        }
-    }
-
-    /// The reader's options of every flag but `--columns`.
-    fn options_with_flags(&self) -> CsvOptions {
         CsvOptions {
             pole_pairs: None,
             columns: self.column_names(),
@@ -227,6 +193,35 @@ impl ColumnArgs {
             steady_state: false,
             delimiter: self.delimiter,
         }
+    }
+
+    /// The header names of the per-column flags, or of `--columns`.
+    fn column_names(&self) -> ColumnNames {
+        let mut names = ColumnNames {
+            t: self.col_t.clone(),
+            u_d: self.col_ud.clone(),
+            u_q: self.col_uq.clone(),
+            i_d: self.col_id.clone(),
+            i_q: self.col_iq.clone(),
+            w_m: self.col_w.clone(),
+            theta_m: self.col_theta.clone(),
+            u_d_ref: self.col_ud_ref.clone(),
+            u_q_ref: self.col_uq_ref.clone(),
+            i_a: self.col_i_abc.0[0].clone(),
+            i_b: self.col_i_abc.0[1].clone(),
+            i_c: self.col_i_abc.0[2].clone(),
+            u_a: self.col_u_abc.0[0].clone(),
+            u_b: self.col_u_abc.0[1].clone(),
+            u_c: self.col_u_abc.0[2].clone(),
+            extra: Vec::new(),
+        };
+        for (key, name) in self.columns.iter().flat_map(|m| &m.0) {
+            // Every key was checked when the flag was parsed.
+            if let Some(column) = names.column_mut(key) {
+                column.clone_from(name);
+            }
+        }
+        names
     }
 
     /// Reads `paths` with `csv` (from [`ColumnArgs::options`]): one experiment per log, or

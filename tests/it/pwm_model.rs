@@ -68,6 +68,17 @@ fn truth(cfg: &DriveConfig, t_d: f64, u_th: f64) -> Vec<f64> {
     vec![p.r_s, p.l_d, p.k_e(), t_d, u_th]
 }
 
+/// A 0.2 s `exp3` log of a hard switch (2 µs, 1 V), its model with the carrier rising first,
+/// and the true parameters.
+fn short_log_at_truth() -> (greybox::Experiment, PmsmPwm, Vec<f64>) {
+    let (e, cfg) = pwm_log("exp3", 0.2, 2e-6, 1.0, 0.0);
+    let m = model(
+        &cfg,
+        PwmInverter { first_edge: Some(greybox::pmsm::CarrierEdge::Rising), ..Default::default() },
+    );
+    (e, m, truth(&cfg, 2e-6, 1.0))
+}
+
 /// The simulator's switching inverter is the model's: with the true parameters the
 /// one-step prediction reproduces every period after the first to rounding.
 #[test]
@@ -129,12 +140,7 @@ fn the_pwm_sensitivities_are_the_steps_derivatives() {
 /// directions are the per-sample step's to the bit, for a log longer than several blocks.
 #[test]
 fn the_parallel_pwm_pass_is_the_per_sample_step() {
-    let (e, cfg) = pwm_log("exp3", 0.2, 2e-6, 1.0, 0.0);
-    let m = model(
-        &cfg,
-        PwmInverter { first_edge: Some(greybox::pmsm::CarrierEdge::Rising), ..Default::default() },
-    );
-    let theta = truth(&cfg, 2e-6, 1.0);
+    let (e, m, theta) = short_log_at_truth();
     let prep = greybox::model::Prepared::new(&m, &e).unwrap();
     assert!(m.block_kernel().is_some() && prep.n > 3 * greybox::model::BLOCK_LEN, "{} samples", prep.n);
     let c = m.coefficients(&theta, &prep.inputs).unwrap();
@@ -186,12 +192,7 @@ fn the_parallel_pwm_pass_is_the_per_sample_step() {
 /// bit (one step a period where the margins take two).
 #[test]
 fn the_one_step_residuals_are_the_sign_margins_residuals() {
-    let (e, cfg) = pwm_log("exp3", 0.2, 2e-6, 1.0, 0.0);
-    let m = model(
-        &cfg,
-        PwmInverter { first_edge: Some(greybox::pmsm::CarrierEdge::Rising), ..Default::default() },
-    );
-    let theta = truth(&cfg, 2e-6, 1.0);
+    let (e, m, theta) = short_log_at_truth();
     let inputs = m.prepare(&e).unwrap();
     let margins = m.sign_margins(&theta, &inputs).unwrap();
     let residuals = m.one_step_residuals(&theta, &inputs).unwrap();

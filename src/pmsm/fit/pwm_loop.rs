@@ -19,7 +19,7 @@ use crate::data::Experiment;
 use crate::error::Result;
 use crate::estimate::{FitResult, Warning, Weighting};
 use crate::model::GreyBoxModel;
-use crate::pmsm::fit::search::{SPEED_PLL_RANGE, brent_search};
+use crate::pmsm::fit::search::{COARSE, SPEED_PLL_RANGE, brent_search, grid};
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::pwm::PmsmPwm;
 
@@ -29,9 +29,6 @@ pub const LOOP_AMBIGUOUS_Z: f64 = 3.0;
 
 /// Log-spaced bandwidths of the scan that finds the set (the search's own scan then).
 const SET_SCAN: usize = 25;
-
-/// Log-spaced bandwidths of the search's scan when no set is wanted.
-const SCAN: usize = 16;
 
 /// χ²₁(0.95): the likelihood-ratio bound of the set.
 const CHI2_1_95: f64 = 3.841;
@@ -91,10 +88,10 @@ impl LoopLoss<'_> {
     /// The losses of the log-spaced scan of [`SET_SCAN`] bandwidths over
     /// [`SPEED_PLL_RANGE`] (those of [`brent_search`]'s scan of as many points).
     fn set_scan(&self) -> Result<Vec<(f64, f64)>> {
-        let (lo, hi) = (SPEED_PLL_RANGE.0.ln(), SPEED_PLL_RANGE.1.ln());
-        (0..SET_SCAN)
-            .map(|i| {
-                let a = (lo + (hi - lo) * i as f64 / (SET_SCAN - 1) as f64).exp();
+        grid(SPEED_PLL_RANGE.0.ln(), SPEED_PLL_RANGE.1.ln(), SET_SCAN)
+            .into_iter()
+            .map(|ln_a| {
+                let a = ln_a.exp();
                 Ok((a, self.loss(Some(a))?.0))
             })
             .collect()
@@ -126,7 +123,7 @@ pub(crate) fn search_speed_pll(
     };
     let loss = LoopLoss { experiments, theta, weighting, model, delay, advance };
     // The scan for the set is the search's own when the set is wanted.
-    let points = if scan_set { SET_SCAN } else { SCAN };
+    let points = if scan_set { SET_SCAN } else { COARSE };
     let found = brent_search(SPEED_PLL_RANGE, true, points, |a| Ok(loss.loss(Some(a))?.0))?;
     let (alpha, with) = (found.best, found.loss);
     let (logged, counted) = loss.loss(None)?;

@@ -9,8 +9,9 @@ use crate::error::{Error, Result};
 
 /// Range of the speed-estimator bandwidth searched \[rad/s\]: 2π·10 Hz to 2π·2 kHz.
 pub const SPEED_PLL_RANGE: (f64, f64) = (62.83185307179586, 12_566.370614359172);
-/// Log-spaced bandwidths of the coarse scan before the golden-section refinement.
-const COARSE: usize = 16;
+/// Points of the coarse scan before the golden-section refinement (and of the PWM loop's
+/// search when it scans no likelihood-ratio set).
+pub(crate) const COARSE: usize = 16;
 /// Golden-section steps (each shrinks the bracket by 0.618: 24 steps ≈ 1e-5 in ln α).
 const GOLDEN_STEPS: usize = 24;
 
@@ -26,7 +27,7 @@ pub(crate) fn golden_search(
     let (to, from): (Map, Map) = if log { (f64::ln, f64::exp) } else { (|x| x, |x| x) };
     let mut loss = move |x: f64| loss(from(x));
     let (lo, hi) = (to(range.0), to(range.1));
-    let grid: Vec<f64> = (0..COARSE).map(|i| lo + (hi - lo) * i as f64 / (COARSE - 1) as f64).collect();
+    let grid = grid(lo, hi, COARSE);
     let mut values = Vec::with_capacity(COARSE);
     for &x in &grid {
         values.push(loss(x)?);
@@ -47,6 +48,12 @@ pub(crate) fn golden_search(
         }
     }
     Ok(from(if fc <= fd { c } else { d }))
+}
+
+/// `points` (at least 2) evenly spaced values from `lo` to `hi`, both included: the scans'
+/// grid (on the logarithm for a log search).
+pub(crate) fn grid(lo: f64, hi: f64, points: usize) -> Vec<f64> {
+    (0..points).map(|i| lo + (hi - lo) * i as f64 / (points - 1) as f64).collect()
 }
 
 /// The best point of a scan `grid` (values `values`) and the bracket of its neighbours.
@@ -105,8 +112,7 @@ pub(crate) fn brent_search(
     let (to, from): (Map, Map) = if log { (f64::ln, f64::exp) } else { (|x| x, |x| x) };
     let loss = move |x: f64| loss(from(x));
     let (lo, hi) = (to(range.0), to(range.1));
-    let points = points.max(2);
-    let grid: Vec<f64> = (0..points).map(|i| lo + (hi - lo) * i as f64 / (points - 1) as f64).collect();
+    let grid = grid(lo, hi, points.max(2));
     let values = grid.iter().map(|&x| loss(x)).collect::<Result<Vec<f64>>>()?;
     let (i, (a, b)) = bracket(range, &grid, &values)?;
     let solver =

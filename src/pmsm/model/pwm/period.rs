@@ -153,14 +153,14 @@ fn system<T: Scalar>(q: &Params<T>, w: f64, emf: f64) -> System<T> {
 #[inline(always)]
 fn c_s<T: Scalar>(delta: T, tau: T, rotation: Option<((T, T), f64)>) -> (T, T) {
     let x = delta * tau * tau;
-    if let (Some(((sr, cr), w)), false) = (rotation, x.val().abs() < 1e-3) {
-        // |ω_e τ| ≥ 0.03 here, so ω_e ≠ 0.
-        (cr, sr * (1.0 / w))
-    } else if x.val().abs() < 1e-3 {
+    if x.val().abs() < 1e-3 {
         let c = T::cst(1.0) + x * (T::cst(0.5) + x * (T::cst(1.0 / 24.0) + x * (1.0 / 720.0)));
         let s =
             tau * (T::cst(1.0) + x * (T::cst(1.0 / 6.0) + x * (T::cst(1.0 / 120.0) + x * (1.0 / 5040.0))));
         (c, s)
+    } else if let Some(((sr, cr), w)) = rotation {
+        // |ω_e τ| ≥ 0.03 here, so ω_e ≠ 0.
+        (cr, sr * (1.0 / w))
     } else if delta.val() < 0.0 {
         let nu = (-delta).sqrt();
         let (s, c) = (nu * tau).sin_cos();
