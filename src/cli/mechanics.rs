@@ -8,8 +8,8 @@ use super::output;
 use crate::data::{ColumnMap, CsvSpec, Experiment, TimeWindow, read_csv};
 use crate::estimate::FitResult;
 use crate::pmsm::{
-    LOAD_TORQUE, MechanicsFit, MechanicsOptions, MechanicsTerms, MotorParameters, PmsmFitOptions, SQRT_2_3,
-    fit_mechanics, fit_pmsm,
+    Axis, LOAD_TORQUE, MechanicsFit, MechanicsOptions, MechanicsTerms, MotorParameters, PmsmFitOptions,
+    SQRT_2_3, fit_mechanics, fit_pmsm,
 };
 use clap::Args;
 use serde::Serialize;
@@ -20,9 +20,11 @@ use std::path::PathBuf;
 #[command(
     after_help = "The logs are read as by `greybox fit`; without --k-t the electrical model is fitted to them \
 first (jointly) and its torque 1.5 n_p (ψ_f i_q + (L_d − L_q) i_d i_q) drives the shaft. A load-torque column \
-(--col-load) is subtracted when every log has it. The intervals take the torque model as exact. See \
+(--col-load) is subtracted when every log has it. The intervals take the torque model as exact. A linear axis \
+(--lead for a screw or rack, --pole-pitch for a linear motor) is reported in kg, N s/m and N. See \
 docs/mechanics.md."
 )]
+#[command(group = clap::ArgGroup::new("linear").args(["lead", "pole_pitch"]).multiple(false))]
 pub struct MechanicsArgs {
     /// Drive logs (CSV, plain or gzip; Parquet, Arrow IPC), fitted jointly.
     #[arg(required = true)]
@@ -32,8 +34,21 @@ pub struct MechanicsArgs {
     pub pole_pairs: u32,
     /// A known torque constant K_t [N m/A, peak dq current] instead of the electrical fit:
     /// then only the time, iq, the speed (and the angle with --gravity) are read.
-    #[arg(long, value_name = "N m/A")]
+    #[arg(long, value_name = "N m/A", conflicts_with = "k_f")]
     pub k_t: Option<f64>,
+    /// A linear axis driven through a screw, rack or belt: M metres of travel per motor
+    /// revolution (a ball screw's lead over the gear ratio); the logs are the motor's, the
+    /// report in kg, N s/m and N.
+    #[arg(long, value_name = "M", conflicts_with = "pole_pitch")]
+    pub lead: Option<f64>,
+    /// A linear motor of pole pitch M [m] whose speed and position columns are in m/s and m
+    /// (read as a shaft of lead 2 n_p M); the report in kg, N s/m and N.
+    #[arg(long, value_name = "M")]
+    pub pole_pitch: Option<f64>,
+    /// A known force constant K_f [N/A, peak dq current] of a linear axis (--lead or
+    /// --pole-pitch) instead of the electrical fit, read as --k-t is.
+    #[arg(long, value_name = "N/A", requires = "linear")]
+    pub k_f: Option<f64>,
     /// A gravity load m g l sin θ_m (angle 0 hanging down).
     #[arg(long)]
     pub gravity: bool,
@@ -50,7 +65,7 @@ pub struct MechanicsArgs {
     /// loss between 1e-4 and 1 times the logs' peak speed).
     #[arg(long, default_value = "estimate", value_name = "RAD/S|estimate", value_parser = super::args::parse_speed)]
     pub coulomb_speed: super::args::Pll,
-    /// Column of a load torque [N m], used when every log has it.
+    /// Column of a load torque [N m] (on a linear axis a force [N]), used when every log has it.
     #[arg(long, default_value = LOAD_TORQUE, value_name = "NAME")]
     pub col_load: String,
     /// The report's outputs.
@@ -87,23 +102,37 @@ pub fn run_mechanics(a: &MechanicsArgs) -> crate::Result<bool> {
 /// As [`run_mechanics`] but for the output.
 pub fn mechanics_outcome(a: &MechanicsArgs) -> crate::Result<output::Outcome> {
     let extra = (a.col_load.as_str(), LOAD_TORQUE, "N m");
-    let logs: Vec<Experiment> = match a.k_t {
+    let axis = axis(a)?;
+    if a.gravity && !axis.is_rotary() {
+        return Err(crate::Error::InvalidOption {
+            option: "--gravity".into(),
+            reason: "a linear axis' weight is a constant force along it: --constant-load".into(),
+        });
+    }
+    let k_t = a.k_t.or(a.k_f.map(|k_f| k_f / axis.radians_per_unit()));
+    let logs: Vec<Experiment> = match k_t {
         Some(_) => read_mechanical_logs(a)?,
         None => a.columns.read_logs_with_channel(&a.logs, a.pole_pairs, extra)?,
+    };
+    let logs = match a.pole_pitch {
+        Some(_) => logs.into_iter().map(|e| linear_motor_log(e, axis)).collect::<crate::Result<_>>()?,
+        None => logs,
     };
     // The angle a gravity term needs, before the electrical fit spends its time.
     for e in logs.iter().filter(|_| a.gravity) {
         e.channel("theta_m")?;
     }
     let n_p = a.pole_pairs;
-    let (electrical, motor) = match a.k_t {
+    let (electrical, motor) = match k_t {
         Some(k_t) if k_t.is_finite() && k_t != 0.0 => {
             (None, MotorParameters { r_s: 0.0, l_d: 0.0, l_q: 0.0, psi_f: k_t / (1.5 * f64::from(n_p)), n_p })
         }
         Some(k_t) => {
+            let (flag, what) = if a.k_f.is_some() { ("--k-f", "K_f") } else { ("--k-t", "K_t") };
+            let given = a.k_f.unwrap_or(k_t);
             return Err(crate::Error::InvalidOption {
-                option: "--k-t".into(),
-                reason: format!("{k_t}: K_t must be finite and non-zero"),
+                option: flag.into(),
+                reason: format!("{given}: {what} must be finite and non-zero"),
             });
         }
         None => {
@@ -126,6 +155,7 @@ pub fn mechanics_outcome(a: &MechanicsArgs) -> crate::Result<output::Outcome> {
         },
         terms: MechanicsTerms { gravity: a.gravity, constant: a.constant_load },
         per_log_friction: a.per_log,
+        axis,
         ..MechanicsOptions::new(motor)
     };
     let mechanics = fit_mechanics(&logs, &options)?;
@@ -141,6 +171,56 @@ pub fn mechanics_outcome(a: &MechanicsArgs) -> crate::Result<output::Outcome> {
     untrusted.extend(mechanics.fit.untrusted_codes().into_iter().map(|c| format!("mechanics {c}")));
     let joint = Joint { electrical: electrical.as_ref(), motor, mechanics: &mechanics };
     Ok(output::Outcome::new(text, &joint, untrusted))
+}
+
+/// The axis of `--lead` or `--pole-pitch` (a linear motor: lead `2 n_p τ_p`), or the shaft.
+///
+/// # Errors
+/// [`crate::Error::InvalidOption`] naming the flag for a length that is not positive and
+/// finite, and `--pole-pitch` with a speed or angle unit or frame flag (its columns are in
+/// m/s and m).
+fn axis(a: &MechanicsArgs) -> crate::Result<Axis> {
+    let positive = |flag: &str, x: f64| {
+        if x.is_finite() && x > 0.0 {
+            Ok(x)
+        } else {
+            Err(crate::Error::InvalidOption {
+                option: flag.into(),
+                reason: format!("{x} m: a length must be positive and finite"),
+            })
+        }
+    };
+    if let Some(tau_p) = a.pole_pitch {
+        let o = a.columns.options();
+        if o.speed_factor(a.pole_pairs) != 1.0 || o.angle_factor(a.pole_pairs) != 1.0 {
+            return Err(crate::Error::InvalidOption {
+                option: "--pole-pitch".into(),
+                reason:
+                    "a linear motor's speed and position columns are read in m/s and m: drop --speed-unit, \
+                         --angle-unit, --speed-frame and --negate-speed"
+                        .into(),
+            });
+        }
+        return Ok(Axis::Linear { lead: 2.0 * f64::from(a.pole_pairs) * positive("--pole-pitch", tau_p)? });
+    }
+    Ok(a.lead.map(|l| positive("--lead", l)).transpose()?.map_or(Axis::Rotary, |lead| Axis::Linear { lead }))
+}
+
+/// A linear motor's log `e` (speed `w_m` in m/s, position `theta_m` in m) as the shaft of
+/// `axis`: both times `2π/lead` \[rad/m\].
+///
+/// # Errors
+/// Those of [`Experiment::with_channel`].
+fn linear_motor_log(e: Experiment, axis: Axis) -> crate::Result<Experiment> {
+    let r = axis.radians_per_unit();
+    let mut e = e;
+    for (name, unit) in [("w_m", "rad/s"), ("theta_m", "rad")] {
+        if let Some(c) = e.get(name) {
+            let values = c.values.iter().map(|v| v * r).collect();
+            e = e.with_channel(crate::data::Channel::new(name, unit, values))?;
+        }
+    }
+    Ok(e)
 }
 
 /// The logs of `--k-t`, which needs no electrical fit: only the time, `iq`, the speed, the

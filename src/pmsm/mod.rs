@@ -82,7 +82,7 @@ pub use model::inverter::{DEFAULT_RELATIVE_WIDTH, InverterModel, dead_time_direc
 pub use model::ipm::PmsmIpm;
 pub use model::kind::{MotorKind, derived};
 pub use model::mask::{DeadTimeMask, DeadTimeMaskWeighting};
-pub use model::mechanics::{MECHANICS_CHANNELS, MechanicsInputs, MechanicsModel, MechanicsTerms};
+pub use model::mechanics::{Axis, MECHANICS_CHANNELS, MechanicsInputs, MechanicsModel, MechanicsTerms};
 pub use model::plant::{ExactPlant, MotorParameters, StepDerivatives};
 pub(crate) use model::pwm::PwmPlantStep;
 pub use model::pwm::{

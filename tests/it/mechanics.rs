@@ -243,3 +243,64 @@ fn a_given_torque_constant_reads_the_mechanical_columns_only() {
     assert_eq!(out.status.code(), Some(2), "{e}");
     assert!(e.contains("--col-iq") && e.contains("I_q"), "{e}");
 }
+
+/// Issue 43: a linear axis. The drive simulator's shaft (no gravity arm) driving a ball screw
+/// of 10 mm lead, `r = 2π/lead`: `--lead` reports `m = J r²`, `b = B r²`, `f_c = T_c r` and
+/// the Coulomb speed `ω_c/r` in m/s, from the electrical fit's torque; the same log written
+/// as a linear motor's (speed in m/s, position in m) gives them with `--pole-pitch` from the
+/// electrical fit and from a given force constant `--k-f`. `--gravity` on a linear axis is
+/// refused, naming `--constant-load`.
+#[cfg(feature = "cli")]
+#[test]
+fn a_linear_axis_is_reported_in_its_own_units() {
+    use crate::common::TempDir;
+    use crate::errors::greybox;
+    let mut cfg = exp3(SPM_MOTOR, [0.0; 2], 1);
+    cfg.mechanics.gravity = 0.0;
+    let log = simulate_drive(&cfg).unwrap().experiment;
+    let dir = TempDir::new("mechanics-linear");
+    let (lead, n_p) = (0.01, SPM_MOTOR.n_p);
+    let r = std::f64::consts::TAU / lead;
+    let shaft = dir.join("shaft.csv");
+    greybox::data::write::write_csv(&shaft, &log, "t").unwrap();
+    // A linear motor of pole pitch lead/(2 n_p): its speed and position in m/s and m.
+    let tau_p = lead / (2.0 * f64::from(n_p));
+    let mut linear = log.clone();
+    for name in ["w_m", "theta_m"] {
+        let v = linear.channel(name).unwrap().iter().map(|x| x / r).collect();
+        linear = linear.with_channel(greybox::data::Channel::new(name, "", v)).unwrap();
+    }
+    let motor = dir.join("motor.csv");
+    greybox::data::write::write_csv(&motor, &linear, "t").unwrap();
+    let k_f = (1.5 * f64::from(n_p) * SPM_MOTOR.psi_f * r).to_string();
+    let (lead_s, tau_s) = (lead.to_string(), tau_p.to_string());
+    let m = &cfg.mechanics;
+    let truth = [("m", m.inertia * r * r), ("b", m.viscous * r * r), ("f_c", m.coulomb * r)];
+    let runs: [&[&str]; 3] = [
+        &[shaft.to_str().unwrap(), "--lead", &lead_s],
+        &[motor.to_str().unwrap(), "--pole-pitch", &tau_s],
+        &[motor.to_str().unwrap(), "--pole-pitch", &tau_s, "--k-f", &k_f],
+    ];
+    for (i, run) in runs.iter().enumerate() {
+        let json = dir.join(format!("fit{i}.json"));
+        let args = [&["mechanics", "-p", "4"][..], run, &["-q", "--json", json.to_str().unwrap()]].concat();
+        let out = greybox(&args);
+        assert_eq!(out.status.code(), Some(0), "{run:?}: {}", String::from_utf8_lossy(&out.stderr));
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let fit = &report["mechanics"];
+        let params = fit["fit"]["parameters"].as_array().unwrap();
+        for (name, value) in truth {
+            let p = params.iter().find(|p| p["name"] == name).unwrap_or_else(|| panic!("{run:?}: {name}"));
+            let (v, unit) = (p["value"].as_f64().unwrap(), p["unit"].as_str().unwrap());
+            assert!((v / value - 1.0).abs() < 1e-3, "{run:?}: {name} {v} {unit} vs {value}");
+        }
+        let v_c = fit["coulomb_speed"].as_f64().unwrap();
+        assert!((v_c * r / m.coulomb_speed - 1.0).abs() < 1e-2, "{run:?}: v_c {v_c} m/s");
+        assert_eq!(fit["axis"]["lead"].as_f64(), Some(lead), "{run:?}");
+    }
+    let out = greybox(&["mechanics", "-p", "4", shaft.to_str().unwrap(), "--lead", &lead_s, "--gravity"]);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{e}");
+    assert!(e.contains("--gravity") && e.contains("--constant-load"), "{e}");
+}

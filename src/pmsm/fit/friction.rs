@@ -5,6 +5,7 @@
 //! mechanical fit may not allow.
 
 use crate::estimate::{FitResult, Warning};
+use crate::pmsm::model::mechanics::Axis;
 
 /// Correlation of a viscous and a Coulomb friction estimate beyond which the data cannot
 /// tell them apart.
@@ -18,12 +19,14 @@ pub(crate) const EXACT_FIT_PERCENT: f64 = 99.99;
 /// energy): `friction_confounded` when a viscous `b` and a Coulomb `t_c` of the same log
 /// correlate beyond ±[`FRICTION_CORRELATION`] (the Coulomb term `tanh(ω/ω_c)` is then
 /// nearly linear over the logged speeds, peak `peak` \[rad/s\], at `coulomb_speed`
-/// \[rad/s\]); `non_physical` when a friction's whole 95 % interval lies below 0;
+/// \[rad/s\]; on a linear `axis` its `f_c`, speeds in m/s); `non_physical` when a friction's whole 95 % interval lies below 0;
 /// `coloured_residuals` when the residuals fail the whiteness test but the intervals are
 /// the white-noise ones (too few windows for batch means) and the fit is not exact
 /// ([`EXACT_FIT_PERCENT`]).
-pub(crate) fn warnings(result: &FitResult, peak: f64, coulomb_speed: f64) -> Vec<Warning> {
+pub(crate) fn warnings(result: &FitResult, peak: f64, coulomb_speed: f64, axis: Axis) -> Vec<Warning> {
     let mut out = Vec::new();
+    let (names, unit) = axis.names();
+    let coulomb = names[2].0;
     // Each viscous friction with the Coulomb friction of the same log (`b`, `t_c`, or
     // `b[LOG]`, `t_c[LOG]` per log), by the correlation's own labels: its rows are the free
     // parameters only.
@@ -33,9 +36,9 @@ pub(crate) fn warnings(result: &FitResult, peak: f64, coulomb_speed: f64) -> Vec
         .enumerate()
         .filter_map(|(a, l)| {
             let log = l.strip_prefix('b').filter(|s| s.is_empty() || s.starts_with('['))?;
-            let c = labels.iter().position(|m| m.strip_prefix("t_c") == Some(log))?;
+            let c = labels.iter().position(|m| m.strip_prefix(coulomb) == Some(log))?;
             let r = result.correlation.get(a)?.get(c).copied()?;
-            (r.abs() > FRICTION_CORRELATION).then(|| format!("{l} and t_c{log} {r:+.5}"))
+            (r.abs() > FRICTION_CORRELATION).then(|| format!("{l} and {coulomb}{log} {r:+.5}"))
         })
         .collect();
     if !confounded.is_empty() {
@@ -43,8 +46,8 @@ pub(crate) fn warnings(result: &FitResult, peak: f64, coulomb_speed: f64) -> Vec
             "friction_confounded",
             format!(
                 "the viscous and Coulomb friction are one term to the data (correlation {}): the logged speeds \
-                 reach {peak:.4} rad/s, over which tanh(ω/ω_c) at ω_c = {coulomb_speed} rad/s is nearly linear in ω, \
-                 so B and T_c trade against each other; a Coulomb speed well below the speeds the axis moves at \
+                 reach {peak:.4} {unit}, over which tanh(ω/ω_c) at ω_c = {coulomb_speed} {unit} is nearly linear in \
+                 ω, so B and T_c trade against each other; a Coulomb speed well below the speeds the axis moves at \
                  separates them (--coulomb-speed {:.2e}, a twentieth of the peak)",
                 confounded.join(", "),
                 peak / 20.0
@@ -54,7 +57,7 @@ pub(crate) fn warnings(result: &FitResult, peak: f64, coulomb_speed: f64) -> Vec
     let negative: Vec<String> = result
         .parameters
         .iter()
-        .filter(|p| (p.name == "b" || p.name == "t_c") && !p.fixed && p.ci95[1] < 0.0)
+        .filter(|p| (p.name == "b" || p.name == coulomb) && !p.fixed && p.ci95[1] < 0.0)
         .map(|p| format!("{} = {:.4e} {} (95 % interval up to {:.3e})", p.name, p.value, p.unit, p.ci95[1]))
         .collect();
     if !negative.is_empty() {

@@ -5,8 +5,7 @@
 use crate::data::{Channel, Experiment};
 use crate::error::{Error, Result};
 use crate::estimate::{FitResult, PemOptions, fit};
-use crate::pmsm::fit::report::estimate_table;
-use crate::pmsm::model::mechanics::{MECHANICS_CHANNELS, MechanicsModel, MechanicsTerms};
+use crate::pmsm::model::mechanics::{Axis, MECHANICS_CHANNELS, MechanicsModel, MechanicsTerms};
 use crate::pmsm::model::plant::MotorParameters;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
@@ -43,6 +42,11 @@ pub struct MechanicsOptions {
     /// it adds `(value · this)²` to each variance ([`MechanicsFit::std_errors_with_torque`]).
     #[serde(default)]
     pub k_t_relative_se: f64,
+    /// The axis the parameters describe: the shaft (default) or a linear axis it drives;
+    /// the logs' speed and angle stay the shaft's \[rad/s, rad\], the load channel is a
+    /// force \[N\] on a linear axis, and the Coulomb speed is in the axis' unit.
+    #[serde(default, skip_serializing_if = "Axis::is_rotary")]
+    pub axis: Axis,
 }
 
 impl MechanicsOptions {
@@ -57,6 +61,7 @@ impl MechanicsOptions {
             per_log_friction: false,
             pem: PemOptions::default(),
             k_t_relative_se: 0.0,
+            axis: Axis::Rotary,
         }
     }
 }
@@ -73,7 +78,7 @@ pub struct MechanicsFit {
     pub window: f64,
     /// `K_t` of the torque model \[N m/A\].
     pub k_t: f64,
-    /// ω_c \[rad/s\].
+    /// ω_c \[rad/s\] (on a linear axis v_c \[m/s\]).
     pub coulomb_speed: f64,
     /// Whether ω_c was estimated (its uncertainty is not in the intervals).
     #[serde(default)]
@@ -87,6 +92,9 @@ pub struct MechanicsFit {
     /// `K_t` (exact for surface magnets, whose torque is `K_t i_q`; for interior magnets an
     /// approximation that treats the reluctance torque's error as the magnet torque's).
     pub std_errors_with_torque: Vec<f64>,
+    /// The axis the parameters describe ([`MechanicsOptions::axis`]).
+    #[serde(default, skip_serializing_if = "Axis::is_rotary")]
+    pub axis: Axis,
 }
 
 /// The window experiment of drive log `e` (channels `iq` \[A\], `id` for a salient motor,
@@ -95,7 +103,9 @@ pub struct MechanicsFit {
 /// `m = round(window/h)` periods starting every `m + 1` samples (no shared ends), per
 /// window `Δω = ω[k+m] − ω[k]` and the integrals of [`MECHANICS_CHANNELS`] (the torque held
 /// over each period as the drive applies it: `h Σ T_e[k]`; the others by the trapezoid
-/// rule). Its sample time is the window start spacing `(m + 1) h`; `x_1` holds `m h`.
+/// rule). Its sample time is the window start spacing `(m + 1) h`; `x_1` holds `m h`. On a
+/// linear [`Axis`] the speeds are the axis' `ω_m/r` \[m/s\] and the torque its force `r T_e`
+/// \[N\] (`r` = [`Axis::radians_per_unit`]); the load channel is read as a force \[N\].
 ///
 /// # Errors
 /// [`Error::MissingChannel`] naming a channel; [`Error::InvalidOption`] (`window`) for a
@@ -135,14 +145,16 @@ fn windows_at(e: &Experiment, options: &MechanicsOptions, load: bool, w_c: f64) 
     let t_l = if load { e.channel(LOAD_TORQUE)? } else { &zero };
     let trapezoid =
         |f: &dyn Fn(usize) -> f64, a: usize| h * (a..a + m).map(|k| 0.5 * (f(k) + f(k + 1))).sum::<f64>();
+    // The axis' speed ω/r and force r T (r = 1 on the shaft: the same numbers to the bit).
+    let r = options.axis.radians_per_unit();
     let mut cols: [Vec<f64>; 7] = Default::default();
     for j in 0..n_windows {
         let a = j * (m + 1);
         let row = [
-            w[a + m] - w[a],
-            h * (a..a + m).map(|k| options.motor.torque(i_d[k], i_q[k])).sum::<f64>(),
-            trapezoid(&|k| w[k], a),
-            trapezoid(&|k| (w[k] / w_c).tanh(), a),
+            (w[a + m] - w[a]) / r,
+            h * (a..a + m).map(|k| options.motor.torque(i_d[k], i_q[k]) * r).sum::<f64>(),
+            trapezoid(&|k| w[k] / r, a),
+            trapezoid(&|k| (w[k] / r / w_c).tanh(), a),
             trapezoid(&|k| theta[k].sin(), a),
             m as f64 * h,
             trapezoid(&|k| t_l[k], a),
@@ -151,7 +163,10 @@ fn windows_at(e: &Experiment, options: &MechanicsOptions, load: bool, w_c: f64) 
             c.push(v);
         }
     }
-    let units = ["rad/s", "N m s", "rad", "s", "s", "s", "N m s"];
+    let units = match options.axis {
+        Axis::Rotary => ["rad/s", "N m s", "rad", "s", "s", "s", "N m s"],
+        Axis::Linear { .. } => ["m/s", "N s", "m", "s", "s", "s", "N s"],
+    };
     let channels = MECHANICS_CHANNELS
         .into_iter()
         .zip(units)
@@ -169,8 +184,26 @@ fn windows_at(e: &Experiment, options: &MechanicsOptions, load: bool, w_c: f64) 
 ///
 /// # Errors
 /// Those of [`mechanics_windows`] and [`fit`]; [`Error::InvalidOption`] (`coulomb_speed`)
-/// for a ω_c that is not positive, or to be estimated from logs that never move.
+/// for a ω_c that is not positive, or to be estimated from logs that never move; (`axis`)
+/// for a linear axis whose lead is not positive and finite, or (`gravity`) with a gravity
+/// term (a linear axis' weight is a constant force: `terms.constant`).
 pub fn fit_mechanics(experiments: &[Experiment], options: &MechanicsOptions) -> Result<MechanicsFit> {
+    if let Axis::Linear { lead } = options.axis {
+        if !(lead.is_finite() && lead > 0.0) {
+            return Err(Error::InvalidOption {
+                option: "axis".into(),
+                reason: format!("a lead of {lead} m: the travel per revolution must be positive and finite"),
+            });
+        }
+        if options.terms.gravity {
+            return Err(Error::InvalidOption {
+                option: "gravity".into(),
+                reason: "a linear axis' weight is a constant force along it: the constant load (--constant-load), \
+                         not an arm's gravity"
+                    .into(),
+            });
+        }
+    }
     if let Some(w_c) = options.coulomb_speed.filter(|w| !(w.is_finite() && *w > 0.0)) {
         return Err(Error::InvalidOption {
             option: "coulomb_speed".into(),
@@ -182,13 +215,15 @@ pub fn fit_mechanics(experiments: &[Experiment], options: &MechanicsOptions) -> 
         .iter()
         .filter_map(|e| e.channel("w_m").ok())
         .flat_map(|w| w.iter().map(|v| v.abs()))
-        .fold(0.0, f64::max);
+        .fold(0.0, f64::max)
+        / options.axis.radians_per_unit();
     let w_c = match options.coulomb_speed {
         Some(w_c) => w_c,
         None => estimated_coulomb_speed(experiments, options, load, peak)?,
     };
     let (windows, fitted) = fit_at(experiments, options, load, w_c)?;
-    let warnings = fitted.warnings.iter().cloned().chain(super::friction::warnings(&fitted, peak, w_c));
+    let warnings =
+        fitted.warnings.iter().cloned().chain(super::friction::warnings(&fitted, peak, w_c, options.axis));
     let result = FitResult { warnings: warnings.collect(), ..fitted };
     Ok(MechanicsFit {
         windows: windows.iter().map(Experiment::len).sum(),
@@ -204,6 +239,7 @@ pub fn fit_mechanics(experiments: &[Experiment], options: &MechanicsOptions) -> 
             .map(|p| p.std_error.hypot(p.value * options.k_t_relative_se))
             .collect(),
         fit: result,
+        axis: options.axis,
     })
 }
 
@@ -255,10 +291,11 @@ fn fit_at(
     for (j, v) in start.iter().enumerate().skip(3) {
         nominal[if j == 3 && options.terms.gravity { 3 } else { 4 }] = *v;
     }
-    let model = MechanicsModel::new(options.terms, nominal);
+    let model = MechanicsModel::on_axis(options.terms, nominal, options.axis);
     let mut pem = options.pem.clone();
     if options.per_log_friction && experiments.len() > 1 {
-        pem.per_experiment = vec!["b".into(), "t_c".into()];
+        let names = options.axis.names().0;
+        pem.per_experiment = vec![names[1].0.into(), names[2].0.into()];
     }
     let fitted = fit(&model, &windows, &start, &pem)?;
     Ok((windows, fitted))
@@ -294,64 +331,4 @@ fn least_squares_start(windows: &[Experiment], terms: MechanicsTerms) -> Result<
         });
     }
     Ok(std::iter::once(j).chain(c.iter().skip(1).map(|v| v * j)).collect())
-}
-
-impl std::fmt::Display for MechanicsFit {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(
-            f,
-            "Mechanics (J dω/dt = T_e − B ω − T_c tanh(ω/{:.4e} rad/s{}){}{}{}; K_t {:.6} N m/A; {} windows of \
-             {:.4} s):",
-            self.coulomb_speed,
-            if self.coulomb_speed_estimated { ", ω_c estimated by the lowest loss" } else { "" },
-            if self.fit.parameter("mgl").is_some() { " − m g l sin θ" } else { "" },
-            if self.fit.parameter("t_0").is_some() { " − T_0" } else { "" },
-            if self.load_channel { " − T_L (logged)" } else { "" },
-            self.k_t,
-            self.windows,
-            self.window
-        )?;
-        write!(f, "{}", estimate_table(&self.fit))?;
-        if self.k_t_relative_se > 0.0 {
-            let se: Vec<String> = self
-                .fit
-                .parameters
-                .iter()
-                .zip(&self.std_errors_with_torque)
-                .map(|(p, s)| format!("{} {s:.3e}", p.name))
-                .collect();
-            writeln!(
-                f,
-                "the intervals take K_t as exact; with its relative standard error {:.2e} (it scales every \
-                 parameter alike) the standard errors are: {}",
-                self.k_t_relative_se,
-                se.join(", ")
-            )?;
-        } else {
-            writeln!(
-                f,
-                "the intervals take K_t as exact: its relative error scales every parameter above alike"
-            )?;
-        }
-        let u = &self.fit.uncertainty;
-        let q = u.ljung_box.iter().copied().fold(0.0, f64::max);
-        match u.method {
-            crate::estimate::CovarianceMethod::BatchMeans => writeln!(
-                f,
-                "intervals from batch means over {} batches of {} windows (the residuals are not white: Ljung–Box \
-                 {q:.1} against {:.1})",
-                u.batches, u.batch_samples, u.ljung_box_critical
-            )?,
-            _ => writeln!(
-                f,
-                "intervals from the white-noise covariance (Ljung–Box {q:.1} against {:.1})",
-                u.ljung_box_critical
-            )?,
-        }
-        for w in &self.fit.warnings {
-            writeln!(f, "{}{}: {}", if w.untrusted { "untrusted, " } else { "" }, w.code, w.message)?;
-        }
-        let verdict = if self.fit.trusted() { "trusted" } else { "NOT to be trusted" };
-        writeln!(f, "fit {verdict}")
-    }
 }

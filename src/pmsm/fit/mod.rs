@@ -15,6 +15,7 @@ mod holds;
 pub(super) mod input_search;
 pub(super) mod iv;
 pub(super) mod mechanics;
+mod mechanics_report;
 pub(super) mod pole_pairs;
 mod pwm_fit;
 mod pwm_loop;

@@ -47,34 +47,97 @@ impl MechanicsTerms {
     }
 }
 
+/// The axis whose motion the mechanics describe: the motor's shaft, or a linear axis the
+/// shaft drives (a ball screw, a rack, a belt) or a linear motor moves.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum Axis {
+    /// The shaft: `J dω_m/dt = T_e − …`, parameters in kg m², N m s/rad, N m.
+    #[default]
+    Rotary,
+    /// A linear axis of `lead` \[m\] of travel per revolution of the logs' shaft angle
+    /// (a ball screw's lead over a gear ratio; a linear motor of pole pitch `τ_p` read as a
+    /// shaft of `n_p` pole pairs: `2 n_p τ_p`): `m dv/dt = F − b v − f_c tanh(v/v_c) − f_0 −
+    /// F_L`, with `v = ω_m lead/(2π)` \[m/s\] and `F = T_e 2π/lead` \[N\] (the transmission
+    /// lossless and stiff: its losses are in the friction), parameters in kg, N s/m, N
+    /// (`m = J (2π/lead)²` for the inertia reflected to the axis).
+    Linear {
+        /// Travel per shaft revolution \[m\].
+        lead: f64,
+    },
+}
+
+impl Axis {
+    /// Radians of the shaft per unit of the axis' travel: 1 (rotary) or `2π/lead` \[rad/m\].
+    pub fn radians_per_unit(self) -> f64 {
+        match self {
+            Self::Rotary => 1.0,
+            Self::Linear { lead } => std::f64::consts::TAU / lead,
+        }
+    }
+
+    /// Whether this is the shaft (serde skips the default).
+    pub fn is_rotary(&self) -> bool {
+        *self == Self::Rotary
+    }
+
+    /// Names and units of `[inertia, viscous, Coulomb, gravity, constant load]` (the gravity
+    /// load is the shaft's only) and the speed's unit.
+    pub fn names(self) -> ([(&'static str, &'static str); 5], &'static str) {
+        match self {
+            Self::Rotary => (
+                [("j", "kg m^2"), ("b", "N m s/rad"), ("t_c", "N m"), ("mgl", "N m"), ("t_0", "N m")],
+                "rad/s",
+            ),
+            Self::Linear { .. } => {
+                ([("m", "kg"), ("b", "N s/m"), ("f_c", "N"), ("mgl", "N m"), ("f_0", "N")], "m/s")
+            }
+        }
+    }
+}
+
 /// The window model: `Δω = (X_T − X_L − b X_ω − t_c X_c − mgl X_g − t_0 X_1) / j` per
 /// window, parameters `j` \[kg m²\], `b` \[N m s/rad\], `t_c` \[N m\], then `mgl` \[N m\] and
-/// `t_0` \[N m\] as [`MechanicsTerms`] asks. Linear in all but `j`; exact sensitivities.
+/// `t_0` \[N m\] as [`MechanicsTerms`] asks; on a linear [`Axis`] the same in the axis'
+/// units (`m` \[kg\], `b` \[N s/m\], `f_c` \[N\], `f_0` \[N\]; no gravity load). Linear in
+/// all but the inertia; exact sensitivities.
 #[derive(Clone, Debug)]
 pub struct MechanicsModel {
     terms: MechanicsTerms,
     params: Vec<Parameter>,
     /// [`MechanicsTerms::loss_channels`], fixed with the terms.
     loss: Vec<usize>,
+    /// The speed's unit.
+    speed_unit: &'static str,
 }
 
 impl MechanicsModel {
-    /// The model with `terms`; `nominal` = `[j, b, t_c, mgl, t_0]` sets the parameters' scales
-    /// (non-zero magnitudes).
+    /// The model of the shaft with `terms`; `nominal` = `[j, b, t_c, mgl, t_0]` sets the
+    /// parameters' scales (non-zero magnitudes).
     pub fn new(terms: MechanicsTerms, nominal: [f64; 5]) -> Self {
+        Self::on_axis(terms, nominal, Axis::Rotary)
+    }
+
+    /// The model on `axis` (names and units of [`Axis::names`]); `nominal` as in
+    /// [`Self::new`], in the axis' units. A gravity term on a linear axis is left out: its
+    /// weight is a constant force ([`MechanicsTerms::constant`]).
+    pub fn on_axis(terms: MechanicsTerms, nominal: [f64; 5], axis: Axis) -> Self {
+        let terms = MechanicsTerms { gravity: terms.gravity && axis.is_rotary(), ..terms };
         let scale = |x: f64| if x.abs() > 0.0 && x.is_finite() { x.abs() } else { 1.0 };
+        let (names, speed_unit) = axis.names();
+        let [(j, ju), (b, bu), (c, cu), (g, gu), (t0, t0u)] = names;
         let mut params = vec![
-            Parameter::positive("j", "kg m^2", scale(nominal[0])),
-            Parameter::free("b", "N m s/rad", scale(nominal[1])),
-            Parameter::free("t_c", "N m", scale(nominal[2])),
+            Parameter::positive(j, ju, scale(nominal[0])),
+            Parameter::free(b, bu, scale(nominal[1])),
+            Parameter::free(c, cu, scale(nominal[2])),
         ];
         if terms.gravity {
-            params.push(Parameter::free("mgl", "N m", scale(nominal[3])));
+            params.push(Parameter::free(g, gu, scale(nominal[3])));
         }
         if terms.constant {
-            params.push(Parameter::free("t_0", "N m", scale(nominal[4])));
+            params.push(Parameter::free(t0, t0u, scale(nominal[4])));
         }
-        Self { terms, params, loss: terms.loss_channels() }
+        Self { terms, params, loss: terms.loss_channels(), speed_unit }
     }
 
     /// The terms.
@@ -114,7 +177,7 @@ impl GreyBoxModel for MechanicsModel {
     }
 
     fn outputs(&self) -> Vec<Signal> {
-        vec![Signal::new("dw", "rad/s")]
+        vec![Signal::new("dw", self.speed_unit)]
     }
 
     fn input_channels(&self) -> Vec<String> {
@@ -127,16 +190,16 @@ impl GreyBoxModel for MechanicsModel {
 
     fn advice(&self, name: &str) -> Option<String> {
         match name {
-            "b" | "t_c" => Some(
+            "b" | "t_c" | "f_c" => Some(
                 "viscous and Coulomb friction separate only over a range of speeds of both signs: move at \
                  several speeds"
                     .into(),
             ),
             "mgl" => Some("the gravity load needs the angle to move over a good part of a turn".into()),
-            "t_0" => {
+            "t_0" | "f_0" => {
                 Some("a constant load and the gravity load separate only over a wide range of angles".into())
             }
-            "j" => Some("inertia needs accelerations: start, stop and reverse".into()),
+            "j" | "m" => Some("inertia needs accelerations: start, stop and reverse".into()),
             _ => None,
         }
     }
