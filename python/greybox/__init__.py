@@ -353,8 +353,10 @@ def mechanics(log: Any, *, pole_pairs: int, **options: Any) -> Report:
     ``options``: ``k_t`` [N m/A] (else the electrical model is fitted first), ``gravity``,
     ``constant_load``, ``per_log`` (friction per log), ``window`` [s], ``coulomb_speed``
     [rad/s] or ``"estimate"`` (the default: the lowest loss over the logs' speed range),
-    ``col_load``. Returns a :class:`Report` (``electrical``, ``motor``,
-    ``mechanics``).
+    ``col_load``; a linear axis: ``lead`` [m per motor revolution: a screw, rack or belt]
+    or ``pole_pitch`` [m: a linear motor, speed and position in m/s and m], ``k_f`` [N/A],
+    reported as mass ``m`` [kg], ``b`` [N s/m], ``f_c`` and ``f_0`` [N]. Returns a
+    :class:`Report` (``electrical``, ``motor``, ``mechanics``).
 
     Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
     """
