@@ -6,7 +6,8 @@ use super::output;
 use crate::Error;
 use crate::data::Delimiter;
 use crate::pmsm::{
-    FluxMapColumns, FluxMapFit, FluxMapOptions, SaturationExponents, fit_flux_map, read_flux_map_with,
+    FluxMapColumns, FluxMapFit, FluxMapOptions, SaturationExponents, TorqueCheck, fit_flux_map,
+    read_flux_map_with, torque_check,
 };
 use clap::Args;
 use serde::Serialize;
@@ -16,8 +17,9 @@ use std::path::PathBuf;
 #[derive(Args, Debug)]
 #[command(after_help = "A flux map is a NumPy .npz with the complex arrays i_s_dq [A] and psi_s_dq [V s] \
 (d + j q, amplitude-invariant), or a CSV (Parquet, Arrow) with one point per row and the columns i_d, i_q, psi_d, \
-psi_q (renamed with --col-*). Points with a missing value (empty, NaN) are left out and counted. See \
-docs/saturation.md.")]
+psi_q (renamed with --col-*). Points with a missing value (empty, NaN) are left out and counted. A measured \
+torque column (`torque`, or --col-torque) is compared with the model's torque 1.5 n_p (psi_d i_q - psi_q i_d) when \
+-p is given. See docs/saturation.md.")]
 pub struct FluxMapArgs {
     /// The flux map (.npz or .csv[.gz]).
     pub map: PathBuf,
@@ -36,6 +38,12 @@ pub struct FluxMapArgs {
     /// Column of the q-axis flux linkage [V s].
     #[arg(long, default_value = "psi_q", value_name = "NAME")]
     pub col_psiq: String,
+    /// Column of a measured torque [N m] (optional: compared with the model's when -p is given).
+    #[arg(long, default_value = "torque", value_name = "NAME")]
+    pub col_torque: String,
+    /// Pole pairs n_p, for the torque 1.5 n_p (ψ_d i_q − ψ_q i_d) compared with a measured one.
+    #[arg(long, short = 'p')]
+    pub pole_pairs: Option<u32>,
     /// Field delimiter of a CSV map: `,` `;` `tab` (or `\t`) `|`.
     #[arg(long, default_value = ",", value_parser = |s: &str| s.parse::<Delimiter>().map_err(|e| e.to_string()))]
     pub delimiter: Delimiter,
@@ -68,6 +76,7 @@ pub fn fluxmap_outcome(a: &FluxMapArgs) -> crate::Result<output::Outcome> {
         psi_d: a.col_psid.clone(),
         psi_q: a.col_psiq.clone(),
         delimiter: a.delimiter,
+        torque: a.col_torque.clone(),
     };
     let read = read_flux_map_with(&a.map, &columns).map_err(|e| match e {
         Error::MissingColumn { column, available, .. } => Error::InvalidOption {
@@ -79,6 +88,10 @@ pub fn fluxmap_outcome(a: &FluxMapArgs) -> crate::Result<output::Outcome> {
         e => e,
     })?;
     let fit = fit_flux_map(&read.map, &FluxMapOptions { exponents, ..Default::default() })?;
+    let torque = match (&read.torque, a.pole_pairs) {
+        (Some(t), Some(n_p)) => Some(torque_check(&read.map, &fit, t, n_p)?),
+        _ => None,
+    };
     let untrusted = fit.check.iter().flat_map(|c| &c.warnings).map(|w| w.code.clone()).collect();
     let mut text = String::new();
     if let Some(first) = read.first_skipped {
@@ -89,7 +102,17 @@ pub fn fluxmap_outcome(a: &FluxMapArgs) -> crate::Result<output::Outcome> {
         );
     }
     text += &fit.to_string();
-    let report = Report { skipped_points: read.skipped, fit: &fit };
+    match (&torque, &read.torque) {
+        (Some(t), _) => text += &t.to_string(),
+        (None, Some(_)) => {
+            text += &format!(
+                "note: the map has a measured torque (`{}`); give the pole pairs (-p) to compare it with the model's\n",
+                a.col_torque
+            )
+        }
+        (None, None) => {}
+    }
+    let report = Report { skipped_points: read.skipped, fit: &fit, torque: torque.as_ref() };
     Ok(output::Outcome::new(text, &report, untrusted))
 }
 
@@ -100,6 +123,9 @@ struct Report<'a> {
     skipped_points: usize,
     #[serde(flatten)]
     fit: &'a FluxMapFit,
+    /// The measured torque against the model's (with a torque column and -p).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    torque: Option<&'a TorqueCheck>,
 }
 
 /// The `--col-*` flag of the map column `column`.
@@ -108,6 +134,7 @@ fn flag_of(c: &FluxMapColumns, column: &str) -> &'static str {
         x if x == c.i_d => "--col-id",
         x if x == c.i_q => "--col-iq",
         x if x == c.psi_d => "--col-psid",
+        x if x == c.torque => "--col-torque",
         _ => "--col-psiq",
     }
 }

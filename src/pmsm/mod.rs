@@ -38,6 +38,7 @@ pub use fit::auto_mask::FALLBACK_RELATIVE_THRESHOLD;
 pub use fit::auto_method::fit_pmsm_by;
 pub use fit::flux_map::{ExponentCandidate, FLUX_MAP_REFINED, FluxMapFit, FluxMapOptions, fit_flux_map};
 pub use fit::flux_map_check::{INDUCTANCE_WITHIN, MapCheck, MapModel, NO_LOAD_WITHIN, PointCheck};
+pub use fit::flux_map_torque::{TorqueCheck, torque_check};
 pub use fit::hold::{DQ_DECISIVE, HOLD_TIE_Z, SCREEN_DECISIVE};
 pub use fit::input_search::{ADVANCE_RANGE, DELAYS, InputSearch, fit_estimating_input};
 pub use fit::iv::{

@@ -29,12 +29,14 @@ pub struct FluxMapColumns {
     pub psi_q: String,
     /// The CSV's field delimiter. Default `,`.
     pub delimiter: Delimiter,
+    /// A measured torque \[N m\], read when the header has it (optional). Default `torque`.
+    pub torque: String,
 }
 
 impl Default for FluxMapColumns {
     fn default() -> Self {
         let [i_d, i_q, psi_d, psi_q] = CHANNELS.map(String::from);
-        Self { i_d, i_q, psi_d, psi_q, delimiter: Delimiter::default() }
+        Self { i_d, i_q, psi_d, psi_q, delimiter: Delimiter::default(), torque: "torque".into() }
     }
 }
 
@@ -53,6 +55,10 @@ pub struct FluxMapRead {
     /// The 0-based index of the first point left out (a CSV's data row, an `.npz` array's
     /// flat C-order index).
     pub first_skipped: Option<usize>,
+    /// The measured torque \[N m\] of the points in `map` (NaN where its cell is missing),
+    /// when the table has the column [`FluxMapColumns::torque`]; `None` otherwise and for
+    /// an `.npz`.
+    pub torque: Option<Vec<f64>>,
 }
 
 /// Reads a flux map as [`read_flux_map_with`] does with the default columns, and refuses a
@@ -71,8 +77,8 @@ pub fn read_flux_map(path: impl AsRef<Path>) -> Result<Experiment> {
 
 /// Reads a flux map: a NumPy `.npz` with the complex128 arrays `i_s_dq` \[A, peak\] and
 /// `psi_s_dq` \[V s\] of one shape (any; flattened in C order), or a CSV (gzip detected by
-/// its bytes), Parquet or Arrow IPC file with the four `columns`, one operating point per
-/// row. A point with a missing value (an empty CSV cell, NaN, ±inf) is left out and
+/// its bytes), Parquet or Arrow IPC file with the four `columns` (and the optional torque),
+/// one operating point per row. A point with a missing value (an empty CSV cell, NaN, ±inf) is left out and
 /// counted, as measured maps mark the points they could not reach.
 ///
 /// # Errors
@@ -88,7 +94,7 @@ pub fn read_flux_map_with(path: impl AsRef<Path>, columns: &FluxMapColumns) -> R
     let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     refuse_matlab(path)?;
     let is_npz = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("npz"));
-    let [i_d, i_q, psi_d, psi_q]: [Vec<f64>; 4] = if is_npz {
+    let ([i_d, i_q, psi_d, psi_q], torque): ([Vec<f64>; 4], Option<Vec<f64>>) = if is_npz {
         let [i, psi] = NPZ_ARRAYS.map(|a| read_npz_array(path, a));
         let (i, psi) = (i?, psi?);
         if i.len() != psi.len() {
@@ -101,12 +107,13 @@ pub fn read_flux_map_with(path: impl AsRef<Path>, columns: &FluxMapColumns) -> R
                 ),
             ));
         }
-        [
+        let flux = [
             i.iter().map(|c| c.re).collect(),
             i.iter().map(|c| c.im).collect(),
             psi.iter().map(|c| c.re).collect(),
             psi.iter().map(|c| c.im).collect(),
-        ]
+        ];
+        (flux, None)
     } else {
         let c = columns;
         let wanted = [
@@ -114,14 +121,16 @@ pub fn read_flux_map_with(path: impl AsRef<Path>, columns: &FluxMapColumns) -> R
             (c.i_q.as_str(), true),
             (c.psi_d.as_str(), true),
             (c.psi_q.as_str(), true),
+            (c.torque.as_str(), false),
         ];
         let limits = ReadLimits::default();
         let table = match Format::of(path) {
             Format::Csv => read_table_with_missing(path, &wanted, &limits, c.delimiter)?,
             _ => read_table_with(path, &wanted, &limits, c.delimiter, TimeCheck::Skip)?,
         };
-        let mut columns = table.columns.into_iter().map(Option::unwrap_or_default);
-        [(); 4].map(|()| columns.next().unwrap_or_default())
+        let mut columns = table.columns.into_iter();
+        let flux = [(); 4].map(|()| columns.next().flatten().unwrap_or_default());
+        (flux, columns.next().flatten())
     };
     let kept: Vec<usize> =
         (0..i_d.len()).filter(|&k| [&i_d, &i_q, &psi_d, &psi_q].iter().all(|v| v[k].is_finite())).collect();
@@ -136,7 +145,8 @@ pub fn read_flux_map_with(path: impl AsRef<Path>, columns: &FluxMapColumns) -> R
         .zip([i_d, i_q, psi_d, psi_q])
         .map(|((n, u), v)| Channel::new(*n, u, kept.iter().map(|&k| v[k]).collect()))
         .collect();
-    Ok(FluxMapRead { map: Experiment::try_new(name, 1.0, channels)?, skipped, first_skipped })
+    let torque = torque.map(|t| kept.iter().map(|&k| t[k]).collect());
+    Ok(FluxMapRead { map: Experiment::try_new(name, 1.0, channels)?, skipped, first_skipped, torque })
 }
 
 /// Refuses a MATLAB `.mat` file (by its extension or its header text, v4 to v7.3) with how
