@@ -305,8 +305,13 @@ def fluxmap(map: PathLike, **options: Any) -> Report:
     Appl. 53(3) 2017) to a measured flux map (``.npz`` or CSV with ``i_d, i_q`` [A],
     ``psi_d, psi_q`` [V s]), as ``greybox fluxmap``.
 
-    ``options``: ``exponents=(S, T, U, V)``. Returns a :class:`Report`: coefficients with
-    standard errors, the rms flux residual against the map's range, inductances.
+    ``options``: ``exponents=(S, T, U, V)``; ``col_id``, ``col_iq``, ``col_psid``,
+    ``col_psiq``, ``delimiter``; ``col_torque`` (a measured torque [N m], default
+    ``torque``) with ``pole_pairs`` compares it with the model's torque
+    ``1.5 n_p (psi_d i_q - psi_q i_d)`` (the report's ``torque``). Returns a
+    :class:`Report`: coefficients with standard errors, the rms flux residual against the
+    map's range, inductances, the no-load flux and incremental inductances checked
+    against the map.
 
     Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
     """
