@@ -6,17 +6,6 @@
 //! types every reader shares ([`Table`], [`ReadLimits`], [`Delimiter`]) live beside this
 //! module and are re-exported here. Domain readers (the PMSM log reader
 //! [`crate::pmsm::read_log`]) build on [`crate::data::read_table`].
-//!
-//! ```no_run
-//! use greybox::data::{read_csv, ColumnMap, CsvSpec};
-//! let spec = CsvSpec {
-//!     columns: vec![ColumnMap::new("p_cu", "p_cu", "W"), ColumnMap::new("temp", "T_w", "K")],
-//!     ..Default::default()
-//! };
-//! let e = read_csv("winding.csv", &spec)?;
-//! println!("{} samples every {} s", e.len(), e.h());
-//! # Ok::<(), greybox::Error>(())
-//! ```
 
 use std::path::Path;
 
@@ -28,7 +17,6 @@ use crate::error::Result;
 
 mod read;
 mod records;
-mod source;
 
 /// Parses the columns `wanted` (`(header name, required)`) of a CSV file, plain or gzip,
 /// its fields separated by `delimiter`; the first is the time column `t_k`, checked as it

@@ -21,6 +21,7 @@ mod delimiter;
 mod experiment;
 pub mod format;
 pub mod segments;
+mod source;
 mod spec;
 pub mod staged;
 mod table;

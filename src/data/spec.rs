@@ -75,6 +75,17 @@ impl Default for CsvSpec {
 /// applies to h here (a thermal log may be sampled every minute); `spec.limits` bound the
 /// file ([`ReadLimits`]). The path `-` reads standard input.
 ///
+/// ```no_run
+/// use greybox::data::{read_csv, ColumnMap, CsvSpec};
+/// let spec = CsvSpec {
+///     columns: vec![ColumnMap::new("p_cu", "p_cu", "W"), ColumnMap::new("temp", "T_w", "K")],
+///     ..Default::default()
+/// };
+/// let e = read_csv("winding.csv", &spec)?;
+/// println!("{} samples every {} s", e.len(), e.h());
+/// # Ok::<(), greybox::Error>(())
+/// ```
+///
 /// # Errors
 /// Those of [`read_table`] (a CSV log: [`super::csv::read_table_with`], which stops at the first NaN/Inf or
 /// bad time step), and of

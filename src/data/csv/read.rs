@@ -9,8 +9,8 @@ use std::path::Path;
 use rayon::prelude::*;
 
 use super::records::{Layout, Line, Parsed, RecordError, Records, parse};
-use super::source::{self, AHEAD};
 use crate::data::delimiter::Delimiter;
+use crate::data::source::{self, AHEAD, Bound};
 use crate::data::table::{ReadLimits, Table, experiment_name, find_columns, quote};
 use crate::data::time::{TimeCheck, TimeSteps};
 use crate::error::{Error, Result};
@@ -314,37 +314,5 @@ impl State<'_> {
             limit: "max_rows".into(),
             max: self.limits.max_rows,
         }
-    }
-}
-
-/// The line bound of a stream of chunks, as a streaming reader bounds lines before it parses
-/// them: the bytes since the last line break outside quotes (a `"` toggles quoting, stray or
-/// not), checked at each such break and at each chunk's end.
-#[derive(Clone, Copy, Debug, Default)]
-struct Bound {
-    run: u64,
-    quoted: bool,
-}
-
-impl Bound {
-    /// The `\n` of `chunk`; `Err` with the `\n` before the point where a line passes `max`.
-    fn scan(&mut self, chunk: &[u8], max: u64) -> std::result::Result<u64, u64> {
-        let (mut newlines, mut start) = (0, 0);
-        for i in memchr::memchr3_iter(b'"', b'\n', b'\r', chunk) {
-            if chunk[i] == b'"' {
-                self.quoted = !self.quoted;
-                continue;
-            }
-            if !self.quoted {
-                self.run += (i - start) as u64;
-                if self.run > max {
-                    return Err(newlines);
-                }
-                (self.run, start) = (0, i + 1);
-            }
-            newlines += u64::from(chunk[i] == b'\n');
-        }
-        self.run += (chunk.len() - start) as u64;
-        if self.run > max { Err(newlines) } else { Ok(newlines) }
     }
 }

@@ -8,17 +8,17 @@ use std::sync::mpsc::{Receiver, Sender, SyncSender, TryRecvError, channel, sync_
 use std::thread::Scope;
 
 /// Bytes read per chunk, before it is cut after its last line break.
-pub(super) const CHUNK_BYTES: usize = 1 << 18;
+pub(crate) const CHUNK_BYTES: usize = 1 << 18;
 
 /// Chunks that may wait in the channel: with [`CHUNK_BYTES`], 4 MiB read ahead.
-pub(super) const AHEAD: usize = 16;
+pub(crate) const AHEAD: usize = 16;
 
 /// One item of the stream: a chunk, or the error that ended it.
-pub(super) type Item = std::io::Result<Vec<u8>>;
+pub(crate) type Item = std::io::Result<Vec<u8>>;
 
 /// The receiving end of a stream: the chunks, the way back for their buffers, and the
 /// size of the data when the file tells it.
-pub(super) struct Stream {
+pub(crate) struct Stream {
     /// The chunks, in order.
     pub rx: Receiver<Item>,
     /// Buffers of merged chunks, for the reading thread to fill again: a fresh buffer
@@ -45,7 +45,7 @@ pub(super) struct Stream {
 /// # Errors
 /// Opening or reading the first bytes, or starting the thread; later read or decompression errors arrive as the
 /// stream's last item.
-pub(super) fn spawn<'scope>(
+pub(crate) fn spawn<'scope>(
     scope: &'scope Scope<'scope, '_>,
     path: &Path,
     max_line: u64,
@@ -154,4 +154,36 @@ fn fill(reader: &mut dyn Read, buf: &mut Vec<u8>) -> std::io::Result<bool> {
     };
     buf.truncate(filled);
     result
+}
+
+/// The line bound of a stream of chunks, as a streaming reader bounds lines before it parses
+/// them: the bytes since the last line break outside quotes (a `"` toggles quoting, stray or
+/// not), checked at each such break and at each chunk's end.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Bound {
+    run: u64,
+    quoted: bool,
+}
+
+impl Bound {
+    /// The `\n` of `chunk`; `Err` with the `\n` before the point where a line passes `max`.
+    pub(crate) fn scan(&mut self, chunk: &[u8], max: u64) -> std::result::Result<u64, u64> {
+        let (mut newlines, mut start) = (0, 0);
+        for i in memchr::memchr3_iter(b'"', b'\n', b'\r', chunk) {
+            if chunk[i] == b'"' {
+                self.quoted = !self.quoted;
+                continue;
+            }
+            if !self.quoted {
+                self.run += (i - start) as u64;
+                if self.run > max {
+                    return Err(newlines);
+                }
+                (self.run, start) = (0, i + 1);
+            }
+            newlines += u64::from(chunk[i] == b'\n');
+        }
+        self.run += (chunk.len() - start) as u64;
+        if self.run > max { Err(newlines) } else { Ok(newlines) }
+    }
 }
