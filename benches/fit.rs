@@ -11,7 +11,7 @@
 
 use criterion::{Criterion, criterion_group};
 use greybox::Experiment;
-use greybox::estimate::{PemProblem, ProblemOptions, scaling::NominalScaling};
+use greybox::estimate::{NominalScaling, PemProblem, ProblemOptions};
 use greybox::model::{GreyBoxModel, Prepared};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, PmsmIpm, PmsmSpm, VoltageHold, fit_pmsm, read_log};
 use std::hint::black_box;

@@ -12,7 +12,7 @@
 use criterion::{Criterion, criterion_group};
 use greybox::Experiment;
 use greybox::drive::{DriveConfig, IPM_MOTOR, SPM_MOTOR, scenario, simulate_drive};
-use greybox::estimate::{PemOptions, PemProblem, ProblemOptions, scaling::NominalScaling};
+use greybox::estimate::{NominalScaling, PemOptions, PemProblem, ProblemOptions};
 use greybox::model::Prepared;
 use greybox::pmsm::{
     HoldChoice, MotorKind, PmsmFitOptions, PmsmIpm, PmsmSpm, VoltageHold, fit_pmsm, least_squares,

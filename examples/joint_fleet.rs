@@ -19,7 +19,7 @@
 //! and the mean of their K_e and standard errors printed. The peak memory printed (VmHWM
 //! of /proc/self/status, Linux) is read before those fits: the joint fit's, logs included.
 
-use greybox::estimate::arrowhead::solve_timing;
+use greybox::estimate::solve_timing;
 use greybox::pmsm::{PmsmFitOptions, fit_pmsm, read_log};
 use rayon::prelude::*;
 use std::path::PathBuf;

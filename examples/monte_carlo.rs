@@ -21,7 +21,7 @@ mod common;
 
 use common::{Rng, exciting_signals, simulate_into};
 use greybox::Experiment;
-use greybox::estimate::weighting::CustomWeighting;
+use greybox::estimate::CustomWeighting;
 use greybox::estimate::{FitResult, PemOptions, fit_with_weighting};
 use greybox::pmsm::{
     DqView, HoldChoice, MotorKind, PmsmFitOptions, PmsmSpm, VoltageHold, fit_pmsm, least_squares,

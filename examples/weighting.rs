@@ -14,7 +14,7 @@
 mod common;
 
 use common::{load, rel};
-use greybox::estimate::weighting::SpeedShape;
+use greybox::estimate::SpeedShape;
 use greybox::estimate::{PemOptions, WeightingKind};
 use greybox::pmsm::{HoldChoice, PmsmFitOptions, channel, fit_pmsm};
 

@@ -69,7 +69,7 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    greybox::estimate::solver::run::set_progress_observer(Box::new(cli::progress::Spinner::default()));
+    greybox::estimate::set_progress_observer(Box::new(cli::progress::Spinner::default()));
     // Interrupted (SIGINT, SIGTERM, SIGHUP): the temporaries of outputs not yet renamed are
     // removed, the old outputs stay; exit 130 as a shell reports an interrupt.
     let _ = ctrlc::set_handler(|| {

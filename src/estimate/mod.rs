@@ -6,49 +6,74 @@
 //! statistics of the estimate. Domain workflows (e.g. [`crate::pmsm::fit_pmsm`]) build on
 //! it.
 
-pub mod arrowhead;
-pub mod assemble;
-pub mod consistency;
-pub mod correction;
+// The submodules are the crate's; their public items are re-exported here, one path each.
+pub(crate) mod arrowhead;
+pub(crate) mod assemble;
+pub(crate) mod consistency;
+pub(crate) mod correction;
 mod covariance;
-pub mod design;
-pub mod diagnostics;
-pub mod filter;
-pub mod gate;
-pub mod iv;
-pub mod linear;
-pub mod metrics;
-pub mod problem;
-pub mod result;
-pub mod scaling;
-pub mod solver;
-pub mod spline;
-pub mod weighting;
+pub(crate) mod design;
+pub(crate) mod diagnostics;
+pub(crate) mod filter;
+pub(crate) mod gate;
+pub(crate) mod iv;
+pub(crate) mod linear;
+pub(crate) mod metrics;
+pub(crate) mod problem;
+pub(crate) mod result;
+pub(crate) mod scaling;
+pub(crate) mod solver;
+pub(crate) mod spline;
+pub(crate) mod weighting;
 
+pub use arrowhead::{
+    ArrowInverse, ArrowLayout, Arrowhead, LowRank, Sandwich, Singular, SolveTiming, solve_timing,
+};
+pub use assemble::AT_BOUND;
+pub use consistency::{
+    Homogeneity, PARTS, PARTS_FLOOR, PARTS_LEVEL, Refit, chi_square_sf, consecutive_parts, disagreement,
+    homogeneity, static_parts,
+};
 pub use correction::CriterionCorrection;
+pub use design::{
+    Candidate, Criterion, DesignOptions, PredictedParameter, Prediction, SearchOutcome, Target, predict,
+    search_shortest,
+};
+pub use diagnostics::{Correlated, DiagnosticThresholds, Diagnostics, PoorlyDetermined, diagnose};
+pub use filter::{Biquad, Butterworth, DEFAULT_ORDER, MAX_ORDER, PAD_TIME_CONSTANTS, check_order};
+pub use gate::{POOR_FIT_PERCENT, SINGULAR_CONDITION, STATIONARY_STEP, STEP_ROUNDING};
+pub use iv::{IvCovariance, IvSums, one_step_sums};
+pub use linear::{BLOCK, LinearSolution, RANK_TOLERANCE, StreamedLeastSquares, solve_weighted};
+pub use metrics::{Metrics, Whiteness, aic, bic, fit_percent, fpe, metrics, whiteness, whiteness_of};
 #[cfg(test)]
 pub(crate) use problem::lagged_dots;
 pub use problem::{
-    BatchMeans, LAG_CHUNK, LagSums, Loss, MIN_BATCHES, OUTPUT_WEIGHT_RANGE, PemProblem, ProblemOptions,
-    TARGET_BATCHES, WHITENESS_LAGS,
+    BatchMeans, FreeKind, FreeParameter, LAG_CHUNK, LagSums, Loss, MIN_BATCHES, OUTPUT_WEIGHT_RANGE,
+    PemProblem, ProblemOptions, STRUCTURED_ABOVE, Slot, Sums, TARGET_BATCHES, Term, WHITENESS_LAGS,
+    WeightedData,
 };
 pub use result::{
     CovarianceMethod, DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing,
-    Uncertainty, Warning,
+    Uncertainty, Warning, t_quantile_975,
 };
-pub use scaling::{ParameterScaling, ScalingKind, Transform};
-pub use solver::gn::{self, GaussNewton};
-pub use solver::lm::DEFAULT_DAMPING;
-pub use solver::lm::{self, LevenbergMarquardt};
-pub use solver::run::{CLOSE_START_DAMPING, RunOptions, SolverKind, run_solver};
+pub use scaling::{
+    ColumnNormScaling, IdentityScaling, LogScaling, NominalScaling, ParameterScaling, ScalingKind, Transform,
+};
+pub use solver::gn::GaussNewton;
+pub use solver::lm::{DEFAULT_DAMPING, LevenbergMarquardt};
+pub use solver::run::{
+    CLOSE_START_DAMPING, ProgressObserver, RunOptions, SolverKind, run_solver, set_progress_observer,
+};
 pub use solver::{Gram, LeastSquares, LsState, NormalEquations, ReportsTermination, Termination, Tolerances};
-pub use weighting::{Weighting, WeightingKind};
+pub use spline::{SPLINE_INTERVALS, SplineSurface};
+pub use weighting::{
+    CustomWeighting, SampleWeightFn, SpeedShape, SpeedWeighting, Uniform, Weighting, WeightingKind,
+};
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::model::{GreyBoxModel, Prepared};
 use assemble::assemble;
-use diagnostics::DiagnosticThresholds;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -87,7 +112,7 @@ pub struct PemOptions {
     /// Thresholds of the identifiability diagnostics.
     pub diagnostics: DiagnosticThresholds,
     /// Report the solver's iterations to the process's
-    /// [`ProgressObserver`](solver::run::ProgressObserver) (the command line installs a
+    /// [`ProgressObserver`] (the command line installs a
     /// spinner on stderr, shown only when stderr is a terminal); none installed: no effect.
     pub progress: bool,
     /// Levenberg-Marquardt's initial damping λ₀ ([`RunOptions::initial_damping`]); `None`:
@@ -96,7 +121,7 @@ pub struct PemOptions {
     /// not positive and finite is [`Error::InvalidOption`] naming `initial_damping`.
     pub initial_damping: Option<f64>,
     /// Free parameters above which the normal equations and statistics are kept by the
-    /// blocks of their arrowhead structure ([`arrowhead`]); `None`:
+    /// blocks of their arrowhead structure ([`Arrowhead`]); `None`:
     /// [`problem::STRUCTURED_ABOVE`] (64). Not serialised: how the sums are stored, not
     /// what is fitted.
     #[serde(skip)]

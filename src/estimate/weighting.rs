@@ -25,7 +25,7 @@ pub trait Weighting: Send + Sync + std::fmt::Debug {
         None
     }
     /// A term the fit subtracts from its criterion (bias-compensated least squares,
-    /// [`crate::estimate::correction`]); `None` (the default): the plain criterion.
+    /// [`crate::estimate::CriterionCorrection`]); `None` (the default): the plain criterion.
     fn criterion_correction(&self) -> Option<&dyn crate::estimate::CriterionCorrection> {
         None
     }

@@ -2,9 +2,9 @@
 //! the data of MATLAB's `compare` (Ljung, *System Identification*, 16.5: validation on data
 //! not used in the fit).
 
-use super::metrics::{Metrics, metrics};
 use crate::data::Experiment;
 use crate::error::Result;
+use crate::estimate::{Metrics, metrics};
 use crate::model::{GreyBoxModel, Prepared};
 use crate::simulate::{SimOptions, simulate};
 use serde::{Deserialize, Serialize};

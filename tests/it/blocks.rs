@@ -5,8 +5,8 @@
 
 use greybox::Experiment;
 use greybox::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
-use greybox::estimate::solver::NormalEquations;
-use greybox::estimate::{PemProblem, ProblemOptions, scaling::NominalScaling};
+use greybox::estimate::NormalEquations;
+use greybox::estimate::{NominalScaling, PemProblem, ProblemOptions};
 use greybox::model::{GreyBoxModel, Parameter, Prepared, Sensitivities, Signal};
 use greybox::pmsm::{InverterModel, PmsmSetup, PmsmSpm, VoltageHold, VoltageInput};
 use greybox::simulate::{SimOptions, visit_sensitivities};

@@ -12,7 +12,7 @@
 
 use crate::common::{Rng, Signals, exciting_signals, experiment, pmsm_options, simulate_into};
 use greybox::Experiment;
-use greybox::estimate::weighting::CustomWeighting;
+use greybox::estimate::CustomWeighting;
 use greybox::estimate::{FitResult, PemOptions, fit_with_weighting};
 use greybox::pmsm::{
     DqView, HoldChoice, MotorKind, PmsmFitOptions, PmsmSpm, VoltageHold, fit_pmsm, least_squares,

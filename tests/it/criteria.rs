@@ -5,7 +5,7 @@
 
 use crate::common::{Rng, exciting_signals, rel, sim, simulate_into};
 use approx::relative_eq;
-use greybox::estimate::{PemOptions, PemProblem, ProblemOptions, ScalingKind, fit, scaling::NominalScaling};
+use greybox::estimate::{NominalScaling, PemOptions, PemProblem, ProblemOptions, ScalingKind, fit};
 use greybox::model::{GreyBoxModel, Parameter, Prepared, Signal};
 use greybox::pmsm::{DqView, PmsmIpm, PmsmSpm, VoltageHold};
 use greybox::{Experiment, Result};

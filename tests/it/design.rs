@@ -4,7 +4,7 @@
 use crate::common::TempDir;
 use greybox::drive::design::predict_plan;
 use greybox::drive::{SPM_MOTOR, scenario};
-use greybox::estimate::design::Criterion;
+use greybox::estimate::Criterion;
 
 fn plan(name: &str) -> greybox::drive::design::PlanPrediction {
     let mut cfg = scenario(name, SPM_MOTOR).unwrap();
@@ -35,7 +35,7 @@ fn design_rejects_zero_noise() {
 
 use greybox::drive::plan::{Grid, Injection, Knobs, LimitUse, planned_drive};
 use greybox::drive::simulate_drive;
-use greybox::estimate::design::{PredictedParameter, Prediction, Target, search_shortest};
+use greybox::estimate::{PredictedParameter, Prediction, Target, search_shortest};
 use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
 
 fn temp_dir(name: &str) -> TempDir {

@@ -5,7 +5,7 @@
 
 use approx::assert_relative_eq;
 use greybox::Error;
-use greybox::estimate::filter::{Butterworth, MAX_ORDER};
+use greybox::estimate::{Butterworth, MAX_ORDER};
 use std::f64::consts::{FRAC_1_SQRT_2, PI};
 
 const H: f64 = 1e-4; // 10 kHz, as the servo logs

@@ -6,7 +6,7 @@
 
 use crate::common::{Rng, exciting_signals, experiment, sim};
 use greybox::Experiment;
-use greybox::estimate::arrowhead::{ArrowLayout, Arrowhead, Singular};
+use greybox::estimate::{ArrowLayout, Arrowhead, Singular};
 use greybox::estimate::{CovarianceMethod, FitResult, PemOptions, SolverKind, fit};
 use greybox::model::Prepared;
 use greybox::pmsm::{PmsmSpm, VoltageHold};

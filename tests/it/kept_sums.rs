@@ -5,8 +5,8 @@
 //! likewise after a pass flagged as the solver's last, which gathered the lag sums itself.
 
 use greybox::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
-use greybox::estimate::problem::Sums;
-use greybox::estimate::{LeastSquares, PemProblem, ProblemOptions, scaling::NominalScaling};
+use greybox::estimate::Sums;
+use greybox::estimate::{LeastSquares, NominalScaling, PemProblem, ProblemOptions};
 use greybox::model::Prepared;
 use greybox::pmsm::{PmsmSpm, VoltageHold};
 
@@ -88,7 +88,7 @@ fn statistics_after_the_normal_equations_equal_a_full_pass() {
 /// its predicted loss that of [`greybox::estimate::predicted_loss`].
 #[test]
 fn a_fit_continued_from_its_prediction_equals_a_fresh_fit() {
-    use greybox::estimate::{PemOptions, StartedFit, fit_with_weighting, predicted_loss, weighting::Uniform};
+    use greybox::estimate::{PemOptions, StartedFit, Uniform, fit_with_weighting, predicted_loss};
     let cfg = DriveConfig { duration: 0.3, ..scenario("exp3", SPM_MOTOR).unwrap() };
     let e = simulate_drive(&cfg).unwrap().experiment;
     let start = [1.1 * SPM_MOTOR.r_s, 0.9 * SPM_MOTOR.l_d, SPM_MOTOR.k_e()];

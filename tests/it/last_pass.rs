@@ -6,8 +6,8 @@
 use crate::solvers::{CurveFit, MISRA1A, misra1a};
 use approx::relative_eq;
 use argmin::core::{Executor, State};
-use greybox::estimate::lm::LsState;
-use greybox::estimate::problem::NormalEquations;
+use greybox::estimate::LsState;
+use greybox::estimate::NormalEquations;
 use greybox::estimate::{
     GaussNewton, LeastSquares, LevenbergMarquardt, ReportsTermination, Termination, Tolerances,
 };
@@ -86,9 +86,7 @@ fn solvers_flag_the_evaluation_that_ends_the_run() {
 #[test]
 fn a_drive_log_fit_ends_on_the_flagged_pass() {
     use greybox::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
-    use greybox::estimate::{
-        PemProblem, ProblemOptions, RunOptions, SolverKind, run_solver, scaling::NominalScaling,
-    };
+    use greybox::estimate::{NominalScaling, PemProblem, ProblemOptions, RunOptions, SolverKind, run_solver};
     use greybox::model::Prepared;
     use greybox::pmsm::{PmsmSpm, VoltageHold};
     let cfg = DriveConfig { duration: 0.3, ..scenario("exp3", SPM_MOTOR).unwrap() };

@@ -4,7 +4,7 @@
 
 use crate::common::{Signals, Truth, load, pmsm_options, rel};
 use approx::{assert_relative_eq, relative_eq};
-use greybox::estimate::weighting::{CustomWeighting, SpeedShape, SpeedWeighting, Uniform, Weighting};
+use greybox::estimate::{CustomWeighting, SpeedShape, SpeedWeighting, Uniform, Weighting};
 use greybox::pmsm::PmsmError;
 use greybox::pmsm::{
     LinearEstimate, LinearOptions, MotorKind, PmsmFitOptions, fit_pmsm, least_squares, weighted_least_squares,

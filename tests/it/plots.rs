@@ -164,7 +164,7 @@ mod svg {
             y_hat.extend([s, 2.0 * s]);
         }
         let outputs = vec!["id".to_string(), "iq".to_string()];
-        let metrics = greybox::report::metrics(&outputs, &y, &y_hat, 3, 25).unwrap();
+        let metrics = greybox::estimate::metrics(&outputs, &y, &y_hat, 3, 25).unwrap();
         let c = Comparison {
             experiment: "long".into(),
             h: 1e-4,

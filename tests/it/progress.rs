@@ -9,7 +9,7 @@ use nalgebra::DVector;
 /// nothing.
 #[test]
 fn progress_reaches_the_installed_observer_only() {
-    use greybox::estimate::solver::run::{ProgressObserver, set_progress_observer};
+    use greybox::estimate::{ProgressObserver, set_progress_observer};
     use std::cell::Cell;
     // The observer is the process's: other tests' runs report to it too, each on its own
     // thread (a run calls it on the thread that runs the solver), so it counts per thread.

@@ -191,6 +191,6 @@ fn fit_residuals_are_white_under_white_noise() {
         assert!(w.fraction_outside <= 0.2, "{:?}", w.autocorrelation);
     }
     let drift: Vec<f64> = (0..n).map(|k| 0.05 * rng.normal() + 0.05 * (k as f64 / 300.0).sin()).collect();
-    let w = greybox::report::metrics::whiteness(&[&drift], 25);
+    let w = greybox::estimate::whiteness(&[&drift], 25);
     assert!(w.fraction_outside > 0.9, "{:?}", w.autocorrelation);
 }

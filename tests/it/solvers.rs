@@ -10,8 +10,8 @@ use crate::common::{load, pmsm_options};
 use approx::relative_eq;
 use argmin::core::observers::{Observe, ObserverMode};
 use argmin::core::{Executor, KV, State};
-use greybox::estimate::lm::LsState;
-use greybox::estimate::problem::NormalEquations;
+use greybox::estimate::LsState;
+use greybox::estimate::NormalEquations;
 use greybox::estimate::{
     GaussNewton, LeastSquares, LevenbergMarquardt, PemOptions, ReportsTermination, SolverKind, Termination,
     Tolerances,

@@ -1,6 +1,6 @@
 //! The trust gate on static regressions (issue 43): a static model's samples have no time
 //! order, so a poor fit is judged by whether fits of consecutive parts of the data agree
-//! (`estimate::consistency::static_parts`), not by the residuals' whiteness along the
+//! (`estimate::static_parts`), not by the residuals' whiteness along the
 //! file. A line fitted to a parabola stays untrusted, saying why; a right line with a low
 //! fit is trusted.
 //!

@@ -4,7 +4,7 @@
 //! number of threads.
 
 use greybox::drive::{DriveConfig, IPM_MOTOR, SPM_MOTOR, scenario, simulate_drive};
-use greybox::estimate::linear::{BLOCK, StreamedLeastSquares, solve_weighted};
+use greybox::estimate::{BLOCK, StreamedLeastSquares, solve_weighted};
 use greybox::pmsm::{DqView, MotorKind, least_squares, regressors};
 use nalgebra::{DMatrix, DVector};
 

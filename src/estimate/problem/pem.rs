@@ -103,7 +103,7 @@ pub struct PemProblem<'m, M: GreyBoxModel> {
 }
 
 /// Free parameters above which a problem keeps `JᵀWJ` and the statistics' sums by the
-/// blocks of their arrowhead structure ([`crate::estimate::arrowhead`]) and solves by the
+/// blocks of their arrowhead structure ([`crate::estimate::Arrowhead`]) and solves by the
 /// Schur complement; at most this many, dense (and the same bits as before the structure
 /// existed).
 pub const STRUCTURED_ABOVE: usize = 64;
