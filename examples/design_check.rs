@@ -1,5 +1,5 @@
 //! Predicted against realised standard errors (issue 32): for each plan (a thesis scenario
-//! a named planned injection, `greybox::drive::plan::PLANS`, or a scenario file `*.json`
+//! a named planned injection, `greybox::drive::PLANS`, or a scenario file `*.json`
 //! such as `greybox design --search --best-config` writes), the design prediction from
 //! one noise-free simulation, then `N` noisy simulations (seeds 1..=N) fitted with
 //! `fit_pmsm`; prints predicted se, realised sd and their ratio per parameter as Markdown
@@ -9,8 +9,8 @@
 //! `DESIGN_NOISE` (phase σ \[A\], default 0.05) and `DESIGN_POLE` (AR(1) pole, default 0).
 
 use greybox::drive::SPM_MOTOR;
-use greybox::drive::design::predict_plan;
-use greybox::drive::plan::planned_drive;
+use greybox::drive::planned_drive;
+use greybox::drive::predict_plan;
 use greybox::drive::simulate_drive;
 use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
 use nalgebra::DMatrix;

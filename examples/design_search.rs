@@ -2,7 +2,7 @@
 //! whose predicted 95 % half-width of R_s is within `target` (relative). Usage:
 //! `cargo run --release --example design_search -- [current_noise_A] [target]`.
 
-use greybox::drive::design::predict_plan;
+use greybox::drive::predict_plan;
 use greybox::drive::{SPM_MOTOR, scenario};
 
 fn main() -> greybox::Result<()> {

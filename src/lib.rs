@@ -46,11 +46,12 @@
 pub mod cli;
 pub mod data;
 pub mod drive;
-pub mod error;
+mod error;
 pub mod estimate;
 pub mod model;
 pub mod online;
 pub mod pmsm;
+pub mod prelude;
 pub mod report;
 pub mod simulate;
 

@@ -73,7 +73,7 @@ fn main() -> ExitCode {
     // Interrupted (SIGINT, SIGTERM, SIGHUP): the temporaries of outputs not yet renamed are
     // removed, the old outputs stay; exit 130 as a shell reports an interrupt.
     let _ = ctrlc::set_handler(|| {
-        greybox::data::staged::interrupt_removing_temporaries(|n| {
+        greybox::data::interrupt_removing_temporaries(|n| {
             if n > 0 {
                 eprintln!(
                     "error: interrupted; {n} unfinished output file(s) removed, the files there before unchanged"
@@ -107,7 +107,7 @@ fn main() -> ExitCode {
         }
     };
     // A signal arrived: its handler is ending the process with 130 and its message.
-    while greybox::data::staged::interrupted() {
+    while greybox::data::interrupted() {
         std::thread::sleep(std::time::Duration::from_millis(50));
     }
     // Errors name the flags of the subcommand that ran, as the user typed them.

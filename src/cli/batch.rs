@@ -25,7 +25,7 @@ use super::columns::named;
 use super::output;
 use super::plan::{Plan, fit_logs, plan};
 use crate::Error;
-use crate::data::staged::Staged;
+use crate::data::Staged;
 use crate::pmsm::PmsmFit;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;

@@ -2,16 +2,16 @@
 //! optimality criteria of planned experiments (scenarios or scenario files) side by side,
 //! ranked by D-, A- or E-optimality, and optionally the shortest plan of a knob search that
 //! reaches target intervals (issue 32). One noise-free simulation and one normal-equation
-//! pass per plan ([`crate::drive::design::predict_plan`]): the Cramér–Rao bound (Ljung,
+//! pass per plan ([`crate::drive::predict_plan`]): the Cramér–Rao bound (Ljung,
 //! *System Identification*, 2nd ed., 9.3 and 13; Wang & Dowling, AIChE J. 68 (2022) e17813).
 
 use super::output;
 use super::simulate::{MotorArg, set_field};
 use crate::Error;
-use crate::data::staged::Staged;
-use crate::drive::design::{DQ_PER_PHASE_VARIANCE, PlanPrediction, predict_plan};
-use crate::drive::plan::{Grid, Knobs, PLANS, planned_drive};
+use crate::data::Staged;
+use crate::drive::{DQ_PER_PHASE_VARIANCE, PlanPrediction, predict_plan};
 use crate::drive::{DriveConfig, IPM_MOTOR, SCENARIOS, SPM_MOTOR};
+use crate::drive::{Grid, Knobs, PLANS, planned_drive};
 use crate::estimate::design::{Criterion, SearchOutcome, Target, search_shortest};
 use crate::pmsm::{MotorKind, SavedModel};
 use crate::report::plot::write_svg;

@@ -4,7 +4,7 @@ use super::args::{FitArgs, FormatArg};
 use super::fitted::{FitOutcome, fit_experiments};
 use super::output;
 use super::plan::plan;
-use crate::data::staged::Staged;
+use crate::data::Staged;
 use crate::estimate::FitResult;
 use crate::report::Document;
 use std::time::Instant;

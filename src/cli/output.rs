@@ -3,7 +3,7 @@
 //! a closed pipe quiet.
 
 use crate::Error;
-use crate::data::staged::Staged;
+use crate::data::Staged;
 use std::path::{Path, PathBuf};
 
 /// Checks before any work that the output given by the flag `flag` (its long name, e.g.

@@ -3,10 +3,10 @@
 //! simulated log.
 
 use crate::Experiment;
-use crate::data::staged::Staged;
+use crate::data::Staged;
 use crate::drive::{DriveLog, Truth, plant_at};
 use crate::online::Trajectory;
-use crate::online::plot::{TrackRun, TrackTruth, track_svg};
+use crate::online::{TrackRun, TrackTruth, track_svg};
 use crate::pmsm::{PmsmFit, channel};
 use crate::report::Comparison;
 use crate::report::plot::{self, Context};

@@ -3,7 +3,7 @@
 
 use super::output;
 use crate::Error;
-use crate::data::staged::Staged;
+use crate::data::Staged;
 use crate::drive::{
     DriveConfig, DriveLog, IPM_MOTOR, IPM_SATURATION, SATURATED_IPM_MOTOR, SCENARIOS, SPM_MOTOR, scenario,
     simulate_drive_with_progress,

@@ -3,7 +3,7 @@
 
 use super::args::ColumnArgs;
 use super::output;
-use crate::data::staged::Staged;
+use crate::data::Staged;
 use crate::online::{Adaptation, MrasConfig, Trajectory, track};
 use crate::pmsm::{CsvOptions, SavedModel, VoltageHold, VoltageInput, applied_experiment};
 use clap::{Args, ValueEnum};

@@ -3,7 +3,7 @@
 use super::args::ColumnArgs;
 use super::output;
 use crate::Experiment;
-use crate::data::staged::Staged;
+use crate::data::Staged;
 use crate::pmsm::{CsvOptions, SavedModel, VoltageHold};
 use crate::report::Comparison;
 use clap::{Args, ValueEnum};

@@ -129,9 +129,9 @@ pub fn to_record_batch(e: &Experiment, time: &str) -> Result<arrow_array::Record
 }
 
 /// Writes `e` to `path` in the [`Format`] of its extension, atomically
-/// ([`crate::data::write::write_atomic`]): a time column `time` \[s\] (`t_k = k h`) and every
+/// ([`crate::data::write_atomic`]): a time column `time` \[s\] (`t_k = k h`) and every
 /// channel in order, all f64, so that [`read_table`] reads back the same values bit for
-/// bit. CSV as [`crate::data::write::write_csv`]; Parquet with Snappy-compressed pages
+/// bit. CSV as [`crate::data::write_csv`]; Parquet with Snappy-compressed pages
 /// and row groups of 65 536 rows, each channel's unit in its field metadata (`unit`);
 /// Arrow IPC as an uncompressed file.
 ///

@@ -27,18 +27,22 @@
 //! # Ok(()) }
 //! ```
 
-pub mod config;
-pub mod control;
-pub mod design;
+// The submodules are the crate's; their public items are re-exported here, one path each.
+pub(crate) mod config;
+pub(crate) mod control;
+pub(crate) mod design;
 mod motors;
-pub mod output;
-pub mod plan;
-pub mod profile;
-pub mod scenario;
-pub mod sim;
+mod output;
+pub(crate) mod plan;
+pub(crate) mod profile;
+pub(crate) mod scenario;
+pub(crate) mod sim;
 
 pub use config::{Control, DriveConfig, Inverter, Mechanics, Mode, PwmPlant, Sensors, Thermal};
+pub use control::{Command, Controller, Measurement};
+pub use design::{DQ_PER_PHASE_VARIANCE, PlanPrediction, predict_plan};
 pub use motors::{IPM_MOTOR, IPM_SATURATION, SATURATED_IPM_MOTOR, SPM_MOTOR};
+pub use plan::{Grid, Injection, Knobs, LimitUse, PLANS, planned_drive};
 pub use profile::Profile;
 pub use scenario::{COMMISSIONING, SCENARIOS, scenario};
 pub use sim::{DriveLog, PROGRESS_EVERY, Truth, plant_at, simulate_drive, simulate_drive_with_progress};

@@ -2,7 +2,7 @@
 
 use super::sim::DriveLog;
 use crate::data::Format;
-use crate::data::staged::Staged;
+use crate::data::Staged;
 use crate::data::write_log;
 use crate::error::Result;
 use std::path::{Path, PathBuf};

@@ -22,8 +22,8 @@
 //! [`Sensitivities`], offered through [`GreyBoxModel::sensitivities`]: a model either
 //! implements them or gets finite differences, never a silent zero Jacobian.
 
-pub mod block;
-pub mod params;
+pub(crate) mod block;
+pub(crate) mod params;
 
 pub use block::{BLOCK_LEN, Block, BlockContext, BlockKernel, SimState};
 pub use params::{DerivedEstimate, Parameter};

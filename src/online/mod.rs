@@ -4,7 +4,7 @@
 //! - [`MrasConfig`] (with [`Adaptation`]): known `n_p`, `l_s` (and `l_q` for a salient
 //!   machine), sample time, gains;
 //! - [`Mras`]: the observer, [`Mras::update`] per [`Sample`] giving [`Estimates`]; exact
-//!   in the state for any sample time and implicit in the parameters (see [`mras`]);
+//!   in the state for any sample time and implicit in the parameters (see [`Mras`]);
 //! - [`InjectionSchedule`]: the periodic d-current pulse that lets `R_s` adapt;
 //! - [`track()`]: the observer over a whole log, a [`Trajectory`].
 //!
@@ -29,14 +29,17 @@
 //! # Ok(()) }
 //! ```
 
-pub mod config;
-pub mod injection;
-pub mod mras;
+// The submodules are the crate's; their public items are re-exported here, one path each.
+pub(crate) mod config;
+pub(crate) mod injection;
+pub(crate) mod mras;
 #[cfg(feature = "plot")]
-pub mod plot;
-pub mod track;
+pub(crate) mod plot;
+pub(crate) mod track;
 
 pub use config::{Adaptation, MrasConfig};
 pub use injection::InjectionSchedule;
-pub use mras::{Estimates, Mras, MrasOutput, Sample};
+pub use mras::{Estimates, INFORMATIVE, MIN_TAU_SAMPLES, Mras, MrasOutput, Sample};
+#[cfg(feature = "plot")]
+pub use plot::{TrackRun, TrackTruth, track_svg};
 pub use track::{Trajectory, track};

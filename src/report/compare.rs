@@ -10,7 +10,7 @@ use crate::simulate::{SimOptions, simulate};
 use serde::{Deserialize, Serialize};
 
 /// Lags of the residual whiteness test in a comparison (those of a fit).
-pub use crate::estimate::WHITENESS_LAGS;
+use crate::estimate::WHITENESS_LAGS;
 
 /// One experiment simulated at θ from its measured first state, against its measurement.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

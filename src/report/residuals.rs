@@ -2,7 +2,7 @@
 //! that any tool can plot them.
 
 use super::Comparison;
-use crate::data::write::{shortest, write_atomic};
+use crate::data::{shortest, write_atomic};
 use crate::error::{Error, Result};
 use std::path::Path;
 

@@ -2,11 +2,11 @@
 //! issue's numbers (4 s, 0.05 A current noise), and the plans' D-ranking.
 
 use crate::common::TempDir;
-use greybox::drive::design::predict_plan;
+use greybox::drive::predict_plan;
 use greybox::drive::{SPM_MOTOR, scenario};
 use greybox::estimate::Criterion;
 
-fn plan(name: &str) -> greybox::drive::design::PlanPrediction {
+fn plan(name: &str) -> greybox::drive::PlanPrediction {
     let mut cfg = scenario(name, SPM_MOTOR).unwrap();
     cfg.duration = 4.0;
     cfg.sensors.current_noise = 0.05;
@@ -33,8 +33,8 @@ fn design_rejects_zero_noise() {
 
 // --- `greybox design` end to end, the search, and a small Monte Carlo check ------------
 
-use greybox::drive::plan::{Grid, Injection, Knobs, LimitUse, planned_drive};
 use greybox::drive::simulate_drive;
+use greybox::drive::{Grid, Injection, Knobs, LimitUse, planned_drive};
 use greybox::estimate::{PredictedParameter, Prediction, Target, search_shortest};
 use greybox::pmsm::{PmsmFitOptions, fit_pmsm};
 

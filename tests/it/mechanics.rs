@@ -262,7 +262,7 @@ fn a_linear_axis_is_reported_in_its_own_units() {
     let (lead, n_p) = (0.01, SPM_MOTOR.n_p);
     let r = std::f64::consts::TAU / lead;
     let shaft = dir.join("shaft.csv");
-    greybox::data::write::write_csv(&shaft, &log, "t").unwrap();
+    greybox::data::write_csv(&shaft, &log, "t").unwrap();
     // A linear motor of pole pitch lead/(2 n_p): its speed and position in m/s and m.
     let tau_p = lead / (2.0 * f64::from(n_p));
     let mut linear = log.clone();
@@ -271,7 +271,7 @@ fn a_linear_axis_is_reported_in_its_own_units() {
         linear = linear.with_channel(greybox::data::Channel::new(name, "", v)).unwrap();
     }
     let motor = dir.join("motor.csv");
-    greybox::data::write::write_csv(&motor, &linear, "t").unwrap();
+    greybox::data::write_csv(&motor, &linear, "t").unwrap();
     let k_f = (1.5 * f64::from(n_p) * SPM_MOTOR.psi_f * r).to_string();
     let (lead_s, tau_s) = (lead.to_string(), tau_p.to_string());
     let m = &cfg.mechanics;

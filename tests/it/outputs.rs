@@ -17,7 +17,7 @@ fn temporaries(dir: &Path) -> Vec<String> {
         .unwrap()
         .filter_map(|e| e.ok())
         .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| n.starts_with(::greybox::data::staged::TEMPORARY_PREFIX))
+        .filter(|n| n.starts_with(::greybox::data::TEMPORARY_PREFIX))
         .collect()
 }
 

@@ -8,7 +8,7 @@ use greybox::Experiment;
 use greybox::data::{ColumnMap, CsvSpec, read_csv};
 use greybox::pmsm::{CsvOptions, PmsmFit, fit_pmsm, read_log};
 use greybox::report::Comparison;
-use greybox::report::residuals::write_residuals_csv;
+use greybox::report::write_residuals_csv;
 use std::path::Path;
 use std::sync::OnceLock;
 
@@ -60,7 +60,7 @@ fn simulated_outputs_match_the_fit() {
 #[cfg(feature = "plot")]
 mod svg {
     use super::*;
-    use greybox::online::plot::{TrackRun, TrackTruth, track_svg};
+    use greybox::online::{TrackRun, TrackTruth, track_svg};
     use greybox::report::plot::{self, Context};
 
     /// Points drawn by every `<polyline>` of an SVG.

@@ -390,7 +390,7 @@ fn the_command_line_names_the_missing_pwm_flag() {
     std::fs::create_dir_all(&dir).unwrap();
     let (e, _) = pwm_log("exp3", 0.3, 2e-6, 1.0, 0.0);
     let log = dir.join("pwm.csv");
-    greybox::data::write::write_csv(&log, &e, "t").unwrap();
+    greybox::data::write_csv(&log, &e, "t").unwrap();
     let json = dir.join("out.json");
     let run = |extra: &[&str]| {
         let out = std::process::Command::new(env!("CARGO_BIN_EXE_greybox"))

@@ -17,7 +17,7 @@ fn concurrent_writers_leave_one_valid_report() {
             let path = &path;
             s.spawn(move || {
                 let text = format!("{{\"writer\": {i}, \"pad\": \"{}\"}}", "x".repeat(1000 + 37 * i));
-                greybox::data::write::write_atomic(path, |w| w.write_all(text.as_bytes())).unwrap();
+                greybox::data::write_atomic(path, |w| w.write_all(text.as_bytes())).unwrap();
             });
         }
     });

@@ -1,8 +1,8 @@
 //! The report of `greybox design`: its JSON structure, the printed table and the plot.
 
 use crate::drive::DriveConfig;
-use crate::drive::design::PlanPrediction;
-use crate::drive::plan::Knobs;
+use crate::drive::Knobs;
+use crate::drive::PlanPrediction;
 use crate::estimate::design::{Criterion, Target};
 use crate::report::eng::format_eng;
 use crate::report::plot::{Trend, TrendPoint, TrendSeries, trend_svg};

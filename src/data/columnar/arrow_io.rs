@@ -23,7 +23,7 @@ use super::check;
 use crate::data::experiment::Experiment;
 use crate::data::table::{ReadLimits, Table, experiment_name, find_columns};
 use crate::data::time::{TimeCheck, TimeSteps};
-use crate::data::write::write_atomic;
+use crate::data::write_atomic;
 use crate::error::{Error, Result};
 
 /// Rows per Parquet row group written: eight groups for 512 000 rows, read in parallel.
@@ -45,7 +45,7 @@ fn format_err(path: &Path, e: impl std::fmt::Display) -> Error {
 }
 
 /// Reads the `wanted` columns of a Parquet file (`parquet`) or an Arrow IPC one: the
-/// columnar half of [`crate::data::format::read_table_with`], whose errors it returns.
+/// columnar half of [`crate::data::read_table_with`], whose errors it returns.
 pub(crate) fn read(
     path: &Path,
     parquet: bool,
@@ -358,7 +358,7 @@ pub(crate) fn batch(
 }
 
 /// Writes `e` as a Parquet file (`parquet`) or an Arrow IPC one: the columnar half of
-/// [`crate::data::format::write`], whose errors it returns.
+/// [`crate::data::write`], whose errors it returns.
 pub(crate) fn write(path: &Path, parquet: bool, e: &Experiment, time: &str) -> Result<()> {
     let write_err = |e: &dyn std::fmt::Display| Error::Write {
         path: path.to_path_buf(),

@@ -12,11 +12,11 @@
 //! [`NormalEquations::jtr`] holds `JᵀWε` (the steepest-descent direction); argmin's
 //! gradient slot of the solvers' state ([`LsState`]) holds `∇V`, as argmin documents it.
 
-pub mod gn;
+pub(crate) mod gn;
 mod gram;
-pub mod lm;
+pub(crate) mod lm;
 mod problem;
-pub mod run;
+pub(crate) mod run;
 mod stopping;
 mod termination;
 

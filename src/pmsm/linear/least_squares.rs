@@ -283,7 +283,7 @@ pub fn weighted_least_squares(
                 parts.push(&r[at..at + len]);
                 at += len;
             }
-            crate::estimate::metrics::whiteness(&parts, crate::report::compare::WHITENESS_LAGS)
+            crate::estimate::metrics::whiteness(&parts, crate::estimate::WHITENESS_LAGS)
         })
         .collect();
     let half = (rows / 2) as f64;

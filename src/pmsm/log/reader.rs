@@ -23,7 +23,7 @@ use crate::data::Experiment;
 use crate::data::TimeCheck;
 use crate::data::csv::name_excerpt;
 use crate::data::read_table_with;
-use crate::data::segments::{TimeSegments, time_segments};
+use crate::data::{TimeSegments, time_segments};
 use crate::error::{Error, Result};
 use crate::pmsm::log::signals::check_pole_pairs;
 use crate::pmsm::log::signals::{MIN_SAMPLES, PmsmError};

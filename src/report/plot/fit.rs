@@ -8,9 +8,9 @@ use super::draw::{
 use super::{Context, plot_error, time};
 use crate::error::{Error, Result};
 use crate::estimate::FitResult;
+use crate::estimate::WHITENESS_LAGS;
 use crate::estimate::metrics::{self, Whiteness};
 use crate::report::Comparison;
-use crate::report::compare::WHITENESS_LAGS;
 use crate::report::eng::format_eng;
 use plotters::prelude::*;
 

@@ -2,7 +2,7 @@
 //! the text).
 //!
 //! Every function takes data, never file names, and returns the SVG text; [`write_svg`]
-//! writes it atomically ([`crate::data::write::write_atomic`]), so a failing plot leaves
+//! writes it atomically ([`crate::data::write_atomic`]), so a failing plot leaves
 //! neither a partial file nor a temporary one. Long signals are decimated for drawing only
 //! ([`decimate_min_max`]: the minimum and maximum of each pixel column), never for fitting.
 //!
@@ -15,7 +15,7 @@
 //!   intervals as error bars.
 //!
 //! The drawing helpers (module `draw`) also serve the observer's plot, which lives with the
-//! observer ([`crate::online::plot`]).
+//! observer ([`crate::online::track_svg`]).
 
 mod context;
 mod decimate;

@@ -10,7 +10,7 @@ use std::path::Path;
 /// [`Error::Write`] naming the path when it cannot be written (missing folder, no
 /// permission); no partial or temporary file is left.
 pub fn write_svg(path: &Path, svg: &str) -> Result<()> {
-    crate::data::write::write_atomic(path, |w| w.write_all(svg.as_bytes()))
+    crate::data::write_atomic(path, |w| w.write_all(svg.as_bytes()))
 }
 
 /// A drawing failure as the crate's error (option `plot`).
