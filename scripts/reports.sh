@@ -21,6 +21,8 @@ run each fit --each "$D/servo_spm_*.csv.gz" -p 4 --summary $OUT/each.csv
 run validate validate --params $OUT/servo_spm_moves.json $D/servo_spm_moves_idinj.csv.gz --json $OUT/validate.json
 run track track $S -p 4 --params $OUT/sample.json --json $OUT/track.json
 run simulate simulate --scenario exp1 --duration 3 -o $OUT/sim.csv
+run fluxmap fluxmap $D/real/baldor_400rpm_map.npz --json $OUT/fluxmap.json
+run mechanics mechanics $D/servo_spm_moves_idinj.csv.gz -p 4 --json $OUT/mechanics.json
 # strip timings
 for j in $OUT/*.json; do python3 - "$j" <<'PY'
 import json,sys
