@@ -51,7 +51,8 @@ for c in "${first[@]}"; do step "$c"; done
 step "cargo install --locked --quiet --path . --root '$work/bin'"
 export PATH="$work/bin/bin:$PATH"
 
-# The tour: the code block under "## A tour", run as one script (its `cd` carries), twice.
+# The tour: the code block under "## A tour", line by line in one shell (so that its `cd`
+# carries), each line with no standard input (a line reading stdin would eat the rest), twice.
 awk '/^## A tour/{t=1} t && /^```sh/{b=1; next} b && /^```/{exit} b' README.md > "$work/tour.sh"
 [ -s "$work/tour.sh" ] || { echo "fresh_clone: no tour found in README.md" >&2; exit 1; }
 for run in 1 2; do
@@ -63,7 +64,7 @@ for run in 1 2; do
             start=$(date +%s)
             echo "\$ $line"
             # Each line in the tour's own shell, so that `mkdir -p tour && cd tour` holds.
-            eval "$line" > "$work/last.out" 2>&1 || {
+            eval "$line" < /dev/null > "$work/last.out" 2>&1 || {
                 rc=$?
                 cat "$work/last.out" >&2
                 echo "fresh_clone: FAILED (exit $rc) in tour run $run: $line" >&2

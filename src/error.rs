@@ -191,7 +191,7 @@ pub enum Error {
     /// The optimiser failed for a reason other than the ones above.
     #[error("optimiser failed: {0}")]
     Solver(String),
-    /// A file exceeds one of the read limits ([`crate::data::csv::ReadLimits`]); the read
+    /// A file exceeds one of the read limits ([`crate::data::ReadLimits`]); the read
     /// stopped there, before buffering more.
     #[error("{path}: line {line}: {what} exceeds the read limit `{limit}` = {max}")]
     LimitExceeded {
@@ -201,7 +201,7 @@ pub enum Error {
         line: u64,
         /// What is too large, e.g. `line longer than 1048576 bytes`.
         what: String,
-        /// The limit's field name in [`crate::data::csv::ReadLimits`].
+        /// The limit's field name in [`crate::data::ReadLimits`].
         limit: String,
         /// The limit's value.
         max: u64,

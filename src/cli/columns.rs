@@ -3,8 +3,8 @@
 //! library's [`CsvOptions`].
 
 use crate::Experiment;
+use crate::data::Delimiter;
 use crate::data::TimeWindow;
-use crate::data::csv::Delimiter;
 use crate::pmsm::{AngleUnit, ColumnNames, CsvOptions, DqSource, Frame, Scale, SpeedUnit, TimeUnit};
 use crate::pmsm::{LogSegments, LogSource};
 use clap::Args;
@@ -112,13 +112,13 @@ pub struct ColumnArgs {
     #[arg(help_heading = "Time window and checks", long)]
     pub force: bool,
     /// Longest line of a log in bytes; a longer one stops the read (default 1 MiB).
-    #[arg(help_heading = "Reading limits", long, default_value_t = crate::data::csv::ReadLimits::default().max_line_bytes)]
+    #[arg(help_heading = "Reading limits", long, default_value_t = crate::data::ReadLimits::default().max_line_bytes)]
     pub max_line_bytes: u64,
     /// Most columns in a log's header (default 4096).
-    #[arg(help_heading = "Reading limits", long, default_value_t = crate::data::csv::ReadLimits::default().max_fields)]
+    #[arg(help_heading = "Reading limits", long, default_value_t = crate::data::ReadLimits::default().max_fields)]
     pub max_fields: usize,
     /// Most data rows in a log (default 10^8).
-    #[arg(help_heading = "Reading limits", long, default_value_t = crate::data::csv::ReadLimits::default().max_rows)]
+    #[arg(help_heading = "Reading limits", long, default_value_t = crate::data::ReadLimits::default().max_rows)]
     pub max_rows: u64,
     /// Field delimiter of CSV logs: `,` `;` `tab` (or `\t`) `|`; Parquet/Arrow ignore it.
     #[arg(help_heading = "Reading limits", long, default_value = ",", value_parser = |s: &str| s.parse::<Delimiter>().map_err(|e| e.to_string()))]
@@ -182,7 +182,7 @@ impl ColumnArgs {
             current_scale: self.current_scale,
             voltage_scale: self.voltage_scale,
             source: if self.dq_from_phases { DqSource::Phases } else { DqSource::Dq },
-            limits: crate::data::csv::ReadLimits {
+            limits: crate::data::ReadLimits {
                 max_line_bytes: self.max_line_bytes,
                 max_fields: self.max_fields,
                 max_rows: self.max_rows,
@@ -309,12 +309,7 @@ impl ColumnArgs {
 /// A data error that names no file (a non-finite value, a time step, a length) with the
 /// log's path in front, as the parse errors have it, and for a row of a CSV log (`file`:
 /// not a table in memory) the line of the file it stands on.
-fn with_file(
-    path: &Path,
-    e: crate::Error,
-    delimiter: crate::data::csv::Delimiter,
-    file: bool,
-) -> crate::Error {
+fn with_file(path: &Path, e: crate::Error, delimiter: crate::data::Delimiter, file: bool) -> crate::Error {
     use crate::Error;
     let line = match &e {
         Error::NonFinite { row, .. } | Error::NonUniformTime { row, .. } if file => {
@@ -374,7 +369,7 @@ fn flag_words(e: crate::Error) -> crate::Error {
 /// The 1-based line of the file on which data row `row` (0-based, header excluded) of the
 /// CSV log at `path` starts (gzip for `.gz`), read again with the `csv` crate on the error
 /// path; `None` for a columnar log or when the file cannot be read so far.
-fn csv_line(path: &Path, row: usize, delimiter: crate::data::csv::Delimiter) -> Option<u64> {
+fn csv_line(path: &Path, row: usize, delimiter: crate::data::Delimiter) -> Option<u64> {
     use crate::data::Format;
     if Format::of(path) != Format::Csv {
         return None;

@@ -42,7 +42,7 @@ pub struct FluxMapArgs {
     #[arg(long, default_value = "torque", value_name = "NAME")]
     pub col_torque: String,
     /// Pole pairs n_p, for the torque 1.5 n_p (ψ_d i_q − ψ_q i_d) compared with a measured one.
-    #[arg(long, short = 'p')]
+    #[arg(long, short = 'p', value_parser = clap::value_parser!(u32).range(1..))]
     pub pole_pairs: Option<u32>,
     /// Field delimiter of a CSV map: `,` `;` `tab` (or `\t`) `|`.
     #[arg(long, default_value = ",", value_parser = |s: &str| s.parse::<Delimiter>().map_err(|e| e.to_string()))]
@@ -88,9 +88,31 @@ pub fn fluxmap_outcome(a: &FluxMapArgs) -> crate::Result<output::Outcome> {
         e => e,
     })?;
     let fit = fit_flux_map(&read.map, &FluxMapOptions { exponents, ..Default::default() })?;
-    let torque = match (&read.torque, a.pole_pairs) {
-        (Some(t), Some(n_p)) => Some(torque_check(&read.map, &fit, t, n_p)?),
-        _ => None,
+    // A torque that cannot be compared is a note, not a failed flux-map fit.
+    let (torque, torque_note) = match (&read.torque, a.pole_pairs) {
+        (Some(t), Some(n_p)) => match torque_check(&read.map, &fit, t, n_p) {
+            Ok(check) => (Some(check), None),
+            Err(e) => (
+                None,
+                Some(format!("the measured torque (--col-torque {}) is not compared: {e}", a.col_torque)),
+            ),
+        },
+        (Some(_), None) => (
+            None,
+            Some(format!(
+                "the map has a measured torque (`{}`); give the pole pairs (-p) to compare it with the model's",
+                a.col_torque
+            )),
+        ),
+        (None, Some(_)) => (
+            None,
+            Some(format!(
+                "-p compares a measured torque, and the map has no column `{}` (--col-torque; a Parquet or Arrow \
+                 one is read only without gaps, an .npz holds none)",
+                a.col_torque
+            )),
+        ),
+        (None, None) => (None, None),
     };
     let untrusted = fit.check.iter().flat_map(|c| &c.warnings).map(|w| w.code.clone()).collect();
     let mut text = String::new();
@@ -102,15 +124,11 @@ pub fn fluxmap_outcome(a: &FluxMapArgs) -> crate::Result<output::Outcome> {
         );
     }
     text += &fit.to_string();
-    match (&torque, &read.torque) {
-        (Some(t), _) => text += &t.to_string(),
-        (None, Some(_)) => {
-            text += &format!(
-                "note: the map has a measured torque (`{}`); give the pole pairs (-p) to compare it with the model's\n",
-                a.col_torque
-            )
-        }
-        (None, None) => {}
+    if let Some(t) = &torque {
+        text += &t.to_string();
+    }
+    if let Some(n) = &torque_note {
+        text += &format!("note: {n}\n");
     }
     let report = Report { skipped_points: read.skipped, fit: &fit, torque: torque.as_ref() };
     Ok(output::Outcome::new(text, &report, untrusted))

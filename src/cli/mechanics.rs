@@ -61,9 +61,9 @@ pub struct MechanicsArgs {
     /// Window length [s].
     #[arg(long, default_value_t = 0.01, value_name = "S")]
     pub window: f64,
-    /// Speed [rad/s] over which the Coulomb friction changes sign, or `estimate` (the lowest
-    /// loss between 1e-4 and 1 times the logs' peak speed).
-    #[arg(long, default_value = "estimate", value_name = "RAD/S|estimate", value_parser = super::args::parse_speed)]
+    /// Speed [rad/s; m/s on a linear axis] over which the Coulomb friction changes sign, or
+    /// `estimate` (the lowest loss between 1e-4 and 1 times the logs' peak speed).
+    #[arg(long, default_value = "estimate", value_name = "SPEED|estimate", value_parser = super::args::parse_speed)]
     pub coulomb_speed: super::args::Pll,
     /// Column of a load torque [N m] (on a linear axis a force [N]), used when every log has it.
     #[arg(long, default_value = LOAD_TORQUE, value_name = "NAME")]
@@ -191,6 +191,15 @@ fn axis(a: &MechanicsArgs) -> crate::Result<Axis> {
         }
     };
     if let Some(tau_p) = a.pole_pitch {
+        if a.columns.dq_from_phases {
+            return Err(crate::Error::InvalidOption {
+                option: "--pole-pitch".into(),
+                reason:
+                    "not with --dq-from-phases: the Park transform would take the position in metres for an \
+                         angle; give the dq columns"
+                        .into(),
+            });
+        }
         let o = a.columns.options();
         if o.speed_factor(a.pole_pairs) != 1.0 || o.angle_factor(a.pole_pairs) != 1.0 {
             return Err(crate::Error::InvalidOption {

@@ -9,9 +9,9 @@
 
 use std::path::Path;
 
-pub use super::delimiter::Delimiter;
+use super::delimiter::Delimiter;
 pub(crate) use super::table::name_excerpt;
-pub use super::table::{QUOTE_CHARS, ReadLimits, Table};
+use super::table::{ReadLimits, Table};
 use super::time::TimeCheck;
 use crate::error::Result;
 
@@ -35,7 +35,7 @@ mod records;
 /// chunk's too-long line is found before its rows are parsed, as by a streaming reader that
 /// bounds lines first), and its memory is the wanted columns of the rows accepted, reserved
 /// for the rows the file's size predicts, plus 32 chunks (8 MiB) and one line. Errors quote
-/// at most [`QUOTE_CHARS`] characters of a cell.
+/// at most [`QUOTE_CHARS`](super::QUOTE_CHARS) characters of a cell.
 ///
 /// # Errors
 /// - [`Error::Io`](crate::Error::Io) with the path if the file cannot be opened, read or

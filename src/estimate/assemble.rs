@@ -7,11 +7,10 @@ use super::diagnostics::{DiagnosticThresholds, diagnose};
 use super::gate;
 use super::problem::{FreeKind, MIN_BATCHES, PemProblem, Slot};
 use super::result::t_quantile_975;
-use super::{
-    DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing, Uncertainty,
-};
+use super::{FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing, Uncertainty};
 use crate::error::Result;
 use crate::estimate::metrics;
+use crate::model::DerivedEstimate;
 use crate::model::GreyBoxModel;
 use nalgebra::{DMatrix, DVector};
 

@@ -130,7 +130,7 @@ impl Uncertainty {
     }
 }
 
-pub use crate::model::DerivedEstimate;
+pub(crate) use crate::model::DerivedEstimate;
 
 /// Goodness of fit.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -179,7 +179,7 @@ pub struct FitStatistics {
     pub horizon: Option<usize>,
 }
 
-pub use crate::estimate::solver::SolverReport;
+pub(crate) use crate::estimate::solver::SolverReport;
 
 /// Wall-clock timing \[s\].
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]

@@ -1,5 +1,5 @@
 //! Reports apart from estimation (the goodness-of-fit metrics are the estimator's:
-//! [`crate::estimate::metrics`]): comparisons of a model with data it was not fitted on (MATLAB's
+//! [`crate::estimate::Metrics`]): comparisons of a model with data it was not fitted on (MATLAB's
 //! `compare`), and the fit report as text or Markdown (engineering prefixes, aligned
 //! columns).
 

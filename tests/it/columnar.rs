@@ -215,7 +215,7 @@ mod with_feature {
         std::fs::write(&path, b"t,ud\n0,1\n").unwrap();
         assert!(matches!(read_log(&path, &options()).unwrap_err(), Error::Format { .. }));
         // Rows beyond the limit.
-        let limits = greybox::data::csv::ReadLimits { max_rows: 10, ..Default::default() };
+        let limits = greybox::data::ReadLimits { max_rows: 10, ..Default::default() };
         for path in columnar("rows", valid()) {
             let err = read_log(&path, &CsvOptions { limits, ..options() }).unwrap_err();
             assert!(

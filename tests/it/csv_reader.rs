@@ -10,7 +10,7 @@ use std::path::Path;
 
 use greybox::Error;
 use greybox::data::TimeSteps;
-use greybox::data::csv::{Delimiter, ReadLimits, Table};
+use greybox::data::{Delimiter, ReadLimits, Table};
 use proptest::prelude::*;
 
 /// The CSV reader with the time column checked as it streams.

@@ -5,7 +5,7 @@
 
 use std::io::Read;
 
-use greybox::data::csv::{Delimiter, ReadLimits, Table};
+use greybox::data::{Delimiter, ReadLimits, Table};
 use greybox::pmsm::{CsvOptions, read_log};
 use proptest::prelude::*;
 

@@ -273,6 +273,7 @@ fn a_linear_axis_is_reported_in_its_own_units() {
     let motor = dir.join("motor.csv");
     greybox::data::write_csv(&motor, &linear, "t").unwrap();
     let k_f = (1.5 * f64::from(n_p) * SPM_MOTOR.psi_f * r).to_string();
+    let p = n_p.to_string();
     let (lead_s, tau_s) = (lead.to_string(), tau_p.to_string());
     let m = &cfg.mechanics;
     let truth = [("m", m.inertia * r * r), ("b", m.viscous * r * r), ("f_c", m.coulomb * r)];
@@ -283,7 +284,7 @@ fn a_linear_axis_is_reported_in_its_own_units() {
     ];
     for (i, run) in runs.iter().enumerate() {
         let json = dir.join(format!("fit{i}.json"));
-        let args = [&["mechanics", "-p", "4"][..], run, &["-q", "--json", json.to_str().unwrap()]].concat();
+        let args = [&["mechanics", "-p", &p][..], run, &["-q", "--json", json.to_str().unwrap()]].concat();
         let out = greybox(&args);
         assert_eq!(out.status.code(), Some(0), "{run:?}: {}", String::from_utf8_lossy(&out.stderr));
         let report: serde_json::Value =
@@ -299,8 +300,20 @@ fn a_linear_axis_is_reported_in_its_own_units() {
         assert!((v_c * r / m.coulomb_speed - 1.0).abs() < 1e-2, "{run:?}: v_c {v_c} m/s");
         assert_eq!(fit["axis"]["lead"].as_f64(), Some(lead), "{run:?}");
     }
-    let out = greybox(&["mechanics", "-p", "4", shaft.to_str().unwrap(), "--lead", &lead_s, "--gravity"]);
-    let e = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{e}");
-    assert!(e.contains("--gravity") && e.contains("--constant-load"), "{e}");
+    // What the command line can fix exits 2 and names the flag.
+    let shaft = shaft.to_str().unwrap();
+    let motor = motor.to_str().unwrap();
+    let refused: [(&[&str], &[&str]); 5] = [
+        (&[shaft, "--lead", &lead_s, "--gravity"], &["--gravity", "--constant-load"]),
+        (&[shaft, "--lead", "0"], &["--lead"]),
+        (&[motor, "--pole-pitch", &tau_s, "--speed-unit", "rpm"], &["--pole-pitch", "--speed-unit"]),
+        (&[motor, "--pole-pitch", &tau_s, "--dq-from-phases"], &["--pole-pitch", "--dq-from-phases"]),
+        (&[shaft, "--k-f", &k_f], &["--k-f"]),
+    ];
+    for (run, names) in refused {
+        let out = greybox(&[&["mechanics", "-p", &p][..], run].concat());
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{run:?}: {e}");
+        assert!(names.iter().all(|n| e.contains(n)), "{run:?}: {e}");
+    }
 }

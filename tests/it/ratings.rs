@@ -24,7 +24,7 @@ fn ratings_match_the_hand_calculation() {
     assert!((d("k_m").value / k_m - 1.0).abs() < 1e-12);
     assert!((d("k_t").value * d("k_v").value - 8.2699).abs() < 1e-4);
     // Standard errors: relative as k_e's for k_v; k_m's from both, with their correlation.
-    let rel = |q: &greybox::estimate::DerivedEstimate| q.std_error / q.value;
+    let rel = |q: &greybox::model::DerivedEstimate| q.std_error / q.value;
     let se = |n: &str| fit.parameter(n).unwrap().std_error;
     assert!((rel(&d("k_v")) / (se("k_e") / k_e) - 1.0).abs() < 1e-9);
     let bound = se("k_e") / k_e + 0.5 * se("r_s") / r_s;

@@ -7,7 +7,7 @@ use std::path::Path;
 use crate::common::TempFile;
 
 use greybox::Error;
-use greybox::data::csv::{Delimiter, ReadLimits, Table};
+use greybox::data::{Delimiter, ReadLimits, Table};
 use greybox::data::{TimeCheck, TimeSteps};
 use proptest::prelude::*;
 

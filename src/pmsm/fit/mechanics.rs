@@ -109,13 +109,40 @@ pub struct MechanicsFit {
 ///
 /// # Errors
 /// [`Error::MissingChannel`] naming a channel; [`Error::InvalidOption`] (`window`) for a
-/// window that is not positive or leaves fewer than [`MIN_WINDOWS`] windows.
+/// window that is not positive or leaves fewer than [`MIN_WINDOWS`] windows, (`axis`) for a
+/// linear axis whose lead is not positive and finite, (`gravity`) for a gravity term on it.
 pub fn mechanics_windows(e: &Experiment, options: &MechanicsOptions, load: bool) -> Result<Experiment> {
     windows_at(e, options, load, options.coulomb_speed.unwrap_or(1.0))
 }
 
-/// [`mechanics_windows`] at the Coulomb speed `w_c` \[rad/s\].
+/// The linear axis' own faults: a lead that is not positive and finite (`axis`), a gravity
+/// term (`gravity`: a linear axis' weight is a constant force, `terms.constant`).
+///
+/// # Errors
+/// [`Error::InvalidOption`] naming the option.
+fn check_axis(options: &MechanicsOptions) -> Result<()> {
+    if let Axis::Linear { lead } = options.axis {
+        if !(lead.is_finite() && lead > 0.0) {
+            return Err(Error::InvalidOption {
+                option: "axis".into(),
+                reason: format!("a lead of {lead} m: the travel per revolution must be positive and finite"),
+            });
+        }
+        if options.terms.gravity {
+            return Err(Error::InvalidOption {
+                option: "gravity".into(),
+                reason: "a linear axis' weight is a constant force along it: the constant load (--constant-load), \
+                         not an arm's gravity"
+                    .into(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// [`mechanics_windows`] at the Coulomb speed `w_c` \[rad/s; m/s on a linear axis\].
 fn windows_at(e: &Experiment, options: &MechanicsOptions, load: bool, w_c: f64) -> Result<Experiment> {
+    check_axis(options)?;
     let h = e.h();
     if !(options.window.is_finite() && options.window > 0.0) {
         return Err(Error::InvalidOption {
@@ -188,26 +215,10 @@ fn windows_at(e: &Experiment, options: &MechanicsOptions, load: bool, w_c: f64) 
 /// for a linear axis whose lead is not positive and finite, or (`gravity`) with a gravity
 /// term (a linear axis' weight is a constant force: `terms.constant`).
 pub fn fit_mechanics(experiments: &[Experiment], options: &MechanicsOptions) -> Result<MechanicsFit> {
-    if let Axis::Linear { lead } = options.axis {
-        if !(lead.is_finite() && lead > 0.0) {
-            return Err(Error::InvalidOption {
-                option: "axis".into(),
-                reason: format!("a lead of {lead} m: the travel per revolution must be positive and finite"),
-            });
-        }
-        if options.terms.gravity {
-            return Err(Error::InvalidOption {
-                option: "gravity".into(),
-                reason: "a linear axis' weight is a constant force along it: the constant load (--constant-load), \
-                         not an arm's gravity"
-                    .into(),
-            });
-        }
-    }
     if let Some(w_c) = options.coulomb_speed.filter(|w| !(w.is_finite() && *w > 0.0)) {
         return Err(Error::InvalidOption {
             option: "coulomb_speed".into(),
-            reason: format!("{w_c} rad/s must be positive"),
+            reason: format!("{w_c} {} must be positive", options.axis.names().1),
         });
     }
     let load = !experiments.is_empty() && experiments.iter().all(|e| e.get(LOAD_TORQUE).is_some());

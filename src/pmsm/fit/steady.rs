@@ -10,8 +10,9 @@ use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::diagnostics::{DiagnosticThresholds, diagnose};
 use crate::estimate::{
-    DerivedEstimate, FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing, metrics,
+    FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing, metrics,
 };
+use crate::model::DerivedEstimate;
 use crate::pmsm::checks::detect::{max_turn, sample_time_facts, steady_warnings};
 use crate::pmsm::checks::time_unit::time_unit_mistake;
 use crate::pmsm::fit::report::PmsmFit;

@@ -56,8 +56,8 @@ pub struct FluxMapRead {
     /// flat C-order index).
     pub first_skipped: Option<usize>,
     /// The measured torque \[N m\] of the points in `map` (NaN where its cell is missing),
-    /// when the table has the column [`FluxMapColumns::torque`]; `None` otherwise and for
-    /// an `.npz`.
+    /// when the table has the column [`FluxMapColumns::torque`]; `None` otherwise, for an
+    /// `.npz`, and for a Parquet or Arrow torque column with a missing value.
     pub torque: Option<Vec<f64>>,
 }
 
@@ -124,13 +124,20 @@ pub fn read_flux_map_with(path: impl AsRef<Path>, columns: &FluxMapColumns) -> R
             (c.torque.as_str(), false),
         ];
         let limits = ReadLimits::default();
-        let table = match Format::of(path) {
-            Format::Csv => read_table_with_missing(path, &wanted, &limits, c.delimiter)?,
-            _ => read_table_with(path, &wanted, &limits, c.delimiter, TimeCheck::Skip)?,
+        let (table, torque) = match Format::of(path) {
+            Format::Csv => (read_table_with_missing(path, &wanted, &limits, c.delimiter)?, None),
+            // A columnar reader refuses a missing value: the torque is read on its own, and a
+            // torque column with a gap is not read (the flux map as before it).
+            _ => (
+                read_table_with(path, &wanted[..4], &limits, c.delimiter, TimeCheck::Skip)?,
+                read_table_with(path, &wanted[4..], &limits, c.delimiter, TimeCheck::Skip)
+                    .ok()
+                    .and_then(|t| t.columns.into_iter().next().flatten()),
+            ),
         };
         let mut columns = table.columns.into_iter();
         let flux = [(); 4].map(|()| columns.next().flatten().unwrap_or_default());
-        (flux, columns.next().flatten())
+        (flux, columns.next().flatten().or(torque))
     };
     let kept: Vec<usize> =
         (0..i_d.len()).filter(|&k| [&i_d, &i_q, &psi_d, &psi_q].iter().all(|v| v[k].is_finite())).collect();

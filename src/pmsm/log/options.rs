@@ -2,7 +2,7 @@
 //! source of the dq signals, read limits and the sample-time plausibility range.
 
 use crate::data::TimeWindow;
-use crate::data::csv::{Delimiter, ReadLimits};
+use crate::data::{Delimiter, ReadLimits};
 use serde::{Deserialize, Serialize};
 
 /// Header names of the columns a log may hold, one per signal; every name is remappable.

@@ -60,7 +60,8 @@ pub enum Axis {
     /// shaft of `n_p` pole pairs: `2 n_p τ_p`): `m dv/dt = F − b v − f_c tanh(v/v_c) − f_0 −
     /// F_L`, with `v = ω_m lead/(2π)` \[m/s\] and `F = T_e 2π/lead` \[N\] (the transmission
     /// lossless and stiff: its losses are in the friction), parameters in kg, N s/m, N
-    /// (`m = J (2π/lead)²` for the inertia reflected to the axis).
+    /// (`m = J (2π/lead)²` for the inertia reflected to the axis: a stiff, lossless
+    /// transmission keeps the kinetic energy, `J ω²/2 = m v²/2`, and the power, `T ω = F v`).
     Linear {
         /// Travel per shaft revolution \[m\].
         lead: f64,
