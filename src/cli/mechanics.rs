@@ -103,12 +103,9 @@ pub fn run_mechanics(a: &MechanicsArgs) -> crate::Result<bool> {
 pub fn mechanics_outcome(a: &MechanicsArgs) -> crate::Result<output::Outcome> {
     let extra = (a.col_load.as_str(), LOAD_TORQUE, "N m");
     let axis = axis(a)?;
-    if a.gravity && !axis.is_rotary() {
-        return Err(crate::Error::InvalidOption {
-            option: "--gravity".into(),
-            reason: "a linear axis' weight is a constant force along it: --constant-load".into(),
-        });
-    }
+    let terms = MechanicsTerms { gravity: a.gravity, constant: a.constant_load };
+    // The axis' faults before the electrical fit spends its time.
+    axis.check(terms)?;
     let k_t = a.k_t.or(a.k_f.map(|k_f| k_f / axis.radians_per_unit()));
     let logs: Vec<Experiment> = match k_t {
         Some(_) => read_mechanical_logs(a)?,
@@ -153,7 +150,7 @@ pub fn mechanics_outcome(a: &MechanicsArgs) -> crate::Result<output::Outcome> {
             super::args::Pll::Bandwidth(w_c) => Some(w_c),
             _ => None,
         },
-        terms: MechanicsTerms { gravity: a.gravity, constant: a.constant_load },
+        terms,
         per_log_friction: a.per_log,
         axis,
         ..MechanicsOptions::new(motor)

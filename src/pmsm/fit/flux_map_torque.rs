@@ -8,6 +8,7 @@ use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::pmsm::fit::flux_map::FluxMapFit;
 use crate::pmsm::fit::flux_map_check::MapModel;
+use crate::pmsm::model::saturation::flux_torque as torque;
 use serde::{Deserialize, Serialize};
 
 /// The model's and the map's torque against the measured one.
@@ -29,11 +30,6 @@ pub struct TorqueCheck {
     pub max_model: (f64, [f64; 2]),
     /// RMS of `T_map − T_measured` \[N m\], the torque of the map's own flux.
     pub rms_map: f64,
-}
-
-/// `1.5 n_p (ψ_d i_q − ψ_q i_d)` \[N m\].
-fn torque(n_p: u32, i: [f64; 2], psi: [f64; 2]) -> f64 {
-    1.5 * f64::from(n_p) * (psi[0] * i[1] - psi[1] * i[0])
 }
 
 /// The [`TorqueCheck`] of the measured torque `measured` \[N m\] (one per point of `map`,

@@ -115,34 +115,9 @@ pub fn mechanics_windows(e: &Experiment, options: &MechanicsOptions, load: bool)
     windows_at(e, options, load, options.coulomb_speed.unwrap_or(1.0))
 }
 
-/// The linear axis' own faults: a lead that is not positive and finite (`axis`), a gravity
-/// term (`gravity`: a linear axis' weight is a constant force, `terms.constant`).
-///
-/// # Errors
-/// [`Error::InvalidOption`] naming the option.
-fn check_axis(options: &MechanicsOptions) -> Result<()> {
-    if let Axis::Linear { lead } = options.axis {
-        if !(lead.is_finite() && lead > 0.0) {
-            return Err(Error::InvalidOption {
-                option: "axis".into(),
-                reason: format!("a lead of {lead} m: the travel per revolution must be positive and finite"),
-            });
-        }
-        if options.terms.gravity {
-            return Err(Error::InvalidOption {
-                option: "gravity".into(),
-                reason: "a linear axis' weight is a constant force along it: the constant load (--constant-load), \
-                         not an arm's gravity"
-                    .into(),
-            });
-        }
-    }
-    Ok(())
-}
-
 /// [`mechanics_windows`] at the Coulomb speed `w_c` \[rad/s; m/s on a linear axis\].
 fn windows_at(e: &Experiment, options: &MechanicsOptions, load: bool, w_c: f64) -> Result<Experiment> {
-    check_axis(options)?;
+    options.axis.check(options.terms)?;
     let h = e.h();
     if !(options.window.is_finite() && options.window > 0.0) {
         return Err(Error::InvalidOption {

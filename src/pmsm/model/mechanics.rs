@@ -82,6 +82,33 @@ impl Axis {
         *self == Self::Rotary
     }
 
+    /// The faults of a linear axis with `terms`: a lead that is not positive and finite
+    /// (`axis`), a gravity term (`gravity`: a linear axis' weight is a constant force,
+    /// [`MechanicsTerms::constant`]). The shaft has none.
+    ///
+    /// # Errors
+    /// [`crate::Error::InvalidOption`] naming the option.
+    pub fn check(self, terms: MechanicsTerms) -> Result<()> {
+        let Self::Linear { lead } = self else { return Ok(()) };
+        let invalid =
+            |option: &str, reason: String| crate::Error::InvalidOption { option: option.into(), reason };
+        if !(lead.is_finite() && lead > 0.0) {
+            return Err(invalid(
+                "axis",
+                format!("a lead of {lead} m: the travel per revolution must be positive and finite"),
+            ));
+        }
+        if terms.gravity {
+            return Err(invalid(
+                "gravity",
+                "a linear axis' weight is a constant force along it: the constant load (--constant-load), not an \
+                 arm's gravity"
+                    .into(),
+            ));
+        }
+        Ok(())
+    }
+
     /// Names and units of `[inertia, viscous, Coulomb, gravity, constant load]` (the gravity
     /// load is the shaft's only) and the speed's unit.
     pub fn names(self) -> ([(&'static str, &'static str); 5], &'static str) {

@@ -326,9 +326,14 @@ impl Saturation {
     /// Electromagnetic torque `T_e = 1.5 n_p (ψ_d i_q − ψ_q i_d)` \[N m\] at the flux `psi`
     /// \[V s\] (MODEL.md §2, amplitude-invariant dq).
     pub fn torque(&self, n_p: u32, psi: [f64; 2]) -> f64 {
-        let i = self.current(psi);
-        1.5 * f64::from(n_p) * (psi[0] * i[1] - psi[1] * i[0])
+        flux_torque(n_p, self.current(psi), psi)
     }
+}
+
+/// Electromagnetic torque `T_e = 1.5 n_p (ψ_d i_q − ψ_q i_d)` \[N m\] of the dq current `i`
+/// \[A, peak\] and flux linkage `psi` \[V s\] (MODEL.md §2, amplitude-invariant dq).
+pub(crate) fn flux_torque(n_p: u32, i: [f64; 2], psi: [f64; 2]) -> f64 {
+    1.5 * f64::from(n_p) * (psi[0] * i[1] - psi[1] * i[0])
 }
 
 #[cfg(test)]
