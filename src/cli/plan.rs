@@ -236,7 +236,8 @@ pub(super) fn pole_pairs(
     kind: MotorKind,
     options: Option<&PmsmFitOptions>,
 ) -> crate::Result<(u32, Option<String>)> {
-    use crate::pmsm::{POLE_PAIR_CANDIDATES as C, choose_pole_pairs, choose_pole_pairs_by_fit};
+    use crate::pmsm::thresholds::POLE_PAIR_CANDIDATES as C;
+    use crate::pmsm::{choose_pole_pairs, choose_pole_pairs_by_fit};
     match (given, options) {
         (PolePairs::Given(n), _) => Ok((n, None)),
         (PolePairs::Auto, None) => {

@@ -1,5 +1,5 @@
 //! Everything the library knows about permanent-magnet synchronous motors, behind one
-//! public face: the items below are the whole API; the modules are private.
+//! public face: the items below are the whole API; the modules are private but [`thresholds`].
 //!
 //! Inside, in dependency order (each layer uses only the ones before it):
 //! - `log`: the reader for drive logs ([`read_log`]: units, frames, dq from phases), the
@@ -12,7 +12,9 @@
 //!   the fit's start;
 //! - `checks`: the setup scan and the detectors that name a setup mistake;
 //! - `fit`: the workflow [`fit_pmsm`] and what builds on it ([`fit_estimating_input`],
-//!   [`fit_pmsm_iv`], [`choose_pole_pairs_by_fit`]), the report [`PmsmFit`], validation.
+//!   [`fit_pmsm_iv`], [`choose_pole_pairs_by_fit`]), the report [`PmsmFit`], validation;
+//! - [`thresholds`], the one public module: the ratios, thresholds and search ranges the
+//!   fits decide by, out of this face.
 //!
 //! Physics and conventions: Tenerz (2011), *Parameter estimation in a permanent magnet
 //! synchronous motor*, chapters 3 and 5; MODEL.md (`docs/model.md`). dq quantities are
@@ -24,42 +26,26 @@ mod linear;
 mod log;
 mod model;
 mod options;
+pub mod thresholds;
 
-pub use checks::advice::{LATE_SLOPE, THRESHOLD as LATE_VOLTAGE_THRESHOLD};
-pub use checks::columns::COLUMN_RATIO;
-pub use checks::delay::DELAY_RATIO;
-pub use checks::detect::{
-    MAX_H_OVER_TAU, POLE_PAIR_CANDIDATES, POLE_PAIR_RATIO, SALIENCY, SALIENT_CERTAIN, SALIENT_LIKELY,
-    SPEED_MISMATCH, choose_pole_pairs, pole_pair_losses,
-};
+pub use checks::detect::{choose_pole_pairs, pole_pair_losses};
 pub use checks::limit::VoltageLimitWeighting;
-pub use checks::noise::NEGLIGIBLE_VOLTAGE_NOISE;
-pub use fit::auto_mask::FALLBACK_RELATIVE_THRESHOLD;
 pub use fit::auto_method::fit_pmsm_by;
-pub use fit::flux_map::{ExponentCandidate, FLUX_MAP_REFINED, FluxMapFit, FluxMapOptions, fit_flux_map};
-pub use fit::flux_map_check::{INDUCTANCE_WITHIN, MapCheck, MapModel, NO_LOAD_WITHIN, PointCheck};
+pub use fit::flux_map::{ExponentCandidate, FluxMapFit, FluxMapOptions, fit_flux_map};
+pub use fit::flux_map_check::{MapCheck, MapModel, PointCheck};
 pub use fit::flux_map_torque::{TorqueCheck, torque_check};
-pub use fit::hold::{DQ_DECISIVE, HOLD_TIE_Z, SCREEN_DECISIVE};
-pub use fit::input_search::{ADVANCE_RANGE, DELAYS, InputSearch, fit_estimating_input};
-pub use fit::iv::{
-    Estimator, IV_MAX_ITERATIONS, IV_STEP_TOLERANCE, check_options as check_iv_options, fit_pmsm_iv,
-    fit_pmsm_iv_after,
-};
-pub use fit::mechanics::{
-    COULOMB_SPEED_RANGE, LOAD_TORQUE, MIN_WINDOWS, MechanicsFit, MechanicsOptions, fit_mechanics,
-    mechanics_windows,
-};
-pub use fit::pole_pairs::{AUTO_CANDIDATES, AutoPolePairs, choose_pole_pairs_by_fit};
+pub use fit::input_search::{InputSearch, fit_estimating_input};
+pub use fit::iv::{Estimator, check_options as check_iv_options, fit_pmsm_iv, fit_pmsm_iv_after};
+pub use fit::mechanics::{LOAD_TORQUE, MechanicsFit, MechanicsOptions, fit_mechanics, mechanics_windows};
+pub use fit::pole_pairs::{AutoPolePairs, choose_pole_pairs_by_fit};
 pub use fit::report::{PmsmFit, ReportOptions, StartComparison, conventions, estimate_table};
-pub use fit::saturated::{LOCAL_MINIMUM_EXCESS, SaturatedFit, fit_saturated};
-pub use fit::search::SPEED_PLL_RANGE;
-pub use fit::standstill::{STANDSTILL_T0, StandstillFit, StandstillOptions, UNEXCITED_AXIS, fit_standstill};
+pub use fit::saturated::{SaturatedFit, fit_saturated};
+pub use fit::standstill::{STANDSTILL_T0, StandstillFit, StandstillOptions, fit_standstill};
 pub use fit::validate::SavedModel;
 pub use fit::workflow::fit_pmsm;
-pub use linear::report::LS_BIAS_UNTRUSTED;
 pub use linear::{
-    LinearEstimate, LinearOptions, PERIOD_TERM, STEADY_UNIDENTIFIABLE, SteadyEstimate, SteadyOptions,
-    least_squares, regressors, steady_advice, steady_state, weighted_least_squares,
+    LinearEstimate, LinearOptions, PERIOD_TERM, SteadyEstimate, SteadyOptions, least_squares, regressors,
+    steady_advice, steady_state, weighted_least_squares,
 };
 pub use log::flux_map::{FluxMapColumns, FluxMapRead, NPZ_ARRAYS, read_flux_map, read_flux_map_with};
 pub use log::signals::{DqSignals, DqView, MAX_POLE_PAIRS, MIN_SAMPLES, PmsmError, channel};
@@ -79,7 +65,7 @@ pub use model::interval::{
     applied_voltage, interval_mean_speed, intervals, model_intervals, reference_intervals, rotation,
     stator_hold_start,
 };
-pub use model::inverter::{DEFAULT_RELATIVE_WIDTH, InverterModel, dead_time_directions};
+pub use model::inverter::{InverterModel, dead_time_directions};
 pub use model::ipm::PmsmIpm;
 pub use model::kind::{MotorKind, derived};
 pub use model::mask::{DeadTimeMask, DeadTimeMaskWeighting};
@@ -89,9 +75,7 @@ pub(crate) use model::pwm::PwmPlantStep;
 pub use model::pwm::{
     CarrierEdge, Modulator, PmsmPwm, PwmCoefficients, PwmInputs, PwmInverter, PwmUpdate, SignMargin,
 };
-pub use model::saturated::{
-    PmsmSaturated, SATURATED_SUBSTEP_RHO, SaturatedCoefficients, saturated_step, saturated_substeps,
-};
+pub use model::saturated::{PmsmSaturated, SaturatedCoefficients, saturated_step, saturated_substeps};
 pub use model::saturation::{
     CurrentDerivatives, Inductances, SATURATION_PARAMETERS, Saturation, SaturationExponents,
 };

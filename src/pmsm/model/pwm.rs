@@ -128,7 +128,7 @@ pub struct PwmInverter {
     pub predictor_gain: Option<f64>,
     /// Whether the fit searches the bandwidth of the controller's phase-locked loop
     /// (`--speed-pll estimate`): after the continuation, by the one-step loss over
-    /// [`crate::pmsm::SPEED_PLL_RANGE`] and against the logged angle and speed.
+    /// [`crate::pmsm::thresholds::SPEED_PLL_RANGE`] and against the logged angle and speed.
     #[serde(default)]
     pub search_speed_pll: bool,
 }
