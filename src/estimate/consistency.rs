@@ -67,13 +67,52 @@ pub fn homogeneity(segments: &[FitResult], floor: f64) -> Vec<Homogeneity> {
         .collect()
 }
 
+/// As [`homogeneity`], for parts that need not all estimate every parameter (a standstill
+/// test whose parts each excite one axis): each free shared parameter, in the order the
+/// fits first name it, tested over the fits that estimate it with a finite, positive
+/// standard error, when there are at least two of them.
+pub fn homogeneity_where_estimated(segments: &[FitResult], floor: f64) -> Vec<Homogeneity> {
+    let mut names: Vec<&str> = Vec::new();
+    for p in segments.iter().flat_map(|s| &s.parameters) {
+        if !p.fixed && p.experiment.is_none() && !names.contains(&p.name.as_str()) {
+            names.push(&p.name);
+        }
+    }
+    names
+        .into_iter()
+        .filter_map(|name| {
+            let (estimates, std_errors): (Vec<f64>, Vec<f64>) = segments
+                .iter()
+                .filter_map(|s| {
+                    let q = s.parameter(name).filter(|q| !q.fixed)?;
+                    (q.std_error.is_finite() && q.std_error > 0.0 && q.value.is_finite())
+                        .then_some((q.value, q.std_error))
+                })
+                .unzip();
+            if estimates.len() < 2 {
+                return None;
+            }
+            let size = floor * estimates.iter().map(|t| t.abs()).sum::<f64>() / estimates.len() as f64;
+            let std_errors = std_errors.iter().map(|s| s.hypot(size)).collect();
+            Some(test(name, estimates, std_errors))
+        })
+        .collect()
+}
+
 /// The parameters on which the fits of consecutive parts `fits` disagree beyond their
 /// intervals: Cochran's Q of each (standard errors taken at least `floor` relative, the
 /// accuracy of an exact fit) below `family_level` divided by the number of parameters
 /// tested (Bonferroni), with a spread above `floor`; each with the parts' estimates and the
 /// test, joined by `; `. `None` when they agree (or fewer than two fits).
 pub fn disagreement(fits: &[FitResult], floor: f64, family_level: f64) -> Option<String> {
-    let tests = homogeneity(fits, floor);
+    disagreement_of(&homogeneity(fits, floor), floor, family_level)
+}
+
+/// [`disagreement`]'s verdict on given `tests` ([`homogeneity`] or
+/// [`homogeneity_where_estimated`]): those whose Q is below `family_level` divided by their
+/// number, with a relative spread above `floor`, each with the parts' estimates and the
+/// test, joined by `; `. `None` when none is.
+pub fn disagreement_of(tests: &[Homogeneity], floor: f64, family_level: f64) -> Option<String> {
     let level = family_level / tests.len().max(1) as f64;
     let failed: Vec<&Homogeneity> =
         tests.iter().filter(|h| h.p_value < level && h.relative_spread > floor).collect();
