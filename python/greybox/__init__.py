@@ -343,7 +343,10 @@ def standstill(log: Any, *, pole_pairs: int, **options: Any) -> Report:
 
     ``options``: ``terminal=True`` (the measured voltage), ``delay`` [samples], ``width``
     [A], ``col_temperature`` (a winding-temperature column [°C]: ``r_s`` at 20 °C). Returns
-    a :class:`Report` (``fit``, ``axes``, ``injection_for_one_percent`` [s], …).
+    a :class:`Report` (``fit``, ``axes``, ``injection_for_one_percent`` [s], …). The two
+    halves of the logs are refitted alone; where they disagree beyond their intervals (a
+    winding heating without its temperature column) the fit carries the untrusted warning
+    ``segments_disagree`` (Cochran's Q, family level 1e-3; docs/standstill.md).
 
     Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
     """
