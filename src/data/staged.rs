@@ -86,7 +86,7 @@ fn sweep_stale(dir: &Path) {
     for (manifest, _) in found.iter().filter(|(_, m)| *m) {
         if let Ok(text) = std::fs::read_to_string(manifest) {
             for (tmp, target) in text.lines().filter_map(|l| l.split_once('\t')) {
-                if Path::new(tmp).exists() {
+                if Path::new(tmp).exists() && !special(Path::new(target)) {
                     let _ = std::fs::rename(tmp, target);
                 }
             }
@@ -153,7 +153,14 @@ impl Staged {
 
     /// A fresh temporary path beside `path`, ending in its file name, registered as live.
     fn temporary(path: &Path) -> PathBuf {
-        let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        // A device or pipe (`/dev/null`, `/dev/stdout`) is written into from the system's
+        // temporary folder: its own folder may not be writable, and it is never replaced.
+        let system = std::env::temp_dir();
+        let dir = match path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            _ if special(path) => system.as_path(),
+            Some(d) => d,
+            None => Path::new("."),
+        };
         sweep_stale(dir);
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let seq = SEQ.fetch_add(1, Ordering::Relaxed);
@@ -222,7 +229,7 @@ impl Staged {
         let manifests = if files.len() > 1 { write_manifest(&files) } else { Vec::new() };
         let _done = Removal(manifests);
         for (i, (tmp, target)) in files.iter().enumerate() {
-            let renamed = std::fs::rename(tmp, target);
+            let renamed = if special(target) { copy_into(tmp, target) } else { std::fs::rename(tmp, target) };
             forget(tmp);
             if let Err(source) = renamed {
                 for (tmp, _) in &files[i..] {
@@ -234,6 +241,22 @@ impl Staged {
         }
         Ok(())
     }
+}
+
+/// Whether `target` exists and is neither a regular file nor a folder: a device such as
+/// `/dev/null`, a pipe, a terminal. Renaming a file over it would replace the device with
+/// a file (`--json /dev/null` run as root once made `/dev/null` a regular file, which every
+/// later reader of `/dev/null` then read back), so it is written into instead.
+fn special(target: &Path) -> bool {
+    std::fs::metadata(target).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
+/// Copies the temporary `tmp` into the existing special file `target`, then removes it.
+fn copy_into(tmp: &Path, target: &Path) -> std::io::Result<()> {
+    let mut from = std::fs::File::open(tmp)?;
+    let mut to = std::fs::OpenOptions::new().write(true).open(target)?;
+    std::io::copy(&mut from, &mut to)?;
+    std::fs::remove_file(tmp)
 }
 
 /// Removes the manifests when a commit ends, renamed or failed.
@@ -309,5 +332,33 @@ mod tests {
             .collect();
         assert!(left.is_empty(), "{left:?}");
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A device stays a device: written into, not replaced by a renamed file (before, a
+    /// root process's `--json /dev/null` left `/dev/null` a regular file); the temporary
+    /// gone from the system's temporary folder.
+    #[cfg(unix)]
+    #[test]
+    fn a_device_is_written_into_not_replaced() {
+        use std::os::unix::fs::FileTypeExt;
+        let null = Path::new("/dev/null");
+        if !std::fs::metadata(null).is_ok_and(|m| m.file_type().is_char_device()) {
+            eprintln!("skipped: /dev/null is no character device here");
+            return;
+        }
+        let mut staged = Staged::new();
+        staged.write(null, |w| w.write_all(b"report")).unwrap();
+        staged.write(null, |w| w.write_all(b"again")).unwrap();
+        staged.commit().unwrap();
+        assert!(std::fs::metadata(null).unwrap().file_type().is_char_device());
+        let left: Vec<String> = std::fs::read_dir(std::env::temp_dir())
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| {
+                n.starts_with(&format!("{TEMPORARY_PREFIX}{}.", std::process::id())) && n.ends_with(".null")
+            })
+            .collect();
+        assert!(left.is_empty(), "{left:?}");
     }
 }
