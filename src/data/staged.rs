@@ -155,9 +155,12 @@ impl Staged {
     fn temporary(path: &Path) -> PathBuf {
         // A device or pipe (`/dev/null`, `/dev/stdout`) is written into from the system's
         // temporary folder: its own folder may not be writable, and it is never replaced.
-        let system = std::env::temp_dir();
+        let system;
         let dir = match path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            _ if special(path) => system.as_path(),
+            _ if special(path) => {
+                system = std::env::temp_dir();
+                system.as_path()
+            }
             Some(d) => d,
             None => Path::new("."),
         };

@@ -51,18 +51,10 @@ pub fn homogeneity(segments: &[FitResult], floor: f64) -> Vec<Homogeneity> {
         .iter()
         .filter(|p| !p.fixed && p.experiment.is_none())
         .filter_map(|p| {
-            let pairs: Option<Vec<(f64, f64)>> = segments
-                .iter()
-                .map(|s| {
-                    let q = s.parameter(&p.name)?;
-                    (q.std_error.is_finite() && q.std_error > 0.0 && q.value.is_finite())
-                        .then_some((q.value, q.std_error))
-                })
-                .collect();
+            let pairs: Option<Vec<(f64, f64)>> =
+                segments.iter().map(|s| usable(s.parameter(&p.name)?)).collect();
             let (estimates, std_errors): (Vec<f64>, Vec<f64>) = pairs?.into_iter().unzip();
-            let size = floor * estimates.iter().map(|t| t.abs()).sum::<f64>() / estimates.len() as f64;
-            let std_errors = std_errors.iter().map(|s| s.hypot(size)).collect();
-            Some(test(&p.name, estimates, std_errors))
+            Some(floored_test(&p.name, estimates, &std_errors, floor))
         })
         .collect()
 }
@@ -81,20 +73,9 @@ pub fn homogeneity_where_estimated(segments: &[FitResult], floor: f64) -> Vec<Ho
     names
         .into_iter()
         .filter_map(|name| {
-            let (estimates, std_errors): (Vec<f64>, Vec<f64>) = segments
-                .iter()
-                .filter_map(|s| {
-                    let q = s.parameter(name).filter(|q| !q.fixed)?;
-                    (q.std_error.is_finite() && q.std_error > 0.0 && q.value.is_finite())
-                        .then_some((q.value, q.std_error))
-                })
-                .unzip();
-            if estimates.len() < 2 {
-                return None;
-            }
-            let size = floor * estimates.iter().map(|t| t.abs()).sum::<f64>() / estimates.len() as f64;
-            let std_errors = std_errors.iter().map(|s| s.hypot(size)).collect();
-            Some(test(name, estimates, std_errors))
+            let (estimates, std_errors): (Vec<f64>, Vec<f64>) =
+                segments.iter().filter_map(|s| usable(s.parameter(name).filter(|q| !q.fixed)?)).unzip();
+            (estimates.len() >= 2).then(|| floored_test(name, estimates, &std_errors, floor))
         })
         .collect()
 }
@@ -205,6 +186,20 @@ pub fn consecutive_parts(
                 .collect()
         })
         .collect()
+}
+
+/// A parameter's `(estimate, standard error)` when both are finite and the standard error
+/// positive (a part that cannot tell the parameter is left out of its test).
+fn usable(q: &crate::estimate::ParameterEstimate) -> Option<(f64, f64)> {
+    (q.std_error.is_finite() && q.std_error > 0.0 && q.value.is_finite()).then_some((q.value, q.std_error))
+}
+
+/// [`test`] with each standard error taken at least `floor` (relative) of the estimates'
+/// mean size, in quadrature ([`homogeneity`]).
+fn floored_test(name: &str, estimates: Vec<f64>, std_errors: &[f64], floor: f64) -> Homogeneity {
+    let size = floor * estimates.iter().map(|t| t.abs()).sum::<f64>() / estimates.len() as f64;
+    let std_errors = std_errors.iter().map(|s| s.hypot(size)).collect();
+    test(name, estimates, std_errors)
 }
 
 /// Cochran's Q of one parameter's estimates and standard errors.

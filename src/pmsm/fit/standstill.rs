@@ -11,7 +11,7 @@ use crate::estimate::{
 use crate::model::GreyBoxModel;
 use crate::pmsm::fit::report::estimate_table;
 use crate::pmsm::model::inverter::DEFAULT_RELATIVE_WIDTH;
-use crate::pmsm::model::standstill::{StandstillModel, StandstillSetup, WINDING_TEMPERATURE};
+use crate::pmsm::model::standstill::{StandstillModel, StandstillSetup, WINDING_TEMPERATURE, delayed};
 use crate::pmsm::model::temperature::ALPHA_COPPER;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -211,11 +211,7 @@ fn delayed_reference(e: &Experiment, d: usize) -> Result<Experiment> {
         .channels()
         .iter()
         .map(|c| match c.name.as_str() {
-            "ud_ref" | "uq_ref" => {
-                let v = &c.values;
-                let shifted = (0..v.len()).map(|k| if k >= d { v[k - d] } else { 0.0 }).collect();
-                Channel::new(c.name.clone(), c.unit.clone(), shifted)
-            }
+            "ud_ref" | "uq_ref" => Channel::new(c.name.clone(), c.unit.clone(), delayed(&c.values, d)),
             _ => c.clone(),
         })
         .collect();

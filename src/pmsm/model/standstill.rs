@@ -190,11 +190,7 @@ impl GreyBoxModel for StandstillModel {
     fn prepare(&self, e: &Experiment) -> Result<StandstillInputs> {
         let n = e.len();
         let u = match self.setup.reference_delay {
-            Some(d) => {
-                let delayed =
-                    |c: &[f64]| (0..n).map(|k| if k >= d { c[k - d] } else { 0.0 }).collect::<Vec<f64>>();
-                [delayed(e.channel("ud_ref")?), delayed(e.channel("uq_ref")?)]
-            }
+            Some(d) => [delayed(e.channel("ud_ref")?, d), delayed(e.channel("uq_ref")?, d)],
             None => [e.channel("ud")?.to_vec(), e.channel("uq")?.to_vec()],
         };
         let theta_e = match self.setup.reference_delay {
@@ -238,4 +234,10 @@ impl GreyBoxModel for StandstillModel {
             x_next[j] = decay * x[j] + (1.0 - decay) * u / r;
         }
     }
+}
+
+/// The reference `c` \[V\] as the motor receives it `d` samples later: `c[k − d]`, and 0
+/// before the first arrives (a standstill test starts at rest). Length of `c`.
+pub(crate) fn delayed(c: &[f64], d: usize) -> Vec<f64> {
+    (0..c.len()).map(|k| if k >= d { c[k - d] } else { 0.0 }).collect()
 }
