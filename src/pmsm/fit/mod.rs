@@ -19,6 +19,7 @@ pub(super) mod mechanics;
 mod mechanics_report;
 pub(super) mod pole_pairs;
 mod pwm_fit;
+mod pwm_leg_state;
 mod pwm_loop;
 mod pwm_mask;
 mod pwm_noise;

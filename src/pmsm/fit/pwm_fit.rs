@@ -2,6 +2,7 @@
 //! smooth leg states ([`super::pwm_start::continuation`]), the fit of the model asked for,
 //! then its sign mask ([`super::pwm_mask`]) and the final fit without the masked samples.
 
+use super::pwm_leg_state::{Final, Fit};
 use crate::data::Experiment;
 use crate::error::Result;
 use crate::estimate::{FitResult, Warning, Weighting};
@@ -91,10 +92,22 @@ pub(crate) fn stages(
         // At the width held, the masked fit is a start (of the sign's fit) and a loss to
         // compare with the sign's: at the stages' tolerance, converged only if it is kept.
         let fits = stage_fit(*pwm, input, &theta, &names, &mask, &["i_w"])?;
-        leg_state(experiments, fits, pwm, input, &names, &theta, &mask, model, fit, notes, warnings)?
+        let sides = super::pwm_leg_state::Sides { experiments, pwm, input, weighting, model, fit, stage_fit };
+        super::pwm_leg_state::leg_state(&sides, fits, &names, &theta, &mask, notes, warnings)?
     } else {
         let fits = fit(*pwm, input, &theta, &names, &mask, &[])?;
-        match compensate(experiments, &fits, *pwm, input, &names, &theta, &mask, model, fit, notes)? {
+        match super::pwm_leg_state::compensate(
+            experiments,
+            &fits,
+            *pwm,
+            input,
+            &names,
+            &theta,
+            &mask,
+            model,
+            fit,
+            notes,
+        )? {
             Some((fits, compensated, _)) => {
                 Final { fits, inverter: *pwm, names, start: theta, own_mask: Some(compensated) }
             }
@@ -177,141 +190,3 @@ pub(crate) fn stages(
     }
     Ok((last.fits, input, last.inverter))
 }
-
-/// The final fit of [`stages`]: its fits, inverter, free parameters and start, and its mask
-/// when that is not the stages' (compensated for the current's noise, or taken again at
-/// the final estimate).
-struct Final<'w, 'n> {
-    fits: HoldFits,
-    inverter: PwmInverter,
-    names: Vec<&'n str>,
-    start: Vec<f64>,
-    own_mask: Option<super::pwm_mask::SignMask<'w>>,
-}
-
-/// The leg state of a fit whose width `i_w` the unmasked fit estimated (`fits`, the masked
-/// fit at that width held at the stages' tolerance, converged here if the width is kept;
-/// parameters `names` from `theta`): the width kept or the sign
-/// taken, by the lower loss on the masked samples, or the sign where the measured current's
-/// noise is material (the width holds it) with its criterion compensated; then a width
-/// wider than that noise makes of a hard switch ([`NOISE_WIDTH`]) is an untrusted
-/// `leg_state_unresolved` warning in `warnings`.
-///
-/// # Errors
-/// Those of the fits and of [`compensate`].
-#[allow(clippy::too_many_arguments)]
-fn leg_state<'w, 'n>(
-    experiments: &[Experiment],
-    fits: HoldFits,
-    pwm: &PwmInverter,
-    input: VoltageInput,
-    names: &[&'n str],
-    theta: &[f64],
-    mask: &super::pwm_mask::SignMask<'w>,
-    model: &dyn Fn(PwmInverter, VoltageInput) -> Result<PmsmPwm>,
-    fit: &Fit<'_>,
-    notes: &mut Vec<String>,
-    warnings: &mut Vec<Warning>,
-) -> Result<Final<'w, 'n>> {
-    // The width the unmasked fit finds holds the measured current's noise as well as the
-    // legs' parasitic capacitances (a one-step prediction from a noisy current turns its
-    // signs near zero as a wide leg state would), and the atan's slow tail then reaches the
-    // kept samples: 0.05 A of noise gave i_w = 0.015 A and r_s 2.5 % low. Where that noise
-    // is material the sign is taken (and its criterion compensated); otherwise the sign's
-    // fit on the same samples decides, by the lower loss.
-    let sign = PwmInverter { i_w: None, estimate_i_w: false, ..*pwm };
-    let sign_names: Vec<&'n str> = names.iter().copied().filter(|n| *n != "i_w").collect();
-    let sign_start = super::pwm_start::carried(Some(&fits.best.1), &sign_names, theta, names);
-    let sign_fits = fit(sign, input, &sign_start, &sign_names, mask, &[])?;
-    let (width, hard) = (fits.best.1.fit.loss, sign_fits.best.1.fit.loss);
-    let i_w = fits.best.1.parameter("i_w").map_or(f64::NAN, |p| p.value);
-    let compensated =
-        compensate(experiments, &sign_fits, sign, input, &sign_names, &sign_start, mask, model, fit, notes)?;
-    let keep_sign = compensated.is_some() || hard <= width;
-    // A width the noise cannot make: the legs switch softly, which the sign taken under
-    // this noise does not describe.
-    if let Some(rms) = compensated.as_ref().map(|c| c.2).filter(|rms| i_w > NOISE_WIDTH * rms) {
-        warnings.push(Warning::untrusted(
-            "leg_state_unresolved",
-            format!(
-                "the unmasked fit's PWM leg-state width i_w = {i_w:.3e} A is wider than the measured current's noise \
-                 makes of a hard switch ({:.3e} A, σ = {rms:.3e} A per axis), so the inverter's legs switch softly \
-                 (parasitic capacitances); under this noise the fit takes the sign, which does not describe them, \
-                 and its estimates carry that model error; fit a log with less current noise (a width given with \
-                 --leg-state-width is fitted without the noise's compensation: on a generated log with 0.05 A per \
-                 phase that fit's parts disagreed, L 8 % low)",
-                NOISE_WIDTH * rms
-            ),
-        ));
-    }
-    notes.push(format!(
-        "PWM leg state on the masked samples: the width i_w = {i_w:.3e} A of the unmasked fit held (loss \
-         {width:.6e}) against the sign ({hard:.6e}): {}",
-        match (keep_sign, compensated.is_some()) {
-            (true, true) => "the sign (the measured current's noise is material, and the width holds it)",
-            (true, false) => "the sign",
-            (false, _) => "the width",
-        }
-    ));
-    Ok(match (keep_sign, compensated) {
-        (true, Some((fits, m, _))) => {
-            Final { fits, inverter: sign, names: sign_names, start: sign_start, own_mask: Some(m) }
-        }
-        (true, None) => {
-            Final { fits: sign_fits, inverter: sign, names: sign_names, start: sign_start, own_mask: None }
-        }
-        (false, _) => {
-            // Converged from the stages' tolerance.
-            let start = super::pwm_start::carried(Some(&fits.best.1), names, theta, names);
-            let fits = fit(*pwm, input, &start, names, mask, &["i_w"])?;
-            Final { fits, inverter: *pwm, names: names.to_vec(), start, own_mask: None }
-        }
-    })
-}
-
-/// The final fit `fits` (parameters `names`, from `start`) of a PWM model whose leg states
-/// are hard signs and whose predictor restarts from the measured current, refitted from its
-/// estimate with the criterion compensated for the measured current's noise on that start
-/// where it is material ([`super::pwm_noise`]), with the compensated mask; `None`
-/// otherwise (other leg states or gains, or noise below
-/// [`super::pwm_noise::START_NOISE_SHARE`]); and the noise's rms per axis \[A\].
-///
-/// # Errors
-/// Those of [`super::pwm_noise::compensation`] and of the fit.
-#[allow(clippy::too_many_arguments)]
-fn compensate<'w>(
-    experiments: &[Experiment],
-    fits: &HoldFits,
-    inverter: PwmInverter,
-    input: VoltageInput,
-    names: &[&str],
-    start: &[f64],
-    mask: &super::pwm_mask::SignMask<'w>,
-    model: &dyn Fn(PwmInverter, VoltageInput) -> Result<PmsmPwm>,
-    fit: &Fit<'_>,
-    notes: &mut Vec<String>,
-) -> Result<Option<(HoldFits, super::pwm_mask::SignMask<'w>, f64)>> {
-    let hard = inverter.i_w.is_none_or(|w| w <= 0.0) && !inverter.estimate_i_w;
-    if !hard || inverter.predictor_gain != Some(1.0) {
-        return Ok(None);
-    }
-    let super::pwm_noise::StartCompensation { correction, note, rms } =
-        super::pwm_noise::compensation(experiments, &model(inverter, input)?, &fits.best.1, mask)?;
-    notes.push(note);
-    let Some(correction) = correction else { return Ok(None) };
-    let start = super::pwm_start::carried(Some(&fits.best.1), names, start, names);
-    let compensated = mask.compensated(correction);
-    Ok(Some((fit(inverter, input, &start, names, &compensated, &[])?, compensated, rms)))
-}
-
-/// The widest smooth leg state the measured current's noise makes of a hard switch, per
-/// unit of its rms per axis σ: the expected sign of a current under Gaussian noise,
-/// `erf(i / (√2 σ))`, has the slope `√(2/π) / σ` at zero, which `(2/π) atan(i / i_w)` has
-/// at `i_w = σ √(2/π)`. On five logs whose inverter switches hard, with 0.05 A of noise per
-/// phase (σ 0.041 A), the unmasked fit's width was 0.013–0.017 A (0.3–0.4 σ) in every seed;
-/// on one whose legs switch softly over 0.05 A it was 0.052–0.056 A (1.3–1.4 σ).
-pub(crate) const NOISE_WIDTH: f64 = 0.797_884_560_802_865_4;
-
-/// One PWM fit: (inverter, input, start, names, weighting, parameters held at their start).
-pub(crate) type Fit<'a> =
-    dyn Fn(PwmInverter, VoltageInput, &[f64], &[&str], &dyn Weighting, &[&str]) -> Result<HoldFits> + 'a;
