@@ -9,7 +9,7 @@
 
 pub use super::checks::advice::{LATE_SLOPE, THRESHOLD as LATE_VOLTAGE_THRESHOLD};
 pub use super::checks::columns::COLUMN_RATIO;
-pub use super::checks::delay::DELAY_RATIO;
+pub use super::checks::delay::{DELAY_RATIO, PWM_DELAY_SAMPLES};
 pub use super::checks::detect::{
     MAX_H_OVER_TAU, POLE_PAIR_CANDIDATES, POLE_PAIR_RATIO, SALIENCY, SALIENT_CERTAIN, SALIENT_LIKELY,
     SPEED_MISMATCH,
