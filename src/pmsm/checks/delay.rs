@@ -6,7 +6,7 @@
 use crate::data::Experiment;
 use crate::estimate::Warning;
 use crate::pmsm::model::interval::VoltageInput;
-use crate::pmsm::options::{PmsmFitOptions, RefitLoss, confirmed};
+use crate::pmsm::options::{PmsmFitOptions, RefitLoss};
 
 /// How many times lower the loss at a neighbouring delay must be for the check to speak (as
 /// the pole-pair and column checks).
@@ -46,32 +46,33 @@ pub(crate) fn warning(
         ..options.clone()
     };
     let part = options.pwm.and_then(|_| first_part(experiments));
-    // Both neighbours at once (a PWM fit's neighbour repeats its stages: two thirds of its
-    // time went to this check, one neighbour after the other); the earlier delay first. A
-    // PWM neighbour's fits all stop at the stages' tolerance: its loss is then an upper
-    // bound on its minimum, which is all a neighbour that would be named must beat (on the
-    // shared 3 us log the wrong delay's final fits had taken 114 and 51 iterations, 18 s of
-    // the check's 28). On a part, the given delay is fitted there in the same way.
-    let (logs, own) = match &part {
-        Some(p) => (p.as_slice(), Some(at(delay))),
-        None => (experiments, None),
-    };
-    let confirm = |d: Option<usize>, loss: f64| {
+    // The neighbours and, on a part, the given delay all at once (a PWM fit's neighbour
+    // repeats its stages: two thirds of its time went to this check, one neighbour after the
+    // other). A PWM neighbour's fits all stop at the stages' tolerance: its loss is then an
+    // upper bound on its minimum, which is all a neighbour that would be named must beat (on
+    // the shared 3 us log the wrong delay's final fits had taken 114 and 51 iterations, 18 s
+    // of the check's 28). On a part, the given delay is fitted there in the same way.
+    let logs = part.as_deref().unwrap_or(experiments);
+    let fit_at = |d: Option<usize>| {
         let d = d?;
-        Some((d, confirmed(refit, logs, at(d), loss, DELAY_RATIO)?))
+        Some((d, refit(logs, &PmsmFitOptions { start: None, skip_setup_checks: true, ..at(d) })?))
     };
-    let neighbours = |loss: f64| {
-        let (earlier, later) =
-            rayon::join(|| confirm(delay.checked_sub(1), loss), || confirm(delay.checked_add(1), loss));
-        earlier.or(later)
-    };
-    let (other, times) = match own {
-        None => neighbours(loss)?,
-        Some(o) => {
-            let loss = refit(logs, &PmsmFitOptions { start: None, skip_setup_checks: true, ..o })?;
-            neighbours(loss)?
-        }
-    };
+    let ((given, earlier), later) = rayon::join(
+        || {
+            rayon::join(
+                || if part.is_some() { fit_at(Some(delay)) } else { Some((delay, loss)) },
+                || fit_at(delay.checked_sub(1)),
+            )
+        },
+        || fit_at(delay.checked_add(1)),
+    );
+    let loss = given?.1;
+    // The earlier delay first, as its own check would name it.
+    let (other, times) = [earlier, later]
+        .into_iter()
+        .flatten()
+        .find(|(_, alt)| alt * DELAY_RATIO < loss)
+        .map(|(d, alt)| (d, loss / alt))?;
     Some(Warning::untrusted(
         "delay",
         format!(
