@@ -173,3 +173,35 @@ fn short_cuts_of_a_pwm_log_find_its_minimum() {
         }
     }
 }
+
+/// The delay check of a PWM fit compares the delays on the first quarter of a log that
+/// holds four times `PWM_DELAY_SAMPLES`: on the shared 3 µs log (72 000 samples) a wrong
+/// `--delay 0` is named there, the drive's delay of one sample at about 10⁸ times the lower
+/// loss (the bound is 10; before the leg-state choice refitted the sign on its own mask, a
+/// short cut's fit at the right delay could stop in a poor minimum and the quarter named it
+/// at only 28 times).
+#[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
+fn a_wrong_delay_is_named_on_the_first_quarter() {
+    crate::common::require_shared!();
+    let (e, t) = crate::common::load("servo_spm_pwm_deadtime_idinj");
+    assert!(e.len() >= 4 * greybox::pmsm::thresholds::PWM_DELAY_SAMPLES);
+    let options = PmsmFitOptions {
+        input: VoltageInput::Reference { delay: 0, advance: 1.5, speed_pll: None },
+        pwm: Some(greybox::pmsm::PwmInverter {
+            u_dc: Some(560.0),
+            levels: Some(4096),
+            search_speed_pll: true,
+            ..Default::default()
+        }),
+        ..PmsmFitOptions::new(t.n_p)
+    };
+    let fit = fit_pmsm(&[e], &options).unwrap();
+    let warning = fit.warnings.iter().find(|w| w.code == "delay").expect("the delay named");
+    eprintln!("{}", warning.message);
+    assert!(warning.untrusted && warning.message.contains("first quarter"), "{}", warning.message);
+    let times: f64 =
+        warning.message.split(" times lower").next().unwrap().rsplit(' ').next().unwrap().parse().unwrap();
+    assert!(times > 1e4, "{times}");
+    assert!(warning.message.contains("delay of 1 samples"), "{}", warning.message);
+}
