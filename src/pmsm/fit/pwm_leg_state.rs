@@ -29,9 +29,9 @@ pub(super) struct Sides<'a, 'w> {
 /// taken, by the lower loss on the masked samples, or the sign where the measured current's
 /// noise is material (the width holds it) with its criterion compensated; then a width
 /// wider than that noise makes of a hard switch ([`NOISE_WIDTH`]), unless the sign fits the
-/// masked samples [`CONTRADICTS`] times better, is an untrusted `leg_state_unresolved` warning in
-/// `warnings`. Before a width is kept, the sign is refitted on the mask at its own estimate
-/// where that differs ([`sign_on_its_mask`]).
+/// masked samples [`CONTRADICTS`] times better, is an untrusted `leg_state_unresolved`
+/// warning in `warnings`. Before a width is kept, the sign is refitted on the mask at its
+/// own estimate where that differs ([`sign_on_its_mask`]).
 ///
 /// # Errors
 /// Those of the fits, of [`compensate`] and of [`super::pwm_mask::sign_mask`].
@@ -138,11 +138,10 @@ pub(super) fn leg_state<'w, 'n>(
 /// The sign's fit `sign_fits` (parameters `names` from `start`) refitted on the sign mask
 /// at its own estimate where that mask weights out other samples than `mask` (the unmasked
 /// estimate's): the mask, the refit, its start and the mask's note; `None` where the masks
-/// agree. A
-/// sign fitted on the unmasked estimate's mask can stop far above its minimum, where its
-/// own estimate passes periods near zero that the mask keeps: on the shared 3 µs log cut
-/// at 1.75 s its loss 2.4e-3 lost to the width's 4.8e-4, and the width's final fit then
-/// ended at 2.2e-2 with its parts disagreeing (exit 3).
+/// agree. A sign fitted on the unmasked estimate's mask can stop far above its minimum,
+/// where its own estimate passes periods near zero that the mask keeps: on the shared 3 µs
+/// log cut at 1.75 s its loss 2.4e-3 lost to the width's 4.8e-4, and the width's final fit
+/// then ended at 2.2e-2 with its parts disagreeing (exit 3).
 ///
 /// # Errors
 /// Those of [`super::pwm_mask::sign_mask`] and of the fit.
