@@ -158,16 +158,20 @@ fn short_cuts_of_a_pwm_log_find_its_minimum() {
             ])
             .output()
             .unwrap();
+        assert_eq!(out.status.code(), Some(0), "--to {to}: {}", String::from_utf8_lossy(&out.stderr));
         let report: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        if to == "1.75" {
+            let notes = report["pmsm_notes"].to_string();
+            assert!(notes.contains("on the sign's own mask"), "--to {to}: the sign not refitted on its mask");
+        }
         let value = |n: &str| {
             report["parameters"].as_array().unwrap().iter().find(|p| p["name"] == n).unwrap()["value"]
                 .as_f64()
                 .unwrap()
         };
         let errors = [("r_s", t.r_s), ("l_s", t.l_d), ("k_e", t.k_e)].map(|(n, w)| (n, rel(value(n), w)));
-        eprintln!("--to {to}: exit {:?}, relative errors {errors:?}", out.status.code());
-        assert_eq!(out.status.code(), Some(0), "--to {to}: {}", String::from_utf8_lossy(&out.stderr));
+        eprintln!("--to {to}: relative errors {errors:?}");
         for (n, e) in errors {
             assert!(e < 1e-4, "--to {to}: {n} {e:e}");
         }
@@ -175,11 +179,10 @@ fn short_cuts_of_a_pwm_log_find_its_minimum() {
 }
 
 /// The delay check of a PWM fit compares the delays on the first quarter of a log that
-/// holds four times `PWM_DELAY_SAMPLES`: on the shared 3 µs log (72 000 samples) a wrong
-/// `--delay 0` is named there, the drive's delay of one sample at about 10⁸ times the lower
-/// loss (the bound is 10; before the leg-state choice refitted the sign on its own mask, a
-/// short cut's fit at the right delay could stop in a poor minimum and the quarter named it
-/// at only 28 times).
+/// holds four times `PWM_DELAY_SAMPLES` and confirms a neighbour named there on the whole
+/// log: on the shared 3 µs log (72 000 samples) a wrong `--delay 0` is found on the quarter
+/// (at about 10⁸ times the lower loss there; the bound is 10) and confirmed on the whole
+/// log, the drive's delay of one sample at millions of times the lower loss.
 #[test]
 #[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn a_wrong_delay_is_named_on_the_first_quarter() {
@@ -200,6 +203,7 @@ fn a_wrong_delay_is_named_on_the_first_quarter() {
     let warning = fit.warnings.iter().find(|w| w.code == "delay").expect("the delay named");
     eprintln!("{}", warning.message);
     assert!(warning.untrusted && warning.message.contains("first quarter"), "{}", warning.message);
+    assert!(warning.message.contains("confirmed on the whole"), "{}", warning.message);
     let times: f64 =
         warning.message.split(" times lower").next().unwrap().rsplit(' ').next().unwrap().parse().unwrap();
     assert!(times > 1e4, "{times}");

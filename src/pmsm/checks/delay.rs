@@ -12,21 +12,23 @@ use crate::pmsm::options::{PmsmFitOptions, RefitLoss};
 /// the pole-pair and column checks).
 pub const DELAY_RATIO: f64 = 10.0;
 
-/// Fewest samples of the part of each log on which a PWM fit's delays are compared (the
-/// delay check); a log shorter than four times this, whose first quarter would be shorter,
-/// is compared whole.
+/// Fewest samples of the first quarter of each log on which a PWM fit's delays are
+/// compared (the delay check); when any log's quarter would be shorter, the whole logs are
+/// compared.
 pub const PWM_DELAY_SAMPLES: usize = 16_384;
 
 /// After a fit of loss `loss` driven by the reference with a given delay d: an untrusted
 /// `delay` warning when the fit at `d − 1` or `d + 1` (from the least-squares start) has a
 /// [`DELAY_RATIO`] times lower loss. `None` for the terminal voltage.
 ///
-/// A fit through the switching-resolved PWM inverter compares the three delays on the first
-/// quarter of each log (at least [`PWM_DELAY_SAMPLES`] samples), each fitted there from the
-/// least-squares start through the same stages: its neighbours repeat every stage, and on
-/// the whole shared 3 µs log they took 10–11 of the fit's 20 s. A wrong delay changes the
-/// model's every period, so a part shows it as the whole does: on the first quarter of that
-/// log a wrong `--delay 0` or `2` is named at about 10⁴–10⁵ times the right delay's loss.
+/// A fit through the switching-resolved PWM inverter first compares the three delays on the
+/// first quarter of each log (at least [`PWM_DELAY_SAMPLES`] samples), each fitted there from
+/// the least-squares start through the same stages (its neighbours repeat every stage, and
+/// on the whole logs they took half of the fit's time): a wrong delay changes the model's
+/// every period, so a part shows it as the whole does. A neighbour the quarter would name is
+/// then confirmed on the whole logs against `loss`, as without the quarter, so that a poor
+/// minimum of the given delay's fit on the quarter cannot name a neighbour of a right delay
+/// (docs/performance.md has the measured ratios).
 pub(crate) fn warning(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
@@ -45,40 +47,50 @@ pub(crate) fn warning(
         pem: pem.clone(),
         ..options.clone()
     };
-    let part = options.pwm.and_then(|_| first_part(experiments));
-    // The neighbours and, on a part, the given delay all at once (a PWM fit's neighbour
-    // repeats its stages: two thirds of its time went to this check, one neighbour after the
-    // other). A PWM neighbour's fits all stop at the stages' tolerance: its loss is then an
-    // upper bound on its minimum, which is all a neighbour that would be named must beat (on
-    // the shared 3 us log the wrong delay's final fits had taken 114 and 51 iterations, 18 s
-    // of the check's 28). On a part, the given delay is fitted there in the same way.
-    let logs = part.as_deref().unwrap_or(experiments);
-    let fit_at = |d: Option<usize>| {
+    // A PWM neighbour's fits all stop at the stages' tolerance: its loss is then an upper
+    // bound on its minimum, which is all a neighbour that would be named must beat.
+    let fit_at = |logs: &[Experiment], d: Option<usize>| {
         let d = d?;
         Some((d, refit(logs, &PmsmFitOptions { start: None, skip_setup_checks: true, ..at(d) })?))
     };
-    let ((given, earlier), later) = rayon::join(
-        || {
-            rayon::join(
-                || if part.is_some() { fit_at(Some(delay)) } else { Some((delay, loss)) },
-                || fit_at(delay.checked_sub(1)),
-            )
-        },
-        || fit_at(delay.checked_add(1)),
-    );
-    let loss = given?.1;
     // The earlier delay first, as its own check would name it.
-    let (other, times) = [earlier, later]
-        .into_iter()
-        .flatten()
-        .find(|(_, alt)| alt * DELAY_RATIO < loss)
-        .map(|(d, alt)| (d, loss / alt))?;
+    let beating = |found: [Option<(usize, f64)>; 2], loss: f64| {
+        found.into_iter().flatten().find(|(_, alt)| alt * DELAY_RATIO < loss).map(|(d, alt)| (d, loss / alt))
+    };
+    let part = options.pwm.and_then(|_| first_part(experiments));
+    let quarter = part.as_deref().and_then(|logs| {
+        // The three at once: a PWM fit's neighbour repeats its stages.
+        let ((given, earlier), later) = rayon::join(
+            || rayon::join(|| fit_at(logs, Some(delay)), || fit_at(logs, delay.checked_sub(1))),
+            || fit_at(logs, delay.checked_add(1)),
+        );
+        given.map(|(_, g)| beating([earlier, later], g))
+    });
+    let (other, times) = match quarter {
+        // Named on the quarter: confirmed on the whole logs.
+        Some(Some((d, _))) => {
+            (d, crate::pmsm::options::confirmed(refit, experiments, at(d), loss, DELAY_RATIO)?)
+        }
+        Some(None) => return None,
+        // No quarter, or the given delay not fitted there: the whole logs.
+        None => {
+            let (earlier, later) = rayon::join(
+                || fit_at(experiments, delay.checked_sub(1)),
+                || fit_at(experiments, delay.checked_add(1)),
+            );
+            beating([earlier, later], loss)?
+        }
+    };
     Some(Warning::untrusted(
         "delay",
         format!(
             "a fit with a delay of {other} samples has a {times:.0} times lower loss than with the {delay} given{}: \
              the reference acts at another sample than the model assumes; check --delay (or --delay estimate)",
-            if part.is_some() { " (each fitted on the first quarter of the log)" } else { "" }
+            if matches!(quarter, Some(Some(_))) {
+                " (found on the first quarter of the log, confirmed on the whole)"
+            } else {
+                ""
+            }
         ),
     ))
 }

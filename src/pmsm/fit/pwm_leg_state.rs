@@ -14,12 +14,19 @@ use crate::pmsm::model::pwm::{PmsmPwm, PwmInverter};
 /// estimated), the input, the weighting under the sign masks, the model maker, the fit and
 /// the fit at the stages' tolerance.
 pub(super) struct Sides<'a, 'w> {
+    /// The logs fitted.
     pub(super) experiments: &'a [Experiment],
+    /// The stages' inverter, its width `i_w` estimated.
     pub(super) pwm: &'a PwmInverter,
+    /// The voltage input of the masked fits (the loop found).
     pub(super) input: VoltageInput,
+    /// The weighting the sign masks weight out samples of.
     pub(super) weighting: &'w dyn Weighting,
+    /// The model of an inverter and input.
     pub(super) model: &'a dyn Fn(PwmInverter, VoltageInput) -> Result<PmsmPwm>,
+    /// A fit, converged.
     pub(super) fit: &'a Fit<'a>,
+    /// A fit at the stages' tolerance.
     pub(super) stage_fit: &'a Fit<'a>,
 }
 
@@ -60,7 +67,7 @@ pub(super) fn leg_state<'w, 'n>(
     let compensated =
         compensate(experiments, &sign_fits, sign, input, &sign_names, &sign_start, mask, model, fit, notes)?;
     // A width the noise cannot make: the legs switch softly, which the sign taken under
-    // this noise does not describe; unless the sign fits the kept samples [`CONTRADICTS`]
+    // this noise does not describe; unless the sign fits the kept samples CONTRADICTS
     // times better than the width (on a noise-free log cut at 1.8 s, the residual's rounding
     // read as noise of 1.8e-7 A against an unmasked width of 1.2e-5 A, the sign's loss 2000
     // times the lower; under 0.05 A of noise the two were within 0.2 % of each other, on
@@ -223,16 +230,22 @@ pub(crate) const NOISE_WIDTH: f64 = 0.797_884_560_802_865_4;
 /// How many times lower the sign's loss on the masked samples must be than the width's for
 /// it to contradict a width wider than the noise makes (as the pole-pair and delay checks'
 /// ratio): no `leg_state_unresolved` then.
-pub(crate) const CONTRADICTS: f64 = 10.0;
+const CONTRADICTS: f64 = 10.0;
 
 /// The final fit of [`super::pwm_fit::stages`]: its fits, inverter, free parameters and start, and its mask
 /// when that is not the stages' (compensated for the current's noise, or taken again at
 /// the final estimate).
 pub(super) struct Final<'w, 'n> {
+    /// The final fits.
     pub(super) fits: HoldFits,
+    /// Their inverter (its leg state chosen).
     pub(super) inverter: PwmInverter,
+    /// Their free parameters, in the model's order (n_θ names).
     pub(super) names: Vec<&'n str>,
+    /// Their start (n_θ values, in `names`' order).
     pub(super) start: Vec<f64>,
+    /// Their mask where it is not the stages' (compensated, or taken at the sign's own
+    /// estimate).
     pub(super) own_mask: Option<super::pwm_mask::SignMask<'w>>,
 }
 
