@@ -2,7 +2,7 @@
 //! smooth leg states ([`super::pwm_start::continuation`]), the fit of the model asked for,
 //! then its sign mask ([`super::pwm_mask`]) and the final fit without the masked samples.
 
-use super::pwm_leg_state::{Final, Fit};
+use super::pwm_leg_state::{Final, Fit, OwnMask, Sides, on_own_mask};
 use crate::data::Experiment;
 use crate::error::Result;
 use crate::estimate::{FitResult, Warning, Weighting};
@@ -88,26 +88,15 @@ pub(crate) fn stages(
     let (mask, note) = super::pwm_mask::sign_mask(experiments, &model(*pwm, input)?, &theta, weighting)?;
     notes.push(note);
     let names = names.to_vec();
+    let sides = Sides { experiments, pwm, input, weighting, model, fit, stage_fit };
     let mut last = if pwm.estimate_i_w {
         // At the width held, the masked fit is a start (of the sign's fit) and a loss to
         // compare with the sign's: at the stages' tolerance, converged only if it is kept.
         let fits = stage_fit(*pwm, input, &theta, &names, &mask, &["i_w"])?;
-        let sides = super::pwm_leg_state::Sides { experiments, pwm, input, weighting, model, fit, stage_fit };
         super::pwm_leg_state::leg_state(&sides, fits, &names, &theta, &mask, notes, warnings)?
     } else {
         let fits = fit(*pwm, input, &theta, &names, &mask, &[])?;
-        match super::pwm_leg_state::compensate(
-            experiments,
-            &fits,
-            *pwm,
-            input,
-            &names,
-            &theta,
-            &mask,
-            model,
-            fit,
-            notes,
-        )? {
+        match super::pwm_leg_state::compensate(&sides, *pwm, &fits, &names, &theta, &mask, notes)? {
             Some((fits, compensated, _)) => {
                 Final { fits, inverter: *pwm, names, start: theta, own_mask: Some(compensated) }
             }
@@ -121,16 +110,14 @@ pub(crate) fn stages(
     // tolerance) keeps a kink in the loss there: without this the shared IPM log's final
     // fit stopped at one in each variant tried, a Gauss-Newton step of 0.27-2.3 standard
     // errors still to go (`not_stationary`).
-    if last.own_mask.is_none() {
-        let start = super::pwm_start::carried(Some(&last.fits.best.1), &last.names, &last.start, &last.names);
-        let (again, note) =
-            super::pwm_mask::sign_mask(experiments, &model(last.inverter, input)?, &start, weighting)?;
-        if !again.same_samples(&mask) {
-            notes.push(format!("at the final estimate, {note}: refitted"));
-            last.fits = fit(last.inverter, input, &start, &last.names, &again, held)?;
-            last.start = start;
-            last.own_mask = Some(again);
-        }
+    if last.own_mask.is_none()
+        && let Some(OwnMask { mask: again, fits, start, note }) =
+            on_own_mask(&sides, last.inverter, &last.fits, &last.names, &last.start, &mask, held)?
+    {
+        notes.push(format!("at the final estimate, {note}: refitted"));
+        last.fits = fits;
+        last.start = start;
+        last.own_mask = Some(again);
     }
     let Some(mut set) = set else { return Ok((last.fits, input, last.inverter)) };
     let final_weighting: &dyn Weighting = match &last.own_mask {

@@ -38,7 +38,7 @@ pub(super) struct Sides<'a, 'w> {
 /// wider than that noise makes of a hard switch ([`NOISE_WIDTH`]), unless the sign fits the
 /// masked samples [`CONTRADICTS`] times better, is an untrusted `leg_state_unresolved`
 /// warning in `warnings`. Before a width is kept, the sign is refitted on the mask at its
-/// own estimate where that differs ([`sign_on_its_mask`]).
+/// own estimate where that differs ([`on_own_mask`]).
 ///
 /// # Errors
 /// Those of the fits, of [`compensate`] and of [`super::pwm_mask::sign_mask`].
@@ -51,7 +51,7 @@ pub(super) fn leg_state<'w, 'n>(
     notes: &mut Vec<String>,
     warnings: &mut Vec<Warning>,
 ) -> Result<Final<'w, 'n>> {
-    let Sides { experiments, pwm, input, model, fit, .. } = *sides;
+    let Sides { pwm, input, fit, .. } = *sides;
     // The width the unmasked fit finds holds the measured current's noise as well as the
     // legs' parasitic capacitances (a one-step prediction from a noisy current turns its
     // signs near zero as a wide leg state would), and the atan's slow tail then reaches the
@@ -64,8 +64,7 @@ pub(super) fn leg_state<'w, 'n>(
     let sign_fits = fit(sign, input, &sign_start, &sign_names, mask, &[])?;
     let (width, hard) = (fits.best.1.fit.loss, sign_fits.best.1.fit.loss);
     let i_w = fits.best.1.parameter("i_w").map_or(f64::NAN, |p| p.value);
-    let compensated =
-        compensate(experiments, &sign_fits, sign, input, &sign_names, &sign_start, mask, model, fit, notes)?;
+    let compensated = compensate(sides, sign, &sign_fits, &sign_names, &sign_start, mask, notes)?;
     // A width the noise cannot make: the legs switch softly, which the sign taken under
     // this noise does not describe; unless the sign fits the kept samples CONTRADICTS
     // times better than the width (on a noise-free log cut at 1.8 s, the residual's rounding
@@ -111,8 +110,8 @@ pub(super) fn leg_state<'w, 'n>(
         None => {
             let start = super::pwm_start::carried(Some(&fits.best.1), names, theta, names);
             let mut kept = "the width".to_string();
-            if let Some(SignAgain { mask: again, fits: sign_again, start: at, note: mask_note }) =
-                sign_on_its_mask(sides, &sign_fits, &sign_names, &sign_start, mask)?
+            if let Some(OwnMask { mask: again, fits: sign_again, start: at, note: mask_note }) =
+                on_own_mask(sides, sign, &sign_fits, &sign_names, &sign_start, mask, &[])?
             {
                 // Both on the sign's own samples, the width at the stages' tolerance (its
                 // loss an upper bound on its minimum there).
@@ -142,81 +141,85 @@ pub(super) fn leg_state<'w, 'n>(
     })
 }
 
-/// The sign's fit `sign_fits` (parameters `names` from `start`) refitted on the sign mask
-/// at its own estimate where that mask weights out other samples than `mask` (the unmasked
-/// estimate's): the mask, the refit, its start and the mask's note; `None` where the masks
-/// agree. A sign fitted on the unmasked estimate's mask can stop far above its minimum,
-/// where its own estimate passes periods near zero that the mask keeps: on the shared 3 µs
-/// log cut at 1.75 s its loss 2.4e-3 lost to the width's 4.8e-4, and the width's final fit
-/// then ended at 2.2e-2 with its parts disagreeing (exit 3).
+/// The fits `fits` of `inverter` (parameters `names` from `start`, `held` held at their
+/// start) refitted on the sign mask taken at their own estimate where that mask weights out
+/// other samples than `mask`: the mask, the refit, its start (`fits`' estimate) and the
+/// mask's note; `None` where the masks agree. Before a width is kept, the sign's fit on the
+/// unmasked estimate's mask (which can stop far above its minimum where its own estimate
+/// passes periods near zero that the mask keeps: on the shared 3 µs log cut at 1.75 s its
+/// loss 2.4e-3 lost to the width's 4.8e-4, and the width's final fit then ended at 2.2e-2
+/// with its parts disagreeing, exit 3); and the final fit of the stages.
 ///
 /// # Errors
-/// Those of [`super::pwm_mask::sign_mask`] and of the fit.
-fn sign_on_its_mask<'w>(
+/// Those of the model, of [`super::pwm_mask::sign_mask`] and of the fit.
+pub(super) fn on_own_mask<'w>(
     sides: &Sides<'_, 'w>,
-    sign_fits: &HoldFits,
+    inverter: PwmInverter,
+    fits: &HoldFits,
     names: &[&str],
     start: &[f64],
     mask: &super::pwm_mask::SignMask<'w>,
-) -> Result<Option<SignAgain<'w>>> {
-    let sign = PwmInverter { i_w: None, estimate_i_w: false, ..*sides.pwm };
-    let at = super::pwm_start::carried(Some(&sign_fits.best.1), names, start, names);
+    held: &[&str],
+) -> Result<Option<OwnMask<'w>>> {
+    let at = super::pwm_start::carried(Some(&fits.best.1), names, start, names);
     let (again, note) = super::pwm_mask::sign_mask(
         sides.experiments,
-        &(sides.model)(sign, sides.input)?,
+        &(sides.model)(inverter, sides.input)?,
         &at,
         sides.weighting,
     )?;
     if again.same_samples(mask) {
         return Ok(None);
     }
-    let fits = (sides.fit)(sign, sides.input, &at, names, &again, &[])?;
-    Ok(Some(SignAgain { mask: again, fits, start: at, note }))
+    let fits = (sides.fit)(inverter, sides.input, &at, names, &again, held)?;
+    Ok(Some(OwnMask { mask: again, fits, start: at, note }))
 }
 
-/// The sign refitted on its own mask ([`sign_on_its_mask`]).
-struct SignAgain<'w> {
-    mask: super::pwm_mask::SignMask<'w>,
-    fits: HoldFits,
-    /// The refit's start (the sign's estimate on the first mask).
-    start: Vec<f64>,
+/// Fits refitted on their own mask ([`on_own_mask`]).
+pub(super) struct OwnMask<'w> {
+    /// The mask at their estimate.
+    pub(super) mask: super::pwm_mask::SignMask<'w>,
+    /// The refit.
+    pub(super) fits: HoldFits,
+    /// The refit's start (n_θ values: the estimate the mask was taken at).
+    pub(super) start: Vec<f64>,
     /// The mask's note.
-    note: String,
+    pub(super) note: String,
 }
 
-/// The final fit `fits` (parameters `names`, from `start`) of a PWM model whose leg states
-/// are hard signs and whose predictor restarts from the measured current, refitted from its
-/// estimate with the criterion compensated for the measured current's noise on that start
-/// where it is material ([`super::pwm_noise`]), with the compensated mask; `None`
-/// otherwise (other leg states or gains, or noise below
+/// The final fit `fits` (inverter `inverter`, parameters `names`, from `start`) of a PWM
+/// model whose leg states are hard signs and whose predictor restarts from the measured
+/// current, refitted from its estimate with the criterion compensated for the measured
+/// current's noise on that start where it is material ([`super::pwm_noise`]), with the
+/// compensated mask; `None` otherwise (other leg states or gains, or noise below
 /// [`super::pwm_noise::START_NOISE_SHARE`]); and the noise's rms per axis \[A\].
 ///
 /// # Errors
 /// Those of [`super::pwm_noise::compensation`] and of the fit.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn compensate<'w>(
-    experiments: &[Experiment],
-    fits: &HoldFits,
+    sides: &Sides<'_, 'w>,
     inverter: PwmInverter,
-    input: VoltageInput,
+    fits: &HoldFits,
     names: &[&str],
     start: &[f64],
     mask: &super::pwm_mask::SignMask<'w>,
-    model: &dyn Fn(PwmInverter, VoltageInput) -> Result<PmsmPwm>,
-    fit: &Fit<'_>,
     notes: &mut Vec<String>,
 ) -> Result<Option<(HoldFits, super::pwm_mask::SignMask<'w>, f64)>> {
     let hard = inverter.i_w.is_none_or(|w| w <= 0.0) && !inverter.estimate_i_w;
     if !hard || inverter.predictor_gain != Some(1.0) {
         return Ok(None);
     }
-    let super::pwm_noise::StartCompensation { correction, note, rms } =
-        super::pwm_noise::compensation(experiments, &model(inverter, input)?, &fits.best.1, mask)?;
+    let super::pwm_noise::StartCompensation { correction, note, rms } = super::pwm_noise::compensation(
+        sides.experiments,
+        &(sides.model)(inverter, sides.input)?,
+        &fits.best.1,
+        mask,
+    )?;
     notes.push(note);
     let Some(correction) = correction else { return Ok(None) };
     let start = super::pwm_start::carried(Some(&fits.best.1), names, start, names);
     let compensated = mask.compensated(correction);
-    Ok(Some((fit(inverter, input, &start, names, &compensated, &[])?, compensated, rms)))
+    Ok(Some(((sides.fit)(inverter, sides.input, &start, names, &compensated, &[])?, compensated, rms)))
 }
 
 /// The widest smooth leg state the measured current's noise makes of a hard switch, per
