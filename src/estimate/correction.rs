@@ -29,6 +29,15 @@ pub trait CriterionCorrection: Send + Sync + std::fmt::Debug {
     /// [`crate::Error::InvalidParameter`] at a θ where the term is not defined (the solver
     /// treats it as an infinite cost at a trial point).
     fn term(&self, experiment: usize, theta: &[f64]) -> Result<(f64, Vec<f64>)>;
+
+    /// [`term`](Self::term)'s value alone (a trial point's cost), the same number; by
+    /// default `term`'s, for a term whose gradient costs little beside it.
+    ///
+    /// # Errors
+    /// As [`term`](Self::term).
+    fn value(&self, experiment: usize, theta: &[f64]) -> Result<f64> {
+        Ok(self.term(experiment, theta)?.0)
+    }
 }
 
 /// A prediction-error problem whose criterion is `V − Σ_e c_e`.
@@ -75,7 +84,11 @@ impl<M: GreyBoxModel> LeastSquares for Compensated<'_, '_, M> {
         self.corrected(p, self.problem.normal_equations_likely_last(p)?)
     }
     fn cost(&self, p: &DVector<f64>) -> Result<f64> {
-        Ok(self.problem.cost(p)? - self.correction(p)?.0)
+        let mut total = 0.0;
+        for e in 0..self.problem.terms().len() {
+            total += self.correction.value(e, &self.problem.theta(e, p))?;
+        }
+        Ok(self.problem.cost(p)? - total)
     }
     fn project(&self, p: &mut DVector<f64>) {
         self.problem.project(p)

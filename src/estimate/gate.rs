@@ -22,7 +22,10 @@
 //!   the warning names the parameters that disagree;
 //! - the model declares a parameter value non-physical
 //!   ([`crate::model::GreyBoxModel::implausible`]) (`non_physical`);
-//! - a parameter sits at a bound, or a statistic is not finite;
+//! - a parameter sits at a bound (`parameter_at_bound`), unless every parameter at a bound
+//!   is a nuisance parameter and the Gauss–Newton step to the unconstrained minimum is
+//!   within [`BOUND_Z`] standard errors in every parameter (then `nuisance_at_bound`, a
+//!   notice: the bound lies inside the intervals), or a statistic is not finite;
 //! - a free parameter's standard error is exactly 0 while the loss is not
 //!   (`zero_width_interval`): its interval claims a certainty the residual denies (the
 //!   covariance's sums under- or overflowed).
@@ -42,6 +45,12 @@ pub const STATIONARY_STEP: f64 = 0.1;
 /// Steps below this fraction of the parameter's magnitude are rounding, whatever their
 /// standard error (a noise-free fit's is itself of the order of rounding).
 pub const STEP_ROUNDING: f64 = 1e-9;
+
+/// Largest Gauss–Newton step, in standard errors, from an estimate whose nuisance
+/// parameter sits at a bound to the unconstrained minimum for the bound still to be inside
+/// every 95 % interval (`nuisance_at_bound`, not untrusted; beyond it
+/// `parameter_at_bound`).
+pub const BOUND_Z: f64 = 1.96;
 
 /// Condition number of the scaled information matrix above which it is numerically
 /// singular: the normal equations lose 12 of double precision's 16 digits.
@@ -90,7 +99,20 @@ pub(crate) fn warnings(
         ));
     }
     let at_bound: Vec<&str> = parameters.iter().filter(|p| p.at_bound).map(|p| p.name.as_str()).collect();
-    if !at_bound.is_empty() {
+    let nuisance_only = parameters.iter().filter(|p| p.at_bound).all(|p| p.nuisance);
+    if let Some(z) = inside_intervals(&evidence.remaining).filter(|_| nuisance_only && !at_bound.is_empty()) {
+        out.push(Warning {
+            code: "nuisance_at_bound".into(),
+            message: format!(
+                "{} at a bound (a nuisance parameter, no interval given): the unconstrained minimum lies within \
+                 {z:.2} standard errors of the estimate in every parameter (at most {BOUND_Z}), so the bound is inside \
+                 the intervals and binds no more than the noise does; the data do not tell the nuisance parameter \
+                 from those it is correlated with",
+                at_bound.join(", ")
+            ),
+            untrusted: false,
+        });
+    } else if !at_bound.is_empty() {
         out.push(Warning::untrusted(
             "parameter_at_bound",
             format!(
@@ -203,6 +225,17 @@ fn stationarity(remaining: &[(String, f64, f64, f64)]) -> Option<Warning> {
             ),
         )
     })
+}
+
+/// The largest Gauss–Newton step still to go in standard errors over the parameters of
+/// `remaining` ([`Evidence::remaining`]) when it is at most [`BOUND_Z`] (the unconstrained
+/// minimum inside every 95 % interval); `None` otherwise or without the steps.
+fn inside_intervals(remaining: &[(String, f64, f64, f64)]) -> Option<f64> {
+    if remaining.is_empty() {
+        return None;
+    }
+    let worst = remaining.iter().map(|(_, _, step, se)| (step / se).abs()).fold(0.0, f64::max);
+    (worst <= BOUND_Z).then_some(worst)
 }
 
 /// Per free model parameter in `order`: (name, value, Gauss–Newton step still to go, its

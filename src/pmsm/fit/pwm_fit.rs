@@ -93,11 +93,11 @@ pub(crate) fn stages(
         // At the width held, the masked fit is a start (of the sign's fit) and a loss to
         // compare with the sign's: at the stages' tolerance, converged only if it is kept.
         let fits = stage_fit(*pwm, input, &theta, &names, &mask, &["i_w"])?;
-        super::pwm_leg_state::leg_state(&sides, fits, &names, &theta, &mask, notes, warnings)?
+        super::pwm_leg_state::leg_state(&sides, fits, &names, &theta, &mask, notes)?
     } else {
         let fits = fit(*pwm, input, &theta, &names, &mask, &[])?;
         match super::pwm_leg_state::compensate(&sides, *pwm, &fits, &names, &theta, &mask, notes)? {
-            Some((fits, compensated, _)) => {
+            Some((fits, compensated)) => {
                 Final { fits, inverter: *pwm, names, start: theta, own_mask: Some(compensated) }
             }
             None => Final { fits, inverter: *pwm, names, start: theta, own_mask: None },

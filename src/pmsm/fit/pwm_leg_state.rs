@@ -1,11 +1,11 @@
 //! The leg state of a PWM fit whose width the unmasked fit estimated: the width held
 //! against the sign on the masked samples, the sign refitted on its own mask before a width
-//! is kept, the criterion compensated for the measured current's noise, and the
-//! `leg_state_unresolved` warning (docs/options.md, steps 5 and 6).
+//! is kept, and the criterion compensated for the measured current's noise, through the
+//! smooth legs' own transition where they switch softly (docs/options.md, steps 5 and 6).
 
 use crate::data::Experiment;
 use crate::error::Result;
-use crate::estimate::{Warning, Weighting};
+use crate::estimate::Weighting;
 use crate::pmsm::fit::hold::HoldFits;
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::pwm::{PmsmPwm, PwmInverter};
@@ -32,13 +32,13 @@ pub(super) struct Sides<'a, 'w> {
 
 /// The leg state of a fit whose width `i_w` the unmasked fit estimated (`fits`, the masked
 /// fit at that width held at the stages' tolerance, converged here if the width is kept;
-/// parameters `names` from `theta`): the width kept or the sign
-/// taken, by the lower loss on the masked samples, or the sign where the measured current's
-/// noise is material (the width holds it) with its criterion compensated; then a width
-/// wider than that noise makes of a hard switch ([`NOISE_WIDTH`]), unless the sign fits the
-/// masked samples [`CONTRADICTS`] times better, is an untrusted `leg_state_unresolved`
-/// warning in `warnings`. Before a width is kept, the sign is refitted on the mask at its
-/// own estimate where that differs ([`on_own_mask`]).
+/// parameters `names` from `theta`). Where the measured current's noise is material: the
+/// sign with its criterion compensated, unless the width is wider than that noise makes of
+/// a hard switch ([`NOISE_WIDTH`]) and the sign does not fit the masked samples
+/// [`CONTRADICTS`] times better: then the legs switch softly, and the width is held with
+/// its criterion compensated through the smooth legs' transition. Otherwise the width kept
+/// or the sign taken by the lower loss on the masked samples; before a width is kept, the
+/// sign is refitted on the mask at its own estimate where that differs ([`on_own_mask`]).
 ///
 /// # Errors
 /// Those of the fits, of [`compensate`] and of [`super::pwm_mask::sign_mask`].
@@ -49,7 +49,6 @@ pub(super) fn leg_state<'w, 'n>(
     theta: &[f64],
     mask: &super::pwm_mask::SignMask<'w>,
     notes: &mut Vec<String>,
-    warnings: &mut Vec<Warning>,
 ) -> Result<Final<'w, 'n>> {
     let Sides { pwm, input, fit, .. } = *sides;
     // The width the unmasked fit finds holds the measured current's noise as well as the
@@ -64,30 +63,39 @@ pub(super) fn leg_state<'w, 'n>(
     let sign_fits = fit(sign, input, &sign_start, &sign_names, mask, &[])?;
     let (width, hard) = (fits.best.1.fit.loss, sign_fits.best.1.fit.loss);
     let i_w = fits.best.1.parameter("i_w").map_or(f64::NAN, |p| p.value);
-    let compensated = compensate(sides, sign, &sign_fits, &sign_names, &sign_start, mask, notes)?;
-    // A width the noise cannot make: the legs switch softly, which the sign taken under
-    // this noise does not describe; unless the sign fits the kept samples CONTRADICTS
-    // times better than the width (on a noise-free log cut at 1.8 s, the residual's rounding
-    // read as noise of 1.8e-7 A against an unmasked width of 1.2e-5 A, the sign's loss 2000
-    // times the lower; under 0.05 A of noise the two were within 0.2 % of each other, on
-    // soft and hard legs alike).
+    let noise = start_noise(sides, sign, &sign_fits, mask, notes)?;
+    // A width the noise cannot make: the legs switch softly, which the sign does not
+    // describe (on a 4 kHz log whose legs switch softly over 0.05 A, with 0.05 A of noise,
+    // the sign's fit had R_s 6 % high at 6 standard errors); unless the sign fits the kept
+    // samples CONTRADICTS times better than the width (on a noise-free log cut at 1.8 s, the
+    // residual's rounding read as noise of 1.8e-7 A against an unmasked width of 1.2e-5 A,
+    // the sign's loss 2000 times the lower; under 0.05 A of noise the two were within 0.2 %
+    // of each other, on soft and hard legs alike). The width is then held, and its
+    // criterion compensated through the smooth legs' own transition.
     let contradicted = hard * CONTRADICTS < width;
-    if let Some(rms) =
-        compensated.as_ref().map(|c| c.2).filter(|rms| i_w > NOISE_WIDTH * rms && !contradicted)
-    {
-        warnings.push(Warning::untrusted(
-            "leg_state_unresolved",
-            format!(
-                "the unmasked fit's PWM leg-state width i_w = {i_w:.3e} A is wider than the measured current's noise \
-                 makes of a hard switch ({:.3e} A, σ = {rms:.3e} A per axis), so the inverter's legs switch softly \
-                 (parasitic capacitances); under this noise the fit takes the sign, which does not describe them, \
-                 and its estimates carry that model error; fit a log with less current noise (a width given with \
-                 --leg-state-width is fitted without the noise's compensation: on a generated log with 0.05 A per \
-                 phase that fit's parts disagreed, L 8 % low)",
+    let soft = noise.as_ref().map(|n| n.1).filter(|rms| i_w > NOISE_WIDTH * rms && !contradicted);
+    if let Some(rms) = soft {
+        let start = super::pwm_start::carried(Some(&fits.best.1), names, theta, names);
+        if let Some((fits, m)) = compensate(sides, *pwm, &fits, names, &start, mask, notes)? {
+            notes.push(format!(
+                "PWM leg state on the masked samples: the width i_w = {i_w:.3e} A of the unmasked fit, wider than \
+                 the measured current's noise makes of a hard switch ({:.3e} A, σ = {rms:.3e} A per axis): the legs \
+                 switch softly (parasitic capacitances); the width held, its criterion compensated",
                 NOISE_WIDTH * rms
-            ),
-        ));
+            ));
+            return Ok(Final { fits, inverter: *pwm, names: names.to_vec(), start, own_mask: Some(m) });
+        }
     }
+    let compensated = match noise.filter(|_| soft.is_none()) {
+        Some((correction, _)) => {
+            let compensated = mask.compensated(correction);
+            let at =
+                super::pwm_start::carried(Some(&sign_fits.best.1), &sign_names, &sign_start, &sign_names);
+            let fits = fit(sign, input, &at, &sign_names, &compensated, &[])?;
+            Some((fits, compensated))
+        }
+        None => None,
+    };
     let noisy = compensated.is_some();
     let choice = |keep_sign: bool| match (keep_sign, noisy) {
         (true, true) => "the sign (the measured current's noise is material, and the width holds it)",
@@ -99,7 +107,7 @@ pub(super) fn leg_state<'w, 'n>(
          {width:.6e}) against the sign ({hard:.6e}): "
     );
     Ok(match compensated {
-        Some((fits, m, _)) => {
+        Some((fits, m)) => {
             notes.push(note + choice(true));
             Final { fits, inverter: sign, names: sign_names, start: sign_start, own_mask: Some(m) }
         }
@@ -187,12 +195,13 @@ pub(super) struct OwnMask<'w> {
     pub(super) note: String,
 }
 
-/// The final fit `fits` (inverter `inverter`, parameters `names`, from `start`) of a PWM
-/// model whose leg states are hard signs and whose predictor restarts from the measured
-/// current, refitted from its estimate with the criterion compensated for the measured
-/// current's noise on that start where it is material ([`super::pwm_noise`]), with the
-/// compensated mask; `None` otherwise (other leg states or gains, or noise below
-/// [`super::pwm_noise::START_NOISE_SHARE`]); and the noise's rms per axis \[A\].
+/// The final fit `fits` (inverter `inverter`, parameters `names`, from `start`; an
+/// estimated width `i_w` held there) of a PWM model whose predictor restarts from the
+/// measured current, refitted from its estimate with the criterion compensated for the
+/// measured current's noise on that start where it is material ([`super::pwm_noise`];
+/// through the smooth legs' own transition where the leg state has a width), with the
+/// compensated mask; `None` otherwise (other gains, or noise below
+/// [`super::pwm_noise::START_NOISE_SHARE`]).
 ///
 /// # Errors
 /// Those of [`super::pwm_noise::compensation`] and of the fit.
@@ -204,9 +213,29 @@ pub(super) fn compensate<'w>(
     start: &[f64],
     mask: &super::pwm_mask::SignMask<'w>,
     notes: &mut Vec<String>,
-) -> Result<Option<(HoldFits, super::pwm_mask::SignMask<'w>, f64)>> {
-    let hard = inverter.i_w.is_none_or(|w| w <= 0.0) && !inverter.estimate_i_w;
-    if !hard || inverter.predictor_gain != Some(1.0) {
+) -> Result<Option<(HoldFits, super::pwm_mask::SignMask<'w>)>> {
+    let Some((correction, _)) = start_noise(sides, inverter, fits, mask, notes)? else { return Ok(None) };
+    let start = super::pwm_start::carried(Some(&fits.best.1), names, start, names);
+    let compensated = mask.compensated(correction);
+    let held: &[&str] = if inverter.estimate_i_w { &["i_w"] } else { &[] };
+    Ok(Some(((sides.fit)(inverter, sides.input, &start, names, &compensated, held)?, compensated)))
+}
+
+/// The criterion's compensation for the measured current's noise on the start of the
+/// fits `fits` of `inverter` (on `mask`'s samples) and the noise's rms per axis \[A\], its
+/// note in `notes`; `None` where the predictor does not restart from the measured current
+/// or the noise is below [`super::pwm_noise::START_NOISE_SHARE`].
+///
+/// # Errors
+/// Those of [`super::pwm_noise::compensation`].
+fn start_noise(
+    sides: &Sides<'_, '_>,
+    inverter: PwmInverter,
+    fits: &HoldFits,
+    mask: &super::pwm_mask::SignMask<'_>,
+    notes: &mut Vec<String>,
+) -> Result<Option<(Box<dyn crate::estimate::CriterionCorrection>, f64)>> {
+    if inverter.predictor_gain != Some(1.0) {
         return Ok(None);
     }
     let super::pwm_noise::StartCompensation { correction, note, rms } = super::pwm_noise::compensation(
@@ -216,10 +245,7 @@ pub(super) fn compensate<'w>(
         mask,
     )?;
     notes.push(note);
-    let Some(correction) = correction else { return Ok(None) };
-    let start = super::pwm_start::carried(Some(&fits.best.1), names, start, names);
-    let compensated = mask.compensated(correction);
-    Ok(Some(((sides.fit)(inverter, sides.input, &start, names, &compensated, &[])?, compensated, rms)))
+    Ok(correction.map(|c| (c, rms)))
 }
 
 /// The widest smooth leg state the measured current's noise makes of a hard switch, per
@@ -232,7 +258,7 @@ pub(crate) const NOISE_WIDTH: f64 = 0.797_884_560_802_865_4;
 
 /// How many times lower the sign's loss on the masked samples must be than the width's for
 /// it to contradict a width wider than the noise makes (as the pole-pair and delay checks'
-/// ratio): no `leg_state_unresolved` then.
+/// ratio): the sign is then taken.
 const CONTRADICTS: f64 = 10.0;
 
 /// The final fit of [`super::pwm_fit::stages`]: its fits, inverter, free parameters and start, and its mask

@@ -47,6 +47,15 @@ impl CriterionCorrection for StartNoise {
             &self.weights[experiment],
         )
     }
+    fn value(&self, experiment: usize, theta: &[f64]) -> Result<f64> {
+        self.model.start_noise_share_value(
+            theta,
+            &self.inputs[experiment],
+            self.sigma,
+            self.lambda,
+            &self.weights[experiment],
+        )
+    }
 }
 
 /// The covariance Σ of the noise on the predictor's start \[A², row-major\] of `model` at

@@ -63,6 +63,9 @@ pub(crate) trait Scalar:
     fn sin_cos(self) -> (Self, Self);
     /// Whether the value and every derivative are 0.
     fn is_zero(self) -> bool;
+    /// The order by value, then (ties) by the derivatives, lexicographically: an instant
+    /// that moves later with a parameter comes after a fixed one of the same value.
+    fn order(self, o: Self) -> std::cmp::Ordering;
     fn sinh_cosh(self) -> (Self, Self) {
         let e = self.exp();
         let inv = Self::cst(1.0) / e;
@@ -99,6 +102,10 @@ impl Scalar for f64 {
     fn is_zero(self) -> bool {
         self == 0.0
     }
+    #[inline(always)]
+    fn order(self, o: Self) -> std::cmp::Ordering {
+        self.total_cmp(&o)
+    }
 }
 
 impl Scalar for Dual {
@@ -132,6 +139,17 @@ impl Scalar for Dual {
     #[inline(always)]
     fn is_zero(self) -> bool {
         self.v == 0.0 && self.d.iter().all(|d| *d == 0.0)
+    }
+    #[inline(always)]
+    fn order(self, o: Self) -> std::cmp::Ordering {
+        self.v.total_cmp(&o.v).then_with(|| {
+            self.d
+                .iter()
+                .zip(&o.d)
+                .map(|(a, b)| a.total_cmp(b))
+                .find(|c| c.is_ne())
+                .unwrap_or(std::cmp::Ordering::Equal)
+        })
     }
 }
 

@@ -5,6 +5,7 @@ use super::modulator::{Carrier, duty_ratios, halves};
 use super::*;
 
 mod kernel;
+mod noise;
 
 /// The data of the PWM-resolved step, independent of θ: per interval the angle, speeds,
 /// DC link and the carrier's plan (about 200 bytes an interval).
@@ -333,62 +334,5 @@ impl Sensitivities<PwmInputs, PwmCoefficients> for PmsmPwm {
     ) {
         let n = dy.len();
         dy.copy_from_slice(&s[..n]);
-    }
-}
-
-impl PmsmPwm {
-    /// Per period k of a prepared log at `theta`: the one-step residual of sample k + 1,
-    /// `r = y[k+1] − f(x̂[k] + k_o (y[k] − x̂[k]))` \[A\], and `Φ = ∂f/∂y[k]` (2×2, row-major;
-    /// forward-mode), how the measured current's noise at sample k enters that residual.
-    ///
-    /// # Errors
-    /// Those of [`coefficients`](GreyBoxModel::coefficients).
-    pub(crate) fn noise_terms(&self, theta: &[f64], inputs: &PwmInputs) -> Result<Vec<([f64; 2], [f64; 4])>> {
-        let c = self.coefficients(theta, inputs)?;
-        let q: Params<Dual> = self.params(theta, |v, _| Dual::cst(v));
-        let mut out = Vec::with_capacity(inputs.periods.len());
-        let mut x = [inputs.i_d[0], inputs.i_q[0]];
-        for (k, per) in inputs.periods.iter().enumerate() {
-            let y = [inputs.i_d[k], inputs.i_q[k]];
-            let from = self.start_of(c.k_o, x, y);
-            let next = period::step(&q, per, [Dual::seed(from[0], 0), Dual::seed(from[1], 1)]);
-            x = [next[0].v, next[1].v];
-            let r = [inputs.i_d[k + 1] - x[0], inputs.i_q[k + 1] - x[1]];
-            let phi = [next[0].d[0], next[0].d[1], next[1].d[0], next[1].d[1]].map(|v| v * c.k_o);
-            out.push((r, phi));
-        }
-        Ok(out)
-    }
-
-    /// The share of the one-step criterion that noise `sigma` (2×2 covariance of the
-    /// measured dq current \[A²\], row-major) on the predictor's start carries at `theta`:
-    /// `c(θ) = ½ Σ_k w[k+1] tr(Λ Φ_k Σ Φ_kᵀ)` with `Φ_k` the period's transition
-    /// ([`period::transition`], hard leg states, `k_o = 1`), `w` the sample weights (length
-    /// N), `Λ = diag(lambda)`; and its gradient over θ (length n_θ, exact by forward mode).
-    ///
-    /// # Errors
-    /// Those of [`coefficients`](GreyBoxModel::coefficients).
-    pub(crate) fn start_noise_share(
-        &self,
-        theta: &[f64],
-        inputs: &PwmInputs,
-        sigma: [f64; 4],
-        lambda: [f64; 2],
-        w: &[f64],
-    ) -> Result<(f64, Vec<f64>)> {
-        let c = self.coefficients(theta, inputs)?;
-        let q: Params<Dual> = self.params(&c.theta, Dual::seed);
-        let mut total = Dual::cst(0.0);
-        for (k, per) in inputs.periods.iter().enumerate() {
-            let wk = w.get(k + 1).copied().unwrap_or(0.0);
-            if wk <= 0.0 {
-                continue;
-            }
-            let p = period::transition(&q, per);
-            // Row i of Φ Σ Φᵀ's diagonal: Φ_i· Σ Φ_i·ᵀ.
-            let quad = |a: Dual, b: Dual| a * a * sigma[0] + a * b * (sigma[1] + sigma[2]) + b * b * sigma[3];
-            total = total + (quad(p[0], p[1]) * lambda[0] + quad(p[2], p[3]) * lambda[1]) * (0.5 * wk);
-        }
-        Ok((total.v, total.d[..c.nth].to_vec()))
     }
 }
