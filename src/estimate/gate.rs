@@ -98,9 +98,10 @@ pub(crate) fn warnings(
             ),
         ));
     }
-    let at_bound: Vec<&str> = parameters.iter().filter(|p| p.at_bound).map(|p| p.name.as_str()).collect();
-    let nuisance_only = parameters.iter().filter(|p| p.at_bound).all(|p| p.nuisance);
-    if let Some(z) = inside_intervals(&evidence.remaining).filter(|_| nuisance_only && !at_bound.is_empty()) {
+    let bound: Vec<&ParameterEstimate> = parameters.iter().filter(|p| p.at_bound).collect();
+    let at_bound: Vec<&str> = bound.iter().map(|p| p.name.as_str()).collect();
+    let nuisance_only = !bound.is_empty() && bound.iter().all(|p| p.nuisance);
+    if let Some(z) = inside_intervals(&evidence.remaining).filter(|_| nuisance_only) {
         out.push(Warning {
             code: "nuisance_at_bound".into(),
             message: format!(
@@ -229,13 +230,18 @@ fn stationarity(remaining: &[(String, f64, f64, f64)]) -> Option<Warning> {
 
 /// The largest Gauss–Newton step still to go in standard errors over the parameters of
 /// `remaining` ([`Evidence::remaining`]) when it is at most [`BOUND_Z`] (the unconstrained
-/// minimum inside every 95 % interval); `None` otherwise or without the steps.
+/// minimum inside every 95 % interval); `None` otherwise, without the steps, or where a
+/// step or standard error is not a finite number (no interval to be inside).
 fn inside_intervals(remaining: &[(String, f64, f64, f64)]) -> Option<f64> {
-    if remaining.is_empty() {
-        return None;
+    let mut worst = None::<f64>;
+    for (_, _, step, se) in remaining {
+        let z = (step / se).abs();
+        if !z.is_finite() {
+            return None;
+        }
+        worst = Some(worst.map_or(z, |w| w.max(z)));
     }
-    let worst = remaining.iter().map(|(_, _, step, se)| (step / se).abs()).fold(0.0, f64::max);
-    (worst <= BOUND_Z).then_some(worst)
+    worst.filter(|w| *w <= BOUND_Z)
 }
 
 /// Per free model parameter in `order`: (name, value, Gauss–Newton step still to go, its
@@ -286,4 +292,23 @@ pub(crate) fn implausible<M: GreyBoxModel>(problem: &PemProblem<'_, M>, p: &DVec
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::inside_intervals;
+
+    /// The unconstrained minimum is inside the intervals only when every step is within
+    /// `BOUND_Z` standard errors and each is a finite number.
+    #[test]
+    fn a_bound_is_inside_the_intervals_only_by_every_finite_step() {
+        let r = |steps: &[(f64, f64)]| -> Vec<(String, f64, f64, f64)> {
+            steps.iter().map(|&(step, se)| ("p".to_string(), 1.0, step, se)).collect()
+        };
+        assert_eq!(inside_intervals(&r(&[(0.1, 1.0), (-1.5, 1.0)])), Some(1.5));
+        assert_eq!(inside_intervals(&r(&[(0.1, 1.0), (2.5, 1.0)])), None);
+        assert_eq!(inside_intervals(&r(&[(0.0, 0.0), (0.1, 1.0)])), None, "0/0 is no interval");
+        assert_eq!(inside_intervals(&r(&[(0.1, f64::NAN)])), None);
+        assert_eq!(inside_intervals(&[]), None, "without the steps");
+    }
 }

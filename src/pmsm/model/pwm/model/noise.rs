@@ -81,7 +81,7 @@ fn share<T: Scalar>(q: &Params<T>, inputs: &PwmInputs, sigma: [f64; 4], lambda: 
         if wk <= 0.0 {
             continue;
         }
-        let p = match q.i_w.filter(|_| std::env::var("GB_HARDPHI").is_err()) {
+        let p = match q.i_w {
             None => period::transition(q, per),
             Some(i_w) => smooth_transition(q, per, [inputs.i_d[k], inputs.i_q[k]], i_w.val()),
         };
