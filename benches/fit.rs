@@ -3,9 +3,11 @@
 //!
 //! With the development logs (`$GREYBOX_SHARED_DATA`, else `../shared/data` beside the
 //! repository) the benches run on `servo_spm_moves_idinj` (SPM, 72 000 samples) and
-//! `ipm_moves_idinj` (IPM), as they always have. Without them the SPM benches run on the
-//! shipped `data/sample.csv.gz` (a 20 000-sample cut of the same servo log) and one line
-//! says that the IPM benches were skipped.
+//! `ipm_moves_idinj` (IPM), as they always have, and the switching-resolved PWM model's
+//! passes on `servo_spm_pwm_deadtime_idinj` (72 000 samples fitted from the reference through
+//! the inverter; dual numbers through 5 parameters, about 7 pieces a half period). Without
+//! them the SPM benches run on the shipped `data/sample.csv.gz` (a 20 000-sample cut of the
+//! same servo log) and one line says that the IPM and PWM benches were skipped.
 //!
 //! Run: `cargo bench --bench fit`
 
@@ -13,7 +15,10 @@ use criterion::{Criterion, criterion_group};
 use greybox::Experiment;
 use greybox::estimate::{NominalScaling, PemProblem, ProblemOptions};
 use greybox::model::{GreyBoxModel, Prepared};
-use greybox::pmsm::{HoldChoice, PmsmFitOptions, PmsmIpm, PmsmSpm, VoltageHold, fit_pmsm, read_log};
+use greybox::pmsm::{
+    HoldChoice, MotorKind, PmsmFitOptions, PmsmIpm, PmsmPwm, PmsmSetup, PmsmSpm, PwmInverter, VoltageHold,
+    VoltageInput, fit_pmsm, read_log,
+};
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 
@@ -60,6 +65,31 @@ fn pass_with<M: GreyBoxModel>(
     });
 }
 
+/// The PWM-resolved model's normal equations and cost (the Jacobian passes in dual numbers
+/// and the value-only passes of a fit's trial steps), from the reference at a 560 V link and
+/// a 4096-level counter, at a start near the log's minimum (hard leg states, the predictor
+/// restarting every period from the measured current).
+fn pwm(c: &mut Criterion, shared: &Path) {
+    let e = log(&shared.join("servo_spm_pwm_deadtime_idinj.csv.gz"));
+    let setup = PmsmSetup { input: VoltageInput::REFERENCE, ..PmsmSetup::new(4, VoltageHold::Stator) };
+    let inverter = PwmInverter { u_dc: Some(560.0), levels: Some(4096), ..Default::default() };
+    let model = PmsmPwm::new(setup, MotorKind::Spm, inverter);
+    let start = [0.9, 4.5e-3, 0.54, 3e-6, 1.0];
+    let mut g = c.benchmark_group("pwm");
+    g.sample_size(10);
+    let prep = Prepared::new(&model, &e).unwrap();
+    let problem =
+        PemProblem::new(&model, vec![(prep, None)], &start, &NominalScaling, &Default::default()).unwrap();
+    let p = problem.start_vector(&start);
+    g.bench_function(format!("pwm spm: normal equations, {} samples", e.len()), |b| {
+        b.iter(|| black_box(problem.normal_equations(black_box(&p)).unwrap()))
+    });
+    g.bench_function(format!("pwm spm: cost only, {} samples", e.len()), |b| {
+        b.iter(|| black_box(problem.cost(black_box(&p)).unwrap()))
+    });
+    g.finish();
+}
+
 fn benches(c: &mut Criterion) {
     let shared = shared_dir();
     let (spm_stem, spm_path) = if shared.is_dir() {
@@ -73,6 +103,7 @@ fn benches(c: &mut Criterion) {
         let ipm = log(&shared.join("ipm_moves_idinj.csv.gz"));
         let model = PmsmIpm::new(2, VoltageHold::Stator);
         pass(c, "ipm stator hold", &model, &ipm, &[0.35, 3.2e-3, 7.5e-3, 0.42]);
+        pwm(c, &shared);
     }
     let mut g = c.benchmark_group("fit");
     g.sample_size(10);
@@ -89,7 +120,7 @@ fn main() {
     let shared = shared_dir();
     if !shared.is_dir() {
         eprintln!(
-            "skipped the IPM benches of benches/fit: {} not found (development logs are not part of the \
+            "skipped the IPM and PWM benches of benches/fit: {} not found (development logs are not part of the \
              repository; set GREYBOX_SHARED_DATA to their folder); the SPM benches use data/sample.csv.gz",
             shared.display()
         );

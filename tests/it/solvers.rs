@@ -314,20 +314,23 @@ fn gn_never_increases_the_cost() {
     }
 }
 
-#[test]
-fn gn_respects_bounds() {
-    // Misra1a in scaled variables `p = (b1 / 100, 1000 b2)` (the solvers' step tolerance
-    // is relative to ‖p‖, so the variables must be of comparable size, as in a
-    // `PemProblem`). b1 ≤ 200 cuts off the unconstrained minimum (b1 ≈ 238.9): the fit
-    // ends on the bound.
+/// Misra1a in scaled variables `p = (b1 / 100, 1000 b2)` (the solvers' step tolerance is
+/// relative to ‖p‖, so the variables must be of comparable size, as in a `PemProblem`),
+/// with b1 ≤ 200, which cuts off the unconstrained minimum (b1 ≈ 238.9): a fit ends on
+/// the bound, along which b1 and b2 are strongly correlated.
+fn bounded_misra1a() -> CurveFit {
     let mut problem = misra1a();
     problem.f = |p, x| {
         let e = (-p[1] * 1e-3 * x).exp();
         (100.0 * p[0] * (1.0 - e), vec![100.0 * (1.0 - e), 0.1 * p[0] * x * e])
     };
     problem.upper[0] = 2.0;
-    let r = run(&problem, GaussNewton::new(Tolerances::default()), &[1.5, 1.0]);
-    eprintln!("bounded Misra1a: {:?}, {:?}", r.termination, r.p);
+    problem
+}
+
+/// A run `r` of [`bounded_misra1a`] ended at the bounded minimum: converged, on the bound,
+/// stationary in b2 with the bound active, and holding b1 there in its last iteration.
+fn assert_bounded_minimum(problem: &CurveFit, r: &Run) {
     assert!(r.termination.success(), "{:?}", r.termination);
     assert_eq!(r.p[0], 2.0);
     assert_monotone(&r.records);
@@ -338,6 +341,34 @@ fn gn_respects_bounds() {
     assert!(cosine < 1e-7, "cosine {cosine:e}");
     assert!(ne.jtr[0] > 0.0);
     assert!(r.records.last().and_then(|rec| rec.held).is_some_and(|h| h == 1), "{:?}", r.records.last());
+}
+
+#[test]
+fn gn_respects_bounds() {
+    let problem = bounded_misra1a();
+    let r = run(&problem, GaussNewton::new(Tolerances::default()), &[1.5, 1.0]);
+    eprintln!("bounded Misra1a: {:?}, {:?}", r.termination, r.p);
+    assert_bounded_minimum(&problem, &r);
+}
+
+/// Levenberg-Marquardt holds a parameter pressed against its bound and solves for the
+/// others (the active set of `estimate::solver::active`): it reaches the bounded minimum
+/// in a few iterations. Projecting the unbounded step instead moved b2 by the part of a
+/// step the bound forbids, and crawled along the bound.
+#[test]
+fn lm_respects_bounds_without_crawling() {
+    let problem = bounded_misra1a();
+    for start in [[1.5, 1.0], [1.9, 0.3]] {
+        let r = run(&problem, LevenbergMarquardt::new(Tolerances::default()), &start);
+        eprintln!(
+            "bounded Misra1a by LM from {start:?}: {:?} after {} iterations, {:?}",
+            r.termination,
+            r.records.len() - 1,
+            r.p
+        );
+        assert_bounded_minimum(&problem, &r);
+        assert!(r.records.len() - 1 <= 20, "{} iterations", r.records.len() - 1);
+    }
 }
 
 #[test]

@@ -153,88 +153,6 @@ fn shifted_solve(h: &Gram, g: &DVector<f64>) -> Option<(DVector<f64>, f64)> {
     None
 }
 
-/// The search direction at p with the bounds taken into account.
-struct Direction {
-    /// δ (scaled space, length n_free), zero in the held components.
-    delta: DVector<f64>,
-    /// Largest diagonal shift μ used (0 when `JᵀWJ` was positive definite).
-    shift: f64,
-    /// Number of parameters held at a bound.
-    held: usize,
-}
-
-impl GaussNewton {
-    /// Gauss-Newton direction with parameters held at the bounds they are pressed against:
-    /// first those where the steepest-descent direction `JᵀWε` points out of the box, then
-    /// any whose reduced Gauss-Newton step points out, re-solving the normal equations for
-    /// the others each time (at most n_free rounds). Every parameter at a bound then moves
-    /// inwards or not at all, so short steps need no projection and δ is a descent
-    /// direction (Bertsekas, *SIAM J. Control Optim.* 20(2), 1982; Kelley, *Iterative
-    /// Methods for Optimization*, 1999, section 5.5). Without active bounds this is the
-    /// plain Gauss-Newton step.
-    fn direction<O: LeastSquares>(
-        problem: &mut Problem<O>,
-        p: &DVector<f64>,
-        jtj: &Gram,
-        jtr: &DVector<f64>,
-    ) -> Result<Option<Direction>, argmin::core::Error> {
-        let n = p.len();
-        // Components at a bound that `d` would push out of the box: a short probe along
-        // sign(d) is projected straight back onto p.
-        let mut outward = |d: &DVector<f64>| {
-            let mut q = DVector::from_fn(n, |j, _| p[j] + d[j].signum() * 1e-6 * (p[j].abs() + 1.0));
-            problem.problem("project_count", |o| {
-                o.project(&mut q);
-                Ok(())
-            })?;
-            Ok::<Vec<bool>, argmin::core::Error>((0..n).map(|j| d[j] != 0.0 && q[j] == p[j]).collect())
-        };
-        let mut held = outward(jtr)?;
-        let mut shift: f64 = 0.0;
-        loop {
-            let free: Vec<usize> = (0..n).filter(|&j| !held[j]).collect();
-            let mut delta = DVector::zeros(n);
-            if !free.is_empty() {
-                let (d, mu) = match jtj {
-                    Gram::Dense(m) => {
-                        let h = Gram::Dense(m.select_rows(&free).select_columns(&free));
-                        let Some((d, mu)) = shifted_solve(&h, &jtr.select_rows(&free)) else {
-                            return Ok(None);
-                        };
-                        let mut full = DVector::zeros(n);
-                        for (k, &j) in free.iter().enumerate() {
-                            full[j] = d[k];
-                        }
-                        (full, mu)
-                    }
-                    // The held components as identity rows with a zero right-hand side.
-                    Gram::Arrow(a) => {
-                        let h = Gram::from(a.with_identity_at(&held));
-                        let g = DVector::from_fn(n, |j, _| if held[j] { 0.0 } else { jtr[j] });
-                        let Some(found) = shifted_solve(&h, &g) else { return Ok(None) };
-                        found
-                    }
-                };
-                shift = shift.max(mu);
-                for &j in &free {
-                    delta[j] = d[j];
-                }
-            }
-            let blocked = outward(&delta)?;
-            let mut grew = false;
-            for j in 0..n {
-                if blocked[j] && !held[j] {
-                    held[j] = true;
-                    grew = true;
-                }
-            }
-            if !grew {
-                return Ok(Some(Direction { delta, shift, held: held.iter().filter(|&&h| h).count() }));
-            }
-        }
-    }
-}
-
 impl ReportsTermination for GaussNewton {
     fn termination(&self) -> Option<&Termination> {
         self.termination.as_ref()
@@ -276,7 +194,10 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
             state.param(p).cost(cost).gradient(grad).hessian(jtj)
         };
 
-        let Some(Direction { delta, shift, held }) = Self::direction(problem, &p, &jtj, &jtr)? else {
+        // Parameters pressed against a bound held there (Bertsekas 1982; Kelley 1999, 5.5).
+        let none = DVector::zeros(p.len());
+        let found = super::active::held_step(problem, &p, &jtj, &jtr, &none, |h, g, _| shifted_solve(h, g))?;
+        let Some(super::active::HeldStep { delta, aux: shift, held }) = found else {
             // Only non-finite entries defeat every shift.
             self.stop(Termination::NoDescent);
             let kv = argmin::kv!(

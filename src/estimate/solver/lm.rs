@@ -1,8 +1,9 @@
 //! Levenberg-Marquardt as an argmin [`Solver`].
 //!
 //! Each iteration solves `(JᵀWJ + λ D) δ = −∇V = JᵀWε` by Cholesky (no inverse), with `D`
-//! the running maximum of `diag(JᵀWJ)` (Moré 1978), projects `p + δ` on the bounds and
-//! evaluates the trial point. The step is accepted only if the cost decreases; λ then
+//! the running maximum of `diag(JᵀWJ)` (Moré 1978), with the parameters pressed against a
+//! bound held there and the system solved for the others (KV `held`; the `active` module),
+//! projects `p + δ` on the bounds and evaluates the trial point. The step is accepted only if the cost decreases; λ then
 //! follows the gain ratio `ρ = ΔV_actual / ΔV_predicted` as `λ ← λ max(1/3, 1 − (2ρ − 1)³)`,
 //! otherwise `λ ← ν λ`, `ν ← 2ν` (Nielsen 1999; Madsen, Nielsen & Tingleff, *Methods for
 //! non-linear least squares problems*, 2004, section 3.2). Trial points where the model
@@ -22,12 +23,12 @@
 //! vanished at a cost far from zero gives [`Termination::ZeroJacobian`].
 //!
 //! KV per iteration: `lambda`, `accepted`, and for evaluated steps `rho`, `actred`,
-//! `prered`.
+//! `prered`, `held`.
 
 pub use super::LsState;
 use super::{
-    LeastSquares, Monitor, NormalEquations, ReportsTermination, Termination, Tolerances, damped_solve,
-    init_state, missing, status, trial_normal_equations,
+    LeastSquares, Monitor, NormalEquations, ReportsTermination, Termination, Tolerances, active,
+    damped_solve, init_state, missing, status, trial_normal_equations,
 };
 use argmin::core::{KV, Problem, Solver, TerminationStatus};
 use nalgebra::DVector;
@@ -131,7 +132,14 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
             state.param(p).cost(cost).gradient(grad).hessian(jtj)
         };
 
-        let Some(delta) = damped_solve(&jtj, self.monitor.diag(), self.lambda, &jtr) else {
+        // Parameters pressed against a bound held there, the others' damped step solved
+        // without them (`active`): projecting the unbounded step instead crawled along a
+        // bound, its other components those of a move the bound forbids.
+        let lambda = self.lambda;
+        let step = active::held_step(problem, &p, &jtj, &jtr, self.monitor.diag(), |h, g, d| {
+            damped_solve(h, d, lambda, g).map(|x| (x, 0.0))
+        })?;
+        let Some(active::HeldStep { delta, held, .. }) = step else {
             self.reject();
             let kv = argmin::kv!("lambda" => self.lambda; "accepted" => false;);
             return Ok((keep(state, p, grad, jtj), Some(kv)));
@@ -182,7 +190,7 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
                 }
                 let kv = argmin::kv!(
                     "lambda" => self.lambda; "rho" => r.ratio; "actred" => r.actred; "prered" => r.prered;
-                    "accepted" => true;
+                    "held" => held as u64; "accepted" => true;
                 );
                 let gradient = ne.gradient();
                 Ok((state.param(trial).cost(ne.cost).gradient(gradient).hessian(ne.jtj), Some(kv)))
@@ -198,7 +206,7 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
                 self.reject();
                 let kv = argmin::kv!(
                     "lambda" => self.lambda; "rho" => r.ratio; "actred" => r.actred; "prered" => r.prered;
-                    "accepted" => false;
+                    "held" => held as u64; "accepted" => false;
                 );
                 Ok((keep(state, p, grad, jtj), Some(kv)))
             }

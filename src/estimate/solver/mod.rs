@@ -12,6 +12,7 @@
 //! [`NormalEquations::jtr`] holds `JᵀWε` (the steepest-descent direction); argmin's
 //! gradient slot of the solvers' state ([`LsState`]) holds `∇V`, as argmin documents it.
 
+mod active;
 pub(crate) mod gn;
 mod gram;
 pub(crate) mod lm;
