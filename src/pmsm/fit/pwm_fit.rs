@@ -163,6 +163,27 @@ pub(crate) fn stages(
             None => return Ok((last.fits, input, last.inverter)),
         };
     }
+    // Under current noise, the loop against the logged frame by the compensated criterion
+    // of each one's own fit (`pwm_loop::logged_or_loop`).
+    if let (Some(correction), VoltageInput::Reference { delay, advance, speed_pll: Some(alpha) }) =
+        (final_weighting.criterion_correction(), input)
+    {
+        let logged = VoltageInput::Reference { delay, advance, speed_pll: None };
+        let start = super::pwm_start::carried(Some(&last.fits.best.1), &last.names, &last.start, &last.names);
+        let other = fit(last.inverter, logged, &start, &last.names, final_weighting, held)?;
+        let (take, note) = super::pwm_loop::logged_or_loop(
+            &last.fits.best.1,
+            &other.best.1,
+            alpha,
+            &model(last.inverter, input)?,
+            correction,
+            experiments.len(),
+        )?;
+        notes.push(note);
+        if take {
+            return Ok((other, logged, last.inverter));
+        }
+    }
     if let (true, VoltageInput::Reference { delay, advance, speed_pll: Some(alpha) }) = (checked, input) {
         let inverter_names = last.inverter.parameter_names();
         let motor: Vec<&str> = last.names.iter().copied().filter(|n| !inverter_names.contains(n)).collect();
