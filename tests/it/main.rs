@@ -44,6 +44,7 @@ mod outputs;
 mod plots;
 mod progress;
 mod pwm_model;
+mod pwm_noise;
 mod pwm_trust;
 mod random_starts;
 mod ratings;

@@ -56,11 +56,18 @@ pub(crate) fn stages(
         let fitted = stage_fit(stage, input, &s, &stage_names, weighting, &[])?;
         last = Some((fitted.best.1, stage));
     }
-    let Some((prev, stage)) = &last else {
-        return Ok((fit(*pwm, input, start, names, weighting, &[])?, input, *pwm));
+    // A width given (no continuation) goes through the same stages from the start: the
+    // loop, the mask and, under current noise, the compensation through its smooth legs'
+    // transition (before, its fit ran unmasked and uncompensated: L 7.9 % low on a 4 kHz
+    // log with 0.05 A per phase, its parts disagreeing).
+    let theta = match &last {
+        Some((prev, stage)) => {
+            let (theta, note) = super::pwm_start::from_continuation(prev, stage.i_w, names, pwm, start);
+            notes.push(note);
+            theta
+        }
+        None => start.to_vec(),
     };
-    let (theta, note) = super::pwm_start::from_continuation(prev, stage.i_w, names, pwm, start);
-    notes.push(note);
     let unmasked = stage_fit(*pwm, input, &theta, names, weighting, &[])?;
     let theta = super::pwm_start::carried(Some(&unmasked.best.1), names, &theta, names);
     // The controller's loop where the model is closest to the log: at the unmasked estimate,
