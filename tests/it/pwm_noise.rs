@@ -24,6 +24,23 @@ fn untrusted(fit: &greybox::pmsm::PmsmFit) -> Vec<&str> {
     fit.report.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.as_str()).collect()
 }
 
+/// `exp3` through the switching inverter `plant` with 0.05 A of noise per phase, `duration`
+/// s at the sample time `h` \[s\] (the scenario's when `None`), noise seed `seed`.
+fn noisy_log(
+    plant: PwmPlant,
+    h: Option<f64>,
+    duration: f64,
+    seed: u64,
+) -> (greybox::Experiment, DriveConfig) {
+    let cfg = scenario("exp3", SPM_MOTOR).unwrap();
+    let mut inverter = cfg.inverter.clone();
+    inverter.pwm = Some(plant);
+    let sensors = greybox::drive::Sensors { current_noise: 0.05, ..Default::default() };
+    let control = greybox::drive::Control { h: h.unwrap_or(cfg.control.h), ..cfg.control.clone() };
+    let cfg = DriveConfig { inverter, sensors, control, duration, seed, ..cfg };
+    (simulate_drive(&cfg).unwrap().experiment, cfg)
+}
+
 /// Noise on the measured current of an inverter whose legs switch softly (a smooth leg
 /// state of 0.05 A): the unmasked width, wider than the noise makes of a hard switch, is
 /// held and its criterion compensated through the smooth legs' transition; the fit is
@@ -33,13 +50,8 @@ fn untrusted(fit: &greybox::pmsm::PmsmFit) -> Vec<&str> {
 /// takes the sign.
 #[test]
 fn a_soft_switch_under_noise_keeps_its_width() {
-    let cfg = scenario("exp3", SPM_MOTOR).unwrap();
     for (i_w, seed) in [(0.05, 5), (0.0, 5)] {
-        let mut inverter = cfg.inverter.clone();
-        inverter.pwm = Some(PwmPlant { t_d: 3e-6, u_th: 1.0, i_w, levels: 0 });
-        let sensors = greybox::drive::Sensors { current_noise: 0.05, ..Default::default() };
-        let cfg = DriveConfig { inverter, sensors, duration: 2.0, seed, ..cfg.clone() };
-        let e = simulate_drive(&cfg).unwrap().experiment;
+        let (e, cfg) = noisy_log(PwmPlant { t_d: 3e-6, u_th: 1.0, i_w, levels: 0 }, None, 2.0, seed);
         let fit = pwm_fit(&e, &cfg, PwmInverter { estimate_i_w: true, ..Default::default() });
         let codes = untrusted(&fit);
         let note = fit.pmsm_notes.iter().find(|n| n.contains("leg state on")).expect("the leg-state choice");
@@ -63,13 +75,8 @@ fn a_soft_switch_under_noise_keeps_its_width() {
 /// per phase.
 #[test]
 fn under_noise_the_logged_frame_is_kept_where_the_drive_has_no_loop() {
-    let cfg = scenario("exp3", SPM_MOTOR).unwrap();
-    let mut inverter = cfg.inverter.clone();
-    inverter.pwm = Some(PwmPlant { t_d: 1e-6, u_th: 1.5, i_w: 0.0, levels: 4096 });
-    let sensors = greybox::drive::Sensors { current_noise: 0.05, ..Default::default() };
-    let control = greybox::drive::Control { h: 1.25e-4, ..cfg.control.clone() };
-    let cfg = DriveConfig { inverter, sensors, control, duration: 4.0, seed: 3, ..cfg.clone() };
-    let e = simulate_drive(&cfg).unwrap().experiment;
+    let plant = PwmPlant { t_d: 1e-6, u_th: 1.5, i_w: 0.0, levels: 4096 };
+    let (e, cfg) = noisy_log(plant, Some(1.25e-4), 4.0, 3);
     let inverter = PwmInverter { levels: Some(4096), search_speed_pll: true, ..Default::default() };
     let fit = pwm_fit(&e, &cfg, inverter);
     let note = fit
@@ -89,12 +96,7 @@ fn under_noise_the_logged_frame_is_kept_where_the_drive_has_no_loop() {
 /// errors (before, it ran unmasked and uncompensated: L 7.9 % low, `segments_disagree`).
 #[test]
 fn a_given_width_under_noise_is_masked_and_compensated() {
-    let cfg = scenario("exp3", SPM_MOTOR).unwrap();
-    let mut inverter = cfg.inverter.clone();
-    inverter.pwm = Some(PwmPlant { t_d: 3e-6, u_th: 1.0, i_w: 0.05, levels: 0 });
-    let sensors = greybox::drive::Sensors { current_noise: 0.05, ..Default::default() };
-    let cfg = DriveConfig { inverter, sensors, duration: 2.0, seed: 5, ..cfg.clone() };
-    let e = simulate_drive(&cfg).unwrap().experiment;
+    let (e, cfg) = noisy_log(PwmPlant { t_d: 3e-6, u_th: 1.0, i_w: 0.05, levels: 0 }, None, 2.0, 5);
     let fit = pwm_fit(&e, &cfg, PwmInverter { i_w: Some(0.05), ..Default::default() });
     let codes = untrusted(&fit);
     assert!(fit.pmsm_notes.iter().any(|n| n.contains("PWM sign mask")), "{:?}", fit.pmsm_notes);
