@@ -268,7 +268,7 @@ pub(crate) fn logged_or_loop(
     let note = format!(
         "the controller's frame under current noise, each fit by its compensated criterion at its own estimate: \
          the loop of {alpha:.1} rad/s {j_loop:.6e}, the logged angle and speed {j_logged:.6e} (likelihood ratio \
-         {ratio:.2}, the loop kept above Akaike's penalty {AIC_PENALTY}): {}",
+         {ratio:.2}; the loop is kept where it exceeds Akaike's penalty {AIC_PENALTY}): {}",
         if logged { "the logged" } else { "the loop" }
     );
     Ok((logged, note))
