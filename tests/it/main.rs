@@ -53,6 +53,7 @@ mod reference;
 mod reports;
 mod robust;
 mod saturation;
+mod solver_agreement;
 mod solvers;
 mod spm;
 mod standstill;

@@ -93,7 +93,7 @@ fn under_noise_the_logged_frame_is_kept_where_the_drive_has_no_loop() {
 /// A leg-state width given (`--leg-state-width 0.05`, the plant's) under 0.05 A of noise:
 /// the fit runs through the stages an estimated width does (the loop, the mask, the
 /// compensation through the smooth legs' transition) and is trusted within 3 standard
-/// errors (before, it ran unmasked and uncompensated: L 7.9 % low, `segments_disagree`).
+/// errors (before, it ran unmasked and uncompensated: L 7.8 % low, `segments_disagree`).
 #[test]
 fn a_given_width_under_noise_is_masked_and_compensated() {
     let (e, cfg) = noisy_log(PwmPlant { t_d: 3e-6, u_th: 1.0, i_w: 0.05, levels: 0 }, None, 2.0, 5);

@@ -2,7 +2,7 @@
 //! both solvers: the components at a bound that the steepest-descent direction, or a step
 //! solved for the others, would push out of the box are held there, and the normal
 //! equations are solved again for the rest, until no free component points out (at most
-//! n rounds). Every parameter at a bound then moves inwards or not at all, so the step
+//! n + 1 solves). Every parameter at a bound then moves inwards or not at all, so the step
 //! needs no projection in those components and the others are the bounded problem's step,
 //! not the unbounded one's cut off at the bound (Bertsekas, *SIAM J. Control Optim.* 20(2),
 //! 1982, the projected Newton method; Kelley, *Iterative Methods for Optimization*, 1999,

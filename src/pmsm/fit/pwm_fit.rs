@@ -29,8 +29,15 @@ use crate::pmsm::model::pwm::{PmsmPwm, PwmInverter};
 /// is not scanned and the fit not repeated at its ends (`loop_ambiguous` is a check): the
 /// same final fit, without the ~25 one-step passes of each scan.
 ///
+/// Under current noise (the final criterion compensated) a loop found is compared with
+/// the logged angle and speed, each by the compensated criterion of its own final fit on
+/// the same samples ([`super::pwm_loop::logged_or_loop`]): the input returned may then be
+/// the logged frame although the loop was searched. A width given (no continuation) runs
+/// through the same stages from `start`.
+///
 /// # Errors
-/// Those of the fits, of the loop's search and of [`super::pwm_mask::sign_mask`].
+/// Those of the fits, of the loop's search, of [`super::pwm_mask::sign_mask`] and of the
+/// criterion's correction.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn stages(
     checked: bool,
@@ -58,7 +65,7 @@ pub(crate) fn stages(
     }
     // A width given (no continuation) goes through the same stages from the start: the
     // loop, the mask and, under current noise, the compensation through its smooth legs'
-    // transition (before, its fit ran unmasked and uncompensated: L 7.9 % low on a 4 kHz
+    // transition (before, its fit ran unmasked and uncompensated: L 7.8 % low on a 4 kHz
     // log with 0.05 A per phase, its parts disagreeing).
     let theta = match &last {
         Some((prev, stage)) => {

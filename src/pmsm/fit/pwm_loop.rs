@@ -241,10 +241,14 @@ fn compensated(
 /// fit `at_loop` at the loop's bandwidth `alpha` \[rad/s\] against the same fit at the logged
 /// angle and speed, `at_logged`, each by its compensated criterion `J` at its own estimate
 /// on the same samples (module docs). The loop is kept where it lowers `J` by more than
-/// Akaike's penalty of its one parameter, `2 (J_logged − J_loop) / σ² > 2` (σ² the loop
-/// fit's mean squared residual; Akaike's information criterion, Ljung, *System
-/// Identification*, 2nd ed., 16.4): the logged frame is the loop's limit at an infinite
-/// bandwidth. Returns whether the logged frame is taken, and a note.
+/// Akaike's penalty of its one parameter, `2 (J_logged − J_loop) / σ² > 2` (σ² = 2V / n
+/// of the loop's fit over the n residuals its criterion counts, the mean squared residual
+/// with the default weights; a ratio that is not a number takes the logged frame;
+/// Akaike's information criterion, Ljung, *System Identification*, 2nd ed., 16.4): the
+/// logged frame is the loop's limit at an infinite bandwidth. Both `J` take the same
+/// correction, made in the first search's frame: with hard leg states its `c(θ)` does not
+/// depend on the frame (the transition `e^{Ah}` is the motor's), with smooth ones only
+/// through the pieces' currents. Returns whether the logged frame is taken, and a note.
 ///
 /// On the drive simulator's 4 kHz log (the drive advances with the logged speed; 0.05 A
 /// per phase, seeds 1–4, hard and soft legs) that ratio was −0.5 … −10.4, and the pair had
@@ -263,7 +267,11 @@ pub(crate) fn logged_or_loop(
 ) -> Result<(bool, String)> {
     let j_loop = compensated(at_loop, model, correction, experiments)?;
     let j_logged = compensated(at_logged, model, correction, experiments)?;
-    let ratio = 2.0 * (j_logged - j_loop) / at_loop.fit.mse;
+    // σ² of the criterion's own metric: 2V over the residuals it counts (the mean squared
+    // residual with the default weights).
+    let stats = &at_loop.fit;
+    let counted = (stats.counted.unwrap_or(stats.samples) * stats.outputs.len().max(1)) as f64;
+    let ratio = (j_logged - j_loop) * counted / stats.loss;
     let logged = ratio.is_nan() || ratio <= AIC_PENALTY;
     let note = format!(
         "the controller's frame under current noise, each fit by its compensated criterion at its own estimate: \
