@@ -216,27 +216,6 @@ pub(crate) fn ambiguity(
     Ok((None, format!("the controller's loop: {text}")))
 }
 
-/// The compensated criterion `J = V − Σ_e c_e(θ̂)` of a fit `fit` of `model` (its loss `V`
-/// on the weighting that carries `correction`; θ̂ in model order, the same for each of the
-/// `experiments`), in the units of the loss.
-///
-/// # Errors
-/// Those of the correction's value at θ̂.
-fn compensated(
-    fit: &FitResult,
-    model: &PmsmPwm,
-    correction: &dyn CriterionCorrection,
-    experiments: usize,
-) -> Result<f64> {
-    let theta: Vec<f64> =
-        model.parameters().iter().map(|p| fit.parameter(&p.name).map_or(f64::NAN, |e| e.value)).collect();
-    let mut c = 0.0;
-    for e in 0..experiments {
-        c += correction.value(e, &theta)?;
-    }
-    Ok(fit.fit.loss - c)
-}
-
 /// Under current noise (the final fits' weighting compensated by `correction`): the final
 /// fit `at_loop` at the loop's bandwidth `alpha` \[rad/s\] against the same fit at the logged
 /// angle and speed, `at_logged`, each by its compensated criterion `J` at its own estimate
@@ -265,8 +244,8 @@ pub(crate) fn logged_or_loop(
     correction: &dyn CriterionCorrection,
     experiments: usize,
 ) -> Result<(bool, String)> {
-    let j_loop = compensated(at_loop, model, correction, experiments)?;
-    let j_logged = compensated(at_logged, model, correction, experiments)?;
+    let j_loop = super::pwm_noise::compensated_loss(at_loop, model, correction, experiments)?;
+    let j_logged = super::pwm_noise::compensated_loss(at_logged, model, correction, experiments)?;
     // σ² of the criterion's own metric: 2V over the residuals it counts (the mean squared
     // residual with the default weights).
     let stats = &at_loop.fit;

@@ -107,6 +107,32 @@ pub(crate) struct StartCompensation {
     pub rms: f64,
 }
 
+/// The estimate of `fit` as `model`'s θ (model order, length n_θ; NaN for a parameter the
+/// fit does not report).
+fn estimate_theta(model: &PmsmPwm, fit: &FitResult) -> Vec<f64> {
+    model.parameters().iter().map(|p| fit.parameter(&p.name).map_or(f64::NAN, |e| e.value)).collect()
+}
+
+/// The compensated criterion `J = V − Σ_e c_e(θ̂)` of a fit `fit` of `model` (its loss `V`
+/// on the weighting that carries `correction`; θ̂ in model order, the same for each of the
+/// `experiments`), in the units of the loss.
+///
+/// # Errors
+/// Those of the correction's value at θ̂.
+pub(crate) fn compensated_loss(
+    fit: &FitResult,
+    model: &PmsmPwm,
+    correction: &dyn CriterionCorrection,
+    experiments: usize,
+) -> Result<f64> {
+    let theta = estimate_theta(model, fit);
+    let mut c = 0.0;
+    for e in 0..experiments {
+        c += correction.value(e, &theta)?;
+    }
+    Ok(fit.fit.loss - c)
+}
+
 /// The compensation of `model`'s one-step criterion at the estimate `fit` over the samples
 /// `weighting` counts ([`StartCompensation`]).
 ///
@@ -118,8 +144,7 @@ pub(crate) fn compensation(
     fit: &FitResult,
     weighting: &dyn Weighting,
 ) -> Result<StartCompensation> {
-    let theta: Vec<f64> =
-        model.parameters().iter().map(|p| fit.parameter(&p.name).map_or(f64::NAN, |e| e.value)).collect();
+    let theta = estimate_theta(model, fit);
     let (sigma, share) = start_noise(experiments, model, &theta, weighting)?;
     let text = format!(
         "the measured current's noise on the PWM predictor's start: Σ = [{:.3e} {:.3e}; {:.3e} {:.3e}] A², {:.3} \
