@@ -185,6 +185,7 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
         model: kind,
         dynamics: a.model.dynamics(),
         control_period: a.control_period,
+        read_scales: [csv.current_scale, csv.voltage_scale],
         hold: a.hold,
         start: a.start.clone(),
         fixed: a.fix.iter().filter(|(_, v)| v.is_none()).map(|(n, _)| n.clone()).collect(),

@@ -5,6 +5,7 @@ use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::{FitResult, PemOptions};
 use crate::model::Parameter;
+use crate::pmsm::log::Scale;
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::inverter::InverterModel;
 use crate::pmsm::model::kind::MotorKind;
@@ -153,6 +154,12 @@ pub struct PmsmFitOptions {
     /// the continuous equations (their back-EMF reads low by up to `(ω_e h_c)²/12`).
     #[serde(default)]
     pub control_period: Option<f64>,
+    /// How the log's current and voltage columns were read (`[currents, voltages]`): an
+    /// RMS-scaled column was multiplied by `√2` on reading (MODEL.md §1). The fit works in
+    /// peak values whatever they were; the `scaling_assumed` notice offers the estimates
+    /// under the convention the data cannot tell from the one read. Default: peak, peak.
+    #[serde(default)]
+    pub read_scales: [Scale; 2],
 }
 
 impl PmsmFitOptions {
@@ -180,6 +187,7 @@ impl PmsmFitOptions {
             force: false,
             dynamics: Dynamics::Auto,
             control_period: None,
+            read_scales: [Scale::Peak; 2],
         }
     }
 }

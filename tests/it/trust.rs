@@ -5,7 +5,8 @@
 use crate::common::{load, pmsm_options};
 use greybox::Experiment;
 use greybox::data::Channel;
-use greybox::pmsm::{HoldChoice, MotorKind, PmsmFitOptions, VoltageInput, fit_pmsm};
+use greybox::pmsm::{HoldChoice, MotorKind, PmsmFitOptions, Scale, VoltageInput, fit_pmsm};
+use greybox::report::format_eng;
 
 /// 200 threads writing different reports to one path leave one whole report, never a mix.
 #[test]
@@ -121,6 +122,19 @@ fn setup_mistakes_are_named() {
     // estimates under the other conventions.
     let notice = codes(&right).into_iter().find(|(k, u, _)| k == "scaling_assumed" && !u).unwrap();
     assert!(notice.2.contains("RMS") && notice.2.contains("power-invariant"), "{}", notice.2);
+    // Peak currents read as RMS (`--current-scale rms`: ×√2 on reading) give r_s ÷√2; the
+    // notice then offers the peak reading, the right fit's r_s, not a further ÷√2.
+    let s2 = std::f64::consts::SQRT_2;
+    let as_rms = scaled(&scaled(&e, "id", s2), "iq", s2);
+    let read = PmsmFitOptions { read_scales: [Scale::Rms, Scale::Peak], ..pmsm_options(t.n_p) };
+    let wrong = fit_pmsm(std::slice::from_ref(&as_rms), &read).unwrap();
+    let r_s = |f: &greybox::pmsm::PmsmFit| f.report.parameter("r_s").unwrap().value;
+    assert!((r_s(&wrong) * s2 / r_s(&right) - 1.0).abs() < 1e-6, "{} against {}", r_s(&wrong), r_s(&right));
+    let notice = codes(&wrong).into_iter().find(|(k, u, _)| k == "scaling_assumed" && !u).unwrap();
+    let offered =
+        format!("If the currents were peak values, not RMS: r_s {}", format_eng(r_s(&wrong) * s2, "ohm", 5));
+    assert!(notice.2.contains(&offered) && notice.2.contains("--current-scale rms"), "{}", notice.2);
+    assert_eq!(format_eng(r_s(&wrong) * s2, "ohm", 5), format_eng(r_s(&right), "ohm", 5));
     // A surface-magnet model on the salient log is refused, naming the fix.
     let (ipm, t) = load("ipm_moves_idinj");
     let spm = PmsmFitOptions { model: MotorKind::Spm, ..pmsm_options(t.n_p) };

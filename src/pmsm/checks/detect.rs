@@ -22,6 +22,7 @@ use crate::error::{Error, Result};
 use crate::estimate::{FitResult, Warning};
 use crate::pmsm::checks::scan::BASE;
 pub(crate) use crate::pmsm::checks::scan::scan_gram;
+use crate::pmsm::log::Scale;
 use crate::pmsm::log::signals::{DqView, channel};
 use nalgebra::{DMatrix, DVector};
 
@@ -186,24 +187,35 @@ pub(crate) fn pole_pair_warning(
 }
 
 /// The warnings of a PMSM fit from its logs: a speed unit or frame mistake, and the assumed
-/// scaling (checks that cannot run are skipped).
-pub(crate) fn warnings(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> Vec<Warning> {
+/// scaling of columns read as `read` (`[currents, voltages]`; checks that cannot run are
+/// skipped).
+pub(crate) fn warnings(
+    experiments: &[Experiment],
+    n_p: u32,
+    fit: &FitResult,
+    read: [Scale; 2],
+) -> Vec<Warning> {
     let mut out = Vec::new();
     out.extend(speed_check(experiments, n_p));
     out.extend(sample_time_check(experiments, n_p, fit));
-    out.push(scaling_notice(fit));
+    out.push(scaling_notice(fit, read));
     out
 }
 
 /// The warnings of a steady-state fit: the speed check where the angle does not alias (a
 /// slow log's angle turns by more than π between samples and cannot be compared), and the
-/// assumed scaling.
-pub(crate) fn steady_warnings(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> Vec<Warning> {
+/// assumed scaling of columns read as `read` (`[currents, voltages]`).
+pub(crate) fn steady_warnings(
+    experiments: &[Experiment],
+    n_p: u32,
+    fit: &FitResult,
+    read: [Scale; 2],
+) -> Vec<Warning> {
     let mut out = Vec::new();
     if max_turn(experiments, n_p) < std::f64::consts::PI {
         out.extend(speed_check(experiments, n_p));
     }
-    out.push(scaling_notice(fit));
+    out.push(scaling_notice(fit, read));
     out
 }
 
@@ -325,22 +337,57 @@ pub(crate) fn sample_time_facts(experiments: &[Experiment], n_p: u32, r: f64, l:
     ))
 }
 
-/// What the estimates would be under the conventions the data cannot tell apart.
-fn scaling_notice(fit: &FitResult) -> Warning {
+/// What the estimates would be under the conventions the data cannot tell apart, for
+/// columns read as `read` (`[currents, voltages]`): the voltage equations are homogeneous
+/// in the current, so currents scaled by `c` give `r_s`, the inductances `÷ c` and `k_e`
+/// unchanged; voltages scaled by `c` give `r_s`, the inductances and `k_e` `× c` (MODEL.md
+/// §1). With a column read as RMS (multiplied by `√2`), the alternative offered is that it
+/// held peak values.
+fn scaling_notice(fit: &FitResult, [current, voltage]: [Scale; 2]) -> Warning {
     let v = |n: &str| fit.parameter(n).map(|p| p.value);
     let r = v("r_s").unwrap_or(f64::NAN);
     let k = v("k_e").unwrap_or(f64::NAN);
     let s2 = std::f64::consts::SQRT_2;
+    let ohm = |x: f64| format_eng(x, "ohm", 5);
+    let read = match (current, voltage) {
+        (Scale::Peak, Scale::Peak) => {
+            "currents and voltages read as amplitude-invariant dq peak values".to_string()
+        }
+        (c, u) => {
+            let as_read = |s: Scale, flag: &str| match s {
+                Scale::Peak => "peak values".to_string(),
+                Scale::Rms => format!("RMS values (multiplied by √2 on reading, {flag} rms)"),
+            };
+            format!(
+                "currents read as {} and voltages as {}, amplitude-invariant dq",
+                as_read(c, "--current-scale"),
+                as_read(u, "--voltage-scale")
+            )
+        }
+    };
+    let currents = match current {
+        Scale::Peak => format!("If the currents were RMS: r_s {} and the inductances ÷√2", ohm(r / s2)),
+        Scale::Rms => {
+            format!("If the currents were peak values, not RMS: r_s {} and the inductances ×√2", ohm(r * s2))
+        }
+    };
+    let voltages = match voltage {
+        Scale::Peak => format!(
+            "if the voltages were RMS: r_s {}, inductances and k_e {} ×√2",
+            ohm(r * s2),
+            format_eng(k * s2, "V s/rad", 5)
+        ),
+        Scale::Rms => format!(
+            "if the voltages were peak values, not RMS: r_s {}, inductances and k_e {} ÷√2",
+            ohm(r / s2),
+            format_eng(k / s2, "V s/rad", 5)
+        ),
+    };
     Warning::notice(
         "scaling_assumed",
         format!(
-            "currents and voltages read as amplitude-invariant dq peak values (MODEL.md §1); the data cannot tell. \
-             If the currents were RMS: r_s {} and the inductances ÷√2; if the voltages were RMS: r_s {}, \
-             inductances and k_e {} ×√2; if the dq transform was power-invariant: k_e {} (÷√(3/2)), r_s and \
-             inductances unchanged",
-            format_eng(r / s2, "ohm", 5),
-            format_eng(r * s2, "ohm", 5),
-            format_eng(k * s2, "V s/rad", 5),
+            "{read} (MODEL.md §1); the data cannot tell. {currents}; {voltages}; if the dq transform was \
+             power-invariant: k_e {} (÷√(3/2)), r_s and inductances unchanged",
             format_eng(k * SQRT_2_3, "V s/rad", 5)
         ),
     )

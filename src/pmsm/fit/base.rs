@@ -120,7 +120,7 @@ fn fit_beside(
         },
         || {
             (!options.skip_setup_checks)
-                .then(|| crate::pmsm::checks::detect::warnings(experiments, n_p, &best))
+                .then(|| crate::pmsm::checks::detect::warnings(experiments, n_p, &best, options.read_scales))
         },
     );
     let model_checks = crate::pmsm::checks::advice::merge(dead, late);

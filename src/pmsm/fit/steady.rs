@@ -97,6 +97,7 @@ pub(crate) fn fit(
         experiments,
         options.pole_pairs,
         &report,
+        options.read_scales,
     ));
     report.warnings = warnings.collect();
     let pmsm_notes = why.iter().map(|w| chosen_note(w, options.model)).collect();
