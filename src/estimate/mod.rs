@@ -32,8 +32,8 @@ pub use arrowhead::{
 };
 pub use assemble::AT_BOUND;
 pub use consistency::{
-    Homogeneity, PARTS, PARTS_FLOOR, PARTS_LEVEL, Refit, chi_square_sf, consecutive_parts, disagreement,
-    disagreement_of, homogeneity, homogeneity_where_estimated, static_parts,
+    Homogeneity, PARTS, PARTS_FLOOR, PARTS_LEVEL, Refit, between_variance, chi_square_sf, consecutive_parts,
+    disagreement, disagreement_of, homogeneity, homogeneity_where_estimated, static_parts,
 };
 pub use correction::CriterionCorrection;
 pub use design::{

@@ -33,6 +33,7 @@ pub use checks::limit::VoltageLimitWeighting;
 pub use fit::auto_method::fit_pmsm_by;
 pub use fit::flux_map::{ExponentCandidate, FluxMapFit, FluxMapOptions, fit_flux_map};
 pub use fit::flux_map_check::{MapCheck, MapModel, PointCheck};
+pub use fit::flux_map_regions::{RegionCheck, Widened};
 pub use fit::flux_map_torque::{TorqueCheck, torque_check};
 pub use fit::input_search::{InputSearch, fit_estimating_input};
 pub use fit::iv::{Estimator, check_options as check_iv_options, fit_pmsm_iv, fit_pmsm_iv_after};

@@ -18,6 +18,7 @@ pub use super::checks::noise::NEGLIGIBLE_VOLTAGE_NOISE;
 pub use super::fit::auto_mask::FALLBACK_RELATIVE_THRESHOLD;
 pub use super::fit::flux_map::FLUX_MAP_REFINED;
 pub use super::fit::flux_map_check::{INDUCTANCE_WITHIN, NO_LOAD_WITHIN};
+pub use super::fit::flux_map_regions::REGION_POINTS;
 pub use super::fit::hold::{DQ_DECISIVE, HOLD_TIE_Z, SCREEN_DECISIVE};
 pub use super::fit::input_search::{ADVANCE_RANGE, DELAYS};
 pub use super::fit::iv::{IV_MAX_ITERATIONS, IV_STEP_TOLERANCE};

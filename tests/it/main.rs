@@ -25,6 +25,7 @@ mod errors;
 mod examples;
 mod filter;
 mod flux_map_cli;
+mod flux_map_regions;
 mod fuzz;
 mod gate;
 mod inverter;

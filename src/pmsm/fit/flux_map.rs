@@ -6,6 +6,7 @@ use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::{FitResult, PemOptions, fit};
 use crate::pmsm::fit::flux_map_check::{MapCheck, check};
+use crate::pmsm::fit::flux_map_regions::{RegionCheck, check_or_note as regions};
 use crate::pmsm::fit::report::estimate_table;
 use crate::pmsm::model::flux_map::FluxMapModel;
 use crate::pmsm::model::saturation::{Inductances, Saturation, SaturationExponents};
@@ -75,6 +76,11 @@ pub struct FluxMapFit {
     /// intervals) from the model with the least held-out error, checked against the map
     /// (`None` with [`FluxMapOptions::skip_check`]).
     pub check: Option<MapCheck>,
+    /// The saturation model refitted on regions of the map, and its coefficients' intervals
+    /// widened where they disagree (`None` with [`FluxMapOptions::skip_check`] or a map too
+    /// small to split).
+    #[serde(default)]
+    pub regions: Option<RegionCheck>,
     /// What a reader should know about the fit: an exponent chosen at the edge of the
     /// searched range, a printed operating point outside the map's currents.
     #[serde(default)]
@@ -149,6 +155,8 @@ pub fn fit_flux_map(map: &Experiment, options: &FluxMapOptions) -> Result<FluxMa
     let d_min = i_d.iter().copied().fold(0.0_f64, f64::min);
     let at = [[0.0, 0.0], [0.0, 0.5 * q_max], [0.0, q_max], [d_min, q_max]];
     let check = (!options.skip_check).then(|| check(map, exponents, &result, &at)).transpose()?;
+    let (regions, region_note) =
+        if options.skip_check { (None, None) } else { regions(map, exponents, &result) };
     // The points whose figures the report prints: the no-load flux's zero current and the
     // inductances' operating points.
     let printed: Vec<[f64; 2]> = match &check {
@@ -179,7 +187,11 @@ pub fn fit_flux_map(map: &Experiment, options: &FluxMapOptions) -> Result<FluxMa
         candidates,
         operating_points,
         check,
-        notes: notes(options.exponents.is_none(), exponents, &printed, i_d, i_q),
+        regions,
+        notes: notes(options.exponents.is_none(), exponents, &printed, i_d, i_q)
+            .into_iter()
+            .chain(region_note)
+            .collect(),
         rms_residual_dq: [0, 1].map(|k| result.fit.rms_residual.get(k).copied().unwrap_or(f64::NAN)),
         fit: result,
     })
@@ -339,6 +351,9 @@ impl std::fmt::Display for FluxMapFit {
                 "standard errors: white residuals (Ljung–Box {worst:.1} ≤ {:.1})",
                 u.ljung_box_critical
             )?,
+        }
+        if let Some(r) = &self.regions {
+            write!(f, "{r}")?;
         }
         f.write_str(&inductance_table(&self.operating_points))?;
         let refined: Vec<String> = self

@@ -16,7 +16,7 @@
 //! the splines' knot intervals themselves chosen by leave-one-out.
 
 use super::flux_map_grid::Grid;
-use crate::data::{Channel, Experiment};
+use crate::data::Experiment;
 use crate::error::Result;
 use crate::estimate::spline::SplineSurface;
 use crate::estimate::{FitResult, PemOptions, Warning, fit};
@@ -131,20 +131,10 @@ fn fold(k: usize) -> usize {
 /// exponents `e` from `result`'s estimate without them \[V s\] (`None` when a fold fails).
 fn cross_validated(map: &Experiment, e: SaturationExponents, result: &FitResult) -> Option<f64> {
     let theta: Vec<f64> = result.parameters.iter().map(|p| p.value).collect();
-    let names = ["i_d", "i_q", "psi_d", "psi_q"];
     let (mut sse, mut count) = (0.0, 0usize);
     for f in 0..FOLDS {
         let keep = |k: &usize| fold(*k) != f;
-        let channels: Vec<Channel> = names
-            .iter()
-            .map(|n| {
-                let c = map.get(n)?;
-                let v: Vec<f64> =
-                    c.values.iter().enumerate().filter(|(k, _)| keep(k)).map(|(_, v)| *v).collect();
-                Some(Channel::new(*n, c.unit.clone(), v))
-            })
-            .collect::<Option<_>>()?;
-        let train = Experiment::try_new(format!("{}#{f}", map.name()), map.h(), channels).ok()?;
+        let train = super::flux_map_regions::points(map, format!("{}#{f}", map.name()), &|k| keep(&k))?;
         let start: [f64; 6] = theta.as_slice().try_into().ok()?;
         let model = FluxMapModel::new(e, &start);
         let r = fit(&model, std::slice::from_ref(&train), &theta, &PemOptions::default()).ok()?;

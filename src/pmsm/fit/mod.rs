@@ -9,6 +9,7 @@ mod beside;
 pub(super) mod flux_map;
 pub(super) mod flux_map_check;
 mod flux_map_grid;
+pub(super) mod flux_map_regions;
 pub(super) mod flux_map_torque;
 mod friction;
 pub(super) mod hold;
