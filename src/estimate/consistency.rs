@@ -132,8 +132,7 @@ pub fn disagreement_of(tests: &[Homogeneity], floor: f64, family_level: f64) -> 
 pub fn between_variance(h: &Homogeneity) -> f64 {
     let excess = |tau2: f64| {
         let w: Vec<f64> = h.std_errors.iter().map(|s| 1.0 / (s * s + tau2)).collect();
-        let mean = w.iter().zip(&h.estimates).map(|(w, t)| w * t).sum::<f64>() / w.iter().sum::<f64>();
-        w.iter().zip(&h.estimates).map(|(w, t)| w * (t - mean).powi(2)).sum::<f64>() - h.dof as f64
+        pooled_q(&h.estimates, &w).1 - h.dof as f64
     };
     let at_zero = excess(0.0);
     if h.dof == 0 || at_zero.is_nan() || at_zero <= 0.0 {
@@ -242,11 +241,17 @@ fn floored_test(name: &str, estimates: Vec<f64>, std_errors: &[f64], floor: f64)
     test(name, estimates, std_errors)
 }
 
+/// The mean of `estimates` weighted by `w` and `Σ w_k (θ_k − θ̄)²` about it (Cochran's Q
+/// for `w_k = 1/σ_k²`; the generalised Q of [`between_variance`] for `1/(σ_k² + τ²)`).
+fn pooled_q(estimates: &[f64], w: &[f64]) -> (f64, f64) {
+    let pooled = w.iter().zip(estimates).map(|(w, t)| w * t).sum::<f64>() / w.iter().sum::<f64>();
+    (pooled, w.iter().zip(estimates).map(|(w, t)| w * (t - pooled).powi(2)).sum())
+}
+
 /// Cochran's Q of one parameter's estimates and standard errors.
 fn test(name: &str, estimates: Vec<f64>, std_errors: Vec<f64>) -> Homogeneity {
     let w: Vec<f64> = std_errors.iter().map(|s| 1.0 / (s * s)).collect();
-    let pooled = w.iter().zip(&estimates).map(|(w, t)| w * t).sum::<f64>() / w.iter().sum::<f64>();
-    let q = w.iter().zip(&estimates).map(|(w, t)| w * (t - pooled).powi(2)).sum::<f64>();
+    let (pooled, q) = pooled_q(&estimates, &w);
     let dof = estimates.len() - 1;
     let spread = estimates.iter().map(|t| (t - pooled).abs()).fold(0.0, f64::max);
     Homogeneity {
@@ -368,9 +373,9 @@ mod tests {
     /// Paule–Mandel's τ² by hand: equal errors 0.1 and estimates 1.0, 1.05, 0.95 give
     /// Q = 0.5, below its 2 degrees of freedom, so τ² = 0; with equal errors σ the
     /// generalised Q is `Σ (θ_k − θ̄)² / (σ² + τ²) = K − 1`, so `τ² = s² − σ²` (s² the
-    /// estimates' sample variance): 1.0 and 2.0 give 0.5 − 0.01. With two close parts whose errors lie far
-    /// below the others' (errors 1e-4, 1e-4, 0.01, 0.01; estimates 0, 3e-4, 1, 2) the
-    /// generalised Q is K − 1 at τ² and τ is the estimates' spread (0.957), where
+    /// estimates' sample variance): 1.0 and 2.0 give 0.5 − 0.01. With two close parts whose
+    /// errors lie far below the others' (errors 1e-4, 1e-4, 0.01, 0.01; estimates 0, 3e-4,
+    /// 1, 2) the generalised Q is K − 1 at τ² and τ is the estimates' spread (0.957), where
     /// DerSimonian–Laird's moment estimate gives 0.022.
     #[test]
     fn between_variance_by_hand() {

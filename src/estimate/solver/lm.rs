@@ -6,8 +6,8 @@
 //! projects `p + δ` on the bounds and evaluates the trial point. The step is accepted only
 //! if the cost decreases; λ then follows the gain ratio `ρ = ΔV_actual / ΔV_predicted` as
 //! `λ ← λ max(1/3, 1 − (2ρ − 1)³)`, otherwise `λ ← ν λ`, `ν ← 2ν` (Nielsen 1999; Madsen,
-//! Nielsen & Tingleff, *Methods for non-linear least squares problems*, 2004, section 3.2). Trial points where the model
-//! cannot be simulated count as a rejected step.
+//! Nielsen & Tingleff, *Methods for non-linear least squares problems*, 2004, section
+//! 3.2). Trial points where the model cannot be simulated count as a rejected step.
 //!
 //! The damping differs from MINPACK's trust region; the stopping tests are MINPACK's
 //! (`lmder`; see [`Tolerances`] and the `stopping` module): `ftol` on both the actual and

@@ -19,8 +19,7 @@ use super::flux_map_grid::Grid;
 use crate::data::Experiment;
 use crate::error::Result;
 use crate::estimate::spline::SplineSurface;
-use crate::estimate::{FitResult, PemOptions, Warning, fit};
-use crate::pmsm::model::flux_map::FluxMapModel;
+use crate::estimate::{FitResult, Warning};
 use crate::pmsm::model::saturation::{Saturation, SaturationExponents};
 use serde::{Deserialize, Serialize};
 
@@ -134,10 +133,10 @@ fn cross_validated(map: &Experiment, e: SaturationExponents, result: &FitResult)
     let (mut sse, mut count) = (0.0, 0usize);
     for f in 0..FOLDS {
         let keep = |k: &usize| fold(*k) != f;
-        let train = super::flux_map_regions::points(map, format!("{}#{f}", map.name()), &|k| keep(&k))?;
-        let start: [f64; 6] = theta.as_slice().try_into().ok()?;
-        let model = FluxMapModel::new(e, &start);
-        let r = fit(&model, std::slice::from_ref(&train), &theta, &PemOptions::default()).ok()?;
+        let r = super::flux_map_regions::refit_where(map, e, &theta, format!("{}#{f}", map.name()), &|k| {
+            keep(&k)
+        })?
+        .ok()?;
         let values: Vec<f64> = r.parameters.iter().map(|p| p.value).collect();
         let m = Saturation::from_theta(&values, e);
         let col = |n: &str| map.channel(n).ok();

@@ -70,9 +70,17 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[(v.len() - 1) / 2]
 }
 
-/// The map's points where `keep(k)` holds, as a data set of their own named `name` (the
-/// rows of `i_d, i_q, psi_d, psi_q`); `None` without those channels.
-pub(super) fn points(map: &Experiment, name: String, keep: &dyn Fn(usize) -> bool) -> Option<Experiment> {
+/// The saturation model at exponents `e` refitted from `theta` (its six coefficients, model
+/// order) on the map's points where `keep(k)` holds, as a data set of their own named `name`
+/// (the rows of `i_d, i_q, psi_d, psi_q`): the cross-validation's folds and the regions.
+/// `None` without those channels or six coefficients; `Some(Err)` when the fit fails.
+pub(super) fn refit_where(
+    map: &Experiment,
+    e: SaturationExponents,
+    theta: &[f64],
+    name: String,
+    keep: &dyn Fn(usize) -> bool,
+) -> Option<crate::Result<FitResult>> {
     let channels: Vec<Channel> = ["i_d", "i_q", "psi_d", "psi_q"]
         .iter()
         .map(|n| {
@@ -82,7 +90,9 @@ pub(super) fn points(map: &Experiment, name: String, keep: &dyn Fn(usize) -> boo
             Some(Channel::new(*n, c.unit.clone(), v))
         })
         .collect::<Option<_>>()?;
-    Experiment::try_new(name, map.h(), channels).ok()
+    let part = Experiment::try_new(name, map.h(), channels).ok()?;
+    let start: [f64; 6] = theta.try_into().ok()?;
+    Some(fit(&FluxMapModel::new(e, &start), std::slice::from_ref(&part), theta, &PemOptions::default()))
 }
 
 /// The map's regions refitted at exponents `e` from the whole map's fit `result` (module
@@ -95,7 +105,6 @@ pub(crate) fn check(map: &Experiment, e: SaturationExponents, result: &FitResult
     let q_mid = median(i_q.iter().map(|q| q.abs()).collect()) + 0.0;
     let of = |k: usize| region([i_d[k], i_q[k]], d_mid, q_mid);
     let theta: Vec<f64> = result.parameters.iter().map(|p| p.value).collect();
-    let start: [f64; 6] = theta.as_slice().try_into().ok()?;
     let mut regions = Vec::new();
     let mut fits = Vec::new();
     for r in 0..4 {
@@ -105,10 +114,8 @@ pub(crate) fn check(map: &Experiment, e: SaturationExponents, result: &FitResult
         }
         let (d, q) = (if r >= 2 { ">" } else { "≤" }, if r % 2 == 1 { ">" } else { "≤" });
         regions.push(format!("i_d {d} {d_mid:.2} A, |i_q| {q} {q_mid:.2} A ({count} points)"));
-        let part = points(map, format!("{}#region{}", map.name(), r + 1), &|k| of(k) == r)?;
-        if let Ok(f) =
-            fit(&FluxMapModel::new(e, &start), std::slice::from_ref(&part), &theta, &PemOptions::default())
-        {
+        let name = format!("{}#region{}", map.name(), r + 1);
+        if let Ok(f) = refit_where(map, e, &theta, name, &|k| of(k) == r)? {
             fits.push(f);
         }
     }
