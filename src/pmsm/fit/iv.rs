@@ -29,8 +29,9 @@
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::iv::{IvCovariance, IvSums, one_step_sums};
-use crate::estimate::{FitResult, ParameterEstimate, SolverReport, Termination, WeightingKind};
+use crate::estimate::{FitResult, ParameterEstimate, SolverReport, Termination, Warning, WeightingKind};
 use crate::model::{GreyBoxModel, Prepared};
+use crate::pmsm::fit::hold::{DQ_DECISIVE, GIVE_THE_HOLD, largest_difference};
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::fit::workflow::fit_pmsm;
 use crate::pmsm::log::signals::DqView;
@@ -39,7 +40,7 @@ use crate::pmsm::model::ipm::PmsmIpm;
 use crate::pmsm::model::kind::{MotorKind, derived};
 use crate::pmsm::model::setup::PmsmSetup;
 use crate::pmsm::model::spm::PmsmSpm;
-use crate::pmsm::options::PmsmFitOptions;
+use crate::pmsm::options::{HoldChoice, PmsmFitOptions};
 use crate::simulate::{SimOptions, simulate};
 
 /// Which criterion a PMSM fit minimises or solves.
@@ -144,7 +145,72 @@ fn sums(model: &PmsmSpm, logs: &[Log], theta: &[f64]) -> Result<IvSums> {
 pub fn fit_pmsm_iv(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<PmsmFit> {
     check_options(options)?;
     let oe = fit_pmsm(experiments, options)?;
-    fit_pmsm_iv_after(oe, experiments, options)
+    fit_pmsm_iv_checked(oe, experiments, options)
+}
+
+/// [`fit_pmsm_iv_after`], and where the automatic hold fitted both holds to output-error
+/// losses within [`DQ_DECISIVE`] of each other (the data hardly choose), the IV fit at the
+/// other hold too: estimates more than [`HOLD_IV_Z`] combined standard errors apart make
+/// the fit untrusted (`hold_ambiguous`). IV's errors are smaller than output error's,
+/// against which the hold was chosen, so a difference output error's intervals hide can
+/// exceed IV's. The same check for `--method iv` as for the automatic choice.
+///
+/// # Errors
+/// As [`fit_pmsm_iv_after`].
+pub fn fit_pmsm_iv_checked(
+    oe: PmsmFit,
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+) -> Result<PmsmFit> {
+    let other = other_hold_fit(&oe, experiments, options)?;
+    let iv = fit_pmsm_iv_after(oe, experiments, options)?;
+    if iv.report.warnings.iter().any(|w| w.code == "hold_ambiguous") {
+        return Ok(iv);
+    }
+    let Some(warning) = other.and_then(|other| hold_ambiguous(&iv, &other, options)) else { return Ok(iv) };
+    let warnings = iv.report.warnings.iter().cloned().chain([warning]).collect();
+    Ok(PmsmFit { report: FitResult { warnings, ..iv.report }, ..iv })
+}
+
+/// Combined standard errors by which the IV estimates at the two holds may differ before
+/// the fit is untrusted (`hold_ambiguous`, [`fit_pmsm_iv_checked`]).
+pub const HOLD_IV_Z: f64 = 3.0;
+
+/// The IV fit at the hold the automatic choice did not take, when both were fitted and
+/// their losses lie within [`DQ_DECISIVE`] of each other (the data hardly choose); `None`
+/// otherwise (a steady-state fit, which has one hold).
+///
+/// # Errors
+/// Those of [`fit_pmsm_iv_after`].
+fn other_hold_fit(
+    oe: &PmsmFit,
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+) -> Result<Option<PmsmFit>> {
+    let [(a, la), (b, lb)] = oe.hold_losses[..] else { return Ok(None) };
+    let close = (1.0 / DQ_DECISIVE..DQ_DECISIVE).contains(&(la / lb));
+    if options.hold != HoldChoice::Auto || !close || oe.steady_state() {
+        return Ok(None);
+    }
+    let hold = if oe.hold == a { b } else { a };
+    fit_pmsm_iv_after(PmsmFit { hold, ..oe.clone() }, experiments, options).map(Some)
+}
+
+/// An untrusted `hold_ambiguous` warning when the IV estimates at the two holds differ by
+/// more than [`HOLD_IV_Z`] combined standard errors in any parameter.
+fn hold_ambiguous(iv: &PmsmFit, other: &PmsmFit, options: &PmsmFitOptions) -> Option<Warning> {
+    let (name, z) = largest_difference(&iv.report, &other.report, options.model.parameter_names())?;
+    (z > HOLD_IV_Z).then(|| {
+        Warning::untrusted(
+            "hold_ambiguous",
+            format!(
+                "the instrumental-variable estimates at the {} and {} voltage holds, whose output-error losses are \
+                 close, differ in {name} by {z:.1} standard errors: the log does not say how the voltage was held; \
+                 {GIVE_THE_HOLD}",
+                iv.hold, other.hold
+            ),
+        )
+    })
 }
 
 /// [`fit_pmsm_iv`] from the output-error fit `oe` of the same `experiments` and `options`
