@@ -3,12 +3,11 @@
 //! and the period-mean voltage either applies (MODEL.md §4, "Reference versus actual
 //! voltage").
 
-use super::{
-    C64, DqSignals, DqView, Interval, VoltageHold, VoltageInput, intervals, mean_speed, motion,
-    stator_hold_start,
-};
+use super::dq::motion;
+use super::{C64, Interval, VoltageHold, VoltageInput, intervals, mean_speed, stator_hold_start};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
+use crate::pmsm::log::signals::{DqSignals, DqView};
 use std::borrow::Cow;
 
 /// The intervals `k = 0..N−2` of a log driven by the voltage *reference* (channels

@@ -5,10 +5,12 @@
 //! [`SpmInputs`](crate::pmsm::SpmInputs) and [`IpmInputs`](crate::pmsm::model::augmented::IpmInputs) hold one.
 
 use super::{
-    C64, DqView, IntervalVoltage, Result, SMALL_ANGLE, SQRT_2_3, VoltageHold, VoltageInput, half_angle,
-    half_angle_arg, half_angle_rotation, mean_speed, model_start_voltages, sin_cos_small, terminal_start,
+    C64, IntervalVoltage, SMALL_ANGLE, SQRT_2_3, VoltageHold, VoltageInput, half_angle, half_angle_arg,
+    half_angle_rotation, mean_speed, model_start_voltages, sin_cos_small, terminal_start,
 };
 use crate::data::Values;
+use crate::error::Result;
+use crate::pmsm::log::signals::DqView;
 
 /// The θ-independent data of a PMSM model's intervals (interval k runs from sample k to
 /// k + 1, k = 0..N−2).

@@ -1,21 +1,27 @@
 //! [`PmsmPwm`]: the SPM or IPM current equations driven through the switching-resolved
 //! inverter, as a [`GreyBoxModel`] with exact sensitivities.
 
+use super::dual::{Dual, N, Scalar};
 use super::modulator::{Carrier, duty_ratios, halves};
-use super::*;
-
-mod kernel;
-mod noise;
+use super::period::{self, Params, Period};
+use super::{CarrierEdge, PwmInverter, PwmUpdate};
+use crate::data::Experiment;
+use crate::error::{Error, Result};
+use crate::model::{GreyBoxModel, Parameter, Sensitivities};
+use crate::pmsm::log::signals::{DqView, channel, check_pole_pairs};
+use crate::pmsm::model::interval::{VoltageInput, controller_frame, mean_speed, reference_channels};
+use crate::pmsm::model::kind::MotorKind;
+use crate::pmsm::model::setup::PmsmSetup;
 
 /// The data of the PWM-resolved step, independent of θ: per interval the angle, speeds,
 /// DC link and the carrier's plan (about 200 bytes an interval).
 #[derive(Clone, Debug)]
 pub struct PwmInputs {
-    periods: Vec<Period>,
+    pub(super) periods: Vec<Period>,
     /// The measured dq current at each sample \[A\], for the predictor's correction (the
     /// experiment's channels, shared, not copied).
-    i_d: crate::data::Values,
-    i_q: crate::data::Values,
+    pub(super) i_d: crate::data::Values,
+    pub(super) i_q: crate::data::Values,
 }
 
 /// How far one period of the one-step predictor is from a switching decision the data
@@ -39,13 +45,13 @@ pub struct SignMargin {
 /// θ-dependent coefficients: the parameters in the step's order.
 #[derive(Clone, Copy, Debug)]
 pub struct PwmCoefficients {
-    q: Params<f64>,
+    pub(super) q: Params<f64>,
     /// θ itself, padded: the values the sensitivity pass seeds its dual numbers with.
-    theta: [f64; N],
+    pub(super) theta: [f64; N],
     /// The predictor's gain k_o.
-    k_o: f64,
+    pub(super) k_o: f64,
     /// Number of parameters n_θ.
-    nth: usize,
+    pub(super) nth: usize,
 }
 
 /// A surface- or interior-magnet PMSM (`θ = (r_s, l_s, k_e)` or `(r_s, l_d, l_q, k_e)`,
@@ -162,7 +168,7 @@ impl PmsmPwm {
     }
 
     /// The step's parameters in scalar `T` from θ, `make(value, index)` forming each.
-    fn params<T: Scalar>(&self, theta: &[f64], make: impl Fn(f64, usize) -> T) -> Params<T> {
+    pub(super) fn params<T: Scalar>(&self, theta: &[f64], make: impl Fn(f64, usize) -> T) -> Params<T> {
         let m = self.kind.parameter_names().len();
         let r = make(theta[0] + self.setup.cable_resistance + self.inverter.r_on, 0);
         let (l_d, l_q, k_e) = match self.kind {

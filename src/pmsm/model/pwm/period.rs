@@ -107,7 +107,15 @@ impl Period {
             .iter()
             .flat_map(|h| h.t_sw.map(|t| if t.is_finite() { t.min(h.len - t) / h.len } else { 0.0 }))
             .fold(f64::INFINITY, f64::min);
-        Self { theta, w_e, emf: super::SQRT_2_3 * w_m, u_dc, halves, n: n as u8, duty_margin }
+        Self {
+            theta,
+            w_e,
+            emf: crate::pmsm::model::interval::SQRT_2_3 * w_m,
+            u_dc,
+            halves,
+            n: n as u8,
+            duty_margin,
+        }
     }
 }
 

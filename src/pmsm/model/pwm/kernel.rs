@@ -3,7 +3,7 @@
 //! current at its start only, so the periods of a block are stepped in parallel, and the
 //! numbers are the per-sample step's to the bit, for any number of threads.
 
-use super::{PmsmPwm, PwmCoefficients, PwmInputs};
+use super::model::{PmsmPwm, PwmCoefficients, PwmInputs};
 use crate::model::{BLOCK_LEN, Block, BlockContext, BlockKernel, GreyBoxModel, SimState};
 use crate::pmsm::model::pwm::dual::{Dual, Scalar};
 use crate::pmsm::model::pwm::period;

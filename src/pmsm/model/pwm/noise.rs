@@ -2,7 +2,7 @@
 //! residuals with each period's transition, and the criterion's share of that noise
 //! (`crate::pmsm::fit` compensates the criterion for it).
 
-use super::{PmsmPwm, PwmInputs};
+use super::model::{PmsmPwm, PwmInputs};
 use crate::error::Result;
 use crate::model::GreyBoxModel;
 use crate::pmsm::model::pwm::dual::{Dual, Scalar};
