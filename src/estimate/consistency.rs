@@ -125,9 +125,9 @@ pub fn disagreement_of(tests: &[Homogeneity], floor: f64, family_level: f64) -> 
 /// weighted by `1/(σ_k² + τ²)`, equals its expectation `K − 1`; 0 when the parts agree
 /// within their errors (Q ≤ K − 1 at `τ² = 0`). Recommended over DerSimonian & Laird's
 /// moment estimator where the parts' errors differ by orders of magnitude (Veroniki et
-/// al., *Research Synthesis Methods* 7 (2016) 55–79): a flux map's regions that the
-/// model happens to fit closely carry almost all of DerSimonian–Laird's weight, and their
-/// `τ` came out 20 times below the regions' spread. Solved by bisection on `τ²` (the
+/// al., *Research Synthesis Methods* 7 (2016) 55–79): parts that the model happens to fit
+/// closely carry almost all of DerSimonian–Laird's weight, whose `τ` then falls far below
+/// the parts' spread (20 times on a measured map's regions). Solved by bisection on `τ²` (the
 /// generalised Q falls monotonically in it) to 1e-12 of the bracket.
 pub fn between_variance(h: &Homogeneity) -> f64 {
     let excess = |tau2: f64| {

@@ -114,7 +114,7 @@ mod tests {
     /// crossing (the start's current moves the blanked legs' voltages).
     #[test]
     fn the_smooth_transition_is_the_steps_jacobian() {
-        let per = period::test_period();
+        let per = period::tests::test_period();
         let q =
             Params { r: 0.35, l_d: 3.2e-3, l_q: 7.5e-3, k_e: 0.42, t_d: 3e-6, u_th: 1.2, i_w: Some(0.05) };
         let y = [0.04, -0.03];
