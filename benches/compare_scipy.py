@@ -22,8 +22,8 @@ What it measures
    The script also reproduces greybox's linear least-squares start in numpy and prints
    its relative difference to greybox's (a check, not used for the fit).
 
-The model is greybox's exact sampled-data step (MODEL.md §4, src/pmsm/spm.rs,
-src/pmsm/interval.rs), with i = i_d + j i_q, interval-mean speed w_m = (w[k]+w[k+1])/2,
+The model is greybox's exact sampled-data step (MODEL.md §4, src/pmsm/model/spm.rs,
+src/pmsm/model/interval/dq.rs), with i = i_d + j i_q, interval-mean speed w_m = (w[k]+w[k+1])/2,
 w_e = n_p w_m, phi = w_e h, rot = e^{-j phi}, e = sqrt(2/3) k_e w_m,
 d = e^{-r h/l}, a = rot d, z = r + j w_e l, b = (1 - a)/z:
 
@@ -63,7 +63,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import lfilter
 
-SQRT_2_3 = 0.816_496_580_927_726  # as src/pmsm/interval.rs
+SQRT_2_3 = 0.816_496_580_927_726  # as src/pmsm/model/interval/dq.rs
 NAMES = ("r_s", "l_s", "k_e")
 
 try:

@@ -127,7 +127,7 @@ pub fn disagreement_of(tests: &[Homogeneity], floor: f64, family_level: f64) -> 
 /// moment estimator where the parts' errors differ by orders of magnitude (Veroniki et
 /// al., *Research Synthesis Methods* 7 (2016) 55–79): parts that the model happens to fit
 /// closely carry almost all of DerSimonian–Laird's weight, whose `τ` then falls far below
-/// the parts' spread (20 times on a measured map's regions). Solved by bisection on `τ²` (the
+/// the parts' spread (20 times on a measured case). Solved by bisection on `τ²` (the
 /// generalised Q falls monotonically in it) to 1e-12 of the bracket.
 pub fn between_variance(h: &Homogeneity) -> f64 {
     let excess = |tau2: f64| {

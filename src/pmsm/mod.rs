@@ -36,9 +36,7 @@ pub use fit::flux_map_check::{MapCheck, MapModel, PointCheck};
 pub use fit::flux_map_regions::{RegionCheck, Widened};
 pub use fit::flux_map_torque::{TorqueCheck, torque_check};
 pub use fit::input_search::{InputSearch, fit_estimating_input};
-pub use fit::iv::{
-    Estimator, check_options as check_iv_options, fit_pmsm_iv, fit_pmsm_iv_after, fit_pmsm_iv_checked,
-};
+pub use fit::iv::{Estimator, check_options as check_iv_options, fit_pmsm_iv, fit_pmsm_iv_after};
 pub use fit::mechanics::{LOAD_TORQUE, MechanicsFit, MechanicsOptions, fit_mechanics, mechanics_windows};
 pub use fit::pole_pairs::{AutoPolePairs, choose_pole_pairs_by_fit};
 pub use fit::report::{PmsmFit, ReportOptions, StartComparison, conventions, estimate_table};

@@ -104,6 +104,7 @@ fn voltage_noise_takes_the_default_to_instrumental_variables() {
 /// no such check. Before, `--method iv` ran the IV at the tie's stator hold alone and exited
 /// 0 where the automatic method exited 3 (200 of 200 seeds).
 #[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn instrumental_variables_check_the_hold_as_the_automatic_method() {
     crate::common::require_shared!();
     let path = crate::common::shared_file("servo_spm_moves_idinj.csv.gz");

@@ -71,7 +71,7 @@ impl ArrowLayout {
         self.owner[g]
     }
     /// Where entry (r, c) is stored.
-    pub(super) fn slot(&self, r: usize, c: usize) -> Slot {
+    fn slot(&self, r: usize, c: usize) -> Slot {
         match (self.owner[r], self.owner[c]) {
             (None, None) => Slot::Shared(self.pos[r], self.pos[c]),
             (Some(a), Some(b)) if a == b => Slot::Own(a, self.pos[r], self.pos[c]),
@@ -84,7 +84,7 @@ impl ArrowLayout {
 
 /// Where an entry of an arrowhead matrix lives.
 #[derive(Clone, Copy, Debug)]
-pub(super) enum Slot {
+enum Slot {
     Shared(usize, usize),
     Own(usize, usize, usize),
     /// Block, row in the block, shared column.
@@ -92,7 +92,7 @@ pub(super) enum Slot {
     Zero,
 }
 
-/// A symmetric n × n matrix of block-arrowhead structure (module documentation), stored
+/// A symmetric n × n matrix of block-arrowhead structure (the `arrowhead` module's documentation), stored
 /// by its blocks.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Arrowhead {

@@ -67,10 +67,7 @@ pub(crate) fn warning(
     let part = options.pwm.and_then(|_| first_part(experiments));
     let quarter = part.as_deref().and_then(|logs| {
         // The three at once: a PWM fit's neighbour repeats its stages.
-        let ((given, earlier), later) = rayon::join(
-            || rayon::join(|| fit_at(logs, Some(delay)), || fit_at(logs, delay.checked_sub(1))),
-            || fit_at(logs, delay.checked_add(1)),
-        );
+        let [given, earlier, later] = side_by_side(delay, |d| fit_at(logs, d));
         given.map(|(_, g)| beating([earlier, later], g))
     });
     let (other, times) = match quarter {
@@ -127,12 +124,18 @@ fn averaged_ranks_first(
         skip_setup_checks: true,
         ..options.clone()
     };
-    let fit_at = |d: Option<usize>| d.and_then(|d| refit(experiments, &at(d)));
-    let (given, (earlier, later)) = rayon::join(
-        || fit_at(Some(delay)),
-        || rayon::join(|| fit_at(delay.checked_sub(1)), || fit_at(delay.checked_add(1))),
-    );
+    let [given, earlier, later] = side_by_side(delay, |d| d.and_then(|d| refit(experiments, &at(d))));
     given.is_some_and(|g| [earlier, later].into_iter().flatten().all(|l| l > g))
+}
+
+/// `fit` at the given `delay`, the one before and the one after (`None` below 0), side by
+/// side: `[given, earlier, later]`.
+fn side_by_side<T: Send>(delay: usize, fit: impl Fn(Option<usize>) -> Option<T> + Sync) -> [Option<T>; 3] {
+    let ((given, earlier), later) = rayon::join(
+        || rayon::join(|| fit(Some(delay)), || fit(delay.checked_sub(1))),
+        || fit(delay.checked_add(1)),
+    );
+    [given, earlier, later]
 }
 
 /// The first quarter of every log when each holds at least [`PWM_DELAY_SAMPLES`] samples

@@ -28,9 +28,9 @@ pub(crate) fn hold_ambiguity(
     if ratio.is_nan() || !(1.0 / DQ_DECISIVE..DQ_DECISIVE).contains(&ratio) {
         return None;
     }
-    // Differ by more than their joint uncertainty (3 combined standard errors).
+    // Differ by more than their joint uncertainty.
     let (name, z) = largest_difference(best, other, names)?;
-    (z > 3.0).then(|| {
+    (z > HOLD_AMBIGUOUS_Z).then(|| {
         format!(
             "the {hold} and {other_hold} voltage holds fit almost equally well (loss ratio {ratio:.3}) but their {name} \
              differs by {z:.0} standard errors: the log does not say how the voltage was held; a real \
@@ -55,6 +55,12 @@ pub(crate) fn largest_difference<'n>(
         })
         .max_by(|x, y| x.1.total_cmp(&y.1))
 }
+
+/// Combined standard errors by which two holds' estimates may differ, where the data hardly
+/// choose between the holds, before the fit is untrusted (`hold_ambiguous`): the output
+/// error's estimates at a tie, and the instrumental variables' at both holds
+/// ([`crate::pmsm::fit_pmsm_iv_after`]).
+pub const HOLD_AMBIGUOUS_Z: f64 = 3.0;
 
 /// What a user does about holds the log cannot tell apart.
 pub(crate) const GIVE_THE_HOLD: &str = "give the hold (--hold stator for a drive's inverter, --hold dq for a simulator that holds the dq voltage)";

@@ -31,11 +31,11 @@ use crate::error::{Error, Result};
 use crate::estimate::iv::{IvCovariance, IvSums, one_step_sums};
 use crate::estimate::{FitResult, ParameterEstimate, SolverReport, Termination, Warning, WeightingKind};
 use crate::model::{GreyBoxModel, Prepared};
-use crate::pmsm::fit::hold::{DQ_DECISIVE, GIVE_THE_HOLD, largest_difference};
+use crate::pmsm::fit::hold::{DQ_DECISIVE, GIVE_THE_HOLD, HOLD_AMBIGUOUS_Z, largest_difference};
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::fit::workflow::fit_pmsm;
 use crate::pmsm::log::signals::DqView;
-use crate::pmsm::model::interval::{C64, VoltageInput};
+use crate::pmsm::model::interval::{C64, VoltageHold, VoltageInput};
 use crate::pmsm::model::ipm::PmsmIpm;
 use crate::pmsm::model::kind::{MotorKind, derived};
 use crate::pmsm::model::setup::PmsmSetup;
@@ -136,7 +136,9 @@ fn sums(model: &PmsmSpm, logs: &[Log], theta: &[f64]) -> Result<IvSums> {
 /// Fits an SPM model by refined instrumental variables on the exact inverse model (module
 /// documentation), started from [`fit_pmsm`] with the same options, whose hold, checks,
 /// warnings and goodness of fit the report keeps; the parameters, derived quantities,
-/// correlation, uncertainty and solver are the IV estimate's.
+/// correlation, uncertainty and solver are the IV estimate's. Where the automatic hold
+/// hardly chose, IV also runs at the other hold, and the fit may be untrusted
+/// (`hold_ambiguous`, [`fit_pmsm_iv_after`]).
 ///
 /// # Errors
 /// [`Error::InvalidOption`] (`method`) for options the inverse model does not cover; those
@@ -145,62 +147,52 @@ fn sums(model: &PmsmSpm, logs: &[Log], theta: &[f64]) -> Result<IvSums> {
 pub fn fit_pmsm_iv(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<PmsmFit> {
     check_options(options)?;
     let oe = fit_pmsm(experiments, options)?;
-    fit_pmsm_iv_checked(oe, experiments, options)
+    fit_pmsm_iv_after(oe, experiments, options)
 }
 
-/// [`fit_pmsm_iv_after`], and where the automatic hold fitted both holds to output-error
-/// losses within [`DQ_DECISIVE`] of each other (the data hardly choose), the IV fit at the
-/// other hold too: estimates more than [`HOLD_IV_Z`] combined standard errors apart make
-/// the fit untrusted (`hold_ambiguous`). IV's errors are smaller than output error's,
-/// against which the hold was chosen, so a difference output error's intervals hide can
-/// exceed IV's. The same check for `--method iv` as for the automatic choice.
+/// [`fit_pmsm_iv`] from the output-error fit `oe` of the same `experiments` and `options`
+/// (the automatic choice of [`Estimator::Auto`] has it already): the IV estimate started
+/// from it, its hold, checks, warnings (but `input_noise` and `voltage_noise_bias`, which
+/// this method is for) and goodness of fit kept. Where the automatic hold fitted both holds
+/// to output-error losses within [`DQ_DECISIVE`] of each other (the data hardly choose),
+/// IV runs at the other hold too, and estimates more than [`HOLD_AMBIGUOUS_Z`] combined
+/// standard errors apart make the fit untrusted (`hold_ambiguous`): IV's errors are smaller
+/// than output error's, against which the hold was chosen, so a difference output error's
+/// intervals hide can exceed IV's.
 ///
 /// # Errors
-/// As [`fit_pmsm_iv_after`].
-pub fn fit_pmsm_iv_checked(
+/// As [`fit_pmsm_iv`].
+pub fn fit_pmsm_iv_after(
     oe: PmsmFit,
     experiments: &[Experiment],
     options: &PmsmFitOptions,
 ) -> Result<PmsmFit> {
-    let other = other_hold_fit(&oe, experiments, options)?;
-    let iv = fit_pmsm_iv_after(oe, experiments, options)?;
-    if iv.report.warnings.iter().any(|w| w.code == "hold_ambiguous") {
+    let other_hold = other_hold(&oe, options);
+    let iv = iv_at_hold(oe.clone(), experiments, options)?;
+    let Some(hold) = other_hold.filter(|_| iv.report.warnings.iter().all(|w| w.code != "hold_ambiguous"))
+    else {
         return Ok(iv);
-    }
-    let Some(warning) = other.and_then(|other| hold_ambiguous(&iv, &other, options)) else { return Ok(iv) };
+    };
+    let other = iv_at_hold(PmsmFit { hold, ..oe }, experiments, options)?;
+    let Some(warning) = hold_ambiguous(&iv, &other, options) else { return Ok(iv) };
     let warnings = iv.report.warnings.iter().cloned().chain([warning]).collect();
     Ok(PmsmFit { report: FitResult { warnings, ..iv.report }, ..iv })
 }
 
-/// Combined standard errors by which the IV estimates at the two holds may differ before
-/// the fit is untrusted (`hold_ambiguous`, [`fit_pmsm_iv_checked`]).
-pub const HOLD_IV_Z: f64 = 3.0;
-
-/// The IV fit at the hold the automatic choice did not take, when both were fitted and
-/// their losses lie within [`DQ_DECISIVE`] of each other (the data hardly choose); `None`
-/// otherwise (a steady-state fit, which has one hold).
-///
-/// # Errors
-/// Those of [`fit_pmsm_iv_after`].
-fn other_hold_fit(
-    oe: &PmsmFit,
-    experiments: &[Experiment],
-    options: &PmsmFitOptions,
-) -> Result<Option<PmsmFit>> {
-    let [(a, la), (b, lb)] = oe.hold_losses[..] else { return Ok(None) };
+/// The hold the automatic choice did not take, when both were fitted and their output-error
+/// losses lie within [`DQ_DECISIVE`] of each other (the data hardly choose); `None`
+/// otherwise (a hold given, a steady-state fit, which has one hold).
+fn other_hold(oe: &PmsmFit, options: &PmsmFitOptions) -> Option<VoltageHold> {
+    let [(a, la), (b, lb)] = oe.hold_losses[..] else { return None };
     let close = (1.0 / DQ_DECISIVE..DQ_DECISIVE).contains(&(la / lb));
-    if options.hold != HoldChoice::Auto || !close || oe.steady_state() {
-        return Ok(None);
-    }
-    let hold = if oe.hold == a { b } else { a };
-    fit_pmsm_iv_after(PmsmFit { hold, ..oe.clone() }, experiments, options).map(Some)
+    (options.hold == HoldChoice::Auto && close).then_some(if oe.hold == a { b } else { a })
 }
 
 /// An untrusted `hold_ambiguous` warning when the IV estimates at the two holds differ by
-/// more than [`HOLD_IV_Z`] combined standard errors in any parameter.
+/// more than [`HOLD_AMBIGUOUS_Z`] combined standard errors in any parameter.
 fn hold_ambiguous(iv: &PmsmFit, other: &PmsmFit, options: &PmsmFitOptions) -> Option<Warning> {
     let (name, z) = largest_difference(&iv.report, &other.report, options.model.parameter_names())?;
-    (z > HOLD_IV_Z).then(|| {
+    (z > HOLD_AMBIGUOUS_Z).then(|| {
         Warning::untrusted(
             "hold_ambiguous",
             format!(
@@ -213,18 +205,12 @@ fn hold_ambiguous(iv: &PmsmFit, other: &PmsmFit, options: &PmsmFitOptions) -> Op
     })
 }
 
-/// [`fit_pmsm_iv`] from the output-error fit `oe` of the same `experiments` and `options`
-/// (the automatic choice of [`Estimator::Auto`] has it already): the IV estimate started
-/// from it, its hold, checks, warnings (but `input_noise` and `voltage_noise_bias`, which
-/// this method is for) and goodness of fit kept.
+/// The IV fit from the output-error fit `oe` at its hold ([`fit_pmsm_iv_after`] without the
+/// other hold).
 ///
 /// # Errors
 /// As [`fit_pmsm_iv`].
-pub fn fit_pmsm_iv_after(
-    oe: PmsmFit,
-    experiments: &[Experiment],
-    options: &PmsmFitOptions,
-) -> Result<PmsmFit> {
+fn iv_at_hold(oe: PmsmFit, experiments: &[Experiment], options: &PmsmFitOptions) -> Result<PmsmFit> {
     check_options(options)?;
     // The steady-state equations the output-error fit chose are fitted by instrumental
     // variables already (on the steady samples); the dynamic recursion from their estimate

@@ -3,7 +3,7 @@
 //! "Reference versus actual voltage"; §8).
 //!
 //! From each period's reference (after its computational delay and modulator angle
-//! advance, as [`VoltageInput::Reference`] says) the modulator forms the legs' duty
+//! advance, as [`VoltageInput::Reference`](crate::pmsm::VoltageInput::Reference) says) the modulator forms the legs' duty
 //! ratios, the carrier comparison their switching instants ([`modulator`]), and the dead
 //! time blanks each leg after its switching instant; during blanking the leg follows the
 //! direction of its phase current *as the model predicts it at that instant inside the

@@ -85,7 +85,7 @@ macro_rules! pmsm_model_setup {
         }
         /// The same model with a known series (cable) resistance \[Ω\]: the estimated `r_s`
         /// is then the motor's alone. A negative or non-finite value is reported by
-        /// [`GreyBoxModel::coefficients`]($crate::model::GreyBoxModel::coefficients).
+        /// [`GreyBoxModel::coefficients`](crate::model::GreyBoxModel::coefficients).
         pub fn with_cable_resistance(mut self, ohm: f64) -> Self {
             self.setup.cable_resistance = ohm;
             self

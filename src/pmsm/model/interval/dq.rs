@@ -138,7 +138,7 @@ pub(super) fn motion<'a>(v: &DqView<'a>, n_p: u32) -> impl Iterator<Item = Inter
 }
 
 /// [`motion`] with `(sin φ/2, cos φ/2)` of each interval (see [`half_angle_rotation`]).
-pub(super) fn motion_half<'a>(v: &DqView<'a>, n_p: u32) -> impl Iterator<Item = (Interval, f64, f64)> + 'a {
+fn motion_half<'a>(v: &DqView<'a>, n_p: u32) -> impl Iterator<Item = (Interval, f64, f64)> + 'a {
     let h = v.h();
     let np = f64::from(n_p);
     let wm = v.w_m();

@@ -8,10 +8,10 @@ use serde::{Deserialize, Serialize};
 
 /// Start of the estimated predictor gain k_o: the restart from the measured current, the
 /// gain of the default fit.
-pub const PREDICTOR_GAIN_START: f64 = 1.0;
+const PREDICTOR_GAIN_START: f64 = 1.0;
 
 /// The DC-link voltage column a log may carry \[V\].
-pub const U_DC: &str = "u_dc";
+const U_DC: &str = "u_dc";
 
 /// How the modulator forms the legs' duty ratios from the voltage reference.
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]

@@ -391,4 +391,4 @@ pub(crate) fn transition<T: Scalar>(q: &Params<T>, per: &Period) -> [T; 4] {
 }
 
 #[cfg(test)]
-pub(crate) mod tests;
+pub(super) mod tests;

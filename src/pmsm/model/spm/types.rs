@@ -67,8 +67,8 @@ pub struct SpmCoefficients {
 /// with `e = √(2/3) K_e ω_m`, `φ = ω_e h`, `u₀ = u[k] jφ/(1 − e^{−jφ})`; `ω_m` is the
 /// interval mean `(ω_m[k] + ω_m[k+1])/2`. The rotation `e^{−jφ}` and `u₀` depend on the
 /// data only; they are formed block by block in the pass from the experiment's own
-/// channels, which [`GreyBoxModel::prepare`](crate::model::GreyBoxModel::prepare) shares rather than copies (one sine and cosine
-/// of `φ/2` an interval, so that a fit of the terminal voltage keeps nothing per sample
+/// channels, which [`GreyBoxModel::prepare`](crate::model::GreyBoxModel::prepare) shares
+/// rather than copies (one sine and cosine of `φ/2` an interval, so that a fit of the terminal voltage keeps nothing per sample
 /// beyond the data; a reference input keeps its start-of-period voltages, the inverter
 /// model its error directions, 16 bytes an interval each).
 /// `e^{−R_s h/L_s}` depends on θ only and is computed once per θ. Sensitivities
@@ -89,7 +89,8 @@ pub struct PmsmSpm {
 impl PmsmSpm {
     /// SPM model of a machine with `n_p` pole pairs (`ω_e = n_p ω_m`), the given voltage
     /// hold and default parameter metadata, driven by the terminal voltage. `n_p = 0` is
-    /// reported by [`GreyBoxModel::prepare`](crate::model::GreyBoxModel::prepare) as [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError::InvalidPolePairs).
+    /// reported by [`GreyBoxModel::prepare`](crate::model::GreyBoxModel::prepare) as
+    /// [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError::InvalidPolePairs).
     pub fn new(n_p: u32, hold: VoltageHold) -> Self {
         Self::from_setup(PmsmSetup::new(n_p, hold))
     }
