@@ -105,10 +105,11 @@ pub(crate) fn warning(
 /// neighbour it can fit (`false` when the given delay's fit fails). A wrong delay changes the
 /// reference's every period, which the averaged model sees as the switching-resolved one
 /// does: on the three shared motulator PWM logs its losses at the neighbours of the right
-/// delay are 40 … 4000 times higher, on the drive simulator's noise-free 4 kHz log 220
-/// times, and with 0.05 A of noise per phase there 1.10 and 1.27 times, still ranked. Then
-/// the PWM neighbours, whose stages cost a fit each, are not fitted: a neighbour the PWM
-/// model would find [`DELAY_RATIO`] times better is one the averaged model ranks first.
+/// delay are 44 … 5800 times higher, on the drive simulator's noise-free 4 kHz log 220 and
+/// 240 times, and with 0.05 A of noise per phase there 1.10 and 1.27 times, still ranked.
+/// Then the PWM neighbours, whose stages cost a fit each, are not fitted. The premise,
+/// measured on those logs and not proven: a neighbour the PWM model would find
+/// [`DELAY_RATIO`] times better is one the averaged model ranks first.
 fn averaged_ranks_first(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
