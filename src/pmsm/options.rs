@@ -215,6 +215,24 @@ fn params_list(kind: MotorKind) -> String {
     kind.parameter_names().join(", ")
 }
 
+/// `options` with the averaged inverter model in place of a switching-resolved one
+/// (`--dead-time estimate --dead-time-mask auto`), from the least-squares start, without
+/// setup checks: the cheap nested fit that finds a PWM fit's timing
+/// (`pmsm::fit::input_search`) and screens its delay check (`pmsm::checks::delay`).
+pub(crate) fn averaged_inverter(options: &PmsmFitOptions) -> PmsmFitOptions {
+    PmsmFitOptions {
+        pwm: None,
+        inverter: Some(InverterModel {
+            width: None,
+            known: None,
+            mask: Some(crate::pmsm::model::mask::DeadTimeMask::Auto),
+        }),
+        start: None,
+        skip_setup_checks: true,
+        ..options.clone()
+    }
+}
+
 /// The options of the fits that lead to the final one (the continuation's at smooth leg
 /// states, `pmsm::fit::pwm_start::continuation`, and the unmasked fit): `pem` with its
 /// relative tolerances `ftol` and `xtol` no tighter than [`STAGE_TOLERANCE`]. Their

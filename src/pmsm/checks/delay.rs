@@ -6,8 +6,6 @@
 use crate::data::Experiment;
 use crate::estimate::Warning;
 use crate::pmsm::model::interval::VoltageInput;
-use crate::pmsm::model::inverter::InverterModel;
-use crate::pmsm::model::mask::DeadTimeMask;
 use crate::pmsm::options::{PmsmFitOptions, RefitLoss};
 
 /// How many times lower the loss at a neighbouring delay must be for the check to speak (as
@@ -117,13 +115,10 @@ fn averaged_ranks_first(
     refit: RefitLoss<'_>,
 ) -> bool {
     let VoltageInput::Reference { advance, .. } = options.input else { return false };
+    let averaged = crate::pmsm::options::averaged_inverter(options);
     let at = |d: usize| PmsmFitOptions {
         input: VoltageInput::Reference { delay: d, advance, speed_pll: None },
-        pwm: None,
-        inverter: Some(InverterModel { width: None, known: None, mask: Some(DeadTimeMask::Auto) }),
-        start: None,
-        skip_setup_checks: true,
-        ..options.clone()
+        ..averaged.clone()
     };
     let [given, earlier, later] = side_by_side(delay, |d| d.and_then(|d| refit(experiments, &at(d))));
     given.is_some_and(|g| [earlier, later].into_iter().flatten().all(|l| l > g))

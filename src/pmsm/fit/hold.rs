@@ -25,7 +25,7 @@ pub(crate) fn hold_ambiguity(
 ) -> Option<String> {
     let (other_hold, other) = others.first()?;
     let ratio = other.fit.loss / best.fit.loss;
-    if ratio.is_nan() || !(1.0 / DQ_DECISIVE..DQ_DECISIVE).contains(&ratio) {
+    if !hardly_chosen(best.fit.loss, other.fit.loss) {
         return None;
     }
     // Differ by more than their joint uncertainty.
@@ -54,6 +54,12 @@ pub(crate) fn largest_difference<'n>(
             Some((*n, ((p.value - q.value) / p.std_error.hypot(q.std_error)).abs()))
         })
         .max_by(|x, y| x.1.total_cmp(&y.1))
+}
+
+/// Whether two holds' losses lie within [`DQ_DECISIVE`] of each other: the data hardly
+/// choose between them (`false` when their ratio is not a number).
+pub(crate) fn hardly_chosen(loss_a: f64, loss_b: f64) -> bool {
+    (1.0 / DQ_DECISIVE..DQ_DECISIVE).contains(&(loss_b / loss_a))
 }
 
 /// Combined standard errors by which two holds' estimates may differ, where the data hardly

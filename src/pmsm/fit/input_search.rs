@@ -16,7 +16,6 @@ use crate::pmsm::fit::workflow::fit_pmsm;
 use crate::pmsm::log::signals::DqView;
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::inverter::InverterModel;
-use crate::pmsm::model::mask::DeadTimeMask;
 use crate::pmsm::model::pwm::PwmInverter;
 use crate::pmsm::options::PmsmFitOptions;
 use nalgebra::{DMatrix, DVector};
@@ -300,13 +299,7 @@ fn with_drive_timing(
     if !(search.delay || search.advance) {
         return fit_pmsm(experiments, &PmsmFitOptions { pwm, ..options.clone() });
     }
-    let averaged = PmsmFitOptions {
-        pwm: None,
-        inverter: Some(InverterModel { width: None, known: None, mask: Some(DeadTimeMask::Auto) }),
-        start: None,
-        skip_setup_checks: true,
-        ..options.clone()
-    };
+    let averaged = crate::pmsm::options::averaged_inverter(options);
     let timing = fit_estimating_input(experiments, &averaged, InputSearch { speed_pll: false, ..search })?;
     let fit = fit_pmsm(experiments, &PmsmFitOptions { input: timing.input, pwm, ..options.clone() })?;
     let VoltageInput::Reference { delay, advance, .. } = timing.input else {

@@ -31,7 +31,7 @@ use crate::error::{Error, Result};
 use crate::estimate::iv::{IvCovariance, IvSums, one_step_sums};
 use crate::estimate::{FitResult, ParameterEstimate, SolverReport, Termination, Warning, WeightingKind};
 use crate::model::{GreyBoxModel, Prepared};
-use crate::pmsm::fit::hold::{DQ_DECISIVE, GIVE_THE_HOLD, HOLD_AMBIGUOUS_Z, largest_difference};
+use crate::pmsm::fit::hold::{GIVE_THE_HOLD, HOLD_AMBIGUOUS_Z, hardly_chosen, largest_difference};
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::fit::workflow::fit_pmsm;
 use crate::pmsm::log::signals::DqView;
@@ -154,8 +154,9 @@ pub fn fit_pmsm_iv(experiments: &[Experiment], options: &PmsmFitOptions) -> Resu
 /// (the automatic choice of [`Estimator::Auto`] has it already): the IV estimate started
 /// from it, its hold, checks, warnings (but `input_noise` and `voltage_noise_bias`, which
 /// this method is for) and goodness of fit kept. Where the automatic hold fitted both holds
-/// to output-error losses within [`DQ_DECISIVE`] of each other (the data hardly choose),
-/// IV runs at the other hold too, and estimates more than [`HOLD_AMBIGUOUS_Z`] combined
+/// to output-error losses within
+/// [`DQ_DECISIVE`](crate::pmsm::thresholds::DQ_DECISIVE) of each other (the data hardly
+/// choose), IV runs at the other hold too, and estimates more than [`HOLD_AMBIGUOUS_Z`] combined
 /// standard errors apart make the fit untrusted (`hold_ambiguous`): IV's errors are smaller
 /// than output error's, against which the hold was chosen, so a difference output error's
 /// intervals hide can exceed IV's.
@@ -167,25 +168,25 @@ pub fn fit_pmsm_iv_after(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
 ) -> Result<PmsmFit> {
-    let other_hold = other_hold(&oe, options);
-    let iv = iv_at_hold(oe.clone(), experiments, options)?;
-    let Some(hold) = other_hold.filter(|_| iv.report.warnings.iter().all(|w| w.code != "hold_ambiguous"))
+    let at_other = other_hold(&oe, options).map(|hold| PmsmFit { hold, ..oe.clone() });
+    let iv = iv_at_hold(oe, experiments, options)?;
+    let Some(at_other) = at_other.filter(|_| iv.report.warnings.iter().all(|w| w.code != "hold_ambiguous"))
     else {
         return Ok(iv);
     };
-    let other = iv_at_hold(PmsmFit { hold, ..oe }, experiments, options)?;
+    let other = iv_at_hold(at_other, experiments, options)?;
     let Some(warning) = hold_ambiguous(&iv, &other, options) else { return Ok(iv) };
     let warnings = iv.report.warnings.iter().cloned().chain([warning]).collect();
     Ok(PmsmFit { report: FitResult { warnings, ..iv.report }, ..iv })
 }
 
 /// The hold the automatic choice did not take, when both were fitted and their output-error
-/// losses lie within [`DQ_DECISIVE`] of each other (the data hardly choose); `None`
-/// otherwise (a hold given, a steady-state fit, which has one hold).
+/// losses lie within [`DQ_DECISIVE`](crate::pmsm::thresholds::DQ_DECISIVE) of each other
+/// (`hold::hardly_chosen`: the data hardly choose); `None` otherwise (a hold given, a
+/// steady-state fit, which has one hold).
 fn other_hold(oe: &PmsmFit, options: &PmsmFitOptions) -> Option<VoltageHold> {
     let [(a, la), (b, lb)] = oe.hold_losses[..] else { return None };
-    let close = (1.0 / DQ_DECISIVE..DQ_DECISIVE).contains(&(la / lb));
-    (options.hold == HoldChoice::Auto && close).then_some(if oe.hold == a { b } else { a })
+    (options.hold == HoldChoice::Auto && hardly_chosen(lb, la)).then_some(if oe.hold == a { b } else { a })
 }
 
 /// An untrusted `hold_ambiguous` warning when the IV estimates at the two holds differ by
