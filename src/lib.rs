@@ -40,8 +40,10 @@
 // Units are written in brackets, `[V]`, `[rad/s]`, as in the field's texts; rustdoc would
 // read them as links.
 
+pub mod app;
 /// The command-line tool's modules (feature `cli`): flags, commands, report files; the
-/// `greybox` binary and the Python package are thin over them.
+/// `greybox` binary is thin over them (the fits through [`app`]), and so are the Python
+/// package's tools other than the fits.
 #[cfg(feature = "cli")]
 pub mod cli;
 pub mod data;

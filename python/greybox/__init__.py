@@ -5,8 +5,10 @@ Estimates the stator resistance ``r_s`` [Ω], the inductance ``l_s`` (or ``l_d``
 ``k_t`` [N m/A] and the magnet flux ``psi_f`` [V s], by the prediction-error method on an
 exact sampled-data model (Tenerz 2011, sections 5.2–5.3). The work is done by the Rust
 library; options are the command line's flags as keyword arguments (``dead_time="estimate"``
-for ``--dead-time estimate``, ``fixed_x0=True`` for ``--fixed-x0``), read by its own parser,
-so that every default, check and message is the command line's (docs/options.md).
+for ``--dead-time estimate``, ``fixed_x0=True`` for ``--fixed-x0``, docs/options.md). The
+fits' keywords are converted once into the library's typed request, the one the command
+line builds from its flags: the same defaults, checks and results, and an error names the
+keyword (``voltage="referense": expected actual or reference``).
 
 >>> import greybox
 >>> fit = greybox.fit("data/sample.csv.gz", pole_pairs=4)  # doctest: +SKIP
@@ -109,16 +111,17 @@ def fit(
 
     The GIL is released while the logs are read and fitted: fits in threads run in parallel.
 
-    Raises :class:`OptionError` for an invalid option, :class:`DataError` for a log that
-    cannot be read, :class:`FitError` when the fit fails; messages are the command line's.
+    Raises :class:`OptionError` for an invalid option (naming its keyword),
+    :class:`DataError` for a log that cannot be read (a missing column with the keywords
+    that name the header's look-alikes, e.g. ``col_id="Id"``), :class:`FitError` when the
+    fit fails.
     """
     logs = list(log) if isinstance(log, (list, tuple)) else [log]
     sources = [os.fspath(x) if _is_path(x) else _arrow(x) for x in logs]
     tables = sum(1 for x in logs if not _is_path(x))
     base = name or "table"
     names = _fill([base if tables == 1 else f"{base}{k + 1}" for k in range(tables)], sources)
-    argv = to_argv(_flags(pole_pairs=pole_pairs, model=model, **options), names)
-    return Fit(_greybox.fit(sources, names, argv))
+    return Fit(_greybox.fit(sources, names, _flags(pole_pairs=pole_pairs, model=model, **options)))
 
 
 def _fill(names: list[str], sources: list[Any]) -> list[str]:
@@ -169,9 +172,9 @@ def fit_many(
     or glob without logs.
     """
     paths = _paths(logs)
-    argv = to_argv(_flags(pole_pairs=pole_pairs, model=model, **options), paths)
     names = _greybox.log_names(paths)
-    return _summary_table(_greybox.fit_records(paths, names, argv, threads))
+    flags = _flags(pole_pairs=pole_pairs, model=model, **options)
+    return _summary_table(_greybox.fit_records(paths, names, flags, threads))
 
 
 def _params_file(params: Any, stack: Any) -> str:

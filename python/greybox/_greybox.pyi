@@ -37,11 +37,13 @@ class NativeFit:
     def svg(self) -> Optional[str]:
         """The fit plot (SVG text); ``None`` for ``--method ls``."""
 
-def fit(sources: list[Any], names: list[str], argv: list[str]) -> NativeFit:
+def fit(sources: list[Any], names: list[str], options: dict[str, Any]) -> NativeFit:
     """Fits the logs ``sources`` (paths as ``str``, or Arrow C stream objects named by
-    ``names``) jointly with the flags of ``greybox fit`` in ``argv``; GIL released."""
+    ``names``) jointly with the keyword ``options`` of :func:`greybox.fit`; GIL released."""
 
-def fit_records(paths: list[str], names: list[str], argv: list[str], threads: Optional[int] = None) -> list[str]:
+def fit_records(
+    paths: list[str], names: list[str], options: dict[str, Any], threads: Optional[int] = None
+) -> list[str]:
     """Fits each log on its own (``fit --each``); one summary record (JSON) per log."""
 
 def summary_columns(records: list[str]) -> list[tuple[str, str, list[Any]]]:

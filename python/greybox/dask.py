@@ -16,14 +16,13 @@ from typing import Any, Iterable, Optional, Union
 import pyarrow as pa
 
 from . import PathLike, _flags, _greybox, _paths, _summary_table
-from ._options import to_argv
 
 __all__ = ["fit_fleet"]
 
 
-def _fit_group(paths: list[str], names: list[str], argv: list[str]) -> list[str]:
+def _fit_group(paths: list[str], names: list[str], options: dict[str, Any]) -> list[str]:
     """A task: the summary records (JSON) of one group of logs, fitted one at a time."""
-    return _greybox.fit_records(paths, names, argv + ["--"] + paths, 1)
+    return _greybox.fit_records(paths, names, options, 1)
 
 
 def fit_fleet(
@@ -52,9 +51,9 @@ def fit_fleet(
         raise _greybox.OptionError("invalid option `group_size`: at least 1 log per task")
     paths = _paths(logs)
     names = _greybox.log_names(paths)
-    flags = to_argv(_flags(pole_pairs=pole_pairs, model=model, **options))
+    flags = _flags(pole_pairs=pole_pairs, model=model, **options)
     # The options are checked here, before any task: a bad one raises once, not per log.
-    _greybox.fit_records([], [], flags + ["--", "options-check"], 1)
+    _greybox.fit_records([], [], flags, 1)
     groups = [(paths[k : k + group_size], names[k : k + group_size]) for k in range(0, len(paths), group_size)]
     if client is None:
         try:
@@ -64,7 +63,7 @@ def fit_fleet(
         except (ImportError, ValueError):
             client = None
     if client is not None:
-        futures = client.map(_fit_group, [g[0] for g in groups], [g[1] for g in groups], argv=flags, pure=False)
+        futures = client.map(_fit_group, [g[0] for g in groups], [g[1] for g in groups], options=flags, pure=False)
         results = client.gather(futures)
     else:
         tasks = [dask.delayed(_fit_group)(p, n, flags) for p, n in groups]

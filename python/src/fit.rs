@@ -1,13 +1,15 @@
-//! `greybox.fit`: one joint fit of logs (files or Arrow tables) with the command line's
-//! options, the GIL released while the logs are read and fitted.
+//! `greybox.fit`: one joint fit of logs (files or Arrow tables) with typed keyword options
+//! (the application layer's [`greybox::app::FitRequest`]), the GIL released while the logs
+//! are read and fitted.
 
-use crate::errors::{from_clap, refused, to_py};
+use crate::errors::{refused, to_py};
+use crate::request::fit_request;
+use crate::words::in_python_words;
 use greybox::Experiment;
-use greybox::cli::args::FitArgs;
-use greybox::cli::errors::in_fit_words;
-use greybox::cli::fitted::{FitOutcome, fit_experiments, read_sources};
+use greybox::app::{FitOutcome, fit_experiments, plan, read_sources};
 use greybox::pmsm::{LogSource, PmsmFit};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -92,42 +94,24 @@ impl Source {
     }
 }
 
-/// Parses `argv` (the flags of `greybox fit` after `fit`) with the command line's parser,
-/// refusing the file outputs a Python call has no use for.
-pub fn parse_fit(argv: &[String]) -> PyResult<FitArgs> {
-    let a: FitArgs = greybox::cli::parse("fit", argv).map_err(from_clap)?;
-    let outputs = [
-        ("--json", a.json.is_some()),
-        ("--plot", a.plot.is_some()),
-        ("--residuals", a.residuals.is_some()),
-        ("--each", a.each.is_some()),
-        ("--summary", a.summary.is_some()),
-        ("--trend", a.trend.is_some()),
-    ];
-    if let Some((flag, _)) = outputs.iter().find(|(_, given)| *given) {
-        return Err(refused(
-            flag,
-            "the Python functions write no files: use Fit.to_json(), Fit.svg(), fit_many() for a summary",
-        ));
-    }
-    Ok(a)
-}
-
-/// Fits `sources` (paths, or Arrow tables named by the `names` in their places) jointly with the flags `argv`, as
-/// `greybox fit SOURCES… ARGV…` does; the GIL is released while the logs are read and fitted.
+/// Fits `sources` (paths, or Arrow tables named by the `names` in their places) jointly with
+/// the keyword `options` (the flags of `greybox fit` as keywords: `voltage="reference"`),
+/// as `greybox fit SOURCES… FLAGS…` does; the GIL is released while the logs are read and
+/// fitted.
 ///
-/// Errors: `OptionError` for invalid flags, `DataError` for a log that cannot be read,
-/// `FitError` when the fit fails; messages as the command line's.
+/// Errors: `OptionError` naming the keyword for an invalid option, `DataError` for a log
+/// that cannot be read (a missing column with the keywords that name the header's
+/// look-alikes), `FitError` when the fit fails.
 #[pyfunction]
 pub fn fit(
     py: Python<'_>,
     sources: Vec<Bound<'_, PyAny>>,
     names: Vec<String>,
-    argv: Vec<String>,
+    options: &Bound<'_, PyDict>,
 ) -> PyResult<NativeFit> {
     let t0 = Instant::now();
-    let a = parse_fit(&argv)?;
-    let mut plan = greybox::cli::plan::plan(&a).map_err(|e| to_py(in_fit_words(e)))?;
+    let a = fit_request(options)?;
+    let mut plan = plan(&a).map_err(|e| to_py(in_python_words(e)))?;
     if let Some((options, ..)) = plan.pem.as_mut() {
         options.pem.progress = false;
     }
@@ -139,11 +123,11 @@ pub fn fit(
     let (fitted, logs) = py
         .detach(|| {
             let sources: Vec<LogSource<'_>> = sources.iter().map(Source::log_source).collect();
-            let logs = read_sources(&a, &plan, &sources)?;
+            let logs = read_sources(&a.reading, &plan.csv, &sources)?;
             let read_s = t0.elapsed().as_secs_f64();
             fit_experiments(&a, &plan, &logs, t0, read_s).map(|f| (f, logs))
         })
-        .map_err(|e| to_py(in_fit_words(e)))?;
+        .map_err(|e| to_py(in_python_words(e)))?;
     let trusted = fitted.report().trusted() || a.allow_unconverged;
     let (fit, logs) = match fitted.outcome {
         FitOutcome::Pem(fit) => (Some(fit), logs),

@@ -1,15 +1,19 @@
-//! `greybox._greybox`: the native half of the Python package `greybox`, thin over the
-//! library's command-line layer ([`greybox::cli`]): keyword options arrive as the command
-//! line's flags (the Python half turns `dead_time="estimate"` into `--dead-time estimate`)
-//! and are parsed by the command line's own parser, so that defaults, checks and messages
-//! are the command line's; every fit runs with the GIL released.
+//! `greybox._greybox`: the native half of the Python package `greybox`. The fits (`fit`,
+//! `fit_records`) are thin over the library's application layer ([`greybox::app`]): the
+//! keyword options arrive as a dict, each converted once into the typed request
+//! ([`request`]) and every error put in the keywords' words ([`words`]). The other tools
+//! (`validate`, `track`, `simulate`, `report`) still pass their keywords as the command
+//! line's flags to its parser ([`greybox::cli`]). Every run releases the GIL.
 //!
 //! The Python half (`python/greybox/`) is the public face; this module is private.
 
 mod errors;
 mod fit;
+mod keyword;
 mod many;
+mod request;
 mod tools;
+mod words;
 
 use pyo3::prelude::*;
 

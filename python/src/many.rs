@@ -3,12 +3,13 @@
 //! the records turned into the columns of `--summary`.
 
 use crate::errors::{refused, to_py};
-use crate::fit::parse_fit;
-use greybox::cli::batch::summary::{Cell, Record, columns};
-use greybox::cli::batch::{batch_plan, expand, fit_each, stem};
-use greybox::cli::errors::in_fit_words;
+use crate::request::fit_request;
+use crate::words::in_python_words;
+use greybox::app::summary::columns;
+use greybox::app::{Cell, Record, batch_plan, expand, fit_each, stem};
 use pyo3::IntoPyObjectExt;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 use std::path::PathBuf;
 
 /// The logs of a folder or a glob, as `greybox fit --each PATTERN` finds them (sorted by file
@@ -27,35 +28,35 @@ pub fn expand_logs(pattern: &str) -> PyResult<Vec<String>> {
 pub fn log_names(paths: Vec<String>) -> Vec<String> {
     let paths: Vec<PathBuf> = paths.into_iter().map(PathBuf::from).collect();
     let stems: Vec<String> = paths.iter().map(|p| stem(p)).collect();
-    greybox::cli::logs::unique_names(&paths, &stems)
+    greybox::app::unique_names(&paths, &stems)
 }
 
-/// Fits each of `paths` on its own (named `names`) with the flags `argv` on `threads` threads
+/// Fits each of `paths` on its own (named `names`) with the keyword `options` on `threads` threads
 /// (default: rayon's pool, `RAYON_NUM_THREADS` or the cores, as the batch), the GIL released; one summary record per log as JSON, in the order
 /// of `paths`.
 ///
-/// Errors: `OptionError` for invalid flags (before any log is read) or names that do not
+/// Errors: `OptionError` naming the keyword of an invalid option (before any log is read) or names that do not
 /// match the paths; a log that cannot be read or fitted is a failed record.
 #[pyfunction]
-#[pyo3(signature = (paths, names, argv, threads=None))]
+#[pyo3(signature = (paths, names, options, threads=None))]
 pub fn fit_records(
     py: Python<'_>,
     paths: Vec<String>,
     names: Vec<String>,
-    argv: Vec<String>,
+    options: &Bound<'_, PyDict>,
     threads: Option<usize>,
 ) -> PyResult<Vec<String>> {
     if names.len() != paths.len() {
         return Err(refused("names", "one name per log"));
     }
-    let a = parse_fit(&argv)?;
-    let mut plan = batch_plan(&a).map_err(|e| to_py(in_fit_words(e)))?;
+    let a = fit_request(options)?;
+    let mut plan = batch_plan(&a).map_err(|e| to_py(in_python_words(e)))?;
     if let Some((options, ..)) = plan.pem.as_mut() {
         options.pem.progress = false;
     }
     let paths: Vec<PathBuf> = paths.into_iter().map(PathBuf::from).collect();
     let threads = threads.unwrap_or_else(rayon::current_num_threads).max(1);
-    let records = py.detach(|| fit_each(&a, &plan, &paths, &names, threads, |_, _| {}));
+    let records = py.detach(|| fit_each(&a, &plan, &paths, &names, threads, in_python_words, |_, _| {}));
     records
         .iter()
         .map(|r| serde_json::to_string(r).map_err(|e| crate::errors::Error::new_err(e.to_string())))

@@ -64,5 +64,5 @@ def test_fleet_without_a_client(sample, tmp_path):
 def test_fleet_options_checked_once(client, sample):
     import greybox.dask
 
-    with pytest.raises(greybox.OptionError, match="--dead-time"):
+    with pytest.raises(greybox.OptionError, match="^dead_time='sometimes'"):
         greybox.dask.fit_fleet([sample], client, pole_pairs=4, dead_time="sometimes")

@@ -67,7 +67,7 @@ def test_columns_equal_the_cli_summary(logs, cli, tmp_path):
 
 
 def test_options_checked_before_any_log(logs):
-    with pytest.raises(greybox.OptionError, match="--method"):
+    with pytest.raises(greybox.OptionError, match='method="ls"'):
         greybox.fit_many(logs, pole_pairs=4, method="ls")
     with pytest.raises(greybox.OptionError, match="--each"):
         greybox.fit_many("/no/such/folder/*.csv", pole_pairs=4)

@@ -1,16 +1,19 @@
 //! Command-line arguments of `greybox fit` and their mapping to library options.
 
-use crate::estimate::weighting::SpeedShape;
+use crate::app::values::{parse_bounds, parse_fix, parse_mask, parse_weighting};
+use crate::app::{FitRequest, PwmRequest};
 use crate::estimate::{ScalingKind, SolverKind, Tolerances, WeightingKind};
 use crate::pmsm::HoldChoice;
 use clap::Args;
 use std::path::PathBuf;
 
 pub use super::columns::ColumnArgs;
-pub use super::values::{FormatArg, MethodArg, ModelArg, VoltageArg};
+pub use super::values::FormatArg;
+pub use crate::app::{Advance, DeadTime, Delay, Method, ModelChoice, Pll, PolePairs, Voltage};
 
-/// The flags of `greybox fit` (and of `fit --each`), as parsed; [`super::plan::plan`] turns
-/// them into library options.
+/// The flags of `greybox fit` (and of `fit --each`), as parsed; converted into the
+/// application layer's [`FitRequest`] (`FitRequest::from(&args)`), which
+/// [`crate::app::plan`] turns into library options.
 #[derive(Args, Debug)]
 pub struct FitArgs {
     /// Exit with 0 even when the fit did not converge or a warning makes it untrusted (the
@@ -39,14 +42,14 @@ pub struct FitArgs {
     pub trend: Option<PathBuf>,
     /// Number of pole pairs n_p of the motor, or `auto` (the lowest least-squares loss of
     /// the voltage equations over 1-32 pole pairs; the report gives the runner-up's ratio).
-    #[arg(help_heading = "Motor and model", long, short = 'p', value_parser = parse_pole_pairs)]
+    #[arg(help_heading = "Motor and model", long, short = 'p', value_parser = by_str::<PolePairs>)]
     pub pole_pairs: PolePairs,
     /// Machine model: surface (spm: r_s, l_s, k_e) or interior magnets (ipm: r_s, l_d, l_q, k_e),
     /// dynamic unless the sample time is too long for it (then the steady-state equations,
     /// with a note); spm-steady, ipm-steady: the steady-state equations of slow telemetry
     /// (1-100 Hz; sample times up to 10 s).
-    #[arg(help_heading = "Motor and model", long, value_enum, default_value_t = ModelArg::Spm)]
-    pub model: ModelArg,
+    #[arg(help_heading = "Motor and model", long, value_enum, default_value_t = ModelChoice::Spm)]
+    pub model: ModelChoice,
     /// The drive's control (PWM) period [s] for the steady-state equations: point-sampled
     /// currents are related to the period-mean voltage exactly (without it the back-EMF
     /// reads low by up to (w_e h_c)^2/12).
@@ -58,29 +61,29 @@ pub struct FitArgs {
     /// Voltage that drives the model: the measured terminal voltage (actual: columns ud, uq)
     /// or the controller's reference (reference: ud_ref, uq_ref, applied --delay samples later
     /// with an angle advance of --advance ω_e h, stator hold).
-    #[arg(help_heading = "Voltage input", long, value_enum, default_value_t = VoltageArg::Actual)]
-    pub voltage: VoltageArg,
+    #[arg(help_heading = "Voltage input", long, value_enum, default_value_t = Voltage::Actual)]
+    pub voltage: Voltage,
     /// Computational delay of the reference [samples], or `estimate` (integer search 0–3 by
     /// the lowest loss).
-    #[arg(help_heading = "Voltage input", long, default_value = "1", value_parser = parse_delay)]
+    #[arg(help_heading = "Voltage input", long, default_value = "1", value_parser = by_str::<Delay>)]
     pub delay: Delay,
     /// Modulator angle advance of the reference, in units of ω_e h, or `estimate`
     /// (golden-section search in [-1, 4] by the lowest loss, after the delay).
-    #[arg(help_heading = "Voltage input", long, default_value = "1.5", value_parser = parse_advance)]
+    #[arg(help_heading = "Voltage input", long, default_value = "1.5", value_parser = by_str::<Advance>)]
     pub advance: Advance,
     /// The controller advances the reference with a speed estimated from theta_m by a
     /// phase-locked loop of this bandwidth [rad/s], `estimate` (search by the lowest loss) or
     /// `logged` (the logged speed); default: `logged`, `estimate` with --inverter pwm.
-    #[arg(help_heading = "Voltage input", long, value_parser = parse_pll)]
+    #[arg(help_heading = "Voltage input", long, value_parser = by_str::<Pll>)]
     pub speed_pll: Option<Pll>,
     /// The inverter's dead-time and device-drop voltage as a nuisance parameter v_dt (per
     /// phase −v_dt·sign(i_x); needs theta_m and --voltage reference): `none`, `estimate`, or
     /// a known value in volts.
-    #[arg(help_heading = "Inverter and cable", long, default_value = "none", value_parser = parse_dead_time)]
+    #[arg(help_heading = "Inverter and cable", long, default_value = "none", value_parser = by_str::<DeadTime>)]
     pub dead_time: DeadTime,
     /// Width of the smooth sign of the dead-time model [A] (default 2 % of the peak current),
     /// or `estimate` (search by the lowest loss).
-    #[arg(help_heading = "Inverter and cable", long, value_parser = parse_width)]
+    #[arg(help_heading = "Inverter and cable", long, value_parser = Pll::width)]
     pub dead_time_width: Option<Pll>,
     /// Weight out the periods in which a phase current comes within this many amperes of
     /// zero (where the switching ripple decides the dead-time voltage's sign), or `auto`
@@ -158,8 +161,8 @@ pub struct FitArgs {
     /// voltage or current, errors in variables; terminal voltage), or pem unless its fit
     /// finds the logged voltage's noise biasing it (voltage_noise_bias), then iv where the
     /// options allow it (auto).
-    #[arg(help_heading = "Estimator", long, value_enum, default_value_t = MethodArg::Auto)]
-    pub method: MethodArg,
+    #[arg(help_heading = "Estimator", long, value_enum, default_value_t = Method::Auto)]
+    pub method: Method,
     /// Maximum number of solver iterations.
     #[arg(help_heading = "Solver", long, default_value_t = Tolerances::default().max_iters)]
     pub max_iters: u64,
@@ -193,196 +196,57 @@ pub struct FitArgs {
     pub pwm: super::pwm_args::PwmArgs,
 }
 
-/// A delay in samples, or to be estimated.
-#[derive(Clone, Copy, Debug)]
-pub enum Delay {
-    /// This many samples.
-    Samples(usize),
-    /// Searched by the lowest loss.
-    Estimate,
-}
-
-/// The dead-time model: off, estimated, or known [V].
-#[derive(Clone, Copy, Debug)]
-pub enum DeadTime {
-    /// No inverter model.
-    None,
-    /// The voltage estimated as a nuisance parameter.
-    Estimate,
-    /// A known voltage [V].
-    Volts(f64),
-}
-
-/// Parses `none`, `estimate` or a voltage.
-fn parse_dead_time(s: &str) -> Result<DeadTime, String> {
-    match s {
-        "none" => Ok(DeadTime::None),
-        "estimate" => Ok(DeadTime::Estimate),
-        _ => s
-            .parse()
-            .ok()
-            .filter(|v: &f64| v.is_finite() && *v >= 0.0)
-            .map(DeadTime::Volts)
-            .ok_or_else(|| format!("`{s}`: expected none, estimate or a voltage ≥ 0")),
-    }
-}
-
-/// A pole-pair number, or to be chosen from the data.
-#[derive(Clone, Copy, Debug)]
-pub enum PolePairs {
-    /// This many pole pairs.
-    Given(u32),
-    /// Chosen by the lowest loss.
-    Auto,
-}
-
-/// Parses `auto` or a pole-pair number.
-fn parse_pole_pairs(s: &str) -> Result<PolePairs, String> {
-    match s {
-        "auto" => Ok(PolePairs::Auto),
-        _ => s.parse().map(PolePairs::Given).map_err(|_| format!("`{s}`: expected auto or a whole number")),
-    }
-}
-
-/// A modulator angle advance [ω_e h], or to be estimated.
-#[derive(Clone, Copy, Debug)]
-pub enum Advance {
-    /// This advance [ω_e h].
-    Value(f64),
-    /// Searched by the lowest loss.
-    Estimate,
-}
-
-/// Parses a finite advance or `estimate`.
-fn parse_advance(s: &str) -> Result<Advance, String> {
-    match s {
-        "estimate" => Ok(Advance::Estimate),
-        _ => s
-            .parse()
-            .ok()
-            .filter(|v: &f64| v.is_finite())
-            .map(Advance::Value)
-            .ok_or_else(|| format!("`{s}`: expected estimate or a number (units of ω_e h)")),
-    }
-}
-
-/// Parses `auto` or a current ≥ 0 [A].
-fn parse_mask(s: &str) -> Result<crate::pmsm::DeadTimeMask, String> {
-    match s {
-        "auto" => Ok(crate::pmsm::DeadTimeMask::Auto),
-        _ => s
-            .parse()
-            .ok()
-            .filter(|v: &f64| v.is_finite() && *v >= 0.0)
-            .map(crate::pmsm::DeadTimeMask::Current)
-            .ok_or_else(|| format!("`{s}`: expected auto or a current ≥ 0 in amperes")),
-    }
-}
-
-/// A positive value (a speed-estimator bandwidth [rad/s], a sign width [A]), or to be
-/// estimated.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Pll {
-    /// This value (bandwidth [rad/s] or width [A]).
-    Bandwidth(f64),
-    /// Searched by the lowest loss.
-    Estimate,
-    /// None: the logged speed (`--speed-pll logged`).
-    Logged,
-}
-
-/// Parses a bandwidth, `estimate` or `logged`.
-fn parse_pll(s: &str) -> Result<Pll, String> {
-    match s {
-        "estimate" => Ok(Pll::Estimate),
-        "logged" => Ok(Pll::Logged),
-        _ => {
-            s.parse().ok().filter(|a: &f64| a.is_finite() && *a > 0.0).map(Pll::Bandwidth).ok_or_else(|| {
-                format!("`{s}`: expected a positive bandwidth in rad/s, `estimate` or `logged`")
-            })
+impl From<&FitArgs> for FitRequest {
+    /// The request of the flags: every option that changes the fit; the outputs that need
+    /// simulated currents (`--plot`, `--residuals`) named by their flags.
+    fn from(a: &FitArgs) -> Self {
+        let outputs = [("--plot", a.plot.is_some()), ("--residuals", a.residuals.is_some())];
+        Self {
+            pole_pairs: a.pole_pairs,
+            model: a.model,
+            control_period: a.control_period,
+            hold: a.hold,
+            voltage: a.voltage,
+            delay: a.delay,
+            advance: a.advance,
+            speed_pll: a.speed_pll,
+            dead_time: a.dead_time,
+            dead_time_width: a.dead_time_width,
+            dead_time_mask: a.dead_time_mask,
+            u_dc: a.u_dc,
+            cable_resistance: a.cable_resistance,
+            t0: a.t0,
+            r_s0: a.r_s0,
+            psi_f0: a.psi_f0,
+            start: a.start.clone(),
+            fix: a.fix.clone(),
+            per_log: a.per_log.clone(),
+            solver: a.solver,
+            scaling: a.scaling,
+            horizon: a.horizon,
+            weighting: a.weighting.clone(),
+            huber: a.huber,
+            output_weights: a.output_weights.clone(),
+            bounds: a.bounds.clone(),
+            fixed_x0: a.fixed_x0,
+            prefilter: a.prefilter,
+            method: a.method,
+            tolerances: Tolerances { ftol: a.ftol, xtol: a.xtol, gtol: a.gtol, max_iters: a.max_iters },
+            allow_unconverged: a.allow_unconverged,
+            reading: a.columns.reading(),
+            pwm: PwmRequest::from(&a.pwm),
+            simulated_outputs: outputs
+                .iter()
+                .filter(|(_, given)| *given)
+                .map(|(f, _)| f.to_string())
+                .collect(),
         }
     }
 }
 
-/// Parses a positive value or `estimate` (not `logged`), naming `what` it expected in the
-/// error (e.g. `a positive width in A`).
-fn positive_or_estimate(s: &str, what: &str) -> Result<Pll, String> {
-    parse_pll(s)
-        .ok()
-        .filter(|p| *p != Pll::Logged)
-        .ok_or_else(|| format!("`{s}`: expected {what} or `estimate`"))
-}
-
-/// Parses a sign width [A] or `estimate`.
-fn parse_width(s: &str) -> Result<Pll, String> {
-    positive_or_estimate(s, "a positive width in A")
-}
-
-/// Parses a speed [rad/s] (the Coulomb friction's, `greybox mechanics`) or `estimate`.
-pub(super) fn parse_speed(s: &str) -> Result<Pll, String> {
-    positive_or_estimate(s, "a positive speed in rad/s")
-}
-
-/// Parses `N` or `estimate`.
-fn parse_delay(s: &str) -> Result<Delay, String> {
-    match s {
-        "estimate" => Ok(Delay::Estimate),
-        _ => s
-            .parse()
-            .map(Delay::Samples)
-            .map_err(|_| format!("`{s}`: expected a number of samples or `estimate`")),
-    }
-}
-
-/// Parses `NAME` or `NAME=VALUE` (a finite value).
-fn parse_fix(s: &str) -> Result<(String, Option<f64>), String> {
-    match s.split_once('=') {
-        None if !s.is_empty() => Ok((s.to_string(), None)),
-        None => Err("empty parameter name".into()),
-        Some((name, v)) => {
-            let v: f64 = v.parse().map_err(|e| format!("`{s}`: {e}; expected NAME or NAME=VALUE"))?;
-            if name.is_empty() || !v.is_finite() {
-                return Err(format!("`{s}`: expected NAME or NAME=VALUE with a finite value"));
-            }
-            Ok((name.to_string(), Some(v)))
-        }
-    }
-}
-
-/// Parses `NAME:LO:HI`.
-fn parse_bounds(s: &str) -> Result<(String, f64, f64), String> {
-    let parts: Vec<&str> = s.split(':').collect();
-    let [name, lo, hi] = parts[..] else { return Err(format!("`{s}`: expected NAME:LO:HI")) };
-    let num = |v: &str| v.parse::<f64>().map_err(|e| format!("`{s}`: {e}"));
-    Ok((name.to_string(), num(lo)?, num(hi)?))
-}
-
-/// Parses `uniform`, `low-speed:W0`, `high-speed:W0`, `band:LO:HI[:FLOOR]`.
-fn parse_weighting(s: &str) -> Result<WeightingKind, String> {
-    let parts: Vec<&str> = s.split(':').collect();
-    let num = |i: usize| -> Result<f64, String> {
-        parts
-            .get(i)
-            .ok_or_else(|| format!("`{s}`: missing number {i}"))?
-            .parse::<f64>()
-            .map_err(|e| format!("`{s}`: {e}"))
-    };
-    let shape = match parts[0] {
-        "uniform" if parts.len() == 1 => return Ok(WeightingKind::Uniform),
-        "low-speed" if parts.len() == 2 => SpeedShape::LowSpeed { w0: num(1)? },
-        "high-speed" if parts.len() == 2 => SpeedShape::HighSpeed { w0: num(1)? },
-        "band" if parts.len() == 3 || parts.len() == 4 => {
-            SpeedShape::Band { lo: num(1)?, hi: num(2)?, floor: if parts.len() == 4 { num(3)? } else { 0.0 } }
-        }
-        _ => {
-            return Err(format!(
-                "`{s}`: expected uniform, low-speed:W0, high-speed:W0 or band:LO:HI[:FLOOR]"
-            ));
-        }
-    };
-    let channel = crate::pmsm::channel::W_M;
-    crate::estimate::weighting::SpeedWeighting::try_new(channel, shape).map_err(|e| e.to_string())?;
-    Ok(WeightingKind::Speed { channel: channel.into(), shape })
+/// Parses a value of type `T` by its `FromStr` (the application layer's words).
+fn by_str<T: std::str::FromStr<Err = String>>(s: &str) -> Result<T, String> {
+    s.parse()
 }
 
 #[cfg(test)]
@@ -403,5 +267,13 @@ mod tests {
         let a = Wrap::parse_from(["greybox", "log.csv", "-p", "4"]).fit;
         let t = Tolerances::default();
         assert_eq!((a.ftol, a.xtol, a.gtol, a.max_iters), (t.ftol, t.xtol, t.gtol, t.max_iters));
+    }
+
+    /// `greybox fit LOG -p 4` asks for what the application layer's defaults are (the
+    /// Python `fit` starts from them).
+    #[test]
+    fn the_flags_defaults_are_the_requests() {
+        let a = Wrap::parse_from(["greybox", "log.csv", "-p", "4"]).fit;
+        assert_eq!(FitRequest::from(&a), FitRequest::new(PolePairs::Given(4)));
     }
 }

@@ -5,37 +5,14 @@
 use crate::Error;
 
 /// The flag of a library option name, or `None` when the name is not an option the command
-/// line sets.
-pub fn flag_of(option: &str) -> Option<&'static str> {
-    Some(match option {
-        "per_experiment" => "--per-log",
-        "fixed" => "--fix",
-        "bounds" => "--bounds",
-        "start" => "--start",
-        "huber" => "--huber",
-        "hold" => "--hold",
-        "voltage" => "--voltage",
-        "voltage_limit" => "--u-dc",
-        "weighting" => "--weighting",
-        "prefilter" | "cutoff" => "--prefilter",
-        "max_iters" => "--max-iters",
-        "output_weights" => "--output-weights",
-        "horizon" => "--horizon",
-        "thermal" => "--t0/--r-s0/--psi-f0",
-        "experiments" => "LOG",
-        "model" | "salient" => "--model",
-        "dead-time width" => "--dead-time-width",
-        "dead-time mask" => "--dead-time-mask",
-        "pole-pairs" => "--pole-pairs",
-        "method" => "--method",
-        "dead-time" => "--dead-time",
-        "t0" => "--t0",
-        "ftol" => "--ftol",
-        "xtol" => "--xtol",
-        "gtol" => "--gtol",
-        "output" => "--json",
-        _ => return None,
-    })
+/// line sets: `--` and the option's name ([`crate::app::words::option_of`]) in kebab case,
+/// `LOG` for the logs.
+pub fn flag_of(option: &str) -> Option<String> {
+    let name = crate::app::words::option_of(option)?;
+    if name == "LOG" {
+        return Some(name.into());
+    }
+    Some(name.split('/').map(|n| format!("--{}", n.replace('_', "-"))).collect::<Vec<_>>().join("/"))
 }
 
 /// Rewrites the library's model names in `text` as the `--model` values (`pmsm_spm` →
@@ -59,7 +36,7 @@ pub fn in_cli_words(e: Error, command: &clap::Command) -> Error {
         Error::InvalidOption { option, reason } => {
             let fit = command.get_name() == "fit";
             let kebab = option.replace('_', "-");
-            let flag = (fit.then(|| flag_of(&option)).flatten().map(str::to_string)).or_else(|| {
+            let flag = fit.then(|| flag_of(&option)).flatten().or_else(|| {
                 command
                     .get_arguments()
                     .find(|a| {
@@ -116,70 +93,20 @@ pub fn in_cli_words(e: Error, command: &clap::Command) -> Error {
     }
 }
 
-/// Other names logs give the standard columns (compared without case, units in brackets
-/// or punctuation).
-const COLUMN_ALIASES: [(&str, &[&str]); 7] = [
-    ("t", &["time", "times", "timestamp", "ts"]),
-    ("ud", &["vd", "voltaged", "udmeas"]),
-    ("uq", &["vq", "voltageq", "uqmeas"]),
-    ("id", &["currentd", "idmeas"]),
-    ("iq", &["currentq", "iqmeas"]),
-    ("w_m", &["wm", "w", "omega", "omegam", "speed", "velocity"]),
-    ("theta_m", &["thetam", "theta", "angle", "position", "pos"]),
-];
-
-/// Units a speed column's name may end in, and the `--speed-unit` each asks for (`None`:
-/// the default rad/s).
-const SPEED_UNIT_SUFFIXES: [(&str, Option<&str>); 3] =
-    [("rpm", Some("rpm")), ("rads", None), ("radpers", None)];
-
 /// `--speed-unit U` when the header's speed column says its unit in its name (`speed_rpm`)
 /// and the command takes the flag.
 fn speed_unit_hint(available: &str, command: &clap::Command) -> Option<String> {
+    use crate::app::Choice;
     command.get_arguments().find(|a| a.get_long() == Some("speed-unit"))?;
-    available.split(", ").find_map(|h| {
-        let n = normalised(h);
-        SPEED_UNIT_SUFFIXES.iter().find_map(|(suffix, unit)| {
-            let stem = n.strip_suffix(suffix)?;
-            let speed = COLUMN_ALIASES.iter().find(|(c, _)| *c == "w_m")?.1.contains(&stem);
-            speed.then(|| unit.map(|u| format!("--speed-unit {u}"))).flatten()
-        })
-    })
-}
-
-/// A header name without case, units in brackets or parentheses, and punctuation.
-fn normalised(name: &str) -> String {
-    let mut depth = 0i32;
-    name.chars()
-        .filter(|c| {
-            match c {
-                '[' | '(' => depth += 1,
-                ']' | ')' => depth -= 1,
-                _ => return depth == 0 && c.is_alphanumeric(),
-            }
-            false
-        })
-        .flat_map(char::to_lowercase)
-        .collect()
+    let unit = crate::app::columns::speed_unit_in_header(available)?;
+    let name = crate::pmsm::SpeedUnit::NAMES.iter().find(|(_, u)| *u == unit)?.0;
+    Some(format!("--speed-unit {name}"))
 }
 
 /// For a missing standard column: the flag that names it (the command's `--col-*` whose
 /// default is the column) and the header entry that looks like it.
 fn column_hint(column: &str, available: &str, command: &clap::Command) -> Option<(String, String)> {
-    let names: Vec<String> = std::iter::once(normalised(column))
-        .chain(
-            COLUMN_ALIASES
-                .iter()
-                .filter(|(c, _)| *c == column)
-                .flat_map(|(_, a)| a.iter().map(|s| s.to_string())),
-        )
-        .collect();
-    // A name that ends in a unit (`speed_rpm`) is the column without it.
-    let bare = |h: &str| {
-        let n = normalised(h);
-        SPEED_UNIT_SUFFIXES.iter().find_map(|(s, _)| n.strip_suffix(s).map(str::to_string)).unwrap_or(n)
-    };
-    let found = available.split(", ").find(|h| names.contains(&normalised(h)) || names.contains(&bare(h)))?;
+    let found = crate::app::columns::look_alike(column, available)?;
     let flag = command.get_arguments().find(|a| {
         a.get_long().is_some_and(|l| l.starts_with("col-")) && a.get_default_values() == [column]
     })?;

@@ -1,9 +1,8 @@
 //! `greybox fit`: read the logs, fit, print the table and write the JSON report.
 
 use super::args::{FitArgs, FormatArg};
-use super::fitted::{FitOutcome, fit_experiments};
 use super::output;
-use super::plan::plan;
+use crate::app::{FitOutcome, FitRequest, fit_experiments, plan};
 use crate::data::Staged;
 use crate::estimate::FitResult;
 use crate::report::Document;
@@ -31,11 +30,12 @@ pub fn run_fit(a: &FitArgs) -> crate::Result<bool> {
         &a.logs,
     )?;
     let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
-    let plan = plan(a)?;
-    super::logs::check_paths(&a.logs)?;
+    let request = FitRequest::from(a);
+    let plan = plan(&request)?;
+    crate::app::check_paths(&a.logs)?;
     let logs: Vec<_> = a.columns.read_logs(&a.logs, &plan.csv, true)?.into_iter().flatten().collect();
     let read_s = t0.elapsed().as_secs_f64();
-    let fitted = fit_experiments(a, &plan, &logs, t0, read_s)?;
+    let fitted = fit_experiments(&request, &plan, &logs, t0, read_s)?;
     // Every output file staged, the report printed, then all renamed at once.
     let mut staged = Staged::new();
     if let FitOutcome::Pem(fit) = &fitted.outcome {

@@ -63,7 +63,7 @@ pub struct MechanicsArgs {
     pub window: f64,
     /// Speed [rad/s; m/s on a linear axis] over which the Coulomb friction changes sign, or
     /// `estimate` (the lowest loss between 1e-4 and 1 times the logs' peak speed).
-    #[arg(long, default_value = "estimate", value_name = "SPEED|estimate", value_parser = super::args::parse_speed)]
+    #[arg(long, default_value = "estimate", value_name = "SPEED|estimate", value_parser = |s: &str| super::args::Pll::positive_or_estimate(s, "a positive speed in rad/s"))]
     pub coulomb_speed: super::args::Pll,
     /// Column of a load torque [N m] (on a linear axis a force [N]), used when every log has it.
     #[arg(long, default_value = LOAD_TORQUE, value_name = "NAME")]

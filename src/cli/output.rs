@@ -121,7 +121,7 @@ impl ReportArgs {
         what: &str,
         outcome: impl FnOnce() -> crate::Result<Outcome>,
     ) -> crate::Result<bool> {
-        super::logs::check_paths(inputs)?;
+        crate::app::check_paths(inputs)?;
         check_all(&[("--json", self.json.as_deref())], inputs)?;
         outcome()?.emit(self.json.as_deref(), self.quiet, what)
     }

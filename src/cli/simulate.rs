@@ -48,8 +48,8 @@ pub struct SimulateArgs {
     /// The inverter: the averaged one (none: its `inverter.v_dt` error, 0 by default) or
     /// pwm, switching-resolved (carrier at 1/(2h), min-max modulation, the DC link
     /// `control.u_dc`) with --t-d, --u-th, --leg-state-width, --pwm-levels.
-    #[arg(long, value_enum, default_value_t = super::pwm_args::InverterArg::None)]
-    pub inverter: super::pwm_args::InverterArg,
+    #[arg(long, value_enum, default_value_t = crate::app::InverterChoice::None)]
+    pub inverter: crate::app::InverterChoice,
     /// Dead time t_d of --inverter pwm [s].
     #[arg(long, default_value_t = 2e-6)]
     pub t_d: f64,
@@ -167,7 +167,7 @@ pub fn config(a: &SimulateArgs) -> crate::Result<DriveConfig> {
             });
         }
     };
-    if a.inverter == super::pwm_args::InverterArg::Pwm {
+    if a.inverter == crate::app::InverterChoice::Pwm {
         cfg.inverter.pwm = Some(crate::drive::PwmPlant {
             t_d: a.t_d,
             u_th: a.u_th,

@@ -1,7 +1,6 @@
 //! The command line's parser of the library's enums (`MotorKind`, `HoldChoice`, …, which
-//! derive `clap::ValueEnum` under the `cli` feature).
+//! derive `clap::ValueEnum` under the `cli` feature), and the `--format` of `greybox fit`.
 
-use crate::pmsm::{Dynamics, MotorKind};
 use clap::ValueEnum;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 
@@ -23,57 +22,4 @@ pub enum FormatArg {
     Table,
     Json,
     Markdown,
-}
-
-/// The estimation method (`--method`): prediction error, or instrumental variables where
-/// the logged voltage's noise biases it (`auto`), prediction error (`pem`), linear least
-/// squares (`ls`), instrumental variables (`iv`).
-// The values' clap docs would become `--help` text of their own: the enum's doc says them.
-#[allow(missing_docs)]
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum MethodArg {
-    Auto,
-    Pem,
-    Ls,
-    Iv,
-}
-
-/// Which voltage drives the model (`--voltage`): the measured terminal voltage (`actual`)
-/// or the controller's reference (`reference`).
-// The values' clap docs would become `--help` text of their own: the enum's doc says them.
-#[allow(missing_docs)]
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum VoltageArg {
-    Actual,
-    Reference,
-}
-
-/// The machine model and its equations (`--model`): surface or interior magnets, dynamic
-/// (chosen from the sample time) or the steady-state equations of slow logs.
-// The values' clap docs would become `--help` text of their own: the enum's doc says them.
-#[allow(missing_docs)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum ModelArg {
-    Spm,
-    Ipm,
-    SpmSteady,
-    IpmSteady,
-}
-
-impl ModelArg {
-    /// The machine.
-    pub fn kind(self) -> MotorKind {
-        match self {
-            Self::Spm | Self::SpmSteady => MotorKind::Spm,
-            Self::Ipm | Self::IpmSteady => MotorKind::Ipm,
-        }
-    }
-
-    /// Which equations: chosen from the sample time, or the steady-state ones.
-    pub fn dynamics(self) -> Dynamics {
-        match self {
-            Self::Spm | Self::Ipm => Dynamics::Auto,
-            Self::SpmSteady | Self::IpmSteady => Dynamics::Steady,
-        }
-    }
 }

@@ -2,7 +2,7 @@
 //! by the generic [`crate::report::plot::trend_svg`] with the units and labels chosen
 //! here.
 
-use super::summary::{Record, Status};
+use crate::app::summary::{Record, Status};
 use crate::report::eng::UnitScale;
 use crate::report::plot::{Trend, TrendPoint, TrendSeries, trend_svg};
 

@@ -1,10 +1,10 @@
-//! What `greybox fit` does to every log, decided from the flags before any log is read
-//! ([`Plan`]), and the fit of logs with it ([`fit_logs`]): used by the joint fit
-//! ([`super::fit::run_fit`]), the batch ([`super::batch::run_batch`]) and the Python
-//! package.
+//! What a fit does to every log, decided from its [`FitRequest`] before any log is read
+//! ([`Plan`]), and the fit of logs with it ([`fit_logs`]): used by the joint fit, the
+//! batch ([`super::fit_each`]), the command line and the Python package.
 
-use super::args::{Advance, DeadTime, Delay, FitArgs, MethodArg, Pll, PolePairs, VoltageArg};
-use crate::estimate::{FitResult, PemOptions, SolverKind, Timing, Tolerances};
+use super::request::FitRequest;
+use super::values::{Advance, DeadTime, Delay, InverterChoice, Method, Pll, PolePairs, Voltage};
+use crate::estimate::{FitResult, PemOptions, SolverKind, Timing};
 use crate::pmsm::ReportOptions;
 use crate::pmsm::{
     CsvOptions, DqSource, Estimator, Frame, HoldChoice, InputSearch, InverterModel, MotorKind, PmsmFit,
@@ -12,10 +12,8 @@ use crate::pmsm::{
 };
 use std::time::Instant;
 
-/// What `greybox fit` does to every log, decided from the flags before any log is read:
-/// how to read a log, how to report it, and the prediction-error fit (`None` for
-/// `--method ls`). Used by the joint fit ([`super::fit::run_fit`]) and the batch
-/// ([`super::batch::run_batch`]).
+/// What a fit does to every log, decided from its request before any log is read: how to
+/// read a log, how to report it, and the prediction-error fit (`None` for `--method ls`).
 pub struct Plan {
     /// How a log is read.
     pub csv: CsvOptions,
@@ -55,7 +53,7 @@ pub fn fit_logs(
     Ok(PmsmFit { report: FitResult { timing, ..fit.report }, pmsm_notes, ..fit })
 }
 
-/// The [`Plan`] of the flags `a`, every combination the fit cannot honour refused.
+/// The [`Plan`] of the request `a`, every combination the fit cannot honour refused.
 ///
 /// # Errors
 /// [`crate::Error::InvalidOption`] naming the flag: `--pole-pairs auto` with an
@@ -63,7 +61,7 @@ pub fn fit_logs(
 /// with `--voltage actual`, `--r-s0`/`--psi-f0` without `--t0`, a dead-time mask without
 /// the dead-time model, a dead-time model with the measured voltage; and those of
 /// [`ThermalReference::try_new`] and the `--weighting` rule.
-pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
+pub fn plan(a: &FitRequest) -> crate::Result<Plan> {
     let given = match a.pole_pairs {
         PolePairs::Given(n) => Some(n),
         PolePairs::Auto => None,
@@ -72,7 +70,7 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
     // The reader accepts slow telemetry's sample times whenever the model may be chosen
     // automatically: the fit decides between the dynamic and the steady-state equations
     // (and tells a fast log whose time column is in other units apart), not the reader.
-    let csv = CsvOptions { pole_pairs: given, steady_state: true, ..a.columns.options() };
+    let csv = CsvOptions { pole_pairs: given, steady_state: true, ..a.reading.csv.clone() };
     if given.is_none() && (csv.speed_frame == Frame::Electrical || csv.source == DqSource::Phases) {
         return Err(crate::Error::InvalidOption {
             option: "pole-pairs".into(),
@@ -86,7 +84,7 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
     if steady_state {
         steady_only(a)?;
     }
-    if let MethodArg::Ls = a.method {
+    if let Method::Ls = a.method {
         ls_only(a)?;
         a.weighting.rule()?;
         return Ok(Plan { csv, report_options, kind, pem: None });
@@ -100,11 +98,9 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
         Advance::Estimate => 1.5,
     };
     let input = match (a.voltage, a.delay) {
-        (VoltageArg::Actual, _) => VoltageInput::Terminal,
-        (VoltageArg::Reference, Delay::Samples(delay)) => {
-            VoltageInput::Reference { delay, advance, speed_pll }
-        }
-        (VoltageArg::Reference, Delay::Estimate) => VoltageInput::Reference { delay: 1, advance, speed_pll },
+        (Voltage::Actual, _) => VoltageInput::Terminal,
+        (Voltage::Reference, Delay::Samples(delay)) => VoltageInput::Reference { delay, advance, speed_pll },
+        (Voltage::Reference, Delay::Estimate) => VoltageInput::Reference { delay: 1, advance, speed_pll },
     };
     let search = InputSearch {
         delay: matches!(a.delay, Delay::Estimate),
@@ -113,11 +109,11 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
         // the logged speed biases L by about 0.3 % where the controller advances its own.
         speed_pll: matches!(a.speed_pll, Some(Pll::Estimate))
             || (a.speed_pll.is_none()
-                && matches!(a.voltage, VoltageArg::Reference)
-                && matches!(a.pwm.inverter, super::pwm_args::InverterArg::Pwm)),
+                && matches!(a.voltage, Voltage::Reference)
+                && matches!(a.pwm.inverter, InverterChoice::Pwm)),
         dead_time_width: matches!(a.dead_time_width, Some(Pll::Estimate)),
     };
-    if matches!(a.voltage, VoltageArg::Actual)
+    if matches!(a.voltage, Voltage::Actual)
         && (search.delay || search.advance || search.speed_pll || a.speed_pll.is_some())
     {
         return Err(crate::Error::InvalidOption {
@@ -152,7 +148,7 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
                 .into(),
         });
     }
-    if inverter.is_some() && matches!(a.voltage, VoltageArg::Actual) {
+    if inverter.is_some() && matches!(a.voltage, Voltage::Actual) {
         return Err(crate::Error::InvalidOption {
             option: "dead-time".into(),
             reason:
@@ -161,7 +157,7 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
         });
     }
     let pwm = a.pwm.inverter(a.u_dc)?;
-    if pwm.is_some() && (inverter.is_some() || !matches!(a.voltage, VoltageArg::Reference)) {
+    if pwm.is_some() && (inverter.is_some() || !matches!(a.voltage, Voltage::Reference)) {
         return Err(crate::Error::InvalidOption {
             option: "inverter".into(),
             reason:
@@ -174,7 +170,7 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
         // Set below: given, or chosen by fitting these options at each candidate.
         pole_pairs: 0,
         skip_setup_checks: false,
-        force: a.columns.force,
+        force: a.reading.csv.force,
         input,
         inverter,
         // The PWM model applies the modulator's limit itself.
@@ -193,7 +189,7 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
         bounds: a.bounds.clone(),
         pem: PemOptions {
             solver: a.solver,
-            tolerances: Tolerances { ftol: a.ftol, xtol: a.xtol, gtol: a.gtol, max_iters: a.max_iters },
+            tolerances: a.tolerances,
             scaling: a.scaling,
             horizon: a.horizon,
             per_experiment: a.per_log.clone(),
@@ -207,8 +203,8 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
         },
     };
     let estimator = match a.method {
-        MethodArg::Iv => Estimator::InstrumentalVariables,
-        MethodArg::Auto => Estimator::Auto,
+        Method::Iv => Estimator::InstrumentalVariables,
+        Method::Auto => Estimator::Auto,
         _ => Estimator::PredictionError,
     };
     if estimator == Estimator::InstrumentalVariables {
@@ -231,7 +227,7 @@ pub fn plan(a: &FitArgs) -> crate::Result<Plan> {
 /// The pole pairs given, or chosen by `--pole-pairs auto` with a note on how decisively:
 /// the least-squares loss alone for `--method ls`, else the prediction-error loss of the
 /// best least-squares candidates fitted with `options`.
-pub(super) fn pole_pairs(
+pub fn pole_pairs(
     given: PolePairs,
     logs: &[crate::Experiment],
     kind: MotorKind,
@@ -267,7 +263,7 @@ pub(super) fn pole_pairs(
 }
 
 /// Refuses the options that linear least squares cannot honour, naming them.
-fn ls_only(a: &FitArgs) -> crate::Result<()> {
+fn ls_only(a: &FitRequest) -> crate::Result<()> {
     let mut bad = Vec::new();
     let given = [
         ("--start", a.start.is_some()),
@@ -280,7 +276,7 @@ fn ls_only(a: &FitArgs) -> crate::Result<()> {
         ("--bounds", !a.bounds.is_empty()),
         ("--fixed-x0", a.fixed_x0),
         ("--solver", !matches!(a.solver, SolverKind::Lm)),
-        ("--voltage reference", matches!(a.voltage, VoltageArg::Reference)),
+        ("--voltage reference", matches!(a.voltage, Voltage::Reference)),
         ("--cable-resistance", a.cable_resistance != 0.0),
         ("--dead-time", !matches!(a.dead_time, DeadTime::None)),
         ("--u-dc", a.u_dc.is_some()),
@@ -292,14 +288,15 @@ fn ls_only(a: &FitArgs) -> crate::Result<()> {
         ("--r-s0", a.r_s0.is_some()),
         ("--psi-f0", a.psi_f0.is_some()),
         ("--t0", a.t0.is_some()),
-        ("--plot", a.plot.is_some()),
-        ("--residuals", a.residuals.is_some()),
-        ("--control-period", a.control_period.is_some()),
     ];
     for (flag, set) in given {
         if set {
             bad.push(flag);
         }
+    }
+    bad.extend(a.simulated_outputs.iter().map(String::as_str));
+    if a.control_period.is_some() {
+        bad.push("--control-period");
     }
     if bad.is_empty() {
         Ok(())
@@ -313,14 +310,15 @@ fn ls_only(a: &FitArgs) -> crate::Result<()> {
 
 /// Refuses the flags the steady-state equations (`--model spm-steady|ipm-steady`) cannot
 /// honour, naming them; the fit's own options are checked by the library.
-fn steady_only(a: &FitArgs) -> crate::Result<()> {
-    let given = [
-        ("--method ls", matches!(a.method, MethodArg::Ls)),
-        ("--method iv", matches!(a.method, MethodArg::Iv)),
-        ("--plot", a.plot.is_some()),
-        ("--residuals", a.residuals.is_some()),
-    ];
-    let bad: Vec<&str> = given.iter().filter(|(_, set)| *set).map(|(flag, _)| *flag).collect();
+fn steady_only(a: &FitRequest) -> crate::Result<()> {
+    let given =
+        [("--method ls", matches!(a.method, Method::Ls)), ("--method iv", matches!(a.method, Method::Iv))];
+    let bad: Vec<&str> = given
+        .iter()
+        .filter(|(_, set)| *set)
+        .map(|(flag, _)| *flag)
+        .chain(a.simulated_outputs.iter().map(String::as_str))
+        .collect();
     if bad.is_empty() {
         return Ok(());
     }

@@ -1,5 +1,5 @@
-//! The log paths of a command line: refused when given twice or when a word meant as a
-//! flag's value landed among them; named by the shortest path suffix that tells them apart.
+//! The log paths of a fit: refused when given twice or when a word meant as a flag's
+//! value landed among them; named by the shortest path suffix that tells them apart.
 
 use crate::Error;
 use std::path::{Component, Path, PathBuf};

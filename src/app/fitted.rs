@@ -1,12 +1,12 @@
-//! One `greybox fit` of logs already read, as data: the JSON report, its document (table)
-//! and the fit itself, for the command line to print and write, and for the Python package
-//! to hand over.
+//! One fit of logs already read, as data: the JSON report, its document (table) and the
+//! fit itself, for the command line to print and write, and for the Python package to hand
+//! over.
 
-use super::args::FitArgs;
 use super::plan::{Plan, fit_logs, pole_pairs};
+use super::request::FitRequest;
 use crate::Experiment;
 use crate::estimate::{FitResult, PemOptions, Timing};
-use crate::pmsm::{LinearOptions, LogSource, PmsmFit, PmsmFitOptions, fit_pmsm, weighted_least_squares};
+use crate::pmsm::{LinearOptions, PmsmFit, PmsmFitOptions, fit_pmsm, weighted_least_squares};
 use crate::report::Document;
 use std::time::Instant;
 
@@ -42,7 +42,7 @@ impl Fitted {
     }
 }
 
-/// Fits the experiments `logs` as `greybox fit` does with the flags `a` planned into `plan`
+/// Fits the experiments `logs` as `greybox fit` does with the request `a` planned into `plan`
 /// (read from `t0` on, in `read_s` seconds): the prediction-error fit of [`fit_logs`], or for
 /// `--method ls` the weighted least-squares regression with the prediction-error fit's
 /// disagreement as warnings.
@@ -50,7 +50,7 @@ impl Fitted {
 /// # Errors
 /// Those of [`fit_logs`], of the `--weighting` rule and of the regression.
 pub fn fit_experiments(
-    a: &FitArgs,
+    a: &FitRequest,
     plan: &Plan,
     logs: &[Experiment],
     t0: Instant,
@@ -86,46 +86,4 @@ pub fn fit_experiments(
     let conventions = crate::pmsm::conventions(k("k_e"), kt, k("l_d").is_some(), plan.report_options);
     let document = report.document(&conventions);
     Ok(Fitted { json, document, outcome: FitOutcome::Ls(Box::new(report)) })
-}
-
-/// Reads the logs of a fit from `sources` as `greybox fit LOG...` reads its files (`--split-gaps`
-/// segments included): files named by [`super::logs::unique_names`] among the files, a table
-/// by its name; the paths checked first ([`super::logs::check_paths`]).
-///
-/// # Errors
-/// Those of [`super::logs::check_paths`] and [`super::columns::ColumnArgs::read_segments_from`].
-pub fn read_sources(a: &FitArgs, plan: &Plan, sources: &[LogSource<'_>]) -> crate::Result<Vec<Experiment>> {
-    let paths: Vec<std::path::PathBuf> = sources
-        .iter()
-        .filter_map(|s| match s {
-            LogSource::Path(p) => Some(p.to_path_buf()),
-            #[allow(unreachable_patterns)]
-            _ => None,
-        })
-        .collect();
-    super::logs::check_paths(&paths)?;
-    let mut segments = Vec::with_capacity(sources.len());
-    for s in sources {
-        segments.push(a.columns.read_segments_from(*s, &plan.csv)?);
-    }
-    let stems: Vec<String> = segments.iter().map(|l| l.name.clone()).collect();
-    let file_stems: Vec<String> = sources
-        .iter()
-        .zip(&stems)
-        .filter(|(s, _)| matches!(s, LogSource::Path(_)))
-        .map(|(_, n)| n.clone())
-        .collect();
-    let mut file_names = super::logs::unique_names(&paths, &file_stems).into_iter();
-    Ok(sources
-        .iter()
-        .zip(segments)
-        .flat_map(|(s, log)| {
-            let name = match s {
-                LogSource::Path(_) => file_names.next().unwrap_or_else(|| log.name.clone()),
-                #[allow(unreachable_patterns)]
-                _ => log.name.clone(),
-            };
-            super::columns::named(s.path(), log, &name)
-        })
-        .collect())
 }
