@@ -1,11 +1,14 @@
-//! Criterion benches of the MRAS observer (thesis 5.1, `greybox::online`): one
-//! [`Mras::update`] per sample, for both adaptation laws, and [`track`] over the shipped log.
+//! Criterion benches of the online estimators (`greybox::online`): one [`Mras::update`]
+//! per sample (thesis 5.1) for each adaptation law, one [`Kalman::update`], and [`track`]
+//! over the shipped log.
 //!
 //! - `mras update, <law>`: 10 000 prepared samples per iteration of a synthetic SPM signal
 //!   (built here, no files: n_p = 4, L_s = 4.5 mH, h = 100 µs, the speed and the currents
 //!   varying around 200 rad/s mechanical, 5 A q and 2 A d, so that the `R_s` law is
 //!   active). Criterion's throughput is in samples (elements) per second; the time per
 //!   iteration divided by 10 000 is the time of one `update`.
+//! - `kalman update, spm`: one [`Kalman::update`] per sample (the extended Kalman filter,
+//!   issue 46) on the same samples.
 //! - `track`: [`track`] over `data/sample.csv.gz` (20 000 samples), the trajectory's
 //!   vectors included; reading the log is outside the timing.
 //!
@@ -13,7 +16,7 @@
 //! `cargo bench --bench online -- --warm-up-time 1 --measurement-time 3`).
 
 use criterion::{Criterion, Throughput, criterion_group};
-use greybox::online::{Adaptation, Mras, MrasConfig, Sample, track};
+use greybox::online::{Adaptation, Kalman, KalmanNoise, Mras, MrasConfig, Sample, track};
 use greybox::pmsm::read_log;
 use std::f64::consts::TAU;
 use std::hint::black_box;
@@ -100,6 +103,25 @@ fn update(c: &mut Criterion) {
     g.finish();
 }
 
+/// One [`Kalman::update`] per sample (the extended Kalman filter of `R_s` and `K_e`, issue
+/// 46), on the same signal and from the same start as the MRAS, current noise 0.01 A.
+fn kalman_update(c: &mut Criterion) {
+    let samples = spm_signal(N);
+    let mut g = c.benchmark_group("kalman update");
+    g.throughput(Throughput::Elements(N as u64));
+    let cfg = config(Adaptation::Lyapunov);
+    let noise = KalmanNoise::for_machine(0.01, cfg.r_s0, cfg.k_e0);
+    let mut filter = Kalman::try_new(cfg, noise).unwrap();
+    g.bench_function(format!("spm, {N} samples"), |b| {
+        b.iter(|| {
+            for s in &samples {
+                black_box(filter.update(black_box(s)).unwrap());
+            }
+        })
+    });
+    g.finish();
+}
+
 fn track_sample_log(c: &mut Criterion) {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/sample.csv.gz");
     let log = read_log(&path, &Default::default()).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
@@ -114,7 +136,7 @@ fn track_sample_log(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(online, update, track_sample_log);
+criterion_group!(online, update, kalman_update, track_sample_log);
 
 fn main() {
     online();

@@ -1,4 +1,4 @@
-//! The MRAS observer allocates nothing per sample: [`Mras::update`], and
+//! The online estimators allocate nothing per sample: [`Mras::update`], [`Kalman::update`], and
 //! [`Mras::compute_output`] with [`Mras::advance`], counted by a global allocator, for the
 //! surface-magnet observer and the salient one (`l_q` given: the augmented exponential of
 //! `greybox::pmsm::ExactPlant` with its sensitivities).
@@ -13,7 +13,7 @@
 //! are counted, and the non-finite ones are checked to return an error and leave the
 //! observer unchanged.
 
-use greybox::online::{Adaptation, Mras, MrasConfig, Sample};
+use greybox::online::{Adaptation, Kalman, KalmanNoise, Mras, MrasConfig, Sample};
 use greybox::pmsm::{C64, ExactPlant, MotorParameters, VoltageHold};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -227,5 +227,34 @@ fn mras_allocates_nothing_per_sample() {
         eprintln!(
             "{tag} {adaptation:?}: {errors} non-finite samples, {error_allocs} allocations in their errors"
         );
+    }
+    // The Kalman filter (issue 46): update allocates nothing either.
+    for salient in [false, true] {
+        let tag = if salient { "salient" } else { "surface" };
+        let cfg = MrasConfig {
+            n_p: 4,
+            l_s: 4.5e-3,
+            l_q: salient.then_some(L_Q),
+            h: H,
+            k_e0: 0.5,
+            r_s0: 1.1,
+            ..Default::default()
+        };
+        let mut filter = Kalman::try_new(cfg, KalmanNoise::for_machine(0.01, 1.1, 0.5)).unwrap();
+        for k in 0..10 {
+            filter.update(&sample_of(salient, k)).unwrap();
+        }
+        let start = std::time::Instant::now();
+        let (se, n) = allocations(|| {
+            let mut se = 0.0;
+            for k in 10..10 + UPDATES {
+                se = filter.update(&sample_of(salient, k)).unwrap().r_s_se;
+            }
+            se
+        });
+        let ns = start.elapsed().as_secs_f64() * 1e9 / UPDATES as f64;
+        eprintln!("{tag} Kalman filter: {ns:.0} ns per update (quick timing, not asserted)");
+        assert_eq!(n, 0, "{tag} Kalman filter: update allocated {n} times over {UPDATES} samples");
+        assert!(se.is_finite() && se > 0.0, "{tag} Kalman filter: R_s standard error {se}");
     }
 }

@@ -208,21 +208,28 @@ def validate(log: Union[PathLike, Sequence[PathLike]], *, params: Any, **options
 
 
 class TrackRun(NamedTuple):
-    """One log (or segment) tracked by the online MRAS observer."""
+    """One log (or segment) tracked by an online estimator (the MRAS or the Kalman filter)."""
 
     #: The log's path as given (``PATH#k`` for segment k of a log split at its gaps).
     name: str
-    #: The estimates after the last sample: ``k_e`` [V s/rad], ``k_t`` [N m/A], ``r_s`` [Ω].
+    #: The estimates after the last sample: ``k_e`` [V s/rad], ``k_t`` [N m/A], ``r_s`` [Ω]
+    #: (``estimator="ekf"``: also ``k_e_se``, ``k_t_se``, ``r_s_se``, standard errors).
     final: dict[str, float]
-    #: Every observer step: ``t`` [s], ``k_e`` [V s/rad], ``r_s`` [Ω].
+    #: Every step: ``t`` [s], ``k_e`` [V s/rad], ``r_s`` [Ω] (``estimator="ekf"``: also
+    #: ``k_e_se``, ``r_s_se``; with ``t0=`` and ``r_s_t0=`` or ``psi_f_t0=``: ``t_winding``,
+    #: ``t_magnet`` [°C] and their ``_se`` [K]).
     trajectory: pa.Table
 
 
 def track(log: Union[PathLike, Sequence[PathLike]], *, pole_pairs: int, **options: Any) -> list[TrackRun]:
-    """Runs the online MRAS observer (thesis 5.1) over each log, as ``greybox track``.
+    """Runs an online estimator over each log, as ``greybox track``: the thesis' MRAS
+    (thesis 5.1), or with ``estimator="ekf"`` the extended Kalman filter of R_s and K_e,
+    whose trajectory and final estimates carry standard errors (``k_e_se`` [V s/rad],
+    ``r_s_se`` [Ω]; the final ones also ``k_t_se`` [N m/A]).
 
     ``options``: its flags, e.g. ``l_s=5e-3`` [H] or ``params=`` a :class:`Fit`, a report
-    dict or path; ``adaptation``, ``tau_ke`` [s], …. Returns one :class:`TrackRun` per log.
+    dict or path; ``adaptation``, ``tau_ke`` [s], ``current_noise`` [A], …. Returns one
+    :class:`TrackRun` per log.
 
     Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
     """
@@ -235,9 +242,17 @@ def track(log: Union[PathLike, Sequence[PathLike]], *, pole_pairs: int, **option
         argv = to_argv(_flags(pole_pairs=pole_pairs, **options), paths)
         runs = _greybox.track(argv)
     return [
-        TrackRun(name, {"k_e": k_e, "k_t": k_t, "r_s": r_s}, pa.Table.from_batches([batch]))
-        for name, (k_e, k_t, r_s), batch in runs
+        TrackRun(name, _final(k_e, k_t, r_s, k_e_se, r_s_se), pa.Table.from_batches([batch]))
+        for name, (k_e, k_t, r_s, k_e_se, r_s_se), batch in runs
     ]
+
+
+def _final(k_e: float, k_t: float, r_s: float, k_e_se: Optional[float], r_s_se: Optional[float]) -> dict[str, float]:
+    """A run's final estimates, with their standard errors where the estimator gives them."""
+    final = {"k_e": k_e, "k_t": k_t, "r_s": r_s}
+    if k_e_se is not None and r_s_se is not None:
+        final.update(k_e_se=k_e_se, k_t_se=k_e_se * 1.5**0.5, r_s_se=r_s_se)
+    return final
 
 
 def simulate(scenario: Optional[str] = None, **options: Any) -> tuple[pa.Table, dict[str, Any]]:

@@ -58,7 +58,9 @@ def expand_logs(pattern: str) -> list[str]:
 def validate(argv: list[str]) -> str:
     """``greybox validate`` with the flags ``argv``: the JSON of ``--json``."""
 
-def track(argv: list[str]) -> list[tuple[str, tuple[float, float, float], pa.RecordBatch]]:
+def track(
+    argv: list[str],
+) -> list[tuple[str, tuple[float, float, float, Optional[float], Optional[float]], pa.RecordBatch]]:
     """``greybox track``: per run its name, final ``(k_e, k_t, r_s)`` and trajectory."""
 
 def simulate(argv: list[str]) -> tuple[pa.RecordBatch, str]:

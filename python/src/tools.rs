@@ -44,9 +44,11 @@ pub fn validate(py: Python<'_>, argv: Vec<String>) -> PyResult<String> {
     Ok(greybox::cli::validate::to_json(&saved, &comparisons))
 }
 
-/// One observer run: its name, its final estimates `(k_e, k_t, r_s)` and its trajectory as
-/// a pyarrow RecordBatch `t [s], k_e [V s/rad], r_s [Ω]`.
-type Run = (String, (f64, f64, f64), Py<PyAny>);
+/// One observer run: its name, its final estimates `(k_e, k_t, r_s, k_e_se, r_s_se)` (the
+/// standard errors `None` for the MRAS) and its trajectory as a pyarrow RecordBatch
+/// `t [s], k_e [V s/rad], r_s [Ω]` (with `--estimator ekf` also `k_e_se`, `r_s_se`; with
+/// `--t0` the temperatures `t_winding`, `t_magnet` [°C] and their standard errors [K]).
+type Run = (String, (f64, f64, f64, Option<f64>, Option<f64>), Py<PyAny>);
 
 /// Runs the MRAS observer of `greybox track` (the flags `argv`) over each log, the GIL
 /// released; every point of each trajectory.
@@ -63,6 +65,7 @@ pub fn track(py: Python<'_>, argv: Vec<String>) -> PyResult<Vec<Run>> {
             ));
         }
     }
+    let thermal = greybox::cli::track::thermal(&a).map_err(words::<TrackArgs>("track"))?;
     let (runs, names) =
         py.detach(|| greybox::cli::track::track_logs(&a)).map_err(words::<TrackArgs>("track"))?;
     runs.into_iter()
@@ -70,13 +73,33 @@ pub fn track(py: Python<'_>, argv: Vec<String>) -> PyResult<Vec<Run>> {
         .map(|((_, _, tr), name)| {
             let f = &tr.final_estimate;
             let column = |v: Vec<f64>| Arc::new(Float64Array::from(v)) as ArrayRef;
-            let batch = RecordBatch::try_from_iter([
+            let mut columns = vec![
                 ("t", column(tr.t.clone())),
                 ("k_e", column(tr.k_e.clone())),
                 ("r_s", column(tr.r_s.clone())),
-            ])
-            .map_err(|e| crate::errors::Error::new_err(e.to_string()))?;
-            Ok((name, (f.k_e, f.k_t, f.r_s), batch.to_pyarrow(py)?.unbind()))
+            ];
+            if !tr.k_e_se.is_empty() {
+                columns.push(("k_e_se", column(tr.k_e_se.clone())));
+                columns.push(("r_s_se", column(tr.r_s_se.clone())));
+            }
+            if let Some(reference) = &thermal {
+                let temps = tr.temperatures(a.pole_pairs, reference);
+                for (name, v) in [
+                    ("t_winding", temps.t_winding),
+                    ("t_winding_se", temps.t_winding_se),
+                    ("t_magnet", temps.t_magnet),
+                    ("t_magnet_se", temps.t_magnet_se),
+                ] {
+                    if !v.is_empty() {
+                        columns.push((name, column(v)));
+                    }
+                }
+            }
+            let batch = RecordBatch::try_from_iter(columns)
+                .map_err(|e| crate::errors::Error::new_err(e.to_string()))?;
+            let se = tr.final_se();
+            let last = (f.k_e, f.k_t, f.r_s, se.map(|s| s.0), se.map(|s| s.1));
+            Ok((name, last, batch.to_pyarrow(py)?.unbind()))
         })
         .collect()
 }

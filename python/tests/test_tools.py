@@ -78,6 +78,16 @@ def test_track(sample):
     assert run.final["k_e"] == run.trajectory.column("k_e")[-1].as_py()
     with pytest.raises(greybox.OptionError, match="--l-s"):
         greybox.track(sample, pole_pairs=4)
+    # The Kalman filter: a standard error at every step and at the end.
+    (run,) = greybox.track(sample, pole_pairs=4, params=fit, estimator="ekf")
+    assert run.trajectory.column_names == ["t", "k_e", "r_s", "k_e_se", "r_s_se"]
+    assert run.final["r_s_se"] == run.trajectory.column("r_s_se")[-1].as_py() > 0
+    assert run.final["k_t_se"] == pytest.approx(1.5**0.5 * run.final["k_e_se"])
+    # Temperatures at a reference: the winding at T_0 when R_s is the reference value.
+    r_s = run.final["r_s"]
+    (hot,) = greybox.track(sample, pole_pairs=4, params=fit, estimator="ekf", t0=20, r_s_t0=r_s)
+    assert hot.trajectory.column("t_winding")[-1].as_py() == pytest.approx(20, abs=1e-9)
+    assert hot.trajectory.column("t_winding_se")[-1].as_py() > 0
 
 
 def test_standstill_and_mechanics_from_simulated_tables():

@@ -50,10 +50,10 @@ impl FromStr for Delay {
     }
 }
 
-/// A modulator angle advance [ω_e h], or to be estimated.
+/// A modulator angle advance \[ω_e h\], or to be estimated.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Advance {
-    /// This advance [ω_e h].
+    /// This advance \[ω_e h\].
     Value(f64),
     /// Searched by the lowest loss.
     Estimate,
@@ -75,14 +75,14 @@ impl FromStr for Advance {
     }
 }
 
-/// The averaged dead-time model: off, estimated, or known [V].
+/// The averaged dead-time model: off, estimated, or known \[V\].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DeadTime {
     /// No inverter model.
     None,
     /// The voltage estimated as a nuisance parameter.
     Estimate,
-    /// A known voltage [V].
+    /// A known voltage \[V\].
     Volts(f64),
 }
 
@@ -103,11 +103,11 @@ impl FromStr for DeadTime {
     }
 }
 
-/// A positive value (a speed-estimator bandwidth [rad/s], a sign width [A], a Coulomb
-/// speed [rad/s]), or to be estimated, or (a speed estimator only) the logged speed.
+/// A positive value (a speed-estimator bandwidth \[rad/s\], a sign width \[A\], a Coulomb
+/// speed \[rad/s\]), or to be estimated, or (a speed estimator only) the logged speed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Pll {
-    /// This value (bandwidth [rad/s] or width [A]).
+    /// This value (bandwidth \[rad/s\] or width \[A\]).
     Bandwidth(f64),
     /// Searched by the lowest loss.
     Estimate,
@@ -142,7 +142,7 @@ impl Pll {
             .ok_or_else(|| format!("`{s}`: expected {what} or `estimate`"))
     }
 
-    /// A sign width [A] or `estimate` (`--dead-time-width`).
+    /// A sign width \[A\] or `estimate` (`--dead-time-width`).
     ///
     /// # Errors
     /// A message quoting `s`.
@@ -151,7 +151,7 @@ impl Pll {
     }
 }
 
-/// A dead-time mask: `auto` or a current ≥ 0 [A].
+/// A dead-time mask: `auto` or a current ≥ 0 \[A\].
 ///
 /// # Errors
 /// A message quoting `s`.
@@ -312,7 +312,7 @@ pub enum LegWidth {
 
 impl FromStr for LegWidth {
     type Err = String;
-    /// A positive width [A], `estimate` or `sign`.
+    /// A positive width \[A\], `estimate` or `sign`.
     fn from_str(s: &str) -> Result<Self, String> {
         match s {
             "estimate" => Ok(Self::Estimate),
@@ -336,7 +336,7 @@ pub enum Gain {
 
 impl FromStr for Gain {
     type Err = String;
-    /// A gain in [0, 2] or `estimate`.
+    /// A gain in \[0, 2\] or `estimate`.
     fn from_str(s: &str) -> Result<Self, String> {
         match s {
             "estimate" => Ok(Self::Estimate),

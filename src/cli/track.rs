@@ -4,23 +4,27 @@
 use super::args::ColumnArgs;
 use super::output;
 use crate::data::Staged;
-use crate::online::{Adaptation, MrasConfig, Trajectory, track};
-use crate::pmsm::{CsvOptions, SavedModel, VoltageHold, VoltageInput, applied_experiment};
+use crate::online::{Adaptation, KalmanNoise, MrasConfig, Trajectory, current_noise, track, track_kalman};
+use crate::pmsm::{CsvOptions, SavedModel, ThermalReference, VoltageHold, VoltageInput, applied_experiment};
 use clap::{Args, ValueEnum};
-use serde_json::{Value, json};
 use std::path::PathBuf;
+
+mod report;
 
 /// Arguments of `greybox track`.
 ///
 /// JSON shape (`--json`): one log gives
-/// `{"final": {"k_e", "k_t", "r_s"}, "trajectory": {"t": [], "k_e": [], "r_s": []}}`;
+/// `{"final": {"k_e", "k_t", "r_s"}, "trajectory": {"t": [], "k_e": [], "r_s": []}}`
+/// (with `--estimator ekf` also `k_e_se`, `k_t_se`, `r_s_se` in `final` and `k_e_se`,
+/// `r_s_se` in `trajectory`: standard errors);
 /// several logs give `{"logs": [{"log": PATH, "final": …, "trajectory": …}, …]}` in the
 /// order given (PATH as given on the command line). Non-finite numbers are written as `null`.
 #[derive(Args, Debug)]
 #[command(
     after_help = "JSON (--json): one log gives {\"final\": {\"k_e\", \"k_t\", \"r_s\"}, \"trajectory\": \
 {\"t\": [...], \"k_e\": [...], \"r_s\": [...]}}; several logs give {\"logs\": [{\"log\": PATH, \"final\": ..., \
-\"trajectory\": ...}, ...]}, in the order given (PATH as given). Units: k_e V s/rad, k_t N m/A, r_s ohm, t s. \
+\"trajectory\": ...}, ...]}, in the order given (PATH as given). With --estimator ekf, final and trajectory also \
+carry the standard errors k_e_se, r_s_se (final: k_t_se). Units: k_e V s/rad, k_t N m/A, r_s ohm, t s. \
 Non-finite numbers are null."
 )]
 pub struct TrackArgs {
@@ -86,6 +90,34 @@ pub struct TrackArgs {
     /// dq-held simulator. Default: the fit's with --params, else stator.
     #[arg(long, value_enum)]
     pub hold: Option<TrackHold>,
+    /// The online estimator: the thesis' MRAS (`mras`, no uncertainty), or the extended
+    /// Kalman filter of R_s and K_e with their standard errors at every sample (`ekf`,
+    /// docs/online.md).
+    #[arg(long, value_enum, default_value_t = EstimatorArg::Mras)]
+    pub estimator: EstimatorArg,
+    /// With --estimator ekf: the standard deviation of the current noise [A] (each of id,
+    /// iq); default: estimated from each log's second differences.
+    #[arg(long, value_name = "A")]
+    pub current_noise: Option<f64>,
+    /// With --estimator ekf: how fast R_s may drift, its random walk's standard deviation
+    /// after one second [Ω/√s]; default 2 % of the initial R_s.
+    #[arg(long, value_name = "OHM_PER_SQRT_S")]
+    pub r_s_walk: Option<f64>,
+    /// With --estimator ekf: how fast K_e may drift [V s/rad/√s]; default 0.2 % of the
+    /// initial K_e.
+    #[arg(long, value_name = "VS_PER_SQRT_S")]
+    pub k_e_walk: Option<f64>,
+    /// Reference temperature T_0 [°C] of --r-s-t0 and --psi-f-t0: the winding temperature
+    /// (copper) and the magnet temperature (NdFeB) are then given at every point, as `fit`
+    /// derives them (MODEL.md §3), with intervals from --estimator ekf.
+    #[arg(long, allow_hyphen_values = true)]
+    pub t0: Option<f64>,
+    /// Winding resistance at T_0 [Ω] (with --t0).
+    #[arg(long)]
+    pub r_s_t0: Option<f64>,
+    /// Magnet flux ψ_f at T_0 [V s] (with --t0).
+    #[arg(long)]
+    pub psi_f_t0: Option<f64>,
     /// At most this many trajectory points per log in the JSON (evenly strided, the last
     /// kept).
     #[arg(long, default_value_t = 10_000)]
@@ -116,6 +148,15 @@ pub enum AdaptationArg {
     Relay,
 }
 
+/// The online estimator (`--estimator`): `mras` or `ekf`.
+// The values' clap docs would become `--help` text of their own: the enum's doc says them.
+#[allow(missing_docs)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum EstimatorArg {
+    Mras,
+    Ekf,
+}
+
 /// The observer's voltage hold (`--hold`): `stator` or `dq`.
 // The values' clap docs would become `--help` text of their own: the enum's doc says them.
 #[allow(missing_docs)]
@@ -135,6 +176,7 @@ pub fn run_track(a: &TrackArgs) -> crate::Result<()> {
     // Fail before the work, not after it, when the output cannot be written.
     let inputs: Vec<PathBuf> = a.logs.iter().chain(&a.params).cloned().collect();
     output::check_all(&[("--json", a.json.as_deref()), ("--plot", a.plot.as_deref())], &inputs)?;
+    let thermal = thermal(a)?;
     let (runs, names) = track_logs(a)?;
     let mut staged = Staged::new();
     if let Some(plot) = &a.plot {
@@ -144,23 +186,39 @@ pub fn run_track(a: &TrackArgs) -> crate::Result<()> {
     let to_stdout = a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
     if !to_stdout && !a.quiet {
         for (name, tr) in &runs {
-            let f = &tr.final_estimate;
-            super::output::stdout(
-                &(format!(
-                    "{name}: K_e = {:.6} V s/rad, K_t = {:.6} N m/A, R_s = {:.6} ohm ({} observer steps, to t = {:.4} s)",
-                    f.k_e,
-                    f.k_t,
-                    f.r_s,
-                    tr.t.len(),
-                    tr.t.last().copied().unwrap_or(0.0)
-                ) + "\n"),
-            )?;
+            super::output::stdout(&(report::summary_line(name, tr, a.pole_pairs, thermal.as_ref()) + "\n"))?;
         }
     }
     if let Some(path) = &a.json {
-        output::write(&mut staged, path, &to_json(&runs, a.max_points))?;
+        output::write(
+            &mut staged,
+            path,
+            &report::to_json(&runs, a.max_points, a.pole_pairs, thermal.as_ref()),
+        )?;
     }
     staged.commit()
+}
+
+/// The temperatures' reference of `--t0`, `--r-s-t0`, `--psi-f-t0` (MODEL.md §3), if
+/// given.
+///
+/// # Errors
+/// [`crate::Error::InvalidOption`] naming `--t0` for a reference value without it, and
+/// those of [`ThermalReference::try_new`].
+pub fn thermal(a: &TrackArgs) -> crate::Result<Option<ThermalReference>> {
+    match (a.t0, a.r_s_t0, a.psi_f_t0) {
+        (None, None, None) => Ok(None),
+        (Some(t0), r, p) => ThermalReference::try_new(t0, r, p).map(Some).map_err(|e| match e {
+            crate::Error::InvalidOption { reason, .. } => {
+                crate::Error::InvalidOption { option: "t0".into(), reason }
+            }
+            e => e,
+        }),
+        (None, ..) => Err(crate::Error::InvalidOption {
+            option: "t0".into(),
+            reason: "--r-s-t0 and --psi-f-t0 are values at a reference temperature: give it with --t0".into(),
+        }),
+    }
 }
 
 /// One observer run: the log's path, its segment (`--split-gaps`, from 1) and the trajectory.
@@ -188,8 +246,12 @@ pub fn track_logs(a: &TrackArgs) -> crate::Result<(Vec<TrackRun>, Vec<String>)> 
                 VoltageInput::Terminal => None,
                 _ => Some(applied_experiment(log, a.pole_pairs, input).map_err(|e| flag_error(e, path))?),
             };
-            let trajectory =
-                track(applied.as_ref().unwrap_or(log), &config).map_err(|e| flag_error(e, path))?;
+            let log = applied.as_ref().unwrap_or(log);
+            let trajectory = match a.estimator {
+                EstimatorArg::Mras => track(log, &config),
+                EstimatorArg::Ekf => track_kalman(log, &config, Some(noise(a, &config, log)?)),
+            }
+            .map_err(|e| flag_error(e, path))?;
             let segment = (!one).then_some(k + 1);
             let name = path.display().to_string();
             names.push(segment.map_or_else(|| name.clone(), |k| format!("{name}#{k}")));
@@ -197,6 +259,24 @@ pub fn track_logs(a: &TrackArgs) -> crate::Result<(Vec<TrackRun>, Vec<String>)> 
         }
     }
     Ok((runs, names))
+}
+
+/// The Kalman filter's noise model of the flags for `log`: `--current-noise` or the log's
+/// own ([`current_noise`]), `--r-s-walk`, `--k-e-walk` or their defaults
+/// ([`KalmanNoise::for_machine`]).
+///
+/// # Errors
+/// A log without its currents (those of [`crate::pmsm::DqView::try_new`]).
+fn noise(a: &TrackArgs, config: &MrasConfig, log: &crate::Experiment) -> crate::Result<KalmanNoise> {
+    let sigma_i = match a.current_noise {
+        Some(s) => s,
+        None => {
+            let v = crate::pmsm::DqView::try_new(log)?;
+            current_noise(v.i_d(), v.i_q())
+        }
+    };
+    let d = KalmanNoise::for_machine(sigma_i, config.r_s0, config.k_e0);
+    Ok(KalmanNoise { q_r_s: a.r_s_walk.unwrap_or(d.q_r_s), q_k_e: a.k_e_walk.unwrap_or(d.q_k_e), ..d })
 }
 
 /// The observer's settings from the flags (and `--params`: its inductances, estimates, hold
@@ -275,6 +355,9 @@ fn flag_error(e: crate::Error, log: &std::path::Path) -> crate::Error {
                 "i_d_threshold" => "i-d-threshold",
                 "k_e0" => "k-e0",
                 "r_s0" => "r-s0",
+                "sigma_i" => "current-noise",
+                "q_r_s" => "r-s-walk",
+                "q_k_e" => "k-e-walk",
                 other => other,
             };
             crate::Error::InvalidOption { option: flag.into(), reason }
@@ -290,32 +373,4 @@ fn flag_error(e: crate::Error, log: &std::path::Path) -> crate::Error {
         }
         e => e,
     }
-}
-
-/// The JSON of the runs (shape in [`TrackArgs`]), trajectories decimated to `max_points`.
-fn to_json(runs: &[(String, Trajectory)], max_points: usize) -> String {
-    let one = |tr: &Trajectory| {
-        let d = tr.decimate(max_points);
-        let f = &tr.final_estimate;
-        // `json!` writes a non-finite f64 as null.
-        json!({
-            "final": { "k_e": f.k_e, "k_t": f.k_t, "r_s": f.r_s },
-            "trajectory": { "t": d.t, "k_e": d.k_e, "r_s": d.r_s },
-        })
-    };
-    let v = match runs {
-        [(_, tr)] => one(tr),
-        _ => {
-            let logs: Vec<Value> = runs
-                .iter()
-                .map(|(name, tr)| {
-                    let mut o = one(tr);
-                    o["log"] = json!(name);
-                    o
-                })
-                .collect();
-            json!({ "logs": logs })
-        }
-    };
-    serde_json::to_string_pretty(&v).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
 }

@@ -1,12 +1,18 @@
 //! Online estimation of `K_e` and `R_s`, sample by sample: the model reference adaptive
-//! system (MRAS) of thesis 5.1 (Tenerz 2011; MODEL.md §7).
+//! system (MRAS) of thesis 5.1 (Tenerz 2011; MODEL.md §7), and an extended Kalman filter
+//! whose covariance gives a standard error at every sample (issue 46).
 //!
 //! - [`MrasConfig`] (with [`Adaptation`]): known `n_p`, `l_s` (and `l_q` for a salient
 //!   machine), sample time, gains;
 //! - [`Mras`]: the observer, [`Mras::update`] per [`Sample`] giving [`Estimates`]; exact
 //!   in the state for any sample time and implicit in the parameters (see [`Mras`]);
 //! - [`InjectionSchedule`]: the periodic d-current pulse that lets `R_s` adapt;
-//! - [`track()`]: the observer over a whole log, a [`Trajectory`].
+//! - [`Kalman`] (with [`KalmanNoise`]): the filter of `(i_d, i_q, R_s, K_e)`,
+//!   [`Kalman::update`] per [`Sample`] giving a [`KalmanEstimate`] (the estimates and their
+//!   standard errors); [`current_noise`]: the current noise a log shows;
+//! - [`track()`], [`track_kalman()`]: an observer over a whole log, a [`Trajectory`] (with
+//!   the filter's standard errors; [`Trajectory::temperatures`] for the winding and magnet
+//!   temperatures).
 //!
 //! Speeds are mechanical (`w_m` \[rad/s\]); `ω_e = n_p w_m`. Choose the voltage hold of the
 //! log's source (MODEL.md §4): on a dq-held log (gym-electric-motor) the default stator
@@ -32,6 +38,7 @@
 // The submodules are the crate's; their public items are re-exported here, one path each.
 pub(crate) mod config;
 pub(crate) mod injection;
+pub(crate) mod kalman;
 pub(crate) mod mras;
 #[cfg(feature = "plot")]
 pub(crate) mod plot;
@@ -39,7 +46,8 @@ pub(crate) mod track;
 
 pub use config::{Adaptation, MrasConfig};
 pub use injection::InjectionSchedule;
+pub use kalman::{K_E_WALK, Kalman, KalmanEstimate, KalmanNoise, MODEL_NOISE_RATIO, R_S_WALK, current_noise};
 pub use mras::{Estimates, INFORMATIVE, MIN_TAU_SAMPLES, Mras, MrasOutput, Sample};
 #[cfg(feature = "plot")]
 pub use plot::{TrackRun, TrackTruth, track_svg};
-pub use track::{Trajectory, track};
+pub use track::{TemperatureTrajectory, Trajectory, track, track_kalman};

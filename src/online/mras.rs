@@ -217,7 +217,7 @@ impl Mras {
         let i_post = i_hat + self.phi_k * dk + self.phi_r * (r_s - self.r_s);
         let x = i_post + (i - i_post) * self.kappa;
         let (i_next, phi_k, phi_r, psi_k) = match &self.plant {
-            None => self.step(x, k_e, r_s, s),
+            None => self.step(x, k_e, r_s, s).0,
             Some(plant) => self.step_salient(plant, x, k_e, r_s, s)?,
         };
         if !(i_next.re.is_finite() && i_next.im.is_finite() && k_e.is_finite() && r_s.is_finite()) {
@@ -282,7 +282,7 @@ impl Mras {
 }
 
 /// The estimates at `(k_e, r_s)` with the error `e` \[A\].
-fn estimates(k_e: f64, r_s: f64, n_p: u32, e: C64, r_s_active: bool) -> Estimates {
+pub(crate) fn estimates(k_e: f64, r_s: f64, n_p: u32, e: C64, r_s_active: bool) -> Estimates {
     Estimates {
         k_e,
         k_t: 1.5f64.sqrt() * k_e,

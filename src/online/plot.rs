@@ -186,6 +186,12 @@ fn k_e(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
         .draw()?;
     let width = ch.plotting_area().dim_in_pixel().0 as usize;
     for (i, r) in runs.iter().enumerate() {
+        if let Some(pts) = band(&r.trajectory.t, &r.trajectory.k_e, &r.trajectory.k_e_se, width) {
+            let fill = color(i).mix(0.15).filled();
+            ch.draw_series(std::iter::once(Polygon::new(pts, fill)))?
+                .label(format!("95 % interval, {}", r.name))
+                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 16, y + 5)], fill));
+        }
         let style = color(i).stroke_width(2);
         let pts = decimate_min_max(&r.trajectory.t, &r.trajectory.k_e, width);
         ch.draw_series(LineSeries::new(pts, style))?
@@ -226,6 +232,12 @@ fn r_s(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
     )?;
     let width = ch.plotting_area().dim_in_pixel().0 as usize;
     for (i, r) in runs.iter().enumerate() {
+        if let Some(pts) = band(&r.trajectory.t, &r.trajectory.r_s, &r.trajectory.r_s_se, width) {
+            let fill = color(i).mix(0.15).filled();
+            ch.draw_series(std::iter::once(Polygon::new(pts, fill)))?
+                .label(format!("95 % interval, {}", r.name))
+                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 16, y + 5)], fill));
+        }
         let style = color(i).stroke_width(2);
         let pts = decimate_min_max(&r.trajectory.t, &r.trajectory.r_s, width);
         ch.draw_series(LineSeries::new(pts, style))?
@@ -240,4 +252,23 @@ fn r_s(area: &Area<'_>, runs: &[TrackRun<'_>]) -> Drawn {
         }
     }
     legend(&mut ch, SeriesLabelPosition::LowerRight)
+}
+
+/// The 95 % band `v ± 1.96 se` over `t` as a closed outline (the upper edge forward, the
+/// lower back) of at most about `2 width` points (evenly strided, the last kept); `None`
+/// without standard errors.
+fn band(t: &[f64], v: &[f64], se: &[f64], width: usize) -> Option<Vec<(f64, f64)>> {
+    if se.len() != t.len() || t.is_empty() {
+        return None;
+    }
+    let stride = t.len().div_ceil(width.max(1)).max(1);
+    let mut idx: Vec<usize> = (0..t.len()).step_by(stride).collect();
+    if idx.last() != Some(&(t.len() - 1)) {
+        idx.push(t.len() - 1);
+    }
+    let finite = |k: &usize| v[*k].is_finite() && se[*k].is_finite();
+    let upper = idx.iter().filter(|k| finite(k)).map(|&k| (t[k], v[k] + 1.96 * se[k]));
+    let lower: Vec<(f64, f64)> =
+        idx.iter().filter(|k| finite(k)).map(|&k| (t[k], v[k] - 1.96 * se[k])).collect();
+    Some(upper.chain(lower.into_iter().rev()).collect())
 }

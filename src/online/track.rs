@@ -1,10 +1,12 @@
-//! The MRAS run over a whole log: the estimates' trajectory (backs `greybox track`).
+//! An observer run over a whole log, the MRAS ([`track`]) or the Kalman filter
+//! ([`track_kalman`]): the estimates' trajectory (backs `greybox track`).
 
 use super::config::MrasConfig;
+use super::kalman::{Kalman, KalmanNoise, current_noise};
 use super::mras::{Estimates, Mras, Sample};
 use crate::data::Experiment;
 use crate::error::Result;
-use crate::pmsm::DqView;
+use crate::pmsm::{DqView, ThermalReference};
 use serde::{Deserialize, Serialize};
 
 /// The estimates over time, one point per sample interval (all vectors of one length).
@@ -16,6 +18,13 @@ pub struct Trajectory {
     pub k_e: Vec<f64>,
     /// R̂_s after the sample at `t_k` \[Ω\], length M.
     pub r_s: Vec<f64>,
+    /// Standard error of K̂_e \[V s/rad\], length M; empty for an observer without one
+    /// (the MRAS).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub k_e_se: Vec<f64>,
+    /// Standard error of R̂_s \[Ω\], length M; empty for an observer without one.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub r_s_se: Vec<f64>,
     /// The estimates after the last sample.
     pub final_estimate: Estimates,
 }
@@ -39,13 +48,21 @@ impl Trajectory {
                 v
             }
         };
-        let pick = |x: &[f64]| idx.iter().map(|&k| x[k]).collect();
+        let pick = |x: &[f64]| if x.is_empty() { Vec::new() } else { idx.iter().map(|&k| x[k]).collect() };
         Trajectory {
             t: pick(&self.t),
             k_e: pick(&self.k_e),
             r_s: pick(&self.r_s),
+            k_e_se: pick(&self.k_e_se),
+            r_s_se: pick(&self.r_s_se),
             final_estimate: self.final_estimate,
         }
+    }
+
+    /// The standard errors `(K̂_e, R̂_s)` after the last sample; `None` for an observer
+    /// without them (or an empty trajectory).
+    pub fn final_se(&self) -> Option<(f64, f64)> {
+        Some((*self.k_e_se.last()?, *self.r_s_se.last()?))
     }
 }
 
@@ -69,6 +86,7 @@ pub fn track(e: &Experiment, config: &MrasConfig) -> Result<Trajectory> {
         k_e: Vec::with_capacity(m),
         r_s: Vec::with_capacity(m),
         final_estimate: mras.output(),
+        ..Trajectory::default()
     };
     for k in 0..m {
         let s =
@@ -80,4 +98,81 @@ pub fn track(e: &Experiment, config: &MrasConfig) -> Result<Trajectory> {
         out.final_estimate = est;
     }
     Ok(out)
+}
+
+/// Runs the extended Kalman filter ([`Kalman`]) over a PMSM log as [`track`] runs the MRAS
+/// (the same samples, `config.h` replaced by the log's sample time), with the noise model
+/// `noise`, or by default [`KalmanNoise::for_machine`] at the current noise the log shows
+/// ([`current_noise`]) and the configured `r_s0`, `k_e0`. The trajectory carries the
+/// standard errors.
+///
+/// # Errors
+/// Those of [`track`], [`KalmanNoise::validate`] and [`Kalman::update`] (naming the sample).
+pub fn track_kalman(e: &Experiment, config: &MrasConfig, noise: Option<KalmanNoise>) -> Result<Trajectory> {
+    let v = DqView::try_new(e)?;
+    let (u_d, u_q) = v.terminal_voltage()?;
+    let (i_d, i_q, w_m) = (v.i_d(), v.i_q(), v.w_m());
+    let noise =
+        noise.unwrap_or_else(|| KalmanNoise::for_machine(current_noise(i_d, i_q), config.r_s0, config.k_e0));
+    let mut filter = Kalman::try_new(MrasConfig { h: e.h(), ..config.clone() }, noise)?;
+    let m = v.len() - 1;
+    let mut out = Trajectory {
+        t: Vec::with_capacity(m),
+        k_e: Vec::with_capacity(m),
+        r_s: Vec::with_capacity(m),
+        k_e_se: Vec::with_capacity(m),
+        r_s_se: Vec::with_capacity(m),
+        final_estimate: Estimates::default(),
+    };
+    for k in 0..m {
+        let s =
+            Sample { i_d: i_d[k], i_q: i_q[k], u_d: u_d[k], u_q: u_q[k], w_m: 0.5 * (w_m[k] + w_m[k + 1]) };
+        let est = filter.update(&s)?;
+        out.t.push(e.t0() + k as f64 * e.h());
+        out.k_e.push(est.estimates.k_e);
+        out.r_s.push(est.estimates.r_s);
+        out.k_e_se.push(est.k_e_se);
+        out.r_s_se.push(est.r_s_se);
+        out.final_estimate = est.estimates;
+    }
+    Ok(out)
+}
+
+/// Winding and magnet temperatures over a trajectory \[°C\] with their standard errors
+/// (`NaN` where the trajectory has none: the MRAS), from `R̂_s(t)` and `ψ̂_f(t)` by the
+/// offline fit's conventions ([`ThermalReference::temperatures`], MODEL.md §3): each vector
+/// empty when its reference value (`r_s0`, `psi_f0`) is not given, else of the
+/// trajectory's length.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TemperatureTrajectory {
+    /// Winding temperature \[°C\].
+    pub t_winding: Vec<f64>,
+    /// Its standard error \[K\].
+    pub t_winding_se: Vec<f64>,
+    /// Magnet temperature \[°C\].
+    pub t_magnet: Vec<f64>,
+    /// Its standard error \[K\].
+    pub t_magnet_se: Vec<f64>,
+}
+
+impl Trajectory {
+    /// The temperatures of every point for a machine of `n_p` pole pairs (`ψ_f = √(2/3)
+    /// K_e / n_p`) at the reference `reference` (see [`TemperatureTrajectory`]).
+    pub fn temperatures(&self, n_p: u32, reference: &ThermalReference) -> TemperatureTrajectory {
+        let psi = crate::pmsm::SQRT_2_3 / f64::from(n_p.max(1));
+        let mut out = TemperatureTrajectory::default();
+        for k in 0..self.t.len() {
+            let se = |v: &[f64]| v.get(k).copied().unwrap_or(f64::NAN);
+            let (se_r, se_k) = (se(&self.r_s_se), se(&self.k_e_se));
+            for d in reference.temperatures(self.r_s[k], se_r, psi * self.k_e[k], psi * se_k) {
+                let (value, std) = match d.name.as_str() {
+                    "t_winding" => (&mut out.t_winding, &mut out.t_winding_se),
+                    _ => (&mut out.t_magnet, &mut out.t_magnet_se),
+                };
+                value.push(d.value);
+                std.push(d.std_error);
+            }
+        }
+        out
+    }
 }

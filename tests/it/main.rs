@@ -31,6 +31,7 @@ mod gate;
 mod inverter;
 mod ipm;
 mod joint;
+mod kalman;
 mod kept_sums;
 mod last_pass;
 mod limits;

@@ -260,3 +260,68 @@ fn track_defaults_survive_the_noisy_logs() {
         assert!((r / r_s - 1.0).abs() < 0.05, "{name}: R_s {r} for {r_s}");
     }
 }
+
+/// `--estimator ekf`: the final estimates with standard errors in the summary and the JSON,
+/// a standard error at every trajectory point, and the fit's `K_e` and `R_s` (the truth
+/// of the sample log within 0.1 %) inside the final 95 % intervals.
+#[test]
+fn the_kalman_filter_gives_an_interval_at_every_point() {
+    let report = temp("ekf_fit.json");
+    let out = greybox(&["fit", SAMPLE, "-p", "4", "-q", "--json", report.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let fit: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let fitted = |name: &str| {
+        fit["parameters"].as_array().unwrap().iter().find(|p| p["name"] == name).unwrap()["value"]
+            .as_f64()
+            .unwrap()
+    };
+    let args = ["track", SAMPLE, "-p", "4", "--params", report.to_str().unwrap(), "--estimator", "ekf"];
+    let out = greybox(&args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("± "), "{}", String::from_utf8_lossy(&out.stdout));
+    let v = json_of(&[&args[..], &["--json", "-"]].concat());
+    assert_eq!(keys(&v["final"]), ["k_e", "k_e_se", "k_t", "k_t_se", "r_s", "r_s_se"]);
+    assert_eq!(keys(&v["trajectory"]), ["k_e", "k_e_se", "r_s", "r_s_se", "t"]);
+    let len = |k: &str| v["trajectory"][k].as_array().unwrap().len();
+    assert_eq!((len("k_e_se"), len("r_s_se")), (len("t"), len("t")));
+    let fin = |k: &str| v["final"][k].as_f64().unwrap();
+    for (name, se) in [("k_e", "k_e_se"), ("r_s", "r_s_se")] {
+        let z = (fin(name) - fitted(name)) / fin(se);
+        assert!(
+            fin(se) > 0.0 && z.abs() < 1.96,
+            "{name}: {} ± {} vs the fit's {} (z {z:.2})",
+            fin(name),
+            fin(se),
+            fitted(name)
+        );
+    }
+    // Temperatures at a reference: at the final estimates' own values, T_0 itself.
+    let (r_ref, psi_ref) = (fin("r_s").to_string(), (fin("k_e") * (2.0f64 / 3.0).sqrt() / 4.0).to_string());
+    let thermal = ["--t0", "20", "--r-s-t0", &r_ref, "--psi-f-t0", &psi_ref, "--json", "-"];
+    let t = json_of(&[&args[..], &thermal].concat());
+    for name in ["t_winding", "t_magnet"] {
+        let (value, se) =
+            (t["final"][name].as_f64().unwrap(), t["final"][format!("{name}_se")].as_f64().unwrap());
+        assert!((value - 20.0).abs() < 1e-6 && se > 0.0, "{name}: {value} ± {se}");
+        assert_eq!(t["trajectory"][name].as_array().unwrap().len(), len("t"));
+    }
+    let bad = greybox(&[
+        "track",
+        SAMPLE,
+        "-p",
+        "4",
+        "--params",
+        report.to_str().unwrap(),
+        "--estimator",
+        "ekf",
+        "--current-noise",
+        "0",
+    ]);
+    assert_eq!(bad.status.code(), Some(2), "{}", String::from_utf8_lossy(&bad.stderr));
+    assert!(
+        String::from_utf8_lossy(&bad.stderr).contains("--current-noise"),
+        "{}",
+        String::from_utf8_lossy(&bad.stderr)
+    );
+    std::fs::remove_file(&report).ok();
+}

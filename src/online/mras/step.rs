@@ -10,9 +10,41 @@ use crate::pmsm::{
 };
 
 impl Mras {
+    /// The exact one-period step of the observer's model (surface or salient) from the
+    /// state `x` \[A\] at `(k_e, r_s)`: the next current, its sensitivities to `K_e` and
+    /// `R_s`, and the step's transition matrix `∂i[k+1]/∂i[k]`, `(i[k+1], ∂i[k+1]/∂K_e,
+    /// ∂i[k+1]/∂R_s, Φ)` (dq currents complex, `d + j q`; Φ row-major, `[[∂d/∂d, ∂d/∂q],
+    /// [∂q/∂d, ∂q/∂q]]`): of the surface-magnet step in closed form (the rotation and decay
+    /// `a`), of the salient one by the step's linearity in the current (two more steps).
+    ///
+    /// # Errors
+    /// [`Error::Numerical`] when the salient step fails (naming the sample).
+    pub(crate) fn model_step_transition(
+        &self,
+        x: C64,
+        k_e: f64,
+        r_s: f64,
+        s: &Sample,
+    ) -> Result<(C64, C64, C64, [[f64; 2]; 2])> {
+        match &self.plant {
+            None => {
+                let ((next, phi_k, phi_r, _), a) = self.step(x, k_e, r_s, s);
+                Ok((next, phi_k, phi_r, [[a.re, -a.im], [a.im, a.re]]))
+            }
+            Some(plant) => {
+                let (next, phi_k, phi_r, _) = self.step_salient(plant, x, k_e, r_s, s)?;
+                let (d, ..) = self.step_salient(plant, x + C64::new(1.0, 0.0), k_e, r_s, s)?;
+                let (q, ..) = self.step_salient(plant, x + C64::new(0.0, 1.0), k_e, r_s, s)?;
+                let (d, q) = (d - next, q - next);
+                Ok((next, phi_k, phi_r, [[d.re, q.re], [d.im, q.im]]))
+            }
+        }
+    }
+
     /// The exact SPM step from the corrected state `x` at `(k_e, r_s)`: the next
-    /// prediction and its sensitivities `(î, φ_K, φ_R, ψ_K)`.
-    pub(super) fn step(&self, x: C64, k_e: f64, r_s: f64, s: &Sample) -> (C64, C64, C64, C64) {
+    /// prediction and its sensitivities `(î, φ_K, φ_R, ψ_K)`, and the step's factor `a` of
+    /// the current (`î = a x + …`).
+    pub(super) fn step(&self, x: C64, k_e: f64, r_s: f64, s: &Sample) -> ((C64, C64, C64, C64), C64) {
         let (l, h) = (self.cfg.l_s, self.cfg.h);
         let hl = h / l;
         let w_e = f64::from(self.cfg.n_p) * s.w_m;
@@ -40,7 +72,7 @@ impl Mras {
             Adaptation::Relay => -b * C64::new(0.0, SQRT_2_3 * if s.w_m < 0.0 { -1.0 } else { 1.0 }),
         };
         let phi_r = a * (-hl) * x + forced_r;
-        (i_next, phi_k, phi_r, psi_k)
+        ((i_next, phi_k, phi_r, psi_k), a)
     }
 }
 
