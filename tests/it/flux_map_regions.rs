@@ -27,8 +27,8 @@ fn regions_of_a_map_of_the_model_family_agree() {
 /// A map the family cannot describe: the model's map with a knee of 20 mV s in ψ_d at low
 /// current (as a measured map's). The regions disagree on ψ_f (0.464, 0.450, 0.459,
 /// 0.450 V s); its interval from the white covariance (the residuals are model error)
-/// holds none of them, its interval with the regions' spread holds all four. (Neither holds
-/// the map's no-load flux 0.47 V s: the no-load figure a user reads is the map check's.)
+/// holds none of them, its interval with the regions' spread (t quantile on 3 degrees of
+/// freedom) holds all four. (The no-load figure a user reads is the map check's.)
 #[test]
 fn a_map_beyond_the_model_family_widens_its_intervals() {
     let map = synthetic_map(&MAP_MOTOR, 0.0, &mut Rng(1));

@@ -11,7 +11,11 @@
 //! meta-analysis (Paule & Mandel 1982, [`between_variance`]), is added to each
 //! coefficient's variance: the interval then covers what the coefficient would be had
 //! another part of the map been measured, the question the standard error was meant to
-//! answer.
+//! answer. With τ² estimated from four regions, the interval takes Student's t quantile
+//! with K − 1 degrees of freedom (K the regions that estimated the coefficient) rather than
+//! the normal 1.96, as random-effects meta-analysis does with few studies (Hartung &
+//! Knapp, *Stat. Med.* 20, 2001; IntHout, Ioannidis & Borm, *BMC Med. Res. Methodol.* 14,
+//! 2014: the normal quantile undercovers with fewer than about 20 studies).
 
 use crate::data::{Channel, Experiment};
 use crate::estimate::{
@@ -36,7 +40,8 @@ pub struct Widened {
     pub std_error: f64,
     /// The between-region standard deviation `τ` \[its unit\].
     pub tau: f64,
-    /// The 95 % interval `value ± 1.96 √(std_error² + τ²)` \[its unit\].
+    /// The 95 % interval `value ± t_{0.975, K−1} √(std_error² + τ²)` \[its unit\] (K the
+    /// regions that estimated the coefficient; [`crate::estimate::t_quantile_975`]).
     pub interval: [f64; 2],
 }
 
@@ -132,7 +137,7 @@ pub(crate) fn check(map: &Experiment, e: SaturationExponents, result: &FitResult
                 // A coefficient at its bound on the whole map has no interval to widen.
                 let p = result.parameter(&h.name).filter(|p| p.std_error.is_finite())?;
                 let tau = between_variance(h).sqrt();
-                let half = 1.96 * p.std_error.hypot(tau);
+                let half = crate::estimate::t_quantile_975(h.dof) * p.std_error.hypot(tau);
                 Some(Widened {
                     name: h.name.clone(),
                     value: p.value,
