@@ -100,11 +100,11 @@ pub struct TrackArgs {
     #[arg(long, value_name = "A")]
     pub current_noise: Option<f64>,
     /// With --estimator ekf: how fast R_s may drift, its random walk's standard deviation
-    /// after one second [Ω/√s]; default 2 % of the initial R_s.
+    /// after one second [Ω/√s]; default 2 % of the present estimate.
     #[arg(long, value_name = "OHM_PER_SQRT_S")]
     pub r_s_walk: Option<f64>,
     /// With --estimator ekf: how fast K_e may drift [V s/rad/√s]; default 0.2 % of the
-    /// initial K_e.
+    /// present estimate.
     #[arg(long, value_name = "VS_PER_SQRT_S")]
     pub k_e_walk: Option<f64>,
     /// Reference temperature T_0 [°C] of --r-s-t0 and --psi-f-t0: the winding temperature
@@ -276,7 +276,17 @@ fn noise(a: &TrackArgs, config: &MrasConfig, log: &crate::Experiment) -> crate::
         }
     };
     let d = KalmanNoise::for_machine(sigma_i, config.r_s0, config.k_e0);
-    Ok(KalmanNoise { q_r_s: a.r_s_walk.unwrap_or(d.q_r_s), q_k_e: a.k_e_walk.unwrap_or(d.q_k_e), ..d })
+    if a.r_s_walk.is_none() && a.k_e_walk.is_none() {
+        return Ok(d);
+    }
+    // A walk given is absolute: the other one's default taken at the start.
+    let (q_r, q_k) = d.walks_at(config.r_s0, config.k_e0);
+    Ok(KalmanNoise {
+        q_r_s: a.r_s_walk.unwrap_or(q_r),
+        q_k_e: a.k_e_walk.unwrap_or(q_k),
+        relative: false,
+        ..d
+    })
 }
 
 /// The observer's settings from the flags (and `--params`: its inductances, estimates, hold

@@ -43,14 +43,22 @@ pub struct KalmanNoise {
     pub sigma_i: f64,
     /// `q_i`: of the current's model error per sample \[A\].
     pub q_i: f64,
-    /// `q_R`: random-walk intensity of `R_s` \[Ω/√s\] (its std after one second).
+    /// `q_R`: random-walk intensity of `R_s` \[Ω/√s\] (its std after one second); with
+    /// `relative`, a fraction of the present `R̂_s` \[1/√s\].
     pub q_r_s: f64,
-    /// `q_K`: random-walk intensity of `K_e` \[V s/rad/√s\].
+    /// `q_K`: random-walk intensity of `K_e` \[V s/rad/√s\]; with `relative`, a fraction of
+    /// the present `|K̂_e|` \[1/√s\].
     pub q_k_e: f64,
     /// Of the initial `R_s` \[Ω\].
     pub p0_r_s: f64,
     /// Of the initial `K_e` \[V s/rad\].
     pub p0_k_e: f64,
+    /// The walks in proportion to the present estimates (a winding's resistance and a
+    /// magnet's flux change in proportion to themselves, `R_s(T) = R_s0 (1 + α ΔT)`), each
+    /// estimate taken at least a hundredth of its initial standard deviation, so that a
+    /// filter started without values still moves.
+    #[serde(default)]
+    pub relative: bool,
 }
 
 /// `q_i / σ_i` of [`KalmanNoise::for_machine`].
@@ -62,21 +70,32 @@ pub const K_E_WALK: f64 = 0.002;
 
 impl KalmanNoise {
     /// The default noise model of a machine started at `r_s0` \[Ω\], `k_e0` \[V s/rad\],
-    /// with current noise `sigma_i` \[A\]: `q_i = 0.05 σ_i` ([`MODEL_NOISE_RATIO`]),
-    /// `q_R = 0.02 R_s0/√s` ([`R_S_WALK`]), `q_K = 0.002 K_e0/√s` ([`K_E_WALK`]), initial
-    /// standard deviations half of `R_s0` and a fifth of `K_e0` (a start without a value,
-    /// 0, counts as 1 Ω and 0.1 V s/rad).
+    /// with current noise `sigma_i` \[A\]: `q_i = 0.05 σ_i` ([`MODEL_NOISE_RATIO`]), walks
+    /// relative to the present estimates, `q_R = 0.02 R̂_s/√s` ([`R_S_WALK`]) and
+    /// `q_K = 0.002 |K̂_e|/√s` ([`K_E_WALK`]), initial standard deviations half of `R_s0`
+    /// and a fifth of `K_e0` (a start without a value, 0, counts as 1 Ω and 0.1 V s/rad).
     pub fn for_machine(sigma_i: f64, r_s0: f64, k_e0: f64) -> Self {
         let r = if r_s0 > 0.0 { r_s0 } else { 1.0 };
         let k = if k_e0 != 0.0 { k_e0.abs() } else { 0.1 };
         Self {
             sigma_i,
             q_i: MODEL_NOISE_RATIO * sigma_i,
-            q_r_s: R_S_WALK * r,
-            q_k_e: K_E_WALK * k,
+            q_r_s: R_S_WALK,
+            q_k_e: K_E_WALK,
             p0_r_s: 0.5 * r,
             p0_k_e: 0.2 * k,
+            relative: true,
         }
+    }
+
+    /// The walks' intensities `(q_R \[Ω/√s\], q_K \[V s/rad/√s\])` at the estimates
+    /// `r_s` \[Ω\], `k_e` \[V s/rad\]: the fields themselves, or with `relative` those
+    /// fractions of the estimates (floored, see `relative`).
+    pub fn walks_at(&self, r_s: f64, k_e: f64) -> (f64, f64) {
+        if !self.relative {
+            return (self.q_r_s, self.q_k_e);
+        }
+        (self.q_r_s * r_s.abs().max(0.01 * self.p0_r_s), self.q_k_e * k_e.abs().max(0.01 * self.p0_k_e))
     }
 
     /// # Errors
@@ -229,8 +248,9 @@ impl Kalman {
         top[(0, 0)] += q_i;
         top[(1, 1)] += q_i;
         let mut pp = (p_pp + p_pp.transpose()) * 0.5;
-        pp[(0, 0)] += self.noise.q_r_s.powi(2) * h;
-        pp[(1, 1)] += self.noise.q_k_e.powi(2) * h;
+        let (q_r, q_k) = self.noise.walks_at(r_s, k_e);
+        pp[(0, 0)] += q_r.powi(2) * h;
+        pp[(1, 1)] += q_k.powi(2) * h;
         p.fixed_view_mut::<2, 2>(0, 0).copy_from(&top);
         p.fixed_view_mut::<2, 2>(0, 2).copy_from(&n);
         p.fixed_view_mut::<2, 2>(2, 0).copy_from(&n.transpose());

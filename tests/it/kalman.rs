@@ -55,7 +55,7 @@ fn converges_from_wrong_starts_on_exact_logs_of_both_machines() {
 /// with a magnet step ψ_f −5 % at 5 s and 0.05 A current noise, 8 seeds; over every
 /// sample after 2 s (the start's convergence), the 95 % band covers the truth in at least
 /// 90 % of the samples for R_s and for K_e, averaged over the seeds (50 seeds, measured:
-/// 0.928 and 0.948; docs/online.md).
+/// 0.952 and 0.958; docs/cli.md).
 #[test]
 fn intervals_cover_a_heating_winding_and_a_weakened_magnet() {
     let (mut inside_r, mut inside_k, mut total) = (0usize, 0usize, 0usize);
