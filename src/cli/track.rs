@@ -92,7 +92,7 @@ pub struct TrackArgs {
     pub hold: Option<TrackHold>,
     /// The online estimator: the thesis' MRAS (`mras`, no uncertainty), or the extended
     /// Kalman filter of R_s and K_e with their standard errors at every sample (`ekf`,
-    /// docs/online.md).
+    /// docs/cli.md).
     #[arg(long, value_enum, default_value_t = EstimatorArg::Mras)]
     pub estimator: EstimatorArg,
     /// With --estimator ekf: the standard deviation of the current noise [A] (each of id,
