@@ -9,6 +9,8 @@
 //!   iteration divided by 10 000 is the time of one `update`.
 //! - `kalman update, spm`: one [`Kalman::update`] per sample (the extended Kalman filter,
 //!   issue 46) on the same samples.
+//! - `firmware core`: `greybox-observer`'s MRAS (normalised law) and Kalman filter in
+//!   `f64` and `f32` on the same samples.
 //! - `track`: [`track`] over `data/sample.csv.gz` (20 000 samples), the trajectory's
 //!   vectors included; reading the log is outside the timing.
 //!
@@ -122,6 +124,61 @@ fn kalman_update(c: &mut Criterion) {
     g.finish();
 }
 
+/// The firmware core (`greybox-observer`, `no_std`) in `f64` and `f32` on the same signal:
+/// its MRAS (normalised law) and its Kalman filter, the surface-magnet step, without the
+/// crate's conversions. (In this workspace its elementary functions are the host's, as the
+/// feature `std` gives them; a `no_std` build takes the `libm` crate's.)
+fn core_update(c: &mut Criterion) {
+    use greybox_observer as core;
+    fn settings<T: core::Real>() -> core::Settings<T> {
+        let mut s = core::Settings::new(N_P, T::c(L_S), T::c(H));
+        s.adaptation = core::Adaptation::Normalised;
+        (s.k_e0, s.r_s0) = (T::c(0.9 * K_E), T::c(1.2 * R_S));
+        s
+    }
+    fn run<T: core::Real, O>(
+        g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+        name: &str,
+        samples: &[core::Sample<T>],
+        mut obs: O,
+        update: impl Fn(&mut O, &core::Sample<T>) -> core::Estimates<T>,
+    ) {
+        g.bench_function(format!("{name}, {N} samples"), |b| {
+            b.iter(|| {
+                for s in samples {
+                    black_box(update(&mut obs, black_box(s)));
+                }
+            })
+        });
+    }
+    let s64: Vec<core::Sample<f64>> = spm_signal(N)
+        .iter()
+        .map(|s| core::Sample { i_d: s.i_d, i_q: s.i_q, u_d: s.u_d, u_q: s.u_q, w_m: s.w_m })
+        .collect();
+    let s32: Vec<core::Sample<f32>> = s64
+        .iter()
+        .map(|s| core::Sample {
+            i_d: s.i_d as f32,
+            i_q: s.i_q as f32,
+            u_d: s.u_d as f32,
+            u_q: s.u_q as f32,
+            w_m: s.w_m as f32,
+        })
+        .collect();
+    let mut g = c.benchmark_group("firmware core");
+    g.throughput(Throughput::Elements(N as u64));
+    let m64 = core::Mras::spm(settings::<f64>()).unwrap();
+    run(&mut g, "mras f64", &s64, m64, |m, s| m.update(s).unwrap());
+    let m32 = core::Mras::spm(settings::<f32>()).unwrap();
+    run(&mut g, "mras f32", &s32, m32, |m, s| m.update(s).unwrap());
+    let (c64, c32) = (settings::<f64>(), settings::<f32>());
+    let k64 = core::Kalman::spm(c64, core::Noise::for_machine(0.01, c64.r_s0, c64.k_e0)).unwrap();
+    run(&mut g, "kalman f64", &s64, k64, |k, s| k.update(s).unwrap());
+    let k32 = core::Kalman::spm(c32, core::Noise::for_machine(0.01, c32.r_s0, c32.k_e0)).unwrap();
+    run(&mut g, "kalman f32", &s32, k32, |k, s| k.update(s).unwrap());
+    g.finish();
+}
+
 fn track_sample_log(c: &mut Criterion) {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/sample.csv.gz");
     let log = read_log(&path, &Default::default()).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
@@ -136,7 +193,7 @@ fn track_sample_log(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(online, update, kalman_update, track_sample_log);
+criterion_group!(online, update, kalman_update, core_update, track_sample_log);
 
 fn main() {
     online();

@@ -25,7 +25,9 @@ done
 run joint fit $D/servo_spm_moves.csv.gz $D/servo_spm_moves_idinj.csv.gz -p 4 --per-log r_s --json $OUT/joint.json
 run each fit --each "$D/servo_spm_*.csv.gz" -p 4 --summary $OUT/each.csv
 run validate validate --params $OUT/servo_spm_moves.json $D/servo_spm_moves_idinj.csv.gz --json $OUT/validate.json
-run track track $S -p 4 --params $OUT/sample.json --json $OUT/track.json
+# The MRAS, the thesis' reference, explicitly (the default became the Kalman filter), and the filter.
+run track track $S -p 4 --params $OUT/sample.json --estimator mras --json $OUT/track.json
+run track_ekf track $S -p 4 --params $OUT/sample.json --estimator ekf --json $OUT/track_ekf.json
 run simulate simulate --scenario exp1 --duration 3 -o $OUT/sim.csv
 run fluxmap fluxmap $D/real/baldor_400rpm_map.npz --json $OUT/fluxmap.json
 run mechanics mechanics $D/servo_spm_moves_idinj.csv.gz -p 4 --json $OUT/mechanics.json

@@ -222,14 +222,16 @@ class TrackRun(NamedTuple):
 
 
 def track(log: Union[PathLike, Sequence[PathLike]], *, pole_pairs: int, **options: Any) -> list[TrackRun]:
-    """Runs an online estimator over each log, as ``greybox track``: the thesis' MRAS
-    (thesis 5.1), or with ``estimator="ekf"`` the extended Kalman filter of R_s and K_e,
-    whose trajectory and final estimates carry standard errors (``k_e_se`` [V s/rad],
-    ``r_s_se`` [Ω]; the final ones also ``k_t_se`` [N m/A]).
+    """Runs an online estimator over each log, as ``greybox track``: the extended Kalman
+    filter of R_s and K_e (the default, Simon 2006 §13.2), whose trajectory and final
+    estimates carry standard errors (``k_e_se`` [V s/rad], ``r_s_se`` [Ω]; the final ones
+    also ``k_t_se`` [N m/A]), or with ``estimator="mras"`` the thesis' MRAS (thesis 5.1),
+    without them.
 
     ``options``: its flags, e.g. ``l_s=5e-3`` [H] or ``params=`` a :class:`Fit`, a report
-    dict or path; ``adaptation``, ``tau_ke`` [s], ``current_noise`` [A], …. Returns one
-    :class:`TrackRun` per log.
+    dict or path; the filter's ``current_noise`` [A], ``r_s_walk``, ``k_e_walk``; the MRAS's
+    ``adaptation``, ``tau_ke`` [s], ``gamma_ke``, … (each refused with the other
+    estimator). Returns one :class:`TrackRun` per log.
 
     Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
     """

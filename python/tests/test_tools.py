@@ -71,15 +71,18 @@ def test_validate_with_a_fit(sample):
 
 def test_track(sample):
     fit = greybox.fit(sample, pole_pairs=4)
-    (run,) = greybox.track(sample, pole_pairs=4, params=fit)
+    (run,) = greybox.track(sample, pole_pairs=4, params=fit, estimator="mras")
     assert run.name.endswith("sample.csv.gz")
     assert run.trajectory.column_names == ["t", "k_e", "r_s"]
     assert run.trajectory.num_rows > 1000
     assert run.final["k_e"] == run.trajectory.column("k_e")[-1].as_py()
     with pytest.raises(greybox.OptionError, match="--l-s"):
         greybox.track(sample, pole_pairs=4)
-    # The Kalman filter: a standard error at every step and at the end.
-    (run,) = greybox.track(sample, pole_pairs=4, params=fit, estimator="ekf")
+    # The MRAS's gains with the Kalman filter, the default, are refused.
+    with pytest.raises(greybox.OptionError, match="gamma_ke"):
+        greybox.track(sample, pole_pairs=4, params=fit, gamma_ke=0.01)
+    # The Kalman filter (the default): a standard error at every step and at the end.
+    (run,) = greybox.track(sample, pole_pairs=4, params=fit)
     assert run.trajectory.column_names == ["t", "k_e", "r_s", "k_e_se", "r_s_se"]
     assert run.final["r_s_se"] == run.trajectory.column("r_s_se")[-1].as_py() > 0
     assert run.final["k_t_se"] == pytest.approx(1.5**0.5 * run.final["k_e_se"])

@@ -58,42 +58,46 @@ pub struct TrackArgs {
     pub r_s0: Option<f64>,
     /// Adaptation gain γ_Ke of K_e, ≥ 0, for --adaptation lyapunov or relay (thesis 5.1.1;
     /// motor specific: a small L_s needs a much smaller one).
-    #[arg(long, default_value_t = MrasConfig::default().gamma_ke, allow_hyphen_values = true)]
-    pub gamma_ke: f64,
+    /// MRAS only; default 0.001.
+    #[arg(long, allow_hyphen_values = true)]
+    pub gamma_ke: Option<f64>,
     /// Adaptation gain γ_Rs [Ω/(A s)] of R_s, ≤ 0, for --adaptation lyapunov or relay
     /// (thesis sign convention, eq. 5.4).
-    #[arg(long, default_value_t = MrasConfig::default().gamma_rs, allow_hyphen_values = true)]
-    pub gamma_rs: f64,
+    /// MRAS only; default −10.
+    #[arg(long, allow_hyphen_values = true)]
+    pub gamma_rs: Option<f64>,
     /// R_s adapts only while |i_d| exceeds this [A], ≥ 0 (d-current injection; raise it
     /// above the current noise and the operating point's own i_d to adapt R_s on the
     /// injection only).
-    #[arg(long, default_value_t = MrasConfig::default().i_d_threshold, allow_hyphen_values = true)]
-    pub i_d_threshold: f64,
-    /// Observer feedback gain f [1/s], ≥ 0.
-    #[arg(long, default_value_t = MrasConfig::default().f, allow_hyphen_values = true)]
-    pub observer_gain: f64,
+    /// MRAS only; default 0.5.
+    #[arg(long, allow_hyphen_values = true)]
+    pub i_d_threshold: Option<f64>,
+    /// Observer feedback gain f [1/s], ≥ 0. MRAS only; default 100.
+    #[arg(long, allow_hyphen_values = true)]
+    pub observer_gain: Option<f64>,
     /// Adaptation law: normalised (gains set by the information each parameter receives,
     /// time constants --tau-ke and --tau-rs, no motor-specific gain), or the thesis' laws
     /// with --gamma-ke and --gamma-rs: lyapunov (K_e gain grows with ω_m) or relay (sign of
-    /// ω_m).
-    #[arg(long, value_enum, default_value_t = AdaptationArg::Normalised)]
-    pub adaptation: AdaptationArg,
+    /// ω_m). MRAS only; default normalised.
+    #[arg(long, value_enum)]
+    pub adaptation: Option<AdaptationArg>,
     /// Time constant of the K_e estimate [s] with --adaptation normalised: longer averages
-    /// more noise, shorter follows faster changes; at least 100 sample times.
-    #[arg(long, default_value_t = MrasConfig::default().tau_ke, allow_hyphen_values = true)]
-    pub tau_ke: f64,
+    /// more noise, shorter follows faster changes; at least 100 sample times. MRAS only;
+    /// default 0.5.
+    #[arg(long, allow_hyphen_values = true)]
+    pub tau_ke: Option<f64>,
     /// Time constant of the R_s estimate [s] with --adaptation normalised (over the samples
-    /// where it adapts: |i_d| above --i-d-threshold).
-    #[arg(long, default_value_t = MrasConfig::default().tau_rs, allow_hyphen_values = true)]
-    pub tau_rs: f64,
+    /// where it adapts: |i_d| above --i-d-threshold). MRAS only; default 0.5.
+    #[arg(long, allow_hyphen_values = true)]
+    pub tau_rs: Option<f64>,
     /// Voltage hold of the log's source (MODEL.md §4): stator for a modulator, dq for a
     /// dq-held simulator. Default: the fit's with --params, else stator.
     #[arg(long, value_enum)]
     pub hold: Option<TrackHold>,
-    /// The online estimator: the thesis' MRAS (`mras`, no uncertainty), or the extended
-    /// Kalman filter of R_s and K_e with their standard errors at every sample (`ekf`,
-    /// docs/cli.md).
-    #[arg(long, value_enum, default_value_t = EstimatorArg::Mras)]
+    /// The online estimator: the extended Kalman filter of R_s and K_e with their standard
+    /// errors at every sample (`ekf`, the default), or the thesis' MRAS (`mras`, the
+    /// reference, no uncertainty); docs/cli.md says why.
+    #[arg(long, value_enum, default_value_t = EstimatorArg::Ekf)]
     pub estimator: EstimatorArg,
     /// With --estimator ekf: the standard deviation of the current noise [A] (each of id,
     /// iq); default: estimated from each log's second differences.
@@ -289,9 +293,48 @@ fn noise(a: &TrackArgs, config: &MrasConfig, log: &crate::Experiment) -> crate::
     })
 }
 
+/// Refuses a flag of the estimator not chosen: the MRAS's gains with the Kalman filter (the
+/// default), the filter's noise with the MRAS.
+///
+/// # Errors
+/// [`crate::Error::InvalidOption`] naming the first such flag.
+fn other_estimators_flags(a: &TrackArgs) -> crate::Result<()> {
+    let mras = [
+        ("gamma-ke", a.gamma_ke.is_some()),
+        ("gamma-rs", a.gamma_rs.is_some()),
+        ("i-d-threshold", a.i_d_threshold.is_some()),
+        ("observer-gain", a.observer_gain.is_some()),
+        ("adaptation", a.adaptation.is_some()),
+        ("tau-ke", a.tau_ke.is_some()),
+        ("tau-rs", a.tau_rs.is_some()),
+    ];
+    let ekf = [
+        ("current-noise", a.current_noise.is_some()),
+        ("r-s-walk", a.r_s_walk.is_some()),
+        ("k-e-walk", a.k_e_walk.is_some()),
+    ];
+    let (given, reason) = match a.estimator {
+        EstimatorArg::Ekf => (
+            mras.iter().find(|f| f.1),
+            "is a setting of the MRAS: add --estimator mras, or drop it for the Kalman filter (the default), \
+             whose settings are --current-noise, --r-s-walk and --k-e-walk",
+        ),
+        EstimatorArg::Mras => (
+            ekf.iter().find(|f| f.1),
+            "is a setting of the Kalman filter (--estimator ekf, the default): drop --estimator mras to use it",
+        ),
+    };
+    match given {
+        Some((flag, _)) => Err(crate::Error::InvalidOption { option: (*flag).into(), reason: reason.into() }),
+        None => Ok(()),
+    }
+}
+
 /// The observer's settings from the flags (and `--params`: its inductances, estimates, hold
 /// and voltage input), validated before any log is read; errors name the flag.
 fn config(a: &TrackArgs) -> crate::Result<(MrasConfig, VoltageInput)> {
+    other_estimators_flags(a)?;
+    let d = MrasConfig::default();
     let saved = match &a.params {
         None => None,
         Some(p) => {
@@ -317,17 +360,17 @@ fn config(a: &TrackArgs) -> crate::Result<(MrasConfig, VoltageInput)> {
         l_s,
         l_q,
         h: 1.0, // replaced by each log's sample time in `track`
-        f: a.observer_gain,
-        gamma_ke: a.gamma_ke,
-        gamma_rs: a.gamma_rs,
-        i_d_threshold: a.i_d_threshold,
-        adaptation: match a.adaptation {
+        f: a.observer_gain.unwrap_or(d.f),
+        gamma_ke: a.gamma_ke.unwrap_or(d.gamma_ke),
+        gamma_rs: a.gamma_rs.unwrap_or(d.gamma_rs),
+        i_d_threshold: a.i_d_threshold.unwrap_or(d.i_d_threshold),
+        adaptation: match a.adaptation.unwrap_or(AdaptationArg::Normalised) {
             AdaptationArg::Normalised => Adaptation::Normalised,
             AdaptationArg::Lyapunov => Adaptation::Lyapunov,
             AdaptationArg::Relay => Adaptation::Relay,
         },
-        tau_ke: a.tau_ke,
-        tau_rs: a.tau_rs,
+        tau_ke: a.tau_ke.unwrap_or(d.tau_ke),
+        tau_rs: a.tau_rs.unwrap_or(d.tau_rs),
         k_e0: a.k_e0.or(from_report("k_e")).unwrap_or(0.0),
         r_s0: a.r_s0.or(from_report("r_s")).unwrap_or(0.0),
         hold: match a.hold {

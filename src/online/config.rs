@@ -84,20 +84,22 @@ pub struct MrasConfig {
 
 impl Default for MrasConfig {
     fn default() -> Self {
+        // The observer crate's defaults (one table for the library and the C ABI).
+        let s = greybox_observer::Settings::<f64>::new(0, 0.0, 0.0);
         Self {
-            n_p: 0,
-            l_s: 0.0,
+            n_p: s.n_p,
+            l_s: s.l_s,
             l_q: None,
-            h: 0.0,
-            f: 100.0,
-            gamma_ke: 0.001,
-            gamma_rs: -10.0,
+            h: s.h,
+            f: s.f,
+            gamma_ke: s.gamma_ke,
+            gamma_rs: s.gamma_rs,
             adaptation: Adaptation::Lyapunov,
-            tau_ke: 0.5,
-            tau_rs: 0.5,
-            i_d_threshold: 0.5,
-            k_e0: 0.0,
-            r_s0: 0.0,
+            tau_ke: s.tau_ke,
+            tau_rs: s.tau_rs,
+            i_d_threshold: s.i_d_threshold,
+            k_e0: s.k_e0,
+            r_s0: s.r_s0,
             hold: VoltageHold::Stator,
         }
     }

@@ -30,10 +30,9 @@
 //! from the log itself ([`current_noise`]).
 
 use super::config::MrasConfig;
-use super::mras::{Estimates, Mras, Sample, estimates};
+use super::mras::{Estimates, Machine, Mras, Sample, estimates};
 use crate::error::{Error, Result};
-use crate::pmsm::C64;
-use nalgebra::{Matrix2, Matrix4, Matrix4x2, Vector2, Vector4};
+use greybox_observer::{Fault, Noise};
 use serde::{Deserialize, Serialize};
 
 /// The filter's noise model (see the module doc); all standard deviations.
@@ -62,11 +61,11 @@ pub struct KalmanNoise {
 }
 
 /// `q_i / σ_i` of [`KalmanNoise::for_machine`].
-pub const MODEL_NOISE_RATIO: f64 = 0.05;
+pub const MODEL_NOISE_RATIO: f64 = greybox_observer::MODEL_NOISE_RATIO;
 /// `q_R / R_s0` of [`KalmanNoise::for_machine`] \[1/√s\]: 2 % of `R_s` per √s.
-pub const R_S_WALK: f64 = 0.02;
+pub const R_S_WALK: f64 = greybox_observer::R_S_WALK;
 /// `q_K / K_e0` of [`KalmanNoise::for_machine`] \[1/√s\]: 0.2 % of `K_e` per √s.
-pub const K_E_WALK: f64 = 0.002;
+pub const K_E_WALK: f64 = greybox_observer::K_E_WALK;
 
 impl KalmanNoise {
     /// The default noise model of a machine started at `r_s0` \[Ω\], `k_e0` \[V s/rad\],
@@ -75,27 +74,14 @@ impl KalmanNoise {
     /// `q_K = 0.002 |K̂_e|/√s` ([`K_E_WALK`]), initial standard deviations half of `R_s0`
     /// and a fifth of `K_e0` (a start without a value, 0, counts as 1 Ω and 0.1 V s/rad).
     pub fn for_machine(sigma_i: f64, r_s0: f64, k_e0: f64) -> Self {
-        let r = if r_s0 > 0.0 { r_s0 } else { 1.0 };
-        let k = if k_e0 != 0.0 { k_e0.abs() } else { 0.1 };
-        Self {
-            sigma_i,
-            q_i: MODEL_NOISE_RATIO * sigma_i,
-            q_r_s: R_S_WALK,
-            q_k_e: K_E_WALK,
-            p0_r_s: 0.5 * r,
-            p0_k_e: 0.2 * k,
-            relative: true,
-        }
+        Self::from(Noise::for_machine(sigma_i, r_s0, k_e0))
     }
 
     /// The walks' intensities `(q_R \[Ω/√s\], q_K \[V s/rad/√s\])` at the estimates
     /// `r_s` \[Ω\], `k_e` \[V s/rad\]: the fields themselves, or with `relative` those
     /// fractions of the estimates (floored, see `relative`).
     pub fn walks_at(&self, r_s: f64, k_e: f64) -> (f64, f64) {
-        if !self.relative {
-            return (self.q_r_s, self.q_k_e);
-        }
-        (self.q_r_s * r_s.abs().max(0.01 * self.p0_r_s), self.q_k_e * k_e.abs().max(0.01 * self.p0_k_e))
+        Noise::from(*self).walks_at(r_s, k_e)
     }
 
     /// # Errors
@@ -130,16 +116,27 @@ pub struct KalmanEstimate {
     pub r_s_se: f64,
 }
 
-/// The extended Kalman filter (module doc), one sample at a time, without allocation.
+impl From<Noise<f64>> for KalmanNoise {
+    fn from(n: Noise<f64>) -> Self {
+        let Noise { sigma_i, q_i, q_r_s, q_k_e, p0_r_s, p0_k_e, relative } = n;
+        Self { sigma_i, q_i, q_r_s, q_k_e, p0_r_s, p0_k_e, relative }
+    }
+}
+
+impl From<KalmanNoise> for Noise<f64> {
+    fn from(n: KalmanNoise) -> Self {
+        let KalmanNoise { sigma_i, q_i, q_r_s, q_k_e, p0_r_s, p0_k_e, relative } = n;
+        Self { sigma_i, q_i, q_r_s, q_k_e, p0_r_s, p0_k_e, relative }
+    }
+}
+
+/// The extended Kalman filter (module doc), one sample at a time, without allocation: the
+/// filter of [`greybox_observer::Kalman`] (`no_std`, for firmware), here with the salient
+/// step too.
 #[derive(Clone, Debug)]
 pub struct Kalman {
-    model: Mras,
-    noise: KalmanNoise,
-    /// The state predicted for the next sample, `(i_d, i_q, R_s, K_e)`.
-    x: Vector4<f64>,
-    /// Its covariance.
-    p: Matrix4<f64>,
-    n: usize,
+    core: greybox_observer::Kalman<f64, Machine>,
+    config: MrasConfig,
 }
 
 impl Kalman {
@@ -150,13 +147,17 @@ impl Kalman {
     /// Those of [`MrasConfig::validate`] and [`KalmanNoise::validate`].
     pub fn try_new(config: MrasConfig, noise: KalmanNoise) -> Result<Self> {
         noise.validate()?;
-        let model = Mras::try_new(MrasConfig { adaptation: super::Adaptation::Lyapunov, ..config })?;
-        Ok(Self { model, noise, x: Vector4::zeros(), p: Matrix4::zeros(), n: 0 })
+        let config = MrasConfig { adaptation: super::Adaptation::Lyapunov, ..config };
+        let model = Mras::try_new(config.clone())?;
+        let core =
+            greybox_observer::Kalman::new(*model.core.settings(), model.machine().clone(), noise.into())
+                .map_err(super::mras::invalid)?;
+        Ok(Self { core, config })
     }
 
     /// The machine's settings.
     pub fn config(&self) -> &MrasConfig {
-        self.model.config()
+        &self.config
     }
 
     /// Takes sample `s` (the current `i[k]` measured, the voltage `u[k]` and the mean speed
@@ -168,94 +169,29 @@ impl Kalman {
     /// [`Error::NonFinite`] for a non-finite sample (naming the channel and the sample);
     /// [`Error::Numerical`] when the step or the update fails (naming the sample).
     pub fn update(&mut self, s: &Sample) -> Result<KalmanEstimate> {
-        for (column, value) in [("id", s.i_d), ("iq", s.i_q), ("ud", s.u_d), ("uq", s.u_q), ("w_m", s.w_m)] {
-            if !value.is_finite() {
-                return Err(Error::NonFinite { column: column.into(), row: self.n, value });
+        let x = greybox_observer::Sample { i_d: s.i_d, i_q: s.i_q, u_d: s.u_d, u_q: s.u_q, w_m: s.w_m };
+        match self.core.update(&x) {
+            Ok(e) => Ok(KalmanEstimate { estimates: estimates(&e), k_e_se: e.k_e_se, r_s_se: e.r_s_se }),
+            Err(Fault::NonFinite { channel, sample }) => {
+                let (column, value) =
+                    [("id", s.i_d), ("iq", s.i_q), ("ud", s.u_d), ("uq", s.u_q), ("w_m", s.w_m)]
+                        [channel.min(4)];
+                Err(Error::NonFinite { column: column.into(), row: sample as usize, value })
+            }
+            Err(fault) => {
+                let (sample, reason) = match fault {
+                    Fault::Singular { sample, .. } => (sample, "innovation covariance singular".to_string()),
+                    Fault::NotFinite { sample, k_e, r_s } => {
+                        (sample, format!("state or covariance not finite (k_e = {k_e}, r_s = {r_s})"))
+                    }
+                    Fault::Step { sample, error } => (sample, error.to_string()),
+                    Fault::NonFinite { sample, .. } | Fault::Stale { output: sample, .. } => {
+                        (sample, "not expected".to_string())
+                    }
+                };
+                Err(Error::Numerical { context: format!("Kalman filter at sample {sample}"), reason })
             }
         }
-        let sample = self.n;
-        let numerical = move |reason: String| Error::Numerical {
-            context: format!("Kalman filter at sample {sample}"),
-            reason,
-        };
-        let y = Vector2::new(s.i_d, s.i_q);
-        let s2 = self.noise.sigma_i.powi(2);
-        // Worked on copies, committed at the end: a failed update leaves the filter as it was.
-        let (mut x, mut p) = (self.x, self.p);
-        let innovation = if self.n == 0 {
-            let cfg = self.model.config();
-            x = Vector4::new(s.i_d, s.i_q, cfg.r_s0, cfg.k_e0);
-            p = Matrix4::from_diagonal(&Vector4::new(
-                s2,
-                s2,
-                self.noise.p0_r_s.powi(2),
-                self.noise.p0_k_e.powi(2),
-            ));
-            Vector2::zeros()
-        } else {
-            let nu = y - x.fixed_rows::<2>(0);
-            let s_mat = p.fixed_view::<2, 2>(0, 0) + Matrix2::identity() * s2;
-            let inv =
-                s_mat.try_inverse().ok_or_else(|| numerical("innovation covariance singular".into()))?;
-            let gain: Matrix4x2<f64> = p.fixed_columns::<2>(0) * inv;
-            x += gain * nu;
-            let mut ikh = Matrix4::identity();
-            let mut head = ikh.fixed_columns_mut::<2>(0);
-            head -= &gain;
-            p = ikh * p * ikh.transpose() + gain * gain.transpose() * s2;
-            nu
-        };
-        x[2] = x[2].max(0.0);
-        let (r_s, k_e) = (x[2], x[3]);
-        let n_p = self.model.config().n_p;
-        let out = KalmanEstimate {
-            estimates: estimates(k_e, r_s, n_p, C64::new(innovation[0], innovation[1]), true),
-            k_e_se: p[(3, 3)].max(0.0).sqrt(),
-            r_s_se: p[(2, 2)].max(0.0).sqrt(),
-        };
-        let (x, p) = self.predict(x, p, s).map_err(|e| numerical(e.to_string()))?;
-        if !(x.iter().all(|v| v.is_finite()) && p.iter().all(|v| v.is_finite())) {
-            return Err(numerical(format!("state or covariance not finite (k_e = {k_e}, r_s = {r_s})")));
-        }
-        (self.x, self.p) = (x, p);
-        self.n += 1;
-        Ok(out)
-    }
-
-    /// The prediction of `(x, P)` to the next sample: `x ← f(x)`, `P ← F P Fᵀ + Q`.
-    fn predict(
-        &self,
-        x: Vector4<f64>,
-        mut p: Matrix4<f64>,
-        s: &Sample,
-    ) -> Result<(Vector4<f64>, Matrix4<f64>)> {
-        let (i, r_s, k_e) = (C64::new(x[0], x[1]), x[2], x[3]);
-        let (next, phi_k, phi_r, a) = self.model.model_step_transition(i, k_e, r_s, s)?;
-        // F = [[Φ, B], [0, I]] with B = [∂i/∂R_s, ∂i/∂K_e]: F P Fᵀ by 2 × 2 blocks,
-        // P = [[P_ii, P_ip], [P_ipᵀ, P_pp]]: M = Φ P_ii + B P_ipᵀ, N = Φ P_ip + B P_pp,
-        // then [[M Φᵀ + N Bᵀ, N], [Nᵀ, P_pp]].
-        let phi = Matrix2::new(a[0][0], a[0][1], a[1][0], a[1][1]);
-        let b = Matrix2::new(phi_r.re, phi_k.re, phi_r.im, phi_k.im);
-        let p_ii: Matrix2<f64> = p.fixed_view::<2, 2>(0, 0).into_owned();
-        let p_ip: Matrix2<f64> = p.fixed_view::<2, 2>(0, 2).into_owned();
-        let p_pp: Matrix2<f64> = p.fixed_view::<2, 2>(2, 2).into_owned();
-        let m = phi * p_ii + b * p_ip.transpose();
-        let n = phi * p_ip + b * p_pp;
-        let mut top = m * phi.transpose() + n * b.transpose();
-        top = (top + top.transpose()) * 0.5;
-        let h = self.model.config().h;
-        let q_i = self.noise.q_i.powi(2);
-        top[(0, 0)] += q_i;
-        top[(1, 1)] += q_i;
-        let mut pp = (p_pp + p_pp.transpose()) * 0.5;
-        let (q_r, q_k) = self.noise.walks_at(r_s, k_e);
-        pp[(0, 0)] += q_r.powi(2) * h;
-        pp[(1, 1)] += q_k.powi(2) * h;
-        p.fixed_view_mut::<2, 2>(0, 0).copy_from(&top);
-        p.fixed_view_mut::<2, 2>(0, 2).copy_from(&n);
-        p.fixed_view_mut::<2, 2>(2, 0).copy_from(&n.transpose());
-        p.fixed_view_mut::<2, 2>(2, 2).copy_from(&pp);
-        Ok((Vector4::new(next.re, next.im, r_s, k_e), p))
     }
 }
 

@@ -14,6 +14,10 @@
 //!   the filter's standard errors; [`Trajectory::temperatures`] for the winding and magnet
 //!   temperatures).
 //!
+//! The per-sample algorithms are the `no_std` crate `greybox-observer` (`observer/`, f32 or
+//! f64, with a C ABI for drive firmware: docs/firmware.md); this module adds the salient
+//! machine's exact step, the crate's errors and the runs over whole logs.
+//!
 //! Speeds are mechanical (`w_m` \[rad/s\]); `ω_e = n_p w_m`. Choose the voltage hold of the
 //! log's source (MODEL.md §4): on a dq-held log (gym-electric-motor) the default stator
 //! hold biases `K̂_e` by percents.

@@ -103,16 +103,17 @@
 //! timings printed by the tests, not benchmarks).
 //! `l_q = Some(l_s)` is the surface-magnet observer unchanged.
 
-use super::config::{Adaptation, MrasConfig};
+use super::config::MrasConfig;
 use crate::error::{Error, Result};
-use crate::pmsm::{C64, ExactPlant, SQRT_2_3};
+use crate::pmsm::ExactPlant;
+use greybox_observer::Fault;
 
-mod gains;
 mod state;
 mod step;
 
-use state::Next;
+pub(crate) use state::estimates;
 pub use state::{Estimates, INFORMATIVE, MIN_TAU_SAMPLES, Mras, MrasOutput, Sample};
+pub(crate) use step::{Machine, invalid};
 
 impl Mras {
     /// An observer with the given settings, started at `k_e0`, `r_s0` and, at the first
@@ -120,12 +121,12 @@ impl Mras {
     ///
     /// # Errors
     /// Those of [`MrasConfig::validate`] ([`Error::InvalidOption`] naming the field); with
-    /// [`Adaptation::Normalised`], `tau_ke` or `tau_rs` shorter than [`MIN_TAU_SAMPLES`]
-    /// sample times.
+    /// [`Adaptation::Normalised`](super::Adaptation::Normalised), `tau_ke` or `tau_rs` shorter
+    /// than [`MIN_TAU_SAMPLES`] sample times.
     pub fn try_new(config: MrasConfig) -> Result<Self> {
         config.validate()?;
         for (name, tau) in [("tau_ke", config.tau_ke), ("tau_rs", config.tau_rs)] {
-            if config.adaptation == Adaptation::Normalised && tau < MIN_TAU_SAMPLES * config.h {
+            if config.adaptation == super::Adaptation::Normalised && tau < MIN_TAU_SAMPLES * config.h {
                 return Err(Error::InvalidOption {
                     option: name.into(),
                     reason: format!(
@@ -136,29 +137,14 @@ impl Mras {
                 });
             }
         }
-        let kappa = -(-config.f * config.h).exp_m1();
-        let plant = if config.salient() {
-            Some(ExactPlant::new(config.n_p, config.h, true, config.hold)?)
+        let settings = step::settings(&config);
+        let machine = if config.salient() {
+            Machine::salient(ExactPlant::new(config.n_p, config.h, true, config.hold)?, &config)
         } else {
-            None
+            Machine::Spm(greybox_observer::Spm::new(&settings))
         };
-        let mut m = Self {
-            plant,
-            kappa,
-            k_e: config.k_e0,
-            r_s: config.r_s0,
-            i_hat: C64::default(),
-            phi_k: C64::default(),
-            phi_r: C64::default(),
-            psi_k: C64::default(),
-            p_k: 0.0,
-            p_r: 0.0,
-            n: 0,
-            last: Estimates::default(),
-            cfg: config,
-        };
-        m.last = estimates(m.k_e, m.r_s, m.cfg.n_p, C64::default(), false);
-        Ok(m)
+        let core = greybox_observer::Mras::new(settings, machine).map_err(invalid)?;
+        Ok(Self { core, cfg: config })
     }
 
     /// The settings.
@@ -168,12 +154,12 @@ impl Mras {
 
     /// The estimates after the last [`Mras::update`] (the initial ones before any).
     pub fn output(&self) -> Estimates {
-        self.last
+        estimates(&self.core.output())
     }
 
     /// The observer's prediction `(î_d, î_q)` \[A\] of the current at the next sample.
     pub fn predicted_current(&self) -> (f64, f64) {
-        (self.i_hat.re, self.i_hat.im)
+        self.core.predicted_current()
     }
 
     /// Takes sample k and moves the observer to `t_{k+1}`: [`Mras::compute_output`] then
@@ -199,38 +185,8 @@ impl Mras {
     /// sample's index when a value is NaN or infinite. [`Error::Numerical`] if the
     /// estimates would stop being finite (not expected).
     pub fn compute_output(&self, s: &Sample) -> Result<MrasOutput> {
-        for (column, value) in
-            [("i_d", s.i_d), ("i_q", s.i_q), ("u_d", s.u_d), ("u_q", s.u_q), ("w_m", s.w_m)]
-        {
-            if !value.is_finite() {
-                return Err(Error::NonFinite { column: column.into(), row: self.n, value });
-            }
-        }
-        let i = C64::new(s.i_d, s.i_q);
-        let i_hat = if self.n == 0 { i } else { self.i_hat };
-        let e = i - i_hat;
-        let active = self.n > 0 && self.cfg.r_s_adapts(s.i_d);
-        let (g_k, g_r, p_k, p_r) = self.gains(i, active);
-        let (dk, dr) = self.adaptation(e, g_k, g_r)?;
-        let (k_e, r_s) = (self.k_e + dk, (self.r_s + dr).max(0.0));
-        // The last step re-taken with the new parameters (first order), then corrected.
-        let i_post = i_hat + self.phi_k * dk + self.phi_r * (r_s - self.r_s);
-        let x = i_post + (i - i_post) * self.kappa;
-        let (i_next, phi_k, phi_r, psi_k) = match &self.plant {
-            None => self.step(x, k_e, r_s, s).0,
-            Some(plant) => self.step_salient(plant, x, k_e, r_s, s)?,
-        };
-        if !(i_next.re.is_finite() && i_next.im.is_finite() && k_e.is_finite() && r_s.is_finite()) {
-            return Err(Error::Numerical {
-                context: format!("MRAS update at sample {}", self.n),
-                reason: format!("estimates not finite (k_e = {k_e}, r_s = {r_s})"),
-            });
-        }
-        Ok(MrasOutput {
-            estimates: estimates(k_e, r_s, self.cfg.n_p, e, active),
-            sample: self.n,
-            next: Next { i_hat: i_next, phi_k, phi_r, psi_k, k_e, r_s, p_k, p_r },
-        })
+        let inner = self.core.compute_output(&step::sample(s)).map_err(|f| mras_error(f, s))?;
+        Ok(MrasOutput { estimates: estimates(&inner.estimates), inner })
     }
 
     /// Update half of [`Mras::update`] (motulator's `update`): commits an output of
@@ -240,56 +196,38 @@ impl Mras {
     /// [`Error::InvalidOption`] (option `output`) when `out` was computed for another
     /// sample than the observer's next one; the observer is then unchanged.
     pub fn advance(&mut self, out: &MrasOutput) -> Result<()> {
-        if out.sample != self.n {
-            return Err(Error::InvalidOption {
-                option: "output".into(),
-                reason: format!(
-                    "computed for sample {}, but the observer is at sample {}",
-                    out.sample, self.n
-                ),
-            });
-        }
-        let nx = out.next;
-        (self.i_hat, self.phi_k, self.phi_r, self.psi_k, self.k_e, self.r_s) =
-            (nx.i_hat, nx.phi_k, nx.phi_r, nx.psi_k, nx.k_e, nx.r_s);
-        (self.p_k, self.p_r) = (nx.p_k, nx.p_r);
-        self.n += 1;
-        self.last = out.estimates;
-        Ok(())
+        self.core.advance(&out.inner).map_err(|f| mras_error(f, &Sample::default()))
     }
 
-    /// `(ΔK̂_e, ΔR̂_s)` from `(I + Γ Re(ΨᴴΦ)) Δθ = Γ Re(Ψᴴ e)` with `Γ = diag(g_k, g_r)`
-    /// (module documentation).
-    fn adaptation(&self, e: C64, g_k: f64, g_r: f64) -> Result<(f64, f64)> {
-        let dot = |a: C64, b: C64| a.re * b.re + a.im * b.im; // Re(ā b)
-        let (psi_k, phi_k, phi_r) = (self.psi_k, self.phi_k, self.phi_r);
-        let m = [
-            [g_k * dot(psi_k, phi_k), g_k * dot(psi_k, phi_r)],
-            [g_r * dot(phi_r, phi_k), g_r * dot(phi_r, phi_r)],
-        ];
-        let rhs = [g_k * dot(psi_k, e), g_r * dot(phi_r, e)];
-        let det = (1.0 + m[0][0]) * (1.0 + m[1][1]) - m[0][1] * m[1][0];
-        if !(det.is_finite() && det > 0.0) {
-            return Err(Error::Numerical {
-                context: format!("MRAS adaptation at sample {}", self.n),
-                reason: format!("implicit adaptation matrix has determinant {det}"),
-            });
-        }
-        let dk = (rhs[0] * (1.0 + m[1][1]) - m[0][1] * rhs[1]) / det;
-        let dr = ((1.0 + m[0][0]) * rhs[1] - m[1][0] * rhs[0]) / det;
-        Ok((dk, dr))
+    /// The observer's model of the machine (surface magnets or salient).
+    pub(crate) fn machine(&self) -> &Machine {
+        self.core.plant()
     }
 }
 
-/// The estimates at `(k_e, r_s)` with the error `e` \[A\].
-pub(crate) fn estimates(k_e: f64, r_s: f64, n_p: u32, e: C64, r_s_active: bool) -> Estimates {
-    Estimates {
-        k_e,
-        k_t: 1.5f64.sqrt() * k_e,
-        psi_f: SQRT_2_3 * k_e / f64::from(n_p),
-        r_s,
-        e_d: e.re,
-        e_q: e.im,
-        r_s_active,
+/// The crate's error for an MRAS fault at sample `s`.
+fn mras_error(f: Fault<f64, Error>, s: &Sample) -> Error {
+    match f {
+        Fault::NonFinite { channel, sample } => {
+            let (column, value) =
+                [("i_d", s.i_d), ("i_q", s.i_q), ("u_d", s.u_d), ("u_q", s.u_q), ("w_m", s.w_m)]
+                    [channel.min(4)];
+            Error::NonFinite { column: column.into(), row: sample as usize, value }
+        }
+        Fault::Singular { sample, det } => Error::Numerical {
+            context: format!("MRAS adaptation at sample {sample}"),
+            reason: format!("implicit adaptation matrix has determinant {det}"),
+        },
+        Fault::NotFinite { sample, k_e, r_s } => Error::Numerical {
+            context: format!("MRAS update at sample {sample}"),
+            reason: format!("estimates not finite (k_e = {k_e}, r_s = {r_s})"),
+        },
+        Fault::Step { sample, error } => {
+            Error::Numerical { context: format!("MRAS update at sample {sample}"), reason: error.to_string() }
+        }
+        Fault::Stale { output, observer } => Error::InvalidOption {
+            option: "output".into(),
+            reason: format!("computed for sample {output}, but the observer is at sample {observer}"),
+        },
     }
 }

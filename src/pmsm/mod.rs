@@ -60,7 +60,6 @@ pub use log::{
     read_log_from, read_log_segments, read_log_segments_from, read_logs,
 };
 pub use model::flux_map::{FLUX_MAP_CHANNELS, FluxMapModel};
-pub(crate) use model::interval::cexpm1;
 pub use model::interval::{
     C64, Interval, IntervalSource, IntervalVoltage, SQRT_2_3, VoltageHold, VoltageInput, applied_experiment,
     applied_voltage, interval_mean_speed, intervals, model_intervals, reference_intervals, rotation,

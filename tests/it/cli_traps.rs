@@ -261,11 +261,16 @@ fn other_commands_name_their_flags() {
     let missing = dir.join("no/such/folder/x.csv");
     let missing = missing.to_str().unwrap();
     let track = ["track", SAMPLE, "-p", "4"];
+    let mras = ["track", SAMPLE, "-p", "4", "--estimator", "mras"];
     for (args, flag) in [
-        ([&track[..], &["--l-s", "4.5e-3", "--gamma-ke", "-1"]].concat(), "`--gamma-ke`"),
-        ([&track[..], &["--l-s", "4.5e-3", "--gamma-rs", "1"]].concat(), "`--gamma-rs`"),
+        ([&mras[..], &["--l-s", "4.5e-3", "--gamma-ke", "-1"]].concat(), "`--gamma-ke`"),
+        ([&mras[..], &["--l-s", "4.5e-3", "--gamma-rs", "1"]].concat(), "`--gamma-rs`"),
         ([&track[..], &["--l-s", "-1"]].concat(), "`--l-s`"),
-        ([&track[..], &["--l-s", "4.5e-3", "--observer-gain", "-2"]].concat(), "`--observer-gain`"),
+        ([&mras[..], &["--l-s", "4.5e-3", "--observer-gain", "-2"]].concat(), "`--observer-gain`"),
+        // A gain of the MRAS with the Kalman filter (the default), and the filter's noise
+        // with the MRAS.
+        ([&track[..], &["--l-s", "4.5e-3", "--gamma-ke", "0.01"]].concat(), "`--gamma-ke`"),
+        ([&mras[..], &["--l-s", "4.5e-3", "--current-noise", "0.01"]].concat(), "`--current-noise`"),
         (vec!["track", SAMPLE, "-p", "0", "--l-s", "4.5e-3"], "`--pole-pairs`"),
         ([&track[..], &["--l-s", "4.5e-3", "--json", SAMPLE]].concat(), "`--json`"),
         (vec!["validate", SAMPLE, "--params", SAMPLE, "--json", SAMPLE], "`--json`"),

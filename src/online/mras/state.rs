@@ -3,7 +3,7 @@
 #[cfg(doc)]
 use super::super::config::Adaptation;
 use super::super::config::MrasConfig;
-use crate::pmsm::{C64, ExactPlant};
+use super::step::Machine;
 use serde::{Deserialize, Serialize};
 
 /// One sample of a drive: the currents measured at `t_k` and the voltage applied over
@@ -48,22 +48,7 @@ pub struct Estimates {
 pub struct MrasOutput {
     /// The estimates after the adaptation at `t_k`.
     pub estimates: Estimates,
-    /// Index of the sample this output belongs to.
-    pub(super) sample: usize,
-    pub(super) next: Next,
-}
-
-/// The observer's state after a sample.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Next {
-    pub(super) i_hat: C64,
-    pub(super) phi_k: C64,
-    pub(super) phi_r: C64,
-    pub(super) psi_k: C64,
-    pub(super) k_e: f64,
-    pub(super) r_s: f64,
-    pub(super) p_k: f64,
-    pub(super) p_r: f64,
+    pub(super) inner: greybox_observer::MrasOutput<f64>,
 }
 
 /// The MRAS observer (thesis 5.1): state `î` and parameters `(K̂_e, R̂_s)`; see the module
@@ -73,37 +58,32 @@ pub(super) struct Next {
 /// observer to `t_{k+1}`. It is split as motulator's observers are: [`Mras::compute_output`]
 /// (`&self`: the estimates and the next state) and [`Mras::advance`] (commits them), so a
 /// controller can use the estimates before the state moves. [`Mras::output`] repeats the
-/// last estimates. No allocation, no panic.
+/// last estimates. No allocation, no panic. The observer itself is
+/// [`greybox_observer::Mras`] (`no_std`, for firmware), here with the salient step too.
 #[derive(Clone, Debug)]
 pub struct Mras {
+    pub(crate) core: greybox_observer::Mras<f64, Machine>,
     pub(super) cfg: MrasConfig,
-    /// `1 − e^{−f h}`: the share of the error the observer takes per period.
-    pub(super) kappa: f64,
-    pub(super) k_e: f64,
-    pub(super) r_s: f64,
-    /// Observer prediction of the current at the next sample \[A\].
-    pub(super) i_hat: C64,
-    /// Sensitivities of `i_hat` to K̂_e and R̂_s over the last step, and the K_e law's
-    /// direction (φ_K, or φ_K/|ω_m| for the relay).
-    pub(super) phi_k: C64,
-    pub(super) phi_r: C64,
-    pub(super) psi_k: C64,
-    /// Mean information `|φ|²` of K̂_e and R̂_s over the last τ ([`Adaptation::Normalised`];
-    /// 0 before any).
-    pub(super) p_k: f64,
-    pub(super) p_r: f64,
-    /// Samples consumed; 0 means the observer starts at the next measurement.
-    pub(super) n: usize,
-    pub(super) last: Estimates,
-    /// The salient step (`Some` when [`MrasConfig::salient`]).
-    pub(super) plant: Option<ExactPlant>,
 }
 
 /// Share of the mean information below which a sample does not update it
 /// ([`Adaptation::Normalised`]).
-pub const INFORMATIVE: f64 = 0.1;
+pub const INFORMATIVE: f64 = greybox_observer::INFORMATIVE;
 
 /// Shortest time constant of [`Adaptation::Normalised`], in sample times: measured on a
 /// 10 kHz log with 1 V of voltage noise, 20 samples diverged and 30 did not; the margin
 /// keeps the adaptation well slower than the observer's error dynamics.
-pub const MIN_TAU_SAMPLES: f64 = 100.0;
+pub const MIN_TAU_SAMPLES: f64 = greybox_observer::MIN_TAU_SAMPLES;
+
+/// The crate's estimates of the observer's (without standard errors).
+pub(crate) fn estimates(e: &greybox_observer::Estimates<f64>) -> Estimates {
+    Estimates {
+        k_e: e.k_e,
+        k_t: e.k_t,
+        psi_f: e.psi_f,
+        r_s: e.r_s,
+        e_d: e.e_d,
+        e_q: e.e_q,
+        r_s_active: e.r_s_active,
+    }
+}

@@ -17,8 +17,8 @@ pub use dq::{
     stator_hold_start,
 };
 pub(crate) use dq::{
-    SMALL_ANGLE, cexpm1, check_finite, check_positive, half_angle, half_angle_arg, half_angle_rotation,
-    mean_speed, stator_hold_start_half,
+    SMALL_ANGLE, check_finite, check_positive, half_angle, half_angle_arg, half_angle_rotation, mean_speed,
+    stator_hold_start_half,
 };
 pub use reference::{applied_experiment, applied_voltage, model_intervals, reference_intervals};
 pub(crate) use reference::{controller_frame, driving_voltage, model_start_voltages, reference_channels};

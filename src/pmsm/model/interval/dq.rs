@@ -50,19 +50,16 @@ pub(crate) fn mean_speed(w: &[f64]) -> f64 {
 }
 
 /// Rotation of the dq frame over one period, `e^{−jφ}` with `φ = ω_e h` \[rad\].
+#[inline]
 pub fn rotation(phi: f64) -> C64 {
-    C64::new(phi.cos(), -phi.sin())
+    greybox_observer::rotation(phi)
 }
 
 /// Start-of-period dq voltage `u₀ = ū jφ/(1 − e^{−jφ})` of a stator-held voltage whose
 /// dq period mean is `ū` (MODEL.md §4); the limit φ → 0 is `ū`.
+#[inline]
 pub fn stator_hold_start(mean: C64, phi: f64) -> C64 {
-    if phi.abs() < 1e-8 {
-        // jφ/(1 − e^{−jφ}) = 1 + jφ/2 − φ²/12 + O(φ⁴)
-        return mean * C64::new(1.0 - phi * phi / 12.0, 0.5 * phi);
-    }
-    let denom = -cexpm1(C64::new(0.0, -phi));
-    mean * C64::new(0.0, phi) / denom
+    greybox_observer::stator_hold_start(mean, phi)
 }
 
 /// [`stator_hold_start`] from `(sin φ/2, cos φ/2)` computed already (no further sine,
@@ -232,13 +229,6 @@ impl std::fmt::Display for VoltageInput {
             }
         }
     }
-}
-
-/// `e^{w} − 1` for complex w without cancellation near 0.
-pub(crate) fn cexpm1(w: C64) -> C64 {
-    let (s, c) = w.im.sin_cos();
-    let half = (0.5 * w.im).sin();
-    C64::new(w.re.exp_m1() * c - 2.0 * half * half, w.re.exp() * s)
 }
 
 #[cfg(test)]

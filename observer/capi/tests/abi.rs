@@ -1,0 +1,107 @@
+//! The C ABI called as C calls it: codes for null pointers, bad settings and bad samples,
+//! their names, and the same estimates as the Rust observers.
+
+use greybox_observer::{Kalman, Mras, Noise, Sample, Settings};
+use greybox_observer_capi::*;
+use std::ffi::CStr;
+use std::mem::MaybeUninit;
+use std::ptr::{null, null_mut};
+
+fn name(code: i32) -> String {
+    // SAFETY: gb_error_name returns a static NUL-terminated string.
+    unsafe { CStr::from_ptr(gb_error_name(code)) }.to_string_lossy().into_owned()
+}
+
+fn settings() -> GbSettingsF64 {
+    let mut s = MaybeUninit::<GbSettingsF64>::uninit();
+    // SAFETY: a valid pointer to writable storage.
+    assert_eq!(unsafe { gb_settings_f64_default(4, 4.5e-3, 1e-4, s.as_mut_ptr()) }, GB_OK);
+    // SAFETY: written above.
+    let mut s = unsafe { s.assume_init() };
+    (s.k_e0, s.r_s0) = (0.45, 0.7);
+    s
+}
+
+#[test]
+fn codes_for_nulls_settings_and_samples() {
+    let mut s = settings();
+    let mut mras = MaybeUninit::<GbMrasF64>::uninit();
+    // SAFETY: null pointers are refused; the others are valid.
+    unsafe {
+        assert_eq!(gb_mras_f64_init(null_mut(), &s), GB_ERR_NULL);
+        assert_eq!(gb_mras_f64_init(mras.as_mut_ptr(), null()), GB_ERR_NULL);
+        assert_eq!(gb_settings_f64_default(4, 1.0, 1.0, null_mut()), GB_ERR_NULL);
+        s.l_s = -1.0;
+        let code = gb_mras_f64_init(mras.as_mut_ptr(), &s);
+        assert_eq!(code, GB_ERR_SETTING - 1);
+        assert_eq!(name(code), "setting l_s out of range (positive)");
+        s.l_s = 4.5e-3;
+        assert_eq!(gb_mras_f64_init(mras.as_mut_ptr(), &s), GB_OK);
+        let mut e = MaybeUninit::<GbEstimatesF64>::uninit();
+        let bad = Sample { i_d: 0.0, i_q: 1.0, u_d: 0.0, u_q: f64::NAN, w_m: 10.0 };
+        let code = gb_mras_f64_update(mras.as_mut_ptr(), &bad, e.as_mut_ptr());
+        assert_eq!(code, GB_ERR_NON_FINITE - 3);
+        assert_eq!(name(code), "non-finite u_q");
+        assert_eq!(gb_mras_f64_update(mras.as_mut_ptr(), null(), e.as_mut_ptr()), GB_ERR_NULL);
+        let mut noise = MaybeUninit::<GbNoiseF64>::uninit();
+        assert_eq!(gb_noise_f64_for_machine(0.0, 0.7, 0.45, noise.as_mut_ptr()), GB_OK);
+        let mut kf = MaybeUninit::<GbKalmanF64>::uninit();
+        let code = gb_kalman_f64_init(kf.as_mut_ptr(), &s, noise.as_ptr());
+        assert_eq!(code, GB_ERR_SETTING - 11);
+        assert_eq!(name(code), "setting sigma_i out of range (positive)");
+    }
+    assert_eq!(name(GB_OK), "ok");
+    assert_eq!(name(12345), "unknown code");
+}
+
+/// The ABI's observers are the Rust ones: the same estimates to the bit, in both precisions.
+#[test]
+fn the_abi_gives_the_rust_observers_estimates() {
+    let s = settings();
+    let noise = Noise::for_machine(0.01, s.r_s0, s.k_e0);
+    let (mut m, mut k) = (Mras::spm(s).unwrap(), Kalman::spm(s, noise).unwrap());
+    let mut mras = MaybeUninit::<GbMrasF64>::uninit();
+    let mut kf = MaybeUninit::<GbKalmanF64>::uninit();
+    let s32: Settings<f32> = {
+        let mut x = MaybeUninit::uninit();
+        // SAFETY: valid storage.
+        assert_eq!(unsafe { gb_settings_f32_default(4, 4.5e-3, 1e-4, x.as_mut_ptr()) }, GB_OK);
+        // SAFETY: written above.
+        let mut x = unsafe { x.assume_init() };
+        (x.k_e0, x.r_s0) = (0.45, 0.7);
+        x
+    };
+    let mut m32 = Mras::spm(s32).unwrap();
+    let mut mras32 = MaybeUninit::<GbMrasF32>::uninit();
+    // SAFETY: valid pointers throughout.
+    unsafe {
+        assert_eq!(gb_mras_f64_init(mras.as_mut_ptr(), &s), GB_OK);
+        assert_eq!(gb_kalman_f64_init(kf.as_mut_ptr(), &s, &noise), GB_OK);
+        assert_eq!(gb_mras_f32_init(mras32.as_mut_ptr(), &s32), GB_OK);
+        for j in 0..5000 {
+            let t = j as f64 * 1e-4;
+            let x = Sample {
+                i_d: 1.0 + (30.0 * t).sin(),
+                i_q: 3.0 + 0.5 * (70.0 * t).cos(),
+                u_d: -2.0 + (50.0 * t).sin(),
+                u_q: 40.0 + (20.0 * t).cos(),
+                w_m: 100.0 + 10.0 * (5.0 * t).sin(),
+            };
+            let mut e = MaybeUninit::<GbEstimatesF64>::uninit();
+            assert_eq!(gb_mras_f64_update(mras.as_mut_ptr(), &x, e.as_mut_ptr()), GB_OK);
+            assert_eq!(e.assume_init(), m.update(&x).unwrap());
+            assert_eq!(gb_kalman_f64_update(kf.as_mut_ptr(), &x, e.as_mut_ptr()), GB_OK);
+            assert_eq!(e.assume_init(), k.update(&x).unwrap());
+            let x32 = Sample {
+                i_d: x.i_d as f32,
+                i_q: x.i_q as f32,
+                u_d: x.u_d as f32,
+                u_q: x.u_q as f32,
+                w_m: x.w_m as f32,
+            };
+            let mut e32 = MaybeUninit::<GbEstimatesF32>::uninit();
+            assert_eq!(gb_mras_f32_update(mras32.as_mut_ptr(), &x32, e32.as_mut_ptr()), GB_OK);
+            assert_eq!(e32.assume_init(), m32.update(&x32).unwrap());
+        }
+    }
+}
