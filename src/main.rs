@@ -92,7 +92,7 @@ fn main() -> ExitCode {
             None => cli::fit::run_fit(a).map(code),
         },
         Command::Validate(a) => cli::validate::run_validate(a).map(|()| 0),
-        Command::Track(a) => cli::track::run_track(a).map(|()| 0),
+        Command::Track(a) => cli::track::run_track(a).map(code),
         Command::Simulate(a) => cli::simulate::run_simulate(a).map(|()| 0),
         Command::Design(a) => cli::design::run_design(a).map(|()| 0),
         Command::Fluxmap(a) => cli::fluxmap::run_fluxmap(a).map(code),

@@ -231,6 +231,11 @@ pub struct Estimates<T> {
     pub k_e_se: T,
     /// Standard error of `R̂_s` \[Ω\] (the Kalman filter; 0 for the MRAS).
     pub r_s_se: T,
+    /// The normalised innovation squared `νᵀ S⁻¹ ν` of this sample (the Kalman filter; 0 for
+    /// the MRAS and at the first sample): χ² with 2 degrees of freedom, mean 2, when the
+    /// filter's model and noise levels are right (Bar-Shalom, Li & Kirubarajan, *Estimation
+    /// with Applications to Tracking and Navigation*, 2001, §5.4).
+    pub nis: T,
     /// Whether `R̂_s` adapted at this sample (always for the Kalman filter).
     pub r_s_active: bool,
 }
@@ -247,6 +252,7 @@ impl<T: Real> Estimates<T> {
             e_q,
             k_e_se: T::zero(),
             r_s_se: T::zero(),
+            nis: T::zero(),
             r_s_active,
         }
     }

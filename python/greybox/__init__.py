@@ -37,6 +37,7 @@ __all__ = [
     "Error",
     "Fit",
     "FitError",
+    "INNOVATION_RATIO_LIMIT",
     "OptionError",
     "Report",
     "TrackRun",
@@ -244,16 +245,32 @@ def track(log: Union[PathLike, Sequence[PathLike]], *, pole_pairs: int, **option
         argv = to_argv(_flags(pole_pairs=pole_pairs, **options), paths)
         runs = _greybox.track(argv)
     return [
-        TrackRun(name, _final(k_e, k_t, r_s, k_e_se, r_s_se), pa.Table.from_batches([batch]))
-        for name, (k_e, k_t, r_s, k_e_se, r_s_se), batch in runs
+        TrackRun(name, _final(k_e, k_t, r_s, k_e_se, r_s_se, ratio), pa.Table.from_batches([batch]))
+        for name, (k_e, k_t, r_s, k_e_se, r_s_se, ratio), batch in runs
     ]
 
 
-def _final(k_e: float, k_t: float, r_s: float, k_e_se: Optional[float], r_s_se: Optional[float]) -> dict[str, float]:
-    """A run's final estimates, with their standard errors where the estimator gives them."""
-    final = {"k_e": k_e, "k_t": k_t, "r_s": r_s}
+#: The largest ``innovation_ratio`` of a trusted Kalman-filter run (``greybox track``'s exit 3
+#: above it; docs/cli.md): ``greybox::online::INNOVATION_RATIO_LIMIT``.
+INNOVATION_RATIO_LIMIT: float = _greybox.INNOVATION_RATIO_LIMIT
+
+
+def _final(
+    k_e: float,
+    k_t: float,
+    r_s: float,
+    k_e_se: Optional[float],
+    r_s_se: Optional[float],
+    ratio: Optional[float],
+) -> dict[str, Any]:
+    """A run's final estimates, with their standard errors where the estimator gives them,
+    and the filter's self-check: ``innovation_ratio`` (1 when its model and noise level are
+    right) and ``trusted`` (the ratio at most :data:`INNOVATION_RATIO_LIMIT`)."""
+    final: dict[str, Any] = {"k_e": k_e, "k_t": k_t, "r_s": r_s}
     if k_e_se is not None and r_s_se is not None:
         final.update(k_e_se=k_e_se, k_t_se=k_e_se * 1.5**0.5, r_s_se=r_s_se)
+    if ratio is not None:
+        final.update(innovation_ratio=ratio, trusted=bool(ratio <= INNOVATION_RATIO_LIMIT))
     return final
 
 

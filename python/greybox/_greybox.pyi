@@ -6,6 +6,7 @@ from typing import Any, Optional
 import pyarrow as pa
 
 __version__: str
+INNOVATION_RATIO_LIMIT: float
 
 class Error(Exception):
     """Any error of greybox; the message is the command line's."""
@@ -60,8 +61,9 @@ def validate(argv: list[str]) -> str:
 
 def track(
     argv: list[str],
-) -> list[tuple[str, tuple[float, float, float, Optional[float], Optional[float]], pa.RecordBatch]]:
-    """``greybox track``: per run its name, final ``(k_e, k_t, r_s)`` and trajectory."""
+) -> list[tuple[str, tuple[float, float, float, Optional[float], Optional[float], Optional[float]], pa.RecordBatch]]:
+    """``greybox track``: per run its name, final ``(k_e, k_t, r_s, k_e_se, r_s_se,
+    innovation_ratio)`` (the last three ``None`` for the MRAS) and trajectory."""
 
 def simulate(argv: list[str]) -> tuple[pa.RecordBatch, str]:
     """``greybox simulate``: the log as a batch and the truth as JSON."""

@@ -37,5 +37,6 @@ fn _greybox(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(tools::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(tools::report, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("INNOVATION_RATIO_LIMIT", greybox::online::INNOVATION_RATIO_LIMIT)?;
     Ok(())
 }

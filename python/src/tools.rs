@@ -48,10 +48,11 @@ pub fn validate(py: Python<'_>, argv: Vec<String>) -> PyResult<String> {
 /// standard errors `None` for the MRAS) and its trajectory as a pyarrow RecordBatch
 /// `t [s], k_e [V s/rad], r_s [Ω]` (with `--estimator ekf` also `k_e_se`, `r_s_se`; with
 /// `--t0` the temperatures `t_winding`, `t_magnet` [°C] and their standard errors [K]).
-type Run = (String, (f64, f64, f64, Option<f64>, Option<f64>), Py<PyAny>);
+type Run = (String, (f64, f64, f64, Option<f64>, Option<f64>, Option<f64>), Py<PyAny>);
 
-/// Runs the MRAS observer of `greybox track` (the flags `argv`) over each log, the GIL
-/// released; every point of each trajectory.
+/// Runs the online estimator of `greybox track` (the flags `argv`) over each log, the GIL
+/// released; every point of each trajectory, and the filter's innovation ratio (its
+/// self-check, `greybox::online::INNOVATION_RATIO_LIMIT`).
 ///
 /// Errors: `OptionError`, `DataError`, `FitError` with the command line's messages.
 #[pyfunction]
@@ -98,7 +99,7 @@ pub fn track(py: Python<'_>, argv: Vec<String>) -> PyResult<Vec<Run>> {
             let batch = RecordBatch::try_from_iter(columns)
                 .map_err(|e| crate::errors::Error::new_err(e.to_string()))?;
             let se = tr.final_se();
-            let last = (f.k_e, f.k_t, f.r_s, se.map(|s| s.0), se.map(|s| s.1));
+            let last = (f.k_e, f.k_t, f.r_s, se.map(|s| s.0), se.map(|s| s.1), tr.innovation_ratio);
             Ok((name, last, batch.to_pyarrow(py)?.unbind()))
         })
         .collect()

@@ -79,13 +79,15 @@ def test_track(sample):
     with pytest.raises(greybox.OptionError, match="--l-s"):
         greybox.track(sample, pole_pairs=4)
     # The MRAS's gains with the Kalman filter, the default, are refused.
-    with pytest.raises(greybox.OptionError, match="gamma_ke"):
+    with pytest.raises(greybox.OptionError, match="--gamma-ke"):
         greybox.track(sample, pole_pairs=4, params=fit, gamma_ke=0.01)
     # The Kalman filter (the default): a standard error at every step and at the end.
     (run,) = greybox.track(sample, pole_pairs=4, params=fit)
     assert run.trajectory.column_names == ["t", "k_e", "r_s", "k_e_se", "r_s_se"]
     assert run.final["r_s_se"] == run.trajectory.column("r_s_se")[-1].as_py() > 0
     assert run.final["k_t_se"] == pytest.approx(1.5**0.5 * run.final["k_e_se"])
+    # Its self-check: the innovations no larger than its model predicts on this log.
+    assert run.final["trusted"] and run.final["innovation_ratio"] < greybox.INNOVATION_RATIO_LIMIT
     # Temperatures at a reference: the winding at T_0 when R_s is the reference value.
     r_s = run.final["r_s"]
     (hot,) = greybox.track(sample, pole_pairs=4, params=fit, estimator="ekf", t0=20, r_s_t0=r_s)

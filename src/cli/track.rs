@@ -4,7 +4,10 @@
 use super::args::ColumnArgs;
 use super::output;
 use crate::data::Staged;
-use crate::online::{Adaptation, KalmanNoise, MrasConfig, Trajectory, current_noise, track, track_kalman};
+use crate::online::{
+    Adaptation, INNOVATION_RATIO_LIMIT, KalmanNoise, MrasConfig, Trajectory, current_noise, track,
+    track_kalman,
+};
 use crate::pmsm::{CsvOptions, SavedModel, ThermalReference, VoltageHold, VoltageInput, applied_experiment};
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
@@ -104,7 +107,7 @@ pub struct TrackArgs {
     #[arg(long, value_name = "A")]
     pub current_noise: Option<f64>,
     /// With --estimator ekf: how fast R_s may drift, its random walk's standard deviation
-    /// after one second [Ω/√s]; default 2 % of the present estimate.
+    /// after one second [Ω/√s]; default 3 % of the present estimate.
     #[arg(long, value_name = "OHM_PER_SQRT_S")]
     pub r_s_walk: Option<f64>,
     /// With --estimator ekf: how fast K_e may drift [V s/rad/√s]; default 0.2 % of the
@@ -171,12 +174,13 @@ pub enum TrackHold {
 }
 
 /// Runs `greybox track`: the observer over every log, the summary lines on stdout, the JSON
-/// and the plot where asked.
+/// and the plot where asked. Returns whether every run passed the filter's self-check
+/// ([`Trajectory::consistent`]); each that did not is named in a warning on stderr.
 ///
 /// # Errors
 /// An output that cannot be written, an invalid observer setting (naming its flag), an
 /// unreadable `--params` or log, an observer that fails on a log.
-pub fn run_track(a: &TrackArgs) -> crate::Result<()> {
+pub fn run_track(a: &TrackArgs) -> crate::Result<bool> {
     // Fail before the work, not after it, when the output cannot be written.
     let inputs: Vec<PathBuf> = a.logs.iter().chain(&a.params).cloned().collect();
     output::check_all(&[("--json", a.json.as_deref()), ("--plot", a.plot.as_deref())], &inputs)?;
@@ -200,7 +204,19 @@ pub fn run_track(a: &TrackArgs) -> crate::Result<()> {
             &report::to_json(&runs, a.max_points, a.pole_pairs, thermal.as_ref()),
         )?;
     }
-    staged.commit()
+    staged.commit()?;
+    let untrusted: Vec<&(String, Trajectory)> = runs.iter().filter(|(_, tr)| !tr.consistent()).collect();
+    for (name, tr) in &untrusted {
+        eprintln!(
+            "warning: {name}: the Kalman filter's innovations are {} times as large as its model predicts \
+             (their mean normalised square over the second half, halved; 1 when the model and the noise \
+             level are right, at most {INNOVATION_RATIO_LIMIT} trusted): its estimates and intervals are not \
+             to be trusted. Check --l-s and --l-q (or --params), --hold and the voltage the log gives, or \
+             give the current noise with --current-noise; exit code 3",
+            Ratio(tr.innovation_ratio.unwrap_or(f64::NAN))
+        );
+    }
+    Ok(untrusted.is_empty())
 }
 
 /// The temperatures' reference of `--t0`, `--r-s-t0`, `--psi-f-t0` (MODEL.md §3), if
@@ -253,7 +269,9 @@ pub fn track_logs(a: &TrackArgs) -> crate::Result<(Vec<TrackRun>, Vec<String>)> 
             let log = applied.as_ref().unwrap_or(log);
             let trajectory = match a.estimator {
                 EstimatorArg::Mras => track(log, &config),
-                EstimatorArg::Ekf => track_kalman(log, &config, Some(noise(a, &config, log)?)),
+                EstimatorArg::Ekf => {
+                    track_kalman(log, &config, Some(noise(a, &config, log)?)).map_err(diverged)
+                }
             }
             .map_err(|e| flag_error(e, path))?;
             let segment = (!one).then_some(k + 1);
@@ -263,6 +281,22 @@ pub fn track_logs(a: &TrackArgs) -> crate::Result<(Vec<TrackRun>, Vec<String>)> 
         }
     }
     Ok((runs, names))
+}
+
+/// A numerical failure of the Kalman filter in the words of its likely cause: a filter
+/// whose model does not fit the log diverges (its covariance stops being finite or
+/// positive).
+fn diverged(e: crate::Error) -> crate::Error {
+    match e {
+        crate::Error::Numerical { context, reason } => crate::Error::Numerical {
+            context,
+            reason: format!(
+                "{reason}: the filter diverged, its model does not fit this log (check --l-s and --l-q or \
+                 --params, --hold and the voltage the log gives)"
+            ),
+        },
+        e => e,
+    }
 }
 
 /// The Kalman filter's noise model of the flags for `log`: `--current-noise` or the log's
@@ -425,5 +459,14 @@ fn flag_error(e: crate::Error, log: &std::path::Path) -> crate::Error {
             }
         }
         e => e,
+    }
+}
+
+/// A ratio as a person reads it: three decimals below 1000, else `4.96e9`.
+struct Ratio(f64);
+
+impl std::fmt::Display for Ratio {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.0.abs() < 1000.0 { write!(f, "{:.3}", self.0) } else { write!(f, "{:.2e}", self.0) }
     }
 }

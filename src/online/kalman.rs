@@ -62,7 +62,7 @@ pub struct KalmanNoise {
 
 /// `q_i / σ_i` of [`KalmanNoise::for_machine`].
 pub const MODEL_NOISE_RATIO: f64 = greybox_observer::MODEL_NOISE_RATIO;
-/// `q_R / R_s0` of [`KalmanNoise::for_machine`] \[1/√s\]: 2 % of `R_s` per √s.
+/// `q_R / R_s0` of [`KalmanNoise::for_machine`] \[1/√s\]: 3 % of `R_s` per √s.
 pub const R_S_WALK: f64 = greybox_observer::R_S_WALK;
 /// `q_K / K_e0` of [`KalmanNoise::for_machine`] \[1/√s\]: 0.2 % of `K_e` per √s.
 pub const K_E_WALK: f64 = greybox_observer::K_E_WALK;
@@ -70,7 +70,7 @@ pub const K_E_WALK: f64 = greybox_observer::K_E_WALK;
 impl KalmanNoise {
     /// The default noise model of a machine started at `r_s0` \[Ω\], `k_e0` \[V s/rad\],
     /// with current noise `sigma_i` \[A\]: `q_i = 0.05 σ_i` ([`MODEL_NOISE_RATIO`]), walks
-    /// relative to the present estimates, `q_R = 0.02 R̂_s/√s` ([`R_S_WALK`]) and
+    /// relative to the present estimates, `q_R = 0.03 R̂_s/√s` ([`R_S_WALK`]) and
     /// `q_K = 0.002 |K̂_e|/√s` ([`K_E_WALK`]), initial standard deviations half of `R_s0`
     /// and a fifth of `K_e0` (a start without a value, 0, counts as 1 Ω and 0.1 V s/rad).
     pub fn for_machine(sigma_i: f64, r_s0: f64, k_e0: f64) -> Self {
@@ -114,6 +114,10 @@ pub struct KalmanEstimate {
     pub k_e_se: f64,
     /// Standard error of `R_s` \[Ω\].
     pub r_s_se: f64,
+    /// The normalised innovation squared `νᵀ S⁻¹ ν` (χ²₂ when the model and the noise are
+    /// right; 0 at the first sample).
+    #[serde(default)]
+    pub nis: f64,
 }
 
 impl From<Noise<f64>> for KalmanNoise {
@@ -171,7 +175,12 @@ impl Kalman {
     pub fn update(&mut self, s: &Sample) -> Result<KalmanEstimate> {
         let x = greybox_observer::Sample { i_d: s.i_d, i_q: s.i_q, u_d: s.u_d, u_q: s.u_q, w_m: s.w_m };
         match self.core.update(&x) {
-            Ok(e) => Ok(KalmanEstimate { estimates: estimates(&e), k_e_se: e.k_e_se, r_s_se: e.r_s_se }),
+            Ok(e) => Ok(KalmanEstimate {
+                estimates: estimates(&e),
+                k_e_se: e.k_e_se,
+                r_s_se: e.r_s_se,
+                nis: e.nis,
+            }),
             Err(Fault::NonFinite { channel, sample }) => {
                 let (column, value) =
                     [("id", s.i_d), ("iq", s.i_q), ("ud", s.u_d), ("uq", s.u_q), ("w_m", s.w_m)]

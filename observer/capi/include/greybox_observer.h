@@ -237,6 +237,11 @@ typedef struct Estimates_f64 {
   double k_e_se;
   // Standard error of `R̂_s` \[Ω\] (the Kalman filter; 0 for the MRAS).
   double r_s_se;
+  // The normalised innovation squared `νᵀ S⁻¹ ν` of this sample (the Kalman filter; 0 for
+  // the MRAS and at the first sample): χ² with 2 degrees of freedom, mean 2, when the
+  // filter's model and noise levels are right (Bar-Shalom, Li & Kirubarajan, *Estimation
+  // with Applications to Tracking and Navigation*, 2001, §5.4).
+  double nis;
   // Whether `R̂_s` adapted at this sample (always for the Kalman filter).
   bool r_s_active;
 } Estimates_f64;
@@ -280,6 +285,11 @@ typedef struct Estimates_f32 {
   float k_e_se;
   // Standard error of `R̂_s` \[Ω\] (the Kalman filter; 0 for the MRAS).
   float r_s_se;
+  // The normalised innovation squared `νᵀ S⁻¹ ν` of this sample (the Kalman filter; 0 for
+  // the MRAS and at the first sample): χ² with 2 degrees of freedom, mean 2, when the
+  // filter's model and noise levels are right (Bar-Shalom, Li & Kirubarajan, *Estimation
+  // with Applications to Tracking and Navigation*, 2001, §5.4).
+  float nis;
   // Whether `R̂_s` adapted at this sample (always for the Kalman filter).
   bool r_s_active;
 } Estimates_f32;

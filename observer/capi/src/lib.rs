@@ -149,6 +149,10 @@ unsafe fn step<S, V, T: Real>(
     }
 }
 
+// The exported functions come in pairs, `_f64` and `_f32`, written out: cbindgen reads the
+// source as written and does not expand macros, so a macro would leave them out of the
+// header. Each is a line around the shared `init` and `step`.
+
 /// Fills `out` with the default settings (`greybox::online::MrasConfig`'s, the Lyapunov
 /// law; `greybox track` takes `ADAPTATION_NORMALISED`) of a machine of `n_p` pole
 /// pairs, inductance `l_s` \[H\], sample time `h` \[s\]; returns [`GB_OK`], or

@@ -109,6 +109,7 @@ pub(super) fn to_json(
                 "final": {
                     "k_e": f.k_e, "k_t": f.k_t, "r_s": f.r_s,
                     "k_e_se": k_se, "k_t_se": k_t_of(k_se), "r_s_se": r_se,
+                    "innovation_ratio": tr.innovation_ratio, "trusted": tr.consistent(),
                 },
                 "trajectory": { "t": d.t, "k_e": d.k_e, "r_s": d.r_s, "k_e_se": d.k_e_se, "r_s_se": d.r_s_se },
             }),

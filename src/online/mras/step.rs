@@ -70,18 +70,15 @@ impl Plant<f64> for Machine {
     ) -> Result<Transition<f64>> {
         match self {
             Self::Spm(spm) => Ok(spm.step_transition(x, k_e, r_s, s).unwrap_or_else(|e| match e {})),
-            // By the step's linearity in the current: two more steps.
-            Self::Salient(m) => {
-                let st = m.step(x, k_e, r_s, s, false)?;
-                let d = m.step(x + C64::new(1.0, 0.0), k_e, r_s, s, false)?.next - st.next;
-                let q = m.step(x + C64::new(0.0, 1.0), k_e, r_s, s, false)?.next - st.next;
-                Ok((st, [[d.re, q.re], [d.im, q.im]]))
-            }
+            // By the step's linearity in the current (the trait's default): two more steps.
+            Self::Salient(m) => m.step_transition(x, k_e, r_s, s),
         }
     }
 }
 
-impl Salient {
+impl Plant<f64> for Salient {
+    type Error = Error;
+
     /// The exact salient step from the corrected state `x` at `(k_e, r_s)` and its exact
     /// sensitivities (module documentation).
     fn step(
