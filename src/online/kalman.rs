@@ -30,9 +30,9 @@
 //! from the log itself ([`current_noise`]).
 
 use super::config::MrasConfig;
-use super::mras::{Estimates, Machine, Mras, Sample, estimates};
+use super::mras::{Estimates, Machine, Sample, estimates, invalid, settings};
 use crate::error::{Error, Result};
-use greybox_observer::{Fault, Noise};
+use greybox_observer::{Fault, Field, Noise};
 use serde::{Deserialize, Serialize};
 
 /// The filter's noise model (see the module doc); all standard deviations.
@@ -88,20 +88,17 @@ impl KalmanNoise {
     /// [`Error::InvalidOption`] naming the field: `sigma_i`, `p0_r_s`, `p0_k_e` not
     /// positive and finite; `q_i`, `q_r_s`, `q_k_e` negative or not finite.
     pub fn validate(&self) -> Result<()> {
-        let bad = |option: &str, v: f64, what: &str| {
-            Err(Error::InvalidOption { option: option.into(), reason: format!("must be {what}, got {v}") })
+        // The rule is the observer crate's (`Noise::invalid`); the message names the value.
+        let Some(field) = Noise::from(*self).invalid() else { return Ok(()) };
+        let (v, what) = match field {
+            Field::SigmaI => (self.sigma_i, "positive and finite"),
+            Field::P0RS => (self.p0_r_s, "positive and finite"),
+            Field::P0KE => (self.p0_k_e, "positive and finite"),
+            Field::QI => (self.q_i, "finite and at least 0"),
+            Field::QRS => (self.q_r_s, "finite and at least 0"),
+            _ => (self.q_k_e, "finite and at least 0"),
         };
-        for (name, v) in [("sigma_i", self.sigma_i), ("p0_r_s", self.p0_r_s), ("p0_k_e", self.p0_k_e)] {
-            if !(v.is_finite() && v > 0.0) {
-                return bad(name, v, "positive and finite");
-            }
-        }
-        for (name, v) in [("q_i", self.q_i), ("q_r_s", self.q_r_s), ("q_k_e", self.q_k_e)] {
-            if !(v.is_finite() && v >= 0.0) {
-                return bad(name, v, "finite and at least 0");
-            }
-        }
-        Ok(())
+        Err(Error::InvalidOption { option: field.name().into(), reason: format!("must be {what}, got {v}") })
     }
 }
 
@@ -152,10 +149,10 @@ impl Kalman {
     pub fn try_new(config: MrasConfig, noise: KalmanNoise) -> Result<Self> {
         noise.validate()?;
         let config = MrasConfig { adaptation: super::Adaptation::Lyapunov, ..config };
-        let model = Mras::try_new(config.clone())?;
-        let core =
-            greybox_observer::Kalman::new(*model.core.settings(), model.machine().clone(), noise.into())
-                .map_err(super::mras::invalid)?;
+        config.validate()?;
+        let settings = settings(&config);
+        let core = greybox_observer::Kalman::new(settings, Machine::of(&config, &settings)?, noise.into())
+            .map_err(invalid)?;
         Ok(Self { core, config })
     }
 

@@ -105,7 +105,6 @@
 
 use super::config::MrasConfig;
 use crate::error::{Error, Result};
-use crate::pmsm::ExactPlant;
 use greybox_observer::Fault;
 
 mod state;
@@ -113,7 +112,7 @@ mod step;
 
 pub(crate) use state::estimates;
 pub use state::{Estimates, INFORMATIVE, MIN_TAU_SAMPLES, Mras, MrasOutput, Sample};
-pub(crate) use step::{Machine, invalid};
+pub(crate) use step::{Machine, invalid, settings};
 
 impl Mras {
     /// An observer with the given settings, started at `k_e0`, `r_s0` and, at the first
@@ -138,12 +137,8 @@ impl Mras {
             }
         }
         let settings = step::settings(&config);
-        let machine = if config.salient() {
-            Machine::salient(ExactPlant::new(config.n_p, config.h, true, config.hold)?, &config)
-        } else {
-            Machine::Spm(greybox_observer::Spm::new(&settings))
-        };
-        let core = greybox_observer::Mras::new(settings, machine).map_err(invalid)?;
+        let core =
+            greybox_observer::Mras::new(settings, Machine::of(&config, &settings)?).map_err(invalid)?;
         Ok(Self { core, cfg: config })
     }
 
@@ -197,11 +192,6 @@ impl Mras {
     /// sample than the observer's next one; the observer is then unchanged.
     pub fn advance(&mut self, out: &MrasOutput) -> Result<()> {
         self.core.advance(&out.inner).map_err(|f| mras_error(f, &Sample::default()))
-    }
-
-    /// The observer's model of the machine (surface magnets or salient).
-    pub(crate) fn machine(&self) -> &Machine {
-        self.core.plant()
     }
 }
 

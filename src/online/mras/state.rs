@@ -62,7 +62,7 @@ pub struct MrasOutput {
 /// [`greybox_observer::Mras`] (`no_std`, for firmware), here with the salient step too.
 #[derive(Clone, Debug)]
 pub struct Mras {
-    pub(crate) core: greybox_observer::Mras<f64, Machine>,
+    pub(super) core: greybox_observer::Mras<f64, Machine>,
     pub(super) cfg: MrasConfig,
 }
 

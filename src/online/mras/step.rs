@@ -31,16 +31,24 @@ pub(crate) struct Salient {
 }
 
 impl Machine {
-    /// The salient model of `config` (`l_s` is `L_d`).
-    pub(crate) fn salient(plant: ExactPlant, config: &MrasConfig) -> Self {
-        Self::Salient(Box::new(Salient {
-            plant,
+    /// The model of `config` (validated; `settings` its observer crate's settings): the
+    /// salient step when [`MrasConfig::salient`] (`l_s` is `L_d`), else the surface-magnet
+    /// one. Both observers build theirs here.
+    ///
+    /// # Errors
+    /// Those of [`ExactPlant::new`] for a salient machine.
+    pub(crate) fn of(config: &MrasConfig, settings: &Settings<f64>) -> Result<Self> {
+        if !config.salient() {
+            return Ok(Self::Spm(Spm::new(settings)));
+        }
+        Ok(Self::Salient(Box::new(Salient {
+            plant: ExactPlant::new(config.n_p, config.h, true, config.hold)?,
             n_p: config.n_p,
             l_d: config.l_s,
             l_q: config.l_q.unwrap_or(config.l_s),
             h: config.h,
             hold: config.hold,
-        }))
+        })))
     }
 }
 
@@ -118,7 +126,7 @@ impl Plant<f64> for Salient {
 }
 
 /// The observer crate's settings of `config`.
-pub(super) fn settings(config: &MrasConfig) -> Settings<f64> {
+pub(crate) fn settings(config: &MrasConfig) -> Settings<f64> {
     Settings {
         n_p: config.n_p,
         hold: match config.hold {
