@@ -2,6 +2,10 @@
 //! polynomials of fdlibm's kernels, straight-line code (no branch, no table, no argument
 //! reduction) within an ulp of the system library's. The SPM and IPM steps take one per
 //! interval ([`crate::pmsm::model::interval`]); the library's `sin_cos` is a call per value.
+//! The switching-resolved step's pieces ([`crate::pmsm::model::pwm`]) take their short
+//! rotations and decays, and the smooth leg state its arctangents far from zero current,
+//! from short series (Abramowitz & Stegun 4.2.1, 4.3.65–66, 4.4.42), the library's
+//! functions elsewhere.
 //!
 //! Source: fdlibm (Sun Microsystems 1993), `k_sin.c` and `k_cos.c`, as in musl.
 
@@ -38,6 +42,48 @@ pub(crate) fn sin_cos_small(x: f64) -> (f64, f64) {
     (sin, cos)
 }
 
+/// `e^x` \[1\] of `x` \[1\]: for `|x| ≤ 1/8` (a PWM piece's decay `μτ`) its Taylor
+/// polynomial to `x¹³` (remainder below `10⁻²³`), otherwise the library's.
+#[inline(always)]
+pub(crate) fn exp(x: f64) -> f64 {
+    if x.abs() > 0.125 {
+        return x.exp();
+    }
+    // 1/k!, k = 13 … 0.
+    const C: [f64; 14] = {
+        let mut c = [1.0; 14];
+        let mut k = 1;
+        while k < 14 {
+            c[13 - k] = c[14 - k] / k as f64;
+            k += 1;
+        }
+        c
+    };
+    C.iter().fold(0.0, |p, c| p * x + c)
+}
+
+/// `(sin x, cos x)` of `x` \[rad\]: [`sin_cos_small`] for `|x| ≤ π/4` (a PWM piece's
+/// rotation `ω_e τ`), otherwise the library's.
+#[inline(always)]
+pub(crate) fn sin_cos(x: f64) -> (f64, f64) {
+    if x.abs() > std::f64::consts::FRAC_PI_4 { x.sin_cos() } else { sin_cos_small(x) }
+}
+
+/// `atan x` \[rad\]: for `|x| ≥ 16` (a leg's current far outside the smooth leg state's
+/// width) `±π/2 − atan(1/x)` with `atan z` by its Taylor series to `z¹³` (remainder below
+/// `10⁻¹⁹`), otherwise the library's.
+#[inline(always)]
+pub(crate) fn atan(x: f64) -> f64 {
+    if x.abs() < 16.0 {
+        return x.atan();
+    }
+    // (−1)^k/(2k + 1), k = 6 … 0: atan z = z Σ (−1)^k z^{2k}/(2k + 1).
+    const C: [f64; 7] = [1.0 / 13.0, -1.0 / 11.0, 1.0 / 9.0, -1.0 / 7.0, 1.0 / 5.0, -1.0 / 3.0, 1.0];
+    let z = 1.0 / x;
+    let z2 = z * z;
+    std::f64::consts::FRAC_PI_2.copysign(x) - z * C.iter().fold(0.0, |p, c| p * z2 + c)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -58,5 +104,22 @@ mod tests {
             worst = worst.max(ulps(c, lc));
         }
         assert!(worst <= 1.0, "{worst} ulp");
+    }
+
+    /// The short series against the library's functions, on and around their ranges:
+    /// within two units in the last place (the library's are within one).
+    #[test]
+    fn the_short_series_are_the_library_functions() {
+        for k in -2000..=2000 {
+            let x = f64::from(k) * 1.3e-4;
+            assert!(ulps(exp(x), x.exp()) <= 2.0, "exp {x}");
+            let (s, c) = sin_cos(x);
+            let (s0, c0) = x.sin_cos();
+            assert!(ulps(s, s0) <= 2.0 && ulps(c, c0) <= 2.0, "sin_cos {x}: {s} {c} vs {s0} {c0}");
+            let y = 16.0 * (1.0 + f64::from(k).abs() * 1e-3).powi(3) * if k < 0 { -1.0 } else { 1.0 };
+            assert!(ulps(atan(y), y.atan()) <= 2.0, "atan {y}");
+        }
+        assert_eq!(exp(0.0), 1.0);
+        assert_eq!(sin_cos(0.0), (0.0, 1.0));
     }
 }

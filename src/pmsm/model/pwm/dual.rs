@@ -73,6 +73,8 @@ pub(crate) trait Scalar:
     }
 }
 
+use crate::pmsm::model::elementary::{atan, exp, sin_cos};
+
 impl Scalar for f64 {
     #[inline(always)]
     fn cst(v: f64) -> Self {
@@ -84,7 +86,7 @@ impl Scalar for f64 {
     }
     #[inline(always)]
     fn exp(self) -> Self {
-        f64::exp(self)
+        exp(self)
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -92,11 +94,11 @@ impl Scalar for f64 {
     }
     #[inline(always)]
     fn atan(self) -> Self {
-        f64::atan(self)
+        atan(self)
     }
     #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
-        f64::sin_cos(self)
+        sin_cos(self)
     }
     #[inline(always)]
     fn is_zero(self) -> bool {
@@ -119,7 +121,7 @@ impl Scalar for Dual {
     }
     #[inline(always)]
     fn exp(self) -> Self {
-        let e = self.v.exp();
+        let e = exp(self.v);
         self.chain(e, e)
     }
     #[inline(always)]
@@ -129,11 +131,11 @@ impl Scalar for Dual {
     }
     #[inline(always)]
     fn atan(self) -> Self {
-        self.chain(self.v.atan(), 1.0 / (1.0 + self.v * self.v))
+        self.chain(atan(self.v), 1.0 / (1.0 + self.v * self.v))
     }
     #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
-        let (s, c) = self.v.sin_cos();
+        let (s, c) = sin_cos(self.v);
         (self.chain(s, c), self.chain(c, -s))
     }
     #[inline(always)]
