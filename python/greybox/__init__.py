@@ -242,16 +242,15 @@ def track(log: Union[PathLike, Sequence[PathLike]], *, pole_pairs: int, **option
     with contextlib.ExitStack() as stack:
         if options.get("params") is not None:
             options["params"] = _params_file(options["params"], stack)
-        argv = to_argv(_flags(pole_pairs=pole_pairs, **options), paths)
-        runs = _greybox.track(argv)
+        runs = _greybox.track(paths, _flags(pole_pairs=pole_pairs, **options))
     return [
         TrackRun(name, _final(k_e, k_t, r_s, k_e_se, r_s_se, ratio), pa.Table.from_batches([batch]))
         for name, (k_e, k_t, r_s, k_e_se, r_s_se, ratio), batch in runs
     ]
 
 
-#: The largest ``innovation_ratio`` of a trusted Kalman-filter run (``greybox track``'s exit 3
-#: above it; docs/cli.md): ``greybox::online::INNOVATION_RATIO_LIMIT``.
+#: The largest ``innovation_ratio`` of a trusted run of either estimator (``greybox track``'s
+#: exit 3 above it; docs/cli.md): ``greybox::online::INNOVATION_RATIO_LIMIT``.
 INNOVATION_RATIO_LIMIT: float = _greybox.INNOVATION_RATIO_LIMIT
 
 
@@ -264,8 +263,9 @@ def _final(
     ratio: Optional[float],
 ) -> dict[str, Any]:
     """A run's final estimates, with their standard errors where the estimator gives them,
-    and the filter's self-check: ``innovation_ratio`` (1 when its model and noise level are
-    right) and ``trusted`` (the ratio at most :data:`INNOVATION_RATIO_LIMIT`)."""
+    and the run's self-check: ``innovation_ratio`` (1 when its model and noise level are
+    right; the Kalman filter's innovations, the MRAS's one-step predictions at its running
+    estimates) and ``trusted`` (the ratio at most :data:`INNOVATION_RATIO_LIMIT`)."""
     final: dict[str, Any] = {"k_e": k_e, "k_t": k_t, "r_s": r_s}
     if k_e_se is not None and r_s_se is not None:
         final.update(k_e_se=k_e_se, k_t_se=k_e_se * 1.5**0.5, r_s_se=r_s_se)

@@ -60,10 +60,12 @@ def validate(argv: list[str]) -> str:
     """``greybox validate`` with the flags ``argv``: the JSON of ``--json``."""
 
 def track(
-    argv: list[str],
+    logs: list[str],
+    options: dict[str, Any],
 ) -> list[tuple[str, tuple[float, float, float, Optional[float], Optional[float], Optional[float]], pa.RecordBatch]]:
-    """``greybox track``: per run its name, final ``(k_e, k_t, r_s, k_e_se, r_s_se,
-    innovation_ratio)`` (the last three ``None`` for the MRAS) and trajectory."""
+    """``greybox track`` over ``logs`` with the keyword ``options`` (``pole_pairs`` among
+    them): per run its name, final ``(k_e, k_t, r_s, k_e_se, r_s_se, innovation_ratio)``
+    (the standard errors ``None`` for the MRAS) and trajectory."""
 
 def simulate(argv: list[str]) -> tuple[pa.RecordBatch, str]:
     """``greybox simulate``: the log as a batch and the truth as JSON."""

@@ -1,9 +1,8 @@
-//! `greybox.validate`, `greybox.track`, `greybox.simulate` and the fits of issue 33
+//! `greybox.validate`, `greybox.simulate` and the fits of issue 33
 //! (`fluxmap`, `saturation`, `standstill`, `mechanics`): the command line's subcommands
 //! with their results handed back instead of printed or written.
 
 use crate::errors::{from_clap, refused, to_py};
-use arrow_array::{ArrayRef, Float64Array, RecordBatch};
 use arrow_pyarrow::ToPyArrow;
 use greybox::cli::errors::in_cli_words;
 use greybox::cli::fluxmap::FluxMapArgs;
@@ -12,11 +11,9 @@ use greybox::cli::output::Outcome;
 use greybox::cli::saturation::SaturationArgs;
 use greybox::cli::simulate::SimulateArgs;
 use greybox::cli::standstill::StandstillArgs;
-use greybox::cli::track::TrackArgs;
 use greybox::cli::validate::ValidateArgs;
 use greybox::cli::{command, parse};
 use pyo3::prelude::*;
-use std::sync::Arc;
 
 /// `e` in the words of the subcommand `name` with the flags of `T`, as a Python exception.
 fn words<T: clap::Args>(name: &'static str) -> impl Fn(greybox::Error) -> PyErr {
@@ -42,67 +39,6 @@ pub fn validate(py: Python<'_>, argv: Vec<String>) -> PyResult<String> {
     let (saved, _, comparisons) =
         py.detach(|| greybox::cli::validate::compare(&a)).map_err(words::<ValidateArgs>("validate"))?;
     Ok(greybox::cli::validate::to_json(&saved, &comparisons))
-}
-
-/// One observer run: its name, its final estimates `(k_e, k_t, r_s, k_e_se, r_s_se)` (the
-/// standard errors `None` for the MRAS) and its trajectory as a pyarrow RecordBatch
-/// `t [s], k_e [V s/rad], r_s [Ω]` (with `--estimator ekf` also `k_e_se`, `r_s_se`; with
-/// `--t0` the temperatures `t_winding`, `t_magnet` [°C] and their standard errors [K]).
-type Run = (String, (f64, f64, f64, Option<f64>, Option<f64>, Option<f64>), Py<PyAny>);
-
-/// Runs the online estimator of `greybox track` (the flags `argv`) over each log, the GIL
-/// released; every point of each trajectory, and the filter's innovation ratio (its
-/// self-check, `greybox::online::INNOVATION_RATIO_LIMIT`).
-///
-/// Errors: `OptionError`, `DataError`, `FitError` with the command line's messages.
-#[pyfunction]
-pub fn track(py: Python<'_>, argv: Vec<String>) -> PyResult<Vec<Run>> {
-    let a: TrackArgs = parse("track", &argv).map_err(from_clap)?;
-    for (flag, given) in [("--json", a.json.is_some()), ("--plot", a.plot.is_some())] {
-        if given {
-            return Err(refused(
-                flag,
-                "the Python functions write no files: track() returns the trajectories",
-            ));
-        }
-    }
-    let thermal = greybox::cli::track::thermal(&a).map_err(words::<TrackArgs>("track"))?;
-    let (runs, names) =
-        py.detach(|| greybox::cli::track::track_logs(&a)).map_err(words::<TrackArgs>("track"))?;
-    runs.into_iter()
-        .zip(names)
-        .map(|((_, _, tr), name)| {
-            let f = &tr.final_estimate;
-            let column = |v: Vec<f64>| Arc::new(Float64Array::from(v)) as ArrayRef;
-            let mut columns = vec![
-                ("t", column(tr.t.clone())),
-                ("k_e", column(tr.k_e.clone())),
-                ("r_s", column(tr.r_s.clone())),
-            ];
-            if !tr.k_e_se.is_empty() {
-                columns.push(("k_e_se", column(tr.k_e_se.clone())));
-                columns.push(("r_s_se", column(tr.r_s_se.clone())));
-            }
-            if let Some(reference) = &thermal {
-                let temps = tr.temperatures(a.pole_pairs, reference);
-                for (name, v) in [
-                    ("t_winding", temps.t_winding),
-                    ("t_winding_se", temps.t_winding_se),
-                    ("t_magnet", temps.t_magnet),
-                    ("t_magnet_se", temps.t_magnet_se),
-                ] {
-                    if !v.is_empty() {
-                        columns.push((name, column(v)));
-                    }
-                }
-            }
-            let batch = RecordBatch::try_from_iter(columns)
-                .map_err(|e| crate::errors::Error::new_err(e.to_string()))?;
-            let se = tr.final_se();
-            let last = (f.k_e, f.k_t, f.r_s, se.map(|s| s.0), se.map(|s| s.1), tr.innovation_ratio);
-            Ok((name, last, batch.to_pyarrow(py)?.unbind()))
-        })
-        .collect()
 }
 
 /// Simulates the closed-loop drive of `greybox simulate` (the flags `argv`), the GIL

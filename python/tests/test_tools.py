@@ -76,11 +76,18 @@ def test_track(sample):
     assert run.trajectory.column_names == ["t", "k_e", "r_s"]
     assert run.trajectory.num_rows > 1000
     assert run.final["k_e"] == run.trajectory.column("k_e")[-1].as_py()
-    with pytest.raises(greybox.OptionError, match="--l-s"):
+    # Its self-check: the one-step predictions at its estimates within the log's noise.
+    assert run.final["trusted"] and run.final["innovation_ratio"] < greybox.INNOVATION_RATIO_LIMIT
+    with pytest.raises(greybox.OptionError, match="give l_s H"):
         greybox.track(sample, pole_pairs=4)
     # The MRAS's gains with the Kalman filter, the default, are refused.
-    with pytest.raises(greybox.OptionError, match="--gamma-ke"):
+    with pytest.raises(greybox.OptionError, match='`gamma_ke`: is a setting of the MRAS: add estimator="mras"'):
         greybox.track(sample, pole_pairs=4, params=fit, gamma_ke=0.01)
+    # A wrong value or keyword is named as the keyword.
+    with pytest.raises(greybox.OptionError, match="estimator='kalman': expected mras or ekf"):
+        greybox.track(sample, pole_pairs=4, params=fit, estimator="kalman")
+    with pytest.raises(greybox.OptionError, match="unknown keyword `gamma_k`: did you mean gamma_ke"):
+        greybox.track(sample, pole_pairs=4, params=fit, gamma_k=0.01)
     # The Kalman filter (the default): a standard error at every step and at the end.
     (run,) = greybox.track(sample, pole_pairs=4, params=fit)
     assert run.trajectory.column_names == ["t", "k_e", "r_s", "k_e_se", "r_s_se"]

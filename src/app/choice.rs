@@ -2,10 +2,13 @@
 //! string in Python, parsed by the same table ([`Choice`]) so that both accept the same
 //! names; the command line's `clap::ValueEnum` derivations are checked against it (tests).
 
+use super::track::Estimator;
 use super::values::{InverterChoice, Method, ModelChoice, Voltage};
 use crate::estimate::{ScalingKind, SolverKind};
+use crate::online::Adaptation;
 use crate::pmsm::{
     AngleUnit, CarrierEdge, Frame, HoldChoice, Modulator, MotorKind, PwmUpdate, Scale, SpeedUnit, TimeUnit,
+    VoltageHold,
 };
 
 /// A value chosen by its name from a fixed list.
@@ -60,6 +63,10 @@ choice!(Voltage: "actual" => Voltage::Actual, "reference" => Voltage::Reference)
 choice!(ModelChoice: "spm" => ModelChoice::Spm, "ipm" => ModelChoice::Ipm,
     "spm-steady" => ModelChoice::SpmSteady, "ipm-steady" => ModelChoice::IpmSteady);
 choice!(InverterChoice: "none" => InverterChoice::None, "pwm" => InverterChoice::Pwm);
+choice!(Estimator: "mras" => Estimator::Mras, "ekf" => Estimator::Ekf);
+choice!(Adaptation: "normalised" => Adaptation::Normalised, "lyapunov" => Adaptation::Lyapunov,
+    "relay" => Adaptation::Relay);
+choice!(VoltageHold: "stator" => VoltageHold::Stator, "dq" => VoltageHold::Dq);
 
 #[cfg(test)]
 mod tests {
@@ -108,6 +115,18 @@ mod tests {
         same_as_clap::<Voltage>();
         same_as_clap::<ModelChoice>();
         same_as_clap::<InverterChoice>();
+        // `greybox track`'s values are the command line's own enums, converted.
+        use crate::cli::track::{AdaptationArg, EstimatorArg, TrackHold};
+        fn listed<T: clap::ValueEnum>() -> Vec<String> {
+            T::value_variants()
+                .iter()
+                .filter_map(|v| v.to_possible_value())
+                .map(|p| p.get_name().into())
+                .collect()
+        }
+        assert_eq!(listed::<EstimatorArg>(), Estimator::LISTED);
+        assert_eq!(listed::<AdaptationArg>(), Adaptation::LISTED);
+        assert_eq!(listed::<TrackHold>(), VoltageHold::LISTED);
     }
 
     #[test]

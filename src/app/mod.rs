@@ -8,6 +8,7 @@
 //! - [`read_sources`], [`read_logs`]: the logs as asked ([`LogReading`]); [`fit_experiments`]
 //!   fits them ([`Fitted`]: the JSON report, its table, the fit).
 //! - [`fit_each`]: many logs, each on its own, one summary [`Record`] per log.
+//! - [`TrackRequest`]: the options of an online estimation; [`track_logs`] runs it.
 //! - [`Choice`] and the values of [`values`]: the words both front ends accept.
 //!
 //! No item here prints, exits or draws a progress bar: the front ends do.
@@ -20,6 +21,7 @@ mod logs;
 mod plan;
 mod reading;
 mod request;
+mod track;
 pub mod values;
 pub mod words;
 
@@ -31,6 +33,7 @@ pub use logs::{check_paths, unique_names};
 pub use plan::{Plan, fit_logs, plan, pole_pairs};
 pub use reading::{named, read_logs, read_segments_from, read_sources};
 pub use request::{FitRequest, LogReading, PwmRequest};
+pub use track::{Estimator, KalmanSettings, MrasSettings, TrackRequest, TrackedLog, track_logs};
 pub use values::{
     Advance, DeadTime, Delay, Gain, InverterChoice, LegWidth, Method, ModelChoice, Pll, PolePairs, Voltage,
 };

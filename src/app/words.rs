@@ -63,6 +63,11 @@ const VALUES: &[&str] = &[
     "rising",
     "falling",
     "min-max",
+    "mras",
+    "ekf",
+    "normalised",
+    "lyapunov",
+    "relay",
 ];
 
 /// `text` (a message in the command line's words) with every `--flag` written as the
@@ -123,5 +128,6 @@ mod tests {
             "replaces the averaged dead_time model"
         );
         assert_eq!(keywords("a-- b"), "a-- b");
+        assert_eq!(keywords("add --estimator mras, or drop it"), "add estimator=\"mras\", or drop it");
     }
 }

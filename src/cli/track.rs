@@ -3,12 +3,10 @@
 
 use super::args::ColumnArgs;
 use super::output;
+use crate::app::{Estimator, KalmanSettings, MrasSettings, TrackRequest, track_logs};
 use crate::data::Staged;
-use crate::online::{
-    Adaptation, INNOVATION_RATIO_LIMIT, KalmanNoise, MrasConfig, Trajectory, current_noise, track,
-    track_kalman,
-};
-use crate::pmsm::{CsvOptions, SavedModel, ThermalReference, VoltageHold, VoltageInput, applied_experiment};
+use crate::online::{Adaptation, INNOVATION_RATIO_LIMIT, Trajectory};
+use crate::pmsm::VoltageHold;
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 
@@ -16,16 +14,16 @@ mod report;
 
 /// Arguments of `greybox track`.
 ///
-/// JSON shape (`--json`): one log gives
-/// `{"final": {"k_e", "k_t", "r_s"}, "trajectory": {"t": [], "k_e": [], "r_s": []}}`
-/// (with `--estimator ekf` also `k_e_se`, `k_t_se`, `r_s_se` in `final` and `k_e_se`,
-/// `r_s_se` in `trajectory`: standard errors);
+/// JSON shape (`--json`): one log gives `{"final": {"k_e", "k_t", "r_s", "innovation_ratio",
+/// "trusted"}, "trajectory": {"t": [], "k_e": [], "r_s": []}}` (with `--estimator ekf` also
+/// `k_e_se`, `k_t_se`, `r_s_se` in `final` and `k_e_se`, `r_s_se` in `trajectory`: standard
+/// errors);
 /// several logs give `{"logs": [{"log": PATH, "final": …, "trajectory": …}, …]}` in the
 /// order given (PATH as given on the command line). Non-finite numbers are written as `null`.
 #[derive(Args, Debug)]
 #[command(
-    after_help = "JSON (--json): one log gives {\"final\": {\"k_e\", \"k_t\", \"r_s\"}, \"trajectory\": \
-{\"t\": [...], \"k_e\": [...], \"r_s\": [...]}}; several logs give {\"logs\": [{\"log\": PATH, \"final\": ..., \
+    after_help = "JSON (--json): one log gives {\"final\": {\"k_e\", \"k_t\", \"r_s\", \"innovation_ratio\", \
+\"trusted\"}, \"trajectory\": {\"t\": [...], \"k_e\": [...], \"r_s\": [...]}}; several logs give {\"logs\": [{\"log\": PATH, \"final\": ..., \
 \"trajectory\": ...}, ...]}, in the order given (PATH as given). With --estimator ekf, final and trajectory also \
 carry the standard errors k_e_se, r_s_se (final: k_t_se). Units: k_e V s/rad, k_t N m/A, r_s ohm, t s. \
 Non-finite numbers are null."
@@ -174,7 +172,7 @@ pub enum TrackHold {
 }
 
 /// Runs `greybox track`: the observer over every log, the summary lines on stdout, the JSON
-/// and the plot where asked. Returns whether every run passed the filter's self-check
+/// and the plot where asked. Returns whether every run passed its self-check
 /// ([`Trajectory::consistent`]); each that did not is named in a warning on stderr.
 ///
 /// # Errors
@@ -184,8 +182,9 @@ pub fn run_track(a: &TrackArgs) -> crate::Result<bool> {
     // Fail before the work, not after it, when the output cannot be written.
     let inputs: Vec<PathBuf> = a.logs.iter().chain(&a.params).cloned().collect();
     output::check_all(&[("--json", a.json.as_deref()), ("--plot", a.plot.as_deref())], &inputs)?;
-    let thermal = thermal(a)?;
-    let (runs, names) = track_logs(a)?;
+    let request = TrackRequest::from(a);
+    let thermal = request.thermal()?;
+    let (runs, names) = track_logs(&a.logs, &request)?;
     let mut staged = Staged::new();
     if let Some(plot) = &a.plot {
         super::plots::track_plot(&mut staged, plot, &runs)?;
@@ -207,258 +206,73 @@ pub fn run_track(a: &TrackArgs) -> crate::Result<bool> {
     staged.commit()?;
     let untrusted: Vec<&(String, Trajectory)> = runs.iter().filter(|(_, tr)| !tr.consistent()).collect();
     for (name, tr) in &untrusted {
+        // The filter's trajectory carries standard errors, the MRAS's none.
+        let (what, how, flag) = if tr.final_se().is_some() {
+            (
+                "the Kalman filter's innovations are",
+                "their mean normalised square over the second half, halved",
+                ", or give the current noise with --current-noise",
+            )
+        } else {
+            (
+                "the MRAS's one-step prediction errors (from the measured current at its running estimates) are",
+                "their errors' mean square over the second half over 4σ², σ the current noise the log shows",
+                "",
+            )
+        };
         eprintln!(
-            "warning: {name}: the Kalman filter's innovations are {} times as large as its model predicts \
-             (their mean normalised square over the second half, halved; 1 when the model and the noise \
-             level are right, at most {INNOVATION_RATIO_LIMIT} trusted): its estimates and intervals are not \
-             to be trusted. Check --l-s and --l-q (or --params), --hold and the voltage the log gives, or \
-             give the current noise with --current-noise; exit code 3",
+            "warning: {name}: {what} {} times as large as the model predicts ({how}; 1 when the model \
+             and the noise level are right, at most {INNOVATION_RATIO_LIMIT} trusted): its estimates are not \
+             to be trusted. Check --l-s and --l-q (or --params), --hold and the voltage the log gives{flag}; \
+             exit code 3",
             Ratio(tr.innovation_ratio.unwrap_or(f64::NAN))
         );
     }
     Ok(untrusted.is_empty())
 }
 
-/// The temperatures' reference of `--t0`, `--r-s-t0`, `--psi-f-t0` (MODEL.md §3), if
-/// given.
-///
-/// # Errors
-/// [`crate::Error::InvalidOption`] naming `--t0` for a reference value without it, and
-/// those of [`ThermalReference::try_new`].
-pub fn thermal(a: &TrackArgs) -> crate::Result<Option<ThermalReference>> {
-    match (a.t0, a.r_s_t0, a.psi_f_t0) {
-        (None, None, None) => Ok(None),
-        (Some(t0), r, p) => ThermalReference::try_new(t0, r, p).map(Some).map_err(|e| match e {
-            crate::Error::InvalidOption { reason, .. } => {
-                crate::Error::InvalidOption { option: "t0".into(), reason }
-            }
-            e => e,
-        }),
-        (None, ..) => Err(crate::Error::InvalidOption {
-            option: "t0".into(),
-            reason: "--r-s-t0 and --psi-f-t0 are values at a reference temperature: give it with --t0".into(),
-        }),
-    }
-}
-
-/// One observer run: the log's path, its segment (`--split-gaps`, from 1) and the trajectory.
-pub type TrackRun = (PathBuf, Option<usize>, Trajectory);
-
-/// The observer of `greybox track` over every log of `a` (each segment of a log split at
-/// its gaps on its own), with the run names the command prints (`LOG` or `LOG#k`), in the
-/// order of the logs.
-///
-/// # Errors
-/// An invalid observer setting (naming its flag), an unreadable `--params` or log, an
-/// observer that fails on a log.
-pub fn track_logs(a: &TrackArgs) -> crate::Result<(Vec<TrackRun>, Vec<String>)> {
-    let (config, input) = config(a)?;
-    let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
-    let groups = a.columns.read_logs(&a.logs, &csv, false)?;
-    let (mut runs, mut names) = (Vec::with_capacity(a.logs.len()), Vec::with_capacity(a.logs.len()));
-    for (path, group) in a.logs.iter().zip(groups) {
-        // With --split-gaps, each segment is tracked on its own: `LOG#1`, `LOG#2`, ….
-        let one = group.len() == 1;
-        for (k, log) in group.iter().enumerate() {
-            // A fit from the reference voltage (--params) drives the observer with the voltage
-            // its delay and advance apply, as it drove the fit.
-            let applied = match input {
-                VoltageInput::Terminal => None,
-                _ => Some(applied_experiment(log, a.pole_pairs, input).map_err(|e| flag_error(e, path))?),
-            };
-            let log = applied.as_ref().unwrap_or(log);
-            let trajectory = match a.estimator {
-                EstimatorArg::Mras => track(log, &config),
-                EstimatorArg::Ekf => {
-                    track_kalman(log, &config, Some(noise(a, &config, log)?)).map_err(diverged)
-                }
-            }
-            .map_err(|e| flag_error(e, path))?;
-            let segment = (!one).then_some(k + 1);
-            let name = path.display().to_string();
-            names.push(segment.map_or_else(|| name.clone(), |k| format!("{name}#{k}")));
-            runs.push((path.clone(), segment, trajectory));
+impl From<&TrackArgs> for TrackRequest {
+    /// The request of the flags (`--json`, `--plot`, `--max-points` and `--quiet` are the
+    /// command line's outputs, not the request's).
+    fn from(a: &TrackArgs) -> Self {
+        TrackRequest {
+            pole_pairs: a.pole_pairs,
+            reading: a.columns.reading(),
+            l_s: a.l_s,
+            l_q: a.l_q,
+            params: a.params.clone(),
+            k_e0: a.k_e0,
+            r_s0: a.r_s0,
+            hold: a.hold.map(|h| match h {
+                TrackHold::Stator => VoltageHold::Stator,
+                TrackHold::Dq => VoltageHold::Dq,
+            }),
+            estimator: match a.estimator {
+                EstimatorArg::Mras => Estimator::Mras,
+                EstimatorArg::Ekf => Estimator::Ekf,
+            },
+            mras: MrasSettings {
+                gamma_ke: a.gamma_ke,
+                gamma_rs: a.gamma_rs,
+                i_d_threshold: a.i_d_threshold,
+                observer_gain: a.observer_gain,
+                adaptation: a.adaptation.map(|x| match x {
+                    AdaptationArg::Normalised => Adaptation::Normalised,
+                    AdaptationArg::Lyapunov => Adaptation::Lyapunov,
+                    AdaptationArg::Relay => Adaptation::Relay,
+                }),
+                tau_ke: a.tau_ke,
+                tau_rs: a.tau_rs,
+            },
+            kalman: KalmanSettings {
+                current_noise: a.current_noise,
+                r_s_walk: a.r_s_walk,
+                k_e_walk: a.k_e_walk,
+            },
+            t0: a.t0,
+            r_s_t0: a.r_s_t0,
+            psi_f_t0: a.psi_f_t0,
         }
-    }
-    Ok((runs, names))
-}
-
-/// A numerical failure of the Kalman filter in the words of its likely cause: a filter
-/// whose model does not fit the log diverges (its covariance stops being finite or
-/// positive).
-fn diverged(e: crate::Error) -> crate::Error {
-    match e {
-        crate::Error::Numerical { context, reason } => crate::Error::Numerical {
-            context,
-            reason: format!(
-                "{reason}: the filter diverged, its model does not fit this log (check --l-s and --l-q or \
-                 --params, --hold and the voltage the log gives)"
-            ),
-        },
-        e => e,
-    }
-}
-
-/// The Kalman filter's noise model of the flags for `log`: `--current-noise` or the log's
-/// own ([`current_noise`]), `--r-s-walk`, `--k-e-walk` or their defaults
-/// ([`KalmanNoise::for_machine`]).
-///
-/// # Errors
-/// A log without its currents (those of [`crate::pmsm::DqView::try_new`]).
-fn noise(a: &TrackArgs, config: &MrasConfig, log: &crate::Experiment) -> crate::Result<KalmanNoise> {
-    let sigma_i = match a.current_noise {
-        Some(s) => s,
-        None => {
-            let v = crate::pmsm::DqView::try_new(log)?;
-            current_noise(v.i_d(), v.i_q())
-        }
-    };
-    let d = KalmanNoise::for_machine(sigma_i, config.r_s0, config.k_e0);
-    if a.r_s_walk.is_none() && a.k_e_walk.is_none() {
-        return Ok(d);
-    }
-    // A walk given is absolute: the other one's default taken at the start.
-    let (q_r, q_k) = d.walks_at(config.r_s0, config.k_e0);
-    Ok(KalmanNoise {
-        q_r_s: a.r_s_walk.unwrap_or(q_r),
-        q_k_e: a.k_e_walk.unwrap_or(q_k),
-        relative: false,
-        ..d
-    })
-}
-
-/// Refuses a flag of the estimator not chosen: the MRAS's gains with the Kalman filter (the
-/// default), the filter's noise with the MRAS.
-///
-/// # Errors
-/// [`crate::Error::InvalidOption`] naming the first such flag.
-fn other_estimators_flags(a: &TrackArgs) -> crate::Result<()> {
-    let mras = [
-        ("gamma-ke", a.gamma_ke.is_some()),
-        ("gamma-rs", a.gamma_rs.is_some()),
-        ("i-d-threshold", a.i_d_threshold.is_some()),
-        ("observer-gain", a.observer_gain.is_some()),
-        ("adaptation", a.adaptation.is_some()),
-        ("tau-ke", a.tau_ke.is_some()),
-        ("tau-rs", a.tau_rs.is_some()),
-    ];
-    let ekf = [
-        ("current-noise", a.current_noise.is_some()),
-        ("r-s-walk", a.r_s_walk.is_some()),
-        ("k-e-walk", a.k_e_walk.is_some()),
-    ];
-    let (given, reason) = match a.estimator {
-        EstimatorArg::Ekf => (
-            mras.iter().find(|f| f.1),
-            "is a setting of the MRAS: add --estimator mras, or drop it for the Kalman filter (the default), \
-             whose settings are --current-noise, --r-s-walk and --k-e-walk",
-        ),
-        EstimatorArg::Mras => (
-            ekf.iter().find(|f| f.1),
-            "is a setting of the Kalman filter (--estimator ekf, the default): drop --estimator mras to use it",
-        ),
-    };
-    match given {
-        Some((flag, _)) => Err(crate::Error::InvalidOption { option: (*flag).into(), reason: reason.into() }),
-        None => Ok(()),
-    }
-}
-
-/// The observer's settings from the flags (and `--params`: its inductances, estimates, hold
-/// and voltage input), validated before any log is read; errors name the flag.
-fn config(a: &TrackArgs) -> crate::Result<(MrasConfig, VoltageInput)> {
-    other_estimators_flags(a)?;
-    let d = MrasConfig::default();
-    let saved = match &a.params {
-        None => None,
-        Some(p) => {
-            let text =
-                std::fs::read_to_string(p).map_err(|source| crate::Error::Io { path: p.clone(), source })?;
-            Some(SavedModel::from_json(&text, Some(a.pole_pairs), None)?)
-        }
-    };
-    // The report's value of a parameter by name (SPM: r_s, l_s, k_e; IPM: r_s, l_d, l_q, k_e).
-    let from_report = |name: &str| {
-        let s = saved.as_ref()?;
-        let i = s.kind.parameter_names().iter().position(|n| *n == name)?;
-        s.theta.get(i).copied()
-    };
-    let l_s = a.l_s.or(from_report("l_s")).or(from_report("l_d")).ok_or_else(|| crate::Error::InvalidOption {
-        option: "l-s".into(),
-        reason: "the observer needs the stator inductance: give --l-s H (with --l-q: L_d) or --params REPORT.json of a fit"
-            .into(),
-    })?;
-    let l_q = a.l_q.or(from_report("l_q"));
-    let config = MrasConfig {
-        n_p: a.pole_pairs,
-        l_s,
-        l_q,
-        h: 1.0, // replaced by each log's sample time in `track`
-        f: a.observer_gain.unwrap_or(d.f),
-        gamma_ke: a.gamma_ke.unwrap_or(d.gamma_ke),
-        gamma_rs: a.gamma_rs.unwrap_or(d.gamma_rs),
-        i_d_threshold: a.i_d_threshold.unwrap_or(d.i_d_threshold),
-        adaptation: match a.adaptation.unwrap_or(AdaptationArg::Normalised) {
-            AdaptationArg::Normalised => Adaptation::Normalised,
-            AdaptationArg::Lyapunov => Adaptation::Lyapunov,
-            AdaptationArg::Relay => Adaptation::Relay,
-        },
-        tau_ke: a.tau_ke.unwrap_or(d.tau_ke),
-        tau_rs: a.tau_rs.unwrap_or(d.tau_rs),
-        k_e0: a.k_e0.or(from_report("k_e")).unwrap_or(0.0),
-        r_s0: a.r_s0.or(from_report("r_s")).unwrap_or(0.0),
-        hold: match a.hold {
-            Some(TrackHold::Stator) => VoltageHold::Stator,
-            Some(TrackHold::Dq) => VoltageHold::Dq,
-            None => saved.as_ref().map_or(VoltageHold::Stator, |s| s.hold),
-        },
-    };
-    config.validate().map_err(|e| flag_error(e, &PathBuf::new()))?;
-    if saved.as_ref().is_some_and(|s| s.inverter.is_some()) {
-        return Err(crate::Error::InvalidOption {
-            option: "params".into(),
-            reason: "the fit modelled the inverter's dead time, which the observer does not: give the report of a \
-                     fit from the terminal voltage, or of one from the reference without --dead-time"
-                .into(),
-        });
-    }
-    Ok((config, saved.map_or(VoltageInput::Terminal, |s| s.input)))
-}
-
-/// Renames a [`MrasConfig`] field in an error to the flag that sets it; other errors name
-/// the log (`log` empty: none).
-fn flag_error(e: crate::Error, log: &std::path::Path) -> crate::Error {
-    match e {
-        crate::Error::InvalidOption { option, reason } => {
-            let flag = match option.as_str() {
-                "n_p" => "pole-pairs",
-                "l_s" => "l-s",
-                "l_q" => "l-q",
-                "f" => "observer-gain",
-                "gamma_ke" => "gamma-ke",
-                "gamma_rs" => "gamma-rs",
-                "tau_ke" => "tau-ke",
-                "tau_rs" => "tau-rs",
-                "i_d_threshold" => "i-d-threshold",
-                "k_e0" => "k-e0",
-                "r_s0" => "r-s0",
-                "sigma_i" => "current-noise",
-                "q_r_s" => "r-s-walk",
-                "q_k_e" => "k-e-walk",
-                other => other,
-            };
-            crate::Error::InvalidOption { option: flag.into(), reason }
-        }
-        // The observer's own failures name the sample, not the log.
-        e @ (crate::Error::NonFinite { .. } | crate::Error::Numerical { .. })
-            if !log.as_os_str().is_empty() =>
-        {
-            crate::Error::Numerical {
-                context: format!("the observer over {}", log.display()),
-                reason: e.to_string(),
-            }
-        }
-        e => e,
     }
 }
 

@@ -157,6 +157,20 @@ impl Mras {
         self.core.predicted_current()
     }
 
+    /// The model's prediction `(i_d, i_q)` \[A\] of the current at the next sample from the
+    /// measured current, voltage and speed of `s` at the estimates `est` (`K̂_e`, `R̂_s`;
+    /// no observer correction): what [`crate::online::track`]'s self-check compares with
+    /// the next measured current.
+    ///
+    /// # Errors
+    /// Those of the salient model's step ([`Error::Numerical`]).
+    pub(crate) fn one_step(&self, s: &Sample, est: &Estimates) -> Result<(f64, f64)> {
+        use greybox_observer::Plant;
+        let x = crate::pmsm::C64::new(s.i_d, s.i_q);
+        let next = self.core.plant().step(x, est.k_e, est.r_s, &step::sample(s), false)?.next;
+        Ok((next.re, next.im))
+    }
+
     /// Takes sample k and moves the observer to `t_{k+1}`: [`Mras::compute_output`] then
     /// [`Mras::advance`]. Returns the estimates after the adaptation at `t_k`.
     ///

@@ -102,7 +102,10 @@ pub(super) fn to_json(
         // `json!` writes a non-finite f64 as null.
         let mut v = match tr.final_se() {
             None => json!({
-                "final": { "k_e": f.k_e, "k_t": f.k_t, "r_s": f.r_s },
+                "final": {
+                    "k_e": f.k_e, "k_t": f.k_t, "r_s": f.r_s,
+                    "innovation_ratio": tr.innovation_ratio, "trusted": tr.consistent(),
+                },
                 "trajectory": { "t": d.t, "k_e": d.k_e, "r_s": d.r_s },
             }),
             Some((k_se, r_se)) => json!({
