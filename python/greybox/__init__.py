@@ -204,8 +204,7 @@ def validate(log: Union[PathLike, Sequence[PathLike]], *, params: Any, **options
 
     paths = [os.fspath(p) for p in (log if isinstance(log, (list, tuple)) else [log])]
     with contextlib.ExitStack() as stack:
-        argv = to_argv(_flags(params=_params_file(params, stack), **options), paths)
-        return json.loads(_greybox.validate(argv))
+        return json.loads(_greybox.validate(paths, _flags(params=_params_file(params, stack), **options)))
 
 
 class TrackRun(NamedTuple):

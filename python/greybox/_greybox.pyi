@@ -56,8 +56,9 @@ def log_names(paths: list[str]) -> list[str]:
 def expand_logs(pattern: str) -> list[str]:
     """The logs of a folder or glob, as ``fit --each`` finds them."""
 
-def validate(argv: list[str]) -> str:
-    """``greybox validate`` with the flags ``argv``: the JSON of ``--json``."""
+def validate(logs: list[str], options: dict[str, Any]) -> str:
+    """``greybox validate`` over ``logs`` with the keyword ``options`` (``params`` among
+    them): the JSON of ``--json``."""
 
 def track(
     logs: list[str],

@@ -1,10 +1,10 @@
 //! `greybox._greybox`: the native half of the Python package `greybox`. The fits (`fit`,
-//! `fit_records`) and `track` are thin over the library's application layer
+//! `fit_records`), `track` and `validate` are thin over the library's application layer
 //! ([`greybox::app`]): the keyword options arrive as a dict, each converted once into the
-//! typed request ([`request`], [`track`]; the logs' reading by [`reading`]) and every error
-//! put in the keywords' words ([`words`]). The other tools (`validate`, `simulate`,
-//! `report`) still pass their keywords as the command line's flags to its parser
-//! ([`greybox::cli`]). Every run releases the GIL.
+//! typed request ([`request`], [`track`], [`validate`]; the logs' reading by [`reading`]) and every error
+//! put in the keywords' words ([`words`]). The other tools (`simulate`, `report`) still
+//! pass their keywords as the command line's flags to its parser ([`greybox::cli`]). Every
+//! run releases the GIL.
 //!
 //! The Python half (`python/greybox/`) is the public face; this module is private.
 
@@ -16,6 +16,7 @@ mod reading;
 mod request;
 mod tools;
 mod track;
+mod validate;
 mod words;
 
 use pyo3::prelude::*;
@@ -35,7 +36,7 @@ fn _greybox(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(many::summary_columns, m)?)?;
     m.add_function(wrap_pyfunction!(many::log_names, m)?)?;
     m.add_function(wrap_pyfunction!(many::expand_logs, m)?)?;
-    m.add_function(wrap_pyfunction!(tools::validate, m)?)?;
+    m.add_function(wrap_pyfunction!(validate::validate, m)?)?;
     m.add_function(wrap_pyfunction!(track::track, m)?)?;
     m.add_function(wrap_pyfunction!(tools::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(tools::report, m)?)?;

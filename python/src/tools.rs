@@ -1,4 +1,4 @@
-//! `greybox.validate`, `greybox.simulate` and the fits of issue 33
+//! `greybox.simulate` and the fits of issue 33
 //! (`fluxmap`, `saturation`, `standstill`, `mechanics`): the command line's subcommands
 //! with their results handed back instead of printed or written.
 
@@ -11,34 +11,12 @@ use greybox::cli::output::Outcome;
 use greybox::cli::saturation::SaturationArgs;
 use greybox::cli::simulate::SimulateArgs;
 use greybox::cli::standstill::StandstillArgs;
-use greybox::cli::validate::ValidateArgs;
 use greybox::cli::{command, parse};
 use pyo3::prelude::*;
 
 /// `e` in the words of the subcommand `name` with the flags of `T`, as a Python exception.
 fn words<T: clap::Args>(name: &'static str) -> impl Fn(greybox::Error) -> PyErr {
     move |e| to_py(in_cli_words(e, &command::<T>(name)))
-}
-
-/// Validates the saved fit of `--params` on the logs of `argv` (the flags of `greybox
-/// validate`), the GIL released; the JSON of `validate --json`.
-///
-/// Errors: `OptionError`, `DataError`, `FitError` with the command line's messages.
-#[pyfunction]
-pub fn validate(py: Python<'_>, argv: Vec<String>) -> PyResult<String> {
-    let a: ValidateArgs = parse("validate", &argv).map_err(from_clap)?;
-    for (flag, given) in [
-        ("--json", a.json.is_some()),
-        ("--plot", a.plot.is_some()),
-        ("--compare-dir", a.compare_dir.is_some()),
-    ] {
-        if given {
-            return Err(refused(flag, "the Python functions write no files: validate() returns the report"));
-        }
-    }
-    let (saved, _, comparisons) =
-        py.detach(|| greybox::cli::validate::compare(&a)).map_err(words::<ValidateArgs>("validate"))?;
-    Ok(greybox::cli::validate::to_json(&saved, &comparisons))
 }
 
 /// Simulates the closed-loop drive of `greybox simulate` (the flags `argv`), the GIL

@@ -65,8 +65,15 @@ def test_validate_with_a_fit(sample):
     (comparison,) = report["comparisons"]
     assert min(comparison["metrics"]["fit_percent"]) > 90
     assert greybox.validate(sample, params=fit.to_dict(), from_=1.6) == report
-    with pytest.raises(greybox.OptionError, match="--params`: not a fit report"):
+    with pytest.raises(greybox.OptionError, match="`params`: not a fit report"):
         greybox.validate(sample, params={"model": "nothing"})
+    # A wrong value or keyword is named as the keyword.
+    with pytest.raises(greybox.OptionError, match="hold='dqq': expected stator or dq"):
+        greybox.validate(sample, params=fit, hold="dqq")
+    with pytest.raises(greybox.OptionError, match="unknown keyword `from_to`"):
+        greybox.validate(sample, params=fit, from_to=1.6)
+    with pytest.raises(greybox.OptionError, match="`compare_dir`: the Python functions write no files"):
+        greybox.validate(sample, params=fit, compare_dir=".")
 
 
 def test_track(sample):

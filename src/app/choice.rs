@@ -127,6 +127,9 @@ mod tests {
         assert_eq!(listed::<EstimatorArg>(), Estimator::LISTED);
         assert_eq!(listed::<AdaptationArg>(), Adaptation::LISTED);
         assert_eq!(listed::<TrackHold>(), VoltageHold::LISTED);
+        let mut hold = listed::<crate::cli::validate::ValidateHold>();
+        hold.sort();
+        assert_eq!(hold, ["dq", "stator"]);
     }
 
     #[test]

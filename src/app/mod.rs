@@ -9,6 +9,7 @@
 //!   fits them ([`Fitted`]: the JSON report, its table, the fit).
 //! - [`fit_each`]: many logs, each on its own, one summary [`Record`] per log.
 //! - [`TrackRequest`]: the options of an online estimation; [`track_logs`] runs it.
+//! - [`ValidateRequest`]: a saved fit against other logs; [`validate`] compares them.
 //! - [`Choice`] and the values of [`values`]: the words both front ends accept.
 //!
 //! No item here prints, exits or draws a progress bar: the front ends do.
@@ -22,6 +23,7 @@ mod plan;
 mod reading;
 mod request;
 mod track;
+mod validate;
 pub mod values;
 pub mod words;
 
@@ -34,6 +36,7 @@ pub use plan::{Plan, fit_logs, plan, pole_pairs};
 pub use reading::{named, read_logs, read_segments_from, read_sources};
 pub use request::{FitRequest, LogReading, PwmRequest};
 pub use track::{Estimator, KalmanSettings, MrasSettings, TrackRequest, TrackedLog, track_logs};
+pub use validate::{ValidateRequest, validate, validation_json};
 pub use values::{
     Advance, DeadTime, Delay, Gain, InverterChoice, LegWidth, Method, ModelChoice, Pll, PolePairs, Voltage,
 };

@@ -2,10 +2,9 @@
 
 use super::args::ColumnArgs;
 use super::output;
-use crate::Experiment;
+use crate::app::{ValidateRequest, validate, validation_json};
 use crate::data::Staged;
-use crate::pmsm::{CsvOptions, SavedModel, VoltageHold};
-use crate::report::Comparison;
+use crate::pmsm::VoltageHold;
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 
@@ -67,7 +66,7 @@ pub fn run_validate(a: &ValidateArgs) -> crate::Result<()> {
             reason: format!("{} is not a folder", dir.display()),
         });
     }
-    let (saved, logs, comparisons) = compare(a)?;
+    let (saved, logs, comparisons) = validate(&a.logs, &ValidateRequest::from(a))?;
     let quiet = a.quiet || a.json.as_ref().is_some_and(|p| p.as_os_str() == "-");
     if !quiet {
         super::output::stdout(
@@ -123,42 +122,23 @@ pub fn run_validate(a: &ValidateArgs) -> crate::Result<()> {
         }
     }
     if let Some(path) = &a.json {
-        output::write(&mut staged, path, &to_json(&saved, &comparisons))?;
+        output::write(&mut staged, path, &validation_json(&saved, &comparisons))?;
     }
     staged.commit()
 }
 
-/// The saved fit of `--params`, the logs read, and the comparison of its simulation with
-/// each log, as `greybox validate` computes them.
-///
-/// # Errors
-/// An unreadable or invalid `--params`, an unreadable log, a simulation that fails.
-pub fn compare(a: &ValidateArgs) -> crate::Result<(SavedModel, Vec<Experiment>, Vec<Comparison>)> {
-    let text = std::fs::read_to_string(&a.params)
-        .map_err(|source| crate::Error::Io { path: a.params.clone(), source })?;
-    let hold = a.hold.map(|h| match h {
-        ValidateHold::Dq => VoltageHold::Dq,
-        ValidateHold::Stator => VoltageHold::Stator,
-    });
-    let saved = SavedModel::from_json(&text, a.pole_pairs, hold)?;
-    let csv = CsvOptions { pole_pairs: Some(saved.pole_pairs), ..a.columns.options() };
-    let logs: Vec<_> = a.columns.read_logs(&a.logs, &csv, false)?.into_iter().flatten().collect();
-    let comparisons = saved.validate(&logs)?;
-    Ok((saved, logs, comparisons))
-}
-
-/// The JSON of a validation (`--json`): model, pole pairs, hold, θ and each log's metrics.
-pub fn to_json(saved: &SavedModel, comparisons: &[Comparison]) -> String {
-    let metrics: Vec<serde_json::Value> = comparisons
-        .iter()
-        .map(|c| serde_json::json!({ "experiment": c.experiment, "metrics": c.metrics }))
-        .collect();
-    let report = serde_json::json!({
-        "model": saved.kind.model_name(),
-        "pole_pairs": saved.pole_pairs,
-        "hold": saved.hold,
-        "theta": saved.theta,
-        "comparisons": metrics,
-    });
-    serde_json::to_string_pretty(&report).unwrap_or_default()
+impl From<&ValidateArgs> for ValidateRequest {
+    /// The request of the flags (`--json`, `--compare-dir`, `--plot` and `--quiet` are the
+    /// command line's outputs, not the request's).
+    fn from(a: &ValidateArgs) -> Self {
+        ValidateRequest {
+            params: a.params.clone(),
+            pole_pairs: a.pole_pairs,
+            hold: a.hold.map(|h| match h {
+                ValidateHold::Dq => VoltageHold::Dq,
+                ValidateHold::Stator => VoltageHold::Stator,
+            }),
+            reading: a.columns.reading(),
+        }
+    }
 }
