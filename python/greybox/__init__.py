@@ -293,8 +293,7 @@ def simulate(scenario: Optional[str] = None, **options: Any) -> tuple[pa.Table, 
             options["config"] = _params_file(config, stack)
         if isinstance(options.get("set"), dict):
             options["set"] = [f"{k}={json.dumps(v)}" for k, v in options["set"].items()]
-        argv = to_argv(_flags(scenario=scenario, **options))
-        batch, truth = _greybox.simulate(argv)
+        batch, truth = _greybox.simulate(_flags(scenario=scenario, **options))
     return pa.Table.from_batches([batch]), json.loads(truth)
 
 

@@ -68,8 +68,9 @@ def track(
     them): per run its name, final ``(k_e, k_t, r_s, k_e_se, r_s_se, innovation_ratio)``
     (the standard errors ``None`` for the MRAS) and trajectory."""
 
-def simulate(argv: list[str]) -> tuple[pa.RecordBatch, str]:
-    """``greybox simulate``: the log as a batch and the truth as JSON."""
+def simulate(options: dict[str, Any]) -> tuple[pa.RecordBatch, str]:
+    """``greybox simulate`` with the keyword ``options``: the log as a batch and the truth
+    as JSON."""
 
 def report(command: str, argv: list[str]) -> tuple[str, list[str]]:
     """``greybox fluxmap|saturation|standstill|mechanics``: the JSON report and the codes

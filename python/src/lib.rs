@@ -1,10 +1,11 @@
 //! `greybox._greybox`: the native half of the Python package `greybox`. The fits (`fit`,
-//! `fit_records`), `track` and `validate` are thin over the library's application layer
-//! ([`greybox::app`]): the keyword options arrive as a dict, each converted once into the
-//! typed request ([`request`], [`track`], [`validate`]; the logs' reading by [`reading`]) and every error
-//! put in the keywords' words ([`words`]). The other tools (`simulate`, `report`) still
-//! pass their keywords as the command line's flags to its parser ([`greybox::cli`]). Every
-//! run releases the GIL.
+//! `fit_records`), `track`, `validate` and `simulate` are thin over the library's
+//! application layer ([`greybox::app`]): the keyword options arrive as a dict, each
+//! converted once into the typed request ([`request`], [`track`], [`validate`],
+//! [`simulate`]; the logs' reading by [`reading`]) and every error put in the keywords'
+//! words ([`words`]). The reports of issue 33 ([`tools`]: `fluxmap`, `saturation`,
+//! `standstill`, `mechanics`) still pass their keywords as the command line's flags to its
+//! parser ([`greybox::cli`]). Every run releases the GIL.
 //!
 //! The Python half (`python/greybox/`) is the public face; this module is private.
 
@@ -14,6 +15,7 @@ mod keyword;
 mod many;
 mod reading;
 mod request;
+mod simulate;
 mod tools;
 mod track;
 mod validate;
@@ -38,7 +40,7 @@ fn _greybox(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(many::expand_logs, m)?)?;
     m.add_function(wrap_pyfunction!(validate::validate, m)?)?;
     m.add_function(wrap_pyfunction!(track::track, m)?)?;
-    m.add_function(wrap_pyfunction!(tools::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(tools::report, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("INNOVATION_RATIO_LIMIT", greybox::online::INNOVATION_RATIO_LIMIT)?;

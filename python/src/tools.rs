@@ -1,15 +1,13 @@
-//! `greybox.simulate` and the fits of issue 33
+//! The fits of issue 33
 //! (`fluxmap`, `saturation`, `standstill`, `mechanics`): the command line's subcommands
 //! with their results handed back instead of printed or written.
 
 use crate::errors::{from_clap, refused, to_py};
-use arrow_pyarrow::ToPyArrow;
 use greybox::cli::errors::in_cli_words;
 use greybox::cli::fluxmap::FluxMapArgs;
 use greybox::cli::mechanics::MechanicsArgs;
 use greybox::cli::output::Outcome;
 use greybox::cli::saturation::SaturationArgs;
-use greybox::cli::simulate::SimulateArgs;
 use greybox::cli::standstill::StandstillArgs;
 use greybox::cli::{command, parse};
 use pyo3::prelude::*;
@@ -17,30 +15,6 @@ use pyo3::prelude::*;
 /// `e` in the words of the subcommand `name` with the flags of `T`, as a Python exception.
 fn words<T: clap::Args>(name: &'static str) -> impl Fn(greybox::Error) -> PyErr {
     move |e| to_py(in_cli_words(e, &command::<T>(name)))
-}
-
-/// Simulates the closed-loop drive of `greybox simulate` (the flags `argv`), the GIL
-/// released: the log as a pyarrow RecordBatch (time column `t` [s], then the channels, as
-/// the written Parquet/Arrow log) and the truth as JSON (the `.truth.json` file's).
-///
-/// Errors: `OptionError` for an unknown scenario or field or a bad value, `FitError` for a
-/// diverging simulation.
-#[pyfunction]
-pub fn simulate(py: Python<'_>, argv: Vec<String>) -> PyResult<(Py<PyAny>, String)> {
-    // `--print-config` only lifts the parser's need of `-o`: the scenario is built the same.
-    let mut argv = argv;
-    argv.push("--print-config".into());
-    let a: SimulateArgs = parse("simulate", &argv).map_err(from_clap)?;
-    if a.output.is_some() {
-        return Err(refused("--output", "the Python functions write no files: simulate() returns the log"));
-    }
-    let cfg = greybox::cli::simulate::config(&a).map_err(words::<SimulateArgs>("simulate"))?;
-    let log =
-        py.detach(|| greybox::drive::simulate_drive(&cfg)).map_err(words::<SimulateArgs>("simulate"))?;
-    let batch = greybox::data::to_record_batch(&log.experiment, "t").map_err(to_py)?;
-    let truth =
-        serde_json::to_string_pretty(&log.truth).map_err(|e| crate::errors::Error::new_err(e.to_string()))?;
-    Ok((batch.to_pyarrow(py)?.unbind(), truth))
 }
 
 /// Runs the fitting subcommand `command` (`fluxmap`, `saturation`, `standstill` or

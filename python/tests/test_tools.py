@@ -54,8 +54,13 @@ def test_simulate_errors():
         greybox.simulate("exp9")
     with pytest.raises(greybox.OptionError, match="not a field"):
         greybox.simulate("exp1", set={"motor.x_s": 1.0})
-    with pytest.raises(greybox.OptionError, match="--output"):
+    with pytest.raises(greybox.OptionError, match="`output`: the Python functions write no files"):
         greybox.simulate("exp1", output="x.csv")
+    # A wrong value or keyword is named as the keyword.
+    with pytest.raises(greybox.OptionError, match="motor='ipm_sat': expected spm, ipm or ipm-sat"):
+        greybox.simulate("exp1", motor="ipm_sat")
+    with pytest.raises(greybox.OptionError, match="unknown keyword `sead`: did you mean seed"):
+        greybox.simulate("exp1", sead=1)
 
 
 def test_validate_with_a_fit(sample):

@@ -2,6 +2,7 @@
 //! string in Python, parsed by the same table ([`Choice`]) so that both accept the same
 //! names; the command line's `clap::ValueEnum` derivations are checked against it (tests).
 
+use super::simulate::Motor;
 use super::track::Estimator;
 use super::values::{InverterChoice, Method, ModelChoice, Voltage};
 use crate::estimate::{ScalingKind, SolverKind};
@@ -67,6 +68,7 @@ choice!(Estimator: "mras" => Estimator::Mras, "ekf" => Estimator::Ekf);
 choice!(Adaptation: "normalised" => Adaptation::Normalised, "lyapunov" => Adaptation::Lyapunov,
     "relay" => Adaptation::Relay);
 choice!(VoltageHold: "stator" => VoltageHold::Stator, "dq" => VoltageHold::Dq);
+choice!(Motor: "spm" => Motor::Spm, "ipm" => Motor::Ipm, "ipm-sat" => Motor::IpmSat);
 
 #[cfg(test)]
 mod tests {
@@ -127,6 +129,7 @@ mod tests {
         assert_eq!(listed::<EstimatorArg>(), Estimator::LISTED);
         assert_eq!(listed::<AdaptationArg>(), Adaptation::LISTED);
         assert_eq!(listed::<TrackHold>(), VoltageHold::LISTED);
+        assert_eq!(listed::<crate::cli::simulate::MotorArg>(), Motor::LISTED);
         let mut hold = listed::<crate::cli::validate::ValidateHold>();
         hold.sort();
         assert_eq!(hold, ["dq", "stator"]);

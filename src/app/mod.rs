@@ -10,6 +10,7 @@
 //! - [`fit_each`]: many logs, each on its own, one summary [`Record`] per log.
 //! - [`TrackRequest`]: the options of an online estimation; [`track_logs`] runs it.
 //! - [`ValidateRequest`]: a saved fit against other logs; [`validate`] compares them.
+//! - [`SimulateRequest`]: a simulated drive log; [`drive_config`] builds its configuration.
 //! - [`Choice`] and the values of [`values`]: the words both front ends accept.
 //!
 //! No item here prints, exits or draws a progress bar: the front ends do.
@@ -22,6 +23,7 @@ mod logs;
 mod plan;
 mod reading;
 mod request;
+mod simulate;
 mod track;
 mod validate;
 pub mod values;
@@ -35,6 +37,7 @@ pub use logs::{check_paths, unique_names};
 pub use plan::{Plan, fit_logs, plan, pole_pairs};
 pub use reading::{named, read_logs, read_segments_from, read_sources};
 pub use request::{FitRequest, LogReading, PwmRequest};
+pub use simulate::{Motor, SimulateRequest, drive_config, set_field};
 pub use track::{Estimator, KalmanSettings, MrasSettings, TrackRequest, TrackedLog, track_logs};
 pub use validate::{ValidateRequest, validate, validation_json};
 pub use values::{

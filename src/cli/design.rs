@@ -6,8 +6,9 @@
 //! *System Identification*, 2nd ed., 9.3 and 13; Wang & Dowling, AIChE J. 68 (2022) e17813).
 
 use super::output;
-use super::simulate::{MotorArg, set_field};
+use super::simulate::MotorArg;
 use crate::Error;
+use crate::app::set_field;
 use crate::data::Staged;
 use crate::drive::{DQ_PER_PHASE_VARIANCE, PlanPrediction, predict_plan};
 use crate::drive::{DriveConfig, IPM_MOTOR, SCENARIOS, SPM_MOTOR};

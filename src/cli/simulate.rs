@@ -3,14 +3,11 @@
 
 use super::output;
 use crate::Error;
+use crate::app::{Motor, SimulateRequest, drive_config};
 use crate::data::Staged;
-use crate::drive::{
-    DriveConfig, DriveLog, IPM_MOTOR, IPM_SATURATION, SATURATED_IPM_MOTOR, SCENARIOS, SPM_MOTOR, scenario,
-    simulate_drive_with_progress,
-};
+use crate::drive::{DriveConfig, DriveLog, simulate_drive_with_progress};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use serde_json::Value;
 use std::io::IsTerminal;
 use std::io::Write as _;
 use std::path::PathBuf;
@@ -131,106 +128,42 @@ pub fn run_simulate(a: &SimulateArgs) -> crate::Result<()> {
     staged.commit()
 }
 
-/// The scenario of `greybox simulate`'s flags: the thesis scenario or the scenario file,
-/// with `--seed`, `--duration` and every `--set` applied, validated.
-///
-/// # Errors
-/// An unknown scenario or field, an unreadable or invalid scenario file, a value of the
-/// wrong type, a configuration [`DriveConfig::validate`] refuses.
-pub fn config(a: &SimulateArgs) -> crate::Result<DriveConfig> {
-    let mut cfg = match (&a.scenario, &a.config) {
-        (Some(name), _) => {
-            let motor = match a.motor {
-                MotorArg::Spm => SPM_MOTOR,
-                MotorArg::Ipm => IPM_MOTOR,
-                MotorArg::IpmSat => SATURATED_IPM_MOTOR,
-            };
-            let saturation = matches!(a.motor, MotorArg::IpmSat).then_some(IPM_SATURATION);
-            DriveConfig { saturation, ..scenario(name, motor)? }
-        }
-        (None, Some(path)) => {
-            let text =
-                std::fs::read_to_string(path).map_err(|source| Error::Io { path: path.clone(), source })?;
-            serde_json::from_str::<DriveConfig>(&text).map_err(|e| Error::InvalidOption {
-                option: "config".into(),
-                reason: format!("{}: {e}", path.display()),
-            })?
-        }
-        (None, None) => {
-            return Err(Error::InvalidOption {
-                option: "scenario".into(),
-                reason: format!(
-                    "give --scenario ({}, {}) or --config FILE",
-                    SCENARIOS.join(", "),
-                    crate::drive::COMMISSIONING.join(", ")
-                ),
-            });
-        }
-    };
-    if a.inverter == crate::app::InverterChoice::Pwm {
-        cfg.inverter.pwm = Some(crate::drive::PwmPlant {
+impl From<&SimulateArgs> for SimulateRequest {
+    /// The request of the flags (`--output` and `--print-config` are the command line's
+    /// outputs, not the request's).
+    fn from(a: &SimulateArgs) -> Self {
+        SimulateRequest {
+            scenario: a.scenario.clone(),
+            config: a.config.clone(),
+            motor: a.motor.into(),
+            seed: a.seed,
+            duration: a.duration,
+            set: a.set.clone(),
+            inverter: a.inverter,
             t_d: a.t_d,
             u_th: a.u_th,
-            i_w: a.leg_state_width,
-            levels: a.pwm_levels,
-        });
+            leg_state_width: a.leg_state_width,
+            pwm_levels: a.pwm_levels,
+        }
     }
-    if let Some(seed) = a.seed {
-        cfg.seed = seed;
-    }
-    if let Some(d) = a.duration {
-        cfg.duration = d;
-    }
-    for s in &a.set {
-        cfg = set_field(&cfg, s)?;
-    }
-    cfg.validate()?;
-    Ok(cfg)
 }
 
-/// The configuration with the field at the dotted `path` set to `value` (`PATH=VALUE`,
-/// the value as JSON, e.g. a number, `null` or `[[0, 1], [2, 3]]`).
+impl From<MotorArg> for Motor {
+    fn from(m: MotorArg) -> Self {
+        match m {
+            MotorArg::Spm => Motor::Spm,
+            MotorArg::Ipm => Motor::Ipm,
+            MotorArg::IpmSat => Motor::IpmSat,
+        }
+    }
+}
+
+/// The drive's configuration of the flags ([`drive_config`]).
 ///
 /// # Errors
-/// [`Error::InvalidOption`] (`set`) for text without `=`, a value that is not JSON, a path
-/// that is not a field (naming the fields there), a value of the wrong type.
-pub fn set_field(cfg: &DriveConfig, assignment: &str) -> crate::Result<DriveConfig> {
-    let bad = |reason: String| Error::InvalidOption { option: "set".into(), reason };
-    let (path, value) =
-        assignment.split_once('=').ok_or_else(|| bad(format!("`{assignment}`: expected PATH=VALUE")))?;
-    let value: Value = serde_json::from_str(value.trim())
-        .map_err(|e| bad(format!("`{assignment}`: the value is not JSON: {e}")))?;
-    let mut root = serde_json::to_value(cfg).map_err(|e| bad(e.to_string()))?;
-    let pointer = format!("/{}", path.trim().replace('.', "/"));
-    let Some(slot) = root.pointer_mut(&pointer) else {
-        // Name the fields where the path stops matching: the deepest object along it.
-        let parts: Vec<&str> = path.trim().split('.').collect();
-        let mut at = &serde_json::to_value(cfg).map_err(|e| bad(e.to_string()))?;
-        let mut prefix = Vec::new();
-        for part in &parts {
-            match at.get(part) {
-                Some(next) if next.is_object() => {
-                    at = next;
-                    prefix.push(*part);
-                }
-                _ => break,
-            }
-        }
-        let fields: Vec<String> = at
-            .as_object()
-            .map(|o| {
-                o.keys()
-                    .map(|k| prefix.iter().chain([&k.as_str()]).copied().collect::<Vec<_>>().join("."))
-                    .collect()
-            })
-            .unwrap_or_default();
-        return Err(bad(format!(
-            "`{path}` is not a field of the scenario; the fields there are: {} (all of them: --print-config)",
-            fields.join(", ")
-        )));
-    };
-    *slot = value;
-    serde_json::from_value(root).map_err(|e| bad(format!("`{assignment}`: {e}")))
+/// Those of [`drive_config`].
+pub fn config(a: &SimulateArgs) -> crate::Result<DriveConfig> {
+    drive_config(&SimulateRequest::from(a))
 }
 
 /// A bar of the simulated samples on stderr when it is a terminal (hidden otherwise).
