@@ -14,6 +14,23 @@ fn bad(key: &str, value: &Bound<'_, PyAny>, reason: &str) -> PyErr {
     OptionError::new_err(format!("{key}={shown}: {reason}"))
 }
 
+/// Each keyword of `options` with its value to `take`, in the order given; those given as
+/// `None` left out (at their defaults).
+///
+/// Errors: a key that is not a string, and those of `take`.
+pub fn each(
+    options: &Bound<'_, PyDict>,
+    mut take: impl FnMut(&Value<'_, '_>) -> PyResult<()>,
+) -> PyResult<()> {
+    for (k, v) in options.iter() {
+        let key: String = k.extract()?;
+        if !v.is_none() {
+            take(&Value { key: &key, v: &v })?;
+        }
+    }
+    Ok(())
+}
+
 /// One keyword's value as a typed value.
 pub struct Value<'a, 'py> {
     /// The keyword.

@@ -1,7 +1,8 @@
 //! The keywords of how logs are read (columns, units, frames, window, limits, segments),
 //! shared by the Python functions that read logs (`fit`, `fit_many`, `track`): each
 //! converted once, by the same words the command line accepts, a wrong one refused naming
-//! the keyword; and the error of an unknown keyword with the closest known ones.
+//! the keyword; and each function's keywords ([`Keywords`]): the error of one it does not
+//! take, with the closest known ones.
 
 use crate::errors::OptionError;
 use crate::keyword::Value;
@@ -159,16 +160,55 @@ fn column_map(x: &Value<'_, '_>) -> PyResult<Vec<(String, String)>> {
     Ok(out)
 }
 
-/// The error of an unknown keyword of the command `command` (whose keywords are `known`,
-/// documented in `doc`), with the closest known ones, or an `example`.
-pub fn unknown(key: &str, known: &[&str], command: &str, doc: &str, example: &str) -> PyErr {
-    let close: Vec<&str> = known.iter().copied().filter(|k| distance(k, key) <= 2).collect();
-    let hint = if close.is_empty() {
-        format!("the keywords are the flags of `greybox {command}` ({doc}), e.g. {example}")
-    } else {
-        format!("did you mean {}?", close.join(" or "))
-    };
-    OptionError::new_err(format!("unknown keyword `{key}`: {hint}"))
+/// The keywords of a Python function that runs a command: its own (`own`), the reading's
+/// where it reads logs, and the command line's file outputs it refuses.
+pub struct Keywords {
+    /// The command (`fit`, `track`, …).
+    pub command: &'static str,
+    /// The page that documents its flags.
+    pub doc: &'static str,
+    /// An example keyword for the message of an unknown one.
+    pub example: &'static str,
+    /// Its own keywords.
+    pub own: &'static [&'static str],
+    /// Whether it takes the reading's keywords ([`READING_KEYWORDS`]).
+    pub reading: bool,
+    /// The command line's file outputs, which the function does not write.
+    pub outputs: &'static [&'static str],
+    /// What the function returns instead of writing them.
+    pub returns: &'static str,
+}
+
+impl Keywords {
+    /// The error of `key`, which no option of the command takes: a file output refused
+    /// (what the function returns instead), or an unknown keyword with the closest known
+    /// ones.
+    pub fn not_taken(&self, key: &str) -> PyErr {
+        if self.outputs.contains(&key) {
+            return crate::errors::refused(
+                key,
+                &format!("the Python functions write no files: {}", self.returns),
+            );
+        }
+        let reading: &[&str] = if self.reading { READING_KEYWORDS } else { &[] };
+        let close: Vec<&str> = self
+            .own
+            .iter()
+            .chain(reading)
+            .chain(self.outputs)
+            .copied()
+            .filter(|k| distance(k, key) <= 2)
+            .collect();
+        let hint = if close.is_empty() {
+            format!(
+                "the keywords are the flags of `greybox {}` ({}), e.g. {}",
+                self.command, self.doc, self.example
+            )
+        } else {
+            format!("did you mean {}?", close.join(" or "))
+        };
+        OptionError::new_err(format!("unknown keyword `{key}`: {hint}"))
+    }
 }
 
 /// Levenshtein distance of two short names.

@@ -4,8 +4,8 @@
 //! reference`), an unknown one with the keywords that exist.
 
 use crate::errors::OptionError;
-use crate::keyword::Value;
-use crate::reading::{READING_KEYWORDS, ReadingKeys, unknown};
+use crate::keyword::each;
+use crate::reading::{Keywords, ReadingKeys};
 use greybox::app::values::{parse_bounds, parse_fix, parse_mask, parse_weighting};
 use greybox::app::{FitRequest, PolePairs, PwmRequest};
 use pyo3::prelude::*;
@@ -60,8 +60,16 @@ pub const FIT_KEYWORDS: &[&str] = &[
     "inverter_params",
 ];
 
-/// The command line's file outputs, which the Python functions do not write.
-const OUTPUTS: &[&str] = &["json", "plot", "residuals", "each", "summary", "trend", "format", "quiet"];
+/// The keywords of `fit` and `fit_many`.
+const FIT: Keywords = Keywords {
+    command: "fit",
+    doc: "docs/options.md",
+    example: "voltage=\"reference\"",
+    own: FIT_KEYWORDS,
+    reading: true,
+    outputs: &["json", "plot", "residuals", "each", "summary", "trend", "format", "quiet"],
+    returns: "use Fit.to_json(), Fit.svg(), fit_many() for a summary",
+};
 
 /// The request of `options` (keyword → value; `None` values are left at their default),
 /// starting from the command line's defaults with `--pole-pairs` required.
@@ -73,15 +81,10 @@ pub fn fit_request(options: &Bound<'_, PyDict>) -> PyResult<FitRequest> {
     let mut pole_pairs = false;
     let mut reading = ReadingKeys::new(r.reading.csv.clone());
     let mut pwm = PwmRequest::default();
-    for (k, v) in options.iter() {
-        let key: String = k.extract()?;
-        if v.is_none() {
-            continue;
-        }
-        let x = Value { key: &key, v: &v };
-        match key.as_str() {
+    each(options, |x| {
+        match x.key {
             "pole_pairs" => {
-                r.pole_pairs = if v.is_instance_of::<PyInt>() && !v.is_instance_of::<PyBool>() {
+                r.pole_pairs = if x.v.is_instance_of::<PyInt>() && !x.v.is_instance_of::<PyBool>() {
                     PolePairs::Given(x.count()?)
                 } else {
                     x.parsed(str::parse::<PolePairs>)?
@@ -114,7 +117,7 @@ pub fn fit_request(options: &Bound<'_, PyDict>) -> PyResult<FitRequest> {
             "horizon" => r.horizon = Some(x.count()?),
             "weighting" => r.weighting = x.parsed(parse_weighting)?,
             "huber" => {
-                r.huber = Some(if v.is_instance_of::<PyBool>() && x.flag()? { 1.345 } else { x.number()? })
+                r.huber = Some(if x.v.is_instance_of::<PyBool>() && x.flag()? { 1.345 } else { x.number()? })
             }
             "output_weights" => r.output_weights = Some(x.numbers()?),
             "bounds" => {
@@ -140,20 +143,12 @@ pub fn fit_request(options: &Bound<'_, PyDict>) -> PyResult<FitRequest> {
             "carrier_first" => pwm.carrier_first = Some(x.choice()?),
             "leg_state_width" => pwm.leg_state_width = Some(x.parsed(str::parse)?),
             "predictor_gain" => pwm.predictor_gain = Some(x.parsed(str::parse)?),
-            "inverter_params" => pwm.inverter_params = Some(PathBuf::from(v.str()?.to_string())),
-            other if OUTPUTS.contains(&other) => {
-                return Err(crate::errors::refused(
-                    other,
-                    "the Python functions write no files: use Fit.to_json(), Fit.svg(), fit_many() for a summary",
-                ));
-            }
-            other if reading.take(other, &x)? => {}
-            other => {
-                let known: Vec<&str> = FIT_KEYWORDS.iter().chain(READING_KEYWORDS).copied().collect();
-                return Err(unknown(other, &known, "fit", "docs/options.md", "voltage=\"reference\""));
-            }
+            "inverter_params" => pwm.inverter_params = Some(PathBuf::from(x.v.str()?.to_string())),
+            other if reading.take(other, x)? => {}
+            other => return Err(FIT.not_taken(other)),
         }
-    }
+        Ok(())
+    })?;
     if !pole_pairs {
         return Err(OptionError::new_err("pole_pairs: required (a whole number, or \"auto\")"));
     }

@@ -2,9 +2,9 @@
 //! [`SimulateRequest`] (each converted once, a wrong one refused naming the keyword), the
 //! drive simulated by [`greybox::drive::simulate_drive`] with the GIL released.
 
-use crate::errors::{refused, to_py};
-use crate::keyword::Value;
-use crate::reading::unknown;
+use crate::errors::to_py;
+use crate::keyword::each;
+use crate::reading::Keywords;
 use crate::words::in_python_words;
 use arrow_pyarrow::ToPyArrow;
 use greybox::app::{SimulateRequest, drive_config};
@@ -12,7 +12,19 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::PathBuf;
 
-/// The keywords of `simulate`, in the order `greybox simulate --help` lists their flags.
+/// The keywords of `simulate`.
+const SIMULATE: Keywords = Keywords {
+    command: "simulate",
+    doc: "docs/cli.md",
+    example: "scenario=\"exp3\"",
+    own: SIMULATE_KEYWORDS,
+    reading: false,
+    outputs: &["output", "print_config"],
+    returns: "simulate() returns the log",
+};
+
+/// The keywords of `simulate`'s own options, in the order `greybox simulate --help` lists
+/// their flags.
 const SIMULATE_KEYWORDS: &[&str] = &[
     "scenario",
     "config",
@@ -38,13 +50,8 @@ const SIMULATE_KEYWORDS: &[&str] = &[
 #[pyfunction]
 pub fn simulate(py: Python<'_>, options: &Bound<'_, PyDict>) -> PyResult<(Py<PyAny>, String)> {
     let mut r = SimulateRequest::default();
-    for (k, v) in options.iter() {
-        let key: String = k.extract()?;
-        if v.is_none() {
-            continue;
-        }
-        let x = Value { key: &key, v: &v };
-        match key.as_str() {
+    each(options, |x| {
+        match x.key {
             "scenario" => r.scenario = Some(x.text()?),
             "config" => r.config = Some(PathBuf::from(x.text()?)),
             "motor" => r.motor = x.choice()?,
@@ -56,20 +63,10 @@ pub fn simulate(py: Python<'_>, options: &Bound<'_, PyDict>) -> PyResult<(Py<PyA
             "u_th" => r.u_th = x.number()?,
             "leg_state_width" => r.leg_state_width = x.number()?,
             "pwm_levels" => r.pwm_levels = x.count()?,
-            "output" | "print_config" => {
-                return Err(refused(&key, "the Python functions write no files: simulate() returns the log"));
-            }
-            other => {
-                return Err(unknown(
-                    other,
-                    SIMULATE_KEYWORDS,
-                    "simulate",
-                    "docs/cli.md",
-                    "scenario=\"exp3\"",
-                ));
-            }
+            other => return Err(SIMULATE.not_taken(other)),
         }
-    }
+        Ok(())
+    })?;
     let words = |e| to_py(in_python_words(e));
     let cfg = drive_config(&r).map_err(words)?;
     let log = py.detach(|| greybox::drive::simulate_drive(&cfg)).map_err(words)?;

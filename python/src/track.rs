@@ -3,9 +3,9 @@
 //! keyword), the estimator run over each log by [`greybox::app::track_logs`] with the GIL
 //! released, and the trajectories handed back as pyarrow record batches.
 
-use crate::errors::{OptionError, refused, to_py};
-use crate::keyword::Value;
-use crate::reading::{READING_KEYWORDS, ReadingKeys, unknown};
+use crate::errors::{OptionError, to_py};
+use crate::keyword::each;
+use crate::reading::{Keywords, ReadingKeys};
 use crate::words::in_python_words;
 use arrow_array::{ArrayRef, Float64Array, RecordBatch};
 use arrow_pyarrow::ToPyArrow;
@@ -16,7 +16,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 /// The keywords of `track` that set the estimation, besides the reading's
-/// ([`READING_KEYWORDS`]), in the order `greybox track --help` lists their flags.
+/// ([`crate::reading::READING_KEYWORDS`]), in the order `greybox track --help` lists their flags.
 pub const TRACK_KEYWORDS: &[&str] = &[
     "pole_pairs",
     "l_s",
@@ -41,8 +41,16 @@ pub const TRACK_KEYWORDS: &[&str] = &[
     "psi_f_t0",
 ];
 
-/// The command line's outputs, which the Python function does not write.
-const OUTPUTS: &[&str] = &["json", "plot", "max_points", "quiet"];
+/// The keywords of `track`.
+const TRACK: Keywords = Keywords {
+    command: "track",
+    doc: "docs/cli.md",
+    example: "l_s=5e-3",
+    own: TRACK_KEYWORDS,
+    reading: true,
+    outputs: &["json", "plot", "max_points", "quiet"],
+    returns: "track() returns the trajectories",
+};
 
 /// The request of `options` (keyword → value; `None` values are left at their default),
 /// from the command line's defaults, `pole_pairs` required.
@@ -52,14 +60,9 @@ fn track_request(options: &Bound<'_, PyDict>) -> PyResult<TrackRequest> {
     let mut r = TrackRequest::new(0);
     let mut pole_pairs = false;
     let mut reading = ReadingKeys::new(r.reading.csv.clone());
-    for (k, v) in options.iter() {
-        let key: String = k.extract()?;
-        if v.is_none() {
-            continue;
-        }
-        let x = Value { key: &key, v: &v };
+    each(options, |x| {
         let number = || x.number().map(Some);
-        match key.as_str() {
+        match x.key {
             "pole_pairs" => {
                 r.pole_pairs = x.count()?;
                 pole_pairs = true;
@@ -84,19 +87,11 @@ fn track_request(options: &Bound<'_, PyDict>) -> PyResult<TrackRequest> {
             "t0" => r.t0 = number()?,
             "r_s_t0" => r.r_s_t0 = number()?,
             "psi_f_t0" => r.psi_f_t0 = number()?,
-            other if reading.take(other, &x)? => {}
-            other if OUTPUTS.contains(&other) => {
-                return Err(refused(
-                    other,
-                    "the Python functions write no files: track() returns the trajectories",
-                ));
-            }
-            other => {
-                let known: Vec<&str> = TRACK_KEYWORDS.iter().chain(READING_KEYWORDS).copied().collect();
-                return Err(unknown(other, &known, "track", "docs/cli.md", "l_s=5e-3"));
-            }
+            other if reading.take(other, x)? => {}
+            other => return Err(TRACK.not_taken(other)),
         }
-    }
+        Ok(())
+    })?;
     if !pole_pairs {
         return Err(OptionError::new_err("pole_pairs: required (a whole number)"));
     }

@@ -2,18 +2,25 @@
 //! [`ValidateRequest`] (each converted once, a wrong one refused naming the keyword), the
 //! saved fit compared with each log by [`greybox::app::validate`] with the GIL released.
 
-use crate::errors::{OptionError, refused, to_py};
-use crate::keyword::Value;
-use crate::reading::{READING_KEYWORDS, ReadingKeys, unknown};
+use crate::errors::{OptionError, to_py};
+use crate::keyword::each;
+use crate::reading::{Keywords, ReadingKeys};
 use crate::words::in_python_words;
 use greybox::app::{ValidateRequest, validate as compare, validation_json};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::PathBuf;
 
-/// The keywords of `validate` besides the reading's, in the order `greybox validate --help`
-/// lists their flags.
-const VALIDATE_KEYWORDS: &[&str] = &["params", "pole_pairs", "hold"];
+/// The keywords of `validate` (its own in the order `greybox validate --help` lists them).
+const VALIDATE: Keywords = Keywords {
+    command: "validate",
+    doc: "docs/cli.md",
+    example: "pole_pairs=4",
+    own: &["params", "pole_pairs", "hold"],
+    reading: true,
+    outputs: &["json", "compare_dir", "plot", "quiet"],
+    returns: "validate() returns the report",
+};
 
 /// Validates the saved fit of the keyword `params` (a report's path) on `logs` with the
 /// keyword `options` (`pole_pairs`, `hold` and the reading's), as `greybox validate` does,
@@ -26,32 +33,19 @@ pub fn validate(py: Python<'_>, logs: Vec<PathBuf>, options: &Bound<'_, PyDict>)
     let mut r = ValidateRequest::new(PathBuf::new());
     let mut params = false;
     let mut reading = ReadingKeys::new(r.reading.csv.clone());
-    for (k, v) in options.iter() {
-        let key: String = k.extract()?;
-        if v.is_none() {
-            continue;
-        }
-        let x = Value { key: &key, v: &v };
-        match key.as_str() {
+    each(options, |x| {
+        match x.key {
             "params" => {
                 r.params = PathBuf::from(x.text()?);
                 params = true;
             }
             "pole_pairs" => r.pole_pairs = Some(x.count()?),
             "hold" => r.hold = Some(x.choice()?),
-            other if reading.take(other, &x)? => {}
-            "json" | "compare_dir" | "plot" | "quiet" => {
-                return Err(refused(
-                    &key,
-                    "the Python functions write no files: validate() returns the report",
-                ));
-            }
-            other => {
-                let known: Vec<&str> = VALIDATE_KEYWORDS.iter().chain(READING_KEYWORDS).copied().collect();
-                return Err(unknown(other, &known, "validate", "docs/cli.md", "pole_pairs=4"));
-            }
+            other if reading.take(other, x)? => {}
+            other => return Err(VALIDATE.not_taken(other)),
         }
-    }
+        Ok(())
+    })?;
     if !params {
         return Err(OptionError::new_err("params: required (a Fit, its report dict, or a report's path)"));
     }
