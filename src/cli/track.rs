@@ -217,7 +217,8 @@ pub fn run_track(a: &TrackArgs) -> crate::Result<bool> {
             (
                 "the MRAS's one-step prediction errors (from the measured current at its running estimates) are",
                 "their errors' mean square over the second half over 4σ², σ the current noise the log shows",
-                "",
+                "; or the parameters changed faster than its time constants (--tau-ke, --tau-rs) follow, \
+                 which the Kalman filter (--estimator ekf) allows for",
             )
         };
         eprintln!(
