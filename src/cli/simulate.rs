@@ -5,7 +5,7 @@ use super::output;
 use crate::Error;
 use crate::app::{Motor, SimulateRequest, drive_config};
 use crate::data::Staged;
-use crate::drive::{DriveConfig, DriveLog, simulate_drive_with_progress};
+use crate::drive::{DriveLog, simulate_drive_with_progress};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
@@ -83,7 +83,7 @@ pub enum MotorArg {
 /// wrong type, a configuration [`DriveConfig::validate`] refuses, a diverging simulation,
 /// an output that cannot be written (nothing is written then).
 pub fn run_simulate(a: &SimulateArgs) -> crate::Result<()> {
-    let cfg = config(a)?;
+    let cfg = drive_config(&SimulateRequest::from(a))?;
     if a.print_config {
         // A closed pipe (`| head`) ends the output, not the program.
         let text = serde_json::to_string_pretty(&cfg).unwrap_or_default();
@@ -156,14 +156,6 @@ impl From<MotorArg> for Motor {
             MotorArg::IpmSat => Motor::IpmSat,
         }
     }
-}
-
-/// The drive's configuration of the flags ([`drive_config`]).
-///
-/// # Errors
-/// Those of [`drive_config`].
-pub fn config(a: &SimulateArgs) -> crate::Result<DriveConfig> {
-    drive_config(&SimulateRequest::from(a))
 }
 
 /// A bar of the simulated samples on stderr when it is a terminal (hidden otherwise).

@@ -3,9 +3,9 @@
 //! reduction) within an ulp of the system library's. The SPM and IPM steps take one per
 //! interval ([`crate::pmsm::model::interval`]); the library's `sin_cos` is a call per value.
 //! The switching-resolved step's pieces ([`crate::pmsm::model::pwm`]) take their short
-//! rotations and decays, and the smooth leg state its arctangents far from zero current,
-//! from short series (Abramowitz & Stegun 4.2.1, 4.3.65–66, 4.4.42), the library's
-//! functions elsewhere.
+//! rotations from the same kernels, their short decays and the smooth leg state its
+//! arctangents far from zero current from Taylor series (Abramowitz & Stegun 4.2.1 and
+//! 4.4.42), the library's functions elsewhere.
 //!
 //! Source: fdlibm (Sun Microsystems 1993), `k_sin.c` and `k_cos.c`, as in musl.
 

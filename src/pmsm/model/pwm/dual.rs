@@ -6,6 +6,7 @@
 //! finite-difference step, no separate hand-written sensitivity recursion to keep in step
 //! with the model.
 
+use crate::pmsm::model::elementary::{atan, exp, sin_cos};
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// Derivatives a [`Dual`] carries: the most parameters of a PWM-resolved model (`r_s, l_d,
@@ -72,8 +73,6 @@ pub(crate) trait Scalar:
         ((e - inv) * 0.5, (e + inv) * 0.5)
     }
 }
-
-use crate::pmsm::model::elementary::{atan, exp, sin_cos};
 
 impl Scalar for f64 {
     #[inline(always)]
