@@ -30,7 +30,6 @@ import pyarrow as pa
 from . import _greybox
 from ._fit import Fit
 from ._greybox import DataError, Error, FitError, OptionError
-from ._options import to_argv
 
 __all__ = [
     "DataError",
@@ -314,8 +313,9 @@ class Report(NamedTuple):
 
 
 def _report(command: str, logs: Any, options: dict[str, Any]) -> Report:
-    """Runs the fitting subcommand ``command`` on ``logs`` (paths, or Arrow tables written
-    to temporary Parquet files first) with ``options`` as its flags."""
+    """Runs the fit ``command`` on ``logs`` (paths, or Arrow tables written to temporary
+    Parquet files first) with the keyword ``options`` (each checked once by the native
+    module, a wrong one refused naming it)."""
     import contextlib
 
     items = logs if isinstance(logs, (list, tuple)) else [logs]
@@ -331,7 +331,7 @@ def _report(command: str, logs: Any, options: dict[str, Any]) -> Report:
             path = os.path.join(folder, f"log{len(paths)}.parquet")
             pq.write_table(pa.table(_arrow(item)), path)
             paths.append(path)
-        text, untrusted = _greybox.report(command, to_argv(_flags(**options), paths))
+        text, untrusted = _greybox.report(command, paths, _flags(**options))
     return Report(json.loads(text), list(untrusted))
 
 
@@ -350,9 +350,6 @@ def fluxmap(map: PathLike, **options: Any) -> Report:
 
     Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
     """
-    exponents = options.pop("exponents", None)
-    if exponents is not None:
-        options["exponents"] = ",".join(str(x) for x in exponents)
     return _report("fluxmap", map, options)
 
 
@@ -366,9 +363,6 @@ def saturation(log: Any, *, pole_pairs: int, **options: Any) -> Report:
 
     Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
     """
-    exponents = options.pop("exponents", None)
-    if exponents is not None:
-        options["exponents"] = ",".join(str(x) for x in exponents)
     return _report("saturation", log, dict(pole_pairs=pole_pairs, **options))
 
 

@@ -58,19 +58,6 @@ pub fn to_py(e: E) -> PyErr {
     }
 }
 
-/// A clap error (unknown flag, bad value) as an `OptionError` with the command line's
-/// message, without its `error: `, its usage lines and its tips (which speak of the shell).
-pub fn from_clap(e: clap::Error) -> PyErr {
-    let text = e.render().to_string();
-    let text = text.strip_prefix("error: ").unwrap_or(&text);
-    let message: Vec<&str> = text
-        .lines()
-        .take_while(|l| !l.starts_with("Usage:") && !l.starts_with("For more information"))
-        .filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with("tip:"))
-        .collect();
-    OptionError::new_err(message.join("\n"))
-}
-
 /// An option the Python function does not take (a file output of the command line).
 pub fn refused(option: &str, reason: &str) -> PyErr {
     OptionError::new_err(format!("invalid option `{option}`: {reason}"))

@@ -60,7 +60,7 @@ impl NativeFit {
         if fit.report.model.ends_with("_steady") {
             return Ok(None);
         }
-        py.detach(|| greybox::cli::plots::fit_svg(fit, &self.logs)).map(Some).map_err(to_py)
+        py.detach(|| greybox::app::plots::fit_svg(fit, &self.logs)).map(Some).map_err(to_py)
     }
 }
 

@@ -1,11 +1,10 @@
 //! `greybox._greybox`: the native half of the Python package `greybox`. The fits (`fit`,
-//! `fit_records`), `track`, `validate` and `simulate` are thin over the library's
-//! application layer ([`greybox::app`]): the keyword options arrive as a dict, each
-//! converted once into the typed request ([`request`], [`track`], [`validate`],
-//! [`simulate`]; the logs' reading by [`reading`]) and every error put in the keywords'
-//! words ([`words`]). The reports of issue 33 ([`tools`]: `fluxmap`, `saturation`,
-//! `standstill`, `mechanics`) still pass their keywords as the command line's flags to its
-//! parser ([`greybox::cli`]). Every run releases the GIL.
+//! `fit_records`), `track`, `validate`, `simulate` and the reports of issue 33 (`fluxmap`,
+//! `saturation`, `standstill`, `mechanics`) are thin over the library's application layer
+//! ([`greybox::app`]): the keyword options arrive as a dict, each converted once into the
+//! typed request ([`request`], [`track`], [`validate`], [`simulate`], [`tools`]; the logs'
+//! reading by [`reading`]) and every error put in the keywords' words ([`words`]). The
+//! library is built without its command line (no `cli` feature). Every run releases the GIL.
 //!
 //! The Python half (`python/greybox/`) is the public face; this module is private.
 

@@ -1,76 +1,231 @@
-//! The fits of issue 33
-//! (`fluxmap`, `saturation`, `standstill`, `mechanics`): the command line's subcommands
-//! with their results handed back instead of printed or written.
+//! The fits of issue 33 (`fluxmap`, `saturation`, `standstill`, `mechanics`): Python
+//! keywords to the application layer's typed requests ([`greybox::app::FluxMapRequest`],
+//! …; each keyword converted once, a wrong one refused naming it), run by the library's
+//! [`greybox::app::fluxmap`], … with the GIL released.
 
-use crate::errors::{from_clap, refused, to_py};
-use greybox::cli::errors::in_cli_words;
-use greybox::cli::fluxmap::FluxMapArgs;
-use greybox::cli::mechanics::MechanicsArgs;
-use greybox::cli::output::Outcome;
-use greybox::cli::saturation::SaturationArgs;
-use greybox::cli::standstill::StandstillArgs;
-use greybox::cli::{command, parse};
+use crate::errors::{OptionError, to_py};
+use crate::keyword::{Value, each};
+use crate::reading::{Keywords, ReadingKeys};
+use crate::words::in_python_words;
+use greybox::app::{
+    FluxMapRequest, LogReading, MechanicsRequest, Report, SaturationRequest, StandstillRequest, exponents,
+};
+use greybox::data::Delimiter;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::path::PathBuf;
 
-/// `e` in the words of the subcommand `name` with the flags of `T`, as a Python exception.
-fn words<T: clap::Args>(name: &'static str) -> impl Fn(greybox::Error) -> PyErr {
-    move |e| to_py(in_cli_words(e, &command::<T>(name)))
+/// The command line's file outputs of the four commands, which the functions return instead.
+const OUTPUTS: &[&str] = &["json", "quiet"];
+
+/// What the functions return instead of writing the outputs.
+const RETURNS: &str = "the function returns the report";
+
+/// The keywords of `fluxmap` (in the order `greybox fluxmap --help` lists them).
+const FLUXMAP: Keywords = Keywords {
+    command: "fluxmap",
+    doc: "docs/saturation.md",
+    example: "exponents=(4, 2, 1, 0)",
+    own: &["exponents", "col_id", "col_iq", "col_psid", "col_psiq", "col_torque", "pole_pairs", "delimiter"],
+    reading: false,
+    outputs: OUTPUTS,
+    returns: RETURNS,
+};
+
+/// The keywords of `saturation`.
+const SATURATION: Keywords = Keywords {
+    command: "saturation",
+    doc: "docs/saturation.md",
+    example: "exponents=(4, 2, 1, 0)",
+    own: &["pole_pairs", "exponents"],
+    reading: true,
+    outputs: OUTPUTS,
+    returns: RETURNS,
+};
+
+/// The keywords of `standstill`.
+const STANDSTILL: Keywords = Keywords {
+    command: "standstill",
+    doc: "docs/standstill.md",
+    example: "terminal=True",
+    own: &["pole_pairs", "terminal", "delay", "width", "col_temperature"],
+    reading: true,
+    outputs: OUTPUTS,
+    returns: RETURNS,
+};
+
+/// The keywords of `mechanics`.
+const MECHANICS: Keywords = Keywords {
+    command: "mechanics",
+    doc: "docs/mechanics.md",
+    example: "k_t=0.6",
+    own: &[
+        "pole_pairs",
+        "k_t",
+        "lead",
+        "pole_pitch",
+        "k_f",
+        "gravity",
+        "constant_load",
+        "per_log",
+        "window",
+        "coulomb_speed",
+        "col_load",
+    ],
+    reading: true,
+    outputs: OUTPUTS,
+    returns: RETURNS,
+};
+
+/// Runs the fit `command` (`fluxmap`: `paths` one map; `saturation`, `standstill`,
+/// `mechanics`: logs fitted jointly) with the keyword `options`, as the command line's
+/// subcommand of that name does, the GIL released: its JSON report (as `--json` writes it)
+/// and the codes of the reasons it is not to be trusted (empty: trusted; the command line's
+/// exit code 3 otherwise).
+///
+/// Errors: `OptionError` naming the keyword (an unknown command or keyword, a bad value, a
+/// file output), `DataError`, `FitError`.
+#[pyfunction]
+pub fn report(
+    py: Python<'_>,
+    command: &str,
+    paths: Vec<PathBuf>,
+    options: &Bound<'_, PyDict>,
+) -> PyResult<(String, Vec<String>)> {
+    let run: Box<dyn FnOnce() -> greybox::Result<Report> + Send> = match command {
+        "fluxmap" => {
+            let r = fluxmap_request(options)?;
+            let [map] = <[PathBuf; 1]>::try_from(paths)
+                .map_err(|_| OptionError::new_err("map: one flux map (a path or a table)"))?;
+            Box::new(move || greybox::app::fluxmap(&map, &r))
+        }
+        "saturation" => {
+            let r = saturation_request(options)?;
+            Box::new(move || greybox::app::saturation(&paths, &r))
+        }
+        "standstill" => {
+            let r = standstill_request(options)?;
+            Box::new(move || greybox::app::standstill(&paths, &r))
+        }
+        "mechanics" => {
+            let r = mechanics_request(options)?;
+            Box::new(move || greybox::app::mechanics(&paths, &r))
+        }
+        other => {
+            return Err(OptionError::new_err(format!(
+                "command `{other}`: one of fluxmap, saturation, standstill, mechanics"
+            )));
+        }
+    };
+    let r = py.detach(run).map_err(|e| to_py(in_python_words(e)))?;
+    Ok((r.json, r.untrusted))
 }
 
-/// Runs the fitting subcommand `command` (`fluxmap`, `saturation`, `standstill` or
-/// `mechanics`) with the flags `argv`, the GIL released: its JSON report (as `--json`
-/// writes it) and the codes of the reasons it is not to be trusted (empty: trusted; the
-/// command line's exit code 3 otherwise).
-///
-/// Errors: `OptionError` for an unknown command, a bad flag or `--json` (no files are
-/// written), `DataError`, `FitError` with the command line's messages.
-#[pyfunction]
-pub fn report(py: Python<'_>, command: &str, argv: Vec<String>) -> PyResult<(String, Vec<String>)> {
-    fn run<T: clap::Args + clap::FromArgMatches + Send + Sync>(
-        py: Python<'_>,
-        name: &'static str,
-        argv: &[String],
-        json: impl Fn(&T) -> bool,
-        outcome: impl Fn(&T) -> greybox::Result<Outcome> + Send + Sync,
-    ) -> PyResult<(String, Vec<String>)> {
-        let a: T = parse(name, argv).map_err(from_clap)?;
-        if json(&a) {
-            return Err(refused("--json", "the Python functions write no files: the report is returned"));
+/// The keyword `pole_pairs`, required by the commands that read drive logs.
+fn pole_pairs(given: Option<u32>) -> PyResult<u32> {
+    given.ok_or_else(|| OptionError::new_err("pole_pairs: required (the motor's pole pairs n_p)"))
+}
+
+/// `exponents=(S, T, U, V)` (or `"S,T,U,V"`), checked.
+fn exponents_of(x: &Value<'_, '_>) -> PyResult<greybox::pmsm::SaturationExponents> {
+    let values =
+        x.items()?.iter().map(|v| Value { key: x.key, v }.count()).collect::<PyResult<Vec<u32>>>()?;
+    exponents(&values)
+        .map_err(|_| x.err("expected four whole numbers (S, T, U, V) with S, T ≥ 1, e.g. (4, 2, 1, 0)"))
+}
+
+/// The request of `fluxmap`'s keywords.
+fn fluxmap_request(options: &Bound<'_, PyDict>) -> PyResult<FluxMapRequest> {
+    let mut r = FluxMapRequest::default();
+    each(options, |x| {
+        let c = &mut r.columns;
+        match x.key {
+            "exponents" => r.exponents = Some(exponents_of(x)?),
+            "col_id" => c.i_d = x.text()?,
+            "col_iq" => c.i_q = x.text()?,
+            "col_psid" => c.psi_d = x.text()?,
+            "col_psiq" => c.psi_q = x.text()?,
+            "col_torque" => c.torque = x.text()?,
+            "pole_pairs" => r.pole_pairs = Some(positive_count(x)?),
+            "delimiter" => c.delimiter = x.parsed(|s| s.parse::<Delimiter>().map_err(|e| e.to_string()))?,
+            other => return Err(FLUXMAP.not_taken(other)),
         }
-        let o = py.detach(|| outcome(&a)).map_err(words::<T>(name))?;
-        Ok((o.json, o.untrusted))
+        Ok(())
+    })?;
+    Ok(r)
+}
+
+/// A whole number ≥ 1.
+fn positive_count(x: &Value<'_, '_>) -> PyResult<u32> {
+    match x.count()? {
+        0 => Err(x.err("expected a whole number ≥ 1")),
+        n => Ok(n),
     }
-    match command {
-        "fluxmap" => run::<FluxMapArgs>(
-            py,
-            "fluxmap",
-            &argv,
-            |a| a.report.json.is_some(),
-            greybox::cli::fluxmap::fluxmap_outcome,
-        ),
-        "saturation" => run::<SaturationArgs>(
-            py,
-            "saturation",
-            &argv,
-            |a| a.report.json.is_some(),
-            greybox::cli::saturation::saturation_outcome,
-        ),
-        "standstill" => run::<StandstillArgs>(
-            py,
-            "standstill",
-            &argv,
-            |a| a.report.json.is_some(),
-            greybox::cli::standstill::standstill_outcome,
-        ),
-        "mechanics" => run::<MechanicsArgs>(
-            py,
-            "mechanics",
-            &argv,
-            |a| a.report.json.is_some(),
-            greybox::cli::mechanics::mechanics_outcome,
-        ),
-        other => {
-            Err(refused("command", &format!("`{other}`: one of fluxmap, saturation, standstill, mechanics")))
+}
+
+/// The request of `saturation`'s keywords.
+fn saturation_request(options: &Bound<'_, PyDict>) -> PyResult<SaturationRequest> {
+    let mut r = SaturationRequest::new(0);
+    let (mut n_p, mut reading) = (None, ReadingKeys::new(LogReading::default().csv));
+    each(options, |x| {
+        match x.key {
+            "pole_pairs" => n_p = Some(x.count()?),
+            "exponents" => r.exponents = exponents_of(x)?,
+            other if reading.take(other, x)? => {}
+            other => return Err(SATURATION.not_taken(other)),
         }
-    }
+        Ok(())
+    })?;
+    Ok(SaturationRequest { pole_pairs: pole_pairs(n_p)?, reading: reading.finish()?, ..r })
+}
+
+/// The request of `standstill`'s keywords.
+fn standstill_request(options: &Bound<'_, PyDict>) -> PyResult<StandstillRequest> {
+    let mut r = StandstillRequest::new(0);
+    let (mut n_p, mut reading) = (None, ReadingKeys::new(LogReading::default().csv));
+    each(options, |x| {
+        match x.key {
+            "pole_pairs" => n_p = Some(x.count()?),
+            "terminal" => r.terminal = x.flag()?,
+            "delay" => r.delay = x.count()?,
+            "width" => r.width = Some(x.number()?),
+            "col_temperature" => r.col_temperature = x.text()?,
+            other if reading.take(other, x)? => {}
+            other => return Err(STANDSTILL.not_taken(other)),
+        }
+        Ok(())
+    })?;
+    Ok(StandstillRequest { pole_pairs: pole_pairs(n_p)?, reading: reading.finish()?, ..r })
+}
+
+/// The request of `mechanics`' keywords.
+fn mechanics_request(options: &Bound<'_, PyDict>) -> PyResult<MechanicsRequest> {
+    let mut r = MechanicsRequest::new(0);
+    let (mut n_p, mut reading) = (None, ReadingKeys::new(LogReading::default().csv));
+    each(options, |x| {
+        match x.key {
+            "pole_pairs" => n_p = Some(x.count()?),
+            "k_t" => r.k_t = Some(x.number()?),
+            "lead" => r.lead = Some(x.number()?),
+            "pole_pitch" => r.pole_pitch = Some(x.number()?),
+            "k_f" => r.k_f = Some(x.number()?),
+            "gravity" => r.gravity = x.flag()?,
+            "constant_load" => r.constant_load = x.flag()?,
+            "per_log" => r.per_log = x.flag()?,
+            "window" => r.window = x.number()?,
+            "coulomb_speed" => {
+                r.coulomb_speed = match x.word()?.as_str() {
+                    "estimate" => None,
+                    _ => Some(x.number().ok().filter(|w| *w > 0.0).ok_or_else(|| {
+                        x.err("expected a positive speed in rad/s (m/s on a linear axis) or \"estimate\"")
+                    })?),
+                }
+            }
+            "col_load" => r.col_load = x.text()?,
+            other if reading.take(other, x)? => {}
+            other => return Err(MECHANICS.not_taken(other)),
+        }
+        Ok(())
+    })?;
+    Ok(MechanicsRequest { pole_pairs: pole_pairs(n_p)?, reading: reading.finish()?, ..r })
 }

@@ -135,7 +135,7 @@ def test_standstill_and_mechanics_from_simulated_tables():
 
 def test_issue33_fits_refuse_files_and_bad_flags():
     log, truth = greybox.simulate("standstill", seed=3, duration=0.3)
-    with pytest.raises(greybox.OptionError, match="--json"):
+    with pytest.raises(greybox.OptionError, match="`json`: the Python functions write no files"):
         greybox.standstill(log, pole_pairs=4, json="x.json")
     with pytest.raises(greybox.OptionError, match="window"):
         greybox.mechanics(log, pole_pairs=4, k_t=0.6, window=10.0)
@@ -169,3 +169,53 @@ def test_issue33_fits_equal_the_command_line_to_the_bit(cli, tmp_path):
         # (but for the fits' wall-clock timing).
         assert _without_timings(r.report) == _without_timings(json.loads(out.stdout)), command
         assert r.trusted == (out.returncode == 0), command
+
+
+def _flux_map(path):
+    """A flux map (CSV, `;`, renamed columns) of a machine saturating along q only."""
+    lines = ["Id;Iq;PsiD;PsiQ"]
+    for a in range(-12, 1):
+        for b in range(-12, 13):
+            i_d, i_q = float(a), float(b)
+            psi_q = 0.03 * i_q / (1 + 0.004 * i_q * i_q) ** 0.5
+            lines.append(f"{i_d!r};{i_q!r};{0.1 + 0.01 * i_d!r};{psi_q!r}")
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_issue33_fits_take_typed_keywords(cli, tmp_path):
+    import json
+    import subprocess
+
+    path = tmp_path / "map.csv"
+    _flux_map(path)
+    words = dict(col_id="Id", col_iq="Iq", col_psid="PsiD", delimiter=";")
+    # A missing column named by the keyword that renames it, not by the command line's flag.
+    with pytest.raises(greybox.OptionError, match="`col_psiq`: no column `psi_q`.*PsiQ"):
+        greybox.fluxmap(path, **words)
+    r = greybox.fluxmap(path, col_psiq="PsiQ", exponents=(4, 2, 1, 0), **words)
+    flags = ["--col-id", "Id", "--col-iq", "Iq", "--col-psid", "PsiD", "--col-psiq", "PsiQ", "--delimiter", ";"]
+    out = subprocess.run(
+        [str(cli), "fluxmap", str(path), *flags, "--exponents", "4,2,1,0", "--json", "-"],
+        capture_output=True,
+        text=True,
+    )
+    assert out.returncode in (0, 3), out.stderr
+    assert _without_timings(r.report) == _without_timings(json.loads(out.stdout))
+    assert r.trusted == (out.returncode == 0)
+    for call, message in [
+        (lambda: greybox.fluxmap(path, exponents=(0, 2, 1, 0)), r"exponents=\(0, 2, 1, 0\): expected four whole"),
+        (lambda: greybox.fluxmap(path, col_psi_q="x"), "unknown keyword `col_psi_q`: did you mean col_psid or col_psiq"),
+        (lambda: greybox.fluxmap(path, pole_pairs=0), "pole_pairs=0: expected a whole number ≥ 1"),
+    ]:
+        with pytest.raises(greybox.OptionError, match=message):
+            call()
+    log, _ = greybox.simulate("standstill", seed=3, duration=0.3)
+    for call, message in [
+        (lambda: greybox.mechanics(log, pole_pairs=4, k_t=0.6, coulomb_speed=-1), "coulomb_speed=-1: expected a positive"),
+        (lambda: greybox.mechanics(log, pole_pairs=4, k_t=0.6, k_f=2.0), "`k_f`: not with k_t"),
+        (lambda: greybox.mechanics(log, pole_pairs=4, k_f=2.0), "`k_f`: a force constant needs a linear axis: give lead"),
+        (lambda: greybox.standstill(log, pole_pairs=4, terminal=1), "terminal=1: expected True or False"),
+        (lambda: greybox.saturation(log, pole_pairs=4, exponents="4,2"), "exponents='4,2': expected four whole"),
+    ]:
+        with pytest.raises(greybox.OptionError, match=message):
+            call()

@@ -11,6 +11,9 @@
 //! - [`TrackRequest`]: the options of an online estimation; [`track_logs`] runs it.
 //! - [`ValidateRequest`]: a saved fit against other logs; [`validate`] compares them.
 //! - [`SimulateRequest`]: a simulated drive log; [`drive_config`] builds its configuration.
+//! - [`FluxMapRequest`], [`SaturationRequest`], [`StandstillRequest`], [`MechanicsRequest`]:
+//!   the fits of issue 33; [`fluxmap`], [`saturation`], [`standstill`], [`mechanics`] run
+//!   them into a [`Report`].
 //! - [`Choice`] and the values of [`values`]: the words both front ends accept.
 //!
 //! No item here prints, exits or draws a progress bar: the front ends do.
@@ -21,7 +24,10 @@ pub mod columns;
 mod fitted;
 mod logs;
 mod plan;
+#[cfg(feature = "plot")]
+pub mod plots;
 mod reading;
+mod reports;
 mod request;
 mod simulate;
 mod track;
@@ -36,6 +42,10 @@ pub use fitted::{FitOutcome, Fitted, fit_experiments};
 pub use logs::{check_paths, unique_names};
 pub use plan::{Plan, fit_logs, plan, pole_pairs};
 pub use reading::{named, read_logs, read_segments_from, read_sources};
+pub use reports::{
+    FluxMapRequest, MechanicsRequest, Report, SaturationRequest, StandstillRequest, exponents, fluxmap,
+    mechanics, saturation, standstill,
+};
 pub use request::{FitRequest, LogReading, PwmRequest};
 pub use simulate::{Motor, SimulateRequest, drive_config, set_field};
 pub use track::{Estimator, KalmanSettings, MrasSettings, TrackRequest, TrackedLog, track_logs};

@@ -3,14 +3,10 @@
 //! against the map's range and the inductances at a few operating points (issue 33).
 
 use super::output;
-use crate::Error;
+use crate::app::{FluxMapRequest, exponents, fluxmap};
 use crate::data::Delimiter;
-use crate::pmsm::{
-    FluxMapColumns, FluxMapFit, FluxMapOptions, SaturationExponents, TorqueCheck, fit_flux_map,
-    read_flux_map_with, torque_check,
-};
+use crate::pmsm::FluxMapColumns;
 use clap::Args;
-use serde::Serialize;
 use std::path::PathBuf;
 
 /// Arguments of `greybox fluxmap`.
@@ -24,7 +20,7 @@ pub struct FluxMapArgs {
     /// The flux map (.npz or .csv[.gz]).
     pub map: PathBuf,
     /// The exponents S,T,U,V of the model (default: chosen from 1..9 × 1..9 × 0..2 × 0..2).
-    #[arg(long, value_delimiter = ',', num_args = 4, value_name = "S,T,U,V")]
+    #[arg(long, value_delimiter = ',', value_name = "S,T,U,V")]
     pub exponents: Option<Vec<u32>>,
     /// Column of the d-axis current [A, peak dq] in a CSV, Parquet or Arrow map.
     #[arg(long, default_value = "i_d", value_name = "NAME")]
@@ -52,121 +48,35 @@ pub struct FluxMapArgs {
     pub report: output::ReportArgs,
 }
 
-/// Runs `greybox fluxmap`; whether the fit is trusted (exit 3 if not).
+impl TryFrom<&FluxMapArgs> for FluxMapRequest {
+    type Error = crate::Error;
+
+    /// The request of these flags.
+    ///
+    /// # Errors
+    /// [`crate::Error::InvalidOption`] (`--exponents`) for bad exponents.
+    fn try_from(a: &FluxMapArgs) -> crate::Result<Self> {
+        Ok(Self {
+            exponents: a.exponents.as_deref().map(exponents).transpose()?,
+            columns: FluxMapColumns {
+                i_d: a.col_id.clone(),
+                i_q: a.col_iq.clone(),
+                psi_d: a.col_psid.clone(),
+                psi_q: a.col_psiq.clone(),
+                delimiter: a.delimiter,
+                torque: a.col_torque.clone(),
+            },
+            pole_pairs: a.pole_pairs,
+        })
+    }
+}
+
+/// Runs `greybox fluxmap`; whether the fit is trusted (exit 3 if not: [`fluxmap`]).
 ///
 /// # Errors
 /// An unreadable map, exponents that are not four integers, a failed fit, an output that
 /// cannot be written.
 pub fn run_fluxmap(a: &FluxMapArgs) -> crate::Result<bool> {
-    a.report.run(std::slice::from_ref(&a.map), "flux-map fit", || fluxmap_outcome(a))
-}
-
-/// The fit of `greybox fluxmap` and its reports, nothing printed or written. Untrusted (exit
-/// 3) when the reported no-load flux or inductances miss the map's own values
-/// (`no_load_flux`, `inductance_mismatch`); a coefficient at its bound zero is a finding,
-/// not a fault.
-///
-/// # Errors
-/// As [`run_fluxmap`] but for the output.
-pub fn fluxmap_outcome(a: &FluxMapArgs) -> crate::Result<output::Outcome> {
-    let exponents = a.exponents.as_deref().map(parse_exponents).transpose()?;
-    let columns = FluxMapColumns {
-        i_d: a.col_id.clone(),
-        i_q: a.col_iq.clone(),
-        psi_d: a.col_psid.clone(),
-        psi_q: a.col_psiq.clone(),
-        delimiter: a.delimiter,
-        torque: a.col_torque.clone(),
-    };
-    let read = read_flux_map_with(&a.map, &columns).map_err(|e| match e {
-        Error::MissingColumn { column, available, .. } => Error::InvalidOption {
-            option: flag_of(&columns, &column).into(),
-            reason: format!(
-                "no column `{column}` in the map's header ({available}): name the column with this flag"
-            ),
-        },
-        e => e,
-    })?;
-    let fit = fit_flux_map(&read.map, &FluxMapOptions { exponents, ..Default::default() })?;
-    // A torque that cannot be compared is a note, not a failed flux-map fit.
-    let (torque, torque_note) = match (&read.torque, a.pole_pairs) {
-        (Some(t), Some(n_p)) => match torque_check(&read.map, &fit, t, n_p) {
-            Ok(check) => (Some(check), None),
-            Err(e) => (
-                None,
-                Some(format!("the measured torque (--col-torque {}) is not compared: {e}", a.col_torque)),
-            ),
-        },
-        (Some(_), None) => (
-            None,
-            Some(format!(
-                "the map has a measured torque (`{}`); give the pole pairs (-p) to compare it with the model's",
-                a.col_torque
-            )),
-        ),
-        (None, Some(_)) => (
-            None,
-            Some(format!(
-                "-p compares a measured torque, and the map has no column `{}` (--col-torque; a Parquet or Arrow \
-                 one is read only without gaps, an .npz holds none)",
-                a.col_torque
-            )),
-        ),
-        (None, None) => (None, None),
-    };
-    let untrusted = fit.check.iter().flat_map(|c| &c.warnings).map(|w| w.code.clone()).collect();
-    let mut text = String::new();
-    if let Some(first) = read.first_skipped {
-        text = format!(
-            "{} of the map's {} points left out for a missing value (empty, NaN or inf), the first at point {first}\n",
-            read.skipped,
-            read.skipped + read.map.len()
-        );
-    }
-    text += &fit.to_string();
-    if let Some(t) = &torque {
-        text += &t.to_string();
-    }
-    if let Some(n) = &torque_note {
-        text += &format!("note: {n}\n");
-    }
-    let report = Report { skipped_points: read.skipped, fit: &fit, torque: torque.as_ref() };
-    Ok(output::Outcome::new(text, &report, untrusted))
-}
-
-/// The JSON report of `greybox fluxmap`: the fit and the points the reader left out.
-#[derive(Serialize)]
-struct Report<'a> {
-    /// Points left out for a missing value.
-    skipped_points: usize,
-    #[serde(flatten)]
-    fit: &'a FluxMapFit,
-    /// The measured torque against the model's (with a torque column and -p).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    torque: Option<&'a TorqueCheck>,
-}
-
-/// The `--col-*` flag of the map column `column`.
-fn flag_of(c: &FluxMapColumns, column: &str) -> &'static str {
-    match column {
-        x if x == c.i_d => "--col-id",
-        x if x == c.i_q => "--col-iq",
-        x if x == c.psi_d => "--col-psid",
-        x if x == c.torque => "--col-torque",
-        _ => "--col-psiq",
-    }
-}
-
-/// The exponents `S,T,U,V` of `--exponents`.
-///
-/// # Errors
-/// [`Error::InvalidOption`] (`--exponents`) unless four integers with `S, T ≥ 1`.
-pub fn parse_exponents(values: &[u32]) -> crate::Result<SaturationExponents> {
-    match *values {
-        [s, t, u, v] if s >= 1 && t >= 1 => Ok(SaturationExponents { s, t, u, v }),
-        _ => Err(Error::InvalidOption {
-            option: "--exponents".into(),
-            reason: format!("{values:?}: give four integers S,T,U,V with S, T ≥ 1, e.g. --exponents 4,2,1,0"),
-        }),
-    }
+    let r = FluxMapRequest::try_from(a)?;
+    a.report.run(std::slice::from_ref(&a.map), "flux-map fit", || fluxmap(&a.map, &r))
 }

@@ -3,6 +3,7 @@
 //! a closed pipe quiet.
 
 use crate::Error;
+use crate::app::Report;
 use crate::data::Staged;
 use std::path::{Path, PathBuf};
 
@@ -110,62 +111,40 @@ pub struct ReportArgs {
 }
 
 impl ReportArgs {
-    /// Checks the `inputs` and that the JSON output overwrites none of them, then reports
-    /// the `outcome` ([`Outcome::emit`]); whether the `what` is trusted.
+    /// Checks that the JSON output overwrites none of the `inputs`, then runs the fit
+    /// (`report`, which checks the inputs themselves) and reports it ([`emit`]); whether the
+    /// `what` is trusted.
     ///
     /// # Errors
-    /// Those of [`super::logs::check_paths`], [`check_all`], `outcome` and the output.
+    /// Those of [`check_all`], `report` and the output.
     pub fn run(
         &self,
         inputs: &[PathBuf],
         what: &str,
-        outcome: impl FnOnce() -> crate::Result<Outcome>,
+        report: impl FnOnce() -> crate::Result<Report>,
     ) -> crate::Result<bool> {
-        crate::app::check_paths(inputs)?;
         check_all(&[("--json", self.json.as_deref())], inputs)?;
-        outcome()?.emit(self.json.as_deref(), self.quiet, what)
+        emit(&report()?, self.json.as_deref(), self.quiet, what)
     }
 }
 
-/// What a fitting subcommand (`fluxmap`, `saturation`, `standstill`, `mechanics`) produced:
-/// its text report, its JSON report, and whether it is trusted (why not, if not).
-#[derive(Clone, Debug)]
-pub struct Outcome {
-    /// The text report (stdout).
-    pub text: String,
-    /// The JSON report (`--json`).
-    pub json: String,
-    /// The codes of the reasons it is not to be trusted; empty when trusted.
-    pub untrusted: Vec<String>,
-}
-
-impl Outcome {
-    /// The outcome of `text` and the JSON of `value`, untrusted for `untrusted`.
-    pub fn new<T: serde::Serialize>(text: String, value: &T, untrusted: Vec<String>) -> Self {
-        Self { text, json: serde_json::to_string_pretty(value).unwrap_or_default(), untrusted }
+/// Prints the text of `report` (unless `quiet` or the JSON goes to stdout), writes its JSON
+/// to `json` (all or nothing), says on stderr why the `what` is not to be trusted; whether
+/// it is.
+///
+/// # Errors
+/// An output that cannot be written (nothing is written then).
+pub fn emit(report: &Report, json: Option<&Path>, quiet: bool, what: &str) -> crate::Result<bool> {
+    if !(quiet || json.is_some_and(|p| p.as_os_str() == "-")) {
+        stdout(&report.text)?;
     }
-
-    /// Prints the text (unless `quiet` or the JSON goes to stdout), writes the JSON to
-    /// `json` (all or nothing), says on stderr why the `what` is not to be trusted; whether
-    /// it is.
-    ///
-    /// # Errors
-    /// An output that cannot be written (nothing is written then).
-    pub fn emit(&self, json: Option<&Path>, quiet: bool, what: &str) -> crate::Result<bool> {
-        if !(quiet || json.is_some_and(|p| p.as_os_str() == "-")) {
-            stdout(&self.text)?;
-        }
-        let mut staged = Staged::new();
-        if let Some(path) = json {
-            write(&mut staged, path, &self.json)?;
-        }
-        staged.commit()?;
-        if !self.untrusted.is_empty() {
-            eprintln!(
-                "warning: the {what} is not to be trusted ({}); exit code 3",
-                self.untrusted.join(", ")
-            );
-        }
-        Ok(self.untrusted.is_empty())
+    let mut staged = Staged::new();
+    if let Some(path) = json {
+        write(&mut staged, path, &report.json)?;
     }
+    staged.commit()?;
+    if !report.untrusted.is_empty() {
+        eprintln!("warning: the {what} is not to be trusted ({}); exit code 3", report.untrusted.join(", "));
+    }
+    Ok(report.trusted())
 }

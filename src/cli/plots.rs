@@ -7,9 +7,9 @@ use crate::data::Staged;
 use crate::drive::{DriveLog, Truth, plant_at};
 use crate::online::Trajectory;
 use crate::online::{TrackRun, TrackTruth, track_svg};
-use crate::pmsm::{PmsmFit, channel};
+use crate::pmsm::PmsmFit;
 use crate::report::Comparison;
-use crate::report::plot::{self, Context};
+use crate::report::plot;
 use std::path::{Path, PathBuf};
 
 /// Writes the fit plot and the residual CSV of `fit` on its `logs`, where asked.
@@ -36,24 +36,10 @@ pub fn fit_outputs(
         staged.produce(path, |tmp| crate::report::residuals::write_residuals_csv(tmp, &comparisons))?;
     }
     if let Some(path) = plot_path {
-        let svg = fit_plot(fit, &comparisons, logs)?;
+        let svg = crate::app::plots::fit_svg_of(fit, &comparisons, logs)?;
         staged.produce(path, |tmp| plot::write_svg(tmp, &svg))?;
     }
     Ok(())
-}
-
-/// The fit plot (SVG text, what `--plot` writes) of `fit` on its `logs`.
-///
-/// # Errors
-/// Those of [`PmsmFit::comparisons`] and [`plot::fit_svg`].
-pub fn fit_svg(fit: &PmsmFit, logs: &[Experiment]) -> crate::Result<String> {
-    fit_plot(fit, &fit.comparisons(logs)?, logs)
-}
-
-fn fit_plot(fit: &PmsmFit, comparisons: &[Comparison], logs: &[Experiment]) -> crate::Result<String> {
-    let speeds = speeds(logs, comparisons);
-    let context = speeds.as_ref().map(|s| context(s));
-    plot::fit_svg(fit, comparisons, context.as_ref())
 }
 
 /// Writes the compare plot of a validation.
@@ -63,9 +49,7 @@ pub fn compare_plot(
     comparisons: &[Comparison],
     logs: &[Experiment],
 ) -> crate::Result<()> {
-    let speeds = speeds(logs, comparisons);
-    let context = speeds.as_ref().map(|s| context(s));
-    let svg = plot::compare_svg(comparisons, context.as_ref())?;
+    let svg = crate::app::plots::compare_svg(comparisons, logs)?;
     staged.produce(path, |tmp| plot::write_svg(tmp, &svg))
 }
 
@@ -90,17 +74,6 @@ pub fn track_plot(
         .collect();
     let svg = track_svg(&runs)?;
     staged.produce(path, |tmp| plot::write_svg(tmp, &svg))
-}
-
-/// The mechanical speed of each log, when every log has it at the comparison's length.
-fn speeds<'a>(logs: &'a [Experiment], comparisons: &[Comparison]) -> Option<Vec<&'a [f64]>> {
-    let v: Vec<&[f64]> = logs.iter().filter_map(|e| e.channel(channel::W_M).ok()).collect();
-    let same = v.len() == comparisons.len() && v.iter().zip(comparisons).all(|(s, c)| s.len() == c.len());
-    same.then_some(v)
-}
-
-fn context<'a>(speeds: &'a [&'a [f64]]) -> Context<'a> {
-    Context { name: "w_m", unit: "rad/s, mechanical", per_log: speeds }
 }
 
 /// Points of a time-varying truth over the observer's time span.

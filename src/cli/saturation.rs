@@ -3,9 +3,8 @@
 //! with the inductances at the logs' operating points (issue 33).
 
 use super::columns::ColumnArgs;
-use super::fluxmap::parse_exponents;
 use super::output;
-use crate::pmsm::{CsvOptions, PmsmFitOptions, SaturationExponents, fit_saturated};
+use crate::app::{SaturationRequest, exponents, saturation};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -24,7 +23,7 @@ pub struct SaturationArgs {
     #[arg(long, short = 'p')]
     pub pole_pairs: u32,
     /// The exponents S,T,U,V of the saturation model.
-    #[arg(long, value_delimiter = ',', num_args = 4, value_name = "S,T,U,V", default_values_t = [4, 2, 1, 0])]
+    #[arg(long, value_delimiter = ',', value_name = "S,T,U,V", default_value = "4,2,1,0")]
     pub exponents: Vec<u32>,
     /// The report's outputs.
     #[command(flatten)]
@@ -34,24 +33,29 @@ pub struct SaturationArgs {
     pub columns: ColumnArgs,
 }
 
+impl TryFrom<&SaturationArgs> for SaturationRequest {
+    type Error = crate::Error;
+
+    /// The request of these flags.
+    ///
+    /// # Errors
+    /// [`crate::Error::InvalidOption`] (`--exponents`) for bad exponents.
+    fn try_from(a: &SaturationArgs) -> crate::Result<Self> {
+        Ok(Self {
+            pole_pairs: a.pole_pairs,
+            exponents: exponents(&a.exponents)?,
+            reading: a.columns.reading(),
+        })
+    }
+}
+
 /// Runs `greybox saturation`; whether the saturated fit is trusted
 /// ([`crate::pmsm::SaturatedFit::trusted`]).
 ///
 /// # Errors
-/// Unreadable logs, bad exponents, a failed linear or saturated fit, an output that cannot
+/// Bad exponents, unreadable logs, a failed linear or saturated fit, an output that cannot
 /// be written (nothing is written then).
 pub fn run_saturation(a: &SaturationArgs) -> crate::Result<bool> {
-    a.report.run(&a.logs, "saturated fit", || saturation_outcome(a))
-}
-
-/// The fits of `greybox saturation` and their reports, nothing printed or written.
-///
-/// # Errors
-/// As [`run_saturation`] but for the output.
-pub fn saturation_outcome(a: &SaturationArgs) -> crate::Result<output::Outcome> {
-    let exponents: SaturationExponents = parse_exponents(&a.exponents)?;
-    let csv = CsvOptions { pole_pairs: Some(a.pole_pairs), ..a.columns.options() };
-    let logs: Vec<_> = a.columns.read_logs(&a.logs, &csv, false)?.into_iter().flatten().collect();
-    let fit = fit_saturated(&logs, &PmsmFitOptions::new(a.pole_pairs), exponents)?;
-    Ok(output::Outcome::new(fit.to_string(), &fit, fit.untrusted_reasons()))
+    let r = SaturationRequest::try_from(a)?;
+    a.report.run(&a.logs, "saturated fit", || saturation(&a.logs, &r))
 }

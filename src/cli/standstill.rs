@@ -4,7 +4,8 @@
 
 use super::columns::ColumnArgs;
 use super::output;
-use crate::pmsm::{StandstillOptions, WINDING_TEMPERATURE, fit_standstill};
+use crate::app::{StandstillRequest, standstill};
+use crate::pmsm::WINDING_TEMPERATURE;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -44,28 +45,25 @@ pub struct StandstillArgs {
     pub columns: ColumnArgs,
 }
 
+impl From<&StandstillArgs> for StandstillRequest {
+    /// The request of these flags.
+    fn from(a: &StandstillArgs) -> Self {
+        Self {
+            pole_pairs: a.pole_pairs,
+            terminal: a.terminal,
+            delay: a.delay,
+            width: a.width,
+            col_temperature: a.col_temperature.clone(),
+            reading: a.columns.reading(),
+        }
+    }
+}
+
 /// Runs `greybox standstill`; whether the fit is trusted (the gate of [`crate::estimate::fit`]).
 ///
 /// # Errors
 /// Unreadable logs, a bad width, a failed fit, an output that cannot be written (nothing is
 /// written then).
 pub fn run_standstill(a: &StandstillArgs) -> crate::Result<bool> {
-    a.report.run(&a.logs, "standstill fit", || standstill_outcome(a))
-}
-
-/// The fit of `greybox standstill` and its reports, nothing printed or written.
-///
-/// # Errors
-/// As [`run_standstill`] but for the output.
-pub fn standstill_outcome(a: &StandstillArgs) -> crate::Result<output::Outcome> {
-    let extra = (a.col_temperature.as_str(), WINDING_TEMPERATURE, "°C");
-    let logs = a.columns.read_logs_with_channel(&a.logs, a.pole_pairs, extra)?;
-    let options = StandstillOptions {
-        pole_pairs: a.pole_pairs,
-        reference_delay: (!a.terminal).then_some(a.delay),
-        width: a.width,
-        ..StandstillOptions::default()
-    };
-    let fit = fit_standstill(&logs, &options)?;
-    Ok(output::Outcome::new(fit.to_string(), &fit, fit.fit.untrusted_codes()))
+    a.report.run(&a.logs, "standstill fit", || standstill(&a.logs, &StandstillRequest::from(a)))
 }

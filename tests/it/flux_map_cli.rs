@@ -67,13 +67,15 @@ fn the_command_reads_renamed_columns_and_names_what_is_missing() {
         ["fluxmap", p].iter().chain(&renamed).chain(more).map(|s| s.to_string()).collect()
     };
     let run = |more: &[&str]| greybox(&args(more).iter().map(String::as_str).collect::<Vec<_>>());
-    let out = run(&["--col-psiq", "PsiQ", "--json", json.to_str().unwrap()]);
+    // The exponents as the help and docs/cli.md write them: one word, comma-separated.
+    let out = run(&["--col-psiq", "PsiQ", "--exponents", "4,2,1,0", "--json", json.to_str().unwrap()]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert_eq!(out.status.code(), Some(0), "{text}{}", String::from_utf8_lossy(&out.stderr));
     assert!(text.contains("1 of the map's 567 points left out"), "{text}");
     assert!(text.contains("ψ_d") && text.contains("ψ_q"), "the residual per component: {text}");
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(report["skipped_points"], 1);
+    assert_eq!(report["exponents"], serde_json::json!({ "s": 4, "t": 2, "u": 1, "v": 0 }));
     assert_eq!(report["rms_residual_dq"].as_array().map(Vec::len), Some(2));
     // A column that is not there: exit 2, the flag named with the header.
     let out = run(&[]);
