@@ -6,7 +6,9 @@
 
 use super::request::LogReading;
 use crate::error::{Error, Result};
-use crate::online::{Adaptation, KalmanNoise, MrasConfig, Trajectory, current_noise, track, track_kalman};
+use crate::online::{
+    Adaptation, KalmanNoise, MrasConfig, Trajectory, current_noise, track, track_kalman_with,
+};
 use crate::pmsm::{CsvOptions, SavedModel, ThermalReference, VoltageHold, VoltageInput, applied_experiment};
 use std::path::{Path, PathBuf};
 
@@ -155,7 +157,8 @@ pub fn track_logs(logs: &[PathBuf], r: &TrackRequest) -> Result<(Vec<TrackedLog>
             let trajectory = match r.estimator {
                 Estimator::Mras => track(log, &config),
                 Estimator::Ekf => {
-                    track_kalman(log, &config, Some(noise(&r.kalman, &config, log)?)).map_err(diverged)
+                    track_kalman_with(log, &config, |i_d, i_q| Ok(noise(&r.kalman, &config, i_d, i_q)))
+                        .map_err(diverged)
                 }
             }
             .map_err(|e| flag_error(e, path))?;
@@ -184,31 +187,18 @@ fn diverged(e: Error) -> Error {
     }
 }
 
-/// The Kalman filter's noise model of `k` for `log`: the current noise given or the log's
-/// own ([`current_noise`]), the walks given or their defaults ([`KalmanNoise::for_machine`]).
-///
-/// # Errors
-/// A log without its currents (those of [`crate::pmsm::DqView::try_new`]).
-fn noise(k: &KalmanSettings, config: &MrasConfig, log: &crate::Experiment) -> Result<KalmanNoise> {
-    let sigma_i = match k.current_noise {
-        Some(s) => s,
-        None => {
-            let v = crate::pmsm::DqView::try_new(log)?;
-            current_noise(v.i_d(), v.i_q())
-        }
-    };
+/// The Kalman filter's noise model of `k` for a log of the currents `i_d`, `i_q` \[A\]:
+/// the current noise given or the log's own ([`current_noise`]), the walks given or their
+/// defaults ([`KalmanNoise::for_machine`]).
+fn noise(k: &KalmanSettings, config: &MrasConfig, i_d: &[f64], i_q: &[f64]) -> KalmanNoise {
+    let sigma_i = k.current_noise.unwrap_or_else(|| current_noise(i_d, i_q));
     let d = KalmanNoise::for_machine(sigma_i, config.r_s0, config.k_e0);
     if k.r_s_walk.is_none() && k.k_e_walk.is_none() {
-        return Ok(d);
+        return d;
     }
     // A walk given is absolute: the other one's default taken at the start.
     let (q_r, q_k) = d.walks_at(config.r_s0, config.k_e0);
-    Ok(KalmanNoise {
-        q_r_s: k.r_s_walk.unwrap_or(q_r),
-        q_k_e: k.k_e_walk.unwrap_or(q_k),
-        relative: false,
-        ..d
-    })
+    KalmanNoise { q_r_s: k.r_s_walk.unwrap_or(q_r), q_k_e: k.k_e_walk.unwrap_or(q_k), relative: false, ..d }
 }
 
 /// Refuses a setting of the estimator not chosen: the MRAS's with the Kalman filter (the

@@ -54,4 +54,6 @@ pub use kalman::{K_E_WALK, Kalman, KalmanEstimate, KalmanNoise, MODEL_NOISE_RATI
 pub use mras::{Estimates, INFORMATIVE, MIN_TAU_SAMPLES, Mras, MrasOutput, Sample};
 #[cfg(feature = "plot")]
 pub use plot::{TrackRun, TrackTruth, track_svg};
-pub use track::{INNOVATION_RATIO_LIMIT, TemperatureTrajectory, Trajectory, track, track_kalman};
+pub use track::{
+    INNOVATION_RATIO_LIMIT, TemperatureTrajectory, Trajectory, track, track_kalman, track_kalman_with,
+};

@@ -132,11 +132,27 @@ pub fn track(e: &Experiment, config: &MrasConfig) -> Result<Trajectory> {
 /// # Errors
 /// Those of [`track`], [`KalmanNoise::validate`] and [`Kalman::update`] (naming the sample).
 pub fn track_kalman(e: &Experiment, config: &MrasConfig, noise: Option<KalmanNoise>) -> Result<Trajectory> {
+    track_kalman_with(e, config, |i_d, i_q| {
+        Ok(noise
+            .unwrap_or_else(|| KalmanNoise::for_machine(current_noise(i_d, i_q), config.r_s0, config.k_e0)))
+    })
+}
+
+/// [`track_kalman`] with the noise model from `noise`, given the log's currents `i_d`,
+/// `i_q` \[A\] (each of the log's length) as the filter reads them: the log's channels are
+/// checked and viewed once.
+///
+/// # Errors
+/// Those of [`track_kalman`] and of `noise`.
+pub fn track_kalman_with(
+    e: &Experiment,
+    config: &MrasConfig,
+    noise: impl FnOnce(&[f64], &[f64]) -> Result<KalmanNoise>,
+) -> Result<Trajectory> {
     let v = DqView::try_new(e)?;
     let (u_d, u_q) = v.terminal_voltage()?;
     let (i_d, i_q, w_m) = (v.i_d(), v.i_q(), v.w_m());
-    let noise =
-        noise.unwrap_or_else(|| KalmanNoise::for_machine(current_noise(i_d, i_q), config.r_s0, config.k_e0));
+    let noise = noise(i_d, i_q)?;
     let mut filter = Kalman::try_new(MrasConfig { h: e.h(), ..config.clone() }, noise)?;
     let m = v.len() - 1;
     let mut out = Trajectory {
