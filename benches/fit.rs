@@ -1,5 +1,6 @@
 //! Criterion benches: one normal-equation pass (simulation with sensitivities), the cost
-//! alone and the statistics pass, and a whole fit.
+//! alone and the statistics pass, a whole fit, and the whole default `greybox fit LOG -p 4`
+//! through the application layer (read, setup checks, hold choice, fit, gate, report).
 //!
 //! With the development logs (`$GREYBOX_SHARED_DATA`, else `../shared/data` beside the
 //! repository) the benches run on `servo_spm_moves_idinj` (SPM, 72 000 samples) and
@@ -13,14 +14,17 @@
 
 use criterion::{Criterion, criterion_group};
 use greybox::Experiment;
+use greybox::app::{FitRequest, PolePairs, fit_experiments, plan, read_sources};
 use greybox::estimate::{NominalScaling, PemProblem, ProblemOptions};
 use greybox::model::{GreyBoxModel, Prepared};
+use greybox::pmsm::LogSource;
 use greybox::pmsm::{
     HoldChoice, MotorKind, PmsmFitOptions, PmsmIpm, PmsmPwm, PmsmSetup, PmsmSpm, PwmInverter, VoltageHold,
     VoltageInput, fit_pmsm, read_log,
 };
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 /// Folder of the development logs (not part of the repository): `$GREYBOX_SHARED_DATA`,
 /// else `../shared/data` beside the repository.
@@ -110,6 +114,21 @@ fn benches(c: &mut Criterion) {
     g.bench_function(format!("spm fit {spm_stem} (LS start, stator hold)"), |b| {
         let o = PmsmFitOptions { hold: HoldChoice::Stator, ..PmsmFitOptions::new(4) };
         b.iter(|| black_box(fit_pmsm(std::slice::from_ref(&servo), &o).unwrap()))
+    });
+    // The command line's default fit as a whole, as `greybox fit LOG -p 4 --json` runs it:
+    // the request planned, the log read, fitted with every check, the JSON and table made.
+    let request = FitRequest::new(PolePairs::Given(4));
+    let mut plan = plan(&request).unwrap();
+    if let Some((options, ..)) = plan.pem.as_mut() {
+        options.pem.progress = false;
+    }
+    g.bench_function(format!("greybox fit {spm_stem} -p 4, whole (read, checks, fit, report)"), |b| {
+        b.iter(|| {
+            let t0 = Instant::now();
+            let logs = read_sources(&request.reading, &plan.csv, &[LogSource::Path(&spm_path)]).unwrap();
+            let fitted = fit_experiments(&request, &plan, &logs, t0, t0.elapsed().as_secs_f64()).unwrap();
+            black_box((fitted.json.len(), fitted.report().trusted()))
+        })
     });
     g.finish();
 }
