@@ -6,7 +6,8 @@
 //! on the log as the mistake would have it: the speed's scale `c` enters only through
 //! `ω_e = n_p c ω_m` in the rotation terms (its effect on the back-EMF term is absorbed by
 //! `k_e`, which becomes `k_e / c`), so one Gram matrix of the scan gives every speed
-//! hypothesis exactly; swapped columns need their own scan. A hypothesis is named when its
+//! hypothesis exactly; swapped columns need their own Gram, summed in the same pass over the
+//! filtered signals ([`scan`]). A hypothesis is named when its
 //! regression leaves [`COLUMN_RATIO`] times less of the voltage unexplained (relative to
 //! the voltage's own energy) with a physical estimate (`R_s`, `L`, `k_e` > 0), and, after
 //! a fit, when the prediction-error fit of the corrected log confirms it with a loss that
@@ -15,7 +16,8 @@
 use crate::data::{Channel, Experiment};
 use crate::error::Result;
 use crate::estimate::Warning;
-use crate::pmsm::checks::detect::{loss_at_factor, scan_gram};
+use crate::pmsm::checks::detect::loss_at_factor;
+use crate::pmsm::checks::scan::{IDENTITY, scan_grams};
 use crate::pmsm::log::signals::channel;
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::kind::MotorKind;
@@ -26,6 +28,35 @@ use nalgebra::{DMatrix, DVector};
 /// Factor by which a hypothesis must lower the unexplained share of the voltage (and,
 /// after a fit, the loss) to be named.
 pub const COLUMN_RATIO: f64 = 10.0;
+
+/// The swapped columns tried (the terminal voltage only), each with the scan's lanes
+/// `[u_d, u_q, i_d, i_q]` of the log as its fix reads it ([`Mistake::undo`]): d and q
+/// swapped reads `[u_q, u_d, i_q, i_d]`, voltages and currents `[i_d, i_q, u_d, u_q]`.
+const SWAPS: [(Mistake, [usize; 4]); 2] = [(Mistake::SwapDq, [1, 0, 3, 2]), (Mistake::SwapUi, [2, 3, 0, 1])];
+
+/// The setup scan's Grams: the log as given ([`crate::pmsm::checks::detect`]) and, for
+/// the terminal voltage, the log as each swap of columns would have it.
+#[derive(Clone, Debug)]
+pub(crate) struct ColumnScan {
+    /// The Gram of the log as given.
+    pub gram: DMatrix<f64>,
+    /// The Grams of the swapped hypotheses (empty for a reference voltage).
+    swapped: Vec<(Mistake, DMatrix<f64>)>,
+}
+
+/// The setup scan of `experiments` with the voltage `input`: the Gram of the logs as given
+/// and of their swapped columns, from one filtering of each log
+/// ([`crate::pmsm::checks::scan::scan_grams`]).
+///
+/// # Errors
+/// Those of [`crate::pmsm::checks::detect::scan_gram`].
+pub(crate) fn scan(experiments: &[Experiment], input: VoltageInput) -> Result<ColumnScan> {
+    let swaps: &[(Mistake, [usize; 4])] = if input == VoltageInput::Terminal { &SWAPS } else { &[] };
+    let lanes: Vec<[usize; 4]> = std::iter::once(IDENTITY).chain(swaps.iter().map(|s| s.1)).collect();
+    let mut grams = scan_grams(experiments, input, &lanes)?;
+    let swapped = swaps.iter().map(|s| s.0).zip(grams.drain(1..)).collect();
+    Ok(ColumnScan { gram: grams.swap_remove(0), swapped })
+}
 
 /// A column mistake: what it is, the fix, and how to undo it on a log.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -147,29 +178,21 @@ impl Hypothesis {
 }
 
 /// The mistake whose regression explains the voltage [`COLUMN_RATIO`] times better than
-/// the log as given, with a physical estimate; `g` the scan Gram of the log as given.
+/// the log as given, with a physical estimate; `scan` the setup scan's Grams.
 /// Swapped columns are tried for the terminal voltage only.
-fn best_hypothesis(
-    g: &DMatrix<f64>,
-    experiments: &[Experiment],
-    options: &PmsmFitOptions,
-) -> Option<Hypothesis> {
-    let (n_p, kind, input) = (options.pole_pairs, options.model, options.input);
+fn best_hypothesis(scan: &ColumnScan, options: &PmsmFitOptions) -> Option<Hypothesis> {
+    let (n_p, kind) = (options.pole_pairs, options.model);
     let np = f64::from(n_p);
-    let (given, _) = regression(g, kind, np, 1.0)?;
+    let (given, _) = regression(&scan.gram, kind, np, 1.0)?;
     let mut tried: Vec<(Mistake, f64, DVector<f64>)> = speed_mistakes(n_p)
         .into_iter()
         .filter_map(|m| {
             let Mistake::Speed(c, ..) = m else { return None };
-            regression(g, kind, np * c, c).map(|(l, t)| (m, l, t))
+            regression(&scan.gram, kind, np * c, c).map(|(l, t)| (m, l, t))
         })
         .collect();
-    if input == VoltageInput::Terminal {
-        for m in [Mistake::SwapDq, Mistake::SwapUi] {
-            let undone: Option<Vec<Experiment>> = experiments.iter().map(|e| m.undo(e).ok()).collect();
-            let gm = undone.and_then(|u| scan_gram(&u, input).ok());
-            tried.extend(gm.and_then(|gm| regression(&gm, kind, np, 1.0)).map(|(l, t)| (m, l, t)));
-        }
+    for (m, gm) in &scan.swapped {
+        tried.extend(regression(gm, kind, np, 1.0).map(|(l, t)| (*m, l, t)));
     }
     tried
         .into_iter()
@@ -180,12 +203,8 @@ fn best_hypothesis(
 
 /// Why the least-squares start failed, when a column mistake explains it: the text to add
 /// to its error, naming the mistake and the fix; `None` when no hypothesis does.
-pub(crate) fn start_failure(
-    g: &DMatrix<f64>,
-    experiments: &[Experiment],
-    options: &PmsmFitOptions,
-) -> Option<String> {
-    let h = best_hypothesis(g, experiments, options)?;
+pub(crate) fn start_failure(scan: &ColumnScan, options: &PmsmFitOptions) -> Option<String> {
+    let h = best_hypothesis(scan, options)?;
     Some(format!("{}; read the log with {}", h.describe(options.model), h.mistake.what().1))
 }
 
@@ -193,14 +212,14 @@ pub(crate) fn start_failure(
 /// explains the log [`COLUMN_RATIO`] times better by regression and the fit of the
 /// corrected log confirms it.
 pub(crate) fn warning(
-    g: &DMatrix<f64>,
+    scan: &ColumnScan,
     experiments: &[Experiment],
     options: &PmsmFitOptions,
     loss: f64,
     refit: RefitLoss<'_>,
 ) -> Option<Warning> {
     let kind = options.model;
-    let h = best_hypothesis(g, experiments, options)?;
+    let h = best_hypothesis(scan, options)?;
     let undone: Vec<Experiment> =
         experiments.iter().map(|e| h.mistake.undo(e)).collect::<Result<_>>().ok()?;
     let times = confirmed(refit, &undone, options.clone(), loss, COLUMN_RATIO)?;
@@ -213,4 +232,29 @@ pub(crate) fn warning(
             h.mistake.what().1
         ),
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
+    use crate::pmsm::checks::detect::scan_gram;
+
+    /// The swapped hypotheses' Grams from the one pass are those of a scan of the log as each
+    /// fix reads it, to the bit (over several of the scan's chunks).
+    #[test]
+    fn the_swapped_grams_are_the_swapped_logs_scans() {
+        let cfg = DriveConfig { duration: 0.9, ..scenario("exp3", SPM_MOTOR).unwrap() };
+        let log = simulate_drive(&cfg).unwrap().experiment;
+        let logs = [log.clone(), log.slice(100..5000).unwrap()];
+        let scan = scan(&logs, VoltageInput::Terminal).unwrap();
+        let bits = |g: &DMatrix<f64>| g.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&scan.gram), bits(&scan_gram(&logs, VoltageInput::Terminal).unwrap()));
+        assert_eq!(scan.swapped.len(), SWAPS.len());
+        for (m, g) in &scan.swapped {
+            let undone: Vec<Experiment> = logs.iter().map(|e| m.undo(e).unwrap()).collect();
+            assert_eq!(bits(g), bits(&scan_gram(&undone, VoltageInput::Terminal).unwrap()), "{m:?}");
+            assert_ne!(bits(g), bits(&scan.gram), "{m:?}");
+        }
+    }
 }

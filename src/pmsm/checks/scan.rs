@@ -199,7 +199,30 @@ fn step(sections: &[Biquad], z: &mut [([[f64; 4]; 2], [f64; 2])], v: &mut [f64; 
 /// # Errors
 /// Those of [`DqView::try_new`], [`applied_voltage`](crate::pmsm::model::interval::applied_voltage) and of the filter design.
 pub(crate) fn scan_gram(experiments: &[Experiment], input: VoltageInput) -> Result<DMatrix<f64>> {
-    let mut g = [[0.0; BASE + 1]; BASE + 1];
+    let mut grams = scan_grams(experiments, input, &[IDENTITY])?;
+    Ok(grams.swap_remove(0))
+}
+
+/// The lanes `[u_d, u_q, i_d, i_q]` as the log gives them.
+pub(crate) const IDENTITY: [usize; 4] = [0, 1, 2, 3];
+
+/// [`scan_gram`] of the logs with their voltage and current channels relabelled, one Gram
+/// per permutation of `lanes`: the Gram of permutation `π` is that of logs whose
+/// `[u_d, u_q, i_d, i_q]` are the given `[x_π0, x_π1, x_π2, x_π3]` (the speed kept), to the
+/// bit (the filter does the same operations on every lane, and each Gram sums its
+/// intervals in the same order), from one filtering of each log: the column checks' swapped
+/// hypotheses without a scan of their own.
+///
+/// # Errors
+/// Those of [`scan_gram`].
+pub(crate) fn scan_grams(
+    experiments: &[Experiment],
+    input: VoltageInput,
+    lanes: &[[usize; 4]],
+) -> Result<Vec<DMatrix<f64>>> {
+    let mut g = vec![[[0.0; BASE + 1]; BASE + 1]; lanes.len()];
+    let relabel = |v: &[f64; LANES], p: &[usize; 4]| [v[p[0]], v[p[1]], v[p[2]], v[p[3]], v[4]];
+    let mut permuted = Vec::new();
     for e in experiments {
         let v = DqView::try_new(e)?;
         // n_p only scales the angle advance of a reference input; 1 is used for the scan.
@@ -209,13 +232,24 @@ pub(crate) fn scan_gram(experiments: &[Experiment], input: VoltageInput) -> Resu
         let filter = Butterworth::try_new(SCAN_FILTER_ORDER, SCAN_CUTOFF / e.h(), e.h())?;
         let h = v.h();
         filtfilt_chunks(&filter, [&u_d, &u_q, v.i_d(), v.i_q(), v.w_m()], |_, chunk, next| {
-            add_intervals(&mut g, h, chunk);
-            if let (Some(&a), Some(b)) = (chunk.last(), next) {
-                add_interval(&mut g, h, &a, &b);
+            for (g, p) in g.iter_mut().zip(lanes) {
+                let chunk = if *p == IDENTITY {
+                    chunk
+                } else {
+                    permuted.clear();
+                    permuted.extend(chunk.iter().map(|v| relabel(v, p)));
+                    &permuted[..]
+                };
+                add_intervals(g, h, chunk);
+                if let (Some(a), Some(b)) = (chunk.last(), next) {
+                    add_interval(g, h, a, &relabel(&b, p));
+                }
             }
         });
     }
-    Ok(DMatrix::from_fn(BASE + 1, BASE + 1, |a, b| if a <= b { g[a][b] } else { g[b][a] }))
+    Ok(g.iter()
+        .map(|g| DMatrix::from_fn(BASE + 1, BASE + 1, |a, b| if a <= b { g[a][b] } else { g[b][a] }))
+        .collect())
 }
 
 /// Adds the d and q rows of every interval between consecutive samples of `chunk` (the

@@ -52,7 +52,7 @@ pub(super) fn fit(
         let logs = crate::pmsm::checks::prepared::prepare(experiments, options);
         Beside {
             scan: (!options.skip_setup_checks)
-                .then(|| crate::pmsm::checks::detect::scan_gram(experiments, options.input).ok())
+                .then(|| crate::pmsm::checks::columns::scan(experiments, options.input).ok())
                 .flatten(),
             dead: crate::pmsm::checks::advice::dead_time_advice(&logs, options),
             logs,
@@ -82,14 +82,14 @@ fn fit_beside(
     // the options', the fits'.
     let structure = match &scan {
         Some(g) if options.inverter.is_none() && options.pwm.is_none() => {
-            crate::pmsm::checks::detect::check_structure(g, n_p, options.model)?
+            crate::pmsm::checks::detect::check_structure(&g.gram, n_p, options.model)?
         }
         _ => None,
     };
     let Fitted { fits, mut notes, ls_theta, modulator, pwm, input, warnings: stage_warnings } =
         match (fitted, &scan) {
             (Err(Error::Numerical { context, reason }), Some(g)) if context == "least-squares start" => {
-                let named = crate::pmsm::checks::columns::start_failure(g, experiments, options);
+                let named = crate::pmsm::checks::columns::start_failure(g, options);
                 return Err(Error::Numerical {
                     context,
                     reason: match named {
@@ -172,7 +172,7 @@ fn fit_beside(
         warnings.extend(structure);
         if let Some(g) = &scan {
             warnings.extend(crate::pmsm::checks::detect::pole_pair_warning(
-                g,
+                &g.gram,
                 experiments,
                 options,
                 best.fit.loss,

@@ -22,9 +22,9 @@ impl<T> Pending<'_, T> {
 
 /// What the checks beside a fit ([`crate::pmsm::fit_pmsm`]) found without its estimate.
 pub(super) struct Beside<'a> {
-    /// The setup scan's regression Gram ([`crate::pmsm::checks::detect`]); `None` when the
-    /// setup checks are skipped or the scan cannot read a log.
-    pub scan: Option<nalgebra::DMatrix<f64>>,
+    /// The setup scan's regression Grams ([`crate::pmsm::checks::columns::scan`]); `None`
+    /// when the setup checks are skipped or the scan cannot read a log.
+    pub scan: Option<crate::pmsm::checks::columns::ColumnScan>,
     /// The dead-time check, one entry per log ([`crate::pmsm::checks::advice`]).
     pub dead: Vec<Option<Warning>>,
     /// The logs prepared once for the checks on the voltage equations (the dead-time check
