@@ -107,11 +107,13 @@ use super::config::MrasConfig;
 use crate::error::{Error, Result};
 use greybox_observer::Fault;
 
+mod sample;
 mod state;
 mod step;
 
+pub use sample::Sample;
 pub(crate) use state::estimates;
-pub use state::{Estimates, INFORMATIVE, MIN_TAU_SAMPLES, Mras, MrasOutput, Sample};
+pub use state::{Estimates, INFORMATIVE, MIN_TAU_SAMPLES, Mras, MrasOutput};
 pub(crate) use step::{Machine, invalid, settings};
 
 impl Mras {

@@ -2,7 +2,7 @@
 //! Appl. 53(3) 2017): what `greybox fluxmap` and Python's `fluxmap` ask ([`FluxMapRequest`])
 //! and its report ([`fluxmap`]).
 
-use super::Report;
+use super::report::Report;
 use crate::error::{Error, Result};
 use crate::pmsm::{
     FluxMapColumns, FluxMapFit, FluxMapOptions, SaturationExponents, TorqueCheck, fit_flux_map,

@@ -4,9 +4,8 @@
 //! and Python's `mechanics` ask ([`MechanicsRequest`]) and their joint report
 //! ([`mechanics`]).
 
-mod logs;
-
-use super::{Report, read_with_channel};
+use super::report::{Report, read_with_channel};
+use super::shaft;
 use crate::Experiment;
 use crate::app::LogReading;
 use crate::error::{Error, Result};
@@ -101,13 +100,13 @@ pub fn mechanics(paths: &[PathBuf], r: &MechanicsRequest) -> Result<Report> {
     axis.check(terms)?;
     let k_t = r.k_t.or(r.k_f.map(|k_f| k_f / axis.radians_per_unit()));
     let logs: Vec<Experiment> = match k_t {
-        Some(_) => logs::read_mechanical(paths, r)?,
+        Some(_) => shaft::read_mechanical(paths, &r.reading, r.pole_pairs, r.gravity, &r.col_load)?,
         None => {
             read_with_channel(paths, &r.reading, r.pole_pairs, (r.col_load.as_str(), LOAD_TORQUE, "N m"))?
         }
     };
     let logs = match r.pole_pitch {
-        Some(_) => logs.into_iter().map(|e| logs::linear_motor(e, axis)).collect::<Result<_>>()?,
+        Some(_) => logs.into_iter().map(|e| shaft::linear_motor(e, axis)).collect::<Result<_>>()?,
         None => logs,
     };
     // The angle a gravity term needs, before the electrical fit spends its time.

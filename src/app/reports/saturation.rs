@@ -3,7 +3,7 @@
 //! saturation` and Python's `saturation` ask ([`SaturationRequest`]) and its report
 //! ([`saturation`]).
 
-use super::Report;
+use super::report::Report;
 use crate::app::LogReading;
 use crate::error::Result;
 use crate::pmsm::{CsvOptions, PmsmFitOptions, SaturationExponents, fit_saturated};

@@ -2,7 +2,7 @@
 //! power-up test of drive firmware): what `greybox standstill` and Python's `standstill`
 //! ask ([`StandstillRequest`]) and its report ([`standstill`]).
 
-use super::{Report, read_with_channel};
+use super::report::{Report, read_with_channel};
 use crate::app::LogReading;
 use crate::error::Result;
 use crate::pmsm::{StandstillOptions, WINDING_TEMPERATURE, fit_standstill};

@@ -1,27 +1,11 @@
-//! The observer's data: a sample in, the estimates out, and the observer's state.
+//! The observer's data: the estimates out and the observer's state (a sample in:
+//! [`super::sample`]).
 
 #[cfg(doc)]
 use super::super::config::Adaptation;
 use super::super::config::MrasConfig;
 use super::step::Machine;
 use serde::{Deserialize, Serialize};
-
-/// One sample of a drive: the currents measured at `t_k` and the voltage applied over
-/// the coming period `[t_k, t_k + h)` (MODEL.md §4).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct Sample {
-    /// d-axis current at `t_k` \[A, peak dq\].
-    pub i_d: f64,
-    /// q-axis current at `t_k` \[A, peak dq\].
-    pub i_q: f64,
-    /// d-axis voltage over `[t_k, t_k + h)` \[V\], its period mean.
-    pub u_d: f64,
-    /// q-axis voltage over `[t_k, t_k + h)` \[V\], its period mean.
-    pub u_q: f64,
-    /// Mechanical speed over the coming period \[rad/s\] (the interval mean
-    /// `(ω_m[k] + ω_m[k+1])/2` when known, as [`crate::online::track()`] passes it; else ω_m\[k\]).
-    pub w_m: f64,
-}
 
 /// What the observer knows after a sample.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -54,7 +38,7 @@ pub struct MrasOutput {
 /// The MRAS observer (thesis 5.1): state `î` and parameters `(K̂_e, R̂_s)`; see the module
 /// documentation for the design and the discretisation.
 ///
-/// [`Mras::update`] takes a [`Sample`], corrects and adapts at `t_k`, and propagates the
+/// [`Mras::update`] takes a [`Sample`](super::sample::Sample), corrects and adapts at `t_k`, and propagates the
 /// observer to `t_{k+1}`. It is split as motulator's observers are: [`Mras::compute_output`]
 /// (`&self`: the estimates and the next state) and [`Mras::advance`] (commits them), so a
 /// controller can use the estimates before the state moves. [`Mras::output`] repeats the

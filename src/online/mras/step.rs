@@ -5,7 +5,7 @@
 //! observer crate's.
 
 use super::super::config::{Adaptation, MrasConfig};
-use super::state::Sample;
+use super::sample::Sample;
 use crate::error::{Error, Result};
 use crate::pmsm::{C64, ExactPlant, MotorParameters, SQRT_2_3, VoltageHold, stator_hold_start};
 use greybox_observer::{Field, Hold, Plant, Settings, Spm, Step, Transition};

@@ -1,8 +1,8 @@
 //! The logs of a mechanical fit that needs no electrical model (a given `K_t` or `K_f`),
 //! and a linear motor's logs as a shaft's.
 
-use super::MechanicsRequest;
 use crate::Experiment;
+use crate::app::LogReading;
 use crate::data::{ColumnMap, CsvSpec, TimeWindow, read_csv};
 use crate::error::{Error, Result};
 use crate::pmsm::{Axis, DqSource, LOAD_TORQUE};
@@ -26,19 +26,25 @@ pub(super) fn linear_motor(e: Experiment, axis: Axis) -> Result<Experiment> {
 }
 
 /// The logs `paths` of a given `K_t`, which needs no electrical fit: only the time, `iq`,
-/// the speed, the angle with `gravity` and the load column where present are read (the
-/// voltages and `id` may be absent), with the reading's units, frames and scales, and its
-/// window keeps its rows.
+/// the speed, the angle with `gravity` and the load column `col_load` where present are
+/// read (the voltages and `id` may be absent), with the `reading`'s units, frames and
+/// scales at `pole_pairs`, and its window keeps its rows.
 ///
 /// # Errors
 /// [`Error::InvalidOption`] for phase currents (`--dq-from-phases`) or `--split-gaps`,
 /// which need the electrical reader, and for a window that keeps fewer than 2 rows; bad
 /// paths; those of [`read_csv`] (a missing column named with its flag).
-pub(super) fn read_mechanical(paths: &[PathBuf], r: &MechanicsRequest) -> Result<Vec<Experiment>> {
+pub(super) fn read_mechanical(
+    paths: &[PathBuf],
+    reading: &LogReading,
+    pole_pairs: u32,
+    gravity: bool,
+    col_load: &str,
+) -> Result<Vec<Experiment>> {
     crate::app::check_paths(paths)?;
-    let o = &r.reading.csv;
+    let o = &reading.csv;
     for (flag, set) in
-        [("--dq-from-phases", o.source == DqSource::Phases), ("--split-gaps", r.reading.split_gaps)]
+        [("--dq-from-phases", o.source == DqSource::Phases), ("--split-gaps", reading.split_gaps)]
     {
         if set {
             return Err(Error::InvalidOption {
@@ -49,7 +55,7 @@ pub(super) fn read_mechanical(paths: &[PathBuf], r: &MechanicsRequest) -> Result
         }
     }
     let c = &o.columns;
-    let n_p = r.pole_pairs;
+    let n_p = pole_pairs;
     let column = |col: &str, channel: &str, unit: &str, scale: f64, required: bool| ColumnMap {
         scale,
         required,
@@ -61,8 +67,8 @@ pub(super) fn read_mechanical(paths: &[PathBuf], r: &MechanicsRequest) -> Result
         columns: vec![
             column(&c.i_q, "iq", "A", o.current_scale.factor(), true),
             column(&c.w_m, "w_m", "rad/s", o.speed_factor(n_p), true),
-            column(&c.theta_m, "theta_m", "rad", o.angle_factor(n_p), r.gravity),
-            column(&r.col_load, LOAD_TORQUE, "N m", 1.0, false),
+            column(&c.theta_m, "theta_m", "rad", o.angle_factor(n_p), gravity),
+            column(col_load, LOAD_TORQUE, "N m", 1.0, false),
         ],
         limits: o.limits,
         delimiter: o.delimiter,
