@@ -163,48 +163,60 @@ fn positive_count(x: &Value<'_, '_>) -> PyResult<u32> {
     }
 }
 
-/// The request of `saturation`'s keywords.
-fn saturation_request(options: &Bound<'_, PyDict>) -> PyResult<SaturationRequest> {
-    let mut r = SaturationRequest::new(0);
+/// The keywords of a command that reads drive logs (`keywords`): `pole_pairs` (required)
+/// and the reading's taken here, the command's own by `own` (`false`: not one of its own).
+fn logs_command(
+    options: &Bound<'_, PyDict>,
+    keywords: &Keywords,
+    mut own: impl FnMut(&Value<'_, '_>) -> PyResult<bool>,
+) -> PyResult<(u32, LogReading)> {
     let (mut n_p, mut reading) = (None, ReadingKeys::new(LogReading::default().csv));
     each(options, |x| {
         match x.key {
             "pole_pairs" => n_p = Some(x.count()?),
-            "exponents" => r.exponents = exponents_of(x)?,
+            _ if own(x)? => {}
             other if reading.take(other, x)? => {}
-            other => return Err(SATURATION.not_taken(other)),
+            other => return Err(keywords.not_taken(other)),
         }
         Ok(())
     })?;
-    Ok(SaturationRequest { pole_pairs: pole_pairs(n_p)?, reading: reading.finish()?, ..r })
+    Ok((pole_pairs(n_p)?, reading.finish()?))
+}
+
+/// The request of `saturation`'s keywords.
+fn saturation_request(options: &Bound<'_, PyDict>) -> PyResult<SaturationRequest> {
+    let mut r = SaturationRequest::new(0);
+    let (pole_pairs, reading) = logs_command(options, &SATURATION, |x| {
+        match x.key {
+            "exponents" => r.exponents = exponents_of(x)?,
+            _ => return Ok(false),
+        }
+        Ok(true)
+    })?;
+    Ok(SaturationRequest { pole_pairs, reading, ..r })
 }
 
 /// The request of `standstill`'s keywords.
 fn standstill_request(options: &Bound<'_, PyDict>) -> PyResult<StandstillRequest> {
     let mut r = StandstillRequest::new(0);
-    let (mut n_p, mut reading) = (None, ReadingKeys::new(LogReading::default().csv));
-    each(options, |x| {
+    let (pole_pairs, reading) = logs_command(options, &STANDSTILL, |x| {
         match x.key {
-            "pole_pairs" => n_p = Some(x.count()?),
             "terminal" => r.terminal = x.flag()?,
             "delay" => r.delay = x.count()?,
             "width" => r.width = Some(x.number()?),
             "col_temperature" => r.col_temperature = x.text()?,
-            other if reading.take(other, x)? => {}
-            other => return Err(STANDSTILL.not_taken(other)),
+            _ => return Ok(false),
         }
-        Ok(())
+        Ok(true)
     })?;
-    Ok(StandstillRequest { pole_pairs: pole_pairs(n_p)?, reading: reading.finish()?, ..r })
+    Ok(StandstillRequest { pole_pairs, reading, ..r })
 }
 
 /// The request of `mechanics`' keywords.
 fn mechanics_request(options: &Bound<'_, PyDict>) -> PyResult<MechanicsRequest> {
     let mut r = MechanicsRequest::new(0);
-    let (mut n_p, mut reading) = (None, ReadingKeys::new(LogReading::default().csv));
-    each(options, |x| {
+    let (pole_pairs, reading) = logs_command(options, &MECHANICS, |x| {
         match x.key {
-            "pole_pairs" => n_p = Some(x.count()?),
             "k_t" => r.k_t = Some(x.number()?),
             "lead" => r.lead = Some(x.number()?),
             "pole_pitch" => r.pole_pitch = Some(x.number()?),
@@ -222,10 +234,9 @@ fn mechanics_request(options: &Bound<'_, PyDict>) -> PyResult<MechanicsRequest> 
                 }
             }
             "col_load" => r.col_load = x.text()?,
-            other if reading.take(other, x)? => {}
-            other => return Err(MECHANICS.not_taken(other)),
+            _ => return Ok(false),
         }
-        Ok(())
+        Ok(true)
     })?;
-    Ok(MechanicsRequest { pole_pairs: pole_pairs(n_p)?, reading: reading.finish()?, ..r })
+    Ok(MechanicsRequest { pole_pairs, reading, ..r })
 }
