@@ -242,32 +242,4 @@ impl ColumnArgs {
     ) -> crate::Result<Vec<Vec<Experiment>>> {
         crate::app::read_logs(paths, csv, self.split_gaps, unique)
     }
-
-    /// Reads `paths` as `greybox fit` does with `pole_pairs` ([`ColumnArgs::read_logs`], all
-    /// segments in order), plus the optional column `extra = (column, name, unit)`: carried
-    /// through ([`ColumnNames::extra`]) and offered under the channel name `name` the fit
-    /// reads, in `unit`.
-    ///
-    /// # Errors
-    /// Those of [`ColumnArgs::read_logs`].
-    pub fn read_logs_with_channel(
-        &self,
-        paths: &[PathBuf],
-        pole_pairs: u32,
-        extra: (&str, &str, &str),
-    ) -> crate::Result<Vec<Experiment>> {
-        let (column, name, unit) = extra;
-        let mut csv = CsvOptions { pole_pairs: Some(pole_pairs), ..self.options() };
-        csv.columns.extra = vec![column.to_string()];
-        self.read_logs(paths, &csv, false)?
-            .into_iter()
-            .flatten()
-            .map(|e| match e.get(column).map(|c| c.values.as_slice().to_vec()) {
-                Some(values) if column != name => {
-                    e.with_channel(crate::data::Channel::new(name, unit, values))
-                }
-                _ => Ok(e),
-            })
-            .collect()
-    }
 }
