@@ -313,26 +313,29 @@ class Report(NamedTuple):
 
 
 def _report(command: str, logs: Any, options: dict[str, Any]) -> Report:
-    """Runs the fit ``command`` on ``logs`` (paths, or Arrow tables written to temporary
-    Parquet files first) with the keyword ``options`` (each checked once by the native
-    module, a wrong one refused naming it)."""
-    import contextlib
-
-    items = logs if isinstance(logs, (list, tuple)) else [logs]
-    with contextlib.ExitStack() as stack:
-        paths = []
-        for item in items:
-            if _is_path(item):
-                paths.append(os.fspath(item))
-                continue
-            import pyarrow.parquet as pq
-
-            folder = stack.enter_context(tempfile.TemporaryDirectory(prefix="greybox-"))
-            path = os.path.join(folder, f"log{len(paths)}.parquet")
-            pq.write_table(pa.table(_arrow(item)), path)
-            paths.append(path)
-        text, untrusted = _greybox.report(command, paths, _flags(**options))
+    """Runs the fit ``command`` on ``logs`` (paths, or Arrow tables read in memory as
+    :func:`fit` reads them, named ``table``, ``table2``, …) with the keyword ``options``
+    (each checked once by the native module, a wrong one refused naming it)."""
+    items = list(logs) if isinstance(logs, (list, tuple)) else [logs]
+    sources = [os.fspath(x) if _is_path(x) else _arrow(x) for x in items]
+    tables = sum(1 for x in items if not _is_path(x))
+    names = _fill(["table" if tables == 1 else f"table{k + 1}" for k in range(tables)], sources)
+    text, untrusted = _greybox.report(command, sources, names, _flags(**options))
     return Report(json.loads(text), list(untrusted))
+
+
+def _map_file(map: Any, stack: Any) -> str:
+    """A flux map's path: ``map`` itself, or an Arrow table written to a temporary Parquet
+    file held open by ``stack`` (the flux-map reader reads files: ``.npz``, CSV, Parquet,
+    Arrow IPC)."""
+    if _is_path(map):
+        return os.fspath(map)
+    import pyarrow.parquet as pq
+
+    folder = stack.enter_context(tempfile.TemporaryDirectory(prefix="greybox-"))
+    path = os.path.join(folder, "map.parquet")
+    pq.write_table(pa.table(_arrow(map)), path)
+    return path
 
 
 def fluxmap(map: PathLike, **options: Any) -> Report:
@@ -350,7 +353,10 @@ def fluxmap(map: PathLike, **options: Any) -> Report:
 
     Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
     """
-    return _report("fluxmap", map, options)
+    import contextlib
+
+    with contextlib.ExitStack() as stack:
+        return _report("fluxmap", _map_file(map, stack), options)
 
 
 def saturation(log: Any, *, pole_pairs: int, **options: Any) -> Report:

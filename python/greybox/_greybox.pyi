@@ -72,6 +72,9 @@ def simulate(options: dict[str, Any]) -> tuple[pa.RecordBatch, str]:
     """``greybox simulate`` with the keyword ``options``: the log as a batch and the truth
     as JSON."""
 
-def report(command: str, paths: list[str], options: dict[str, Any]) -> tuple[str, list[str]]:
-    """``greybox fluxmap|saturation|standstill|mechanics`` on ``paths`` with the keyword
+def report(
+    command: str, sources: list[Any], names: list[str], options: dict[str, Any]
+) -> tuple[str, list[str]]:
+    """``greybox fluxmap|saturation|standstill|mechanics`` on ``sources`` (paths, or Arrow
+    tables named by ``names`` in their places; ``fluxmap``: one path) with the keyword
     ``options``: the JSON report and the codes of the reasons it is not to be trusted."""

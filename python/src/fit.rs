@@ -65,14 +65,14 @@ impl NativeFit {
 }
 
 /// A log as handed over: a file, or an Arrow table (its batches and schema) named `name`.
-enum Source {
+pub(crate) enum Source {
     Path(PathBuf),
     Table { name: String, schema: arrow_schema::SchemaRef, batches: Vec<arrow_array::RecordBatch> },
 }
 
 impl Source {
     /// A `str` is a path; anything else must offer the Arrow C stream (`__arrow_c_stream__`).
-    fn extract(obj: &Bound<'_, PyAny>, name: String) -> PyResult<Self> {
+    pub(crate) fn extract(obj: &Bound<'_, PyAny>, name: String) -> PyResult<Self> {
         use arrow_pyarrow::FromPyArrow;
         if let Ok(path) = obj.extract::<String>() {
             return Ok(Self::Path(PathBuf::from(path)));
@@ -86,7 +86,8 @@ impl Source {
         Ok(Self::Table { name, schema, batches })
     }
 
-    fn log_source(&self) -> LogSource<'_> {
+    /// The library's source of the log (borrowed).
+    pub(crate) fn log_source(&self) -> LogSource<'_> {
         match self {
             Self::Path(p) => LogSource::Path(p),
             Self::Table { name, schema, batches } => LogSource::Arrow { name, schema, batches },

@@ -4,6 +4,7 @@
 //! [`greybox::app::fluxmap`], … with the GIL released.
 
 use crate::errors::{OptionError, to_py};
+use crate::fit::Source;
 use crate::keyword::{Value, each};
 use crate::reading::{Keywords, ReadingKeys};
 use crate::words::in_python_words;
@@ -11,9 +12,9 @@ use greybox::app::{
     FluxMapRequest, LogReading, MechanicsRequest, Report, SaturationRequest, StandstillRequest, exponents,
 };
 use greybox::data::Delimiter;
+use greybox::pmsm::LogSource;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use std::path::PathBuf;
 
 /// The command line's file outputs of the four commands, which the functions return instead.
 const OUTPUTS: &[&str] = &["json", "quiet"];
@@ -77,39 +78,49 @@ const MECHANICS: Keywords = Keywords {
     returns: RETURNS,
 };
 
-/// Runs the fit `command` (`fluxmap`: `paths` one map; `saturation`, `standstill`,
-/// `mechanics`: logs fitted jointly) with the keyword `options`, as the command line's
-/// subcommand of that name does, the GIL released: its JSON report (as `--json` writes it)
-/// and the codes of the reasons it is not to be trusted (empty: trusted; the command line's
-/// exit code 3 otherwise).
+/// Runs the fit `command` (`fluxmap`: one map, a path; `saturation`, `standstill`,
+/// `mechanics`: logs fitted jointly, each a path or an Arrow table named by `names` in its
+/// place, read in memory as `fit` reads them) with the keyword `options`, as the command
+/// line's subcommand of that name does, the GIL released: its JSON report (as `--json`
+/// writes it) and the codes of the reasons it is not to be trusted (empty: trusted; the
+/// command line's exit code 3 otherwise).
 ///
 /// Errors: `OptionError` naming the keyword (an unknown command or keyword, a bad value, a
-/// file output), `DataError`, `FitError`.
+/// file output; a map that is not a path), `DataError` (a log that is neither a path nor an
+/// Arrow table, or cannot be read), `FitError`.
 #[pyfunction]
 pub fn report(
     py: Python<'_>,
     command: &str,
-    paths: Vec<PathBuf>,
+    sources: Vec<Bound<'_, PyAny>>,
+    names: Vec<String>,
     options: &Bound<'_, PyDict>,
 ) -> PyResult<(String, Vec<String>)> {
-    let run: Box<dyn FnOnce() -> greybox::Result<Report> + Send> = match command {
+    if names.len() != sources.len() {
+        return Err(OptionError::new_err("names: one name per log"));
+    }
+    let sources: Vec<Source> =
+        sources.iter().zip(names).map(|(obj, name)| Source::extract(obj, name)).collect::<PyResult<_>>()?;
+    let run: Box<Run> = match command {
         "fluxmap" => {
             let r = fluxmap_request(options)?;
-            let [map] = <[PathBuf; 1]>::try_from(paths)
-                .map_err(|_| OptionError::new_err("map: one flux map (a path or a table)"))?;
-            Box::new(move || greybox::app::fluxmap(&map, &r))
+            let map = match sources.as_slice() {
+                [Source::Path(p)] => p.clone(),
+                _ => return Err(OptionError::new_err("map: one flux map, a path")),
+            };
+            Box::new(move |_| greybox::app::fluxmap(&map, &r))
         }
         "saturation" => {
             let r = saturation_request(options)?;
-            Box::new(move || greybox::app::saturation(&paths, &r))
+            Box::new(move |logs| greybox::app::saturation(logs, &r))
         }
         "standstill" => {
             let r = standstill_request(options)?;
-            Box::new(move || greybox::app::standstill(&paths, &r))
+            Box::new(move |logs| greybox::app::standstill(logs, &r))
         }
         "mechanics" => {
             let r = mechanics_request(options)?;
-            Box::new(move || greybox::app::mechanics(&paths, &r))
+            Box::new(move |logs| greybox::app::mechanics(logs, &r))
         }
         other => {
             return Err(OptionError::new_err(format!(
@@ -117,9 +128,14 @@ pub fn report(
             )));
         }
     };
-    let r = py.detach(run).map_err(|e| to_py(in_python_words(e)))?;
+    let r = py
+        .detach(|| run(&sources.iter().map(Source::log_source).collect::<Vec<_>>()))
+        .map_err(|e| to_py(in_python_words(e)))?;
     Ok((r.json, r.untrusted))
 }
+
+/// A report command with its request, run on the logs.
+type Run = dyn FnOnce(&[LogSource<'_>]) -> greybox::Result<Report> + Send;
 
 /// The keyword `pole_pairs`, required by the commands that read drive logs.
 fn pole_pairs(given: Option<u32>) -> PyResult<u32> {

@@ -133,6 +133,28 @@ def test_standstill_and_mechanics_from_simulated_tables():
     assert m.report["electrical"]["parameters"][0]["name"] == "r_s"
 
 
+def test_issue33_fits_read_tables_in_memory_as_their_files(tmp_path):
+    import pyarrow.parquet as pq
+
+    # A table is read in memory (no temporary file): the same estimates as its Parquet file.
+    log, truth = greybox.simulate("standstill", seed=5, duration=0.3)
+    pq.write_table(pa.table(log), tmp_path / "s.parquet")
+    n_p = truth["start"]["n_p"]
+    a = greybox.standstill(log, pole_pairs=n_p).report["fit"]["parameters"]
+    b = greybox.standstill(tmp_path / "s.parquet", pole_pairs=n_p).report["fit"]["parameters"]
+    assert [(p["name"], p["value"], p["std_error"]) for p in a] == [
+        (p["name"], p["value"], p["std_error"]) for p in b
+    ]
+    # The mechanics of a given K_t read the table by their own columns (iq and the speed).
+    log, truth = greybox.simulate("exp3", seed=5, duration=2.0)
+    pq.write_table(pa.table(log), tmp_path / "e.parquet")
+    a = greybox.mechanics(log, pole_pairs=4, k_t=0.66).report["mechanics"]["fit"]["parameters"]
+    b = greybox.mechanics(tmp_path / "e.parquet", pole_pairs=4, k_t=0.66).report["mechanics"]["fit"]["parameters"]
+    assert [p["value"] for p in a] == [p["value"] for p in b]
+    with pytest.raises(greybox.DataError, match="float is neither a path nor an Arrow-like table"):
+        greybox.saturation(3.5, pole_pairs=4)
+
+
 def test_issue33_fits_refuse_files_and_bad_flags():
     log, truth = greybox.simulate("standstill", seed=3, duration=0.3)
     with pytest.raises(greybox.OptionError, match="`json`: the Python functions write no files"):

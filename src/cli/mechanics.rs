@@ -7,6 +7,7 @@ use super::columns::ColumnArgs;
 use super::output;
 use crate::app::{MechanicsRequest, mechanics};
 use crate::pmsm::LOAD_TORQUE;
+use crate::pmsm::LogSource;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -100,5 +101,5 @@ impl From<&MechanicsArgs> for MechanicsRequest {
 /// Unreadable logs, a bad `--k-t`, window or ω_c, a failed fit, an output that cannot be
 /// written (nothing is written then).
 pub fn run_mechanics(a: &MechanicsArgs) -> crate::Result<bool> {
-    a.report.run(&a.logs, "fit", || mechanics(&a.logs, &MechanicsRequest::from(a)))
+    a.report.run(&a.logs, "fit", || mechanics(&LogSource::files(&a.logs), &MechanicsRequest::from(a)))
 }

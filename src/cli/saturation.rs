@@ -5,6 +5,7 @@
 use super::columns::ColumnArgs;
 use super::output;
 use crate::app::{SaturationRequest, exponents, saturation};
+use crate::pmsm::LogSource;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -57,5 +58,5 @@ impl TryFrom<&SaturationArgs> for SaturationRequest {
 /// be written (nothing is written then).
 pub fn run_saturation(a: &SaturationArgs) -> crate::Result<bool> {
     let r = SaturationRequest::try_from(a)?;
-    a.report.run(&a.logs, "saturated fit", || saturation(&a.logs, &r))
+    a.report.run(&a.logs, "saturated fit", || saturation(&LogSource::files(&a.logs), &r))
 }

@@ -5,7 +5,7 @@
 use super::columns::ColumnArgs;
 use super::output;
 use crate::app::{StandstillRequest, standstill};
-use crate::pmsm::WINDING_TEMPERATURE;
+use crate::pmsm::{LogSource, WINDING_TEMPERATURE};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -65,5 +65,7 @@ impl From<&StandstillArgs> for StandstillRequest {
 /// Unreadable logs, a bad width, a failed fit, an output that cannot be written (nothing is
 /// written then).
 pub fn run_standstill(a: &StandstillArgs) -> crate::Result<bool> {
-    a.report.run(&a.logs, "standstill fit", || standstill(&a.logs, &StandstillRequest::from(a)))
+    a.report.run(&a.logs, "standstill fit", || {
+        standstill(&LogSource::files(&a.logs), &StandstillRequest::from(a))
+    })
 }

@@ -39,6 +39,8 @@ pub use format::{Format, read_table, read_table_with, write as write_log};
 #[cfg(feature = "parquet")]
 pub use format::{read_batches_with, to_record_batch};
 pub use segments::{GAP_FACTOR, TimeSegments, TimeWindow, is_gap, time_segments};
+#[cfg(feature = "parquet")]
+pub use spec::read_spec_batches;
 pub use spec::{ColumnMap, CsvSpec, read_csv, read_csv_many};
 pub use staged::{Staged, TEMPORARY_PREFIX, interrupt_removing_temporaries, interrupted};
 pub use table::{QUOTE_CHARS, ReadLimits, Table};

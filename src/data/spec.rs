@@ -93,7 +93,35 @@ impl Default for CsvSpec {
 /// [`Error::NonFinite`]; [`Error::InvalidOption`] for a non-finite or zero scale, or a
 /// time scale that is not positive (the time column is checked as written).
 pub fn read_csv(path: impl AsRef<Path>, spec: &CsvSpec) -> Result<Experiment> {
-    let path = path.as_ref();
+    let wanted = wanted(spec)?;
+    experiment(read_table(path.as_ref(), &wanted, &spec.limits, spec.delimiter)?, spec)
+}
+
+/// [`read_csv`] for Arrow record `batches` in memory with `schema` (feature `parquet`): the
+/// same columns, scales, units and checks as a columnar file's, `name` standing for the
+/// file's path in errors and naming the experiment.
+///
+/// # Errors
+/// Those of [`read_csv`] for a columnar file but [`Error::Io`], each naming `name`.
+#[cfg(feature = "parquet")]
+pub fn read_spec_batches(
+    name: &str,
+    schema: &arrow_schema::Schema,
+    batches: &[arrow_array::RecordBatch],
+    spec: &CsvSpec,
+) -> Result<Experiment> {
+    let wanted = wanted(spec)?;
+    let time = super::time::TimeCheck::Streaming;
+    experiment(super::format::read_batches_with(name, schema, batches, &wanted, &spec.limits, time)?, spec)
+}
+
+/// The columns `spec` reads (the time first, then each column and whether it is
+/// required), its scales checked.
+///
+/// # Errors
+/// [`Error::InvalidOption`] for a non-finite or zero scale, or a time scale that is not
+/// positive.
+fn wanted(spec: &CsvSpec) -> Result<Vec<(&str, bool)>> {
     for (what, s) in std::iter::once(("time_scale", spec.time_scale))
         .chain(spec.columns.iter().map(|c| (c.column.as_str(), c.scale)))
     {
@@ -112,7 +140,15 @@ pub fn read_csv(path: impl AsRef<Path>, spec: &CsvSpec) -> Result<Experiment> {
     }
     let mut wanted = vec![(spec.time.as_str(), true)];
     wanted.extend(spec.columns.iter().map(|c| (c.column.as_str(), c.required)));
-    let table = read_table(path, &wanted, &spec.limits, spec.delimiter)?;
+    Ok(wanted)
+}
+
+/// The experiment of `table` (read with [`wanted`]`(spec)`): the time and each present
+/// column scaled into its channel.
+///
+/// # Errors
+/// Those of [`Experiment::try_from_time`], a non-finite value named by its column.
+fn experiment(table: super::table::Table, spec: &CsvSpec) -> Result<Experiment> {
     let mut cols = table.columns.into_iter();
     let mut t = cols.next().flatten().unwrap_or_default();
     t.iter_mut().for_each(|v| *v *= spec.time_scale);

@@ -115,6 +115,49 @@ mod with_feature {
         assert!(matches!(&err, Error::NonFinite { column, row: 17, .. } if column == "iq"), "{err}");
     }
 
+    /// A table read by a column spec (`LogSource::read_spec`, what the mechanics of a given
+    /// K_t read) is its file's experiment bit for bit; and the reports that read logs
+    /// (`app::mechanics` here) give the same JSON from the table as from its file.
+    #[test]
+    fn a_table_read_by_a_spec_and_reported_is_its_file() {
+        use greybox::app::{MechanicsRequest, mechanics};
+        use greybox::data::{ColumnMap, CsvSpec, to_record_batch};
+        use greybox::pmsm::LogSource;
+        let e = log(4_000);
+        let path = temp_path("spec.parquet");
+        write_log(&path, &e, "t").unwrap();
+        let batch = to_record_batch(&e, "t").unwrap();
+        let schema = batch.schema();
+        let batches = [batch];
+        let table = LogSource::Arrow { name: "spec", schema: &schema, batches: &batches };
+        let spec = CsvSpec {
+            columns: vec![
+                ColumnMap::new("iq", "iq", "A"),
+                ColumnMap { scale: 2.0, ..ColumnMap::new("w_m", "w", "rad/s") },
+            ],
+            ..Default::default()
+        };
+        let file = LogSource::Path(&path);
+        assert_eq!(bits(&table.read_spec(&spec).unwrap()), bits(&file.read_spec(&spec).unwrap()));
+        let request = MechanicsRequest { k_t: Some(0.66), ..MechanicsRequest::new(SPM_MOTOR.n_p) };
+        // Every fit's wall-clock `timing` removed, wherever it is nested.
+        fn untimed(v: serde_json::Value) -> serde_json::Value {
+            match v {
+                serde_json::Value::Object(m) => {
+                    m.into_iter().filter(|(k, _)| k != "timing").map(|(k, v)| (k, untimed(v))).collect()
+                }
+                serde_json::Value::Array(a) => a.into_iter().map(untimed).collect(),
+                v => v,
+            }
+        }
+        let without_timing = |json: &str| untimed(serde_json::from_str(json).unwrap());
+        let from_table = mechanics(&[table], &request).unwrap();
+        let from_file = mechanics(&[file], &request).unwrap();
+        std::fs::remove_file(&path).ok();
+        assert_eq!(without_timing(&from_table.json), without_timing(&from_file.json));
+        assert_eq!(from_table.untrusted, from_file.untrusted);
+    }
+
     /// Writes `columns` (name, array) as Parquet and as Arrow IPC; both paths.
     fn columnar(tag: &str, columns: Vec<(&str, ArrayRef)>) -> [TempFile; 2] {
         let batch = RecordBatch::try_from_iter(columns).unwrap();

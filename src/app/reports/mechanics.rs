@@ -11,11 +11,10 @@ use crate::app::LogReading;
 use crate::error::{Error, Result};
 use crate::estimate::FitResult;
 use crate::pmsm::{
-    Axis, DqSource, LOAD_TORQUE, MechanicsFit, MechanicsOptions, MechanicsTerms, MotorParameters,
+    Axis, DqSource, LOAD_TORQUE, LogSource, MechanicsFit, MechanicsOptions, MechanicsTerms, MotorParameters,
     PmsmFitOptions, SQRT_2_3, fit_mechanics, fit_pmsm,
 };
 use serde::Serialize;
-use std::path::PathBuf;
 
 /// A mechanical fit as asked for. Units SI; on a linear axis (`lead`, `pole_pitch`) the
 /// report is in kg, N s/m and N.
@@ -83,7 +82,7 @@ struct Joint<'a> {
     mechanics: &'a MechanicsFit,
 }
 
-/// The fits of `logs` (fitted jointly) as `r` asks: the electrical model first unless
+/// The fits of `logs` (files or tables, fitted jointly) as `r` asks: the electrical model first unless
 /// `K_t` or `K_f` is given, then the mechanics ([`fit_mechanics`]); their joint report,
 /// untrusted when either fit is (codes `electrical …`, `mechanics …`).
 ///
@@ -92,7 +91,7 @@ struct Joint<'a> {
 /// and `--k-f`, `--lead` and `--pole-pitch`), `--k-f` without a linear axis, a `K_t` that is
 /// not finite and non-zero, a length that is not positive; bad paths, unreadable logs, a
 /// failed fit.
-pub fn mechanics(paths: &[PathBuf], r: &MechanicsRequest) -> Result<Report> {
+pub fn mechanics(logs: &[LogSource<'_>], r: &MechanicsRequest) -> Result<Report> {
     exclusive(r)?;
     let axis = axis(r)?;
     let terms = MechanicsTerms { gravity: r.gravity, constant: r.constant_load };
@@ -100,10 +99,8 @@ pub fn mechanics(paths: &[PathBuf], r: &MechanicsRequest) -> Result<Report> {
     axis.check(terms)?;
     let k_t = r.k_t.or(r.k_f.map(|k_f| k_f / axis.radians_per_unit()));
     let logs: Vec<Experiment> = match k_t {
-        Some(_) => shaft::read_mechanical(paths, &r.reading, r.pole_pairs, r.gravity, &r.col_load)?,
-        None => {
-            read_with_channel(paths, &r.reading, r.pole_pairs, (r.col_load.as_str(), LOAD_TORQUE, "N m"))?
-        }
+        Some(_) => shaft::read_mechanical(logs, &r.reading, r.pole_pairs, r.gravity, &r.col_load)?,
+        None => read_with_channel(logs, &r.reading, r.pole_pairs, (r.col_load.as_str(), LOAD_TORQUE, "N m"))?,
     };
     let logs = match r.pole_pitch {
         Some(_) => logs.into_iter().map(|e| shaft::linear_motor(e, axis)).collect::<Result<_>>()?,

@@ -4,8 +4,7 @@
 use crate::Experiment;
 use crate::app::LogReading;
 use crate::error::{Error, Result};
-use crate::pmsm::{CsvOptions, SaturationExponents};
-use std::path::PathBuf;
+use crate::pmsm::{CsvOptions, LogSource, SaturationExponents};
 
 /// What a fit of issue 33 produced: its text report, its JSON report, and why it is not to
 /// be trusted.
@@ -47,26 +46,25 @@ pub fn exponents(values: &[u32]) -> Result<SaturationExponents> {
     }
 }
 
-/// Reads `paths` as a fit does with `reading` and `pole_pairs` (all segments in order, the
-/// paths checked first), plus the optional column `extra = (column, name, unit)`: carried
-/// through ([`crate::pmsm::ColumnNames::extra`]) and offered under the channel name `name`
-/// the fit reads, in `unit`.
+/// Reads `sources` (files or tables) as a fit does with `reading` and `pole_pairs` (all
+/// segments in order, the paths checked first: [`crate::app::read_sources`]), plus the
+/// optional column `extra = (column, name, unit)`: carried through
+/// ([`crate::pmsm::ColumnNames::extra`]) and offered under the channel name `name` the fit
+/// reads, in `unit`.
 ///
 /// # Errors
-/// Those of [`crate::app::check_paths`] and [`crate::app::read_logs`].
+/// Those of [`crate::app::read_sources`].
 pub(super) fn read_with_channel(
-    paths: &[PathBuf],
+    sources: &[LogSource<'_>],
     reading: &LogReading,
     pole_pairs: u32,
     extra: (&str, &str, &str),
 ) -> Result<Vec<Experiment>> {
-    crate::app::check_paths(paths)?;
     let (column, name, unit) = extra;
     let mut csv = CsvOptions { pole_pairs: Some(pole_pairs), ..reading.csv.clone() };
     csv.columns.extra = vec![column.to_string()];
-    crate::app::read_logs(paths, &csv, reading.split_gaps, false)?
+    crate::app::read_sources(reading, &csv, sources)?
         .into_iter()
-        .flatten()
         .map(|e| match e.get(column).map(|c| c.values.as_slice().to_vec()) {
             Some(values) if column != name => e.with_channel(crate::data::Channel::new(name, unit, values)),
             _ => Ok(e),

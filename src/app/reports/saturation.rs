@@ -6,8 +6,7 @@
 use super::report::Report;
 use crate::app::LogReading;
 use crate::error::Result;
-use crate::pmsm::{CsvOptions, PmsmFitOptions, SaturationExponents, fit_saturated};
-use std::path::PathBuf;
+use crate::pmsm::{CsvOptions, LogSource, PmsmFitOptions, SaturationExponents, fit_saturated};
 
 /// A saturated fit as asked for.
 #[derive(Clone, Debug, PartialEq)]
@@ -31,17 +30,15 @@ impl SaturationRequest {
     }
 }
 
-/// The saturated fit of `logs` (fitted jointly) as `r` asks and its report (the linear fit,
+/// The saturated fit of `logs` (files or tables, fitted jointly) as `r` asks and its report (the linear fit,
 /// the saturated fit, the model, the inductances at the logs' operating points); untrusted
 /// as [`crate::pmsm::SaturatedFit::untrusted_reasons`] says.
 ///
 /// # Errors
 /// Bad paths, unreadable logs, a failed linear or saturated fit.
-pub fn saturation(logs: &[PathBuf], r: &SaturationRequest) -> Result<Report> {
-    crate::app::check_paths(logs)?;
+pub fn saturation(logs: &[LogSource<'_>], r: &SaturationRequest) -> Result<Report> {
     let csv = CsvOptions { pole_pairs: Some(r.pole_pairs), ..r.reading.csv.clone() };
-    let logs: Vec<_> =
-        crate::app::read_logs(logs, &csv, r.reading.split_gaps, false)?.into_iter().flatten().collect();
+    let logs = crate::app::read_sources(&r.reading, &csv, logs)?;
     let fit = fit_saturated(&logs, &PmsmFitOptions::new(r.pole_pairs), r.exponents)?;
     Ok(Report::new(fit.to_string(), &fit, fit.untrusted_reasons()))
 }

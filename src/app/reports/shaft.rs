@@ -3,9 +3,9 @@
 
 use crate::Experiment;
 use crate::app::LogReading;
-use crate::data::{ColumnMap, CsvSpec, TimeWindow, read_csv};
+use crate::data::{ColumnMap, CsvSpec, TimeWindow};
 use crate::error::{Error, Result};
-use crate::pmsm::{Axis, DqSource, LOAD_TORQUE};
+use crate::pmsm::{Axis, DqSource, LOAD_TORQUE, LogSource};
 use std::path::PathBuf;
 
 /// A linear motor's log `e` (speed `w_m` in m/s, position `theta_m` in m) as the shaft of
@@ -25,7 +25,7 @@ pub(super) fn linear_motor(e: Experiment, axis: Axis) -> Result<Experiment> {
     Ok(e)
 }
 
-/// The logs `paths` of a given `K_t`, which needs no electrical fit: only the time, `iq`,
+/// The logs `sources` (files or tables) of a given `K_t`, which needs no electrical fit: only the time, `iq`,
 /// the speed, the angle with `gravity` and the load column `col_load` where present are
 /// read (the voltages and `id` may be absent), with the `reading`'s units, frames and
 /// scales at `pole_pairs`, and its window keeps its rows.
@@ -33,15 +33,17 @@ pub(super) fn linear_motor(e: Experiment, axis: Axis) -> Result<Experiment> {
 /// # Errors
 /// [`Error::InvalidOption`] for phase currents (`--dq-from-phases`) or `--split-gaps`,
 /// which need the electrical reader, and for a window that keeps fewer than 2 rows; bad
-/// paths; those of [`read_csv`] (a missing column named with its flag).
+/// paths; those of [`LogSource::read_spec`] (a missing column named with its flag).
 pub(super) fn read_mechanical(
-    paths: &[PathBuf],
+    sources: &[LogSource<'_>],
     reading: &LogReading,
     pole_pairs: u32,
     gravity: bool,
     col_load: &str,
 ) -> Result<Vec<Experiment>> {
-    crate::app::check_paths(paths)?;
+    let paths: Vec<PathBuf> =
+        sources.iter().filter(|s| matches!(s, LogSource::Path(_))).map(|s| s.path().to_path_buf()).collect();
+    crate::app::check_paths(&paths)?;
     let o = &reading.csv;
     for (flag, set) in
         [("--dq-from-phases", o.source == DqSource::Phases), ("--split-gaps", reading.split_gaps)]
@@ -80,10 +82,10 @@ pub(super) fn read_mechanical(
         x if x == c.t => "--col-t",
         _ => "--col-load",
     };
-    paths
+    sources
         .iter()
-        .map(|path| {
-            let e = read_csv(path, &spec).map_err(|e| match e {
+        .map(|source| {
+            let e = source.read_spec(&spec).map_err(|e| match e {
                 Error::MissingColumn { path, column, available } => Error::InvalidOption {
                     option: flag(&column).into(),
                     reason: format!("{}: no column `{column}` (header: {available})", path.display()),

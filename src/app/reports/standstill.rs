@@ -5,8 +5,7 @@
 use super::report::{Report, read_with_channel};
 use crate::app::LogReading;
 use crate::error::Result;
-use crate::pmsm::{StandstillOptions, WINDING_TEMPERATURE, fit_standstill};
-use std::path::PathBuf;
+use crate::pmsm::{LogSource, StandstillOptions, WINDING_TEMPERATURE, fit_standstill};
 
 /// A standstill fit as asked for.
 #[derive(Clone, Debug, PartialEq)]
@@ -40,13 +39,13 @@ impl StandstillRequest {
     }
 }
 
-/// The standstill fit of `logs` (fitted jointly) as `r` asks and its report (the fit, the
+/// The standstill fit of `logs` (files or tables, fitted jointly) as `r` asks and its report (the fit, the
 /// axes, the injection length for `R_s` to ±1 %); untrusted as the fit's gate says
 /// (`segments_disagree` when the logs' halves disagree: docs/standstill.md).
 ///
 /// # Errors
 /// Bad paths, unreadable logs, a bad width, a failed fit.
-pub fn standstill(logs: &[PathBuf], r: &StandstillRequest) -> Result<Report> {
+pub fn standstill(logs: &[LogSource<'_>], r: &StandstillRequest) -> Result<Report> {
     let extra = (r.col_temperature.as_str(), WINDING_TEMPERATURE, "°C");
     let logs = read_with_channel(logs, &r.reading, r.pole_pairs, extra)?;
     let options = StandstillOptions {

@@ -100,13 +100,34 @@ pub enum LogSource<'a> {
     },
 }
 
-impl LogSource<'_> {
+impl<'a> LogSource<'a> {
+    /// The files `paths` as sources, in order.
+    pub fn files(paths: &'a [PathBuf]) -> Vec<Self> {
+        paths.iter().map(|p| Self::Path(p)).collect()
+    }
+
     /// The path of a file, or the name of a table (what errors name).
     pub fn path(&self) -> &Path {
         match self {
             Self::Path(p) => p,
             #[cfg(feature = "parquet")]
             Self::Arrow { name, .. } => Path::new(name),
+        }
+    }
+
+    /// The source's columns as `spec` maps them into channels: [`crate::data::read_csv`]
+    /// for a file, [`crate::data::read_spec_batches`] for a table (no PMSM column checks:
+    /// a log of any other quantities).
+    ///
+    /// # Errors
+    /// Those of [`crate::data::read_csv`] (a table's naming its name).
+    pub fn read_spec(&self, spec: &crate::data::CsvSpec) -> Result<Experiment> {
+        match *self {
+            Self::Path(path) => crate::data::read_csv(path, spec),
+            #[cfg(feature = "parquet")]
+            Self::Arrow { name, schema, batches } => {
+                crate::data::read_spec_batches(name, schema, batches, spec)
+            }
         }
     }
 
