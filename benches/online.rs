@@ -176,6 +176,22 @@ fn core_update(c: &mut Criterion) {
     run(&mut g, "kalman f64", &s64, k64, |k, s| k.update(s).unwrap());
     let k32 = core::Kalman::spm(c32, core::Noise::for_machine(0.01, c32.r_s0, c32.k_e0)).unwrap();
     run(&mut g, "kalman f32", &s32, k32, |k, s| k.update(s).unwrap());
+    // The salient step (the augmented exponential's series) on the same signal: `L_q` a
+    // thousandth above `L_d`, so the machine the signal came from is followed and the cost
+    // is the series' (it depends on the period's spectral scale, not on the saliency).
+    let salient = |c| core::Machine::of(&c, Some(c.l_s * T_Q)).unwrap();
+    const T_Q: f64 = 1.001;
+    let m64 = core::Mras::new(c64, salient(c64)).unwrap();
+    run(&mut g, "mras salient f64", &s64, m64, |m, s| m.update(s).unwrap());
+    let k64 =
+        core::Kalman::new(c64, salient(c64), core::Noise::for_machine(0.01, c64.r_s0, c64.k_e0)).unwrap();
+    run(&mut g, "kalman salient f64", &s64, k64, |k, s| k.update(s).unwrap());
+    let salient32 = |c: core::Settings<f32>| core::Machine::of(&c, Some(c.l_s * T_Q as f32)).unwrap();
+    let m32 = core::Mras::new(c32, salient32(c32)).unwrap();
+    run(&mut g, "mras salient f32", &s32, m32, |m, s| m.update(s).unwrap());
+    let k32 =
+        core::Kalman::new(c32, salient32(c32), core::Noise::for_machine(0.01, c32.r_s0, c32.k_e0)).unwrap();
+    run(&mut g, "kalman salient f32", &s32, k32, |k, s| k.update(s).unwrap());
     g.finish();
 }
 

@@ -12,7 +12,9 @@
 //!   gains ([`Adaptation`]); [`Noise`]: the filter's noise model.
 //! - [`Sample`] in (currents at `t_k`, the period's mean voltage and speed), [`Estimates`]
 //!   out (`K_e`, `K_t`, `ψ_f`, `R_s`, the error, standard errors), [`Fault`] on failure.
-//! - [`Plant`]: the exact one-period step the observers follow; [`Spm`] in closed form.
+//! - [`Plant`]: the exact one-period step the observers follow; [`Spm`] in closed form,
+//!   [`Ipm`] (a salient machine, `L_d ≠ L_q`) by its augmented exponential; [`Machine`]
+//!   chooses between them.
 //!
 //! Speeds are mechanical (`w_m` \[rad/s\]), `ω_e = n_p w_m`; currents and voltages peak dq
 //! (MODEL.md §2).
@@ -33,14 +35,20 @@
 #![warn(missing_docs)]
 
 mod kalman;
+mod machine;
 mod mras;
 mod plant;
 mod real;
+mod salient;
+mod series;
 mod types;
 
 pub use kalman::{K_E_WALK, Kalman, MODEL_NOISE_RATIO, Noise, R_S_WALK};
+pub use machine::Machine;
 pub use mras::{INFORMATIVE, Mras, MrasOutput};
 pub use num_complex::Complex;
 pub use plant::{Plant, Spm, Step, Transition, phi1, phi1_pair, phi1_pair_real, phi1_prime};
 pub use real::{Real, SQRT_2_3, cexpm1, rotation, stator_hold_start, stator_hold_start_sin};
+pub use salient::{Ipm, StepError};
+pub use series::{Aug, Coefficients, MAX_SUBSTEPS, RHO_MAX, Substep, advance_substeps};
 pub use types::{Adaptation, Estimates, Fault, Field, Hold, MIN_TAU_SAMPLES, Sample, Settings};

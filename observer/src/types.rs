@@ -160,6 +160,8 @@ pub enum Field {
     QRS,
     /// `Noise::q_k_e`.
     QKE,
+    /// The q-axis inductance `L_q` of a salient machine ([`crate::Ipm::new`]).
+    LQ,
 }
 
 impl Field {
@@ -183,6 +185,7 @@ impl Field {
             Self::QI => "q_i",
             Self::QRS => "q_r_s",
             Self::QKE => "q_k_e",
+            Self::LQ => "l_q",
         }
     }
 }

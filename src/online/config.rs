@@ -43,7 +43,8 @@ pub struct MrasConfig {
     /// Known q-axis inductance `L_q` \[H\] of a salient (interior-magnet) machine, positive;
     /// `None` (the default, and what a configuration without the field parses to) for
     /// surface magnets, `L_d = L_q = l_s`. With `Some(l_q)`, `l_q ≠ l_s`, the observer steps
-    /// the salient model ([`crate::pmsm::ExactPlant`]; see [`super::Mras`]); `Some(l_s)` is
+    /// the salient model ([`greybox_observer::Ipm`], the augmented exponential of
+    /// [`crate::pmsm::ExactPlant`]; see [`super::Mras`]); `Some(l_s)` is
     /// the surface-magnet observer.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub l_q: Option<f64>,

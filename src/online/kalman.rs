@@ -30,7 +30,7 @@
 //! from the log itself ([`current_noise`]).
 
 use super::config::MrasConfig;
-use super::mras::{Estimates, Machine, Sample, estimates, invalid, settings};
+use super::mras::{Estimates, Machine, Sample, estimates, invalid, machine, settings};
 use crate::error::{Error, Result};
 use greybox_observer::{Fault, Field, Noise};
 use serde::{Deserialize, Serialize};
@@ -151,7 +151,7 @@ impl Kalman {
         let config = MrasConfig { adaptation: super::Adaptation::Lyapunov, ..config };
         config.validate()?;
         let settings = settings(&config);
-        let core = greybox_observer::Kalman::new(settings, Machine::of(&config, &settings)?, noise.into())
+        let core = greybox_observer::Kalman::new(settings, machine(&config, &settings)?, noise.into())
             .map_err(invalid)?;
         Ok(Self { core, config })
     }

@@ -77,8 +77,10 @@
 //! i.e. `L_d dî_d/dt = u_d − R̂_s î_d + ω_e L_q î_q + f L_d e_d`,
 //! `L_q dî_q/dt = u_q − R̂_s î_q − ω_e L_d î_d − emf K̂_e + f L_q e_q`. Held error, so the
 //! step is again the plant's exact step from the corrected state `î + κ e`, now the
-//! augmented exponential of [`crate::pmsm::PmsmIpm`] through
-//! [`ExactPlant::step_derivatives`] (`R̂_s`, `L_d`, `L_q`, `K̂_e`; either hold), and the
+//! augmented exponential of [`crate::pmsm::PmsmIpm`], stepped by the observer crate's
+//! [`greybox_observer::Ipm`] (the series of [`ExactPlant::step_derivatives`], to the bit:
+//! test `the_core_salient_step_is_the_exact_plants_to_the_bit`; `R̂_s`, `L_d`, `L_q`,
+//! `K̂_e`; either hold), so firmware and its C ABI step a salient machine alike, and the
 //! error at the true parameters obeys `e[k+1] = (1 − κ) Φ e[k]` with Φ the plant's
 //! transition over the period: stable, and zero error reproduces the exact IPM simulation
 //! (bit for bit in the tests). The adaptation is the implicit law above with `φ_K`, `φ_R`
@@ -89,7 +91,8 @@
 //! d-axis injection). Relay: `ψ_K = φ_K/|ω_m|` (0 at `ω_m = 0`, where K_e does not enter
 //! the step).
 //!
-//! **Sensitivities.** Not by finite differences: [`ExactPlant::step_derivatives`] carries
+//! **Sensitivities.** Not by finite differences: the step ([`greybox_observer::Ipm`], as
+//! [`ExactPlant::step_derivatives`]) carries
 //! the forward-sensitivity equations (`Ṡ = A S + ∂f/∂θ`, `S(0) = 0`) inside the same
 //! augmented exponential (Van Loan 1978), so `φ_K` and `φ_R` are the exact derivatives of
 //! the computed step, to its series tolerance (10⁻¹⁷ relative per block), in the same
@@ -99,8 +102,9 @@
 //! two steps (`δ = 10⁻⁵ Ω`) to 10⁻⁸ relative, that difference's own truncation and
 //! rounding level. It is also cheaper than the difference route: one augmented step with
 //! sensitivities took 125 ns against 393 ns for the four plain steps (main, unit `K_e`,
-//! `R_s ± δ`) on the development machine; a whole salient update about 0.2 µs (quick
-//! timings printed by the tests, not benchmarks).
+//! `R_s ± δ`) on the development machine; a whole salient update 0.23–0.27 µs (MRAS) and
+//! 0.47 µs (the filter, whose transition `Φ` takes the series' homogeneous part from each
+//! unit current) in `cargo bench --bench online -- salient`.
 //! `l_q = Some(l_s)` is the surface-magnet observer unchanged.
 
 use super::config::MrasConfig;
@@ -114,7 +118,7 @@ mod step;
 pub use sample::Sample;
 pub(crate) use state::estimates;
 pub use state::{Estimates, INFORMATIVE, MIN_TAU_SAMPLES, Mras, MrasOutput};
-pub(crate) use step::{Machine, invalid, settings};
+pub(crate) use step::{Machine, invalid, machine, settings, step_error};
 
 impl Mras {
     /// An observer with the given settings, started at `k_e0`, `r_s0` and, at the first
@@ -139,8 +143,7 @@ impl Mras {
             }
         }
         let settings = step::settings(&config);
-        let core =
-            greybox_observer::Mras::new(settings, Machine::of(&config, &settings)?).map_err(invalid)?;
+        let core = greybox_observer::Mras::new(settings, machine(&config, &settings)?).map_err(invalid)?;
         Ok(Self { core, cfg: config })
     }
 
@@ -169,7 +172,12 @@ impl Mras {
     pub(crate) fn one_step(&self, s: &Sample, est: &Estimates) -> Result<(f64, f64)> {
         use greybox_observer::Plant;
         let x = crate::pmsm::C64::new(s.i_d, s.i_q);
-        let next = self.core.plant().step(x, est.k_e, est.r_s, &step::sample(s), false)?.next;
+        let next = self
+            .core
+            .plant()
+            .step(x, est.k_e, est.r_s, &step::sample(s), false)
+            .map_err(|e| step_error("MRAS one-step prediction".into(), e))?
+            .next;
         Ok((next.re, next.im))
     }
 
@@ -212,7 +220,7 @@ impl Mras {
 }
 
 /// The crate's error for an MRAS fault at sample `s`.
-fn mras_error(f: Fault<f64, Error>, s: &Sample) -> Error {
+fn mras_error(f: Fault<f64, greybox_observer::StepError>, s: &Sample) -> Error {
     match f {
         Fault::NonFinite { channel, sample } => {
             let (column, value) =
@@ -228,9 +236,7 @@ fn mras_error(f: Fault<f64, Error>, s: &Sample) -> Error {
             context: format!("MRAS update at sample {sample}"),
             reason: format!("estimates not finite (k_e = {k_e}, r_s = {r_s})"),
         },
-        Fault::Step { sample, error } => {
-            Error::Numerical { context: format!("MRAS update at sample {sample}"), reason: error.to_string() }
-        }
+        Fault::Step { sample, error } => step_error(format!("MRAS update at sample {sample}"), error),
         Fault::Stale { output, observer } => Error::InvalidOption {
             option: "output".into(),
             reason: format!("computed for sample {output}, but the observer is at sample {observer}"),

@@ -347,6 +347,52 @@ fn salient_observer_without_adaptation_reproduces_the_exact_ipm_simulation() {
     }
 }
 
+/// The firmware core's salient step (`greybox_observer::Ipm`, which `greybox track` and the
+/// C ABI step with) is `ExactPlant::step_derivatives` (the offline model's) to the bit:
+/// the same series, the same start voltage, either hold.
+#[test]
+fn the_core_salient_step_is_the_exact_plants_to_the_bit() {
+    use greybox::pmsm::{C64, ExactPlant, MotorParameters, stator_hold_start};
+    use greybox_observer::{Hold, Ipm, Plant, Settings};
+    let h = 2e-4;
+    let mut rng = Rng(23);
+    for (hold, core_hold) in [(VoltageHold::Stator, Hold::Stator), (VoltageHold::Dq, Hold::Dq)] {
+        let plant = ExactPlant::new(IPM_N_P, h, true, hold).unwrap();
+        let mut s = Settings::new(IPM_N_P, IPM_L_D, h);
+        s.hold = core_hold;
+        let ipm = Ipm::new(&s, IPM_L_Q).unwrap();
+        for _ in 0..300 {
+            let mut u = || 2.0 * rng.uniform() - 1.0;
+            let (i, u, w_m, k_e, r_s) = (
+                [30.0 * u(), 30.0 * u()],
+                C64::new(200.0 * u(), 200.0 * u()),
+                2000.0 * u(),
+                0.5 + 0.1 * u(),
+                0.4 + 0.3 * u(),
+            );
+            let p = MotorParameters {
+                r_s,
+                l_d: IPM_L_D,
+                l_q: IPM_L_Q,
+                psi_f: (2.0f64 / 3.0).sqrt() * k_e / f64::from(IPM_N_P),
+                n_p: IPM_N_P,
+            };
+            let u0 = match hold {
+                VoltageHold::Stator => stator_hold_start(u, f64::from(IPM_N_P) * w_m * h),
+                VoltageHold::Dq => u,
+            };
+            let want = plant.step_derivatives(&p, i, u0, w_m).unwrap();
+            let sample = greybox_observer::Sample { i_d: i[0], i_q: i[1], u_d: u.re, u_q: u.im, w_m };
+            let got = ipm.step(C64::new(i[0], i[1]), k_e, r_s, &sample, false).unwrap();
+            let bits = |c: C64| [c.re.to_bits(), c.im.to_bits()];
+            let pair = |v: [f64; 2]| bits(C64::new(v[0], v[1]));
+            assert_eq!(bits(got.next), pair(want.next), "{hold} w_m {w_m}");
+            assert_eq!(bits(got.phi_r), pair(want.d_r_s), "{hold} w_m {w_m}");
+            assert_eq!(bits(got.phi_k), pair(want.d_k_e), "{hold} w_m {w_m}");
+        }
+    }
+}
+
 #[test]
 fn salient_step_derivatives_are_exact() {
     use greybox::pmsm::{C64, ExactPlant, MotorParameters, StepDerivatives};

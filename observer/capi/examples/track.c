@@ -1,8 +1,10 @@
 /* Runs greybox-observer's MRAS or Kalman filter over a drive log through the C ABI and
  * prints the final estimates as `greybox track` prints them (its summary line):
  *
- *   track LOG.csv N_P L_S K_E0 R_S0 [mras|ekf] [f64|f32]
+ *   track LOG.csv N_P L_S K_E0 R_S0 [mras|ekf] [f64|f32] [L_Q]
  *
+ * L_Q: a salient machine's q-axis inductance [H] (L_S is then L_d; the `_init_salient`
+ * functions, greybox track's --l-q).
  * LOG.csv: a plain CSV with a header naming t, ud, uq, id, iq, w_m (greybox's standard
  * columns; others ignored). Each sample is (i_d[k], i_q[k], u_d[k], u_q[k],
  * (w_m[k] + w_m[k+1])/2), as `greybox track` forms it; the filter's current noise is the
@@ -57,12 +59,13 @@ static void sci(char *buf, size_t len, double v) {
 
 int main(int argc, char **argv) {
     if (argc < 6) {
-        fprintf(stderr, "usage: %s LOG.csv N_P L_S K_E0 R_S0 [mras|ekf] [f64|f32]\n", argv[0]);
+        fprintf(stderr, "usage: %s LOG.csv N_P L_S K_E0 R_S0 [mras|ekf] [f64|f32] [L_Q]\n", argv[0]);
         return 2;
     }
     const char *path = argv[1];
     int ekf = argc > 6 && strcmp(argv[6], "ekf") == 0;
     int single = argc > 7 && strcmp(argv[7], "f32") == 0;
+    double l_q = argc > 8 ? atof(argv[8]) : 0.0; /* 0: surface magnets */
     FILE *f = fopen(path, "r");
     if (!f) {
         fprintf(stderr, "%s: cannot open\n", path);
@@ -124,7 +127,10 @@ int main(int argc, char **argv) {
         GbKalmanF64 kf;
         GbNoiseF64 noise;
         gb_noise_f64_for_machine(sigma_i, s.r_s0, s.k_e0, &noise);
-        rc = ekf ? gb_kalman_f64_init(&kf, &s, &noise) : gb_mras_f64_init(&mras, &s);
+        if (l_q > 0.0)
+            rc = ekf ? gb_kalman_f64_init_salient(&kf, &s, l_q, &noise) : gb_mras_f64_init_salient(&mras, &s, l_q);
+        else
+            rc = ekf ? gb_kalman_f64_init(&kf, &s, &noise) : gb_mras_f64_init(&mras, &s);
         for (size_t k = 0; rc == GB_OK && k < steps; k++) {
             GbSampleF64 x = {v[ID][k], v[IQ][k], v[UD][k], v[UQ][k], 0.5 * (v[WM][k] + v[WM][k + 1])};
             rc = ekf ? gb_kalman_f64_update(&kf, &x, &e) : gb_mras_f64_update(&mras, &x, &e);
@@ -140,7 +146,11 @@ int main(int argc, char **argv) {
         GbKalmanF32 kf;
         GbNoiseF32 noise;
         gb_noise_f32_for_machine((float)sigma_i, s.r_s0, s.k_e0, &noise);
-        rc = ekf ? gb_kalman_f32_init(&kf, &s, &noise) : gb_mras_f32_init(&mras, &s);
+        if (l_q > 0.0)
+            rc = ekf ? gb_kalman_f32_init_salient(&kf, &s, (float)l_q, &noise)
+                     : gb_mras_f32_init_salient(&mras, &s, (float)l_q);
+        else
+            rc = ekf ? gb_kalman_f32_init(&kf, &s, &noise) : gb_mras_f32_init(&mras, &s);
         GbEstimatesF32 e32 = {0};
         for (size_t k = 0; rc == GB_OK && k < steps; k++) {
             GbSampleF32 x = {(float)v[ID][k], (float)v[IQ][k], (float)v[UD][k], (float)v[UQ][k],

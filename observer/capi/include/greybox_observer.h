@@ -15,7 +15,7 @@
 // A setting out of range is `GB_ERR_SETTING - field` (fields in `greybox_observer::Field`'s order:
 // 0 `n_p`, 1 `l_s`, 2 `h`, 3 `tau_ke`, 4 `tau_rs`, 5 `f`, 6 `gamma_ke`, 7 `i_d_threshold`,
 // 8 `r_s0`, 9 `gamma_rs`, 10 `k_e0`, 11 `sigma_i`, 12 `p0_r_s`, 13 `p0_k_e`, 14 `q_i`,
-// 15 `q_r_s`, 16 `q_k_e`).
+// 15 `q_r_s`, 16 `q_k_e`, 17 `l_q`).
 #define GB_ERR_SETTING -100
 
 // A null pointer was passed.
@@ -30,6 +30,10 @@
 
 // The estimates or the state would stop being finite.
 #define GB_ERR_NOT_FINITE -3
+
+// The salient machine's step failed (a running `R_s` below 0 or a `K_e` not finite, a
+// period too long for its series: `greybox_observer::StepError`).
+#define GB_ERR_STEP -4
 
 // How the voltage is held between samples (MODEL.md §4).
 enum Hold
@@ -362,7 +366,7 @@ int32_t gb_mras_f32_init(struct GbMrasF32 *obs, const GbSettingsF32 *settings);
 
 // One sample through the MRAS: the estimates after the adaptation at `t_k` into `out`;
 // [`GB_OK`], [`GB_ERR_NULL`], [`GB_ERR_NON_FINITE`] minus the channel, [`GB_ERR_SINGULAR`],
-// [`GB_ERR_NOT_FINITE`].
+// [`GB_ERR_NOT_FINITE`], [`GB_ERR_STEP`] (a salient machine).
 //
 // # Safety
 // `obs` initialised by [`gb_mras_f64_init`]; `sample` and `out` valid, or null.
@@ -411,6 +415,41 @@ int32_t gb_kalman_f32_update(struct GbKalmanF32 *kf,
 // The name of a return code (`"ok"`, `"setting l_s out of range"`, `"non-finite w_m"`, …),
 // a static NUL-terminated string.
 const char *gb_error_name(int32_t code);
+
+// [`gb_mras_f64_init`](crate::gb_mras_f64_init) of a salient machine: `settings.l_s` is
+// `L_d`, `l_q` is `L_q` \[H\]
+// (the augmented exponential's step; equal to `l_s`, the surface-magnet step); also
+// [`GB_ERR_SETTING`](crate::GB_ERR_SETTING) minus 17 for an `l_q` that is not positive and finite.
+//
+// # Safety
+// As [`gb_mras_f64_init`](crate::gb_mras_f64_init).
+int32_t gb_mras_f64_init_salient(struct GbMrasF64 *obs, const GbSettingsF64 *settings, double l_q);
+
+// [`gb_mras_f64_init_salient`] in `float`.
+//
+// # Safety
+// As [`gb_mras_f64_init`](crate::gb_mras_f64_init).
+int32_t gb_mras_f32_init_salient(struct GbMrasF32 *obs, const GbSettingsF32 *settings, float l_q);
+
+// [`gb_kalman_f64_init`](crate::gb_kalman_f64_init) of a salient machine: `settings.l_s`
+// is `L_d`, `l_q` is `L_q`
+// \[H\]; the codes of [`gb_mras_f64_init_salient`].
+//
+// # Safety
+// As [`gb_kalman_f64_init`](crate::gb_kalman_f64_init).
+int32_t gb_kalman_f64_init_salient(struct GbKalmanF64 *kf,
+                                   const GbSettingsF64 *settings,
+                                   double l_q,
+                                   const GbNoiseF64 *noise);
+
+// [`gb_kalman_f64_init_salient`] in `float`.
+//
+// # Safety
+// As [`gb_kalman_f64_init`](crate::gb_kalman_f64_init).
+int32_t gb_kalman_f32_init_salient(struct GbKalmanF32 *kf,
+                                   const GbSettingsF32 *settings,
+                                   float l_q,
+                                   const GbNoiseF32 *noise);
 
 #ifdef __cplusplus
 }  // extern "C"

@@ -105,3 +105,59 @@ fn the_abi_gives_the_rust_observers_estimates() {
         }
     }
 }
+
+/// A salient machine through `_init_salient`: the Rust observers of `Machine::Ipm` to the
+/// bit, in both precisions; a bad `l_q` named; a negative running `R_s` is the step's code.
+#[test]
+fn the_salient_abi_gives_the_rust_observers_estimates() {
+    use greybox_observer::Machine;
+    let s = settings();
+    let l_q = 9e-3;
+    let noise = Noise::for_machine(0.01, s.r_s0, s.k_e0);
+    let machine = Machine::of(&s, Some(l_q)).unwrap();
+    let (mut m, mut k) = (Mras::new(s, machine).unwrap(), Kalman::new(s, machine, noise).unwrap());
+    let mut mras = MaybeUninit::<GbMrasF64>::uninit();
+    let mut kf = MaybeUninit::<GbKalmanF64>::uninit();
+    let mut s32 = Settings::<f32>::new(4, 4.5e-3, 1e-4);
+    (s32.k_e0, s32.r_s0) = (0.45, 0.7);
+    let noise32 = Noise::for_machine(0.01f32, s32.r_s0, s32.k_e0);
+    let machine32 = Machine::of(&s32, Some(l_q as f32)).unwrap();
+    let mut k32 = Kalman::new(s32, machine32, noise32).unwrap();
+    let mut kf32 = MaybeUninit::<GbKalmanF32>::uninit();
+    // SAFETY: valid pointers throughout.
+    unsafe {
+        let code = gb_mras_f64_init_salient(mras.as_mut_ptr(), &s, -1.0);
+        assert_eq!(code, GB_ERR_SETTING - 17);
+        assert_eq!(name(code), "setting l_q out of range (positive)");
+        assert_eq!(gb_kalman_f64_init_salient(null_mut(), &s, l_q, &noise), GB_ERR_NULL);
+        assert_eq!(gb_mras_f64_init_salient(mras.as_mut_ptr(), &s, l_q), GB_OK);
+        assert_eq!(gb_kalman_f64_init_salient(kf.as_mut_ptr(), &s, l_q, &noise), GB_OK);
+        assert_eq!(gb_kalman_f32_init_salient(kf32.as_mut_ptr(), &s32, l_q as f32, &noise32), GB_OK);
+        for j in 0..3000 {
+            let t = j as f64 * 1e-4;
+            let x = Sample {
+                i_d: -2.0 + (30.0 * t).sin(),
+                i_q: 3.0 + 0.5 * (70.0 * t).cos(),
+                u_d: -12.0 + (50.0 * t).sin(),
+                u_q: 40.0 + (20.0 * t).cos(),
+                w_m: 100.0 + 10.0 * (5.0 * t).sin(),
+            };
+            let mut e = MaybeUninit::<GbEstimatesF64>::uninit();
+            assert_eq!(gb_mras_f64_update(mras.as_mut_ptr(), &x, e.as_mut_ptr()), GB_OK);
+            assert_eq!(e.assume_init(), m.update(&x).unwrap());
+            assert_eq!(gb_kalman_f64_update(kf.as_mut_ptr(), &x, e.as_mut_ptr()), GB_OK);
+            assert_eq!(e.assume_init(), k.update(&x).unwrap());
+            let x32 = Sample {
+                i_d: x.i_d as f32,
+                i_q: x.i_q as f32,
+                u_d: x.u_d as f32,
+                u_q: x.u_q as f32,
+                w_m: x.w_m as f32,
+            };
+            let mut e32 = MaybeUninit::<GbEstimatesF32>::uninit();
+            assert_eq!(gb_kalman_f32_update(kf32.as_mut_ptr(), &x32, e32.as_mut_ptr()), GB_OK);
+            assert_eq!(e32.assume_init(), k32.update(&x32).unwrap());
+        }
+    }
+    assert_eq!(name(GB_ERR_STEP), "the salient step failed");
+}

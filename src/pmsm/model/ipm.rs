@@ -123,7 +123,7 @@ impl GreyBoxModel for PmsmIpm {
         check_positive("l_q", l_q)?;
         check_finite("k_e", k_e)?;
         let c = IpmCoefficients { nth, v_dt, ..IpmCoefficients::at(inputs.source.h, r, l_d, l_q, k_e) };
-        let ratios = [c.inv_l_d, c.inv_l_q, c.r_l_max, c.l_q_l_d, c.l_d_l_q];
+        let ratios = [c.step.inv_l_d, c.step.inv_l_q, c.step.r_l_max, c.step.l_q_l_d, c.step.l_d_l_q];
         if ratios.iter().any(|v| !v.is_finite()) {
             let (name, value) = if l_d <= l_q { ("l_d", l_d) } else { ("l_q", l_q) };
             return Err(Error::InvalidParameter {
