@@ -324,24 +324,11 @@ def _report(command: str, logs: Any, options: dict[str, Any]) -> Report:
     return Report(json.loads(text), list(untrusted))
 
 
-def _map_file(map: Any, stack: Any) -> str:
-    """A flux map's path: ``map`` itself, or an Arrow table written to a temporary Parquet
-    file held open by ``stack`` (the flux-map reader reads files: ``.npz``, CSV, Parquet,
-    Arrow IPC)."""
-    if _is_path(map):
-        return os.fspath(map)
-    import pyarrow.parquet as pq
-
-    folder = stack.enter_context(tempfile.TemporaryDirectory(prefix="greybox-"))
-    path = os.path.join(folder, "map.parquet")
-    pq.write_table(pa.table(_arrow(map)), path)
-    return path
-
-
-def fluxmap(map: PathLike, **options: Any) -> Report:
+def fluxmap(map: Any, **options: Any) -> Report:
     """Fits the saturation model with cross-saturation (Hinkkanen et al., IEEE Trans. Ind.
-    Appl. 53(3) 2017) to a measured flux map (``.npz`` or CSV with ``i_d, i_q`` [A],
-    ``psi_d, psi_q`` [V s]), as ``greybox fluxmap``.
+    Appl. 53(3) 2017) to a measured flux map, as ``greybox fluxmap``: a path (``.npz``, or
+    CSV, Parquet, Arrow with ``i_d, i_q`` [A], ``psi_d, psi_q`` [V s], one operating point
+    per row) or an Arrow-like table with those columns, read in memory.
 
     ``options``: ``exponents=(S, T, U, V)``; ``col_id``, ``col_iq``, ``col_psid``,
     ``col_psiq``, ``delimiter``; ``col_torque`` (a measured torque [N m], default
@@ -353,10 +340,7 @@ def fluxmap(map: PathLike, **options: Any) -> Report:
 
     Raises :class:`OptionError`, :class:`DataError` or :class:`FitError`.
     """
-    import contextlib
-
-    with contextlib.ExitStack() as stack:
-        return _report("fluxmap", _map_file(map, stack), options)
+    return _report("fluxmap", map, options)
 
 
 def saturation(log: Any, *, pole_pairs: int, **options: Any) -> Report:

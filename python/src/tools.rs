@@ -78,15 +78,15 @@ const MECHANICS: Keywords = Keywords {
     returns: RETURNS,
 };
 
-/// Runs the fit `command` (`fluxmap`: one map, a path; `saturation`, `standstill`,
-/// `mechanics`: logs fitted jointly, each a path or an Arrow table named by `names` in its
-/// place, read in memory as `fit` reads them) with the keyword `options`, as the command
+/// Runs the fit `command` (`fluxmap`: one map; `saturation`, `standstill`, `mechanics`: logs
+/// fitted jointly; each a path or an Arrow table named by `names` in its place, read in
+/// memory as `fit` reads them) with the keyword `options`, as the command
 /// line's subcommand of that name does, the GIL released: its JSON report (as `--json`
 /// writes it) and the codes of the reasons it is not to be trusted (empty: trusted; the
 /// command line's exit code 3 otherwise).
 ///
 /// Errors: `OptionError` naming the keyword (an unknown command or keyword, a bad value, a
-/// file output; a map that is not a path), `DataError` (a log that is neither a path nor an
+/// file output; not one map), `DataError` (a log that is neither a path nor an
 /// Arrow table, or cannot be read), `FitError`.
 #[pyfunction]
 pub fn report(
@@ -104,11 +104,10 @@ pub fn report(
     let run: Box<Run> = match command {
         "fluxmap" => {
             let r = fluxmap_request(options)?;
-            let map = match sources.as_slice() {
-                [Source::Path(p)] => p.clone(),
-                _ => return Err(OptionError::new_err("map: one flux map, a path")),
-            };
-            Box::new(move |_| greybox::app::fluxmap(&map, &r))
+            if sources.len() != 1 {
+                return Err(OptionError::new_err("map: one flux map (a path or a table)"));
+            }
+            Box::new(move |maps| greybox::app::fluxmap(maps[0], &r))
         }
         "saturation" => {
             let r = saturation_request(options)?;

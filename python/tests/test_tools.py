@@ -155,6 +155,21 @@ def test_issue33_fits_read_tables_in_memory_as_their_files(tmp_path):
         greybox.saturation(3.5, pole_pairs=4)
 
 
+def test_a_flux_map_table_is_read_in_memory_as_its_file(tmp_path):
+    import pyarrow.csv as pacsv
+
+    path = tmp_path / "map.csv"
+    _flux_map(path)
+    words = dict(col_id="Id", col_iq="Iq", col_psid="PsiD", col_psiq="PsiQ", exponents=(4, 2, 1, 0))
+    from_file = greybox.fluxmap(path, delimiter=";", **words).report
+    table = pacsv.read_csv(path, parse_options=pacsv.ParseOptions(delimiter=";"))
+    from_table = greybox.fluxmap(table, **words).report
+    assert from_table["fit"]["parameters"] == from_file["fit"]["parameters"]
+    assert from_table["points"] == from_file["points"]
+    with pytest.raises(greybox.OptionError, match="map: one flux map"):
+        greybox._greybox.report("fluxmap", [table, table], ["a", "b"], {})
+
+
 def test_issue33_fits_refuse_files_and_bad_flags():
     log, truth = greybox.simulate("standstill", seed=3, duration=0.3)
     with pytest.raises(greybox.OptionError, match="`json`: the Python functions write no files"):

@@ -6,6 +6,7 @@ use super::output;
 use crate::app::{FluxMapRequest, exponents, fluxmap};
 use crate::data::Delimiter;
 use crate::pmsm::FluxMapColumns;
+use crate::pmsm::LogSource;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -78,5 +79,5 @@ impl TryFrom<&FluxMapArgs> for FluxMapRequest {
 /// cannot be written.
 pub fn run_fluxmap(a: &FluxMapArgs) -> crate::Result<bool> {
     let r = FluxMapRequest::try_from(a)?;
-    a.report.run(std::slice::from_ref(&a.map), "flux-map fit", || fluxmap(&a.map, &r))
+    a.report.run(std::slice::from_ref(&a.map), "flux-map fit", || fluxmap(LogSource::Path(&a.map), &r))
 }

@@ -48,7 +48,9 @@ pub use linear::{
     LinearEstimate, LinearOptions, PERIOD_TERM, SteadyEstimate, SteadyOptions, least_squares, regressors,
     steady_advice, steady_state, weighted_least_squares,
 };
-pub use log::flux_map::{FluxMapColumns, FluxMapRead, NPZ_ARRAYS, read_flux_map, read_flux_map_with};
+pub use log::flux_map::{
+    FluxMapColumns, FluxMapRead, NPZ_ARRAYS, read_flux_map, read_flux_map_from, read_flux_map_with,
+};
 pub use log::signals::{DqSignals, DqView, MAX_POLE_PAIRS, MIN_SAMPLES, PmsmError, channel};
 pub use log::transform::{
     clarke, currents_to_dq, inverse_clarke, inverse_park, park, stator_held_voltages_to_dq,

@@ -158,6 +158,36 @@ mod with_feature {
         assert_eq!(from_table.untrusted, from_file.untrusted);
     }
 
+    /// A flux map handed over as a table reads as its Parquet file: the same points to the
+    /// bit, the same torque, the table's name.
+    #[test]
+    fn a_flux_map_table_reads_as_its_file() {
+        use greybox::pmsm::{FluxMapColumns, LogSource, read_flux_map_from, read_flux_map_with};
+        let n = 30;
+        let k = || (0..n).map(|k| k as f64);
+        let columns = vec![
+            ("i_d", f64s(k().map(|k| -10.0 + 0.3 * k))),
+            ("i_q", f64s(k().map(|k| (0.7 * k).sin() * 12.0))),
+            ("psi_d", f64s(k().map(|k| 0.1 + 0.002 * k))),
+            ("psi_q", f64s(k().map(|k| 0.03 * (0.7 * k).sin()))),
+            ("torque", f64s(k().map(|k| 0.5 * k))),
+        ];
+        let batch = RecordBatch::try_from_iter(columns.clone()).unwrap();
+        let [pq, _ipc] = columnar("fluxmap", columns);
+        let c = FluxMapColumns::default();
+        let file = read_flux_map_with(pq.path(), &c).unwrap();
+        let batches = [batch];
+        let table = read_flux_map_from(
+            LogSource::Arrow { name: "map", schema: &batches[0].schema(), batches: &batches },
+            &c,
+        )
+        .unwrap();
+        assert_eq!(table.map.name(), "map");
+        assert_eq!(bits(&table.map), bits(&file.map));
+        assert_eq!(table.torque, file.torque);
+        assert!(table.torque.is_some());
+    }
+
     /// Writes `columns` (name, array) as Parquet and as Arrow IPC; both paths.
     fn columnar(tag: &str, columns: Vec<(&str, ArrayRef)>) -> [TempFile; 2] {
         let batch = RecordBatch::try_from_iter(columns).unwrap();

@@ -5,11 +5,10 @@
 use super::report::Report;
 use crate::error::{Error, Result};
 use crate::pmsm::{
-    FluxMapColumns, FluxMapFit, FluxMapOptions, SaturationExponents, TorqueCheck, fit_flux_map,
-    read_flux_map_with, torque_check,
+    FluxMapColumns, FluxMapFit, FluxMapOptions, LogSource, SaturationExponents, TorqueCheck, fit_flux_map,
+    read_flux_map_from, torque_check,
 };
 use serde::Serialize;
-use std::path::Path;
 
 /// A flux-map fit as asked for.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -34,10 +33,12 @@ pub struct FluxMapRequest {
 /// # Errors
 /// A bad path ([`super::super::check_paths`]), an unreadable map (a missing column as
 /// [`Error::InvalidOption`] naming its `--col-*` flag), a failed fit.
-pub fn fluxmap(map: &Path, r: &FluxMapRequest) -> Result<Report> {
-    crate::app::check_paths(&[map.to_path_buf()])?;
+pub fn fluxmap(map: LogSource<'_>, r: &FluxMapRequest) -> Result<Report> {
+    if let LogSource::Path(path) = map {
+        crate::app::check_paths(&[path.to_path_buf()])?;
+    }
     let columns = &r.columns;
-    let read = read_flux_map_with(map, columns).map_err(|e| match e {
+    let read = read_flux_map_from(map, columns).map_err(|e| match e {
         Error::MissingColumn { column, available, .. } => Error::InvalidOption {
             option: flag_of(columns, &column).into(),
             reason: format!(

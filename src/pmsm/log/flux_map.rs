@@ -4,6 +4,7 @@
 use crate::data::csv::read_table_with_missing;
 use crate::data::{Channel, Delimiter, Experiment, Format, ReadLimits, TimeCheck, read_table_with};
 use crate::error::{Error, Result};
+use crate::pmsm::log::reader::LogSource;
 use nalgebra::Complex;
 
 type Complex64 = Complex<f64>;
@@ -116,13 +117,7 @@ pub fn read_flux_map_with(path: impl AsRef<Path>, columns: &FluxMapColumns) -> R
         (flux, None)
     } else {
         let c = columns;
-        let wanted = [
-            (c.i_d.as_str(), true),
-            (c.i_q.as_str(), true),
-            (c.psi_d.as_str(), true),
-            (c.psi_q.as_str(), true),
-            (c.torque.as_str(), false),
-        ];
+        let wanted = wanted(c);
         let limits = ReadLimits::default();
         let (table, torque) = match Format::of(path) {
             Format::Csv => (read_table_with_missing(path, &wanted, &limits, c.delimiter)?, None),
@@ -139,6 +134,57 @@ pub fn read_flux_map_with(path: impl AsRef<Path>, columns: &FluxMapColumns) -> R
         let flux = [(); 4].map(|()| columns.next().flatten().unwrap_or_default());
         (flux, columns.next().flatten().or(torque))
     };
+    finish(name, [i_d, i_q, psi_d, psi_q], torque)
+}
+
+/// [`read_flux_map_with`] of a file or (feature `parquet`) an Arrow table in memory (a
+/// pyarrow, polars or pandas table handed over by Python): a table's columns read as a
+/// Parquet file's, the map named by the table's name.
+///
+/// # Errors
+/// Those of [`read_flux_map_with`] (a table's, as a columnar file's, naming its name).
+pub fn read_flux_map_from(source: LogSource<'_>, columns: &FluxMapColumns) -> Result<FluxMapRead> {
+    match source {
+        LogSource::Path(path) => read_flux_map_with(path, columns),
+        #[cfg(feature = "parquet")]
+        LogSource::Arrow { name, schema, batches } => {
+            let wanted = wanted(columns);
+            let limits = ReadLimits::default();
+            let read = |w: &[(&str, bool)]| {
+                crate::data::read_batches_with(name, schema, batches, w, &limits, TimeCheck::Skip)
+            };
+            let table = read(&wanted[..4])?;
+            // As from a columnar file: a torque column with a gap is not read.
+            let torque = read(&wanted[4..]).ok().and_then(|t| t.columns.into_iter().next().flatten());
+            let mut columns = table.columns.into_iter();
+            let flux = [(); 4].map(|()| columns.next().flatten().unwrap_or_default());
+            finish(name.to_string(), flux, torque)
+        }
+    }
+}
+
+/// The columns a map's table is read by: the four of the flux map (required) and the
+/// torque (optional).
+fn wanted(c: &FluxMapColumns) -> [(&str, bool); 5] {
+    [
+        (c.i_d.as_str(), true),
+        (c.i_q.as_str(), true),
+        (c.psi_d.as_str(), true),
+        (c.psi_q.as_str(), true),
+        (c.torque.as_str(), false),
+    ]
+}
+
+/// The map `name` of the points whose four values `[i_d, i_q, psi_d, psi_q]` are finite,
+/// and their `torque`.
+///
+/// # Errors
+/// [`Error::TooShort`] for fewer than 8 points kept.
+fn finish(
+    name: String,
+    [i_d, i_q, psi_d, psi_q]: [Vec<f64>; 4],
+    torque: Option<Vec<f64>>,
+) -> Result<FluxMapRead> {
     let kept: Vec<usize> =
         (0..i_d.len()).filter(|&k| [&i_d, &i_q, &psi_d, &psi_q].iter().all(|v| v[k].is_finite())).collect();
     let first_skipped = (0..i_d.len()).find(|k| kept.binary_search(k).is_err());
