@@ -41,8 +41,8 @@ impl<T: Real> Plant<T> for Machine<T> {
         }
     }
 
-    /// Surface magnets in closed form; a salient machine by the step's linearity in the
-    /// current (the trait's default: two more steps).
+    /// Surface magnets in closed form; a salient machine by the series' homogeneous part
+    /// ([`Ipm`]'s `step_transition`).
     #[inline]
     fn step_transition(
         &self,
