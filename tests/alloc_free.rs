@@ -144,8 +144,9 @@ fn mras_allocates_nothing_per_sample() {
     // The counter sees an allocation on this thread (else a zero below would prove nothing).
     let (v, n) = allocations(|| std::hint::black_box(Vec::<u8>::with_capacity(8)));
     assert_eq!((v.capacity(), n), (8, 1));
-    // The salient plant the observer steps with: ExactPlant::step and step_derivatives
-    // allocate nothing after construction (either hold).
+    // The drive simulator's salient plant: ExactPlant::step and step_derivatives (the series
+    // the observers' greybox_observer::Ipm steps with, checked below through the salient
+    // observers) allocate nothing after construction (either hold).
     for hold in [VoltageHold::Stator, VoltageHold::Dq] {
         let mut plant = ExactPlant::new(4, H, true, hold).unwrap();
         let p = MotorParameters { r_s: 0.9, l_d: 4.5e-3, l_q: L_Q, psi_f: 0.11, n_p: 4 };

@@ -2,9 +2,9 @@
 //! step (so the observers' model is right): from wrong starts both reach the truth, in
 //! `f64` and in `f32`; bad samples and settings are refused without a change of state.
 
-use greybox_observer::{
-    Adaptation, Complex, Fault, Field, Kalman, Mras, Noise, Plant, Real, Sample, Settings, Spm,
-};
+mod common;
+
+use greybox_observer::{Adaptation, Fault, Field, Kalman, Mras, Noise, Real, Sample, Settings, Spm};
 
 const N_P: u32 = 4;
 const L_S: f64 = 4.5e-3;
@@ -12,26 +12,9 @@ const R_S: f64 = 0.9;
 const K_E: f64 = 0.54;
 const H: f64 = 1e-4;
 
-/// `n` samples of the machine driven open loop: the speed around 100 rad/s, the voltage
-/// the back-EMF plus a few volts at 5, 7 and 13 Hz (so the d current passes the `R_s`
-/// law's threshold), each current the exact step of the last (stator hold).
+/// `n` samples of the machine driven open loop (`common::open_loop`; stator hold).
 fn simulate(n: usize) -> Vec<Sample<f64>> {
-    let truth = Settings::new(N_P, L_S, H);
-    let spm = Spm::new(&truth);
-    let mut i = Complex::new(0.0, 0.0);
-    let mut out = Vec::with_capacity(n);
-    for k in 0..n {
-        let t = k as f64 * H;
-        let tau = std::f64::consts::TAU;
-        let w_m = 100.0 + 20.0 * (tau * 2.0 * t).sin();
-        let emf = greybox_observer::SQRT_2_3 * w_m * K_E;
-        let u_d = -3.0 + 4.0 * (tau * 5.0 * t).sin() + (tau * 13.0 * t).sin();
-        let u_q = emf + 3.0 + 2.0 * (tau * 7.0 * t).sin();
-        let s = Sample { i_d: i.re, i_q: i.im, u_d, u_q, w_m };
-        i = spm.step(i, K_E, R_S, &s, false).unwrap_or_else(|e| match e {}).next;
-        out.push(s);
-    }
-    out
+    common::open_loop(&Spm::new(&Settings::new(N_P, L_S, H)), n, H, K_E, R_S, -3.0)
 }
 
 fn cast<T: Real>(s: &Sample<f64>) -> Sample<T> {

@@ -3,6 +3,8 @@
 //! machine simulated by it from wrong starts, in `f64` and `f32`; a bad `L_q` and a
 //! negative running `R_s` are named.
 
+mod common;
+
 use greybox_observer::{
     Adaptation, Complex, Field, Hold, Ipm, Kalman, Machine, Mras, Noise, Plant, Real, Sample, Settings, Spm,
     StepError,
@@ -42,24 +44,10 @@ fn at_equal_inductances_the_salient_step_is_the_surface_step() {
     }
 }
 
-/// `n` samples of a salient machine driven open loop (as `observers.rs` drives its surface
-/// machine), each current the exact salient step of the last (stator hold).
+/// `n` samples of a salient machine driven open loop (`common::open_loop`, as
+/// `observers.rs` drives its surface machine; stator hold).
 fn simulate(n: usize) -> Vec<Sample<f64>> {
-    let ipm = Ipm::new(&Settings::new(N_P, L_D, H), L_Q).unwrap();
-    let mut i = Complex::new(0.0, 0.0);
-    let mut out = Vec::with_capacity(n);
-    for k in 0..n {
-        let t = k as f64 * H;
-        let tau = std::f64::consts::TAU;
-        let w_m = 100.0 + 20.0 * (tau * 2.0 * t).sin();
-        let emf = greybox_observer::SQRT_2_3 * w_m * K_E;
-        let u_d = -6.0 + 4.0 * (tau * 5.0 * t).sin() + (tau * 13.0 * t).sin();
-        let u_q = emf + 3.0 + 2.0 * (tau * 7.0 * t).sin();
-        let s = Sample { i_d: i.re, i_q: i.im, u_d, u_q, w_m };
-        i = ipm.step(i, K_E, R_S, &s, false).unwrap().next;
-        out.push(s);
-    }
-    out
+    common::open_loop(&Ipm::new(&Settings::new(N_P, L_D, H), L_Q).unwrap(), n, H, K_E, R_S, -6.0)
 }
 
 /// The MRAS and the filter of the salient machine over `samples` in precision `T`, started

@@ -116,18 +116,19 @@ def fit(
     that name the header's look-alikes, e.g. ``col_id="Id"``), :class:`FitError` when the
     fit fails.
     """
-    logs = list(log) if isinstance(log, (list, tuple)) else [log]
-    sources = [os.fspath(x) if _is_path(x) else _arrow(x) for x in logs]
-    tables = sum(1 for x in logs if not _is_path(x))
-    base = name or "table"
-    names = _fill([base if tables == 1 else f"{base}{k + 1}" for k in range(tables)], sources)
+    sources, names = _sources(log, name or "table")
     return Fit(_greybox.fit(sources, names, _flags(pole_pairs=pole_pairs, model=model, **options)))
 
 
-def _fill(names: list[str], sources: list[Any]) -> list[str]:
-    """A name per source: the table names in the tables' positions, the paths themselves."""
-    it = iter(names)
-    return [s if isinstance(s, str) else next(it) for s in sources]
+def _sources(logs: Any, base: str) -> tuple[list[Any], list[str]]:
+    """The logs as the native module takes them: ``logs`` (one, or a list or tuple) each a
+    path (as ``str``) or an Arrow C stream, and a name per log: a path itself, a table
+    ``base`` when it is the only table, else ``base1``, ``base2``, … in the tables' order."""
+    items = list(logs) if isinstance(logs, (list, tuple)) else [logs]
+    sources = [os.fspath(x) if _is_path(x) else _arrow(x) for x in items]
+    tables = sum(1 for x in items if not _is_path(x))
+    it = iter([base if tables == 1 else f"{base}{k + 1}" for k in range(tables)])
+    return sources, [s if isinstance(s, str) else next(it) for s in sources]
 
 
 def _flags(**options: Any) -> dict[str, Any]:
@@ -316,10 +317,7 @@ def _report(command: str, logs: Any, options: dict[str, Any]) -> Report:
     """Runs the fit ``command`` on ``logs`` (paths, or Arrow tables read in memory as
     :func:`fit` reads them, named ``table``, ``table2``, …) with the keyword ``options``
     (each checked once by the native module, a wrong one refused naming it)."""
-    items = list(logs) if isinstance(logs, (list, tuple)) else [logs]
-    sources = [os.fspath(x) if _is_path(x) else _arrow(x) for x in items]
-    tables = sum(1 for x in items if not _is_path(x))
-    names = _fill(["table" if tables == 1 else f"table{k + 1}" for k in range(tables)], sources)
+    sources, names = _sources(logs, "table")
     text, untrusted = _greybox.report(command, sources, names, _flags(**options))
     return Report(json.loads(text), list(untrusted))
 

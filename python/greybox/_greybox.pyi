@@ -76,5 +76,5 @@ def report(
     command: str, sources: list[Any], names: list[str], options: dict[str, Any]
 ) -> tuple[str, list[str]]:
     """``greybox fluxmap|saturation|standstill|mechanics`` on ``sources`` (paths, or Arrow
-    tables named by ``names`` in their places; ``fluxmap``: one path) with the keyword
+    tables named by ``names`` in their places; ``fluxmap``: one map) with the keyword
     ``options``: the JSON report and the codes of the reasons it is not to be trusted."""

@@ -86,6 +86,17 @@ impl Source {
         Ok(Self::Table { name, schema, batches })
     }
 
+    /// Each of `sources` (a path, or a table named by the name in its place in `names`).
+    ///
+    /// Errors: `OptionError` for a count of `names` other than of `sources`; `DataError`
+    /// for an object that is neither a path nor an Arrow table ([`Source::extract`]).
+    pub(crate) fn all(sources: &[Bound<'_, PyAny>], names: Vec<String>) -> PyResult<Vec<Self>> {
+        if names.len() != sources.len() {
+            return Err(refused("names", "one name per log"));
+        }
+        sources.iter().zip(names).map(|(obj, name)| Self::extract(obj, name)).collect()
+    }
+
     /// The library's source of the log (borrowed).
     pub(crate) fn log_source(&self) -> LogSource<'_> {
         match self {
@@ -116,11 +127,7 @@ pub fn fit(
     if let Some((options, ..)) = plan.pem.as_mut() {
         options.pem.progress = false;
     }
-    if names.len() != sources.len() {
-        return Err(refused("names", "one name per log"));
-    }
-    let sources: Vec<Source> =
-        sources.iter().zip(names).map(|(obj, name)| Source::extract(obj, name)).collect::<PyResult<_>>()?;
+    let sources = Source::all(&sources, names)?;
     let (fitted, logs) = py
         .detach(|| {
             let sources: Vec<LogSource<'_>> = sources.iter().map(Source::log_source).collect();

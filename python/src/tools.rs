@@ -96,11 +96,7 @@ pub fn report(
     names: Vec<String>,
     options: &Bound<'_, PyDict>,
 ) -> PyResult<(String, Vec<String>)> {
-    if names.len() != sources.len() {
-        return Err(OptionError::new_err("names: one name per log"));
-    }
-    let sources: Vec<Source> =
-        sources.iter().zip(names).map(|(obj, name)| Source::extract(obj, name)).collect::<PyResult<_>>()?;
+    let sources = Source::all(&sources, names)?;
     let run: Box<Run> = match command {
         "fluxmap" => {
             let r = fluxmap_request(options)?;

@@ -22,6 +22,11 @@ fn settings() -> GbSettingsF64 {
     s
 }
 
+/// `x` in `float` (each channel rounded).
+fn narrow(x: &Sample<f64>) -> Sample<f32> {
+    Sample { i_d: x.i_d as f32, i_q: x.i_q as f32, u_d: x.u_d as f32, u_q: x.u_q as f32, w_m: x.w_m as f32 }
+}
+
 #[test]
 fn codes_for_nulls_settings_and_samples() {
     let mut s = settings();
@@ -92,13 +97,7 @@ fn the_abi_gives_the_rust_observers_estimates() {
             assert_eq!(e.assume_init(), m.update(&x).unwrap());
             assert_eq!(gb_kalman_f64_update(kf.as_mut_ptr(), &x, e.as_mut_ptr()), GB_OK);
             assert_eq!(e.assume_init(), k.update(&x).unwrap());
-            let x32 = Sample {
-                i_d: x.i_d as f32,
-                i_q: x.i_q as f32,
-                u_d: x.u_d as f32,
-                u_q: x.u_q as f32,
-                w_m: x.w_m as f32,
-            };
+            let x32 = narrow(&x);
             let mut e32 = MaybeUninit::<GbEstimatesF32>::uninit();
             assert_eq!(gb_mras_f32_update(mras32.as_mut_ptr(), &x32, e32.as_mut_ptr()), GB_OK);
             assert_eq!(e32.assume_init(), m32.update(&x32).unwrap());
@@ -147,13 +146,7 @@ fn the_salient_abi_gives_the_rust_observers_estimates() {
             assert_eq!(e.assume_init(), m.update(&x).unwrap());
             assert_eq!(gb_kalman_f64_update(kf.as_mut_ptr(), &x, e.as_mut_ptr()), GB_OK);
             assert_eq!(e.assume_init(), k.update(&x).unwrap());
-            let x32 = Sample {
-                i_d: x.i_d as f32,
-                i_q: x.i_q as f32,
-                u_d: x.u_d as f32,
-                u_q: x.u_q as f32,
-                w_m: x.w_m as f32,
-            };
+            let x32 = narrow(&x);
             let mut e32 = MaybeUninit::<GbEstimatesF32>::uninit();
             assert_eq!(gb_kalman_f32_update(kf32.as_mut_ptr(), &x32, e32.as_mut_ptr()), GB_OK);
             assert_eq!(e32.assume_init(), k32.update(&x32).unwrap());

@@ -6,8 +6,7 @@
 use super::super::config::{Adaptation, MrasConfig};
 use super::sample::Sample;
 use crate::error::{Error, Result};
-use crate::pmsm::VoltageHold;
-use greybox_observer::{Field, Hold, Settings, StepError};
+use greybox_observer::{Field, Settings, StepError};
 
 /// The observers' model: surface magnets in closed form, or a salient machine.
 pub(crate) type Machine = greybox_observer::Machine<f64>;
@@ -31,10 +30,7 @@ pub(crate) fn step_error(context: String, e: StepError) -> Error {
 pub(crate) fn settings(config: &MrasConfig) -> Settings<f64> {
     Settings {
         n_p: config.n_p,
-        hold: match config.hold {
-            VoltageHold::Dq => Hold::Dq,
-            VoltageHold::Stator => Hold::Stator,
-        },
+        hold: config.hold.into(),
         adaptation: match config.adaptation {
             Adaptation::Lyapunov => greybox_observer::Adaptation::Lyapunov,
             Adaptation::Relay => greybox_observer::Adaptation::Relay,

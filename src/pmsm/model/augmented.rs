@@ -10,7 +10,7 @@
 //! twenty-five years later", SIAM Review 45(1)).
 
 use crate::pmsm::model::interval::{IntervalSource, VoltageHold};
-use greybox_observer::{Coefficients, Hold, Substep, advance_substeps};
+use greybox_observer::{Coefficients, Substep, advance_substeps};
 use nalgebra::Complex;
 use nalgebra::SMatrix;
 
@@ -123,11 +123,7 @@ pub(crate) fn advance_at<const SENS: bool>(
     z: &mut Aug,
     one: f64,
 ) {
-    let core_hold = match hold {
-        VoltageHold::Stator => Hold::Stator,
-        VoltageHold::Dq => Hold::Dq,
-    };
-    if advance_substeps::<f64, SENS>(&c.step, core_hold, w_e, emf, z, one) {
+    if advance_substeps::<f64, SENS>(&c.step, hold.into(), w_e, emf, z, one) {
         return;
     }
     let rho = c.step.rho(w_e);

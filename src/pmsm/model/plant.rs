@@ -154,9 +154,11 @@ impl ExactPlant {
     /// end current with respect to `R_s` and `K_e` at the fixed start current `i`: the
     /// forward sensitivities of [`PmsmIpm`]'s augmented exponential started at zero (Van
     /// Loan 1978; [`PmsmIpm`]), one augmented step, no finite difference. Takes `&self`
-    /// and allocates nothing unless it fails (an observer calls it per sample, see
-    /// [`crate::online::Mras`]). Unlike [`ExactPlant::step`] it accepts `R_s = 0` (an
-    /// estimate at its bound). `n_p` of `p` is ignored (the plant's own is used).
+    /// and allocates nothing unless it fails. The observers step with
+    /// [`greybox_observer::Ipm`], the same series and the same numbers to the bit (where at
+    /// most 64 substeps are needed; beyond, this forms the matrix by scaling and squaring
+    /// where `Ipm` fails). Unlike [`ExactPlant::step`] it accepts `R_s = 0` (an estimate at
+    /// its bound). `n_p` of `p` is ignored (the plant's own is used).
     ///
     /// # Errors
     /// [`Error::InvalidOption`] (option `salient`) for a plant made with `salient = false`;

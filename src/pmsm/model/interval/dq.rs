@@ -22,6 +22,16 @@ pub enum VoltageHold {
     Stator,
 }
 
+/// The observer crate's name of the same hold (its firmware core knows no `greybox` type).
+impl From<VoltageHold> for greybox_observer::Hold {
+    fn from(hold: VoltageHold) -> Self {
+        match hold {
+            VoltageHold::Dq => Self::Dq,
+            VoltageHold::Stator => Self::Stator,
+        }
+    }
+}
+
 impl std::fmt::Display for VoltageHold {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
