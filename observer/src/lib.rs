@@ -50,5 +50,8 @@ pub use num_complex::Complex;
 pub use plant::{Plant, Spm, Step, Transition, phi1, phi1_pair, phi1_pair_real, phi1_prime};
 pub use real::{Real, SQRT_2_3, cexpm1, rotation, stator_hold_start, stator_hold_start_sin};
 pub use salient::{Ipm, StepError};
-pub use series::{Aug, Coefficients, MAX_SUBSTEPS, RHO_MAX, Substep, advance_substeps};
+pub use series::{
+    Aug, Coefficients, MAX_SUBSTEPS, RHO_MAX, SENS_ALL, SENS_NONE, SENS_R_K, Substep, advance_substeps,
+    advance_substeps_transition,
+};
 pub use types::{Adaptation, Estimates, Fault, Field, Hold, MIN_TAU_SAMPLES, Sample, Settings};

@@ -11,11 +11,12 @@
 //! `e^{Mh} z`, summed as the Taylor series `Σ (Mh)^j z / j!` on the vector with structured
 //! products, in substeps that keep the spectral scale `ρ = τ (R_s/min(L) + |ω_e|) ≤ 0.5`.
 //! The series is [`crate::advance_substeps`], with which `greybox`'s offline interior-magnet model
-//! steps too.
+//! steps too; the observers carry the sensitivities to `R_s` and `K_e` only
+//! ([`crate::SENS_R_K`]; the offline fit all four), the same numbers for those to the bit.
 
 use crate::plant::{Plant, Step, Transition};
-use crate::real::{Real, SQRT_2_3, stator_hold_start};
-use crate::series::{Aug, Coefficients, advance_substeps};
+use crate::real::{Real, SQRT_2_3, stator_hold_start_sin};
+use crate::series::{Aug, Coefficients, SENS_R_K, advance_substeps, advance_substeps_transition};
 use crate::types::{Field, Hold, Sample, Settings};
 use num_complex::Complex;
 
@@ -47,9 +48,10 @@ impl core::fmt::Display for StepError {
 
 /// The salient (interior-magnet) machine's exact one-period step with its sensitivities to
 /// `K_e` and `R_s` (module documentation): `L_d` and `L_q` known, the voltage held as
-/// [`Settings::hold`]. Operations per step (f64, dq hold at moderate speed): about 22
-/// Taylor terms of some 60 multiplications and additions each, no elementary function
-/// (the stator hold adds one complex `expm1` for its start voltage).
+/// [`Settings::hold`]. Operations per step (f64): 10 to 17 Taylor terms (the spectral scale
+/// `ρ` from 0.04 to 0.5) of some 50 multiplications and additions each and the stopping
+/// test, no elementary function (the stator hold adds two sines for its start voltage); the
+/// filter's transition adds the 2 × 2 matrix's series, some 20 operations a term.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ipm<T> {
     n_p: u32,
@@ -105,7 +107,12 @@ impl<T: Real> Ipm<T> {
         let u = Complex::new(s.u_d, s.u_q);
         let u0 = match self.hold {
             Hold::Dq => u,
-            Hold::Stator => stator_hold_start(u, n_p * s.w_m * self.h),
+            Hold::Stator => {
+                // One sine beside the half angle's, where the complex `expm1` takes a sine
+                // and cosine pair, a sine, `exp` and `expm1`: the same number to the bit.
+                let phi = n_p * s.w_m * self.h;
+                stator_hold_start_sin(u, phi, phi.sin())
+            }
         };
         let c = Coefficients::at(self.h, r_s, self.l_d, self.l_q, k_e);
         Ok((c, n_p * s.w_m, sqrt_2_3 * s.w_m, u0))
@@ -114,23 +121,27 @@ impl<T: Real> Ipm<T> {
 
 impl<T: Real> Ipm<T> {
     /// [`Plant::step`] at the period's coefficients `c`, speeds `w_e`, `emf` and start
-    /// voltage `u0` ([`Ipm::period`]).
+    /// voltage `u0` ([`Ipm::period`]), with `PHI` also the period's transition `Φ`
+    /// (row-major; [`crate::advance_substeps_transition`]), without it `I + hA`.
     ///
     /// # Errors
     /// [`StepError::TooLong`], [`StepError::NotFinite`].
     #[inline]
-    fn step_at(
+    fn step_at<const PHI: bool>(
         &self,
         (c, w_e, emf, u0): &(Coefficients<T>, T, T, Complex<T>),
         x: Complex<T>,
         w_m: T,
         relay: bool,
-    ) -> Result<Step<T>, StepError> {
+    ) -> Result<(Step<T>, [T; 4]), StepError> {
         let mut z = Aug { x: [x.re, x.im], v: [u0.re, u0.im], ..Aug::default() };
-        if !advance_substeps::<T, true>(c, self.hold, *w_e, *emf, &mut z, T::one()) {
-            return Err(StepError::TooLong);
+        let phi = match PHI {
+            true => advance_substeps_transition::<T, SENS_R_K>(c, self.hold, *w_e, *emf, &mut z, T::one()),
+            false => advance_substeps::<T, SENS_R_K>(c, self.hold, *w_e, *emf, &mut z, T::one())
+                .then_some([T::zero(); 4]),
         }
-        if !z.x.iter().chain(&z.s[0]).chain(&z.s[3]).all(|v| v.is_finite()) {
+        .ok_or(StepError::TooLong)?;
+        if !z.x.iter().chain(&z.s[0]).chain(&z.s[3]).chain(&phi).all(|v| v.is_finite()) {
             return Err(StepError::NotFinite);
         }
         let pair = |v: [T; 2]| Complex::new(v[0], v[1]);
@@ -142,7 +153,7 @@ impl<T: Real> Ipm<T> {
             true if w_m != T::zero() => phi_k / w_m.abs(),
             true => Complex::default(),
         };
-        Ok(Step { next: pair(z.x), phi_k, phi_r: pair(z.s[0]), psi_k })
+        Ok((Step { next: pair(z.x), phi_k, phi_r: pair(z.s[0]), psi_k }, phi))
     }
 }
 
@@ -152,12 +163,13 @@ impl<T: Real> Plant<T> for Ipm<T> {
     /// The exact step from `x` at `(k_e, r_s)` and its exact sensitivities; `psi_k` for the
     /// relay law is `φ_K/|ω_m|` (0 at standstill, where `K_e` does not act).
     fn step(&self, x: Complex<T>, k_e: T, r_s: T, s: &Sample<T>, relay: bool) -> Result<Step<T>, StepError> {
-        self.step_at(&self.period(k_e, r_s, s)?, x, s.w_m, relay)
+        Ok(self.step_at::<false>(&self.period(k_e, r_s, s)?, x, s.w_m, relay)?.0)
     }
 
-    /// The step and its transition `Φ = e^{Ah}` column by column: the series' homogeneous
-    /// part (no voltage, no back-EMF, no sensitivities) from each unit current, two cheap
-    /// propagations where the trait's default takes two more steps with sensitivities.
+    /// The step and its transition `Φ = e^{Ah}`: the series' homogeneous part (no voltage,
+    /// no back-EMF, no sensitivities) as the Taylor series of the 2 × 2 matrix, summed in
+    /// the step's own loop ([`crate::advance_substeps_transition`]), where the trait's
+    /// default takes two more steps with sensitivities.
     fn step_transition(
         &self,
         x: Complex<T>,
@@ -165,20 +177,7 @@ impl<T: Real> Plant<T> for Ipm<T> {
         r_s: T,
         s: &Sample<T>,
     ) -> Result<Transition<T>, StepError> {
-        let period = self.period(k_e, r_s, s)?;
-        let st = self.step_at(&period, x, s.w_m, false)?;
-        let (c, w_e, emf, _) = period;
-        let (zero, one) = (T::zero(), T::one());
-        let mut cols = [Aug { x: [one, zero], ..Aug::default() }, Aug { x: [zero, one], ..Aug::default() }];
-        for z in &mut cols {
-            if !advance_substeps::<T, false>(&c, self.hold, w_e, emf, z, zero) {
-                return Err(StepError::TooLong);
-            }
-        }
-        let [d, q] = cols.map(|z| z.x);
-        if !d.iter().chain(&q).all(|v| v.is_finite()) {
-            return Err(StepError::NotFinite);
-        }
-        Ok((st, [[d[0], q[0]], [d[1], q[1]]]))
+        let (st, phi) = self.step_at::<true>(&self.period(k_e, r_s, s)?, x, s.w_m, false)?;
+        Ok((st, [[phi[0], phi[1]], [phi[2], phi[3]]]))
     }
 }

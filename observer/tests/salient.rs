@@ -6,8 +6,9 @@
 mod common;
 
 use greybox_observer::{
-    Adaptation, Complex, Field, Hold, Ipm, Kalman, Machine, Mras, Noise, Plant, Real, Sample, Settings, Spm,
-    StepError,
+    Adaptation, Aug, Coefficients, Complex, Field, Hold, Ipm, Kalman, Machine, Mras, Noise, Plant, Real,
+    SENS_ALL, SENS_NONE, SENS_R_K, Sample, Settings, Spm, StepError, advance_substeps,
+    advance_substeps_transition,
 };
 
 const N_P: u32 = 3;
@@ -118,6 +119,8 @@ fn the_salient_transition_is_the_steps_linearity() {
             (Complex::new(2.0, -3.0), 150.0),
             (Complex::new(-1.0, 8.0), -900.0),
             (Complex::new(0.0, 0.0), 0.0),
+            // ρ ≈ 1.9: four substeps, the transition their product.
+            (Complex::new(1.0, -2.0), 5000.0),
         ] {
             let sample = Sample { i_d: x.re, i_q: x.im, u_d: -5.0, u_q: 60.0, w_m };
             let (st, phi) = ipm.step_transition(x, K_E, R_S, &sample).unwrap();
@@ -143,6 +146,41 @@ fn the_salient_transition_is_the_steps_linearity() {
                     a[r][c],
                     b[r][c]
                 );
+            }
+        }
+    }
+}
+
+/// The transition summed in the step's loop leaves the step's numbers as they are alone, to
+/// the bit, whichever sensitivities it carries; within one substep `Φ` is, to the bit, the
+/// homogeneous propagation of each unit current; over several, their product.
+#[test]
+fn the_transition_in_the_steps_loop_changes_no_bit() {
+    fn both<const S: u8>(c: &Coefficients<f64>, hold: Hold, w_e: f64, emf: f64, z0: Aug<f64>) -> [f64; 4] {
+        let (mut a, mut b) = (z0, z0);
+        assert!(advance_substeps::<f64, S>(c, hold, w_e, emf, &mut a, 1.0));
+        let phi = advance_substeps_transition::<f64, S>(c, hold, w_e, emf, &mut b, 1.0).unwrap();
+        assert_eq!(format!("{a:?}"), format!("{b:?}"), "{hold:?} w_e {w_e}");
+        phi
+    }
+    let c = Coefficients::at(H, R_S, L_D, L_Q, K_E);
+    for hold in [Hold::Stator, Hold::Dq] {
+        for w_m in [0.0, 37.0, -420.0, 900.0, -5000.0] {
+            let (w_e, emf) = (f64::from(N_P) * w_m, 0.816_496_580_927_726 * w_m);
+            let z0 = Aug { x: [1.5, -4.0], v: [-12.0, 55.0], ..Aug::default() };
+            let phi = both::<SENS_R_K>(&c, hold, w_e, emf, z0);
+            assert_eq!(both::<SENS_ALL>(&c, hold, w_e, emf, z0), phi);
+            assert_eq!(both::<SENS_NONE>(&c, hold, w_e, emf, z0), phi);
+            let one_substep = c.rho(w_e) <= greybox_observer::RHO_MAX;
+            for (col, x) in [(0, [1.0, 0.0]), (1, [0.0, 1.0])] {
+                let mut u = Aug { x, ..Aug::default() };
+                assert!(advance_substeps::<f64, SENS_NONE>(&c, hold, w_e, emf, &mut u, 0.0));
+                let (d, q) = (phi[col], phi[2 + col]);
+                if one_substep {
+                    assert_eq!((u.x[0].to_bits(), u.x[1].to_bits()), (d.to_bits(), q.to_bits()), "w_m {w_m}");
+                } else {
+                    assert!((u.x[0] - d).abs() < 1e-13 && (u.x[1] - q).abs() < 1e-13, "w_m {w_m}");
+                }
             }
         }
     }

@@ -10,7 +10,7 @@
 //! twenty-five years later", SIAM Review 45(1)).
 
 use crate::pmsm::model::interval::{IntervalSource, VoltageHold};
-use greybox_observer::{Coefficients, Substep, advance_substeps};
+use greybox_observer::{Coefficients, SENS_ALL, Substep, advance_substeps};
 use nalgebra::Complex;
 use nalgebra::SMatrix;
 
@@ -92,7 +92,7 @@ fn dense(sub: &Substep<f64>) -> Mat {
         let mut e = [0.0; NZ];
         e[c] = 1.0;
         let one = if c == NZ - 1 { 1.0 } else { 0.0 };
-        let col = to_vector(sub.apply::<true>(&from_vector(&e), one));
+        let col = to_vector(sub.apply::<SENS_ALL>(&from_vector(&e), one));
         for (r, &v) in col.iter().enumerate().take(NZ - 1) {
             m[(r, c)] = v;
         }
@@ -102,20 +102,14 @@ fn dense(sub: &Substep<f64>) -> Mat {
 
 /// `z ← e^{hM} z`, choosing substeps or scaling and squaring from the spectral scale;
 /// `one` is the constant component of z (see [`Substep::propagate`]).
-pub(crate) fn advance<const SENS: bool>(
-    c: &IpmCoefficients,
-    inp: &IpmInputs,
-    k: usize,
-    z: &mut Aug,
-    one: f64,
-) {
+pub(crate) fn advance<const SENS: u8>(c: &IpmCoefficients, inp: &IpmInputs, k: usize, z: &mut Aug, one: f64) {
     let (w_e, emf) = inp.source.speeds(k);
     advance_at::<SENS>(c, inp.hold, w_e, emf, z, one);
 }
 
 /// [`advance`] for one period given by its values: the hold, the electrical speed `w_e`
 /// \[rad/s\] and the back-EMF per unit `K_e`, `emf = √(2/3) ω_m` \[rad/s\].
-pub(crate) fn advance_at<const SENS: bool>(
+pub(crate) fn advance_at<const SENS: u8>(
     c: &IpmCoefficients,
     hold: VoltageHold,
     w_e: f64,
@@ -191,7 +185,7 @@ mod tests {
             let m = 8;
             let sub = Substep::new(&c.step, c.step.h / m as f64, w_e, emf, w_v);
             for _ in 0..m {
-                sub.propagate::<true>(&mut a, 1.0);
+                sub.propagate::<SENS_ALL>(&mut a, 1.0);
             }
             let mt = dense(&Substep::new(&c.step, c.step.h / 8.0, w_e, emf, w_v));
             let mut e = Mat::identity();

@@ -7,6 +7,7 @@ use crate::pmsm::model::interval::{IntervalSource, VoltageHold, check_finite, ch
 use crate::pmsm::model::inverter::dead_time_directions;
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::model::setup::PmsmSetup;
+use greybox_observer::{SENS_ALL, SENS_NONE};
 
 const KIND: MotorKind = MotorKind::Ipm;
 use crate::data::Experiment;
@@ -139,7 +140,7 @@ impl GreyBoxModel for PmsmIpm {
     fn step(&self, c: &IpmCoefficients, inp: &IpmInputs, k: usize, x: &[f64], x_next: &mut [f64]) {
         let u = voltage(c, inp, k);
         let mut z = Aug { x: [x[0], x[1]], v: [u.re, u.im], ..Aug::default() };
-        advance::<false>(c, inp, k, &mut z, 1.0);
+        advance::<SENS_NONE>(c, inp, k, &mut z, 1.0);
         x_next.copy_from_slice(&z.x);
     }
 
@@ -156,7 +157,7 @@ impl GreyBoxModel for PmsmIpm {
         out: &mut [f64],
     ) {
         let mut z = Aug { x: [v[0], v[1]], ..Aug::default() };
-        advance::<false>(c, inp, k, &mut z, 0.0);
+        advance::<SENS_NONE>(c, inp, k, &mut z, 0.0);
         out.copy_from_slice(&z.x);
     }
 
@@ -199,7 +200,7 @@ impl Sensitivities<IpmInputs, IpmCoefficients> for PmsmIpm {
             s: [[s[0], s[m]], [s[1], s[m + 1]], [s[2], s[m + 2]], [s[3], s[m + 3]]],
             v: [u.re, u.im],
         };
-        advance::<true>(c, inp, k, &mut z, 1.0);
+        advance::<SENS_ALL>(c, inp, k, &mut z, 1.0);
         x_next.copy_from_slice(&z.x);
         for j in 0..4 {
             s_next[j] = z.s[j][0];
@@ -211,7 +212,7 @@ impl Sensitivities<IpmInputs, IpmCoefficients> for PmsmIpm {
             // direction alone (no back-EMF, no constant term).
             let w = inp.dt[k];
             let mut zv = Aug { x: [s[4], s[9]], v: [w.re, w.im], ..Aug::default() };
-            advance::<false>(c, inp, k, &mut zv, 0.0);
+            advance::<SENS_NONE>(c, inp, k, &mut zv, 0.0);
             s_next[4] = zv.x[0];
             s_next[9] = zv.x[1];
         }

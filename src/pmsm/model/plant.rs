@@ -13,6 +13,7 @@ use crate::pmsm::model::interval::{
 use crate::pmsm::model::ipm::PmsmIpm;
 use crate::pmsm::model::spm::PmsmSpm;
 use crate::pmsm::model::spm::SpmInputs;
+use greybox_observer::SENS_R_K;
 use serde::{Deserialize, Serialize};
 
 /// One exact step with its derivatives: see [`ExactPlant::step_derivatives`].
@@ -193,7 +194,7 @@ impl ExactPlant {
         let k_e = f64::from(self.n_p) * p.psi_f / SQRT_2_3;
         let c = IpmCoefficients::at(self.h, p.r_s, p.l_d, p.l_q, k_e);
         let mut z = Aug { x: i, v: [u0.re, u0.im], ..Aug::default() };
-        advance_at::<true>(&c, self.hold, w_e, SQRT_2_3 * w_m, &mut z, 1.0);
+        advance_at::<SENS_R_K>(&c, self.hold, w_e, SQRT_2_3 * w_m, &mut z, 1.0);
         let out = StepDerivatives { next: z.x, d_r_s: z.s[0], d_k_e: z.s[3] };
         if out.next.iter().chain(&out.d_r_s).chain(&out.d_k_e).all(|x| x.is_finite()) {
             Ok(out)
