@@ -170,3 +170,28 @@ fn the_spm_block_kernel_rejects_inputs_shorter_than_the_record() {
         assert!(b.y(0).iter().all(|x| x.is_nan()), "case {i}");
     }
 }
+
+/// A trial pass bounded by a cost: abandoned (`None`) when its cost exceeds the bound, the
+/// unbounded pass to the bit otherwise (the solver's early rejection of far trial points).
+#[test]
+fn a_bounded_pass_is_abandoned_above_its_bound_and_exact_below() {
+    use greybox::estimate::LeastSquares;
+    let e = log();
+    let m = PmsmSpm::from_setup(PmsmSetup::new(SPM_MOTOR.n_p, VoltageHold::Stator));
+    let theta = [1.3 * SPM_MOTOR.r_s, 0.7 * SPM_MOTOR.l_d, 1.1 * SPM_MOTOR.k_e()];
+    let opts = ProblemOptions { estimate_x0: true, ..Default::default() };
+    let pb =
+        PemProblem::new(&m, vec![(Prepared::new(&m, &e).unwrap(), None)], &theta, &NominalScaling, &opts)
+            .unwrap();
+    let p = pb.start_vector(&theta);
+    let ne = LeastSquares::normal_equations(&pb, &p).unwrap();
+    assert!(ne.cost > 0.0);
+    for bound in [ne.cost, 1.5 * ne.cost, f64::INFINITY] {
+        let b = pb.normal_equations_below(&p, bound).unwrap().expect("within its bound");
+        assert_eq!(b.cost.to_bits(), ne.cost.to_bits());
+        assert_eq!(format!("{:?} {:?}", b.jtj, b.jtr), format!("{:?} {:?}", ne.jtj, ne.jtr));
+    }
+    for bound in [0.0, 0.01 * ne.cost, 0.999 * ne.cost] {
+        assert!(pb.normal_equations_below(&p, bound).unwrap().is_none(), "bound {bound}");
+    }
+}

@@ -57,6 +57,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                     for i in 0..ny {
                         acc.add_residuals(i, ch.eps(i));
                     }
+                    Ok(())
                 })?;
                 n
             }

@@ -257,6 +257,14 @@ impl<M: GreyBoxModel> LeastSquares for PemProblem<'_, M> {
     fn normal_equations_likely_last(&self, p: &DVector<f64>) -> Result<NormalEquations> {
         self.take_seed(p).map_or_else(|| self.normal_equations_gathering(p, Gather::GramsAndResiduals), Ok)
     }
+    /// The normal-equation pass abandoned once an experiment's running cost exceeds
+    /// `bound` (its cost only grows over its blocks, and the experiments' costs add).
+    fn normal_equations_below(&self, p: &DVector<f64>, bound: f64) -> Result<Option<NormalEquations>> {
+        match self.take_seed(p) {
+            Some(ne) => Ok(Some(ne)),
+            None => self.normal_equations_bounded(p, Gather::Grams, bound),
+        }
+    }
     fn cost(&self, p: &DVector<f64>) -> Result<f64> {
         PemProblem::cost(self, p)
     }

@@ -63,22 +63,41 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         p: &DVector<f64>,
         gather: Gather,
     ) -> Result<NormalEquations> {
+        self.normal_equations_bounded(p, gather, f64::INFINITY)?
+            .ok_or_else(|| crate::Error::Solver("a pass without a bound was abandoned".into()))
+    }
+
+    /// [`normal_equations_gathering`](Self::normal_equations_gathering), abandoned (`None`)
+    /// once an experiment's running cost exceeds `bound`: the whole cost would then exceed
+    /// it too (every term is at least 0, and a floating-point sum of such terms never
+    /// decreases), so a `Some` is the unbounded pass's result to the bit.
+    ///
+    /// # Errors
+    /// As [`normal_equations`](Self::normal_equations).
+    pub(crate) fn normal_equations_bounded(
+        &self,
+        p: &DVector<f64>,
+        gather: Gather,
+        bound: f64,
+    ) -> Result<Option<NormalEquations>> {
         let np = self.free.len();
         if let Some(layout) = &self.layout {
-            return self.structured_normal_equations(p, gather, layout);
+            return self.structured_normal_equations(p, gather, layout, bound);
         }
         let parts: Vec<Result<_>> = (0..self.terms.len())
             .into_par_iter()
             .map(|e| {
-                let part = self.experiment_normal_equations(e, p, gather)?;
+                let Some(part) = self.experiment_normal_equations(e, p, gather, bound)? else {
+                    return Ok(None);
+                };
                 let (jtj, jtr) = part.dense(np);
-                Ok((part.cost, jtj, jtr, part.grams))
+                Ok(Some((part.cost, jtj, jtr, part.grams)))
             })
             .collect();
         let (mut cost, mut jtj, mut jtr) = (0.0, DMatrix::zeros(np, np), DVector::zeros(np));
         let mut grams = Vec::with_capacity(parts.len());
         for part in parts {
-            let (c, j, r, g) = part?;
+            let Some((c, j, r, g)) = part? else { return Ok(None) };
             cost += c;
             jtj += j;
             jtr += r;
@@ -88,10 +107,10 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         if grams.len() == self.terms.len() {
             self.best.offer(p, cost, grams);
         }
-        Ok(NormalEquations { cost, jtj: jtj.into(), jtr })
+        Ok(Some(NormalEquations { cost, jtj: jtj.into(), jtr }))
     }
 
-    /// [`normal_equations_gathering`](Self::normal_equations_gathering) with `JᵀWJ` kept
+    /// [`normal_equations_bounded`](Self::normal_equations_bounded) with `JᵀWJ` kept
     /// by the blocks of its arrowhead `layout`: every experiment's local Grams are added
     /// into its own block, its coupling to the shared columns and the shared block, in
     /// experiment order (identical for any thread count); nothing n_free × n_free is formed.
@@ -100,16 +119,17 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         p: &DVector<f64>,
         gather: Gather,
         layout: &std::sync::Arc<ArrowLayout>,
-    ) -> Result<NormalEquations> {
-        let parts: Vec<Result<Partial>> = (0..self.terms.len())
+        bound: f64,
+    ) -> Result<Option<NormalEquations>> {
+        let parts: Vec<Result<Option<Partial>>> = (0..self.terms.len())
             .into_par_iter()
-            .map(|e| self.experiment_normal_equations(e, p, gather))
+            .map(|e| self.experiment_normal_equations(e, p, gather, bound))
             .collect();
         let mut jtj = Arrowhead::zeros(std::sync::Arc::clone(layout));
         let (mut cost, mut jtr) = (0.0, DVector::zeros(self.free.len()));
         let mut grams = Vec::with_capacity(parts.len());
         for part in parts {
-            let part = part?;
+            let Some(part) = part? else { return Ok(None) };
             cost += part.cost;
             for (local, terms) in part.jtj.iter().zip(&part.jtr) {
                 scatter_arrow(&part.map, local, &mut jtj);
@@ -122,7 +142,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         if grams.len() == self.terms.len() {
             self.best.offer(p, cost, grams);
         }
-        Ok(NormalEquations { cost, jtj: jtj.into(), jtr })
+        Ok(Some(NormalEquations { cost, jtj: jtj.into(), jtr }))
     }
 
     /// Experiment e's share of [`normal_equations`](Self::normal_equations): per output
@@ -131,7 +151,13 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// ε` for the quadratic loss), holds `JᵀWJ` in its first m columns and `JᵀWψ` in its
     /// last (and, for the quadratic loss, twice the cost in its corner); with
     /// [`Gather::GramsAndResiduals`], and where the Grams are kept, the raw residuals' lag sums too.
-    fn experiment_normal_equations(&self, e: usize, p: &DVector<f64>, gather: Gather) -> Result<Partial> {
+    fn experiment_normal_equations(
+        &self,
+        e: usize,
+        p: &DVector<f64>,
+        gather: Gather,
+        bound: f64,
+    ) -> Result<Option<Partial>> {
         let ny = self.model.n_outputs();
         let quadratic = matches!(self.loss, Loss::Quadratic);
         let unweighted = quadratic && self.terms[e].weights.is_none();
@@ -143,7 +169,8 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         // The kept Grams' block scores (their Jᵀε column's growth per block), for the batch means.
         let mut scores: Option<BlockScores> = None;
         let mut before = Vec::new();
-        let map = self.pass_blocks(e, p, Pass::CRITERION, |ch| {
+        let mut abandoned = false;
+        let pass = self.pass_blocks(e, p, Pass::CRITERION, |ch| {
             let m1 = ch.m + 1;
             if let Some(s) = streams.as_mut() {
                 s.push(ch);
@@ -177,7 +204,26 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             if let Some(s) = scores.as_mut() {
                 s.push_gram_growth(n, &g, &self.output_weights, &mut before);
             }
-        })?;
+            // The running cost, as the final one is summed below.
+            if bound.is_finite() {
+                let mut running = huber_cost;
+                if quadratic {
+                    for (i, gi) in g.iter().enumerate() {
+                        let scale = if unweighted { self.output_weights[i] } else { 1.0 };
+                        running += 0.5 * scale * gi[ch.m * m1 + ch.m];
+                    }
+                }
+                if running > bound {
+                    abandoned = true;
+                    return Err(crate::Error::Solver("the pass's cost exceeded its bound".into()));
+                }
+            }
+            Ok(())
+        });
+        let map = match pass {
+            Err(_) if abandoned => return Ok(None),
+            pass => pass?,
+        };
         let (mut jtj, mut jtr) = (Vec::with_capacity(ny), Vec::with_capacity(ny));
         let mut cost = huber_cost;
         let m = map.len();
@@ -200,6 +246,6 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         let residuals = streams.map(ResidualStreams::finish);
         let scores = scores.unwrap_or_default();
         let grams = keep.then(|| ExperimentGrams { map: map.clone(), grams: g, residuals, scores });
-        Ok(Partial { cost, map, jtj, jtr, grams })
+        Ok(Some(Partial { cost, map, jtj, jtr, grams }))
     }
 }

@@ -40,13 +40,14 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     }
 
     /// Runs `f(chunk)` over the blocks of experiment e at p (see [`Chunk`]), with the
-    /// local columns of [`local_map`](Self::local_map) when `mode.jacobian`.
+    /// local columns of [`local_map`](Self::local_map) when `mode.jacobian`; an error of
+    /// `f` ends the pass there.
     ///
     /// # Errors
-    /// Those of the simulation: invalid θ, [`crate::Error::SimulationDiverged`].
+    /// Those of the simulation: invalid θ, [`crate::Error::SimulationDiverged`]; `f`'s.
     pub(crate) fn pass_blocks<F>(&self, e: usize, p: &DVector<f64>, mode: Pass, mut f: F) -> Result<LocalMap>
     where
-        F: FnMut(&Chunk<'_>),
+        F: FnMut(&Chunk<'_>) -> Result<()>,
     {
         let term = &self.terms[e];
         let ny = self.model.n_outputs();
@@ -111,8 +112,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                 }
                 None => Cols::Block(b, &sources),
             };
-            f(&Chunk { k0, lo, len, m, eps: &eps, beta, cols });
-            Ok(())
+            f(&Chunk { k0, lo, len, m, eps: &eps, beta, cols })
         })?;
         Ok(map)
     }
@@ -143,6 +143,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                 }
                 f(ch.k0 + ch.lo + t, &eps, &w, &jac);
             }
+            Ok(())
         })?;
         Ok(())
     }

@@ -52,6 +52,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                             cost += bk * lambda * self.loss.eval(i, ek).0;
                         }
                     }
+                    Ok(())
                 })?;
                 Ok(cost)
             })
@@ -232,6 +233,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
                 gram(cols.as_ref(), Some(&wm[..n]), &mut g.meat[i]);
             }
             scores.push(n, &score);
+            Ok(())
         })?;
         acc.add_block_scores(&map, &scores);
         if let Some(mut g) = local {

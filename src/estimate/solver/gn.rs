@@ -238,7 +238,7 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
                             && self.monitor.likely_last(&self.tol, &step, &trial, predicted(&step) / cost));
                 let evaluate: fn(&O, &DVector<f64>) -> crate::Result<NormalEquations> =
                     if last { O::normal_equations_likely_last } else { O::normal_equations };
-                let ne = trial_normal_equations(problem, &trial, evaluate)?;
+                let ne = trial_normal_equations(problem, &trial, |o, p| evaluate(o, p).map(Some))?;
                 // The two evaluations agree to rounding; the state keeps the normal
                 // equations' cost, which must also be a decrease.
                 if let Some(ne) = ne.filter(|ne| ne.cost.is_finite() && ne.cost < cost) {

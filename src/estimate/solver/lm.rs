@@ -7,7 +7,10 @@
 //! if the cost decreases; λ then follows the gain ratio `ρ = ΔV_actual / ΔV_predicted` as
 //! `λ ← λ max(1/3, 1 − (2ρ − 1)³)`, otherwise `λ ← ν λ`, `ν ← 2ν` (Nielsen 1999; Madsen,
 //! Nielsen & Tingleff, *Methods for non-linear least squares problems*, 2004, section
-//! 3.2). Trial points where the model cannot be simulated count as a rejected step.
+//! 3.2). Trial points where the model cannot be simulated count as a rejected step, and so
+//! does a trial whose pass is abandoned once its running cost exceeds the current cost
+//! ([`LeastSquares::normal_equations_below`]; the same path to the bit, without the rest of
+//! such a pass).
 //!
 //! The damping differs from MINPACK's trust region; the stopping tests are MINPACK's
 //! (`lmder`; see [`Tolerances`] and the `stopping` module): `ftol` on both the actual and
@@ -27,8 +30,8 @@
 
 pub use super::LsState;
 use super::{
-    LeastSquares, Monitor, NormalEquations, ReportsTermination, Termination, Tolerances, active,
-    damped_solve, init_state, missing, status, trial_normal_equations,
+    LeastSquares, Monitor, ReportsTermination, Termination, Tolerances, active, damped_solve, init_state,
+    missing, status, trial_normal_equations,
 };
 use argmin::core::{KV, Problem, Solver, TerminationStatus};
 use nalgebra::DVector;
@@ -151,13 +154,15 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
         })?;
         let step = &trial - &p;
         let predicted = step.dot(&jtr) - 0.5 * step.dot(&jtj.mul(&step));
-        let evaluate: fn(&O, &DVector<f64>) -> crate::Result<NormalEquations> =
-            if self.monitor.likely_last(&self.tol, &step, &trial, predicted / cost) {
-                O::normal_equations_likely_last
-            } else {
-                O::normal_equations
-            };
-        let eval = trial_normal_equations(problem, &trial, evaluate)?;
+        // A trial that likely ends the run gathers what the statistics need; any other is
+        // abandoned once its cost is known to exceed the current one (a rejected step
+        // either way: far trials from a poor start, whose simulation may be slow, cost
+        // only the part of the pass that shows it).
+        let last = self.monitor.likely_last(&self.tol, &step, &trial, predicted / cost);
+        let eval = trial_normal_equations(problem, &trial, |o, p| match last {
+            true => o.normal_equations_likely_last(p).map(Some),
+            false => o.normal_equations_below(p, cost),
+        })?;
         let r = Monitor::reductions(cost, eval.as_ref().map(|ne| ne.cost), predicted);
         match eval {
             Some(ne) if ne.cost.is_finite() && ne.cost < cost => {

@@ -54,6 +54,19 @@ pub trait LeastSquares {
     fn normal_equations_likely_last(&self, p: &DVector<f64>) -> Result<NormalEquations> {
         self.normal_equations(p)
     }
+    /// [`normal_equations`](Self::normal_equations) at a trial point that is of use only
+    /// if its cost is below `bound` (the current point's, which a step must lower):
+    /// `Ok(None)` once a partial sum of the cost already exceeds `bound`, so the step would
+    /// be rejected whatever the rest of the pass gives, sparing that rest. Every `Some`
+    /// holds the normal equations of `normal_equations(p)` to the bit. By default this
+    /// never abandons a pass.
+    ///
+    /// # Errors
+    /// As [`normal_equations`](Self::normal_equations).
+    fn normal_equations_below(&self, p: &DVector<f64>, bound: f64) -> Result<Option<NormalEquations>> {
+        let _ = bound;
+        self.normal_equations(p).map(Some)
+    }
     /// Cost `V(p)` alone.
     ///
     /// # Errors
@@ -73,6 +86,9 @@ impl<T: LeastSquares + ?Sized> LeastSquares for &T {
     fn normal_equations_likely_last(&self, p: &DVector<f64>) -> Result<NormalEquations> {
         (**self).normal_equations_likely_last(p)
     }
+    fn normal_equations_below(&self, p: &DVector<f64>, bound: f64) -> Result<Option<NormalEquations>> {
+        (**self).normal_equations_below(p, bound)
+    }
     fn cost(&self, p: &DVector<f64>) -> Result<f64> {
         (**self).cost(p)
     }
@@ -87,18 +103,19 @@ pub(crate) fn is_infeasible(e: &Error) -> bool {
 }
 
 /// The normal equations at a trial point by `evaluate` (the problem's `normal_equations`,
-/// or `normal_equations_likely_last` for a trial expected to end the run), counted as
-/// argmin counts them; `None` where the model cannot be simulated there ([`is_infeasible`]).
+/// `normal_equations_likely_last` for a trial expected to end the run, or
+/// `normal_equations_below` the current cost), counted as argmin counts them; `None` where
+/// the model cannot be simulated there ([`is_infeasible`]) or `evaluate` abandoned the pass.
 ///
 /// # Errors
 /// Every other error of `evaluate`.
 pub(crate) fn trial_normal_equations<O: LeastSquares>(
     problem: &mut argmin::core::Problem<O>,
     trial: &DVector<f64>,
-    evaluate: fn(&O, &DVector<f64>) -> Result<NormalEquations>,
+    evaluate: impl FnOnce(&O, &DVector<f64>) -> Result<Option<NormalEquations>>,
 ) -> std::result::Result<Option<NormalEquations>, argmin::core::Error> {
     problem.problem("normal_equations_count", |o| match evaluate(o, trial) {
-        Ok(ne) => Ok(Some(ne)),
+        Ok(ne) => Ok(ne),
         Err(e) if is_infeasible(&e) => Ok(None),
         Err(e) => Err(e.into()),
     })
