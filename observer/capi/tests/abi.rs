@@ -84,14 +84,7 @@ fn the_abi_gives_the_rust_observers_estimates() {
         assert_eq!(gb_kalman_f64_init(kf.as_mut_ptr(), &s, &noise), GB_OK);
         assert_eq!(gb_mras_f32_init(mras32.as_mut_ptr(), &s32), GB_OK);
         for j in 0..5000 {
-            let t = j as f64 * 1e-4;
-            let x = Sample {
-                i_d: 1.0 + (30.0 * t).sin(),
-                i_q: 3.0 + 0.5 * (70.0 * t).cos(),
-                u_d: -2.0 + (50.0 * t).sin(),
-                u_q: 40.0 + (20.0 * t).cos(),
-                w_m: 100.0 + 10.0 * (5.0 * t).sin(),
-            };
+            let x = signal(j, 1.0, -2.0);
             let mut e = MaybeUninit::<GbEstimatesF64>::uninit();
             assert_eq!(gb_mras_f64_update(mras.as_mut_ptr(), &x, e.as_mut_ptr()), GB_OK);
             assert_eq!(e.assume_init(), m.update(&x).unwrap());
@@ -102,6 +95,19 @@ fn the_abi_gives_the_rust_observers_estimates() {
             assert_eq!(gb_mras_f32_update(mras32.as_mut_ptr(), &x32, e32.as_mut_ptr()), GB_OK);
             assert_eq!(e32.assume_init(), m32.update(&x32).unwrap());
         }
+    }
+}
+
+/// Sample j of the tests' signal at 10 kHz: sinusoids around the d current `i_d0` \[A\] and
+/// the d voltage `u_d0` \[V\], `i_q` about 3 A, `u_q` about 40 V, `w_m` about 100 rad/s.
+fn signal(j: usize, i_d0: f64, u_d0: f64) -> Sample<f64> {
+    let t = j as f64 * 1e-4;
+    Sample {
+        i_d: i_d0 + (30.0 * t).sin(),
+        i_q: 3.0 + 0.5 * (70.0 * t).cos(),
+        u_d: u_d0 + (50.0 * t).sin(),
+        u_q: 40.0 + (20.0 * t).cos(),
+        w_m: 100.0 + 10.0 * (5.0 * t).sin(),
     }
 }
 
@@ -133,14 +139,7 @@ fn the_salient_abi_gives_the_rust_observers_estimates() {
         assert_eq!(gb_kalman_f64_init_salient(kf.as_mut_ptr(), &s, l_q, &noise), GB_OK);
         assert_eq!(gb_kalman_f32_init_salient(kf32.as_mut_ptr(), &s32, l_q as f32, &noise32), GB_OK);
         for j in 0..3000 {
-            let t = j as f64 * 1e-4;
-            let x = Sample {
-                i_d: -2.0 + (30.0 * t).sin(),
-                i_q: 3.0 + 0.5 * (70.0 * t).cos(),
-                u_d: -12.0 + (50.0 * t).sin(),
-                u_q: 40.0 + (20.0 * t).cos(),
-                w_m: 100.0 + 10.0 * (5.0 * t).sin(),
-            };
+            let x = signal(j, -2.0, -12.0);
             let mut e = MaybeUninit::<GbEstimatesF64>::uninit();
             assert_eq!(gb_mras_f64_update(mras.as_mut_ptr(), &x, e.as_mut_ptr()), GB_OK);
             assert_eq!(e.assume_init(), m.update(&x).unwrap());

@@ -169,6 +169,14 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         // The kept Grams' block scores (their Jᵀε column's growth per block), for the batch means.
         let mut scores: Option<BlockScores> = None;
         let mut before = Vec::new();
+        // Unit weights were summed without Λ_i: it scales the whole Gram.
+        let scale_of = |i: usize| if unweighted { self.output_weights[i] } else { 1.0 };
+        // The cost from the Grams `g` of m local columns (for the quadratic loss, twice the
+        // cost in each corner) and the robust loss's own sum, in output order.
+        let cost_of = |huber: f64, g: &[Vec<f64>], m: usize| {
+            let corners = g.iter().enumerate().filter(|_| quadratic);
+            corners.fold(huber, |cost, (i, gi)| cost + 0.5 * scale_of(i) * gi[m * (m + 1) + m])
+        };
         let mut abandoned = false;
         let pass = self.pass_blocks(e, p, Pass::CRITERION, |ch| {
             let m1 = ch.m + 1;
@@ -204,19 +212,10 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             if let Some(s) = scores.as_mut() {
                 s.push_gram_growth(n, &g, &self.output_weights, &mut before);
             }
-            // The running cost, as the final one is summed below.
-            if bound.is_finite() {
-                let mut running = huber_cost;
-                if quadratic {
-                    for (i, gi) in g.iter().enumerate() {
-                        let scale = if unweighted { self.output_weights[i] } else { 1.0 };
-                        running += 0.5 * scale * gi[ch.m * m1 + ch.m];
-                    }
-                }
-                if running > bound {
-                    abandoned = true;
-                    return Err(crate::Error::Solver("the pass's cost exceeded its bound".into()));
-                }
+            // The running cost, summed as the final one below.
+            if bound.is_finite() && cost_of(huber_cost, &g, ch.m) > bound {
+                abandoned = true;
+                return Err(crate::Error::Solver("the pass's cost exceeded its bound".into()));
             }
             Ok(())
         });
@@ -225,16 +224,12 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             pass => pass?,
         };
         let (mut jtj, mut jtr) = (Vec::with_capacity(ny), Vec::with_capacity(ny));
-        let mut cost = huber_cost;
         let m = map.len();
+        let cost = cost_of(huber_cost, &g, m);
         let keep = keeps && !g.is_empty();
         for (i, gi) in g.iter().enumerate() {
-            // Unit weights were summed without Λ_i: it scales the whole Gram.
-            let scale = if unweighted { self.output_weights[i] } else { 1.0 };
+            let scale = scale_of(i);
             let m1 = m + 1;
-            if quadratic {
-                cost += 0.5 * scale * gi[m * m1 + m];
-            }
             jtj.push(
                 (0..m)
                     .flat_map(|a| (0..m).map(move |b| (a, b)))
