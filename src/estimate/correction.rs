@@ -93,6 +93,9 @@ impl<M: GreyBoxModel> LeastSquares for Compensated<'_, '_, M> {
     fn project(&self, p: &mut DVector<f64>) {
         self.problem.project(p)
     }
+    fn project_trial(&self, from: &DVector<f64>, p: &mut DVector<f64>) {
+        self.problem.project_trial(from, p)
+    }
 }
 
 /// The covariance with `b`'s correlations and, per parameter, the larger of `b`'s and `w`'s

@@ -127,3 +127,42 @@ fn servo_log_automatic_hold_from_random_starts() {
     );
     assert!(rate >= 99.5, "only {rate:.1} % of the random starts reach the minimum");
 }
+
+/// A trial step that takes a parameter bounded above zero past zero puts it at a hundredth
+/// of its value (the fraction-to-the-boundary rule of `LeastSquares::project_trial`): such a
+/// step on `l_s` tries it at 1 % of its value, where plain projection put it at its default
+/// lower bound 1e-12 H (a far start's trials there each cost a pass of 27 matrix squarings
+/// a sample in the interior-magnet model); a step that stays positive, however small, and
+/// the initial states (bounded on both sides of zero) are projected as before.
+#[test]
+fn a_trial_past_zero_puts_a_positive_parameter_at_a_hundredth_of_its_value() {
+    use greybox::estimate::{LeastSquares, NominalScaling, PemProblem, ProblemOptions};
+    use greybox::model::Prepared;
+    let truth = [0.9, 4.5e-3, 0.539];
+    let mut rng = Rng(7);
+    let signals = exciting_signals(500, 1e-4, 250.0, 60.0, truth[2], &mut rng);
+    let m = PmsmSpm::new(4, VoltageHold::Stator);
+    let e = simulate_into(&m, &truth, 1e-4, signals);
+    let opts = ProblemOptions { estimate_x0: true, ..Default::default() };
+    let pb =
+        PemProblem::new(&m, vec![(Prepared::new(&m, &e).unwrap(), None)], &truth, &NominalScaling, &opts)
+            .unwrap();
+    let p = pb.start_vector(&truth);
+    assert_eq!(p.len(), 5, "r_s, l_s, k_e and the two initial currents");
+    let mut step = p.clone();
+    step[0] = -0.5 * p[0]; // past zero
+    step[1] = 0.0; // to zero: past the bound
+    step[2] = 1e-9 * p[2]; // positive: projected as before
+    step[3] = -p[3] - 1.0; // an initial state: its own bounds only
+    let (mut trial, mut plain) = (step.clone(), step.clone());
+    LeastSquares::project_trial(&pb, &p, &mut trial);
+    pb.project(&mut plain);
+    assert_eq!(trial[0], 0.01 * p[0]);
+    assert_eq!(trial[1], 0.01 * p[1]);
+    assert_eq!(trial[2], step[2]);
+    assert_eq!(plain[2], step[2]);
+    assert_eq!(trial[3], plain[3]);
+    assert_eq!(trial[4], step[4]);
+    let theta = pb.theta(0, &plain);
+    assert!(theta[0] <= 1e-11 && theta[1] <= 1e-11, "plain projection: r_s, l_s {theta:?} at their bound");
+}

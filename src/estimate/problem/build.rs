@@ -271,4 +271,7 @@ impl<M: GreyBoxModel> LeastSquares for PemProblem<'_, M> {
     fn project(&self, p: &mut DVector<f64>) {
         PemProblem::project(self, p)
     }
+    fn project_trial(&self, from: &DVector<f64>, p: &mut DVector<f64>) {
+        PemProblem::project_trial(self, from, p)
+    }
 }

@@ -2,6 +2,8 @@
 //! state: start point, values, bounds, and the chain factors `dθ/dp`.
 
 use super::{FreeKind, PemProblem, Slot};
+use crate::estimate::scaling::Transform;
+use crate::estimate::solver::POSITIVE_FLOOR;
 use crate::model::GreyBoxModel;
 use nalgebra::DVector;
 
@@ -80,6 +82,27 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         for (g, f) in self.free.iter().enumerate() {
             p[g] = p[g].clamp(f.lower_p, f.upper_p);
         }
+    }
+
+    /// [`LeastSquares::project_trial`](crate::estimate::solver::LeastSquares::project_trial):
+    /// the clamp of [`project`](Self::project), where a step takes a linearly scaled model
+    /// parameter with a lower bound above 0 past zero, that parameter put at
+    /// [`POSITIVE_FLOOR`] of its value at `from` first. Not a nuisance parameter: its
+    /// bound may be its answer (a smooth function's width at its sharp limit; the gate's
+    /// `nuisance_at_bound`), where a model parameter at its bound is untrusted.
+    pub fn project_trial(&self, from: &DVector<f64>, p: &mut DVector<f64>) {
+        let params = self.model.parameters();
+        for (g, f) in self.free.iter().enumerate() {
+            let model_parameter = matches!(f.kind, FreeKind::Parameter(j) if !params[j].nuisance);
+            if model_parameter
+                && matches!(f.transform, Transform::Linear { .. })
+                && f.lower_p > 0.0
+                && p[g] <= 0.0
+            {
+                p[g] = POSITIVE_FLOOR * from[g];
+            }
+        }
+        self.project(p);
     }
 
     /// `dθ/dp` for every model parameter of experiment e, with its global index.

@@ -8,7 +8,8 @@
 //! the others (KV `held`), so that δ is a descent direction of the bounded problem.
 //!
 //! The step length α starts at 1 and shrinks by the backtracking factor (½) until the
-//! projected trial point `p_α = P(p + α δ)` meets the sufficient-decrease (Armijo)
+//! projected trial point `p_α = P(p + α δ)` (a parameter bounded above 0 that the step
+//! takes past zero put at a hundredth of its value, [`LeastSquares::project_trial`]) meets the sufficient-decrease (Armijo)
 //! condition `V(p_α) ≤ V(p) + c₁ ∇Vᵀ(p_α − p)` (`∇V = −JᵀWε`) and lowers
 //! the cost: a cost increase is never accepted. The search evaluates the cost alone
 //! ([`LeastSquares::cost`]); the normal equations are evaluated once, at the accepted
@@ -208,7 +209,7 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
         let held = held as u64;
         let project = |problem: &mut Problem<O>, mut x: DVector<f64>| {
             problem.problem("project_count", |o| {
-                o.project(&mut x);
+                o.project_trial(&p, &mut x);
                 Ok(())
             })?;
             Ok::<_, argmin::core::Error>(x)

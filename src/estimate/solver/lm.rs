@@ -3,7 +3,9 @@
 //! Each iteration solves `(JᵀWJ + λ D) δ = −∇V = JᵀWε` by Cholesky (no inverse), with `D`
 //! the running maximum of `diag(JᵀWJ)` (Moré 1978), with the parameters pressed against a
 //! bound held there and the system solved for the others (KV `held`; the `active` module),
-//! projects `p + δ` on the bounds and evaluates the trial point. The step is accepted only
+//! projects `p + δ` on the bounds (a parameter bounded above 0 that the step takes past
+//! zero put at a hundredth of its value, [`LeastSquares::project_trial`]) and evaluates
+//! the trial point. The step is accepted only
 //! if the cost decreases; λ then follows the gain ratio `ρ = ΔV_actual / ΔV_predicted` as
 //! `λ ← λ max(1/3, 1 − (2ρ − 1)³)`, otherwise `λ ← ν λ`, `ν ← 2ν` (Nielsen 1999; Madsen,
 //! Nielsen & Tingleff, *Methods for non-linear least squares problems*, 2004, section
@@ -149,7 +151,7 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
         };
         let mut trial = &p + &delta;
         problem.problem("project_count", |o| {
-            o.project(&mut trial);
+            o.project_trial(&p, &mut trial);
             Ok(())
         })?;
         let step = &trial - &p;

@@ -24,6 +24,6 @@ mod termination;
 pub(crate) use stopping::{Monitor, damped_solve, init_state, missing, status};
 
 pub use gram::Gram;
-pub use problem::{LeastSquares, LsState, NormalEquations};
+pub use problem::{LeastSquares, LsState, NormalEquations, POSITIVE_FLOOR};
 pub(crate) use problem::{is_infeasible, trial_normal_equations};
 pub use termination::{ReportsTermination, SolverReport, Termination, Tolerances};

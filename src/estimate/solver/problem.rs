@@ -74,7 +74,29 @@ pub trait LeastSquares {
     fn cost(&self, p: &DVector<f64>) -> Result<f64>;
     /// Projects p onto the feasible box in place.
     fn project(&self, p: &mut DVector<f64>);
+    /// Projects the trial point `p`, a step from the current point `from` (inside the
+    /// box), onto the feasible box; a parameter whose lower bound is strictly positive (a
+    /// positivity constraint) and which the step takes past zero is put at
+    /// [`POSITIVE_FLOOR`] of its value at `from` first: the fraction-to-the-boundary rule
+    /// of interior-point methods (Wächter & Biegler 2006, "On the implementation of an
+    /// interior-point filter line-search algorithm for large-scale nonlinear
+    /// programming", Math. Program. 106(1), eq. (15), τ = 0.99; Nocedal & Wright,
+    /// *Numerical Optimization*, 2006, eq. (19.9)) for the steps that leave the positive
+    /// half-line, so that such a trial is tried at a hundredth of the value, not at a bound
+    /// such as 1e-12 of it where the model may be absurd and slow to simulate. A step that
+    /// stays positive is projected as by [`project`](Self::project), which this is by
+    /// default; a problem may leave out parameters whose bound can be their answer
+    /// ([`crate::estimate::PemProblem`] leaves out nuisance parameters).
+    fn project_trial(&self, from: &DVector<f64>, p: &mut DVector<f64>) {
+        let _ = from;
+        self.project(p)
+    }
 }
+
+/// The fraction of its current value at which a trial puts a parameter with a strictly
+/// positive lower bound that the step takes past zero ([`LeastSquares::project_trial`];
+/// IPOPT's `1 − τ_min`).
+pub const POSITIVE_FLOOR: f64 = 0.01;
 
 impl<T: LeastSquares + ?Sized> LeastSquares for &T {
     fn n_params(&self) -> usize {
@@ -94,6 +116,9 @@ impl<T: LeastSquares + ?Sized> LeastSquares for &T {
     }
     fn project(&self, p: &mut DVector<f64>) {
         (**self).project(p)
+    }
+    fn project_trial(&self, from: &DVector<f64>, p: &mut DVector<f64>) {
+        (**self).project_trial(from, p)
     }
 }
 
