@@ -69,7 +69,7 @@ pub const K_E_WALK: f64 = greybox_observer::K_E_WALK;
 
 impl KalmanNoise {
     /// The default noise model of a machine started at `r_s0` \[Ω\], `k_e0` \[V s/rad\],
-    /// with current noise `sigma_i` \[A\]: `q_i = 0.05 σ_i` ([`MODEL_NOISE_RATIO`]), walks
+    /// with current noise `sigma_i` \[A\]: `q_i = 0.01 σ_i` ([`MODEL_NOISE_RATIO`]), walks
     /// relative to the present estimates, `q_R = 0.03 R̂_s/√s` ([`R_S_WALK`]) and
     /// `q_K = 0.002 |K̂_e|/√s` ([`K_E_WALK`]), initial standard deviations half of `R_s0`
     /// and a fifth of `K_e0` (a start without a value, 0, counts as 1 Ω and 0.1 V s/rad).
