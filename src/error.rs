@@ -236,6 +236,24 @@ pub enum Error {
         /// (`the time column in ms? --time-unit ms gives h = 1e-4 s; `), or a question.
         hint: String,
     },
+    /// A value far beyond what a drive logs (a corrupt cell, a column in other units):
+    /// a speed beyond ±1e6 rad/s, a current beyond ±1e6 A, a voltage beyond ±1e7 V, in SI
+    /// units after the unit options; `force` skips this check.
+    #[error(
+        "signal `{column}` is {value:e} {unit} at row {row}, beyond the plausible ±{limit:e} {unit} (a corrupt cell, or a column in other units? `--force` skips the plausibility limits)"
+    )]
+    ImplausibleValue {
+        /// The log's column.
+        column: String,
+        /// 0-based sample index (data row, header excluded).
+        row: usize,
+        /// The value \[SI\].
+        value: f64,
+        /// The plausible magnitude \[SI\].
+        limit: f64,
+        /// Its unit.
+        unit: String,
+    },
     /// A columnar log (Parquet, Arrow IPC) that cannot be read or written: a malformed
     /// file, a missing value (null) in a wanted column, or a build without the cargo
     /// feature `parquet`.

@@ -38,6 +38,7 @@ pub fn to_py(e: E) -> PyErr {
         | E::MissingChannel { .. }
         | E::DuplicateChannel { .. }
         | E::NonFinite { .. }
+        | E::ImplausibleValue { .. }
         | E::LengthMismatch { .. }
         | E::TooShort { .. }
         | E::NonUniformTime { .. }

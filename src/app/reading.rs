@@ -106,7 +106,11 @@ pub fn read_sources(
 fn with_file(path: &Path, e: crate::Error, delimiter: crate::data::Delimiter, file: bool) -> crate::Error {
     use crate::Error;
     let line = match &e {
-        Error::NonFinite { row, .. } | Error::NonUniformTime { row, .. } if file => {
+        Error::NonFinite { row, .. }
+        | Error::NonUniformTime { row, .. }
+        | Error::ImplausibleValue { row, .. }
+            if file =>
+        {
             csv_line(path, *row, delimiter)
         }
         _ => None,
@@ -114,6 +118,7 @@ fn with_file(path: &Path, e: crate::Error, delimiter: crate::data::Delimiter, fi
     let at = line.map(|l| format!(" (line {l} of the file)")).unwrap_or_default();
     match e {
         Error::NonFinite { .. }
+        | Error::ImplausibleValue { .. }
         | Error::NonUniformTime { .. }
         | Error::LengthMismatch { .. }
         | Error::InvalidSampleTime { .. } => {

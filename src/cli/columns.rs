@@ -106,7 +106,8 @@ pub struct ColumnArgs {
     /// named LOG#1, LOG#2, ...; segments under 8 samples (`MIN_SAMPLES`) are dropped with a warning.
     #[arg(help_heading = "Time window and checks", long)]
     pub split_gaps: bool,
-    /// Skip the plausibility limits (sample time h in [100 ns, 100 ms]) and fit a log whose
+    /// Skip the plausibility limits (sample time h in [100 ns, 100 ms]; speeds, currents and
+    /// voltages within ±1e6 rad/s, ±1e6 A, ±1e7 V) and fit a log whose
     /// sample time the model cannot resolve (h beyond 5 L/R, or half an electrical turn per
     /// sample), otherwise refused before the fit.
     #[arg(help_heading = "Time window and checks", long)]

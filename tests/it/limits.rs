@@ -307,3 +307,41 @@ proptest::proptest! {
         }
     }
 }
+
+/// A value far beyond what a drive logs (a corrupt cell: a speed of 1e299 rad/s, which
+/// once chose the steady-state model and failed in its instruments naming no row) is
+/// refused naming its column, row and line, and `--force`; the limits themselves pass.
+#[test]
+fn an_implausible_value_is_named_by_column_and_row() {
+    let log = |cell: &str, col: usize| {
+        let mut s = String::from(HEADER);
+        for k in 0..20 {
+            let mut f: Vec<String> =
+                vec![format!("{:e}", k as f64 * 1e-4), format!("{}", 0.1 * k as f64), "1".into()];
+            f.extend(["0.5", "-0.25", "10"].map(String::from));
+            if k == 7 {
+                f[col] = cell.into();
+            }
+            s.push_str(&(f.join(",") + "\n"));
+        }
+        temp_file(&format!("implausible-{col}-{}", cell.len()), s.as_bytes())
+    };
+    for (cell, col, column) in [("1e299", 5, "w_m"), ("-2e6", 3, "id"), ("3e7", 1, "ud")] {
+        let p = log(cell, col);
+        let err = read(&p).unwrap_err();
+        assert!(
+            matches!(&err, Error::ImplausibleValue { column: c, row: 7, .. } if c == column),
+            "{cell}: {err:?}"
+        );
+        assert!(err.to_string().contains("--force"), "{err}");
+        let forced = CsvOptions { pole_pairs: Some(4), force: true, ..CsvOptions::default() };
+        assert!(read_log(&p, &forced).is_ok(), "{cell} with force");
+        let out = crate::errors::greybox(&["fit", &p.to_string_lossy(), "-p", "4"]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains(&format!("`{column}`")) && stderr.contains("line 9 of the file"), "{stderr}");
+    }
+    for (cell, col) in [("1e6", 5), ("-1e6", 4), ("1e7", 2)] {
+        assert!(read(&log(cell, col)).is_ok(), "{cell} is at the limit");
+    }
+}

@@ -87,7 +87,7 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// [`LeastSquares::project_trial`](crate::estimate::solver::LeastSquares::project_trial):
     /// the clamp of [`project`](Self::project), where a step takes a linearly scaled model
     /// parameter with a lower bound above 0 past zero, that parameter put at
-    /// [`POSITIVE_FLOOR`] of its value at `from` first. Not a nuisance parameter: its
+    /// a hundredth (`POSITIVE_FLOOR`) of its value at `from` first. Not a nuisance parameter: its
     /// bound may be its answer (a smooth function's width at its sharp limit; the gate's
     /// `nuisance_at_bound`), where a model parameter at its bound is untrusted.
     pub fn project_trial(&self, from: &DVector<f64>, p: &mut DVector<f64>) {

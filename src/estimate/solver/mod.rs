@@ -24,6 +24,7 @@ mod termination;
 pub(crate) use stopping::{Monitor, damped_solve, init_state, missing, status};
 
 pub use gram::Gram;
-pub use problem::{LeastSquares, LsState, NormalEquations, POSITIVE_FLOOR};
+pub(crate) use problem::POSITIVE_FLOOR;
+pub use problem::{LeastSquares, LsState, NormalEquations};
 pub(crate) use problem::{is_infeasible, trial_normal_equations};
 pub use termination::{ReportsTermination, SolverReport, Termination, Tolerances};

@@ -77,7 +77,7 @@ pub trait LeastSquares {
     /// Projects the trial point `p`, a step from the current point `from` (inside the
     /// box), onto the feasible box; a parameter whose lower bound is strictly positive (a
     /// positivity constraint) and which the step takes past zero is put at
-    /// [`POSITIVE_FLOOR`] of its value at `from` first: the fraction-to-the-boundary rule
+    /// a hundredth (`POSITIVE_FLOOR`) of its value at `from` first: the fraction-to-the-boundary rule
     /// of interior-point methods (Wächter & Biegler 2006, "On the implementation of an
     /// interior-point filter line-search algorithm for large-scale nonlinear
     /// programming", Math. Program. 106(1), eq. (15), τ = 0.99; Nocedal & Wright,
@@ -96,7 +96,7 @@ pub trait LeastSquares {
 /// The fraction of its current value at which a trial puts a parameter with a strictly
 /// positive lower bound that the step takes past zero ([`LeastSquares::project_trial`];
 /// IPOPT's `1 − τ_min`).
-pub const POSITIVE_FLOOR: f64 = 0.01;
+pub(crate) const POSITIVE_FLOOR: f64 = 0.01;
 
 impl<T: LeastSquares + ?Sized> LeastSquares for &T {
     fn n_params(&self) -> usize {

@@ -4,6 +4,7 @@
 mod build;
 pub(super) mod flux_map;
 mod options;
+mod plausible;
 mod reader;
 pub(super) mod signals;
 mod split;

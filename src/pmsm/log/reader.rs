@@ -25,6 +25,7 @@ use crate::data::csv::name_excerpt;
 use crate::data::read_table_with;
 use crate::data::{TimeSegments, time_segments};
 use crate::error::{Error, Result};
+use crate::pmsm::log::plausible::plausible;
 use crate::pmsm::log::signals::check_pole_pairs;
 use crate::pmsm::log::signals::{MIN_SAMPLES, PmsmError};
 
@@ -67,7 +68,8 @@ use super::options::*;
 /// - [`Error::ImplausibleSampleTime`] naming the log for h outside
 ///   [[`MIN_SAMPLE_TIME`], [`MAX_SAMPLE_TIME`]] = \[100 ns, 100 ms\], unless `options.force`,
 ///   with the time unit that would explain it (`--time-unit ms` for a column in ms read as
-///   s);
+///   s); [`Error::ImplausibleValue`] naming the column and row of a speed, current or
+///   voltage beyond ±1e6 rad/s, ±1e6 A, ±1e7 V (a corrupt cell), unless `options.force`;
 /// - for a window (`options.window`): [`Error::InvalidOption`] with option `from` or `to`
 ///   for a non-finite end or `from ≥ to` (before the file is opened), and option `window`
 ///   for a window holding fewer than [`MIN_SAMPLES`] samples (saying how many it holds and
@@ -335,35 +337,4 @@ impl Raw {
         let cols = self.cols.iter().map(|c| c.as_ref().map(|v| v[range.clone()].to_vec())).collect();
         build(name, cols, self.n_p, options).map_err(|e| rename_columns(e, &options.columns, range.start))
     }
-}
-
-/// `e` if its sample time is plausible (or `options.force`).
-///
-/// # Errors
-/// [`Error::ImplausibleSampleTime`] with the time unit that would explain h, if one does.
-pub(super) fn plausible(path: &Path, e: Experiment, options: &CsvOptions) -> Result<Experiment> {
-    let h = e.h();
-    let max = if options.steady_state { MAX_STEADY_SAMPLE_TIME } else { MAX_SAMPLE_TIME };
-    let range = MIN_SAMPLE_TIME..=max;
-    if options.force || range.contains(&h) {
-        return Ok(e);
-    }
-    let given = options.time_unit;
-    let hint = [TimeUnit::S, TimeUnit::Ms, TimeUnit::Us]
-        .into_iter()
-        .filter(|&u| u != given)
-        .map(|u| (u, h * given.per_second() / u.per_second()))
-        .find(|(_, h)| range.contains(h))
-        .map_or_else(
-            || format!("a time column in other units than {}? ", given.name()),
-            |(u, h)| format!("the time column in {0}? `--time-unit {0}` gives h = {h:e} s; ", u.name()),
-        );
-    // A log slower than the dynamic model's range but within the steady-state one: slow
-    // telemetry, if its time column is right.
-    let hint = if !options.steady_state && h > max && h <= MAX_STEADY_SAMPLE_TIME {
-        format!("{hint}or slow telemetry, which `greybox fit` reads (the steady-state equations); ")
-    } else {
-        hint
-    };
-    Err(Error::ImplausibleSampleTime { path: path.to_path_buf(), h, min: MIN_SAMPLE_TIME, max, hint })
 }

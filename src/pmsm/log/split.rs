@@ -3,7 +3,8 @@
 use std::path::Path;
 
 use super::options::CsvOptions;
-use super::reader::{LogSource, Raw, plausible};
+use super::plausible::plausible;
+use super::reader::{LogSource, Raw};
 use crate::data::{Experiment, TimeCheck};
 use crate::error::{Error, Result};
 use crate::pmsm::log::signals::MIN_SAMPLES;
