@@ -243,7 +243,8 @@ pub enum Error {
         "signal `{column}` is {value:e} {unit} at row {row}, beyond the plausible ±{limit:e} {unit} (a corrupt cell, or a column in other units? `--force` skips the plausibility limits)"
     )]
     ImplausibleValue {
-        /// The log's column.
+        /// The log's column (a dq channel of a log read from its phase columns: with
+        /// those columns, `id (from ia, ib, ic)`).
         column: String,
         /// 0-based sample index (data row, header excluded).
         row: usize,

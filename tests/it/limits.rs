@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use greybox::Error;
 use greybox::data::{ColumnMap, CsvSpec, ReadLimits, read_csv};
-use greybox::pmsm::{ColumnNames, CsvOptions, read_log};
+use greybox::pmsm::{ColumnNames, CsvOptions, DqSource, read_log};
 
 const HEADER: &str = "t,ud,uq,id,iq,w_m\n";
 
@@ -314,17 +314,11 @@ proptest::proptest! {
 #[test]
 fn an_implausible_value_is_named_by_column_and_row() {
     let log = |cell: &str, col: usize| {
-        let mut s = String::from(HEADER);
-        for k in 0..20 {
-            let mut f: Vec<String> =
-                vec![format!("{:e}", k as f64 * 1e-4), format!("{}", 0.1 * k as f64), "1".into()];
-            f.extend(["0.5", "-0.25", "10"].map(String::from));
-            if k == 7 {
-                f[col] = cell.into();
-            }
-            s.push_str(&(f.join(",") + "\n"));
-        }
-        temp_file(&format!("implausible-{col}-{}", cell.len()), s.as_bytes())
+        let mut lines: Vec<String> = rows(20, 1e-4).lines().map(String::from).collect();
+        let mut row: Vec<&str> = lines[8].split(',').collect();
+        row[col] = cell;
+        lines[8] = row.join(",");
+        temp_file(&format!("implausible-{col}-{}", cell.len()), (lines.join("\n") + "\n").as_bytes())
     };
     for (cell, col, column) in [("1e299", 5, "w_m"), ("-2e6", 3, "id"), ("3e7", 1, "ud")] {
         let p = log(cell, col);
@@ -344,4 +338,17 @@ fn an_implausible_value_is_named_by_column_and_row() {
     for (cell, col) in [("1e6", 5), ("-1e6", 4), ("1e7", 2)] {
         assert!(read(&log(cell, col)).is_ok(), "{cell} is at the limit");
     }
+    // A log read from its phase columns names the dq channel with the columns it comes from.
+    let mut s = String::from("t,ia,ib,ic,ua,ub,uc,theta_m,w_m\n");
+    for k in 0..20 {
+        let ia = if k == 7 { "1e12" } else { "1" };
+        s.push_str(&format!("{:e},{ia},-0.5,-0.5,10,-5,-5,0,10\n", k as f64 * 1e-4));
+    }
+    let p = temp_file("implausible-phases", s.as_bytes());
+    let phases = CsvOptions { pole_pairs: Some(4), source: DqSource::Phases, ..CsvOptions::default() };
+    let err = read_log(&p, &phases).unwrap_err();
+    assert!(
+        matches!(&err, Error::ImplausibleValue { column, row: 7, .. } if column == "id (from ia, ib, ic)"),
+        "{err:?}"
+    );
 }

@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use super::{ColumnNames, CsvOptions, MAX_SAMPLE_TIME, MAX_STEADY_SAMPLE_TIME, MIN_SAMPLE_TIME, TimeUnit};
+use super::{CsvOptions, DqSource, MAX_SAMPLE_TIME, MAX_STEADY_SAMPLE_TIME, MIN_SAMPLE_TIME, TimeUnit};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 
@@ -16,14 +16,14 @@ use crate::error::{Error, Result};
 /// [`Error::ImplausibleSampleTime`] with the time unit that would explain h, if one does;
 /// [`Error::ImplausibleValue`] ([`plausible_values`]).
 pub(super) fn plausible(path: &Path, e: Experiment, options: &CsvOptions) -> Result<Experiment> {
-    let h = e.h();
-    let max = if options.steady_state { MAX_STEADY_SAMPLE_TIME } else { MAX_SAMPLE_TIME };
-    let range = MIN_SAMPLE_TIME..=max;
     if options.force {
         return Ok(e);
     }
+    let h = e.h();
+    let max = if options.steady_state { MAX_STEADY_SAMPLE_TIME } else { MAX_SAMPLE_TIME };
+    let range = MIN_SAMPLE_TIME..=max;
     if range.contains(&h) {
-        return plausible_values(e, &options.columns);
+        return plausible_values(e, options);
     }
     let given = options.time_unit;
     let hint = [TimeUnit::S, TimeUnit::Ms, TimeUnit::Us]
@@ -58,22 +58,30 @@ pub const MAX_VOLTAGE: f64 = 1e7;
 /// that seems to spin at 1e299 rad/s) into an error that names no row.
 ///
 /// # Errors
-/// [`Error::ImplausibleValue`] naming the column as the log names it and the first row.
-fn plausible_values(e: Experiment, columns: &ColumnNames) -> Result<Experiment> {
+/// [`Error::ImplausibleValue`] naming the column as the log names it (a dq channel of a
+/// log read from its phases with the phase columns it comes from) and the first row.
+fn plausible_values(e: Experiment, options: &CsvOptions) -> Result<Experiment> {
     use crate::pmsm::channel;
+    let c = &options.columns;
+    let phases = matches!(options.source, DqSource::Phases);
+    let (currents, voltages) =
+        (phases.then_some([&c.i_a, &c.i_b, &c.i_c]), phases.then_some([&c.u_a, &c.u_b, &c.u_c]));
     let checks = [
-        (channel::W_M, &columns.w_m, MAX_SPEED, "rad/s"),
-        (channel::I_D, &columns.i_d, MAX_CURRENT, "A"),
-        (channel::I_Q, &columns.i_q, MAX_CURRENT, "A"),
-        (channel::U_D, &columns.u_d, MAX_VOLTAGE, "V"),
-        (channel::U_Q, &columns.u_q, MAX_VOLTAGE, "V"),
-        (channel::U_D_REF, &columns.u_d_ref, MAX_VOLTAGE, "V"),
-        (channel::U_Q_REF, &columns.u_q_ref, MAX_VOLTAGE, "V"),
+        (channel::W_M, &c.w_m, None, MAX_SPEED, "rad/s"),
+        (channel::I_D, &c.i_d, currents, MAX_CURRENT, "A"),
+        (channel::I_Q, &c.i_q, currents, MAX_CURRENT, "A"),
+        (channel::U_D, &c.u_d, voltages, MAX_VOLTAGE, "V"),
+        (channel::U_Q, &c.u_q, voltages, MAX_VOLTAGE, "V"),
+        (channel::U_D_REF, &c.u_d_ref, None, MAX_VOLTAGE, "V"),
+        (channel::U_Q_REF, &c.u_q_ref, None, MAX_VOLTAGE, "V"),
     ];
-    for (name, column, limit, unit) in checks {
+    for (name, column, from, limit, unit) in checks {
         let Ok(v) = e.channel(name) else { continue };
         if let Some((row, &value)) = v.iter().enumerate().find(|(_, x)| x.abs() > limit) {
-            let column = column.clone();
+            let column = match from {
+                Some([a, b, c]) => format!("{column} (from {a}, {b}, {c})"),
+                None => column.clone(),
+            };
             return Err(Error::ImplausibleValue { column, row, value, limit, unit: unit.into() });
         }
     }
