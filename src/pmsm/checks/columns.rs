@@ -18,7 +18,7 @@ use crate::error::Result;
 use crate::estimate::Warning;
 use crate::pmsm::checks::detect::loss_at_factor;
 use crate::pmsm::checks::scan::{IDENTITY, scan_grams};
-use crate::pmsm::log::signals::channel;
+use crate::pmsm::log::signals::{DqView, channel};
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::options::{PmsmFitOptions, RefitLoss, confirmed};
@@ -44,16 +44,16 @@ pub(crate) struct ColumnScan {
     swapped: Vec<(Mistake, DMatrix<f64>)>,
 }
 
-/// The setup scan of `experiments` with the voltage `input`: the Gram of the logs as given
+/// The setup scan of the logs `views` with the voltage `input`: the Gram of the logs as given
 /// and of their swapped columns, from one filtering of each log
 /// ([`crate::pmsm::checks::scan::scan_grams`]).
 ///
 /// # Errors
 /// Those of [`crate::pmsm::checks::detect::scan_gram`].
-pub(crate) fn scan(experiments: &[Experiment], input: VoltageInput) -> Result<ColumnScan> {
+pub(crate) fn scan(views: &[DqView<'_>], input: VoltageInput) -> Result<ColumnScan> {
     let swaps: &[(Mistake, [usize; 4])] = if input == VoltageInput::Terminal { &SWAPS } else { &[] };
     let lanes: Vec<[usize; 4]> = std::iter::once(IDENTITY).chain(swaps.iter().map(|s| s.1)).collect();
-    let mut grams = scan_grams(experiments, input, &lanes)?;
+    let mut grams = scan_grams(views, input, &lanes)?;
     let swapped = swaps.iter().map(|s| s.0).zip(grams.drain(1..)).collect();
     Ok(ColumnScan { gram: grams.swap_remove(0), swapped })
 }
@@ -247,13 +247,16 @@ mod tests {
         let cfg = DriveConfig { duration: 0.9, ..scenario("exp3", SPM_MOTOR).unwrap() };
         let log = simulate_drive(&cfg).unwrap().experiment;
         let logs = [log.clone(), log.slice(100..5000).unwrap()];
-        let scan = scan(&logs, VoltageInput::Terminal).unwrap();
+        fn views(logs: &[Experiment]) -> Vec<DqView<'_>> {
+            logs.iter().map(|e| DqView::try_new(e).unwrap()).collect()
+        }
+        let scan = scan(&views(&logs), VoltageInput::Terminal).unwrap();
         let bits = |g: &DMatrix<f64>| g.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        assert_eq!(bits(&scan.gram), bits(&scan_gram(&logs, VoltageInput::Terminal).unwrap()));
+        assert_eq!(bits(&scan.gram), bits(&scan_gram(&views(&logs), VoltageInput::Terminal).unwrap()));
         assert_eq!(scan.swapped.len(), SWAPS.len());
         for (m, g) in &scan.swapped {
             let undone: Vec<Experiment> = logs.iter().map(|e| m.undo(e).unwrap()).collect();
-            assert_eq!(bits(g), bits(&scan_gram(&undone, VoltageInput::Terminal).unwrap()), "{m:?}");
+            assert_eq!(bits(g), bits(&scan_gram(&views(&undone), VoltageInput::Terminal).unwrap()), "{m:?}");
             assert_ne!(bits(g), bits(&scan.gram), "{m:?}");
         }
     }

@@ -22,8 +22,9 @@ use crate::error::{Error, Result};
 use crate::estimate::{FitResult, Warning};
 use crate::pmsm::checks::scan::BASE;
 pub(crate) use crate::pmsm::checks::scan::scan_gram;
+use crate::pmsm::log::DqLogs;
 use crate::pmsm::log::Scale;
-use crate::pmsm::log::signals::{DqView, channel};
+use crate::pmsm::log::signals::DqView;
 use nalgebra::{DMatrix, DVector};
 
 /// Candidates of `--pole-pairs auto` and of the pole-pair check.
@@ -89,7 +90,7 @@ pub fn pole_pair_losses(
     kind: MotorKind,
     input: VoltageInput,
 ) -> Result<Vec<(u32, f64)>> {
-    Ok(losses_from(&scan_gram(experiments, input)?, kind))
+    Ok(losses_from(&scan_gram(DqLogs::try_new(experiments)?.views(), input)?, kind))
 }
 
 /// `--pole-pairs auto`: the candidate of lowest loss and the ratio of the runner-up's loss
@@ -189,15 +190,10 @@ pub(crate) fn pole_pair_warning(
 /// The warnings of a PMSM fit from its logs: a speed unit or frame mistake, and the assumed
 /// scaling of columns read as `read` (`[currents, voltages]`; checks that cannot run are
 /// skipped).
-pub(crate) fn warnings(
-    experiments: &[Experiment],
-    n_p: u32,
-    fit: &FitResult,
-    read: [Scale; 2],
-) -> Vec<Warning> {
+pub(crate) fn warnings(views: &[DqView<'_>], n_p: u32, fit: &FitResult, read: [Scale; 2]) -> Vec<Warning> {
     let mut out = Vec::new();
-    out.extend(speed_check(experiments, n_p));
-    out.extend(sample_time_check(experiments, n_p, fit));
+    out.extend(speed_check(views, n_p));
+    out.extend(sample_time_check(views, n_p, fit));
     out.push(scaling_notice(fit, read));
     out
 }
@@ -206,26 +202,25 @@ pub(crate) fn warnings(
 /// slow log's angle turns by more than π between samples and cannot be compared), and the
 /// assumed scaling of columns read as `read` (`[currents, voltages]`).
 pub(crate) fn steady_warnings(
-    experiments: &[Experiment],
+    views: &[DqView<'_>],
     n_p: u32,
     fit: &FitResult,
     read: [Scale; 2],
 ) -> Vec<Warning> {
     let mut out = Vec::new();
-    if max_turn(experiments, n_p) < std::f64::consts::PI {
-        out.extend(speed_check(experiments, n_p));
+    if max_turn(views, n_p) < std::f64::consts::PI {
+        out.extend(speed_check(views, n_p));
     }
     out.push(scaling_notice(fit, read));
     out
 }
 
 /// The most electrical radians the rotor turns within one sample in any of the logs at
-/// `n_p` pole pairs, `max_e n_p h_e max|w_m|` \[rad\] (logs without the dq channels left out).
-pub(crate) fn max_turn(experiments: &[Experiment], n_p: u32) -> f64 {
-    experiments
+/// `n_p` pole pairs, `max_e n_p h_e max|w_m|` \[rad\].
+pub(crate) fn max_turn(views: &[DqView<'_>], n_p: u32) -> f64 {
+    views
         .iter()
-        .filter_map(|e| DqView::try_new(e).ok().map(|v| (e.h(), v)))
-        .map(|(h, v)| f64::from(n_p) * h * v.w_m().iter().fold(0.0f64, |m, x| m.max(x.abs())))
+        .map(|v| f64::from(n_p) * v.h() * v.w_m().iter().fold(0.0f64, |m, x| m.max(x.abs())))
         .fold(0.0, f64::max)
 }
 
@@ -249,12 +244,11 @@ pub(super) fn speed_sums((mut num, mut den): (f64, f64), th: &[f64], w: &[f64], 
 
 /// Compares `dθ_m/dt` with `w_m` (when `theta_m` is logged) and names the likely mistake
 /// when they differ by a known factor.
-fn speed_check(experiments: &[Experiment], n_p: u32) -> Option<Warning> {
+fn speed_check(views: &[DqView<'_>], n_p: u32) -> Option<Warning> {
     let (mut num, mut den) = (0.0, 0.0);
-    for e in experiments {
-        let (Some(th), Ok(v)) = (e.get(channel::THETA_M), DqView::try_new(e)) else { continue };
-        let (w, h) = (v.w_m(), e.h());
-        (num, den) = speed_sums((num, den), &th.values, w, h);
+    for v in views {
+        let Some(th) = v.theta_m() else { continue };
+        (num, den) = speed_sums((num, den), th, v.w_m(), v.h());
     }
     let r = num / den;
     if !r.is_finite() || (r - 1.0).abs() <= SPEED_MISMATCH {
@@ -300,31 +294,27 @@ pub const MAX_H_OVER_TAU: f64 = 5.0;
 /// turning π electrical radians or more within one sample at the log's top speed (the
 /// angle aliases). Most often a time column in milliseconds read as seconds: the warning
 /// says what `--time-unit ms` would give.
-fn sample_time_check(experiments: &[Experiment], n_p: u32, fit: &FitResult) -> Option<Warning> {
+fn sample_time_check(views: &[DqView<'_>], n_p: u32, fit: &FitResult) -> Option<Warning> {
     let r = fit.parameter("r_s")?.value;
-    sample_time_problem(experiments, n_p, r, crate::pmsm::model::kind::smallest_inductance(fit))
+    sample_time_problem(views, n_p, r, crate::pmsm::model::kind::smallest_inductance(fit))
         .map(|why| Warning::untrusted("sample_time", why))
 }
 
 /// Why the logs' sample time is one the model cannot resolve with resistance `r` \[Ω\] and
 /// smallest inductance `l` \[H\] ([`sample_time_check`]'s conditions), or `None`: the
 /// facts of [`sample_time_facts`] and the question whether the time column is in ms.
-pub(crate) fn sample_time_problem(experiments: &[Experiment], n_p: u32, r: f64, l: f64) -> Option<String> {
-    let h = experiments.iter().map(Experiment::h).fold(0.0, f64::max);
-    sample_time_facts(experiments, n_p, r, l).map(|facts| {
+pub(crate) fn sample_time_problem(views: &[DqView<'_>], n_p: u32, r: f64, l: f64) -> Option<String> {
+    let h = views.iter().map(DqView::h).fold(0.0, f64::max);
+    sample_time_facts(views, n_p, r, l).map(|facts| {
         format!("{facts}. A time column in milliseconds? (--time-unit ms gives h = {:e} s)", h * 1e-3)
     })
 }
 
 /// The facts of [`sample_time_problem`] alone: the sample time in electrical time
 /// constants and the rotor's turn per sample, when the model cannot resolve them.
-pub(crate) fn sample_time_facts(experiments: &[Experiment], n_p: u32, r: f64, l: f64) -> Option<String> {
-    let h = experiments.iter().map(Experiment::h).fold(0.0, f64::max);
-    let w = experiments
-        .iter()
-        .filter_map(|e| DqView::try_new(e).ok())
-        .map(|v| v.w_m().iter().fold(0.0f64, |m, x| m.max(x.abs())))
-        .fold(0.0, f64::max);
+pub(crate) fn sample_time_facts(views: &[DqView<'_>], n_p: u32, r: f64, l: f64) -> Option<String> {
+    let h = views.iter().map(DqView::h).fold(0.0, f64::max);
+    let w = views.iter().map(|v| v.w_m().iter().fold(0.0f64, |m, x| m.max(x.abs()))).fold(0.0, f64::max);
     let (tau, turn) = (l / r, f64::from(n_p) * w * h);
     let slow = tau.is_finite() && tau > 0.0 && h > MAX_H_OVER_TAU * tau;
     if !slow && turn < std::f64::consts::PI {

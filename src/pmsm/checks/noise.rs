@@ -5,7 +5,6 @@
 //! (errors in variables; Söderström, *Automatica* 43 (2007) 939–958) and the report names
 //! the instrumental-variable method, which is not.
 
-use crate::data::Experiment;
 use crate::estimate::Warning;
 use crate::estimate::metrics;
 use crate::estimate::problem::{LagStream, WHITENESS_LAGS};
@@ -30,13 +29,12 @@ struct VoltageErrors {
 
 /// [`VoltageErrors`] of an SPM model at θ = (r_s, l_s, k_e); `None` for a log the inverse
 /// model cannot read.
-fn voltage_errors(experiments: &[Experiment], setup: PmsmSetup, theta: &[f64]) -> Option<VoltageErrors> {
+fn voltage_errors(views: &[DqView<'_>], setup: PmsmSetup, theta: &[f64]) -> Option<VoltageErrors> {
     let model = PmsmSpm::from_setup(setup);
     let (mut sse, mut suu, mut n) = (0.0, 0.0, 0usize);
     let mut lags = [Vec::new(), Vec::new()];
-    for e in experiments {
-        let v = DqView::try_new(e).ok()?;
-        let inputs = model.prepare(e).ok()?;
+    for v in views {
+        let inputs = model.prepare(v.experiment()).ok()?;
         let c = model.coefficients(theta, &inputs).ok()?;
         let i = |k: usize| C64::new(v.i_d()[k], v.i_q()[k]);
         let mut streams = [LagStream::new(WHITENESS_LAGS), LagStream::new(WHITENESS_LAGS)];
@@ -66,11 +64,11 @@ fn voltage_errors(experiments: &[Experiment], setup: PmsmSetup, theta: &[f64]) -
 /// Returns `(σ, √γ₀, rms)`: the noise, the errors' RMS value and the voltages' per axis
 /// \[V\]; `None` for a log the inverse model cannot read.
 pub(crate) fn voltage_noise(
-    experiments: &[Experiment],
+    views: &[DqView<'_>],
     setup: PmsmSetup,
     theta: &[f64],
 ) -> Option<(f64, f64, f64)> {
-    let v = voltage_errors(experiments, setup, theta)?;
+    let v = voltage_errors(views, setup, theta)?;
     let m = (2 * v.n.max(1)) as f64;
     let gamma_0 = v.sse / m;
     // The axes' mean autocorrelation at `lag` ≥ 1 (the whiteness holds lags 1, 2, …).
@@ -85,12 +83,8 @@ pub(crate) fn voltage_noise(
 /// k_e) of an SPM model driven by the terminal voltage are white in every log and not
 /// negligible, for a fit whose own residuals are not white; `None` otherwise, or for a log
 /// the inverse model cannot read.
-pub(crate) fn input_noise_notice(
-    experiments: &[Experiment],
-    setup: PmsmSetup,
-    theta: &[f64],
-) -> Option<Warning> {
-    let VoltageErrors { sse, suu, n, whiteness } = voltage_errors(experiments, setup, theta)?;
+pub(crate) fn input_noise_notice(views: &[DqView<'_>], setup: PmsmSetup, theta: &[f64]) -> Option<Warning> {
+    let VoltageErrors { sse, suu, n, whiteness } = voltage_errors(views, setup, theta)?;
     let sigma = (sse / (2 * n.max(1)) as f64).sqrt();
     let rms = (suu / (2 * n.max(1)) as f64).sqrt();
     (whiteness.iter().all(|w| w.is_white(n)) && sigma > NEGLIGIBLE_VOLTAGE_NOISE * rms).then(|| {

@@ -1,6 +1,5 @@
 //! A log as the checks on the voltage equations read it, prepared once per fit.
 
-use crate::data::Experiment;
 use crate::error::Result;
 use crate::pmsm::log::signals::DqView;
 use crate::pmsm::model::interval::driving_voltage;
@@ -22,22 +21,18 @@ pub(crate) struct PreparedLog<'a> {
 }
 
 impl<'a> PreparedLog<'a> {
-    /// The prepared log of `e` for a fit with `options`.
+    /// The prepared log of the validated `view` for a fit with `options`.
     ///
     /// # Errors
-    /// Those of [`DqView::try_new`] and of the driving voltage (a missing channel).
-    pub(crate) fn new(e: &'a Experiment, options: &PmsmFitOptions) -> Result<Self> {
-        let view = DqView::try_new(e)?;
+    /// Those of the driving voltage (a missing channel).
+    pub(crate) fn new(view: DqView<'a>, options: &PmsmFitOptions) -> Result<Self> {
         let (u_d, u_q) = driving_voltage(&view, options.pole_pairs, options.input)?;
         Ok(Self { view, u_d, u_q })
     }
 }
 
-/// Every log prepared for a fit with `options`, in order; `None` for a log the checks
+/// Every log (`views`) prepared for a fit with `options`, in order; `None` for a log the checks
 /// cannot read (they pass it over).
-pub(crate) fn prepare<'a>(
-    experiments: &'a [Experiment],
-    options: &PmsmFitOptions,
-) -> Vec<Option<PreparedLog<'a>>> {
-    experiments.iter().map(|e| PreparedLog::new(e, options).ok()).collect()
+pub(crate) fn prepare<'a>(views: &[DqView<'a>], options: &PmsmFitOptions) -> Vec<Option<PreparedLog<'a>>> {
+    views.iter().map(|&v| PreparedLog::new(v, options).ok()).collect()
 }

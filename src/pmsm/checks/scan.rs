@@ -11,7 +11,6 @@
 //! products of every interval, chunk by chunk from the record's end (the order in which
 //! the backward pass finishes them), so it equals a dense `ΦᵀΦ` to rounding.
 
-use crate::data::Experiment;
 use crate::error::Result;
 use crate::estimate::filter::{Biquad, Butterworth};
 use crate::pmsm::log::signals::DqView;
@@ -197,9 +196,9 @@ fn step(sections: &[Biquad], z: &mut [([[f64; 4]; 2], [f64; 2])], v: &mut [f64; 
 /// `n_p` and both motor kinds.
 ///
 /// # Errors
-/// Those of [`DqView::try_new`], [`applied_voltage`](crate::pmsm::model::interval::applied_voltage) and of the filter design.
-pub(crate) fn scan_gram(experiments: &[Experiment], input: VoltageInput) -> Result<DMatrix<f64>> {
-    let mut grams = scan_grams(experiments, input, &[IDENTITY])?;
+/// Those of [`applied_voltage`](crate::pmsm::model::interval::applied_voltage) and of the filter design.
+pub(crate) fn scan_gram(views: &[DqView<'_>], input: VoltageInput) -> Result<DMatrix<f64>> {
+    let mut grams = scan_grams(views, input, &[IDENTITY])?;
     Ok(grams.swap_remove(0))
 }
 
@@ -216,21 +215,20 @@ pub(crate) const IDENTITY: [usize; 4] = [0, 1, 2, 3];
 /// # Errors
 /// Those of [`scan_gram`].
 pub(crate) fn scan_grams(
-    experiments: &[Experiment],
+    views: &[DqView<'_>],
     input: VoltageInput,
     lanes: &[[usize; 4]],
 ) -> Result<Vec<DMatrix<f64>>> {
     let mut g = vec![[[0.0; BASE + 1]; BASE + 1]; lanes.len()];
     let relabel = |v: &[f64; LANES], p: &[usize; 4]| [v[p[0]], v[p[1]], v[p[2]], v[p[3]], v[4]];
     let mut permuted = Vec::new();
-    for e in experiments {
-        let v = DqView::try_new(e)?;
+    for v in views {
         // n_p only scales the angle advance of a reference input; 1 is used for the scan.
-        let (u_d, u_q) = driving_voltage(&v, 1, input)?;
+        let (u_d, u_q) = driving_voltage(v, 1, input)?;
         // A zero-phase low-pass at 5 % of the sample rate keeps current noise out of di/dt
         // (MODEL.md §5: the derivative regressor is errors-in-variables).
-        let filter = Butterworth::try_new(SCAN_FILTER_ORDER, SCAN_CUTOFF / e.h(), e.h())?;
         let h = v.h();
+        let filter = Butterworth::try_new(SCAN_FILTER_ORDER, SCAN_CUTOFF / h, h)?;
         filtfilt_chunks(&filter, [&u_d, &u_q, v.i_d(), v.i_q(), v.w_m()], |_, chunk, next| {
             for (g, p) in g.iter_mut().zip(lanes) {
                 let chunk = if *p == IDENTITY {

@@ -14,8 +14,7 @@
 
 use super::detect::speed_sums;
 use super::scan::{BASE, scan_gram};
-use crate::data::Experiment;
-use crate::pmsm::log::signals::{DqView, channel};
+use crate::pmsm::log::signals::DqView;
 use crate::pmsm::model::interval::VoltageInput;
 
 /// The factors of a time column read in seconds while it is in ms or µs, with their unit.
@@ -43,19 +42,19 @@ fn unit_of(r: f64, within: f64) -> Option<(f64, &'static str)> {
 }
 
 /// `dθ_m/dt` over `w_m` on the logs that have the angle (`None` without it).
-fn angle_ratio(experiments: &[Experiment]) -> Option<f64> {
+fn angle_ratio(views: &[DqView<'_>]) -> Option<f64> {
     let (mut num, mut den) = (0.0, 0.0);
-    for e in experiments {
-        let (Some(th), Ok(v)) = (e.get(channel::THETA_M), DqView::try_new(e)) else { continue };
-        (num, den) = speed_sums((num, den), &th.values, v.w_m(), e.h());
+    for v in views {
+        let Some(th) = v.theta_m() else { continue };
+        (num, den) = speed_sums((num, den), th, v.w_m(), v.h());
     }
     (den > 0.0).then(|| num / den)
 }
 
 /// The inductance through `di/dt` over the one through `ω_e L i` in the free regression of
 /// the voltage equations at `n_p` pole pairs (`None` when it cannot be formed).
-fn derivative_ratio(experiments: &[Experiment], n_p: u32) -> Option<f64> {
-    let g = scan_gram(experiments, VoltageInput::Terminal).ok()?;
+fn derivative_ratio(views: &[DqView<'_>], n_p: u32) -> Option<f64> {
+    let g = scan_gram(views, VoltageInput::Terminal).ok()?;
     let a = g.view((0, 0), (BASE, BASE)).into_owned();
     let b = g.view((0, BASE), (BASE, 1)).into_owned();
     let theta = a.cholesky()?.solve(&b);
@@ -65,15 +64,15 @@ fn derivative_ratio(experiments: &[Experiment], n_p: u32) -> Option<f64> {
     Some(l_deriv / l_rot)
 }
 
-/// Why `experiments` look like a fast log with its time column in ms or µs read as s, or
+/// Why the logs `views` look like a fast log with its time column in ms or µs read as s, or
 /// `None` (module documentation).
-pub(crate) fn time_unit_mistake(experiments: &[Experiment], n_p: u32) -> Option<String> {
-    let h = experiments.iter().map(Experiment::h).fold(0.0, f64::max);
+pub(crate) fn time_unit_mistake(views: &[DqView<'_>], n_p: u32) -> Option<String> {
+    let h = views.iter().map(DqView::h).fold(0.0, f64::max);
     let fix = |f: f64, unit: &str| {
         let flag = if unit == "milliseconds" { "ms" } else { "us" };
         format!("the time column is in {unit}? (--time-unit {flag} gives h = {:.4e} s)", h / f)
     };
-    if let Some(r) = angle_ratio(experiments)
+    if let Some(r) = angle_ratio(views)
         && let Some((f, unit)) = unit_of(1.0 / r, ANGLE_WITHIN)
     {
         return Some(format!(
@@ -82,10 +81,10 @@ pub(crate) fn time_unit_mistake(experiments: &[Experiment], n_p: u32) -> Option<
             fix(f, unit)
         ));
     }
-    if experiments.iter().map(Experiment::len).sum::<usize>() < DERIVATIVE_MIN_SAMPLES {
+    if views.iter().map(DqView::len).sum::<usize>() < DERIVATIVE_MIN_SAMPLES {
         return None;
     }
-    let q = derivative_ratio(experiments, n_p)?;
+    let q = derivative_ratio(views, n_p)?;
     unit_of(q, DERIVATIVE_WITHIN).map(|(f, unit)| {
         format!(
             "the currents move between samples as an inductance {q:.3e} times the one the rotation terms show \

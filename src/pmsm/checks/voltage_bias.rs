@@ -13,10 +13,10 @@
 //! inverse model's voltage errors ([`super::noise::voltage_noise`]), which tell the voltage's
 //! white noise from the currents' noise and the model's slow error.
 
-use crate::data::Experiment;
 use crate::estimate::{CovarianceMethod, FitResult, Warning};
 use crate::pmsm::checks::noise::{NEGLIGIBLE_VOLTAGE_NOISE, voltage_noise};
 use crate::pmsm::checks::noise_bias::{Shift, simex_shifts};
+use crate::pmsm::log::DqLogs;
 use crate::pmsm::log::signals::channel::{U_D, U_Q};
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::model::setup::PmsmSetup;
@@ -39,7 +39,7 @@ pub const VOLTAGE_BIAS_Z: f64 = 1.0;
 pub const VOLTAGE_NOISE_SHARE: f64 = 0.1;
 
 /// After an output-error fit (its report `fit`, its `setup`'s pole pairs and hold) of
-/// surface-magnet motors' `experiments` from their terminal voltage: an
+/// surface-magnet motors' logs `dq` from their terminal voltage: an
 /// untrusted `voltage_noise_bias` warning when the logged voltage carries noise that is not
 /// negligible (over [`NEGLIGIBLE_VOLTAGE_NOISE`] of its RMS value and
 /// [`VOLTAGE_NOISE_SHARE`] of the voltage errors') and adding noise of that
@@ -48,7 +48,7 @@ pub const VOLTAGE_NOISE_SHARE: f64 = 0.1;
 /// residuals (the white-noise covariance: no coloured noise to read), for a log the inverse
 /// model cannot read, or when a refit fails.
 pub(crate) fn warning(
-    experiments: &[Experiment],
+    dq: &DqLogs<'_>,
     options: &PmsmFitOptions,
     fit: &FitResult,
     setup: PmsmSetup,
@@ -66,11 +66,11 @@ pub(crate) fn warning(
         return None;
     }
     let theta = [value("r_s")? + options.cable_resistance, value("l_s")?, value("k_e")?];
-    let (sigma, errors, rms) = voltage_noise(experiments, setup, &theta)?;
+    let (sigma, errors, rms) = voltage_noise(dq.views(), setup, &theta)?;
     if !(sigma > NEGLIGIBLE_VOLTAGE_NOISE * rms && sigma > VOLTAGE_NOISE_SHARE * errors) {
         return None;
     }
-    let shifts = simex_shifts(experiments, &[(U_D, sigma), (U_Q, sigma)], parts, fit, refit)?;
+    let shifts = simex_shifts(dq.experiments(), &[(U_D, sigma), (U_Q, sigma)], parts, fit, refit)?;
     let biased: Vec<String> =
         shifts.iter().filter(|s| s.z.abs() > VOLTAGE_BIAS_Z).map(Shift::describe).collect();
     (!biased.is_empty()).then(|| {

@@ -1,9 +1,9 @@
 //! The automatic dead-time mask ([`DeadTimeMask::Auto`]): the unmasked fit, then masked
 //! fits whose current threshold `4 h V_dt / L` comes from the latest fit.
 
-use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::pmsm::fit::report::PmsmFit;
+use crate::pmsm::log::DqLogs;
 use crate::pmsm::log::signals::DqView;
 use crate::pmsm::model::inverter::InverterModel;
 use crate::pmsm::model::mask::{AUTO_ITERATIONS, DeadTimeMask};
@@ -15,20 +15,16 @@ pub const FALLBACK_RELATIVE_THRESHOLD: f64 = 0.05;
 
 /// `4 h V_dt / L` \[A\] from a fit (`h` the longest sample time of the logs, `L` the smallest
 /// inductance estimate), or `None` when that is not positive and finite.
-fn auto_threshold(experiments: &[Experiment], fit: &PmsmFit) -> Option<f64> {
-    let h = experiments.iter().map(Experiment::h).fold(0.0, f64::max);
+fn auto_threshold(views: &[DqView<'_>], fit: &PmsmFit) -> Option<f64> {
+    let h = views.iter().map(DqView::h).fold(0.0, f64::max);
     let l = crate::pmsm::model::kind::smallest_inductance(fit);
     let v_dt = fit.parameter("v_dt").map_or(f64::NAN, |p| p.value);
     Some(4.0 * h * v_dt / l).filter(|t| t.is_finite() && *t > 0.0)
 }
 
 /// [`FALLBACK_RELATIVE_THRESHOLD`] × the largest `|i_dq|` of the logs \[A\].
-fn fallback_threshold(experiments: &[Experiment]) -> Result<f64> {
-    let peak = experiments
-        .iter()
-        .filter_map(|e| DqView::try_new(e).ok())
-        .map(|v| v.peak_current())
-        .fold(0.0, f64::max);
+fn fallback_threshold(views: &[DqView<'_>]) -> Result<f64> {
+    let peak = views.iter().map(DqView::peak_current).fold(0.0, f64::max);
     Some(FALLBACK_RELATIVE_THRESHOLD * peak).filter(|t| t.is_finite() && *t > 0.0).ok_or_else(|| {
         Error::Numerical {
             context: "dead-time mask".into(),
@@ -45,11 +41,7 @@ fn fallback_threshold(experiments: &[Experiment]) -> Result<f64> {
 ///
 /// # Errors
 /// Those of [`crate::pmsm::fit_pmsm`]; [`Error::Numerical`] when the currents are all zero.
-pub(super) fn fit(
-    experiments: &[Experiment],
-    options: &PmsmFitOptions,
-    refit: RefitLoss<'_>,
-) -> Result<PmsmFit> {
+pub(super) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, refit: RefitLoss<'_>) -> Result<PmsmFit> {
     let inverter = options.inverter.unwrap_or_default();
     let with_mask = |mask: Option<DeadTimeMask>, start: Option<Vec<f64>>| PmsmFitOptions {
         inverter: Some(InverterModel { mask, ..inverter }),
@@ -57,17 +49,14 @@ pub(super) fn fit(
         ..options.clone()
     };
     // The inner fits skip the setup checks; the last one runs them as `options` says.
-    let mut fit = super::base::fit(
-        experiments,
-        &PmsmFitOptions { skip_setup_checks: true, ..with_mask(None, None) },
-        refit,
-    )?;
+    let mut fit =
+        super::base::fit(dq, &PmsmFitOptions { skip_setup_checks: true, ..with_mask(None, None) }, refit)?;
     let mut trail = Vec::new();
     for step in 0..AUTO_ITERATIONS {
-        let threshold = match auto_threshold(experiments, &fit) {
+        let threshold = match auto_threshold(dq.views(), &fit) {
             Some(t) => t,
             None => {
-                let t = fallback_threshold(experiments)?;
+                let t = fallback_threshold(dq.views())?;
                 trail.push(format!(
                     "(v_dt {:.3e} V: {:.0} % of the peak current)",
                     fit.parameter("v_dt").map_or(f64::NAN, |p| p.value),
@@ -81,7 +70,7 @@ pub(super) fn fit(
         let last = step + 1 == AUTO_ITERATIONS;
         let o = with_mask(Some(DeadTimeMask::Current(threshold)), start);
         fit = super::base::fit(
-            experiments,
+            dq,
             &PmsmFitOptions { skip_setup_checks: !last || options.skip_setup_checks, ..o },
             refit,
         )?;

@@ -9,12 +9,12 @@
 //! 3. the model derives `K_t = √(3/2) K_e` \[N m/A\] and `ψ_f = √(2/3) K_e / n_p` \[V s\] with
 //!    their standard errors (MODEL.md §2).
 
-use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::{CovarianceMethod, FitResult, Timing};
 use crate::pmsm::fit::hold::{DQ_DECISIVE, GIVE_THE_HOLD, HOLD_TIE_Z, HoldFits, hold_ambiguity};
 use crate::pmsm::fit::report::delay_parameter;
 use crate::pmsm::fit::report::{PmsmFit, StartComparison};
+use crate::pmsm::log::DqLogs;
 use crate::pmsm::model::interval::{VoltageHold, VoltageInput};
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::model::setup::PmsmSetup;
@@ -31,11 +31,7 @@ use super::holds::{self, Fitted};
 ///
 /// # Errors
 /// Those of [`crate::pmsm::fit_pmsm`].
-pub(super) fn fit(
-    experiments: &[Experiment],
-    options: &PmsmFitOptions,
-    refit: RefitLoss<'_>,
-) -> Result<PmsmFit> {
+pub(super) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, refit: RefitLoss<'_>) -> Result<PmsmFit> {
     let t0 = Instant::now();
     let mut names: Vec<&str> = options.model.parameter_names().to_vec();
     if options.inverter.is_some() {
@@ -49,26 +45,26 @@ pub(super) fn fit(
     // setup scan (one regression Gram; a log the scan cannot read is not checked) and the
     // dead-time check. On the calling thread when the caller's rayon pool has one thread.
     let beside = || {
-        let logs = crate::pmsm::checks::prepared::prepare(experiments, options);
+        let logs = crate::pmsm::checks::prepared::prepare(dq.views(), options);
         Beside {
             scan: (!options.skip_setup_checks)
-                .then(|| crate::pmsm::checks::columns::scan(experiments, options.input).ok())
+                .then(|| crate::pmsm::checks::columns::scan(dq.views(), options.input).ok())
                 .flatten(),
             dead: crate::pmsm::checks::advice::dead_time_advice(&logs, options),
             logs,
         }
     };
     if rayon::current_num_threads() == 1 {
-        return fit_beside(experiments, options, refit, t0, &names, Pending::Ready(beside()));
+        return fit_beside(dq, options, refit, t0, &names, Pending::Ready(beside()));
     }
     std::thread::scope(|scope| {
-        fit_beside(experiments, options, refit, t0, &names, Pending::Thread(scope.spawn(beside)))
+        fit_beside(dq, options, refit, t0, &names, Pending::Thread(scope.spawn(beside)))
     })
 }
 
 /// [`fit`] once the checks beside it are under way.
 fn fit_beside(
-    experiments: &[Experiment],
+    dq: &DqLogs<'_>,
     options: &PmsmFitOptions,
     refit: RefitLoss<'_>,
     t0: Instant,
@@ -76,7 +72,8 @@ fn fit_beside(
     beside: Pending<'_, Beside<'_>>,
 ) -> Result<PmsmFit> {
     let n_p = options.pole_pairs;
-    let fitted = holds::fit_from_start(experiments, options, names);
+    let experiments = dq.experiments();
+    let fitted = holds::fit_from_start(dq, options, names);
     let Beside { scan, dead, logs } = beside.get();
     // A salient log fitted without the saliency is an error before any other: the start's,
     // the options', the fits'.
@@ -120,7 +117,7 @@ fn fit_beside(
         },
         || {
             (!options.skip_setup_checks)
-                .then(|| crate::pmsm::checks::detect::warnings(experiments, n_p, &best, options.read_scales))
+                .then(|| crate::pmsm::checks::detect::warnings(dq.views(), n_p, &best, options.read_scales))
         },
     );
     let model_checks = crate::pmsm::checks::advice::merge(dead, late);
@@ -206,7 +203,7 @@ fn fit_beside(
     if plain && best.uncertainty.method == CovarianceMethod::BatchMeans {
         // `motor` holds the whole series resistance already: no cable on top.
         let setup = PmsmSetup::new(n_p, hold);
-        warnings.extend(crate::pmsm::checks::noise::input_noise_notice(experiments, setup, &motor));
+        warnings.extend(crate::pmsm::checks::noise::input_noise_notice(dq.views(), setup, &motor));
     }
     Ok(PmsmFit {
         report: FitResult {

@@ -8,6 +8,7 @@ use crate::estimate::{CLOSE_START_DAMPING, PemOptions, Weighting};
 use crate::pmsm::checks::limit::{VoltageLimitWeighting, delay_of};
 use crate::pmsm::fit::hold::{HoldFits, fit_holds_of};
 use crate::pmsm::linear::start::least_squares_start;
+use crate::pmsm::log::DqLogs;
 use crate::pmsm::log::signals::channel;
 use crate::pmsm::model::interval::{VoltageHold, VoltageInput};
 use crate::pmsm::model::inverter::masked_pem;
@@ -39,18 +40,15 @@ pub(super) struct Fitted {
     pub warnings: Vec<crate::estimate::Warning>,
 }
 
-/// The start of the fits of `experiments` under `options` (fitted parameters `names`, model
+/// The start of the fits of the logs `dq` under `options` (fitted parameters `names`, model
 /// order) and the fits of the holds `options.hold` allows.
 ///
 /// # Errors
 /// Those of [`crate::pmsm::fit_pmsm`] but the setup checks': a start of the wrong length, the
 /// least-squares start's, the user's constraints', the hold or voltage-limit options', and
 /// the fits'.
-pub(super) fn fit_from_start(
-    experiments: &[Experiment],
-    options: &PmsmFitOptions,
-    names: &[&str],
-) -> Result<Fitted> {
+pub(super) fn fit_from_start(dq: &DqLogs<'_>, options: &PmsmFitOptions, names: &[&str]) -> Result<Fitted> {
+    let experiments = dq.experiments();
     let n_p = options.pole_pairs;
     // The start of v_dt when the start comes from elsewhere: the known value, or 0.
     let v_dt0 = options.inverter.map(|i| i.known.unwrap_or(0.0));
@@ -58,7 +56,7 @@ pub(super) fn fit_from_start(
     let mut ls_theta = None;
     let start = match (&options.start, &options.pwm) {
         (None, Some(pwm)) => {
-            let (s, note) = super::pwm_start::start(experiments, options, pwm)?;
+            let (s, note) = super::pwm_start::start(dq, options, pwm)?;
             notes.push(note);
             s
         }
@@ -84,7 +82,7 @@ pub(super) fn fit_from_start(
         }
         (None, None) => {
             let (ls_names, theta) = least_squares_start(
-                experiments,
+                dq.views(),
                 n_p,
                 options.model,
                 options.input,
@@ -119,7 +117,7 @@ pub(super) fn fit_from_start(
     let (r_s, l) = (value(&["r_s"]), value(&["l_s", "l_d", "l_q"]));
     if !options.skip_setup_checks
         && !options.force
-        && let Some(why) = crate::pmsm::checks::detect::sample_time_problem(experiments, n_p, r_s, l)
+        && let Some(why) = crate::pmsm::checks::detect::sample_time_problem(dq.views(), n_p, r_s, l)
     {
         return Err(Error::Numerical {
             context: super::steady::SAMPLE_TIME.into(),
@@ -295,7 +293,7 @@ pub(super) fn fit_from_start(
             let model = |pwm: PwmInverter, input: VoltageInput| model_at(VoltageHold::Stator, pwm, input);
             let (fits, chosen, inverter) = super::pwm_fit::stages(
                 !options.skip_setup_checks,
-                experiments,
+                dq,
                 &pwm,
                 options.input,
                 &start,

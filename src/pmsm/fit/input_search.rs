@@ -12,7 +12,8 @@ use crate::estimate::{FitResult, ParameterEstimate};
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::fit::report::delay_parameter;
 use crate::pmsm::fit::search::{SPEED_PLL_RANGE, golden_search};
-use crate::pmsm::fit::workflow::fit_pmsm;
+use crate::pmsm::fit::workflow::{fit_dq, fit_pmsm};
+use crate::pmsm::log::DqLogs;
 use crate::pmsm::log::signals::DqView;
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::inverter::InverterModel;
@@ -54,14 +55,16 @@ pub fn fit_estimating_input(
     if options.pwm.is_some() {
         return with_drive_timing(experiments, options, search);
     }
+    // The logs validated once for the search's fits.
+    let dq = DqLogs::try_new(experiments)?;
     let (delay0, advance, pll0) = match options.input {
         VoltageInput::Reference { delay, advance, speed_pll } => (delay, advance, speed_pll),
         VoltageInput::Terminal => (1, 1.5, None),
     };
     // Every candidate starts from the fit at the given input (a least-squares start at a
     // wrong delay can be unusable, e.g. a negative resistance).
-    let first = fit_pmsm(
-        experiments,
+    let first = fit_dq(
+        &dq,
         &PmsmFitOptions {
             skip_setup_checks: true,
             input: VoltageInput::Reference { delay: delay0, advance, speed_pll: pll0 },
@@ -87,7 +90,7 @@ pub fn fit_estimating_input(
         };
     let fit_with = |delay: usize, advance: f64, speed_pll: Option<f64>, width: Option<f64>| {
         let o = options_at(delay, advance, speed_pll, width);
-        fit_pmsm(experiments, &PmsmFitOptions { skip_setup_checks: true, ..o })
+        fit_dq(&dq, &PmsmFitOptions { skip_setup_checks: true, ..o })
     };
     let fit_at = |delay: usize, speed_pll: Option<f64>| fit_with(delay, advance, speed_pll, None);
     // A candidate that cannot be fitted (diverging simulation, no convergence) loses.
@@ -146,11 +149,7 @@ pub fn fit_estimating_input(
     };
     let width = match (search.dead_time_width, options.inverter) {
         (true, Some(_)) => {
-            let peak = experiments
-                .iter()
-                .filter_map(|e| DqView::try_new(e).ok())
-                .map(|v| v.peak_current())
-                .fold(0.0, f64::max);
+            let peak = dq.views().iter().map(DqView::peak_current).fold(0.0, f64::max);
             let range = (1e-3 * peak, 0.3 * peak);
             let w = golden_search(range, true, |w| loss(fit_with(delay, advance, speed_pll, Some(w))))?;
             notes.push(format!("dead-time sign width estimated as {w:.4} A by the lowest loss"));
@@ -164,7 +163,7 @@ pub fn fit_estimating_input(
         }
         (false, _) => None,
     };
-    let best = fit_pmsm(experiments, &options_at(delay, advance, speed_pll, width))?;
+    let best = fit_dq(&dq, &options_at(delay, advance, speed_pll, width))?;
     if !best.solver.success && (search.delay || search.advance || search.speed_pll || search.dead_time_width)
     {
         return Err(Error::Numerical {

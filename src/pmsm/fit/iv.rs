@@ -34,7 +34,7 @@ use crate::model::{GreyBoxModel, Prepared};
 use crate::pmsm::fit::hold::{GIVE_THE_HOLD, HOLD_AMBIGUOUS_Z, hardly_chosen, largest_difference};
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::fit::workflow::fit_pmsm;
-use crate::pmsm::log::signals::DqView;
+use crate::pmsm::log::DqLogs;
 use crate::pmsm::model::interval::{C64, VoltageHold, VoltageInput};
 use crate::pmsm::model::ipm::PmsmIpm;
 use crate::pmsm::model::kind::{MotorKind, derived};
@@ -168,13 +168,14 @@ pub fn fit_pmsm_iv_after(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
 ) -> Result<PmsmFit> {
+    let dq = DqLogs::try_new(experiments)?;
     let at_other = other_hold(&oe, options).map(|hold| PmsmFit { hold, ..oe.clone() });
-    let iv = iv_at_hold(oe, experiments, options)?;
+    let iv = iv_at_hold(oe, &dq, options)?;
     let Some(at_other) = at_other.filter(|_| iv.report.warnings.iter().all(|w| w.code != "hold_ambiguous"))
     else {
         return Ok(iv);
     };
-    let other = iv_at_hold(at_other, experiments, options)?;
+    let other = iv_at_hold(at_other, &dq, options)?;
     let Some(warning) = hold_ambiguous(&iv, &other, options) else { return Ok(iv) };
     let warnings = iv.report.warnings.iter().cloned().chain([warning]).collect();
     Ok(PmsmFit { report: FitResult { warnings, ..iv.report }, ..iv })
@@ -211,7 +212,7 @@ fn hold_ambiguous(iv: &PmsmFit, other: &PmsmFit, options: &PmsmFitOptions) -> Op
 ///
 /// # Errors
 /// As [`fit_pmsm_iv`].
-fn iv_at_hold(oe: PmsmFit, experiments: &[Experiment], options: &PmsmFitOptions) -> Result<PmsmFit> {
+fn iv_at_hold(oe: PmsmFit, dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<PmsmFit> {
     check_options(options)?;
     // The steady-state equations the output-error fit chose are fitted by instrumental
     // variables already (on the steady samples); the dynamic recursion from their estimate
@@ -234,19 +235,20 @@ fn iv_at_hold(oe: PmsmFit, experiments: &[Experiment], options: &PmsmFitOptions)
     let solved = match options.model {
         MotorKind::Spm => {
             let model = PmsmSpm::from_setup(setup);
-            let logs: Vec<Log> = experiments
+            let logs: Vec<Log> = dq
+                .views()
                 .iter()
-                .map(|e| {
-                    let v = DqView::try_new(e)?;
+                .map(|v| {
                     let i = v.i_d().iter().zip(v.i_q()).map(|(&d, &q)| C64::new(d, q)).collect();
-                    Ok(Log { prep: Prepared::new(&model, e)?, i })
+                    Ok(Log { prep: Prepared::new(&model, v.experiment())?, i })
                 })
                 .collect::<Result<_>>()?;
             iterate(start, |t| sums(&model, &logs, t))?
         }
         MotorKind::Ipm => {
             let model = PmsmIpm::from_setup(setup);
-            let preps = experiments.iter().map(|e| Prepared::new(&model, e)).collect::<Result<Vec<_>>>()?;
+            let preps =
+                dq.experiments().iter().map(|e| Prepared::new(&model, e)).collect::<Result<Vec<_>>>()?;
             iterate(start, |t| one_step_sums(&model, &preps, t))?
         }
     };

@@ -3,10 +3,10 @@
 //! then its sign mask ([`super::pwm_mask`]) and the final fit without the masked samples.
 
 use super::pwm_leg_state::{Final, Fit, OwnMask, Sides, on_own_mask};
-use crate::data::Experiment;
 use crate::error::Result;
 use crate::estimate::{FitResult, Warning, Weighting};
 use crate::pmsm::fit::hold::HoldFits;
+use crate::pmsm::log::DqLogs;
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::pwm::{PmsmPwm, PwmInverter};
 
@@ -41,7 +41,7 @@ use crate::pmsm::model::pwm::{PmsmPwm, PwmInverter};
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn stages(
     checked: bool,
-    experiments: &[Experiment],
+    dq: &DqLogs<'_>,
     pwm: &PwmInverter,
     input: VoltageInput,
     start: &[f64],
@@ -57,8 +57,9 @@ pub(crate) fn stages(
     // fits of a smooth leg state of decreasing width lead to it. Also from a given start: a
     // nested fit of a part of the log that started at the whole fit's estimate would stay in
     // its basin, and the parts' agreement would not test whether that basin is the minimum.
+    let experiments = dq.experiments();
     let mut last: Option<(FitResult, PwmInverter)> = None;
-    for (stage, stage_names) in super::pwm_start::continuation(experiments, pwm, names) {
+    for (stage, stage_names) in super::pwm_start::continuation(dq.views(), pwm, names) {
         let s = super::pwm_start::carried(last.as_ref().map(|l| &l.0), &stage_names, start, names);
         let fitted = stage_fit(stage, input, &s, &stage_names, weighting, &[])?;
         last = Some((fitted.best.1, stage));

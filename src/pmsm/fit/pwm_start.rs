@@ -8,7 +8,8 @@ use crate::data::Experiment;
 use crate::error::Result;
 use crate::model::GreyBoxModel;
 use crate::pmsm::linear::start::least_squares_start;
-use crate::pmsm::log::signals::channel;
+use crate::pmsm::log::DqLogs;
+use crate::pmsm::log::signals::{DqView, channel};
 use crate::pmsm::model::inverter::InverterModel;
 use crate::pmsm::model::pwm::{CarrierEdge, PmsmPwm, PwmInverter};
 use crate::pmsm::model::setup::PmsmSetup;
@@ -21,13 +22,13 @@ use crate::pmsm::options::PmsmFitOptions;
 /// Those of the least-squares start; [`Error::InvalidOption`] for a log without a sample
 /// time the carrier allows, or without the DC-link voltage.
 pub(crate) fn start(
-    experiments: &[Experiment],
+    dq: &DqLogs<'_>,
     options: &PmsmFitOptions,
     pwm: &PwmInverter,
 ) -> Result<(Vec<f64>, String)> {
     let averaged = InverterModel::default();
     let (names, theta) = least_squares_start(
-        experiments,
+        dq.views(),
         options.pole_pairs,
         options.model,
         options.input,
@@ -36,7 +37,7 @@ pub(crate) fn start(
     )?;
     let m = options.model.parameter_names().len();
     let v_dt = names.iter().position(|n| n == "v_dt").map_or(1.0, |j| theta[j]);
-    let e = &experiments[0];
+    let e = &dq.experiments()[0];
     let f_sw = pwm.carrier(e.h())?;
     let u_dc = pwm.u_dc_samples(e)?;
     let u_dc = u_dc.iter().sum::<f64>() / u_dc.len().max(1) as f64;
@@ -103,17 +104,14 @@ pub(crate) const CONTINUATION_WIDTHS: [f64; 3] = [0.02, 0.005, 0.001];
 /// the same inverter at the fixed widths [`CONTINUATION_WIDTHS`] × the largest current, with
 /// their parameter names (`names` without `i_w`); none for a known width.
 pub(crate) fn continuation<'a>(
-    experiments: &[Experiment],
+    views: &[DqView<'_>],
     pwm: &PwmInverter,
     names: &[&'a str],
 ) -> Vec<(PwmInverter, Vec<&'a str>)> {
     if pwm.i_w.is_some() {
         return Vec::new();
     }
-    let peak = experiments
-        .iter()
-        .filter_map(|e| Some(crate::pmsm::log::signals::DqView::try_new(e).ok()?.peak_current()))
-        .fold(0.0, f64::max);
+    let peak = views.iter().map(DqView::peak_current).fold(0.0, f64::max);
     let stage_names: Vec<&'a str> = names.iter().copied().filter(|n| *n != "i_w").collect();
     CONTINUATION_WIDTHS
         .iter()

@@ -16,7 +16,9 @@ use crate::model::DerivedEstimate;
 use crate::pmsm::checks::detect::{max_turn, sample_time_facts, steady_warnings};
 use crate::pmsm::checks::time_unit::time_unit_mistake;
 use crate::pmsm::fit::report::PmsmFit;
-use crate::pmsm::linear::{PERIOD_TERM, SteadyEstimate, SteadyOptions, steady_advice, steady_state};
+use crate::pmsm::linear::{PERIOD_TERM, SteadyEstimate, SteadyOptions, steady_advice, steady_state_of};
+use crate::pmsm::log::DqLogs;
+use crate::pmsm::log::signals::DqView;
 use crate::pmsm::model::interval::{SQRT_2_3, VoltageHold, VoltageInput};
 use crate::pmsm::model::kind::{MotorKind, derived, smallest_inductance};
 use crate::pmsm::options::{Dynamics, HoldChoice, PmsmFitOptions};
@@ -65,14 +67,11 @@ fn check_options(options: &PmsmFitOptions) -> Result<()> {
 /// [`Error::Numerical`] (context `sample time`) for a fast log whose time column is in ms
 /// or µs (unless `options.force`); [`Error::InvalidOption`] for options the equations do
 /// not take; those of [`steady_state`].
-pub(crate) fn fit(
-    experiments: &[Experiment],
-    options: &PmsmFitOptions,
-    why: Option<String>,
-) -> Result<PmsmFit> {
+pub(crate) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, why: Option<String>) -> Result<PmsmFit> {
     let t0 = std::time::Instant::now();
+    let experiments = dq.experiments();
     if !options.force
-        && let Some(mistake) = time_unit_mistake(experiments, options.pole_pairs)
+        && let Some(mistake) = time_unit_mistake(dq.views(), options.pole_pairs)
     {
         return Err(Error::Numerical {
             context: SAMPLE_TIME.into(),
@@ -89,12 +88,12 @@ pub(crate) fn fit(
         cable_resistance: options.cable_resistance,
         ..SteadyOptions::default()
     };
-    let est = steady_state(experiments, options.pole_pairs, options.model, &steady)?;
+    let est = steady_state_of(dq, options.pole_pairs, options.model, &steady)?;
     let part = |e: &SteadyEstimate, logs: &[Experiment]| report(e, logs, options, 0.0);
-    let checks = super::steady_checks::warnings(experiments, options, &steady, &est, &part);
+    let checks = super::steady_checks::warnings(dq, options, &steady, &est, &part);
     let mut report = report(&est, experiments, options, t0.elapsed().as_secs_f64());
     let warnings = gate(&est, &report).into_iter().chain(checks).chain(steady_warnings(
-        experiments,
+        dq.views(),
         options.pole_pairs,
         &report,
         options.read_scales,
@@ -123,10 +122,10 @@ pub(crate) fn fit(
 /// note saying why; `None` (the refusal, which asks whether the time column is in ms,
 /// stands) when the steady-state fit fails, e.g. on a fast log in ms ([`fit`]'s check), or
 /// does not confirm it (a noisy fast log).
-pub(crate) fn fit_if_slow(experiments: &[Experiment], options: &PmsmFitOptions) -> Option<PmsmFit> {
-    let fit = fit(experiments, options, None).ok()?;
+pub(crate) fn fit_if_slow(dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Option<PmsmFit> {
+    let fit = fit(dq, options, None).ok()?;
     let r_s = fit.parameter("r_s")?.value;
-    let why = sample_time_facts(experiments, options.pole_pairs, r_s, smallest_inductance(&fit.report))?;
+    let why = sample_time_facts(dq.views(), options.pole_pairs, r_s, smallest_inductance(&fit.report))?;
     Some(PmsmFit { pmsm_notes: vec![chosen_note(&why, options.model)], ..fit })
 }
 
@@ -141,18 +140,15 @@ fn chosen_note(why: &str, kind: MotorKind) -> String {
 
 /// Whether the steady-state equations are what `options` ask for, or the automatic choice
 /// to make for a log the rotor turns half a turn in (before any dynamic fit).
-pub(crate) fn chosen_up_front(
-    experiments: &[Experiment],
-    options: &PmsmFitOptions,
-) -> Option<Option<String>> {
+pub(crate) fn chosen_up_front(dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Option<Option<String>> {
     match options.dynamics {
         Dynamics::Steady => Some(None),
         Dynamics::Auto if !options.force && !options.skip_setup_checks => {
-            (max_turn(experiments, options.pole_pairs) >= std::f64::consts::PI).then(|| {
+            (max_turn(dq.views(), options.pole_pairs) >= std::f64::consts::PI).then(|| {
             Some(format!(
                 "the rotor turns half an electrical turn or more within one sample (h = {:.4e} s), which no \
                      dynamic model of a held voltage can follow",
-                experiments.iter().map(Experiment::h).fold(0.0, f64::max)
+                dq.views().iter().map(DqView::h).fold(0.0, f64::max)
             ))
             })
         }

@@ -13,7 +13,8 @@ use crate::data::Experiment;
 use crate::estimate::{FitResult, Warning};
 use crate::pmsm::checks::detect::SALIENCY;
 use crate::pmsm::checks::segments::{disagreement, split_at_least};
-use crate::pmsm::linear::{PERIOD_TERM, SteadyEstimate, SteadyOptions, steady_state};
+use crate::pmsm::linear::{PERIOD_TERM, SteadyEstimate, SteadyOptions, steady_state, steady_state_of};
+use crate::pmsm::log::DqLogs;
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::options::PmsmFitOptions;
 
@@ -31,18 +32,18 @@ pub const EQUATIONS_ACCURACY: f64 = 1e-4;
 /// more than [`SALIENCY`] apart).
 pub const SALIENT_Z: f64 = 4.0;
 
-/// The untrusted warnings of the steady-state fit `est` of `experiments`: the parts
+/// The untrusted warnings of the steady-state fit `est` of the logs `dq`: the parts
 /// disagree (`segments_disagree`), or the machine is salient under an SPM fit (`salient`).
 /// `report` turns a part's estimate into a fit report.
 pub(crate) fn warnings(
-    experiments: &[Experiment],
+    dq: &DqLogs<'_>,
     options: &PmsmFitOptions,
     steady: &SteadyOptions,
     est: &SteadyEstimate,
     report: &dyn Fn(&SteadyEstimate, &[Experiment]) -> FitResult,
 ) -> Vec<Warning> {
     let mut out = Vec::new();
-    if let Ok(parts) = split_at_least(experiments, MIN_PART_SAMPLES) {
+    if let Ok(parts) = split_at_least(dq.experiments(), MIN_PART_SAMPLES) {
         // The control period is the drive's, the same along the log: the parts hold the
         // whole fit's estimate (a part's speeds may not separate it from K_e).
         let h_c = est.value(PERIOD_TERM).filter(|c| *c > 0.0).map(f64::sqrt);
@@ -68,15 +69,15 @@ pub(crate) fn warnings(
         }
     }
     if est.kind == MotorKind::Spm {
-        out.extend(salient(experiments, options, steady));
+        out.extend(salient(dq, options, steady));
     }
     out
 }
 
 /// `salient` when the IPM equations on the same logs put `L_d` and `L_q` more than
 /// [`SALIENCY`] and [`SALIENT_Z`] standard errors apart.
-fn salient(experiments: &[Experiment], options: &PmsmFitOptions, steady: &SteadyOptions) -> Option<Warning> {
-    let ipm = steady_state(experiments, options.pole_pairs, MotorKind::Ipm, steady).ok()?;
+fn salient(dq: &DqLogs<'_>, options: &PmsmFitOptions, steady: &SteadyOptions) -> Option<Warning> {
+    let ipm = steady_state_of(dq, options.pole_pairs, MotorKind::Ipm, steady).ok()?;
     let at = |name: &str| ipm.names.iter().position(|n| n == name);
     let (d, q) = (at("l_d")?, at("l_q")?);
     let (l_d, l_q, s_d, s_q) = (ipm.theta[d], ipm.theta[q], ipm.std_error[d], ipm.std_error[q]);

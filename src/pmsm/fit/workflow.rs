@@ -9,6 +9,7 @@
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::pmsm::fit::report::PmsmFit;
+use crate::pmsm::log::DqLogs;
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::mask::DeadTimeMask;
 use crate::pmsm::model::setup::PmsmSetup;
@@ -37,6 +38,16 @@ use crate::pmsm::options::{Dynamics, PmsmFitOptions};
 /// # Ok(()) }
 /// ```
 pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<PmsmFit> {
+    check(experiments, options)?;
+    // Every log validated once here and passed down.
+    fit_dq(&DqLogs::try_new(experiments)?, options)
+}
+
+/// The options and logs [`fit_pmsm`] refuses before it reads a log's channels.
+///
+/// # Errors
+/// As [`fit_pmsm`]: the pole pairs, no log, a control period not positive.
+fn check(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<()> {
     crate::pmsm::log::signals::check_pole_pairs(options.pole_pairs)?;
     if experiments.is_empty() {
         return Err(Error::InvalidOption { option: "experiments".into(), reason: "no log given".into() });
@@ -48,14 +59,25 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             reason: format!("{h} s is not a positive sample time (the drive's control period)"),
         });
     }
-    if let Some(why) = super::steady::chosen_up_front(experiments, options) {
-        return super::steady::fit(experiments, options, why);
+    Ok(())
+}
+
+/// [`fit_pmsm`] of logs validated once where the fit starts ([`DqLogs`]): a caller that
+/// fits the same logs several times (the input's search) validates them once.
+///
+/// # Errors
+/// As [`fit_pmsm`].
+pub(crate) fn fit_dq(dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<PmsmFit> {
+    let experiments = dq.experiments();
+    check(experiments, options)?;
+    if let Some(why) = super::steady::chosen_up_front(dq, options) {
+        return super::steady::fit(dq, options, why);
     }
     let refit = |e: &[Experiment], o: &PmsmFitOptions| fit_pmsm(e, o).ok().map(|f| f.fit.loss);
     let fit = if options.inverter.and_then(|i| i.mask) == Some(DeadTimeMask::Auto) {
-        super::auto_mask::fit(experiments, options, &refit)?
+        super::auto_mask::fit(dq, options, &refit)?
     } else {
-        match super::base::fit(experiments, options, &refit) {
+        match super::base::fit(dq, options, &refit) {
             // A sample time the dynamic model cannot resolve: the steady-state equations,
             // unless they were ruled out (`--force`, nested fits, the dynamic model asked for).
             Err(Error::Numerical { context, reason })
@@ -63,8 +85,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
                     && options.dynamics == Dynamics::Auto
                     && !options.skip_setup_checks =>
             {
-                return super::steady::fit_if_slow(experiments, options)
-                    .ok_or(Error::Numerical { context, reason });
+                return super::steady::fit_if_slow(dq, options).ok_or(Error::Numerical { context, reason });
             }
             other => other?,
         }
@@ -83,7 +104,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             // The steady-state equations take the samples as points: chosen when the choice is
             // automatic, as for a log too slow for the dynamic model.
             Some(why) if options.dynamics == Dynamics::Auto && !options.force => {
-                match super::steady::fit(experiments, options, Some(why.clone())) {
+                match super::steady::fit(dq, options, Some(why.clone())) {
                     Ok(steady) => return Ok(steady),
                     Err(e) => with_warnings(fit, [point_sampled_warning(&why, Some(&e))]),
                 }
@@ -91,7 +112,7 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
             Some(why) => with_warnings(fit, [point_sampled_warning(&why, None)]),
         };
         let bias = crate::pmsm::checks::voltage_bias::warning(
-            experiments,
+            dq,
             options,
             &fit.report,
             PmsmSetup::new(fit.pole_pairs, fit.hold),

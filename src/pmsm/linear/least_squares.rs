@@ -195,24 +195,30 @@ pub fn weighted_least_squares(
     filter::check_order(options.filter_order).map_err(|e| rename_option(e, "filter_order", None))?;
     let names: Vec<String> = kind.parameter_names().iter().map(|s| s.to_string()).collect();
     let cols = names.len();
-    // The filtered copies (kept for the residual pass) and √β per sample.
-    let mut filtered = Vec::with_capacity(experiments.len());
-    let mut weights = Vec::with_capacity(experiments.len());
-    let mut ls = StreamedLeastSquares::new(cols);
-    let mut sum = [0.0; 2];
-    for e in experiments {
-        let copy = match options.prefilter {
+    // The filtered copies (kept for the residual pass), then each log's view validated
+    // once (of its filtered copy where there is one) for both passes, and √β per sample.
+    let filtered = experiments
+        .iter()
+        .map(|e| match options.prefilter {
             Some(fc) => {
                 let bw = Butterworth::try_new(options.filter_order, fc, e.h())
                     .map_err(|err| rename_option(err, "prefilter", Some(e.name())))?;
-                Some(bw.filtfilt_experiment(e, &[channel::THETA_M])?)
+                Ok(Some(bw.filtfilt_experiment(e, &[channel::THETA_M])?))
             }
-            None => None,
-        };
-        let data = copy.as_ref().unwrap_or(e);
-        let view = DqView::try_new(data)?;
+            None => Ok(None),
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let views = experiments
+        .iter()
+        .zip(&filtered)
+        .map(|(e, copy)| DqView::try_new(copy.as_ref().unwrap_or(e)))
+        .collect::<Result<Vec<_>>>()?;
+    let mut weights = Vec::with_capacity(experiments.len());
+    let mut ls = StreamedLeastSquares::new(cols);
+    let mut sum = [0.0; 2];
+    for (e, view) in experiments.iter().zip(&views) {
         let (u_d, u_q) = view.terminal_voltage()?;
-        let reg = Regression::new(&view, u_d, u_q, n_p, kind);
+        let reg = Regression::new(view, u_d, u_q, n_p, kind);
         let sqrt_beta: Option<Vec<f64>> = if weighting.is_uniform() {
             None
         } else {
@@ -239,7 +245,6 @@ pub fn weighted_least_squares(
             sum[0] += u[0];
             sum[1] += u[1];
         });
-        filtered.push(copy);
         weights.push(sqrt_beta);
     }
     let rows = ls.rows();
@@ -251,10 +256,9 @@ pub fn weighted_least_squares(
     let mut segments = Vec::with_capacity(experiments.len());
     // The score β φ r summed per block of intervals, for the batch means.
     let mut scores = ScoreSeries::new(cols);
-    for ((e, copy), sqrt_beta) in experiments.iter().zip(&filtered).zip(&weights) {
-        let view = DqView::try_new(copy.as_ref().unwrap_or(e))?;
+    for (view, sqrt_beta) in views.iter().zip(&weights) {
         let (u_d, u_q) = view.terminal_voltage()?;
-        let reg = Regression::new(&view, u_d, u_q, n_p, kind);
+        let reg = Regression::new(view, u_d, u_q, n_p, kind);
         let mut blocks = BlockScores::new(cols);
         reg.for_each(|k, d, q, u| {
             let beta = sqrt_beta.as_ref().map_or(1.0, |b| b[k + 1] * b[k + 1]);

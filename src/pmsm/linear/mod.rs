@@ -12,6 +12,7 @@ mod steady_solve;
 pub use least_squares::*;
 pub use regression::regressors;
 pub(crate) use regression::{MAX_COLS, Regression, push_with_dead_time};
+pub(crate) use steady::steady_state_of;
 pub use steady::{
     PERIOD_TERM, SteadyEstimate, SteadyOptions, UNIDENTIFIABLE as STEADY_UNIDENTIFIABLE, steady_advice,
     steady_state,

@@ -5,7 +5,6 @@
 //! the inductances, which can turn them negative).
 
 use super::regression::{Regression, push_with_dead_time};
-use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::linear::StreamedLeastSquares;
 use crate::pmsm::log::signals::DqView;
@@ -13,7 +12,7 @@ use crate::pmsm::model::interval::{VoltageInput, driving_voltage};
 use crate::pmsm::model::inverter::{InverterModel, dead_time_directions};
 use crate::pmsm::model::kind::MotorKind;
 
-/// The least-squares start `(names, θ)`: the motor's parameters with the cable resistance
+/// The least-squares start `(names, θ)` of the logs `views`: the motor's parameters with the cable resistance
 /// taken out of `r_s`, and `v_dt` (clamped at 0) when `inverter` is estimated. For a
 /// salient motor, a non-positive `r_s`, `l_d` or `l_q` is replaced by the surface-magnet
 /// regression's `r_s` or `l_s`.
@@ -22,7 +21,7 @@ use crate::pmsm::model::kind::MotorKind;
 /// Those of [`applied_voltage`](crate::pmsm::model::interval::applied_voltage), [`StreamedLeastSquares::solve`] and [`dead_time_directions`]; [`Error::Numerical`] when a
 /// resistance or inductance comes out non-positive (give a start).
 pub(crate) fn least_squares_start(
-    experiments: &[Experiment],
+    views: &[DqView<'_>],
     n_p: u32,
     kind: MotorKind,
     input: VoltageInput,
@@ -31,7 +30,7 @@ pub(crate) fn least_squares_start(
 ) -> Result<(Vec<String>, Vec<f64>)> {
     crate::pmsm::log::signals::check_pole_pairs(n_p)?;
     let dead_time = inverter.filter(|i| i.known.is_none());
-    let regress = |kind: MotorKind| regress(experiments, n_p, kind, input, dead_time);
+    let regress = |kind: MotorKind| regress(views, n_p, kind, input, dead_time);
     let (names, mut theta) = regress(kind)?;
     // A salient regression with little d-axis excitation can give a non-positive `r_s` or
     // inductance: start those from the surface-magnet regression (`l_s` for both).
@@ -69,7 +68,7 @@ pub(crate) fn least_squares_start(
 /// the column `−Re d_k`, `−Im d_k` (`d_k` the per-unit error of [`dead_time_directions`])
 /// and the names `v_dt`.
 fn regress(
-    experiments: &[Experiment],
+    views: &[DqView<'_>],
     n_p: u32,
     kind: MotorKind,
     input: VoltageInput,
@@ -82,10 +81,9 @@ fn regress(
         .chain(dead_time.map(|_| "v_dt".to_string()))
         .collect();
     let mut ls = StreamedLeastSquares::new(names.len());
-    for e in experiments {
-        let v = DqView::try_new(e)?;
-        let (u_d, u_q) = driving_voltage(&v, n_p, input)?;
-        let reg = Regression::new(&v, &u_d, &u_q, n_p, kind);
+    for v in views {
+        let (u_d, u_q) = driving_voltage(v, n_p, input)?;
+        let reg = Regression::new(v, &u_d, &u_q, n_p, kind);
         let cols = reg.cols();
         match dead_time {
             None => {
@@ -95,7 +93,7 @@ fn regress(
                 });
             }
             Some(model) => {
-                let dirs = dead_time_directions(&v, n_p, model)?;
+                let dirs = dead_time_directions(v, n_p, model)?;
                 for (k, dir) in dirs.iter().enumerate().take(reg.intervals()) {
                     let (d, q, u) = reg.rows(k);
                     push_with_dead_time(&mut ls, &d[..], &q[..], [u[0], u[1]], cols, *dir);

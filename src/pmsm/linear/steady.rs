@@ -41,7 +41,8 @@ use super::steady_solve::{Solved, period_note, solve};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::Uncertainty;
-use crate::pmsm::log::signals::{DqView, check_pole_pairs};
+use crate::pmsm::log::DqLogs;
+use crate::pmsm::log::signals::check_pole_pairs;
 use crate::pmsm::model::kind::MotorKind;
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -220,10 +221,25 @@ pub fn steady_state(
 ) -> Result<SteadyEstimate> {
     check_pole_pairs(n_p)?;
     check_options(options, kind)?;
+    steady_state_of(&DqLogs::try_new(experiments)?, n_p, kind, options)
+}
+
+/// [`steady_state`] of logs validated once where the fit starts.
+///
+/// # Errors
+/// As [`steady_state`].
+pub(crate) fn steady_state_of(
+    dq: &DqLogs<'_>,
+    n_p: u32,
+    kind: MotorKind,
+    options: &SteadyOptions,
+) -> Result<SteadyEstimate> {
+    check_pole_pairs(n_p)?;
+    check_options(options, kind)?;
+    let experiments = dq.experiments();
     let mut logs = Vec::with_capacity(experiments.len());
     let mut current_noise = Vec::with_capacity(experiments.len());
-    for e in experiments {
-        let view = DqView::try_new(e)?;
+    for (e, &view) in experiments.iter().zip(dq.views()) {
         view.terminal_voltage()?;
         let sigma = [noise_sigma(view.i_d()), noise_sigma(view.i_q())];
         let floor = options.relative_floor * view.peak_current();

@@ -9,7 +9,9 @@ mod reader;
 pub(super) mod signals;
 mod split;
 pub(super) mod transform;
+mod views;
 
 pub use options::*;
 pub use reader::{LogSource, read_log, read_log_from, read_logs};
 pub use split::{DroppedSegment, LogSegments, read_log_segments, read_log_segments_from};
+pub(crate) use views::DqLogs;
