@@ -315,6 +315,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
         }),
         condition: gate::scaled_condition(&sums.jtj, &order, &diag_names),
         implausible: gate::implausible(problem, p),
+        undetermined: gate::undetermined(problem, p, &parameters, &order_all),
         white: fit.whiteness.iter().map(|w| w.is_white(n)).collect(),
         poor_fit_advice: model.poor_fit_advice(),
         // A static model's poor fit: do fits of consecutive parts agree? (Structure left

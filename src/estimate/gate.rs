@@ -22,6 +22,11 @@
 //!   the warning names the parameters that disagree;
 //! - the model declares a parameter value non-physical
 //!   ([`crate::model::GreyBoxModel::implausible`]) (`non_physical`);
+//! - the estimate is physical but a free model parameter's 95 % interval reaches values the
+//!   model declares non-physical (`undetermined`): the data cannot tell the parameter from
+//!   an impossible value (a resistance from zero), so the estimate is one point of a range
+//!   that holds impossible ones, however honest the interval (every 2000th row of a
+//!   drive-cycle log: `r_s` +128 % within [−1.3, 1.7]× its value, with exit 0 before);
 //! - a parameter sits at a bound (`parameter_at_bound`), unless every parameter at a bound
 //!   is a nuisance parameter and the Gauss–Newton step to the unconstrained minimum is
 //!   within [`BOUND_Z`] standard errors in every parameter (then `nuisance_at_bound`, a
@@ -71,6 +76,9 @@ pub(crate) struct Evidence {
     pub condition: (f64, Vec<String>),
     /// The model's messages on non-physical values.
     pub implausible: Vec<String>,
+    /// The free model parameters whose 95 % interval reaches values the model declares
+    /// non-physical ([`undetermined`]), each described with its interval.
+    pub undetermined: Vec<String>,
     /// Per output, whether its residuals pass the Ljung–Box test.
     pub white: Vec<bool>,
     /// The model's advice for a poor fit ([`crate::model::GreyBoxModel::poor_fit_advice`]).
@@ -171,6 +179,9 @@ pub(crate) fn warnings(
     if !evidence.implausible.is_empty() {
         out.push(Warning::untrusted("non_physical", evidence.implausible.join("; ")));
     }
+    if evidence.implausible.is_empty() {
+        out.extend(undetermined_warning(&evidence.undetermined));
+    }
     let stats = fit.fit_percent.iter().chain(&fit.rms_residual).chain([&fit.loss, &fit.mse]);
     let free_se = parameters.iter().filter(|p| !p.fixed && !p.at_bound).map(|p| &p.std_error);
     if stats.chain(free_se.clone()).any(|x| !x.is_finite()) {
@@ -204,6 +215,22 @@ pub(crate) fn warnings(
         ));
     }
     out
+}
+
+/// The untrusted `undetermined` warning of the parameters `described` (as
+/// [`undetermined`] describes them); `None` for none.
+pub(crate) fn undetermined_warning(described: &[String]) -> Option<Warning> {
+    (!described.is_empty()).then(|| {
+        Warning::untrusted(
+            "undetermined",
+            format!(
+                "a 95 % interval reaches values the model declares non-physical: {}. The data do not tell such an \
+                 estimate from an impossible value, so it is one point of a range that holds impossible ones: fix \
+                 the parameter at a measured value, or add data that excite it",
+                described.join("; ")
+            ),
+        )
+    })
 }
 
 /// `not_stationary` when a parameter's remaining step exceeds [`STATIONARY_STEP`] standard
@@ -279,6 +306,46 @@ pub(crate) fn scaled_condition(jtj: &Gram, order: &[usize], names: &[String]) ->
     let direction = eig.eigenvectors.column(at);
     let weak = direction.iter().zip(names).filter(|(c, _)| c.abs() >= 0.3).map(|(_, n)| n.clone()).collect();
     (if lo > 0.0 { hi / lo } else { f64::INFINITY }, weak)
+}
+
+/// The free model parameters (`parameters`' free entries, whose free indices are `order`,
+/// [`crate::estimate::assemble`]'s order) whose 95 % interval reaches, at either end, a value
+/// the model declares non-physical ([`GreyBoxModel::implausible`]) in an experiment's θ where
+/// the estimate itself is physical, each as `name ∈ [lo, hi] unit` with the model's advice
+/// on what excites it. Nuisance parameters, parameters at a bound and intervals that are
+/// not finite are left out (no interval to read).
+pub(crate) fn undetermined<M: GreyBoxModel>(
+    problem: &PemProblem<'_, M>,
+    p: &DVector<f64>,
+    parameters: &[ParameterEstimate],
+    order: &[usize],
+) -> Vec<String> {
+    let model = problem.model();
+    let thetas: Vec<Vec<f64>> = (0..problem.terms().len()).map(|e| problem.theta(e, p)).collect();
+    let mut out = Vec::new();
+    for (q, &g) in parameters.iter().filter(|q| !q.fixed).zip(order) {
+        let super::problem::FreeKind::Parameter(j) = problem.free()[g].kind else { continue };
+        if q.nuisance || q.at_bound || !q.ci95.iter().all(|c| c.is_finite()) {
+            continue;
+        }
+        let experiments = match problem.free()[g].experiment {
+            Some(e) => e..e + 1,
+            None => 0..thetas.len(),
+        };
+        let reaches = thetas[experiments].iter().any(|theta| {
+            model.implausible(theta).is_empty()
+                && q.ci95.iter().any(|&end| {
+                    let mut at = theta.clone();
+                    at[j] = end;
+                    !model.implausible(&at).is_empty()
+                })
+        });
+        if reaches {
+            let advice = model.advice(&q.name).map(|a| format!(" ({a})")).unwrap_or_default();
+            out.push(format!("{} ∈ [{:.4e}, {:.4e}] {}{advice}", q.name, q.ci95[0], q.ci95[1], q.unit));
+        }
+    }
+    out
 }
 
 /// The model's non-physical findings over every experiment's θ, each message once.

@@ -23,6 +23,8 @@ struct Regression {
     params: Vec<Parameter>,
     f: fn(&[f64], f64, f64) -> f64,
     grad: fn(&[f64], f64, f64, &mut [f64]),
+    /// The parameter the model declares positive, if any.
+    positive: Option<usize>,
 }
 
 impl GreyBoxModel for Regression {
@@ -55,6 +57,13 @@ impl GreyBoxModel for Regression {
     }
     fn sensitivities(&self) -> Option<&dyn Sensitivities<Self::Inputs, Vec<f64>>> {
         Some(self)
+    }
+    fn implausible(&self, theta: &[f64]) -> Vec<String> {
+        self.positive
+            .filter(|&j| theta[j] <= 0.0)
+            .map(|j| format!("{} = {} is not positive", self.params[j].name, theta[j]))
+            .into_iter()
+            .collect()
     }
 }
 
@@ -128,6 +137,7 @@ fn nist_nelson_is_solved_and_its_lack_of_fit_named() {
             let e = (-b[2] * x2).exp();
             d.copy_from_slice(&[1.0, -x1 * e, b[1] * x1 * x2 * e]);
         },
+        positive: None,
     };
     let data = table(
         NELSON.iter().map(|r| r.0.ln()).collect(),
@@ -189,6 +199,7 @@ fn line() -> Regression {
         params: vec![Parameter::free("a", "", 1.0), Parameter::free("b", "", 1.0)],
         f: |t, x, _| t[0] + t[1] * x,
         grad: |_, x, _, d| d.copy_from_slice(&[1.0, x]),
+        positive: None,
     }
 }
 
@@ -203,4 +214,33 @@ fn a_line_fitted_to_a_parabola_is_untrusted() {
     assert!(!r.trusted());
     let w = r.warnings.iter().find(|w| w.code == "poor_fit").expect("poor_fit");
     assert!(w.message.contains("consecutive parts"), "{}", w.message);
+}
+
+/// A slope the model declares positive, fitted where the noise hides it: the estimate is
+/// positive but its 95 % interval reaches 0, so the data do not tell it from an impossible
+/// value (`undetermined`, untrusted: issue 43's slow telemetry, where every 2000th row of a
+/// drive-cycle log gave `r_s` +128 % with an interval across zero and exit 0). The same
+/// noise under a slope well above it: trusted. The gate reads the model's own
+/// `implausible`, so a model that declares nothing is not judged so.
+#[test]
+fn an_interval_that_reaches_a_non_physical_value_is_untrusted() {
+    let x: Vec<f64> = (0..40).map(|k| -1.0 + 2.0 * f64::from(k) / 39.0).collect();
+    let mut draw = uniform(5, 2.0);
+    let noise: Vec<f64> = x.iter().map(|_| draw()).collect();
+    for (slope, positive, undetermined) in [(0.25, Some(1), true), (3.0, Some(1), false), (0.25, None, false)]
+    {
+        let model = Regression { positive, ..line() };
+        let y: Vec<f64> = x.iter().zip(&noise).map(|(x, n)| 0.5 + slope * x + n).collect();
+        let data = table(y, x.clone(), vec![0.0; x.len()]);
+        let r = fit(&model, std::slice::from_ref(&data), &[0.0, 1.0], &PemOptions::default()).unwrap();
+        let b = r.parameters.iter().find(|p| p.name == "b").unwrap();
+        assert!(b.value > 0.0, "slope {slope}: b = {}", b.value);
+        assert_eq!(b.ci95[0] <= 0.0, slope < 1.0, "slope {slope}: {:?}", b.ci95);
+        let w = r.warnings.iter().find(|w| w.code == "undetermined");
+        assert_eq!(w.is_some(), undetermined, "slope {slope}, {positive:?}: {:?}", r.warnings);
+        assert_eq!(r.trusted(), !undetermined, "slope {slope}, {positive:?}: {:?}", r.warnings);
+        if let Some(w) = w {
+            assert!(w.untrusted && w.message.contains("b ∈ [-"), "{}", w.message);
+        }
+    }
 }

@@ -6,6 +6,7 @@
 //! with the SPM equations is untrusted (`salient`), and right with the IPM ones.
 
 use crate::common::{load, rel};
+use greybox::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
 use greybox::pmsm::{MotorKind, PmsmFitOptions, fit_pmsm};
 
 /// R_s within 0.5 % and K_e within 0.05 % (issue 43), trusted; on the noisy log both within
@@ -79,5 +80,24 @@ fn point_sampled_telemetry_in_the_dynamic_range_takes_the_steady_state_equations
             assert!(rel(p.value, truth).abs() < within, "{stem}: {name}");
         }
         assert!(fit.trusted(), "{stem}: {:?}", fit.warnings);
+    }
+}
+
+/// Every 2000th row of the drive simulator's 8 s exp3 log (41 samples at 5 Hz): the
+/// steady-state equations' intervals of r_s, l_s and k_e all reach below zero (r_s within
+/// about ±10 times its value), which passed with exit 0 before; now untrusted
+/// (`undetermined`), naming each with its interval. Needs no development logs.
+#[test]
+fn telemetry_that_cannot_tell_a_parameter_from_zero_is_untrusted() {
+    let cfg = DriveConfig { duration: 8.0, ..scenario("exp3", SPM_MOTOR).unwrap() };
+    let e = simulate_drive(&cfg).unwrap().experiment.decimate(2000).unwrap();
+    let fit = fit_pmsm(std::slice::from_ref(&e), &PmsmFitOptions::new(4)).unwrap();
+    assert_eq!(fit.report.model, "pmsm_spm_steady");
+    let w = fit.warnings.iter().find(|w| w.code == "undetermined").expect("undetermined");
+    assert!(w.untrusted && !fit.trusted(), "{:?}", fit.warnings);
+    for name in ["r_s", "l_s", "k_e"] {
+        let p = fit.parameter(name).unwrap();
+        assert!(p.value > 0.0 && p.ci95[0] < 0.0, "{name}: {} {:?}", p.value, p.ci95);
+        assert!(w.message.contains(&format!("{name} ∈ [-")), "{name}: {}", w.message);
     }
 }

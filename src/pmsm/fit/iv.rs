@@ -341,9 +341,11 @@ fn report(oe: PmsmFit, (theta, cov, iterations, converged): Solved, fit_s: f64) 
         .report
         .warnings
         .iter()
-        .filter(|w| w.code != "input_noise" && w.code != "voltage_noise_bias")
+        .filter(|w| !["input_noise", "voltage_noise_bias", "undetermined"].contains(&w.code.as_str()))
         .cloned()
         .collect();
+    // The output-error intervals' verdict replaced by these intervals'.
+    warnings.extend(crate::estimate::gate::undetermined_warning(&kind.undetermined(&parameters)));
     if !converged {
         warnings.push(crate::estimate::Warning::untrusted(
             "not_converged",

@@ -169,10 +169,13 @@ fn gate(est: &SteadyEstimate, report: &FitResult) -> Vec<crate::estimate::Warnin
             est.kind.implausible(&theta)
         })
         .collect();
+    // A physical estimate whose 95 % interval reaches non-physical values.
+    let undetermined = est.kind.undetermined(&report.parameters);
     let evidence = crate::estimate::gate::Evidence {
         remaining: Vec::new(),
         condition: (report.diagnostics.condition_number, Vec::new()),
         implausible,
+        undetermined,
         white: est.whiteness.iter().map(|w| w.is_white(est.steady_samples)).collect(),
         poor_fit_advice: Some(
             "the steady samples do not follow the steady-state equations: check the columns, units and signs, \

@@ -5,6 +5,7 @@
 //! speed or a d-current injection, `L` current transients or `i_d ≠ 0` at speed. Derived
 //! quantities after MODEL.md §2: `K_t = √(3/2) K_e` \[N m/A\], `ψ_f = √(2/3) K_e / n_p` \[V s\].
 
+use crate::estimate::ParameterEstimate;
 use crate::model::DerivedEstimate;
 use crate::model::Parameter;
 use serde::{Deserialize, Serialize};
@@ -140,6 +141,31 @@ impl MotorKind {
                     "a motor's resistance and inductances are positive: check the columns and their units"
                 };
                 format!("{} = {v:.4e} {} is not positive: {why}", p.name, p.unit)
+            })
+            .collect()
+    }
+    /// The entries of `parameters` (named as the table, `name[log]` per log) whose 95 %
+    /// interval reaches a value [`implausible`](Self::implausible) finds while the estimate
+    /// is physical, each as `name ∈ [lo, hi] unit (advice)`: the trust gate's `undetermined`
+    /// ([`crate::estimate::gate`]) for the estimators that form their own intervals (the
+    /// steady-state equations, instrumental variables). Fixed and nuisance parameters,
+    /// parameters at a bound and intervals that are not finite are left out.
+    pub(crate) fn undetermined(self, parameters: &[ParameterEstimate]) -> Vec<String> {
+        let at = |name: &str, value: f64| {
+            let base = name.split('[').next().unwrap_or(name);
+            let Some(k) = self.table().iter().position(|p| p.name == base) else { return false };
+            // The other entries at a physical 1.
+            let mut theta = vec![1.0; self.table().len()];
+            theta[k] = value;
+            !self.implausible(&theta).is_empty()
+        };
+        parameters
+            .iter()
+            .filter(|q| !(q.fixed || q.nuisance || q.at_bound) && q.ci95.iter().all(|c| c.is_finite()))
+            .filter(|q| !at(&q.name, q.value) && q.ci95.iter().any(|&end| at(&q.name, end)))
+            .map(|q| {
+                let advice = self.advice(&q.name).map(|a| format!(" ({a})")).unwrap_or_default();
+                format!("{} ∈ [{:.4e}, {:.4e}] {}{advice}", q.name, q.ci95[0], q.ci95[1], q.unit)
             })
             .collect()
     }
