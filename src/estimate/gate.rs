@@ -24,9 +24,9 @@
 //!   ([`crate::model::GreyBoxModel::implausible`]) (`non_physical`);
 //! - the estimate is physical but a free model parameter's 95 % interval reaches values the
 //!   model declares non-physical (`undetermined`): the data cannot tell the parameter from
-//!   an impossible value (a resistance from zero), so the estimate is one point of a range
-//!   that holds impossible ones, however honest the interval (every 2000th row of a
-//!   drive-cycle log: `r_s` +128 % within [−1.3, 1.7]× its value, with exit 0 before);
+//!   an impossible value, so the estimate is one point of a range that holds impossible
+//!   ones, however honest the interval (slow telemetry whose intervals spanned zero left
+//!   with exit 0 before: docs/warnings.md);
 //! - a parameter sits at a bound (`parameter_at_bound`), unless every parameter at a bound
 //!   is a nuisance parameter and the Gauss–Newton step to the unconstrained minimum is
 //!   within [`BOUND_Z`] standard errors in every parameter (then `nuisance_at_bound`, a
