@@ -341,11 +341,17 @@ pub(crate) fn undetermined<M: GreyBoxModel>(
                 })
         });
         if reaches {
-            let advice = model.advice(&q.name).map(|a| format!(" ({a})")).unwrap_or_default();
-            out.push(format!("{} ∈ [{:.4e}, {:.4e}] {}{advice}", q.name, q.ci95[0], q.ci95[1], q.unit));
+            out.push(undetermined_entry(q, model.advice(&q.name)));
         }
     }
     out
+}
+
+/// One entry of [`undetermined`]'s list: `name ∈ [lo, hi] unit`, then the `advice` on what
+/// excites the parameter in parentheses.
+pub(crate) fn undetermined_entry(q: &ParameterEstimate, advice: Option<String>) -> String {
+    let advice = advice.map(|a| format!(" ({a})")).unwrap_or_default();
+    format!("{} ∈ [{:.4e}, {:.4e}] {}{advice}", q.name, q.ci95[0], q.ci95[1], q.unit)
 }
 
 /// The model's non-physical findings over every experiment's θ, each message once.

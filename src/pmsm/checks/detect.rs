@@ -22,9 +22,9 @@ use crate::error::{Error, Result};
 use crate::estimate::{FitResult, Warning};
 use crate::pmsm::checks::scan::BASE;
 pub(crate) use crate::pmsm::checks::scan::scan_gram;
-use crate::pmsm::log::DqLogs;
 use crate::pmsm::log::Scale;
 use crate::pmsm::log::signals::DqView;
+use crate::pmsm::log::{DqLogs, longest_h};
 use nalgebra::{DMatrix, DVector};
 
 /// Candidates of `--pole-pairs auto` and of the pole-pair check.
@@ -304,7 +304,7 @@ fn sample_time_check(views: &[DqView<'_>], n_p: u32, fit: &FitResult) -> Option<
 /// smallest inductance `l` \[H\] ([`sample_time_check`]'s conditions), or `None`: the
 /// facts of [`sample_time_facts`] and the question whether the time column is in ms.
 pub(crate) fn sample_time_problem(views: &[DqView<'_>], n_p: u32, r: f64, l: f64) -> Option<String> {
-    let h = views.iter().map(DqView::h).fold(0.0, f64::max);
+    let h = longest_h(views);
     sample_time_facts(views, n_p, r, l).map(|facts| {
         format!("{facts}. A time column in milliseconds? (--time-unit ms gives h = {:e} s)", h * 1e-3)
     })
@@ -313,7 +313,7 @@ pub(crate) fn sample_time_problem(views: &[DqView<'_>], n_p: u32, r: f64, l: f64
 /// The facts of [`sample_time_problem`] alone: the sample time in electrical time
 /// constants and the rotor's turn per sample, when the model cannot resolve them.
 pub(crate) fn sample_time_facts(views: &[DqView<'_>], n_p: u32, r: f64, l: f64) -> Option<String> {
-    let h = views.iter().map(DqView::h).fold(0.0, f64::max);
+    let h = longest_h(views);
     let w = views.iter().map(|v| v.w_m().iter().fold(0.0f64, |m, x| m.max(x.abs()))).fold(0.0, f64::max);
     let (tau, turn) = (l / r, f64::from(n_p) * w * h);
     let slow = tau.is_finite() && tau > 0.0 && h > MAX_H_OVER_TAU * tau;

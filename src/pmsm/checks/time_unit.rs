@@ -14,6 +14,7 @@
 
 use super::detect::speed_sums;
 use super::scan::{BASE, scan_gram};
+use crate::pmsm::log::longest_h;
 use crate::pmsm::log::signals::DqView;
 use crate::pmsm::model::interval::VoltageInput;
 
@@ -67,7 +68,7 @@ fn derivative_ratio(views: &[DqView<'_>], n_p: u32) -> Option<f64> {
 /// Why the logs `views` look like a fast log with its time column in ms or µs read as s, or
 /// `None` (module documentation).
 pub(crate) fn time_unit_mistake(views: &[DqView<'_>], n_p: u32) -> Option<String> {
-    let h = views.iter().map(DqView::h).fold(0.0, f64::max);
+    let h = longest_h(views);
     let fix = |f: f64, unit: &str| {
         let flag = if unit == "milliseconds" { "ms" } else { "us" };
         format!("the time column is in {unit}? (--time-unit {flag} gives h = {:.4e} s)", h / f)

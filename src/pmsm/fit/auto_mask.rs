@@ -3,8 +3,8 @@
 
 use crate::error::{Error, Result};
 use crate::pmsm::fit::report::PmsmFit;
-use crate::pmsm::log::DqLogs;
 use crate::pmsm::log::signals::DqView;
+use crate::pmsm::log::{DqLogs, longest_h, peak_current};
 use crate::pmsm::model::inverter::InverterModel;
 use crate::pmsm::model::mask::{AUTO_ITERATIONS, DeadTimeMask};
 use crate::pmsm::options::{PmsmFitOptions, RefitLoss};
@@ -16,7 +16,7 @@ pub const FALLBACK_RELATIVE_THRESHOLD: f64 = 0.05;
 /// `4 h V_dt / L` \[A\] from a fit (`h` the longest sample time of the logs, `L` the smallest
 /// inductance estimate), or `None` when that is not positive and finite.
 fn auto_threshold(views: &[DqView<'_>], fit: &PmsmFit) -> Option<f64> {
-    let h = views.iter().map(DqView::h).fold(0.0, f64::max);
+    let h = longest_h(views);
     let l = crate::pmsm::model::kind::smallest_inductance(fit);
     let v_dt = fit.parameter("v_dt").map_or(f64::NAN, |p| p.value);
     Some(4.0 * h * v_dt / l).filter(|t| t.is_finite() && *t > 0.0)
@@ -24,7 +24,7 @@ fn auto_threshold(views: &[DqView<'_>], fit: &PmsmFit) -> Option<f64> {
 
 /// [`FALLBACK_RELATIVE_THRESHOLD`] × the largest `|i_dq|` of the logs \[A\].
 fn fallback_threshold(views: &[DqView<'_>]) -> Result<f64> {
-    let peak = views.iter().map(DqView::peak_current).fold(0.0, f64::max);
+    let peak = peak_current(views);
     Some(FALLBACK_RELATIVE_THRESHOLD * peak).filter(|t| t.is_finite() && *t > 0.0).ok_or_else(|| {
         Error::Numerical {
             context: "dead-time mask".into(),

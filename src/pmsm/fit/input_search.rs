@@ -14,7 +14,7 @@ use crate::pmsm::fit::report::delay_parameter;
 use crate::pmsm::fit::search::{SPEED_PLL_RANGE, golden_search};
 use crate::pmsm::fit::workflow::{fit_dq, fit_pmsm};
 use crate::pmsm::log::DqLogs;
-use crate::pmsm::log::signals::DqView;
+use crate::pmsm::log::peak_current;
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::inverter::InverterModel;
 use crate::pmsm::model::pwm::PwmInverter;
@@ -149,7 +149,7 @@ pub fn fit_estimating_input(
     };
     let width = match (search.dead_time_width, options.inverter) {
         (true, Some(_)) => {
-            let peak = dq.views().iter().map(DqView::peak_current).fold(0.0, f64::max);
+            let peak = peak_current(dq.views());
             let range = (1e-3 * peak, 0.3 * peak);
             let w = golden_search(range, true, |w| loss(fit_with(delay, advance, speed_pll, Some(w))))?;
             notes.push(format!("dead-time sign width estimated as {w:.4} A by the lowest loss"));

@@ -8,8 +8,8 @@ use crate::data::Experiment;
 use crate::error::Result;
 use crate::model::GreyBoxModel;
 use crate::pmsm::linear::start::least_squares_start;
-use crate::pmsm::log::DqLogs;
 use crate::pmsm::log::signals::{DqView, channel};
+use crate::pmsm::log::{DqLogs, peak_current};
 use crate::pmsm::model::inverter::InverterModel;
 use crate::pmsm::model::pwm::{CarrierEdge, PmsmPwm, PwmInverter};
 use crate::pmsm::model::setup::PmsmSetup;
@@ -111,7 +111,7 @@ pub(crate) fn continuation<'a>(
     if pwm.i_w.is_some() {
         return Vec::new();
     }
-    let peak = views.iter().map(DqView::peak_current).fold(0.0, f64::max);
+    let peak = peak_current(views);
     let stage_names: Vec<&'a str> = names.iter().copied().filter(|n| *n != "i_w").collect();
     CONTINUATION_WIDTHS
         .iter()

@@ -18,7 +18,7 @@ use crate::pmsm::checks::time_unit::time_unit_mistake;
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::linear::{PERIOD_TERM, SteadyEstimate, SteadyOptions, steady_advice, steady_state_of};
 use crate::pmsm::log::DqLogs;
-use crate::pmsm::log::signals::DqView;
+use crate::pmsm::log::longest_h;
 use crate::pmsm::model::interval::{SQRT_2_3, VoltageHold, VoltageInput};
 use crate::pmsm::model::kind::{MotorKind, derived, smallest_inductance};
 use crate::pmsm::options::{Dynamics, HoldChoice, PmsmFitOptions};
@@ -148,7 +148,7 @@ pub(crate) fn chosen_up_front(dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Opti
             Some(format!(
                 "the rotor turns half an electrical turn or more within one sample (h = {:.4e} s), which no \
                      dynamic model of a held voltage can follow",
-                dq.views().iter().map(DqView::h).fold(0.0, f64::max)
+                longest_h(dq.views())
             ))
             })
         }
@@ -160,15 +160,8 @@ pub(crate) fn chosen_up_front(dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Opti
 /// equation errors, non-positive parameters (each entry, per log too), non-finite
 /// statistics, a singular information matrix.
 fn gate(est: &SteadyEstimate, report: &FitResult) -> Vec<crate::estimate::Warning> {
-    let implausible = (0..est.theta.len())
-        .flat_map(|j| {
-            let mut theta = vec![1.0; est.kind.parameter_names().len()];
-            if let Some(k) = est.kind.parameter_names().iter().position(|n| *n == est.names[j]) {
-                theta[k] = est.theta[j];
-            }
-            est.kind.implausible(&theta)
-        })
-        .collect();
+    let implausible =
+        (0..est.theta.len()).flat_map(|j| est.kind.implausible_entry(&est.names[j], est.theta[j])).collect();
     // A physical estimate whose 95 % interval reaches non-physical values.
     let undetermined = est.kind.undetermined(&report.parameters);
     let evidence = crate::estimate::gate::Evidence {

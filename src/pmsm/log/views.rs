@@ -38,3 +38,14 @@ impl<'a> DqLogs<'a> {
         &self.views
     }
 }
+
+/// The longest sample time `max h` of the logs `views` \[s\] (0 for none).
+pub(crate) fn longest_h(views: &[DqView<'_>]) -> f64 {
+    views.iter().map(DqView::h).fold(0.0, f64::max)
+}
+
+/// The largest current magnitude `max |i_dq|` of the logs `views` \[A, peak\]
+/// ([`DqView::peak_current`] of each; 0 for none).
+pub(crate) fn peak_current(views: &[DqView<'_>]) -> f64 {
+    views.iter().map(DqView::peak_current).fold(0.0, f64::max)
+}

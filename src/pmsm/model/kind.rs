@@ -151,23 +151,23 @@ impl MotorKind {
     /// steady-state equations, instrumental variables). Fixed and nuisance parameters,
     /// parameters at a bound and intervals that are not finite are left out.
     pub(crate) fn undetermined(self, parameters: &[ParameterEstimate]) -> Vec<String> {
-        let at = |name: &str, value: f64| {
-            let base = name.split('[').next().unwrap_or(name);
-            let Some(k) = self.table().iter().position(|p| p.name == base) else { return false };
-            // The other entries at a physical 1.
-            let mut theta = vec![1.0; self.table().len()];
-            theta[k] = value;
-            !self.implausible(&theta).is_empty()
-        };
+        let at = |name: &str, value: f64| !self.implausible_entry(name, value).is_empty();
         parameters
             .iter()
             .filter(|q| !(q.fixed || q.nuisance || q.at_bound) && q.ci95.iter().all(|c| c.is_finite()))
             .filter(|q| !at(&q.name, q.value) && q.ci95.iter().any(|&end| at(&q.name, end)))
-            .map(|q| {
-                let advice = self.advice(&q.name).map(|a| format!(" ({a})")).unwrap_or_default();
-                format!("{} ∈ [{:.4e}, {:.4e}] {}{advice}", q.name, q.ci95[0], q.ci95[1], q.unit)
-            })
+            .map(|q| crate::estimate::gate::undetermined_entry(q, self.advice(&q.name)))
             .collect()
+    }
+    /// [`implausible`](Self::implausible) of the entry `name` (the table's, `name[log]` per
+    /// log) at `value`, the other entries at a physical 1; none for a name the table lacks
+    /// (a nuisance term such as the steady-state equations' control period).
+    pub(crate) fn implausible_entry(self, name: &str, value: f64) -> Vec<String> {
+        let base = name.split('[').next().unwrap_or(name);
+        let Some(k) = self.table().iter().position(|p| p.name == base) else { return Vec::new() };
+        let mut theta = vec![1.0; self.table().len()];
+        theta[k] = value;
+        self.implausible(&theta)
     }
     /// Advice for a poorly determined parameter `name` (with or without `[experiment]`).
     pub fn advice(self, name: &str) -> Option<String> {
