@@ -251,6 +251,7 @@ pub(super) fn fit_from_start(dq: &DqLogs<'_>, options: &PmsmFitOptions, names: &
                 Ok(m)
             };
             let fit_by = |pem: &PemOptions,
+                          experiments: &[Experiment],
                           pwm: PwmInverter,
                           input: VoltageInput,
                           start: &[f64],
@@ -275,20 +276,23 @@ pub(super) fn fit_from_start(dq: &DqLogs<'_>, options: &PmsmFitOptions, names: &
                 )
             };
             let stage_pem = crate::pmsm::options::stage_options(&pem);
-            let fit =
-                |pwm: PwmInverter,
-                 input: VoltageInput,
-                 start: &[f64],
-                 names: &[&str],
-                 weighting: &dyn Weighting,
-                 held: &[&str]| fit_by(&pem, pwm, input, start, names, weighting, held);
-            let stage_fit = |pwm: PwmInverter,
+            let fit = |experiments: &[Experiment],
+                       pwm: PwmInverter,
+                       input: VoltageInput,
+                       start: &[f64],
+                       names: &[&str],
+                       weighting: &dyn Weighting,
+                       held: &[&str]| {
+                fit_by(&pem, experiments, pwm, input, start, names, weighting, held)
+            };
+            let stage_fit = |experiments: &[Experiment],
+                             pwm: PwmInverter,
                              input: VoltageInput,
                              start: &[f64],
                              names: &[&str],
                              weighting: &dyn Weighting,
                              held: &[&str]| {
-                fit_by(&stage_pem, pwm, input, start, names, weighting, held)
+                fit_by(&stage_pem, experiments, pwm, input, start, names, weighting, held)
             };
             let model = |pwm: PwmInverter, input: VoltageInput| model_at(VoltageHold::Stator, pwm, input);
             let (fits, chosen, inverter) = super::pwm_fit::stages(

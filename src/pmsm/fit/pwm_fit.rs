@@ -3,7 +3,7 @@
 //! then its sign mask ([`super::pwm_mask`]) and the final fit without the masked samples.
 
 use super::pwm_leg_state::{Final, Fit, OwnMask, Sides, on_own_mask};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::estimate::{FitResult, Warning, Weighting};
 use crate::pmsm::fit::hold::HoldFits;
 use crate::pmsm::log::DqLogs;
@@ -20,6 +20,11 @@ use crate::pmsm::model::pwm::{PmsmPwm, PwmInverter};
 /// searched when `pwm.search_speed_pll`) and the inverter of the final fits (its leg state
 /// chosen).
 ///
+/// The continuation and the loop's first search take a share of each log's periods
+/// ([`super::pwm_start::leading_logs`]): they lead into the loss's basin; the unmasked fit
+/// (whose width decides the leg state), the mask, the masked fits and the loop's second
+/// search, whose likelihood-ratio set is the one reported, take every sample.
+///
 /// A width `i_w` estimated by the unmasked fit is held at its estimate in the masked one:
 /// only the samples near a zero crossing tell it, and the mask weights those out. That fit
 /// is then compared with the sign's on the same samples, and the lower loss kept (the
@@ -27,7 +32,7 @@ use crate::pmsm::model::pwm::{PmsmPwm, PwmInverter};
 ///
 /// With `checked` false (a nested fit without setup checks) the loop's likelihood-ratio set
 /// is not scanned and the fit not repeated at its ends (`loop_ambiguous` is a check): the
-/// same final fit, without the ~25 one-step passes of each scan.
+/// same final fit, without the scan's extra one-step passes.
 ///
 /// Under current noise (the final criterion compensated) a loop found is compared with
 /// the logged angle and speed, each by the compensated criterion of its own final fit on
@@ -58,10 +63,15 @@ pub(crate) fn stages(
     // nested fit of a part of the log that started at the whole fit's estimate would stay in
     // its basin, and the parts' agreement would not test whether that basin is the minimum.
     let experiments = dq.experiments();
+    // The continuation and the loop's first search take a share of each log's periods
+    // ([`super::pwm_start::leading_logs`]); the unmasked fit, the mask and the masked fits
+    // take them all.
+    let leading = super::pwm_start::leading_logs(experiments)?;
+    let lead = leading.as_deref().unwrap_or(experiments);
     let mut last: Option<(FitResult, PwmInverter)> = None;
     for (stage, stage_names) in super::pwm_start::continuation(dq.views(), pwm, names) {
         let s = super::pwm_start::carried(last.as_ref().map(|l| &l.0), &stage_names, start, names);
-        let fitted = stage_fit(stage, input, &s, &stage_names, weighting, &[])?;
+        let fitted = stage_fit(lead, stage, input, &s, &stage_names, weighting, &[])?;
         last = Some((fitted.best.1, stage));
     }
     // A width given (no continuation) goes through the same stages from the start: the
@@ -76,28 +86,30 @@ pub(crate) fn stages(
         }
         None => start.to_vec(),
     };
-    let unmasked = stage_fit(*pwm, input, &theta, names, weighting, &[])?;
+    let unmasked = stage_fit(experiments, *pwm, input, &theta, names, weighting, &[])?;
     let theta = super::pwm_start::carried(Some(&unmasked.best.1), names, &theta, names);
     // The controller's loop where the model is closest to the log: at the unmasked estimate,
     // on the samples whose signs are no coin toss there. On all samples the loss along the
     // loop's bandwidth is dominated by the sign flips a noisy current turns (each a spike of
     // `U_dc t_d / L`): with 0.05 A of noise per phase on the shared 3 µs log the search then
     // scattered over 1560 … 3270 rad/s around the drive's 2224, and the estimates with it.
-    let (input, set) = if pwm.search_speed_pll {
-        let (coin_tosses, _) =
-            super::pwm_mask::sign_mask(experiments, &model(*pwm, input)?, &theta, weighting)?;
-        let found = super::pwm_loop::search_speed_pll(
-            experiments,
-            input,
-            &theta,
-            &coin_tosses,
-            &|i| model(*pwm, i),
-            checked,
-        )?;
+    // Whether a loop was found (not the logged frame).
+    let (input, looped) = if pwm.search_speed_pll {
+        let at = model(*pwm, input)?;
+        // A piece of the share may hold no sample the coin tosses leave (a wrong delay's
+        // residuals make the margin wide): then the search takes every sample.
+        let (logs, coin_tosses) = match super::pwm_mask::sign_mask(lead, &at, &theta, weighting) {
+            Err(Error::TooShort { .. }) if leading.is_some() => {
+                (experiments, super::pwm_mask::sign_mask(experiments, &at, &theta, weighting)?.0)
+            }
+            other => (lead, other?.0),
+        };
+        let found =
+            super::pwm_loop::search_speed_pll(logs, input, &theta, &coin_tosses, &|i| model(*pwm, i), false)?;
         notes.extend(found.note);
-        (found.input, found.set)
+        (found.input, found.set.is_some())
     } else {
-        (input, None)
+        (input, false)
     };
     // The samples whose sign is a coin toss at that estimate, weighted out.
     let (mask, note) = super::pwm_mask::sign_mask(experiments, &model(*pwm, input)?, &theta, weighting)?;
@@ -107,10 +119,10 @@ pub(crate) fn stages(
     let mut last = if pwm.estimate_i_w {
         // At the width held, the masked fit is a start (of the sign's fit) and a loss to
         // compare with the sign's: at the stages' tolerance, converged only if it is kept.
-        let fits = stage_fit(*pwm, input, &theta, &names, &mask, &["i_w"])?;
+        let fits = stage_fit(experiments, *pwm, input, &theta, &names, &mask, &["i_w"])?;
         super::pwm_leg_state::leg_state(&sides, fits, &names, &theta, &mask, notes)?
     } else {
-        let fits = fit(*pwm, input, &theta, &names, &mask, &[])?;
+        let fits = fit(experiments, *pwm, input, &theta, &names, &mask, &[])?;
         match super::pwm_leg_state::compensate(&sides, *pwm, &fits, &names, &theta, &mask, notes)? {
             Some((fits, compensated)) => {
                 Final { fits, inverter: *pwm, names, start: theta, own_mask: Some(compensated) }
@@ -134,23 +146,25 @@ pub(crate) fn stages(
         last.start = start;
         last.own_mask = Some(again);
     }
-    let Some(mut set) = set else { return Ok((last.fits, input, last.inverter)) };
+    if !looped {
+        return Ok((last.fits, input, last.inverter));
+    }
     let final_weighting: &dyn Weighting = match &last.own_mask {
         Some(m) => m,
         None => &mask,
     };
     let start = super::pwm_start::carried(Some(&last.fits.best.1), &last.names, &last.start, &last.names);
-    // The loop again at the final estimate: at the unmasked one the search's bandwidth also
-    // made up for that estimate's bias (0.05 A per phase: 6700 rad/s for the drive's 2224).
-    // Its likelihood-ratio set is scanned only if it moves (the first search's set holds
-    // otherwise).
+    // The loop again at the final estimate on every sample: at the unmasked one (on the
+    // leading share) the search's bandwidth also made up for that estimate's bias (0.05 A
+    // per phase: 6700 rad/s for the drive's 2224). Its likelihood-ratio set is scanned here,
+    // at the final estimate.
     let again = super::pwm_loop::search_speed_pll(
         experiments,
         input,
         &start,
         final_weighting,
         &|i| model(last.inverter, i),
-        false,
+        checked,
     )?;
     let moved = match (again.input, input) {
         (
@@ -162,22 +176,15 @@ pub(crate) fn stages(
     let mut input = input;
     if moved {
         notes.extend(again.note.map(|n| format!("at the final estimate, {n}: refitted there")));
-        last.fits = fit(last.inverter, again.input, &start, &last.names, final_weighting, held)?;
+        last.fits = fit(experiments, last.inverter, again.input, &start, &last.names, final_weighting, held)?;
         input = again.input;
-        // The set of the search that moved (scanned only now: unused when it does not).
-        let scanned = match (checked, again.set) {
-            (true, Some(_)) => {
-                super::pwm_loop::scanned_set(experiments, input, &start, final_weighting, &|i| {
-                    model(last.inverter, i)
-                })?
-            }
-            (_, found) => found,
-        };
-        set = match scanned {
-            Some(s) => s,
-            None => return Ok((last.fits, input, last.inverter)),
-        };
     }
+    let Some([lo, hi]) = again.set else { return Ok((last.fits, input, last.inverter)) };
+    // The loop kept where the search did not move it lies in the set it reports.
+    let set = match input {
+        VoltageInput::Reference { speed_pll: Some(a), .. } => [lo.min(a), hi.max(a)],
+        _ => [lo, hi],
+    };
     // Under current noise, the loop against the logged frame by the compensated criterion
     // of each one's own fit (`pwm_loop::logged_or_loop`).
     if let (Some(correction), VoltageInput::Reference { delay, advance, speed_pll: Some(alpha) }) =
@@ -185,7 +192,7 @@ pub(crate) fn stages(
     {
         let logged = VoltageInput::Reference { delay, advance, speed_pll: None };
         let start = super::pwm_start::carried(Some(&last.fits.best.1), &last.names, &last.start, &last.names);
-        let other = fit(last.inverter, logged, &start, &last.names, final_weighting, held)?;
+        let other = fit(experiments, last.inverter, logged, &start, &last.names, final_weighting, held)?;
         let (take, note) = super::pwm_loop::logged_or_loop(
             &last.fits.best.1,
             &other.best.1,
@@ -205,7 +212,7 @@ pub(crate) fn stages(
         let start = super::pwm_start::carried(Some(&last.fits.best.1), &last.names, &last.start, &last.names);
         let refit = |a: f64| {
             let at = VoltageInput::Reference { delay, advance, speed_pll: Some(a) };
-            fit(last.inverter, at, &start, &last.names, final_weighting, held).map(|f| f.best.1)
+            fit(experiments, last.inverter, at, &start, &last.names, final_weighting, held).map(|f| f.best.1)
         };
         let (warning, note) = super::pwm_loop::ambiguity(&last.fits.best.1, alpha, set, &motor, &refit)?;
         notes.push(note);

@@ -60,7 +60,7 @@ pub(super) fn leg_state<'w, 'n>(
     let sign = PwmInverter { i_w: None, estimate_i_w: false, ..*pwm };
     let sign_names: Vec<&'n str> = names.iter().copied().filter(|n| *n != "i_w").collect();
     let sign_start = super::pwm_start::carried(Some(&fits.best.1), &sign_names, theta, names);
-    let sign_fits = fit(sign, input, &sign_start, &sign_names, mask, &[])?;
+    let sign_fits = fit(sides.experiments, sign, input, &sign_start, &sign_names, mask, &[])?;
     let (width, hard) = (fits.best.1.fit.loss, sign_fits.best.1.fit.loss);
     let i_w = fits.best.1.parameter("i_w").map_or(f64::NAN, |p| p.value);
     let noise = start_noise(sides, sign, &sign_fits, mask, notes)?;
@@ -100,7 +100,7 @@ pub(super) fn leg_state<'w, 'n>(
             let compensated = mask.compensated(correction);
             let at =
                 super::pwm_start::carried(Some(&sign_fits.best.1), &sign_names, &sign_start, &sign_names);
-            let fits = fit(sign, input, &at, &sign_names, &compensated, &[])?;
+            let fits = fit(sides.experiments, sign, input, &at, &sign_names, &compensated, &[])?;
             Some((fits, compensated))
         }
         None => None,
@@ -133,7 +133,8 @@ pub(super) fn leg_state<'w, 'n>(
             {
                 // Both on the sign's own samples, the width at the stages' tolerance (its
                 // loss an upper bound on its minimum there).
-                let width_again = (sides.stage_fit)(*pwm, input, &start, names, &again, &["i_w"])?;
+                let width_again =
+                    (sides.stage_fit)(sides.experiments, *pwm, input, &start, names, &again, &["i_w"])?;
                 let (w, h) = (width_again.best.1.fit.loss, sign_again.best.1.fit.loss);
                 kept = format!(
                     "the width; then on the sign's own mask ({mask_note}) the width {w:.6e} against the sign \
@@ -153,7 +154,7 @@ pub(super) fn leg_state<'w, 'n>(
             }
             notes.push(note + &kept);
             // Converged from the stages' tolerance, on the width's samples.
-            let fits = fit(*pwm, input, &start, names, mask, &["i_w"])?;
+            let fits = fit(sides.experiments, *pwm, input, &start, names, mask, &["i_w"])?;
             Final { fits, inverter: *pwm, names: names.to_vec(), start, own_mask: None }
         }
     })
@@ -189,7 +190,7 @@ pub(super) fn on_own_mask<'w>(
     if again.same_samples(mask) {
         return Ok(None);
     }
-    let fits = (sides.fit)(inverter, sides.input, &at, names, &again, held)?;
+    let fits = (sides.fit)(sides.experiments, inverter, sides.input, &at, names, &again, held)?;
     Ok(Some(OwnMask { mask: again, fits, start: at, note }))
 }
 
@@ -228,7 +229,10 @@ pub(super) fn compensate<'w>(
     let start = super::pwm_start::carried(Some(&fits.best.1), names, start, names);
     let compensated = mask.compensated(correction);
     let held: &[&str] = if inverter.estimate_i_w { &["i_w"] } else { &[] };
-    Ok(Some(((sides.fit)(inverter, sides.input, &start, names, &compensated, held)?, compensated)))
+    Ok(Some((
+        (sides.fit)(sides.experiments, inverter, sides.input, &start, names, &compensated, held)?,
+        compensated,
+    )))
 }
 
 /// The criterion's compensation for the measured current's noise on the start of the
@@ -298,6 +302,7 @@ pub(super) struct Final<'w, 'n> {
     pub(super) own_mask: Option<super::pwm_mask::SignMask<'w>>,
 }
 
-/// One PWM fit: (inverter, input, start, names, weighting, parameters held at their start).
-pub(crate) type Fit<'a> =
-    dyn Fn(PwmInverter, VoltageInput, &[f64], &[&str], &dyn Weighting, &[&str]) -> Result<HoldFits> + 'a;
+/// One PWM fit: (logs, inverter, input, start, names, weighting, parameters held at their
+/// start).
+pub(crate) type Fit<'a> = dyn Fn(&[Experiment], PwmInverter, VoltageInput, &[f64], &[&str], &dyn Weighting, &[&str]) -> Result<HoldFits>
+    + 'a;

@@ -25,7 +25,7 @@ use crate::data::Experiment;
 use crate::error::Result;
 use crate::estimate::{CriterionCorrection, FitResult, Warning, Weighting};
 use crate::model::GreyBoxModel;
-use crate::pmsm::fit::search::{COARSE, SPEED_PLL_RANGE, brent_search, grid};
+use crate::pmsm::fit::search::{COARSE, SPEED_PLL_RANGE, brent_search};
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::pwm::PmsmPwm;
 
@@ -87,24 +87,12 @@ impl LoopLoss<'_> {
 
     /// The bandwidths whose loss `V` the likelihood-ratio test does not reject against the
     /// loss `with` at `alpha` over `counted` residuals, among the points `scan` (bandwidth
-    /// \[rad/s\], loss) of a log-spaced scan of [`SET_SCAN`] ([`set_scan`](Self::set_scan)):
+    /// \[rad/s\], loss) of the search's log-spaced scan of [`SET_SCAN`]:
     /// `[lo, hi]` \[rad/s\].
     fn set(alpha: f64, with: f64, counted: usize, scan: &[(f64, f64)]) -> [f64; 2] {
         let n = (2 * counted) as f64;
         let kept = scan.iter().filter(|(_, v)| (v - with) * n / with < CHI2_1_95).map(|(a, _)| *a);
         kept.fold([alpha, alpha], |[lo, hi], a| [lo.min(a), hi.max(a)])
-    }
-
-    /// The losses of the log-spaced scan of [`SET_SCAN`] bandwidths over
-    /// [`SPEED_PLL_RANGE`] (those of [`brent_search`]'s scan of as many points).
-    fn set_scan(&self) -> Result<Vec<(f64, f64)>> {
-        grid(SPEED_PLL_RANGE.0.ln(), SPEED_PLL_RANGE.1.ln(), SET_SCAN)
-            .into_iter()
-            .map(|ln_a| {
-                let a = ln_a.exp();
-                Ok((a, self.loss(Some(a))?.0))
-            })
-            .collect()
     }
 }
 
@@ -115,8 +103,8 @@ impl LoopLoss<'_> {
 /// `(V − V_min) n / V_min < χ²₁(0.95)` (`n` counted residuals; Ljung, *System
 /// Identification*, 2nd ed., 16.4), over a log-spaced scan (none for the terminal voltage,
 /// which has no controller's frame). Without `scan_set` (a nested fit, which runs no
-/// checks, or a search whose set is wanted only if it moves, [`scanned_set`]) the set is
-/// the bandwidth found alone, and the scan is saved.
+/// checks, or the first search on the leading share of the logs, whose set is not used) the
+/// set is the bandwidth found alone, and the scan is [`COARSE`]'s.
 ///
 /// # Errors
 /// Those of the model's `prepare` and [`PmsmPwm::one_step_residuals`].
@@ -149,27 +137,6 @@ pub(crate) fn search_speed_pll(
         Some(alpha) => Some(LoopLoss::set(alpha, with, counted, &found.scan)),
     };
     Ok(LoopSearch { input: loss.at(chosen), note: Some(note), set })
-}
-
-/// The likelihood-ratio set of [`search_speed_pll`] for a search done without it: the
-/// scan at the bandwidth `input` holds (`None` for the logged frame or the terminal
-/// voltage).
-///
-/// # Errors
-/// As [`search_speed_pll`].
-pub(crate) fn scanned_set(
-    experiments: &[Experiment],
-    input: VoltageInput,
-    theta: &[f64],
-    weighting: &dyn Weighting,
-    model: &dyn Fn(VoltageInput) -> Result<PmsmPwm>,
-) -> Result<Option<[f64; 2]>> {
-    let VoltageInput::Reference { delay, advance, speed_pll: Some(alpha) } = input else {
-        return Ok(None);
-    };
-    let loss = LoopLoss { experiments, theta, weighting, model, delay, advance };
-    let (with, counted) = loss.loss(Some(alpha))?;
-    Ok(Some(LoopLoss::set(alpha, with, counted, &loss.set_scan()?)))
 }
 
 /// After the final fit `fit` at the loop's bandwidth `alpha` with its set `set`, the same

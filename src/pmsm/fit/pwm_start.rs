@@ -199,3 +199,95 @@ impl crate::estimate::Weighting for SkipStart<'_> {
         self.inner.check(e)
     }
 }
+
+/// Share of each log the leading stages fit: one part in `LEADING_SHARE`.
+pub(crate) const LEADING_SHARE: usize = 4;
+
+/// Most pieces a log's leading share is cut into (spread along the log, so that they see
+/// its operating points).
+pub(crate) const LEADING_PIECES: usize = 8;
+
+/// Fewest samples of a leading piece; a log whose share holds fewer than two such pieces
+/// is fitted whole.
+pub(crate) const LEADING_PIECE_SAMPLES: usize = 2048;
+
+/// The logs of the stages that lead to the final fits (the continuation over smooth leg
+/// states and the loop's first search): of each log, up to
+/// [`LEADING_PIECES`] pieces of [`LEADING_PIECE_SAMPLES`] samples or more, spread evenly
+/// from its first sample to its last and holding one [`LEADING_SHARE`]th of it, each named
+/// `NAME~k`; `None` when no log is long enough to cut (the stages then fit the logs).
+///
+/// Why this is the same problem on fewer samples: the one-step predictor restarts each
+/// period from the measured current (the default gain 1), so a period's prediction depends
+/// on its own samples alone, and a piece is a set of periods (it starts at an even sample,
+/// which keeps the carrier's edge of a double-update log; its first periods are weighted
+/// out as a log's are). These stages only lead into the loss's basin; the unmasked fit, the
+/// mask, the masked fits and the loop's second search at the final estimate take every
+/// sample.
+///
+/// # Errors
+/// Those of [`Experiment::slice`] (none for the ranges made here).
+pub(crate) fn leading_logs(experiments: &[Experiment]) -> Result<Option<Vec<Experiment>>> {
+    let pieces_of = |n: usize| (n / LEADING_SHARE / LEADING_PIECE_SAMPLES).min(LEADING_PIECES);
+    if experiments.iter().all(|e| pieces_of(e.len()) < 2) {
+        return Ok(None);
+    }
+    let mut logs = Vec::new();
+    for e in experiments {
+        let (n, pieces) = (e.len(), pieces_of(e.len()));
+        if pieces < 2 {
+            logs.push(e.clone());
+            continue;
+        }
+        let len = (n / LEADING_SHARE / pieces) & !1;
+        for k in 0..pieces {
+            let first = (k * (n - len) / (pieces - 1)) & !1;
+            logs.push(e.slice(first..first + len)?.renamed(format!("{}~{}", e.name(), k + 1)));
+        }
+    }
+    Ok(Some(logs))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::data::Channel;
+
+    /// A log of `n` samples whose one channel holds the sample index.
+    fn log(n: usize) -> Experiment {
+        let k = Channel::new("k", "1", (0..n).map(|k| k as f64).collect());
+        Experiment::try_new("log", 1e-4, vec![k]).unwrap()
+    }
+
+    #[test]
+    fn the_leading_share_is_spread_over_the_log_in_even_pieces() {
+        let n = 72_001;
+        let pieces = leading_logs(&[log(n)]).unwrap().expect("a long log is cut");
+        assert_eq!(pieces.len(), LEADING_PIECES);
+        let starts: Vec<usize> = pieces.iter().map(|p| p.channel("k").unwrap()[0] as usize).collect();
+        let len = pieces[0].len();
+        assert!(len >= LEADING_PIECE_SAMPLES && len.is_multiple_of(2), "{len}");
+        let held: usize = pieces.iter().map(Experiment::len).sum();
+        assert!(held <= n / LEADING_SHARE && held + 2 * LEADING_PIECES >= n / LEADING_SHARE, "{held}");
+        assert_eq!(starts[0], 0);
+        assert!(starts.iter().all(|s| s.is_multiple_of(2)), "{starts:?}");
+        assert!(starts.windows(2).all(|w| w[1] >= w[0] + len), "{starts:?}");
+        assert!(starts[LEADING_PIECES - 1] + len + 2 >= n, "{starts:?}");
+        assert_eq!(pieces[2].name(), "log~3");
+        // Each piece holds its own consecutive samples.
+        let k = pieces[3].channel("k").unwrap();
+        assert!(k.windows(2).all(|w| w[1] == w[0] + 1.0));
+        assert!((pieces[3].t0() - starts[3] as f64 * 1e-4).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_log_too_short_to_cut_is_fitted_whole() {
+        let short = LEADING_SHARE * 2 * LEADING_PIECE_SAMPLES - 1;
+        assert!(leading_logs(&[log(short)]).unwrap().is_none());
+        // Beside a long log, the short one is taken whole.
+        let logs = leading_logs(&[log(short), log(LEADING_SHARE * 2 * LEADING_PIECE_SAMPLES)]).unwrap().unwrap();
+        assert_eq!(logs.len(), 3);
+        assert_eq!(logs[0].len(), short);
+        assert_eq!(logs[1].len(), LEADING_PIECE_SAMPLES);
+    }
+}
