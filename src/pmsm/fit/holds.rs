@@ -4,7 +4,7 @@
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::{CLOSE_START_DAMPING, PemOptions, Weighting};
+use crate::estimate::{CLOSE_START_DAMPING, Weighting};
 use crate::pmsm::checks::limit::{VoltageLimitWeighting, delay_of};
 use crate::pmsm::fit::hold::{HoldFits, fit_holds_of};
 use crate::pmsm::linear::start::least_squares_start;
@@ -250,50 +250,40 @@ pub(super) fn fit_from_start(dq: &DqLogs<'_>, options: &PmsmFitOptions, names: &
                 configure(m.parameters_mut(), options)?;
                 Ok(m)
             };
-            let fit_by = |pem: &PemOptions,
-                          experiments: &[Experiment],
-                          pwm: PwmInverter,
-                          input: VoltageInput,
-                          start: &[f64],
-                          names: &[&str],
-                          weighting: &dyn Weighting,
-                          held: &[&str]| {
-                fit_holds_of(
-                    holds,
-                    start,
-                    names,
-                    modulator,
-                    |h| {
-                        let mut m = model_at(h, pwm, input)?;
-                        for p in m.parameters_mut().iter_mut().filter(|p| held.contains(&p.name.as_str())) {
-                            p.fixed = true;
-                        }
-                        Ok(m)
-                    },
-                    experiments,
-                    pem,
-                    weighting,
-                )
-            };
             let stage_pem = crate::pmsm::options::stage_options(&pem);
-            let fit = |experiments: &[Experiment],
-                       pwm: PwmInverter,
-                       input: VoltageInput,
-                       start: &[f64],
-                       names: &[&str],
-                       weighting: &dyn Weighting,
-                       held: &[&str]| {
-                fit_by(&pem, experiments, pwm, input, start, names, weighting, held)
-            };
-            let stage_fit = |experiments: &[Experiment],
-                             pwm: PwmInverter,
-                             input: VoltageInput,
-                             start: &[f64],
-                             names: &[&str],
-                             weighting: &dyn Weighting,
-                             held: &[&str]| {
-                fit_by(&stage_pem, experiments, pwm, input, start, names, weighting, held)
-            };
+            // A fit at the tolerances of `pem`: the final fits' and the stages'.
+            macro_rules! fit_at {
+                ($pem:expr) => {
+                    |experiments: &[Experiment],
+                     pwm: PwmInverter,
+                     input: VoltageInput,
+                     start: &[f64],
+                     names: &[&str],
+                     weighting: &dyn Weighting,
+                     held: &[&str]| {
+                        fit_holds_of(
+                            holds,
+                            start,
+                            names,
+                            modulator,
+                            |h| {
+                                let mut m = model_at(h, pwm, input)?;
+                                for p in
+                                    m.parameters_mut().iter_mut().filter(|p| held.contains(&p.name.as_str()))
+                                {
+                                    p.fixed = true;
+                                }
+                                Ok(m)
+                            },
+                            experiments,
+                            $pem,
+                            weighting,
+                        )
+                    }
+                };
+            }
+            let fit = fit_at!(&pem);
+            let stage_fit = fit_at!(&stage_pem);
             let model = |pwm: PwmInverter, input: VoltageInput| model_at(VoltageHold::Stator, pwm, input);
             let (fits, chosen, inverter) = super::pwm_fit::stages(
                 !options.skip_setup_checks,

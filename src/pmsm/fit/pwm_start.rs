@@ -285,7 +285,8 @@ mod tests {
         let short = LEADING_SHARE * 2 * LEADING_PIECE_SAMPLES - 1;
         assert!(leading_logs(&[log(short)]).unwrap().is_none());
         // Beside a long log, the short one is taken whole.
-        let logs = leading_logs(&[log(short), log(LEADING_SHARE * 2 * LEADING_PIECE_SAMPLES)]).unwrap().unwrap();
+        let logs =
+            leading_logs(&[log(short), log(LEADING_SHARE * 2 * LEADING_PIECE_SAMPLES)]).unwrap().unwrap();
         assert_eq!(logs.len(), 3);
         assert_eq!(logs[0].len(), short);
         assert_eq!(logs[1].len(), LEADING_PIECE_SAMPLES);
