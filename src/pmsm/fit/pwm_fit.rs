@@ -104,8 +104,15 @@ pub(crate) fn stages(
             }
             other => (lead, other?.0),
         };
-        let found =
-            super::pwm_loop::search_speed_pll(logs, input, &theta, &coin_tosses, &|i| model(*pwm, i), false)?;
+        let found = super::pwm_loop::search_speed_pll(
+            logs,
+            input,
+            &theta,
+            &coin_tosses,
+            &|i| model(*pwm, i),
+            false,
+            None,
+        )?;
         notes.extend(found.note);
         (found.input, found.set.is_some())
     } else {
@@ -157,7 +164,12 @@ pub(crate) fn stages(
     // The loop again at the final estimate on every sample: at the unmasked one (on the
     // leading share) the search's bandwidth also made up for that estimate's bias (0.05 A
     // per phase: 6700 rad/s for the drive's 2224). Its likelihood-ratio set is scanned here,
-    // at the final estimate.
+    // at the final estimate, walked from the first search's bandwidth (which scanned the
+    // whole range).
+    let near = match input {
+        VoltageInput::Reference { speed_pll, .. } => speed_pll,
+        _ => None,
+    };
     let again = super::pwm_loop::search_speed_pll(
         experiments,
         input,
@@ -165,6 +177,7 @@ pub(crate) fn stages(
         final_weighting,
         &|i| model(last.inverter, i),
         checked,
+        near,
     )?;
     let moved = match (again.input, input) {
         (

@@ -25,7 +25,7 @@ use crate::data::Experiment;
 use crate::error::Result;
 use crate::estimate::{CriterionCorrection, FitResult, Warning, Weighting};
 use crate::model::GreyBoxModel;
-use crate::pmsm::fit::search::{COARSE, SPEED_PLL_RANGE, brent_search};
+use crate::pmsm::fit::search::{COARSE, SPEED_PLL_RANGE, brent_search, walk_search};
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::pwm::PmsmPwm;
 
@@ -90,9 +90,15 @@ impl LoopLoss<'_> {
     /// \[rad/s\], loss) of the search's log-spaced scan of [`SET_SCAN`]:
     /// `[lo, hi]` \[rad/s\].
     fn set(alpha: f64, with: f64, counted: usize, scan: &[(f64, f64)]) -> [f64; 2] {
-        let n = (2 * counted) as f64;
-        let kept = scan.iter().filter(|(_, v)| (v - with) * n / with < CHI2_1_95).map(|(a, _)| *a);
+        let kept = scan.iter().filter(|(_, v)| Self::within(*v, with, counted)).map(|(a, _)| *a);
         kept.fold([alpha, alpha], |[lo, hi], a| [lo.min(a), hi.max(a)])
+    }
+
+    /// Whether the likelihood-ratio test keeps a loss `v` against the lowest `with` over
+    /// `counted` residuals: `(V − V_min) n / V_min < χ²₁(0.95)`, `n` twice `counted` (two
+    /// outputs). False for a `v` that is not a number.
+    fn within(v: f64, with: f64, counted: usize) -> bool {
+        (v - with) * (2 * counted) as f64 / with < CHI2_1_95
     }
 }
 
@@ -104,7 +110,12 @@ impl LoopLoss<'_> {
 /// Identification*, 2nd ed., 16.4), over a log-spaced scan (none for the terminal voltage,
 /// which has no controller's frame). Without `scan_set` (a nested fit, which runs no
 /// checks, or the first search on the leading share of the logs, whose set is not used) the
-/// set is the bandwidth found alone, and the scan is [`COARSE`]'s.
+/// set is the bandwidth found alone, and the scan is [`COARSE`]'s. With `near` (a
+/// bandwidth found before, \[rad/s\]) the scan is walked from it until the loss rises
+/// outside the likelihood-ratio bound each way ([`walk_search`]): the same bandwidth and
+/// set wherever the loss has one basin along the scan, in 3–4 one-step passes of 25 on a
+/// noise-free log (the second search, at the final estimate, after the first has found the
+/// basin on the whole range).
 ///
 /// # Errors
 /// Those of the model's `prepare` and [`PmsmPwm::one_step_residuals`].
@@ -115,6 +126,7 @@ pub(crate) fn search_speed_pll(
     weighting: &dyn Weighting,
     model: &dyn Fn(VoltageInput) -> Result<PmsmPwm>,
     scan_set: bool,
+    near: Option<f64>,
 ) -> Result<LoopSearch> {
     let VoltageInput::Reference { delay, advance, .. } = input else {
         return Ok(LoopSearch { input, note: None, set: None });
@@ -122,9 +134,16 @@ pub(crate) fn search_speed_pll(
     let loss = LoopLoss { experiments, theta, weighting, model, delay, advance };
     // The scan for the set is the search's own when the set is wanted.
     let points = if scan_set { SET_SCAN } else { COARSE };
-    let found = brent_search(SPEED_PLL_RANGE, true, points, |a| Ok(loss.loss(Some(a))?.0))?;
-    let (alpha, with) = (found.best, found.loss);
     let (logged, counted) = loss.loss(None)?;
+    let at = |a| Ok(loss.loss(Some(a))?.0);
+    let found = match near {
+        Some(near) => {
+            let within = |v: f64, best: f64| LoopLoss::within(v, best, counted);
+            walk_search(SPEED_PLL_RANGE, true, points, near, within, at)?
+        }
+        None => brent_search(SPEED_PLL_RANGE, true, points, at)?,
+    };
+    let (alpha, with) = (found.best, found.loss);
     let chosen = if with < logged { Some(alpha) } else { None };
     let note = format!(
         "the controller's frame: a phase-locked loop of {alpha:.1} rad/s on theta_m (one-step loss {with:.6e}) \

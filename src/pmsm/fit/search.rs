@@ -23,8 +23,7 @@ pub(crate) fn golden_search(
     log: bool,
     mut loss: impl FnMut(f64) -> Result<f64>,
 ) -> Result<f64> {
-    type Map = fn(f64) -> f64;
-    let (to, from): (Map, Map) = if log { (f64::ln, f64::exp) } else { (|x| x, |x| x) };
+    let (to, from) = maps(log);
     let mut loss = move |x: f64| loss(from(x));
     let (lo, hi) = (to(range.0), to(range.1));
     let grid = grid(lo, hi, COARSE);
@@ -99,6 +98,87 @@ pub(crate) fn brent_search(
     points: usize,
     loss: impl Fn(f64) -> Result<f64>,
 ) -> Result<Searched> {
+    let (to, from) = maps(log);
+    let grid = grid(to(range.0), to(range.1), points.max(2));
+    let values = grid.iter().map(|&x| loss(from(x))).collect::<Result<Vec<f64>>>()?;
+    let visited = vec![true; grid.len()];
+    refine(range, log, &grid, &values, &visited, loss)
+}
+
+/// [`brent_search`]'s scan walked from the grid point nearest `near` instead of taken
+/// whole: each way until a point both rises from its neighbour and falls outside
+/// `within(value, lowest so far)`, so every point `within` the lowest that joins it
+/// through points `within` is visited, and the best point's neighbours with it. On a loss
+/// that does not rise and fall again outside `within` (one basin, flat or not) the best
+/// grid point, hence Brent's bracket and result, and the visited points that are `within`
+/// are those of the whole scan; a noise-free log's loop then takes 3–4 points of 25. The
+/// scan returned holds the visited points only. The whole scan is taken when `near` is
+/// not a number in `range`'s interior or no visited value is finite.
+///
+/// # Errors
+/// As [`brent_search`].
+pub(crate) fn walk_search(
+    range: (f64, f64),
+    log: bool,
+    points: usize,
+    near: f64,
+    within: impl Fn(f64, f64) -> bool,
+    loss: impl Fn(f64) -> Result<f64>,
+) -> Result<Searched> {
+    let (to, from) = maps(log);
+    let grid = grid(to(range.0), to(range.1), points.max(2));
+    let at = to(near);
+    if !(at > grid[0] && at < grid[grid.len() - 1]) {
+        return brent_search(range, log, points, loss);
+    }
+    let start =
+        (0..grid.len()).min_by(|&a, &b| (grid[a] - at).abs().total_cmp(&(grid[b] - at).abs())).unwrap_or(0);
+    let mut values = vec![f64::INFINITY; grid.len()];
+    let mut visited = vec![false; grid.len()];
+    values[start] = loss(from(grid[start]))?;
+    visited[start] = true;
+    let mut best = values[start];
+    for step in [-1isize, 1] {
+        let mut j = start;
+        while let Some(next) = j.checked_add_signed(step).filter(|&n| n < grid.len()) {
+            values[next] = loss(from(grid[next]))?;
+            visited[next] = true;
+            best = best.min(values[next]);
+            // A value that is not a number rises.
+            let rises =
+                matches!(values[next].partial_cmp(&values[j]), Some(std::cmp::Ordering::Greater) | None);
+            j = next;
+            if rises && !within(values[next], best) {
+                break;
+            }
+        }
+    }
+    if !best.is_finite() {
+        return brent_search(range, log, points, loss);
+    }
+    refine(range, log, &grid, &values, &visited, loss)
+}
+
+/// A map between a searched value and its coordinate.
+type Map = fn(f64) -> f64;
+
+/// The map to the searched coordinate and back: the logarithm and the exponential for a
+/// log search, else the identity.
+fn maps(log: bool) -> (Map, Map) {
+    if log { (f64::ln, f64::exp) } else { (|x| x, |x| x) }
+}
+
+/// Brent's method on the bracket around the best of the scanned `values` at `grid` (in
+/// the searched coordinate), the scan's best kept if Brent's is no lower; the scan reported
+/// is the `visited` points.
+fn refine(
+    range: (f64, f64),
+    log: bool,
+    grid: &[f64],
+    values: &[f64],
+    visited: &[bool],
+    loss: impl Fn(f64) -> Result<f64>,
+) -> Result<Searched> {
     use argmin::core::{CostFunction, Executor, State};
     struct Cost<F>(F);
     impl<F: Fn(f64) -> Result<f64>> CostFunction for Cost<F> {
@@ -108,16 +188,11 @@ pub(crate) fn brent_search(
             Ok((self.0)(*x)?)
         }
     }
-    type Map = fn(f64) -> f64;
-    let (to, from): (Map, Map) = if log { (f64::ln, f64::exp) } else { (|x| x, |x| x) };
-    let loss = move |x: f64| loss(from(x));
-    let (lo, hi) = (to(range.0), to(range.1));
-    let grid = grid(lo, hi, points.max(2));
-    let values = grid.iter().map(|&x| loss(x)).collect::<Result<Vec<f64>>>()?;
-    let (i, (a, b)) = bracket(range, &grid, &values)?;
+    let from = maps(log).1;
+    let (i, (a, b)) = bracket(range, grid, values)?;
     let solver =
         argmin::solver::brent::BrentOpt::new(a, b).set_tolerance(f64::EPSILON.sqrt(), BRENT_TOLERANCE);
-    let res = Executor::new(Cost(loss), solver)
+    let res = Executor::new(Cost(move |x: f64| loss(from(x))), solver)
         .configure(|s| s.max_iters(100))
         .run()
         .map_err(Error::from_argmin)?;
@@ -125,7 +200,8 @@ pub(crate) fn brent_search(
         (Some(&x), c) if c < values[i] => (x, c),
         _ => (grid[i], values[i]),
     };
-    let scan = grid.iter().zip(values).map(|(&x, v)| (from(x), v)).collect();
+    let scan =
+        grid.iter().zip(values).zip(visited).filter(|(_, v)| **v).map(|((&x, &v), _)| (from(x), v)).collect();
     Ok(Searched { best: from(best), loss: value, scan })
 }
 
@@ -159,6 +235,38 @@ mod tests {
         })
         .unwrap();
         assert!((best / found.best).ln().abs() < 1e-4, "{best} against {}", found.best);
+    }
+
+    /// The walked scan finds what the whole scan finds on one basin, sharp (3 points of 25
+    /// then Brent's) or flat (every point within the bound visited, none beyond the first
+    /// rising outside it), and from a start on either side of the minimum.
+    #[test]
+    fn the_walk_finds_the_whole_scans_minimum_and_set_in_fewer_points() {
+        let within = |v: f64, best: f64| v - best < 0.05;
+        for (width, near) in [(0.03, 2000.0), (0.03, 2600.0), (2.0, 150.0), (2.0, 9000.0)] {
+            let loss = |a: f64| Ok(1.0 + ((a / 2224.0).ln() / width).powi(2));
+            let whole = brent_search(SPEED_PLL_RANGE, true, 25, loss).unwrap();
+            let count = std::cell::Cell::new(0);
+            let walked = walk_search(SPEED_PLL_RANGE, true, 25, near, within, |a| {
+                count.set(count.get() + 1);
+                loss(a)
+            })
+            .unwrap();
+            assert_eq!(walked.best, whole.best, "width {width} from {near}");
+            let kept = |s: &Searched| -> Vec<(f64, f64)> {
+                s.scan.iter().copied().filter(|&(_, v)| within(v, s.loss)).collect()
+            };
+            assert_eq!(kept(&walked), kept(&whole), "width {width} from {near}");
+            assert!(walked.scan.len() < 25, "{} points", walked.scan.len());
+            if width < 1.0 && (near / 2224.0).ln().abs() < 0.2 {
+                assert!(walked.scan.len() <= 4, "{} points", walked.scan.len());
+            }
+            assert!(count.get() < 25 + 10, "{} evaluations", count.get());
+        }
+        // A start outside the range's interior takes the whole scan.
+        let loss = |a: f64| Ok((a / 2224.0).ln().powi(2));
+        let edge = walk_search(SPEED_PLL_RANGE, true, 25, f64::NAN, within, loss).unwrap();
+        assert_eq!(edge.scan.len(), 25);
     }
 
     /// A failing loss inside Brent's steps is the loss's own error, not a solver's string;
