@@ -134,8 +134,8 @@ fn a_wrong_delay_is_named_on_a_pwm_fit() {
 /// width's `leg_state_unresolved` on a sign that fitted 2000 times better. Both exit 0
 /// with every estimate within 0.01 % (the shared 3 µs log, noise-free). At 1.75 s the
 /// unmasked width (5.5e-5 A) lies inside the sign mask's margin and is taken for the sign
-/// (`NEGLIGIBLE_WIDTH`); before that rule the sign was refitted on its own mask and won
-/// there.
+/// (`NEGLIGIBLE_WIDTH`), without the width's masked fit; before that rule the sign was
+/// refitted on its own mask and won there.
 #[test]
 #[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn short_cuts_of_a_pwm_log_find_its_minimum() {
@@ -170,6 +170,8 @@ fn short_cuts_of_a_pwm_log_find_its_minimum() {
                 notes.contains("inside the mask's margin"),
                 "--to {to}: the width not taken for the sign"
             );
+            // Taken without its masked fit, which could only have started the sign's.
+            assert!(notes.contains("not fitted there"), "--to {to}: the negligible width fitted");
         }
         let value = |n: &str| {
             report["parameters"].as_array().unwrap().iter().find(|p| p["name"] == n).unwrap()["value"]

@@ -66,10 +66,15 @@ pub(crate) fn stages(
     // The continuation and the loop's first search take a share of each log's periods
     // ([`super::pwm_start::leading_logs`]); the unmasked fit, the mask and the masked fits
     // take them all.
-    let leading = super::pwm_start::leading_logs(experiments)?;
+    // Made only where a stage takes it (a width given and the loop not searched: none).
+    let continuation = super::pwm_start::continuation(dq.views(), pwm, names);
+    let leading = match continuation.is_empty() && !pwm.search_speed_pll {
+        true => None,
+        false => super::pwm_start::leading_logs(experiments)?,
+    };
     let lead = leading.as_deref().unwrap_or(experiments);
     let mut last: Option<(FitResult, PwmInverter)> = None;
-    for (stage, stage_names) in super::pwm_start::continuation(dq.views(), pwm, names) {
+    for (stage, stage_names) in continuation {
         let s = super::pwm_start::carried(last.as_ref().map(|l| &l.0), &stage_names, start, names);
         let fitted = stage_fit(lead, stage, input, &s, &stage_names, weighting, &[])?;
         last = Some((fitted.best.1, stage));
@@ -125,9 +130,9 @@ pub(crate) fn stages(
     let sides = Sides { experiments, pwm, input, weighting, model, fit, stage_fit };
     let mut last = if pwm.estimate_i_w {
         // At the width held, the masked fit is a start (of the sign's fit) and a loss to
-        // compare with the sign's: at the stages' tolerance, converged only if it is kept.
-        let fits = stage_fit(experiments, *pwm, input, &theta, &names, &mask, &["i_w"])?;
-        super::pwm_leg_state::leg_state(&sides, fits, &names, &theta, &mask, notes)?
+        // compare with the sign's: at the stages' tolerance, converged only if it is kept;
+        // not made for a width negligible against the mask's margin (taken for the sign).
+        super::pwm_leg_state::leg_state(&sides, &names, &theta, &mask, notes)?
     } else {
         let fits = fit(experiments, *pwm, input, &theta, &names, &mask, &[])?;
         match super::pwm_leg_state::compensate(&sides, *pwm, &fits, &names, &theta, &mask, notes)? {

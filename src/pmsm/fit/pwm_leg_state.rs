@@ -30,9 +30,12 @@ pub(super) struct Sides<'a, 'w> {
     pub(super) stage_fit: &'a Fit<'a>,
 }
 
-/// The leg state of a fit whose width `i_w` the unmasked fit estimated (`fits`, the masked
-/// fit at that width held at the stages' tolerance, converged here if the width is kept;
-/// parameters `names` from `theta`). Where the measured current's noise is material: the
+/// The leg state of a fit whose width `i_w` the unmasked fit estimated (parameters `names`
+/// from `theta`, the unmasked estimate): the masked fit at that width held, at the stages'
+/// tolerance (converged here if the width is kept), unless the width is negligible against
+/// the mask's margin ([`NEGLIGIBLE_WIDTH`]), where the sign is taken whatever the losses
+/// say and that fit would only have been the sign fit's start (1.5 s of the shared
+/// low-drop log's 9.7). Where the measured current's noise is material: the
 /// sign with its criterion compensated, unless the width is wider than that noise makes of
 /// a hard switch ([`NOISE_WIDTH`]) and the sign does not fit the masked samples
 /// [`CONTRADICTS`] times better: then the legs switch softly, and the width is held with
@@ -44,13 +47,26 @@ pub(super) struct Sides<'a, 'w> {
 /// Those of the fits, of [`compensate`] and of [`super::pwm_mask::sign_mask`].
 pub(super) fn leg_state<'w, 'n>(
     sides: &Sides<'_, 'w>,
-    fits: HoldFits,
     names: &[&'n str],
     theta: &[f64],
     mask: &super::pwm_mask::SignMask<'w>,
     notes: &mut Vec<String>,
 ) -> Result<Final<'w, 'n>> {
     let Sides { pwm, input, fit, .. } = *sides;
+    let i_w = names.iter().position(|n| *n == "i_w").map_or(f64::NAN, |j| theta[j]);
+    // A width whose transition lies inside the band the mask weights out: the kept samples
+    // see only its tail, `1 − (2/π) atan(i/i_w) < (2/π) i_w/i` beyond the mask's margin, and
+    // a comparison of the losses there is decided by the few periods whose predicted current
+    // nears zero inside a blanking (the sign flips at a piece's start, the width bends it
+    // a little): on the shared low-drop log the sign led by 10 % from one unmasked estimate
+    // and trailed by 26 % from another, and the width kept then left its parts disagreeing
+    // (exit 3). Such a width is no property of the legs: the sign is taken, and the width's
+    // masked fit is not made.
+    let negligible = i_w < NEGLIGIBLE_WIDTH * mask.margin;
+    let fits = match negligible {
+        true => None,
+        false => Some((sides.stage_fit)(sides.experiments, *pwm, input, theta, names, mask, &["i_w"])?),
+    };
     // The width the unmasked fit finds holds the measured current's noise as well as the
     // legs' parasitic capacitances (a one-step prediction from a noisy current turns its
     // signs near zero as a wide leg state would), and the atan's slow tail then reaches the
@@ -59,10 +75,10 @@ pub(super) fn leg_state<'w, 'n>(
     // fit on the same samples decides, by the lower loss.
     let sign = PwmInverter { i_w: None, estimate_i_w: false, ..*pwm };
     let sign_names: Vec<&'n str> = names.iter().copied().filter(|n| *n != "i_w").collect();
-    let sign_start = super::pwm_start::carried(Some(&fits.best.1), &sign_names, theta, names);
+    let width_fit = fits.as_ref().map(|f| &f.best.1);
+    let sign_start = super::pwm_start::carried(width_fit, &sign_names, theta, names);
     let sign_fits = fit(sides.experiments, sign, input, &sign_start, &sign_names, mask, &[])?;
-    let (width, hard) = (fits.best.1.fit.loss, sign_fits.best.1.fit.loss);
-    let i_w = fits.best.1.parameter("i_w").map_or(f64::NAN, |p| p.value);
+    let (width, hard) = (width_fit.map(|f| f.fit.loss), sign_fits.best.1.fit.loss);
     let noise = start_noise(sides, sign, &sign_fits, mask, notes)?;
     // A width the noise cannot make: the legs switch softly, which the sign does not
     // describe (on a 4 kHz log whose legs switch softly over 0.05 A, with 0.05 A of noise,
@@ -72,20 +88,12 @@ pub(super) fn leg_state<'w, 'n>(
     // the sign's loss 2000 times the lower; under 0.05 A of noise the two were within 0.2 %
     // of each other, on soft and hard legs alike). The width is then held, and its
     // criterion compensated through the smooth legs' own transition.
-    let contradicted = hard * CONTRADICTS < width;
-    // A width whose transition lies inside the band the mask weights out: the kept samples
-    // see only its tail, `1 − (2/π) atan(i/i_w) < (2/π) i_w/i` beyond the mask's margin, and
-    // a comparison of the losses there is decided by the few periods whose predicted current
-    // nears zero inside a blanking (the sign flips at a piece's start, the width bends it
-    // a little): on the shared low-drop log the sign led by 10 % from one unmasked estimate
-    // and trailed by 26 % from another, and the width kept then left its parts disagreeing
-    // (exit 3). Such a width is no property of the legs: the sign is taken.
-    let negligible = i_w < NEGLIGIBLE_WIDTH * mask.margin;
+    let contradicted = width.is_some_and(|w| hard * CONTRADICTS < w);
     let soft =
         noise.as_ref().map(|n| n.1).filter(|rms| i_w > NOISE_WIDTH * rms && !contradicted && !negligible);
-    if let Some(rms) = soft {
+    if let (Some(rms), Some(fits)) = (soft, &fits) {
         let start = super::pwm_start::carried(Some(&fits.best.1), names, theta, names);
-        if let Some((fits, m)) = compensate(sides, *pwm, &fits, names, &start, mask, notes)? {
+        if let Some((fits, m)) = compensate(sides, *pwm, fits, names, &start, mask, notes)? {
             notes.push(format!(
                 "PWM leg state on the masked samples: the width i_w = {i_w:.3e} A of the unmasked fit, wider than \
                  the measured current's noise makes of a hard switch ({:.3e} A, σ = {rms:.3e} A per axis): the legs \
@@ -112,20 +120,30 @@ pub(super) fn leg_state<'w, 'n>(
         (true, false) => "the sign",
         (false, _) => "the width",
     };
-    let note = format!(
-        "PWM leg state on the masked samples: the width i_w = {i_w:.3e} A of the unmasked fit held (loss \
-         {width:.6e}) against the sign ({hard:.6e}): "
-    );
-    Ok(match compensated {
-        Some((fits, m)) => {
+    let note = match width {
+        Some(width) => format!(
+            "PWM leg state on the masked samples: the width i_w = {i_w:.3e} A of the unmasked fit held (loss \
+             {width:.6e}) against the sign ({hard:.6e}): "
+        ),
+        None => format!(
+            "PWM leg state on the masked samples: the width i_w = {i_w:.3e} A of the unmasked fit, below \
+             {NEGLIGIBLE_WIDTH} of the mask's margin {:.3e} A, not fitted there (the sign's loss {hard:.6e}): ",
+            mask.margin
+        ),
+    };
+    // The width's fits where they fit the masked samples better than the sign's (never for
+    // a negligible width, not fitted).
+    let better = fits.filter(|f| hard > f.best.1.fit.loss);
+    Ok(match (compensated, better) {
+        (Some((fits, m)), _) => {
             notes.push(note + choice(true));
             Final { fits, inverter: sign, names: sign_names, start: sign_start, own_mask: Some(m) }
         }
-        None if hard <= width || negligible => {
+        (None, None) => {
             notes.push(note + choice(true));
             Final { fits: sign_fits, inverter: sign, names: sign_names, start: sign_start, own_mask: None }
         }
-        None => {
+        (None, Some(fits)) => {
             let start = super::pwm_start::carried(Some(&fits.best.1), names, theta, names);
             let mut kept = "the width".to_string();
             if let Some(OwnMask { mask: again, fits: sign_again, start: at, note: mask_note }) =
