@@ -3,6 +3,7 @@
 //! then its sign mask ([`super::pwm_mask`]) and the final fit without the masked samples.
 
 use super::pwm_leg_state::{Final, Fit, OwnMask, Sides, on_own_mask};
+use super::pwm_loop::LoopScan;
 use crate::error::{Error, Result};
 use crate::estimate::{FitResult, Warning, Weighting};
 use crate::pmsm::fit::hold::HoldFits;
@@ -68,9 +69,10 @@ pub(crate) fn stages(
     // take them all.
     // Made only where a stage takes it (a width given and the loop not searched: none).
     let continuation = super::pwm_start::continuation(dq.views(), pwm, names);
-    let leading = match continuation.is_empty() && !pwm.search_speed_pll {
-        true => None,
-        false => super::pwm_start::leading_logs(experiments)?,
+    let leading = if continuation.is_empty() && !pwm.search_speed_pll {
+        None
+    } else {
+        super::pwm_start::leading_logs(experiments)?
     };
     let lead = leading.as_deref().unwrap_or(experiments);
     let mut last: Option<(FitResult, PwmInverter)> = None;
@@ -109,15 +111,9 @@ pub(crate) fn stages(
             }
             other => (lead, other?.0),
         };
-        let found = super::pwm_loop::search_speed_pll(
-            logs,
-            input,
-            &theta,
-            &coin_tosses,
-            &|i| model(*pwm, i),
-            false,
-            None,
-        )?;
+        let scan = LoopScan { set: false, near: None };
+        let found =
+            super::pwm_loop::search_speed_pll(logs, input, &theta, &coin_tosses, &|i| model(*pwm, i), scan)?;
         notes.extend(found.note);
         (found.input, found.set.is_some())
     } else {
@@ -181,8 +177,7 @@ pub(crate) fn stages(
         &start,
         final_weighting,
         &|i| model(last.inverter, i),
-        checked,
-        near,
+        LoopScan { set: checked, near },
     )?;
     let moved = match (again.input, input) {
         (

@@ -34,8 +34,8 @@ pub(super) struct Sides<'a, 'w> {
 /// from `theta`, the unmasked estimate): the masked fit at that width held, at the stages'
 /// tolerance (converged here if the width is kept), unless the width is negligible against
 /// the mask's margin ([`NEGLIGIBLE_WIDTH`]), where the sign is taken whatever the losses
-/// say and that fit would only have been the sign fit's start (1.5 s of the shared
-/// low-drop log's 9.7). Where the measured current's noise is material: the
+/// say and that fit would only have been the sign fit's start (docs/performance.md). Where
+/// the measured current's noise is material: the
 /// sign with its criterion compensated, unless the width is wider than that noise makes of
 /// a hard switch ([`NOISE_WIDTH`]) and the sign does not fit the masked samples
 /// [`CONTRADICTS`] times better: then the legs switch softly, and the width is held with
@@ -63,9 +63,10 @@ pub(super) fn leg_state<'w, 'n>(
     // (exit 3). Such a width is no property of the legs: the sign is taken, and the width's
     // masked fit is not made.
     let negligible = i_w < NEGLIGIBLE_WIDTH * mask.margin;
-    let fits = match negligible {
-        true => None,
-        false => Some((sides.stage_fit)(sides.experiments, *pwm, input, theta, names, mask, &["i_w"])?),
+    let fits = if negligible {
+        None
+    } else {
+        Some((sides.stage_fit)(sides.experiments, *pwm, input, theta, names, mask, &["i_w"])?)
     };
     // The width the unmasked fit finds holds the measured current's noise as well as the
     // legs' parasitic capacitances (a one-step prediction from a noisy current turns its

@@ -102,20 +102,30 @@ impl LoopLoss<'_> {
     }
 }
 
+/// How [`search_speed_pll`] scans the loop's bandwidths.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LoopScan {
+    /// Whether the likelihood-ratio set is wanted: the scan of [`SET_SCAN`] points, else
+    /// [`COARSE`]'s and the set the bandwidth found alone.
+    pub set: bool,
+    /// A bandwidth found before \[rad/s\] to walk the scan from ([`walk_search`]); `None`:
+    /// the whole scan.
+    pub near: Option<f64>,
+}
+
 /// The bandwidth of the controller's phase-locked loop by the lowest one-step loss of
 /// `model` at `theta` (weighted by `weighting`) over [`SPEED_PLL_RANGE`] (a scan and
 /// Brent's method on its logarithm, [`brent_search`]), or the logged angle and speed if those predict
 /// better; and the bandwidths whose loss `V` the likelihood-ratio test does not reject,
 /// `(V − V_min) n / V_min < χ²₁(0.95)` (`n` counted residuals; Ljung, *System
 /// Identification*, 2nd ed., 16.4), over a log-spaced scan (none for the terminal voltage,
-/// which has no controller's frame). Without `scan_set` (a nested fit, which runs no
+/// which has no controller's frame). Without `scan.set` (a nested fit, which runs no
 /// checks, or the first search on the leading share of the logs, whose set is not used) the
-/// set is the bandwidth found alone, and the scan is [`COARSE`]'s. With `near` (a
-/// bandwidth found before, \[rad/s\]) the scan is walked from it until the loss rises
-/// outside the likelihood-ratio bound each way ([`walk_search`]): the same bandwidth and
-/// set wherever the loss has one basin along the scan, in 3–4 one-step passes of 25 on a
-/// noise-free log (the second search, at the final estimate, after the first has found the
-/// basin on the whole range).
+/// set is the bandwidth found alone, and the scan is [`COARSE`]'s. With `scan.near` (a
+/// bandwidth found before) the scan is walked from it until the loss rises outside the
+/// likelihood-ratio bound each way ([`walk_search`]): the same bandwidth and set wherever
+/// the loss has one basin along the scan, in fewer one-step passes (the second search, at
+/// the final estimate, after the first has scanned the whole range; docs/performance.md).
 ///
 /// # Errors
 /// Those of the model's `prepare` and [`PmsmPwm::one_step_residuals`].
@@ -125,23 +135,22 @@ pub(crate) fn search_speed_pll(
     theta: &[f64],
     weighting: &dyn Weighting,
     model: &dyn Fn(VoltageInput) -> Result<PmsmPwm>,
-    scan_set: bool,
-    near: Option<f64>,
+    scan: LoopScan,
 ) -> Result<LoopSearch> {
     let VoltageInput::Reference { delay, advance, .. } = input else {
         return Ok(LoopSearch { input, note: None, set: None });
     };
     let loss = LoopLoss { experiments, theta, weighting, model, delay, advance };
     // The scan for the set is the search's own when the set is wanted.
-    let points = if scan_set { SET_SCAN } else { COARSE };
+    let points = if scan.set { SET_SCAN } else { COARSE };
     let (logged, counted) = loss.loss(None)?;
-    let at = |a| Ok(loss.loss(Some(a))?.0);
-    let found = match near {
+    let loss_at = |a| Ok(loss.loss(Some(a))?.0);
+    let found = match scan.near {
         Some(near) => {
             let within = |v: f64, best: f64| LoopLoss::within(v, best, counted);
-            walk_search(SPEED_PLL_RANGE, true, points, near, within, at)?
+            walk_search(SPEED_PLL_RANGE, true, points, near, within, loss_at)?
         }
-        None => brent_search(SPEED_PLL_RANGE, true, points, at)?,
+        None => brent_search(SPEED_PLL_RANGE, true, points, loss_at)?,
     };
     let (alpha, with) = (found.best, found.loss);
     let chosen = if with < logged { Some(alpha) } else { None };
@@ -152,7 +161,7 @@ pub(crate) fn search_speed_pll(
     );
     let set = match chosen {
         None => None,
-        Some(alpha) if !scan_set => Some([alpha, alpha]),
+        Some(alpha) if !scan.set => Some([alpha, alpha]),
         Some(alpha) => Some(LoopLoss::set(alpha, with, counted, &found.scan)),
     };
     Ok(LoopSearch { input: loss.at(chosen), note: Some(note), set })

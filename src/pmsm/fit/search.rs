@@ -1,9 +1,10 @@
 //! Searches of one nuisance value by whole fits or one-step losses: a scan, then a
 //! golden-section search on the bracket around its best point (Kiefer, *Proc. AMS* 4 (1953)
 //! 502–506) or Brent's method there (Brent, *Algorithms for Minimization without
-//! Derivatives*, 1973, ch. 5: golden sections and parabolic steps; argmin's `BrentOpt`), and
-//! the range of the controller's phase-locked loop that the voltage input's and the PWM
-//! fit's searches share.
+//! Derivatives*, 1973, ch. 5: golden sections and parabolic steps; argmin's `BrentOpt`), the
+//! scan taken whole or walked from a value found before ([`walk_search`]), and the range of
+//! the controller's phase-locked loop that the voltage input's and the PWM fit's searches
+//! share.
 
 use crate::error::{Error, Result};
 
@@ -55,13 +56,17 @@ pub(crate) fn grid(lo: f64, hi: f64, points: usize) -> Vec<f64> {
     (0..points).map(|i| lo + (hi - lo) * i as f64 / (points - 1) as f64).collect()
 }
 
-/// The best point of a scan `grid` (values `values`) and the bracket of its neighbours.
+/// The best point of a scan `grid` (values `values`; a value that is not a number, of
+/// either sign, counts as +∞) and the bracket of its neighbours.
 ///
 /// # Errors
 /// [`Error::Numerical`] when no value is finite.
 fn bracket(range: (f64, f64), grid: &[f64], values: &[f64]) -> Result<(usize, (f64, f64))> {
     let last = grid.len() - 1;
-    let i = (0..grid.len()).min_by(|&a, &b| values[a].total_cmp(&values[b])).unwrap_or(0);
+    // `total_cmp` puts a NaN with its sign bit set (as 0·∞ makes on x86-64) below every
+    // number: it would be taken for the best point.
+    let key = |i: usize| if values[i].is_nan() { f64::INFINITY } else { values[i] };
+    let i = (0..grid.len()).min_by(|&a, &b| key(a).total_cmp(&key(b))).unwrap_or(0);
     if !values[i].is_finite() {
         return Err(Error::Numerical {
             context: "nuisance search".into(),
@@ -77,8 +82,9 @@ fn bracket(range: (f64, f64), grid: &[f64], values: &[f64]) -> Result<(usize, (f
 /// so by 1e-6 of itself there).
 const BRENT_TOLERANCE: f64 = 1e-5;
 
-/// A scan and Brent's refinement ([`brent_search`]): the point found and its loss, and the
-/// scan's points and losses (in the searched range's own coordinate).
+/// A scan and Brent's refinement ([`brent_search`], [`walk_search`]): the point found and
+/// its loss, and the points scanned with their losses (in the searched range's own unit;
+/// every grid point of a whole scan, the visited ones of a walk).
 pub(crate) struct Searched {
     pub best: f64,
     pub loss: f64,
@@ -105,15 +111,18 @@ pub(crate) fn brent_search(
     refine(range, log, &grid, &values, &visited, loss)
 }
 
-/// [`brent_search`]'s scan walked from the grid point nearest `near` instead of taken
-/// whole: each way until a point both rises from its neighbour and falls outside
-/// `within(value, lowest so far)`, so every point `within` the lowest that joins it
-/// through points `within` is visited, and the best point's neighbours with it. On a loss
-/// that does not rise and fall again outside `within` (one basin, flat or not) the best
-/// grid point, hence Brent's bracket and result, and the visited points that are `within`
-/// are those of the whole scan; a noise-free log's loop then takes 3–4 points of 25. The
-/// scan returned holds the visited points only. The whole scan is taken when `near` is
-/// not a number in `range`'s interior or no visited value is finite.
+/// [`brent_search`]'s scan walked from the grid point nearest `near` (in `range`'s own
+/// unit) instead of taken whole: each way until a point is higher than its neighbour
+/// before it and lies outside `within(value, lowest so far)`, so every point `within` the
+/// lowest that joins it through points `within` is visited, and the best point's
+/// neighbours with it. `within(v, b)` must keep no `v` for a lower `b` that it rejects for
+/// a higher one (a likelihood-ratio bound does not), so that a point left outside stays
+/// outside at the final lowest. On a loss with one basin along the grid (flat or not) the
+/// best grid point, hence Brent's bracket and result, and the visited points `within` are
+/// those of the whole scan; a loss with another basin beyond a rise outside `within` keeps
+/// the basin it starts in. The scan returned holds the visited points only. The whole scan
+/// is taken when `near` is not a number inside `range`, or when no visited value is
+/// finite before the walk has seen every point.
 ///
 /// # Errors
 /// As [`brent_search`].
@@ -153,7 +162,7 @@ pub(crate) fn walk_search(
             }
         }
     }
-    if !best.is_finite() {
+    if !best.is_finite() && !visited.iter().all(|&v| v) {
         return brent_search(range, log, points, loss);
     }
     refine(range, log, &grid, &values, &visited, loss)
@@ -171,6 +180,9 @@ fn maps(log: bool) -> (Map, Map) {
 /// Brent's method on the bracket around the best of the scanned `values` at `grid` (in
 /// the searched coordinate), the scan's best kept if Brent's is no lower; the scan reported
 /// is the `visited` points.
+///
+/// # Errors
+/// Those of `loss`; [`Error::Numerical`] when no scanned value is finite.
 fn refine(
     range: (f64, f64),
     log: bool,
@@ -252,6 +264,7 @@ mod tests {
                 loss(a)
             })
             .unwrap();
+            // The same grid point, so the same bracket and Brent steps: equal to the bit.
             assert_eq!(walked.best, whole.best, "width {width} from {near}");
             let kept = |s: &Searched| -> Vec<(f64, f64)> {
                 s.scan.iter().copied().filter(|&(_, v)| within(v, s.loss)).collect()
@@ -286,5 +299,17 @@ mod tests {
         }
         let nan = brent_search(SPEED_PLL_RANGE, true, 16, |_| Ok(f64::NAN));
         assert!(matches!(nan, Err(Error::Numerical { .. })), "{:?}", nan.map(|s| s.best));
+        // A NaN with its sign bit set at one point is not taken for the best: the finite
+        // minimum is found by the whole scan and by the walk.
+        let negative_nan = -f64::NAN;
+        assert!(negative_nan.is_sign_negative());
+        let holed = |a: f64| {
+            let x = (a / 2224.0).ln();
+            Ok(if x < -3.0 { negative_nan } else { 1.0 + x * x })
+        };
+        let whole = brent_search(SPEED_PLL_RANGE, true, 25, holed).unwrap();
+        assert!((whole.best / 2224.0).ln().abs() < 1e-3, "{}", whole.best);
+        let walked = walk_search(SPEED_PLL_RANGE, true, 25, 100.0, |v, b| v - b < 0.05, holed).unwrap();
+        assert_eq!(walked.best, whole.best);
     }
 }
