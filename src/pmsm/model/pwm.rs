@@ -18,6 +18,7 @@
 //! Sensitivities are exact derivatives of the step by forward-mode differentiation
 //! ([`dual`]), including those through the switching instants the dead time moves.
 
+mod angle_speed;
 pub(crate) mod dual;
 mod inverter;
 mod kernel;

@@ -226,6 +226,8 @@ impl GreyBoxModel for PmsmPwm {
         let rising0 = self.inverter.first_edge != Some(CarrierEdge::Falling);
         let mut carrier = Carrier::default();
         let w_m = v.w_m();
+        // The mean speed inside each period from the angle's scale (`angle_speed`).
+        let scale = super::angle_speed::angle_speed_scale(theta_m, w_m, h);
         let periods = (0..v.len() - 1)
             .map(|k| {
                 let j = k.saturating_sub(delay);
@@ -240,7 +242,7 @@ impl GreyBoxModel for PmsmPwm {
                     PwmUpdate::Double => k.is_multiple_of(2) == rising0,
                     PwmUpdate::Single => rising0,
                 };
-                let w = mean_speed(&w_m[k..k + 2]);
+                let w = scale * mean_speed(&w_m[k..k + 2]);
                 Period::new(
                     np * theta_m[k],
                     np * w,
