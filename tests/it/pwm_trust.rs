@@ -16,6 +16,13 @@ fn pwm_options(n_p: u32, model: MotorKind) -> PmsmFitOptions {
     PmsmFitOptions { model, input: VoltageInput::REFERENCE, inverter, ..PmsmFitOptions::new(n_p) }
 }
 
+/// The number `key` (`value`, `std_error`) of parameter `name` in a JSON report.
+fn field(report: &serde_json::Value, name: &str, key: &str) -> f64 {
+    report["parameters"].as_array().unwrap().iter().find(|p| p["name"] == name).unwrap()[key]
+        .as_f64()
+        .unwrap()
+}
+
 fn codes(fit: &PmsmFit) -> Vec<&str> {
     fit.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.as_str()).collect()
 }
@@ -173,11 +180,7 @@ fn short_cuts_of_a_pwm_log_find_its_minimum() {
             // Taken without its masked fit, which could only have started the sign's.
             assert!(notes.contains("not fitted there"), "--to {to}: the negligible width fitted");
         }
-        let value = |n: &str| {
-            report["parameters"].as_array().unwrap().iter().find(|p| p["name"] == n).unwrap()["value"]
-                .as_f64()
-                .unwrap()
-        };
+        let value = |n: &str| field(&report, n, "value");
         let errors = [("r_s", t.r_s), ("l_s", t.l_d), ("k_e", t.k_e)].map(|(n, w)| (n, rel(value(n), w)));
         eprintln!("--to {to}: relative errors {errors:?}");
         for (n, e) in errors {
@@ -221,9 +224,9 @@ fn a_wrong_delay_is_named_on_the_first_quarter() {
 /// The three shared PWM logs with the documented switching-resolved options (docs/options.md:
 /// `--voltage reference --inverter pwm --u-dc U --pwm-levels 4096`) exit 0, with R_s and the
 /// inductances within 0.3 %, K_e within 0.05 %, the dead time within 5 % and the threshold
-/// within 10 % (issue 42), and K_e within 3 standard errors. The low-drop log had regressed to exit 3: a width of 3e-5 A,
-/// inside the sign mask's margin of 9e-4 A, won the leg-state comparison and its parts
-/// disagreed.
+/// within 10 % (issue 42), and K_e within 3 standard errors. The low-drop log had regressed
+/// to exit 3: a width of 3e-5 A, inside the sign mask's margin of 9e-4 A, won the leg-state
+/// comparison and its parts disagreed.
 #[test]
 #[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn the_shared_pwm_logs_are_fitted_trusted() {
@@ -252,11 +255,7 @@ fn the_shared_pwm_logs_are_fitted_trusted() {
         assert_eq!(out.status.code(), Some(0), "{stem}: {}", String::from_utf8_lossy(&out.stderr));
         let report: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-        let value = |n: &str| {
-            report["parameters"].as_array().unwrap().iter().find(|p| p["name"] == n).unwrap()["value"]
-                .as_f64()
-                .unwrap()
-        };
+        let value = |n: &str| field(&report, n, "value");
         let mut want = vec![("r_s", t.r_s, 3e-3), ("k_e", t.k_e, 5e-4)];
         want.push(("t_d", raw["dead_time_s"].as_f64().unwrap(), 0.05));
         want.push(("u_th", raw["device_threshold_voltage_V"].as_f64().unwrap(), 0.1));
@@ -273,8 +272,7 @@ fn the_shared_pwm_logs_are_fitted_trusted() {
         // K_e within 3 of its noise-free standard errors: with the chord of the sampled
         // speeds as each period's mean (no scale to the angle, `pwm/angle_speed.rs`) it was
         // low by 3-9 ppm, 13-25 standard errors.
-        let k_e = report["parameters"].as_array().unwrap().iter().find(|p| p["name"] == "k_e").unwrap();
-        let z = (k_e["value"].as_f64().unwrap() - t.k_e) / k_e["std_error"].as_f64().unwrap();
+        let z = (value("k_e") - t.k_e) / field(&report, "k_e", "std_error");
         eprintln!("{stem}: k_e z {z:+.2}");
         assert!(z.abs() <= 3.0, "{stem}: k_e z {z}");
     }
