@@ -167,6 +167,26 @@ pub(crate) fn search_speed_pll(
     Ok(LoopSearch { input: loss.at(chosen), note: Some(note), set })
 }
 
+/// The relative change of bandwidth (in its logarithm) beyond which a search moves the loop.
+pub(crate) const MOVED: f64 = 0.05;
+
+/// Whether the search `again` at the final estimate moves the loop of `kept` (the input the
+/// final fit was made at): to another kind of frame, by more than [`MOVED`], or out of
+/// the likelihood-ratio set `again` reports (the bandwidth kept is then one that the final
+/// estimate's loss rejects: on the independent 3 kHz IPM log the first search's 2058 rad/s
+/// against a set of 2053 … 2053 at the final estimate, the drive's observer at 2053.3
+/// (motulator's sensored observer pole, 2π·400 rad/s matched to the sampling period), and
+/// `l_q` 5 of its noise-free standard errors apart between the two).
+pub(crate) fn moved(again: &LoopSearch, kept: VoltageInput) -> bool {
+    match (again.input, kept) {
+        (
+            VoltageInput::Reference { speed_pll: Some(a), .. },
+            VoltageInput::Reference { speed_pll: Some(b), .. },
+        ) => (a / b).ln().abs() > MOVED || again.set.is_some_and(|[lo, hi]| b < lo || b > hi),
+        (a, b) => a != b,
+    }
+}
+
 /// After the final fit `fit` at the loop's bandwidth `alpha` with its set `set`, the same
 /// fit repeated at the set's ends other than `alpha` (`refit(bandwidth)`): an untrusted
 /// `loop_ambiguous` warning when a motor parameter (`motor`) moves by more than
@@ -254,4 +274,29 @@ pub(crate) fn logged_or_loop(
         if logged { "the logged" } else { "the loop" }
     );
     Ok((logged, note))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(alpha: Option<f64>) -> VoltageInput {
+        VoltageInput::Reference { delay: 1, advance: 1.5, speed_pll: alpha }
+    }
+
+    fn search(alpha: Option<f64>, set: Option<[f64; 2]>) -> LoopSearch {
+        LoopSearch { input: at(alpha), note: None, set }
+    }
+
+    /// A bandwidth kept outside the set the final estimate's search reports is moved, as is
+    /// one more than 5 % away or another frame; one inside the set within 5 % is kept.
+    #[test]
+    fn a_loop_outside_the_final_set_is_moved() {
+        assert!(moved(&search(Some(2053.0), Some([2053.0, 2053.4])), at(Some(2058.1))));
+        assert!(!moved(&search(Some(2053.0), Some([2050.0, 2058.5])), at(Some(2058.1))));
+        assert!(!moved(&search(Some(2053.0), None), at(Some(2058.1))));
+        assert!(moved(&search(Some(2300.0), None), at(Some(2058.1))));
+        assert!(moved(&search(None, None), at(Some(2058.1))));
+        assert!(!moved(&search(None, None), at(None)));
+    }
 }

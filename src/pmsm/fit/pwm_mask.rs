@@ -113,6 +113,21 @@ pub(crate) fn sign_mask<'a>(
     theta: &[f64],
     inner: &'a dyn Weighting,
 ) -> Result<(SignMask<'a>, String)> {
+    scaled_sign_mask(experiments, model, theta, inner, MARGIN_SCALES)
+}
+
+/// [`sign_mask`] with the threshold `scales` × the trimmed rms instead of
+/// [`MARGIN_SCALES`] × (a final fit stopped at a kink, [`super::pwm_fit`]).
+///
+/// # Errors
+/// Those of [`sign_mask`].
+pub(crate) fn scaled_sign_mask<'a>(
+    experiments: &[Experiment],
+    model: &PmsmPwm,
+    theta: &[f64],
+    inner: &'a dyn Weighting,
+    scales: f64,
+) -> Result<(SignMask<'a>, String)> {
     let mut margins = Vec::with_capacity(experiments.len());
     let mut squares = Vec::new();
     for e in experiments {
@@ -124,7 +139,7 @@ pub(crate) fn sign_mask<'a>(
     squares.sort_unstable_by(f64::total_cmp);
     let kept = &squares[..squares.len() - (TRIMMED * squares.len() as f64) as usize];
     let rms = (kept.iter().sum::<f64>() / kept.len().max(1) as f64).sqrt();
-    let margin = MARGIN_SCALES * rms;
+    let margin = scales * rms;
     let duty = model.inverter().levels.map_or(DUTY_MARGIN, |n| DUTY_MARGIN.max(1.5 / f64::from(n.max(1))));
     let mut logs = Vec::with_capacity(experiments.len());
     let (mut masked_total, mut total) = (0, 0);
@@ -144,7 +159,7 @@ pub(crate) fn sign_mask<'a>(
     }
     let note = format!(
         "PWM sign mask: {masked_total} of {total} samples weighted out, whose period passes a predicted phase \
-         current within {margin:.3e} A of zero ({MARGIN_SCALES} × the one-step residual's rms {rms:.3e} A, its \
+         current within {margin:.3e} A of zero ({scales} × the one-step residual's rms {rms:.3e} A, its \
          largest {:.0} % left out) or a duty ratio within {duty:.1e} of 0 or 1",
         TRIMMED * 100.0
     );
