@@ -163,16 +163,7 @@ pub(crate) fn stages(
     };
     let kinks = Kinks { experiments, weighting, model, fit, held };
     if !looped {
-        let fits = kinks.unkinked(
-            last.fits,
-            last.inverter,
-            input,
-            &last.names,
-            &last.start,
-            final_weighting,
-            notes,
-        )?;
-        return Ok((fits, input, last.inverter));
+        return kinks.finish(last, input, &mask, notes);
     }
     let start = super::pwm_start::carried(Some(&last.fits.best.1), &last.names, &last.start, &last.names);
     // The loop again at the final estimate on every sample: at the unmasked one (on the
@@ -200,16 +191,7 @@ pub(crate) fn stages(
         input = again.input;
     }
     let Some([lo, hi]) = again.set else {
-        let fits = kinks.unkinked(
-            last.fits,
-            last.inverter,
-            input,
-            &last.names,
-            &last.start,
-            final_weighting,
-            notes,
-        )?;
-        return Ok((fits, input, last.inverter));
+        return kinks.finish(last, input, &mask, notes);
     };
     // The loop kept where the search did not move it lies in the set it reports.
     let set = match input {
@@ -249,9 +231,7 @@ pub(crate) fn stages(
         notes.push(note);
         warnings.extend(warning);
     }
-    let fits =
-        kinks.unkinked(last.fits, last.inverter, input, &last.names, &last.start, final_weighting, notes)?;
-    Ok((fits, input, last.inverter))
+    kinks.finish(last, input, &mask, notes)
 }
 
 /// The sign mask's margins tried, in the one-step residual's trimmed rms, where the final
@@ -270,6 +250,26 @@ struct Kinks<'a, 'f> {
 }
 
 impl Kinks<'_, '_> {
+    /// The stages' result from their final fits `last` at `input` ([`Self::unkinked`] on
+    /// their own mask, or on `mask` where they have none).
+    ///
+    /// # Errors
+    /// Those of [`Self::unkinked`].
+    fn finish(
+        &self,
+        last: Final<'_, '_>,
+        input: VoltageInput,
+        mask: &super::pwm_mask::SignMask<'_>,
+        notes: &mut Vec<String>,
+    ) -> Result<(HoldFits, VoltageInput, PwmInverter)> {
+        let on: &dyn Weighting = match &last.own_mask {
+            Some(m) => m,
+            None => mask,
+        };
+        let fits = self.unkinked(last.fits, last.inverter, input, &last.names, &last.start, on, notes)?;
+        Ok((fits, input, last.inverter))
+    }
+
     /// The final fit `fits` (inverter, input, parameters `names` from `start`, on the sign
     /// mask `on`), or, where it stopped short of a minimum (`not_stationary`) and the
     /// criterion is not compensated for current noise, the first refit from its estimate on
