@@ -206,11 +206,9 @@ pub(crate) fn stages(
     let Some([lo, hi]) = again.set else {
         return kinks.finish(last, input, &mask, notes);
     };
-    // The loop kept where the search did not move it lies in the set it reports.
-    let set = match input {
-        VoltageInput::Reference { speed_pll: Some(a), .. } => [lo.min(a), hi.max(a)],
-        _ => [lo, hi],
-    };
+    // The loop kept lies in this set: a bandwidth outside it is moved
+    // (`pwm_loop::moved`), and the set holds the search's own.
+    let set = [lo, hi];
     // Under current noise, the loop against the logged frame by the compensated criterion
     // of each one's own fit (`pwm_loop::logged_or_loop`).
     if let (Some(correction), VoltageInput::Reference { delay, advance, speed_pll: Some(alpha) }) =
@@ -318,6 +316,7 @@ impl Kinks<'_, '_> {
         }
         let at = super::pwm_start::carried(Some(&fits.best.1), names, start, names);
         let model = (self.model)(inverter, input)?;
+        let mut tried = Vec::with_capacity(KINK_SCALES.len());
         for scales in KINK_SCALES {
             let (mask, note) = match super::pwm_mask::scaled_sign_mask(
                 self.experiments,
@@ -329,6 +328,7 @@ impl Kinks<'_, '_> {
                 Err(Error::TooShort { .. }) => break,
                 other => other?,
             };
+            tried.push(scales);
             let again = (self.fit)(self.experiments, inverter, input, &at, names, &mask, self.held)?;
             if !stopped(&again) {
                 notes.push(format!(
@@ -338,10 +338,16 @@ impl Kinks<'_, '_> {
                 return Ok(again);
             }
         }
-        notes.push(format!(
-            "the final fit stopped short of a minimum (not_stationary), and so did its refits on sign masks of \
-             {KINK_SCALES:?} × the residual's rms: kept as it stopped"
-        ));
+        notes.push(if tried.is_empty() {
+            "the final fit stopped short of a minimum (not_stationary); a wider sign mask would leave a log too \
+             short to refit it: kept as it stopped"
+                .to_string()
+        } else {
+            format!(
+                "the final fit stopped short of a minimum (not_stationary), and so did its refits on sign masks of \
+                 {tried:?} × the residual's rms: kept as it stopped"
+            )
+        });
         Ok(fits)
     }
 }
