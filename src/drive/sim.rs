@@ -227,6 +227,7 @@ pub fn simulate_drive_with_progress(
                 th_e,
                 np * w_mean,
                 w_mean,
+                [np * (w_next - w) / h, (w_next - w) / h],
                 [u_s.re, u_s.im],
                 cfg.control.u_dc,
                 h,

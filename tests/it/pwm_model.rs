@@ -130,8 +130,14 @@ fn the_pwm_sensitivities_are_the_steps_derivatives() {
             for i in 0..2 {
                 let fd = (p[i] - q[i]) / (2.0 * d);
                 let an = sn[i * n + j];
+                // The central difference's own rounding: each output carries some 100 ulps
+                // of the current vector's size (the pieces' rotations mix d and q), divided
+                // by the difference's step (2e-8 for 5 A and the k_e step; the fixed 1e-9
+                // this replaced was below it for an i_d derivative of 1.8e-4).
+                let size = p.iter().chain(&q).fold(0.0_f64, |m, v| m.max(v.abs()));
+                let rounding = 100.0 * f64::EPSILON * size / d;
                 assert!(
-                    (fd - an).abs() <= 1e-5 * fd.abs().max(an.abs()) + 1e-9,
+                    (fd - an).abs() <= 1e-5 * fd.abs().max(an.abs()) + rounding.max(1e-9),
                     "k {k}, θ_{j}, x_{i}: {an:e} vs {fd:e}"
                 );
             }

@@ -18,6 +18,7 @@
 //! Sensitivities are exact derivatives of the step by forward-mode differentiation
 //! ([`dual`]), including those through the switching instants the dead time moves.
 
+mod acceleration;
 mod angle_speed;
 pub(crate) mod dual;
 mod inverter;
@@ -43,7 +44,9 @@ pub(crate) struct PwmPlantStep {
 
 impl PwmPlantStep {
     /// One period of length `h` \[s\] from the dq current `i` \[A\] at electrical angle
-    /// `theta_e` \[rad\], interval-mean mechanical speed `w_m` \[rad/s\], of the stator voltage
+    /// `theta_e` \[rad\], interval-mean mechanical speed `w_m` \[rad/s\] changing at
+    /// `[a_e, a_m]` \[rad/s², electrical and mechanical\] over the period (the acceleration's
+    /// term, `acceleration`), of the stator voltage
     /// reference `u_ab` \[V\] the modulator applies at DC link `u_dc` \[V\], for the motor
     /// `(r, l_d, l_q, k_e)` \[Ω, H, H, V s/rad\] and inverter `(t_d, u_th, i_w)` \[s, V, A; i_w 0
     /// for the sign\]: the current at the period's end and the period-mean dq voltage \[V\].
@@ -58,6 +61,7 @@ impl PwmPlantStep {
         theta_e: f64,
         w_e: f64,
         w_m: f64,
+        [a_e, a_m]: [f64; 2],
         u_ab: [f64; 2],
         u_dc: f64,
         h: f64,
@@ -66,7 +70,8 @@ impl PwmPlantStep {
         let rising = self.k.is_multiple_of(2);
         self.k += 1;
         let per =
-            Period::new(theta_e, w_e, w_m, u_dc, modulator::halves(inv, &mut self.carrier, d, rising, h));
+            Period::new(theta_e, w_e, w_m, u_dc, modulator::halves(inv, &mut self.carrier, d, rising, h))
+                .accelerating(a_e, a_m);
         let [r, l_d, l_q, k_e] = motor;
         let [t_d, u_th, i_w] = inverter;
         let q = Params { r, l_d, l_q, k_e, t_d, u_th, i_w: (i_w > 0.0).then_some(i_w) };

@@ -9,7 +9,7 @@ use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::model::{GreyBoxModel, Parameter, Sensitivities};
 use crate::pmsm::log::signals::{DqView, channel, check_pole_pairs};
-use crate::pmsm::model::interval::{VoltageInput, controller_frame, mean_speed, reference_channels};
+use crate::pmsm::model::interval::{VoltageInput, controller_frame, reference_channels};
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::model::setup::PmsmSetup;
 
@@ -226,8 +226,9 @@ impl GreyBoxModel for PmsmPwm {
         let rising0 = self.inverter.first_edge != Some(CarrierEdge::Falling);
         let mut carrier = Carrier::default();
         let w_m = v.w_m();
-        // The mean speed inside each period from the angle's scale (`angle_speed`).
-        let scale = super::angle_speed::angle_speed_scale(theta_m, w_m, h);
+        // The mean speed inside each period from the angle (`angle_speed`).
+        let i_q = e.values(channel::I_Q)?;
+        let mean = super::angle_speed::MeanSpeed::fit(theta_m, w_m, i_q, h);
         let periods = (0..v.len() - 1)
             .map(|k| {
                 let j = k.saturating_sub(delay);
@@ -242,7 +243,9 @@ impl GreyBoxModel for PmsmPwm {
                     PwmUpdate::Double => k.is_multiple_of(2) == rising0,
                     PwmUpdate::Single => rising0,
                 };
-                let w = scale * mean_speed(&w_m[k..k + 2]);
+                // The rotor's acceleration over the period (`acceleration`).
+                let a_m = (w_m[k + 1] - w_m[k]) / h;
+                let w = mean.mean(&w_m[k..k + 2], &i_q[k..k + 2], h);
                 Period::new(
                     np * theta_m[k],
                     np * w,
@@ -250,9 +253,10 @@ impl GreyBoxModel for PmsmPwm {
                     u_dc[k],
                     halves(&self.inverter, &mut carrier, d, rising, h),
                 )
+                .accelerating(np * a_m, a_m)
             })
             .collect();
-        Ok(PwmInputs { periods, i_d: e.values(channel::I_D)?.clone(), i_q: e.values(channel::I_Q)?.clone() })
+        Ok(PwmInputs { periods, i_d: e.values(channel::I_D)?.clone(), i_q: i_q.clone() })
     }
 
     fn coefficients(&self, theta: &[f64], _inputs: &PwmInputs) -> Result<PwmCoefficients> {

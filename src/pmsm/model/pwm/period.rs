@@ -63,6 +63,10 @@ pub(crate) struct Period {
     /// this close to a clamp switches for a pulse the counter's resolution or a driver's
     /// minimum pulse may drop (0 for a clamped leg).
     pub duty_margin: f64,
+    /// Electrical acceleration `a_e` over the period \[rad/s²\] ([`super::acceleration`]).
+    pub acc_e: f64,
+    /// The back-EMF's rate per unit K_e, `√(2/3) a_m` \[rad/s²\] (0 with `acc_e` unless set).
+    pub emf_rate: f64,
 }
 
 impl Period {
@@ -88,6 +92,8 @@ impl Period {
             halves,
             n: n as u8,
             duty_margin,
+            acc_e: 0.0,
+            emf_rate: 0.0,
         }
     }
 }
@@ -240,16 +246,16 @@ pub(crate) fn step_dual(
 fn step_with<T: Scalar>(
     q: &Params<T>,
     per: &Period,
-    x: [T; 2],
+    x0: [T; 2],
     mut acc: Option<&mut [T; 2]>,
 ) -> ([T; 2], f64) {
     let sys = system(q, per.w_e, per.emf);
-    let mut x = x;
+    let mut x = x0;
     let mut nearest = f64::INFINITY;
     for half in &per.halves[..usize::from(per.n)] {
         x = half_step(q, &sys, per, half, x, acc.as_deref_mut(), &mut nearest);
     }
-    (x, nearest)
+    (super::acceleration::with_acceleration(q, per, x0, x), nearest)
 }
 
 #[inline(always)]
@@ -376,17 +382,19 @@ fn piece<T: Scalar>(sys: &System<T>, x: [T; 2], v: [T; 2], (sr, cr): (T, T), tau
 
 /// The period's state transition `Φ = ∂x(h)/∂x(0) = e^{A h}` (row-major), `h` the period's
 /// length: the pieces share `A` and their voltages do not depend on the start where the leg
-/// states are hard signs (Moler & Van Loan 2003, §2: the 2×2 case).
+/// states are hard signs (Moler & Van Loan 2003, §2: the 2×2 case); plus the acceleration's
+/// term ([`super::acceleration::transition_terms`]).
 pub(crate) fn transition<T: Scalar>(q: &Params<T>, per: &Period) -> [T; 4] {
     let s = system(q, per.w_e, per.emf);
     let h: f64 = per.halves[..usize::from(per.n)].iter().map(|p| p.len).sum();
     let (c, sv) = c_s(s.delta, T::cst(h), None);
     let e = (s.mu * h).exp();
+    let acc = super::acceleration::transition_terms(q, per);
     [
-        e * (c + sv * (s.a[0][0] - s.mu)),
-        e * (sv * s.a[0][1]),
-        e * (sv * s.a[1][0]),
-        e * (c + sv * (s.a[1][1] - s.mu)),
+        e * (c + sv * (s.a[0][0] - s.mu)) + acc[0],
+        e * (sv * s.a[0][1]) + acc[1],
+        e * (sv * s.a[1][0]) + acc[2],
+        e * (c + sv * (s.a[1][1] - s.mu)) + acc[3],
     ]
 }
 
