@@ -43,14 +43,16 @@ impl MeanSpeed {
 
     /// The least-squares fit of `Δθ_k − w̄_k h` on `w̄_k h`, `Δw_k` and `w̄_k h |ī_q,k|` over the
     /// intervals of `theta_m` \[rad, mechanical\], `w_m` \[rad/s\] and `i_q` \[A\] (length N, sample
-    /// time `h` \[s\]) whose trapezoid is not 0 (`Δθ` the wrapped angle step). The speeds as
-    /// logged ([`Self::LOGGED`]) when the log has fewer than three moving intervals, when the
-    /// normal equations are singular or give no number, or when the fit's scale exceeds
-    /// [`MAX_SCALE`] or its lag a period.
+    /// time `h` \[s\]) whose trapezoid is not 0 (`Δθ` the wrapped angle step). Where the log
+    /// has fewer than three moving intervals, the normal equations are singular or give no
+    /// number, or the fit's scale exceeds [`MAX_SCALE`] or its lag a period, the scale `c₀`
+    /// alone (the angle steps beyond the chords over the chords' sum, within a run of one
+    /// sign a telescoping sum); the speeds as logged ([`Self::LOGGED`]) where that too
+    /// exceeds [`MAX_SCALE`] or the log does not move.
     pub(crate) fn fit(theta_m: &[f64], w_m: &[f64], i_q: &[f64], h: f64) -> MeanSpeed {
         let mut a = nalgebra::Matrix3::<f64>::zeros();
         let mut b = nalgebra::Vector3::<f64>::zeros();
-        let (mut moving, mut i_max) = (0, 0.0_f64);
+        let (mut moving, mut i_max, mut ratio) = (0, 0.0_f64, (0.0, 0.0));
         for k in 0..theta_m.len().min(w_m.len()).min(i_q.len()).saturating_sub(1) {
             let mean = super::super::interval::mean_speed(&w_m[k..k + 2]);
             if mean == 0.0 {
@@ -64,15 +66,19 @@ impl MeanSpeed {
             b += x * r;
             moving += 1;
             i_max = i_max.max(i);
+            ratio = (ratio.0 + mean.signum() * r, ratio.1 + mean.abs() * h);
         }
-        let c = match a.lu().solve(&b) {
-            Some(c) if moving >= 3 && c.iter().all(|v| v.is_finite()) => [c[0], c[1], c[2]],
-            _ => return MeanSpeed::LOGGED,
-        };
-        if c[0].abs() > MAX_SCALE || c[1].abs() > h || c[2].abs() * i_max > MAX_SCALE {
-            return MeanSpeed::LOGGED;
+        let full = match a.lu().solve(&b) {
+            Some(c) if moving >= 3 && c.iter().all(|v| v.is_finite()) => Some([c[0], c[1], c[2]]),
+            _ => None,
         }
-        MeanSpeed { c }
+        .filter(|c| c[0].abs() <= MAX_SCALE && c[1].abs() <= h && c[2].abs() * i_max <= MAX_SCALE);
+        // The scale alone where the three do not fit (a speed without acceleration makes
+        // the normal equations singular): the angle steps beyond the chords over the
+        // chords' sum, `Σ s_k (Δθ_k − w̄_k h) / Σ |w̄_k| h`, `s_k` the chord's sign.
+        let scale = ratio.0 / ratio.1;
+        let alone = (scale.is_finite() && scale.abs() <= MAX_SCALE).then_some([scale, 0.0, 0.0]);
+        full.or(alone).map_or(MeanSpeed::LOGGED, |c| MeanSpeed { c })
     }
 
     /// The mean speed \[rad/s\] over the interval from `w` = `(w_m[k], w_m[k+1])` \[rad/s\] at
@@ -89,8 +95,8 @@ mod tests {
     use super::*;
 
     /// A speed whose angle sags by a scale, a lag behind the acceleration and a share of the
-    /// torque current is found from an angle rounded to 7 digits; a speed in the wrong unit
-    /// is taken as logged; so is a log at rest.
+    /// torque current is found from an angle rounded to 7 digits; a constant speed gets its
+    /// scale alone; a speed in the wrong unit is taken as logged; so is a log at rest.
     #[test]
     fn the_angle_gives_the_mean_speed_of_every_interval() {
         let (h, n) = (1e-4, 40_000);
@@ -114,6 +120,15 @@ mod tests {
                 (found.mean(&w[k..k + 2], &i_q[k..k + 2], h), truth.mean(&w[k..k + 2], &i_q[k..k + 2], h));
             assert!((a - b).abs() <= 2e-7 * b.abs().max(1.0), "{k}: {a} against {b} ({found:?})");
         }
+        // A speed without acceleration: the scale alone.
+        let flat = vec![150.0; 2000];
+        let mut turned = vec![0.2];
+        for k in 0..1999 {
+            let next = turned[k] + 150.0 * (1.0 - 9e-6) * h;
+            turned.push(next.sin().atan2(next.cos()));
+        }
+        let alone = MeanSpeed::fit(&turned, &flat, &[1.0; 2000], h);
+        assert!((alone.mean(&flat[..2], &[1.0; 2], h) - 150.0 * (1.0 - 9e-6)).abs() < 1e-9, "{alone:?}");
         let rpm: Vec<f64> = w.iter().map(|x| x * 60.0 / std::f64::consts::TAU).collect();
         assert_eq!(MeanSpeed::fit(&theta, &rpm, &i_q, h), MeanSpeed::LOGGED);
         assert_eq!(MeanSpeed::fit(&[0.1; 10], &[0.0; 10], &[0.0; 10], h), MeanSpeed::LOGGED);
