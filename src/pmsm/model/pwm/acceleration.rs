@@ -53,7 +53,7 @@ pub(crate) fn with_acceleration<T: Scalar>(q: &Params<T>, per: &Period, x0: [T; 
     if per.acc_e == 0.0 && per.emf_rate == 0.0 {
         return x;
     }
-    let c = q.r * (period_length(per).powi(3) / 12.0);
+    let c = q.r * (per.len().powi(3) / 12.0);
     let saliency = q.l_q - q.l_d;
     if saliency.is_zero() {
         // A surface-magnet machine: the magnets' term alone (the same numbers).
@@ -71,13 +71,8 @@ pub(crate) fn transition_terms<T: Scalar>(q: &Params<T>, per: &Period) -> [T; 4]
     if per.acc_e == 0.0 {
         return [zero; 4];
     }
-    let c = q.r * (period_length(per).powi(3) / 12.0 * per.acc_e) * (q.l_q - q.l_d);
+    let c = q.r * (per.len().powi(3) / 12.0 * per.acc_e) * (q.l_q - q.l_d);
     [zero, c / (q.l_d * q.l_d), c / (q.l_q * q.l_q), zero]
-}
-
-/// The period's length h \[s\]: its half carrier periods'.
-fn period_length(per: &Period) -> f64 {
-    per.halves[..usize::from(per.n)].iter().map(|p| p.len).sum()
 }
 
 #[cfg(test)]
@@ -96,7 +91,7 @@ mod tests {
         let (a_m, n_p) = (1200.0, 4.0);
         let acc = per.accelerating(n_p * a_m, a_m);
         let y = period::step(&q, &acc, x0);
-        let h: f64 = per.halves[..usize::from(per.n)].iter().map(|p| p.len).sum();
+        let h = per.len();
         let c = 0.9 * h.powi(3) / 12.0;
         let want_d = c * n_p * a_m * (q.l_q - q.l_d) * x0[1] / (q.l_d * q.l_d);
         let want_q = c

@@ -96,6 +96,11 @@ impl Period {
             emf_rate: 0.0,
         }
     }
+
+    /// The period's length h \[s\]: its half carrier periods'.
+    pub(crate) fn len(&self) -> f64 {
+        self.halves[..usize::from(self.n)].iter().map(|p| p.len).sum()
+    }
 }
 
 /// A complex number over the pass's scalar.
@@ -386,7 +391,7 @@ fn piece<T: Scalar>(sys: &System<T>, x: [T; 2], v: [T; 2], (sr, cr): (T, T), tau
 /// term ([`super::acceleration::transition_terms`]).
 pub(crate) fn transition<T: Scalar>(q: &Params<T>, per: &Period) -> [T; 4] {
     let s = system(q, per.w_e, per.emf);
-    let h: f64 = per.halves[..usize::from(per.n)].iter().map(|p| p.len).sum();
+    let h = per.len();
     let (c, sv) = c_s(s.delta, T::cst(h), None);
     let e = (s.mu * h).exp();
     let acc = super::acceleration::transition_terms(q, per);
