@@ -156,26 +156,10 @@ pub(crate) fn stages(
     };
     let held: &[&str] = if last.inverter.estimate_i_w { &["i_w"] } else { &[] };
     // The mask again at the final estimate, and the final fit on it where it weights out
-    // other samples: a period whose predicted current crosses zero at a switching instant
-    // near the final estimate but not near the unmasked one (which stopped at the stages'
-    // tolerance) keeps a kink in the loss there: without this the shared IPM log's final
-    // fit stopped at one in each variant tried, a Gauss-Newton step of 0.27-2.3 standard
-    // errors still to go (`not_stationary`).
-    if last.own_mask.is_none()
-        && let Some(OwnMask { mask: again, fits, start, note }) =
-            on_own_mask(&sides, last.inverter, &last.fits, &last.names, &last.start, &mask, held)?
-    {
-        notes.push(format!("at the final estimate, {note}: refitted"));
-        last.fits = fits;
-        last.start = start;
-        last.own_mask = Some(again);
-    }
-    let final_weighting: &dyn Weighting = match &last.own_mask {
-        Some(m) => m,
-        None => &mask,
-    };
+    // other samples ([`own_mask_refit`]).
     let kinks = Kinks { experiments, weighting, model, fit, held };
     if !looped {
+        own_mask_refit(&sides, &mut last, &mask, held, notes)?;
         return kinks.finish(last, input, &mask, notes);
     }
     let start = super::pwm_start::carried(Some(&last.fits.best.1), &last.names, &last.start, &last.names);
@@ -183,7 +167,9 @@ pub(crate) fn stages(
     // leading share) the search's bandwidth also made up for that estimate's bias (0.05 A
     // per phase: 6700 rad/s for the drive's 2224). Its likelihood-ratio set is scanned here,
     // at the final estimate, walked from the first search's bandwidth (which scanned the
-    // whole range).
+    // whole range). Searched before the mask is taken again at that estimate, so that one
+    // refit takes both the loop moved and that mask (on a noise-free log each moves the
+    // fit, and each refit is a whole fit's time).
     let near = match input {
         VoltageInput::Reference { speed_pll, .. } => speed_pll,
         _ => None,
@@ -192,16 +178,25 @@ pub(crate) fn stages(
         experiments,
         input,
         &start,
-        final_weighting,
+        match &last.own_mask {
+            Some(m) => m,
+            None => &mask,
+        },
         &|i| model(last.inverter, i),
         LoopScan { set: checked, near },
     )?;
     let moved = super::pwm_loop::moved(&again, input);
-    let mut input = input;
+    let input = if moved { again.input } else { input };
+    let refitted = own_mask_refit(&Sides { input, ..sides }, &mut last, &mask, held, notes)?;
+    let final_weighting: &dyn Weighting = match &last.own_mask {
+        Some(m) => m,
+        None => &mask,
+    };
     if moved {
         notes.extend(again.note.map(|n| format!("at the final estimate, {n}: refitted there")));
-        last.fits = fit(experiments, last.inverter, again.input, &start, &last.names, final_weighting, held)?;
-        input = again.input;
+        if !refitted {
+            last.fits = fit(experiments, last.inverter, input, &start, &last.names, final_weighting, held)?;
+        }
     }
     let Some([lo, hi]) = again.set else {
         return kinks.finish(last, input, &mask, notes);
@@ -243,6 +238,39 @@ pub(crate) fn stages(
         warnings.extend(warning);
     }
     kinks.finish(last, input, &mask, notes)
+}
+
+/// The final fits `last` refitted on the sign mask taken at their own estimate where that
+/// weights out other samples than the stages' `mask` (at `sides`' input; `held` held at
+/// their start), unless they have their own mask already: a period whose predicted
+/// current crosses zero at a switching instant near the final estimate but not near the
+/// unmasked one (which stopped at the stages' tolerance) keeps a kink in the loss there:
+/// without this the shared IPM log's final fit stopped at one in each variant tried, a
+/// Gauss-Newton step of 0.27-2.3 standard errors still to go (`not_stationary`). Whether
+/// they were refitted.
+///
+/// # Errors
+/// Those of [`on_own_mask`].
+fn own_mask_refit<'w>(
+    sides: &Sides<'_, 'w>,
+    last: &mut Final<'w, '_>,
+    mask: &super::pwm_mask::SignMask<'w>,
+    held: &[&str],
+    notes: &mut Vec<String>,
+) -> Result<bool> {
+    if last.own_mask.is_some() {
+        return Ok(false);
+    }
+    let Some(OwnMask { mask: again, fits, start, note }) =
+        on_own_mask(sides, last.inverter, &last.fits, &last.names, &last.start, mask, held)?
+    else {
+        return Ok(false);
+    };
+    notes.push(format!("at the final estimate, {note}: refitted"));
+    last.fits = fits;
+    last.start = start;
+    last.own_mask = Some(again);
+    Ok(true)
 }
 
 /// The sign mask's margins tried, in the one-step residual's trimmed rms, where the final
