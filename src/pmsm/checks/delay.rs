@@ -22,8 +22,8 @@ pub const PWM_DELAY_SAMPLES: usize = 16_384;
 /// [`DELAY_RATIO`] times lower loss. `None` for the terminal voltage.
 ///
 /// A fit through the switching-resolved PWM inverter is first screened by the averaged
-/// inverter model ([`averaged_ranks_first`]): where it ranks the given delay first, no
-/// neighbour is fitted. Otherwise it compares the three delays on the
+/// inverter model (`screened`, from [`screen`], which the fit runs beside its own stages):
+/// where it ranks the given delay first, no neighbour is fitted. Otherwise it compares the three delays on the
 /// first quarter of each log (at least [`PWM_DELAY_SAMPLES`] samples), each fitted there from
 /// the least-squares start through the same stages (its neighbours repeat every stage, and
 /// on the whole logs they took half of the fit's time): a wrong delay changes the model's
@@ -36,6 +36,7 @@ pub(crate) fn warning(
     options: &PmsmFitOptions,
     loss: f64,
     refit: RefitLoss<'_>,
+    screened: Option<bool>,
 ) -> Option<Warning> {
     let VoltageInput::Reference { delay, advance, speed_pll } = options.input else {
         return None;
@@ -59,7 +60,9 @@ pub(crate) fn warning(
     let beating = |found: [Option<(usize, f64)>; 2], loss: f64| {
         found.into_iter().flatten().find(|(_, alt)| alt * DELAY_RATIO < loss).map(|(d, alt)| (d, loss / alt))
     };
-    if options.pwm.is_some() && averaged_ranks_first(experiments, options, delay, refit) {
+    if options.pwm.is_some()
+        && screened.unwrap_or_else(|| averaged_ranks_first(experiments, options, delay, refit))
+    {
         return None;
     }
     let part = options.pwm.and_then(|_| first_part(experiments));
@@ -95,6 +98,19 @@ pub(crate) fn warning(
             }
         ),
     ))
+}
+
+/// The screen of the delay check of a fit through the switching-resolved PWM inverter
+/// driven by the reference with its setup checks ([`averaged_ranks_first`]); `None` for any
+/// other fit. It needs no estimate: the fit runs it beside its stages.
+pub(crate) fn screen(
+    experiments: &[Experiment],
+    options: &PmsmFitOptions,
+    refit: RefitLoss<'_>,
+) -> Option<bool> {
+    let VoltageInput::Reference { delay, .. } = options.input else { return None };
+    (options.pwm.is_some() && !options.skip_setup_checks)
+        .then(|| averaged_ranks_first(experiments, options, delay, refit))
 }
 
 /// The screen of a PWM fit's delay check: whether the averaged inverter model

@@ -42,8 +42,8 @@ pub(super) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, refit: RefitLoss<'_
     }
     // The checks that need no estimate run on a thread of their own from the start, beside
     // the start, the fits and their statistics (which leave a core idle at times): the
-    // setup scan (one regression Gram; a log the scan cannot read is not checked) and the
-    // dead-time check. On the calling thread when the caller's rayon pool has one thread.
+    // setup scan (one regression Gram; a log the scan cannot read is not checked), the
+    // dead-time check and a PWM fit's delay screen (three averaged fits). On the calling thread when the caller's rayon pool has one thread.
     let beside = || {
         let logs = crate::pmsm::checks::prepared::prepare(dq.views(), options);
         Beside {
@@ -52,6 +52,7 @@ pub(super) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, refit: RefitLoss<'_
                 .flatten(),
             dead: crate::pmsm::checks::advice::dead_time_advice(&logs, options),
             logs,
+            delay_screen: crate::pmsm::checks::delay::screen(dq.experiments(), options, refit),
         }
     };
     if rayon::current_num_threads() == 1 {
@@ -74,7 +75,7 @@ fn fit_beside(
     let n_p = options.pole_pairs;
     let experiments = dq.experiments();
     let fitted = holds::fit_from_start(dq, options, names);
-    let Beside { scan, dead, logs } = beside.get();
+    let Beside { scan, dead, logs, delay_screen } = beside.get();
     // A salient log fitted without the saliency is an error before any other: the start's,
     // the options', the fits'.
     let structure = match &scan {
@@ -183,7 +184,13 @@ fn fit_beside(
                 refit,
             ));
         }
-        warnings.extend(crate::pmsm::checks::delay::warning(experiments, options, best.fit.loss, refit));
+        warnings.extend(crate::pmsm::checks::delay::warning(
+            experiments,
+            options,
+            best.fit.loss,
+            refit,
+            delay_screen,
+        ));
     }
     warnings.extend(setup_warnings.into_iter().flatten());
     warnings.extend(stage_warnings);

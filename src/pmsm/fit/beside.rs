@@ -30,4 +30,7 @@ pub(super) struct Beside<'a> {
     /// The logs prepared once for the checks on the voltage equations (the dead-time check
     /// here, the late-voltage check after the fit).
     pub logs: Vec<Option<PreparedLog<'a>>>,
+    /// The delay check's screen of a PWM fit ([`crate::pmsm::checks::delay::screen`]): its
+    /// averaged fits at three delays need no estimate of the PWM model.
+    pub delay_screen: Option<bool>,
 }
