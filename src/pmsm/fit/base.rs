@@ -43,7 +43,8 @@ pub(super) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, refit: RefitLoss<'_
     // The checks that need no estimate run on a thread of their own from the start, beside
     // the start, the fits and their statistics (which leave a core idle at times): the
     // setup scan (one regression Gram; a log the scan cannot read is not checked), the
-    // dead-time check and a PWM fit's delay screen (three averaged fits). On the calling thread when the caller's rayon pool has one thread.
+    // dead-time check and a PWM fit's delay screen (three averaged fits). On the calling
+    // thread when the caller's rayon pool has one thread.
     let beside = || {
         let logs = crate::pmsm::checks::prepared::prepare(dq.views(), options);
         Beside {
