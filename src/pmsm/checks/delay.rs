@@ -22,15 +22,16 @@ pub const PWM_DELAY_SAMPLES: usize = 16_384;
 /// [`DELAY_RATIO`] times lower loss. `None` for the terminal voltage.
 ///
 /// A fit through the switching-resolved PWM inverter is first screened by the averaged
-/// inverter model (`screened`, from [`screen`], which the fit runs beside its own stages):
-/// where it ranks the given delay first, no neighbour is fitted. Otherwise it compares the
-/// three delays on the first quarter of each log (at least [`PWM_DELAY_SAMPLES`] samples),
-/// each fitted there from the least-squares start through the same stages (its neighbours
-/// repeat every stage, and on the whole logs they took half of the fit's time): a wrong
-/// delay changes the model's every period, so a part shows it as the whole does. A
-/// neighbour the quarter would name is then confirmed on the whole logs against `loss`, as
-/// without the quarter, so that a poor minimum of the given delay's fit on the quarter
-/// cannot name a neighbour of a right delay (docs/performance.md has the measured ratios).
+/// inverter model (`screened`: [`screen`]'s answer, which the fit finds beside its own
+/// stages; `None` for any other fit): where it ranks the given delay first, no neighbour is
+/// fitted. Otherwise it compares the three delays on the first quarter of each log (at
+/// least [`PWM_DELAY_SAMPLES`] samples), each fitted there from the least-squares start
+/// through the same stages (its neighbours repeat every stage, and on the whole logs they
+/// took half of the fit's time): a wrong delay changes the model's every period, so a part
+/// shows it as the whole does. A neighbour the quarter would name is then confirmed on the
+/// whole logs against `loss`, as without the quarter, so that a poor minimum of the given
+/// delay's fit on the quarter cannot name a neighbour of a right delay (docs/performance.md
+/// has the measured ratios).
 pub(crate) fn warning(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
@@ -60,9 +61,7 @@ pub(crate) fn warning(
     let beating = |found: [Option<(usize, f64)>; 2], loss: f64| {
         found.into_iter().flatten().find(|(_, alt)| alt * DELAY_RATIO < loss).map(|(d, alt)| (d, loss / alt))
     };
-    if options.pwm.is_some()
-        && screened.unwrap_or_else(|| averaged_ranks_first(experiments, options, delay, refit))
-    {
+    if screened == Some(true) {
         return None;
     }
     let part = options.pwm.and_then(|_| first_part(experiments));

@@ -178,20 +178,14 @@ pub(crate) fn stages(
         experiments,
         input,
         &start,
-        match &last.own_mask {
-            Some(m) => m,
-            None => &mask,
-        },
+        last.own_mask.as_ref().unwrap_or(&mask),
         &|i| model(last.inverter, i),
         LoopScan { set: checked, near },
     )?;
     let moved = super::pwm_loop::moved(&again, input);
     let input = if moved { again.input } else { input };
     let refitted = own_mask_refit(&Sides { input, ..sides }, &mut last, &mask, held, notes)?;
-    let final_weighting: &dyn Weighting = match &last.own_mask {
-        Some(m) => m,
-        None => &mask,
-    };
+    let final_weighting: &dyn Weighting = last.own_mask.as_ref().unwrap_or(&mask);
     if moved {
         notes.extend(again.note.map(|n| format!("at the final estimate, {n}: refitted there")));
         if !refitted {
@@ -301,10 +295,7 @@ impl Kinks<'_, '_> {
         mask: &super::pwm_mask::SignMask<'_>,
         notes: &mut Vec<String>,
     ) -> Result<(HoldFits, VoltageInput, PwmInverter)> {
-        let on: &dyn Weighting = match &last.own_mask {
-            Some(m) => m,
-            None => mask,
-        };
+        let on: &dyn Weighting = last.own_mask.as_ref().unwrap_or(mask);
         let fits = self.unkinked(last.fits, last.inverter, input, &last.names, &last.start, on, notes)?;
         Ok((fits, input, last.inverter))
     }
