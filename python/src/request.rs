@@ -6,7 +6,7 @@
 use crate::errors::OptionError;
 use crate::keyword::each;
 use crate::reading::{Keywords, ReadingKeys};
-use greybox::app::values::{parse_bounds, parse_fix, parse_mask, parse_weighting};
+use greybox::app::values::{parse_bounds, parse_fix, parse_mask, parse_precision, parse_weighting};
 use greybox::app::{FitRequest, PolePairs, PwmRequest};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyInt};
@@ -18,6 +18,7 @@ pub const FIT_KEYWORDS: &[&str] = &[
     "pole_pairs",
     "model",
     "control_period",
+    "precision",
     "hold",
     "voltage",
     "delay",
@@ -93,6 +94,7 @@ pub fn fit_request(options: &Bound<'_, PyDict>) -> PyResult<FitRequest> {
             }
             "model" => r.model = x.choice()?,
             "control_period" => r.control_period = Some(x.number()?),
+            "precision" => r.precision = Some(parse_precision(&x.pairs()?.join(",")).map_err(|e| x.err(&e))?),
             "hold" => r.hold = x.choice()?,
             "voltage" => r.voltage = x.choice()?,
             "delay" => r.delay = x.parsed(str::parse)?,

@@ -33,6 +33,24 @@ def test_slow_log_is_fitted_by_the_steady_state_equations():
         greybox.fit(slow, pole_pairs=n_p, model="spm-steady", method="ls")
 
 
+def test_precision_states_the_accuracy_a_trusted_fit_reaches():
+    log, truth = greybox.simulate("exp3", seed=1, duration=6.0)
+    slow = log.take(list(range(0, log.num_rows, 100))).select(["t", "ud", "uq", "id", "iq", "w_m"])
+    n_p = truth["start"]["n_p"]
+
+    def imprecise(fit):
+        return [w["message"] for w in fit.to_dict()["warnings"] if w["code"] == "imprecise"]
+
+    strict = greybox.fit(slow, pole_pairs=n_p, precision={"r_s": "1e-6%"})
+    assert not strict.trusted
+    assert len(imprecise(strict)) == 1 and "r_s known to" in imprecise(strict)[0]
+    assert "k_e known" not in imprecise(strict)[0]
+    off = greybox.fit(slow, pole_pairs=n_p, precision="off")
+    assert not imprecise(off) and off.value("r_s") == strict.value("r_s")
+    with pytest.raises(greybox.OptionError, match="precision"):
+        greybox.fit(slow, pole_pairs=n_p, precision="r_s=x")
+
+
 @pytest.mark.xfail(
     strict=True,
     reason="known miss (issue 43, item 3): on this noise-free drive-simulator log at 100 Hz the steady-state "

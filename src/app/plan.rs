@@ -181,6 +181,7 @@ pub fn plan(a: &FitRequest) -> crate::Result<Plan> {
         model: kind,
         dynamics: a.model.dynamics(),
         control_period: a.control_period,
+        precision: a.precision.clone(),
         read_scales: [csv.current_scale, csv.voltage_scale],
         hold: a.hold,
         start: a.start.clone(),
@@ -297,6 +298,9 @@ fn ls_only(a: &FitRequest) -> crate::Result<()> {
     bad.extend(a.simulated_outputs.iter().map(String::as_str));
     if a.control_period.is_some() {
         bad.push("--control-period");
+    }
+    if a.precision.is_some() {
+        bad.push("--precision");
     }
     if bad.is_empty() {
         Ok(())

@@ -7,7 +7,7 @@ use super::values::{
     Advance, DeadTime, Delay, Gain, InverterChoice, LegWidth, Method, ModelChoice, Pll, PolePairs, Voltage,
 };
 use crate::error::{Error, Result};
-use crate::estimate::{ScalingKind, SolverKind, Tolerances, WeightingKind};
+use crate::estimate::{PrecisionTarget, ScalingKind, SolverKind, Tolerances, WeightingKind};
 use crate::pmsm::{CarrierEdge, CsvOptions, DeadTimeMask, HoldChoice, Modulator, PwmInverter, PwmUpdate};
 use std::path::PathBuf;
 
@@ -31,6 +31,9 @@ pub struct FitRequest {
     pub model: ModelChoice,
     /// The drive's control (PWM) period \[s\] for the steady-state equations.
     pub control_period: Option<f64>,
+    /// The accuracy a trusted fit must reach ([`crate::pmsm::PmsmFitOptions::precision`]):
+    /// `None` the fit's default, `Some(vec![])` none.
+    pub precision: Option<Vec<PrecisionTarget>>,
     /// The voltage hold between samples.
     pub hold: HoldChoice,
     /// The voltage that drives the model.
@@ -104,6 +107,7 @@ impl FitRequest {
             pole_pairs,
             model: ModelChoice::Spm,
             control_period: None,
+            precision: None,
             hold: HoldChoice::Auto,
             voltage: Voltage::Actual,
             delay: Delay::Samples(1),

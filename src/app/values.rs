@@ -2,8 +2,8 @@
 //! `auto`, a delay or `estimate`, the method, the voltage, the model; each parsed from the
 //! words the command line and the Python keywords share (`FromStr`, [`super::Choice`]).
 
-use crate::estimate::WeightingKind;
 use crate::estimate::weighting::{SpeedShape, SpeedWeighting};
+use crate::estimate::{PrecisionTarget, WeightingKind};
 use crate::pmsm::{DeadTimeMask, Dynamics, MotorKind};
 use std::str::FromStr;
 
@@ -194,6 +194,32 @@ pub fn parse_bounds(s: &str) -> Result<(String, f64, f64), String> {
     let [name, lo, hi] = parts[..] else { return Err(format!("`{s}`: expected NAME:LO:HI")) };
     let num = |v: &str| v.parse::<f64>().map_err(|e| format!("`{s}`: {e}"));
     Ok((name.to_string(), num(lo)?, num(hi)?))
+}
+
+/// The accuracy a trusted fit must reach ([`crate::estimate::imprecise`]): `off` (none), or
+/// `NAME=X%[,NAME=X%…]`, each a parameter and its largest relative three-standard-error
+/// half width in percent (`r_s=0.5%,k_e=0.05%`; a value without `%` is a fraction).
+///
+/// # Errors
+/// A message quoting `s`: an empty name, a value that is not a positive finite number.
+pub fn parse_precision(s: &str) -> Result<Vec<PrecisionTarget>, String> {
+    if s == "off" {
+        return Ok(Vec::new());
+    }
+    s.split(',')
+        .map(|item| {
+            let bad = || format!("`{item}`: expected off or NAME=X% (e.g. r_s=0.5%,k_e=0.05%)");
+            let (name, value) = item.split_once('=').filter(|(n, _)| !n.is_empty()).ok_or_else(bad)?;
+            let relative = match value.strip_suffix('%') {
+                Some(p) => p.trim().parse::<f64>().map(|p| p / 100.0),
+                None => value.parse::<f64>(),
+            }
+            .ok()
+            .filter(|r| r.is_finite() && *r > 0.0)
+            .ok_or_else(bad)?;
+            Ok(PrecisionTarget { parameter: name.trim().to_string(), relative })
+        })
+        .collect()
 }
 
 /// A sample weighting β(ω) (thesis eq. 5.11) on the mechanical speed: `uniform`,

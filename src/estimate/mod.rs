@@ -20,6 +20,7 @@ pub(crate) mod iv;
 pub(crate) mod linear;
 pub(crate) mod metrics;
 mod options;
+pub(crate) mod precision;
 pub(crate) mod problem;
 pub(crate) mod result;
 pub(crate) mod scaling;
@@ -47,6 +48,7 @@ pub use iv::{IvCovariance, IvSums, one_step_sums};
 pub use linear::{BLOCK, LinearSolution, RANK_TOLERANCE, StreamedLeastSquares, solve_weighted};
 pub use metrics::{Metrics, Whiteness, aic, bic, fit_percent, fpe, metrics, whiteness, whiteness_of};
 pub use options::PemOptions;
+pub use precision::{PRECISION_Z, PrecisionTarget, imprecise};
 #[cfg(test)]
 pub(crate) use problem::lagged_dots;
 pub use problem::{

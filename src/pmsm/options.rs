@@ -3,7 +3,7 @@
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::{FitResult, PemOptions};
+use crate::estimate::{FitResult, PemOptions, PrecisionTarget};
 use crate::model::Parameter;
 use crate::pmsm::log::Scale;
 use crate::pmsm::model::interval::VoltageInput;
@@ -160,6 +160,11 @@ pub struct PmsmFitOptions {
     /// under the convention the data cannot tell from the one read. Default: peak, peak.
     #[serde(default)]
     pub read_scales: [Scale; 2],
+    /// The accuracy the fit must reach to be trusted ([`crate::estimate::imprecise`]):
+    /// `None` the fit's default (the steady-state equations' [`STEADY_PRECISION`](crate::pmsm::STEADY_PRECISION),
+    /// none for the dynamic model); `Some(vec![])` none.
+    #[serde(default)]
+    pub precision: Option<Vec<PrecisionTarget>>,
 }
 
 impl PmsmFitOptions {
@@ -188,6 +193,7 @@ impl PmsmFitOptions {
             dynamics: Dynamics::Auto,
             control_period: None,
             read_scales: [Scale::Peak; 2],
+            precision: None,
         }
     }
 }

@@ -240,6 +240,9 @@ fn cli_reports_bad_input_without_panicking() {
         (vec!["fit", "data/sample.csv.gz", "-p", "4", "--col-ud", "u_d_missing"], "u_d_missing"),
         (vec!["fit", "data/sample.csv.gz", "-p", "4", "--start", "1,2"], "start"),
         (vec!["fit", "data/sample.csv.gz", "-p", "4", "--weighting", "low-speed:-5"], "corner speed"),
+        (vec!["fit", "data/sample.csv.gz", "-p", "4", "--precision", "r_s=-1%"], "expected off or NAME=X%"),
+        (vec!["fit", "data/sample.csv.gz", "-p", "4", "--precision", "=1%"], "`=1%`"),
+        (vec!["fit", "data/sample.csv.gz", "-p", "4", "--method", "ls", "--precision", "off"], "--precision"),
     ] {
         let out = greybox(&args);
         let err = String::from_utf8_lossy(&out.stderr);
@@ -340,4 +343,21 @@ fn a_non_finite_value_names_its_file() {
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains(path.to_str().unwrap()) && err.contains("row 5"), "{err}");
     std::fs::remove_file(&path).ok();
+}
+
+/// `--precision` on the dynamic fit of the shipped log: its estimates are known to far
+/// better than 0.5 % (exit 0), and to less than a thousandth of a percent of r_s, which is
+/// stated as the reason for exit 3.
+#[test]
+#[cfg(feature = "cli")]
+fn a_stated_accuracy_the_dynamic_fit_misses_is_exit_3() {
+    let out = greybox(&["fit", "data/sample.csv.gz", "-p", "4", "--precision", "r_s=0.5%,k_e=0.05%", "-q"]);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = greybox(&["fit", "data/sample.csv.gz", "-p", "4", "--precision", "r_s=1e-7"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(3), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        text.contains("[imprecise]") && text.contains("r_s known to ±") && !text.contains("k_e known"),
+        "{text}"
+    );
 }

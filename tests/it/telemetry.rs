@@ -10,13 +10,16 @@ use greybox::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
 use greybox::pmsm::{MotorKind, PmsmFitOptions, fit_pmsm};
 
 /// R_s within 0.5 % and K_e within 0.05 % (issue 43), trusted; on the noisy log both within
-/// 3 standard errors as well (the noise-free log's within 5e-5: the data's 7 digits).
+/// 3 standard errors as well (the noise-free log's within 5e-5: the data's 7 digits). The
+/// noisy log's every 160th row tells R_s and K_e to ±0.54 % and ±0.088 % only (three
+/// standard errors): untrusted (`imprecise`), honest all the same.
 #[test]
 #[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn drive_cycle_telemetry_is_fitted_by_the_steady_state_equations() {
     for (stem, noisy) in [("servo_spm_moves", false), ("servo_spm_moves_idinj_noisy", true)] {
         let (fast, t) = load(stem);
         for every in [40, 160] {
+            let precise = !(noisy && every == 160);
             let e = fast.decimate(every).unwrap();
             let fit = fit_pmsm(std::slice::from_ref(&e), &PmsmFitOptions::new(t.n_p)).unwrap();
             assert_eq!(fit.report.model, "pmsm_spm_steady");
@@ -29,7 +32,10 @@ fn drive_cycle_telemetry_is_fitted_by_the_steady_state_equations() {
                     assert!(z.abs() <= 3.0, "{stem} {every}: {name} z {z}");
                 }
             }
-            assert!(fit.trusted(), "{stem} every {every}th row: {:?}", fit.warnings);
+            let untrusted: Vec<&str> =
+                fit.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.as_str()).collect();
+            let expected: &[&str] = if precise { &[] } else { &["imprecise"] };
+            assert_eq!(untrusted, expected, "{stem} every {every}th row: {:?}", fit.warnings);
         }
     }
 }
@@ -100,4 +106,45 @@ fn telemetry_that_cannot_tell_a_parameter_from_zero_is_untrusted() {
         assert!(p.value > 0.0 && p.ci95[0] < 0.0, "{name}: {} {:?}", p.value, p.ci95);
         assert!(w.message.contains(&format!("{name} ∈ [-")), "{name}: {}", w.message);
     }
+}
+
+/// The gym-electric-motor SPM log of moves (8 kHz, short plateaus) at every 80th row (100
+/// Hz): R_s came out −1.6 % with an honest interval (|z| 0.5) and exit 0; the steady-state
+/// fit's stated accuracy (R_s 0.5 %, K_e 0.05 % at three standard errors, issue 43) makes it
+/// untrusted (`imprecise`, naming R_s and how well it is known); stated off, the same
+/// estimate is trusted and covers the truth. At every 5000th row of the drive simulator's
+/// log (15 rows, 3 smooth samples: 6 equations for 4 unknowns) the fit was refused
+/// (an error, exit 1); now fitted and untrusted.
+#[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
+fn telemetry_short_of_the_stated_accuracy_is_untrusted() {
+    let (fast, t) = load("gem_spm_moves_idinj");
+    let e = fast.decimate(80).unwrap();
+    let one = std::slice::from_ref(&e);
+    let fit = fit_pmsm(one, &PmsmFitOptions::new(t.n_p)).unwrap();
+    let w = fit.warnings.iter().find(|w| w.code == "imprecise").expect("imprecise");
+    assert!(
+        w.untrusted && w.message.contains("r_s known to ±") && w.message.contains("(target 0.50 %)"),
+        "{}",
+        w.message
+    );
+    let r_s = fit.parameter("r_s").unwrap();
+    assert!(rel(r_s.value, t.r_s).abs() > 5e-3, "r_s {:+.3e}: within the target now", rel(r_s.value, t.r_s));
+    let off =
+        fit_pmsm(one, &PmsmFitOptions { precision: Some(Vec::new()), ..PmsmFitOptions::new(t.n_p) }).unwrap();
+    assert!(off.trusted(), "{:?}", off.warnings);
+    for (name, truth) in [("r_s", t.r_s), ("k_e", t.k_e)] {
+        let p = off.parameter(name).unwrap();
+        assert_eq!(p.value, fit.parameter(name).unwrap().value);
+        assert!((p.value - truth).abs() <= 3.0 * p.std_error, "{name}: {} against {truth}", p.value);
+    }
+    let (fast, t) = load("servo_spm_moves_idinj");
+    let e = fast.decimate(5000).unwrap();
+    let sparse = fit_pmsm(std::slice::from_ref(&e), &PmsmFitOptions::new(t.n_p)).unwrap();
+    assert_eq!(sparse.report.model, "pmsm_spm_steady");
+    assert!(
+        !sparse.trusted() && sparse.warnings.iter().any(|w| w.code == "imprecise"),
+        "{:?}",
+        sparse.warnings
+    );
 }

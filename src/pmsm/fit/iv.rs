@@ -252,7 +252,7 @@ fn iv_at_hold(oe: PmsmFit, dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<
             iterate(start, |t| one_step_sums(&model, &preps, t))?
         }
     };
-    Ok(report(oe, solved, t0.elapsed().as_secs_f64()))
+    Ok(report(oe, solved, t0.elapsed().as_secs_f64(), options.precision.as_deref()))
 }
 
 /// The IV estimate, its covariance, the refinements made and whether they converged.
@@ -290,8 +290,14 @@ fn iterate(mut theta: Vec<f64>, sums: impl Fn(&[f64]) -> Result<IvSums>) -> Resu
     Ok((theta, cov, iterations, converged))
 }
 
-/// The output-error report `oe` with the IV estimate θ, its covariance and iterations.
-fn report(oe: PmsmFit, (theta, cov, iterations, converged): Solved, fit_s: f64) -> PmsmFit {
+/// The output-error report `oe` with the IV estimate θ, its covariance and iterations, and
+/// the `imprecise` verdict of the accuracy `precision` states on its intervals.
+fn report(
+    oe: PmsmFit,
+    (theta, cov, iterations, converged): Solved,
+    fit_s: f64,
+    precision: Option<&[crate::estimate::PrecisionTarget]>,
+) -> PmsmFit {
     let n = theta.len();
     let tq = cov.t_quantile();
     let se: Vec<f64> = (0..n).map(|j| cov.cov[(j, j)].max(0.0).sqrt()).collect();
@@ -341,11 +347,16 @@ fn report(oe: PmsmFit, (theta, cov, iterations, converged): Solved, fit_s: f64) 
         .report
         .warnings
         .iter()
-        .filter(|w| !["input_noise", "voltage_noise_bias", "undetermined"].contains(&w.code.as_str()))
+        .filter(|w| {
+            !["input_noise", "voltage_noise_bias", "undetermined", "imprecise"].contains(&w.code.as_str())
+        })
         .cloned()
         .collect();
-    // The output-error intervals' verdict replaced by these intervals'.
+    // The output-error intervals' verdicts replaced by these intervals'.
     warnings.extend(crate::estimate::gate::undetermined_warning(&kind.undetermined(&parameters)));
+    warnings.extend(precision.and_then(|targets| {
+        crate::estimate::imprecise(&parameters, targets, "--precision", super::workflow::PRECISION_ADVICE)
+    }));
     if !converged {
         warnings.push(crate::estimate::Warning::untrusted(
             "not_converged",

@@ -8,6 +8,7 @@
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
+use crate::estimate::imprecise;
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::log::DqLogs;
 use crate::pmsm::model::interval::VoltageInput;
@@ -119,10 +120,7 @@ pub(crate) fn fit_dq(dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<PmsmFi
             &parts,
             &refit_report,
         );
-        return Ok(match bias {
-            None => fit,
-            Some(w) => with_warnings(fit, [w]),
-        });
+        return Ok(judged(fit, options, bias));
     }
     let masked = fit.inverter.and_then(|i| i.mask).is_some();
     let (segments, noise) = rayon::join(
@@ -135,16 +133,36 @@ pub(crate) fn fit_dq(dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<PmsmFi
                 .flatten()
         },
     );
-    if segments.is_none() && noise.is_none() {
-        return Ok(fit);
-    }
-    Ok(with_warnings(fit, segments.into_iter().chain(noise)))
+    Ok(judged(fit, options, segments.into_iter().chain(noise)))
 }
+
+/// What makes a dynamic fit more precise, the `imprecise` warning's advice.
+pub(super) const PRECISION_ADVICE: &str = "the log does not carry that much information; log longer, or excite what the \
+                                           advice names (speed, current, i_d)";
 
 /// `fit` with `warnings` added after its report's.
 fn with_warnings(fit: PmsmFit, warnings: impl IntoIterator<Item = crate::estimate::Warning>) -> PmsmFit {
     let warnings = fit.report.warnings.iter().cloned().chain(warnings).collect();
     PmsmFit { report: crate::estimate::FitResult { warnings, ..fit.report }, ..fit }
+}
+
+/// The dynamic fit `fit` with its checks' `warnings` and the `imprecise` warning of the
+/// accuracy `options` state (`--precision`; a dynamic fit states none by default, the
+/// steady-state fit judges its own): `fit` itself when there is none to add.
+fn judged(
+    fit: PmsmFit,
+    options: &PmsmFitOptions,
+    warnings: impl IntoIterator<Item = crate::estimate::Warning>,
+) -> PmsmFit {
+    let precise = options
+        .precision
+        .as_ref()
+        .and_then(|targets| imprecise(&fit.report.parameters, targets, "--precision", PRECISION_ADVICE));
+    let mut added = warnings.into_iter().chain(precise).peekable();
+    match added.peek() {
+        None => fit,
+        Some(_) => with_warnings(fit, added),
+    }
 }
 
 /// The voltage-sampling check of a dynamic fit `fit` from the terminal voltage

@@ -211,8 +211,8 @@ fn check_options(options: &SteadyOptions, kind: MotorKind) -> Result<()> {
 /// [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError) for `n_p` out of range;
 /// [`Error::InvalidOption`] for non-positive options or an unknown per-log parameter;
 /// [`Error::MissingChannel`] for a log without the dq channels or the terminal voltage;
-/// [`Error::Numerical`] when fewer steady samples than parameters remain, or they do not
-/// determine every parameter (e.g. no speed at all).
+/// [`Error::Numerical`] when the steady samples' equations (two a sample) are no more
+/// than the parameters, or they do not determine every parameter (e.g. no speed at all).
 pub fn steady_state(
     experiments: &[Experiment],
     n_p: u32,
@@ -248,11 +248,11 @@ pub(crate) fn steady_state_of(
         logs.push(SteadyLog { view, h: e.h(), steady, columns: Vec::new() });
         current_noise.push(sigma);
     }
-    if let Some(log) = logs.iter().position(|l| l.steady.len() <= kind.parameter_names().len()) {
+    if let Some(log) = logs.iter().position(|l| 2 * l.steady.len() <= kind.parameter_names().len()) {
         return Err(Error::Numerical {
             context: "steady-state fit".into(),
             reason: format!(
-                "{} has {} steady samples for {} parameters: its currents are never smooth across three samples",
+                "{} has {} steady samples (two equations each) for {} parameters: its currents are never smooth across three samples",
                 experiments[log].name(),
                 logs[log].steady.len(),
                 kind.parameter_names().len()
