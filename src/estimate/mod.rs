@@ -9,6 +9,7 @@
 // The submodules are the crate's; their public items are re-exported here, one path each.
 pub(crate) mod arrowhead;
 pub(crate) mod assemble;
+pub(crate) mod colour;
 pub(crate) mod consistency;
 pub(crate) mod correction;
 mod covariance;
@@ -32,6 +33,7 @@ pub use arrowhead::{
     ArrowInverse, ArrowLayout, Arrowhead, LowRank, Sandwich, Singular, SolveTiming, solve_timing,
 };
 pub use assemble::AT_BOUND;
+pub use colour::{EXACT_FIT_PERCENT, STRONG_COLOUR};
 pub use consistency::{
     Homogeneity, PARTS, PARTS_FLOOR, PARTS_LEVEL, Refit, between_variance, chi_square_sf, consecutive_parts,
     disagreement, disagreement_of, homogeneity, homogeneity_where_estimated, static_parts,

@@ -248,18 +248,22 @@ pub(crate) fn steady_state_of(
         logs.push(SteadyLog { view, h: e.h(), steady, columns: Vec::new() });
         current_noise.push(sigma);
     }
-    if let Some(log) = logs.iter().position(|l| 2 * l.steady.len() <= kind.parameter_names().len()) {
+    // Two equations a sample, one more than the unknowns at least: a degree of freedom for
+    // the noise's estimate (with none, the intervals would have zero width). The control
+    // period's term is estimated only where it leaves one too.
+    let unknowns = kind.parameter_names().len();
+    if let Some(log) = logs.iter().position(|l| 2 * l.steady.len() <= unknowns) {
         return Err(Error::Numerical {
             context: "steady-state fit".into(),
             reason: format!(
-                "{} has {} steady samples (two equations each) for {} parameters: its currents are never smooth across three samples",
+                "{} has {} steady samples (two equations each) for {unknowns} unknowns: its currents are seldom \
+                 smooth across three samples; a longer log, or one at a faster rate",
                 experiments[log].name(),
                 logs[log].steady.len(),
-                kind.parameter_names().len()
             ),
         });
     }
-    let estimate = options.control_period.is_none();
+    let estimate = options.control_period.is_none() && logs.iter().all(|l| 2 * l.steady.len() > unknowns + 1);
     let solved = solve(&mut logs, experiments, n_p, kind, options, estimate)?;
     // One speed cannot tell the period's (ω_e h_c)²/12 from K_e: neglected then.
     let solved = match solved.period_confounded(kind) {
