@@ -112,8 +112,8 @@ fn telemetry_that_cannot_tell_a_parameter_from_zero_is_untrusted() {
 /// Hz): R_s came out −1.6 % with an honest interval (|z| 0.5) and exit 0; the steady-state
 /// fit's stated accuracy (R_s 0.5 %, K_e 0.05 % at three standard errors, issue 43) makes it
 /// untrusted (`imprecise`, naming R_s and how well it is known); stated off, the same
-/// estimate is trusted and covers the truth. At every 5000th row of the drive simulator's
-/// log (15 rows, 3 smooth samples: 6 equations for 4 unknowns) the fit was refused
+/// estimate is trusted and covers the truth. At every 5000th row of the shared SPM
+/// log with injections (15 rows, 3 smooth samples: 6 equations for 4 unknowns) the fit was refused
 /// (an error, exit 1); now fitted and untrusted.
 #[test]
 #[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
