@@ -324,7 +324,7 @@ pub(crate) fn assemble<M: GreyBoxModel>(
             .filter(|_| model.n_states() == 0 && fit.fit_percent.iter().any(|f| *f < gate::POOR_FIT_PERCENT))
             .and_then(|check| check(&problem.theta(0, p))),
     };
-    let coloured = super::colour::unbatched(&uncertainty, &fit, model.n_states() > 0);
+    let coloured = super::colour::unbatched(&uncertainty, &fit, &parameters, model.n_states() > 0);
     let warnings =
         gate::warnings(&solver, &parameters, &fit, &evidence).into_iter().chain(coloured).collect();
     Ok(FitResult {

@@ -10,31 +10,35 @@
 //! unknown factor: every 20th row of an independent 5 kHz IPM log of short moves (1810
 //! samples, the dynamic model at the dq hold, fit 80 % and 93 %, Ljung–Box 13 and 40 times
 //! its critical value) put r_s 5.8 % low at |z| 24 with exit 0. The fit is untrusted
-//! (`coloured_residuals`), unless it is exact to the noise floor: every output's fit at
-//! least [`EXACT_FIT_PERCENT`] (a noise-free log's residuals are the data's rounding and the
-//! model's floor, coloured by nature and harmless; those of the shared noise-free logs have
-//! Ljung–Box statistics 10⁴ times the critical value at fits of 99.93–100 %).
+//! (`coloured_residuals`), unless it is exact to the noise floor: every free parameter's
+//! standard error at most [`PARTS_FLOOR`] of its magnitude, the accuracy the consistency
+//! checks take for an exact fit (a noise-free log's residuals are the data's rounding and
+//! the model's floor, coloured by nature: the first 1000 samples of the shared noise-free
+//! logs have Ljung–Box statistics 200–540 times the critical value, an output's fit down to
+//! 99.7 %, and standard errors of 2e-8 to 1e-6 of the estimates, which are within 0.006 %).
 
+use super::consistency::PARTS_FLOOR;
 use super::problem::MIN_BATCHES;
-use super::result::{CovarianceMethod, FitStatistics, Uncertainty, Warning};
+use super::result::{CovarianceMethod, FitStatistics, ParameterEstimate, Uncertainty, Warning};
 
 /// Ljung–Box statistic, in multiples of its 1 % critical value, above which residuals are
 /// strongly coloured: 4 (the statistic is about its degrees of freedom, a third of the
 /// critical value, for white residuals).
 pub const STRONG_COLOUR: f64 = 4.0;
 
-/// Fit percentage of every output at or above which a fit is exact to the noise floor
-/// (relative residual below 1e-3).
-pub const EXACT_FIT_PERCENT: f64 = 99.9;
-
 /// The untrusted `coloured_residuals` warning of a dynamic fit (`dynamic`: the model has
 /// states, so its residuals have a time order) whose `uncertainty` is the white one
-/// although an output's residuals are strongly coloured, unless `fit` is exact (module
-/// documentation); `None` otherwise.
-pub(crate) fn unbatched(uncertainty: &Uncertainty, fit: &FitStatistics, dynamic: bool) -> Option<Warning> {
+/// although an output's residuals are strongly coloured, unless the `parameters` are exact
+/// (module documentation); `None` otherwise.
+pub(crate) fn unbatched(
+    uncertainty: &Uncertainty,
+    fit: &FitStatistics,
+    parameters: &[ParameterEstimate],
+    dynamic: bool,
+) -> Option<Warning> {
     let critical = uncertainty.ljung_box_critical;
     let strong = uncertainty.ljung_box.iter().any(|&q| q > STRONG_COLOUR * critical);
-    let exact = fit.fit_percent.iter().all(|&f| f >= EXACT_FIT_PERCENT);
+    let exact = parameters.iter().filter(|p| !p.fixed).all(|p| p.std_error <= PARTS_FLOOR * p.value.abs());
     if !dynamic || uncertainty.method != CovarianceMethod::White || !strong || exact {
         return None;
     }
@@ -87,25 +91,45 @@ mod tests {
         }
     }
 
+    fn estimates(relative_std_error: f64) -> Vec<ParameterEstimate> {
+        let p = |name: &str, value: f64| ParameterEstimate {
+            name: name.into(),
+            unit: String::new(),
+            value,
+            std_error: relative_std_error * value,
+            std_error_white: relative_std_error * value,
+            ci95: [value; 2],
+            error_index_percent: f64::NAN,
+            fixed: false,
+            nuisance: false,
+            at_bound: false,
+            experiment: None,
+            start: value,
+        };
+        vec![p("r_s", 0.33), p("k_e", 0.42)]
+    }
+
     #[test]
     fn strong_colour_under_the_white_covariance_is_untrusted_unless_exact_static_or_batched() {
+        let (f, noisy) = (fit([80.1, 93.5]), estimates(2.5e-3));
         let white = uncertainty(CovarianceMethod::White, [592.2, 1790.1]);
-        let w = unbatched(&white, &fit([80.1, 93.5]), true).expect("coloured_residuals");
+        let w = unbatched(&white, &f, &noisy, true).expect("coloured_residuals");
         assert!(w.untrusted && w.code == "coloured_residuals", "{w:?}");
         assert!(
             w.message.contains("id 592, iq 1790 against 44") && w.message.contains("1810 samples"),
             "{}",
             w.message
         );
-        // Exact to the noise floor, a model without states, batch means taken: no warning.
-        assert!(unbatched(&white, &fit([99.95, 99.999]), true).is_none());
-        assert!(unbatched(&white, &fit([80.1, 93.5]), false).is_none());
+        // Exact to the noise floor (1e-5), a model without states, batch means taken: none.
+        assert!(unbatched(&white, &f, &estimates(1e-5), true).is_none());
+        assert!(unbatched(&white, &f, &estimates(1.1e-5), true).is_some());
+        assert!(unbatched(&white, &f, &noisy, false).is_none());
         let batched = uncertainty(CovarianceMethod::BatchMeans, [592.2, 1790.1]);
-        assert!(unbatched(&batched, &fit([80.1, 93.5]), true).is_none());
+        assert!(unbatched(&batched, &f, &noisy, true).is_none());
         // Coloured, but not strongly: 4 × 44.3 = 177.2.
         let mild = uncertainty(CovarianceMethod::White, [177.0, 60.0]);
-        assert!(unbatched(&mild, &fit([80.1, 93.5]), true).is_none());
+        assert!(unbatched(&mild, &f, &noisy, true).is_none());
         let strong = uncertainty(CovarianceMethod::White, [177.5, 60.0]);
-        assert!(unbatched(&strong, &fit([80.1, 93.5]), true).is_some());
+        assert!(unbatched(&strong, &f, &noisy, true).is_some());
     }
 }

@@ -33,7 +33,7 @@ pub use arrowhead::{
     ArrowInverse, ArrowLayout, Arrowhead, LowRank, Sandwich, Singular, SolveTiming, solve_timing,
 };
 pub use assemble::AT_BOUND;
-pub use colour::{EXACT_FIT_PERCENT, STRONG_COLOUR};
+pub use colour::STRONG_COLOUR;
 pub use consistency::{
     Homogeneity, PARTS, PARTS_FLOOR, PARTS_LEVEL, Refit, between_variance, chi_square_sf, consecutive_parts,
     disagreement, disagreement_of, homogeneity, homogeneity_where_estimated, static_parts,
