@@ -107,7 +107,8 @@ def fit(
     ``voltage="reference"``, ``delay="estimate"``, ``dead_time="estimate"``,
     ``hold="stator"``, ``fix={"r_s": 0.9}``, ``bounds={"l_s": (1e-4, 1e-2)}``,
     ``precision={"r_s": "1%", "k_e": "0.1%"}`` (or ``"off"``: the accuracy a trusted fit
-    must reach, three standard errors; the steady-state fit's default 0.5 % and 0.05 %),
+    must reach, three standard errors, a number without ``%`` a fraction; the steady-state
+    fit's default 0.5 % and 0.05 %),
     ``from_=0.5`` (``from`` is a Python keyword: a trailing underscore is dropped).
     The file outputs (``json``, ``plot``, ``residuals``) are refused: see :class:`Fit`.
 

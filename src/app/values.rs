@@ -209,7 +209,10 @@ pub fn parse_precision(s: &str) -> Result<Vec<PrecisionTarget>, String> {
     s.split(',')
         .map(|item| {
             let bad = || format!("`{item}`: expected off or NAME=X% (e.g. r_s=0.5%,k_e=0.05%)");
-            let (name, value) = item.split_once('=').filter(|(n, _)| !n.is_empty()).ok_or_else(bad)?;
+            let (name, value) = item.split_once('=').map(|(n, v)| (n.trim(), v.trim())).ok_or_else(bad)?;
+            if name.is_empty() {
+                return Err(bad());
+            }
             let relative = match value.strip_suffix('%') {
                 Some(p) => p.trim().parse::<f64>().map(|p| p / 100.0),
                 None => value.parse::<f64>(),
@@ -217,7 +220,7 @@ pub fn parse_precision(s: &str) -> Result<Vec<PrecisionTarget>, String> {
             .ok()
             .filter(|r| r.is_finite() && *r > 0.0)
             .ok_or_else(bad)?;
-            Ok(PrecisionTarget { parameter: name.trim().to_string(), relative })
+            Ok(PrecisionTarget { parameter: name.to_string(), relative })
         })
         .collect()
 }

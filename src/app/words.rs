@@ -35,6 +35,7 @@ pub fn option_of(option: &str) -> Option<&'static str> {
         "xtol" => "xtol",
         "gtol" => "gtol",
         "output" => "json",
+        "precision" => "precision",
         _ => return None,
     })
 }

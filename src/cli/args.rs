@@ -56,10 +56,11 @@ pub struct FitArgs {
     #[arg(help_heading = "Motor and model", long, value_name = "SECONDS")]
     pub control_period: Option<f64>,
     /// The accuracy a fit must reach to exit 0, each parameter to X % at three standard
-    /// errors: off (none), or NAME=X%[,NAME=X%...]. Default: r_s=0.5%,k_e=0.05% for the
-    /// steady-state equations (1.3 K of winding, 0.45 K of magnet temperature), none for the
-    /// dynamic model.
+    /// errors: off (none), or NAME=X%[,NAME=X%...] (a value without % is a fraction).
+    /// Default: r_s=0.5%,k_e=0.05% for the steady-state equations (1.3 K of winding, 0.45 K
+    /// of magnet temperature), none for the dynamic model.
     #[arg(help_heading = "Motor and model", long, value_name = "off|NAME=X%,...", value_parser = parse_precision)]
+    // The full path keeps clap from reading `Vec` as a flag given several times.
     pub precision: Option<::std::vec::Vec<PrecisionTarget>>,
     /// Voltage hold between samples: auto picks the one with the lower loss.
     #[arg(help_heading = "Motor and model", long, value_parser = super::values::listed::<HoldChoice>(), default_value = "auto")]

@@ -3,15 +3,15 @@
 //! residuals make too small (issue 43, item 2).
 //!
 //! Batch means need batches long against the scores' correlation time and at least
-//! [`MIN_BATCHES`] of them (`problem::batches`), so a dynamic log of fewer than
-//! `MIN_BATCHES × BLOCK_LEN` (2048) samples gets the white covariance whatever its
-//! residuals. Where they are strongly coloured (a Ljung–Box statistic above
+//! [`MIN_BATCHES`] of them, each a run of whole blocks of the pass (`problem::batches`), so
+//! a dynamic log too short for that (about 1800–2048 samples or fewer, in 256-sample
+//! blocks) gets the white covariance whatever its residuals. Where they are strongly coloured (a Ljung–Box statistic above
 //! [`STRONG_COLOUR`] times its 1 % critical value) the intervals are then too narrow by an
 //! unknown factor: every 20th row of an independent 5 kHz IPM log of short moves (1810
 //! samples, the dynamic model at the dq hold, fit 80 % and 93 %, Ljung–Box 13 and 40 times
 //! its critical value) put r_s 5.8 % low at |z| 24 with exit 0. The fit is untrusted
 //! (`coloured_residuals`), unless it is exact to the noise floor: every free parameter's
-//! standard error at most [`PARTS_FLOOR`] of its magnitude, the accuracy the consistency
+//! standard error (nuisance parameters aside) at most [`PARTS_FLOOR`] of its magnitude, the accuracy the consistency
 //! checks take for an exact fit (a noise-free log's residuals are the data's rounding and
 //! the model's floor, coloured by nature: the first 1000 samples of the shared noise-free
 //! logs have Ljung–Box statistics 200–540 times the critical value, an output's fit down to
@@ -22,8 +22,8 @@ use super::problem::MIN_BATCHES;
 use super::result::{CovarianceMethod, FitStatistics, ParameterEstimate, Uncertainty, Warning};
 
 /// Ljung–Box statistic, in multiples of its 1 % critical value, above which residuals are
-/// strongly coloured: 4 (the statistic is about its degrees of freedom, a third of the
-/// critical value, for white residuals).
+/// strongly coloured: 4 (for white residuals the statistic is about its degrees of
+/// freedom, 25 over the 25 lags against a critical value of 44).
 pub const STRONG_COLOUR: f64 = 4.0;
 
 /// The untrusted `coloured_residuals` warning of a dynamic fit (`dynamic`: the model has
@@ -38,7 +38,10 @@ pub(crate) fn unbatched(
 ) -> Option<Warning> {
     let critical = uncertainty.ljung_box_critical;
     let strong = uncertainty.ljung_box.iter().any(|&q| q > STRONG_COLOUR * critical);
-    let exact = parameters.iter().filter(|p| !p.fixed).all(|p| p.std_error <= PARTS_FLOOR * p.value.abs());
+    let exact = parameters
+        .iter()
+        .filter(|p| !p.fixed && !p.nuisance)
+        .all(|p| p.std_error <= PARTS_FLOOR * p.value.abs());
     if !dynamic || uncertainty.method != CovarianceMethod::White || !strong || exact {
         return None;
     }
@@ -49,8 +52,8 @@ pub(crate) fn unbatched(
         format!(
             "the residuals are strongly coloured (Ljung–Box {} against {critical:.0} at 1 %), but {} samples are too \
              few for the {MIN_BATCHES} batches of the batch-means covariance: the intervals are the white ones, which \
-             coloured residuals make too small by an unknown factor. A longer log, or one at the drive's own control \
-             rate, gets honest intervals",
+             coloured residuals make too small by an unknown factor. A longer log, or one sampled faster, gets \
+             honest intervals",
             statistics.join(", "),
             fit.samples
         ),

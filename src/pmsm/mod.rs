@@ -42,7 +42,6 @@ pub use fit::pole_pairs::{AutoPolePairs, choose_pole_pairs_by_fit};
 pub use fit::report::{PmsmFit, ReportOptions, StartComparison, conventions, estimate_table};
 pub use fit::saturated::{SaturatedFit, fit_saturated};
 pub use fit::standstill::{STANDSTILL_T0, StandstillFit, StandstillOptions, fit_standstill};
-pub use fit::steady::STEADY_PRECISION;
 pub use fit::validate::SavedModel;
 pub use fit::workflow::fit_pmsm;
 pub use linear::{

@@ -161,7 +161,7 @@ pub struct PmsmFitOptions {
     #[serde(default)]
     pub read_scales: [Scale; 2],
     /// The accuracy the fit must reach to be trusted ([`crate::estimate::imprecise`]):
-    /// `None` the fit's default (the steady-state equations' [`STEADY_PRECISION`](crate::pmsm::STEADY_PRECISION),
+    /// `None` the fit's default (the steady-state equations' [`STEADY_PRECISION`](crate::pmsm::thresholds::STEADY_PRECISION),
     /// none for the dynamic model); `Some(vec![])` none.
     #[serde(default)]
     pub precision: Option<Vec<PrecisionTarget>>,

@@ -27,6 +27,7 @@ pub use super::fit::pole_pairs::AUTO_CANDIDATES;
 pub use super::fit::saturated::LOCAL_MINIMUM_EXCESS;
 pub use super::fit::search::SPEED_PLL_RANGE;
 pub use super::fit::standstill::{STANDSTILL_PART_SAMPLES, STANDSTILL_PARTS, UNEXCITED_AXIS};
+pub use super::fit::steady_trust::{STEADY_MIN_DOF, STEADY_PRECISION};
 pub use super::linear::STEADY_UNIDENTIFIABLE;
 pub use super::linear::report::LS_BIAS_UNTRUSTED;
 pub use super::model::inverter::DEFAULT_RELATIVE_WIDTH;

@@ -243,6 +243,7 @@ fn cli_reports_bad_input_without_panicking() {
         (vec!["fit", "data/sample.csv.gz", "-p", "4", "--precision", "r_s=-1%"], "expected off or NAME=X%"),
         (vec!["fit", "data/sample.csv.gz", "-p", "4", "--precision", "=1%"], "`=1%`"),
         (vec!["fit", "data/sample.csv.gz", "-p", "4", "--method", "ls", "--precision", "off"], "--precision"),
+        (vec!["fit", "data/sample.csv.gz", "-p", "4", "--precision", "R_s=1%"], "no parameter `R_s`"),
     ] {
         let out = greybox(&args);
         let err = String::from_utf8_lossy(&out.stderr);

@@ -147,4 +147,13 @@ fn telemetry_short_of_the_stated_accuracy_is_untrusted() {
         "{:?}",
         sparse.warnings
     );
+    // Every 7000th row: 2 smooth samples, 4 equations for r_s, l_s, k_e (the control
+    // period's term left out): 1 degree of freedom, K_e 0.7 % off at z 345, untrusted
+    // whatever the stated accuracy (`few_samples`).
+    let e = fast.decimate(7000).unwrap();
+    let off = PmsmFitOptions { precision: Some(Vec::new()), ..PmsmFitOptions::new(t.n_p) };
+    let fit = fit_pmsm(std::slice::from_ref(&e), &off).unwrap();
+    assert_eq!(fit.report.fit.dof, 1, "{:?}", fit.report.fit);
+    let w = fit.warnings.iter().find(|w| w.code == "few_samples").expect("few_samples");
+    assert!(w.untrusted && w.message.contains("1 degrees of freedom"), "{}", w.message);
 }

@@ -348,14 +348,22 @@ fn report(
         .warnings
         .iter()
         .filter(|w| {
-            !["input_noise", "voltage_noise_bias", "undetermined", "imprecise"].contains(&w.code.as_str())
+            !["input_noise", "voltage_noise_bias", "undetermined", "imprecise", "coloured_residuals"]
+                .contains(&w.code.as_str())
         })
         .cloned()
         .collect();
     // The output-error intervals' verdicts replaced by these intervals'.
     warnings.extend(crate::estimate::gate::undetermined_warning(&kind.undetermined(&parameters)));
+    warnings.extend(crate::estimate::colour::unbatched(&cov.uncertainty, &oe.report.fit, &parameters, true));
     warnings.extend(precision.and_then(|targets| {
-        crate::estimate::imprecise(&parameters, targets, "--precision", super::workflow::PRECISION_ADVICE)
+        crate::estimate::imprecise(
+            &parameters,
+            cov.uncertainty.dof,
+            targets,
+            "--precision",
+            super::workflow::PRECISION_ADVICE,
+        )
     }));
     if !converged {
         warnings.push(crate::estimate::Warning::untrusted(

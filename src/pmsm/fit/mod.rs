@@ -32,5 +32,6 @@ pub(super) mod simulated;
 pub(super) mod standstill;
 pub(super) mod steady;
 mod steady_checks;
+pub(super) mod steady_trust;
 pub(super) mod validate;
 pub(super) mod workflow;

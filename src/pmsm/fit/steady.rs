@@ -10,8 +10,7 @@ use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::diagnostics::{DiagnosticThresholds, diagnose};
 use crate::estimate::{
-    FitResult, FitStatistics, ParameterEstimate, PrecisionTarget, SolverReport, Termination, Timing,
-    imprecise, metrics,
+    FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing, metrics,
 };
 use crate::model::DerivedEstimate;
 use crate::pmsm::checks::detect::{max_turn, sample_time_facts, steady_warnings};
@@ -24,19 +23,6 @@ use crate::pmsm::model::interval::{SQRT_2_3, VoltageHold, VoltageInput};
 use crate::pmsm::model::kind::{MotorKind, derived, smallest_inductance};
 use crate::pmsm::options::{Dynamics, HoldChoice, PmsmFitOptions};
 use nalgebra::DMatrix;
-
-/// The accuracy a steady-state fit must reach to be trusted when the options state none
-/// ([`PmsmFitOptions::precision`], [`crate::estimate::imprecise`]): `r_s` to 0.5 % and `k_e`
-/// to 0.05 % (three standard errors). Slow telemetry is fitted to follow the winding and
-/// magnet temperatures: 0.5 % of R_s is 1.3 K of copper ([`crate::pmsm::ALPHA_COPPER`]),
-/// 0.05 % of K_e 0.45 K of NdFeB ([`crate::pmsm::BETA_NDFEB`]). Sparse or short telemetry
-/// gives honest intervals wider than that (a drive cycle's every 160th row: R_s to ±8 %),
-/// which a fleet run that keeps exit 0 would read as a temperature (issue 43).
-pub const STEADY_PRECISION: [(&str, f64); 2] = [("r_s", 0.005), ("k_e", 0.0005)];
-
-/// What makes slow telemetry more informative, the `imprecise` warning's advice.
-const PRECISION_ADVICE: &str = "the steady samples do not carry that much information; log faster, longer, or with \
-                                more distinct speeds and currents";
 
 /// Context of the error that refuses a sample time the dynamic model cannot resolve (the
 /// automatic choice takes the steady-state equations on it).
@@ -106,17 +92,7 @@ pub(crate) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, why: Option<String>
     let part = |e: &SteadyEstimate, logs: &[Experiment]| report(e, logs, options, 0.0);
     let checks = super::steady_checks::warnings(dq, options, &steady, &est, &part);
     let mut report = report(&est, experiments, options, t0.elapsed().as_secs_f64());
-    let (targets, source) = match &options.precision {
-        Some(targets) => (targets.clone(), "--precision"),
-        None => (
-            STEADY_PRECISION
-                .iter()
-                .map(|&(p, relative)| PrecisionTarget { parameter: p.into(), relative })
-                .collect(),
-            "the steady-state fit's default for telemetry: 1.3 K of winding, 0.45 K of magnet temperature",
-        ),
-    };
-    let precise = imprecise(&report.parameters, &targets, source, PRECISION_ADVICE);
+    let precise = super::steady_trust::warnings(&report, options);
     let warnings = gate(&est, &report).into_iter().chain(precise).chain(checks).chain(steady_warnings(
         dq.views(),
         options.pole_pairs,

@@ -23,7 +23,7 @@ use crate::pmsm::options::{Dynamics, PmsmFitOptions};
 /// [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError::InvalidPolePairs) for `options.pole_pairs = 0`; [`Error::MissingChannel`]
 /// for a log without `ud, uq, id, iq, w_m`;
 /// [`Error::InvalidOption`] for no experiments, a control period not positive, a start of the wrong length, an unknown
-/// parameter name in `fixed`/`fixed_values`/`bounds`; [`Error::StartOutsideBounds`] for a
+/// parameter name in `fixed`/`fixed_values`/`bounds`/`precision`; [`Error::StartOutsideBounds`] for a
 /// given start or fixed value outside the bounds;
 /// [`Error::Numerical`] when the least-squares start cannot be computed (no excitation)
 /// or gives a non-positive `R_s`/`L`; and every error of [`crate::estimate::fit`].
@@ -47,7 +47,8 @@ pub fn fit_pmsm(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<
 /// The options and logs [`fit_pmsm`] refuses before it reads a log's channels.
 ///
 /// # Errors
-/// As [`fit_pmsm`]: the pole pairs, no log, a control period not positive.
+/// As [`fit_pmsm`]: the pole pairs, no log, a control period not positive, a stated
+/// accuracy for a parameter the model does not have.
 fn check(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<()> {
     crate::pmsm::log::signals::check_pole_pairs(options.pole_pairs)?;
     if experiments.is_empty() {
@@ -58,6 +59,18 @@ fn check(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<()> {
         return Err(Error::InvalidOption {
             option: "control_period".into(),
             reason: format!("{h} s is not a positive sample time (the drive's control period)"),
+        });
+    }
+    // A target's name is checked here: one the report does not hold would switch it off.
+    let names = options.model.parameter_names();
+    if let Some(t) = options.precision.iter().flatten().find(|t| !names.contains(&t.parameter.as_str())) {
+        return Err(Error::InvalidOption {
+            option: "precision".into(),
+            reason: format!(
+                "no parameter `{}` to state an accuracy for; the model has {}",
+                t.parameter,
+                names.join(", ")
+            ),
         });
     }
     Ok(())
@@ -138,7 +151,7 @@ pub(crate) fn fit_dq(dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<PmsmFi
 
 /// What makes a dynamic fit more precise, the `imprecise` warning's advice.
 pub(super) const PRECISION_ADVICE: &str = "the log does not carry that much information; log longer, or excite what the \
-                                           advice names (speed, current, i_d)";
+                                           advice names (speed, current, i_d); --precision sets the targets (off: none)";
 
 /// `fit` with `warnings` added after its report's.
 fn with_warnings(fit: PmsmFit, warnings: impl IntoIterator<Item = crate::estimate::Warning>) -> PmsmFit {
@@ -154,10 +167,9 @@ fn judged(
     options: &PmsmFitOptions,
     warnings: impl IntoIterator<Item = crate::estimate::Warning>,
 ) -> PmsmFit {
-    let precise = options
-        .precision
-        .as_ref()
-        .and_then(|targets| imprecise(&fit.report.parameters, targets, "--precision", PRECISION_ADVICE));
+    let precise = options.precision.as_ref().and_then(|t| {
+        imprecise(&fit.report.parameters, fit.report.uncertainty.dof, t, "--precision", PRECISION_ADVICE)
+    });
     let mut added = warnings.into_iter().chain(precise).peekable();
     match added.peek() {
         None => fit,
