@@ -95,21 +95,9 @@ mod tests {
     }
 
     fn estimates(relative_std_error: f64) -> Vec<ParameterEstimate> {
-        let p = |name: &str, value: f64| ParameterEstimate {
-            name: name.into(),
-            unit: String::new(),
-            value,
-            std_error: relative_std_error * value,
-            std_error_white: relative_std_error * value,
-            ci95: [value; 2],
-            error_index_percent: f64::NAN,
-            fixed: false,
-            nuisance: false,
-            at_bound: false,
-            experiment: None,
-            start: value,
-        };
-        vec![p("r_s", 0.33), p("k_e", 0.42)]
+        [("r_s", 0.33), ("k_e", 0.42)]
+            .map(|(name, value)| ParameterEstimate::free(name, value, relative_std_error * value))
+            .to_vec()
     }
 
     #[test]

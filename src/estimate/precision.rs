@@ -81,11 +81,11 @@ fn percent(x: f64) -> String {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn estimate(name: &str, value: f64, std_error: f64) -> ParameterEstimate {
-        ParameterEstimate {
+impl ParameterEstimate {
+    /// A free, non-nuisance estimate `value ± std_error` with its normal 95 % interval, for
+    /// the unit tests of the checks that read reports.
+    pub(crate) fn free(name: &str, value: f64, std_error: f64) -> Self {
+        Self {
             name: name.into(),
             unit: String::new(),
             value,
@@ -99,6 +99,15 @@ mod tests {
             experiment: None,
             start: value,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn estimate(name: &str, value: f64, std_error: f64) -> ParameterEstimate {
+        ParameterEstimate::free(name, value, std_error)
     }
 
     fn target(parameter: &str, relative: f64) -> PrecisionTarget {
