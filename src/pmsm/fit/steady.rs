@@ -89,9 +89,11 @@ pub(crate) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, why: Option<String>
         ..SteadyOptions::default()
     };
     let est = steady_state_of(dq, options.pole_pairs, options.model, &steady)?;
-    let part = |e: &SteadyEstimate, logs: &[Experiment]| report(e, logs, options, 0.0);
-    let checks = super::steady_checks::warnings(dq, options, &steady, &est, &part);
-    let mut report = report(&est, experiments, options, t0.elapsed().as_secs_f64());
+    let part = |e: &SteadyEstimate, logs: &[Experiment]| report(e, logs, options, 0.0, None);
+    let checked = super::steady_checks::warnings(dq, options, &steady, &est, &part);
+    let (est, widening) = super::steady_checks::widened(est, &checked.spread);
+    let checks = checked.warnings;
+    let mut report = report(&est, experiments, options, t0.elapsed().as_secs_f64(), widening);
     let precise = super::steady_trust::warnings(&report, options);
     let warnings = gate(&est, &report).into_iter().chain(precise).chain(checks).chain(steady_warnings(
         dq.views(),
@@ -183,12 +185,14 @@ fn gate(est: &SteadyEstimate, report: &FitResult) -> Vec<crate::estimate::Warnin
 
 /// The estimate `est` of `experiments` as the generic report (parameters with intervals,
 /// derived quantities and temperatures, diagnostics, goodness of fit over the steady
-/// samples, the IV iterations as the solver), `fit_s` \[s\] the time it took.
+/// samples, the IV iterations as the solver), `fit_s` \[s\] the time it took, `widening`
+/// the note on intervals widened by the parts' spread.
 fn report(
     est: &SteadyEstimate,
     experiments: &[Experiment],
     options: &PmsmFitOptions,
     fit_s: f64,
+    widening: Option<String>,
 ) -> FitResult {
     let n = est.theta.len();
     let label = |j: usize| match &est.experiment[j] {
@@ -299,6 +303,7 @@ fn report(
             SteadyOptions::default().steady_sigmas
         ))
         .chain(est.notes.iter().filter(|n| n.contains("control period")).cloned())
+        .chain(widening)
         .collect(),
         warnings: Vec::new(),
     }
