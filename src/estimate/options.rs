@@ -46,6 +46,10 @@ pub struct PemOptions {
     /// the linear least-squares estimate. Dimensionless (relative to `diag(JᵀWJ)`); a value
     /// not positive and finite is [`Error::InvalidOption`](crate::Error::InvalidOption) naming `initial_damping`.
     pub initial_damping: Option<f64>,
+    /// Levenberg-Marquardt's geodesic acceleration ([`RunOptions::geodesic`]): off by
+    /// default; worth trying on a curve fit whose run crawls along a curved valley
+    /// (docs/performance.md has MINPACK's test set with and without it).
+    pub geodesic: bool,
     /// Free parameters above which the normal equations and statistics are kept by the
     /// blocks of their arrowhead structure ([`Arrowhead`](super::Arrowhead)); `None`:
     /// [`STRUCTURED_ABOVE`](super::STRUCTURED_ABOVE) (64). Not serialised: how the sums are stored, not
@@ -62,6 +66,7 @@ impl PemOptions {
             tolerances: self.tolerances,
             progress: self.progress,
             initial_damping: self.initial_damping,
+            geodesic: self.geodesic,
         }
     }
 }
@@ -82,6 +87,7 @@ impl Default for PemOptions {
             diagnostics: DiagnosticThresholds::default(),
             progress: false,
             initial_damping: None,
+            geodesic: false,
             structured_above: None,
         }
     }

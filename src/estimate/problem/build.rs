@@ -268,6 +268,9 @@ impl<M: GreyBoxModel> LeastSquares for PemProblem<'_, M> {
     fn cost(&self, p: &DVector<f64>) -> Result<f64> {
         PemProblem::cost(self, p)
     }
+    fn directional_gradient(&self, p: &DVector<f64>, q: &DVector<f64>) -> Result<Option<DVector<f64>>> {
+        PemProblem::directional_gradient(self, p, q)
+    }
     fn project(&self, p: &mut DVector<f64>) {
         PemProblem::project(self, p)
     }

@@ -13,6 +13,7 @@ mod accumulate;
 mod batches;
 mod best;
 mod build;
+mod geodesic;
 mod gram;
 mod kept;
 mod lags;

@@ -13,6 +13,7 @@
 //! gradient slot of the solvers' state ([`LsState`]) holds `∇V`, as argmin documents it.
 
 mod active;
+mod geodesic;
 pub(crate) mod gn;
 mod gram;
 pub(crate) mod lm;

@@ -72,6 +72,18 @@ pub trait LeastSquares {
     /// # Errors
     /// As [`normal_equations`](Self::normal_equations).
     fn cost(&self, p: &DVector<f64>) -> Result<f64>;
+    /// `JᵀWε(q)`, length n_free: the residual at `q` weighted by the Jacobian at `p`, for
+    /// the geodesic acceleration of Levenberg-Marquardt (the `geodesic` module), which
+    /// takes the second directional derivative of the residual along a step from it.
+    /// `Ok(None)`: the problem does not provide it (the default), and the solver takes the
+    /// plain step.
+    ///
+    /// # Errors
+    /// As [`normal_equations`](Self::normal_equations), at `p` or `q`.
+    fn directional_gradient(&self, p: &DVector<f64>, q: &DVector<f64>) -> Result<Option<DVector<f64>>> {
+        let _ = (p, q);
+        Ok(None)
+    }
     /// Projects p onto the feasible box in place.
     fn project(&self, p: &mut DVector<f64>);
     /// Projects the trial point `p`, a step from the current point `from` (inside the
@@ -113,6 +125,9 @@ impl<T: LeastSquares + ?Sized> LeastSquares for &T {
     }
     fn cost(&self, p: &DVector<f64>) -> Result<f64> {
         (**self).cost(p)
+    }
+    fn directional_gradient(&self, p: &DVector<f64>, q: &DVector<f64>) -> Result<Option<DVector<f64>>> {
+        (**self).directional_gradient(p, q)
     }
     fn project(&self, p: &mut DVector<f64>) {
         (**self).project(p)

@@ -41,6 +41,9 @@ pub struct RunOptions {
     /// for non-linear least squares problems*, 2004, section 3.2) advise 1e-6 from a start
     /// believed close to the minimum and 1e-3 otherwise ([`CLOSE_START_DAMPING`]).
     pub initial_damping: Option<f64>,
+    /// Levenberg-Marquardt's geodesic acceleration (Transtrum & Sethna 2012;
+    /// [`LevenbergMarquardt::with_geodesic`]); off by default. No effect on Gauss-Newton.
+    pub geodesic: bool,
 }
 
 /// λ₀ of a run from a start believed close to the minimum, e.g. a linear least-squares
@@ -89,7 +92,8 @@ pub fn run_solver<O: LeastSquares>(
                         Error::InvalidOption { option: "initial_damping".into(), reason }
                     }
                     other => other,
-                })?;
+                })?
+                .with_geodesic(options.geodesic);
             execute(problem, lm, p0, options)
         }
         SolverKind::Gn => execute(problem, GaussNewton::new(options.tolerances), p0, options),
@@ -118,7 +122,10 @@ where
     };
     let res = exec.run().map_err(Error::from_argmin)?;
     let counts = res.state.get_func_counts();
-    let evaluations = ["normal_equations_count", "cost_count"].iter().filter_map(|k| counts.get(*k)).sum();
+    let evaluations = ["normal_equations_count", "cost_count", "acceleration_count"]
+        .iter()
+        .filter_map(|k| counts.get(*k))
+        .sum();
     let reason = match (res.solver.termination(), res.state.get_termination_reason()) {
         (Some(t), _) => t.clone(),
         (None, Some(TerminationReason::MaxItersReached)) => Termination::MaxIterations,
