@@ -48,7 +48,8 @@ pub struct PemOptions {
     pub initial_damping: Option<f64>,
     /// Levenberg-Marquardt's geodesic acceleration ([`RunOptions::geodesic`]): off by
     /// default; worth trying on a curve fit whose run crawls along a curved valley
-    /// (docs/performance.md has MINPACK's test set with and without it).
+    /// (docs/performance.md has MINPACK's test set with and without it). No effect with the
+    /// Huber loss or in the errors-in-variables correction's refit, which take plain steps.
     pub geodesic: bool,
     /// Free parameters above which the normal equations and statistics are kept by the
     /// blocks of their arrowhead structure ([`Arrowhead`](super::Arrowhead)); `None`:

@@ -11,8 +11,10 @@
 //! estimate; the same |z| ≤ 3 the project judges honesty by). A standard error estimated
 //! from few degrees of freedom has Student's heavier tails: it counts times
 //! `t₀.₉₇₅(dof)/1.96`, the ratio of the report's own 95 % interval to the normal one (2.3
-//! at 2 degrees of freedom, 1.04 at 30). Models state no target by default; the domain
-//! layers set one where their users' purpose fixes it.
+//! at 2 degrees of freedom, 1.04 at 30), or that of the parameter's own interval where it
+//! is wider (an interval widened with fewer degrees of freedom than the fit's, e.g. by the
+//! spread of the fits of parts). Models state no target by default; the domain layers set
+//! one where their users' purpose fixes it.
 
 use super::result::{ParameterEstimate, Warning, t_quantile_975};
 use serde::{Deserialize, Serialize};
@@ -44,12 +46,15 @@ pub fn imprecise(
     why: &str,
     advice: &str,
 ) -> Option<Warning> {
-    let tails = t_quantile_975(dof) / t_quantile_975(usize::MAX);
+    let normal = t_quantile_975(usize::MAX);
     let missed: Vec<String> = parameters
         .iter()
         .filter(|p| !p.fixed)
         .filter_map(|p| {
             let target = targets.iter().find(|t| t.parameter == p.name)?;
+            // The parameter's own interval's tails where they are heavier than the fit's.
+            let own = 0.5 * (p.ci95[1] - p.ci95[0]) / (normal * p.std_error);
+            let tails = (t_quantile_975(dof) / normal).max(if own.is_finite() { own } else { 0.0 });
             let reach = PRECISION_Z * tails * p.std_error / p.value.abs();
             let label = p.experiment.as_ref().map_or_else(|| p.name.clone(), |e| format!("{}[{e}]", p.name));
             (reach.is_nan() || reach > target.relative).then(|| {

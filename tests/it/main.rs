@@ -28,6 +28,7 @@ mod flux_map_cli;
 mod flux_map_regions;
 mod fuzz;
 mod gate;
+mod geodesic;
 mod inverter;
 mod ipm;
 mod joint;

@@ -180,12 +180,11 @@ fn noise_free_telemetry_intervals_cover_the_equations_error() {
             let z = (p.value - truth) / p.std_error;
             eprintln!("every {every}th row: {name} {:+.3e} (z {z:+.2})", rel(p.value, truth));
             assert!(z.abs() <= 3.0, "every {every}th row: {name} z {z}");
-            let half = 0.5 * (p.ci95[1] - p.ci95[0]);
-            assert!(
-                half >= 3.0 * p.std_error,
-                "{name}: Student's t with 3 degrees of freedom: {half} vs {}",
-                p.std_error
-            );
+            // A widened parameter's interval takes Student's t with 3 degrees of freedom
+            // (3.18), the others the fit's (about 1.96).
+            let t = 0.5 * (p.ci95[1] - p.ci95[0]) / p.std_error;
+            let widened = note.contains(&format!("{name} ("));
+            assert_eq!(t > 3.0, widened, "{name}: half width {t} standard errors, widened {widened}");
         }
     }
 }

@@ -3,7 +3,10 @@
 //! ([`LeastSquares::directional_gradient`](crate::estimate::LeastSquares::directional_gradient)):
 //! the residuals at a point `q` weighted by the Jacobian at `p`, `JᵀWε(q)`. It costs a
 //! residual pass at `q` and a sensitivity pass at `p` (the Jacobian at `p` is not kept
-//! between passes: n_samples × n_free).
+//! between passes: n_samples × n_free), one experiment after another, and keeps one
+//! experiment's residuals at `q` (n_samples × n_y) between the two: unlike the normal
+//! equations, whose memory does not grow with the record and whose experiments run in
+//! parallel. It is meant for curve fits, not for long records.
 
 use super::PemProblem;
 use super::local::Pass;
@@ -16,7 +19,9 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     /// `JᵀWε(q)` with `J = ∂ŷ/∂p` at `p` (length n_free): per experiment, a residual pass
     /// at `q` (kept, n_samples × n_y) and a sensitivity pass at `p` summing
     /// `J_kᵀ W_k ε_k(q)`, both as the criterion sees them (prefiltered where it is).
-    /// `None` for the Huber loss, whose IRLS weights would differ between the points.
+    /// `None` for the Huber loss, whose IRLS weights would differ between the points. At
+    /// `q = p` it is [`normal_equations`](Self::normal_equations)'s `jtr` up to the order
+    /// of summation.
     ///
     /// # Errors
     /// Those of the simulation at `p` or `q`: invalid θ, [`crate::Error::SimulationDiverged`].

@@ -18,17 +18,27 @@
 //!
 //! with `h = 0.1` (the paper's). The step is `δ + a/2`, taken only while the acceleration
 //! is small against the velocity, `2‖a‖_D / ‖δ‖_D ≤ α = 0.75` (the paper's criterion, in
-//! the damping's metric `D`); otherwise, or where the problem gives no `JᵀWε(q)`
-//! ([`LeastSquares::directional_gradient`]) or the model cannot be simulated at `q`, the
-//! plain step `δ`. The pass at `q` counts as one evaluation (`acceleration_count`).
+//! the damping's metric `D`). Where it is not, the paper rejects the step and raises λ;
+//! here the plain step `δ` is evaluated instead, as it is where the problem gives no
+//! `JᵀWε(q)` ([`LeastSquares::directional_gradient`]) or the model cannot be simulated at
+//! `q`. An acceleration counts as two evaluations (a residual pass at `q`, a Jacobian pass
+//! at `p`; `acceleration_count`); one the problem does not give counts none.
 
-use super::{Gram, LeastSquares, damped_solve, is_infeasible};
+use super::{Gram, LeastSquares, Monitor, damped_solve, is_infeasible};
 use argmin::core::Problem;
 use nalgebra::DVector;
 
 /// Finite-difference step along `δ` for the second directional derivative (Transtrum &
 /// Sethna 2012, section 3: 0.1).
 pub(super) const H: f64 = 0.1;
+
+/// The evaluation counter the acceleration's passes are added to (summed into
+/// [`crate::estimate::SolverReport::evaluations`]).
+pub(super) const COUNT: &str = "acceleration_count";
+
+/// Passes one acceleration costs: the residuals at `q` and the Jacobian at `p` (the
+/// prediction-error problem does not keep the Jacobian between passes).
+const PASSES: u64 = 2;
 
 /// Largest ratio `2‖a‖_D / ‖δ‖_D` of an accepted acceleration (Transtrum & Sethna 2012:
 /// 0.75).
@@ -41,7 +51,8 @@ pub(super) const CURVED: f64 = 0.75;
 
 /// The accelerated step `δ + a/2` from `p` (scaled space, length n), or `None` where the
 /// plain step `delta` stands (see the module documentation). `jtj`, `jtr` the normal
-/// equations at `p`, `d` the damping diagonal, `lambda` the damping.
+/// equations at `p`, `monitor` the run's damping diagonal `D` and its norm, `lambda` the
+/// damping.
 ///
 /// # Errors
 /// Every error of the problem's [`LeastSquares::directional_gradient`] other than an
@@ -51,24 +62,31 @@ pub(super) fn accelerated<O: LeastSquares>(
     p: &DVector<f64>,
     delta: &DVector<f64>,
     (jtj, jtr): (&Gram, &DVector<f64>),
-    d: &DVector<f64>,
+    monitor: &Monitor,
     lambda: f64,
 ) -> Result<Option<DVector<f64>>, argmin::core::Error> {
     let q = p + H * delta;
-    let at_q = problem.problem("acceleration_count", |o| match o.directional_gradient(p, &q) {
-        Ok(g) => Ok(g),
-        Err(e) if is_infeasible(&e) => Ok(None),
-        Err(e) => Err(e.into()),
-    })?;
-    let Some(at_q) = at_q.filter(|g| g.iter().all(|v| v.is_finite())) else {
+    let Some(o) = problem.problem.as_ref() else {
         return Ok(None);
     };
+    let at_q = match o.directional_gradient(p, &q) {
+        Ok(g) => g,
+        Err(e) if is_infeasible(&e) => None,
+        Err(e) => return Err(e.into()),
+    };
+    let Some(at_q) = at_q else {
+        return Ok(None);
+    };
+    // The residual pass at q and the Jacobian at p: two passes, as two evaluations.
+    *problem.counts.entry(COUNT).or_insert(0) += PASSES;
+    if at_q.iter().any(|v| !v.is_finite()) {
+        return Ok(None);
+    }
     // −JᵀW r_vv, the right-hand side of the acceleration's damped normal equations.
     let rhs = ((&at_q - jtr) / H + jtj.mul(delta)) * (2.0 / H);
-    let Some(a) = damped_solve(jtj, d, lambda, &rhs) else {
+    let Some(a) = damped_solve(jtj, monitor.diag(), lambda, &rhs) else {
         return Ok(None);
     };
-    let norm = |v: &DVector<f64>| v.iter().zip(d.iter()).map(|(x, dj)| dj * x * x).sum::<f64>().sqrt();
-    let (velocity, acceleration) = (norm(delta), norm(&a));
+    let (velocity, acceleration) = (monitor.norm(delta), monitor.norm(&a));
     Ok((velocity > 0.0 && 2.0 * acceleration <= ALPHA * velocity).then(|| delta + 0.5 * a))
 }

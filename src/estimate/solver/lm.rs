@@ -85,12 +85,11 @@ impl LevenbergMarquardt {
     }
     /// Geodesic acceleration on or off (off by default; Transtrum & Sethna,
     /// arXiv:1201.5885, 2012). On, each step after a rejected one or after a gain ratio
-    /// below 0.75, with no parameter held at a bound, costs one more pass, at `p + 0.1 δ`,
-    /// counted as an evaluation; a problem without
+    /// below 0.75, with no parameter held at a bound, costs two more passes (the residuals
+    /// at `p + 0.1 δ`, the Jacobian at `p`), counted as two evaluations; a problem without
     /// [`LeastSquares::directional_gradient`] takes plain steps. On MINPACK's test set it
-    /// shortens the runs in curved valleys (Rosenbrock from 100 times its start: 68
-    /// evaluations instead of 142; Meyer: 85 instead of 142) and lengthens most others
-    /// (27 of 53 cases), hence off by default (docs/performance.md).
+    /// takes fewer steps in curved valleys and more evaluations on most problems
+    /// (docs/performance.md), hence off by default.
     pub fn with_geodesic(mut self, geodesic: bool) -> Self {
         self.geodesic = geodesic;
         self
@@ -177,7 +176,7 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
             return Ok((keep(state, p, grad, jtj), Some(kv)));
         };
         let bent = match self.geodesic && self.curved && held == 0 {
-            true => geodesic::accelerated(problem, &p, &delta, (&jtj, &jtr), self.monitor.diag(), lambda)?,
+            true => geodesic::accelerated(problem, &p, &delta, (&jtj, &jtr), &self.monitor, lambda)?,
             false => None,
         };
         let accelerated = bent.is_some();

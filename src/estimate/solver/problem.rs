@@ -75,8 +75,10 @@ pub trait LeastSquares {
     /// `JᵀWε(q)`, length n_free: the residual at `q` weighted by the Jacobian at `p`, for
     /// the geodesic acceleration of Levenberg-Marquardt (the `geodesic` module), which
     /// takes the second directional derivative of the residual along a step from it.
-    /// `Ok(None)`: the problem does not provide it (the default), and the solver takes the
-    /// plain step.
+    /// Contract: at `q = p` it is `normal_equations(p).jtr` (up to rounding), with the same
+    /// weights, filters and parameters; the solver divides its difference from that by
+    /// `h² / 2 = 0.005`, so any other difference is magnified 200 times. `Ok(None)`: the
+    /// problem does not provide it (the default), and the solver takes the plain step.
     ///
     /// # Errors
     /// As [`normal_equations`](Self::normal_equations), at `p` or `q`.

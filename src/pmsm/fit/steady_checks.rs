@@ -11,11 +11,14 @@
 //!
 //! Parts that disagree beyond their standard errors but within the equations' accuracy
 //! ([`EQUATIONS_ACCURACY`]) leave the fit trusted, with the intervals of the parameters they
-//! disagree on widened by the parts' spread ([`Spread`], [`widened`]), as the flux map's
-//! regions do ([`crate::pmsm::fit::flux_map_regions`]): the spread is the size of the
-//! equations' error on this log, which the covariance of the equation errors does not
-//! show (every 20th row of a noise-free 10 kHz log of moves: R_s +0.0025 % with a
-//! standard error of 3e-6 relative, |z| 7.6; its four parts +0.0005 … +0.0035 %).
+//! disagree on widened by the parts' spread ([`Checked::spread`], [`widened`]): the
+//! between-part standard deviation τ is added to the standard error in quadrature. This is
+//! the form of a random-effects prediction interval (Higgins, Thompson & Spiegelhalter,
+//! *J. R. Stat. Soc. A* 172, 2009), used as a heuristic: τ measures how much the equations'
+//! error varies along the log, a lower bound on its size, not the size of an error common
+//! to every part (which no refit of parts can see). Noise-free logs show what it is for
+//! (every 20th row of a 10 kHz log of moves: R_s +0.0025 % with a standard error of 3e-6
+//! relative, |z| 7.6; its four parts +0.0005 … +0.0035 %).
 
 use crate::data::Experiment;
 use crate::estimate::{FitResult, Homogeneity, Warning, between_variance, homogeneity, t_quantile_975};
@@ -46,8 +49,9 @@ pub(crate) struct Checked {
     /// The untrusted warnings: `segments_disagree`, `salient`.
     pub warnings: Vec<Warning>,
     /// The shared parameters on which the consecutive parts disagree beyond their standard
-    /// errors (Cochran's Q below the family level [`crate::pmsm::checks::segments::FAMILY_LEVEL`],
-    /// Bonferroni over the parameters), whatever the size of the spread.
+    /// errors (the p-value of Cochran's Q below the family level
+    /// [`crate::pmsm::checks::segments::FAMILY_LEVEL`] divided by the number of parameters
+    /// tested, Bonferroni), whatever the size of the spread.
     pub spread: Vec<Homogeneity>,
 }
 
@@ -101,11 +105,13 @@ pub(crate) fn warnings(
 /// `est` with the standard error of every shared parameter in `spread` taken as
 /// `√(σ² + τ²)`, `τ²` the parts' between-part variance ([`between_variance`], Paule &
 /// Mandel 1982), and its 95 % half width as Student's `t_0.975` with K − 1 degrees of
-/// freedom (K the parts) times that (Hartung & Knapp, *Stat. Med.* 20, 2001), with a note
-/// naming them; `est` itself and no note when nothing is widened.
+/// freedom (K the parts; τ is estimated from them) times that, with a note naming them;
+/// `est` itself and no note when nothing is widened. The derived quantities (`k_t`,
+/// `psi_f`, temperatures) take the widened standard errors, with the estimates' sampling
+/// correlation.
 ///
-/// Why `τ` and not `τ/√K`: the parts' spread measures the equations' error on this log,
-/// which the whole log's estimate carries too; it does not average out over the parts.
+/// Why `τ` and not `τ/√K` (the pooled mean's): the equations' error does not average out
+/// over the parts; the whole log's estimate carries it as each part does.
 pub(crate) fn widened(est: SteadyEstimate, spread: &[Homogeneity]) -> (SteadyEstimate, Option<String>) {
     let mut std_error = est.std_error.clone();
     let mut ci95 = est.ci95.clone();
