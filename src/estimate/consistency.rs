@@ -94,9 +94,7 @@ pub fn disagreement(fits: &[FitResult], floor: f64, family_level: f64) -> Option
 /// number, with a relative spread above `floor`, each with the parts' estimates and the
 /// test, joined by `; `. `None` when none is.
 pub fn disagreement_of(tests: &[Homogeneity], floor: f64, family_level: f64) -> Option<String> {
-    let level = family_level / tests.len().max(1) as f64;
-    let failed: Vec<&Homogeneity> =
-        tests.iter().filter(|h| h.p_value < level && h.relative_spread > floor).collect();
+    let failed = disagreeing(tests, floor, family_level);
     if failed.is_empty() {
         return None;
     }
@@ -117,6 +115,25 @@ pub fn disagreement_of(tests: &[Homogeneity], floor: f64, family_level: f64) -> 
         })
         .collect();
     Some(detail.join("; "))
+}
+
+/// The tests among `tests` whose Q is below `family_level` divided by their number
+/// (Bonferroni) with a relative spread above `floor`, in their order: the parameters
+/// [`disagreement_of`] names.
+pub fn disagreeing(tests: &[Homogeneity], floor: f64, family_level: f64) -> Vec<&Homogeneity> {
+    let level = family_level / tests.len().max(1) as f64;
+    tests.iter().filter(|h| h.p_value < level && h.relative_spread > floor).collect()
+}
+
+/// A standard error `std_error` widened by the spread of the parts' fits `h`:
+/// `(τ, √(σ² + τ²), t_0.975(K − 1) · √(σ² + τ²))`, `τ²` the between-part variance
+/// ([`between_variance`]) and the last the 95 % half width with Student's t over the K
+/// parts τ is estimated from (the form of a random-effects prediction interval: Higgins,
+/// Thompson & Spiegelhalter, *J. R. Stat. Soc. A* 172, 2009). Units of `std_error`.
+pub fn widened_by_parts(std_error: f64, h: &Homogeneity) -> (f64, f64, f64) {
+    let tau = between_variance(h).sqrt();
+    let widened = std_error.hypot(tau);
+    (tau, widened, crate::estimate::t_quantile_975(h.dof) * widened)
 }
 
 /// The between-part variance `τ²` of a parameter whose parts disagree \[unit²\]: the

@@ -36,7 +36,8 @@ pub use assemble::AT_BOUND;
 pub use colour::STRONG_COLOUR;
 pub use consistency::{
     Homogeneity, PARTS, PARTS_FLOOR, PARTS_LEVEL, Refit, between_variance, chi_square_sf, consecutive_parts,
-    disagreement, disagreement_of, homogeneity, homogeneity_where_estimated, static_parts,
+    disagreeing, disagreement, disagreement_of, homogeneity, homogeneity_where_estimated, static_parts,
+    widened_by_parts,
 };
 pub use correction::CriterionCorrection;
 pub use design::{

@@ -5,22 +5,13 @@
 //! state estimated, per-experiment parameters, sample and output weights and a residual
 //! prefilter; and it moves with `q` as the residuals do.
 
-use greybox::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
 use greybox::estimate::{Butterworth, LeastSquares, NominalScaling, PemProblem, ProblemOptions};
 use greybox::model::Prepared;
-use greybox::pmsm::{PmsmSpm, VoltageHold};
 use nalgebra::DVector;
 
 #[test]
 fn directional_gradient_at_the_point_is_the_normal_equations_gradient() {
-    let record = |seconds: f64| {
-        let cfg = DriveConfig { duration: seconds, ..scenario("exp3", SPM_MOTOR).unwrap() };
-        simulate_drive(&cfg).unwrap().experiment
-    };
-    let (a, b) = (record(0.3), record(0.2));
-    let m = PmsmSpm::new(SPM_MOTOR.n_p, VoltageHold::Stator);
-    // Off the truth, so that the residuals and the gradient are not zero.
-    let start = [1.1 * SPM_MOTOR.r_s, 0.9 * SPM_MOTOR.l_d, SPM_MOTOR.k_e()];
+    let (a, b, m, start) = crate::common::spm_records_off_truth();
     let h = a.h();
     let filter = Butterworth::try_new(4, 0.1 / h, h).unwrap();
     let cases = [

@@ -4,7 +4,7 @@
 //! experiment with its initial state estimated and for two with a per-experiment `r_s`;
 //! likewise after a pass flagged as the solver's last, which gathered the lag sums itself.
 
-use greybox::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
+use greybox::drive::SPM_MOTOR;
 use greybox::estimate::Sums;
 use greybox::estimate::{LeastSquares, NominalScaling, PemProblem, ProblemOptions};
 use greybox::model::Prepared;
@@ -43,14 +43,7 @@ fn assert_same(kept: &Sums, full: &Sums) {
 
 #[test]
 fn statistics_after_the_normal_equations_equal_a_full_pass() {
-    let record = |seconds: f64| {
-        let cfg = DriveConfig { duration: seconds, ..scenario("exp3", SPM_MOTOR).unwrap() };
-        simulate_drive(&cfg).unwrap().experiment
-    };
-    let (a, b) = (record(0.3), record(0.2));
-    let m = PmsmSpm::new(SPM_MOTOR.n_p, VoltageHold::Stator);
-    // Off the truth, so that the residuals and the gradient are not zero.
-    let start = [1.1 * SPM_MOTOR.r_s, 0.9 * SPM_MOTOR.l_d, SPM_MOTOR.k_e()];
+    let (a, b, m, start) = crate::common::spm_records_off_truth();
     let cases = [
         (vec![&a], ProblemOptions { estimate_x0: true, ..Default::default() }),
         (vec![&a, &b], ProblemOptions { per_experiment: vec!["r_s".into()], ..Default::default() }),
@@ -89,9 +82,7 @@ fn statistics_after_the_normal_equations_equal_a_full_pass() {
 #[test]
 fn a_fit_continued_from_its_prediction_equals_a_fresh_fit() {
     use greybox::estimate::{PemOptions, StartedFit, Uniform, fit_with_weighting, predicted_loss};
-    let cfg = DriveConfig { duration: 0.3, ..scenario("exp3", SPM_MOTOR).unwrap() };
-    let e = simulate_drive(&cfg).unwrap().experiment;
-    let start = [1.1 * SPM_MOTOR.r_s, 0.9 * SPM_MOTOR.l_d, SPM_MOTOR.k_e()];
+    let (e, _, _, start) = crate::common::spm_records_off_truth();
     let opts = PemOptions::default();
     for hold in [VoltageHold::Stator, VoltageHold::Dq] {
         let m = PmsmSpm::new(SPM_MOTOR.n_p, hold);

@@ -30,7 +30,7 @@ use nalgebra::DVector;
 
 /// Finite-difference step along `δ` for the second directional derivative (Transtrum &
 /// Sethna 2012, section 3: 0.1).
-pub(super) const H: f64 = 0.1;
+const H: f64 = 0.1;
 
 /// The evaluation counter the acceleration's passes are added to (summed into
 /// [`crate::estimate::SolverReport::evaluations`]).
@@ -42,7 +42,7 @@ const PASSES: u64 = 2;
 
 /// Largest ratio `2‖a‖_D / ‖δ‖_D` of an accepted acceleration (Transtrum & Sethna 2012:
 /// 0.75).
-pub(super) const ALPHA: f64 = 0.75;
+const ALPHA: f64 = 0.75;
 
 /// Gain ratio below which the step after an accepted one is accelerated (a rejected step
 /// always is): where the linear model predicted the cost well, the second-order term is

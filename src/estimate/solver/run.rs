@@ -122,7 +122,7 @@ where
     };
     let res = exec.run().map_err(Error::from_argmin)?;
     let counts = res.state.get_func_counts();
-    let evaluations = ["normal_equations_count", "cost_count", "acceleration_count"]
+    let evaluations = ["normal_equations_count", "cost_count", super::geodesic::COUNT]
         .iter()
         .filter_map(|k| counts.get(*k))
         .sum();

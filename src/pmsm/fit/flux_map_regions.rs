@@ -19,8 +19,8 @@
 
 use crate::data::{Channel, Experiment};
 use crate::estimate::{
-    FitResult, Homogeneity, PARTS_FLOOR, PARTS_LEVEL, PemOptions, between_variance, disagreement_of, fit,
-    homogeneity_where_estimated,
+    FitResult, Homogeneity, PARTS_FLOOR, PARTS_LEVEL, PemOptions, disagreement_of, fit,
+    homogeneity_where_estimated, widened_by_parts,
 };
 use crate::pmsm::model::flux_map::FluxMapModel;
 use crate::pmsm::model::saturation::SaturationExponents;
@@ -136,8 +136,7 @@ pub(crate) fn check(map: &Experiment, e: SaturationExponents, result: &FitResult
             .filter_map(|h| {
                 // A coefficient at its bound on the whole map has no interval to widen.
                 let p = result.parameter(&h.name).filter(|p| p.std_error.is_finite())?;
-                let tau = between_variance(h).sqrt();
-                let half = crate::estimate::t_quantile_975(h.dof) * p.std_error.hypot(tau);
+                let (tau, _, half) = widened_by_parts(p.std_error, h);
                 Some(Widened {
                     name: h.name.clone(),
                     value: p.value,

@@ -21,7 +21,7 @@
 //! relative, |z| 7.6; its four parts +0.0005 … +0.0035 %).
 
 use crate::data::Experiment;
-use crate::estimate::{FitResult, Homogeneity, Warning, between_variance, homogeneity, t_quantile_975};
+use crate::estimate::{FitResult, Homogeneity, Warning, disagreeing, homogeneity, widened_by_parts};
 use crate::pmsm::checks::detect::SALIENCY;
 use crate::pmsm::checks::segments::{FAMILY_LEVEL, disagreement, split_at_least};
 use crate::pmsm::linear::{PERIOD_TERM, SteadyEstimate, SteadyOptions, steady_state, steady_state_of};
@@ -80,8 +80,7 @@ pub(crate) fn warnings(
             })
             .collect();
         let tests = homogeneity(&fits, 0.0);
-        let level = FAMILY_LEVEL / tests.len().max(1) as f64;
-        spread = tests.into_iter().filter(|h| h.p_value < level).collect();
+        spread = disagreeing(&tests, 0.0, FAMILY_LEVEL).into_iter().cloned().collect();
         if let Some(detail) = disagreement(&fits, EQUATIONS_ACCURACY) {
             out.push(Warning::untrusted(
                 "segments_disagree",
@@ -103,7 +102,7 @@ pub(crate) fn warnings(
 }
 
 /// `est` with the standard error of every shared parameter in `spread` taken as
-/// `√(σ² + τ²)`, `τ²` the parts' between-part variance ([`between_variance`], Paule &
+/// `√(σ² + τ²)`, `τ²` the parts' between-part variance ([`widened_by_parts`], Paule &
 /// Mandel 1982), and its 95 % half width as Student's `t_0.975` with K − 1 degrees of
 /// freedom (K the parts; τ is estimated from them) times that, with a note naming them;
 /// `est` itself and no note when nothing is widened. The derived quantities (`k_t`,
@@ -121,12 +120,12 @@ pub(crate) fn widened(est: SteadyEstimate, spread: &[Homogeneity]) -> (SteadyEst
         else {
             continue;
         };
-        let tau = between_variance(h).sqrt();
+        let (tau, widened, half) = widened_by_parts(est.std_error[j], h);
         if tau.is_nan() || tau <= 0.0 {
             continue;
         }
-        std_error[j] = est.std_error[j].hypot(tau);
-        ci95[j] = t_quantile_975(h.dof) * std_error[j];
+        std_error[j] = widened;
+        ci95[j] = half;
         named.push(format!("{} ({:.1e} relative)", h.name, tau / est.theta[j].abs()));
     }
     if named.is_empty() {

@@ -129,6 +129,21 @@ pub fn sim<M: GreyBoxModel>(
     greybox::simulate::simulate(model, prep, theta, &SimOptions::default())
 }
 
+/// Two short records of the drive simulator's exp3 moves (0.3 s and 0.2 s), the SPM
+/// model at the stator hold, and a start off the truth (R_s +10 %, L −10 %), so that the
+/// residuals and the gradient there are not zero: the setting of the tests that compare
+/// the prediction-error problem's passes.
+pub fn spm_records_off_truth() -> (Experiment, Experiment, greybox::pmsm::PmsmSpm, [f64; 3]) {
+    use greybox::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
+    let record = |seconds: f64| {
+        let cfg = DriveConfig { duration: seconds, ..scenario("exp3", SPM_MOTOR).unwrap() };
+        simulate_drive(&cfg).unwrap().experiment
+    };
+    let m = greybox::pmsm::PmsmSpm::new(SPM_MOTOR.n_p, greybox::pmsm::VoltageHold::Stator);
+    let start = [1.1 * SPM_MOTOR.r_s, 0.9 * SPM_MOTOR.l_d, SPM_MOTOR.k_e()];
+    (record(0.3), record(0.2), m, start)
+}
+
 /// Relative error.
 pub fn rel(est: f64, truth: f64) -> f64 {
     ((est - truth) / truth).abs()
