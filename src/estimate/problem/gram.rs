@@ -210,9 +210,12 @@ pub(crate) fn weighted_square_sum(e: &[f64], w: &[f64]) -> f64 {
 /// length n; `w` of length n, or `None` for unit weights) to `g` (row-major M × M, M =
 /// `cols.len()`).
 ///
-/// One read of every column per four samples with all M(M+1)/2 sums held in registers
-/// (monomorphised for M ≤ 8), compiled for AVX-512, for AVX2 and FMA as well as the baseline and chosen
-/// at run time (crate `multiversion`).
+/// Monomorphised for M ≤ 8: one sweep of the block per column a, its sums against the
+/// columns b ≥ a held in vector registers (a single sweep holding all M(M+1)/2 sums needed
+/// more registers than AVX2 has and was compiled to scalar code, 2.5–3.3× slower for M of
+/// 6–8); compiled for AVX-512, for AVX2 and FMA as well as the baseline and chosen at run
+/// time (crate `multiversion`). Each sum is its lanes' in a fixed order (module doc), the
+/// same for any of these layouts.
 #[multiversion(targets("x86_64+avx512f+avx512vl+fma", "x86_64+avx2+fma"))]
 pub(crate) fn gram(cols: &[&[f64]], w: Option<&[f64]>, g: &mut [f64]) {
     let fma = target_cfg_f!(target_feature = "fma");
@@ -247,44 +250,66 @@ fn gram_fixed<const M: usize, const FMA: bool, const L: usize>(
     g: &mut [f64],
 ) {
     let n = cols.iter().map(|c| c.len()).min().unwrap_or(0).min(w.map_or(usize::MAX, <[f64]>::len));
-    let mut acc = [[[0.0f64; L]; M]; M];
+    // Row by row: column a (times the weights) against the columns b ≥ a, their sums held
+    // in registers through one sweep of the block (at most eight, so that they stay there).
+    macro_rules! rows {
+        ($($k:literal)*) => {
+            for a in 0..M {
+                let row: [f64; 8] = match M - a {
+                    $($k => {
+                        let others: &[&[f64]; $k] = cols[a..].try_into().expect("M − a columns");
+                        gram_row::<$k, FMA, L>(&cols[a][..n], others, w.map(|w| &w[..n]))
+                    })*
+                    _ => unreachable!("at most eight columns"),
+                };
+                for (b, s) in (a..M).zip(row) {
+                    g[a * M + b] += s;
+                }
+            }
+        };
+    }
+    rows!(1 2 3 4 5 6 7 8);
+}
+
+/// `Σ_k w_k c_a[k] c_b[k]` for the K columns `others` (c_a = `ca`, all of length n ≥
+/// `ca.len()`), each in L lanes (lane l sums the samples k ≡ l mod L in order, the tail
+/// past the last whole chunk in lane 0) added in lane order: the first K entries.
+#[inline(always)]
+fn gram_row<const K: usize, const FMA: bool, const L: usize>(
+    ca: &[f64],
+    others: &[&[f64]; K],
+    w: Option<&[f64]>,
+) -> [f64; 8] {
+    let n = ca.len();
+    let mut acc = [[0.0f64; L]; K];
     let quads = n / L;
     for q in 0..quads {
         let base = q * L;
-        let mut c = [[0.0f64; L]; M];
-        for a in 0..M {
-            c[a].copy_from_slice(&cols[a][base..base + L]);
-        }
-        let mut wv = [1.0f64; L];
+        let mut wa = [0.0f64; L];
+        wa.copy_from_slice(&ca[base..base + L]);
         if let Some(w) = w {
-            wv.copy_from_slice(&w[base..base + L]);
-        }
-        for a in 0..M {
-            let mut wa = [0.0f64; L];
             for l in 0..L {
-                wa[l] = if w.is_some() { wv[l] * c[a][l] } else { c[a][l] };
+                wa[l] *= w[base + l];
             }
-            for b in a..M {
-                for l in 0..L {
-                    acc[a][b][l] = madd::<FMA>(wa[l], c[b][l], acc[a][b][l]);
-                }
+        }
+        for (s, cb) in acc.iter_mut().zip(others) {
+            let cb = &cb[base..base + L];
+            for l in 0..L {
+                s[l] = madd::<FMA>(wa[l], cb[l], s[l]);
             }
         }
     }
     for k in quads * L..n {
-        let wk = w.map_or(1.0, |w| w[k]);
-        for a in 0..M {
-            let wa = wk * cols[a][k];
-            for b in a..M {
-                acc[a][b][0] = madd::<FMA>(wa, cols[b][k], acc[a][b][0]);
-            }
+        let wa = w.map_or(1.0, |w| w[k]) * ca[k];
+        for (s, cb) in acc.iter_mut().zip(others) {
+            s[0] = madd::<FMA>(wa, cb[k], s[0]);
         }
     }
-    for a in 0..M {
-        for b in a..M {
-            g[a * M + b] += acc[a][b].iter().sum::<f64>();
-        }
+    let mut row = [0.0f64; 8];
+    for (r, s) in row.iter_mut().zip(&acc) {
+        *r = s.iter().sum::<f64>();
     }
+    row
 }
 
 /// [`gram`] for any number of columns: one dot product per pair.
@@ -299,6 +324,61 @@ fn gram_any(cols: &[&[f64]], w: Option<&[f64]>, g: &mut [f64]) {
         }
         for b in a..m {
             g[a * m + b] += dot(&tmp, cols[b]);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{gram_fixed, madd};
+
+    /// `Σ_k w_k c_a[k] c_b[k]` as the lanes are defined: lane l sums the samples k ≡ l mod
+    /// L of the whole chunks in order (fused where `FMA`), the tail goes to lane 0, and the
+    /// lanes are added in order.
+    fn lanes<const FMA: bool, const L: usize>(ca: &[f64], cb: &[f64], w: Option<&[f64]>) -> f64 {
+        let mut acc = [0.0f64; L];
+        for (k, (x, y)) in ca.iter().zip(cb).enumerate() {
+            let l = if k < ca.len() / L * L { k % L } else { 0 };
+            acc[l] = madd::<FMA>(w.map_or(1.0, |w| w[k]) * x, *y, acc[l]);
+        }
+        acc.iter().sum()
+    }
+
+    fn check<const M: usize, const FMA: bool, const L: usize>(cols: &[Vec<f64>], w: Option<&[f64]>) {
+        let c: [&[f64]; M] = std::array::from_fn(|a| cols[a].as_slice());
+        let mut g = vec![0.5; M * M];
+        gram_fixed::<M, FMA, L>(&c, w, &mut g);
+        for a in 0..M {
+            for b in 0..M {
+                let want = if b >= a { 0.5 + lanes::<FMA, L>(c[a], c[b], w) } else { 0.5 };
+                assert_eq!(
+                    g[a * M + b].to_bits(),
+                    want.to_bits(),
+                    "M {M}, L {L}, fma {FMA}: entry ({a}, {b})"
+                );
+            }
+        }
+    }
+
+    /// Each sum of the Gram is its lanes' sum to the bit, whatever the number of columns,
+    /// lanes, weights and tail: the additions' order is fixed (module doc).
+    #[test]
+    fn the_gram_is_the_sum_of_its_lanes_to_the_bit() {
+        for n in [0, 3, 256, 259] {
+            let cols: Vec<Vec<f64>> = (0..8)
+                .map(|a| (0..n).map(|k| ((7 * a + 3 * k) as f64 * 0.37).sin() * 1e3f64.powi(a % 3)).collect())
+                .collect();
+            let w: Vec<f64> = (0..n).map(|k| 1.0 + (k as f64 * 0.11).cos().abs()).collect();
+            for w in [None, Some(w.as_slice())] {
+                macro_rules! each {
+                    ($($m:literal)*) => {$(
+                        check::<$m, true, 4>(&cols, w);
+                        check::<$m, false, 4>(&cols, w);
+                        check::<$m, true, 8>(&cols, w);
+                    )*};
+                }
+                each!(1 2 3 4 5 6 7 8);
+            }
         }
     }
 }
