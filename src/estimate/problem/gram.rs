@@ -214,8 +214,8 @@ pub(crate) fn weighted_square_sum(e: &[f64], w: &[f64]) -> f64 {
 /// columns b ≥ a held in vector registers (a single sweep holding all M(M+1)/2 sums needed
 /// more registers than AVX2 has and was compiled to scalar code, 2.5–3.3× slower for M of
 /// 6–8); compiled for AVX-512, for AVX2 and FMA as well as the baseline and chosen at run
-/// time (crate `multiversion`). Each sum is its lanes' in a fixed order (module doc), the
-/// same for any of these layouts.
+/// time (crate `multiversion`). Each sum adds its lanes in a fixed order (module doc): the
+/// numbers are the single sweep's to the bit.
 #[multiversion(targets("x86_64+avx512f+avx512vl+fma", "x86_64+avx2+fma"))]
 pub(crate) fn gram(cols: &[&[f64]], w: Option<&[f64]>, g: &mut [f64]) {
     let fma = target_cfg_f!(target_feature = "fma");
