@@ -2,8 +2,9 @@
 //! the local Jacobian columns, as dot products over contiguous arrays, and their map to
 //! the optimiser's coordinates.
 //!
-//! Every dot product runs in four independent lanes so that it vectorises; the order of
-//! the additions is fixed by the block layout, so a sum is the same for any thread count.
+//! Every dot product runs in independent lanes (four or eight) so that it vectorises; the
+//! order of the additions is fixed by the block layout, so a sum is the same for any
+//! thread count.
 
 use multiversion::multiversion;
 use multiversion::target::target_cfg_f;
@@ -206,21 +207,22 @@ pub(crate) fn weighted_square_sum(e: &[f64], w: &[f64]) -> f64 {
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
-/// Adds the upper triangle of `Σ_k w_k c_a[k] c_b[k]` over the columns `cols` (all of
-/// length n; `w` of length n, or `None` for unit weights) to `g` (row-major M × M, M =
-/// `cols.len()`).
+/// Adds the upper triangle of `Σ_k w_k c_a[k] c_b[k]` over the columns `cols` to `g`
+/// (row-major M × M, M = `cols.len()`): k runs over the first n samples, n the length of
+/// the shortest column (and of `w`, the weights, or `None` for unit weights).
 ///
 /// Monomorphised for M ≤ 8: one sweep of the block per column a, its sums against the
-/// columns b ≥ a held in vector registers (a single sweep holding all M(M+1)/2 sums needed
-/// more registers than AVX2 has and was compiled to scalar code, 2.5–3.3× slower for M of
-/// 6–8); compiled for AVX-512, for AVX2 and FMA as well as the baseline and chosen at run
-/// time (crate `multiversion`). Each sum adds its lanes in a fixed order (module doc): the
-/// numbers are the single sweep's to the bit.
+/// columns b ≥ a (at most eight) held in vector registers on the AVX2 and AVX-512 builds
+/// (docs/performance.md, "The Gram matrix a column at a time"); compiled for AVX-512, for
+/// AVX2 and FMA as well as the baseline and chosen at run time (crate `multiversion`).
+/// Each sum adds lane l over the samples k ≡ l (mod L) in order, the tail past the last
+/// whole chunk in lane 0, then the lanes in order, whatever the sweeps' layout.
 #[multiversion(targets("x86_64+avx512f+avx512vl+fma", "x86_64+avx2+fma"))]
 pub(crate) fn gram(cols: &[&[f64]], w: Option<&[f64]>, g: &mut [f64]) {
     let fma = target_cfg_f!(target_feature = "fma");
-    // Eight lanes where 32 vector registers hold the sums (AVX-512) and there are enough
-    // of them to fill the pipeline (measured: six columns and more), four elsewhere.
+    // Eight lanes on AVX-512 for six columns and more (measured with the former single
+    // sweep, whose sums needed its 32 registers), four elsewhere: kept so that the numbers
+    // stay those of that kernel. The row sweeps were not timed on AVX-512 (no such machine).
     let wide = target_cfg_f!(target_feature = "avx512f");
     macro_rules! fixed {
         ($($m:literal)*) => {
@@ -271,9 +273,10 @@ fn gram_fixed<const M: usize, const FMA: bool, const L: usize>(
     rows!(1 2 3 4 5 6 7 8);
 }
 
-/// `Σ_k w_k c_a[k] c_b[k]` for the K columns `others` (c_a = `ca`, all of length n ≥
-/// `ca.len()`), each in L lanes (lane l sums the samples k ≡ l mod L in order, the tail
-/// past the last whole chunk in lane 0) added in lane order: the first K entries.
+/// `Σ_k w_k c_a[k] c_b[k]` over k < n = `ca.len()` (c_a = `ca`) for each of the K columns
+/// `others` (each, and `w` when given, at least n long), each in L lanes (lane l sums the
+/// samples k ≡ l mod L in order, the tail past the last whole chunk in lane 0) added in
+/// lane order: the first K entries of the result.
 #[inline(always)]
 fn gram_row<const K: usize, const FMA: bool, const L: usize>(
     ca: &[f64],
@@ -335,10 +338,11 @@ mod tests {
     /// `Σ_k w_k c_a[k] c_b[k]` as the lanes are defined: lane l sums the samples k ≡ l mod
     /// L of the whole chunks in order (fused where `FMA`), the tail goes to lane 0, and the
     /// lanes are added in order.
-    fn lanes<const FMA: bool, const L: usize>(ca: &[f64], cb: &[f64], w: Option<&[f64]>) -> f64 {
+    /// n: the shortest of the columns and the weights.
+    fn lanes<const FMA: bool, const L: usize>(ca: &[f64], cb: &[f64], w: Option<&[f64]>, n: usize) -> f64 {
         let mut acc = [0.0f64; L];
-        for (k, (x, y)) in ca.iter().zip(cb).enumerate() {
-            let l = if k < ca.len() / L * L { k % L } else { 0 };
+        for (k, (x, y)) in ca[..n].iter().zip(cb).enumerate() {
+            let l = if k < n / L * L { k % L } else { 0 };
             acc[l] = madd::<FMA>(w.map_or(1.0, |w| w[k]) * x, *y, acc[l]);
         }
         acc.iter().sum()
@@ -346,11 +350,12 @@ mod tests {
 
     fn check<const M: usize, const FMA: bool, const L: usize>(cols: &[Vec<f64>], w: Option<&[f64]>) {
         let c: [&[f64]; M] = std::array::from_fn(|a| cols[a].as_slice());
+        let n = c.iter().map(|c| c.len()).chain(w.map(<[f64]>::len)).min().unwrap_or(0);
         let mut g = vec![0.5; M * M];
         gram_fixed::<M, FMA, L>(&c, w, &mut g);
         for a in 0..M {
             for b in 0..M {
-                let want = if b >= a { 0.5 + lanes::<FMA, L>(c[a], c[b], w) } else { 0.5 };
+                let want = if b >= a { 0.5 + lanes::<FMA, L>(c[a], c[b], w, n) } else { 0.5 };
                 assert_eq!(
                     g[a * M + b].to_bits(),
                     want.to_bits(),
@@ -361,14 +366,20 @@ mod tests {
     }
 
     /// Each sum of the Gram is its lanes' sum to the bit, whatever the number of columns,
-    /// lanes, weights and tail: the additions' order is fixed (module doc).
+    /// lanes, weights and tail, over the shortest of the columns and weights: the
+    /// additions' order is fixed (module doc). A 259-sample block has a tail of 3.
     #[test]
     fn the_gram_is_the_sum_of_its_lanes_to_the_bit() {
-        for n in [0, 3, 256, 259] {
+        // (samples of column 0, extra samples of column a: a × this, weights)
+        let cases = [(0, 0, 0), (3, 0, 3), (256, 0, 256), (259, 0, 259), (259, 1, 264), (259, 2, 250)];
+        for (n, longer, n_w) in cases {
             let cols: Vec<Vec<f64>> = (0..8)
-                .map(|a| (0..n).map(|k| ((7 * a + 3 * k) as f64 * 0.37).sin() * 1e3f64.powi(a % 3)).collect())
+                .map(|a| {
+                    let len = n + a * longer;
+                    (0..len).map(|k| ((7 * a + 3 * k) as f64 * 0.37).sin() * 1e3f64.powi(a % 3)).collect()
+                })
                 .collect();
-            let w: Vec<f64> = (0..n).map(|k| 1.0 + (k as f64 * 0.11).cos().abs()).collect();
+            let w: Vec<f64> = (0..n_w).map(|k| 1.0 + (k as f64 * 0.11).cos().abs()).collect();
             for w in [None, Some(w.as_slice())] {
                 macro_rules! each {
                     ($($m:literal)*) => {$(
