@@ -9,6 +9,7 @@
 use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::imprecise;
+use crate::pmsm::checks::sampling::Sampling;
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::log::DqLogs;
 use crate::pmsm::model::interval::VoltageInput;
@@ -117,13 +118,14 @@ pub(crate) fn fit_dq(dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<PmsmFi
             None => fit,
             // The steady-state equations take the samples as points: chosen when the choice is
             // automatic, as for a log too slow for the dynamic model.
-            Some(why) if options.dynamics == Dynamics::Auto && !options.force => {
+            Some(Sampling::Points(why)) if options.dynamics == Dynamics::Auto && !options.force => {
                 match super::steady::fit(dq, options, Some(why.clone())) {
                     Ok(steady) => return Ok(steady),
                     Err(e) => with_warnings(fit, [point_sampled_warning(&why, Some(&e))]),
                 }
             }
-            Some(why) => with_warnings(fit, [point_sampled_warning(&why, None)]),
+            Some(Sampling::Points(why)) => with_warnings(fit, [point_sampled_warning(&why, None)]),
+            Some(Sampling::Unclear(why)) => with_warnings(fit, [point_sampled_unclear(&why)]),
         };
         let bias = crate::pmsm::checks::voltage_bias::warning(
             dq,
@@ -184,7 +186,7 @@ fn point_sampled(
     options: &PmsmFitOptions,
     fit: &PmsmFit,
     refit: crate::pmsm::options::RefitReport<'_>,
-) -> Option<String> {
+) -> Option<Sampling> {
     let setup =
         PmsmSetup { cable_resistance: options.cable_resistance, ..PmsmSetup::new(fit.pole_pairs, fit.hold) };
     crate::pmsm::checks::sampling::point_sampled(experiments, options, &fit.report, setup, refit)
@@ -202,6 +204,18 @@ fn point_sampled_warning(why: &str, steady: Option<&Error>) -> crate::estimate::
     crate::estimate::Warning::untrusted(
         "point_sampled_voltage",
         format!("{why}, so the estimates carry the model's error; {instead}"),
+    )
+}
+
+/// The untrusted `point_sampled_voltage` warning of a voltage that may be point samples
+/// (`why`): the fit stays the dynamic one, untrusted.
+fn point_sampled_unclear(why: &str) -> crate::estimate::Warning {
+    crate::estimate::Warning::untrusted(
+        "point_sampled_voltage",
+        format!(
+            "{why}; the dynamic model's estimates may then carry the held voltage's error: compare with the \
+             steady-state equations, which take the samples as points (--model spm-steady or ipm-steady)"
+        ),
     )
 }
 
