@@ -72,6 +72,7 @@ mod tests {
             batch_samples: 0,
             ljung_box: ljung_box.to_vec(),
             ljung_box_critical: 44.3,
+            jackknife: false,
         }
     }
 

@@ -3,8 +3,9 @@
 //! (n_y × n_θ) correlated with the Jacobian `D_k = ∂ε_k/∂θ` but not with `ε_k`, solved by
 //! Newton steps `δ = −(Σ Zᵀ D)⁻¹ Σ Zᵀ ε`, and the estimate's covariance
 //! `M⁻¹ Ω M⁻ᵀ` with `M = Σ_k Z_kᵀ D_k` and `Ω` the variance of the summed score
-//! `Σ_k Z_kᵀ ε_k`: `Σ_i σ̂_i² Σ_k Z_kiᵀ Z_ki` for white equation errors, the batch means of
-//! the score (`problem::batches`) otherwise (Söderström & Stoica, *System Identification*,
+//! `Σ_k Z_kᵀ ε_k`: `Σ_i σ̂_i² Σ_k Z_kiᵀ Z_ki` for white equation errors; otherwise the
+//! delete-one-batch jackknife over the batch means' batches ([`super::jackknife`]), or the
+//! batch means of the score (`problem::batches`) where a batch alone determines a parameter (Söderström & Stoica, *System Identification*,
 //! 1989, 8.2–8.3; Söderström, *Automatica* 43 (2007) 939–958, errors in variables; Young,
 //! *Recursive Estimation and Time-Series Analysis*, 2nd ed., 2011, ch. 7, refined IV).
 //!
@@ -12,6 +13,7 @@
 //! noise-free outputs an auxiliary model simulates); this module sums, steps and gives the
 //! covariance, for any model.
 
+use super::jackknife::BlockSums;
 use super::problem::LagStream;
 use super::problem::{BlockScores, LagSums, ScoreSeries, TARGET_BATCHES, WHITENESS_LAGS};
 use super::result::{Uncertainty, t_quantile_975};
@@ -45,6 +47,8 @@ pub struct IvSums {
     sample: Vec<f64>,
     /// Samples per block of the batch means.
     block: usize,
+    /// The blocks' sums for the jackknife.
+    jack: BlockSums,
 }
 
 /// The covariance of an IV estimate and how it was formed.
@@ -85,6 +89,7 @@ impl IvSums {
             blocks: BlockScores::with_len(nth, block),
             sample: vec![0.0; nth],
             block: block.max(1),
+            jack: BlockSums::new(nth, block),
         }
     }
 
@@ -93,6 +98,7 @@ impl IvSums {
     pub fn start_experiment(&mut self) {
         self.streams = (0..self.ny).map(|_| LagStream::new(WHITENESS_LAGS)).collect();
         self.blocks = BlockScores::with_len(self.nth, self.block);
+        self.jack.start_experiment();
     }
 
     /// Adds sample k: equation error `eps` (n_y, the outputs' units), its Jacobian `d` and
@@ -111,6 +117,7 @@ impl IvSums {
                 s[a] += zi[a] * eps[i];
                 for b in 0..nth {
                     self.zd[(a, b)] += zi[a] * di[b];
+                    self.jack.open_m_mut()[(a, b)] += zi[a] * di[b];
                     self.zz[i][(a, b)] += zi[a] * zi[b];
                 }
             }
@@ -123,6 +130,7 @@ impl IvSums {
             *total += v;
         }
         self.blocks.add(&self.sample);
+        self.jack.count(&self.sample);
         self.count += 1;
     }
 
@@ -132,6 +140,7 @@ impl IvSums {
             all.push(st.finish());
         }
         self.blocks.close();
+        self.jack.close();
         self.scores.add_plain(&self.blocks);
     }
 
@@ -170,9 +179,16 @@ impl IvSums {
         let sandwich = |o: &DMatrix<f64>| &m_inv * o * m_inv.transpose();
         let cov_white = sandwich(&omega);
         let offered = self.scores.batch_means(TARGET_BATCHES);
-        let uncertainty = Uncertainty::choose(&whiteness, n, dof, offered.as_ref());
+        let mut uncertainty = Uncertainty::choose(&whiteness, n, dof, offered.as_ref());
         let bm = uncertainty.taken(offered.as_ref());
-        let cov = bm.map_or_else(|| cov_white.clone(), |b| sandwich(&b.meat));
+        // The batches' jackknife where batch means are taken (and it exists: no batch alone
+        // determines a parameter); their sandwich otherwise.
+        let jackknife = bm.and_then(|_| self.jack.covariance(&self.zd, &self.score, TARGET_BATCHES));
+        uncertainty.jackknife = jackknife.is_some();
+        let cov = match jackknife {
+            Some(v) => v,
+            None => bm.map_or_else(|| cov_white.clone(), |b| sandwich(&b.meat)),
+        };
         Ok(IvCovariance { cov, cov_white, uncertainty, whiteness })
     }
 }

@@ -18,6 +18,7 @@ pub(crate) mod diagnostics;
 pub(crate) mod filter;
 pub(crate) mod gate;
 pub(crate) mod iv;
+mod jackknife;
 pub(crate) mod linear;
 pub(crate) mod metrics;
 mod options;

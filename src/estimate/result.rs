@@ -92,6 +92,11 @@ pub struct Uncertainty {
     pub ljung_box: Vec<f64>,
     /// Its 1 % critical value: above it the residuals are not white.
     pub ljung_box_critical: f64,
+    /// Whether the batches entered by the delete-one-batch jackknife (instrumental
+    /// variables, `crate::estimate::iv`) rather than the batch means' sandwich; `false` in
+    /// reports written before the field existed (and not written when `false`).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub jackknife: bool,
 }
 
 impl Uncertainty {
@@ -118,6 +123,7 @@ impl Uncertainty {
             ljung_box_critical: whiteness
                 .first()
                 .map_or(0.0, crate::estimate::metrics::Whiteness::ljung_box_critical),
+            jackknife: false,
         }
     }
 

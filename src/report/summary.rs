@@ -183,10 +183,13 @@ impl FitResult {
         let u = &self.uncertainty;
         (u.method == crate::estimate::CovarianceMethod::BatchMeans).then(|| {
             let q = u.ljung_box.iter().fold(0.0f64, |a, b| a.max(*b));
+            let how = match u.jackknife {
+                true => "the delete-one-batch jackknife (CV3)",
+                false => "the score's long-run covariance by batch means",
+            };
             format!(
-                "std error: residuals not white (Ljung–Box Q {q:.3e} > {:.1}): the score's long-run covariance by \
-                 batch means over {} batches of {} samples, interval t with {} degrees of freedom; the white-noise \
-                 std errors are in the JSON (std_error_white)",
+                "std error: residuals not white (Ljung–Box Q {q:.3e} > {:.1}): {how} over {} batches of {} samples, \
+                 interval t with {} degrees of freedom; the white-noise std errors are in the JSON (std_error_white)",
                 u.ljung_box_critical, u.batches, u.batch_samples, u.dof
             )
         })

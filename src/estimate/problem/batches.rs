@@ -16,6 +16,7 @@
 //! atoms: a batch is a run of whole blocks of one experiment, so nothing per sample is kept.
 
 use super::local::LocalMap;
+use super::partition::partition;
 use crate::estimate::arrowhead::{ArrowLayout, Arrowhead, LowRank};
 use crate::model::BLOCK_LEN;
 use nalgebra::{DMatrix, DVector};
@@ -239,34 +240,16 @@ impl ScoreSeries {
         if total == 0 || self.experiments.is_empty() {
             return None;
         }
-        let length = total.div_ceil(target.max(1));
-        let mut batches: Vec<(usize, DVector<f64>)> = Vec::new();
+        let groups = partition(self.experiments.iter().map(|(c, _)| c.as_slice()), total, target);
+        let mut batches: Vec<(usize, DVector<f64>)> = Vec::with_capacity(groups.len());
         // Where each experiment's batches start, then the end.
         let mut cuts = Vec::with_capacity(self.experiments.len() + 1);
-        for (counts, scores) in &self.experiments {
-            let first = batches.len();
-            cuts.push(first);
+        for (e, (counts, scores)) in self.experiments.iter().enumerate() {
+            cuts.push(batches.len());
             let dim = if self.local.is_some() { scores.first().map_or(0, DVector::len) } else { self.np };
-            let (mut n, mut s) = (0, DVector::zeros(dim));
-            for (&c, v) in counts.iter().zip(scores) {
-                n += c;
-                s += v;
-                // Cut at the block boundary nearest the length aimed at.
-                if n + c / 2 >= length {
-                    batches.push((n, std::mem::replace(&mut s, DVector::zeros(dim))));
-                    n = 0;
-                }
-            }
-            if n > 0 {
-                // A short tail joins the batch before it (of the same experiment).
-                let joins = batches.len() > first && 2 * n < length;
-                match batches.last_mut().filter(|_| joins) {
-                    Some(last) => {
-                        last.0 += n;
-                        last.1 += s;
-                    }
-                    None => batches.push((n, s)),
-                }
+            for g in groups.iter().filter(|g| g.experiment == e) {
+                let n = counts[g.blocks.clone()].iter().chain(&counts[g.tail.clone()]).sum();
+                batches.push((n, g.sum(scores, || DVector::zeros(dim))));
             }
         }
         cuts.push(batches.len());

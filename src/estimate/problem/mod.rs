@@ -21,6 +21,7 @@ mod local;
 mod loss;
 mod map;
 mod normal;
+mod partition;
 mod pass;
 mod pem;
 mod sums;
@@ -37,6 +38,7 @@ pub(crate) use gram::lagged_dots;
 pub(crate) use lags::LagStream;
 pub use lags::{LAG_CHUNK, LagSums, WHITENESS_LAGS};
 pub use loss::Loss;
+pub(crate) use partition::partition;
 pub use pem::{
     FreeKind, FreeParameter, PemProblem, ProblemOptions, STRUCTURED_ABOVE, Slot, Term, WeightedData,
 };

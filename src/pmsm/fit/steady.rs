@@ -222,11 +222,19 @@ fn report(
         })
         .collect();
     let cov = DMatrix::from_fn(n, n, |a, b| est.correlation[a][b] * est.std_error[a] * est.std_error[b]);
-    // Relative information: by θ; the period term by the larger of its estimate and its
-    // standard error (its estimate is about 0 on a log whose voltage is held in dq).
-    let size = |j: usize| match est.names[j] == PERIOD_TERM {
-        true => est.theta[j].abs().max(est.std_error[j]),
-        false => est.theta[j],
+    // Relative information: by θ; the period term h_c2 by 12/ω_e² at the logs' top
+    // electrical speed, where its back-EMF term (ω_e h_c)²/12 is the whole back-EMF, so that
+    // its relative error is that of the back-EMF it corrects, as K_e's is (its estimate is
+    // about 0 on a log whose voltage is held in dq; scaled by its own standard error, a
+    // precise fit of such a log read as singular: condition 2.5e12 on every 80th row of a
+    // shared 8 kHz log of moves whose estimates lie within 1.1 standard errors).
+    let w_e_top = crate::pmsm::log::DqLogs::try_new(experiments)
+        .map_or(0.0, |dq| dq.views().iter().flat_map(|v| v.w_m().iter()).fold(0.0f64, |a, w| a.max(w.abs())))
+        * f64::from(options.pole_pairs);
+    let size = |j: usize| match (est.names[j] == PERIOD_TERM, w_e_top > 0.0 && w_e_top.is_finite()) {
+        (true, true) => 12.0 / (w_e_top * w_e_top),
+        (true, false) => est.theta[j].abs().max(est.std_error[j]),
+        (false, _) => est.theta[j],
     };
     let info_rel = cov
         .try_inverse()
@@ -295,14 +303,14 @@ fn report(
         timing: Timing { read_s: 0.0, fit_s, total_s: fit_s },
         notes: std::iter::once(format!(
             "steady-state equations u_d = R_s i_d + L_d di_d/dt − ω_e L_q i_q, u_q = R_s i_q + L_q di_q/dt + ω_e L_d \
-             i_d + √(2/3) ω_m K_e on the {} smooth samples of {} (each current's second difference within {}·√6 σ_i; \
+             i_d + √(2/3) ω_m K_e on the {} smooth samples of {} (each current's second differences at k − 1, k, k + 1 within {}·√6 σ_i; \
              di/dt by central differences at the log's rate), by instrumental variables (instruments: the mean and \
              slope over the samples two away); equations {hc}",
             est.steady_samples,
             est.samples,
             SteadyOptions::default().steady_sigmas
         ))
-        .chain(est.notes.iter().filter(|n| n.contains("control period")).cloned())
+        .chain(est.notes.iter().filter(|n| n.contains("control period") || n.contains("smooth across")).cloned())
         .chain(widening)
         .collect(),
         warnings: Vec::new(),

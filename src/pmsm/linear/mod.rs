@@ -7,6 +7,7 @@ pub(super) mod report;
 pub(super) mod start;
 mod steady;
 mod steady_model;
+mod steady_samples;
 mod steady_solve;
 
 pub use least_squares::*;

@@ -17,10 +17,15 @@
 //! reads the drive's latest values), and the equations (with the currents' drift `L di/dt`
 //! from central differences at the log's rate, [`super::steady_model`]) hold at the
 //! instant t_k when the currents vary smoothly across the samples `k − 1, k, k + 1`: a
-//! plateau or a ramp, not a step. A sample is steady when the second difference
-//! `i[k+1] − 2 i[k] + i[k−1]` of neither current exceeds [`SteadyOptions::steady_sigmas`]
-//! times its standard deviation for white noise (`√6 σ_i`, σ_i per current and experiment
-//! from the lower quantile of the second differences, which the smooth samples dominate).
+//! plateau or a ramp, not a step. A sample is steady when the second differences
+//! `i[j+1] − 2 i[j] + i[j−1]` at j = k − 1, k, k + 1 of neither current exceed
+//! [`SteadyOptions::steady_sigmas`] times their standard deviation for white noise
+//! (`√6 σ_i`, σ_i per current and experiment from the lower quantile of the second
+//! differences, which the smooth samples dominate): the stencil `k − 2 … k + 2` that the
+//! equation and its instruments read lies on one smooth stretch. The second difference at k
+//! alone let in, as σ_i grew, samples on the curved tail after a step, where the central
+//! difference's error `L (d³i/dt³) h²/6` biased the interior-magnet fit; a log with fewer
+//! than `FEWEST_STENCILS` (128) such samples falls back to k alone, with a note.
 //! A real drive cycle has short plateaus and ramps; the constant-current rule this replaces
 //! kept ramp samples whose `L di/dt` it did not model (R_s +0.5 % at |z| 19 on every 40th
 //! row of a 10 kHz log of moves).
@@ -36,6 +41,7 @@
 //! (blocks short enough for 32 batches on a short log).
 
 use super::steady_model::SteadyLog;
+use super::steady_samples::{FEWEST_STENCILS, SQRT_6, noise_sigma, steady_indices};
 pub use super::steady_solve::{PERIOD_TERM, SteadyOptions};
 use super::steady_solve::{Solved, period_note, solve};
 use crate::data::Experiment;
@@ -105,9 +111,6 @@ fn converged_default() -> bool {
 /// Relative standard error above which a parameter is named not identifiable at steady state.
 pub const UNIDENTIFIABLE: f64 = 0.1;
 
-/// z of the 20 % quantile of |N(0, 1)|: `P(|Z| ≤ 0.2533) = 0.2`.
-const Q20_ABS_NORMAL: f64 = 0.2533;
-
 impl SteadyEstimate {
     /// Estimate of parameter `name` \[SI\], if the model has it.
     pub fn value(&self, name: &str) -> Option<f64> {
@@ -142,33 +145,6 @@ impl fmt::Display for SteadyEstimate {
         }
         Ok(())
     }
-}
-
-/// Noise σ \[A\] of a sampled current from the lower 20 % quantile of its second
-/// differences `|x[k+1] − 2 x[k] + x[k−1]|` (standard deviation `√6 σ` for white noise).
-fn noise_sigma(x: &[f64]) -> f64 {
-    let mut d: Vec<f64> =
-        x.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).abs()).filter(|v| v.is_finite()).collect();
-    if d.is_empty() {
-        return 0.0;
-    }
-    let k = d.len() / 5;
-    let (_, q, _) = d.select_nth_unstable_by(k, f64::total_cmp);
-    *q / (Q20_ABS_NORMAL * SQRT_6)
-}
-
-/// `√6`: the standard deviation of a second difference of unit white noise.
-const SQRT_6: f64 = 2.449_489_742_783_178;
-
-/// Indices k of the steady samples of one experiment: samples `k ± 2` exist (the
-/// instruments') and neither current's second difference at k exceeds its threshold.
-fn steady_indices(i_d: &[f64], i_q: &[f64], thr: [f64; 2]) -> Vec<usize> {
-    let n = i_d.len().min(i_q.len());
-    (2..n.saturating_sub(2))
-        .filter(|&k| {
-            [(i_d, thr[0]), (i_q, thr[1])].iter().all(|(x, t)| (x[k + 1] - 2.0 * x[k] + x[k - 1]).abs() <= *t)
-        })
-        .collect()
 }
 
 /// Checks the options' numbers.
@@ -239,12 +215,17 @@ pub(crate) fn steady_state_of(
     let experiments = dq.experiments();
     let mut logs = Vec::with_capacity(experiments.len());
     let mut current_noise = Vec::with_capacity(experiments.len());
+    let fewest = FEWEST_STENCILS;
+    let mut narrow = Vec::new();
     for (e, &view) in experiments.iter().zip(dq.views()) {
         view.terminal_voltage()?;
         let sigma = [noise_sigma(view.i_d()), noise_sigma(view.i_q())];
         let floor = options.relative_floor * view.peak_current();
         let thr = sigma.map(|s| (options.steady_sigmas * SQRT_6 * s).max(floor));
-        let steady = steady_indices(view.i_d(), view.i_q(), thr);
+        let (steady, stencils) = steady_indices(view.i_d(), view.i_q(), thr, fewest);
+        if stencils < fewest {
+            narrow.push(format!("{} ({stencils} of {fewest})", e.name()));
+        }
         logs.push(SteadyLog { view, h: e.h(), steady, columns: Vec::new() });
         current_noise.push(sigma);
     }
@@ -275,6 +256,13 @@ pub(crate) fn steady_state_of(
     let t = cov.t_quantile();
     let std_error: Vec<f64> = (0..nth).map(|i| cov.cov[(i, i)].max(0.0).sqrt()).collect();
     let mut notes = notes(kind, &names, &theta, &std_error);
+    if !narrow.is_empty() {
+        notes.push(format!(
+            "too few samples smooth across k − 2 … k + 2 in {}: the samples smooth across k − 1 … k + 1 taken, whose \
+             instruments (samples k ± 2) may lie on a transient and whose equations on the tail of one",
+            narrow.join(", ")
+        ));
+    }
     notes.extend(period_note(period, &names, &theta, &std_error));
     let units = names.iter().map(|n| unit_of(kind, n).to_string()).collect();
     let used = sums.count;
