@@ -5,7 +5,8 @@
 //! `M⁻¹ Ω M⁻ᵀ` with `M = Σ_k Z_kᵀ D_k` and `Ω` the variance of the summed score
 //! `Σ_k Z_kᵀ ε_k`: `Σ_i σ̂_i² Σ_k Z_kiᵀ Z_ki` for white equation errors; otherwise the
 //! delete-one-batch jackknife over the batch means' batches ([`super::jackknife`]), or the
-//! batch means of the score (`problem::batches`) where a batch alone determines a parameter (Söderström & Stoica, *System Identification*,
+//! batch means of the score (`problem::batches`) where a batch alone determines a
+//! parameter (Söderström & Stoica, *System Identification*,
 //! 1989, 8.2–8.3; Söderström, *Automatica* 43 (2007) 939–958, errors in variables; Young,
 //! *Recursive Estimation and Time-Series Analysis*, 2nd ed., 2011, ch. 7, refined IV).
 //!

@@ -82,6 +82,10 @@ impl BlockSums {
         let nth = self.nth;
         let score = std::mem::replace(&mut self.open_score, DVector::zeros(nth));
         let m = std::mem::replace(&mut self.open_m, DMatrix::zeros(nth, nth));
+        if self.experiments.is_empty() {
+            // Samples counted before any experiment started: one experiment.
+            self.experiments.push(Blocks::default());
+        }
         if let Some(e) = self.experiments.last_mut() {
             e.counts.push(self.open_n);
             e.scores.push(score);

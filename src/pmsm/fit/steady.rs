@@ -303,9 +303,10 @@ fn report(
         timing: Timing { read_s: 0.0, fit_s, total_s: fit_s },
         notes: std::iter::once(format!(
             "steady-state equations u_d = R_s i_d + L_d di_d/dt − ω_e L_q i_q, u_q = R_s i_q + L_q di_q/dt + ω_e L_d \
-             i_d + √(2/3) ω_m K_e on the {} smooth samples of {} (each current's second differences at k − 1, k, k + 1 within {}·√6 σ_i; \
-             di/dt by central differences at the log's rate), by instrumental variables (instruments: the mean and \
-             slope over the samples two away); equations {hc}",
+             i_d + √(2/3) ω_m K_e on the {} smooth samples of {} (each current's second differences at k − 1, k, \
+             k + 1 within {}·√6 σ_i, or at k alone where a note says so; di/dt by central differences at the log's \
+             rate), by instrumental variables (instruments: the mean and slope over the samples two away); equations \
+             {hc}",
             est.steady_samples,
             est.samples,
             SteadyOptions::default().steady_sigmas
