@@ -6,7 +6,8 @@
 /// whose plateaus are a few samples long keeps too few, on too few operating points. Every
 /// 1500th–2500th row of an 8 s drive-simulator log (33–54 rows) kept 6–8 stencils, all on
 /// plateaus, whose equations did not determine the parameters (exact fits with intervals of
-/// zero width, R_s 4–60 Ω); the rule at k alone kept 8–18 samples and honest intervals. 128
+/// zero width, R_s from −15 to 62 Ω); the rule at k alone kept 6–11 samples, with honest
+/// `undetermined` intervals at the 1500th and 2000th rows. 128
 /// is also the fewest steady samples whose blocks hold more than one sample (32 batches of
 /// 4 blocks, [`super::steady_solve`]).
 pub(super) const FEWEST_STENCILS: usize = 128;
