@@ -131,7 +131,7 @@ impl IvSums {
             *total += v;
         }
         self.blocks.add(&self.sample);
-        self.jack.count(&self.sample);
+        self.jack.count();
         self.count += 1;
     }
 
@@ -184,7 +184,8 @@ impl IvSums {
         let bm = uncertainty.taken(offered.as_ref());
         // The batches' jackknife where batch means are taken (and it exists: no batch alone
         // determines a parameter); their sandwich otherwise.
-        let jackknife = bm.and_then(|_| self.jack.covariance(&self.zd, &self.score, TARGET_BATCHES));
+        let jackknife =
+            bm.and_then(|_| self.jack.covariance(&self.zd, &self.score, &self.scores, TARGET_BATCHES));
         uncertainty.jackknife = jackknife.is_some();
         let cov = match jackknife {
             Some(v) => v,

@@ -15,46 +15,33 @@
 //! Webb, *J. Econometrics* 232 (2023) 272–299 (CV3, recommended over CV1 for few or
 //! unbalanced clusters). Batches are those of the batch means ([`super::problem::partition`]).
 
-use super::problem::{MIN_BATCHES, partition};
+use super::problem::{MIN_BATCHES, ScoreSeries, partition};
 use nalgebra::{DMatrix, DVector};
 
-/// One experiment's blocks: their samples, scores `Σ Zᵀ ε` (n_θ) and `Σ Zᵀ D` (n_θ × n_θ).
-#[derive(Clone, Debug, Default)]
-struct Blocks {
-    counts: Vec<usize>,
-    scores: Vec<DVector<f64>>,
-    m: Vec<DMatrix<f64>>,
-}
-
-/// Per-block sums of the estimating equations, kept for the jackknife.
+/// Per-block `Σ Zᵀ D` (n_θ × n_θ) of the estimating equations, kept for the jackknife beside
+/// the block scores the batch means keep ([`ScoreSeries`]), in the same blocks.
 #[derive(Clone, Debug)]
 pub(crate) struct BlockSums {
     nth: usize,
     len: usize,
-    experiments: Vec<Blocks>,
-    /// The open block: samples, score and `Σ Zᵀ D`.
+    /// Per experiment, per block.
+    experiments: Vec<Vec<DMatrix<f64>>>,
+    /// The open block: its samples and `Σ Zᵀ D`.
     open_n: usize,
-    open_score: DVector<f64>,
     open_m: DMatrix<f64>,
 }
 
 impl BlockSums {
-    /// Empty sums for `nth` parameters in blocks of `len` samples (at least 1).
+    /// Empty sums for `nth` parameters in blocks of `len` samples (at least 1), the block
+    /// length of the scores they go with.
     pub(crate) fn new(nth: usize, len: usize) -> Self {
-        Self {
-            nth,
-            len: len.max(1),
-            experiments: Vec::new(),
-            open_n: 0,
-            open_score: DVector::zeros(nth),
-            open_m: DMatrix::zeros(nth, nth),
-        }
+        Self { nth, len: len.max(1), experiments: Vec::new(), open_n: 0, open_m: DMatrix::zeros(nth, nth) }
     }
 
     /// Starts an experiment (blocks never reach across experiments).
     pub(crate) fn start_experiment(&mut self) {
         self.close();
-        self.experiments.push(Blocks::default());
+        self.experiments.push(Vec::new());
     }
 
     /// The open block's `Σ Zᵀ D` (n_θ × n_θ), for a sample's terms added before
@@ -63,11 +50,8 @@ impl BlockSums {
         &mut self.open_m
     }
 
-    /// Adds one sample's score (n_θ) and ends the sample.
-    pub(crate) fn count(&mut self, score: &[f64]) {
-        for (o, v) in self.open_score.iter_mut().zip(score) {
-            *o += v;
-        }
+    /// Ends one sample.
+    pub(crate) fn count(&mut self) {
         self.open_n += 1;
         if self.open_n == self.len {
             self.close();
@@ -79,33 +63,40 @@ impl BlockSums {
         if self.open_n == 0 {
             return;
         }
-        let nth = self.nth;
-        let score = std::mem::replace(&mut self.open_score, DVector::zeros(nth));
-        let m = std::mem::replace(&mut self.open_m, DMatrix::zeros(nth, nth));
+        let m = std::mem::replace(&mut self.open_m, DMatrix::zeros(self.nth, self.nth));
         if self.experiments.is_empty() {
             // Samples counted before any experiment started: one experiment.
-            self.experiments.push(Blocks::default());
+            self.experiments.push(Vec::new());
         }
         if let Some(e) = self.experiments.last_mut() {
-            e.counts.push(self.open_n);
-            e.scores.push(score);
-            e.m.push(m);
+            e.push(m);
         }
         self.open_n = 0;
     }
 
     /// The jackknife covariance (module documentation) at the estimate whose sums are
-    /// `m` (`M`, n_θ × n_θ) and `score` (`S`, n_θ), over about `target` batches; `None`
-    /// with fewer than [`MIN_BATCHES`] batches or when `M − M_g` is singular for a batch
-    /// (a batch that alone determines a parameter).
+    /// `m` (`M`, n_θ × n_θ) and `score` (`S`, n_θ), the block scores `scores` (kept in the
+    /// same blocks, in the optimiser's coordinates), over about `target` batches; `None`
+    /// with fewer than [`MIN_BATCHES`] batches, blocks that do not match, or when `M − M_g`
+    /// is singular for a batch (a batch that alone determines a parameter).
     pub(crate) fn covariance(
         &self,
         m: &DMatrix<f64>,
         score: &DVector<f64>,
+        scores: &ScoreSeries,
         target: usize,
     ) -> Option<DMatrix<f64>> {
-        let total: usize = self.experiments.iter().flat_map(|e| &e.counts).sum();
-        let batches = partition(self.experiments.iter().map(|e| e.counts.as_slice()), total, target);
+        let blocks: Vec<(&[usize], &[DVector<f64>])> = scores.plain_blocks().collect();
+        let matched = blocks.len() == self.experiments.len()
+            && blocks
+                .iter()
+                .zip(&self.experiments)
+                .all(|((c, s), e)| c.len() == e.len() && s.len() == e.len());
+        if !matched {
+            return None;
+        }
+        let total: usize = blocks.iter().flat_map(|(c, _)| c.iter()).sum();
+        let batches = partition(blocks.iter().map(|(c, _)| *c), total, target);
         let g = batches.len();
         if total == 0 || g < MIN_BATCHES {
             return None;
@@ -113,9 +104,8 @@ impl BlockSums {
         let nth = self.nth;
         let mut shifts = Vec::with_capacity(g);
         for b in &batches {
-            let e = &self.experiments[b.experiment];
-            let s_g = b.sum(&e.scores, || DVector::zeros(nth));
-            let m_g = b.sum(&e.m, || DMatrix::zeros(nth, nth));
+            let s_g = b.sum(blocks[b.experiment].1, || DVector::zeros(nth));
+            let m_g = b.sum(&self.experiments[b.experiment], || DMatrix::zeros(nth, nth));
             let step = (m - m_g).lu().solve(&(score - s_g))?;
             if !step.iter().all(|v| v.is_finite()) {
                 return None;
@@ -135,6 +125,7 @@ impl BlockSums {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::estimate::problem::BlockScores;
 
     /// Least squares `y = a + b x` as the estimating equations `Σ x_k (y_k − x_kᵀθ) = 0`:
     /// the one-step jackknife is exact for a linear model, so each deleted-batch estimate
@@ -157,6 +148,7 @@ mod tests {
         };
         let theta = fit(&|_| false);
         let mut sums = BlockSums::new(2, 25);
+        let mut blocks = BlockScores::with_len(2, 25);
         let (mut m, mut s) = (DMatrix::zeros(2, 2), DVector::zeros(2));
         sums.start_experiment();
         for k in 0..n {
@@ -168,10 +160,14 @@ mod tests {
             *sums.open_m_mut() += &zd;
             let sc = &v * (-e);
             s += &sc;
-            sums.count(sc.as_slice());
+            blocks.add(sc.as_slice());
+            sums.count();
         }
         sums.close();
-        let v = sums.covariance(&m, &s, 16).unwrap();
+        blocks.close();
+        let mut series = ScoreSeries::new(2);
+        series.add_plain(&blocks);
+        let v = sums.covariance(&m, &s, &series, 16).unwrap();
         // 400 samples, blocks of 25: 16 batches of one block each.
         let refits: Vec<DVector<f64>> = (0..16).map(|g| fit(&|k| k / 25 == g)).collect();
         let mean = refits.iter().fold(DVector::zeros(2), |a, r| a + r) / 16.0;
@@ -189,12 +185,18 @@ mod tests {
     #[test]
     fn too_few_batches_give_none() {
         let mut sums = BlockSums::new(1, 10);
+        let mut blocks = BlockScores::with_len(1, 10);
         sums.start_experiment();
         for _ in 0..50 {
             *sums.open_m_mut() += DMatrix::from_element(1, 1, 1.0);
-            sums.count(&[0.1]);
+            blocks.add(&[0.1]);
+            sums.count();
         }
         sums.close();
-        assert!(sums.covariance(&DMatrix::from_element(1, 1, 50.0), &DVector::zeros(1), 32).is_none());
+        blocks.close();
+        let mut series = ScoreSeries::new(1);
+        series.add_plain(&blocks);
+        let m = DMatrix::from_element(1, 1, 50.0);
+        assert!(sums.covariance(&m, &DVector::zeros(1), &series, 32).is_none());
     }
 }

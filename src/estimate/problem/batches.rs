@@ -214,6 +214,15 @@ impl ScoreSeries {
         self.experiments.push((counts, sums));
     }
 
+    /// Each experiment's block counts and block scores, in time order (scores in the
+    /// optimiser's coordinates, length n_free; empty for scores kept by local columns).
+    pub(crate) fn plain_blocks(&self) -> impl Iterator<Item = (&[usize], &[DVector<f64>])> {
+        self.experiments
+            .iter()
+            .filter(|_| self.local.is_none())
+            .map(|(counts, scores)| (counts.as_slice(), scores.as_slice()))
+    }
+
     /// The sum of every recorded block score (length n_free): the total score.
     pub(crate) fn total(&self) -> DVector<f64> {
         match &self.local {
