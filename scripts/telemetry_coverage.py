@@ -11,10 +11,12 @@ both binaries (a paired comparison).
 
 The noise is that of the rows kept (white noise cut at every k-th row is white noise of
 the same σ). Defaults: σ of the shared `servo_spm_moves_idinj_noisy` (currents 0.05 A,
-voltages 0.02 V, speed 0.005 rad/s); --scale multiplies all three.
+voltages 0.02 V, speed 0.005 rad/s); --sigma sets them (`id=0.03,iq=0.03,ud=1,uq=1,w_m=0`,
+issue 43's 1 V + 0.03 A, with --every 1 for the whole log); --scale multiplies all of them.
 
 usage: python3 scripts/telemetry_coverage.py BIN LOG TRUTH SEED0 SEED1 [--every 20,80]
-           [--scale 1,0.2] [--vs OTHER_BIN] [-- EXTRA fit flags]
+           [--scale 1,0.2] [--sigma id=A,iq=A,ud=V,uq=V,w_m=RAD_S] [--vs OTHER_BIN]
+           [-- EXTRA fit flags]
 TRUTH: name=value pairs (`r_s=1.2,l_s=0.005,k_e=0.49,n_p=4`, SI units, n_p the pole
 pairs), or a truth JSON with the keys of ../shared/data/README.md (Rs_ohm, Ls_H, Ld_H,
 Lq_H, Ke_project_Vs_per_rad_mech, np_pole_pairs).
@@ -33,11 +35,11 @@ def options(argv):
     args, extra = (argv[:argv.index("--")], argv[argv.index("--") + 1:]) if "--" in argv else (argv, [])
     if len(args) < 5:
         sys.exit(__doc__)
-    opt = {"every": "20,80", "scale": "1,0.2", "vs": None}
+    opt = {"every": "20,80", "scale": "1,0.2", "sigma": None, "vs": None}
     rest = args[5:]
     for flag, value in zip(rest[::2], rest[1::2]):
         if flag.lstrip("-") not in opt:
-            sys.exit(f"unknown option {flag}: --every, --scale or --vs")
+            sys.exit(f"unknown option {flag}: --every, --scale, --sigma or --vs")
         opt[flag.lstrip("-")] = value
     return args[:5], opt, extra
 
@@ -74,6 +76,12 @@ def main():
     (binary, log, truth_arg, s0, s1), opt, extra = options(sys.argv[1:])
     truth = truth_of(truth_arg)
     n_p = int(truth.pop("n_p"))
+    if opt["sigma"]:
+        for pair in opt["sigma"].split(","):
+            name, _, value = pair.partition("=")
+            if name not in SIGMA:
+                sys.exit(f"--sigma {pair}: no noise for column {name!r} (the columns are {', '.join(SIGMA)})")
+            SIGMA[name] = float(value)
     header, rows = read(log)
     cols = {c: header.index(c) for c in SIGMA}
     bins = {"": binary} if opt["vs"] is None else {"A ": binary, "B ": opt["vs"]}

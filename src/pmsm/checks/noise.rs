@@ -69,14 +69,44 @@ pub(crate) fn voltage_noise(
     theta: &[f64],
 ) -> Option<(f64, f64, f64)> {
     let v = voltage_errors(views, setup, theta)?;
+    let (gamma_0, rho) = autocorrelations(&v);
     let m = (2 * v.n.max(1)) as f64;
-    let gamma_0 = v.sse / m;
-    // The axes' mean autocorrelation at `lag` ≥ 1 (the whiteness holds lags 1, 2, …).
+    Some((white_power(gamma_0, rho).sqrt(), gamma_0.sqrt(), (v.suu / m).sqrt()))
+}
+
+/// The inverse model's voltage errors' variance γ₀ \[V²\] and their autocorrelations at
+/// lags 1, 2, 3, the axes' mean (the whiteness holds lags 1, 2, …).
+fn autocorrelations(v: &VoltageErrors) -> (f64, [f64; 3]) {
+    let gamma_0 = v.sse / (2 * v.n.max(1)) as f64;
     let rho = |lag: usize| {
         v.whiteness.iter().map(|w| w.autocorrelation.get(lag - 1).copied().unwrap_or(0.0)).sum::<f64>() / 2.0
     };
-    let sigma_2 = gamma_0 * (1.0 + 2.0 * rho(1) - 5.0 * rho(2) + 2.0 * rho(3));
-    Some((sigma_2.max(0.0).sqrt(), gamma_0.sqrt(), (v.suu / m).sqrt()))
+    (gamma_0, [rho(1), rho(2), rho(3)])
+}
+
+/// The white part σ² = γ₀ + 2γ₁ − 5γ₂ + 2γ₃ of the errors (at least 0; [`voltage_noise`])
+/// from γ₀ and the autocorrelations at lags 1, 2, 3.
+fn white_power(gamma_0: f64, rho: [f64; 3]) -> f64 {
+    (gamma_0 * (1.0 + 2.0 * rho[0] - 5.0 * rho[1] + 2.0 * rho[2])).max(0.0)
+}
+
+/// The white noise powers of the logged voltage, σ_u² \[V²\] per axis as
+/// [`voltage_noise`] reads it, and of the measured currents, σ_i² \[A²\], from the errors'
+/// lag-1 autocovariance `γ₁ = −a c² σ_i²` (the module's difference `c (n[k+1] − a n[k])`,
+/// `c = r_s/(1 − a)`, the inverse of the current channel's gain, ≈ L/h), at θ of an SPM
+/// model and the current channel's pole `a` ∈ (0, 1); `None` for a log the inverse model
+/// cannot read.
+pub(crate) fn noise_powers(
+    views: &[DqView<'_>],
+    setup: PmsmSetup,
+    theta: &[f64],
+    a: f64,
+) -> Option<(f64, f64)> {
+    let v = voltage_errors(views, setup, theta)?;
+    let (gamma_0, rho) = autocorrelations(&v);
+    let c = theta[0] / (1.0 - a);
+    let sigma_i2 = (-gamma_0 * rho[0]).max(0.0) / (a * c * c);
+    Some((white_power(gamma_0, rho), sigma_i2))
 }
 
 /// A notice (code `input_noise`) when the inverse model's voltage errors at θ = (r_s, l_s,

@@ -31,6 +31,7 @@ use crate::error::{Error, Result};
 use crate::estimate::iv::{IvCovariance, IvSums, one_step_sums};
 use crate::estimate::{FitResult, ParameterEstimate, SolverReport, Termination, Warning, WeightingKind};
 use crate::model::{GreyBoxModel, Prepared};
+use crate::pmsm::checks::noise_floor::poor_fit_is_noise;
 use crate::pmsm::fit::hold::{GIVE_THE_HOLD, HOLD_AMBIGUOUS_Z, hardly_chosen, largest_difference};
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::fit::workflow::fit_pmsm;
@@ -232,6 +233,7 @@ fn iv_at_hold(oe: PmsmFit, dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<
         names.iter().map(|n| oe.parameter(n).map(|p| p.value)).collect::<Option<_>>().ok_or_else(|| {
             Error::Numerical { context: "instrumental variables".into(), reason: "no start".into() }
         })?;
+    let floor = poor_fit_is_noise(dq.views(), &oe.report, setup, options);
     let solved = match options.model {
         MotorKind::Spm => {
             let model = PmsmSpm::from_setup(setup);
@@ -252,7 +254,7 @@ fn iv_at_hold(oe: PmsmFit, dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<
             iterate(start, |t| one_step_sums(&model, &preps, t))?
         }
     };
-    Ok(report(oe, solved, t0.elapsed().as_secs_f64(), options.precision.as_deref()))
+    Ok(report(oe, solved, t0.elapsed().as_secs_f64(), options.precision.as_deref(), floor))
 }
 
 /// The IV estimate, its covariance, the refinements made and whether they converged.
@@ -291,12 +293,14 @@ fn iterate(mut theta: Vec<f64>, sums: impl Fn(&[f64]) -> Result<IvSums>) -> Resu
 }
 
 /// The output-error report `oe` with the IV estimate θ, its covariance and iterations, and
-/// the `imprecise` verdict of the accuracy `precision` states on its intervals.
+/// the `imprecise` verdict of the accuracy `precision` states on its intervals; `floor`, a
+/// note that the output-error fit's `poor_fit` is the input noise's floor, which drops it.
 fn report(
     oe: PmsmFit,
     (theta, cov, iterations, converged): Solved,
     fit_s: f64,
     precision: Option<&[crate::estimate::PrecisionTarget]>,
+    floor: Option<String>,
 ) -> PmsmFit {
     let n = theta.len();
     let tq = cov.t_quantile();
@@ -348,8 +352,9 @@ fn report(
         .warnings
         .iter()
         .filter(|w| {
-            !["input_noise", "voltage_noise_bias", "undetermined", "imprecise", "coloured_residuals"]
-                .contains(&w.code.as_str())
+            let replaced =
+                ["input_noise", "voltage_noise_bias", "undetermined", "imprecise", "coloured_residuals"];
+            !replaced.contains(&w.code.as_str()) && (floor.is_none() || w.code != "poor_fit")
         })
         .cloned()
         .collect();
@@ -365,6 +370,7 @@ fn report(
             super::workflow::PRECISION_ADVICE,
         )
     }));
+    notes.extend(floor);
     if !converged {
         warnings.push(crate::estimate::Warning::untrusted(
             "not_converged",
