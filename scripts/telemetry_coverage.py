@@ -6,8 +6,8 @@ columns), every k-th row kept from the first (a host logger's rate), the result 
 `BIN fit F -p N --json J -q` (the model chosen automatically, or EXTRA flags). Per
 (k, noise scale, parameter): fits, the fraction that exit 3, the coverage of the reported
 95 % interval over all fits (exit 3 included), and over the exit-0 fits the coverage, the
-mean and the standard deviation of z = (estimate − truth)/standard error, and max |z|. With --vs OTHER_BIN the same noisy files are fitted by
-both binaries (a paired comparison).
+mean and the standard deviation of z = (estimate − truth)/standard error, and max |z|.
+With --vs OTHER_BIN the same noisy files are fitted by both binaries (a paired comparison).
 
 The noise is that of the rows kept (white noise cut at every k-th row is white noise of
 the same σ). Defaults: σ of the shared `servo_spm_moves_idinj_noisy` (currents 0.05 A,
