@@ -77,10 +77,17 @@ pub(crate) fn noise_floor(
     ))
 }
 
+/// Warnings that name an error of the voltage the model is driven by: the inverse model's
+/// noise estimate would read that error as noise (every 10th row of a noise-free gym-electric-
+/// motor log, point-sampled, took it for voltage noise), so no noise floor is claimed beside
+/// them.
+const VOLTAGE_ERRORS: [&str; 3] = ["point_sampled_voltage", "dead_time", "voltage_late"];
+
 /// [`noise_floor`] of an output-error fit `fit` of `views` with `options` at the model's
 /// `setup` (pole pairs and hold; its cable resistance is added to `r_s`) that the gate
-/// untrusted as a poor fit (`poor_fit`); `None` for any other fit, and for an IPM model (the
-/// inverse model's noise estimate is the SPM's: `voltage_bias`).
+/// untrusted as a poor fit (`poor_fit`); `None` for any other fit, for one with a warning on
+/// the voltage's own error ([`VOLTAGE_ERRORS`]), and for an IPM model (the inverse model's
+/// noise estimate is the SPM's: `voltage_bias`).
 pub(crate) fn poor_fit_is_noise(
     views: &[DqView<'_>],
     fit: &FitResult,
@@ -88,7 +95,9 @@ pub(crate) fn poor_fit_is_noise(
     options: &PmsmFitOptions,
 ) -> Option<String> {
     fit.warnings.iter().find(|w| w.code == "poor_fit")?;
-    if options.model != MotorKind::Spm {
+    if options.model != MotorKind::Spm
+        || fit.warnings.iter().any(|w| VOLTAGE_ERRORS.contains(&w.code.as_str()))
+    {
         return None;
     }
     let value = |n: &str| fit.parameter(n).map(|p| p.value);
