@@ -81,7 +81,10 @@ def main():
             name, _, value = pair.partition("=")
             if name not in SIGMA:
                 sys.exit(f"--sigma {pair}: no noise for column {name!r} (the columns are {', '.join(SIGMA)})")
-            SIGMA[name] = float(value)
+            try:
+                SIGMA[name] = float(value)
+            except ValueError:
+                sys.exit(f"--sigma {pair}: {value!r} is not a number (e.g. --sigma id=0.03,ud=1)")
     header, rows = read(log)
     cols = {c: header.index(c) for c in SIGMA}
     bins = {"": binary} if opt["vs"] is None else {"A ": binary, "B ": opt["vs"]}

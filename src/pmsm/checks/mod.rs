@@ -1,8 +1,9 @@
 //! The checks of a log and its fit that name a setup mistake: the setup scan's regression
 //! Gram, the detectors (pole pairs, saliency, speed unit and frame, sample time), column
 //! mistakes, the reference voltage's delay, the inverter's dead time and a late voltage,
-//! the voltage limit, a point-sampled voltage, voltage noise, its bias of an output-error fit and the noise floor it leaves, the current noise's bias of a masked fit, and whether the log's parts agree (the inverter model's
-//! error).
+//! the voltage limit, a point-sampled voltage, voltage noise, its bias of an output-error
+//! fit and the noise floor it leaves, the current noise's bias of a masked fit, and whether
+//! the log's parts agree (the inverter model's error).
 
 pub(super) mod advice;
 pub(super) mod columns;
