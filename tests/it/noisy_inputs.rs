@@ -173,3 +173,35 @@ fn the_input_noise_floor_is_no_poor_fit() {
     assert!(codes.contains(&"poor_fit"), "{codes:?}");
     assert!(!fit.notes.iter().any(|n| n.contains("is the noise floor")), "{:?}", fit.notes);
 }
+
+/// A noisy log that carries a modulator's reference `ud_ref, uq_ref` (the drive simulator's
+/// exp3, stator-held, 1 V + 0.03 A): the reference settles the stator hold, as in the
+/// output-error fit, and the noise does not reopen it; the automatic fit (instrumental
+/// variables) is trusted and its intervals hold the truth. The same log without the
+/// reference is untrusted (`hold_ambiguous`): its holds' IV estimates differ in k_e by about
+/// 5 standard errors, and only the user knows how the voltage was held.
+#[test]
+fn a_modulator_reference_settles_the_hold_under_noise() {
+    use greybox::drive::{SPM_MOTOR, scenario, simulate_drive};
+    let mut cfg = scenario("exp3", SPM_MOTOR).unwrap();
+    (cfg.seed, cfg.sensors.voltage_noise, cfg.sensors.current_noise) = (1, 1.0, 0.03);
+    let log = simulate_drive(&cfg).unwrap();
+    let truth = [log.truth.start.r_s, log.truth.start.l_d, log.truth.k_e];
+    let e = log.experiment;
+    assert!(e.get("ud_ref").is_some() && e.get("uq_ref").is_some());
+    let options = PmsmFitOptions::new(4);
+    let fit = fit_pmsm_by(std::slice::from_ref(&e), &options, Estimator::Auto).unwrap();
+    let untrusted: Vec<&str> =
+        fit.report.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.as_str()).collect();
+    assert!(untrusted.is_empty(), "{untrusted:?}");
+    assert!(fit.report.notes.iter().any(|n| n.contains("took instrumental variables")));
+    assert_eq!(fit.hold, VoltageHold::Stator);
+    for (name, t) in ["r_s", "l_s", "k_e"].iter().zip(truth) {
+        let p = fit.report.parameter(name).unwrap();
+        assert!(p.ci95[0] <= t && t <= p.ci95[1], "{name}: {} {:?}, truth {t}", p.value, p.ci95);
+    }
+    let channels = e.channels().iter().filter(|c| !c.name.ends_with("_ref")).cloned().collect();
+    let bare = Experiment::try_new(e.name(), e.h(), channels).unwrap();
+    let fit = fit_pmsm_by(&[bare], &options, Estimator::Auto).unwrap();
+    assert!(fit.report.warnings.iter().any(|w| w.code == "hold_ambiguous" && w.untrusted));
+}

@@ -36,7 +36,7 @@
 use crate::data::{Channel, Experiment};
 use crate::estimate::FitResult;
 use crate::model::{GreyBoxModel, Prepared};
-use crate::pmsm::log::signals::channel::{U_D, U_Q};
+use crate::pmsm::log::signals::channel::{U_D, U_Q, W_M};
 use crate::pmsm::model::ipm::PmsmIpm;
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::model::setup::PmsmSetup;
@@ -84,7 +84,7 @@ pub(crate) fn point_sampled(
     if better_at_estimate != Some(true) {
         return None;
     }
-    let bound = noise_bound(&start, experiments);
+    let bound = noise_bound(&start, experiments, setup.n_p);
     let trapezoid = trapezoid(experiments)?;
     let options = PmsmFitOptions {
         start: Some(start),
@@ -127,11 +127,19 @@ pub(crate) enum Sampling {
 }
 
 /// The most a held voltage's white noise can lower the trapezoid's mean squared residual
-/// against the held voltage's: `2/(1 + a)` (the module doc), `a = e^{−h r_s/L}` the pole of
-/// the fastest current channel at the motor estimates `theta` (model order: `r_s`, the
-/// inductances, `k_e`) and the longest sample time h \[s\] of the logs. [`POINT_SAMPLE_RATIO`]
-/// (the bound for any pole) where the estimates give no pole in (0, 1].
-fn noise_bound(theta: &[f64], experiments: &[Experiment]) -> f64 {
+/// against the held voltage's: `2/(1 + a cos ω_e h)`, `a = e^{−h r_s/L}` the pole of the
+/// fastest current channel at the motor estimates `theta` (model order: `r_s`, the
+/// inductances, `k_e`) and `ω_e h` the largest electrical angle a sample turns (the logs'
+/// `w_m` times `n_p` and their sample time h \[s\], a quarter turn at most). The pole of the
+/// current in the rotating frame is `a e^{−j ω_e h}`, and the mean of two samples keeps
+/// `(1 + Re(a e^{−j ω_e h}))/2` of the noise's power there (the module doc with the complex
+/// pole): the rotation weakens the noise's correlation between samples, and the trapezoid
+/// gains more from it. On an independent 10 kHz servo log with 1 V and 0.03 A of noise the
+/// refit gained 1.0101–1.0141 times where `2/(1 + a)` allowed 1.0100 (74 of 100 seeds
+/// untrusted for it), and the rotation allows 1.0131 (10 of 100: the refit's own gain from
+/// the noise is not bounded). [`POINT_SAMPLE_RATIO`] (the bound for any pole and a quarter turn)
+/// where the estimates give no pole in (0, 1].
+fn noise_bound(theta: &[f64], experiments: &[Experiment], n_p: u32) -> f64 {
     let h = experiments.iter().map(Experiment::h).fold(0.0, f64::max);
     let inductances = theta.get(1..theta.len().saturating_sub(1)).unwrap_or_default();
     let poles: Vec<f64> = inductances.iter().map(|l| (-h * theta[0] / l).exp()).collect();
@@ -139,7 +147,15 @@ fn noise_bound(theta: &[f64], experiments: &[Experiment]) -> f64 {
     if poles.is_empty() || !poles.iter().all(|a| a.is_finite() && *a > 0.0 && *a <= 1.0) {
         return POINT_SAMPLE_RATIO;
     }
-    2.0 / (1.0 + a)
+    let turn = experiments
+        .iter()
+        .filter_map(|e| {
+            let w_m = e.get(W_M)?;
+            Some(w_m.values.iter().fold(0.0, |m: f64, w| m.max(w.abs())) * f64::from(n_p) * e.h())
+        })
+        .fold(0.0, f64::max)
+        .min(std::f64::consts::FRAC_PI_2);
+    2.0 / (1.0 + a * turn.cos())
 }
 
 /// The logs with `ud`, `uq` at sample k replaced by the mean of samples k and k + 1 (the

@@ -40,6 +40,12 @@ pub(super) struct Fitted {
     pub warnings: Vec<crate::estimate::Warning>,
 }
 
+/// Whether every log of `experiments` carries a modulator's reference `ud_ref, uq_ref`: a
+/// modulator holds its output in the stator frame (MODEL.md §4).
+pub(crate) fn modulator_reference(experiments: &[Experiment]) -> bool {
+    experiments.iter().all(|e| e.get(channel::U_D_REF).is_some() && e.get(channel::U_Q_REF).is_some())
+}
+
 /// The start of the fits of the logs `dq` under `options` (fitted parameters `names`, model
 /// order) and the fits of the holds `options.hold` allows.
 ///
@@ -197,8 +203,7 @@ pub(super) fn fit_from_start(dq: &DqLogs<'_>, options: &PmsmFitOptions, names: &
         // The linear least-squares start is close: nearly Gauss-Newton steps from it.
         pem.initial_damping = pem.initial_damping.or(Some(CLOSE_START_DAMPING));
     }
-    let modulator =
-        experiments.iter().all(|e| e.get(channel::U_D_REF).is_some() && e.get(channel::U_Q_REF).is_some());
+    let modulator = modulator_reference(experiments);
     let setup = |hold: VoltageHold| PmsmSetup {
         n_p,
         hold,
