@@ -184,23 +184,15 @@ pub fn fit_pmsm_iv_after(
 
 /// The hold the automatic choice did not take, when both were fitted, their output-error
 /// losses lie within [`DQ_DECISIVE`](crate::pmsm::thresholds::DQ_DECISIVE) of each other
-/// (`hold::hardly_chosen`: the data hardly choose) and no log carries a modulator's
-/// reference `ud_ref, uq_ref`; `None` otherwise (a hold given, a steady-state fit, which has
-/// one hold). A modulator holds its output in the stator frame (MODEL.md §4): where the logs
-/// say so, the automatic choice takes the stator hold unless the dq hold fits
-/// [`DQ_DECISIVE`](crate::pmsm::thresholds::DQ_DECISIVE) times better, and the noise does
-/// not reopen it, as in the output-error fit (`hold_ambiguous` only without the reference,
-/// docs/warnings.md). On the drive simulator's exp3 with 1 V + 0.03 A (stator-held, its
-/// reference logged) the instrumental-variable estimates at the two holds differ in `k_e` by
-/// 4.8–5.4 standard errors, and those at the stator hold cover the truth.
+/// (`hold::hardly_chosen`) and no log carries a modulator's reference, which settles the
+/// stator hold as in the output-error fit (MODEL.md §4; exp3 with 1 V + 0.03 A: the holds'
+/// IV `k_e` 4.8–5.4 standard errors apart, the stator's covering the truth); `None`
+/// otherwise (a hold given, a steady-state fit, which has one hold).
 fn other_hold(oe: &PmsmFit, experiments: &[Experiment], options: &PmsmFitOptions) -> Option<VoltageHold> {
     let [(a, la), (b, lb)] = oe.hold_losses[..] else { return None };
     let modulator = super::holds::modulator_reference(experiments);
-    (options.hold == HoldChoice::Auto && !modulator && hardly_chosen(lb, la)).then_some(if oe.hold == a {
-        b
-    } else {
-        a
-    })
+    let open = options.hold == HoldChoice::Auto && !modulator && hardly_chosen(lb, la);
+    open.then_some(if oe.hold == a { b } else { a })
 }
 
 /// An untrusted `hold_ambiguous` warning when the IV estimates at the two holds differ by
