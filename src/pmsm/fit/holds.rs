@@ -9,7 +9,6 @@ use crate::pmsm::checks::limit::{VoltageLimitWeighting, delay_of};
 use crate::pmsm::fit::hold::{HoldFits, fit_holds_of};
 use crate::pmsm::linear::start::least_squares_start;
 use crate::pmsm::log::DqLogs;
-use crate::pmsm::log::signals::channel;
 use crate::pmsm::model::interval::{VoltageHold, VoltageInput};
 use crate::pmsm::model::inverter::masked_pem;
 use crate::pmsm::model::ipm::PmsmIpm;
@@ -38,12 +37,6 @@ pub(super) struct Fitted {
     pub input: VoltageInput,
     /// Warnings of the PWM fit's stages (the controller's loop not pinned by the log).
     pub warnings: Vec<crate::estimate::Warning>,
-}
-
-/// Whether every log of `experiments` carries a modulator's reference `ud_ref, uq_ref`: a
-/// modulator holds its output in the stator frame (MODEL.md §4).
-pub(crate) fn modulator_reference(experiments: &[Experiment]) -> bool {
-    experiments.iter().all(|e| e.get(channel::U_D_REF).is_some() && e.get(channel::U_Q_REF).is_some())
 }
 
 /// The start of the fits of the logs `dq` under `options` (fitted parameters `names`, model
@@ -203,7 +196,7 @@ pub(super) fn fit_from_start(dq: &DqLogs<'_>, options: &PmsmFitOptions, names: &
         // The linear least-squares start is close: nearly Gauss-Newton steps from it.
         pem.initial_damping = pem.initial_damping.or(Some(CLOSE_START_DAMPING));
     }
-    let modulator = modulator_reference(experiments);
+    let modulator = crate::pmsm::log::modulator_reference(dq.views());
     let setup = |hold: VoltageHold| PmsmSetup {
         n_p,
         hold,

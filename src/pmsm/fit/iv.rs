@@ -170,7 +170,7 @@ pub fn fit_pmsm_iv_after(
     options: &PmsmFitOptions,
 ) -> Result<PmsmFit> {
     let dq = DqLogs::try_new(experiments)?;
-    let at_other = other_hold(&oe, experiments, options).map(|hold| PmsmFit { hold, ..oe.clone() });
+    let at_other = other_hold(&oe, &dq, options).map(|hold| PmsmFit { hold, ..oe.clone() });
     let iv = iv_at_hold(oe, &dq, options)?;
     let Some(at_other) = at_other.filter(|_| iv.report.warnings.iter().all(|w| w.code != "hold_ambiguous"))
     else {
@@ -188,9 +188,9 @@ pub fn fit_pmsm_iv_after(
 /// stator hold as in the output-error fit (MODEL.md §4; exp3 with 1 V + 0.03 A: the holds'
 /// IV `k_e` 4.8–5.4 standard errors apart, the stator's covering the truth); `None`
 /// otherwise (a hold given, a steady-state fit, which has one hold).
-fn other_hold(oe: &PmsmFit, experiments: &[Experiment], options: &PmsmFitOptions) -> Option<VoltageHold> {
+fn other_hold(oe: &PmsmFit, dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Option<VoltageHold> {
     let [(a, la), (b, lb)] = oe.hold_losses[..] else { return None };
-    let modulator = super::holds::modulator_reference(experiments);
+    let modulator = crate::pmsm::log::modulator_reference(dq.views());
     let open = options.hold == HoldChoice::Auto && !modulator && hardly_chosen(lb, la);
     open.then_some(if oe.hold == a { b } else { a })
 }

@@ -14,4 +14,4 @@ mod views;
 pub use options::*;
 pub use reader::{LogSource, read_log, read_log_from, read_logs};
 pub use split::{DroppedSegment, LogSegments, read_log_segments, read_log_segments_from};
-pub(crate) use views::{DqLogs, longest_h, peak_current};
+pub(crate) use views::{DqLogs, longest_h, modulator_reference, peak_current};

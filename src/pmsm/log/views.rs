@@ -44,6 +44,12 @@ pub(crate) fn longest_h(views: &[DqView<'_>]) -> f64 {
     views.iter().map(DqView::h).fold(0.0, f64::max)
 }
 
+/// Whether every log of `views` carries a modulator's reference `ud_ref, uq_ref`
+/// ([`DqView::u_dq_ref`]): a modulator holds its output in the stator frame (MODEL.md §4).
+pub(crate) fn modulator_reference(views: &[DqView<'_>]) -> bool {
+    views.iter().all(|v| v.u_dq_ref().is_some())
+}
+
 /// The largest current magnitude `max |i_dq|` of the logs `views` \[A, peak\]
 /// ([`DqView::peak_current`] of each; 0 for none).
 pub(crate) fn peak_current(views: &[DqView<'_>]) -> f64 {
