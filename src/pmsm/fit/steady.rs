@@ -89,11 +89,18 @@ pub(crate) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, why: Option<String>
         ..SteadyOptions::default()
     };
     let est = steady_state_of(dq, options.pole_pairs, options.model, &steady)?;
-    let part = |e: &SteadyEstimate, logs: &[Experiment]| report(e, logs, options, 0.0, None);
+    let part = |e: &SteadyEstimate, logs: &[Experiment]| report(e, logs, options, 0.0, Vec::new());
     let checked = super::steady_checks::warnings(dq, options, &steady, &est, &part);
     let (est, widening) = super::steady_checks::widened(est, &checked.spread);
+    let (est, truncation) = super::steady_checks::truncation(dq, options, &steady, est);
     let checks = checked.warnings;
-    let mut report = report(&est, experiments, options, t0.elapsed().as_secs_f64(), widening);
+    let mut report = report(
+        &est,
+        experiments,
+        options,
+        t0.elapsed().as_secs_f64(),
+        widening.into_iter().chain([truncation]).collect(),
+    );
     let precise = super::steady_trust::warnings(&report, options);
     let warnings = gate(&est, &report).into_iter().chain(precise).chain(checks).chain(steady_warnings(
         dq.views(),
@@ -186,13 +193,13 @@ fn gate(est: &SteadyEstimate, report: &FitResult) -> Vec<crate::estimate::Warnin
 /// The estimate `est` of `experiments` as the generic report (parameters with intervals,
 /// derived quantities and temperatures, diagnostics, goodness of fit over the steady
 /// samples, the IV iterations as the solver), `fit_s` \[s\] the time it took, `widening`
-/// the note on intervals widened by the parts' spread.
+/// the notes on intervals widened (by the parts' spread, by the truncation error).
 fn report(
     est: &SteadyEstimate,
     experiments: &[Experiment],
     options: &PmsmFitOptions,
     fit_s: f64,
-    widening: Option<String>,
+    widening: Vec<String>,
 ) -> FitResult {
     let n = est.theta.len();
     let label = |j: usize| match &est.experiment[j] {

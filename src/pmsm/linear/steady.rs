@@ -108,6 +108,9 @@ fn converged_default() -> bool {
     true
 }
 
+/// Widest half width of the central differences ([`SteadyOptions::stencil`]), in samples.
+pub(crate) const MAX_STENCIL: usize = 4;
+
 /// Relative standard error above which a parameter is named not identifiable at steady state.
 pub const UNIDENTIFIABLE: f64 = 0.1;
 
@@ -158,6 +161,12 @@ fn check_options(options: &SteadyOptions, kind: MotorKind) -> Result<()> {
     }
     if let Some(h) = options.control_period.filter(|h| !(h.is_finite() && *h > 0.0)) {
         return bad("control_period", format!("{h} s is not a positive sample time"));
+    }
+    if !(1..=MAX_STENCIL).contains(&options.stencil) {
+        return bad(
+            "stencil",
+            format!("{} samples is not a half width from 1 to {MAX_STENCIL}", options.stencil),
+        );
     }
     if !(options.cable_resistance.is_finite() && options.cable_resistance >= 0.0) {
         return bad(
@@ -222,7 +231,10 @@ pub(crate) fn steady_state_of(
         let sigma = [noise_sigma(view.i_d()), noise_sigma(view.i_q())];
         let floor = options.relative_floor * view.peak_current();
         let thr = sigma.map(|s| (options.steady_sigmas * SQRT_6 * s).max(floor));
-        let (steady, stencils) = steady_indices(view.i_d(), view.i_q(), thr, fewest);
+        let (mut steady, stencils) = steady_indices(view.i_d(), view.i_q(), thr, fewest);
+        // A wider stencil reads samples k ± (a + 1), which the smooth stretch's edges lack.
+        let a = options.stencil;
+        steady.retain(|&k| k > a && k + a + 1 < view.len());
         if stencils < fewest {
             narrow.push(format!("{} ({stencils} of {fewest})", e.name()));
         }

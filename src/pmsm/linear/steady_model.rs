@@ -57,13 +57,14 @@ pub(crate) struct Sample {
 }
 
 impl Sample {
-    /// Sample k of `view` (sample time `h` \[s\]): values at k, derivatives by central
-    /// differences over `k ± a` (`a = 1` for the regressors, `a = 2` with the means of
-    /// `k ± 2` for the instruments, whose noise is not that of samples `k − 1 … k + 1`).
-    fn at(view: &DqView<'_>, u: (&[f64], &[f64]), k: usize, a: usize, h: f64) -> Self {
+    /// Sample k of `view` (sample time `h` \[s\]): derivatives by central differences over
+    /// `k ± a`, values at k (`point`, the regressors) or the means of `k ± a` (the
+    /// instruments, at `a` one more than the regressors', whose noise is not that of the
+    /// samples the equation error holds).
+    fn at(view: &DqView<'_>, u: (&[f64], &[f64]), k: usize, a: usize, h: f64, point: bool) -> Self {
         let (i_d, i_q, w_m) = (view.i_d(), view.i_q(), view.w_m());
         let slope = |x: &[f64]| (x[k + a] - x[k - a]) / (2.0 * a as f64 * h);
-        let level = |x: &[f64]| if a == 1 { x[k] } else { 0.5 * (x[k + a] + x[k - a]) };
+        let level = |x: &[f64]| if point { x[k] } else { 0.5 * (x[k + a] + x[k - a]) };
         Self {
             i: [level(i_d), level(i_q)],
             di: [slope(i_d), slope(i_q)],
@@ -85,6 +86,9 @@ pub(crate) struct SteadyEquations {
     h_c: f64,
     /// Whether the continuous equations estimate the period term.
     estimate: bool,
+    /// Half width of the regressors' central differences, in samples
+    /// ([`super::SteadyOptions::stencil`]).
+    stencil: usize,
 }
 
 /// One log's view, its sample time and the indices of its steady samples.
@@ -92,7 +96,7 @@ pub(crate) struct SteadyLog<'a> {
     pub view: DqView<'a>,
     /// Sample time \[s\].
     pub h: f64,
-    /// Steady samples k (each with samples `k ± 2` in the log).
+    /// Steady samples k (each with samples `k ± (a + 1)` in the log, `a` the stencil).
     pub steady: Vec<usize>,
     /// The columns of the full parameter vector that model parameter j takes in this log
     /// (length n_θ of the model).
@@ -108,7 +112,14 @@ impl SteadyEquations {
     pub fn new(kind: MotorKind, n_p: u32, cable: f64, h_c: Option<f64>, estimate: bool) -> Result<Self> {
         let plant =
             h_c.map(|h| ExactPlant::new(n_p, h, kind == MotorKind::Ipm, VoltageHold::Stator)).transpose()?;
-        Ok(Self { kind, n_p, cable, plant, h_c: h_c.unwrap_or(0.0), estimate })
+        Ok(Self { kind, n_p, cable, plant, h_c: h_c.unwrap_or(0.0), estimate, stencil: 1 })
+    }
+
+    /// The equations with the currents' and the speed's central differences over `k ± a`
+    /// (`a ≥ 1`; 1 by default), the instruments' over `k ± (a + 1)`: the samples need those
+    /// in the log.
+    pub fn stencil(self, a: usize) -> Self {
+        Self { stencil: a.max(1), ..self }
     }
 
     /// Whether the period term `h_c2` is a parameter (continuous equations that estimate it).
@@ -205,7 +216,7 @@ impl SteadyEquations {
     /// equation error `ū − û(θ; sample k)`, Jacobian the rows at sample k (without the
     /// small terms, and without a control period's exact correction: the iteration
     /// converges to the equations' root all the same), instruments the rows at the means
-    /// and slopes over `k ± 2`, whose noise is not that of the samples the equation error
+    /// and slopes over `k ± (a + 1)` (`a` the stencil, [`Self::stencil`]), whose noise is not that of the samples the equation error
     /// holds. The score is kept in blocks of `block` samples, so that a short log still
     /// gives the batch means of a coloured equation error.
     ///
@@ -224,10 +235,11 @@ impl SteadyEquations {
                 *l = theta[c];
             }
             acc.start_experiment();
+            let a = self.stencil;
             for &k in &log.steady {
-                let sample = Sample::at(v, u, k, 1, log.h);
+                let sample = Sample::at(v, u, k, a, log.h, true);
                 let (rd, rq) = self.rows(&sample);
-                let (zd, zq) = self.rows(&Sample::at(v, u, k, 2, log.h));
+                let (zd, zq) = self.rows(&Sample::at(v, u, k, a + 1, log.h, false));
                 let p = self.voltage(&local, &sample)?;
                 d.fill(0.0);
                 z.fill(0.0);

@@ -32,6 +32,13 @@ pub struct SteadyOptions {
     pub per_experiment: Vec<String>,
     /// Known series (cable) resistance \[Ω\], taken out of `r_s`.
     pub cable_resistance: f64,
+    /// Half width `a` of the currents' and the speed's central differences, in samples:
+    /// `di/dt = (i[k+a] − i[k−a])/(2 a h)`, the instruments' means and slopes over
+    /// `k ± (a + 1)`; from 1 to 4. Default 1.
+    /// [`fit_pmsm`](crate::pmsm::fit_pmsm) fits with `a = 2` as well, whose truncation error
+    /// is four times the default's, and widens the intervals by the difference
+    /// (Richardson extrapolation).
+    pub stencil: usize,
 }
 
 impl Default for SteadyOptions {
@@ -42,6 +49,7 @@ impl Default for SteadyOptions {
             control_period: None,
             per_experiment: Vec::new(),
             cable_resistance: 0.0,
+            stencil: 1,
         }
     }
 }
@@ -159,7 +167,8 @@ pub(super) fn solve(
     let steady: usize = logs.iter().map(|l| l.steady.len()).sum();
     let block = (steady / (4 * crate::estimate::TARGET_BATCHES)).clamp(1, crate::model::BLOCK_LEN);
     // The first step from zero by the continuous equations (the exact ones need a motor).
-    let mut eq = SteadyEquations::new(kind, n_p, options.cable_resistance, None, estimate)?;
+    let mut eq =
+        SteadyEquations::new(kind, n_p, options.cable_resistance, None, estimate)?.stencil(options.stencil);
     let mut theta = vec![0.0; nth];
     let mut iterations = 0;
     let converged = loop {
@@ -167,7 +176,8 @@ pub(super) fn solve(
         theta.iter_mut().zip(step.iter()).for_each(|(t, s)| *t += s);
         iterations += 1;
         if iterations == 1 && !estimate && options.control_period.is_some() {
-            eq = SteadyEquations::new(kind, n_p, options.cable_resistance, options.control_period, false)?;
+            eq = SteadyEquations::new(kind, n_p, options.cable_resistance, options.control_period, false)?
+                .stencil(options.stencil);
             continue;
         }
         let rounding =
