@@ -254,10 +254,10 @@ fn steady_state_refuses_bad_input() {
             .to_string()
             .contains("control_period")
     );
-    for stencil in [0, 5] {
-        let bad = SteadyOptions { stencil, ..Default::default() };
+    for derivative_half_width in [0, 5] {
+        let bad = SteadyOptions { derivative_half_width, ..Default::default() };
         let err = steady_state(one, t.start.n_p, MotorKind::Spm, &bad).unwrap_err().to_string();
-        assert!(err.contains("stencil"), "{err}");
+        assert!(err.contains("derivative_half_width"), "{err}");
     }
     let bad = SteadyOptions { per_experiment: vec!["l_d".into()], ..Default::default() };
     assert!(steady_state(one, t.start.n_p, MotorKind::Spm, &bad).unwrap_err().to_string().contains("l_d"));

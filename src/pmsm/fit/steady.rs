@@ -202,10 +202,9 @@ fn report(
     widening: Vec<String>,
 ) -> FitResult {
     let n = est.theta.len();
-    let label = |j: usize| match &est.experiment[j] {
-        Some(e) => format!("{}[{e}]", est.names[j]),
-        None if est.names[j] == PERIOD_TERM => PERIOD_SHOWN.to_string(),
-        None => est.names[j].clone(),
+    let label = |j: usize| match est.experiment[j].is_none() && est.names[j] == PERIOD_TERM {
+        true => PERIOD_SHOWN.to_string(),
+        false => super::steady_checks::label(est, j),
     };
     let relative: Vec<f64> = (0..n).map(|j| 100.0 * est.std_error[j] / est.theta[j].abs()).collect();
     let parameters: Vec<ParameterEstimate> = (0..n)

@@ -21,6 +21,7 @@
 //! relative, |z| 7.6; its four parts +0.0005 … +0.0035 %).
 
 use crate::data::Experiment;
+use crate::error::Error;
 use crate::estimate::{FitResult, Homogeneity, Warning, disagreeing, homogeneity, widened_by_parts};
 use crate::pmsm::checks::detect::SALIENCY;
 use crate::pmsm::checks::segments::{FAMILY_LEVEL, disagreement, split_at_least};
@@ -146,43 +147,53 @@ pub(crate) fn widened(est: SteadyEstimate, spread: &[Homogeneity]) -> (SteadyEst
 
 /// `est` with the central differences' truncation error in its intervals, and a note
 /// saying how large it is: the steady-state equations read `di/dt` and `dω/dt` as
-/// `(x[k+1] − x[k−1])/(2h)`, whose error `h² x'''/6` does not average out over the samples,
-/// and which no interval of the equation errors shows (every 40th row of an independent
-/// 5 kHz IPM log of short moves, noise-free: R_s −0.031 % at |z| 7.2, exit 0, the same at
-/// every decimation offset). The same fit with the differences over `k ± 2`
-/// ([`SteadyOptions::stencil`]) carries four times that error (`(2h)²`), so
-/// `b = (θ₂ − θ₁)/3` estimates the default fit's (Richardson extrapolation, e.g. Press et
-/// al., *Numerical Recipes*, 3rd ed., 2007, §5.7; the estimates move by 2.9–4.2 times `b`
-/// on the logs above). It is added to every standard error in quadrature, `√(σ² + b²)`,
-/// the half width keeping its quantile; the estimate stays (the extrapolated one carries
-/// the wider stencil's noise). `est` unchanged, with a note, when the wider stencil
-/// cannot be fitted (too few samples smooth over `k ± 3`).
+/// `(x[k+a] − x[k−a])/(2ah)`, whose error `(ah)² x'''/6` does not average out over the
+/// samples, and which no interval of the equation errors shows (every 40th row of an
+/// independent 5 kHz IPM log of short moves, noise-free: R_s −0.031 % at |z| 7.2, exit 0,
+/// the same at every decimation offset). The same fit with the half width doubled
+/// ([`SteadyOptions::derivative_half_width`]) carries four times that error, so
+/// `b = (θ₂ − θ₁)/3` estimates the fit's own (Richardson extrapolation, e.g. Press et al.,
+/// *Numerical Recipes*, 3rd ed., 2007, §5.7; on the logs above the doubled fit's error was
+/// 2.9–4.2 times the default's). The instruments change with the width too, so `b` is the
+/// estimates' sensitivity to it, a size rather than a correction: on a synthetic log whose
+/// currents swing at ω h = 0.3, `b` of L_s is 2.9 times its error and of the other sign
+/// (test `curving_telemetry_intervals_cover_the_central_differences_error`). It is added
+/// to every standard error in quadrature,
+/// `√(σ² + b²)`, the half width keeping its quantile, the correlations kept (as
+/// [`widened`]'s: a bias common to the parameters would correlate them further, which the
+/// derived quantities then understate); the estimate stays (the extrapolated one carries
+/// the wider differences' noise). On a noisy log `b` holds the two fits' noise as well, a
+/// small part of σ. `est` unchanged, with a note, when the doubled fit fails or ends with
+/// other parameters (the period term neglected in one of them).
 pub(crate) fn truncation(
     dq: &DqLogs<'_>,
     options: &PmsmFitOptions,
     steady: &SteadyOptions,
     est: SteadyEstimate,
 ) -> (SteadyEstimate, String) {
-    let wide = SteadyOptions { stencil: 2, ..steady.clone() };
-    let wide = match steady_state_of(dq, options.pole_pairs, est.kind, &wide) {
+    let a = 2 * steady.derivative_half_width;
+    let wide = SteadyOptions { derivative_half_width: a, ..steady.clone() };
+    let wide = steady_state_of(dq, options.pole_pairs, est.kind, &wide).and_then(|w| {
+        match w.names == est.names && w.experiment == est.experiment {
+            true => Ok(w),
+            false => Err(Error::Numerical {
+                context: "steady-state fit".into(),
+                reason: format!("it has the parameters {} instead", w.names.join(", ")),
+            }),
+        }
+    });
+    let wide = match wide {
         Ok(wide) => wide,
         Err(e) => {
-            return (
-                est,
-                format!(
-                    "the central differences' truncation error is not in the intervals: the fit with the \
-                     differences over k ± 2 failed ({e})"
-                ),
+            let note = format!(
+                "the central differences' truncation error is not in the intervals: the fit with the differences \
+                 over k ± {a} gives no estimate of it ({e})"
             );
+            return (est, note);
         }
     };
     let n = est.theta.len();
-    let b: Vec<f64> = (0..n)
-        .map(|j| {
-            let same = |i: &usize| wide.names[*i] == est.names[j] && wide.experiment[*i] == est.experiment[j];
-            (0..wide.theta.len()).find(same).map_or(0.0, |i| (wide.theta[i] - est.theta[j]) / 3.0)
-        })
-        .collect();
+    let b: Vec<f64> = (0..n).map(|j| (wide.theta[j] - est.theta[j]) / 3.0).collect();
     let std_error: Vec<f64> = (0..n).map(|j| est.std_error[j].hypot(b[j])).collect();
     let t = crate::estimate::t_quantile_975(est.uncertainty.dof);
     let ci95 = (0..n)
@@ -191,21 +202,30 @@ pub(crate) fn truncation(
             false => t * std_error[j],
         })
         .collect();
+    let shown = |r: f64, text: String| if r.is_finite() { text } else { "—".to_string() };
     let sizes: Vec<String> = (0..n)
         .filter(|&j| est.names[j] != PERIOD_TERM)
         .map(|j| {
-            let name =
-                est.experiment[j].as_ref().map_or(est.names[j].clone(), |e| format!("{}[{e}]", est.names[j]));
-            format!("{name} {:.1e} ({:.2} σ)", b[j].abs() / est.theta[j].abs(), b[j].abs() / est.std_error[j])
+            let (relative, sigmas) = (b[j].abs() / est.theta[j].abs(), b[j].abs() / est.std_error[j]);
+            let relative = shown(relative, format!("{relative:.1e}"));
+            format!("{} {relative} ({} σ)", label(&est, j), shown(sigmas, format!("{sigmas:.2}")))
         })
         .collect();
     let note = format!(
         "the intervals include the central differences' truncation error, estimated by Richardson extrapolation \
-         from the fit with the differences over k ± 2 (four times the error: b = (θ₂ − θ₁)/3, added to the standard \
-         error in quadrature); relative to each estimate and in its standard errors: {}",
+         from the fit with the differences over k ± {a} (four times the error: b = (θ₂ − θ₁)/3, added to the \
+         standard error in quadrature); relative to each estimate and in the standard errors before it: {}",
         sizes.join(", ")
     );
     (SteadyEstimate { std_error, ci95, ..est }, note)
+}
+
+/// Parameter `j` of `est` as the report names it: `name`, or `name[log]` for a per-log one.
+pub(super) fn label(est: &SteadyEstimate, j: usize) -> String {
+    match &est.experiment[j] {
+        Some(e) => format!("{}[{e}]", est.names[j]),
+        None => est.names[j].clone(),
+    }
 }
 
 /// `salient` when the IPM equations on the same logs put `L_d` and `L_q` more than

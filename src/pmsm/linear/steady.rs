@@ -108,7 +108,9 @@ fn converged_default() -> bool {
     true
 }
 
-/// Widest half width of the central differences ([`SteadyOptions::stencil`]), in samples.
+/// Widest half width of the central differences ([`SteadyOptions::derivative_half_width`]),
+/// in samples: 4. Its truncation error is 16 times the default's, and its instruments read
+/// samples 5 away, beyond any smooth stretch of telemetry the steady-sample rule keeps.
 pub(crate) const MAX_STENCIL: usize = 4;
 
 /// Relative standard error above which a parameter is named not identifiable at steady state.
@@ -162,10 +164,10 @@ fn check_options(options: &SteadyOptions, kind: MotorKind) -> Result<()> {
     if let Some(h) = options.control_period.filter(|h| !(h.is_finite() && *h > 0.0)) {
         return bad("control_period", format!("{h} s is not a positive sample time"));
     }
-    if !(1..=MAX_STENCIL).contains(&options.stencil) {
+    if !(1..=MAX_STENCIL).contains(&options.derivative_half_width) {
         return bad(
-            "stencil",
-            format!("{} samples is not a half width from 1 to {MAX_STENCIL}", options.stencil),
+            "derivative_half_width",
+            format!("{} samples is not a half width from 1 to {MAX_STENCIL}", options.derivative_half_width),
         );
     }
     if !(options.cable_resistance.is_finite() && options.cable_resistance >= 0.0) {
@@ -194,7 +196,8 @@ fn check_options(options: &SteadyOptions, kind: MotorKind) -> Result<()> {
 ///
 /// # Errors
 /// [`PmsmError::InvalidPolePairs`](crate::pmsm::PmsmError) for `n_p` out of range;
-/// [`Error::InvalidOption`] for non-positive options or an unknown per-log parameter;
+/// [`Error::InvalidOption`] for non-positive options, a derivatives' half width outside 1–4
+/// or an unknown per-log parameter;
 /// [`Error::MissingChannel`] for a log without the dq channels or the terminal voltage;
 /// [`Error::Numerical`] when the steady samples' equations (two a sample) are no more
 /// than the parameters, or they do not determine every parameter (e.g. no speed at all).
@@ -232,8 +235,8 @@ pub(crate) fn steady_state_of(
         let floor = options.relative_floor * view.peak_current();
         let thr = sigma.map(|s| (options.steady_sigmas * SQRT_6 * s).max(floor));
         let (mut steady, stencils) = steady_indices(view.i_d(), view.i_q(), thr, fewest);
-        // A wider stencil reads samples k ± (a + 1), which the smooth stretch's edges lack.
-        let a = options.stencil;
+        // Wider differences read samples k ± (a + 1), which the log's ends lack.
+        let a = options.derivative_half_width;
         steady.retain(|&k| k > a && k + a + 1 < view.len());
         if stencils < fewest {
             narrow.push(format!("{} ({stencils} of {fewest})", e.name()));

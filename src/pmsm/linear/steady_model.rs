@@ -57,14 +57,30 @@ pub(crate) struct Sample {
 }
 
 impl Sample {
-    /// Sample k of `view` (sample time `h` \[s\]): derivatives by central differences over
-    /// `k ± a`, values at k (`point`, the regressors) or the means of `k ± a` (the
-    /// instruments, at `a` one more than the regressors', whose noise is not that of the
+    /// Sample k of `view` (sample time `h` \[s\]) as the regressors read it: values at k,
+    /// derivatives by central differences over `k ± a`.
+    fn regressor(view: &DqView<'_>, u: (&[f64], &[f64]), k: usize, a: usize, h: f64) -> Self {
+        Self::with_level(view, u, k, a, h, |x| x[k])
+    }
+
+    /// Sample k of `view` as the instruments read it: the means and central differences of
+    /// `k ± a` (`a` one more than the regressors', so that their noise is not that of the
     /// samples the equation error holds).
-    fn at(view: &DqView<'_>, u: (&[f64], &[f64]), k: usize, a: usize, h: f64, point: bool) -> Self {
+    fn instrument(view: &DqView<'_>, u: (&[f64], &[f64]), k: usize, a: usize, h: f64) -> Self {
+        Self::with_level(view, u, k, a, h, |x| 0.5 * (x[k + a] + x[k - a]))
+    }
+
+    /// Sample k with the values `level` of each signal and its central difference over `k ± a`.
+    fn with_level(
+        view: &DqView<'_>,
+        u: (&[f64], &[f64]),
+        k: usize,
+        a: usize,
+        h: f64,
+        level: impl Fn(&[f64]) -> f64,
+    ) -> Self {
         let (i_d, i_q, w_m) = (view.i_d(), view.i_q(), view.w_m());
         let slope = |x: &[f64]| (x[k + a] - x[k - a]) / (2.0 * a as f64 * h);
-        let level = |x: &[f64]| if point { x[k] } else { 0.5 * (x[k + a] + x[k - a]) };
         Self {
             i: [level(i_d), level(i_q)],
             di: [slope(i_d), slope(i_q)],
@@ -87,8 +103,8 @@ pub(crate) struct SteadyEquations {
     /// Whether the continuous equations estimate the period term.
     estimate: bool,
     /// Half width of the regressors' central differences, in samples
-    /// ([`super::SteadyOptions::stencil`]).
-    stencil: usize,
+    /// ([`super::SteadyOptions::derivative_half_width`]).
+    half_width: usize,
 }
 
 /// One log's view, its sample time and the indices of its steady samples.
@@ -96,7 +112,8 @@ pub(crate) struct SteadyLog<'a> {
     pub view: DqView<'a>,
     /// Sample time \[s\].
     pub h: f64,
-    /// Steady samples k (each with samples `k ± (a + 1)` in the log, `a` the stencil).
+    /// Steady samples k (each with samples `k ± (a + 1)` in the log, `a` the derivatives'
+    /// half width).
     pub steady: Vec<usize>,
     /// The columns of the full parameter vector that model parameter j takes in this log
     /// (length n_θ of the model).
@@ -112,14 +129,14 @@ impl SteadyEquations {
     pub fn new(kind: MotorKind, n_p: u32, cable: f64, h_c: Option<f64>, estimate: bool) -> Result<Self> {
         let plant =
             h_c.map(|h| ExactPlant::new(n_p, h, kind == MotorKind::Ipm, VoltageHold::Stator)).transpose()?;
-        Ok(Self { kind, n_p, cable, plant, h_c: h_c.unwrap_or(0.0), estimate, stencil: 1 })
+        Ok(Self { kind, n_p, cable, plant, h_c: h_c.unwrap_or(0.0), estimate, half_width: 1 })
     }
 
     /// The equations with the currents' and the speed's central differences over `k ± a`
     /// (`a ≥ 1`; 1 by default), the instruments' over `k ± (a + 1)`: the samples need those
     /// in the log.
-    pub fn stencil(self, a: usize) -> Self {
-        Self { stencil: a.max(1), ..self }
+    pub fn half_width(self, a: usize) -> Self {
+        Self { half_width: a.max(1), ..self }
     }
 
     /// Whether the period term `h_c2` is a parameter (continuous equations that estimate it).
@@ -216,8 +233,8 @@ impl SteadyEquations {
     /// equation error `ū − û(θ; sample k)`, Jacobian the rows at sample k (without the
     /// small terms, and without a control period's exact correction: the iteration
     /// converges to the equations' root all the same), instruments the rows at the means
-    /// and slopes over `k ± (a + 1)` (`a` the stencil, [`Self::stencil`]), whose noise is not that of the samples the equation error
-    /// holds. The score is kept in blocks of `block` samples, so that a short log still
+    /// and slopes over `k ± (a + 1)` (`a` the derivatives' half width, [`Self::half_width`]),
+    /// whose noise is not that of the samples the equation error holds. The score is kept in blocks of `block` samples, so that a short log still
     /// gives the batch means of a coloured equation error.
     ///
     /// # Errors
@@ -235,11 +252,11 @@ impl SteadyEquations {
                 *l = theta[c];
             }
             acc.start_experiment();
-            let a = self.stencil;
+            let a = self.half_width;
             for &k in &log.steady {
-                let sample = Sample::at(v, u, k, a, log.h, true);
+                let sample = Sample::regressor(v, u, k, a, log.h);
                 let (rd, rq) = self.rows(&sample);
-                let (zd, zq) = self.rows(&Sample::at(v, u, k, a + 1, log.h, false));
+                let (zd, zq) = self.rows(&Sample::instrument(v, u, k, a + 1, log.h));
                 let p = self.voltage(&local, &sample)?;
                 d.fill(0.0);
                 z.fill(0.0);

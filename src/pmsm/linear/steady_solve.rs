@@ -38,7 +38,7 @@ pub struct SteadyOptions {
     /// [`fit_pmsm`](crate::pmsm::fit_pmsm) fits with `a = 2` as well, whose truncation error
     /// is four times the default's, and widens the intervals by the difference
     /// (Richardson extrapolation).
-    pub stencil: usize,
+    pub derivative_half_width: usize,
 }
 
 impl Default for SteadyOptions {
@@ -49,7 +49,7 @@ impl Default for SteadyOptions {
             control_period: None,
             per_experiment: Vec::new(),
             cable_resistance: 0.0,
-            stencil: 1,
+            derivative_half_width: 1,
         }
     }
 }
@@ -167,8 +167,8 @@ pub(super) fn solve(
     let steady: usize = logs.iter().map(|l| l.steady.len()).sum();
     let block = (steady / (4 * crate::estimate::TARGET_BATCHES)).clamp(1, crate::model::BLOCK_LEN);
     // The first step from zero by the continuous equations (the exact ones need a motor).
-    let mut eq =
-        SteadyEquations::new(kind, n_p, options.cable_resistance, None, estimate)?.stencil(options.stencil);
+    let mut eq = SteadyEquations::new(kind, n_p, options.cable_resistance, None, estimate)?
+        .half_width(options.derivative_half_width);
     let mut theta = vec![0.0; nth];
     let mut iterations = 0;
     let converged = loop {
@@ -177,7 +177,7 @@ pub(super) fn solve(
         iterations += 1;
         if iterations == 1 && !estimate && options.control_period.is_some() {
             eq = SteadyEquations::new(kind, n_p, options.cable_resistance, options.control_period, false)?
-                .stencil(options.stencil);
+                .half_width(options.derivative_half_width);
             continue;
         }
         let rounding =
