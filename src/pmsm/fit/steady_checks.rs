@@ -158,8 +158,8 @@ pub(crate) fn widened(est: SteadyEstimate, spread: &[Homogeneity]) -> (SteadyEst
 /// estimates' sensitivity to it, a size rather than a correction: on a synthetic log whose
 /// currents swing at ω h = 0.3, `b` of L_s is 2.9 times its error and of the other sign
 /// (test `curving_telemetry_intervals_cover_the_central_differences_error`). It is added
-/// to every standard error in quadrature,
-/// `√(σ² + b²)`, the half width keeping its quantile, the correlations kept (as
+/// to every standard error in quadrature, `√(σ² + b²)`, the half width keeping its
+/// quantile, the correlations kept (as
 /// [`widened`]'s: a bias common to the parameters would correlate them further, which the
 /// derived quantities then understate); the estimate stays (the extrapolated one carries
 /// the wider differences' noise). On a noisy log `b` holds the two fits' noise as well, a

@@ -111,7 +111,7 @@ fn converged_default() -> bool {
 /// Widest half width of the central differences ([`SteadyOptions::derivative_half_width`]),
 /// in samples: 4. Its truncation error is 16 times the default's, and its instruments read
 /// samples 5 away, beyond any smooth stretch of telemetry the steady-sample rule keeps.
-pub(crate) const MAX_STENCIL: usize = 4;
+pub(crate) const MAX_DERIVATIVE_HALF_WIDTH: usize = 4;
 
 /// Relative standard error above which a parameter is named not identifiable at steady state.
 pub const UNIDENTIFIABLE: f64 = 0.1;
@@ -164,10 +164,13 @@ fn check_options(options: &SteadyOptions, kind: MotorKind) -> Result<()> {
     if let Some(h) = options.control_period.filter(|h| !(h.is_finite() && *h > 0.0)) {
         return bad("control_period", format!("{h} s is not a positive sample time"));
     }
-    if !(1..=MAX_STENCIL).contains(&options.derivative_half_width) {
+    if !(1..=MAX_DERIVATIVE_HALF_WIDTH).contains(&options.derivative_half_width) {
         return bad(
             "derivative_half_width",
-            format!("{} samples is not a half width from 1 to {MAX_STENCIL}", options.derivative_half_width),
+            format!(
+                "{} samples is not a half width from 1 to {MAX_DERIVATIVE_HALF_WIDTH}",
+                options.derivative_half_width
+            ),
         );
     }
     if !(options.cable_resistance.is_finite() && options.cable_resistance >= 0.0) {

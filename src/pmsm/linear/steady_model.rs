@@ -234,8 +234,9 @@ impl SteadyEquations {
     /// small terms, and without a control period's exact correction: the iteration
     /// converges to the equations' root all the same), instruments the rows at the means
     /// and slopes over `k ± (a + 1)` (`a` the derivatives' half width, [`Self::half_width`]),
-    /// whose noise is not that of the samples the equation error holds. The score is kept in blocks of `block` samples, so that a short log still
-    /// gives the batch means of a coloured equation error.
+    /// whose noise is not that of the samples the equation error holds. The score is kept in
+    /// blocks of `block` samples, so that a short log still gives the batch means of a
+    /// coloured equation error.
     ///
     /// # Errors
     /// Those of [`Self::voltage`]; [`Error::MissingChannel`] for a log without the
