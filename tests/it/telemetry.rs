@@ -64,7 +64,10 @@ fn salient_telemetry_is_named_under_the_spm_equations() {
 /// (200 Hz): the sample time is within the dynamic model's range, but the voltage is a point
 /// sample; the dynamic model had r_s 3–4 % low with exit 0 (the IPM's at |z| 25), and the
 /// voltage-sampling check now sends them to the steady-state equations: R_s within 0.5 %,
-/// K_e within 0.05 %, trusted.
+/// K_e within 0.05 %, trusted; the noisy log's quarters disagree on K_e beyond their
+/// standard errors (Cochran's Q below 0.05/3), whose interval the spread widens past the
+/// 0.05 % target at three standard errors: untrusted (`imprecise`), honest all the same
+/// (its L_s was at |z| 3.07 before).
 #[test]
 #[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn point_sampled_telemetry_in_the_dynamic_range_takes_the_steady_state_equations() {
@@ -85,7 +88,42 @@ fn point_sampled_telemetry_in_the_dynamic_range_takes_the_steady_state_equations
             eprintln!("{stem} every {every}th row: {name} {:+.3e}", rel(p.value, truth));
             assert!(rel(p.value, truth).abs() < within, "{stem}: {name}");
         }
-        assert!(fit.trusted(), "{stem}: {:?}", fit.warnings);
+        let untrusted: Vec<&str> =
+            fit.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.as_str()).collect();
+        let expected: &[&str] = if stem.ends_with("_noisy") { &["imprecise"] } else { &[] };
+        assert_eq!(untrusted, expected, "{stem}: {:?}", fit.warnings);
+    }
+}
+
+/// Every 20th row of the shared IPM log of moves (250 Hz) from its first row: the parts'
+/// spread of R_s (+0.0007 … +0.0052 %, Cochran's Q at p = 3.0e-4) widens its interval
+/// (R_s +0.003 % was at |z| 3.6 with exit 0 when only a Q below the verdict's 1e-3/4 did);
+/// and the 2 s from 6 to 8 s, too short for the parts' check and at speeds where K_e and
+/// the control period's term correlate at 0.997: the term is kept (it was neglected, K_e
+/// −0.072 % at |z| 12 and R_s +0.41 % at |z| 6.5 with exit 0) and the equations' own
+/// accuracy is in the intervals (L_q was at |z| 15). R_s within 0.5 % and K_e within 0.05 %
+/// (issue 43), every parameter within 3 standard errors, trusted.
+#[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
+fn noise_free_ipm_telemetry_covers_its_truth_whole_and_in_a_window() {
+    let (fast, t) = load("ipm_moves_idinj");
+    let e = fast.decimate(20).unwrap();
+    let h = e.h();
+    let window = e.slice((6.0 / h).round() as usize..(8.0 / h).round() as usize + 1).unwrap();
+    for (what, log) in [("whole", e), ("6-8 s", window)] {
+        let options = PmsmFitOptions { model: MotorKind::Ipm, ..PmsmFitOptions::new(t.n_p) };
+        let fit = fit_pmsm(std::slice::from_ref(&log), &options).unwrap();
+        assert_eq!(fit.report.model, "pmsm_ipm_steady", "{what}");
+        for (name, truth, within) in
+            [("r_s", t.r_s, 5e-3), ("l_d", t.l_d, 1e-3), ("l_q", t.l_q, 1e-3), ("k_e", t.k_e, 5e-4)]
+        {
+            let p = fit.parameter(name).unwrap();
+            let z = (p.value - truth) / p.std_error;
+            eprintln!("every 20th row, {what}: {name} {:+.3e} (z {z:+.2})", rel(p.value, truth));
+            assert!(rel(p.value, truth).abs() < within, "{what}: {name}");
+            assert!(z.abs() <= 3.0, "{what}: {name} z {z}: {:?}", fit.report.notes);
+        }
+        assert!(fit.trusted(), "{what}: {:?}", fit.warnings);
     }
 }
 

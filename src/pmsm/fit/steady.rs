@@ -93,13 +93,14 @@ pub(crate) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, why: Option<String>
     let checked = super::steady_checks::warnings(dq, options, &steady, &est, &part);
     let (est, widening) = super::steady_checks::widened(est, &checked.spread);
     let (est, truncation) = super::steady_checks::truncation(dq, options, &steady, est);
+    let (est, accuracy) = super::steady_checks::accuracy(est);
     let checks = checked.warnings;
     let mut report = report(
         &est,
         experiments,
         options,
         t0.elapsed().as_secs_f64(),
-        widening.into_iter().chain([truncation]).collect(),
+        widening.into_iter().chain([truncation]).chain(accuracy).collect(),
     );
     let precise = super::steady_trust::warnings(&report, options);
     let warnings = gate(&est, &report).into_iter().chain(precise).chain(checks).chain(steady_warnings(
