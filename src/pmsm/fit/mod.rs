@@ -31,6 +31,7 @@ pub(super) mod search;
 pub(super) mod simulated;
 pub(super) mod standstill;
 pub(super) mod steady;
+mod steady_agreement;
 mod steady_checks;
 pub(super) mod steady_trust;
 pub(super) mod validate;

@@ -115,7 +115,10 @@ pub(crate) fn fit_dq(dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<PmsmFi
     // parts show.
     if options.inverter.is_none() && options.input == VoltageInput::Terminal {
         let fit = match point_sampled(experiments, options, &fit, &refit_report) {
-            None => fit,
+            None => match super::steady_agreement::warning(experiments, options, &fit.report) {
+                Some(w) => with_warnings(fit, [w]),
+                None => fit,
+            },
             // The steady-state equations take the samples as points: chosen when the choice is
             // automatic, as for a log too slow for the dynamic model.
             Some(Sampling::Points(why)) if options.dynamics == Dynamics::Auto && !options.force => {
