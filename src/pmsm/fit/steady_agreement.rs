@@ -112,13 +112,10 @@ pub(crate) fn warning(
             "the steady-state equations on the same samples disagree with the dynamic model: {}. The dynamic model \
              holds the logged voltage over each sample interval; telemetry kept from a faster log (every 2nd row: \
              the mean over the first half of each interval) does not satisfy it, and its residuals are coloured. \
-             Fit the steady-state equations (--model {}-steady), which take the samples as points, or log the \
-             drive at its own control rate",
+             Fit the steady-state equations (--model {}), which take the samples as points, or log the drive at \
+             its own control rate",
             apart.join("; "),
-            match options.model {
-                crate::pmsm::model::kind::MotorKind::Spm => "spm",
-                crate::pmsm::model::kind::MotorKind::Ipm => "ipm",
-            }
+            super::steady::flag(options.model)
         ),
     ))
 }

@@ -206,14 +206,7 @@ pub(crate) fn truncation(
     };
     let n = est.theta.len();
     let b: Vec<f64> = (0..n).map(|j| (wide.theta[j] - est.theta[j]) / 3.0).collect();
-    let std_error: Vec<f64> = (0..n).map(|j| est.std_error[j].hypot(b[j])).collect();
-    let t = crate::estimate::t_quantile_975(est.uncertainty.dof);
-    let ci95 = (0..n)
-        .map(|j| match est.std_error[j] > 0.0 {
-            true => est.ci95[j] * std_error[j] / est.std_error[j],
-            false => t * std_error[j],
-        })
-        .collect();
+    let (std_error, ci95) = in_quadrature(&est, (0..n).map(|j| (j, b[j])));
     let shown = |r: f64, text: String| if r.is_finite() { text } else { "—".to_string() };
     let sizes: Vec<String> = (0..n)
         .filter(|&j| est.names[j] != PERIOD_TERM)
@@ -256,15 +249,7 @@ pub(crate) fn accuracy(est: SteadyEstimate) -> (SteadyEstimate, Option<String>) 
     if widen.is_empty() {
         return (est, None);
     }
-    let (mut std_error, mut ci95) = (est.std_error.clone(), est.ci95.clone());
-    let t = crate::estimate::t_quantile_975(est.uncertainty.dof);
-    for &j in &widen {
-        std_error[j] = est.std_error[j].hypot(u[j]);
-        ci95[j] = match est.std_error[j] > 0.0 {
-            true => est.ci95[j] * std_error[j] / est.std_error[j],
-            false => t * std_error[j],
-        };
-    }
+    let (std_error, ci95) = in_quadrature(&est, widen.iter().map(|&j| (j, u[j])));
     let named: Vec<String> = widen.iter().map(|&j| label(&est, j)).collect();
     let note = format!(
         "the intervals of {} include the steady-state equations' own accuracy on an exact log ({EQUATIONS_ACCURACY:e} \
@@ -274,6 +259,23 @@ pub(crate) fn accuracy(est: SteadyEstimate) -> (SteadyEstimate, Option<String>) 
         EQUATIONS_ACCURACY / 3f64.sqrt()
     );
     (SteadyEstimate { std_error, ci95, ..est }, Some(note))
+}
+
+/// The standard errors and 95 % half widths of `est` with each `(j, b)` of `extra` added
+/// to parameter `j`'s standard error in quadrature, `√(σ² + b²)` (units of the parameter),
+/// the half width keeping its quantile (scaled by the standard error's growth; Student's
+/// t with the fit's degrees of freedom where σ was 0); the other parameters' as they were.
+fn in_quadrature(est: &SteadyEstimate, extra: impl Iterator<Item = (usize, f64)>) -> (Vec<f64>, Vec<f64>) {
+    let (mut std_error, mut ci95) = (est.std_error.clone(), est.ci95.clone());
+    let t = crate::estimate::t_quantile_975(est.uncertainty.dof);
+    for (j, b) in extra {
+        std_error[j] = est.std_error[j].hypot(b);
+        ci95[j] = match est.std_error[j] > 0.0 {
+            true => est.ci95[j] * std_error[j] / est.std_error[j],
+            false => t * std_error[j],
+        };
+    }
+    (std_error, ci95)
 }
 
 /// Parameter `j` of `est` as the report names it: `name`, or `name[log]` for a per-log one.
