@@ -112,14 +112,29 @@ impl IvSums {
         let nth = self.nth;
         let s = &mut self.sample;
         s.fill(0.0);
+        // Column-major n_θ × n_θ sums, a column (fixed b) at a time; every element takes
+        // the same terms in the same order as indexed access would.
+        let zd = self.zd.as_mut_slice();
+        let open = self.jack.open_m_mut().as_mut_slice();
         for i in 0..self.ny {
             let (zi, di) = (&z[i * nth..(i + 1) * nth], &d[i * nth..(i + 1) * nth]);
-            for a in 0..nth {
-                s[a] += zi[a] * eps[i];
-                for b in 0..nth {
-                    self.zd[(a, b)] += zi[a] * di[b];
-                    self.jack.open_m_mut()[(a, b)] += zi[a] * di[b];
-                    self.zz[i][(a, b)] += zi[a] * zi[b];
+            for (a, v) in s.iter_mut().enumerate() {
+                *v += zi[a] * eps[i];
+            }
+            let zz = self.zz[i].as_mut_slice();
+            let column = nth.max(1);
+            for (b, ((zd_b, open_b), zz_b)) in zd
+                .chunks_exact_mut(column)
+                .zip(open.chunks_exact_mut(column))
+                .zip(zz.chunks_exact_mut(column))
+                .enumerate()
+            {
+                let (d_b, z_b) = (di[b], zi[b]);
+                for (a, &z_a) in zi.iter().enumerate() {
+                    let p = z_a * d_b;
+                    zd_b[a] += p;
+                    open_b[a] += p;
+                    zz_b[a] += z_a * z_b;
                 }
             }
             self.sse[i] += eps[i] * eps[i];

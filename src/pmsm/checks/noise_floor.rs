@@ -81,7 +81,8 @@ pub(crate) fn noise_floor(
 /// noise estimate would read that error as noise (every 10th row of a noise-free gym-electric-
 /// motor log, point-sampled, took it for voltage noise), so no noise floor is claimed beside
 /// them.
-const VOLTAGE_ERRORS: [&str; 3] = ["point_sampled_voltage", "dead_time", "voltage_late"];
+const VOLTAGE_ERRORS: [&str; 4] =
+    ["point_sampled_voltage", "dead_time", "voltage_late", "steady_state_disagrees"];
 
 /// [`noise_floor`] of an output-error fit `fit` of `views` with `options` at the model's
 /// `setup` (pole pairs and hold; its cable resistance is added to `r_s`) that the gate

@@ -68,6 +68,34 @@ fn check_options(options: &PmsmFitOptions) -> Result<()> {
 /// or µs (unless `options.force`); [`Error::InvalidOption`] for options the equations do
 /// not take; those of [`steady_state`].
 pub(crate) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, why: Option<String>) -> Result<PmsmFit> {
+    fit_from(dq, options, why, None)
+}
+
+/// The steady-state equations' options that `options` give: the control period, the
+/// parameters fitted per log and the cable resistance; the rest the equations' defaults.
+/// Every steady-state fit of a dynamic fit's options takes these (the fit and the
+/// agreement check alike).
+pub(crate) fn steady_options(options: &PmsmFitOptions) -> SteadyOptions {
+    SteadyOptions {
+        control_period: options.control_period,
+        per_experiment: options.pem.per_experiment.clone(),
+        cable_resistance: options.cable_resistance,
+        ..SteadyOptions::default()
+    }
+}
+
+/// [`fit`] from the bare equations' estimate `bare` of the same logs with
+/// [`steady_options`] of `options` when the caller has it (`None`: computed here), so a
+/// caller that judged it first does not solve the equations twice.
+///
+/// # Errors
+/// As [`fit`].
+pub(crate) fn fit_from(
+    dq: &DqLogs<'_>,
+    options: &PmsmFitOptions,
+    why: Option<String>,
+    bare: Option<SteadyEstimate>,
+) -> Result<PmsmFit> {
     let t0 = std::time::Instant::now();
     let experiments = dq.experiments();
     if !options.force
@@ -82,13 +110,11 @@ pub(crate) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, why: Option<String>
         });
     }
     check_options(options)?;
-    let steady = SteadyOptions {
-        control_period: options.control_period,
-        per_experiment: options.pem.per_experiment.clone(),
-        cable_resistance: options.cable_resistance,
-        ..SteadyOptions::default()
+    let steady = steady_options(options);
+    let est = match bare {
+        Some(est) => est,
+        None => steady_state_of(dq, options.pole_pairs, options.model, &steady)?,
     };
-    let est = steady_state_of(dq, options.pole_pairs, options.model, &steady)?;
     let part = |e: &SteadyEstimate, logs: &[Experiment]| report(e, logs, options, 0.0, Vec::new());
     let checked = super::steady_checks::warnings(dq, options, &steady, &est, &part);
     let (est, widening) = super::steady_checks::widened(est, &checked.spread);

@@ -245,7 +245,7 @@ pub(crate) fn accuracy(est: SteadyEstimate) -> (SteadyEstimate, Option<String>) 
         })
         .collect();
     let widen: Vec<usize> =
-        (0..u.len()).filter(|&j| u[j].is_finite() && u[j] >= 0.1 * est.std_error[j]).collect();
+        (0..u.len()).filter(|&j| u[j].is_finite() && u[j] > 0.0 && u[j] >= 0.1 * est.std_error[j]).collect();
     if widen.is_empty() {
         return (est, None);
     }

@@ -176,30 +176,44 @@ pub(super) fn solve(
         .half_width(options.derivative_half_width);
     let mut theta = vec![0.0; nth];
     let mut iterations = 0;
+    // The sums at the current θ (and their covariance once formed): each pass over the
+    // steady samples serves the convergence test, the next step and the result alike.
+    let mut sums = eq.sums(logs, &theta, block)?;
+    let mut cov = None;
     let converged = loop {
-        let step = eq.sums(logs, &theta, block)?.step()?;
+        let step = sums.step()?;
         theta.iter_mut().zip(step.iter()).for_each(|(t, s)| *t += s);
         iterations += 1;
         if iterations == 1 && !estimate && options.control_period.is_some() {
             eq = SteadyEquations::new(kind, n_p, options.cable_resistance, options.control_period, false)?
                 .half_width(options.derivative_half_width);
+            sums = eq.sums(logs, &theta, block)?;
             continue;
         }
+        sums = eq.sums(logs, &theta, block)?;
         let rounding =
             step.iter().zip(&theta).all(|(s, t)| s.abs() <= STEP_TOLERANCE * t.abs().max(f64::MIN_POSITIVE));
         // Or a step within a small fraction of every standard error: converged for every
         // purpose the interval serves (a short log's poorly determined period term makes
         // the fixed point contract slowly near h_c2 = 0).
         let small = rounding || {
-            let cov = eq.sums(logs, &theta, block)?.covariance()?;
-            step.iter().enumerate().all(|(j, s)| s.abs() <= STEP_IN_ERRORS * cov.cov[(j, j)].max(0.0).sqrt())
+            let c = sums.covariance()?;
+            let small = step
+                .iter()
+                .enumerate()
+                .all(|(j, s)| s.abs() <= STEP_IN_ERRORS * c.cov[(j, j)].max(0.0).sqrt());
+            cov = Some(c);
+            small
         };
         if small || iterations >= MAX_ITERATIONS {
             break small;
         }
+        cov = None;
     };
-    let sums = eq.sums(logs, &theta, block)?;
-    let cov = sums.covariance()?;
+    let cov = match cov {
+        Some(c) => c,
+        None => sums.covariance()?,
+    };
     let period = match (estimate, options.control_period) {
         (true, _) => Period::Estimated,
         (false, Some(_)) => Period::Given,
