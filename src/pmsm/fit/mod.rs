@@ -33,6 +33,7 @@ pub(super) mod standstill;
 pub(super) mod steady;
 mod steady_agreement;
 mod steady_checks;
+mod steady_report;
 pub(super) mod steady_trust;
 pub(super) mod validate;
 pub(super) mod workflow;

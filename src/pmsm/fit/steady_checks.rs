@@ -83,9 +83,15 @@ pub(crate) fn warnings(
     let mut spread = Vec::new();
     if let Ok(parts) = split_at_least(dq.experiments(), MIN_PART_SAMPLES) {
         // The control period is the drive's, the same along the log: the parts hold the
-        // whole fit's estimate (a part's speeds may not separate it from K_e).
+        // whole fit's estimate (a part's speeds may not separate it from K_e), and none
+        // where the whole fit found none (`h_c2` not positive, or neglected): a part's
+        // spurious `h_c2` would carry the currents' drift terms, first order in `h_c`.
         let h_c = est.value(PERIOD_TERM).filter(|c| *c > 0.0).map(f64::sqrt);
-        let steady = &SteadyOptions { control_period: h_c.or(steady.control_period), ..steady.clone() };
+        let steady = &SteadyOptions {
+            control_period: h_c.or(steady.control_period),
+            estimate_period: false,
+            ..steady.clone()
+        };
         let fits: Vec<FitResult> = parts
             .iter()
             .filter_map(|logs| {

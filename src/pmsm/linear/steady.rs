@@ -262,7 +262,9 @@ pub(crate) fn steady_state_of(
             ),
         });
     }
-    let estimate = options.control_period.is_none() && logs.iter().all(|l| 2 * l.steady.len() > unknowns + 1);
+    let estimate = options.estimate_period
+        && options.control_period.is_none()
+        && logs.iter().all(|l| 2 * l.steady.len() > unknowns + 1);
     let solved = solve(&mut logs, experiments, n_p, kind, options, estimate)?;
     // One speed cannot tell the period's (ω_e h_c)²/12 from K_e: neglected then.
     let solved = match solved.period_confounded(kind) {

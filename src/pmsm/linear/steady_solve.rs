@@ -27,6 +27,12 @@ pub struct SteadyOptions {
     /// nuisance parameter `h_c2 = h_c²`, or neglected where the steady samples' speeds
     /// cannot tell it from K_e (one speed).
     pub control_period: Option<f64>,
+    /// Whether the period term `h_c2` is estimated when `control_period` is `None`
+    /// (default `true`); `false`: the continuous equations alone, for logs whose drive
+    /// is known to have no such effect (a voltage held in dq) or whose period a fit of
+    /// more data has found to be none (the steady-state fit's parts, when the whole log's
+    /// `h_c2` is not positive).
+    pub estimate_period: bool,
     /// Parameters estimated per log (by name, e.g. `r_s` for a winding temperature per
     /// log), the others shared.
     pub per_experiment: Vec<String>,
@@ -47,6 +53,7 @@ impl Default for SteadyOptions {
             steady_sigmas: 4.0,
             relative_floor: 1e-4,
             control_period: None,
+            estimate_period: true,
             per_experiment: Vec::new(),
             cable_resistance: 0.0,
             derivative_half_width: 1,
@@ -111,6 +118,8 @@ pub(super) enum Period {
     Estimated,
     /// Neglected (one speed).
     Neglected,
+    /// Not estimated, as the options asked ([`SteadyOptions::estimate_period`]).
+    Off,
 }
 
 /// An IV solution of the steady samples.
@@ -147,7 +156,9 @@ impl Solved {
 /// The IV solution of `logs` (their columns set here) with the period term estimated or
 /// not: one step of the linear equations from zero, then steps with the small terms (and
 /// a given control period's exact equations) at the previous estimate until the step is
-/// below [`STEP_TOLERANCE`].
+/// below [`STEP_TOLERANCE`] (or a small fraction of every standard error); where the
+/// estimated `h_c2`'s 95 % interval then lies above 0, on with the drifting currents'
+/// period mean at that period held ([`SteadyEquations::drift`]) to convergence again.
 ///
 /// # Errors
 /// Those of [`SteadyEquations::sums`] and [`IvSums::step`](crate::estimate::iv::IvSums::step).
@@ -176,6 +187,12 @@ pub(super) fn solve(
         .half_width(options.derivative_half_width);
     let mut theta = vec![0.0; nth];
     let mut iterations = 0;
+    // The iteration's first stage without the drifting currents' period mean (its term is
+    // first order in h_c = √h_c2, whose slope at h_c2 = 0 has no bound: the fixed point
+    // would not contract near it); the second, where the first found a period, with that
+    // period's drift held.
+    let period_column = names.iter().position(|n| n == PERIOD_TERM);
+    let (mut stage, mut drift) = (0, false);
     // The sums at the current θ (and their covariance once formed): each pass over the
     // steady samples serves the convergence test, the next step and the result alike.
     let mut sums = eq.sums(logs, &theta, block)?;
@@ -205,7 +222,27 @@ pub(super) fn solve(
             cov = Some(c);
             small
         };
-        if small || iterations >= MAX_ITERATIONS {
+        if small || iterations >= stage + MAX_ITERATIONS {
+            // A period the first stage found (h_c2's 95 % interval above 0): its drift
+            // held from here on.
+            if let (false, Some(c)) = (drift, period_column) {
+                let found = match &cov {
+                    Some(v) => theta[c] > v.t_quantile() * v.cov[(c, c)].max(0.0).sqrt(),
+                    None => {
+                        let v = sums.covariance()?;
+                        let found = theta[c] > v.t_quantile() * v.cov[(c, c)].max(0.0).sqrt();
+                        cov = Some(v);
+                        found
+                    }
+                };
+                drift = true;
+                if found {
+                    eq = eq.drift(theta[c].sqrt());
+                    (stage, cov) = (iterations, None);
+                    sums = eq.sums(logs, &theta, block)?;
+                    continue;
+                }
+            }
             break small;
         }
         cov = None;
@@ -217,6 +254,7 @@ pub(super) fn solve(
     let period = match (estimate, options.control_period) {
         (true, _) => Period::Estimated,
         (false, Some(_)) => Period::Given,
+        (false, None) if !options.estimate_period => Period::Off,
         (false, None) => Period::Neglected,
     };
     Ok(Solved { names, experiment, theta, cov, sums, iterations, converged, period })
@@ -226,6 +264,11 @@ pub(super) fn solve(
 pub(super) fn period_note(period: Period, names: &[String], theta: &[f64], se: &[f64]) -> Option<String> {
     match period {
         Period::Given => None,
+        Period::Off => Some(
+            "the control period's effect on the point-sampled currents (a back-EMF low by (ω_e h_c)²/12) is not \
+             estimated, as the options ask (estimate_period false)"
+                .to_string(),
+        ),
         Period::Neglected => Some(
             "the control period's effect on the point-sampled currents (a back-EMF low by (ω_e h_c)²/12) is not \
              estimated: the steady samples hold about one speed, where it cannot be told from K_e; give \
