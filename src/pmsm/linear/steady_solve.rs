@@ -226,16 +226,12 @@ pub(super) fn solve(
             // A period the first stage found (h_c2's 95 % interval above 0): its drift
             // held from here on.
             if let (false, Some(c)) = (drift, period_column) {
-                let found = match &cov {
-                    Some(v) => theta[c] > v.t_quantile() * v.cov[(c, c)].max(0.0).sqrt(),
-                    None => {
-                        let v = sums.covariance()?;
-                        let found = theta[c] > v.t_quantile() * v.cov[(c, c)].max(0.0).sqrt();
-                        cov = Some(v);
-                        found
-                    }
+                let v = match cov.take() {
+                    Some(v) => v,
+                    None => sums.covariance()?,
                 };
-                drift = true;
+                let found = theta[c] > v.t_quantile() * v.cov[(c, c)].max(0.0).sqrt();
+                (cov, drift) = (Some(v), true);
                 if found {
                     eq = eq.drift(theta[c].sqrt());
                     (stage, cov) = (iterations, None);
