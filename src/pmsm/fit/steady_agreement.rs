@@ -81,8 +81,7 @@ pub(crate) fn warning(
         .collect::<Result<_, _>>()
         .ok()?;
     let dq = DqLogs::try_new(&heads).ok()?;
-    let checked = PmsmFitOptions { force: true, ..options.clone() };
-    let steady = super::steady::steady_options(&checked);
+    let steady = super::steady::steady_options(options);
     let est = steady_state_of(&dq, options.pole_pairs, options.model, &steady).ok()?;
     let bare = |name: &str| {
         let j = (0..est.names.len()).find(|&j| est.names[j] == name && est.experiment[j].is_none())?;
@@ -94,6 +93,7 @@ pub(crate) fn warning(
     }
     // Confirmed by the steady-state fit with its own checks: one whose consecutive parts
     // disagree (or that is otherwise untrusted, short of `imprecise`) is no reference.
+    let checked = PmsmFitOptions { force: true, ..options.clone() };
     let reference = super::steady::fit_from(&dq, &checked, None, Some(est)).ok()?;
     if reference.report.warnings.iter().any(|w| w.untrusted && w.code != "imprecise") {
         return None;
