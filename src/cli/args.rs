@@ -132,7 +132,8 @@ pub struct FitArgs {
     /// Parameters estimated separately per log, comma separated (e.g. r_s).
     #[arg(help_heading = "Start and parameters", long, value_delimiter = ',')]
     pub per_log: Vec<String>,
-    /// Optimiser: Levenberg-Marquardt (lm) or damped Gauss-Newton with line search (gn).
+    /// Optimiser: Levenberg-Marquardt (lm), damped Gauss-Newton with line search (gn), or
+    /// Levenberg-Marquardt with MINPACK's trust region (trust-region).
     #[arg(help_heading = "Solver", long, value_parser = super::values::listed::<SolverKind>(), default_value = "lm")]
     pub solver: SolverKind,
     /// Parameter scaling.

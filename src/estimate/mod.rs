@@ -72,6 +72,7 @@ pub use solver::lm::{DEFAULT_DAMPING, LevenbergMarquardt};
 pub use solver::run::{
     CLOSE_START_DAMPING, ProgressObserver, RunOptions, SolverKind, run_solver, set_progress_observer,
 };
+pub use solver::trust::TrustRegion;
 pub use solver::{
     Gram, LeastSquares, LsState, NormalEquations, ReportsTermination, SolverReport, Termination, Tolerances,
 };

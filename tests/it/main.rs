@@ -41,6 +41,7 @@ mod mechanics;
 mod mgh;
 mod mgh_problems;
 mod multi_experiment;
+mod nist;
 mod noisy_inputs;
 mod online;
 mod outputs;

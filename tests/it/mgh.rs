@@ -250,6 +250,23 @@ const EXCEPTIONS: &[Exception] = &[
       minimum is 87.9)",
         |case, _, ss, r| !case.minpack_converged() && r.reason == Termination::MaxIterations && ss < 6.4e5,
     ),
+    (
+        16,
+        10,
+        100.0,
+        "the trust region only (Levenberg-Marquardt agrees): at a stationary point of the S = 1 family (∏x = 0, \
+      where MGH's local minimum (0, …, 0, n + 1) lies) instead of MINPACK's zero: JᵀJ squares J's condition number",
+        |_, _, ss, r| r.success && near(ss, 1.0, 1e-8),
+    ),
+    (
+        16,
+        30,
+        1.0,
+        "the trust region only (Levenberg-Marquardt agrees): at a stationary point of the S = 1 family: J's last \
+      row (∏_{k≠j} x_k = 0.5²⁹ ≈ 1.9e-9) squared is 3.5e-18 of the others in JᵀJ and lost, so the first step \
+      ignores it and the second lands where ∏x ≈ 0",
+        |_, _, ss, r| r.success && near(ss, 1.0, 1e-8),
+    ),
     (14, 4, 1.0, BROWN_DENNIS, |_, _, ss, r| r.success && brown_dennis_band(ss)),
     (14, 4, 10.0, BROWN_DENNIS, |_, _, ss, r| r.success && brown_dennis_band(ss)),
     (14, 4, 100.0, BROWN_DENNIS, |_, _, ss, r| r.success && brown_dennis_band(ss)),
@@ -341,6 +358,19 @@ fn agrees(ours: f64, minpack: f64) -> bool {
 
 #[test]
 fn lm_matches_minpack_on_the_mgh_set() {
+    let (table, failures, _) = mgh_table(SolverKind::Lm);
+    write_table("mgh_table.md", &table);
+    assert!(failures.is_empty(), "cases off MINPACK's sum of squares: {failures:?}");
+}
+
+/// One case's evaluation counts: `(name, n, factor, our evaluations, MINPACK's nfev,
+/// MINPACK converged)`.
+type Counts = (String, usize, f64, u64, u64, bool);
+
+/// Runs the MGH set with `solver`: the markdown table, the cases off MINPACK's sum of
+/// squares (or not as their exception says), and each case's [`Counts`].
+fn mgh_table(solver: SolverKind) -> (String, Vec<String>, Vec<Counts>) {
+    let mut counts = Vec::new();
     let mut table = String::from(
         "| # | problem | n | m | start | ‖r‖² ours | ‖r‖² MINPACK | ‖r‖ published | rel. diff | \
          ours: evals (accepted) | termination | MINPACK nfev/njev (info) | verdict |\n\
@@ -349,15 +379,15 @@ fn lm_matches_minpack_on_the_mgh_set() {
     let (mut failures, mut notes) = (Vec::new(), Vec::new());
     for case in cases() {
         let p = case.problem.as_ref();
-        let (x, ss, report) = solve(&case, SolverKind::Lm);
+        let (x, ss, report) = solve(&case, solver);
         assert_ne!(report.reason, Termination::ZeroJacobian, "{} ×{}", p.name(), case.factor);
         let ss_ref = case.minpack * case.minpack;
         let rel = if ss_ref > 0.0 { (ss - ss_ref) / ss_ref } else { f64::NAN };
         let exception = EXCEPTIONS.iter().find(|e| e.0 == case.nprob && e.1 == p.n() && e.2 == case.factor);
         let ok = agrees(ss, ss_ref);
         let verdict = match (ok, exception) {
-            (true, None) => "agrees".to_string(),
-            (_, Some(e)) => {
+            (true, _) => "agrees".to_string(),
+            (false, Some(e)) => {
                 if !(e.4)(&case, &x, ss, &report) {
                     failures.push(format!(
                         "{} n={} ×{}: not as the exception says",
@@ -394,16 +424,29 @@ fn lm_matches_minpack_on_the_mgh_set() {
             case.info,
             verdict
         );
+        let converged = case.minpack_converged();
+        counts.push((
+            p.name().to_string(),
+            p.n(),
+            case.factor,
+            report.evaluations,
+            case.nfev as u64,
+            converged,
+        ));
     }
     table.push_str("\nExceptions (not held to MINPACK's ‖r‖², each checked to behave as stated):\n\n");
     for (k, note) in notes.iter().enumerate() {
         let _ = writeln!(table, "{}. {}", k + 1, note.trim_start_matches("- "));
     }
+    (table, failures, counts)
+}
+
+/// Prints `table` and writes it to `target/NAME`.
+fn write_table(name: &str, table: &str) {
     println!("{table}");
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/target/mgh_table.md");
-    std::fs::create_dir_all(concat!(env!("CARGO_MANIFEST_DIR"), "/target")).expect("target directory");
-    std::fs::write(path, &table).expect("write target/mgh_table.md");
-    assert!(failures.is_empty(), "cases off MINPACK's sum of squares: {failures:?}");
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/target");
+    std::fs::create_dir_all(dir).expect("target directory");
+    std::fs::write(format!("{dir}/{name}"), table).expect("write the table under target/");
 }
 
 fn short(t: &Termination) -> &'static str {
@@ -537,4 +580,24 @@ fn geodesic_acceleration_shortens_runs_along_curved_valleys() {
             assert!(report.evaluations < plain_report.evaluations, "{}", problem.name());
         }
     }
+}
+
+/// Levenberg-Marquardt with MINPACK's trust region (`SolverKind::TrustRegion`) on the
+/// MGH set: MINPACK's sums of squares (two exceptions more than Levenberg-Marquardt's
+/// list, two fewer), and MINPACK's evaluation count or fewer on most cases.
+#[test]
+fn trust_region_matches_minpack_on_the_mgh_set() {
+    let (table, failures, counts) = mgh_table(SolverKind::TrustRegion);
+    write_table("mgh_table_trust_region.md", &table);
+    let more: Vec<String> = counts
+        .iter()
+        .filter(|c| c.5 && c.3 > c.4)
+        .map(|(name, n, factor, ours, nfev, _)| format!("{name} n={n} ×{factor}: {ours} > {nfev}"))
+        .collect();
+    eprintln!("more evaluations than MINPACK: {} of {}: {more:?}", more.len(), counts.len());
+    assert!(failures.is_empty(), "cases off MINPACK's sum of squares: {failures:?}");
+    // MINPACK's own path on the rest (docs/performance.md): more evaluations only for
+    // Powell's singular function (3 starts), Watson (3), Brown and Dennis (2), Rosenbrock
+    // and the rank-1 linear function.
+    assert!(more.len() <= 10, "{more:?}");
 }

@@ -11,7 +11,7 @@ use argmin::core::{Executor, KV, State};
 use greybox::estimate::LsState;
 use greybox::estimate::NormalEquations;
 use greybox::estimate::{
-    GaussNewton, LeastSquares, LevenbergMarquardt, ReportsTermination, Termination, Tolerances,
+    GaussNewton, LeastSquares, LevenbergMarquardt, ReportsTermination, Termination, Tolerances, TrustRegion,
 };
 use nalgebra::{DMatrix, DVector};
 use std::sync::{Arc, Mutex};
@@ -263,6 +263,33 @@ fn lm_respects_bounds_without_crawling() {
         );
         assert_bounded_minimum(&problem, &r);
         assert!(r.records.len() - 1 <= 20, "{} iterations", r.records.len() - 1);
+    }
+}
+
+/// MINPACK's trust region (`TrustRegion`) on the same bounded problem, through the same
+/// active set: the bounded minimum in a few iterations, the cost never rising; and
+/// Misra1a's certified values from both NIST starts unbounded.
+#[test]
+fn trust_region_respects_bounds_and_recovers_misra1a() {
+    let problem = bounded_misra1a();
+    for start in [[1.5, 1.0], [1.9, 0.3]] {
+        let r = run(&problem, TrustRegion::new(Tolerances::default()), &start);
+        eprintln!(
+            "bounded Misra1a by the trust region from {start:?}: {:?} after {} iterations",
+            r.termination,
+            r.records.len() - 1
+        );
+        assert_bounded_minimum(&problem, &r);
+        assert!(r.records.len() - 1 <= 20, "{} iterations", r.records.len() - 1);
+    }
+    let problem = misra1a();
+    for start in [[500.0, 1e-4], [250.0, 5e-4]] {
+        let r = run(&problem, TrustRegion::new(Tolerances::default()), &start);
+        assert!(r.termination.success(), "{:?}", r.termination);
+        assert_monotone(&r.records);
+        for (p, c) in r.p.iter().zip(MISRA1A) {
+            assert!((p / c - 1.0).abs() < 1e-6, "{:?} against {MISRA1A:?}", r.p);
+        }
     }
 }
 

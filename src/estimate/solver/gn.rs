@@ -35,7 +35,7 @@
 use super::Gram;
 use super::{
     LeastSquares, LsState, Monitor, NormalEquations, ReportsTermination, Termination, Tolerances,
-    damped_solve, init_state, is_infeasible, missing, status, trial_normal_equations,
+    damped_solve, init_state, is_infeasible, status, take_point, trial_normal_equations,
 };
 use argmin::core::{KV, Problem, Solver, TerminationStatus};
 use nalgebra::DVector;
@@ -185,10 +185,7 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
         problem: &mut Problem<O>,
         mut state: LsState,
     ) -> Result<(LsState, Option<KV>), argmin::core::Error> {
-        let p = state.take_param().ok_or_else(|| missing("gn", "parameter"))?;
-        let grad = state.take_gradient().ok_or_else(|| missing("gn", "gradient"))?;
-        let jtj = state.take_hessian().ok_or_else(|| missing("gn", "JᵀWJ"))?;
-        let cost = state.get_cost();
+        let (p, grad, jtj, cost) = take_point(&mut state, "gn")?;
         self.monitor.observe(&jtj);
         let jtr = -&grad;
         let keep = |state: LsState, p: DVector<f64>, grad, jtj| {

@@ -37,7 +37,7 @@
 pub use super::LsState;
 use super::{
     LeastSquares, Monitor, ReportsTermination, Termination, Tolerances, active, damped_solve, geodesic,
-    init_state, missing, status, trial_normal_equations,
+    init_state, status, take_point, trial_normal_equations,
 };
 use argmin::core::{KV, Problem, Solver, TerminationStatus};
 use nalgebra::DVector;
@@ -153,10 +153,7 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
         problem: &mut Problem<O>,
         mut state: LsState,
     ) -> Result<(LsState, Option<KV>), argmin::core::Error> {
-        let p = state.take_param().ok_or_else(|| missing("lm", "parameter"))?;
-        let grad = state.take_gradient().ok_or_else(|| missing("lm", "gradient"))?;
-        let jtj = state.take_hessian().ok_or_else(|| missing("lm", "JᵀWJ"))?;
-        let cost = state.get_cost();
+        let (p, grad, jtj, cost) = take_point(&mut state, "lm")?;
         self.monitor.observe(&jtj);
         let jtr = -&grad;
         let keep = |state: LsState, p: DVector<f64>, grad, jtj| {

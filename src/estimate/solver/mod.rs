@@ -17,12 +17,14 @@ mod geodesic;
 pub(crate) mod gn;
 mod gram;
 pub(crate) mod lm;
+mod lmpar;
 mod problem;
 pub(crate) mod run;
 mod stopping;
 mod termination;
+pub(crate) mod trust;
 
-pub(crate) use stopping::{Monitor, damped_solve, init_state, missing, status};
+pub(crate) use stopping::{Monitor, damped_solve, init_state, missing, status, take_point};
 
 pub use gram::Gram;
 pub(crate) use problem::POSITIVE_FLOOR;

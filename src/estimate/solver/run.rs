@@ -4,6 +4,7 @@
 use super::SolverReport;
 use super::gn::GaussNewton;
 use super::lm::{DEFAULT_DAMPING, LevenbergMarquardt};
+use super::trust::TrustRegion;
 use super::{LeastSquares, LsState, ReportsTermination, Termination, Tolerances};
 use crate::error::{Error, Result};
 use argmin::core::observers::{Observe, ObserverMode};
@@ -22,6 +23,8 @@ pub enum SolverKind {
     Lm,
     /// Damped Gauss-Newton with an Armijo backtracking line search ([`GaussNewton`]).
     Gn,
+    /// Levenberg-Marquardt with MINPACK's trust region ([`TrustRegion`]; Moré 1978).
+    TrustRegion,
 }
 
 /// How [`run_solver`] runs: the solver, its tolerances, and whether to report progress.
@@ -37,12 +40,13 @@ pub struct RunOptions {
     /// no effect).
     pub progress: bool,
     /// Levenberg-Marquardt's initial damping λ₀, relative to `diag(JᵀWJ)` (> 0; no effect
-    /// on Gauss-Newton). `None`: [`DEFAULT_DAMPING`]. Madsen, Nielsen & Tingleff (*Methods
+    /// on Gauss-Newton or the trust region, which starts from Δ₀ instead). `None`: [`DEFAULT_DAMPING`]. Madsen, Nielsen & Tingleff (*Methods
     /// for non-linear least squares problems*, 2004, section 3.2) advise 1e-6 from a start
     /// believed close to the minimum and 1e-3 otherwise ([`CLOSE_START_DAMPING`]).
     pub initial_damping: Option<f64>,
     /// Levenberg-Marquardt's geodesic acceleration (Transtrum & Sethna 2012;
-    /// [`LevenbergMarquardt::with_geodesic`]); off by default. No effect on Gauss-Newton.
+    /// [`LevenbergMarquardt::with_geodesic`]); off by default. No effect on Gauss-Newton or
+    /// the trust region.
     pub geodesic: bool,
 }
 
@@ -97,6 +101,7 @@ pub fn run_solver<O: LeastSquares>(
             execute(problem, lm, p0, options)
         }
         SolverKind::Gn => execute(problem, GaussNewton::new(options.tolerances), p0, options),
+        SolverKind::TrustRegion => execute(problem, TrustRegion::new(options.tolerances), p0, options),
     }
 }
 

@@ -155,6 +155,21 @@ impl Monitor {
     }
 }
 
+/// The point an iteration starts from, taken out of the solver state: `p`, `∇V`, `JᵀWJ`
+/// and the cost `V` (the state keeps the cost).
+///
+/// # Errors
+/// A state `init` did not fill ([`missing`], naming `solver`).
+pub(crate) fn take_point(
+    state: &mut LsState,
+    solver: &str,
+) -> Result<(DVector<f64>, DVector<f64>, Gram, f64), argmin::core::Error> {
+    let p = state.take_param().ok_or_else(|| missing(solver, "parameter"))?;
+    let grad = state.take_gradient().ok_or_else(|| missing(solver, "gradient"))?;
+    let jtj = state.take_hessian().ok_or_else(|| missing(solver, "JᵀWJ"))?;
+    Ok((p, grad, jtj, state.get_cost()))
+}
+
 /// argmin's status for a solver's own termination reason (`None` = keep going).
 pub(crate) fn status(t: Option<&Termination>) -> TerminationStatus {
     match t {

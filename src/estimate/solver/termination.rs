@@ -131,7 +131,7 @@ pub trait ReportsTermination {
 /// How the solver ran.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SolverReport {
-    /// `lm` or `gn`.
+    /// `lm`, `gn` or `trust-region`.
     pub name: String,
     /// Iterations (trial steps).
     pub iterations: u64,

@@ -1,0 +1,228 @@
+//! Levenberg-Marquardt with MINPACK's trust region (`lmder`; Moré, "The Levenberg-Marquardt
+//! algorithm: implementation and theory", *Numerical Analysis*, LNM 630, 1978; Moré,
+//! Garbow & Hillstrom, *User guide for MINPACK-1*, ANL-80-74, 1980) as an argmin [`Solver`].
+//!
+//! Where [`super::lm::LevenbergMarquardt`] damps by a λ that follows the gain ratio
+//! (Nielsen) and never reaches 0, this solver bounds the step by a radius Δ in the D-scaled
+//! norm and finds the λ that meets it (`lmpar`): a Gauss-Newton step inside the region is
+//! taken undamped, which is what converges fast along a curved valley and at a zero
+//! residual. Per trial step (one iteration, one evaluation):
+//!
+//! - the step `δ` of radius Δ (`lmpar`, warm-started at the last λ), with the parameters
+//!   pressed against a bound held (the `active` module) and the trial point projected on
+//!   the bounds, as Levenberg-Marquardt does; on the first iterations Δ is cut to `‖δ‖_D`;
+//! - the gain ratio `ρ = actred/prered` (the `stopping` module's relative reductions);
+//!   `ρ ≤ 0.25`: `Δ ← μ min(Δ, 10‖δ‖_D)`, `λ ← λ/μ` with `μ = ½`, or
+//!   `½ dirder/(dirder + ½ actred)` for a cost that rose, at least 0.1 (0.1 for a cost that
+//!   rose tenfold), `dirder = −(δᵀJᵀWJδ + λ‖δ‖²_D)/(2V)`; `ρ ≥ 0.75` or `λ = 0`:
+//!   `Δ ← 2‖δ‖_D`, `λ ← λ/2`;
+//! - the step is taken where `ρ ≥ 1e-4`;
+//! - MINPACK's tests after every trial: `ftol` on the relative reductions (`stopping`),
+//!   `xtol` as `Δ ≤ xtol ‖p‖_D`, `gtol` at every new point; Δ below `ε_mach ‖p‖_D`
+//!   ends the run as [`Termination::NoDescent`] (MINPACK's `info = 7`).
+//!
+//! MINPACK works on J's QR factors, this solver on JᵀWJ (a fit never keeps J), whose
+//! condition number is J's squared. Near a zero residual whose Jacobian is singular
+//! (Powell's singular function) the steps lose their accuracy once JᵀWJ is singular to
+//! working precision (‖ε‖ near 1e-17 there), and the run goes on to the iteration limit
+//! where MINPACK stops on `gtol = 0`; where a row of J is below `√ε_mach` of the others
+//! (Brown's almost-linear function at its start, n = 30), JᵀWJ has lost it, the first
+//! step ignores it, and the run can end at another stationary point than MINPACK's.
+//!
+//! Δ₀ = 100 `‖p₀‖_D` (100 at p₀ = 0), MINPACK's `factor`; D as in the `stopping` module.
+//! A trial whose cost passes 100 times the current one is abandoned there
+//! ([`LeastSquares::normal_equations_below`]): MINPACK's `actred = −1` needs no more.
+//!
+//! KV per iteration: `delta`, `lambda`, `rho`, `actred`, `prered`, `held`, `accepted`.
+
+pub use super::LsState;
+use super::{
+    LeastSquares, Monitor, ReportsTermination, Termination, Tolerances, active, init_state, lmpar::lmpar,
+    missing, status, take_point, trial_normal_equations,
+};
+use argmin::core::{KV, Problem, Solver, State, TerminationStatus};
+use serde::{Deserialize, Serialize};
+
+/// MINPACK's `factor`: Δ₀ = `FACTOR ‖p₀‖_D`.
+const FACTOR: f64 = 100.0;
+
+/// Smallest gain ratio of a step taken (MINPACK's `1e-4`).
+const TAKEN: f64 = 1e-4;
+
+/// Levenberg-Marquardt with a trust region (module docs): state and settings.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct TrustRegion {
+    tol: Tolerances,
+    /// Radius Δ in the D-scaled norm.
+    delta: f64,
+    /// The damping λ that met Δ at the last step (MINPACK's `par`).
+    lambda: f64,
+    /// `‖p‖_D` of the current point, with the scaling of when it was reached.
+    xnorm: f64,
+    monitor: Monitor,
+    accepted: u64,
+    termination: Option<Termination>,
+}
+
+impl TrustRegion {
+    /// A solver with the given tolerances.
+    pub fn new(tol: Tolerances) -> Self {
+        Self {
+            tol,
+            delta: 0.0,
+            lambda: 0.0,
+            xnorm: 0.0,
+            monitor: Monitor::default(),
+            accepted: 0,
+            termination: None,
+        }
+    }
+    /// Why the solver stopped, once it has.
+    pub fn termination(&self) -> Option<&Termination> {
+        self.termination.as_ref()
+    }
+    /// The current radius Δ (D-scaled norm of the scaled parameters).
+    pub fn radius(&self) -> f64 {
+        self.delta
+    }
+
+    /// The radius and damping after a trial step of `D`-norm `pnorm` with the reductions
+    /// `r`, `dirder` the directional derivative term and `rose_tenfold` when the cost rose
+    /// at least a hundredfold in V (tenfold in ‖ε‖).
+    fn update_radius(
+        &mut self,
+        r: &super::stopping::Reductions,
+        pnorm: f64,
+        dirder: f64,
+        rose_tenfold: bool,
+    ) {
+        if r.ratio <= 0.25 {
+            let mut mu = if r.actred >= 0.0 { 0.5 } else { 0.5 * dirder / (dirder + 0.5 * r.actred) };
+            if rose_tenfold || mu.is_nan() || mu < 0.1 {
+                mu = 0.1;
+            }
+            self.delta = mu * self.delta.min(pnorm / 0.1);
+            self.lambda /= mu;
+        } else if self.lambda == 0.0 || r.ratio >= 0.75 {
+            self.delta = pnorm / 0.5;
+            self.lambda *= 0.5;
+        }
+    }
+}
+
+impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
+    fn name(&self) -> &str {
+        "trust-region"
+    }
+
+    fn init(
+        &mut self,
+        problem: &mut Problem<O>,
+        state: LsState,
+    ) -> Result<(LsState, Option<KV>), argmin::core::Error> {
+        self.accepted = 0;
+        self.lambda = 0.0;
+        let (state, t) = init_state(problem, state, &self.tol, &mut self.monitor)?;
+        self.termination = t;
+        self.xnorm = state.get_param().map_or(0.0, |p| self.monitor.norm(p));
+        self.delta = if self.xnorm > 0.0 { FACTOR * self.xnorm } else { FACTOR };
+        Ok((state, Some(argmin::kv!("delta" => self.delta;))))
+    }
+
+    fn next_iter(
+        &mut self,
+        problem: &mut Problem<O>,
+        mut state: LsState,
+    ) -> Result<(LsState, Option<KV>), argmin::core::Error> {
+        let (p, grad, jtj, cost) = take_point(&mut state, "trust-region")?;
+        let jtr = -&grad;
+
+        let (delta, lambda) = (self.delta, self.lambda);
+        let mut found = lambda;
+        let step = active::held_step(problem, &p, &jtj, &jtr, self.monitor.diag(), |h, g, d| {
+            let (x, l) = lmpar(h, g, d, delta, lambda)?;
+            found = l;
+            Some((x, l))
+        })?;
+        let Some(active::HeldStep { delta: step, held, .. }) = step else {
+            // No damped system can be solved: JᵀWJ is not finite.
+            self.termination = Some(Termination::NoDescent);
+            return Ok((state.param(p).cost(cost).gradient(grad).hessian(jtj), None));
+        };
+        self.lambda = found;
+        let mut trial = &p + &step;
+        problem.problem("project_count", |o| {
+            o.project_trial(&p, &mut trial);
+            Ok(())
+        })?;
+        let step = &trial - &p;
+        let pnorm = self.monitor.norm(&step);
+        if self.accepted == 0 {
+            self.delta = self.delta.min(pnorm);
+        }
+        let curvature = step.dot(&jtj.mul(&step));
+        let predicted = step.dot(&jtr) - 0.5 * curvature;
+        let last = self.monitor.likely_last(&self.tol, &step, &trial, predicted / cost);
+        let eval = trial_normal_equations(problem, &trial, |o, p| match last {
+            true => o.normal_equations_likely_last(p).map(Some),
+            false => o.normal_equations_below(p, 100.0 * cost),
+        })?;
+        let new_cost = eval.as_ref().map(|ne| ne.cost).filter(|c| c.is_finite());
+        let r = Monitor::reductions(cost, new_cost, predicted);
+        let dirder = -(curvature + self.lambda * pnorm * pnorm) / (2.0 * cost);
+        self.update_radius(&r, pnorm, dirder, new_cost.is_none_or(|c| c >= 100.0 * cost));
+        let kv = |s: &Self, accepted: bool| {
+            argmin::kv!(
+                "delta" => s.delta; "lambda" => s.lambda; "rho" => r.ratio; "actred" => r.actred;
+                "prered" => r.prered; "held" => held as u64; "accepted" => accepted;
+            )
+        };
+        let taken = eval.filter(|ne| ne.cost.is_finite() && r.ratio >= TAKEN);
+        let (state, accepted) = match taken {
+            Some(ne) => {
+                self.accepted += 1;
+                self.xnorm = self.monitor.norm(&trial);
+                self.monitor.observe(&ne.jtj);
+                self.monitor.accept_step(&step);
+                if ne.cost == 0.0 {
+                    self.termination = Some(Termination::ZeroResidual);
+                } else if Monitor::gradient_converged(&self.tol, &ne.jtj, &ne.jtr, ne.cost) {
+                    self.termination =
+                        Some(self.monitor.certify(Termination::GradientTolerance, &ne.jtj, ne.cost));
+                }
+                let gradient = ne.gradient();
+                (state.param(trial).cost(ne.cost).gradient(gradient).hessian(ne.jtj), true)
+            }
+            None => (state.param(p).cost(cost).gradient(grad).hessian(jtj), false),
+        };
+        if self.termination.is_none() {
+            let (h, c) =
+                (state.get_hessian().ok_or_else(|| missing("trust-region", "JᵀWJ"))?, state.get_cost());
+            let t = if Monitor::cost_converged(&self.tol, &r) {
+                Some(Termination::CostTolerance)
+            } else if self.delta <= self.tol.xtol * self.xnorm {
+                Some(Termination::StepTolerance)
+            } else if self.delta <= f64::EPSILON * self.xnorm || self.delta.is_nan() || self.delta <= 0.0 {
+                Some(Termination::NoDescent)
+            } else {
+                None
+            };
+            self.termination = t.map(|t| self.monitor.certify(t, h, c));
+        }
+        let kv = kv(self, accepted);
+        Ok((state, Some(kv)))
+    }
+
+    fn terminate(&mut self, _state: &LsState) -> TerminationStatus {
+        status(self.termination.as_ref())
+    }
+}
+
+impl ReportsTermination for TrustRegion {
+    fn termination(&self) -> Option<&Termination> {
+        self.termination.as_ref()
+    }
+    fn accepted_iterations(&self) -> u64 {
+        self.accepted
+    }
+}
