@@ -39,6 +39,7 @@ mod limits;
 mod linear;
 mod mechanics;
 mod mgh;
+mod mgh_exceptions;
 mod mgh_problems;
 mod multi_experiment;
 mod nist;

@@ -1,5 +1,5 @@
 //! Steps with parameters held at the bounds they are pressed against (an active set), for
-//! both solvers: the components at a bound that the steepest-descent direction, or a step
+//! the damped solvers (Gauss-Newton, both Levenberg-Marquardts): the components at a bound that the steepest-descent direction, or a step
 //! solved for the others, would push out of the box are held there, and the normal
 //! equations are solved again for the rest, until no free component points out (at most
 //! n + 1 solves). Every parameter at a bound then moves inwards or not at all, so the step

@@ -23,7 +23,9 @@ pub enum SolverKind {
     Lm,
     /// Damped Gauss-Newton with an Armijo backtracking line search ([`GaussNewton`]).
     Gn,
-    /// Levenberg-Marquardt with MINPACK's trust region ([`TrustRegion`]; Moré 1978).
+    /// Levenberg-Marquardt with MINPACK's trust region ([`TrustRegion`]; Moré 1978);
+    /// `trust-region` in the command line, the JSON and the report.
+    #[serde(rename = "trust-region")]
     TrustRegion,
 }
 
@@ -40,8 +42,9 @@ pub struct RunOptions {
     /// no effect).
     pub progress: bool,
     /// Levenberg-Marquardt's initial damping λ₀, relative to `diag(JᵀWJ)` (> 0; no effect
-    /// on Gauss-Newton or the trust region, which starts from Δ₀ instead). `None`: [`DEFAULT_DAMPING`]. Madsen, Nielsen & Tingleff (*Methods
-    /// for non-linear least squares problems*, 2004, section 3.2) advise 1e-6 from a start
+    /// on Gauss-Newton or the trust region, which starts from its radius Δ₀ instead).
+    /// `None`: [`DEFAULT_DAMPING`]. Madsen, Nielsen & Tingleff (*Methods for non-linear
+    /// least squares problems*, 2004, section 3.2) advise 1e-6 from a start
     /// believed close to the minimum and 1e-3 otherwise ([`CLOSE_START_DAMPING`]).
     pub initial_damping: Option<f64>,
     /// Levenberg-Marquardt's geodesic acceleration (Transtrum & Sethna 2012;

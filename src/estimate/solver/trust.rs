@@ -14,9 +14,11 @@
 //! - the gain ratio `ρ = actred/prered` (the `stopping` module's relative reductions);
 //!   `ρ ≤ 0.25`: `Δ ← μ min(Δ, 10‖δ‖_D)`, `λ ← λ/μ` with `μ = ½`, or
 //!   `½ dirder/(dirder + ½ actred)` for a cost that rose, at least 0.1 (0.1 for a cost that
-//!   rose tenfold), `dirder = −(δᵀJᵀWJδ + λ‖δ‖²_D)/(2V)`; `ρ ≥ 0.75` or `λ = 0`:
-//!   `Δ ← 2‖δ‖_D`, `λ ← λ/2`;
-//! - the step is taken where `ρ ≥ 1e-4`;
+//!   rose a hundredfold, tenfold in ‖ε‖), `dirder = −(δᵀJᵀWJδ + λ‖δ‖²_D)/(2V)`; `ρ ≥ 0.75`
+//!   or `λ = 0`: `Δ ← 2‖δ‖_D`, `λ ← λ/2`;
+//! - the step is taken where `ρ ≥ 1e-4` and the cost fell. A step cut by a bound
+//!   (projected) can have a predicted reduction ≤ 0, which MINPACK's unbounded steps never
+//!   have: it counts as a poor step (`ρ = 0`), taken only if the cost fell;
 //! - MINPACK's tests after every trial: `ftol` on the relative reductions (`stopping`),
 //!   `xtol` as `Δ ≤ xtol ‖p‖_D`, `gtol` at every new point; Δ below `ε_mach ‖p‖_D`
 //!   ends the run as [`Termination::NoDescent`] (MINPACK's `info = 7`).
@@ -33,9 +35,9 @@
 //! A trial whose cost passes 100 times the current one is abandoned there
 //! ([`LeastSquares::normal_equations_below`]): MINPACK's `actred = −1` needs no more.
 //!
-//! KV per iteration: `delta`, `lambda`, `rho`, `actred`, `prered`, `held`, `accepted`.
+//! KV per iteration: `radius`, `lambda`, `rho`, `actred`, `prered`, `held`, `accepted`.
 
-pub use super::LsState;
+use super::LsState;
 use super::{
     LeastSquares, Monitor, ReportsTermination, Termination, Tolerances, active, init_state, lmpar::lmpar,
     missing, status, take_point, trial_normal_equations,
@@ -47,14 +49,22 @@ use serde::{Deserialize, Serialize};
 const FACTOR: f64 = 100.0;
 
 /// Smallest gain ratio of a step taken (MINPACK's `1e-4`).
-const TAKEN: f64 = 1e-4;
+const MIN_RATIO: f64 = 1e-4;
 
-/// Levenberg-Marquardt with a trust region (module docs): state and settings.
+/// Levenberg-Marquardt with MINPACK's trust region (Moré, "The Levenberg-Marquardt
+/// algorithm: implementation and theory", LNM 630, 1978; MINPACK's `lmder`): each step is
+/// the damped Gauss-Newton step `(JᵀWJ + λD)δ = JᵀWε` whose D-scaled length meets the
+/// radius Δ (λ = 0 where the Gauss-Newton step lies inside it); Δ shrinks after a step
+/// whose gain ratio ρ is at most 0.25 and becomes `2‖δ‖_D` after one above 0.75; a step is
+/// taken where ρ ≥ 1e-4 and the cost fell. Stopping tests: [`Tolerances`] (MINPACK's
+/// `ftol`, `xtol` as `Δ ≤ xtol ‖p‖_D`, `gtol`). Works on JᵀWJ, not J's QR factors: see the
+/// crate's `docs/performance.md` for where that differs from MINPACK. Used by
+/// [`SolverKind::TrustRegion`](super::run::SolverKind::TrustRegion).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct TrustRegion {
     tol: Tolerances,
     /// Radius Δ in the D-scaled norm.
-    delta: f64,
+    radius: f64,
     /// The damping λ that met Δ at the last step (MINPACK's `par`).
     lambda: f64,
     /// `‖p‖_D` of the current point, with the scaling of when it was reached.
@@ -69,7 +79,7 @@ impl TrustRegion {
     pub fn new(tol: Tolerances) -> Self {
         Self {
             tol,
-            delta: 0.0,
+            radius: 0.0,
             lambda: 0.0,
             xnorm: 0.0,
             monitor: Monitor::default(),
@@ -83,28 +93,23 @@ impl TrustRegion {
     }
     /// The current radius Δ (D-scaled norm of the scaled parameters).
     pub fn radius(&self) -> f64 {
-        self.delta
+        self.radius
     }
 
-    /// The radius and damping after a trial step of `D`-norm `pnorm` with the reductions
-    /// `r`, `dirder` the directional derivative term and `rose_tenfold` when the cost rose
-    /// at least a hundredfold in V (tenfold in ‖ε‖).
-    fn update_radius(
-        &mut self,
-        r: &super::stopping::Reductions,
-        pnorm: f64,
-        dirder: f64,
-        rose_tenfold: bool,
-    ) {
-        if r.ratio <= 0.25 {
-            let mut mu = if r.actred >= 0.0 { 0.5 } else { 0.5 * dirder / (dirder + 0.5 * r.actred) };
-            if rose_tenfold || mu.is_nan() || mu < 0.1 {
+    /// The radius and damping after a trial step of `D`-norm `pnorm` with gain ratio `rho`
+    /// (0 for a step whose predicted reduction is not positive), actual relative reduction
+    /// `actred`, `dirder` the directional derivative term and `rose_hundredfold` when the
+    /// cost rose at least a hundredfold in V (tenfold in ‖ε‖).
+    fn update_radius(&mut self, rho: f64, actred: f64, pnorm: f64, dirder: f64, rose_hundredfold: bool) {
+        if rho <= 0.25 {
+            let mut mu = if actred >= 0.0 { 0.5 } else { 0.5 * dirder / (dirder + 0.5 * actred) };
+            if rose_hundredfold || mu.is_nan() || mu < 0.1 {
                 mu = 0.1;
             }
-            self.delta = mu * self.delta.min(pnorm / 0.1);
+            self.radius = mu * self.radius.min(pnorm / 0.1);
             self.lambda /= mu;
-        } else if self.lambda == 0.0 || r.ratio >= 0.75 {
-            self.delta = pnorm / 0.5;
+        } else if self.lambda == 0.0 || rho >= 0.75 {
+            self.radius = pnorm / 0.5;
             self.lambda *= 0.5;
         }
     }
@@ -125,8 +130,8 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
         let (state, t) = init_state(problem, state, &self.tol, &mut self.monitor)?;
         self.termination = t;
         self.xnorm = state.get_param().map_or(0.0, |p| self.monitor.norm(p));
-        self.delta = if self.xnorm > 0.0 { FACTOR * self.xnorm } else { FACTOR };
-        Ok((state, Some(argmin::kv!("delta" => self.delta;))))
+        self.radius = if self.xnorm > 0.0 { FACTOR * self.xnorm } else { FACTOR };
+        Ok((state, Some(argmin::kv!("radius" => self.radius;))))
     }
 
     fn next_iter(
@@ -137,10 +142,10 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
         let (p, grad, jtj, cost) = take_point(&mut state, "trust-region")?;
         let jtr = -&grad;
 
-        let (delta, lambda) = (self.delta, self.lambda);
+        let (radius, lambda) = (self.radius, self.lambda);
         let mut found = lambda;
         let step = active::held_step(problem, &p, &jtj, &jtr, self.monitor.diag(), |h, g, d| {
-            let (x, l) = lmpar(h, g, d, delta, lambda)?;
+            let (x, l) = lmpar(h, g, d, radius, lambda)?;
             found = l;
             Some((x, l))
         })?;
@@ -158,7 +163,7 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
         let step = &trial - &p;
         let pnorm = self.monitor.norm(&step);
         if self.accepted == 0 {
-            self.delta = self.delta.min(pnorm);
+            self.radius = self.radius.min(pnorm);
         }
         let curvature = step.dot(&jtj.mul(&step));
         let predicted = step.dot(&jtr) - 0.5 * curvature;
@@ -170,14 +175,15 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
         let new_cost = eval.as_ref().map(|ne| ne.cost).filter(|c| c.is_finite());
         let r = Monitor::reductions(cost, new_cost, predicted);
         let dirder = -(curvature + self.lambda * pnorm * pnorm) / (2.0 * cost);
-        self.update_radius(&r, pnorm, dirder, new_cost.is_none_or(|c| c >= 100.0 * cost));
+        let rho = if r.prered > 0.0 { r.ratio } else { 0.0 };
+        self.update_radius(rho, r.actred, pnorm, dirder, new_cost.is_none_or(|c| c >= 100.0 * cost));
         let kv = |s: &Self, accepted: bool| {
             argmin::kv!(
-                "delta" => s.delta; "lambda" => s.lambda; "rho" => r.ratio; "actred" => r.actred;
+                "radius" => s.radius; "lambda" => s.lambda; "rho" => r.ratio; "actred" => r.actred;
                 "prered" => r.prered; "held" => held as u64; "accepted" => accepted;
             )
         };
-        let taken = eval.filter(|ne| ne.cost.is_finite() && r.ratio >= TAKEN);
+        let taken = eval.filter(|ne| ne.cost < cost && (rho >= MIN_RATIO || r.prered <= 0.0));
         let (state, accepted) = match taken {
             Some(ne) => {
                 self.accepted += 1;
@@ -200,9 +206,9 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
                 (state.get_hessian().ok_or_else(|| missing("trust-region", "JᵀWJ"))?, state.get_cost());
             let t = if Monitor::cost_converged(&self.tol, &r) {
                 Some(Termination::CostTolerance)
-            } else if self.delta <= self.tol.xtol * self.xnorm {
+            } else if self.radius <= self.tol.xtol * self.xnorm {
                 Some(Termination::StepTolerance)
-            } else if self.delta <= f64::EPSILON * self.xnorm || self.delta.is_nan() || self.delta <= 0.0 {
+            } else if self.radius <= f64::EPSILON * self.xnorm || self.radius.is_nan() || self.radius <= 0.0 {
                 Some(Termination::NoDescent)
             } else {
                 None
