@@ -52,7 +52,7 @@ choice!(Frame: "mechanical" => Frame::Mechanical, "electrical" => Frame::Electri
 choice!(Scale: "peak" => Scale::Peak, "rms" => Scale::Rms);
 choice!(TimeUnit: "s" => TimeUnit::S, "ms" => TimeUnit::Ms, "us" => TimeUnit::Us);
 choice!(HoldChoice: "auto" => HoldChoice::Auto, "dq" => HoldChoice::Dq, "stator" => HoldChoice::Stator);
-choice!(SolverKind: "lm" => SolverKind::Lm, "gn" => SolverKind::Gn, "trust-region" => SolverKind::TrustRegion);
+choice!(SolverKind: "auto" => SolverKind::Auto, "lm" => SolverKind::Lm, "gn" => SolverKind::Gn, "trust-region" => SolverKind::TrustRegion);
 choice!(ScalingKind: "nominal" => ScalingKind::Nominal, "log" => ScalingKind::Log,
     "column-norm" => ScalingKind::ColumnNorm, "identity" => ScalingKind::Identity);
 choice!(Modulator: "min-max" => Modulator::MinMax, "sine" => Modulator::Sine);

@@ -276,7 +276,7 @@ fn ls_only(a: &FitRequest) -> crate::Result<()> {
         ("--output-weights", a.output_weights.is_some()),
         ("--bounds", !a.bounds.is_empty()),
         ("--fixed-x0", a.fixed_x0),
-        ("--solver", !matches!(a.solver, SolverKind::Lm)),
+        ("--solver", !matches!(a.solver, SolverKind::Auto)),
         ("--voltage reference", matches!(a.voltage, Voltage::Reference)),
         ("--cable-resistance", a.cable_resistance != 0.0),
         ("--dead-time", !matches!(a.dead_time, DeadTime::None)),

@@ -124,7 +124,7 @@ impl FitRequest {
             start: None,
             fix: Vec::new(),
             per_log: Vec::new(),
-            solver: SolverKind::Lm,
+            solver: SolverKind::Auto,
             scaling: ScalingKind::Nominal,
             horizon: None,
             weighting: WeightingKind::Uniform,

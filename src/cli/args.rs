@@ -132,9 +132,11 @@ pub struct FitArgs {
     /// Parameters estimated separately per log, comma separated (e.g. r_s).
     #[arg(help_heading = "Start and parameters", long, value_delimiter = ',')]
     pub per_log: Vec<String>,
-    /// Optimiser: Levenberg-Marquardt (lm), damped Gauss-Newton with line search (gn), or
-    /// Levenberg-Marquardt with MINPACK's trust region (trust-region).
-    #[arg(help_heading = "Solver", long, value_parser = super::values::listed::<SolverKind>(), default_value = "lm")]
+    /// Optimiser: Levenberg-Marquardt (lm), damped Gauss-Newton with line search (gn),
+    /// Levenberg-Marquardt with MINPACK's trust region (trust-region), or auto: the trust
+    /// region on a static model whose Jacobian is kept (a flux map, mechanics, a curve
+    /// fit), Levenberg-Marquardt otherwise.
+    #[arg(help_heading = "Solver", long, value_parser = super::values::listed::<SolverKind>(), default_value = "auto")]
     pub solver: SolverKind,
     /// Parameter scaling.
     #[arg(help_heading = "Solver", long, value_parser = super::values::listed::<ScalingKind>(), default_value = "nominal")]

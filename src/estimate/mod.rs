@@ -57,8 +57,8 @@ pub use precision::{PRECISION_Z, PrecisionTarget, imprecise};
 pub(crate) use problem::lagged_dots;
 pub use problem::{
     BatchMeans, FreeKind, FreeParameter, LAG_CHUNK, LagSums, Loss, MIN_BATCHES, OUTPUT_WEIGHT_RANGE,
-    PemProblem, ProblemOptions, STRUCTURED_ABOVE, Slot, Sums, TARGET_BATCHES, Term, WHITENESS_LAGS,
-    WeightedData,
+    PemProblem, ProblemOptions, ROOT_MAX_ENTRIES, STRUCTURED_ABOVE, Slot, Sums, TARGET_BATCHES, Term,
+    WHITENESS_LAGS, WeightedData,
 };
 pub use result::{
     CovarianceMethod, FitResult, FitStatistics, ParameterEstimate, Timing, Uncertainty, Warning,
@@ -74,7 +74,8 @@ pub use solver::run::{
 };
 pub use solver::trust::TrustRegion;
 pub use solver::{
-    Gram, LeastSquares, LsState, NormalEquations, ReportsTermination, SolverReport, Termination, Tolerances,
+    Gram, LeastSquares, LsState, NormalEquations, ReportsTermination, Root, SolverReport, Termination,
+    Tolerances,
 };
 pub use spline::{SPLINE_INTERVALS, SplineSurface};
 pub use weighting::{

@@ -75,7 +75,7 @@ impl PemOptions {
 impl Default for PemOptions {
     fn default() -> Self {
         Self {
-            solver: SolverKind::Lm,
+            solver: SolverKind::Auto,
             tolerances: Tolerances::default(),
             scaling: ScalingKind::Nominal,
             horizon: None,

@@ -451,6 +451,7 @@ fn the_state_gradient_is_the_cost_gradient() {
 fn solve_geodesic(problem: &dyn MghProblem, x0: &[f64], geodesic: bool) -> (f64, SolverReport) {
     let model = MghModel::new(problem);
     let options = PemOptions {
+        solver: SolverKind::Lm,
         tolerances: driver_tolerances(problem.n()),
         scaling: ScalingKind::Identity,
         geodesic,
@@ -500,9 +501,10 @@ fn geodesic_acceleration_shortens_runs_along_curved_valleys() {
     }
 }
 
-/// Levenberg-Marquardt with MINPACK's trust region (`SolverKind::TrustRegion`) on the
-/// MGH set: MINPACK's sums of squares (two exceptions more than Levenberg-Marquardt's
-/// list, two fewer), and MINPACK's evaluation count or fewer on most cases.
+/// Levenberg-Marquardt with MINPACK's trust region (`SolverKind::TrustRegion`, on J's QR
+/// factors: the problem gives its root) on the MGH set: MINPACK's sums of squares (four
+/// exceptions fewer than Levenberg-Marquardt's list), and MINPACK's evaluation count or
+/// fewer on all but four cases.
 #[test]
 fn trust_region_matches_minpack_on_the_mgh_set() {
     let (table, failures, counts) = mgh_table(SolverKind::TrustRegion);
@@ -515,10 +517,39 @@ fn trust_region_matches_minpack_on_the_mgh_set() {
     eprintln!("more evaluations than MINPACK: {} of {}: {more:?}", more.len(), counts.len());
     assert!(failures.is_empty(), "cases off MINPACK's sum of squares: {failures:?}");
     // MINPACK's own path on the rest (docs/performance.md): more evaluations only for
-    // Powell's singular function (3 starts), Watson (3), Brown and Dennis (2), Rosenbrock
-    // and the rank-1 linear function.
-    assert!(more.len() <= 10, "{more:?}");
+    // Powell's singular function (3 starts) and Brown almost-linear n = 10 from 100 x₀.
+    assert!(more.len() <= 4, "{more:?}");
     let (agree, no_more, same) = tally(&counts);
     eprintln!("at MINPACK's ‖r‖²: {agree}; in ≤ nfev: {no_more}; in exactly nfev: {same}");
-    assert!(agree >= 47 && no_more >= 39, "{agree}, {no_more}");
+    assert!(agree >= 49 && no_more >= 45, "{agree}, {no_more}");
+}
+
+/// The root a static problem gives the trust region ([`LeastSquares::root`]) squares to its
+/// normal equations, `RᵀR = JᵀWJ` and `Rᵀ qtf = JᵀWε`, on Osborne 2 (m = 65, n = 11) and
+/// Brown almost-linear (m = n = 10) at their starts; the default solver runs the trust region
+/// on it.
+#[test]
+fn a_static_problem_keeps_its_root() {
+    use greybox::estimate::{IdentityScaling, PemProblem, ProblemOptions};
+    use greybox::model::Prepared;
+    for case in
+        cases().into_iter().filter(|c| c.factor == 1.0 && [18, 16].contains(&c.nprob) && c.problem.n() <= 11)
+    {
+        let model = MghModel::new(case.problem.as_ref());
+        let e = model.experiment();
+        let x0 = case.problem.start();
+        let data = vec![(Prepared::new(&model, &e).unwrap(), None)];
+        let pb = PemProblem::new(&model, data, &x0, &IdentityScaling, &ProblemOptions::default()).unwrap();
+        assert!(pb.keeps_root());
+        let p = pb.start_vector(&x0);
+        let ne = LeastSquares::normal_equations(&pb, &p).unwrap();
+        let root = LeastSquares::root(&pb, &p).unwrap().expect("a root");
+        let jtj = ne.jtj.to_dense();
+        let name = case.problem.name();
+        assert!((root.r.tr_mul(&root.r) - &jtj).amax() <= 1e-12 * jtj.amax(), "{name}: RᵀR against JᵀWJ");
+        let g = root.r.tr_mul(&root.qtf);
+        assert!((&g - &ne.jtr).amax() <= 1e-12 * ne.jtr.amax(), "{name}: Rᵀqtf {g} against JᵀWε {}", ne.jtr);
+        let fit = greybox::estimate::fit(&model, &[e], &x0, &PemOptions::default()).expect("the fit runs");
+        assert_eq!(fit.solver.name, "trust-region", "{name}");
+    }
 }

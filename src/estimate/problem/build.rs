@@ -271,6 +271,12 @@ impl<M: GreyBoxModel> LeastSquares for PemProblem<'_, M> {
     fn directional_gradient(&self, p: &DVector<f64>, q: &DVector<f64>) -> Result<Option<DVector<f64>>> {
         PemProblem::directional_gradient(self, p, q)
     }
+    fn root(&self, p: &DVector<f64>) -> Result<Option<crate::estimate::solver::Root>> {
+        PemProblem::root(self, p)
+    }
+    fn keeps_root(&self) -> bool {
+        PemProblem::keeps_root(self)
+    }
     fn project(&self, p: &mut DVector<f64>) {
         PemProblem::project(self, p)
     }

@@ -42,3 +42,4 @@ pub(crate) use partition::partition;
 pub use pem::{
     FreeKind, FreeParameter, PemProblem, ProblemOptions, STRUCTURED_ABOVE, Slot, Term, WeightedData,
 };
+pub use sums::ROOT_MAX_ENTRIES;

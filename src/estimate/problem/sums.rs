@@ -7,10 +7,15 @@ use super::gram::{dot, gram, weighted_square_sum};
 use super::local::{Pass, RawSample, ResidualFilter, columns};
 use super::{Loss, PemProblem};
 use crate::error::Result;
+use crate::estimate::solver::Root;
 use crate::model::BLOCK_LEN;
 use crate::model::GreyBoxModel;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+
+/// The most numbers (rows × free parameters) of a Jacobian that
+/// [`PemProblem::root`] keeps: 2²⁰, 8 MiB; a larger problem gives no root.
+pub const ROOT_MAX_ENTRIES: usize = 1 << 20;
 
 /// An experiment's Gram matrices in its local columns (row-major m × m, upper triangle):
 /// `JᵀWJ`, the bread, and each output's meat.
@@ -81,6 +86,32 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
         }
         let m = r.len();
         Ok((DVector::from_vec(r), DMatrix::from_row_slice(m, np, &rows)))
+    }
+
+    /// [`LeastSquares::root`](crate::estimate::LeastSquares::root): the QR factors of
+    /// [`residuals_and_jacobian`](Self::residuals_and_jacobian) (the criterion's residuals
+    /// and Jacobian, prefiltered where it is) where the problem [keeps
+    /// J](Self::keeps_root); `None` otherwise. A pass of its own at p.
+    ///
+    /// # Errors
+    /// As [`normal_equations`](Self::normal_equations).
+    pub fn root(&self, p: &DVector<f64>) -> Result<Option<Root>> {
+        if !self.keeps_root() {
+            return Ok(None);
+        }
+        let (e, j) = self.residuals_and_jacobian(p)?;
+        Ok(Some(Root::from_jacobian(j, &e)))
+    }
+
+    /// Whether the problem keeps its Jacobian for [`root`](Self::root): a static model (no
+    /// state: a dynamic model's record is long, and J would cost a pass per point), the
+    /// quadratic loss, a dense `JᵀWJ`, and at most [`ROOT_MAX_ENTRIES`] numbers in J.
+    pub fn keeps_root(&self) -> bool {
+        let ny = self.model.n_outputs();
+        let rows: usize =
+            (0..self.terms.len()).map(|e| ny * (self.terms[e].prep.n - self.first_sample(e))).sum();
+        let small = rows.saturating_mul(self.free.len()) <= ROOT_MAX_ENTRIES;
+        small && self.model.n_states() == 0 && self.layout.is_none() && matches!(self.loss, Loss::Quadratic)
     }
 
     /// Sums for the statistics of a fit at p (one pass per experiment).

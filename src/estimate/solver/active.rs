@@ -45,20 +45,21 @@ fn outward<O: LeastSquares>(
 /// `solve(H, g)` on the normal equations `H δ = g` (`jtj`, `jtr`, n × n and n) reduced to
 /// the components not `held`: a dense `H` by selecting the free rows and columns (and `g`'s
 /// and the damping diagonal `d`'s free entries), an arrowhead by identity rows with a zero
-/// right-hand side at the held ones. `solve` receives the reduced `H`, `g` and `d` and
+/// right-hand side at the held ones. `solve` receives the reduced `H`, `g` and `d` and the
+/// free components' indices (ascending; for an arrowhead the system stays n × n), and
 /// returns δ and an auxiliary number; `None` where it fails.
 fn reduced(
     jtj: &Gram,
     jtr: &DVector<f64>,
     d: &DVector<f64>,
     held: &[bool],
-    solve: &mut impl FnMut(&Gram, &DVector<f64>, &DVector<f64>) -> Option<(DVector<f64>, f64)>,
+    solve: &mut impl FnMut(&Gram, &DVector<f64>, &DVector<f64>, &[usize]) -> Option<(DVector<f64>, f64)>,
 ) -> Option<(DVector<f64>, f64)> {
     let n = jtr.len();
-    if !held.contains(&true) {
-        return solve(jtj, jtr, d);
-    }
     let free: Vec<usize> = (0..n).filter(|&j| !held[j]).collect();
+    if free.len() == n {
+        return solve(jtj, jtr, d, &free);
+    }
     let mut delta = DVector::zeros(n);
     if free.is_empty() {
         return Some((delta, 0.0));
@@ -66,7 +67,7 @@ fn reduced(
     let (found, aux) = match jtj {
         Gram::Dense(m) => {
             let h = Gram::Dense(m.select_rows(&free).select_columns(&free));
-            let (found, aux) = solve(&h, &jtr.select_rows(&free), &d.select_rows(&free))?;
+            let (found, aux) = solve(&h, &jtr.select_rows(&free), &d.select_rows(&free), &free)?;
             let mut full = DVector::zeros(n);
             for (k, &j) in free.iter().enumerate() {
                 full[j] = found[k];
@@ -76,7 +77,7 @@ fn reduced(
         Gram::Arrow(a) => {
             let h = Gram::from(a.with_identity_at(held));
             let g = DVector::from_fn(n, |j, _| if held[j] { 0.0 } else { jtr[j] });
-            solve(&h, &g, d)?
+            solve(&h, &g, d, &free)?
         }
     };
     for &j in &free {
@@ -99,7 +100,7 @@ pub(super) fn held_step<O: LeastSquares>(
     jtj: &Gram,
     jtr: &DVector<f64>,
     d: &DVector<f64>,
-    mut solve: impl FnMut(&Gram, &DVector<f64>, &DVector<f64>) -> Option<(DVector<f64>, f64)>,
+    mut solve: impl FnMut(&Gram, &DVector<f64>, &DVector<f64>, &[usize]) -> Option<(DVector<f64>, f64)>,
 ) -> Result<Option<HeldStep>, argmin::core::Error> {
     let mut held = outward(problem, p, jtr)?;
     let mut aux: f64 = 0.0;

@@ -194,7 +194,8 @@ impl<O: LeastSquares> Solver<O, LsState> for GaussNewton {
 
         // Parameters pressed against a bound held there (Bertsekas 1982; Kelley 1999, 5.5).
         let none = DVector::zeros(p.len());
-        let found = super::active::held_step(problem, &p, &jtj, &jtr, &none, |h, g, _| shifted_solve(h, g))?;
+        let found =
+            super::active::held_step(problem, &p, &jtj, &jtr, &none, |h, g, _, _| shifted_solve(h, g))?;
         let Some(super::active::HeldStep { delta, aux: shift, held }) = found else {
             // Only non-finite entries defeat every shift.
             self.stop(Termination::NoDescent);

@@ -164,7 +164,7 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
         // without them (`active`): projecting the unbounded step instead crawled along a
         // bound, its other components those of a move the bound forbids.
         let lambda = self.lambda;
-        let step = active::held_step(problem, &p, &jtj, &jtr, self.monitor.diag(), |h, g, d| {
+        let step = active::held_step(problem, &p, &jtj, &jtr, self.monitor.diag(), |h, g, d, _| {
             damped_solve(h, d, lambda, g).map(|x| (x, 0.0))
         })?;
         let Some(active::HeldStep { delta, held, .. }) = step else {

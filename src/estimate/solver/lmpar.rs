@@ -80,15 +80,20 @@ pub(super) fn lmpar(
             return Some((x, par));
         };
         best = Some((x, par));
-        let parc = (fp / delta) / t;
-        if fp > 0.0 {
-            parl = parl.max(par);
-        } else if fp < 0.0 {
-            paru = paru.min(par);
-        }
-        par = parl.max(par + parc);
+        par = next_par(par, (fp / delta) / t, fp, &mut parl, &mut paru);
     }
     best
+}
+
+/// MINPACK's λ update: the bracket `[parl, paru]` narrowed by the sign of `φ(λ) = fp`, and
+/// the Newton correction `parc` taken from λ, kept at or above `parl`.
+pub(super) fn next_par(par: f64, parc: f64, fp: f64, parl: &mut f64, paru: &mut f64) -> f64 {
+    if fp > 0.0 {
+        *parl = parl.max(par);
+    } else if fp < 0.0 {
+        *paru = paru.min(par);
+    }
+    parl.max(par + parc)
 }
 
 #[cfg(test)]

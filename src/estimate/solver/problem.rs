@@ -1,7 +1,7 @@
 //! What a solver needs from a least-squares problem ([`LeastSquares`]): its normal
 //! equations and cost at a point, and the argmin state the solvers share ([`LsState`]).
 
-use super::Gram;
+use super::{Gram, Root};
 use crate::error::{Error, Result};
 use argmin::core::IterState;
 use nalgebra::DVector;
@@ -86,6 +86,25 @@ pub trait LeastSquares {
         let _ = (p, q);
         Ok(None)
     }
+    /// The square root of the normal equations at `p` ([`Root`]: `√W J = Q R`, with
+    /// `RᵀR = JᵀWJ` and `Rᵀ qtf = JᵀWε` of [`normal_equations`](Self::normal_equations)
+    /// up to rounding), for the trust region's steps on J's QR factors, which keep J's
+    /// condition number where the normal equations square it (the `qrpar` module).
+    /// `Ok(None)`: the problem does not keep J (the default), and the trust region solves
+    /// the normal equations.
+    ///
+    /// # Errors
+    /// As [`normal_equations`](Self::normal_equations).
+    fn root(&self, p: &DVector<f64>) -> Result<Option<Root>> {
+        let _ = p;
+        Ok(None)
+    }
+    /// Whether [`root`](Self::root) gives a root wherever the model can be evaluated (the
+    /// problem keeps J); [`SolverKind::Auto`](super::run::SolverKind::Auto) then runs the
+    /// trust region. By default false.
+    fn keeps_root(&self) -> bool {
+        false
+    }
     /// Projects p onto the feasible box in place.
     fn project(&self, p: &mut DVector<f64>);
     /// Projects the trial point `p`, a step from the current point `from` (inside the
@@ -130,6 +149,12 @@ impl<T: LeastSquares + ?Sized> LeastSquares for &T {
     }
     fn directional_gradient(&self, p: &DVector<f64>, q: &DVector<f64>) -> Result<Option<DVector<f64>>> {
         (**self).directional_gradient(p, q)
+    }
+    fn root(&self, p: &DVector<f64>) -> Result<Option<Root>> {
+        (**self).root(p)
+    }
+    fn keeps_root(&self) -> bool {
+        (**self).keeps_root()
     }
     fn project(&self, p: &mut DVector<f64>) {
         (**self).project(p)

@@ -23,13 +23,18 @@
 //!   `xtol` as `Δ ≤ xtol ‖p‖_D`, `gtol` at every new point; Δ below `ε_mach ‖p‖_D`
 //!   ends the run as [`Termination::NoDescent`] (MINPACK's `info = 7`).
 //!
-//! MINPACK works on J's QR factors, this solver on JᵀWJ (a fit never keeps J), whose
-//! condition number is J's squared. Near a zero residual whose Jacobian is singular
-//! (Powell's singular function) the steps lose their accuracy once JᵀWJ is singular to
-//! working precision (‖ε‖ near 1e-17 there), and the run goes on to the iteration limit
-//! where MINPACK stops on `gtol = 0`; where a row of J is below `√ε_mach` of the others
-//! (Brown's almost-linear function at its start, n = 30), JᵀWJ has lost it, the first
-//! step ignores it, and the run can end at another stationary point than MINPACK's.
+//! Where the problem gives the square root of its normal equations
+//! ([`LeastSquares::root`], asked once per point taken), the steps are MINPACK's on J's QR
+//! factors (the `qrpar` module: column pivoting, `qrsolv`'s Givens rotations, the
+//! Gauss-Newton step of the leading nonsingular columns of a rank-deficient J) and the
+//! predicted reduction of a step that solved the damped system (no bound held, none hit) is
+//! MINPACK's `½‖Rδ‖² + λ‖δ‖²_D`, a sum of non-negative terms: `δᵀJᵀWε − ½δᵀJᵀWJδ` cancels to
+//! rounding noise where both terms are far above their difference (a plateau such as
+//! Brown's almost-linear function at S = 1), and the `ftol` test would pass on that noise.
+//! Otherwise the steps solve the normal equations (the `lmpar` module), whose condition
+//! number is J's squared: near a zero residual whose Jacobian is singular (Powell's singular
+//! function) the steps then lose their accuracy once JᵀWJ is singular to working precision,
+//! and a row of J below `√ε_mach` of the others is lost in JᵀWJ.
 //!
 //! Δ₀ = 100 `‖p₀‖_D` (100 at p₀ = 0), MINPACK's `factor`; D as in the `stopping` module.
 //! A trial whose cost passes 100 times the current one is abandoned there
@@ -39,8 +44,8 @@
 
 use super::LsState;
 use super::{
-    LeastSquares, Monitor, ReportsTermination, Termination, Tolerances, active, init_state, lmpar::lmpar,
-    missing, status, take_point, trial_normal_equations,
+    Gram, LeastSquares, Monitor, ReportsTermination, Root, Termination, Tolerances, active, init_state,
+    lmpar::lmpar, missing, qrpar::lmpar_qr, status, take_point, trial_normal_equations,
 };
 use argmin::core::{KV, Problem, Solver, State, TerminationStatus};
 use serde::{Deserialize, Serialize};
@@ -57,7 +62,8 @@ const MIN_RATIO: f64 = 1e-4;
 /// radius Δ (λ = 0 where the Gauss-Newton step lies inside it); Δ shrinks after a step
 /// whose gain ratio ρ is at most 0.25 and becomes `2‖δ‖_D` after one above 0.75; a step is
 /// taken where ρ ≥ 1e-4 and the cost fell. Stopping tests: [`Tolerances`] (MINPACK's
-/// `ftol`, `xtol` as `Δ ≤ xtol ‖p‖_D`, `gtol`). Works on JᵀWJ, not J's QR factors: see the
+/// `ftol`, `xtol` as `Δ ≤ xtol ‖p‖_D`, `gtol`). On J's QR factors where the problem gives
+/// them ([`LeastSquares::root`]), on JᵀWJ otherwise: see the
 /// crate's `docs/performance.md` for where that differs from MINPACK. Used by
 /// [`SolverKind::TrustRegion`](super::run::SolverKind::TrustRegion).
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -70,6 +76,14 @@ pub struct TrustRegion {
     /// `‖p‖_D` of the current point, with the scaling of when it was reached.
     xnorm: f64,
     monitor: Monitor,
+    /// The square root of the normal equations at the current point, where the problem
+    /// gives one ([`LeastSquares::root`]).
+    #[serde(skip)]
+    root: Option<Root>,
+    /// Whether `root` is of an earlier point (asked for lazily, at the next step).
+    root_stale: bool,
+    /// Whether the problem gave no root (asked no more).
+    rootless: bool,
     accepted: u64,
     termination: Option<Termination>,
 }
@@ -83,6 +97,9 @@ impl TrustRegion {
             lambda: 0.0,
             xnorm: 0.0,
             monitor: Monitor::default(),
+            root: None,
+            root_stale: true,
+            rootless: false,
             accepted: 0,
             termination: None,
         }
@@ -131,6 +148,7 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
         self.termination = t;
         self.xnorm = state.get_param().map_or(0.0, |p| self.monitor.norm(p));
         self.radius = if self.xnorm > 0.0 { FACTOR * self.xnorm } else { FACTOR };
+        (self.root, self.root_stale, self.rootless) = (None, true, false);
         Ok((state, Some(argmin::kv!("radius" => self.radius;))))
     }
 
@@ -141,11 +159,19 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
     ) -> Result<(LsState, Option<KV>), argmin::core::Error> {
         let (p, grad, jtj, cost) = take_point(&mut state, "trust-region")?;
         let jtr = -&grad;
+        if self.root_stale && !self.rootless {
+            self.root = root_at(problem, &p)?;
+            (self.root_stale, self.rootless) = (false, self.root.is_none());
+        }
 
         let (radius, lambda) = (self.radius, self.lambda);
         let mut found = lambda;
-        let step = active::held_step(problem, &p, &jtj, &jtr, self.monitor.diag(), |h, g, d| {
-            let (x, l) = lmpar(h, g, d, radius, lambda)?;
+        let root = self.root.as_ref().filter(|_| matches!(jtj, Gram::Dense(_)));
+        let step = active::held_step(problem, &p, &jtj, &jtr, self.monitor.diag(), |h, g, d, free| {
+            let (x, l) = match root {
+                Some(root) => lmpar_qr(&root.pivoted(free), &d.map(f64::sqrt), radius, lambda)?,
+                None => lmpar(h, g, d, radius, lambda)?,
+            };
             found = l;
             Some((x, l))
         })?;
@@ -156,17 +182,31 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
         };
         self.lambda = found;
         let mut trial = &p + &step;
+        let unprojected = trial.clone();
         problem.problem("project_count", |o| {
             o.project_trial(&p, &mut trial);
             Ok(())
         })?;
-        let step = &trial - &p;
-        let pnorm = self.monitor.norm(&step);
+        let projected = &trial - &p;
+        let pnorm = self.monitor.norm(&projected);
         if self.accepted == 0 {
             self.radius = self.radius.min(pnorm);
         }
-        let curvature = step.dot(&jtj.mul(&step));
-        let predicted = step.dot(&jtr) - 0.5 * curvature;
+        // The step solved the damped system on J's factors: its predicted reduction is
+        // MINPACK's sum of squares, free of the cancellation in δᵀJᵀWε − ½δᵀJᵀWJδ that
+        // leaves rounding noise where both are near the cost's rounding.
+        let exact = root.filter(|_| held == 0 && trial == unprojected);
+        let (curvature, predicted) = match exact {
+            Some(root) => {
+                let curvature = (&root.r * &step).norm_squared();
+                (curvature, 0.5 * curvature + self.lambda * pnorm * pnorm)
+            }
+            None => {
+                let curvature = projected.dot(&jtj.mul(&projected));
+                (curvature, projected.dot(&jtr) - 0.5 * curvature)
+            }
+        };
+        let step = projected;
         let last = self.monitor.likely_last(&self.tol, &step, &trial, predicted / cost);
         let eval = trial_normal_equations(problem, &trial, |o, p| match last {
             true => o.normal_equations_likely_last(p).map(Some),
@@ -190,6 +230,7 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
                 self.xnorm = self.monitor.norm(&trial);
                 self.monitor.observe(&ne.jtj);
                 self.monitor.accept_step(&step);
+                self.root_stale = true;
                 if ne.cost == 0.0 {
                     self.termination = Some(Termination::ZeroResidual);
                 } else if Monitor::gradient_converged(&self.tol, &ne.jtj, &ne.jtr, ne.cost) {
@@ -222,6 +263,19 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
     fn terminate(&mut self, _state: &LsState) -> TerminationStatus {
         status(self.termination.as_ref())
     }
+}
+
+/// The problem's [`Root`] at `p`, counted as `root_count`; `None` where it gives none or
+/// a non-finite one.
+///
+/// # Errors
+/// Those of [`LeastSquares::root`].
+fn root_at<O: LeastSquares>(
+    problem: &mut Problem<O>,
+    p: &nalgebra::DVector<f64>,
+) -> Result<Option<Root>, argmin::core::Error> {
+    let root = problem.problem("root_count", |o| Ok(o.root(p)?))?;
+    Ok(root.filter(Root::is_finite))
 }
 
 impl ReportsTermination for TrustRegion {

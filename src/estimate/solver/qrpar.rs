@@ -1,0 +1,317 @@
+//! The trust-region step on J's QR factors, as MINPACK takes it (`qrfac`, `lmpar`,
+//! `qrsolv`; Moré, "The Levenberg-Marquardt algorithm: implementation and theory",
+//! *Numerical Analysis*, LNM 630, 1978, sections 3, 5 and 7; Moré, Garbow & Hillstrom,
+//! *User guide for MINPACK-1*, ANL-80-74, 1980): where a problem gives the square root of
+//! its normal equations ([`Root`]), the damped systems are solved as least-squares problems
+//! `[J; √λ D^{1/2}] δ ≈ [ε; 0]` by Givens rotations of the triangular factor, with J's
+//! condition number instead of JᵀWJ's (its square), and a rank-deficient J gets MINPACK's
+//! Gauss-Newton step of the leading nonsingular columns (column pivoting by norm) instead of
+//! none. The iteration on λ is the normal-equation `lmpar`'s (the `lmpar` module).
+
+use super::lmpar::next_par;
+use nalgebra::{DMatrix, DVector};
+
+/// The square root of the normal equations at a point: `√W J = Q R` (thin QR; `J = ∂ŷ/∂p`
+/// in the solver's scaled coordinates, m × n), so `JᵀWJ = RᵀR` and `JᵀWε = Rᵀ qtf`.
+/// A problem gives it through [`LeastSquares::root`](super::LeastSquares::root).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Root {
+    /// `R`, n × n upper triangular (rows beyond m zero where m < n).
+    pub r: DMatrix<f64>,
+    /// `Qᵀ √W ε`, length n.
+    pub qtf: DVector<f64>,
+}
+
+impl Root {
+    /// The root of the weighted Jacobian `j = √W J` (m × n) and weighted residuals
+    /// `e = √W ε` (length m), by Householder QR (Golub & Van Loan, *Matrix Computations*,
+    /// 4th ed., 2013, algorithm 5.2.1). Errors: none; non-finite entries give a non-finite
+    /// root, which the solver treats as no root.
+    pub fn from_jacobian(j: DMatrix<f64>, e: &DVector<f64>) -> Self {
+        let (m, n) = j.shape();
+        let (j, mut b) = match m < n {
+            true => (j.resize_vertically(n, 0.0), e.clone().resize_vertically(n, 0.0)),
+            false => (j, e.clone()),
+        };
+        let qr = j.qr();
+        qr.q_tr_mul(&mut b);
+        Self { r: qr.r(), qtf: b.rows(0, n).into_owned() }
+    }
+
+    /// Whether every entry is finite.
+    pub fn is_finite(&self) -> bool {
+        self.r.iter().chain(self.qtf.iter()).all(|v| v.is_finite())
+    }
+
+    /// `R` restricted to the columns `free` (the parameters not held at a bound) and
+    /// factored again with column pivoting: the root of the reduced problem.
+    pub(super) fn pivoted(&self, free: &[usize]) -> Pivoted {
+        qrfac(self.r.select_columns(free), self.qtf.clone())
+    }
+}
+
+/// A column-pivoted triangular factor (MINPACK's `qrfac` with `pivot = true`): `A P = Q R`
+/// with `|R_00| ≥ |R_11| ≥ …`, and `Qᵀb` of the right-hand side.
+pub(super) struct Pivoted {
+    /// `R`, k × k upper triangular.
+    r: DMatrix<f64>,
+    /// Column j of `A P` is column `ipvt[j]` of A.
+    ipvt: Vec<usize>,
+    /// `Qᵀb`, length k.
+    qtb: DVector<f64>,
+}
+
+/// Householder QR of `a` (n × k, n ≥ k) with column pivoting by the norm of the columns'
+/// remaining parts (Businger & Golub 1965), applied to `b` (length n) as it goes.
+fn qrfac(mut a: DMatrix<f64>, mut b: DVector<f64>) -> Pivoted {
+    let (n, k) = a.shape();
+    let mut ipvt: Vec<usize> = (0..k).collect();
+    for j in 0..k.min(n) {
+        let norm = |a: &DMatrix<f64>, c: usize| a.view((j, c), (n - j, 1)).norm();
+        let pick = (j..k).fold(j, |best, c| if norm(&a, c) > norm(&a, best) { c } else { best });
+        a.swap_columns(j, pick);
+        ipvt.swap(j, pick);
+        let sigma = norm(&a, j);
+        if sigma == 0.0 {
+            continue;
+        }
+        let alpha = if a[(j, j)] > 0.0 { -sigma } else { sigma };
+        let mut v = a.view((j, j), (n - j, 1)).clone_owned();
+        v[0] -= alpha;
+        let vv = v.norm_squared();
+        for c in j..k {
+            let s = 2.0 * v.dot(&a.view((j, c), (n - j, 1))) / vv;
+            for i in j..n {
+                a[(i, c)] -= s * v[i - j];
+            }
+        }
+        let s = 2.0 * v.dot(&b.rows(j, n - j)) / vv;
+        for i in j..n {
+            b[i] -= s * v[i - j];
+        }
+        a[(j, j)] = alpha;
+        for i in j + 1..n {
+            a[(i, j)] = 0.0;
+        }
+    }
+    let r = a.rows(0, k).upper_triangle();
+    Pivoted { r, ipvt, qtb: b.rows(0, k).into_owned() }
+}
+
+/// MINPACK's `qrsolv`: with `s` the diagonal scaling (length k, `√λ D^{1/2}` in the
+/// pivoted problem's original column order), solves `[R Pᵀ; S] x ≈ [qtb; 0]` in the least-
+/// squares sense by Givens rotations. Returns x (original order) and the work matrix whose
+/// strict lower triangle holds the transposed new factor, with its diagonal `sdiag`.
+fn qrsolv(f: &Pivoted, s: &DVector<f64>) -> (DVector<f64>, DMatrix<f64>, DVector<f64>) {
+    let k = f.r.nrows();
+    let mut r = f.r.clone();
+    let mut wa = f.qtb.clone();
+    let mut sdiag = DVector::zeros(k);
+    for j in 0..k {
+        for i in j + 1..k {
+            r[(i, j)] = r[(j, i)];
+        }
+    }
+    for j in 0..k {
+        let l = f.ipvt[j];
+        if s[l] != 0.0 {
+            sdiag.rows_mut(j, k - j).fill(0.0);
+            sdiag[j] = s[l];
+            let mut qtbpj = 0.0;
+            for c in j..k {
+                if sdiag[c] == 0.0 {
+                    continue;
+                }
+                let (sin, cos) = if r[(c, c)].abs() < sdiag[c].abs() {
+                    let cotan = r[(c, c)] / sdiag[c];
+                    let sin = 0.5 / (0.25 + 0.25 * cotan * cotan).sqrt();
+                    (sin, sin * cotan)
+                } else {
+                    let tan = sdiag[c] / r[(c, c)];
+                    let cos = 0.5 / (0.25 + 0.25 * tan * tan).sqrt();
+                    (cos * tan, cos)
+                };
+                r[(c, c)] = cos * r[(c, c)] + sin * sdiag[c];
+                let t = cos * wa[c] + sin * qtbpj;
+                qtbpj = -sin * wa[c] + cos * qtbpj;
+                wa[c] = t;
+                for i in c + 1..k {
+                    let t = cos * r[(i, c)] + sin * sdiag[i];
+                    sdiag[i] = -sin * r[(i, c)] + cos * sdiag[i];
+                    r[(i, c)] = t;
+                }
+            }
+        }
+        sdiag[j] = r[(j, j)];
+        r[(j, j)] = f.r[(j, j)];
+    }
+    let x = triangular(&r, &sdiag, wa, true);
+    (unpivot(&f.ipvt, &x), r, sdiag)
+}
+
+/// Back substitution on `T z = w` with T's diagonal `diag` and its off-diagonal part in
+/// `r`'s strict lower triangle (`lower`, T = that transposed: upper) or upper triangle;
+/// the components from the first zero diagonal on are set to 0 (MINPACK's `nsing`).
+fn triangular(r: &DMatrix<f64>, diag: &DVector<f64>, mut w: DVector<f64>, lower: bool) -> DVector<f64> {
+    let k = diag.len();
+    let nsing = (0..k).find(|&j| diag[j] == 0.0).unwrap_or(k);
+    w.rows_mut(nsing, k - nsing).fill(0.0);
+    for j in (0..nsing).rev() {
+        let sum: f64 = (j + 1..nsing).map(|i| if lower { r[(i, j)] } else { r[(j, i)] } * w[i]).sum();
+        w[j] = (w[j] - sum) / diag[j];
+    }
+    w
+}
+
+/// x in the original column order from z in the pivoted one.
+fn unpivot(ipvt: &[usize], z: &DVector<f64>) -> DVector<f64> {
+    let mut x = DVector::zeros(z.len());
+    for (j, &l) in ipvt.iter().enumerate() {
+        x[l] = z[j];
+    }
+    x
+}
+
+/// `‖diag · x‖`.
+fn scaled_norm(diag: &DVector<f64>, x: &DVector<f64>) -> f64 {
+    x.component_mul(diag).norm()
+}
+
+/// `y = T⁻ᵀ z` by forward substitution on the lower-stored factor (MINPACK's correction
+/// step): `z` in pivoted order, T's transpose in `r`'s strict lower triangle, diagonal `diag`.
+fn forward(r: &DMatrix<f64>, diag: &DVector<f64>, mut z: DVector<f64>) -> DVector<f64> {
+    let k = z.len();
+    for j in 0..k {
+        z[j] /= diag[j];
+        let t = z[j];
+        for i in j + 1..k {
+            z[i] -= r[(i, j)] * t;
+        }
+    }
+    z
+}
+
+/// MINPACK's `lmpar` on a pivoted factor: the step `x` (original column order, length k)
+/// whose scaled length `‖diag · x‖` is within 10 % of the radius `delta` (> 0), or the
+/// Gauss-Newton step where it lies inside 1.1 `delta`, and its λ, starting from `par`
+/// (≥ 0). `diag` (length k, all > 0) is MINPACK's scaling, the square root of the normal-
+/// equation solvers' `D`. `None` where a step is not finite.
+pub(super) fn lmpar_qr(
+    f: &Pivoted,
+    diag: &DVector<f64>,
+    delta: f64,
+    par: f64,
+) -> Option<(DVector<f64>, f64)> {
+    let k = f.r.ncols();
+    let dwarf = f64::MIN_POSITIVE;
+    let rdiag = f.r.diagonal();
+    let gn = unpivot(&f.ipvt, &triangular(&f.r, &rdiag, f.qtb.clone(), false));
+    let nsing = (0..k).find(|&j| rdiag[j] == 0.0).unwrap_or(k);
+    let mut dxnorm = scaled_norm(diag, &gn);
+    let mut fp = dxnorm - delta;
+    if !fp.is_finite() {
+        return None;
+    }
+    if fp <= 0.1 * delta {
+        return Some((gn, 0.0));
+    }
+    // The pivoted `diag² x / ‖diag x‖`, whose T⁻ᵀ-image gives φ'(λ).
+    let gradient_of = |x: &DVector<f64>, dxnorm: f64| {
+        DVector::from_fn(k, |j, _| {
+            let l = f.ipvt[j];
+            diag[l] * (diag[l] * x[l] / dxnorm)
+        })
+    };
+    let mut parl = 0.0;
+    if nsing == k {
+        let mut w = gradient_of(&gn, dxnorm);
+        for j in 0..k {
+            let sum: f64 = (0..j).map(|i| f.r[(i, j)] * w[i]).sum();
+            w[j] = (w[j] - sum) / f.r[(j, j)];
+        }
+        let t = w.norm();
+        parl = ((fp / delta) / t) / t;
+    }
+    let g =
+        DVector::from_fn(k, |j, _| (0..=j).map(|i| f.r[(i, j)] * f.qtb[i]).sum::<f64>() / diag[f.ipvt[j]]);
+    let gnorm = g.norm();
+    let mut paru = gnorm / delta;
+    if paru == 0.0 {
+        paru = dwarf / delta.min(0.1);
+    }
+    let mut par = par.max(parl).min(paru);
+    if par == 0.0 {
+        par = gnorm / dxnorm;
+    }
+    for iteration in 1..=10 {
+        if par == 0.0 {
+            par = dwarf.max(1e-3 * paru);
+        }
+        let (x, r, sdiag) = qrsolv(f, &(diag * par.sqrt()));
+        dxnorm = scaled_norm(diag, &x);
+        let previous = fp;
+        fp = dxnorm - delta;
+        if !fp.is_finite() {
+            return None;
+        }
+        if fp.abs() <= 0.1 * delta || (parl == 0.0 && fp <= previous && previous < 0.0) || iteration == 10 {
+            return Some((x, par));
+        }
+        let t = forward(&r, &sdiag, gradient_of(&x, dxnorm)).norm();
+        par = next_par(par, ((fp / delta) / t) / t, fp, &mut parl, &mut paru);
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn jacobian() -> (DMatrix<f64>, DVector<f64>) {
+        let j = DMatrix::from_row_slice(4, 3, &[1.0, 2.0, 0.5, 0.0, 1.0, 3.0, 2.0, -1.0, 1.0, 1.0, 1.0, 1.0]);
+        (j, DVector::from_vec(vec![1.0, -2.0, 0.5, 3.0]))
+    }
+
+    #[test]
+    fn the_root_squares_to_the_normal_equations() {
+        let (j, e) = jacobian();
+        let root = Root::from_jacobian(j.clone(), &e);
+        assert!((root.r.tr_mul(&root.r) - j.tr_mul(&j)).amax() <= 1e-13);
+        assert!((root.r.tr_mul(&root.qtf) - j.tr_mul(&e)).amax() <= 1e-13);
+        let piv = root.pivoted(&[0, 2]);
+        let a = root.r.select_columns(&[0, 2]);
+        let ap = a.select_columns(&piv.ipvt);
+        assert!((piv.r.tr_mul(&piv.r) - ap.tr_mul(&ap)).amax() <= 1e-13);
+        assert!(piv.r[(0, 0)].abs() >= piv.r[(1, 1)].abs());
+    }
+
+    #[test]
+    fn the_damped_step_solves_the_damped_normal_equations() {
+        let (j, e) = jacobian();
+        let piv = Root::from_jacobian(j.clone(), &e).pivoted(&[0, 1, 2]);
+        let diag = DVector::from_vec(vec![2.0, 0.5, 1.5]);
+        let gn = j.clone().svd(true, true).solve(&e, 0.0).expect("full rank");
+        let (x, par) = lmpar_qr(&piv, &diag, 1e3, 0.0).expect("finite");
+        assert_eq!(par, 0.0);
+        assert!((&x - gn).amax() <= 1e-12);
+        let delta = 0.1;
+        let (x, par) = lmpar_qr(&piv, &diag, delta, 0.0).expect("finite");
+        assert!(par > 0.0 && (scaled_norm(&diag, &x) - delta).abs() <= 0.1 * delta);
+        let d2 = DMatrix::from_diagonal(&diag.component_mul(&diag));
+        let back = (j.tr_mul(&j) + d2 * par).cholesky().expect("positive definite").solve(&j.tr_mul(&e));
+        assert!((back - &x).amax() <= 1e-12 * x.amax());
+    }
+
+    #[test]
+    fn a_rank_deficient_jacobian_gets_a_gauss_newton_step() {
+        // A column of zeros: JᵀJ is singular, R's last pivot exactly 0.
+        let j = DMatrix::from_row_slice(3, 3, &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 1.0]);
+        let e = DVector::from_vec(vec![1.0, 2.0, 4.0]);
+        let piv = Root::from_jacobian(j.clone(), &e).pivoted(&[0, 1, 2]);
+        let (x, par) = lmpar_qr(&piv, &DVector::from_element(3, 1.0), 1e3, 0.0).expect("finite");
+        assert_eq!(par, 0.0);
+        assert_eq!(x[1], 0.0);
+        // The least-squares solution: the residual is orthogonal to J's columns.
+        assert!(j.tr_mul(&(&j * &x - &e)).amax() <= 1e-12, "{x}");
+    }
+}
