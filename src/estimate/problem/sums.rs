@@ -66,8 +66,9 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
     }
 
     /// Weighted residuals `√w ε` stacked `[e][k][i]` and the Jacobian `√w ∂ŷ/∂p`
-    /// (`N_total n_y × n_free`): the full matrices, for tests and diagnostics only
-    /// (quadratic-loss view; the default path never forms them).
+    /// (`N_total n_y × n_free`): the full matrices (quadratic-loss view), for tests,
+    /// diagnostics and the [`root`](Self::root) of a problem that keeps J; the normal
+    /// equations never form them.
     ///
     /// # Errors
     /// As [`normal_equations`](Self::normal_equations).
@@ -100,18 +101,19 @@ impl<M: GreyBoxModel> PemProblem<'_, M> {
             return Ok(None);
         }
         let (e, j) = self.residuals_and_jacobian(p)?;
-        Ok(Some(Root::from_jacobian(j, &e)))
+        Root::from_jacobian(j, &e).map(Some)
     }
 
     /// Whether the problem keeps its Jacobian for [`root`](Self::root): a static model (no
     /// state: a dynamic model's record is long, and J would cost a pass per point), the
     /// quadratic loss, a dense `JᵀWJ`, and at most [`ROOT_MAX_ENTRIES`] numbers in J.
     pub fn keeps_root(&self) -> bool {
+        if self.model.n_states() > 0 || self.layout.is_some() || !matches!(self.loss, Loss::Quadratic) {
+            return false;
+        }
         let ny = self.model.n_outputs();
-        let rows: usize =
-            (0..self.terms.len()).map(|e| ny * (self.terms[e].prep.n - self.first_sample(e))).sum();
-        let small = rows.saturating_mul(self.free.len()) <= ROOT_MAX_ENTRIES;
-        small && self.model.n_states() == 0 && self.layout.is_none() && matches!(self.loss, Loss::Quadratic)
+        let rows: usize = self.terms.iter().map(|t| ny * t.prep.n).sum();
+        rows.saturating_mul(self.free.len()) <= ROOT_MAX_ENTRIES
     }
 
     /// Sums for the statistics of a fit at p (one pass per experiment).

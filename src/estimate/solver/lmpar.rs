@@ -4,12 +4,14 @@
 //! λ ≥ 0 whose step `δ(λ) = (JᵀWJ + λ D)⁻¹ JᵀWε` has `‖δ‖_D` within 10 % of Δ, or λ = 0
 //! where the Gauss-Newton step lies inside 1.1 Δ.
 //!
-//! MINPACK works on the QR factors of J; here J is not kept (a fit's JᵀWJ is a sum over
-//! the record), so each trial λ is a Cholesky solve of `JᵀWJ + λ D` and the derivative of
+//! MINPACK works on the QR factors of J (as the `qrpar` module does where the problem
+//! keeps J); here J is not kept (a dynamic fit's JᵀWJ is a sum over the record), so each
+//! trial λ is a Cholesky solve of `JᵀWJ + λ D` and the derivative of
 //! `φ(λ) = ‖δ(λ)‖_D − Δ` is `φ' = −wᵀ(JᵀWJ + λ D)⁻¹w / ‖δ‖_D`, `w = D δ` (`D` the squared
 //! scaling of [`super::Monitor`]): the same iteration in exact arithmetic, with JᵀWJ's
 //! condition number where MINPACK has J's. A singular JᵀWJ has no Gauss-Newton step here
-//! (MINPACK takes the minimum-norm one): λ starts above 0 instead.
+//! (MINPACK takes the basic solution of the leading nonsingular columns of J's pivoted
+//! factor): λ starts above 0 instead.
 
 use super::Gram;
 use nalgebra::DVector;

@@ -9,6 +9,7 @@
 //! none. The iteration on λ is the normal-equation `lmpar`'s (the `lmpar` module).
 
 use super::lmpar::next_par;
+use crate::error::{Error, Result};
 use nalgebra::{DMatrix, DVector};
 
 /// The square root of the normal equations at a point: `√W J = Q R` (thin QR; `J = ∂ŷ/∂p`
@@ -25,17 +26,39 @@ pub struct Root {
 impl Root {
     /// The root of the weighted Jacobian `j = √W J` (m × n) and weighted residuals
     /// `e = √W ε` (length m), by Householder QR (Golub & Van Loan, *Matrix Computations*,
-    /// 4th ed., 2013, algorithm 5.2.1). Errors: none; non-finite entries give a non-finite
-    /// root, which the solver treats as no root.
-    pub fn from_jacobian(j: DMatrix<f64>, e: &DVector<f64>) -> Self {
+    /// 4th ed., 2013, algorithm 5.2.1). Non-finite entries give a non-finite root, with
+    /// which the solver takes that point's step on the normal equations.
+    ///
+    /// # Errors
+    /// [`Error::Solver`] when `e`'s length is not j's number of rows.
+    pub fn from_jacobian(j: DMatrix<f64>, e: &DVector<f64>) -> Result<Self> {
         let (m, n) = j.shape();
+        if e.len() != m {
+            return Err(Error::Solver(format!("a root of a {m} × {n} Jacobian with {} residuals", e.len())));
+        }
         let (j, mut b) = match m < n {
             true => (j.resize_vertically(n, 0.0), e.clone().resize_vertically(n, 0.0)),
             false => (j, e.clone()),
         };
         let qr = j.qr();
         qr.q_tr_mul(&mut b);
-        Self { r: qr.r(), qtf: b.rows(0, n).into_owned() }
+        Ok(Self { r: qr.r(), qtf: b.rows(0, n).into_owned() })
+    }
+
+    /// Checks the shapes against the n parameters of the problem: R n × n, `qtf` of length n.
+    ///
+    /// # Errors
+    /// [`Error::Solver`] naming the shapes found.
+    pub fn check(&self, n: usize) -> Result<()> {
+        if self.r.shape() != (n, n) || self.qtf.len() != n {
+            let (rows, cols) = self.r.shape();
+            let len = self.qtf.len();
+            return Err(Error::Solver(format!(
+                "a root with R {rows} × {cols} and Qᵀε of length {len} for {n} parameters: LeastSquares::root must \
+                 give R n × n and Qᵀε of length n"
+            )));
+        }
+        Ok(())
     }
 
     /// Whether every entry is finite.
@@ -145,19 +168,20 @@ fn qrsolv(f: &Pivoted, s: &DVector<f64>) -> (DVector<f64>, DMatrix<f64>, DVector
         sdiag[j] = r[(j, j)];
         r[(j, j)] = f.r[(j, j)];
     }
-    let x = triangular(&r, &sdiag, wa, true);
+    // The new factor is stored transposed in r's strict lower triangle.
+    let x = triangular(&sdiag, wa, |j, i| r[(i, j)]);
     (unpivot(&f.ipvt, &x), r, sdiag)
 }
 
-/// Back substitution on `T z = w` with T's diagonal `diag` and its off-diagonal part in
-/// `r`'s strict lower triangle (`lower`, T = that transposed: upper) or upper triangle;
-/// the components from the first zero diagonal on are set to 0 (MINPACK's `nsing`).
-fn triangular(r: &DMatrix<f64>, diag: &DVector<f64>, mut w: DVector<f64>, lower: bool) -> DVector<f64> {
+/// Back substitution on `T z = w` for an upper triangular T of diagonal `diag` whose entry
+/// in row j, column i > j is `above(j, i)`; the components from the first zero diagonal on
+/// are set to 0 (MINPACK's `nsing`: the basic solution of the leading nonsingular columns).
+fn triangular(diag: &DVector<f64>, mut w: DVector<f64>, above: impl Fn(usize, usize) -> f64) -> DVector<f64> {
     let k = diag.len();
     let nsing = (0..k).find(|&j| diag[j] == 0.0).unwrap_or(k);
     w.rows_mut(nsing, k - nsing).fill(0.0);
     for j in (0..nsing).rev() {
-        let sum: f64 = (j + 1..nsing).map(|i| if lower { r[(i, j)] } else { r[(j, i)] } * w[i]).sum();
+        let sum: f64 = (j + 1..nsing).map(|i| above(j, i) * w[i]).sum();
         w[j] = (w[j] - sum) / diag[j];
     }
     w
@@ -195,7 +219,9 @@ fn forward(r: &DMatrix<f64>, diag: &DVector<f64>, mut z: DVector<f64>) -> DVecto
 /// whose scaled length `‖diag · x‖` is within 10 % of the radius `delta` (> 0), or the
 /// Gauss-Newton step where it lies inside 1.1 `delta`, and its λ, starting from `par`
 /// (≥ 0). `diag` (length k, all > 0) is MINPACK's scaling, the square root of the normal-
-/// equation solvers' `D`. `None` where a step is not finite.
+/// equation solvers' `D`. A Gauss-Newton step that is not finite (R singular to working
+/// precision) is passed over for λ > 0, as the normal-equation `lmpar` does; `None` where
+/// no damped step is finite.
 pub(super) fn lmpar_qr(
     f: &Pivoted,
     diag: &DVector<f64>,
@@ -205,32 +231,33 @@ pub(super) fn lmpar_qr(
     let k = f.r.ncols();
     let dwarf = f64::MIN_POSITIVE;
     let rdiag = f.r.diagonal();
-    let gn = unpivot(&f.ipvt, &triangular(&f.r, &rdiag, f.qtb.clone(), false));
+    let gn = unpivot(&f.ipvt, &triangular(&rdiag, f.qtb.clone(), |j, i| f.r[(j, i)]));
     let nsing = (0..k).find(|&j| rdiag[j] == 0.0).unwrap_or(k);
     let mut dxnorm = scaled_norm(diag, &gn);
     let mut fp = dxnorm - delta;
-    if !fp.is_finite() {
-        return None;
-    }
-    if fp <= 0.1 * delta {
+    let finite = fp.is_finite();
+    if finite && fp <= 0.1 * delta {
         return Some((gn, 0.0));
     }
     // The pivoted `diag² x / ‖diag x‖`, whose T⁻ᵀ-image gives φ'(λ).
-    let gradient_of = |x: &DVector<f64>, dxnorm: f64| {
+    let scaled_direction = |x: &DVector<f64>, dxnorm: f64| {
         DVector::from_fn(k, |j, _| {
             let l = f.ipvt[j];
             diag[l] * (diag[l] * x[l] / dxnorm)
         })
     };
+    if !finite {
+        fp = f64::INFINITY;
+    }
+    // Lower bound: the Newton step on φ from λ = 0, where R is nonsingular (Rᵀw = the
+    // scaled direction by forward substitution).
     let mut parl = 0.0;
-    if nsing == k {
-        let mut w = gradient_of(&gn, dxnorm);
-        for j in 0..k {
-            let sum: f64 = (0..j).map(|i| f.r[(i, j)] * w[i]).sum();
-            w[j] = (w[j] - sum) / f.r[(j, j)];
+    if nsing == k && finite {
+        let t = f.r.tr_solve_upper_triangular(&scaled_direction(&gn, dxnorm)).map_or(f64::NAN, |w| w.norm());
+        let bound = ((fp / delta) / t) / t;
+        if bound.is_finite() {
+            parl = bound;
         }
-        let t = w.norm();
-        parl = ((fp / delta) / t) / t;
     }
     let g =
         DVector::from_fn(k, |j, _| (0..=j).map(|i| f.r[(i, j)] * f.qtb[i]).sum::<f64>() / diag[f.ipvt[j]]);
@@ -240,7 +267,7 @@ pub(super) fn lmpar_qr(
         paru = dwarf / delta.min(0.1);
     }
     let mut par = par.max(parl).min(paru);
-    if par == 0.0 {
+    if par == 0.0 && finite {
         par = gnorm / dxnorm;
     }
     for iteration in 1..=10 {
@@ -257,7 +284,10 @@ pub(super) fn lmpar_qr(
         if fp.abs() <= 0.1 * delta || (parl == 0.0 && fp <= previous && previous < 0.0) || iteration == 10 {
             return Some((x, par));
         }
-        let t = forward(&r, &sdiag, gradient_of(&x, dxnorm)).norm();
+        let t = forward(&r, &sdiag, scaled_direction(&x, dxnorm)).norm();
+        if !(t.is_finite() && t > 0.0) {
+            return Some((x, par));
+        }
         par = next_par(par, ((fp / delta) / t) / t, fp, &mut parl, &mut paru);
     }
     None
@@ -275,7 +305,7 @@ mod tests {
     #[test]
     fn the_root_squares_to_the_normal_equations() {
         let (j, e) = jacobian();
-        let root = Root::from_jacobian(j.clone(), &e);
+        let root = Root::from_jacobian(j.clone(), &e).expect("shapes agree");
         assert!((root.r.tr_mul(&root.r) - j.tr_mul(&j)).amax() <= 1e-13);
         assert!((root.r.tr_mul(&root.qtf) - j.tr_mul(&e)).amax() <= 1e-13);
         let piv = root.pivoted(&[0, 2]);
@@ -288,7 +318,7 @@ mod tests {
     #[test]
     fn the_damped_step_solves_the_damped_normal_equations() {
         let (j, e) = jacobian();
-        let piv = Root::from_jacobian(j.clone(), &e).pivoted(&[0, 1, 2]);
+        let piv = Root::from_jacobian(j.clone(), &e).expect("shapes agree").pivoted(&[0, 1, 2]);
         let diag = DVector::from_vec(vec![2.0, 0.5, 1.5]);
         let gn = j.clone().svd(true, true).solve(&e, 0.0).expect("full rank");
         let (x, par) = lmpar_qr(&piv, &diag, 1e3, 0.0).expect("finite");
@@ -307,11 +337,40 @@ mod tests {
         // A column of zeros: JᵀJ is singular, R's last pivot exactly 0.
         let j = DMatrix::from_row_slice(3, 3, &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 1.0]);
         let e = DVector::from_vec(vec![1.0, 2.0, 4.0]);
-        let piv = Root::from_jacobian(j.clone(), &e).pivoted(&[0, 1, 2]);
+        let piv = Root::from_jacobian(j.clone(), &e).expect("shapes agree").pivoted(&[0, 1, 2]);
         let (x, par) = lmpar_qr(&piv, &DVector::from_element(3, 1.0), 1e3, 0.0).expect("finite");
         assert_eq!(par, 0.0);
         assert_eq!(x[1], 0.0);
         // The least-squares solution: the residual is orthogonal to J's columns.
         assert!(j.tr_mul(&(&j * &x - &e)).amax() <= 1e-12, "{x}");
+    }
+
+    #[test]
+    fn a_short_jacobian_is_padded_and_a_held_column_left_out() {
+        // m = 2 < n = 3: R has a zero last row; JᵀJ is singular.
+        let j = DMatrix::from_row_slice(2, 3, &[1.0, 2.0, 0.0, 0.5, -1.0, 3.0]);
+        let e = DVector::from_vec(vec![1.0, 2.0]);
+        let root = Root::from_jacobian(j.clone(), &e).expect("shapes agree");
+        assert_eq!(root.r.shape(), (3, 3));
+        assert!((root.r.tr_mul(&root.r) - j.tr_mul(&j)).amax() <= 1e-13);
+        assert!((root.r.tr_mul(&root.qtf) - j.tr_mul(&e)).amax() <= 1e-13);
+        // Column 1 held: the step of the other two solves the reduced damped system.
+        let free = [0, 2];
+        let diag = DVector::from_vec(vec![1.5, 0.5]);
+        let (x, par) = lmpar_qr(&root.pivoted(&free), &diag, 0.05, 0.0).expect("finite");
+        let jr = j.select_columns(&free);
+        let d2 = DMatrix::from_diagonal(&diag.component_mul(&diag));
+        let back = (jr.tr_mul(&jr) + d2 * par).cholesky().expect("positive definite").solve(&jr.tr_mul(&e));
+        assert!(par > 0.0 && (back - &x).amax() <= 1e-12 * x.amax(), "{x}");
+    }
+
+    #[test]
+    fn a_root_of_the_wrong_shape_is_an_error() {
+        let (j, e) = jacobian();
+        assert!(Root::from_jacobian(j.clone(), &e.rows(0, 3).into_owned()).is_err());
+        let root = Root::from_jacobian(j, &e).expect("shapes agree");
+        assert!(root.check(3).is_ok());
+        let err = root.check(4).expect_err("3 × 3 for 4 parameters").to_string();
+        assert!(err.contains("4 parameters"), "{err}");
     }
 }

@@ -80,8 +80,9 @@ pub struct TrustRegion {
     /// gives one ([`LeastSquares::root`]).
     #[serde(skip)]
     root: Option<Root>,
-    /// Whether `root` is of an earlier point (asked for lazily, at the next step).
-    root_stale: bool,
+    /// Whether `root` is the current point's (false: ask at the next step).
+    #[serde(skip)]
+    root_current: bool,
     /// Whether the problem gave no root (asked no more).
     rootless: bool,
     accepted: u64,
@@ -98,7 +99,7 @@ impl TrustRegion {
             xnorm: 0.0,
             monitor: Monitor::default(),
             root: None,
-            root_stale: true,
+            root_current: false,
             rootless: false,
             accepted: 0,
             termination: None,
@@ -148,7 +149,7 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
         self.termination = t;
         self.xnorm = state.get_param().map_or(0.0, |p| self.monitor.norm(p));
         self.radius = if self.xnorm > 0.0 { FACTOR * self.xnorm } else { FACTOR };
-        (self.root, self.root_stale, self.rootless) = (None, true, false);
+        (self.root, self.root_current, self.rootless) = (None, false, false);
         Ok((state, Some(argmin::kv!("radius" => self.radius;))))
     }
 
@@ -159,9 +160,12 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
     ) -> Result<(LsState, Option<KV>), argmin::core::Error> {
         let (p, grad, jtj, cost) = take_point(&mut state, "trust-region")?;
         let jtr = -&grad;
-        if self.root_stale && !self.rootless {
-            self.root = root_at(problem, &p)?;
-            (self.root_stale, self.rootless) = (false, self.root.is_none());
+        if !self.root_current && !self.rootless {
+            let root = root_at(problem, &p)?;
+            self.rootless = root.is_none();
+            // A non-finite root: this point's step on the normal equations.
+            self.root = root.filter(Root::is_finite);
+            self.root_current = true;
         }
 
         let (radius, lambda) = (self.radius, self.lambda);
@@ -176,7 +180,7 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
             Some((x, l))
         })?;
         let Some(active::HeldStep { delta: step, held, .. }) = step else {
-            // No damped system can be solved: JᵀWJ is not finite.
+            // No damped step is finite: JᵀWJ (or J's factors) not finite.
             self.termination = Some(Termination::NoDescent);
             return Ok((state.param(p).cost(cost).gradient(grad).hessian(jtj), None));
         };
@@ -198,8 +202,8 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
         let exact = root.filter(|_| held == 0 && trial == unprojected);
         let (curvature, predicted) = match exact {
             Some(root) => {
-                let curvature = (&root.r * &step).norm_squared();
-                (curvature, 0.5 * curvature + self.lambda * pnorm * pnorm)
+                let (curvature, norm) = ((&root.r * &step).norm_squared(), self.monitor.norm(&step));
+                (curvature, 0.5 * curvature + self.lambda * norm * norm)
             }
             None => {
                 let curvature = projected.dot(&jtj.mul(&projected));
@@ -230,7 +234,7 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
                 self.xnorm = self.monitor.norm(&trial);
                 self.monitor.observe(&ne.jtj);
                 self.monitor.accept_step(&step);
-                self.root_stale = true;
+                self.root_current = false;
                 if ne.cost == 0.0 {
                     self.termination = Some(Termination::ZeroResidual);
                 } else if Monitor::gradient_converged(&self.tol, &ne.jtj, &ne.jtr, ne.cost) {
@@ -265,17 +269,20 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
     }
 }
 
-/// The problem's [`Root`] at `p`, counted as `root_count`; `None` where it gives none or
-/// a non-finite one.
+/// The problem's [`Root`] at `p`, counted as `root_count`; `None` where it gives none.
 ///
 /// # Errors
-/// Those of [`LeastSquares::root`].
+/// Those of [`LeastSquares::root`]; [`crate::Error::Solver`] for a root whose shapes are
+/// not those of p's n parameters ([`Root::check`]).
 fn root_at<O: LeastSquares>(
     problem: &mut Problem<O>,
     p: &nalgebra::DVector<f64>,
 ) -> Result<Option<Root>, argmin::core::Error> {
     let root = problem.problem("root_count", |o| Ok(o.root(p)?))?;
-    Ok(root.filter(Root::is_finite))
+    if let Some(root) = &root {
+        root.check(p.len())?;
+    }
+    Ok(root)
 }
 
 impl ReportsTermination for TrustRegion {
