@@ -1,7 +1,7 @@
 //! `greybox`: fit PMSM parameters to drive logs from the command line.
 //!
 //! ```text
-//! greybox fit LOG... --pole-pairs N [--model spm|ipm] [--hold auto|dq|stator] [--solver lm|gn|trust-region] [--json PATH]
+//! greybox fit LOG... --pole-pairs N [--model spm|ipm] [--hold auto|dq|stator] [--solver auto|lm|gn|trust-region] [--json PATH]
 //! greybox fit --each DIR_OR_GLOB --pole-pairs N [fit flags] [--summary PATH] [--trend PATH.svg]
 //! greybox validate LOG... --params REPORT.json [--json PATH] [--compare-dir DIR]
 //! greybox track LOG... --pole-pairs N (--l-s H | --params REPORT.json) [--json PATH] [--max-points M]

@@ -17,7 +17,7 @@ use super::Gram;
 use nalgebra::DVector;
 
 /// At most this many λ iterations per call (MINPACK's 10).
-const MAX_ITERATIONS: usize = 10;
+pub(super) const MAX_ITERATIONS: usize = 10;
 
 /// The step of trust radius `delta` (> 0) at the normal equations `jtj δ = jtr` (n × n and
 /// n; `jtr = JᵀWε`, the steepest-descent direction), damping diagonal `d` (length n, all
@@ -53,10 +53,7 @@ pub(super) fn lmpar(
     }
     // Upper bound: ‖D^{-1/2} JᵀWε‖ / Δ.
     let gnorm = jtr.iter().zip(d.iter()).map(|(g, d)| g * g / d).sum::<f64>().sqrt();
-    let mut paru = gnorm / delta;
-    if paru == 0.0 {
-        paru = f64::MIN_POSITIVE / delta.min(0.1);
-    }
+    let mut paru = upper_bound(gnorm, delta);
     let mut par = par.max(parl).min(paru);
     if par == 0.0 && dxnorm_gn.is_finite() {
         par = gnorm / dxnorm_gn;
@@ -75,9 +72,7 @@ pub(super) fn lmpar(
         let dxnorm = norm(&x);
         let previous = fp;
         fp = dxnorm - delta;
-        let done = fp.abs() <= 0.1 * delta
-            || (parl == 0.0 && fp <= previous && previous < 0.0)
-            || iteration == MAX_ITERATIONS;
+        let done = met(fp, previous, parl, delta, iteration);
         let Some(t) = (!done).then(|| curvature(&x, dxnorm, par)).flatten() else {
             return Some((x, par));
         };
@@ -85,6 +80,22 @@ pub(super) fn lmpar(
         par = next_par(par, (fp / delta) / t, fp, &mut parl, &mut paru);
     }
     best
+}
+
+/// MINPACK's upper bound on λ, `‖D^{-1/2} JᵀWε‖ / Δ` from `gnorm` and the radius `delta`,
+/// or the smallest positive number over `min(Δ, 0.1)` where that is 0.
+pub(super) fn upper_bound(gnorm: f64, delta: f64) -> f64 {
+    let paru = gnorm / delta;
+    if paru == 0.0 { f64::MIN_POSITIVE / delta.min(0.1) } else { paru }
+}
+
+/// MINPACK's end of the λ iteration after `iteration` steps (1-based): `φ = fp` within
+/// 10 % of the radius `delta`, φ negative and falling from `previous` with no lower bound
+/// (`parl = 0`: the step is inside the region and λ = 0 is near), or the last iteration.
+pub(super) fn met(fp: f64, previous: f64, parl: f64, delta: f64, iteration: usize) -> bool {
+    fp.abs() <= 0.1 * delta
+        || (parl == 0.0 && fp <= previous && previous < 0.0)
+        || iteration == MAX_ITERATIONS
 }
 
 /// MINPACK's λ update: the bracket `[parl, paru]` narrowed by the sign of `φ(λ) = fp`, and

@@ -8,7 +8,7 @@
 //! Gauss-Newton step of the leading nonsingular columns (column pivoting by norm) instead of
 //! none. The iteration on λ is the normal-equation `lmpar`'s (the `lmpar` module).
 
-use super::lmpar::next_par;
+use super::lmpar::{MAX_ITERATIONS, met, next_par, upper_bound};
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, DVector};
 
@@ -90,11 +90,12 @@ fn qrfac(mut a: DMatrix<f64>, mut b: DVector<f64>) -> Pivoted {
     let (n, k) = a.shape();
     let mut ipvt: Vec<usize> = (0..k).collect();
     for j in 0..k.min(n) {
-        let norm = |a: &DMatrix<f64>, c: usize| a.view((j, c), (n - j, 1)).norm();
-        let pick = (j..k).fold(j, |best, c| if norm(&a, c) > norm(&a, best) { c } else { best });
-        a.swap_columns(j, pick);
-        ipvt.swap(j, pick);
-        let sigma = norm(&a, j);
+        // The remaining columns' norms, each once; the first of the largest is the pivot.
+        let norms: Vec<f64> = (j..k).map(|c| a.view((j, c), (n - j, 1)).norm()).collect();
+        let pick = (1..norms.len()).fold(0, |best, c| if norms[c] > norms[best] { c } else { best });
+        a.swap_columns(j, j + pick);
+        ipvt.swap(j, j + pick);
+        let sigma = norms[pick];
         if sigma == 0.0 {
             continue;
         }
@@ -262,15 +263,12 @@ pub(super) fn lmpar_qr(
     let g =
         DVector::from_fn(k, |j, _| (0..=j).map(|i| f.r[(i, j)] * f.qtb[i]).sum::<f64>() / diag[f.ipvt[j]]);
     let gnorm = g.norm();
-    let mut paru = gnorm / delta;
-    if paru == 0.0 {
-        paru = dwarf / delta.min(0.1);
-    }
+    let mut paru = upper_bound(gnorm, delta);
     let mut par = par.max(parl).min(paru);
     if par == 0.0 && finite {
         par = gnorm / dxnorm;
     }
-    for iteration in 1..=10 {
+    for iteration in 1..=MAX_ITERATIONS {
         if par == 0.0 {
             par = dwarf.max(1e-3 * paru);
         }
@@ -281,7 +279,7 @@ pub(super) fn lmpar_qr(
         if !fp.is_finite() {
             return None;
         }
-        if fp.abs() <= 0.1 * delta || (parl == 0.0 && fp <= previous && previous < 0.0) || iteration == 10 {
+        if met(fp, previous, parl, delta, iteration) {
             return Some((x, par));
         }
         let t = forward(&r, &sdiag, scaled_direction(&x, dxnorm)).norm();
