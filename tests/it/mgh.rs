@@ -504,7 +504,7 @@ fn geodesic_acceleration_shortens_runs_along_curved_valleys() {
 /// Levenberg-Marquardt with MINPACK's trust region (`SolverKind::TrustRegion`, on J's QR
 /// factors: the problem gives its root) on the MGH set: MINPACK's sums of squares (four
 /// exceptions fewer than Levenberg-Marquardt's list), and MINPACK's evaluation count or
-/// fewer on all but four cases.
+/// fewer on all but one case.
 #[test]
 fn trust_region_matches_minpack_on_the_mgh_set() {
     let (table, failures, counts) = mgh_table(SolverKind::TrustRegion);
@@ -517,11 +517,11 @@ fn trust_region_matches_minpack_on_the_mgh_set() {
     eprintln!("more evaluations than MINPACK: {} of {}: {more:?}", more.len(), counts.len());
     assert!(failures.is_empty(), "cases off MINPACK's sum of squares: {failures:?}");
     // MINPACK's own path on the rest (docs/performance.md): more evaluations only for
-    // Powell's singular function (3 starts) and Brown almost-linear n = 10 from 100 x₀.
-    assert!(more.len() <= 4, "{more:?}");
+    // Powell's singular function from 100 x₀, whose end MINPACK finds by rounding.
+    assert!(more.len() <= 1, "{more:?}");
     let (agree, no_more, same) = tally(&counts);
     eprintln!("at MINPACK's ‖r‖²: {agree}; in ≤ nfev: {no_more}; in exactly nfev: {same}");
-    assert!(agree >= 49 && no_more >= 45, "{agree}, {no_more}");
+    assert!(agree >= 51 && no_more >= 50, "{agree}, {no_more}");
 }
 
 /// The root a static problem gives the trust region ([`LeastSquares::root`]) squares to its
@@ -546,8 +546,9 @@ fn a_static_problem_keeps_its_root() {
         let root = LeastSquares::root(&pb, &p).unwrap().expect("a root");
         let jtj = ne.jtj.to_dense();
         let name = case.problem.name();
-        assert!((root.r.tr_mul(&root.r) - &jtj).amax() <= 1e-12 * jtj.amax(), "{name}: RᵀR against JᵀWJ");
-        let g = root.r.tr_mul(&root.qtf);
+        let u = root.unpivoted();
+        assert!((u.tr_mul(&u) - &jtj).amax() <= 1e-12 * jtj.amax(), "{name}: RᵀR against JᵀWJ");
+        let g = u.tr_mul(&root.qtf);
         assert!((&g - &ne.jtr).amax() <= 1e-12 * ne.jtr.amax(), "{name}: Rᵀqtf {g} against JᵀWε {}", ne.jtr);
         let fit = greybox::estimate::fit(&model, &[e], &x0, &PemOptions::default()).expect("the fit runs");
         assert_eq!(fit.solver.name, "trust-region", "{name}");

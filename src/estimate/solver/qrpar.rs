@@ -2,125 +2,15 @@
 //! `qrsolv`; Moré, "The Levenberg-Marquardt algorithm: implementation and theory",
 //! *Numerical Analysis*, LNM 630, 1978, sections 3, 5 and 7; Moré, Garbow & Hillstrom,
 //! *User guide for MINPACK-1*, ANL-80-74, 1980): where a problem gives the square root of
-//! its normal equations ([`Root`]), the damped systems are solved as least-squares problems
+//! its normal equations ([`Root`](super::Root)), the damped systems are solved as least-squares problems
 //! `[J; √λ D^{1/2}] δ ≈ [ε; 0]` by Givens rotations of the triangular factor, with J's
 //! condition number instead of JᵀWJ's (its square), and a rank-deficient J gets MINPACK's
 //! Gauss-Newton step of the leading nonsingular columns (column pivoting by norm) instead of
 //! none. The iteration on λ is the normal-equation `lmpar`'s (the `lmpar` module).
 
 use super::lmpar::{MAX_ITERATIONS, met, next_par, upper_bound};
-use crate::error::{Error, Result};
+use super::root::{Pivoted, enorm};
 use nalgebra::{DMatrix, DVector};
-
-/// The square root of the normal equations at a point: `√W J = Q R` (thin QR; `J = ∂ŷ/∂p`
-/// in the solver's scaled coordinates, m × n), so `JᵀWJ = RᵀR` and `JᵀWε = Rᵀ qtf`.
-/// A problem gives it through [`LeastSquares::root`](super::LeastSquares::root).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Root {
-    /// `R`, n × n upper triangular (rows beyond m zero where m < n).
-    pub r: DMatrix<f64>,
-    /// `Qᵀ √W ε`, length n.
-    pub qtf: DVector<f64>,
-}
-
-impl Root {
-    /// The root of the weighted Jacobian `j = √W J` (m × n) and weighted residuals
-    /// `e = √W ε` (length m), by Householder QR (Golub & Van Loan, *Matrix Computations*,
-    /// 4th ed., 2013, algorithm 5.2.1). Non-finite entries give a non-finite root, with
-    /// which the solver takes that point's step on the normal equations.
-    ///
-    /// # Errors
-    /// [`Error::Solver`] when `e`'s length is not j's number of rows.
-    pub fn from_jacobian(j: DMatrix<f64>, e: &DVector<f64>) -> Result<Self> {
-        let (m, n) = j.shape();
-        if e.len() != m {
-            return Err(Error::Solver(format!("a root of a {m} × {n} Jacobian with {} residuals", e.len())));
-        }
-        let (j, mut b) = match m < n {
-            true => (j.resize_vertically(n, 0.0), e.clone().resize_vertically(n, 0.0)),
-            false => (j, e.clone()),
-        };
-        let qr = j.qr();
-        qr.q_tr_mul(&mut b);
-        Ok(Self { r: qr.r(), qtf: b.rows(0, n).into_owned() })
-    }
-
-    /// Checks the shapes against the n parameters of the problem: R n × n, `qtf` of length n.
-    ///
-    /// # Errors
-    /// [`Error::Solver`] naming the shapes found.
-    pub fn check(&self, n: usize) -> Result<()> {
-        if self.r.shape() != (n, n) || self.qtf.len() != n {
-            let (rows, cols) = self.r.shape();
-            let len = self.qtf.len();
-            return Err(Error::Solver(format!(
-                "a root with R {rows} × {cols} and Qᵀε of length {len} for {n} parameters: LeastSquares::root must \
-                 give R n × n and Qᵀε of length n"
-            )));
-        }
-        Ok(())
-    }
-
-    /// Whether every entry is finite.
-    pub fn is_finite(&self) -> bool {
-        self.r.iter().chain(self.qtf.iter()).all(|v| v.is_finite())
-    }
-
-    /// `R` restricted to the columns `free` (the parameters not held at a bound) and
-    /// factored again with column pivoting: the root of the reduced problem.
-    pub(super) fn pivoted(&self, free: &[usize]) -> Pivoted {
-        qrfac(self.r.select_columns(free), self.qtf.clone())
-    }
-}
-
-/// A column-pivoted triangular factor (MINPACK's `qrfac` with `pivot = true`): `A P = Q R`
-/// with `|R_00| ≥ |R_11| ≥ …`, and `Qᵀb` of the right-hand side.
-pub(super) struct Pivoted {
-    /// `R`, k × k upper triangular.
-    r: DMatrix<f64>,
-    /// Column j of `A P` is column `ipvt[j]` of A.
-    ipvt: Vec<usize>,
-    /// `Qᵀb`, length k.
-    qtb: DVector<f64>,
-}
-
-/// Householder QR of `a` (n × k, n ≥ k) with column pivoting by the norm of the columns'
-/// remaining parts (Businger & Golub 1965), applied to `b` (length n) as it goes.
-fn qrfac(mut a: DMatrix<f64>, mut b: DVector<f64>) -> Pivoted {
-    let (n, k) = a.shape();
-    let mut ipvt: Vec<usize> = (0..k).collect();
-    for j in 0..k.min(n) {
-        // The remaining columns' norms, each once; the first of the largest is the pivot.
-        let norms: Vec<f64> = (j..k).map(|c| a.view((j, c), (n - j, 1)).norm()).collect();
-        let pick = (1..norms.len()).fold(0, |best, c| if norms[c] > norms[best] { c } else { best });
-        a.swap_columns(j, j + pick);
-        ipvt.swap(j, j + pick);
-        let sigma = norms[pick];
-        if sigma == 0.0 {
-            continue;
-        }
-        let alpha = if a[(j, j)] > 0.0 { -sigma } else { sigma };
-        let mut v = a.view((j, j), (n - j, 1)).clone_owned();
-        v[0] -= alpha;
-        let vv = v.norm_squared();
-        for c in j..k {
-            let s = 2.0 * v.dot(&a.view((j, c), (n - j, 1))) / vv;
-            for i in j..n {
-                a[(i, c)] -= s * v[i - j];
-            }
-        }
-        let s = 2.0 * v.dot(&b.rows(j, n - j)) / vv;
-        for i in j..n {
-            b[i] -= s * v[i - j];
-        }
-        a[(j, j)] = alpha;
-        for i in j + 1..n {
-            a[(i, j)] = 0.0;
-        }
-    }
-    let r = a.rows(0, k).upper_triangle();
-    Pivoted { r, ipvt, qtb: b.rows(0, k).into_owned() }
-}
 
 /// MINPACK's `qrsolv`: with `s` the diagonal scaling (length k, `√λ D^{1/2}` in the
 /// pivoted problem's original column order), solves `[R Pᵀ; S] x ≈ [qtb; 0]` in the least-
@@ -197,9 +87,37 @@ fn unpivot(ipvt: &[usize], z: &DVector<f64>) -> DVector<f64> {
     x
 }
 
-/// `‖diag · x‖`.
+/// `‖diag · x‖` ([`enorm`]).
 fn scaled_norm(diag: &DVector<f64>, x: &DVector<f64>) -> f64 {
-    x.component_mul(diag).norm()
+    enorm(x.iter().zip(diag.iter()).map(|(x, d)| d * x))
+}
+
+/// The Gauss-Newton step `R z = qtb` of `lmpar`, by columns (MINPACK's order), with the
+/// components from the first zero diagonal on set to 0 (`nsing`).
+fn gauss_newton(r: &DMatrix<f64>, mut z: DVector<f64>) -> DVector<f64> {
+    let k = z.len();
+    let nsing = (0..k).find(|&j| r[(j, j)] == 0.0).unwrap_or(k);
+    z.rows_mut(nsing, k - nsing).fill(0.0);
+    for j in (0..nsing).rev() {
+        z[j] /= r[(j, j)];
+        let t = z[j];
+        for i in 0..j {
+            z[i] -= r[(i, j)] * t;
+        }
+    }
+    z
+}
+
+/// `Rᵀ w = z` by forward substitution on R's columns (MINPACK's `parl`).
+fn transposed(r: &DMatrix<f64>, mut z: DVector<f64>) -> DVector<f64> {
+    for j in 0..z.len() {
+        let mut sum = 0.0;
+        for i in 0..j {
+            sum += r[(i, j)] * z[i];
+        }
+        z[j] = (z[j] - sum) / r[(j, j)];
+    }
+    z
 }
 
 /// `y = T⁻ᵀ z` by forward substitution on the lower-stored factor (MINPACK's correction
@@ -232,7 +150,7 @@ pub(super) fn lmpar_qr(
     let k = f.r.ncols();
     let dwarf = f64::MIN_POSITIVE;
     let rdiag = f.r.diagonal();
-    let gn = unpivot(&f.ipvt, &triangular(&rdiag, f.qtb.clone(), |j, i| f.r[(j, i)]));
+    let gn = unpivot(&f.ipvt, &gauss_newton(&f.r, f.qtb.clone()));
     let nsing = (0..k).find(|&j| rdiag[j] == 0.0).unwrap_or(k);
     let mut dxnorm = scaled_norm(diag, &gn);
     let mut fp = dxnorm - delta;
@@ -254,7 +172,8 @@ pub(super) fn lmpar_qr(
     // scaled direction by forward substitution).
     let mut parl = 0.0;
     if nsing == k && finite {
-        let t = f.r.tr_solve_upper_triangular(&scaled_direction(&gn, dxnorm)).map_or(f64::NAN, |w| w.norm());
+        let w = transposed(&f.r, scaled_direction(&gn, dxnorm));
+        let t = enorm(w.iter().copied());
         let bound = ((fp / delta) / t) / t;
         if bound.is_finite() {
             parl = bound;
@@ -262,7 +181,7 @@ pub(super) fn lmpar_qr(
     }
     let g =
         DVector::from_fn(k, |j, _| (0..=j).map(|i| f.r[(i, j)] * f.qtb[i]).sum::<f64>() / diag[f.ipvt[j]]);
-    let gnorm = g.norm();
+    let gnorm = enorm(g.iter().copied());
     let mut paru = upper_bound(gnorm, delta);
     let mut par = par.max(parl).min(paru);
     if par == 0.0 && finite {
@@ -282,7 +201,7 @@ pub(super) fn lmpar_qr(
         if met(fp, previous, parl, delta, iteration) {
             return Some((x, par));
         }
-        let t = forward(&r, &sdiag, scaled_direction(&x, dxnorm)).norm();
+        let t = enorm(forward(&r, &sdiag, scaled_direction(&x, dxnorm)).iter().copied());
         if !(t.is_finite() && t > 0.0) {
             return Some((x, par));
         }
@@ -293,6 +212,7 @@ pub(super) fn lmpar_qr(
 
 #[cfg(test)]
 mod tests {
+    use super::super::root::Root;
     use super::*;
 
     fn jacobian() -> (DMatrix<f64>, DVector<f64>) {
@@ -304,10 +224,15 @@ mod tests {
     fn the_root_squares_to_the_normal_equations() {
         let (j, e) = jacobian();
         let root = Root::from_jacobian(j.clone(), &e).expect("shapes agree");
-        assert!((root.r.tr_mul(&root.r) - j.tr_mul(&j)).amax() <= 1e-13);
-        assert!((root.r.tr_mul(&root.qtf) - j.tr_mul(&e)).amax() <= 1e-13);
+        let u = root.unpivoted();
+        assert!((u.tr_mul(&u) - j.tr_mul(&j)).amax() <= 1e-13);
+        assert!((u.tr_mul(&root.qtf) - j.tr_mul(&e)).amax() <= 1e-13);
+        // MINPACK's pivoting: R's diagonal falls in magnitude, and `times` is `√W J x`.
+        assert!((0..2).all(|i| root.r[(i, i)].abs() >= root.r[(i + 1, i + 1)].abs()));
+        let x = DVector::from_vec(vec![0.3, -1.0, 2.0]);
+        assert!((root.times(&x).norm() - (&j * &x).norm()).abs() <= 1e-13);
         let piv = root.pivoted(&[0, 2]);
-        let a = root.r.select_columns(&[0, 2]);
+        let a = u.select_columns(&[0, 2]);
         let ap = a.select_columns(&piv.ipvt);
         assert!((piv.r.tr_mul(&piv.r) - ap.tr_mul(&ap)).amax() <= 1e-13);
         assert!(piv.r[(0, 0)].abs() >= piv.r[(1, 1)].abs());
@@ -350,8 +275,9 @@ mod tests {
         let e = DVector::from_vec(vec![1.0, 2.0]);
         let root = Root::from_jacobian(j.clone(), &e).expect("shapes agree");
         assert_eq!(root.r.shape(), (3, 3));
-        assert!((root.r.tr_mul(&root.r) - j.tr_mul(&j)).amax() <= 1e-13);
-        assert!((root.r.tr_mul(&root.qtf) - j.tr_mul(&e)).amax() <= 1e-13);
+        let u = root.unpivoted();
+        assert!((u.tr_mul(&u) - j.tr_mul(&j)).amax() <= 1e-13);
+        assert!((u.tr_mul(&root.qtf) - j.tr_mul(&e)).amax() <= 1e-13);
         // Column 1 held: the step of the other two solves the reduced damped system.
         let free = [0, 2];
         let diag = DVector::from_vec(vec![1.5, 0.5]);
@@ -363,6 +289,33 @@ mod tests {
     }
 
     #[test]
+    fn enorm_is_the_norm_without_overflow_or_underflow() {
+        let plain = [3.0, -4.0, 12.0];
+        assert_eq!(enorm(plain.iter().copied()), 13.0);
+        // Squares of these would overflow and underflow.
+        assert!((enorm([3e200, 4e200].into_iter()) / 5e200 - 1.0).abs() <= 1e-15);
+        assert!((enorm([3e-200, -4e-200].into_iter()) / 5e-200 - 1.0).abs() <= 1e-15);
+        assert!((enorm([1e-30, 1.0, 1e30].into_iter()) / 1e30 - 1.0).abs() <= 1e-15);
+        assert_eq!(enorm(std::iter::empty()), 0.0);
+    }
+
+    #[test]
+    fn a_root_of_its_own_gives_the_pivoted_roots_steps() {
+        // R of nalgebra's unpivoted QR, pivoted again by the solver: the same damped step.
+        let (j, e) = jacobian();
+        let qr = j.clone().qr();
+        let mut b = e.clone();
+        qr.q_tr_mul(&mut b);
+        let own = Root::new(qr.r(), b.rows(0, 3).into_owned());
+        assert!(own.check(3).is_ok());
+        let minpack = Root::from_jacobian(j, &e).expect("shapes agree");
+        let diag = DVector::from_vec(vec![2.0, 0.5, 1.5]);
+        let (x, par) = lmpar_qr(&own.pivoted(&[0, 1, 2]), &diag, 0.1, 0.0).expect("finite");
+        let (y, qar) = lmpar_qr(&minpack.pivoted(&[0, 1, 2]), &diag, 0.1, 0.0).expect("finite");
+        assert!((par - qar).abs() <= 1e-12 * par && (x - y).amax() <= 1e-12, "λ {par} vs {qar}");
+    }
+
+    #[test]
     fn a_root_of_the_wrong_shape_is_an_error() {
         let (j, e) = jacobian();
         assert!(Root::from_jacobian(j.clone(), &e.rows(0, 3).into_owned()).is_err());
@@ -370,5 +323,8 @@ mod tests {
         assert!(root.check(3).is_ok());
         let err = root.check(4).expect_err("3 × 3 for 4 parameters").to_string();
         assert!(err.contains("4 parameters"), "{err}");
+        let mut twice = root;
+        twice.ipvt = vec![0, 0, 2];
+        assert!(twice.check(3).expect_err("not a permutation").to_string().contains("permutation"));
     }
 }

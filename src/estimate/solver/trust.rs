@@ -45,7 +45,7 @@
 use super::LsState;
 use super::{
     Gram, LeastSquares, Monitor, ReportsTermination, Root, Termination, Tolerances, active, init_state,
-    lmpar::lmpar, missing, qrpar::lmpar_qr, status, take_point, trial_normal_equations,
+    lmpar::lmpar, missing, qrpar::lmpar_qr, root::enorm, status, take_point, trial_normal_equations,
 };
 use argmin::core::{KV, Problem, Solver, State, TerminationStatus};
 use serde::{Deserialize, Serialize};
@@ -85,6 +85,9 @@ pub struct TrustRegion {
     root_current: bool,
     /// Whether the problem gave no root (asked no more).
     rootless: bool,
+    /// MINPACK's `gnorm` at the current point from its root ([`Root::gnorm`]).
+    #[serde(skip)]
+    gnorm: Option<f64>,
     accepted: u64,
     termination: Option<Termination>,
 }
@@ -101,6 +104,7 @@ impl TrustRegion {
             root: None,
             root_current: false,
             rootless: false,
+            gnorm: None,
             accepted: 0,
             termination: None,
         }
@@ -149,7 +153,7 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
         self.termination = t;
         self.xnorm = state.get_param().map_or(0.0, |p| self.monitor.norm(p));
         self.radius = if self.xnorm > 0.0 { FACTOR * self.xnorm } else { FACTOR };
-        (self.root, self.root_current, self.rootless) = (None, false, false);
+        (self.root, self.root_current, self.rootless, self.gnorm) = (None, false, false, None);
         Ok((state, Some(argmin::kv!("radius" => self.radius;))))
     }
 
@@ -166,6 +170,12 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
             // A non-finite root: this point's step on the normal equations.
             self.root = root.filter(Root::is_finite);
             self.root_current = true;
+            // MINPACK's gtol test where it takes it, on the new point's factors.
+            self.gnorm = self.root.as_ref().map(|r| r.gnorm((2.0 * cost).sqrt()));
+            if self.gnorm.is_some_and(|g| g <= self.tol.gtol) {
+                self.termination = Some(self.monitor.certify(Termination::GradientTolerance, &jtj, cost));
+                return Ok((state.param(p).cost(cost).gradient(grad).hessian(jtj), None));
+            }
         }
 
         let (radius, lambda) = (self.radius, self.lambda);
@@ -202,7 +212,8 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
         let exact = root.filter(|_| held == 0 && trial == unprojected);
         let (curvature, predicted) = match exact {
             Some(root) => {
-                let (curvature, norm) = ((&root.r * &step).norm_squared(), self.monitor.norm(&step));
+                let jnorm = enorm(root.times(&step).iter().copied());
+                let (curvature, norm) = (jnorm * jnorm, self.monitor.norm(&step));
                 (curvature, 0.5 * curvature + self.lambda * norm * norm)
             }
             None => {
@@ -255,6 +266,10 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
                 Some(Termination::StepTolerance)
             } else if self.radius <= f64::EPSILON * self.xnorm || self.radius.is_nan() || self.radius <= 0.0 {
                 Some(Termination::NoDescent)
+            } else if self.gnorm.is_some_and(|g| g <= f64::EPSILON) {
+                // MINPACK's info 8 (reported by lmder1 as info 4): ε orthogonal to J's
+                // columns to working precision at the point this trial started from.
+                Some(Termination::GradientTolerance)
             } else {
                 None
             };
