@@ -26,7 +26,7 @@ pub enum SolverKind {
     /// MATLAB's `nlgreyestOptions` likewise defaults its search method to `'auto'`. On
     /// MINPACK's test set the trust region reaches MINPACK's sum of squares in no more
     /// evaluations than MINPACK on 50 of the 51 cases MINPACK solves, Levenberg-Marquardt
-    /// on 12; on NIST StRD's 54 runs it solves 46, Levenberg-Marquardt 47 (the crate's
+    /// on 12; on NIST StRD's 54 runs it solves 50, Levenberg-Marquardt 49 (the crate's
     /// `docs/performance.md`).
     #[default]
     Auto,

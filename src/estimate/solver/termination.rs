@@ -20,13 +20,17 @@ pub struct Tolerances {
     pub xtol: f64,
     /// Stop when `max_j |J_jᵀWε| / (‖J_j‖ ‖√W ε‖) ≤ gtol` (cosine of residual and columns).
     pub gtol: f64,
-    /// Maximum number of iterations (trial steps).
+    /// Maximum number of iterations (trial steps); by default 500, MINPACK's `lmder1`
+    /// budget of `100 (n + 1)` evaluations for n = 4 parameters (Moré, Garbow & Hillstrom,
+    /// ANL-80-74, 1980): a curve fit along a curved valley needs several hundred (NIST
+    /// StRD's MGH09, MGH10 and MGH17 from their first starts, 278–495 with the trust region),
+    /// a motor fit from the least-squares start 3–10.
     pub max_iters: u64,
 }
 
 impl Default for Tolerances {
     fn default() -> Self {
-        Self { ftol: 1e-12, xtol: 1e-10, gtol: 1e-10, max_iters: 200 }
+        Self { ftol: 1e-12, xtol: 1e-10, gtol: 1e-10, max_iters: 500 }
     }
 }
 

@@ -264,12 +264,13 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
                 Some(Termination::CostTolerance)
             } else if self.radius <= self.tol.xtol * self.xnorm {
                 Some(Termination::StepTolerance)
-            } else if self.radius <= f64::EPSILON * self.xnorm || self.radius.is_nan() || self.radius <= 0.0 {
-                Some(Termination::NoDescent)
             } else if self.gnorm.is_some_and(|g| g <= f64::EPSILON) {
                 // MINPACK's info 8 (reported by lmder1 as info 4): ε orthogonal to J's
-                // columns to working precision at the point this trial started from.
+                // columns to working precision at the point this trial started from; it
+                // overrides info 7 below, as in lmder, where the last test that holds wins.
                 Some(Termination::GradientTolerance)
+            } else if self.radius <= f64::EPSILON * self.xnorm || self.radius.is_nan() || self.radius <= 0.0 {
+                Some(Termination::NoDescent)
             } else {
                 None
             };
