@@ -93,10 +93,9 @@ fn scaled_norm(diag: &DVector<f64>, x: &DVector<f64>) -> f64 {
 }
 
 /// The Gauss-Newton step `R z = qtb` of `lmpar`, by columns (MINPACK's order), with the
-/// components from the first zero diagonal on set to 0 (`nsing`).
-fn gauss_newton(r: &DMatrix<f64>, mut z: DVector<f64>) -> DVector<f64> {
+/// components from `nsing` (R's first zero diagonal, or k) on set to 0.
+fn gauss_newton(r: &DMatrix<f64>, mut z: DVector<f64>, nsing: usize) -> DVector<f64> {
     let k = z.len();
-    let nsing = (0..k).find(|&j| r[(j, j)] == 0.0).unwrap_or(k);
     z.rows_mut(nsing, k - nsing).fill(0.0);
     for j in (0..nsing).rev() {
         z[j] /= r[(j, j)];
@@ -149,9 +148,8 @@ pub(super) fn lmpar_qr(
 ) -> Option<(DVector<f64>, f64)> {
     let k = f.r.ncols();
     let dwarf = f64::MIN_POSITIVE;
-    let rdiag = f.r.diagonal();
-    let gn = unpivot(&f.ipvt, &gauss_newton(&f.r, f.qtb.clone()));
-    let nsing = (0..k).find(|&j| rdiag[j] == 0.0).unwrap_or(k);
+    let nsing = (0..k).find(|&j| f.r[(j, j)] == 0.0).unwrap_or(k);
+    let gn = unpivot(&f.ipvt, &gauss_newton(&f.r, f.qtb.clone(), nsing));
     let mut dxnorm = scaled_norm(diag, &gn);
     let mut fp = dxnorm - delta;
     let finite = fp.is_finite();
