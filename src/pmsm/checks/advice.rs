@@ -103,7 +103,7 @@ pub(crate) fn dead_time_advice(
             let e = v.experiment();
             // The dead-time check: the sign of the phase currents as one more column.
             let th = e.get(channel::THETA_M).map(|c| c.values.as_slice()).filter(|_| !inverter)?;
-            let mut s = DeadTimeStream::try_new(v, n_p, &InverterModel::default()).ok()?;
+            let mut s = DeadTimeStream::try_new(v, n_p, &InverterModel::default()).ok()?.for_check();
             let mut ls = StreamedLeastSquares::new(cols + 1);
             let (id, iq) = (v.i_d(), v.i_q());
             let mut dirs = [C64::default(); WINDOW];
