@@ -11,6 +11,7 @@ use crate::estimate::problem::{LagStream, WHITENESS_LAGS};
 use crate::model::GreyBoxModel;
 use crate::pmsm::log::signals::DqView;
 use crate::pmsm::model::interval::C64;
+use crate::pmsm::model::ipm::PmsmIpm;
 use crate::pmsm::model::setup::PmsmSetup;
 use crate::pmsm::model::spm::PmsmSpm;
 
@@ -25,11 +26,28 @@ struct VoltageErrors {
     suu: f64,
     n: usize,
     whiteness: [metrics::Whiteness; 2],
+    /// Per axis (IPM only; the SPM's inverse leaves none it corrects): the errors' sum of
+    /// squares, and the mean over the intervals of `b² (r_s² + ω_e² L_o²)`, with `b` the
+    /// axis's gain and `L_o` the other axis's inductance: what the currents' noise of
+    /// lag-1 autocovariance γ₁ leaves in the white part, `−γ₁` times it
+    /// ([`ipm_voltage_errors`]).
+    leak: Option<[(f64, f64); 2]>,
 }
 
-/// [`VoltageErrors`] of an SPM model at θ = (r_s, l_s, k_e); `None` for a log the inverse
-/// model cannot read.
+/// [`VoltageErrors`] at θ: of an SPM model for θ = (r_s, l_s, k_e), of an IPM model
+/// ([`ipm_voltage_errors`]) for θ = (r_s, l_d, l_q, k_e); `None` for a log the model
+/// cannot read or another length.
 fn voltage_errors(views: &[DqView<'_>], setup: PmsmSetup, theta: &[f64]) -> Option<VoltageErrors> {
+    match theta.len() {
+        3 => spm_voltage_errors(views, setup, theta),
+        4 => ipm_voltage_errors(views, setup, theta),
+        _ => None,
+    }
+}
+
+/// [`VoltageErrors`] of an SPM model at θ = (r_s, l_s, k_e) by its exact inverse step;
+/// `None` for a log the inverse model cannot read.
+fn spm_voltage_errors(views: &[DqView<'_>], setup: PmsmSetup, theta: &[f64]) -> Option<VoltageErrors> {
     let model = PmsmSpm::from_setup(setup);
     let (mut sse, mut suu, mut n) = (0.0, 0.0, 0usize);
     let mut lags = [Vec::new(), Vec::new()];
@@ -51,11 +69,62 @@ fn voltage_errors(views: &[DqView<'_>], setup: PmsmSetup, theta: &[f64]) -> Opti
             all.push(s.finish());
         }
     }
-    Some(VoltageErrors { sse, suu, n, whiteness: lags.map(|l| metrics::whiteness_of(&l)) })
+    Some(VoltageErrors { sse, suu, n, whiteness: lags.map(|l| metrics::whiteness_of(&l)), leak: None })
+}
+
+/// [`VoltageErrors`] of an IPM model at θ = (r_s, l_d, l_q, k_e), whose step has no
+/// scalar inverse: each axis's one-step current error `i[k+1] − x⁺(θ, k, i[k])` of the
+/// model's exact step, divided by that axis's gain from a held voltage to the current over
+/// one interval, `b = (1 − e^{−h r_s/L})/r_s` with `L` the axis's inductance. The voltage's
+/// white noise reaches the error through that gain (the frame's turn within an interval,
+/// `ω_e h`, mixes the axes' noise, not its power, to first order), the currents' noise as
+/// the SPM inverse's difference `(n[k+1] − a n[k])/b`, so [`voltage_noise`] reads both
+/// models' errors alike. `None` for a log the model cannot read or a gain that is not
+/// positive and finite.
+fn ipm_voltage_errors(views: &[DqView<'_>], setup: PmsmSetup, theta: &[f64]) -> Option<VoltageErrors> {
+    let model = PmsmIpm::from_setup(setup);
+    let (mut sse, mut suu, mut n) = (0.0, 0.0, 0usize);
+    let mut axes = [(0.0, 0.0); 2];
+    let mut lags = [Vec::new(), Vec::new()];
+    for v in views {
+        let inputs = model.prepare(v.experiment()).ok()?;
+        let c = model.coefficients(theta, &inputs).ok()?;
+        let h = v.experiment().h();
+        let gain = |l: f64| -(-h * theta[0] / l).exp_m1() / theta[0];
+        let b = [gain(theta[1]), gain(theta[2])];
+        if !b.iter().all(|b| b.is_finite() && *b > 0.0) {
+            return None;
+        }
+        let (u_d, u_q) = v.terminal_voltage().ok()?;
+        let (i_d, i_q) = (v.i_d(), v.i_q());
+        let w_m = v.w_m();
+        let n_p = f64::from(setup.n_p);
+        let mut streams = [LagStream::new(WHITENESS_LAGS), LagStream::new(WHITENESS_LAGS)];
+        let mut next = [0.0; 2];
+        for k in 0..v.len().saturating_sub(1) {
+            model.step(&c, &inputs, k, &[i_d[k], i_q[k]], &mut next);
+            let eps = [(i_d[k + 1] - next[0]) / b[0], (i_q[k + 1] - next[1]) / b[1]];
+            let w_e = n_p * w_m[k];
+            for (axis, (e, l_o)) in eps.iter().zip([theta[2], theta[1]]).enumerate() {
+                streams[axis].push(&[*e]);
+                axes[axis].0 += e * e;
+                axes[axis].1 += b[axis] * b[axis] * (theta[0] * theta[0] + w_e * w_e * l_o * l_o);
+            }
+            sse += eps[0] * eps[0] + eps[1] * eps[1];
+            suu += u_d[k] * u_d[k] + u_q[k] * u_q[k];
+            n += 1;
+        }
+        for (all, s) in lags.iter_mut().zip(streams) {
+            all.push(s.finish());
+        }
+    }
+    let leak = axes.map(|(e2, l)| (e2, l / n.max(1) as f64));
+    Some(VoltageErrors { sse, suu, n, whiteness: lags.map(|l| metrics::whiteness_of(&l)), leak: Some(leak) })
 }
 
 /// The white noise on the logged voltage, σ \[V\] per axis, read off the inverse model's
-/// voltage errors ε at θ of an SPM model (module documentation) by their autocovariances
+/// voltage errors ε at θ of an SPM model, or an IPM model's ([`ipm_voltage_errors`]) for
+/// θ of length 4 (module documentation) by their autocovariances
 /// γ₀ … γ₃. ε holds the voltage noise (white, σ²), the currents' noise through the difference
 /// `(L/h)(n[k+1] − a n[k])` (lags 0 and 1 only, `γ₁ = −a c² σ_n²` with `a ≈ 1`) and the
 /// model's slow error (a smooth autocovariance `S (1 − c k² + …)`), so
@@ -71,7 +140,11 @@ pub(crate) fn voltage_noise(
     let v = voltage_errors(views, setup, theta)?;
     let (gamma_0, rho) = autocorrelations(&v);
     let m = (2 * v.n.max(1)) as f64;
-    Some((white_power(gamma_0, rho).sqrt(), gamma_0.sqrt(), (v.suu / m).sqrt()))
+    let white = white_power(gamma_0, rho) - current_leak(&v);
+    // Not told from zero: 0 (the estimator's own spread is the currents' noise, which can be
+    // a hundred times the voltage's when the inductance is large against the sample time).
+    let white = if white > NOISE_SIGNIFICANCE_Z * white_power_se(gamma_0, rho[0], m) { white } else { 0.0 };
+    Some((white.sqrt(), gamma_0.sqrt(), (v.suu / m).sqrt()))
 }
 
 /// The inverse model's voltage errors' variance γ₀ \[V²\] and their autocorrelations at
@@ -82,6 +155,40 @@ fn autocorrelations(v: &VoltageErrors) -> (f64, [f64; 3]) {
         v.whiteness.iter().map(|w| w.autocorrelation.get(lag - 1).copied().unwrap_or(0.0)).sum::<f64>() / 2.0
     };
     (gamma_0, [rho(1), rho(2), rho(3)])
+}
+
+/// What the currents' noise leaves in an IPM's white part \[V²\] per axis (0 for an SPM):
+/// the one-step error carries the current noise `n` as `n[k+1] − A n[k]`, whose lag-0 and
+/// lag-1 terms `γ₀ + 2γ₁` cancel but for the part the step's resistance and cross-coupling
+/// turn (`A ≈ I − h L⁻¹ (r_s + ω_e J L)`), `b² (r_s² + ω_e² L_o²) σ_n²` in the voltage
+/// scale of [`ipm_voltage_errors`] with `σ_n² ≈ −γ₁/b²` of the axis: at speed the
+/// currents' noise reads as voltage noise of `ω_e L_o σ_n`, which is not the logged
+/// voltage's (0.65 A of current noise on the other simulator's IPM log read as 1.1 V).
+fn current_leak(v: &VoltageErrors) -> f64 {
+    let Some(axes) = v.leak else { return 0.0 };
+    let n = v.n.max(1) as f64;
+    axes.iter()
+        .zip(&v.whiteness)
+        .map(|((e2, leak), w)| {
+            let gamma_1 = e2 / n * w.autocorrelation.first().copied().unwrap_or(0.0);
+            (-gamma_1).max(0.0) * leak
+        })
+        .sum::<f64>()
+        / 2.0
+}
+
+/// Standard errors by which [`voltage_noise`]'s white part must exceed zero to be taken as
+/// the voltage's noise.
+pub const NOISE_SIGNIFICANCE_Z: f64 = 3.0;
+
+/// The standard error \[V²\] of the white part `γ₀ (1 + 2ρ₁ − 5ρ₂ + 2ρ₃)` from `m`
+/// errors (both axes) of variance γ₀ and lag-1 autocorrelation ρ₁, the currents' noise
+/// making them a first-order moving average: Bartlett's variances of the estimated
+/// autocorrelations, `(1 − 3ρ₁² + 4ρ₁⁴)/m` at lag 1 and `(1 + 2ρ₁²)/m` beyond (Box,
+/// Jenkins & Reinsel, *Time Series Analysis*, 4th ed., 2008, 6.2.2), taken independent.
+fn white_power_se(gamma_0: f64, rho_1: f64, m: f64) -> f64 {
+    let r2 = rho_1 * rho_1;
+    gamma_0 * ((4.0 * (1.0 - 3.0 * r2 + 4.0 * r2 * r2) + 29.0 * (1.0 + 2.0 * r2)) / m).sqrt()
 }
 
 /// The white part σ² = γ₀ + 2γ₁ − 5γ₂ + 2γ₃ of the errors (at least 0; [`voltage_noise`])
@@ -114,7 +221,7 @@ pub(crate) fn noise_powers(
 /// negligible, for a fit whose own residuals are not white; `None` otherwise, or for a log
 /// the inverse model cannot read.
 pub(crate) fn input_noise_notice(views: &[DqView<'_>], setup: PmsmSetup, theta: &[f64]) -> Option<Warning> {
-    let VoltageErrors { sse, suu, n, whiteness } = voltage_errors(views, setup, theta)?;
+    let VoltageErrors { sse, suu, n, whiteness, .. } = voltage_errors(views, setup, theta)?;
     let sigma = (sse / (2 * n.max(1)) as f64).sqrt();
     let rms = (suu / (2 * n.max(1)) as f64).sqrt();
     (whiteness.iter().all(|w| w.is_white(n)) && sigma > NEGLIGIBLE_VOLTAGE_NOISE * rms).then(|| {

@@ -39,7 +39,7 @@ pub const VOLTAGE_BIAS_Z: f64 = 1.0;
 pub const VOLTAGE_NOISE_SHARE: f64 = 0.1;
 
 /// After an output-error fit (its report `fit`, its `setup`'s pole pairs and hold) of
-/// surface-magnet motors' logs `dq` from their terminal voltage: an
+/// surface- or interior-magnet motors' logs `dq` from their terminal voltage: an
 /// untrusted `voltage_noise_bias` warning when the logged voltage carries noise that is not
 /// negligible (over [`NEGLIGIBLE_VOLTAGE_NOISE`] of its RMS value and
 /// [`VOLTAGE_NOISE_SHARE`] of the voltage errors') and adding noise of that
@@ -59,13 +59,14 @@ pub(crate) fn warning(
         return None;
     }
     let value = |n: &str| fit.parameter(n).map(|p| p.value);
-    // The SPM inverse model only: with an IPM's mean inductance it leaves the saliency's
-    // error, which follows the currents' steps and is no smooth error the noise estimate
-    // cancels (it took the noise-free gym-electric-motor IPM log for a noisy one).
-    if options.model != MotorKind::Spm {
-        return None;
-    }
-    let theta = [value("r_s")? + options.cable_resistance, value("l_s")?, value("k_e")?];
+    // Each model's own voltage errors: an IPM's read with a mean inductance would leave the
+    // saliency's error, which follows the currents' steps and is no smooth error the noise
+    // estimate cancels (it took the noise-free gym-electric-motor IPM log for a noisy one).
+    let r_s = value("r_s")? + options.cable_resistance;
+    let theta = match options.model {
+        MotorKind::Spm => vec![r_s, value("l_s")?, value("k_e")?],
+        MotorKind::Ipm => vec![r_s, value("l_d")?, value("l_q")?, value("k_e")?],
+    };
     let (sigma, errors, rms) = voltage_noise(dq.views(), setup, &theta)?;
     if !(sigma > NEGLIGIBLE_VOLTAGE_NOISE * rms && sigma > VOLTAGE_NOISE_SHARE * errors) {
         return None;
