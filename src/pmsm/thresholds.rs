@@ -14,7 +14,7 @@ pub use super::checks::detect::{
     MAX_H_OVER_TAU, POLE_PAIR_CANDIDATES, POLE_PAIR_RATIO, SALIENCY, SALIENT_CERTAIN, SALIENT_LIKELY,
     SPEED_MISMATCH,
 };
-pub use super::checks::noise::NEGLIGIBLE_VOLTAGE_NOISE;
+pub use super::checks::noise::{NEGLIGIBLE_VOLTAGE_NOISE, NOISE_SIGNIFICANCE_Z};
 pub use super::fit::auto_mask::FALLBACK_RELATIVE_THRESHOLD;
 pub use super::fit::flux_map::FLUX_MAP_REFINED;
 pub use super::fit::flux_map_check::{INDUCTANCE_WITHIN, NO_LOAD_WITHIN};

@@ -71,7 +71,8 @@ pub fn dead_time_directions(v: &DqView<'_>, n_p: u32, model: &InverterModel) -> 
 /// store nothing per sample: [`directions`](Self::directions) of every part of the record
 /// in order, and [`check_crossings`](Self::check_crossings) at the end. The arithmetic is
 /// that of [`dead_time_directions`], bit for bit, however the
-/// record is cut into windows (each interval's direction depends on its two samples only).
+/// record is cut into windows (each interval's direction depends on its two samples only),
+/// except for a stream [`for_check`](Self::for_check), whose functions are `wide`'s.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct DeadTimeStream {
     /// Width w of the smooth sign \[A\].
