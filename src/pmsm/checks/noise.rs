@@ -7,7 +7,7 @@
 
 use crate::estimate::Warning;
 use crate::estimate::metrics;
-use crate::estimate::problem::{LagStream, WHITENESS_LAGS};
+use crate::estimate::problem::{LagStream, LagSums, WHITENESS_LAGS};
 use crate::model::GreyBoxModel;
 use crate::pmsm::log::signals::DqView;
 use crate::pmsm::model::interval::C64;
@@ -47,31 +47,56 @@ fn voltage_errors(views: &[DqView<'_>], setup: PmsmSetup, theta: &[f64]) -> Opti
     }
 }
 
+/// The running sums of [`VoltageErrors`] over the logs' intervals.
+#[derive(Default)]
+struct ErrorSums {
+    sse: f64,
+    suu: f64,
+    n: usize,
+    lags: [Vec<LagSums>; 2],
+}
+
+impl ErrorSums {
+    /// Adds one log of `intervals` intervals, `interval(k)` giving interval k's voltage
+    /// error ε (d, q) \[V\] and its voltage's squared magnitude \[V²\].
+    fn add_log(&mut self, intervals: usize, mut interval: impl FnMut(usize) -> ([f64; 2], f64)) {
+        let mut streams = [LagStream::new(WHITENESS_LAGS), LagStream::new(WHITENESS_LAGS)];
+        for k in 0..intervals {
+            let (eps, u2) = interval(k);
+            streams[0].push(&[eps[0]]);
+            streams[1].push(&[eps[1]]);
+            self.sse += eps[0] * eps[0] + eps[1] * eps[1];
+            self.suu += u2;
+            self.n += 1;
+        }
+        for (all, s) in self.lags.iter_mut().zip(streams) {
+            all.push(s.finish());
+        }
+    }
+
+    /// The [`VoltageErrors`] of the logs added, with the IPM's `leak` sums.
+    fn finish(self, leak: Option<[(f64, f64); 2]>) -> VoltageErrors {
+        let Self { sse, suu, n, lags } = self;
+        VoltageErrors { sse, suu, n, whiteness: lags.map(|l| metrics::whiteness_of(&l)), leak }
+    }
+}
+
 /// [`VoltageErrors`] of an SPM model at θ = (r_s, l_s, k_e) by its exact inverse step;
 /// `None` for a log the inverse model cannot read.
 fn spm_voltage_errors(views: &[DqView<'_>], setup: PmsmSetup, theta: &[f64]) -> Option<VoltageErrors> {
     let model = PmsmSpm::from_setup(setup);
-    let (mut sse, mut suu, mut n) = (0.0, 0.0, 0usize);
-    let mut lags = [Vec::new(), Vec::new()];
+    let mut sums = ErrorSums::default();
     for v in views {
         let inputs = model.prepare(v.experiment()).ok()?;
         let c = model.coefficients(theta, &inputs).ok()?;
         let i = |k: usize| C64::new(v.i_d()[k], v.i_q()[k]);
-        let mut streams = [LagStream::new(WHITENESS_LAGS), LagStream::new(WHITENESS_LAGS)];
-        for k in 0..v.len().saturating_sub(1) {
+        sums.add_log(v.len().saturating_sub(1), |k| {
             let inv = model.inverse_step(&c, &inputs, k);
             let eps = inv.u - inv.voltage(i(k), i(k + 1)).0;
-            streams[0].push(&[eps.re]);
-            streams[1].push(&[eps.im]);
-            sse += eps.norm_sqr();
-            suu += inv.u.norm_sqr();
-            n += 1;
-        }
-        for (all, s) in lags.iter_mut().zip(streams) {
-            all.push(s.finish());
-        }
+            ([eps.re, eps.im], inv.u.norm_sqr())
+        });
     }
-    Some(VoltageErrors { sse, suu, n, whiteness: lags.map(|l| metrics::whiteness_of(&l)), leak: None })
+    Some(sums.finish(None))
 }
 
 /// [`VoltageErrors`] of an IPM model at θ = (r_s, l_d, l_q, k_e), whose step has no
@@ -85,9 +110,8 @@ fn spm_voltage_errors(views: &[DqView<'_>], setup: PmsmSetup, theta: &[f64]) -> 
 /// positive and finite.
 fn ipm_voltage_errors(views: &[DqView<'_>], setup: PmsmSetup, theta: &[f64]) -> Option<VoltageErrors> {
     let model = PmsmIpm::from_setup(setup);
-    let (mut sse, mut suu, mut n) = (0.0, 0.0, 0usize);
+    let mut sums = ErrorSums::default();
     let mut axes = [(0.0, 0.0); 2];
-    let mut lags = [Vec::new(), Vec::new()];
     for v in views {
         let inputs = model.prepare(v.experiment()).ok()?;
         let c = model.coefficients(theta, &inputs).ok()?;
@@ -99,30 +123,22 @@ fn ipm_voltage_errors(views: &[DqView<'_>], setup: PmsmSetup, theta: &[f64]) -> 
             return None;
         }
         let (u_d, u_q) = v.terminal_voltage().ok()?;
-        let (i_d, i_q) = (v.i_d(), v.i_q());
-        let w_m = v.w_m();
+        let (i_d, i_q, w_m) = (v.i_d(), v.i_q(), v.w_m());
         let n_p = f64::from(setup.n_p);
-        let mut streams = [LagStream::new(WHITENESS_LAGS), LagStream::new(WHITENESS_LAGS)];
         let mut next = [0.0; 2];
-        for k in 0..v.len().saturating_sub(1) {
+        sums.add_log(v.len().saturating_sub(1), |k| {
             model.step(&c, &inputs, k, &[i_d[k], i_q[k]], &mut next);
             let eps = [(i_d[k + 1] - next[0]) / b[0], (i_q[k + 1] - next[1]) / b[1]];
             let w_e = n_p * w_m[k];
             for (axis, (e, l_o)) in eps.iter().zip([theta[2], theta[1]]).enumerate() {
-                streams[axis].push(&[*e]);
                 axes[axis].0 += e * e;
                 axes[axis].1 += b[axis] * b[axis] * (theta[0] * theta[0] + w_e * w_e * l_o * l_o);
             }
-            sse += eps[0] * eps[0] + eps[1] * eps[1];
-            suu += u_d[k] * u_d[k] + u_q[k] * u_q[k];
-            n += 1;
-        }
-        for (all, s) in lags.iter_mut().zip(streams) {
-            all.push(s.finish());
-        }
+            (eps, u_d[k] * u_d[k] + u_q[k] * u_q[k])
+        });
     }
-    let leak = axes.map(|(e2, l)| (e2, l / n.max(1) as f64));
-    Some(VoltageErrors { sse, suu, n, whiteness: lags.map(|l| metrics::whiteness_of(&l)), leak: Some(leak) })
+    let n = sums.n.max(1) as f64;
+    Some(sums.finish(Some(axes.map(|(e2, l)| (e2, l / n)))))
 }
 
 /// The white noise on the logged voltage, σ \[V\] per axis, read off the inverse model's

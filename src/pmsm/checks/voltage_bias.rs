@@ -18,7 +18,6 @@ use crate::pmsm::checks::noise::{NEGLIGIBLE_VOLTAGE_NOISE, voltage_noise};
 use crate::pmsm::checks::noise_bias::{Shift, simex_shifts};
 use crate::pmsm::log::DqLogs;
 use crate::pmsm::log::signals::channel::{U_D, U_Q};
-use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::model::setup::PmsmSetup;
 use crate::pmsm::options::{PmsmFitOptions, RefitReport};
 
@@ -62,11 +61,13 @@ pub(crate) fn warning(
     // Each model's own voltage errors: an IPM's read with a mean inductance would leave the
     // saliency's error, which follows the currents' steps and is no smooth error the noise
     // estimate cancels (it took the noise-free gym-electric-motor IPM log for a noisy one).
-    let r_s = value("r_s")? + options.cable_resistance;
-    let theta = match options.model {
-        MotorKind::Spm => vec![r_s, value("l_s")?, value("k_e")?],
-        MotorKind::Ipm => vec![r_s, value("l_d")?, value("l_q")?, value("k_e")?],
-    };
+    // The model's parameters in its order, with the whole series resistance.
+    let theta: Vec<f64> = options
+        .model
+        .parameter_names()
+        .iter()
+        .map(|n| value(n).map(|v| if *n == "r_s" { v + options.cable_resistance } else { v }))
+        .collect::<Option<_>>()?;
     let (sigma, errors, rms) = voltage_noise(dq.views(), setup, &theta)?;
     if !(sigma > NEGLIGIBLE_VOLTAGE_NOISE * rms && sigma > VOLTAGE_NOISE_SHARE * errors) {
         return None;
