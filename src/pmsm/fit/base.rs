@@ -42,16 +42,15 @@ pub(super) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, refit: RefitLoss<'_
     }
     // The checks that need no estimate run on a thread of their own from the start, beside
     // the start, the fits and their statistics (which leave a core idle at times): the
-    // setup scan (one regression Gram; a log the scan cannot read is not checked), the
-    // dead-time check and a PWM fit's delay screen (three averaged fits). On the calling
-    // thread when the caller's rayon pool has one thread.
+    // setup scan (one regression Gram; a log the scan cannot read is not checked), the logs
+    // prepared for the checks on the voltage equations and a PWM fit's delay screen (three
+    // averaged fits). On the calling thread when the caller's rayon pool has one thread.
     let beside = || {
         let logs = crate::pmsm::checks::prepared::prepare(dq.views(), options);
         Beside {
             scan: (!options.skip_setup_checks)
                 .then(|| crate::pmsm::checks::columns::scan(dq.views(), options.input).ok())
                 .flatten(),
-            dead: crate::pmsm::checks::advice::dead_time_advice(&logs, options),
             logs,
             delay_screen: crate::pmsm::checks::delay::screen(dq.experiments(), options, refit),
         }
@@ -76,7 +75,7 @@ fn fit_beside(
     let n_p = options.pole_pairs;
     let experiments = dq.experiments();
     let fitted = holds::fit_from_start(dq, options, names);
-    let Beside { scan, dead, logs, delay_screen } = beside.get();
+    let Beside { scan, logs, delay_screen } = beside.get();
     // A salient log fitted without the saliency is an error before any other: the start's,
     // the options', the fits'.
     let structure = match &scan {
@@ -111,11 +110,15 @@ fn fit_beside(
             best.parameter(n).map(|p| p.value + if *n == "r_s" { options.cable_resistance } else { 0.0 })
         })
         .collect();
-    // The late-voltage check and the setup checks' own warnings need the estimate: side by side.
-    let (late, setup_warnings) = rayon::join(
+    // The late-voltage check, the dead-time check where it can speak (it reads the fit's
+    // residuals) and the setup checks' own warnings: side by side.
+    let ((late, dead), setup_warnings) = rayon::join(
         || {
             let v_dt = best.parameter("v_dt").map(|p| p.value);
-            crate::pmsm::checks::advice::late_voltage_advice(&logs, options, &motor, v_dt)
+            rayon::join(
+                || crate::pmsm::checks::advice::late_voltage_advice(&logs, options, &motor, v_dt),
+                || crate::pmsm::checks::advice::dead_time_advice(&logs, options, &best),
+            )
         },
         || {
             (!options.skip_setup_checks)

@@ -1,6 +1,5 @@
 //! The checks that need no estimate, running beside a fit ([`crate::pmsm::fit_pmsm`]).
 
-use crate::estimate::result::Warning;
 use crate::pmsm::checks::prepared::PreparedLog;
 use std::thread::ScopedJoinHandle;
 
@@ -25,10 +24,8 @@ pub(super) struct Beside<'a> {
     /// The setup scan's regression Grams ([`crate::pmsm::checks::columns::scan`]); `None`
     /// when the setup checks are skipped or the scan cannot read a log.
     pub scan: Option<crate::pmsm::checks::columns::ColumnScan>,
-    /// The dead-time check, one entry per log ([`crate::pmsm::checks::advice`]).
-    pub dead: Vec<Option<Warning>>,
-    /// The logs prepared once for the checks on the voltage equations (the dead-time check
-    /// here, the late-voltage check after the fit).
+    /// The logs prepared once for the checks on the voltage equations after the fit (the
+    /// dead-time and late-voltage checks).
     pub logs: Vec<Option<PreparedLog<'a>>>,
     /// The delay check's screen of a PWM fit ([`crate::pmsm::checks::delay::screen`]): its
     /// averaged fits at three delays need no estimate of the PWM model.
