@@ -164,6 +164,34 @@ fn a_late_voltage_is_pointed_out() {
     assert!(!late(&right), "{:?}", right.warnings);
 }
 
+/// The same with current noise that hides the residual's correlation with the voltage's
+/// change (issue 43: a wrong `l_s` with exit 0 before): the refit with the voltage one
+/// sample later names it; the terminal voltage under the same noise is not named.
+#[test]
+fn a_late_voltage_under_current_noise_is_pointed_out() {
+    let e = reference_record(1);
+    let mut s = DqView::try_new(&e).unwrap().to_signals();
+    let mut rng = Rng(17);
+    let sigma = 1.0;
+    for i in [&mut s.i_d, &mut s.i_q] {
+        for v in i.iter_mut() {
+            *v += sigma * rng.normal();
+        }
+    }
+    let terminal = s.clone().into_experiment("terminal", H).unwrap();
+    (s.u_d, s.u_q) = (s.u_d_ref.clone().unwrap(), s.u_q_ref.clone().unwrap());
+    let naive = s.into_experiment("naive", H).unwrap();
+    let hold = PmsmFitOptions { hold: HoldChoice::Stator, ..pmsm_options(N_P) };
+    let late = |f: &greybox::pmsm::PmsmFit| {
+        f.warnings.iter().find(|w| w.code == "voltage_late" && w.untrusted).map(|w| w.message.clone())
+    };
+    let fit = fit_pmsm(&[naive], &hold).unwrap();
+    let why = late(&fit).unwrap_or_else(|| panic!("no voltage_late: {:?}", fit.warnings));
+    assert!(why.contains("one sample later") && !fit.trusted(), "{why}");
+    let right = fit_pmsm(&[terminal], &hold).unwrap();
+    assert!(late(&right).is_none(), "{:?}", right.warnings);
+}
+
 /// On the development logs: the PWM log fitted from its reference without the inverter
 /// model is told about the dead time, also with the reference read as the terminal voltage
 /// (where the check is skipped on white residuals, issue 45), and not with the inverter

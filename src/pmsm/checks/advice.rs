@@ -155,23 +155,32 @@ pub(crate) fn dead_time_advice(
 /// residuals (no inverter in the model: the dead time is surely there); so does a fit
 /// without the Ljung–Box statistics.
 pub(crate) fn dead_time_can_speak(fit: &FitResult, input: VoltageInput) -> bool {
+    !(white(fit) && matches!(input, VoltageInput::Terminal))
+}
+
+/// Whether the residuals of `fit` are white: every output's Ljung–Box statistic at or
+/// below its 1 % critical value (`false` without the statistics).
+pub(crate) fn white(fit: &FitResult) -> bool {
     let u = &fit.uncertainty;
-    let white = !u.ljung_box.is_empty()
+    !u.ljung_box.is_empty()
         && u.ljung_box_critical > 0.0
-        && u.ljung_box.iter().all(|&q| q <= u.ljung_box_critical);
-    !(white && matches!(input, VoltageInput::Terminal))
+        && u.ljung_box.iter().all(|&q| q <= u.ljung_box_critical)
 }
 
 /// The late-voltage check of a fit with `options` at the motor parameters `theta` (model
-/// order, the whole series resistance), one entry per log. A fit with the inverter model
-/// has its error `v_dt` times the dead-time directions taken off the voltage first (as the
-/// fit does), so that the dead time does not pass for a late voltage.
+/// order, the whole series resistance), one entry per log, and whether a log without a
+/// warning is suspect: its residual's slope on the voltage's change above [`LATE_SLOPE`]
+/// while the correlation is at or below [`THRESHOLD`] (current noise in the residual hides
+/// the correlation but not the slope; [`crate::pmsm::checks::late_refit`] then decides). A
+/// fit with the inverter model has its error `v_dt` times the dead-time directions taken
+/// off the voltage first (as the fit does), so that the dead time does not pass for a late
+/// voltage.
 pub(crate) fn late_voltage_advice(
     logs: &[Option<PreparedLog<'_>>],
     options: &PmsmFitOptions,
     theta: &[f64],
     v_dt: Option<f64>,
-) -> Vec<Option<Warning>> {
+) -> (Vec<Option<Warning>>, bool) {
     let (n_p, kind) = (options.pole_pairs, options.model);
     let theta = &theta[..theta.len().min(MAX_COLS)];
     let check = |p: &Option<PreparedLog<'_>>| {
@@ -209,15 +218,19 @@ pub(crate) fn late_voltage_advice(
             let (saa, sbb, sab) = (sxx - sx * sx / n, syy - sy * sy / n, sxy - sx * sy / n);
             let c = if saa > 0.0 && sbb > 0.0 { sab / (saa * sbb).sqrt() } else { 0.0 };
             let slope = if sbb > 0.0 { sab / sbb } else { 0.0 };
-            (c.abs() > THRESHOLD && slope.abs() > LATE_SLOPE).then(|| {
+            let late = slope.abs() > LATE_SLOPE;
+            Some(((c.abs() > THRESHOLD && late).then(|| {
             Warning::untrusted("voltage_late", format!(
                 "`{}`: the voltage residual follows the voltage's change from the sample before (correlation \
                  {c:+.2}, slope {slope:+.2}): the voltage acts later than the model assumes, as a controller's \
                  reference does (--voltage reference --delay estimate)",
                 v.experiment().name()
             ))
-        })
+        }), slope > LATE_SLOPE))
         })
     };
-    logs.iter().map(check).collect()
+    let found: Vec<(Option<Warning>, bool)> =
+        logs.iter().map(|p| check(p).unwrap_or((None, false))).collect();
+    let suspect = found.iter().any(|(w, s)| w.is_none() && *s);
+    (found.into_iter().map(|(w, _)| w).collect(), suspect)
 }

@@ -125,6 +125,14 @@ fn fit_beside(
                 .then(|| crate::pmsm::checks::detect::warnings(dq.views(), n_p, &best, options.read_scales))
         },
     );
+    let (late, suspect) = late;
+    // A late voltage the residual check suspects but cannot name (current noise hides its
+    // correlation): the refit with the voltage one sample later decides.
+    let late_refit = late
+        .iter()
+        .all(Option::is_none)
+        .then(|| super::late_voltage::warning(experiments, options, &best, suspect, refit))
+        .flatten();
     let model_checks = crate::pmsm::checks::advice::merge(dead, late);
     if losses.len() > 1 {
         let why = match (hold, modulator) {
@@ -170,6 +178,7 @@ fn fit_beside(
     let parameters = best.parameters.iter().cloned().chain(delay_parameter(options.input, None)).collect();
     let mut warnings = best.warnings.clone();
     warnings.extend(model_checks);
+    warnings.extend(late_refit);
     if !options.skip_setup_checks {
         warnings.extend(structure);
         if let Some(g) = &scan {

@@ -98,16 +98,28 @@ pub const HOLD_TIE_Z: f64 = 2.0;
 /// Vuong's test of non-nested models, *Econometrica* 57 (1989) 307–333). `None` for fits
 /// without a positive loss or whiteness.
 pub(crate) fn noise_z(a: &FitResult, b: &FitResult) -> Option<f64> {
-    let (la, lb) = (a.fit.loss, b.fit.loss);
+    loss_z(a, b.fit.loss, residual_time(a)?.max(residual_time(b)?))
+}
+
+/// [`noise_z`] of the fit `a` against another fit of the same samples whose loss alone,
+/// `other`, is known: τ from `a`'s residuals alone.
+pub(crate) fn noise_z_against(a: &FitResult, other: f64) -> Option<f64> {
+    loss_z(a, other, residual_time(a)?)
+}
+
+/// [`noise_z`] from `a`'s sample count and loss, the other loss `lb` and τ.
+fn loss_z(a: &FitResult, lb: f64, tau: f64) -> Option<f64> {
+    let la = a.fit.loss;
     let low = la.min(lb);
     let n = (a.fit.samples * a.fit.whiteness.len()) as f64;
-    let tau = |r: &FitResult| {
-        let t: Vec<f64> = r.fit.whiteness.iter().map(|w| integrated_time(&w.autocorrelation)).collect();
-        (!t.is_empty()).then(|| t.iter().sum::<f64>() / t.len() as f64)
-    };
-    let tau = tau(a)?.max(tau(b)?);
     (low > 0.0 && n > 0.0 && la.is_finite() && lb.is_finite())
         .then(|| (n * (la - lb).abs() / low).sqrt() / (2.0 * tau.sqrt()))
+}
+
+/// The integrated autocorrelation time of `r`'s residuals, the mean over its outputs.
+fn residual_time(r: &FitResult) -> Option<f64> {
+    let t: Vec<f64> = r.fit.whiteness.iter().map(|w| integrated_time(&w.autocorrelation)).collect();
+    (!t.is_empty()).then(|| t.iter().sum::<f64>() / t.len() as f64)
 }
 
 /// `1 + 2 Σ ρ_k` over the lags `rho`, with the geometric tail `ρ_K r / (1 − r)`,
