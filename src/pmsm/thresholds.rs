@@ -22,6 +22,7 @@ pub use super::fit::flux_map_regions::REGION_POINTS;
 pub use super::fit::hold::{DQ_DECISIVE, HOLD_AMBIGUOUS_Z, HOLD_TIE_Z, SCREEN_DECISIVE};
 pub use super::fit::input_search::{ADVANCE_RANGE, DELAYS};
 pub use super::fit::iv::{IV_MAX_ITERATIONS, IV_STEP_TOLERANCE};
+pub use super::fit::late_voltage::LATE_Z;
 pub use super::fit::mechanics::{COULOMB_SPEED_RANGE, MIN_WINDOWS};
 pub use super::fit::pole_pairs::AUTO_CANDIDATES;
 pub use super::fit::saturated::LOCAL_MINIMUM_EXCESS;

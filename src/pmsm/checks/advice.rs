@@ -168,10 +168,11 @@ pub(crate) fn white(fit: &FitResult) -> bool {
 }
 
 /// The late-voltage check of a fit with `options` at the motor parameters `theta` (model
-/// order, the whole series resistance), one entry per log, and whether a log without a
-/// warning is suspect: its residual's slope on the voltage's change above [`LATE_SLOPE`]
-/// while the correlation is at or below [`THRESHOLD`] (current noise in the residual hides
-/// the correlation but not the slope; [`crate::pmsm::checks::late_refit`] then decides). A
+/// order, the whole series resistance), one entry per log, and whether every log is
+/// suspect: no warning, and its residual's slope on the voltage's change above
+/// [`LATE_SLOPE`] (a late voltage gives +1) while the correlation is at or below
+/// [`THRESHOLD`] (current noise in the residual hides the correlation but not the slope;
+/// the fit's refit with the voltage as a reference then decides, `pmsm::fit::late_voltage`). A
 /// fit with the inverter model has its error `v_dt` times the dead-time directions taken
 /// off the voltage first (as the fit does), so that the dead time does not pass for a late
 /// voltage.
@@ -218,8 +219,10 @@ pub(crate) fn late_voltage_advice(
             let (saa, sbb, sab) = (sxx - sx * sx / n, syy - sy * sy / n, sxy - sx * sy / n);
             let c = if saa > 0.0 && sbb > 0.0 { sab / (saa * sbb).sqrt() } else { 0.0 };
             let slope = if sbb > 0.0 { sab / sbb } else { 0.0 };
-            let late = slope.abs() > LATE_SLOPE;
-            Some(((c.abs() > THRESHOLD && late).then(|| {
+            // Either sign speaks with the correlation; only a late voltage's (+1) is suspect
+            // without it.
+            let steep = slope.abs() > LATE_SLOPE;
+            Some(((c.abs() > THRESHOLD && steep).then(|| {
             Warning::untrusted("voltage_late", format!(
                 "`{}`: the voltage residual follows the voltage's change from the sample before (correlation \
                  {c:+.2}, slope {slope:+.2}): the voltage acts later than the model assumes, as a controller's \
@@ -231,6 +234,6 @@ pub(crate) fn late_voltage_advice(
     };
     let found: Vec<(Option<Warning>, bool)> =
         logs.iter().map(|p| check(p).unwrap_or((None, false))).collect();
-    let suspect = found.iter().any(|(w, s)| w.is_none() && *s);
+    let suspect = !found.is_empty() && found.iter().all(|(w, s)| w.is_none() && *s);
     (found.into_iter().map(|(w, _)| w).collect(), suspect)
 }

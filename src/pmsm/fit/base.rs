@@ -126,13 +126,10 @@ fn fit_beside(
         },
     );
     let (late, suspect) = late;
-    // A late voltage the residual check suspects but cannot name (current noise hides its
-    // correlation): the refit with the voltage one sample later decides.
-    let late_refit = late
-        .iter()
-        .all(Option::is_none)
-        .then(|| super::late_voltage::warning(experiments, options, &best, suspect, refit))
-        .flatten();
+    // A late voltage the residual check suspects on every log but cannot name (current
+    // noise hides its correlation): the refit with the voltage as a reference decides.
+    let late_refit =
+        suspect.then(|| super::late_voltage::warning(experiments, options, &best, refit)).flatten();
     let model_checks = crate::pmsm::checks::advice::merge(dead, late);
     if losses.len() > 1 {
         let why = match (hold, modulator) {
