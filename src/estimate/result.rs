@@ -127,6 +127,15 @@ impl Uncertainty {
         }
     }
 
+    /// Whether the residuals are white: every output's Ljung–Box statistic at or below its
+    /// 1 % critical value (Ljung & Box 1978, as [`choose`](Self::choose) tests them);
+    /// `false` without the statistics (an empty `ljung_box` or no critical value).
+    pub fn white(&self) -> bool {
+        !self.ljung_box.is_empty()
+            && self.ljung_box_critical > 0.0
+            && self.ljung_box.iter().all(|&q| q <= self.ljung_box_critical)
+    }
+
     /// The batch means this uncertainty took from those offered to [`choose`](Self::choose).
     pub fn taken<'b>(
         &self,

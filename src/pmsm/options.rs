@@ -24,6 +24,22 @@ pub(crate) type RefitLoss<'a> = &'a (dyn Fn(&[Experiment], &PmsmFitOptions) -> O
 /// [`RefitLoss`] is.
 pub(crate) type RefitReport<'a> = &'a (dyn Fn(&[Experiment], &PmsmFitOptions) -> Option<FitResult> + Sync);
 
+impl PmsmFitOptions {
+    /// The motor's parameters of `fit` in its kind's order (MODEL.md §2: `r_s, l_s, k_e` or
+    /// `r_s, l_d, l_q, k_e`; Ω, H, V s/rad) with the whole series resistance, `r_s` plus
+    /// [`cable_resistance`](Self::cable_resistance), as the voltage equations see it; `None`
+    /// when `fit` lacks one.
+    pub(crate) fn series_theta(&self, fit: &FitResult) -> Option<Vec<f64>> {
+        self.model
+            .parameter_names()
+            .iter()
+            .map(|n| {
+                fit.parameter(n).map(|p| p.value + if *n == "r_s" { self.cable_resistance } else { 0.0 })
+            })
+            .collect()
+    }
+}
+
 /// How many times lower than `loss` a nested fit of `experiments` with `other` is (from the
 /// least-squares start, without setup checks of its own), when it is more than `ratio`
 /// times lower: a suspected setup mistake confirmed. `None` otherwise or when it fails.

@@ -143,7 +143,7 @@ pub(crate) fn dead_time_advice(
 /// `input` (issue 45: a check skipped where it cannot change the verdict). It cannot on the
 /// logged terminal voltage ([`VoltageInput::Terminal`]) with white residuals: every
 /// output's Ljung–Box statistic at or below its 1 % critical value
-/// ([`crate::estimate::Uncertainty::ljung_box`]). A dead-time voltage the model lacks is a
+/// ([`crate::estimate::Uncertainty::white`]). A dead-time voltage the model lacks is a
 /// square wave in the phase currents' sign, which the residuals carry at every small lag;
 /// the check asks for [`THRESHOLD`] of the voltage equations' residual, whose
 /// differentiated current noise is far above the output error's. Measured on the three
@@ -155,16 +155,7 @@ pub(crate) fn dead_time_advice(
 /// residuals (no inverter in the model: the dead time is surely there); so does a fit
 /// without the Ljung–Box statistics.
 pub(crate) fn dead_time_can_speak(fit: &FitResult, input: VoltageInput) -> bool {
-    !(white(fit) && matches!(input, VoltageInput::Terminal))
-}
-
-/// Whether the residuals of `fit` are white: every output's Ljung–Box statistic at or
-/// below its 1 % critical value (`false` without the statistics).
-pub(crate) fn white(fit: &FitResult) -> bool {
-    let u = &fit.uncertainty;
-    !u.ljung_box.is_empty()
-        && u.ljung_box_critical > 0.0
-        && u.ljung_box.iter().all(|&q| q <= u.ljung_box_critical)
+    !(fit.uncertainty.white() && matches!(input, VoltageInput::Terminal))
 }
 
 /// The late-voltage check of a fit with `options` at the motor parameters `theta` (model

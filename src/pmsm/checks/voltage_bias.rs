@@ -57,17 +57,11 @@ pub(crate) fn warning(
     if fit.uncertainty.method != CovarianceMethod::BatchMeans {
         return None;
     }
-    let value = |n: &str| fit.parameter(n).map(|p| p.value);
     // Each model's own voltage errors: an IPM's read with a mean inductance would leave the
     // saliency's error, which follows the currents' steps and is no smooth error the noise
     // estimate cancels (it took the noise-free gym-electric-motor IPM log for a noisy one).
     // The model's parameters in its order, with the whole series resistance.
-    let theta: Vec<f64> = options
-        .model
-        .parameter_names()
-        .iter()
-        .map(|n| value(n).map(|v| if *n == "r_s" { v + options.cable_resistance } else { v }))
-        .collect::<Option<_>>()?;
+    let theta = options.series_theta(fit)?;
     let (sigma, errors, rms) = voltage_noise(dq.views(), setup, &theta)?;
     if !(sigma > NEGLIGIBLE_VOLTAGE_NOISE * rms && sigma > VOLTAGE_NOISE_SHARE * errors) {
         return None;

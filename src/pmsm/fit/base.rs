@@ -102,14 +102,8 @@ fn fit_beside(
     notes.extend(hold_notes);
     let pmsm_advice: Vec<String> = hold_ambiguity(&best, hold, &others, names).into_iter().collect();
     // The regression sees the whole series resistance.
-    let motor: Vec<f64> = options
-        .model
-        .parameter_names()
-        .iter()
-        .filter_map(|n| {
-            best.parameter(n).map(|p| p.value + if *n == "r_s" { options.cable_resistance } else { 0.0 })
-        })
-        .collect();
+    // (A fit without one of them leaves the regression's checks nothing to compare.)
+    let motor = options.series_theta(&best).unwrap_or_default();
     // The late-voltage check, the dead-time check where it can speak (it reads the fit's
     // residuals) and the setup checks' own warnings: side by side.
     let ((late, dead), setup_warnings) = rayon::join(

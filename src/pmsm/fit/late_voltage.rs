@@ -22,7 +22,6 @@
 
 use crate::data::{Channel, Experiment};
 use crate::estimate::{FitResult, Warning};
-use crate::pmsm::checks::advice::white;
 use crate::pmsm::log::signals::channel;
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::options::{HoldChoice, PmsmFitOptions, RefitLoss};
@@ -53,7 +52,7 @@ pub(crate) fn warning(
 ) -> Option<Warning> {
     let terminal =
         options.input == VoltageInput::Terminal && options.inverter.is_none() && options.pwm.is_none();
-    if !terminal || options.skip_setup_checks || white(fit) {
+    if !terminal || options.skip_setup_checks || fit.uncertainty.white() {
         return None;
     }
     let late: Vec<Experiment> =
