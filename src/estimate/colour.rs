@@ -73,6 +73,7 @@ mod tests {
             ljung_box: ljung_box.to_vec(),
             ljung_box_critical: 44.3,
             jackknife: false,
+            restricted: false,
         }
     }
 

@@ -14,9 +14,10 @@
 //! noise-free outputs an auxiliary model simulates); this module sums, steps and gives the
 //! covariance, for any model.
 
-use super::jackknife::BlockSums;
+use super::jackknife::{BlockSums, jackknife_covariance};
 use super::problem::LagStream;
 use super::problem::{BlockScores, LagSums, ScoreSeries, TARGET_BATCHES, WHITENESS_LAGS};
+use super::restricted::restricted_offsets;
 use super::result::{Uncertainty, t_quantile_975};
 use crate::error::{Error, Result};
 use crate::estimate::metrics::{self, Whiteness};
@@ -63,6 +64,12 @@ pub struct IvCovariance {
     pub uncertainty: Uncertainty,
     /// Whiteness of each output's equation error.
     pub whiteness: Vec<Whiteness>,
+    /// Per parameter, the 95 % interval's ends less the estimate, `[lo, hi]` (`lo ≤ 0 ≤ hi`,
+    /// the parameter's unit): where the equation errors are coloured and batches are
+    /// formed, the restricted interval (`estimate::restricted`; asymmetric where the
+    /// batches carry the parameter unevenly); otherwise, and for a parameter whose
+    /// restricted set is unbounded, `± t·√cov_jj`.
+    pub ci95_offsets: Vec<[f64; 2]>,
 }
 
 impl IvSums {
@@ -199,14 +206,29 @@ impl IvSums {
         let bm = uncertainty.taken(offered.as_ref());
         // The batches' jackknife where batch means are taken (and it exists: no batch alone
         // determines a parameter); their sandwich otherwise.
-        let jackknife =
-            bm.and_then(|_| self.jack.covariance(&self.zd, &self.score, &self.scores, TARGET_BATCHES));
+        let batches = bm.and_then(|_| self.jack.batches(&self.scores, TARGET_BATCHES));
+        let jackknife = batches.as_deref().and_then(|b| jackknife_covariance(&self.zd, &self.score, b));
         uncertainty.jackknife = jackknife.is_some();
         let cov = match jackknife {
             Some(v) => v,
             None => bm.map_or_else(|| cov_white.clone(), |b| sandwich(&b.meat)),
         };
-        Ok(IvCovariance { cov, cov_white, uncertainty, whiteness })
+        // The intervals: restricted where the batches give them, else ± t·se.
+        let tq = t_quantile_975(uncertainty.dof);
+        let restricted = batches
+            .as_deref()
+            .and_then(|b| restricted_offsets(&self.zd, &self.score, b, tq))
+            .unwrap_or_default();
+        uncertainty.restricted = restricted.iter().any(Option::is_some);
+        let ci95_offsets = (0..self.nth)
+            .map(|j| {
+                restricted.get(j).copied().flatten().unwrap_or_else(|| {
+                    let half = tq * cov[(j, j)].max(0.0).sqrt();
+                    [-half, half]
+                })
+            })
+            .collect();
+        Ok(IvCovariance { cov, cov_white, uncertainty, whiteness, ci95_offsets })
     }
 }
 

@@ -74,18 +74,12 @@ impl BlockSums {
         self.open_n = 0;
     }
 
-    /// The jackknife covariance (module documentation) at the estimate whose sums are
-    /// `m` (`M`, n_θ × n_θ) and `score` (`S`, n_θ), the block scores `scores` (kept in the
-    /// same blocks, in the optimiser's coordinates), over about `target` batches; `None`
-    /// with fewer than [`MIN_BATCHES`] batches, blocks that do not match, or when `M − M_g`
-    /// is singular for a batch (a batch that alone determines a parameter).
-    pub(crate) fn covariance(
-        &self,
-        m: &DMatrix<f64>,
-        score: &DVector<f64>,
-        scores: &ScoreSeries,
-        target: usize,
-    ) -> Option<DMatrix<f64>> {
+    /// Per batch of about `total/target` samples ([`partition`]): its samples, score sum
+    /// `S_g` (n_θ) and `M_g = Σ Zᵀ D` (n_θ × n_θ), from the block scores `scores` (kept in the
+    /// same blocks, in the optimiser's coordinates); `None` with fewer than [`MIN_BATCHES`]
+    /// batches or blocks that do not match. Shared by the jackknife and the restricted
+    /// intervals ([`super::restricted`]).
+    pub(crate) fn batches(&self, scores: &ScoreSeries, target: usize) -> Option<Vec<BatchSums>> {
         let blocks: Vec<(&[usize], &[DVector<f64>])> = scores.plain_blocks().collect();
         let matched = blocks.len() == self.experiments.len()
             && blocks
@@ -97,29 +91,62 @@ impl BlockSums {
         }
         let total: usize = blocks.iter().flat_map(|(c, _)| c.iter()).sum();
         let batches = partition(blocks.iter().map(|(c, _)| *c), total, target);
-        let g = batches.len();
-        if total == 0 || g < MIN_BATCHES {
+        if total == 0 || batches.len() < MIN_BATCHES {
             return None;
         }
         let nth = self.nth;
-        let mut shifts = Vec::with_capacity(g);
-        for b in &batches {
-            let s_g = b.sum(blocks[b.experiment].1, || DVector::zeros(nth));
-            let m_g = b.sum(&self.experiments[b.experiment], || DMatrix::zeros(nth, nth));
-            let step = (m - m_g).lu().solve(&(score - s_g))?;
-            if !step.iter().all(|v| v.is_finite()) {
-                return None;
-            }
-            shifts.push(-step);
-        }
-        let mean = shifts.iter().fold(DVector::zeros(nth), |a, d| a + d) / g as f64;
-        let mut v = DMatrix::zeros(nth, nth);
-        for d in &shifts {
-            let c = d - &mean;
-            v += &c * c.transpose();
-        }
-        Some(v * ((g - 1) as f64 / g as f64))
+        Some(
+            batches
+                .iter()
+                .map(|b| {
+                    let counts = blocks[b.experiment].0;
+                    BatchSums {
+                        samples: counts[b.blocks.clone()].iter().chain(&counts[b.tail.clone()]).sum(),
+                        score: b.sum(blocks[b.experiment].1, || DVector::zeros(nth)),
+                        m: b.sum(&self.experiments[b.experiment], || DMatrix::zeros(nth, nth)),
+                    }
+                })
+                .collect(),
+        )
     }
+}
+
+/// The jackknife covariance (module documentation) at the estimate whose sums are `m`
+/// (`M`, n_θ × n_θ) and `score` (`S`, n_θ), over the batches `batches`
+/// ([`BlockSums::batches`]); `None` when `M − M_g` is singular for a batch (a batch that
+/// alone determines a parameter).
+pub(crate) fn jackknife_covariance(
+    m: &DMatrix<f64>,
+    score: &DVector<f64>,
+    batches: &[BatchSums],
+) -> Option<DMatrix<f64>> {
+    let (g, nth) = (batches.len(), score.len());
+    let mut shifts = Vec::with_capacity(g);
+    for b in batches {
+        let step = (m - &b.m).lu().solve(&(score - &b.score))?;
+        if !step.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        shifts.push(-step);
+    }
+    let mean = shifts.iter().fold(DVector::zeros(nth), |a, d| a + d) / g as f64;
+    let mut v = DMatrix::zeros(nth, nth);
+    for d in &shifts {
+        let c = d - &mean;
+        v += &c * c.transpose();
+    }
+    Some(v * ((g - 1) as f64 / g as f64))
+}
+
+/// One batch's sums ([`BlockSums::batches`]).
+#[derive(Clone, Debug)]
+pub(crate) struct BatchSums {
+    /// Its samples.
+    pub samples: usize,
+    /// `S_g = Σ Zᵀ ε` over the batch (n_θ).
+    pub score: DVector<f64>,
+    /// `M_g = Σ Zᵀ D` over the batch (n_θ × n_θ).
+    pub m: DMatrix<f64>,
 }
 
 #[cfg(test)]
@@ -167,7 +194,7 @@ mod tests {
         blocks.close();
         let mut series = ScoreSeries::new(2);
         series.add_plain(&blocks);
-        let v = sums.covariance(&m, &s, &series, 16).unwrap();
+        let v = jackknife_covariance(&m, &s, &sums.batches(&series, 16).unwrap()).unwrap();
         // 400 samples, blocks of 25: 16 batches of one block each.
         let refits: Vec<DVector<f64>> = (0..16).map(|g| fit(&|k| k / 25 == g)).collect();
         let mean = refits.iter().fold(DVector::zeros(2), |a, r| a + r) / 16.0;
@@ -196,7 +223,6 @@ mod tests {
         blocks.close();
         let mut series = ScoreSeries::new(1);
         series.add_plain(&blocks);
-        let m = DMatrix::from_element(1, 1, 50.0);
-        assert!(sums.covariance(&m, &DVector::zeros(1), &series, 32).is_none());
+        assert!(sums.batches(&series, 32).is_none());
     }
 }

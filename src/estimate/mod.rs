@@ -24,6 +24,7 @@ pub(crate) mod metrics;
 mod options;
 pub(crate) mod precision;
 pub(crate) mod problem;
+pub(crate) mod restricted;
 pub(crate) mod result;
 pub(crate) mod scaling;
 pub(crate) mod solver;

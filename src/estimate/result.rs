@@ -97,6 +97,13 @@ pub struct Uncertainty {
     /// reports written before the field existed (and not written when `false`).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub jackknife: bool,
+    /// Whether `ci95` is the restricted interval of the batches (instrumental variables,
+    /// `crate::estimate::restricted`: the batch-means test inverted at the estimate
+    /// restricted to each candidate value, asymmetric where the batches carry a parameter
+    /// unevenly) rather than `± t·std_error`; `false` in reports written before the field
+    /// existed (and not written when `false`).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub restricted: bool,
 }
 
 impl Uncertainty {
@@ -124,6 +131,7 @@ impl Uncertainty {
                 .first()
                 .map_or(0.0, crate::estimate::metrics::Whiteness::ljung_box_critical),
             jackknife: false,
+            restricted: false,
         }
     }
 

@@ -187,9 +187,14 @@ impl FitResult {
                 true => "the delete-one-batch jackknife (CV3)",
                 false => "the score's long-run covariance by batch means",
             };
+            let interval = match u.restricted {
+                true => "interval: the batch-means test inverted at the estimate restricted to each value (asymmetric \
+                         where the batches carry a parameter unevenly), t",
+                false => "interval t",
+            };
             format!(
                 "std error: residuals not white (Ljung–Box Q {q:.3e} > {:.1}): {how} over {} batches of {} samples, \
-                 interval t with {} degrees of freedom; the white-noise std errors are in the JSON (std_error_white)",
+                 {interval} with {} degrees of freedom; the white-noise std errors are in the JSON (std_error_white)",
                 u.ljung_box_critical, u.batches, u.batch_samples, u.dof
             )
         })

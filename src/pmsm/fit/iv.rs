@@ -316,7 +316,12 @@ fn report(
             value: theta[j],
             std_error: se[j],
             std_error_white: cov.cov_white[(j, j)].max(0.0).sqrt(),
-            ci95: [theta[j] - tq * se[j], theta[j] + tq * se[j]],
+            ci95: cov
+                .ci95_offsets
+                .get(j)
+                .map_or([theta[j] - tq * se[j], theta[j] + tq * se[j]], |[lo, hi]| {
+                    [theta[j] + lo, theta[j] + hi]
+                }),
             // The error index belongs to the output-error criterion.
             error_index_percent: f64::NAN,
             at_bound: false,

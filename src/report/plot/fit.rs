@@ -251,7 +251,18 @@ fn estimates(area: &Area<'_>, free: &[&crate::estimate::ParameterEstimate]) -> D
                 PathElement::new(vec![(lo, y - 0.12), (lo, y + 0.12)], style),
                 PathElement::new(vec![(hi, y - 0.12), (hi, y + 0.12)], style),
             ])?;
-            format!("± {} (± {} %)", format_eng(p.ci95[1] - p.value, &p.unit, 2), value(hi))
+            let (below, above) = (p.value - p.ci95[0], p.ci95[1] - p.value);
+            match (above - below).abs() <= 1e-6 * (above + below) {
+                true => format!("± {} (± {} %)", format_eng(above, &p.unit, 2), value(hi)),
+                // An asymmetric interval (the restricted intervals of instrumental variables).
+                false => format!(
+                    "+{} −{} (+{} % −{} %)",
+                    format_eng(above, &p.unit, 2),
+                    format_eng(below, &p.unit, 2),
+                    value(hi),
+                    value(-lo)
+                ),
+            }
         } else if p.at_bound {
             "(at a bound: no interval)".to_string()
         } else {
