@@ -56,7 +56,8 @@ pub struct IvSums {
 /// The covariance of an IV estimate and how it was formed.
 #[derive(Clone, Debug)]
 pub struct IvCovariance {
-    /// The covariance the intervals take (n_θ × n_θ).
+    /// The covariance of the standard errors (n_θ × n_θ): the jackknife's, the batch means'
+    /// or the white one ([`Uncertainty`] says which).
     pub cov: DMatrix<f64>,
     /// The white-noise covariance `M⁻¹ (Σ_i σ̂_i² Z_iᵀZ_i) M⁻ᵀ` (n_θ × n_θ).
     pub cov_white: DMatrix<f64>,
@@ -68,8 +69,11 @@ pub struct IvCovariance {
     /// the parameter's unit): where the equation errors are coloured and batches are
     /// formed, the restricted interval (`estimate::restricted`; asymmetric where the
     /// batches carry the parameter unevenly); otherwise, and for a parameter whose
-    /// restricted set is unbounded, `± t·√cov_jj`.
+    /// restricted set is unbounded, `± t·√cov_jj`. Length n_θ.
     pub ci95_offsets: Vec<[f64; 2]>,
+    /// The parameters (indices) whose restricted set was unbounded (too few batches carry
+    /// them) and whose interval is therefore `± t·√cov_jj`; empty otherwise.
+    pub unbounded: Vec<usize>,
 }
 
 impl IvSums {
@@ -220,6 +224,8 @@ impl IvSums {
             .and_then(|b| restricted_offsets(&self.zd, &self.score, b, tq))
             .unwrap_or_default();
         uncertainty.restricted = restricted.iter().any(Option::is_some);
+        let unbounded =
+            (0..self.nth).filter(|&j| uncertainty.restricted && restricted[j].is_none()).collect();
         let ci95_offsets = (0..self.nth)
             .map(|j| {
                 restricted.get(j).copied().flatten().unwrap_or_else(|| {
@@ -228,7 +234,7 @@ impl IvSums {
                 })
             })
             .collect();
-        Ok(IvCovariance { cov, cov_white, uncertainty, whiteness, ci95_offsets })
+        Ok(IvCovariance { cov, cov_white, uncertainty, whiteness, ci95_offsets, unbounded })
     }
 }
 
@@ -306,7 +312,7 @@ pub fn one_step_sums<M: GreyBoxModel>(
 
 impl IvCovariance {
     /// The 0.975 quantile of Student's t at [`Uncertainty::dof`]: the factor of the 95 %
-    /// intervals.
+    /// intervals `± t·√cov_jj`, and the quantile of the restricted ones.
     pub fn t_quantile(&self) -> f64 {
         t_quantile_975(self.uncertainty.dof)
     }

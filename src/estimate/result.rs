@@ -78,7 +78,7 @@ pub enum CovarianceMethod {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Uncertainty {
-    /// The covariance of `std_error` and `ci95`.
+    /// The covariance of `std_error` (and of `ci95`, but where [`Uncertainty::restricted`]).
     pub method: CovarianceMethod,
     /// Degrees of freedom of the t quantile of `ci95`: the residuals' (white) or the
     /// batches' less one (batch means).
@@ -97,11 +97,8 @@ pub struct Uncertainty {
     /// reports written before the field existed (and not written when `false`).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub jackknife: bool,
-    /// Whether `ci95` is the restricted interval of the batches (instrumental variables,
-    /// `crate::estimate::restricted`: the batch-means test inverted at the estimate
-    /// restricted to each candidate value, asymmetric where the batches carry a parameter
-    /// unevenly) rather than `± t·std_error`; `false` in reports written before the field
-    /// existed (and not written when `false`).
+    /// Whether `ci95` is the batches' restricted interval (instrumental variables,
+    /// `crate::estimate::restricted`) rather than `± t·std_error`; `false` in older reports.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub restricted: bool,
 }

@@ -307,7 +307,6 @@ fn report(
     floor: Option<String>,
 ) -> PmsmFit {
     let n = theta.len();
-    let tq = cov.t_quantile();
     let se: Vec<f64> = (0..n).map(|j| cov.cov[(j, j)].max(0.0).sqrt()).collect();
     let mut parameters: Vec<ParameterEstimate> = oe.report.parameters.clone();
     for (j, p) in parameters.iter_mut().take(n).enumerate() {
@@ -316,12 +315,7 @@ fn report(
             value: theta[j],
             std_error: se[j],
             std_error_white: cov.cov_white[(j, j)].max(0.0).sqrt(),
-            ci95: cov
-                .ci95_offsets
-                .get(j)
-                .map_or([theta[j] - tq * se[j], theta[j] + tq * se[j]], |[lo, hi]| {
-                    [theta[j] + lo, theta[j] + hi]
-                }),
+            ci95: [theta[j] + cov.ci95_offsets[j][0], theta[j] + cov.ci95_offsets[j][1]],
             // The error index belongs to the output-error criterion.
             error_index_percent: f64::NAN,
             at_bound: false,
@@ -380,6 +374,8 @@ fn report(
         )
     }));
     notes.extend(floor);
+    let unbounded = "the batches' restricted interval is unbounded (too few carry it): ± t·std_error instead";
+    notes.extend(cov.unbounded.iter().map(|&j| format!("{}: {unbounded}", parameters[j].name)));
     if !converged {
         warnings.push(crate::estimate::Warning::untrusted(
             "not_converged",

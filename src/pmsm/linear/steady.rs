@@ -302,7 +302,9 @@ pub(crate) fn steady_state_of(
         control_period: options.control_period,
         theta,
         std_error,
-        uncertainty: cov.uncertainty,
+        // The steady-state intervals are `± t·std_error`, widened later by the truncation
+        // error (`pmsm::fit::steady_checks`): not the restricted ones.
+        uncertainty: Uncertainty { restricted: false, ..cov.uncertainty },
         whiteness: cov.whiteness,
         rms_residual: fit.0,
         fit_percent: fit.1,
