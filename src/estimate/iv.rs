@@ -327,14 +327,11 @@ mod tests {
     /// its interval covers the truth.
     #[test]
     fn iv_removes_the_attenuation_of_a_noisy_regressor() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rng = crate::estimate::test_rng::Xorshift::new(0x9e37_79b9_7f4a_7c15);
         let mut normal = || {
             let mut s = 0.0;
             for _ in 0..12 {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                s += (state >> 11) as f64 / (1u64 << 53) as f64;
+                s += rng.uniform();
             }
             s - 6.0
         };

@@ -228,13 +228,8 @@ mod tests {
     /// value is χ²'s 0.99 quantile (scipy.stats.chi2.ppf(0.99, 25) = 44.314).
     #[test]
     fn ljung_box_tells_white_from_coloured() {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rng = crate::estimate::test_rng::Xorshift::new(0x2545_f491_4f6c_dd1d);
+        let mut next = || rng.uniform() - 0.5;
         let white: Vec<f64> = (0..20_000).map(|_| next()).collect();
         let mut x = 0.0;
         let ar: Vec<f64> = white

@@ -29,6 +29,8 @@ pub(crate) mod result;
 pub(crate) mod scaling;
 pub(crate) mod solver;
 pub(crate) mod spline;
+#[cfg(test)]
+pub(crate) mod test_rng;
 pub(crate) mod weighting;
 
 pub use arrowhead::{

@@ -194,13 +194,8 @@ mod coverage {
     /// batch means' Wald interval at the estimate (`± q √A`) falls short.
     #[test]
     fn the_restricted_interval_holds_its_level_where_information_is_uneven() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut uniform = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::estimate::test_rng::Xorshift::new(0x9e37_79b9_7f4a_7c15);
+        let mut uniform = || rng.uniform();
         let (groups, per, theta0) = (20usize, 50usize, 1.5);
         let q = t_quantile_975(groups - 1);
         let level = |g: usize| if g.is_multiple_of(4) { 4.0 } else { 1.0 };

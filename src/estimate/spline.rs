@@ -272,14 +272,9 @@ mod tests {
     #[test]
     fn the_value_interval_covers_under_noise() {
         let f = |x: f64, y: f64| (0.3 * x).sin() + 0.1 * y;
-        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut rng = crate::estimate::test_rng::Xorshift::new(0x2545_f491_4f6c_dd1d);
         let mut normal = || {
-            let mut u = || {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                (state >> 11) as f64 / (1u64 << 53) as f64
-            };
+            let mut u = || rng.uniform();
             (-2.0 * u().max(1e-300).ln()).sqrt() * (std::f64::consts::TAU * u()).cos()
         };
         let mut covered = 0;

@@ -332,13 +332,8 @@ mod tests {
     #[test]
     fn batch_means_recover_an_ar1_long_run_variance() {
         let (rho, n) = (0.9, 200_000usize);
-        let mut state = 0x1234_5678_9abc_def1u64;
-        let mut uniform = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::estimate::test_rng::Xorshift::new(0x1234_5678_9abc_def1);
+        let mut uniform = || rng.uniform();
         let mut x = 0.0;
         let scores: Vec<DVector<f64>> = (0..n)
             .map(|_| {
