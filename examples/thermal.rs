@@ -127,6 +127,7 @@ impl GreyBoxModel for Thermal {
             unit: "s".into(),
             value: r * c,
             std_error: var.sqrt(),
+            ci95: None,
             experiment: None,
         }]
     }

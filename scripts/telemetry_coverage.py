@@ -112,20 +112,22 @@ def main():
                             t = truth[p["name"]]
                             z = (p["value"] - t) / p["std_error"]
                             lo, hi = p["ci95"]
-                            got.setdefault((tag, k, scale, p["name"]), []).append((rc, z, lo <= t <= hi))
+                            got.setdefault((tag, k, scale, p["name"]), []).append(
+                                (rc, z, lo <= t <= hi, abs(p["value"] / t - 1.0)))
     print("| binary | every | noise scale | parameter | fits | exit 3 | coverage (all fits) | coverage (exit 0) | mean z "
-          "| sd z | max abs z |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+          "| sd z | max abs z | max error % (exit 0) |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for (tag, k, scale, name), v in sorted(got.items()):
-        z = [z for rc, z, _ in v if rc == 0]
-        share3 = sum(rc == 3 for rc, _, _ in v) / len(v)
-        cover_all = sum(c for _, _, c in v) / len(v)
+        z = [z for rc, z, _, _ in v if rc == 0]
+        share3 = sum(rc == 3 for rc, _, _, _ in v) / len(v)
+        cover_all = sum(c for _, _, c, _ in v) / len(v)
         if z:
-            cover = sum(c for rc, _, c in v if rc == 0) / len(z)
+            cover = sum(c for rc, _, c, _ in v if rc == 0) / len(z)
             sd = statistics.pstdev(z) if len(z) > 1 else math.nan
-            stats = f"{cover:.3f} | {statistics.fmean(z):+.2f} | {sd:.2f} | {max(map(abs, z)):.2f}"
+            worst = 100.0 * max(e for rc, _, _, e in v if rc == 0)
+            stats = f"{cover:.3f} | {statistics.fmean(z):+.2f} | {sd:.2f} | {max(map(abs, z)):.2f} | {worst:.3g}"
         else:
-            stats = "– | – | – | –"
+            stats = "– | – | – | – | –"
         print(f"| {tag.strip() or binary} | {k} | {scale:g} | {name} | {len(v)} | {share3:.2f} | {cover_all:.3f} "
               f"| {stats} |")
 

@@ -47,7 +47,8 @@ def _rows(items: list[dict[str, Any]], schema: pa.Schema, derived: bool) -> pa.T
         se = item.get("std_error")
         ci = item.get("ci95")
         if ci is None and derived and item.get("value") is not None and se is not None:
-            # As the batch summary: value ± 1.96 standard errors.
+            # A report written before the derived quantities kept their intervals: the
+            # normal value ± 1.96 standard errors.
             ci = [item["value"] - 1.96 * se, item["value"] + 1.96 * se]
         for name in columns:
             if name == "ci95_low":

@@ -294,7 +294,10 @@ pub(crate) fn assemble<M: GreyBoxModel>(
             at.unwrap_or_default()
         ));
     }
-    let derived = derived(problem, p, cov_theta.as_ref(), &se_free, &names);
+    let derived = derived(problem, p, cov_theta.as_ref(), &se_free, &names)
+        .into_iter()
+        .map(|d| d.with_interval(tq))
+        .collect();
     let parameter_trace = std::mem::take(&mut solver.trace)
         .iter()
         .map(|q| order_all.iter().map(|&g| problem.free()[g].transform.to_theta(q[g])).collect())

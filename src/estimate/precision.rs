@@ -13,7 +13,8 @@
 //! `t₀.₉₇₅(dof)/1.96`, the ratio of the report's own 95 % interval to the normal one (2.3
 //! at 2 degrees of freedom, 1.04 at 30), or that of the parameter's own interval where it
 //! is wider (an interval widened with fewer degrees of freedom than the fit's, e.g. by the
-//! spread of the fits of parts). Models state no target by default; the domain layers set
+//! spread of the fits of parts), the longer of its two sides where it is asymmetric (a
+//! restricted interval, `super::restricted`: the truth may lie that far on that side). Models state no target by default; the domain layers set
 //! one where their users' purpose fixes it.
 
 use super::result::{ParameterEstimate, Warning, t_quantile_975};
@@ -52,8 +53,9 @@ pub fn imprecise(
         .filter(|p| !p.fixed)
         .filter_map(|p| {
             let target = targets.iter().find(|t| t.parameter == p.name)?;
-            // The parameter's own interval's tails where they are heavier than the fit's.
-            let own = 0.5 * (p.ci95[1] - p.ci95[0]) / (normal * p.std_error);
+            // The parameter's own interval's tails where they are heavier than the fit's: its
+            // longer side.
+            let own = (p.ci95[1] - p.value).max(p.value - p.ci95[0]) / (normal * p.std_error);
             let tails = (t_quantile_975(dof) / normal).max(if own.is_finite() { own } else { 0.0 });
             let reach = PRECISION_Z * tails * p.std_error / p.value.abs();
             let label = p.experiment.as_ref().map_or_else(|| p.name.clone(), |e| format!("{}[{e}]", p.name));
@@ -134,6 +136,22 @@ mod tests {
             "{}",
             w.message
         );
+    }
+
+    /// An asymmetric interval counts by its longer side: `[v − 1.2 s, v + 3.0 s]` (mean half
+    /// width 2.1 s) reaches 3 × 3.0/1.96 s, not 3 × 2.1/1.96 s.
+    #[test]
+    fn an_asymmetric_interval_counts_by_its_longer_side() {
+        let targets = [target("a", 0.01)];
+        let (v, s) = (1.0, 0.0025);
+        let skewed =
+            |lo: f64, hi: f64| ParameterEstimate { ci95: [v - lo * s, v + hi * s], ..estimate("a", v, s) };
+        // Mean half width: 3 × 2.1/1.96 × 0.25 % = 0.80 %, within 1 %; longer side 1.15 %.
+        let w = imprecise(&[skewed(1.2, 3.0)], usize::MAX, &targets, "", "").unwrap();
+        assert!(w.message.contains("a known to ±1.15 %"), "{}", w.message);
+        let w = imprecise(&[skewed(3.0, 1.2)], usize::MAX, &targets, "", "").unwrap();
+        assert!(w.message.contains("a known to ±1.15 %"), "{}", w.message);
+        assert!(imprecise(&[skewed(1.2, 2.5)], usize::MAX, &targets, "", "").is_none());
     }
 
     #[test]

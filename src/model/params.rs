@@ -115,7 +115,30 @@ pub struct DerivedEstimate {
     pub value: f64,
     /// Standard error \[unit\].
     pub std_error: f64,
+    /// The 95 % interval `[low, high]` \[unit\], set by the fit that reports the quantity:
+    /// a quantity that is a monotone function of one parameter takes that parameter's
+    /// interval through the function (so `k_t` keeps the asymmetry of a restricted `k_e`
+    /// interval, `estimate::restricted`), any other `value ± t·std_error` with the fit's
+    /// quantile t. `None` from a model's [`derived`](crate::model::GreyBoxModel::derived),
+    /// which does not know the fit's quantile, and in reports written before the field
+    /// existed; [`interval`](Self::interval) then gives `± t·std_error`.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub ci95: Option<[f64; 2]>,
     /// Experiment, for quantities derived from per-experiment parameters.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub experiment: Option<String>,
+}
+
+impl DerivedEstimate {
+    /// The 95 % interval \[unit\]: [`ci95`](Self::ci95), else `value ± t·std_error` with
+    /// `t` the fit's 0.975 quantile (Student's t at its degrees of freedom).
+    pub fn interval(&self, t: f64) -> [f64; 2] {
+        self.ci95.unwrap_or([self.value - t * self.std_error, self.value + t * self.std_error])
+    }
+
+    /// `self` with its interval set: kept where it is set, else `value ± t·std_error`
+    /// ([`interval`](Self::interval)); for the fits that build a report.
+    pub fn with_interval(self, t: f64) -> Self {
+        Self { ci95: Some(self.interval(t)), ..self }
+    }
 }

@@ -231,7 +231,7 @@ impl Trajectory {
         for k in 0..self.t.len() {
             let se = |v: &[f64]| v.get(k).copied().unwrap_or(f64::NAN);
             let (se_r, se_k) = (se(&self.r_s_se), se(&self.k_e_se));
-            for d in reference.temperatures(self.r_s[k], se_r, psi * self.k_e[k], psi * se_k) {
+            for d in reference.temperatures(self.r_s[k], se_r, psi * self.k_e[k], psi * se_k, None) {
                 let (value, std) = match d.name.as_str() {
                     "t_winding" => (&mut out.t_winding, &mut out.t_winding_se),
                     _ => (&mut out.t_magnet, &mut out.t_magnet_se),

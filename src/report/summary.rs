@@ -159,10 +159,11 @@ impl FitResult {
                 ("95 % interval", Align::Right),
                 ("unit", Align::Left),
             ]);
-            // The parameters' interval: Student's t at the covariance's degrees of freedom.
+            // The fit's interval; in a report written before it was kept, Student's t at the
+            // covariance's degrees of freedom.
             let tq = crate::estimate::result::t_quantile_975(self.uncertainty.dof);
             for q in &self.derived {
-                let ci = [q.value - tq * q.std_error, q.value + tq * q.std_error];
+                let ci = q.interval(tq);
                 let [v, se, ci, unit] = estimate_cells(q.value, q.std_error, Some(ci), &q.unit, false);
                 t.push(vec![label(&q.name, q.experiment.as_deref()), v, se, ci, unit]);
             }

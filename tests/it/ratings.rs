@@ -35,3 +35,45 @@ fn ratings_match_the_hand_calculation() {
 fn p_psi(fit: &greybox::pmsm::PmsmFit) -> f64 {
     fit.derived("psi_f").unwrap().value
 }
+
+/// The derived quantities' intervals are the fit's statements about `k_e` carried through
+/// their functions: with instrumental variables the sample's `k_e` interval is the
+/// restricted (asymmetric) one, and `k_t = √1.5 k_e`, `psi_f = √(2/3) k_e/n_p`, `k_t_rms =
+/// √3 k_e` keep its ends times their factors, `k_v = c/k_e` its ends swapped; `k_m`, of
+/// `r_s` and `k_e`, is `± t·se` at the fit's quantile. The prediction-error fit's are
+/// `± t·se` throughout, the quantile of its parameters' intervals.
+#[test]
+fn derived_intervals_carry_the_parameters_intervals() {
+    use greybox::pmsm::{Estimator, fit_pmsm_by};
+    let log =
+        read_log(concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz"), &Default::default()).unwrap();
+    let options = PmsmFitOptions::new(4);
+    let iv = fit_pmsm_by(std::slice::from_ref(&log), &options, Estimator::InstrumentalVariables).unwrap();
+    assert!(iv.uncertainty.restricted, "the sample's IV fit gives restricted intervals");
+    let k_e = iv.parameter("k_e").unwrap();
+    let [lo, hi] = k_e.ci95;
+    // Asymmetric: otherwise the mapping could not be told from ± t·se.
+    assert!(((hi - k_e.value) / (k_e.value - lo) - 1.0).abs() > 1e-3, "k_e interval {lo} {hi}");
+    let ci = |n: &str| iv.derived(n).unwrap().ci95.unwrap();
+    let same =
+        |a: [f64; 2], b: [f64; 2]| (a[0] / b[0] - 1.0).abs() < 1e-12 && (a[1] / b[1] - 1.0).abs() < 1e-12;
+    assert!(same(ci("k_t"), [1.5f64.sqrt() * lo, 1.5f64.sqrt() * hi]));
+    let psi = (2.0f64 / 3.0).sqrt() / 4.0;
+    assert!(same(ci("psi_f"), [psi * lo, psi * hi]));
+    assert!(same(ci("k_t_rms"), [3f64.sqrt() * lo, 3f64.sqrt() * hi]));
+    let per_volt = 60.0 / (2.0 * std::f64::consts::PI * 2f64.sqrt());
+    assert!(same(ci("k_v"), [per_volt / hi, per_volt / lo]));
+    let t = greybox::estimate::t_quantile_975(iv.uncertainty.dof);
+    let k_m = iv.derived("k_m").unwrap();
+    assert!(same(ci("k_m"), [k_m.value - t * k_m.std_error, k_m.value + t * k_m.std_error]));
+
+    let pem = fit_pmsm(&[log], &options).unwrap();
+    let t = greybox::estimate::t_quantile_975(pem.uncertainty.dof);
+    let k_e = pem.parameter("k_e").unwrap();
+    // The half width is 3e-7 of the value: the difference keeps some 1e-10 of it.
+    assert!(((k_e.ci95[1] - k_e.value) / k_e.std_error / t - 1.0).abs() < 1e-8);
+    for q in &pem.derived {
+        let want = [q.value - t * q.std_error, q.value + t * q.std_error];
+        assert!(same(q.ci95.unwrap(), want), "{}: {:?} against {want:?}", q.name, q.ci95);
+    }
+}

@@ -91,7 +91,26 @@ fn thermal_reference_refuses_bad_values() {
     assert!(ThermalReference::try_new(20.0, None, Some(0.0)).unwrap_err().to_string().contains("psi_f0"));
     // Only what is known is derived.
     let t = ThermalReference::try_new(20.0, Some(1.0), None).unwrap();
-    let d = t.temperatures(1.0 + ALPHA_COPPER * 10.0, 0.0, 0.1, 0.0);
+    let d = t.temperatures(1.0 + ALPHA_COPPER * 10.0, 0.0, 0.1, 0.0, None);
     assert_eq!(d.len(), 1);
     assert!((d[0].value - 30.0).abs() < 1e-9);
+}
+
+/// The temperatures take the intervals of `r_s` and `psi_f` through their linear
+/// functions: the winding's ends in order (α > 0), the magnet's swapped (β < 0: more flux
+/// is a colder magnet); without intervals the fit sets `± t·se`.
+#[test]
+fn temperatures_carry_the_parameters_intervals() {
+    let t = ThermalReference::try_new(20.0, Some(1.0), Some(0.1)).unwrap();
+    let f_w = |r: f64| 20.0 + (r - 1.0) / ALPHA_COPPER;
+    let f_m = |p: f64| 20.0 + (p / 0.1 - 1.0) / greybox::pmsm::BETA_NDFEB;
+    let d = t.temperatures(1.04, 0.01, 0.099, 0.0002, Some([[1.02, 1.07], [0.0986, 0.0995]]));
+    let (w, m) = (&d[0], &d[1]);
+    assert_eq!((w.name.as_str(), m.name.as_str()), ("t_winding", "t_magnet"));
+    let close = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9;
+    assert!(close(w.ci95.unwrap(), [f_w(1.02), f_w(1.07)]), "{:?}", w.ci95);
+    assert!(close(m.ci95.unwrap(), [f_m(0.0995), f_m(0.0986)]), "{:?}", m.ci95);
+    assert!(w.ci95.unwrap()[0] < w.value && w.value < w.ci95.unwrap()[1]);
+    assert!(m.ci95.unwrap()[0] < m.value && m.value < m.ci95.unwrap()[1]);
+    assert!(t.temperatures(1.04, 0.01, 0.099, 0.0002, None).iter().all(|q| q.ci95.is_none()));
 }

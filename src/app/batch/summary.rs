@@ -55,7 +55,9 @@ pub struct Quantity {
     /// Standard error \[unit\].
     #[serde(deserialize_with = "nan_if_null")]
     pub std_error: f64,
-    /// 95 % interval \[unit\]; for a derived quantity, value ± 1.96 standard errors.
+    /// 95 % interval \[unit\]: the report's (for a derived quantity
+    /// [`DerivedEstimate::interval`](crate::model::DerivedEstimate::interval) at the fit's
+    /// quantile).
     #[serde(deserialize_with = "nan_if_null_2")]
     pub ci95: [f64; 2],
     /// Held at its start or given value (no standard error).
@@ -138,6 +140,7 @@ impl Record {
                 fixed: p.fixed,
             })
             .collect();
+        let tq = crate::estimate::t_quantile_975(fit.uncertainty.dof);
         let derived = fit
             .derived
             .iter()
@@ -146,7 +149,7 @@ impl Record {
                 unit: d.unit.clone(),
                 value: d.value,
                 std_error: d.std_error,
-                ci95: [d.value - 1.96 * d.std_error, d.value + 1.96 * d.std_error],
+                ci95: d.interval(tq),
                 fixed: false,
             })
             .collect();

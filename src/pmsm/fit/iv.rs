@@ -308,6 +308,8 @@ fn report(
 ) -> PmsmFit {
     let n = theta.len();
     let se: Vec<f64> = (0..n).map(|j| cov.cov[(j, j)].max(0.0).sqrt()).collect();
+    let ci: Vec<[f64; 2]> =
+        (0..n).map(|j| [theta[j] + cov.ci95_offsets[j][0], theta[j] + cov.ci95_offsets[j][1]]).collect();
     let mut parameters: Vec<ParameterEstimate> = oe.report.parameters.clone();
     for (j, p) in parameters.iter_mut().take(n).enumerate() {
         let start = p.value;
@@ -315,7 +317,7 @@ fn report(
             value: theta[j],
             std_error: se[j],
             std_error_white: cov.cov_white[(j, j)].max(0.0).sqrt(),
-            ci95: [theta[j] + cov.ci95_offsets[j][0], theta[j] + cov.ci95_offsets[j][1]],
+            ci95: ci[j],
             // The error index belongs to the output-error criterion.
             error_index_percent: f64::NAN,
             at_bound: false,
@@ -383,7 +385,17 @@ fn report(
         ));
     }
     let report = crate::estimate::FitResult {
-        derived: derived(kind, oe.pole_pairs, &theta, &se, cov.cov[(0, n - 1)] / (se[0] * se[n - 1])),
+        derived: derived(
+            kind,
+            oe.pole_pairs,
+            &theta,
+            &se,
+            cov.cov[(0, n - 1)] / (se[0] * se[n - 1]),
+            Some(&ci),
+        )
+        .into_iter()
+        .map(|d| d.with_interval(cov.t_quantile()))
+        .collect(),
         parameters,
         correlation,
         uncertainty: cov.uncertainty.clone(),

@@ -5,6 +5,7 @@
 
 use crate::data::Experiment;
 use crate::estimate::diagnostics::{DiagnosticThresholds, diagnose};
+use crate::estimate::result::t_quantile_975;
 use crate::estimate::{
     FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing, metrics,
 };
@@ -164,6 +165,8 @@ fn derived_all(est: &SteadyEstimate, options: &PmsmFitOptions) -> Vec<DerivedEst
     if logs.is_empty() {
         logs.push(None);
     }
+    // The quantile of the quantities of two parameters (`k_m`): the fit's.
+    let tq = t_quantile_975(est.uncertainty.dof);
     let mut out = Vec::new();
     for log in logs {
         // The full vector's entry of each model parameter for this log.
@@ -182,12 +185,19 @@ fn derived_all(est: &SteadyEstimate, options: &PmsmFitOptions) -> Vec<DerivedEst
         let t: Vec<f64> = at.iter().map(|&i| est.theta[i]).collect();
         let s: Vec<f64> = at.iter().map(|&i| est.std_error[i]).collect();
         let corr = est.correlation[at[0]][at[at.len() - 1]];
-        let with_log = |d: DerivedEstimate| DerivedEstimate { experiment: log.clone(), ..d };
-        out.extend(derived(kind, options.pole_pairs, &t, &s, corr).into_iter().map(with_log));
+        // The parameters' intervals (widened ones included), for the quantities of one.
+        let ci: Vec<[f64; 2]> =
+            at.iter().map(|&i| [est.theta[i] - est.ci95[i], est.theta[i] + est.ci95[i]]).collect();
+        let with_log =
+            |d: DerivedEstimate| DerivedEstimate { experiment: log.clone(), ..d.with_interval(tq) };
+        out.extend(derived(kind, options.pole_pairs, &t, &s, corr, Some(&ci)).into_iter().map(with_log));
         if let Some(th) = options.thermal {
             let psi = SQRT_2_3 / f64::from(options.pole_pairs);
             let k = t.len() - 1;
-            out.extend(th.temperatures(t[0], s[0], psi * t[k], psi * s[k]).into_iter().map(with_log));
+            let both = [ci[0], ci[k].map(|e| psi * e)];
+            out.extend(
+                th.temperatures(t[0], s[0], psi * t[k], psi * s[k], Some(both)).into_iter().map(with_log),
+            );
         }
     }
     out

@@ -81,7 +81,10 @@ impl LinearEstimate {
         FitResult {
             model: format!("{}_least_squares", kind.model_name()),
             experiments: experiments.to_vec(),
-            derived: derived(kind, n_p, &self.theta, &self.std_error, correlation[0][n - 1]),
+            derived: derived(kind, n_p, &self.theta, &self.std_error, correlation[0][n - 1], None)
+                .into_iter()
+                .map(|d| d.with_interval(tq))
+                .collect(),
             parameters,
             initial_states: Vec::new(),
             diagnostics,

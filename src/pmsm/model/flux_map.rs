@@ -82,6 +82,7 @@ impl GreyBoxModel for FluxMapModel {
                 unit: "H".into(),
                 value: 1.0 / theta[j],
                 std_error: var(j).max(0.0).sqrt() / (theta[j] * theta[j]),
+                ci95: None,
                 experiment: None,
             })
             .collect()

@@ -202,37 +202,51 @@ impl MotorKind {
 ///   `(60/2π)(√3/2)`);
 /// - `k_m` \[N m/√W\]: the motor constant, torque per square root of copper loss,
 ///   `k_t/√(1.5 R_s) = K_e/√R_s` (copper loss `3 R_s I_rms² = 1.5 R_s |i_dq|²`).
+///
+/// With the parameters' 95 % intervals `ci` (θ order, the parameters' units), each quantity
+/// of `K_e` alone takes `K_e`'s interval through its function (increasing for `k_t`,
+/// `psi_f`, `k_t_rms`, decreasing for `k_v`, whose interval needs `K_e`'s to exclude 0), so
+/// that an asymmetric interval stays the same statement; `k_m`, of two parameters, and
+/// every quantity without `ci` leave [`DerivedEstimate::ci95`] to the fit (`± t·std_error`).
 pub fn derived(
     kind: MotorKind,
     n_p: u32,
     theta: &[f64],
     std_error: &[f64],
     corr_rk: f64,
+    ci: Option<&[[f64; 2]]>,
 ) -> Vec<DerivedEstimate> {
     let Some(j) = kind.parameter_names().iter().position(|n| *n == "k_e") else { return Vec::new() };
     let (Some(&k_e), Some(&se)) = (theta.get(j), std_error.get(j)) else { return Vec::new() };
-    let make = |name: &str, unit: &str, value: f64, std_error: f64| DerivedEstimate {
+    let k_e_ci = ci.and_then(|c| c.get(j)).copied();
+    let make = |name: &str, unit: &str, value: f64, std_error: f64, ci95: Option<[f64; 2]>| DerivedEstimate {
         name: name.into(),
         unit: unit.into(),
         value,
         std_error,
+        ci95,
         experiment: None,
     };
+    // A multiple `a K_e` (a > 0) takes K_e's interval times a.
+    let scaled = |a: f64| k_e_ci.map(|[lo, hi]| [a * lo, a * hi]);
     let kt = 1.5f64.sqrt();
     let psi = (2.0f64 / 3.0).sqrt() / f64::from(n_p.max(1));
     let k_v = 60.0 / (2.0 * std::f64::consts::PI * std::f64::consts::SQRT_2 * k_e);
+    let per_volt = 60.0 / (2.0 * std::f64::consts::PI * std::f64::consts::SQRT_2);
+    // k_v = c/K_e decreases in K_e: the interval's ends swap, where K_e's excludes 0.
+    let k_v_ci = k_e_ci.filter(|[lo, hi]| lo * hi > 0.0).map(|[lo, hi]| [per_volt / hi, per_volt / lo]);
     let mut out = vec![
-        make("k_t", "N m/A", kt * k_e, kt * se),
-        make("psi_f", "V s", psi * k_e, psi * se),
-        make("k_t_rms", "N m/A", 3f64.sqrt() * k_e, 3f64.sqrt() * se),
-        make("k_v", "rpm/V", k_v, (k_v * se / k_e).abs()),
+        make("k_t", "N m/A", kt * k_e, kt * se, scaled(kt)),
+        make("psi_f", "V s", psi * k_e, psi * se, scaled(psi)),
+        make("k_t_rms", "N m/A", 3f64.sqrt() * k_e, 3f64.sqrt() * se, scaled(3f64.sqrt())),
+        make("k_v", "rpm/V", k_v, (k_v * se / k_e).abs(), k_v_ci),
     ];
     if let (Some(&r), Some(&se_r)) = (theta.first(), std_error.first()) {
         // k_m = K_e/√R: ∂/∂K_e = 1/√R, ∂/∂R = −K_e/(2 R^{3/2}).
         let (a, b) = (1.0 / r.sqrt(), -k_e / (2.0 * r.powf(1.5)));
         let c = if corr_rk.is_finite() { corr_rk } else { 0.0 };
         let var = a * a * se * se + b * b * se_r * se_r + 2.0 * a * b * c * se * se_r;
-        out.push(make("k_m", "N m/sqrt(W)", k_e / r.sqrt(), var.max(0.0).sqrt()));
+        out.push(make("k_m", "N m/sqrt(W)", k_e / r.sqrt(), var.max(0.0).sqrt(), None));
     }
     out
 }

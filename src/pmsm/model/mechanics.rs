@@ -247,6 +247,7 @@ impl GreyBoxModel for MechanicsModel {
             unit: "s".into(),
             value: tau,
             std_error: v.max(0.0).sqrt(),
+            ci95: None,
             experiment: None,
         }]
     }

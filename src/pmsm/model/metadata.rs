@@ -40,10 +40,11 @@ macro_rules! pmsm_model_metadata {
             let se: Vec<f64> = (0..theta.len()).map(|j| covariance[j][j].sqrt()).collect();
             let k = ($kind)(self).parameter_names().len() - 1;
             let corr = covariance.first().and_then(|row| row.get(k)).map_or(0.0, |c| c / (se[0] * se[k]));
-            let mut d = $crate::pmsm::model::kind::derived(($kind)(self), self.setup.n_p, theta, &se, corr);
+            let mut d =
+                $crate::pmsm::model::kind::derived(($kind)(self), self.setup.n_p, theta, &se, corr, None);
             let psi = d.iter().find(|q| q.name == "psi_f").map(|q| (q.value, q.std_error));
             if let (Some(t), Some((psi_f, se_psi))) = (&self.setup.thermal, psi) {
-                d.extend(t.temperatures(theta[0], se[0], psi_f, se_psi));
+                d.extend(t.temperatures(theta[0], se[0], psi_f, se_psi, None));
             }
             d
         }

@@ -155,6 +155,7 @@ impl GreyBoxModel for PmsmSaturated {
             unit: "V s/rad".into(),
             value: np * theta[6] / SQRT_2_3,
             std_error: np * var(6).sqrt() / SQRT_2_3,
+            ci95: None,
             experiment: None,
         }];
         for (name, j) in [("l_d0", 1), ("l_q0", 3)] {
@@ -163,6 +164,7 @@ impl GreyBoxModel for PmsmSaturated {
                 unit: "H".into(),
                 value: 1.0 / theta[j],
                 std_error: var(j).sqrt() / (theta[j] * theta[j]),
+                ci95: None,
                 experiment: None,
             });
         }

@@ -47,29 +47,41 @@ impl ThermalReference {
     }
 
     /// `t_winding` and `t_magnet` \[°C\] from the resistance `r_s` ± `se_r` \[Ω\] and the flux
-    /// `psi_f` ± `se_psi` \[V s\], for the reference values that are known.
-    pub fn temperatures(&self, r_s: f64, se_r: f64, psi_f: f64, se_psi: f64) -> Vec<DerivedEstimate> {
-        let make = |name: &str, value: f64, std_error: f64| DerivedEstimate {
-            name: name.into(),
-            unit: "degC".into(),
-            value,
-            std_error,
-            experiment: None,
+    /// `psi_f` ± `se_psi` \[V s\], for the reference values that are known. With the 95 %
+    /// intervals of `r_s` and `psi_f` (`ci`: `[r_s's, psi_f's]`, their units), each
+    /// temperature, a linear function of one of them, takes its interval through that
+    /// function ([`DerivedEstimate::ci95`]; ends swapped for a negative coefficient, β < 0);
+    /// without, the fit sets `± t·std_error`.
+    pub fn temperatures(
+        &self,
+        r_s: f64,
+        se_r: f64,
+        psi_f: f64,
+        se_psi: f64,
+        ci: Option<[[f64; 2]; 2]>,
+    ) -> Vec<DerivedEstimate> {
+        let make = |name: &str, f: &dyn Fn(f64) -> f64, value: f64, std_error: f64, ci: Option<[f64; 2]>| {
+            let ends = ci.map(|[lo, hi]| {
+                let (a, b) = (f(lo), f(hi));
+                [a.min(b), a.max(b)]
+            });
+            DerivedEstimate {
+                name: name.into(),
+                unit: "degC".into(),
+                value: f(value),
+                std_error,
+                ci95: ends,
+                experiment: None,
+            }
         };
         let mut out = Vec::new();
         if let Some(r0) = self.r_s0 {
-            out.push(make(
-                "t_winding",
-                self.t0 + (r_s / r0 - 1.0) / self.alpha,
-                se_r / (self.alpha * r0).abs(),
-            ));
+            let f = |r: f64| self.t0 + (r / r0 - 1.0) / self.alpha;
+            out.push(make("t_winding", &f, r_s, se_r / (self.alpha * r0).abs(), ci.map(|c| c[0])));
         }
         if let Some(p0) = self.psi_f0 {
-            out.push(make(
-                "t_magnet",
-                self.t0 + (psi_f / p0 - 1.0) / self.beta,
-                se_psi / (self.beta * p0).abs(),
-            ));
+            let f = |p: f64| self.t0 + (p / p0 - 1.0) / self.beta;
+            out.push(make("t_magnet", &f, psi_f, se_psi / (self.beta * p0).abs(), ci.map(|c| c[1])));
         }
         out
     }
