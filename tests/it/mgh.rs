@@ -261,10 +261,10 @@ fn lm_matches_minpack_on_the_mgh_set() {
     let (table, failures, counts) = mgh_table(SolverKind::Lm);
     write_table("mgh_table.md", &table);
     assert!(failures.is_empty(), "cases off MINPACK's sum of squares: {failures:?}");
-    // The figures of docs/performance.md (2026-11-30), kept from falling back.
+    // The figures of docs/performance.md (2026-12-01), kept from falling back.
     let (agree, no_more, same) = tally(&counts);
     eprintln!("at MINPACK's ‖r‖²: {agree}; in ≤ nfev: {no_more}; in exactly nfev: {same}");
-    assert!(agree >= 45 && no_more >= 12, "{agree}, {no_more}");
+    assert!(agree >= 45 && no_more >= 15, "{agree}, {no_more}");
 }
 
 /// One case's evaluation counts: `(name, n, factor, our evaluations, MINPACK's nfev,
@@ -504,7 +504,7 @@ fn geodesic_acceleration_shortens_runs_along_curved_valleys() {
 /// Levenberg-Marquardt with MINPACK's trust region (`SolverKind::TrustRegion`, on J's QR
 /// factors: the problem gives its root) on the MGH set: MINPACK's sums of squares (four
 /// exceptions fewer than Levenberg-Marquardt's list), and MINPACK's evaluation count or
-/// fewer on all but one case.
+/// fewer on every case MINPACK converges on.
 #[test]
 fn trust_region_matches_minpack_on_the_mgh_set() {
     let (table, failures, counts) = mgh_table(SolverKind::TrustRegion);
@@ -516,12 +516,13 @@ fn trust_region_matches_minpack_on_the_mgh_set() {
         .collect();
     eprintln!("more evaluations than MINPACK: {} of {}: {more:?}", more.len(), counts.len());
     assert!(failures.is_empty(), "cases off MINPACK's sum of squares: {failures:?}");
-    // MINPACK's own path on the rest (docs/performance.md): more evaluations only for
-    // Powell's singular function from 100 x₀, whose end MINPACK finds by rounding.
-    assert!(more.len() <= 1, "{more:?}");
+    // MINPACK's own path (docs/performance.md). Powell's singular function, whose end
+    // MINPACK finds by rounding (from 100 x₀ in 68 evaluations), ends at the zero-residual
+    // test `V ≤ ε² min(V₀, 1)` (in 36; before that test, 493).
+    assert!(more.is_empty(), "{more:?}");
     let (agree, no_more, same) = tally(&counts);
     eprintln!("at MINPACK's ‖r‖²: {agree}; in ≤ nfev: {no_more}; in exactly nfev: {same}");
-    assert!(agree >= 51 && no_more >= 50, "{agree}, {no_more}");
+    assert!(agree >= 51 && no_more >= 51, "{agree}, {no_more}");
 }
 
 /// The root a static problem gives the trust region ([`LeastSquares::root`]) squares to its

@@ -204,7 +204,7 @@ impl<O: LeastSquares> Solver<O, LsState> for LevenbergMarquardt {
                 self.nu = 2.0;
                 self.monitor.observe(&ne.jtj);
                 self.monitor.accept_step(&step);
-                if ne.cost == 0.0 {
+                if self.monitor.zero_residual(ne.cost) {
                     self.stop(Termination::ZeroResidual);
                 } else if Monitor::cost_converged(&self.tol, &r) {
                     self.stop(self.monitor.certify(Termination::CostTolerance, &ne.jtj, ne.cost));

@@ -132,6 +132,19 @@ impl Monitor {
         Reductions { actred, prered, ratio }
     }
 
+    /// Whether `cost` is a zero residual to working precision: `V ≤ ε_mach² min(V₀, 1)`,
+    /// i.e. `‖√W ε‖ ≤ ε_mach ‖√W ε₀‖` and `‖√W ε‖ ≤ √2 ε_mach` (0 included). NL2SOL's
+    /// absolute function convergence test (`V ≤ AFCTOL`, Dennis, Gay & Welsch, *ACM TOMS* 7
+    /// (1981) 348–368; PORT's default `max(1e-20, ε_mach²)`) at `ε_mach²`, bounded by the start's
+    /// cost so that it never passes at a start in small units. MINPACK has no such test and
+    /// relies on `V = 0` or on its `gtol`/`xtol` tests: where the Jacobian is singular at a zero
+    /// residual (Powell's singular function) the iteration converges linearly, S falling
+    /// 16-fold a step, no test passes in exact arithmetic, and MINPACK ends where rounding
+    /// makes its `gnorm` pass (`info` 8); past `ε_mach²` nothing is left to gain.
+    pub fn zero_residual(&self, cost: f64) -> bool {
+        cost <= f64::EPSILON * f64::EPSILON * self.cost0.min(1.0)
+    }
+
     /// MINPACK's `ftol` test (`info = 1`).
     pub fn cost_converged(tol: &Tolerances, r: &Reductions) -> bool {
         r.actred.abs() <= tol.ftol && r.prered <= tol.ftol && 0.5 * r.ratio <= 1.0

@@ -75,7 +75,8 @@ pub enum Termination {
     StepTolerance,
     /// The relative cost reduction fell below `ftol`.
     CostTolerance,
-    /// The residual is exactly zero.
+    /// The residual is zero to working precision: the cost at most `ε_mach² min(V₀, 1)`
+    /// (`stopping::Monitor::zero_residual`), exactly zero included.
     ZeroResidual,
     /// `max_iters` reached before convergence.
     MaxIterations,

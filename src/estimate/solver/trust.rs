@@ -246,7 +246,7 @@ impl<O: LeastSquares> Solver<O, LsState> for TrustRegion {
                 self.monitor.observe(&ne.jtj);
                 self.monitor.accept_step(&step);
                 self.root_current = false;
-                if ne.cost == 0.0 {
+                if self.monitor.zero_residual(ne.cost) {
                     self.termination = Some(Termination::ZeroResidual);
                 } else if Monitor::gradient_converged(&self.tol, &ne.jtj, &ne.jtr, ne.cost) {
                     self.termination =
