@@ -16,6 +16,7 @@ pub(super) mod hold;
 mod holds;
 pub(super) mod input_search;
 pub(super) mod iv;
+mod iv_report;
 pub(super) mod late_voltage;
 pub(super) mod mechanics;
 mod mechanics_report;
