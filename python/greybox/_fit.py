@@ -100,7 +100,10 @@ class Fit:
     def derived(self) -> pa.Table:
         """Quantities derived from the parameters (``k_t`` [N m/A], ``psi_f`` [V s], with a
         reference temperature the winding and magnet temperatures [°C]):
-        ``name, value, unit, std_error, ci95_low, ci95_high`` (interval: value ± 1.96 σ)."""
+        ``name, value, unit, std_error, ci95_low, ci95_high`` (the report's 95 % interval: with
+        instrumental variables and steady-state fits a quantity of one parameter takes that
+        parameter's interval through its function, otherwise value ± t σ at the fit's Student
+        quantile)."""
         return _rows(self._report().get("derived", []), DERIVED_SCHEMA, derived=True)
 
     @property

@@ -14,8 +14,9 @@
 //! at 2 degrees of freedom, 1.04 at 30), or that of the parameter's own interval where it
 //! is wider (an interval widened with fewer degrees of freedom than the fit's, e.g. by the
 //! spread of the fits of parts), the longer of its two sides where it is asymmetric (a
-//! restricted interval, `super::restricted`: the truth may lie that far on that side). Models state no target by default; the domain layers set
-//! one where their users' purpose fixes it.
+//! restricted interval, `super::restricted`: the truth may lie that far on that side).
+//! Models state no target by default; the domain layers set one where their users' purpose
+//! fixes it.
 
 use super::result::{ParameterEstimate, Warning, t_quantile_975};
 use serde::{Deserialize, Serialize};

@@ -216,8 +216,9 @@ pub trait GreyBoxModel: Sync {
     /// Quantities derived from the parameters θ (length n_θ) with standard errors from
     /// their covariance (n_θ × n_θ rows, θ units; 0 for fixed parameters, ∞ on the diagonal
     /// of an unidentified one) by first-order propagation, `σ_f² = ∇fᵀ C ∇f` (e.g. a torque
-    /// constant from a back-EMF constant, a time constant from a product). The default
-    /// derives nothing.
+    /// constant from a back-EMF constant, a time constant from a product). Leave
+    /// [`DerivedEstimate::ci95`] `None`: the fit sets `± t·std_error` at its quantile (a set
+    /// interval is kept as given). The default derives nothing.
     fn derived(&self, _theta: &[f64], _covariance: &[Vec<f64>]) -> Vec<DerivedEstimate> {
         Vec::new()
     }

@@ -159,8 +159,8 @@ impl FitResult {
                 ("95 % interval", Align::Right),
                 ("unit", Align::Left),
             ]);
-            // The fit's interval; in a report written before it was kept, Student's t at the
-            // covariance's degrees of freedom.
+            // The fit's interval; for a result built without one (by hand), Student's t at
+            // the covariance's degrees of freedom.
             let tq = crate::estimate::result::t_quantile_975(self.uncertainty.dof);
             for q in &self.derived {
                 let ci = q.interval(tq);

@@ -2,7 +2,7 @@
 //! of `r_s`, and winding and magnet temperatures derived from `r_s` and `psi_f`.
 
 use crate::common::{Rng, exciting_signals, pmsm_options, simulate_into};
-use approx::{assert_relative_eq, relative_eq};
+use approx::{assert_abs_diff_eq, assert_relative_eq, relative_eq};
 use greybox::pmsm::{
     ALPHA_COPPER, BETA_NDFEB, HoldChoice, PmsmFitOptions, PmsmSpm, ThermalReference, VoltageHold, fit_pmsm,
 };
@@ -107,10 +107,16 @@ fn temperatures_carry_the_parameters_intervals() {
     let d = t.temperatures(1.04, 0.01, 0.099, 0.0002, Some([[1.02, 1.07], [0.0986, 0.0995]]));
     let (w, m) = (&d[0], &d[1]);
     assert_eq!((w.name.as_str(), m.name.as_str()), ("t_winding", "t_magnet"));
-    let close = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9;
-    assert!(close(w.ci95.unwrap(), [f_w(1.02), f_w(1.07)]), "{:?}", w.ci95);
-    assert!(close(m.ci95.unwrap(), [f_m(0.0995), f_m(0.0986)]), "{:?}", m.ci95);
+    let close = |a: [f64; 2], b: [f64; 2]| {
+        assert_abs_diff_eq!(a[0], b[0], epsilon = 1e-9);
+        assert_abs_diff_eq!(a[1], b[1], epsilon = 1e-9);
+    };
+    close(w.ci95.unwrap(), [f_w(1.02), f_w(1.07)]);
+    close(m.ci95.unwrap(), [f_m(0.0995), f_m(0.0986)]);
     assert!(w.ci95.unwrap()[0] < w.value && w.value < w.ci95.unwrap()[1]);
     assert!(m.ci95.unwrap()[0] < m.value && m.value < m.ci95.unwrap()[1]);
     assert!(t.temperatures(1.04, 0.01, 0.099, 0.0002, None).iter().all(|q| q.ci95.is_none()));
+    // A NaN end stays NaN (not collapsed to the other end).
+    let d = t.temperatures(1.04, 0.01, 0.099, 0.0002, Some([[f64::NAN, 1.07], [0.0986, 0.0995]]));
+    assert!(d[0].ci95.unwrap().iter().any(|e| e.is_nan()), "{:?}", d[0].ci95);
 }

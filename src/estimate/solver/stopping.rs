@@ -13,6 +13,8 @@
 //!   `2‖δ‖_D` after a good step, less after a poor one).
 //! - `gtol`: the cosine `max_j |J_jᵀWε| / (‖J_j‖ ‖√W ε‖) ≤ gtol`, columns with `J_j = 0`
 //!   left out, at every accepted point.
+//! - zero residual, not MINPACK's: `0 ≤ V ≤ ε_mach² min(V₀, 1)` at an accepted point
+//!   ([`Monitor::zero_residual`], NL2SOL's absolute function convergence test).
 //!
 //! `‖x‖_D = √(Σ d_j x_j²)` with `d_j` the largest `‖J_j‖²` met so far, 1 for a column
 //! never non-zero: the square of MINPACK's `diag` with `mode = 1` (Moré 1978, eq. 6.3).
@@ -140,9 +142,12 @@ impl Monitor {
     /// relies on `V = 0` or on its `gtol`/`xtol` tests: where the Jacobian is singular at a zero
     /// residual (Powell's singular function) the iteration converges linearly, S falling
     /// 16-fold a step, no test passes in exact arithmetic, and MINPACK ends where rounding
-    /// makes its `gnorm` pass (`info` 8); past `ε_mach²` nothing is left to gain.
+    /// makes its `gnorm` pass (`info` 8); past `ε_mach²` nothing is left to gain. A negative
+    /// cost (a bias-compensated criterion `V − c`, `crate::estimate::correction`) is no zero
+    /// residual. Where `V₀ ≥ 1` the bound is absolute: it assumes weighted data `‖√W y‖` not far
+    /// below 1, as SI drive logs with the default weights are.
     pub fn zero_residual(&self, cost: f64) -> bool {
-        cost <= f64::EPSILON * f64::EPSILON * self.cost0.min(1.0)
+        (0.0..=f64::EPSILON * f64::EPSILON * self.cost0.min(1.0)).contains(&cost)
     }
 
     /// MINPACK's `ftol` test (`info = 1`).

@@ -26,10 +26,10 @@
 //! output, not a measurement, and its error is the inverter's, not noise), per-log and
 //! fixed parameters.
 
-use super::iv_report::report;
+use super::iv_report::{Solved, report};
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::estimate::iv::{IvCovariance, IvSums, one_step_sums};
+use crate::estimate::iv::{IvSums, one_step_sums};
 use crate::estimate::{FitResult, Warning, WeightingKind};
 use crate::model::{GreyBoxModel, Prepared};
 use crate::pmsm::checks::noise_floor::poor_fit_is_noise;
@@ -261,9 +261,6 @@ fn iv_at_hold(oe: PmsmFit, dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<
     };
     Ok(report(oe, solved, t0.elapsed().as_secs_f64(), options.precision.as_deref(), floor))
 }
-
-/// The IV estimate, its covariance, the refinements made and whether they converged.
-pub(super) type Solved = (Vec<f64>, IvCovariance, usize, bool);
 
 /// Newton steps on the IV equations of `sums` from `theta` (refining the instruments with
 /// each estimate) until the step is below [`IV_STEP_TOLERANCE`] relative, at most

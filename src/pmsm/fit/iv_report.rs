@@ -3,10 +3,13 @@
 //! them, `estimate::restricted`), the derived quantities through those intervals, and the
 //! warnings the IV estimate replaces.
 
-use super::iv::Solved;
+use crate::estimate::iv::IvCovariance;
 use crate::estimate::{ParameterEstimate, SolverReport, Termination};
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::model::kind::{MotorKind, derived};
+
+/// The IV estimate, its covariance, the refinements made and whether they converged.
+pub(super) type Solved = (Vec<f64>, IvCovariance, usize, bool);
 
 /// The output-error report `oe` with the IV estimate θ, its covariance and iterations, and
 /// the `imprecise` verdict of the accuracy `precision` states on its intervals; `floor`, a

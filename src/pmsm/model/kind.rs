@@ -206,8 +206,11 @@ impl MotorKind {
 /// With the parameters' 95 % intervals `ci` (θ order, the parameters' units), each quantity
 /// of `K_e` alone takes `K_e`'s interval through its function (increasing for `k_t`,
 /// `psi_f`, `k_t_rms`, decreasing for `k_v`, whose interval needs `K_e`'s to exclude 0), so
-/// that an asymmetric interval stays the same statement; `k_m`, of two parameters, and
-/// every quantity without `ci` leave [`DerivedEstimate::ci95`] to the fit (`± t·std_error`).
+/// that an asymmetric interval stays the same statement; `k_m`, of two parameters, is
+/// `± q·std_error` with q the heavier of its parameters' quantiles (the longer side of each
+/// interval over its standard error: an interval widened with fewer degrees of freedom
+/// widens `k_m`'s alike). Without `ci` every quantity leaves [`DerivedEstimate::ci95`] to
+/// the fit (`± t·std_error`).
 pub fn derived(
     kind: MotorKind,
     n_p: u32,
@@ -246,7 +249,14 @@ pub fn derived(
         let (a, b) = (1.0 / r.sqrt(), -k_e / (2.0 * r.powf(1.5)));
         let c = if corr_rk.is_finite() { corr_rk } else { 0.0 };
         let var = a * a * se * se + b * b * se_r * se_r + 2.0 * a * b * c * se * se_r;
-        out.push(make("k_m", "N m/sqrt(W)", k_e / r.sqrt(), var.max(0.0).sqrt(), None));
+        let (k_m, se_m) = (k_e / r.sqrt(), var.max(0.0).sqrt());
+        // The heavier quantile of r_s's and K_e's intervals (their longer side over their
+        // standard error), where both are given and finite.
+        let quantile = |j: usize, v: f64, s: f64| {
+            ci.and_then(|c| c.get(j)).map(|[lo, hi]| (hi - v).max(v - lo) / s).filter(|q| q.is_finite())
+        };
+        let q = quantile(0, r, se_r).zip(quantile(j, k_e, se)).map(|(a, b)| a.max(b));
+        out.push(make("k_m", "N m/sqrt(W)", k_m, se_m, q.map(|q| [k_m - q * se_m, k_m + q * se_m])));
     }
     out
 }

@@ -61,9 +61,10 @@ impl ThermalReference {
         ci: Option<[[f64; 2]; 2]>,
     ) -> Vec<DerivedEstimate> {
         let make = |name: &str, f: &dyn Fn(f64) -> f64, value: f64, std_error: f64, ci: Option<[f64; 2]>| {
+            // Ordered, a NaN end kept (min/max would drop it).
             let ends = ci.map(|[lo, hi]| {
                 let (a, b) = (f(lo), f(hi));
-                [a.min(b), a.max(b)]
+                if a <= b { [a, b] } else { [b, a] }
             });
             DerivedEstimate {
                 name: name.into(),
