@@ -9,7 +9,9 @@ What it measures
 1. `greybox fit LOG -p N --hold H --json OUT -q`, run as a subprocess (best wall time of
    --repeat runs, default 3): the whole command line end to end -- read the (gzip) CSV,
    least-squares start, setup checks, prediction-error fit, statistics, JSON report.
-   greybox's own `timing.fit_s` (fit_pmsm without the CSV read) is printed beside it.
+   greybox's own `timing.fit_s` (fit_pmsm without the CSV read) is printed beside it, and
+   `timing.solve_s`, its solver's iterations from the start alone (the counterpart of
+   scipy's least_squares without the preparation).
 2. The same output-error fit in scipy: surface-magnet model, parameters (r_s, l_s, k_e)
    plus the initial current x0 = (x0_id, x0_iq) as free parameters (greybox's default
    `estimate_x0`), residuals y_k - yhat_k for k = 0..N-1 on i_d and i_q, unit weights,
@@ -304,9 +306,11 @@ def scipy_fit(log, n_p, hold, theta0, x0, backend):
     m = Model(p, theta0, backend)
     t_prep = time.perf_counter() - t0
     q0 = np.array([np.sign(theta0[0]), np.sign(theta0[1]), np.sign(theta0[2]), x0.real, x0.imag])
+    t1 = time.perf_counter()
     sol = least_squares(m.fun, q0, jac=m.jac, method="lm", ftol=1e-12, xtol=1e-10, gtol=1e-10)
+    t_ls = time.perf_counter() - t1
     v = sol.x * m.s
-    return v, sol, t_prep
+    return v, sol, t_prep, t_ls
 
 
 # --------------------------------------------------------------------------- greybox
@@ -374,6 +378,10 @@ def main():
     gb_x0 = [s["value"] for s in rep["initial_states"]]
     gb_fit_s = min(r["timing"]["fit_s"] for r in reports)
     gb_read_s = min(r["timing"]["read_s"] for r in reports)
+    # The solver's iterations alone (reports from 2026-12-01 on): the counterpart of scipy's
+    # least_squares from the same start.
+    solves = [r["timing"].get("solve_s") for r in reports]
+    gb_solve_s = min(solves) if all(s is not None for s in solves) else None
 
     t0 = time.perf_counter()
     log = read_log(a.log)
@@ -384,12 +392,13 @@ def main():
     if backend == "numba":  # compile outside the timing
         small = {k: (v[:64] if isinstance(v, np.ndarray) else v) for k, v in log.items()}
         scipy_fit(small, a.pole_pairs, a.hold, theta0, x0_start, backend)
-    t_sp, res = float("inf"), None
+    t_sp, t_ls, res = float("inf"), float("inf"), None
     for _ in range(a.repeat):
         t0 = time.perf_counter()
         res = scipy_fit(log, a.pole_pairs, a.hold, theta0, x0_start, backend)
         t_sp = min(t_sp, time.perf_counter() - t0)
-    v, sol, t_prep = res
+        t_ls = min(t_ls, res[3])
+    v, sol, t_prep, _ = res
     rms = np.sqrt(np.mean(sol.fun.reshape(2, -1) ** 2, axis=1))
 
     truth = truth_of(a.log, a.truth)
@@ -415,6 +424,9 @@ def main():
           f"{t_prep:.3f} s; CSV read by numpy {t_read:.3f} s, not included)")
     print(f"ratio scipy fit / greybox end to end = {t_sp / t_gb:.2f}; "
           f"scipy fit / greybox fit_s = {t_sp / gb_fit_s:.2f}")
+    if gb_solve_s is not None:
+        print(f"the solvers alone from the same start, best of {a.repeat}: greybox solve_s {gb_solve_s:.4f} s, "
+              f"scipy least_squares {t_ls:.4f} s; ratio scipy / greybox = {t_ls / gb_solve_s:.1f}")
 
 
 if __name__ == "__main__":

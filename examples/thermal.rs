@@ -122,14 +122,7 @@ impl GreyBoxModel for Thermal {
     fn derived(&self, th: &[f64], cov: &[Vec<f64>]) -> Vec<DerivedEstimate> {
         let (r, c) = (th[0], th[1]);
         let var = c * c * cov[0][0] + r * r * cov[1][1] + 2.0 * r * c * cov[0][1];
-        vec![DerivedEstimate {
-            name: "tau".into(),
-            unit: "s".into(),
-            value: r * c,
-            std_error: var.sqrt(),
-            ci95: None,
-            experiment: None,
-        }]
+        vec![DerivedEstimate::new("tau", "s", r * c, var.sqrt())]
     }
 }
 

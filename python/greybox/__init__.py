@@ -168,7 +168,8 @@ def fit_many(
     ``threads``: how many logs at a time (default ``RAYON_NUM_THREADS`` or the cores).
     Returns one row per log with the columns of ``--summary`` (docs/cli.md): ``log, name,
     status`` (``ok``, ``untrusted``, ``failed``), ``error``, ``pole_pairs, hold, converged``,
-    ``NAME [unit]`` and ``NAME_se [unit]`` per parameter and derived quantity (SI),
+    ``NAME [unit]``, ``NAME_se [unit]`` and the report's 95 % interval ``NAME_low [unit]``,
+    ``NAME_high [unit]`` per parameter and derived quantity (SI),
     ``fit_OUTPUT [%]``, ``warnings``, ``time [s]``. A log that cannot be read or fitted is a
     ``failed`` row with its ``error``, never an exception.
 

@@ -28,7 +28,8 @@ __all__ = ["ALPHA_COPPER", "BETA_NDFEB", "by_motor", "fleet_view", "log_temperat
 ALPHA_COPPER = 0.00393
 #: Temperature coefficient of NdFeB remanence β [1/K] (the crate's ``BETA_NDFEB``).
 BETA_NDFEB = -0.0011
-#: Half-width of a 95 % interval in standard errors.
+#: Half-width of a 95 % interval in standard errors: the fallback for a summary written
+#: before it had the report's intervals (``NAME_low``, ``NAME_high``, 2026-12-01).
 Z95 = 1.959963984540054
 
 Reference = Union[None, float, Mapping[str, float]]
@@ -115,6 +116,26 @@ def _column(summary: pa.Table, name: str) -> list[Optional[float]]:
         if c.split(" [")[0] == name:
             return summary.column(c).to_pylist()
     raise DataError(f"the summary has no column `{name} [unit]` (a summary of fit_many or fit --each --summary)")
+
+
+def _interval(summary: pa.Table, name: str) -> list[tuple[Optional[float], Optional[float]]]:
+    """The report's 95 % interval of a parameter per log (``NAME_low``, ``NAME_high``), or
+    ``value ± Z95 se`` where the summary has no interval columns (written before they
+    existed) or a log's ends are missing."""
+    value, se = _column(summary, name), _column(summary, name + "_se")
+    try:
+        low, high = _column(summary, name + "_low"), _column(summary, name + "_high")
+    except DataError:
+        low, high = [None] * len(value), [None] * len(value)
+    out = []
+    for v, s, lo, hi in zip(value, se, low, high):
+        if _ok(lo, hi):
+            out.append((lo, hi))
+        elif _ok(v, s):
+            out.append((v - Z95 * s, v + Z95 * s))
+        else:
+            out.append((None, None))
+    return out
 
 
 def _given(value: Reference, motor: str, option: str) -> Optional[float]:
@@ -209,7 +230,8 @@ def fleet_view(
       earlier level at equal magnet temperature.
 
     Columns: ``motor, log, status, temperature [°C]``, ``r_s [Ω]`` with ``r_s_low,
-    r_s_high`` (95 %), ``r_s_t0 [Ω]`` (brought to T_0 by the measured temperature), ``k_e
+    r_s_high`` (the fit's 95 % interval, from the summary's columns of that name; ``± 1.96``
+    standard errors for a summary written before it had them), ``r_s_t0 [Ω]`` (brought to T_0 by the measured temperature), ``k_e
     [V s/rad]`` with ``k_e_low, k_e_high`` and ``k_e_t0``, ``psi_f [V s]``, ``r_s0 [Ω]``,
     ``psi_f0 [V s]`` (given or referenced), ``t_winding [°C]``, ``t_winding_se``,
     ``t_magnet [°C]``, ``t_magnet_se``, ``r_s_expected [Ω]``, ``r_s_excess_z``,
@@ -227,10 +249,12 @@ def fleet_view(
     motors = _motor_ids(summary, motor_id)
     temps = _temperatures(summary, temperature)
     cols = {k: _column(summary, k) for k in ("r_s", "r_s_se", "k_e", "k_e_se", "psi_f", "psi_f_se")}
+    cols |= {k + "_ci": _interval(summary, k) for k in ("r_s", "k_e")}
     status = summary.column("status").to_pylist() if "status" in summary.column_names else ["ok"] * len(motors)
     rows = []
     for i, (motor, temp) in enumerate(zip(motors, temps)):
         row = {k: (v[i] if status[i] != "failed" else None) for k, v in cols.items()}
+        row |= {k: (None, None) for k in ("r_s_ci", "k_e_ci") if row[k] is None}
         t_mag = temp - magnet_offset if temp is not None else None
         rows.append({**row, "motor": motor, "temp": temp, "t_mag": t_mag, "i": i})
     by_motor_rows: dict[str, list[dict]] = {}
@@ -272,7 +296,6 @@ def _table(summary, rows, status, t0, alpha, beta) -> pa.Table:
 
     k_ratio = [r["k_e"] / r["psi_f"] if _ok(r["k_e"], r["psi_f"]) and r["psi_f"] else None for r in rows]
     psi_t0 = [at_t0("psi_f", "t_mag", beta)(r) for r in rows]
-    ci = [(r["k_e"], r["k_e_se"]) for r in rows]
     return pa.table(
         {
             "motor": pa.array([r["motor"] for r in rows], pa.string()),
@@ -280,12 +303,12 @@ def _table(summary, rows, status, t0, alpha, beta) -> pa.Table:
             "status": pa.array(status, pa.string()),
             "temperature [°C]": col(lambda r: r["temp"]),
             "r_s [Ω]": col(lambda r: r["r_s"]),
-            "r_s_low [Ω]": col(lambda r: r["r_s"] - Z95 * r["r_s_se"] if _ok(r["r_s"], r["r_s_se"]) else None),
-            "r_s_high [Ω]": col(lambda r: r["r_s"] + Z95 * r["r_s_se"] if _ok(r["r_s"], r["r_s_se"]) else None),
+            "r_s_low [Ω]": col(lambda r: r["r_s_ci"][0]),
+            "r_s_high [Ω]": col(lambda r: r["r_s_ci"][1]),
             "r_s_t0 [Ω]": col(at_t0("r_s", "temp", alpha)),
-            "k_e [V s/rad]": pa.array([k for k, _ in ci], pa.float64()),
-            "k_e_low [V s/rad]": pa.array([k - Z95 * s if _ok(k, s) else None for k, s in ci], pa.float64()),
-            "k_e_high [V s/rad]": pa.array([k + Z95 * s if _ok(k, s) else None for k, s in ci], pa.float64()),
+            "k_e [V s/rad]": col(lambda r: r["k_e"]),
+            "k_e_low [V s/rad]": col(lambda r: r["k_e_ci"][0]),
+            "k_e_high [V s/rad]": col(lambda r: r["k_e_ci"][1]),
             "k_e_t0 [V s/rad]": pa.array([p * k if _ok(p, k) else None for p, k in zip(psi_t0, k_ratio)], pa.float64()),
             "psi_f [V s]": col(lambda r: r["psi_f"]),
             "r_s0 [Ω]": col(lambda r: r["r_s0"] if _ok(r["r_s0"]) else None),

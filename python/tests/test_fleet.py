@@ -124,3 +124,26 @@ def test_view_of_the_command_lines_summary(fleet, cli, tmp_path):
     from_cli = pacsv.read_csv(tmp_path / "s.csv")
     opts = dict(motor_id=MOTOR, temperature="t_winding", magnet_offset=15)
     assert greybox.fleet.fleet_view(from_cli, **opts).equals(greybox.fleet.fleet_view(summary, **opts))
+
+
+def test_intervals_are_the_summarys(fleet):
+    """The view's intervals are the summary's (the fits' reports'), not ± 1.96 standard
+    errors; a summary without interval columns (written before they existed) falls back to
+    those; a failed log has none."""
+    _, summary, _ = fleet
+    view = greybox.fleet.fleet_view(summary, motor_id=MOTOR)
+    for name, unit in (("r_s", "Ω"), ("k_e", "V s/rad")):
+        for end in ("low", "high"):
+            assert view.column(f"{name}_{end} [{unit}]").equals(summary.column(f"{name}_{end} [{unit}]"))
+    # The summary's own interval (Student's t at the fit's degrees of freedom) is wider than
+    # ± 1.96 se: the view took it.
+    r_s, se = summary.column("r_s [Ω]").to_pylist(), summary.column("r_s_se [Ω]").to_pylist()
+    high = view.column("r_s_high [Ω]").to_pylist()
+    assert all(h > v + greybox.fleet.Z95 * s for h, v, s in zip(high, r_s, se))
+    old = summary.drop_columns([c for c in summary.column_names if c.split(" [")[0].endswith(("_low", "_high"))])
+    old_view = greybox.fleet.fleet_view(old, motor_id=MOTOR)
+    assert old_view.column("r_s_high [Ω]").to_pylist() == [v + greybox.fleet.Z95 * s for v, s in zip(r_s, se)]
+    failed = summary.set_column(
+        summary.column_names.index("status"), "status", pa.array(["failed"] + ["ok"] * (len(r_s) - 1))
+    )
+    assert greybox.fleet.fleet_view(failed, motor_id=MOTOR).column("k_e_low [V s/rad]")[0].as_py() is None

@@ -6,7 +6,7 @@ use super::covariance::{Covariance, Inverse, Meat};
 use super::diagnostics::{DiagnosticThresholds, diagnose};
 use super::gate;
 use super::problem::{FreeKind, MIN_BATCHES, PemProblem, Slot};
-use super::result::t_quantile_975;
+use super::quantile::t_quantile_975;
 use super::{FitResult, FitStatistics, ParameterEstimate, SolverReport, Timing, Uncertainty};
 use crate::error::Result;
 use crate::estimate::metrics;

@@ -17,8 +17,9 @@
 use super::jackknife::{BlockSums, jackknife_covariance};
 use super::problem::LagStream;
 use super::problem::{BlockScores, LagSums, ScoreSeries, TARGET_BATCHES, WHITENESS_LAGS};
+use super::quantile::t_quantile_975;
 use super::restricted::restricted_offsets;
-use super::result::{Uncertainty, t_quantile_975};
+use super::result::Uncertainty;
 use crate::error::{Error, Result};
 use crate::estimate::metrics::{self, Whiteness};
 use crate::model::{GreyBoxModel, Prepared};

@@ -24,6 +24,7 @@ pub(crate) mod metrics;
 mod options;
 pub(crate) mod precision;
 pub(crate) mod problem;
+pub(crate) mod quantile;
 pub(crate) mod restricted;
 pub(crate) mod result;
 pub(crate) mod scaling;
@@ -63,9 +64,9 @@ pub use problem::{
     PemProblem, ProblemOptions, ROOT_MAX_ENTRIES, STRUCTURED_ABOVE, Slot, Sums, TARGET_BATCHES, Term,
     WHITENESS_LAGS, WeightedData,
 };
+pub use quantile::{interval_quantile, t_quantile_975};
 pub use result::{
     CovarianceMethod, FitResult, FitStatistics, ParameterEstimate, Timing, Uncertainty, Warning,
-    t_quantile_975,
 };
 pub use scaling::{
     ColumnNormScaling, IdentityScaling, LogScaling, NominalScaling, ParameterScaling, ScalingKind, Transform,
@@ -160,7 +161,9 @@ fn finish<M: GreyBoxModel>(
     let uniform = weighting.is_uniform();
     let scaling = options.scaling.rule();
     let p0 = problem.start_vector(start);
+    let solve_t0 = Instant::now();
     let (mut p_hat, mut report) = solve(&problem, p0, options, weighting)?;
+    let mut solve_s = solve_t0.elapsed().as_secs_f64();
     let mut notes = Vec::new();
     let problem = match options.huber {
         None => problem,
@@ -187,7 +190,9 @@ fn finish<M: GreyBoxModel>(
             // The quadratic run's trace, in the robust problem's scaled space, before its own.
             let mut trace: Vec<Vec<f64>> =
                 trace_values.iter().map(|v| robust.point_from_values(v).as_slice().to_vec()).collect();
+            let robust_t0 = Instant::now();
             (p_hat, report) = solve(&robust, p1, options, weighting)?;
+            solve_s += robust_t0.elapsed().as_secs_f64();
             trace.append(&mut report.trace);
             report.trace = trace;
             robust
@@ -208,6 +213,7 @@ fn finish<M: GreyBoxModel>(
     }
     result.timing.fit_s = t0.elapsed().as_secs_f64();
     result.timing.total_s = result.timing.fit_s;
+    result.timing.solve_s = Some(solve_s);
     Ok(result)
 }
 

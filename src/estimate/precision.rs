@@ -18,7 +18,8 @@
 //! Models state no target by default; the domain layers set one where their users' purpose
 //! fixes it.
 
-use super::result::{ParameterEstimate, Warning, t_quantile_975};
+use super::quantile::{interval_quantile, t_quantile_975};
+use super::result::{ParameterEstimate, Warning};
 use serde::{Deserialize, Serialize};
 
 /// Standard errors a parameter's stated accuracy must hold: 3, so that an honest estimate
@@ -56,7 +57,7 @@ pub fn imprecise(
             let target = targets.iter().find(|t| t.parameter == p.name)?;
             // The parameter's own interval's tails where they are heavier than the fit's: its
             // longer side.
-            let own = (p.ci95[1] - p.value).max(p.value - p.ci95[0]) / (normal * p.std_error);
+            let own = interval_quantile(p.ci95, p.value, p.std_error) / normal;
             let tails = (t_quantile_975(dof) / normal).max(if own.is_finite() { own } else { 0.0 });
             let reach = PRECISION_Z * tails * p.std_error / p.value.abs();
             let label = p.experiment.as_ref().map_or_else(|| p.name.clone(), |e| format!("{}[{e}]", p.name));

@@ -104,8 +104,10 @@ impl Parameter {
 }
 
 /// A quantity derived from the estimates (e.g. a torque constant), with propagated
-/// uncertainty.
+/// uncertainty. Built with [`new`](Self::new) outside the crate (fields may be added, as
+/// `ci95` was).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[non_exhaustive]
 pub struct DerivedEstimate {
     /// Symbol, e.g. `k_t`.
     pub name: String,
@@ -130,6 +132,13 @@ pub struct DerivedEstimate {
 }
 
 impl DerivedEstimate {
+    /// The quantity `name` \[`unit`\] with its value and standard error \[unit\] (the delta
+    /// method, e.g. `|∂g/∂θ| se(θ)`), no interval (the fit sets it:
+    /// [`with_interval`](Self::with_interval)) and no experiment. No errors.
+    pub fn new(name: impl Into<String>, unit: impl Into<String>, value: f64, std_error: f64) -> Self {
+        Self { name: name.into(), unit: unit.into(), value, std_error, ci95: None, experiment: None }
+    }
+
     /// The 95 % interval \[unit\]: [`ci95`](Self::ci95), else `value ± t·std_error` with
     /// `t` the fit's 0.975 quantile (Student's t at its degrees of freedom).
     pub fn interval(&self, t: f64) -> [f64; 2] {

@@ -111,9 +111,16 @@ fn batch_fits_each_log_and_reports_the_broken_one() {
         |name: &str| header.iter().position(|h| h == name).unwrap_or_else(|| panic!("{name}: {header:?}"));
     let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
     assert_eq!(rows.len(), 4);
-    for (row, (_, r_s, psi_f)) in rows.iter().zip(LOGS) {
+    for ((row, log), (_, r_s, psi_f)) in rows.iter().zip(logs).zip(LOGS) {
         assert_eq!(&row[col("status")], "ok");
         let num = |c: &str| row[col(c)].parse::<f64>().unwrap();
+        // The interval columns are the JSON record's intervals (the report's) to the bit.
+        for (list, name, unit) in [("parameters", "r_s", "Ω"), ("derived", "k_t", "N m/A")] {
+            let q = log[list].as_array().unwrap().iter().find(|q| q["name"] == name).unwrap();
+            let ci: Vec<f64> = q["ci95"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+            assert_eq!([num(&format!("{name}_low [{unit}]")), num(&format!("{name}_high [{unit}]"))], ci[..]);
+            assert!(ci[0] <= q["value"].as_f64().unwrap() && q["value"].as_f64().unwrap() <= ci[1], "{q}");
+        }
         assert_relative_eq!(num("r_s [Ω]"), r_s, max_relative = 1e-6);
         assert_relative_eq!(num("k_e [V s/rad]"), k_e(psi_f), max_relative = 1e-6);
         assert_relative_eq!(num("l_s [H]"), L_S, max_relative = 1e-6);

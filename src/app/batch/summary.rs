@@ -209,9 +209,12 @@ pub enum Cell {
 }
 
 /// The summary's columns, `(header, one cell per record)`: `log, name, status, error,
-/// pole_pairs, hold, converged`, then for each parameter and derived quantity `NAME [unit]`
-/// and `NAME_se [unit]` (SI units, no prefix; the standard error of a fixed parameter
-/// missing), `fit_OUTPUT [%]`, `warnings` (`code: message`, `; ` between them), `time [s]`.
+/// pole_pairs, hold, converged`, then for each parameter and derived quantity `NAME [unit]`,
+/// `NAME_se [unit]` and the ends of its 95 % interval `NAME_low [unit]`, `NAME_high [unit]`
+/// ([`Quantity::ci95`]: the report's interval, asymmetric where the fit's is, e.g. a
+/// restricted IV interval; SI units, no prefix; the standard error and interval of a fixed
+/// parameter missing), `fit_OUTPUT [%]`, `warnings` (`code: message`, `; ` between them),
+/// `time [s]`.
 pub fn columns(records: &[Record]) -> Vec<(String, Vec<Cell>)> {
     let params = quantities(records, |r| &r.parameters);
     let derived = quantities(records, |r| &r.derived);
@@ -251,6 +254,13 @@ pub fn columns(records: &[Record]) -> Vec<(String, Vec<Cell>)> {
                 format!("{n}_se [{u}]"),
                 records.iter().map(|r| q(r).map_or(Cell::Missing, se)).collect(),
             ));
+            for (end, side) in [(0, "low"), (1, "high")] {
+                let ci = |q: Quantity| if q.fixed { Cell::Missing } else { num(q.ci95[end]) };
+                out.push((
+                    format!("{n}_{side} [{u}]"),
+                    records.iter().map(|r| q(r).map_or(Cell::Missing, ci)).collect(),
+                ));
+            }
         }
     }
     for o in &outputs {

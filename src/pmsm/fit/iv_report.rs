@@ -118,7 +118,7 @@ pub(super) fn report(
         parameter_trace: Vec::new(),
         notes,
         warnings,
-        timing: crate::estimate::Timing { fit_s, total_s: fit_s, ..oe.report.timing.clone() },
+        timing: crate::estimate::Timing { fit_s, total_s: fit_s, solve_s: None, ..oe.report.timing.clone() },
         // The initial states and the error-index verdicts are the output-error criterion's;
         // the information matrix's singular values still describe the data.
         initial_states: Vec::new(),

@@ -5,7 +5,7 @@
 
 use crate::data::Experiment;
 use crate::estimate::diagnostics::{DiagnosticThresholds, diagnose};
-use crate::estimate::result::t_quantile_975;
+use crate::estimate::quantile::t_quantile_975;
 use crate::estimate::{
     FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing, metrics,
 };
@@ -132,7 +132,7 @@ pub(super) fn report(
             trace: Vec::new(),
         },
         parameter_trace: Vec::new(),
-        timing: Timing { read_s: 0.0, fit_s, total_s: fit_s },
+        timing: Timing { read_s: 0.0, fit_s, total_s: fit_s, solve_s: None },
         notes: std::iter::once(format!(
             "steady-state equations u_d = R_s i_d + L_d di_d/dt − ω_e L_q i_q, u_q = R_s i_q + L_q di_q/dt + ω_e L_d \
              i_d + √(2/3) ω_m K_e on the {} smooth samples of {} (each current's second differences at k − 1, k, \

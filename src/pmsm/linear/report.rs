@@ -7,7 +7,7 @@
 
 use crate::estimate::diagnostics::{DiagnosticThresholds, diagnose};
 use crate::estimate::metrics;
-use crate::estimate::result::t_quantile_975;
+use crate::estimate::quantile::t_quantile_975;
 use crate::estimate::{
     FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing, Warning,
 };
@@ -103,7 +103,7 @@ impl LinearEstimate {
                 trace: Vec::new(),
             },
             parameter_trace: Vec::new(),
-            timing: Timing { read_s: 0.0, fit_s, total_s: fit_s },
+            timing: Timing { read_s: 0.0, fit_s, total_s: fit_s, solve_s: None },
             notes: vec![format!(
                 "linear least squares on the voltage equations (weighting {}; prefilter {}); with noisy currents \
                  the regression is biased (errors in variables): a start, not the answer",

@@ -5,7 +5,7 @@
 //! speed or a d-current injection, `L` current transients or `i_d ≠ 0` at speed. Derived
 //! quantities after MODEL.md §2: `K_t = √(3/2) K_e` \[N m/A\], `ψ_f = √(2/3) K_e / n_p` \[V s\].
 
-use crate::estimate::ParameterEstimate;
+use crate::estimate::{ParameterEstimate, interval_quantile};
 use crate::model::DerivedEstimate;
 use crate::model::Parameter;
 use serde::{Deserialize, Serialize};
@@ -253,7 +253,7 @@ pub fn derived(
         // The heavier quantile of r_s's and K_e's intervals (their longer side over their
         // standard error), where both are given and finite.
         let quantile = |j: usize, v: f64, s: f64| {
-            ci.and_then(|c| c.get(j)).map(|[lo, hi]| (hi - v).max(v - lo) / s).filter(|q| q.is_finite())
+            ci.and_then(|c| c.get(j)).map(|c| interval_quantile(*c, v, s)).filter(|q| q.is_finite())
         };
         let q = quantile(0, r, se_r).zip(quantile(j, k_e, se)).map(|(a, b)| a.max(b));
         out.push(make("k_m", "N m/sqrt(W)", k_m, se_m, q.map(|q| [k_m - q * se_m, k_m + q * se_m])));
