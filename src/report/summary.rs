@@ -276,12 +276,13 @@ impl FitResult {
     fn remarks(&self, d: &mut Document) {
         d.heading("solver");
         d.line(format!(
-            "{}: {} after {} iterations ({} evaluations); fit {:.3} s, read {:.3} s, total {:.3} s",
+            "{}: {} after {} iterations ({} evaluations); fit {:.3} s{}, read {:.3} s, total {:.3} s",
             self.solver.name,
             self.solver.termination,
             self.solver.iterations,
             self.solver.evaluations,
             self.timing.fit_s,
+            self.timing.solve_s.map_or_else(String::new, |s| format!(" (of which the solver {s:.3} s)")),
             self.timing.read_s,
             self.timing.total_s
         ));
