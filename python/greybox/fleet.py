@@ -119,23 +119,15 @@ def _column(summary: pa.Table, name: str) -> list[Optional[float]]:
 
 
 def _interval(summary: pa.Table, name: str) -> list[tuple[Optional[float], Optional[float]]]:
-    """The report's 95 % interval of a parameter per log (``NAME_low``, ``NAME_high``), or
-    ``value ± Z95 se`` where the summary has no interval columns (written before they
-    existed) or a log's ends are missing."""
-    value, se = _column(summary, name), _column(summary, name + "_se")
+    """The report's 95 % interval of a parameter per log (``NAME_low``, ``NAME_high``; an end
+    the report has not, e.g. an infinite one, stays null), or ``value ± Z95 se`` for every
+    log of a summary without interval columns (written before they existed)."""
     try:
         low, high = _column(summary, name + "_low"), _column(summary, name + "_high")
     except DataError:
-        low, high = [None] * len(value), [None] * len(value)
-    out = []
-    for v, s, lo, hi in zip(value, se, low, high):
-        if _ok(lo, hi):
-            out.append((lo, hi))
-        elif _ok(v, s):
-            out.append((v - Z95 * s, v + Z95 * s))
-        else:
-            out.append((None, None))
-    return out
+        value, se = _column(summary, name), _column(summary, name + "_se")
+        return [(v - Z95 * s, v + Z95 * s) if _ok(v, s) else (None, None) for v, s in zip(value, se)]
+    return [(lo if _ok(lo) else None, hi if _ok(hi) else None) for lo, hi in zip(low, high)]
 
 
 def _given(value: Reference, motor: str, option: str) -> Optional[float]:
@@ -231,8 +223,8 @@ def fleet_view(
 
     Columns: ``motor, log, status, temperature [°C]``, ``r_s [Ω]`` with ``r_s_low,
     r_s_high`` (the fit's 95 % interval, from the summary's columns of that name; ``± 1.96``
-    standard errors for a summary written before it had them), ``r_s_t0 [Ω]`` (brought to T_0 by the measured temperature), ``k_e
-    [V s/rad]`` with ``k_e_low, k_e_high`` and ``k_e_t0``, ``psi_f [V s]``, ``r_s0 [Ω]``,
+    standard errors for a summary written before it had them), ``r_s_t0 [Ω]`` (brought to
+    T_0 by the measured temperature), ``k_e [V s/rad]`` with ``k_e_low, k_e_high`` and ``k_e_t0``, ``psi_f [V s]``, ``r_s0 [Ω]``,
     ``psi_f0 [V s]`` (given or referenced), ``t_winding [°C]``, ``t_winding_se``,
     ``t_magnet [°C]``, ``t_magnet_se``, ``r_s_expected [Ω]``, ``r_s_excess_z``,
     ``r_s_excess``, ``psi_f_expected [V s]``, ``psi_f_drop_z``, ``demagnetised``.

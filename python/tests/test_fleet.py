@@ -147,3 +147,10 @@ def test_intervals_are_the_summarys(fleet):
         summary.column_names.index("status"), "status", pa.array(["failed"] + ["ok"] * (len(r_s) - 1))
     )
     assert greybox.fleet.fleet_view(failed, motor_id=MOTOR).column("k_e_low [V s/rad]")[0].as_py() is None
+    # A missing end (an infinite one is written empty) stays missing: never ± 1.96 se.
+    k = summary.column_names.index("k_e_high [V s/rad]")
+    highs = pa.array([None] + summary.column(k).to_pylist()[1:], pa.float64())
+    open_end = summary.set_column(k, "k_e_high [V s/rad]", highs)
+    one = greybox.fleet.fleet_view(open_end, motor_id=MOTOR)
+    assert one.column("k_e_high [V s/rad]")[0].as_py() is None
+    assert one.column("k_e_low [V s/rad]")[0].as_py() == summary.column("k_e_low [V s/rad]")[0].as_py()

@@ -32,8 +32,8 @@ pub struct FitArgs {
     #[arg(help_heading = "Batch (--each)", long, value_name = "DIR_OR_GLOB", conflicts_with_all = ["logs", "per_log", "json", "plot", "residuals", "format"])]
     pub each: Option<String>,
     /// With --each: write the summary (one row per log: status, parameters with standard
-    /// errors, derived quantities, fit %, hold, warnings) to PATH.csv and PATH.json (an
-    /// extension .csv or .json given is dropped first).
+    /// errors and 95 % intervals, derived quantities, fit %, hold, warnings) to PATH.csv and
+    /// PATH.json (an extension .csv or .json given is dropped first).
     #[arg(help_heading = "Batch (--each)", long, value_name = "PATH")]
     pub summary: Option<PathBuf>,
     /// With --each: write the trend plot (SVG) of every parameter over the logs, in file

@@ -24,7 +24,7 @@ pub(crate) mod metrics;
 mod options;
 pub(crate) mod precision;
 pub(crate) mod problem;
-pub(crate) mod quantile;
+mod quantile;
 pub(crate) mod restricted;
 pub(crate) mod result;
 pub(crate) mod scaling;
@@ -138,10 +138,10 @@ pub fn fit_with_weighting<M: GreyBoxModel>(
     let parts = |theta: &[f64]| {
         consistency::static_parts(experiments, theta, &|part, at| {
             let (problem, popts) = build_problem(model, part, at, options, weighting)?;
-            finish(problem, popts, at, options, weighting, Instant::now(), None)
+            finish(problem, popts, at, options, weighting, Clock::from(Instant::now()), None)
         })
     };
-    finish(problem, popts, start, options, weighting, t0, Some(&parts))
+    finish(problem, popts, start, options, weighting, Clock::from(t0), Some(&parts))
 }
 
 /// Runs the solver on `problem` from `start` and assembles the result (the Huber refit
@@ -154,7 +154,7 @@ fn finish<M: GreyBoxModel>(
     start: &[f64],
     options: &PemOptions,
     weighting: &dyn Weighting,
-    t0: Instant,
+    clock: Clock,
     parts: Option<&assemble::PartsCheck<'_>>,
 ) -> Result<FitResult> {
     let model = problem.model();
@@ -163,7 +163,7 @@ fn finish<M: GreyBoxModel>(
     let p0 = problem.start_vector(start);
     let solve_t0 = Instant::now();
     let (mut p_hat, mut report) = solve(&problem, p0, options, weighting)?;
-    let mut solve_s = solve_t0.elapsed().as_secs_f64();
+    let mut solve_s = clock.solved_s + solve_t0.elapsed().as_secs_f64();
     let mut notes = Vec::new();
     let problem = match options.huber {
         None => problem,
@@ -211,7 +211,7 @@ fn finish<M: GreyBoxModel>(
     if !uniform {
         result.notes.push(format!("sample weighting: {}", weighting.name()));
     }
-    result.timing.fit_s = t0.elapsed().as_secs_f64();
+    result.timing.fit_s = clock.t0.elapsed().as_secs_f64();
     result.timing.total_s = result.timing.fit_s;
     result.timing.solve_s = Some(solve_s);
     Ok(result)
@@ -295,7 +295,20 @@ pub struct StartedFit<'m, M: GreyBoxModel> {
     weighting: &'m dyn Weighting,
     start: Vec<f64>,
     predicted: f64,
+    clock: Clock,
+}
+
+/// When a fit began, and the solver's time already spent before [`finish`] (the pass at
+/// the start that [`StartedFit`] makes and the solver then takes as its first) \[s\].
+struct Clock {
     t0: Instant,
+    solved_s: f64,
+}
+
+impl From<Instant> for Clock {
+    fn from(t0: Instant) -> Self {
+        Self { t0, solved_s: 0.0 }
+    }
 }
 
 impl<'m, M: GreyBoxModel> StartedFit<'m, M> {
@@ -313,10 +326,20 @@ impl<'m, M: GreyBoxModel> StartedFit<'m, M> {
     ) -> Result<Self> {
         let t0 = Instant::now();
         let (problem, popts) = build_problem(model, experiments, start, options, weighting)?;
+        let seed_t0 = Instant::now();
         let ne = problem.seeded_normal_equations(&problem.start_vector(start))?;
+        let clock = Clock { t0, solved_s: seed_t0.elapsed().as_secs_f64() };
         let drop = ne.jtj.solve(&ne.jtr).map(|x| 0.5 * ne.jtr.dot(&x)).unwrap_or(0.0);
         let predicted = (ne.cost - drop).max(0.0);
-        Ok(Self { problem, popts, options: options.clone(), weighting, start: start.to_vec(), predicted, t0 })
+        Ok(Self {
+            problem,
+            popts,
+            options: options.clone(),
+            weighting,
+            start: start.to_vec(),
+            predicted,
+            clock,
+        })
     }
 
     /// The loss that the fit is predicted to reach, from the pass at the start: the
@@ -338,7 +361,7 @@ impl<'m, M: GreyBoxModel> StartedFit<'m, M> {
     /// # Errors
     /// As [`fit_with_weighting`].
     pub fn fit(self) -> Result<FitResult> {
-        finish(self.problem, self.popts, &self.start, &self.options, self.weighting, self.t0, None)
+        finish(self.problem, self.popts, &self.start, &self.options, self.weighting, self.clock, None)
     }
 }
 

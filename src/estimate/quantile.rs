@@ -63,8 +63,10 @@ pub fn t_quantile_975(dof: usize) -> f64 {
 /// An interval's heaviness as one number: the precision gate reads a parameter's reach by
 /// it, and a quantity of two parameters takes the heavier of theirs.
 ///
-/// `ci95`: `[lo, hi]`, the unit of `value` and `std_error`. NaN or ±∞ where the standard
-/// error is 0 or not finite or an end is NaN (the caller decides the fallback); no errors.
+/// `ci95`: `[lo, hi]`, the unit of `value` and `std_error`. ±∞ or NaN where the standard
+/// error is 0, NaN where it or an end is NaN, 0 where it is ∞ and the ends finite (the
+/// caller decides the fallback: the precision gate and `k_m` keep a finite result only);
+/// no errors.
 pub fn interval_quantile(ci95: [f64; 2], value: f64, std_error: f64) -> f64 {
     (ci95[1] - value).max(value - ci95[0]) / std_error
 }
@@ -92,9 +94,22 @@ mod tests {
     #[test]
     fn an_intervals_quantile_is_its_longer_side_over_its_standard_error() {
         let t = t_quantile_975(12);
-        assert_eq!(interval_quantile([2.0 - t * 0.5, 2.0 + t * 0.5], 2.0, 0.5), t);
-        assert_eq!(interval_quantile([2.0 - 1.2 * 0.5, 2.0 + 3.0 * 0.5], 2.0, 0.5), 3.0);
-        assert_eq!(interval_quantile([2.0 - 3.0 * 0.5, 2.0 + 1.2 * 0.5], 2.0, 0.5), 3.0);
+        approx::assert_relative_eq!(
+            interval_quantile([2.0 - t * 0.5, 2.0 + t * 0.5], 2.0, 0.5),
+            t,
+            max_relative = 1e-15
+        );
+        approx::assert_relative_eq!(
+            interval_quantile([2.0 - 1.2 * 0.5, 2.0 + 3.0 * 0.5], 2.0, 0.5),
+            3.0,
+            max_relative = 1e-15
+        );
+        approx::assert_relative_eq!(
+            interval_quantile([2.0 - 3.0 * 0.5, 2.0 + 1.2 * 0.5], 2.0, 0.5),
+            3.0,
+            max_relative = 1e-15
+        );
         assert!(interval_quantile([1.0, 3.0], 2.0, 0.0).is_infinite());
+        assert_eq!(interval_quantile([1.0, 3.0], 2.0, f64::INFINITY), 0.0);
     }
 }

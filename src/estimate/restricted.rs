@@ -186,7 +186,7 @@ mod tests {
 #[cfg(test)]
 mod coverage {
     use super::*;
-    use crate::estimate::quantile::t_quantile_975;
+    use crate::estimate::t_quantile_975;
 
     /// Monte Carlo: least squares `y = θ x + e` as the estimating equations (`Z = D = −x`),
     /// 20 batches of 50 samples, the regressor four times larger in five of them, unit white

@@ -201,8 +201,10 @@ pub struct FitStatistics {
 
 pub(crate) use crate::estimate::solver::SolverReport;
 
-/// Wall-clock timing \[s\].
+/// Wall-clock timing \[s\]. Fields may be added (as `solve_s` was): outside the crate build
+/// one with `..Default::default()`.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[non_exhaustive]
 pub struct Timing {
     /// Reading the logs.
     pub read_s: f64,
@@ -210,10 +212,11 @@ pub struct Timing {
     pub fit_s: f64,
     /// Everything.
     pub total_s: f64,
-    /// Of `fit_s`, the solver's iterations of the reported estimate, from its start to its
-    /// end (its evaluations and normal equations; not the start estimate, the setup and
-    /// residual checks or the statistics): a prediction-error fit's optimisation alone, what
-    /// another optimiser from the same start would do. `None` for the estimates without a
+    /// Of `fit_s`, the solver's iterations of the reported estimate \[s\], from its start to
+    /// its end (its evaluations and normal equations, the pass at the start included where an
+    /// automatic hold choice made it; with a Huber loss both runs; not the start estimate, the
+    /// setup and residual checks or the statistics): a prediction-error fit's optimisation
+    /// alone, what another optimiser from the same start would do. `None` for the estimates without a
     /// solver of their own (linear least squares, steady state, instrumental variables) and
     /// in reports written before the field existed.
     #[serde(default, skip_serializing_if = "Option::is_none")]

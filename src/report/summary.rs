@@ -161,7 +161,7 @@ impl FitResult {
             ]);
             // The fit's interval; for a result built without one (by hand), Student's t at
             // the covariance's degrees of freedom.
-            let tq = crate::estimate::quantile::t_quantile_975(self.uncertainty.dof);
+            let tq = crate::estimate::t_quantile_975(self.uncertainty.dof);
             for q in &self.derived {
                 let ci = q.interval(tq);
                 let [v, se, ci, unit] = estimate_cells(q.value, q.std_error, Some(ci), &q.unit, false);

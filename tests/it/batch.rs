@@ -114,7 +114,8 @@ fn batch_fits_each_log_and_reports_the_broken_one() {
     for ((row, log), (_, r_s, psi_f)) in rows.iter().zip(logs).zip(LOGS) {
         assert_eq!(&row[col("status")], "ok");
         let num = |c: &str| row[col(c)].parse::<f64>().unwrap();
-        // The interval columns are the JSON record's intervals (the report's) to the bit.
+        // The interval columns are the JSON record's intervals to the bit (the CSV's cells
+        // round-trip the record, which copies the fit's `ci95`).
         for (list, name, unit) in [("parameters", "r_s", "Ω"), ("derived", "k_t", "N m/A")] {
             let q = log[list].as_array().unwrap().iter().find(|q| q["name"] == name).unwrap();
             let ci: Vec<f64> = q["ci95"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();

@@ -288,6 +288,9 @@ fn cli_fit_prints_a_table_and_writes_the_json_report() {
     for key in ["read_s", "fit_s", "total_s"] {
         assert!(v["timing"][key].as_f64().unwrap() >= 0.0, "timing lacks {key}");
     }
+    // A prediction-error fit times its solver alone, a share of the fit.
+    let solve_s = v["timing"]["solve_s"].as_f64().expect("a prediction-error fit has solve_s");
+    assert!(solve_s > 0.0 && solve_s <= v["timing"]["fit_s"].as_f64().unwrap(), "{}", v["timing"]);
 }
 
 #[test]

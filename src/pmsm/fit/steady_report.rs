@@ -5,7 +5,7 @@
 
 use crate::data::Experiment;
 use crate::estimate::diagnostics::{DiagnosticThresholds, diagnose};
-use crate::estimate::quantile::t_quantile_975;
+use crate::estimate::t_quantile_975;
 use crate::estimate::{
     FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing, metrics,
 };

@@ -7,7 +7,7 @@
 
 use crate::estimate::diagnostics::{DiagnosticThresholds, diagnose};
 use crate::estimate::metrics;
-use crate::estimate::quantile::t_quantile_975;
+use crate::estimate::t_quantile_975;
 use crate::estimate::{
     FitResult, FitStatistics, ParameterEstimate, SolverReport, Termination, Timing, Warning,
 };
