@@ -74,6 +74,7 @@ mod tests {
             ljung_box_critical: 44.3,
             jackknife: false,
             restricted: false,
+            effective_dof: Vec::new(),
         }
     }
 

@@ -14,7 +14,7 @@
 //! noise-free outputs an auxiliary model simulates); this module sums, steps and gives the
 //! covariance, for any model.
 
-use super::jackknife::{BlockSums, jackknife_covariance};
+use super::jackknife::{BlockSums, effective_dof, jackknife_covariance};
 use super::problem::LagStream;
 use super::problem::{BlockScores, LagSums, ScoreSeries, TARGET_BATCHES, WHITENESS_LAGS};
 use super::quantile::t_quantile_975;
@@ -72,6 +72,10 @@ pub struct IvCovariance {
     /// batches carry the parameter unevenly); otherwise, and for a parameter whose
     /// restricted set is unbounded, `± t·√cov_jj`. Length n_θ.
     pub ci95_offsets: Vec<[f64; 2]>,
+    /// Per parameter, the 0.975 quantile of Student's t of its `± t·√cov_jj` interval: at
+    /// [`Uncertainty::dof`], or at the parameter's effective degrees of freedom
+    /// ([`Uncertainty::effective_dof`]) where the jackknife is taken. Length n_θ.
+    pub t_quantiles: Vec<f64>,
     /// The parameters (indices) whose restricted set was unbounded (too few batches carry
     /// them) and whose interval is therefore `± t·√cov_jj`; empty otherwise.
     pub unbounded: Vec<usize>,
@@ -214,12 +218,19 @@ impl IvSums {
         let batches = bm.and_then(|_| self.jack.batches(&self.scores, TARGET_BATCHES));
         let jackknife = batches.as_deref().and_then(|b| jackknife_covariance(&self.zd, &self.score, b));
         uncertainty.jackknife = jackknife.is_some();
+        if uncertainty.jackknife {
+            uncertainty.effective_dof =
+                batches.as_deref().and_then(|b| effective_dof(&self.zd, b)).unwrap_or_default();
+        }
         let cov = match jackknife {
             Some(v) => v,
             None => bm.map_or_else(|| cov_white.clone(), |b| sandwich(&b.meat)),
         };
-        // The intervals: restricted where the batches give them, else ± t·se.
+        // The intervals: restricted where the batches give them (at the batches' t: the
+        // restriction widens them where the batches carry a parameter unevenly), else ± t·se
+        // at the parameter's own degrees of freedom.
         let tq = t_quantile_975(uncertainty.dof);
+        let t_quantiles = (0..self.nth).map(|j| uncertainty.t_quantile_of(j)).collect::<Vec<_>>();
         let restricted = batches
             .as_deref()
             .and_then(|b| restricted_offsets(&self.zd, &self.score, b, tq))
@@ -230,12 +241,12 @@ impl IvSums {
         let ci95_offsets = (0..self.nth)
             .map(|j| {
                 restricted.get(j).copied().flatten().unwrap_or_else(|| {
-                    let half = tq * cov[(j, j)].max(0.0).sqrt();
+                    let half = t_quantiles[j] * cov[(j, j)].max(0.0).sqrt();
                     [-half, half]
                 })
             })
             .collect();
-        Ok(IvCovariance { cov, cov_white, uncertainty, whiteness, ci95_offsets, unbounded })
+        Ok(IvCovariance { cov, cov_white, uncertainty, whiteness, ci95_offsets, t_quantiles, unbounded })
     }
 }
 

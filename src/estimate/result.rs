@@ -101,6 +101,13 @@ pub struct Uncertainty {
     /// `crate::estimate::restricted`) rather than `± t·std_error`; `false` in older reports.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub restricted: bool,
+    /// Per free parameter (in the estimator's order), the effective degrees of freedom of
+    /// the delete-one-batch jackknife's variance (`crate::estimate::jackknife`, Bell &
+    /// McCaffrey 2002), in `[1, dof]`: fewer than `dof` where a few batches carry the
+    /// parameter; its `± t·std_error` interval takes t at them ([`Uncertainty::t_quantile_of`]). Empty
+    /// without the jackknife, and in older reports (then `dof` for every parameter).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub effective_dof: Vec<f64>,
 }
 
 impl Uncertainty {
@@ -129,7 +136,26 @@ impl Uncertainty {
                 .map_or(0.0, crate::estimate::metrics::Whiteness::ljung_box_critical),
             jackknife: false,
             restricted: false,
+            effective_dof: Vec::new(),
         }
+    }
+
+    /// The 0.975 quantile of Student's t of free parameter `j`'s `± t·std_error` interval:
+    /// at its [`effective_dof`](Self::effective_dof) where given (in `[1, dof]`; between
+    /// whole numbers interpolated linearly in 1/ν, as t tables are), else at
+    /// [`dof`](Self::dof).
+    pub fn t_quantile_of(&self, j: usize) -> f64 {
+        let t = crate::estimate::t_quantile_975;
+        let Some(&nu) = self.effective_dof.get(j) else {
+            return t(self.dof);
+        };
+        let nu = nu.clamp(1.0, self.dof.max(1) as f64);
+        let (lo, hi) = (nu.floor(), nu.ceil());
+        if lo == hi {
+            return t(lo as usize);
+        }
+        let w = (1.0 / lo - 1.0 / nu) / (1.0 / lo - 1.0 / hi);
+        t(lo as usize) + w * (t(hi as usize) - t(lo as usize))
     }
 
     /// Whether the residuals are white: every output's Ljung–Box statistic at or below its

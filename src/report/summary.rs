@@ -195,10 +195,42 @@ impl FitResult {
             };
             format!(
                 "std error: residuals not white (Ljung–Box Q {q:.3e} > {:.1}): {how} over {} batches of {} samples, \
-                 {interval} with {} degrees of freedom; the white-noise std errors are in the JSON (std_error_white)",
-                u.ljung_box_critical, u.batches, u.batch_samples, u.dof
+                 {interval} with {} degrees of freedom{}; the white-noise std errors are in the JSON (std_error_white)",
+                u.ljung_box_critical,
+                u.batches,
+                u.batch_samples,
+                u.dof,
+                self.effective_dof_clause()
             )
         })
+    }
+
+    /// `, fewer where a few batches carry a parameter (...): r_s 13, ...` naming the free
+    /// parameters whose effective degrees of freedom ([`crate::estimate::Uncertainty`]) are
+    /// fewer than the batches'; empty when none is.
+    fn effective_dof_clause(&self) -> String {
+        let u = &self.uncertainty;
+        let free = self.parameters.iter().filter(|p| !p.fixed);
+        let fewer: Vec<String> = free
+            .zip(&u.effective_dof)
+            .filter(|(_, nu)| **nu < u.dof as f64)
+            .map(|(p, nu)| {
+                let log = p.experiment.as_ref().map_or_else(String::new, |e| format!("[{e}]"));
+                format!("{}{log} {nu:.1}", p.name)
+            })
+            .collect();
+        match fewer.is_empty() {
+            true => String::new(),
+            false => format!(
+                ", fewer for a parameter that a few batches carry (Bell–McCaffrey's effective degrees of freedom, \
+                 {}): {}",
+                match u.restricted {
+                    true => "the t of a ± t·se interval where the restricted one is unbounded",
+                    false => "its interval's t",
+                },
+                fewer.join(", ")
+            ),
+        }
     }
 
     fn fit_section(&self, d: &mut Document) {

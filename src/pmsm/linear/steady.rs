@@ -273,7 +273,6 @@ pub(crate) fn steady_state_of(
     };
     let Solved { names, experiment, theta, cov, sums, iterations, converged, period } = solved;
     let nth = names.len();
-    let t = cov.t_quantile();
     let std_error: Vec<f64> = (0..nth).map(|i| cov.cov[(i, i)].max(0.0).sqrt()).collect();
     let mut notes = notes(kind, &names, &theta, &std_error);
     if !narrow.is_empty() {
@@ -290,7 +289,7 @@ pub(crate) fn steady_state_of(
     Ok(SteadyEstimate {
         kind,
         units,
-        ci95: std_error.iter().map(|s| t * s).collect(),
+        ci95: std_error.iter().enumerate().map(|(j, s)| cov.t_quantiles[j] * s).collect(),
         std_error_white: (0..nth).map(|i| cov.cov_white[(i, i)].max(0.0).sqrt()).collect(),
         correlation: (0..nth)
             .map(|a| (0..nth).map(|b| cov.cov[(a, b)] / (std_error[a] * std_error[b])).collect())
