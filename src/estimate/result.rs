@@ -80,8 +80,9 @@ pub enum CovarianceMethod {
 pub struct Uncertainty {
     /// The covariance of `std_error` (and of `ci95`, but where [`Uncertainty::restricted`]).
     pub method: CovarianceMethod,
-    /// Degrees of freedom of the t quantile of `ci95`: the residuals' (white) or the
-    /// batches' less one (batch means).
+    /// Degrees of freedom of the standard errors: the residuals' (white) or the batches'
+    /// less one (batch means); the t quantile of `ci95` but where
+    /// [`effective_dof`](Self::effective_dof) gives a parameter fewer.
     pub dof: usize,
     /// Number of batches (batch means; 0 otherwise).
     pub batches: usize,
@@ -104,7 +105,8 @@ pub struct Uncertainty {
     /// Per free parameter (in the estimator's order), the effective degrees of freedom of
     /// the delete-one-batch jackknife's variance (`crate::estimate::jackknife`, Bell &
     /// McCaffrey 2002), in `[1, dof]`: fewer than `dof` where a few batches carry the
-    /// parameter; its `± t·std_error` interval takes t at them ([`Uncertainty::t_quantile_of`]). Empty
+    /// parameter; its `± t·std_error` interval takes t at them
+    /// ([`Uncertainty::t_quantile_of`]). Empty
     /// without the jackknife, and in older reports (then `dof` for every parameter).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub effective_dof: Vec<f64>,
@@ -141,21 +143,21 @@ impl Uncertainty {
     }
 
     /// The 0.975 quantile of Student's t of free parameter `j`'s `± t·std_error` interval:
-    /// at its [`effective_dof`](Self::effective_dof) where given (in `[1, dof]`; between
-    /// whole numbers interpolated linearly in 1/ν, as t tables are), else at
-    /// [`dof`](Self::dof).
+    /// at its [`effective_dof`](Self::effective_dof) where given (in `[1, dof]`, 1 where not
+    /// finite; between whole numbers `ln t` interpolated linearly in 1/ν, within 3 % of the
+    /// exact quantile), else at [`dof`](Self::dof); ∞ when `dof` is 0.
     pub fn t_quantile_of(&self, j: usize) -> f64 {
         let t = crate::estimate::t_quantile_975;
-        let Some(&nu) = self.effective_dof.get(j) else {
+        let Some(&nu) = self.effective_dof.get(j).filter(|_| self.dof > 0) else {
             return t(self.dof);
         };
-        let nu = nu.clamp(1.0, self.dof.max(1) as f64);
+        let nu = if nu.is_finite() { nu.clamp(1.0, self.dof as f64) } else { 1.0 };
         let (lo, hi) = (nu.floor(), nu.ceil());
         if lo == hi {
             return t(lo as usize);
         }
         let w = (1.0 / lo - 1.0 / nu) / (1.0 / lo - 1.0 / hi);
-        t(lo as usize) + w * (t(hi as usize) - t(lo as usize))
+        (t(lo as usize).ln() + w * (t(hi as usize).ln() - t(lo as usize).ln())).exp()
     }
 
     /// Whether the residuals are white: every output's Ljung–Box statistic at or below its

@@ -123,7 +123,8 @@ pub(crate) fn warnings(
 /// `est` with the standard error of every shared parameter in `spread` taken as
 /// `√(σ² + τ²)`, `τ²` the parts' between-part variance ([`widened_by_parts`], Paule &
 /// Mandel 1982), and its 95 % half width as Student's `t_0.975` with K − 1 degrees of
-/// freedom (K the parts; τ is estimated from them) times that, with a note naming them;
+/// freedom (K the parts; τ is estimated from them), or with the parameter's own where
+/// fewer ([`crate::estimate::Uncertainty::t_quantile_of`]), times that, with a note naming them;
 /// `est` itself and no note when nothing is widened. The derived quantities (`k_t`,
 /// `psi_f`, temperatures) take the widened standard errors, with the estimates' sampling
 /// correlation.
@@ -144,7 +145,8 @@ pub(crate) fn widened(est: SteadyEstimate, spread: &[Homogeneity]) -> (SteadyEst
             continue;
         }
         std_error[j] = widened;
-        ci95[j] = half;
+        // The parts' t, or the parameter's own where its standard error rests on fewer.
+        ci95[j] = half.max(est.uncertainty.t_quantile_of(j) * widened);
         named.push(format!("{} ({:.1e} relative)", h.name, tau / est.theta[j].abs()));
     }
     if named.is_empty() {
@@ -270,15 +272,15 @@ pub(crate) fn accuracy(est: SteadyEstimate) -> (SteadyEstimate, Option<String>) 
 /// The standard errors and 95 % half widths of `est` with each `(j, b)` of `extra` added
 /// to parameter `j`'s standard error in quadrature, `√(σ² + b²)` (units of the parameter),
 /// the half width keeping its quantile (scaled by the standard error's growth; Student's
-/// t with the fit's degrees of freedom where σ was 0); the other parameters' as they were.
+/// t with the parameter's degrees of freedom where σ was 0); the other parameters' as they
+/// were.
 fn in_quadrature(est: &SteadyEstimate, extra: impl Iterator<Item = (usize, f64)>) -> (Vec<f64>, Vec<f64>) {
     let (mut std_error, mut ci95) = (est.std_error.clone(), est.ci95.clone());
-    let t = crate::estimate::t_quantile_975(est.uncertainty.dof);
     for (j, b) in extra {
         std_error[j] = est.std_error[j].hypot(b);
         ci95[j] = match est.std_error[j] > 0.0 {
             true => est.ci95[j] * std_error[j] / est.std_error[j],
-            false => t * std_error[j],
+            false => est.uncertainty.t_quantile_of(j) * std_error[j],
         };
     }
     (std_error, ci95)
