@@ -72,10 +72,6 @@ pub struct IvCovariance {
     /// batches carry the parameter unevenly); otherwise, and for a parameter whose
     /// restricted set is unbounded, `± t·√cov_jj`. Length n_θ.
     pub ci95_offsets: Vec<[f64; 2]>,
-    /// Per parameter, the 0.975 quantile of Student's t of its `± t·√cov_jj` interval: at
-    /// [`Uncertainty::dof`], or at the parameter's effective degrees of freedom
-    /// ([`Uncertainty::effective_dof`]) where the jackknife is taken. Length n_θ.
-    pub t_quantiles: Vec<f64>,
     /// The parameters (indices) whose restricted set was unbounded (too few batches carry
     /// them) and whose interval is therefore `± t·√cov_jj`; empty otherwise.
     pub unbounded: Vec<usize>,
@@ -230,7 +226,6 @@ impl IvSums {
         // restriction widens them where the batches carry a parameter unevenly), else ± t·se
         // at the parameter's own degrees of freedom.
         let tq = t_quantile_975(uncertainty.dof);
-        let t_quantiles = (0..self.nth).map(|j| uncertainty.t_quantile_of(j)).collect::<Vec<_>>();
         let restricted = batches
             .as_deref()
             .and_then(|b| restricted_offsets(&self.zd, &self.score, b, tq))
@@ -241,12 +236,12 @@ impl IvSums {
         let ci95_offsets = (0..self.nth)
             .map(|j| {
                 restricted.get(j).copied().flatten().unwrap_or_else(|| {
-                    let half = t_quantiles[j] * cov[(j, j)].max(0.0).sqrt();
+                    let half = uncertainty.t_quantile_of(j) * cov[(j, j)].max(0.0).sqrt();
                     [-half, half]
                 })
             })
             .collect();
-        Ok(IvCovariance { cov, cov_white, uncertainty, whiteness, ci95_offsets, t_quantiles, unbounded })
+        Ok(IvCovariance { cov, cov_white, uncertainty, whiteness, ci95_offsets, unbounded })
     }
 }
 

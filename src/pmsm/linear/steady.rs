@@ -289,7 +289,7 @@ pub(crate) fn steady_state_of(
     Ok(SteadyEstimate {
         kind,
         units,
-        ci95: std_error.iter().enumerate().map(|(j, s)| cov.t_quantiles[j] * s).collect(),
+        ci95: std_error.iter().enumerate().map(|(j, s)| cov.uncertainty.t_quantile_of(j) * s).collect(),
         std_error_white: (0..nth).map(|i| cov.cov_white[(i, i)].max(0.0).sqrt()).collect(),
         correlation: (0..nth)
             .map(|a| (0..nth).map(|b| cov.cov[(a, b)] / (std_error[a] * std_error[b])).collect())
