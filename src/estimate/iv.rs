@@ -14,7 +14,7 @@
 //! noise-free outputs an auxiliary model simulates); this module sums, steps and gives the
 //! covariance, for any model.
 
-use super::jackknife::{BlockSums, effective_dof, jackknife_covariance};
+use super::jackknife::{BlockSums, effective_dof, jackknife_covariance, jackknife_shifts};
 use super::problem::LagStream;
 use super::problem::{BlockScores, LagSums, ScoreSeries, TARGET_BATCHES, WHITENESS_LAGS};
 use super::quantile::t_quantile_975;
@@ -184,6 +184,16 @@ impl IvSums {
                 reason: "Σ ZᵀD is singular: the instruments do not determine every parameter".into(),
             }
         })
+    }
+
+    /// The deleted-batch shifts of the estimate whose sums these are, one per batch of the
+    /// jackknife ([`super::jackknife::jackknife_shifts`]; \[parameter units\], n_θ each),
+    /// whether or not its covariance takes them; for a paired comparison with another
+    /// estimate from the same data ([`super::paired_difference_variance`]).
+    /// `None` where the batches cannot be formed or a batch alone determines a parameter.
+    pub(crate) fn jackknife_shifts(&self) -> Option<Vec<DVector<f64>>> {
+        let batches = self.jack.batches(&self.scores, TARGET_BATCHES)?;
+        jackknife_shifts(&self.zd, &self.score, &batches)
     }
 
     /// The estimate's covariance at the point the sums were taken: batch means when the

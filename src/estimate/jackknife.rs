@@ -111,6 +111,26 @@ impl BlockSums {
     }
 }
 
+/// The deleted-batch shifts `θ̂₋g − θ̂ = −(M − M_g)⁻¹ (S − S_g)` (module documentation), one
+/// per batch of `batches` ([`BlockSums::batches`]), each of length n_θ, at the estimate
+/// whose sums are `m` (`M`, n_θ × n_θ) and `score` (`S`, n_θ); `None` when `M − M_g` is
+/// singular for a batch (a batch that alone determines a parameter).
+pub(crate) fn jackknife_shifts(
+    m: &DMatrix<f64>,
+    score: &DVector<f64>,
+    batches: &[BatchSums],
+) -> Option<Vec<DVector<f64>>> {
+    let mut shifts = Vec::with_capacity(batches.len());
+    for b in batches {
+        let step = (m - &b.m).lu().solve(&(score - &b.score))?;
+        if !step.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        shifts.push(-step);
+    }
+    Some(shifts)
+}
+
 /// The jackknife covariance (module documentation) at the estimate whose sums are `m`
 /// (`M`, n_θ × n_θ) and `score` (`S`, n_θ), over the batches `batches`
 /// ([`BlockSums::batches`]); `None` when `M − M_g` is singular for a batch (a batch that
@@ -121,14 +141,7 @@ pub(crate) fn jackknife_covariance(
     batches: &[BatchSums],
 ) -> Option<DMatrix<f64>> {
     let (g, nth) = (batches.len(), score.len());
-    let mut shifts = Vec::with_capacity(g);
-    for b in batches {
-        let step = (m - &b.m).lu().solve(&(score - &b.score))?;
-        if !step.iter().all(|v| v.is_finite()) {
-            return None;
-        }
-        shifts.push(-step);
-    }
+    let shifts = jackknife_shifts(m, score, batches)?;
     let mean = shifts.iter().fold(DVector::zeros(nth), |a, d| a + d) / g as f64;
     let mut v = DMatrix::zeros(nth, nth);
     for d in &shifts {

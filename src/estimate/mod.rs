@@ -22,6 +22,7 @@ mod jackknife;
 pub(crate) mod linear;
 pub(crate) mod metrics;
 mod options;
+mod paired;
 pub(crate) mod precision;
 pub(crate) mod problem;
 mod quantile;
@@ -56,6 +57,7 @@ pub use iv::{IvCovariance, IvSums, one_step_sums};
 pub use linear::{BLOCK, LinearSolution, RANK_TOLERANCE, StreamedLeastSquares, solve_weighted};
 pub use metrics::{Metrics, Whiteness, aic, bic, fit_percent, fpe, metrics, whiteness, whiteness_of};
 pub use options::PemOptions;
+pub(crate) use paired::paired_difference_variance;
 pub use precision::{PRECISION_Z, PrecisionTarget, imprecise};
 #[cfg(test)]
 pub(crate) use problem::lagged_dots;

@@ -174,6 +174,72 @@ fn the_input_noise_floor_is_no_poor_fit() {
     assert!(!fit.notes.iter().any(|n| n.contains("is the noise floor")), "{:?}", fit.notes);
 }
 
+/// The drive simulator's exp5 with its interior-magnet motor (100 000 samples at 10 kHz),
+/// white noise of 1 V on the logged voltages and 0.03 A on the phase currents, and an
+/// unmodelled inverter error of `v_dt` \[V\]; the instrumental-variable fit at the stator
+/// hold and the truth (r_s, l_d, l_q, k_e).
+fn exp5_ipm_iv(seed: u64, v_dt: f64) -> (greybox::estimate::FitResult, [f64; 4]) {
+    use greybox::drive::{IPM_MOTOR, scenario, simulate_drive};
+    let mut cfg = scenario("exp5", IPM_MOTOR).unwrap();
+    (cfg.seed, cfg.sensors.voltage_noise, cfg.sensors.current_noise, cfg.inverter.v_dt) =
+        (seed, 1.0, 0.03, v_dt);
+    let log = simulate_drive(&cfg).unwrap();
+    let options = PmsmFitOptions {
+        model: greybox::pmsm::MotorKind::Ipm,
+        hold: greybox::pmsm::HoldChoice::Stator,
+        ..PmsmFitOptions::new(IPM_MOTOR.n_p)
+    };
+    let fit = fit_pmsm_by(&[log.experiment], &options, Estimator::InstrumentalVariables).unwrap();
+    let t = log.truth.start;
+    (fit.report, [t.r_s, t.l_d, t.l_q, log.truth.k_e])
+}
+
+/// The interior-magnet model's noise floor: each axis's voltage noise read off its own
+/// one-step errors and carried through the coupled current equations. Input noise leaves
+/// exp5's i_d fit about 72 % and i_q about 18 % (before: `poor_fit`, exit 3, with every
+/// estimate inside its interval); the fit is not untrusted for it, says so, and its
+/// intervals hold the truth. An inverter error of 20 V keeps `poor_fit`.
+#[test]
+fn the_interior_magnets_input_noise_floor_is_no_poor_fit() {
+    let (fit, truth) = exp5_ipm_iv(3, 0.0);
+    let codes: Vec<&str> = fit.warnings.iter().map(|w| w.code.as_str()).collect();
+    assert!(!codes.contains(&"poor_fit"), "{codes:?}");
+    assert!(fit.fit.fit_percent.iter().all(|f| *f < greybox::estimate::POOR_FIT_PERCENT), "{:?}", fit.fit);
+    assert!(
+        fit.notes.iter().any(|n| n.contains("is the noise floor") && n.contains(" on q")),
+        "{:?}",
+        fit.notes
+    );
+    for (name, t) in ["r_s", "l_d", "l_q", "k_e"].iter().zip(truth) {
+        let p = fit.parameter(name).unwrap();
+        assert!(p.ci95[0] <= t && t <= p.ci95[1], "{name}: {} {:?}, truth {t}", p.value, p.ci95);
+    }
+    let (fit, _) = exp5_ipm_iv(3, 20.0);
+    let codes: Vec<&str> = fit.warnings.iter().map(|w| w.code.as_str()).collect();
+    assert!(codes.contains(&"poor_fit"), "{codes:?}");
+    assert!(!fit.notes.iter().any(|n| n.contains("is the noise floor")), "{:?}", fit.notes);
+}
+
+/// A wrong voltage hold under strong voltage noise: the other simulator's SPM log of moves
+/// holds the dq voltage; with 3 V + 0.03 A the two holds' output-error losses tie, the
+/// stator hold is kept and the noise floor claims the poor fit. The holds' IV estimates
+/// differ by several standard errors of their difference (the batches' paired jackknife),
+/// which the combined standard errors hid (9 of 10 seeds passed, `k_e` covered in 1 of 9):
+/// every seed is untrusted (`hold_ambiguous`).
+#[test]
+#[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
+fn a_wrong_hold_hidden_by_voltage_noise_is_ambiguous() {
+    crate::common::require_shared!();
+    let path = crate::common::shared_file("gem_spm_moves_idinj.csv.gz");
+    let options = PmsmFitOptions::new(crate::common::truth("gem_spm_moves_idinj").n_p);
+    for seed in 1..=3 {
+        let fit = fit_pmsm_by(&[noisy(&path, seed, 3.0, 0.03)], &options, Estimator::Auto).unwrap();
+        let untrusted: Vec<&str> =
+            fit.report.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.as_str()).collect();
+        assert!(untrusted.contains(&"hold_ambiguous"), "seed {seed}: {untrusted:?}");
+    }
+}
+
 /// A noisy log that carries a modulator's reference `ud_ref, uq_ref` (the drive simulator's
 /// exp3, stator-held, 1 V + 0.03 A): the reference settles the stator hold, as in the
 /// output-error fit, and the noise does not reopen it; the automatic fit (instrumental

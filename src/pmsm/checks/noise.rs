@@ -255,6 +255,39 @@ pub(crate) fn noise_powers(
     Some((white_power(gamma_0, rho), sigma_i2))
 }
 
+/// The white noise powers of an IPM model's inputs at θ = (r_s, l_d, l_q, k_e) per axis
+/// (d, q): the logged voltage's σ_u² \[V²\], [`voltage_noise`]'s white part of that axis's
+/// errors ([`ipm_voltage_errors`]) less what the currents' noise leaves there
+/// ([`current_leak`]), without the significance test (a floor, not a finding); and the
+/// measured currents' σ_i² \[A²\], the axes' mean of `−γ₁ b²/a` from each axis's lag-1
+/// autocovariance `γ₁ = −a σ_i²/b²` (`a = e^{−h r_s/L}`, `b = (1 − a)/r_s` of the axis at
+/// the logs' longest interval h). `None` for a log the inverse model cannot read or a pole
+/// outside (0, 1).
+pub(crate) fn ipm_noise_powers(
+    views: &[DqView<'_>],
+    setup: PmsmSetup,
+    theta: &[f64; 4],
+) -> Option<([f64; 2], f64)> {
+    let v = ipm_voltage_errors(views, setup, theta)?;
+    let axes = v.leak?;
+    let n = v.n.max(1) as f64;
+    let h = views.iter().map(|v| v.experiment().h()).fold(0.0, f64::max);
+    let (mut sigma_u2, mut sigma_i2) = ([0.0; 2], 0.0);
+    for (axis, ((e2, leak), w)) in axes.iter().zip(&v.whiteness).enumerate() {
+        let a = (-h * theta[0] / theta[1 + axis]).exp();
+        if !(a > 0.0 && a < 1.0) {
+            return None;
+        }
+        let b = (1.0 - a) / theta[0];
+        let rho = |lag: usize| w.autocorrelation.get(lag - 1).copied().unwrap_or(0.0);
+        let gamma_0 = e2 / n;
+        let minus_gamma_1 = (-gamma_0 * rho(1)).max(0.0);
+        sigma_u2[axis] = (white_power(gamma_0, [rho(1), rho(2), rho(3)]) - minus_gamma_1 * leak).max(0.0);
+        sigma_i2 += minus_gamma_1 * b * b / a / 2.0;
+    }
+    Some((sigma_u2, sigma_i2))
+}
+
 /// A notice (code `input_noise`) when the inverse model's voltage errors at θ = (r_s, l_s,
 /// k_e) of an SPM model driven by the terminal voltage are white in every log and not
 /// negligible, for a fit whose own residuals are not white; `None` otherwise, or for a log

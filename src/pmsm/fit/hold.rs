@@ -62,10 +62,11 @@ pub(crate) fn hardly_chosen(loss_a: f64, loss_b: f64) -> bool {
     (1.0 / DQ_DECISIVE..DQ_DECISIVE).contains(&(loss_b / loss_a))
 }
 
-/// Combined standard errors by which two holds' estimates may differ, where the data hardly
-/// choose between the holds, before the fit is untrusted (`hold_ambiguous`): the output
-/// error's estimates at a tie, and the instrumental variables' at both holds
-/// ([`crate::pmsm::fit_pmsm_iv_after`]).
+/// Standard errors by which two holds' estimates may differ, where the data hardly choose
+/// between the holds, before the fit is untrusted (`hold_ambiguous`): the output error's
+/// estimates at a tie (combined standard errors), and the instrumental variables' at both
+/// holds (standard errors of their difference by the batches' paired jackknife,
+/// [`crate::pmsm::fit_pmsm_iv_after`]).
 pub const HOLD_AMBIGUOUS_Z: f64 = 3.0;
 
 /// What a user does about holds the log cannot tell apart.
