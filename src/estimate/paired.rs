@@ -1,16 +1,20 @@
 //! Two estimates from the same data compared through the batches they share: the
 //! difference of their deleted-batch jackknife shifts ([`super::jackknife`]), each batch
-//! deleted from both at once (a paired jackknife; Efron & Tibshirani, *An Introduction to
-//! the Bootstrap*, 1993, 11.5). Two fits of one log share its noise, so their difference
-//! varies far less than `se_a² + se_b²`, the variance of independent estimates, and a test
-//! on the latter hides a difference the data determine well.
+//! deleted from both at once: the delete-a-group jackknife of the difference of two
+//! statistics computed on the same groups (Efron & Tibshirani, *An Introduction to the
+//! Bootstrap*, 1993, ch. 11; Shao & Tu, *The Jackknife and Bootstrap*, 1995). Two fits of
+//! one log share its noise, so their difference varies far less than `se_a² + se_b²`, the
+//! variance of independent estimates, and a test on the latter hides a difference the data
+//! determine well.
 
 use nalgebra::DVector;
 
 /// Per parameter, the jackknife variance of the difference `θ̂_a − θ̂_b` of two estimates
 /// from the same data in the same batches, from their deleted-batch shifts `a` and `b`
 /// (`θ̂₋g − θ̂` per batch, [`super::jackknife::jackknife_shifts`], in the same parameter
-/// units and order): `(G − 1)/G Σ_g (a_g − b_g − mean)²`. `None` when the batches differ in
+/// units and order): `(G − 1)/G Σ_g (a_g − b_g − mean)²`. The caller vouches that both
+/// fits' batches are the same samples (the same data, blocks and partition); only their
+/// number is checked here. `None` when the batches differ in
 /// number or the shifts in length, or there are fewer than two batches. Length n_θ.
 pub(crate) fn paired_difference_variance(a: &[DVector<f64>], b: &[DVector<f64>]) -> Option<Vec<f64>> {
     let g = a.len();

@@ -98,8 +98,11 @@ fn ipm_floor(views: &[DqView<'_>], setup: PmsmSetup, theta: &[f64; 4]) -> Option
 /// current equations `F = −L⁻¹(r_s + ω_e J L)`, `L = diag(l_d, l_q)` (MODEL.md §2), solved
 /// in closed form for its three unknowns (r_s > 0 makes F stable and the solution unique).
 /// For `l_d = l_q = L` it is `q/(2 r_s/L)` on each axis whatever the speed (the rotation
-/// turns the noise, not its power); the discrete form `σ² b²/(1 − a²)` of an SPM agrees
-/// with it to second order in `h r_s/L`.
+/// turns the noise, not its power); the discrete form `σ² b²/(1 − a²)` of an SPM differs
+/// from it by a relative `(h r_s/L)²/12` (Åström, *Introduction to Stochastic Control
+/// Theory*, 1970: the stationary covariance of a linear system driven by white
+/// noise; the discrete recursion by Van Loan, *IEEE Trans. Autom. Control* 23 (1978)
+/// 395–404, in this module's tests).
 fn stationary_covariance(r_s: f64, [l_d, l_q]: [f64; 2], w_e: f64, q: [f64; 2]) -> [f64; 3] {
     let (f11, f12, f21, f22) = (-r_s / l_d, w_e * l_q / l_d, -w_e * l_d / l_q, -r_s / l_q);
     let off = (f12 * q[1] / (2.0 * f22) + f21 * q[0] / (2.0 * f11))
@@ -111,23 +114,23 @@ fn stationary_covariance(r_s: f64, [l_d, l_q]: [f64; 2], w_e: f64, q: [f64; 2]) 
 /// through an SPM model at θ = (r_s with the cable, l_s, k_e) or an IPM model at
 /// θ = (r_s with the cable, l_d, l_q, k_e)) whose fit percentage is below
 /// [`POOR_FIT_PERCENT`] has a residual mean square within [`NOISE_FLOOR_RATIO`] of the
-/// noise's on its axis ([`spm_floor`], [`ipm_floor`]); `None` when one does not, none is
-/// poor, the outputs are not the currents `(i_d, i_q)`, or the logs cannot be read by the
-/// inverse model.
+/// noise's on its axis ([`spm_floor`], [`ipm_floor`]; the fit's two outputs taken as
+/// `(i_d, i_q)`, as every PMSM fit orders them); `None` when one does not, none is poor,
+/// the fit has other than two outputs, or the logs cannot be read by the inverse model.
 pub(crate) fn noise_floor(
     views: &[DqView<'_>],
     setup: PmsmSetup,
     theta: &[f64],
     fit: &FitStatistics,
 ) -> Option<String> {
+    if fit.outputs.len() != 2 {
+        return None;
+    }
     let floor = match theta {
         [_, _, _] => spm_floor(views, setup, theta)?,
         [r_s, l_d, l_q, k_e] => ipm_floor(views, setup, &[*r_s, *l_d, *l_q, *k_e])?,
         _ => return None,
     };
-    if fit.outputs.len() != 2 {
-        return None;
-    }
     let poor: Vec<(usize, f64)> = (0..fit.outputs.len())
         .filter(|&j| fit.fit_percent.get(j).is_some_and(|f| *f < POOR_FIT_PERCENT))
         .map(|j| (j, fit.rms_residual.get(j).map_or(f64::INFINITY, |r| r * r) / floor.axes[j]))

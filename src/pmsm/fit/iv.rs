@@ -202,11 +202,16 @@ fn other_hold(oe: &PmsmFit, dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Option
 /// any parameter by more than [`HOLD_AMBIGUOUS_Z`] standard errors of their difference:
 /// `paired`, the batches' paired jackknife variance of the difference per parameter (in
 /// the model's parameter order, [`paired_difference_variance`]), where both fits have it;
-/// else the combined standard errors `√(se_a² + se_b²)` ([`largest_difference`]), which
+/// else (batches that cannot be formed, or one that alone determines a parameter) the
+/// combined standard errors `√(se_a² + se_b²)` ([`largest_difference`]), which
 /// treat two fits of the same data as independent and hide a difference the data
 /// determine well: on the set-aside gym-electric-motor SPM log of moves (a simulator that
 /// holds the dq voltage) with 3 V + 0.03 A that test passed 9 of 10 fits at the stator
-/// hold with `k_e` covered in 1 of 9 (mean z +2.6).
+/// hold with `k_e` covered in 1 of 9 (mean z +2.6). The jackknife's variance has G − 1
+/// degrees of freedom (31 on a log long enough for 32 batches): at the fewest batches, 8,
+/// a difference of pure noise passes 3 standard errors for one parameter in about 50
+/// (Student's t with 7 degrees of freedom), a few hundredths over four parameters, against
+/// about 0.5 % at 31.
 fn hold_ambiguous(
     iv: &PmsmFit,
     other: &PmsmFit,
@@ -220,7 +225,9 @@ fn hold_ambiguous(
             .zip(var)
             .filter_map(|(n, v)| {
                 let (p, q) = (iv.report.parameter(n)?, other.report.parameter(n)?);
-                Some((*n, ((p.value - q.value) / v.sqrt()).abs(), "standard errors of their difference"))
+                let z = ((p.value - q.value) / v.sqrt()).abs();
+                // 0/0 (a parameter both fits hold alike) would rank above every z.
+                z.is_finite().then_some((*n, z, "standard errors of their difference"))
             })
             .max_by(|x, y| x.1.total_cmp(&y.1))?,
         None => {
@@ -243,7 +250,8 @@ fn hold_ambiguous(
 
 /// The IV fit from the output-error fit `oe` at its hold ([`fit_pmsm_iv_after`] without the
 /// other hold), and its deleted-batch shifts ([`IvSums::jackknife_shifts`]; `None` for the
-/// steady-state equations and where the batches cannot be formed).
+/// steady-state equations, where the batches cannot be formed, or where a batch alone
+/// determines a parameter).
 ///
 /// # Errors
 /// As [`fit_pmsm_iv`].
