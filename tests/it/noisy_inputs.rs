@@ -7,7 +7,9 @@
 
 use crate::common::Rng;
 use greybox::data::{Channel, Experiment};
-use greybox::pmsm::{CsvOptions, Estimator, PmsmFitOptions, VoltageHold, fit_pmsm, fit_pmsm_by, read_log};
+use greybox::pmsm::{
+    CsvOptions, Estimator, MotorKind, PmsmFitOptions, VoltageHold, fit_pmsm, fit_pmsm_by, read_log,
+};
 
 /// The shipped sample log (stator-held, 10 kHz) without its modulator reference, with white
 /// noise of `sigma_u` \[V\] on the voltages and `sigma_i` \[A\] on the currents.
@@ -139,18 +141,44 @@ fn instrumental_variables_check_the_hold_as_the_automatic_method() {
     assert!(ambiguous > 0, "no seed made the holds ambiguous");
 }
 
-/// The drive simulator's exp5 (100 000 samples at 10 kHz) with white noise of 1 V on the
-/// logged voltages, 0.03 A on the currents, and an unmodelled inverter error of `v_dt` \[V\];
-/// the instrumental-variable fit at the stator hold and the truth (r_s, l_s, k_e).
-fn exp5_iv(seed: u64, v_dt: f64) -> (greybox::estimate::FitResult, [f64; 3]) {
-    use greybox::drive::{SPM_MOTOR, scenario, simulate_drive};
-    let mut cfg = scenario("exp5", SPM_MOTOR).unwrap();
+/// The drive simulator's exp5 (100 000 samples at 10 kHz) with the motor of `kind` (the
+/// surface or interior one), white noise of 1 V on the logged voltages, 0.03 A on the
+/// currents, and an unmodelled inverter error of `v_dt` \[V\]; the instrumental-variable
+/// fit of that model at the stator hold and the truth by parameter name.
+fn exp5_iv(
+    kind: MotorKind,
+    seed: u64,
+    v_dt: f64,
+) -> (greybox::estimate::FitResult, Vec<(&'static str, f64)>) {
+    use greybox::drive::{IPM_MOTOR, SPM_MOTOR, scenario, simulate_drive};
+    let motor = match kind {
+        MotorKind::Ipm => IPM_MOTOR,
+        _ => SPM_MOTOR,
+    };
+    let mut cfg = scenario("exp5", motor).unwrap();
     (cfg.seed, cfg.sensors.voltage_noise, cfg.sensors.current_noise, cfg.inverter.v_dt) =
         (seed, 1.0, 0.03, v_dt);
     let log = simulate_drive(&cfg).unwrap();
-    let options = PmsmFitOptions { hold: greybox::pmsm::HoldChoice::Stator, ..PmsmFitOptions::new(4) };
+    let options = PmsmFitOptions {
+        model: kind,
+        hold: greybox::pmsm::HoldChoice::Stator,
+        ..PmsmFitOptions::new(motor.n_p)
+    };
     let fit = fit_pmsm_by(&[log.experiment], &options, Estimator::InstrumentalVariables).unwrap();
-    (fit.report, [log.truth.start.r_s, log.truth.start.l_d, log.truth.k_e])
+    let (t, k_e) = (log.truth.start, log.truth.k_e);
+    let truth = match kind {
+        MotorKind::Ipm => vec![("r_s", t.r_s), ("l_d", t.l_d), ("l_q", t.l_q), ("k_e", k_e)],
+        _ => vec![("r_s", t.r_s), ("l_s", t.l_d), ("k_e", k_e)],
+    };
+    (fit.report, truth)
+}
+
+/// Every parameter of `truth` (name, value) inside its 95 % interval in `fit`.
+fn covers(fit: &greybox::estimate::FitResult, truth: &[(&str, f64)]) {
+    for &(name, t) in truth {
+        let p = fit.parameter(name).unwrap();
+        assert!(p.ci95[0] <= t && t <= p.ci95[1], "{name}: {} {:?}, truth {t}", p.value, p.ci95);
+    }
 }
 
 /// Input noise leaves a poor, coloured output-error residual (exp5's i_q fit about 40 %)
@@ -159,39 +187,16 @@ fn exp5_iv(seed: u64, v_dt: f64) -> (greybox::estimate::FitResult, [f64; 3]) {
 /// the residual's mean square more than 1.25 times the noise's) keeps `poor_fit`.
 #[test]
 fn the_input_noise_floor_is_no_poor_fit() {
-    let (fit, truth) = exp5_iv(3, 0.0);
+    let (fit, truth) = exp5_iv(MotorKind::Spm, 3, 0.0);
     let codes: Vec<&str> = fit.warnings.iter().map(|w| w.code.as_str()).collect();
     assert!(!codes.contains(&"poor_fit"), "{codes:?}");
     assert!(fit.fit.fit_percent.iter().any(|f| *f < greybox::estimate::POOR_FIT_PERCENT), "{:?}", fit.fit);
     assert!(fit.notes.iter().any(|n| n.contains("is the noise floor")), "{:?}", fit.notes);
-    for (name, t) in ["r_s", "l_s", "k_e"].iter().zip(truth) {
-        let p = fit.parameter(name).unwrap();
-        assert!(p.ci95[0] <= t && t <= p.ci95[1], "{name}: {} {:?}, truth {t}", p.value, p.ci95);
-    }
-    let (fit, _) = exp5_iv(3, 20.0);
+    covers(&fit, &truth);
+    let (fit, _) = exp5_iv(MotorKind::Spm, 3, 20.0);
     let codes: Vec<&str> = fit.warnings.iter().map(|w| w.code.as_str()).collect();
     assert!(codes.contains(&"poor_fit"), "{codes:?}");
     assert!(!fit.notes.iter().any(|n| n.contains("is the noise floor")), "{:?}", fit.notes);
-}
-
-/// The drive simulator's exp5 with its interior-magnet motor (100 000 samples at 10 kHz),
-/// white noise of 1 V on the logged voltages and 0.03 A on the phase currents, and an
-/// unmodelled inverter error of `v_dt` \[V\]; the instrumental-variable fit at the stator
-/// hold and the truth (r_s, l_d, l_q, k_e).
-fn exp5_ipm_iv(seed: u64, v_dt: f64) -> (greybox::estimate::FitResult, [f64; 4]) {
-    use greybox::drive::{IPM_MOTOR, scenario, simulate_drive};
-    let mut cfg = scenario("exp5", IPM_MOTOR).unwrap();
-    (cfg.seed, cfg.sensors.voltage_noise, cfg.sensors.current_noise, cfg.inverter.v_dt) =
-        (seed, 1.0, 0.03, v_dt);
-    let log = simulate_drive(&cfg).unwrap();
-    let options = PmsmFitOptions {
-        model: greybox::pmsm::MotorKind::Ipm,
-        hold: greybox::pmsm::HoldChoice::Stator,
-        ..PmsmFitOptions::new(IPM_MOTOR.n_p)
-    };
-    let fit = fit_pmsm_by(&[log.experiment], &options, Estimator::InstrumentalVariables).unwrap();
-    let t = log.truth.start;
-    (fit.report, [t.r_s, t.l_d, t.l_q, log.truth.k_e])
 }
 
 /// The interior-magnet model's noise floor: each axis's voltage noise read off its own
@@ -201,7 +206,7 @@ fn exp5_ipm_iv(seed: u64, v_dt: f64) -> (greybox::estimate::FitResult, [f64; 4])
 /// intervals hold the truth. An inverter error of 20 V keeps `poor_fit`.
 #[test]
 fn the_interior_magnets_input_noise_floor_is_no_poor_fit() {
-    let (fit, truth) = exp5_ipm_iv(3, 0.0);
+    let (fit, truth) = exp5_iv(MotorKind::Ipm, 3, 0.0);
     let codes: Vec<&str> = fit.warnings.iter().map(|w| w.code.as_str()).collect();
     assert!(!codes.contains(&"poor_fit"), "{codes:?}");
     assert!(fit.fit.fit_percent.iter().all(|f| *f < greybox::estimate::POOR_FIT_PERCENT), "{:?}", fit.fit);
@@ -210,11 +215,8 @@ fn the_interior_magnets_input_noise_floor_is_no_poor_fit() {
         "{:?}",
         fit.notes
     );
-    for (name, t) in ["r_s", "l_d", "l_q", "k_e"].iter().zip(truth) {
-        let p = fit.parameter(name).unwrap();
-        assert!(p.ci95[0] <= t && t <= p.ci95[1], "{name}: {} {:?}, truth {t}", p.value, p.ci95);
-    }
-    let (fit, _) = exp5_ipm_iv(3, 20.0);
+    covers(&fit, &truth);
+    let (fit, _) = exp5_iv(MotorKind::Ipm, 3, 20.0);
     let codes: Vec<&str> = fit.warnings.iter().map(|w| w.code.as_str()).collect();
     assert!(codes.contains(&"poor_fit"), "{codes:?}");
     assert!(!fit.notes.iter().any(|n| n.contains("is the noise floor")), "{:?}", fit.notes);

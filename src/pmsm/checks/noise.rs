@@ -191,14 +191,13 @@ fn autocorrelations(v: &VoltageErrors) -> (f64, [f64; 3]) {
 fn current_leak(v: &VoltageErrors) -> f64 {
     let Some(axes) = v.leak else { return 0.0 };
     let n = v.n.max(1) as f64;
-    axes.iter()
-        .zip(&v.whiteness)
-        .map(|((e2, leak), w)| {
-            let gamma_1 = e2 / n * w.autocorrelation.first().copied().unwrap_or(0.0);
-            (-gamma_1).max(0.0) * leak
-        })
-        .sum::<f64>()
-        / 2.0
+    axes.iter().zip(&v.whiteness).map(|((e2, leak), w)| minus_gamma_1(e2 / n, w) * leak).sum::<f64>() / 2.0
+}
+
+/// An axis's lag-1 autocovariance, negated and at least 0, `max(−γ₀ ρ₁, 0)` \[V²\], from
+/// its errors' variance γ₀ and their whiteness (ρ₁ 0 where it holds no lag).
+fn minus_gamma_1(gamma_0: f64, w: &metrics::Whiteness) -> f64 {
+    (-gamma_0 * w.autocorrelation.first().copied().unwrap_or(0.0)).max(0.0)
 }
 
 /// Standard errors by which the white part of the voltage equations' errors (their
@@ -281,9 +280,9 @@ pub(crate) fn ipm_noise_powers(
         let b = (1.0 - a) / theta[0];
         let rho = |lag: usize| w.autocorrelation.get(lag - 1).copied().unwrap_or(0.0);
         let gamma_0 = e2 / n;
-        let minus_gamma_1 = (-gamma_0 * rho(1)).max(0.0);
-        sigma_u2[axis] = (white_power(gamma_0, [rho(1), rho(2), rho(3)]) - minus_gamma_1 * leak).max(0.0);
-        sigma_i2 += minus_gamma_1 * b * b / a / 2.0;
+        let g1 = minus_gamma_1(gamma_0, w);
+        sigma_u2[axis] = (white_power(gamma_0, [rho(1), rho(2), rho(3)]) - g1 * leak).max(0.0);
+        sigma_i2 += g1 * b * b / a / 2.0;
     }
     Some((sigma_u2, sigma_i2))
 }

@@ -29,7 +29,7 @@ pub(crate) fn hold_ambiguity(
         return None;
     }
     // Differ by more than their joint uncertainty.
-    let (name, z) = largest_difference(best, other, names)?;
+    let (name, z) = largest_difference(best, other, names, None)?;
     (z > HOLD_AMBIGUOUS_Z).then(|| {
         format!(
             "the {hold} and {other_hold} voltage holds fit almost equally well (loss ratio {ratio:.3}) but their {name} \
@@ -39,20 +39,33 @@ pub(crate) fn hold_ambiguity(
     })
 }
 
-/// The parameter of `names` whose estimates in fits `a` and `b` differ by the most combined
-/// standard errors, `|θ_a − θ_b| / √(se_a² + se_b²)`, and that many; `None` when no name is
-/// in both.
+/// The parameter of `names` whose estimates in fits `a` and `b` differ by the most standard
+/// deviations of their difference, and that many: `|θ_a − θ_b| / √v`, with `v` the
+/// difference's variance from `variance` (per name, in `names`' order: the batches' paired
+/// jackknife, [`crate::estimate::paired_difference_variance`]) or else the combined
+/// `se_a² + se_b²`. A parameter both fits hold alike (fixed, `--fix`: 0/0) is skipped, as is
+/// any non-finite ratio; `None` when no name is in both fits with a finite ratio.
 pub(crate) fn largest_difference<'n>(
     a: &FitResult,
     b: &FitResult,
     names: &[&'n str],
+    variance: Option<&[f64]>,
 ) -> Option<(&'n str, f64)> {
-    names
-        .iter()
-        .filter_map(|n| {
-            let (p, q) = (a.parameter(n)?, b.parameter(n)?);
-            Some((*n, ((p.value - q.value) / p.std_error.hypot(q.std_error)).abs()))
-        })
+    let rows = names.iter().enumerate().filter_map(|(i, n)| {
+        let (p, q) = (a.parameter(n)?, b.parameter(n)?);
+        let sd = match variance {
+            Some(v) => v.get(i)?.sqrt(),
+            None => p.std_error.hypot(q.std_error),
+        };
+        Some((*n, p.value - q.value, sd))
+    });
+    largest_ratio(rows)
+}
+
+/// The row `(name, difference, sd)` of the largest finite `|difference / sd|`, and that ratio.
+fn largest_ratio<'n>(rows: impl Iterator<Item = (&'n str, f64, f64)>) -> Option<(&'n str, f64)> {
+    rows.map(|(n, d, sd)| (n, (d / sd).abs()))
+        .filter(|(_, z)| z.is_finite())
         .max_by(|x, y| x.1.total_cmp(&y.1))
 }
 
@@ -352,7 +365,16 @@ pub(crate) fn fit_holds(
 
 #[cfg(test)]
 mod tests {
-    use super::integrated_time;
+    use super::{integrated_time, largest_ratio};
+
+    /// A parameter both fits hold fixed (difference 0, standard deviation 0) does not hide
+    /// one that differs: 0/0 is skipped, not ranked above every ratio by `total_cmp`.
+    #[test]
+    fn a_fixed_parameter_does_not_hide_a_difference() {
+        let rows = [("r_s", 0.0, 0.0), ("l_s", 5.0e-4, 1.0e-4), ("k_e", 1.0e-3, 1.0e-3)];
+        assert_eq!(largest_ratio(rows.into_iter()), Some(("l_s", 5.0)));
+        assert_eq!(largest_ratio([("r_s", 0.0, 0.0)].into_iter()), None);
+    }
 
     /// AR(1) residuals `ρ_k = a^k`: `1 + 2 Σ a^k = (1 + a)/(1 − a)`, the lags held and the
     /// geometric tail beyond them; white residuals 1; an oscillating tail adds nothing.

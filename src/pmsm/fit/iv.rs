@@ -44,7 +44,6 @@ use crate::pmsm::model::setup::PmsmSetup;
 use crate::pmsm::model::spm::PmsmSpm;
 use crate::pmsm::options::{HoldChoice, PmsmFitOptions};
 use crate::simulate::{SimOptions, simulate};
-use nalgebra::DVector;
 
 /// Which criterion a PMSM fit minimises or solves.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -173,13 +172,14 @@ pub fn fit_pmsm_iv_after(
 ) -> Result<PmsmFit> {
     let dq = DqLogs::try_new(experiments)?;
     let at_other = other_hold(&oe, &dq, options).map(|hold| PmsmFit { hold, ..oe.clone() });
-    let (iv, shifts) = iv_at_hold(oe, &dq, options)?;
+    let (iv, sums) = iv_at_hold(oe, &dq, options)?;
     let Some(at_other) = at_other.filter(|_| iv.report.warnings.iter().all(|w| w.code != "hold_ambiguous"))
     else {
         return Ok(iv);
     };
-    let (other, other_shifts) = iv_at_hold(at_other, &dq, options)?;
-    let paired = shifts.zip(other_shifts).and_then(|(a, b)| paired_difference_variance(&a, &b));
+    let (other, other_sums) = iv_at_hold(at_other, &dq, options)?;
+    let shifts = |s: Option<IvSums>| s.and_then(|s| s.jackknife_shifts());
+    let paired = shifts(sums).zip(shifts(other_sums)).and_then(|(a, b)| paired_difference_variance(&a, &b));
     let Some(warning) = hold_ambiguous(&iv, &other, paired.as_deref(), options) else { return Ok(iv) };
     let warnings = iv.report.warnings.iter().cloned().chain([warning]).collect();
     Ok(PmsmFit { report: FitResult { warnings, ..iv.report }, ..iv })
@@ -219,22 +219,10 @@ fn hold_ambiguous(
     options: &PmsmFitOptions,
 ) -> Option<Warning> {
     let names = options.model.parameter_names();
-    let (name, z, how) = match paired.filter(|v| v.len() == names.len()) {
-        Some(var) => names
-            .iter()
-            .zip(var)
-            .filter_map(|(n, v)| {
-                let (p, q) = (iv.report.parameter(n)?, other.report.parameter(n)?);
-                let z = ((p.value - q.value) / v.sqrt()).abs();
-                // 0/0 (a parameter both fits hold alike) would rank above every z.
-                z.is_finite().then_some((*n, z, "standard errors of their difference"))
-            })
-            .max_by(|x, y| x.1.total_cmp(&y.1))?,
-        None => {
-            let (name, z) = largest_difference(&iv.report, &other.report, names)?;
-            (name, z, "combined standard errors")
-        }
-    };
+    let paired = paired.filter(|v| v.len() == names.len());
+    let how =
+        if paired.is_some() { "standard errors of their difference" } else { "combined standard errors" };
+    let (name, z) = largest_difference(&iv.report, &other.report, names, paired)?;
     (z > HOLD_AMBIGUOUS_Z).then(|| {
         Warning::untrusted(
             "hold_ambiguous",
@@ -249,13 +237,13 @@ fn hold_ambiguous(
 }
 
 /// The IV fit from the output-error fit `oe` at its hold ([`fit_pmsm_iv_after`] without the
-/// other hold), and its deleted-batch shifts ([`IvSums::jackknife_shifts`]; `None` for the
-/// steady-state equations, where the batches cannot be formed, or where a batch alone
-/// determines a parameter).
+/// other hold), and its sums at the estimate, for the deleted-batch shifts
+/// ([`IvSums::jackknife_shifts`]) where the other hold is fitted too; `None` for the
+/// steady-state equations.
 ///
 /// # Errors
 /// As [`fit_pmsm_iv`].
-fn iv_at_hold(oe: PmsmFit, dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<(PmsmFit, Shifts)> {
+fn iv_at_hold(oe: PmsmFit, dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<(PmsmFit, Option<IvSums>)> {
     check_options(options)?;
     // The steady-state equations the output-error fit chose are fitted by instrumental
     // variables already (on the steady samples); the dynamic recursion from their estimate
@@ -276,7 +264,7 @@ fn iv_at_hold(oe: PmsmFit, dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<
             Error::Numerical { context: "instrumental variables".into(), reason: "no start".into() }
         })?;
     let floor = poor_fit_is_noise(dq.views(), &oe.report, setup, options);
-    let (solved, shifts) = match options.model {
+    let (solved, at) = match options.model {
         MotorKind::Spm => {
             let model = PmsmSpm::from_setup(setup);
             let logs: Vec<Log> = dq
@@ -296,20 +284,17 @@ fn iv_at_hold(oe: PmsmFit, dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<
             iterate(start, |t| one_step_sums(&model, &preps, t))?
         }
     };
-    Ok((report(oe, solved, t0.elapsed().as_secs_f64(), options.precision.as_deref(), floor), shifts))
+    Ok((report(oe, solved, t0.elapsed().as_secs_f64(), options.precision.as_deref(), floor), Some(at)))
 }
-
-/// The deleted-batch shifts of an IV estimate ([`IvSums::jackknife_shifts`]).
-type Shifts = Option<Vec<DVector<f64>>>;
 
 /// Newton steps on the IV equations of `sums` from `theta` (refining the instruments with
 /// each estimate) until the step is below [`IV_STEP_TOLERANCE`] relative, at most
-/// [`IV_MAX_ITERATIONS`]; the covariance at the end, and the deleted-batch shifts there.
+/// [`IV_MAX_ITERATIONS`]; the covariance at the end, and the sums there.
 ///
 /// # Errors
 /// Those of `sums` and [`IvSums::step`]; [`Error::Numerical`] when a parameter that must be
 /// positive (all but the last, `k_e`) leaves the positive range.
-fn iterate(mut theta: Vec<f64>, sums: impl Fn(&[f64]) -> Result<IvSums>) -> Result<(Solved, Shifts)> {
+fn iterate(mut theta: Vec<f64>, sums: impl Fn(&[f64]) -> Result<IvSums>) -> Result<(Solved, IvSums)> {
     let mut iterations = 0;
     let mut converged = false;
     while iterations < IV_MAX_ITERATIONS && !converged {
@@ -332,5 +317,5 @@ fn iterate(mut theta: Vec<f64>, sums: impl Fn(&[f64]) -> Result<IvSums>) -> Resu
     }
     let at = sums(&theta)?;
     let cov = at.covariance()?;
-    Ok(((theta, cov, iterations, converged), at.jackknife_shifts()))
+    Ok(((theta, cov, iterations, converged), at))
 }
