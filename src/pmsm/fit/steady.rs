@@ -16,6 +16,7 @@ use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::linear::{SteadyEstimate, SteadyOptions, steady_state_of};
 use crate::pmsm::log::DqLogs;
 use crate::pmsm::log::longest_h;
+use crate::pmsm::log::signals::DqView;
 use crate::pmsm::model::interval::{VoltageHold, VoltageInput};
 use crate::pmsm::model::kind::{MotorKind, smallest_inductance};
 use crate::pmsm::options::{Dynamics, HoldChoice, PmsmFitOptions};
@@ -24,11 +25,13 @@ use crate::pmsm::options::{Dynamics, HoldChoice, PmsmFitOptions};
 /// automatic choice takes the steady-state equations on it).
 pub(crate) const SAMPLE_TIME: &str = "sample time";
 
-/// Refuses the options the steady-state equations cannot honour, naming them.
+/// Refuses the options the steady-state equations cannot honour, naming them; `why`, the
+/// automatic choice's reason where it took the equations (the user did not ask for them:
+/// the error says so, and how to keep the options).
 ///
 /// # Errors
 /// [`Error::InvalidOption`] (option `model`) listing them.
-fn check_options(options: &PmsmFitOptions) -> Result<()> {
+fn check_options(options: &PmsmFitOptions, why: Option<&str>) -> Result<()> {
     let pem = &options.pem;
     let given = [
         ("a start", options.start.is_some()),
@@ -47,13 +50,17 @@ fn check_options(options: &PmsmFitOptions) -> Result<()> {
     if bad.is_empty() {
         return Ok(());
     }
-    Err(Error::InvalidOption {
-        option: "model".into(),
-        reason: format!(
-            "the steady-state equations (instrumental variables on the steady samples of a slow log) do not take {}",
+    let equations = "the steady-state equations (instrumental variables on the steady samples of a slow log)";
+    let reason = match why {
+        None => format!("{equations} do not take {}", bad.join(", ")),
+        Some(why) => format!(
+            "the model was chosen automatically: {why}, so {equations} were to be fitted (--model {}), and they do \
+             not take {}; leave those options out, or fit the dynamic model with --force",
+            flag(options.model),
             bad.join(", ")
         ),
-    })
+    };
+    Err(Error::InvalidOption { option: "model".into(), reason })
 }
 
 /// The steady-state fit of `experiments` as a [`PmsmFit`]; `why` is the automatic choice's
@@ -105,7 +112,7 @@ pub(crate) fn fit_from(
             ),
         });
     }
-    check_options(options)?;
+    check_options(options, why.as_deref())?;
     let steady = steady_options(options);
     let est = match bare {
         Some(est) => est,
@@ -179,14 +186,41 @@ pub(crate) fn chosen_up_front(dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Opti
         Dynamics::Auto if !options.force && !options.skip_setup_checks => {
             (max_turn(dq.views(), options.pole_pairs) >= std::f64::consts::PI).then(|| {
             Some(format!(
-                "the rotor turns half an electrical turn or more within one sample (h = {:.4e} s), which no \
+                "the rotor turns half an electrical turn or more within one sample (h = {:.4e} s{}), which no \
                      dynamic model of a held voltage can follow",
-                longest_h(dq.views())
+                longest_h(dq.views()),
+                fastest_sample(dq.views())
             ))
             })
         }
         _ => None,
     }
+}
+
+/// Where the logs' speed is fastest, for a user to look at: `"; the fastest sample: row k
+/// of log NAME, w_m = … rad/s"`, and where that value stands alone (both neighbours below
+/// a tenth of it: a spike, not a drive's motion) the advice to check the cell; empty for
+/// logs without samples.
+fn fastest_sample(views: &[DqView<'_>]) -> String {
+    let fastest = views
+        .iter()
+        .filter_map(|v| {
+            let w = v.w_m();
+            let (k, peak) = w.iter().map(|x| x.abs()).enumerate().max_by(|a, b| a.1.total_cmp(&b.1))?;
+            Some((v, k, peak))
+        })
+        .max_by(|a, b| a.2.total_cmp(&b.2));
+    let Some((v, k, peak)) = fastest else { return String::new() };
+    let w = v.w_m();
+    let beside =
+        [k.checked_sub(1), Some(k + 1)].into_iter().flatten().filter_map(|j| w.get(j)).map(|x| x.abs());
+    let alone = beside.clone().count() > 0 && beside.fold(0.0f64, f64::max) < 0.1 * peak;
+    format!(
+        "; the fastest sample: row {k} of log {}, w_m = {:.6e} rad/s{}",
+        v.experiment().name(),
+        w[k],
+        if alone { ", ten times its neighbours: a corrupt cell? mend it before fitting" } else { "" }
+    )
 }
 
 /// The trust gate every fit passes ([`crate::estimate::gate`]): a poor fit with coloured

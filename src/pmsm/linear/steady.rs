@@ -282,6 +282,8 @@ pub(crate) fn steady_state_of(
             narrow.join(", ")
         ));
     }
+    let applied =
+        options.control_period.filter(|_| !matches!(period, super::steady_solve::Period::Unusable(_)));
     notes.extend(period_note(period, &names, &theta, &std_error));
     let units = names.iter().map(|n| unit_of(kind, n).to_string()).collect();
     let used = sums.count;
@@ -298,7 +300,7 @@ pub(crate) fn steady_state_of(
         experiment,
         iterations,
         converged,
-        control_period: options.control_period,
+        control_period: applied,
         theta,
         std_error,
         // The steady-state intervals are `± t·std_error`, widened later by the truncation

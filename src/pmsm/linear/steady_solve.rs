@@ -5,7 +5,7 @@
 
 use super::steady_model::{SteadyEquations, SteadyLog};
 use crate::data::Experiment;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::pmsm::model::kind::MotorKind;
 use serde::{Deserialize, Serialize};
 
@@ -110,7 +110,7 @@ pub const PERIOD_TERM: &str = "h_c2";
 const CONFOUNDED: f64 = 1.0 - 1e-6;
 
 /// How the control period entered the equations.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub(super) enum Period {
     /// Given (`--control-period`): the exact equations.
     Given,
@@ -120,6 +120,9 @@ pub(super) enum Period {
     Neglected,
     /// Not estimated, as the options asked ([`SteadyOptions::estimate_period`]).
     Off,
+    /// Given, but not applied: the exact equations need a positive `r_s` and inductances,
+    /// and the first estimate, the value here, had a parameter that is not.
+    Unusable(String),
 }
 
 /// An IV solution of the steady samples.
@@ -193,6 +196,7 @@ pub(super) fn solve(
     // period's drift held.
     let period_column = names.iter().position(|n| n == PERIOD_TERM);
     let (mut stage, mut drift) = (0, false);
+    let mut unusable = None;
     // The sums at the current θ (and their covariance once formed): each pass over the
     // steady samples serves the convergence test, the next step and the result alike.
     let mut sums = eq.sums(logs, &theta, block)?;
@@ -201,11 +205,23 @@ pub(super) fn solve(
         let step = sums.step()?;
         theta.iter_mut().zip(step.iter()).for_each(|(t, s)| *t += s);
         iterations += 1;
-        if iterations == 1 && !estimate && options.control_period.is_some() {
-            eq = SteadyEquations::new(kind, n_p, options.cable_resistance, options.control_period, false)?
-                .half_width(options.derivative_half_width);
-            sums = eq.sums(logs, &theta, block)?;
-            continue;
+        if iterations == 1 && !estimate && options.control_period.is_some() && unusable.is_none() {
+            let mut exact =
+                SteadyEquations::new(kind, n_p, options.cable_resistance, options.control_period, false)?
+                    .half_width(options.derivative_half_width);
+            // The exact equations at a non-physical first estimate (a log that does not
+            // determine r_s): the equations without the period carry on, and the report's
+            // gate names the estimate, as it does without --control-period.
+            match exact.sums(logs, &theta, block) {
+                Ok(at) => {
+                    (eq, sums) = (exact, at);
+                    continue;
+                }
+                Err(Error::InvalidParameter { name, value, .. }) => {
+                    unusable = Some(format!("{name} = {value:.4e}"))
+                }
+                Err(e) => return Err(e),
+            }
         }
         sums = eq.sums(logs, &theta, block)?;
         let rounding =
@@ -248,6 +264,7 @@ pub(super) fn solve(
         None => sums.covariance()?,
     };
     let period = match (estimate, options.control_period) {
+        _ if let Some(what) = unusable => Period::Unusable(what),
         (true, _) => Period::Estimated,
         (false, Some(_)) => Period::Given,
         (false, None) if !options.estimate_period => Period::Off,
@@ -260,6 +277,11 @@ pub(super) fn solve(
 pub(super) fn period_note(period: Period, names: &[String], theta: &[f64], se: &[f64]) -> Option<String> {
     match period {
         Period::Given => None,
+        Period::Unusable(what) => Some(format!(
+            "the control period given (--control-period) is not applied: its exact equations need a positive \
+             r_s and inductances, and the equations' first estimate has {what}; the estimates are those of the \
+             equations without it"
+        )),
         Period::Off => Some(
             "the control period's effect on the point-sampled currents (a back-EMF low by (ω_e h_c)²/12) is not \
              estimated, as the options ask (estimate_period false)"
