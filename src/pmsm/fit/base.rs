@@ -178,6 +178,7 @@ fn fit_beside(
                 experiments,
                 options,
                 best.fit.loss,
+                &|alt| super::hold::noise_z_against(&best, alt),
                 refit,
             ));
             warnings.extend(crate::pmsm::checks::columns::warning(

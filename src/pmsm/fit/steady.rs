@@ -219,7 +219,7 @@ fn fastest_sample(views: &[DqView<'_>]) -> String {
         "; the fastest sample: row {k} of log {}, w_m = {:.6e} rad/s{}",
         v.experiment().name(),
         w[k],
-        if alone { ", ten times its neighbours: a corrupt cell? mend it before fitting" } else { "" }
+        if alone { ", over ten times its neighbours: a corrupt cell? mend it before fitting" } else { "" }
     )
 }
 
