@@ -40,9 +40,9 @@ impl PmsmFitOptions {
     }
 }
 
-/// How many times lower than `loss` a nested fit of `experiments` with `other` is (from the
-/// least-squares start, without setup checks of its own), when it is more than `ratio`
-/// times lower: a suspected setup mistake confirmed. `None` otherwise or when it fails.
+/// How many times lower than `loss` a nested fit of `experiments` with `other` is
+/// ([`nested_loss`]), when it is more than `ratio` times lower: a suspected setup mistake
+/// confirmed. `None` otherwise or when it fails.
 pub(crate) fn confirmed(
     refit: RefitLoss<'_>,
     experiments: &[Experiment],
@@ -50,8 +50,18 @@ pub(crate) fn confirmed(
     loss: f64,
     ratio: f64,
 ) -> Option<f64> {
-    let alt = refit(experiments, &PmsmFitOptions { start: None, skip_setup_checks: true, ..other })?;
+    let alt = nested_loss(refit, experiments, other)?;
     (alt * ratio < loss).then(|| loss / alt)
+}
+
+/// The loss of a nested fit of `experiments` with `other` as a suspected mistake would have
+/// it: from the least-squares start, without setup checks of its own; `None` when it fails.
+pub(crate) fn nested_loss(
+    refit: RefitLoss<'_>,
+    experiments: &[Experiment],
+    other: PmsmFitOptions,
+) -> Option<f64> {
+    refit(experiments, &PmsmFitOptions { start: None, skip_setup_checks: true, ..other })
 }
 
 /// Which voltage hold the fit assumes.

@@ -10,7 +10,7 @@
 
 use crate::pmsm::model::interval::{SQRT_2_3, VoltageInput};
 use crate::pmsm::model::kind::MotorKind;
-use crate::pmsm::options::{PmsmFitOptions, RefitLoss};
+use crate::pmsm::options::{PmsmFitOptions, RefitLoss, nested_loss};
 use crate::report::eng::format_eng;
 use multiversion::multiversion;
 // Base columns of the scan: `i`, `di_d/dt` (d rows), `ω_m i_d` (q rows), `−ω_m i_q` (d rows),
@@ -189,19 +189,18 @@ pub(crate) fn pole_pair_warning(
     if nb == options.pole_pairs || given <= lb {
         return None;
     }
-    let other = PmsmFitOptions { pole_pairs: nb, start: None, skip_setup_checks: true, ..options.clone() };
-    let alt = refit(experiments, &other)?;
+    let alt = nested_loss(refit, experiments, PmsmFitOptions { pole_pairs: nb, ..options.clone() })?;
     let check = "check -p (or a speed logged in the electrical frame: --speed-frame electrical)";
-    let given = options.pole_pairs;
+    let n_p = options.pole_pairs;
     let message = if alt * POLE_PAIR_RATIO < loss {
         format!(
-            "a fit with {nb} pole pairs has a {:.0} times lower loss than with the {given} given: {check}",
+            "a fit with {nb} pole pairs has a {:.0} times lower loss than with the {n_p} given: {check}",
             loss / alt
         )
     } else {
         let z = noise_z(alt).filter(|z| alt < loss && *z > POLE_PAIR_Z)?;
         format!(
-            "a fit with {nb} pole pairs has a {:.2} times lower loss than with the {given} given, {z:.0} standard \
+            "a fit with {nb} pole pairs has a {:.2} times lower loss than with the {n_p} given, {z:.0} standard \
              deviations of the residuals' noise: {check}",
             loss / alt
         )

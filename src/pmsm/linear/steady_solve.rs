@@ -205,7 +205,7 @@ pub(super) fn solve(
         let step = sums.step()?;
         theta.iter_mut().zip(step.iter()).for_each(|(t, s)| *t += s);
         iterations += 1;
-        if iterations == 1 && !estimate && options.control_period.is_some() && unusable.is_none() {
+        if iterations == 1 && !estimate && options.control_period.is_some() {
             let mut exact =
                 SteadyEquations::new(kind, n_p, options.cable_resistance, options.control_period, false)?
                     .half_width(options.derivative_half_width);
