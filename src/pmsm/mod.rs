@@ -28,8 +28,8 @@ mod model;
 mod options;
 pub mod thresholds;
 
-pub use checks::detect::{choose_pole_pairs, pole_pair_losses};
 pub use checks::limit::VoltageLimitWeighting;
+pub use checks::pole_pairs::{choose_pole_pairs, pole_pair_losses};
 pub use fit::auto_method::fit_pmsm_by;
 pub use fit::flux_map::{ExponentCandidate, FluxMapFit, FluxMapOptions, fit_flux_map};
 pub use fit::flux_map_check::{MapCheck, MapModel, PointCheck};

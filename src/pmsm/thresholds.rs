@@ -10,11 +10,9 @@
 pub use super::checks::advice::{LATE_SLOPE, THRESHOLD as LATE_VOLTAGE_THRESHOLD};
 pub use super::checks::columns::COLUMN_RATIO;
 pub use super::checks::delay::{DELAY_RATIO, PWM_DELAY_SAMPLES};
-pub use super::checks::detect::{
-    MAX_H_OVER_TAU, POLE_PAIR_CANDIDATES, POLE_PAIR_RATIO, POLE_PAIR_Z, SALIENCY, SALIENT_CERTAIN,
-    SALIENT_LIKELY, SPEED_MISMATCH,
-};
+pub use super::checks::detect::{MAX_H_OVER_TAU, SALIENCY, SALIENT_CERTAIN, SALIENT_LIKELY, SPEED_MISMATCH};
 pub use super::checks::noise::{NEGLIGIBLE_VOLTAGE_NOISE, NOISE_SIGNIFICANCE_Z};
+pub use super::checks::pole_pairs::{POLE_PAIR_CANDIDATES, POLE_PAIR_RATIO, POLE_PAIR_Z};
 pub use super::fit::auto_mask::FALLBACK_RELATIVE_THRESHOLD;
 pub use super::fit::flux_map::FLUX_MAP_REFINED;
 pub use super::fit::flux_map_check::{INDUCTANCE_WITHIN, NO_LOAD_WITHIN};

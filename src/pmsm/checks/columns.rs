@@ -49,7 +49,7 @@ pub(crate) struct ColumnScan {
 /// ([`crate::pmsm::checks::scan::scan_grams`]).
 ///
 /// # Errors
-/// Those of [`crate::pmsm::checks::detect::scan_gram`].
+/// Those of [`crate::pmsm::checks::scan::scan_gram`].
 pub(crate) fn scan(views: &[DqView<'_>], input: VoltageInput) -> Result<ColumnScan> {
     let swaps: &[(Mistake, [usize; 4])] = if input == VoltageInput::Terminal { &SWAPS } else { &[] };
     let lanes: Vec<[usize; 4]> = std::iter::once(IDENTITY).chain(swaps.iter().map(|s| s.1)).collect();
@@ -238,7 +238,7 @@ pub(crate) fn warning(
 mod tests {
     use super::*;
     use crate::drive::{DriveConfig, SPM_MOTOR, scenario, simulate_drive};
-    use crate::pmsm::checks::detect::scan_gram;
+    use crate::pmsm::checks::scan::scan_gram;
 
     /// The swapped hypotheses' Grams from the one pass are those of a scan of the log as each
     /// fix reads it, to the bit (over several of the scan's chunks).

@@ -1,43 +1,30 @@
-//! Detectors for the setup mistakes that otherwise give a confident wrong answer: a wrong
-//! pole-pair number, a speed in the wrong unit or frame, a surface-magnet model on a
-//! salient machine; and the conventions a fit assumes where the data cannot tell (peak vs
-//! RMS, amplitude- vs power-invariant dq).
+//! Detectors for the setup mistakes that otherwise give a confident wrong answer: a speed
+//! in the wrong unit or frame, a surface-magnet model on a salient machine, a sample time
+//! the model cannot resolve; and the conventions a fit assumes where the data cannot tell
+//! (peak vs RMS, amplitude- vs power-invariant dq).
 //!
-//! The pole-pair and saliency checks compare least-squares losses of the voltage equations
-//! (thesis 5.2.1). `n_p` enters only through `ω_e = n_p ω_m`, so with the base columns
-//! `i`, `di/dt`, `ω_m i⊥`, `√(2/3) ω_m` the regressors of any `n_p` are fixed combinations
-//! of them: one Gram matrix of the base columns gives every candidate's loss exactly.
+//! The saliency check (and the pole-pair one of [`crate::pmsm::checks::pole_pairs`])
+//! compares least-squares losses of the voltage equations (thesis 5.2.1). `n_p` enters only
+//! through `ω_e = n_p ω_m`, so with the base columns `i`, `di/dt`, `ω_m i⊥`, `√(2/3) ω_m`
+//! the regressors of any `n_p` are fixed combinations of them: one Gram matrix of the base
+//! columns gives every candidate's loss exactly.
 
-use crate::pmsm::model::interval::{SQRT_2_3, VoltageInput};
+use crate::pmsm::model::interval::SQRT_2_3;
 use crate::pmsm::model::kind::MotorKind;
-use crate::pmsm::options::{PmsmFitOptions, RefitLoss, nested_loss};
 use crate::report::eng::format_eng;
 use multiversion::multiversion;
 // Base columns of the scan: `i`, `di_d/dt` (d rows), `ω_m i_d` (q rows), `−ω_m i_q` (d rows),
 // `di_q/dt` (q rows), `√(2/3) ω_m` (q rows), then the voltage. The salient regressors are
 // combinations of them at any `n_p`, and so are the surface-magnet ones (`L_s` takes both
 // derivative and both cross columns). The Gram comes from `scan_gram`, streamed.
-use crate::data::Experiment;
 use crate::error::{Error, Result};
 use crate::estimate::{FitResult, Warning};
 use crate::pmsm::checks::scan::BASE;
-pub(crate) use crate::pmsm::checks::scan::scan_gram;
 use crate::pmsm::log::Scale;
+use crate::pmsm::log::longest_h;
 use crate::pmsm::log::signals::DqView;
-use crate::pmsm::log::{DqLogs, longest_h};
 use nalgebra::{DMatrix, DVector};
 
-/// Candidates of `--pole-pairs auto` and of the pole-pair check.
-pub const POLE_PAIR_CANDIDATES: std::ops::RangeInclusive<u32> = 1..=32;
-/// A given `n_p` whose loss exceeds another candidate's by this factor is flagged.
-pub const POLE_PAIR_RATIO: f64 = 10.0;
-/// Or, below [`POLE_PAIR_RATIO`], where the other candidate's loss is lower by this many
-/// standard deviations of the losses' difference under the residuals' noise (one-sided;
-/// Vuong's test of non-nested models, *Econometrica* 57 (1989) 307–333, as the holds' and
-/// the late voltage's checks take it): noise shrinks the ratio of a wrong `n_p`'s loss to
-/// the right one's (9.7 on a set-aside noisy IPM log fitted at 4 of its 3 pole pairs,
-/// `l_q` 25 % low with exit 0), not its significance.
-pub const POLE_PAIR_Z: f64 = 3.0;
 /// Loss ratio (surface-magnet over salient regression) from which a log is salient for
 /// sure (noise-free salient logs give 10⁴–10⁷; noisy ones a few).
 pub const SALIENT_CERTAIN: f64 = 100.0;
@@ -49,8 +36,8 @@ pub const SALIENCY: f64 = 0.1;
 pub const SPEED_MISMATCH: f64 = 0.05;
 
 /// Least-squares loss `½ min‖y − Φθ‖²` and θ (model order of `kind`) at `n_p` from the
-/// Gram matrix of [`scan_gram`].
-fn loss_at(g: &DMatrix<f64>, kind: MotorKind, n_p: u32) -> Option<(f64, DVector<f64>)> {
+/// Gram matrix of [`crate::pmsm::checks::scan::scan_gram`].
+pub(super) fn loss_at(g: &DMatrix<f64>, kind: MotorKind, n_p: u32) -> Option<(f64, DVector<f64>)> {
     loss_at_factor(g, kind, f64::from(n_p))
 }
 
@@ -82,53 +69,12 @@ pub(crate) fn loss_at_factor(g: &DMatrix<f64>, kind: MotorKind, np: f64) -> Opti
     Some((loss.max(0.0), theta.column(0).into_owned()))
 }
 
-/// Every candidate's `(n_p, loss)` from a [`scan_gram`].
-fn losses_from(g: &DMatrix<f64>, kind: MotorKind) -> Vec<(u32, f64)> {
-    POLE_PAIR_CANDIDATES.filter_map(|n| loss_at(g, kind, n).map(|(l, _)| (n, l))).collect()
-}
-
-/// The least-squares loss of the voltage equations at every candidate pole-pair number in
-/// [`POLE_PAIR_CANDIDATES`], `(n_p, loss [V²])`, for the voltage `input`.
-///
-/// # Errors
-/// Those of the regression scan (a missing channel, a log too short for the prefilter).
-pub fn pole_pair_losses(
-    experiments: &[Experiment],
-    kind: MotorKind,
-    input: VoltageInput,
-) -> Result<Vec<(u32, f64)>> {
-    Ok(losses_from(&scan_gram(DqLogs::try_new(experiments)?.views(), input)?, kind))
-}
-
-/// `--pole-pairs auto`: the candidate of lowest loss and the ratio of the runner-up's loss
-/// to it (large: decisive).
-///
-/// # Errors
-/// Those of [`pole_pair_losses`]; [`Error::Numerical`] when no candidate has a loss (no
-/// excitation).
-pub fn choose_pole_pairs(
-    experiments: &[Experiment],
-    kind: MotorKind,
-    input: VoltageInput,
-) -> Result<(u32, f64)> {
-    let mut losses = pole_pair_losses(experiments, kind, input)?;
-    losses.sort_by(|a, b| a.1.total_cmp(&b.1));
-    match losses.as_slice() {
-        [(n, best), (_, second), ..] => Ok((*n, second / best)),
-        [(n, _)] => Ok((*n, f64::INFINITY)),
-        [] => Err(Error::Numerical {
-            context: "pole pairs".into(),
-            reason: "no candidate can be regressed (the log does not excite the voltage equations)".into(),
-        }),
-    }
-}
-
 /// The structure check before a surface-magnet fit: the salient regression lowers the
 /// loss by a factor `ratio` with `L_d`, `L_q` more than [`SALIENCY`] apart. From
 /// [`SALIENT_CERTAIN`] on the log is salient (an error); from [`SALIENT_LIKELY`] on a warning
 /// says so (an unmodelled voltage error, such as dead time, can look salient too). Not run
 /// with the inverter model, whose error the regression does not contain. `g` is the
-/// [`scan_gram`] of the logs.
+/// [`crate::pmsm::checks::scan::scan_gram`] of the logs.
 ///
 /// # Errors
 /// [`Error::InvalidOption`] (`model`) naming both inductances and the loss ratio.
@@ -163,49 +109,6 @@ pub(crate) fn check_structure(g: &DMatrix<f64>, n_p: u32, kind: MotorKind) -> Re
             ),
         )))
     }
-}
-
-/// The pole-pair check: when the least-squares scan prefers another `n_p`, by any factor,
-/// the prediction-error fit at that `n_p` decides (the scan alone is fooled by current noise
-/// in `di/dt`); a warning names it when its loss is [`POLE_PAIR_RATIO`] times lower, or lower
-/// by [`POLE_PAIR_Z`] standard deviations of its noise (`noise_z`, the fit's own: its
-/// residuals' noise against the other loss). The
-/// scan's own ratio is no test: an interior-magnet regression absorbs much of a wrong `n_p`
-/// into its inductances and `k_e` (on a gym-electric-motor IPM log with 3 pole pairs fitted
-/// at 4 with `--hold dq` the scan preferred 3 by less than 10, while the fits' losses
-/// differ 7.7·10⁸ times; the fit at 4 left with exit 0 and `l_q` 21 % low). `g` is the
-/// [`scan_gram`] of `experiments`.
-pub(crate) fn pole_pair_warning(
-    g: &DMatrix<f64>,
-    experiments: &[Experiment],
-    options: &PmsmFitOptions,
-    loss: f64,
-    noise_z: &dyn Fn(f64) -> Option<f64>,
-    refit: RefitLoss<'_>,
-) -> Option<Warning> {
-    let losses = losses_from(g, options.model);
-    let given = losses.iter().find(|(n, _)| *n == options.pole_pairs)?.1;
-    let &(nb, lb) = losses.iter().min_by(|a, b| a.1.total_cmp(&b.1))?;
-    if nb == options.pole_pairs || given <= lb {
-        return None;
-    }
-    let alt = nested_loss(refit, experiments, PmsmFitOptions { pole_pairs: nb, ..options.clone() })?;
-    let check = "check -p (or a speed logged in the electrical frame: --speed-frame electrical)";
-    let n_p = options.pole_pairs;
-    let message = if alt * POLE_PAIR_RATIO < loss {
-        format!(
-            "a fit with {nb} pole pairs has a {:.0} times lower loss than with the {n_p} given: {check}",
-            loss / alt
-        )
-    } else {
-        let z = noise_z(alt).filter(|z| alt < loss && *z > POLE_PAIR_Z)?;
-        format!(
-            "a fit with {nb} pole pairs has a {:.2} times lower loss than with the {n_p} given, {z:.0} standard \
-             deviations of the residuals' noise: {check}",
-            loss / alt
-        )
-    };
-    Some(Warning::untrusted("pole_pairs", message))
 }
 
 /// The warnings of a PMSM fit from its logs: a speed unit or frame mistake, and the assumed

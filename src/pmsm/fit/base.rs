@@ -173,7 +173,7 @@ fn fit_beside(
     if !options.skip_setup_checks {
         warnings.extend(structure);
         if let Some(g) = &scan {
-            warnings.extend(crate::pmsm::checks::detect::pole_pair_warning(
+            warnings.extend(crate::pmsm::checks::pole_pairs::pole_pair_warning(
                 &g.gram,
                 experiments,
                 options,

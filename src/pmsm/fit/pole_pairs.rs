@@ -3,7 +3,7 @@
 
 use crate::data::Experiment;
 use crate::error::{Error, Result};
-use crate::pmsm::checks::detect::pole_pair_losses;
+use crate::pmsm::checks::pole_pairs::pole_pair_losses;
 use crate::pmsm::options::PmsmFitOptions;
 
 /// `(n_p, runner-up loss / winner's loss, every (n_p, loss) fitted)`.
