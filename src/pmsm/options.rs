@@ -13,15 +13,11 @@ use crate::pmsm::model::pwm::PwmInverter;
 use crate::pmsm::model::temperature::ThermalReference;
 use serde::{Deserialize, Serialize};
 
-/// The loss of a nested fit of other logs or options (`None` when it fails), for the checks
-/// that confirm a suspected setup mistake by fitting the log as the mistake would have it:
-/// given by the workflow above them ([`crate::pmsm::fit_pmsm`]), so the checks need not
-/// know it.
-pub(crate) type RefitLoss<'a> = &'a (dyn Fn(&[Experiment], &PmsmFitOptions) -> Option<f64> + Sync);
-
-/// The report of a nested fit of parts of the logs (`None` when it fails), for the check
-/// that the parts agree ([`crate::pmsm::checks`]' segment check); given by the workflow as
-/// [`RefitLoss`] is.
+/// The report of a nested fit of other logs or options (`None` when it fails): for the
+/// checks that confirm a suspected setup mistake by fitting the log as the mistake would
+/// have it, and the check that the log's parts agree ([`crate::pmsm::checks`]' segment
+/// check); given by the workflow above them ([`crate::pmsm::fit_pmsm`]), so the checks need
+/// not know it.
 pub(crate) type RefitReport<'a> = &'a (dyn Fn(&[Experiment], &PmsmFitOptions) -> Option<FitResult> + Sync);
 
 impl PmsmFitOptions {
@@ -44,7 +40,7 @@ impl PmsmFitOptions {
 /// ([`nested_loss`]), when it is more than `ratio` times lower: a suspected setup mistake
 /// confirmed. `None` otherwise or when it fails.
 pub(crate) fn confirmed(
-    refit: RefitLoss<'_>,
+    refit: RefitReport<'_>,
     experiments: &[Experiment],
     other: PmsmFitOptions,
     loss: f64,
@@ -54,13 +50,23 @@ pub(crate) fn confirmed(
     (alt * ratio < loss).then(|| loss / alt)
 }
 
-/// The loss of a nested fit of `experiments` with `other` as a suspected mistake would have
-/// it: from the least-squares start, without setup checks of its own; `None` when it fails.
+/// The loss of a nested fit of `experiments` with `other` ([`nested_fit`]); `None` when it
+/// fails.
 pub(crate) fn nested_loss(
-    refit: RefitLoss<'_>,
+    refit: RefitReport<'_>,
     experiments: &[Experiment],
     other: PmsmFitOptions,
 ) -> Option<f64> {
+    nested_fit(refit, experiments, other).map(|f| f.fit.loss)
+}
+
+/// A nested fit of `experiments` with `other` as a suspected mistake would have it: from
+/// the least-squares start, without setup checks of its own; `None` when it fails.
+pub(crate) fn nested_fit(
+    refit: RefitReport<'_>,
+    experiments: &[Experiment],
+    other: PmsmFitOptions,
+) -> Option<FitResult> {
     refit(experiments, &PmsmFitOptions { start: None, skip_setup_checks: true, ..other })
 }
 

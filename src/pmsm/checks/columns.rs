@@ -17,11 +17,11 @@ use crate::data::{Channel, Experiment};
 use crate::error::Result;
 use crate::estimate::Warning;
 use crate::pmsm::checks::detect::loss_at_factor;
-use crate::pmsm::checks::scan::{IDENTITY, scan_grams};
+use crate::pmsm::checks::scan::{BASE, IDENTITY, scan_grams};
 use crate::pmsm::log::signals::{DqView, channel};
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::kind::MotorKind;
-use crate::pmsm::options::{PmsmFitOptions, RefitLoss, confirmed};
+use crate::pmsm::options::{PmsmFitOptions, RefitReport, confirmed};
 use crate::report::eng::format_eng;
 use nalgebra::{DMatrix, DVector};
 
@@ -140,7 +140,7 @@ fn speed_mistakes(n_p: u32) -> Vec<Mistake> {
 /// Gram at the rotation factor `np`; `k_e` divided by `c`.
 fn regression(g: &DMatrix<f64>, kind: MotorKind, np: f64, c: f64) -> Option<(f64, DVector<f64>)> {
     let (loss, mut theta) = loss_at_factor(g, kind, np)?;
-    let energy = 0.5 * g[(g.nrows() - 1, g.ncols() - 1)];
+    let energy = 0.5 * g[(BASE, BASE)];
     let last = theta.len() - 1;
     theta[last] /= c;
     (energy > 0.0).then_some((loss / energy, theta))
@@ -216,7 +216,7 @@ pub(crate) fn warning(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
     loss: f64,
-    refit: RefitLoss<'_>,
+    refit: RefitReport<'_>,
 ) -> Option<Warning> {
     let kind = options.model;
     let h = best_hypothesis(scan, options)?;

@@ -6,7 +6,7 @@
 use crate::data::Experiment;
 use crate::estimate::Warning;
 use crate::pmsm::model::interval::VoltageInput;
-use crate::pmsm::options::{PmsmFitOptions, RefitLoss};
+use crate::pmsm::options::{PmsmFitOptions, RefitReport};
 
 /// How many times lower the loss at a neighbouring delay must be for the check to speak (as
 /// the pole-pair and column checks).
@@ -36,7 +36,7 @@ pub(crate) fn warning(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
     loss: f64,
-    refit: RefitLoss<'_>,
+    refit: RefitReport<'_>,
     screened: Option<bool>,
 ) -> Option<Warning> {
     let VoltageInput::Reference { delay, advance, speed_pll } = options.input else {
@@ -55,7 +55,7 @@ pub(crate) fn warning(
     // bound on its minimum, which is all a neighbour that would be named must beat.
     let fit_at = |logs: &[Experiment], d: Option<usize>| {
         let d = d?;
-        Some((d, refit(logs, &PmsmFitOptions { start: None, skip_setup_checks: true, ..at(d) })?))
+        Some((d, refit(logs, &PmsmFitOptions { start: None, skip_setup_checks: true, ..at(d) })?.fit.loss))
     };
     // The earlier delay first, as its own check would name it.
     let beating = |found: [Option<(usize, f64)>; 2], loss: f64| {
@@ -105,7 +105,7 @@ pub(crate) fn warning(
 pub(crate) fn screen(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
-    refit: RefitLoss<'_>,
+    refit: RefitReport<'_>,
 ) -> Option<bool> {
     let VoltageInput::Reference { delay, .. } = options.input else { return None };
     (options.pwm.is_some() && !options.skip_setup_checks)
@@ -127,7 +127,7 @@ fn averaged_ranks_first(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
     delay: usize,
-    refit: RefitLoss<'_>,
+    refit: RefitReport<'_>,
 ) -> bool {
     let VoltageInput::Reference { advance, .. } = options.input else { return false };
     let averaged = crate::pmsm::options::averaged_inverter(options);
@@ -135,7 +135,8 @@ fn averaged_ranks_first(
         input: VoltageInput::Reference { delay: d, advance, speed_pll: None },
         ..averaged.clone()
     };
-    let [given, earlier, later] = side_by_side(delay, |d| d.and_then(|d| refit(experiments, &at(d))));
+    let [given, earlier, later] =
+        side_by_side(delay, |d| d.and_then(|d| refit(experiments, &at(d)).map(|f| f.fit.loss)));
     given.is_some_and(|g| [earlier, later].into_iter().flatten().all(|l| l > g))
 }
 

@@ -44,8 +44,21 @@ pub(super) fn loss_at(g: &DMatrix<f64>, kind: MotorKind, n_p: u32) -> Option<(f6
 /// [`loss_at`] with any factor `np` on the speed in the rotation terms (`ω_e = np ω_m`):
 /// a pole-pair number times a speed column's scale.
 pub(crate) fn loss_at_factor(g: &DMatrix<f64>, kind: MotorKind, np: f64) -> Option<(f64, DVector<f64>)> {
-    // T maps the parameters to the base columns.
-    let t = match kind {
+    let t = to_base(kind, np);
+    let gcc = g.view((0, 0), (BASE, BASE));
+    let gcy = g.view((0, BASE), (BASE, 1));
+    let a = t.transpose() * gcc * &t;
+    let b = t.transpose() * gcy;
+    let theta = a.clone().cholesky()?.solve(&b);
+    let loss = 0.5 * (g[(BASE, BASE)] - (b.transpose() * &theta)[(0, 0)]);
+    Some((loss.max(0.0), theta.column(0).into_owned()))
+}
+
+/// The map `T` (`BASE × n_θ`) from the parameters of `kind` (MODEL.md §2 order) to the
+/// scan's base columns at the rotation factor `np` (`ω_e = np ω_m`): the regressors are
+/// `C T`.
+pub(crate) fn to_base(kind: MotorKind, np: f64) -> DMatrix<f64> {
+    match kind {
         MotorKind::Spm => DMatrix::from_row_slice(
             BASE,
             3,
@@ -59,14 +72,7 @@ pub(crate) fn loss_at_factor(g: &DMatrix<f64>, kind: MotorKind, np: f64) -> Opti
                 0., 1.0,
             ],
         ),
-    };
-    let gcc = g.view((0, 0), (BASE, BASE));
-    let gcy = g.view((0, BASE), (BASE, 1));
-    let a = t.transpose() * gcc * &t;
-    let b = t.transpose() * gcy;
-    let theta = a.clone().cholesky()?.solve(&b);
-    let loss = 0.5 * (g[(BASE, BASE)] - (b.transpose() * &theta)[(0, 0)]);
-    Some((loss.max(0.0), theta.column(0).into_owned()))
+    }
 }
 
 /// The structure check before a surface-magnet fit: the salient regression lowers the

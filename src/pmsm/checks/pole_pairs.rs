@@ -11,7 +11,7 @@ use crate::pmsm::checks::scan::scan_gram;
 use crate::pmsm::log::DqLogs;
 use crate::pmsm::model::interval::VoltageInput;
 use crate::pmsm::model::kind::MotorKind;
-use crate::pmsm::options::{PmsmFitOptions, RefitLoss, nested_loss};
+use crate::pmsm::options::{PmsmFitOptions, RefitReport, nested_loss};
 use nalgebra::DMatrix;
 
 /// Candidates of `--pole-pairs auto` and of the pole-pair check.
@@ -82,7 +82,7 @@ pub(crate) fn pole_pair_warning(
     options: &PmsmFitOptions,
     loss: f64,
     noise_z: &dyn Fn(f64) -> Option<f64>,
-    refit: RefitLoss<'_>,
+    refit: RefitReport<'_>,
 ) -> Option<Warning> {
     let losses = losses_from(g, options.model);
     let given = losses.iter().find(|(n, _)| *n == options.pole_pairs)?.1;

@@ -22,18 +22,36 @@ use nalgebra::DMatrix;
 const SCAN_FILTER_ORDER: usize = 4;
 const SCAN_CUTOFF: f64 = 0.05;
 
-/// Base columns of the scan (see [`crate::pmsm::checks::detect`]); the Gram is `(BASE + 1)²` with the
-/// voltage last.
+/// Base columns of the scan (see [`crate::pmsm::checks::detect`]), then the voltage at
+/// index `BASE`, then the [`OFFSETS`] columns of a constant offset of the currents.
 pub(crate) const BASE: usize = 6;
+
+/// The offset columns after the voltage: `1` (d rows), `1` (q rows), `ω_m` (d rows) on the
+/// intervals where the rotor turns faster than [`TURNING`] of the log's top speed (0
+/// elsewhere), then `1` (d rows), `1` (q rows) on the others. A constant offset `c` of the logged currents adds `−R_s c_d` and
+/// `n_p L_q ω_m c_q` to the d rows and `−R_s c_q` to the q rows (its `−n_p L_d ω_m c_d`
+/// there is the back-EMF's column, absorbed by `k_e`; MODEL.md §2): the regression of
+/// `pmsm::fit::current_offset`. A phase current's offset is constant in the stator frame:
+/// in dq it turns with the rotor and averages out where the rotor turns, but looks constant
+/// at standstill: the offset is read from the turning rows, the standstill rows' own
+/// constants absorbing what either offset leaves there.
+pub(crate) const OFFSETS: usize = 5;
+
+/// Share of a log's top speed above which an interval counts in the offset columns.
+pub(crate) const TURNING: f64 = 0.1;
+
+/// Side of the scan's Gram: the base columns, the voltage and the offset columns.
+pub(crate) const GRAM: usize = BASE + 1 + OFFSETS;
 
 /// Filtered signals per sample: `[u_d, u_q, i_d, i_q, w_m]`.
 const LANES: usize = 5;
 
-/// Base columns of a d row that can be non-zero: `i_d`, `di_d/dt`, `−ω_m i_q`, `u_d`.
-const D_COLUMNS: [usize; 4] = [0, 1, 3, 6];
-/// Base columns of a q row that can be non-zero: `i_q`, `ω_m i_d`, `di_q/dt`, `√(2/3) ω_m`,
-/// `u_q`.
-const Q_COLUMNS: [usize; 5] = [0, 2, 4, 5, 6];
+/// Columns of a d row that can be non-zero: `i_d`, `di_d/dt`, `−ω_m i_q`, `u_d`, and the
+/// offset columns `1`, `ω_m` (turning) and `1` (standstill).
+const D_COLUMNS: [usize; 7] = [0, 1, 3, 6, 7, 9, 10];
+/// Columns of a q row that can be non-zero: `i_q`, `ω_m i_d`, `di_q/dt`, `√(2/3) ω_m`,
+/// `u_q`, and the offset columns `1` (turning) and `1` (standstill).
+const Q_COLUMNS: [usize; 7] = [0, 2, 4, 5, 6, 8, 11];
 
 /// Samples per chunk of the streamed zero-phase filter ([`filtfilt_chunks`]).
 const CHUNK: usize = 4096;
@@ -191,7 +209,8 @@ fn step(sections: &[Biquad], z: &mut [([[f64; 4]; 2], [f64; 2])], v: &mut [f64; 
     *v = [q[0], q[1], q[2], q[3], w];
 }
 
-/// Gram matrix `[C y]ᵀ[C y]` (7 × 7) of the base columns over every interval of the applied
+/// Gram matrix `[C y O]ᵀ[C y O]` ([`GRAM`]²) of the base columns `C`, the voltage `y` and
+/// the offset columns `O` over every interval of the applied
 /// voltage, from a zero-phase low-passed copy of each log. One Gram serves every candidate
 /// `n_p` and both motor kinds.
 ///
@@ -219,7 +238,7 @@ pub(crate) fn scan_grams(
     input: VoltageInput,
     lanes: &[[usize; 4]],
 ) -> Result<Vec<DMatrix<f64>>> {
-    let mut g = vec![[[0.0; BASE + 1]; BASE + 1]; lanes.len()];
+    let mut g = vec![[[0.0; GRAM]; GRAM]; lanes.len()];
     let relabel = |v: &[f64; LANES], p: &[usize; 4]| [v[p[0]], v[p[1]], v[p[2]], v[p[3]], v[4]];
     let mut permuted = Vec::new();
     for v in views {
@@ -229,6 +248,7 @@ pub(crate) fn scan_grams(
         // (MODEL.md §5: the derivative regressor is errors-in-variables).
         let h = v.h();
         let filter = Butterworth::try_new(SCAN_FILTER_ORDER, SCAN_CUTOFF / h, h)?;
+        let turning = TURNING * v.w_m().iter().fold(0.0f64, |m, w| m.max(w.abs()));
         filtfilt_chunks(&filter, [&u_d, &u_q, v.i_d(), v.i_q(), v.w_m()], |_, chunk, next| {
             for (g, p) in g.iter_mut().zip(lanes) {
                 let chunk = if *p == IDENTITY {
@@ -238,48 +258,50 @@ pub(crate) fn scan_grams(
                     permuted.extend(chunk.iter().map(|v| relabel(v, p)));
                     &permuted[..]
                 };
-                add_intervals(g, h, chunk);
+                add_intervals(g, h, turning, chunk);
                 if let (Some(a), Some(b)) = (chunk.last(), next) {
-                    add_interval(g, h, a, &relabel(&b, p));
+                    add_interval(g, h, turning, a, &relabel(&b, p));
                 }
             }
         });
     }
     Ok(g.iter()
-        .map(|g| DMatrix::from_fn(BASE + 1, BASE + 1, |a, b| if a <= b { g[a][b] } else { g[b][a] }))
+        .map(|g| DMatrix::from_fn(GRAM, GRAM, |a, b| if a <= b { g[a][b] } else { g[b][a] }))
         .collect())
 }
 
 /// Adds the d and q rows of every interval between consecutive samples of `chunk` (the
-/// filtered `[u_d, u_q, i_d, i_q, w_m]`, sample time `h` \[s\]) to the Gram `g`, in order.
+/// filtered `[u_d, u_q, i_d, i_q, w_m]`, sample time `h` \[s\]; offset columns above the
+/// speed `turning`) to the Gram `g`, in order.
 #[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
-fn add_intervals(g: &mut [[f64; BASE + 1]; BASE + 1], h: f64, chunk: &[[f64; LANES]]) {
+fn add_intervals(g: &mut [[f64; GRAM]; GRAM], h: f64, turning: f64, chunk: &[[f64; LANES]]) {
     // A local copy the compiler can hold in registers.
     let mut sums = *g;
     for (a, b) in chunk.iter().zip(chunk.iter().skip(1)) {
-        add_interval(&mut sums, h, a, b);
+        add_interval(&mut sums, h, turning, a, b);
     }
     *g = sums;
 }
 
 /// Adds the d and q rows of the interval from sample `a` to sample `b` to the Gram `g`: the
-/// interval means of the current and the speed, the current's change over `h`, and the
-/// voltage of `a`.
+/// interval means of the current and the speed, the current's change over `h`, the
+/// voltage of `a`, and the offset columns where the mean speed exceeds `turning` \[rad/s\].
 #[inline(always)]
-fn add_interval(g: &mut [[f64; BASE + 1]; BASE + 1], h: f64, a: &[f64; LANES], b: &[f64; LANES]) {
+fn add_interval(g: &mut [[f64; GRAM]; GRAM], h: f64, turning: f64, a: &[f64; LANES], b: &[f64; LANES]) {
     let [ud, uq, id0, iq0, w0] = *a;
     let [_, _, id1, iq1, w1] = *b;
     let (i_d, i_q) = (0.5 * (id0 + id1), 0.5 * (iq0 + iq1));
     let (di_d, di_q) = ((id1 - id0) / h, (iq1 - iq0) / h);
     let w = 0.5 * (w0 + w1);
-    add_products(g, &D_COLUMNS, [i_d, di_d, -w * i_q, ud]);
-    add_products(g, &Q_COLUMNS, [i_q, w * i_d, di_q, SQRT_2_3 * w, uq]);
+    let on = if w.abs() > turning { 1.0 } else { 0.0 };
+    add_products(g, &D_COLUMNS, [i_d, di_d, -w * i_q, ud, on, on * w, 1.0 - on]);
+    add_products(g, &Q_COLUMNS, [i_q, w * i_d, di_q, SQRT_2_3 * w, uq, on, 1.0 - on]);
 }
 
 /// Adds the products `r_a r_b` of a row's non-zero entries `r` (at base columns `at`) to the
 /// upper triangle of `g`.
 #[inline(always)]
-fn add_products<const K: usize>(g: &mut [[f64; BASE + 1]; BASE + 1], at: &[usize; K], r: [f64; K]) {
+fn add_products<const K: usize>(g: &mut [[f64; GRAM]; GRAM], at: &[usize; K], r: [f64; K]) {
     for a in 0..K {
         for b in a..K {
             g[at[a]][at[b]] += r[a] * r[b];

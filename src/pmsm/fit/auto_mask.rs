@@ -7,7 +7,7 @@ use crate::pmsm::log::signals::DqView;
 use crate::pmsm::log::{DqLogs, longest_h, peak_current};
 use crate::pmsm::model::inverter::InverterModel;
 use crate::pmsm::model::mask::{AUTO_ITERATIONS, DeadTimeMask};
-use crate::pmsm::options::{PmsmFitOptions, RefitLoss};
+use crate::pmsm::options::{PmsmFitOptions, RefitReport};
 
 /// Threshold relative to the largest current magnitude of the logs when a fit gives no
 /// positive `4 h V_dt / L` (e.g. `v_dt` at its bound 0 before the mask).
@@ -41,7 +41,7 @@ fn fallback_threshold(views: &[DqView<'_>]) -> Result<f64> {
 ///
 /// # Errors
 /// Those of [`crate::pmsm::fit_pmsm`]; [`Error::Numerical`] when the currents are all zero.
-pub(super) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, refit: RefitLoss<'_>) -> Result<PmsmFit> {
+pub(super) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, refit: RefitReport<'_>) -> Result<PmsmFit> {
     let inverter = options.inverter.unwrap_or_default();
     let with_mask = |mask: Option<DeadTimeMask>, start: Option<Vec<f64>>| PmsmFitOptions {
         inverter: Some(InverterModel { mask, ..inverter }),

@@ -18,7 +18,7 @@ use crate::pmsm::log::DqLogs;
 use crate::pmsm::model::interval::{VoltageHold, VoltageInput};
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::model::setup::PmsmSetup;
-use crate::pmsm::options::{PmsmFitOptions, RefitLoss};
+use crate::pmsm::options::{PmsmFitOptions, RefitReport};
 use std::time::Instant;
 
 use super::beside::{Beside, Pending};
@@ -31,7 +31,7 @@ use super::holds::{self, Fitted};
 ///
 /// # Errors
 /// Those of [`crate::pmsm::fit_pmsm`].
-pub(super) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, refit: RefitLoss<'_>) -> Result<PmsmFit> {
+pub(super) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, refit: RefitReport<'_>) -> Result<PmsmFit> {
     let t0 = Instant::now();
     let mut names: Vec<&str> = options.model.parameter_names().to_vec();
     if options.inverter.is_some() {
@@ -67,7 +67,7 @@ pub(super) fn fit(dq: &DqLogs<'_>, options: &PmsmFitOptions, refit: RefitLoss<'_
 fn fit_beside(
     dq: &DqLogs<'_>,
     options: &PmsmFitOptions,
-    refit: RefitLoss<'_>,
+    refit: RefitReport<'_>,
     t0: Instant,
     names: &[&str],
     beside: Pending<'_, Beside<'_>>,
@@ -181,6 +181,7 @@ fn fit_beside(
                 &|alt| super::hold::noise_z_against(&best, alt),
                 refit,
             ));
+            warnings.extend(super::current_offset::warning(&g.gram, experiments, options, &best, refit));
             warnings.extend(crate::pmsm::checks::columns::warning(
                 g,
                 experiments,

@@ -24,7 +24,7 @@ use crate::data::{Channel, Experiment};
 use crate::estimate::{FitResult, Warning};
 use crate::pmsm::log::signals::channel;
 use crate::pmsm::model::interval::VoltageInput;
-use crate::pmsm::options::{HoldChoice, PmsmFitOptions, RefitLoss};
+use crate::pmsm::options::{HoldChoice, PmsmFitOptions, RefitReport};
 
 use super::hold::noise_z_against;
 
@@ -48,7 +48,7 @@ pub(crate) fn warning(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
     fit: &FitResult,
-    refit: RefitLoss<'_>,
+    refit: RefitReport<'_>,
 ) -> Option<Warning> {
     let terminal =
         options.input == VoltageInput::Terminal && options.inverter.is_none() && options.pwm.is_none();
@@ -65,7 +65,7 @@ pub(crate) fn warning(
         skip_setup_checks: true,
         ..options.clone()
     };
-    let alt = refit(&late, &other)?;
+    let alt = refit(&late, &other)?.fit.loss;
     let z = noise_z_against(fit, alt)?;
     (alt < fit.fit.loss && z > LATE_Z).then(|| {
         Warning::untrusted(

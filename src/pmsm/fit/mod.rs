@@ -6,6 +6,7 @@ pub(super) mod auto_mask;
 pub(super) mod auto_method;
 mod base;
 mod beside;
+pub(super) mod current_offset;
 pub(super) mod flux_map;
 pub(super) mod flux_map_check;
 mod flux_map_grid;

@@ -88,7 +88,7 @@ pub(crate) fn fit_dq(dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<PmsmFi
     if let Some(why) = super::steady::chosen_up_front(dq, options) {
         return super::steady::fit(dq, options, why);
     }
-    let refit = |e: &[Experiment], o: &PmsmFitOptions| fit_pmsm(e, o).ok().map(|f| f.fit.loss);
+    let refit = |e: &[Experiment], o: &PmsmFitOptions| fit_pmsm(e, o).ok().map(|f| f.report);
     let fit = if options.inverter.and_then(|i| i.mask) == Some(DeadTimeMask::Auto) {
         super::auto_mask::fit(dq, options, &refit)?
     } else {
@@ -108,13 +108,12 @@ pub(crate) fn fit_dq(dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<PmsmFi
     if options.skip_setup_checks {
         return Ok(fit);
     }
-    let refit_report = |e: &[Experiment], o: &PmsmFitOptions| fit_pmsm(e, o).ok().map(|f| f.report);
     let parts = part_options(options, &fit);
     // The measured terminal voltage is the model's input as logged, with its noise; the
     // reference voltage and the inverter are modelled, and their model's error is what the
     // parts show.
     if options.inverter.is_none() && options.input == VoltageInput::Terminal {
-        let fit = match point_sampled(experiments, options, &fit, &refit_report) {
+        let fit = match point_sampled(experiments, options, &fit, &refit) {
             None => match super::steady_agreement::warning(experiments, options, &fit.report) {
                 Some(w) => with_warnings(fit, [w]),
                 None => fit,
@@ -136,18 +135,16 @@ pub(crate) fn fit_dq(dq: &DqLogs<'_>, options: &PmsmFitOptions) -> Result<PmsmFi
             &fit.report,
             PmsmSetup::new(fit.pole_pairs, fit.hold),
             &parts,
-            &refit_report,
+            &refit,
         );
         return Ok(judged(fit, options, bias));
     }
     let masked = fit.inverter.and_then(|i| i.mask).is_some();
     let (segments, noise) = rayon::join(
-        || crate::pmsm::checks::segments::warning(experiments, &parts, &refit_report),
+        || crate::pmsm::checks::segments::warning(experiments, &parts, &refit),
         || {
             masked
-                .then(|| {
-                    crate::pmsm::checks::noise_bias::warning(experiments, &parts, &fit.report, &refit_report)
-                })
+                .then(|| crate::pmsm::checks::noise_bias::warning(experiments, &parts, &fit.report, &refit))
                 .flatten()
         },
     );
