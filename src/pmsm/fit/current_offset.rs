@@ -118,8 +118,7 @@ pub(crate) fn warning(
     let names = options.model.parameter_names();
     let variance: Vec<f64> =
         names.iter().map(|n| fit.parameter(n).map_or(f64::NAN, |p| p.std_error.powi(2))).collect();
-    let (_, moved) = largest_difference(fit, &alt, names, Some(&variance)).filter(|(_, d)| *d > OFFSET_Z)?;
-    let [c_d, c_q] = reg.offset;
+    largest_difference(fit, &alt, names, Some(&variance)).filter(|(_, d)| *d > OFFSET_Z)?;
     let moves: Vec<String> = names
         .iter()
         .filter_map(|n| {
@@ -131,17 +130,32 @@ pub(crate) fn warning(
             ))
         })
         .collect();
+    let lower = fit.fit.loss / alt.fit.loss;
+    let lower = match lower {
+        l if l < 2.0 => format!("{:.1} % lower", 100.0 * (1.0 - 1.0 / l)),
+        l if l < 100.0 => format!("{l:.1} times lower"),
+        l if l < 1e5 => format!("{l:.0} times lower"),
+        l => format!("{l:.1e} times lower"),
+    };
     Some(Warning::untrusted(
         "current_offset",
         format!(
-            "the logged currents look offset by i_d {c_d:+.4} A, i_q {c_q:+.4} A (the voltage equations' \
-             regression with constant terms): the fit of the currents less that offset has a {:.3} times lower \
-             loss ({z:.1} standard deviations of its noise) and moves {} (up to {moved:.1} standard errors); \
-             calibrate the current sensors' offset, or subtract it from the id and iq columns, and fit again",
-            fit.fit.loss / alt.fit.loss,
+            "the logged currents look offset, by about i_d {}, i_q {} (the voltage equations' regression with \
+             constant terms, a rough estimate: on fresh logs 0.073 A for 0.05 A): the fit of the currents less that \
+             offset has a {lower} loss ({z:.1} standard deviations of its noise) and moves {}; calibrate the current \
+             sensors' offset (their reading at zero current) and log again: subtracting this estimate leaves a \
+             bias of its own",
+            amperes(reg.offset[0]),
+            amperes(reg.offset[1]),
             moves.join(", "),
         ),
     ))
+}
+
+/// `c` \[A\] to the milliampere, signed, without a negative zero.
+fn amperes(c: f64) -> String {
+    let c = (c * 1e3).round() / 1e3;
+    if c == 0.0 { "0 A".into() } else { format!("{c:+.3} A") }
 }
 
 /// The log `e` with `offset` (`[c_d, c_q]` \[A\]) subtracted from its dq currents.
