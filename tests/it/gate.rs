@@ -177,7 +177,8 @@ fn column(e: &Experiment, name: &str) -> Vec<f64> {
     e.get(name).unwrap().values.to_vec()
 }
 
-/// d/q swapped, voltage and current swapped, the speed negated (without `theta_m`): either
+/// d/q swapped, voltage and current swapped, the speed negated (without `theta_m`), the d
+/// and q currents or voltages alone swapped: either
 /// the least-squares start fails and its error names the mistake and the flags that fix it
 /// (instead of advising a start value that would lead to a wrong fit), or the fit ends
 /// untrusted with a `columns` warning that names them.
@@ -185,7 +186,7 @@ fn column(e: &Experiment, name: &str) -> Vec<f64> {
 #[cfg_attr(not(shared_data), ignore = "needs the development logs: ../shared/data or $GREYBOX_SHARED_DATA")]
 fn column_mistakes_are_named_with_their_fix() {
     crate::common::require_shared!();
-    let cases: [(&str, bool, Rewrite); 3] = [
+    let cases: [(&str, bool, Rewrite); 5] = [
         ("--col-id iq --col-iq id --col-ud uq --col-uq ud", false, |e| {
             vec![
                 ("id", column(e, "iq")),
@@ -203,6 +204,9 @@ fn column_mistakes_are_named_with_their_fix() {
             ]
         }),
         ("--negate-speed", true, |e| vec![("w_m", column(e, "w_m").iter().map(|w| -w).collect())]),
+        // The currents or the voltages alone swapped (helper-38: exit 1 naming no cause).
+        ("--col-id iq --col-iq id (", false, |e| vec![("id", column(e, "iq")), ("iq", column(e, "id"))]),
+        ("--col-ud uq --col-uq ud (", false, |e| vec![("ud", column(e, "uq")), ("uq", column(e, "ud"))]),
     ];
     for (fix, drop_theta, f) in cases {
         let (e, n_p) = rewritten(drop_theta, f);

@@ -34,6 +34,12 @@ pub const COLUMN_RATIO: f64 = 10.0;
 /// swapped reads `[u_q, u_d, i_q, i_d]`, voltages and currents `[i_d, i_q, u_d, u_q]`.
 const SWAPS: [(Mistake, [usize; 4]); 2] = [(Mistake::SwapDq, [1, 0, 3, 2]), (Mistake::SwapUi, [2, 3, 0, 1])];
 
+/// The swaps tried only when the least-squares start fails ([`start_failure`]; their Grams
+/// are summed then): the d and q currents swapped alone, `[u_d, u_q, i_q, i_d]`, or the
+/// voltages alone, `[u_q, u_d, i_d, i_q]` (a negative `r_s` at the start either way).
+const START_SWAPS: [(Mistake, [usize; 4]); 2] =
+    [(Mistake::SwapCurrents, [0, 1, 3, 2]), (Mistake::SwapVoltages, [1, 0, 2, 3])];
+
 /// The setup scan's Grams: the log as given ([`crate::pmsm::checks::detect`]) and, for
 /// the terminal voltage, the log as each swap of columns would have it.
 #[derive(Clone, Debug)]
@@ -67,6 +73,10 @@ enum Mistake {
     SwapDq,
     /// Voltage and current columns swapped.
     SwapUi,
+    /// The d and q currents swapped (the voltages right).
+    SwapCurrents,
+    /// The d and q voltages swapped (the currents right).
+    SwapVoltages,
 }
 
 impl Mistake {
@@ -81,6 +91,12 @@ impl Mistake {
                 "the voltage and current columns are swapped",
                 "--col-ud id --col-uq iq --col-id ud --col-iq uq (with the log's own names)",
             ),
+            Self::SwapCurrents => {
+                ("the d and q currents are swapped", "--col-id iq --col-iq id (with the log's own names)")
+            }
+            Self::SwapVoltages => {
+                ("the d and q voltages are swapped", "--col-ud uq --col-uq ud (with the log's own names)")
+            }
         }
     }
 
@@ -108,6 +124,8 @@ impl Mistake {
                 (channel::U_D, channel::I_D),
                 (channel::U_Q, channel::I_Q),
             ],
+            Self::SwapCurrents => &[(channel::I_D, channel::I_Q), (channel::I_Q, channel::I_D)],
+            Self::SwapVoltages => &[(channel::U_D, channel::U_Q), (channel::U_Q, channel::U_D)],
         };
         let mut out = e.clone();
         let channels = pairs.iter().map(|(from, to)| renamed(from, to)).collect::<Result<Vec<_>>>()?;
@@ -178,9 +196,13 @@ impl Hypothesis {
 }
 
 /// The mistake whose regression explains the voltage [`COLUMN_RATIO`] times better than
-/// the log as given, with a physical estimate; `scan` the setup scan's Grams.
-/// Swapped columns are tried for the terminal voltage only.
-fn best_hypothesis(scan: &ColumnScan, options: &PmsmFitOptions) -> Option<Hypothesis> {
+/// the log as given, with a physical estimate; `scan` the setup scan's Grams, `more` the
+/// Grams of further swaps. Swapped columns are tried for the terminal voltage only.
+fn best_hypothesis(
+    scan: &ColumnScan,
+    more: &[(Mistake, DMatrix<f64>)],
+    options: &PmsmFitOptions,
+) -> Option<Hypothesis> {
     let (n_p, kind) = (options.pole_pairs, options.model);
     let np = f64::from(n_p);
     let (given, _) = regression(&scan.gram, kind, np, 1.0)?;
@@ -191,7 +213,7 @@ fn best_hypothesis(scan: &ColumnScan, options: &PmsmFitOptions) -> Option<Hypoth
             regression(&scan.gram, kind, np * c, c).map(|(l, t)| (m, l, t))
         })
         .collect();
-    for (m, gm) in &scan.swapped {
+    for (m, gm) in scan.swapped.iter().chain(more) {
         tried.extend(regression(gm, kind, np, 1.0).map(|(l, t)| (*m, l, t)));
     }
     tried
@@ -202,9 +224,21 @@ fn best_hypothesis(scan: &ColumnScan, options: &PmsmFitOptions) -> Option<Hypoth
 }
 
 /// Why the least-squares start failed, when a column mistake explains it: the text to add
-/// to its error, naming the mistake and the fix; `None` when no hypothesis does.
-pub(crate) fn start_failure(scan: &ColumnScan, options: &PmsmFitOptions) -> Option<String> {
-    let h = best_hypothesis(scan, options)?;
+/// to its error, naming the mistake and the fix; `None` when no hypothesis does. `scan` is
+/// the setup scan of the logs `views`; the swaps of [`START_SWAPS`] are scanned here.
+pub(crate) fn start_failure(
+    scan: &ColumnScan,
+    views: &[DqView<'_>],
+    options: &PmsmFitOptions,
+) -> Option<String> {
+    let more: Vec<(Mistake, DMatrix<f64>)> = if options.input == VoltageInput::Terminal {
+        let lanes: Vec<[usize; 4]> = START_SWAPS.iter().map(|s| s.1).collect();
+        let grams = scan_grams(views, options.input, &lanes).ok()?;
+        START_SWAPS.iter().map(|s| s.0).zip(grams).collect()
+    } else {
+        Vec::new()
+    };
+    let h = best_hypothesis(scan, &more, options)?;
     Some(format!("{}; read the log with {}", h.describe(options.model), h.mistake.what().1))
 }
 
@@ -219,7 +253,7 @@ pub(crate) fn warning(
     refit: RefitReport<'_>,
 ) -> Option<Warning> {
     let kind = options.model;
-    let h = best_hypothesis(scan, options)?;
+    let h = best_hypothesis(scan, &[], options)?;
     let undone: Vec<Experiment> =
         experiments.iter().map(|e| h.mistake.undo(e)).collect::<Result<_>>().ok()?;
     let times = confirmed(refit, &undone, options.clone(), loss, COLUMN_RATIO)?;

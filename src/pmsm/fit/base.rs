@@ -87,7 +87,7 @@ fn fit_beside(
     let Fitted { fits, mut notes, ls_theta, modulator, pwm, input, warnings: stage_warnings } =
         match (fitted, &scan) {
             (Err(Error::Numerical { context, reason }), Some(g)) if context == "least-squares start" => {
-                let named = crate::pmsm::checks::columns::start_failure(g, options);
+                let named = crate::pmsm::checks::columns::start_failure(g, dq.views(), options);
                 return Err(Error::Numerical {
                     context,
                     reason: match named {
