@@ -50,24 +50,14 @@ pub(crate) fn confirmed(
     (alt * ratio < loss).then(|| loss / alt)
 }
 
-/// The loss of a nested fit of `experiments` with `other` ([`nested_fit`]); `None` when it
-/// fails.
+/// The loss of a nested fit of `experiments` with `other` as a suspected mistake would have
+/// it: from the least-squares start, without setup checks of its own; `None` when it fails.
 pub(crate) fn nested_loss(
     refit: RefitReport<'_>,
     experiments: &[Experiment],
     other: PmsmFitOptions,
 ) -> Option<f64> {
-    nested_fit(refit, experiments, other).map(|f| f.fit.loss)
-}
-
-/// A nested fit of `experiments` with `other` as a suspected mistake would have it: from
-/// the least-squares start, without setup checks of its own; `None` when it fails.
-pub(crate) fn nested_fit(
-    refit: RefitReport<'_>,
-    experiments: &[Experiment],
-    other: PmsmFitOptions,
-) -> Option<FitResult> {
-    refit(experiments, &PmsmFitOptions { start: None, skip_setup_checks: true, ..other })
+    refit(experiments, &PmsmFitOptions { start: None, skip_setup_checks: true, ..other }).map(|f| f.fit.loss)
 }
 
 /// Which voltage hold the fit assumes.

@@ -181,7 +181,14 @@ fn fit_beside(
                 &|alt| super::hold::noise_z_against(&best, alt),
                 refit,
             ));
-            warnings.extend(super::current_offset::warning(&g.gram, experiments, options, &best, refit));
+            warnings.extend(super::current_offset::warning(
+                &g.gram,
+                experiments,
+                options,
+                &best,
+                hold,
+                refit,
+            ));
             warnings.extend(crate::pmsm::checks::columns::warning(
                 g,
                 experiments,
