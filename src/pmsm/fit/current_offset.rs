@@ -1,8 +1,8 @@
 //! A constant offset of the logged dq currents, confirmed by a refit (issue 43: no wrong
 //! answer with exit 0).
 //!
-//! A current sensor's offset, or a dq transform fed from offset-laden phase currents
-//! integrated away, logs `i + c`. The voltage equations of the logged current then carry
+//! A drive whose logged dq currents carry an offset (an offset calibrated out of the phase
+//! currents but added back in dq, a logging stage's own offset) logs `i + c`. The voltage equations of the logged current then carry
 //! `−R_s c_d + n_p L_q ω_m c_q` in the d axis and `−R_s c_q − n_p L_d ω_m c_d` in the q axis
 //! (MODEL.md §2). The output-error fit absorbs much of it: where the load keeps `i_q` of
 //! one sign, `R_s` takes `c_q` (0.5 A on a shared log's `i_q` put `r_s` 7 % low at 5
@@ -11,12 +11,15 @@
 //!
 //! The setup scan's regression (thesis 5.2.1) with the offset columns of
 //! [`crate::pmsm::checks::scan::OFFSETS`] estimates `c` (`c_d = −a_d / R_s`, `c_q = −a_q /
-//! R_s` from the constants `a`; 0.4998 A for 0.5 A on a noise-free log, 0.054 A for 0.05 A
-//! on a low-resistance one). Where the offset would move an estimate of the regression by
-//! more than [`OFFSET_MOVES`] of its value, the logs are refitted with the currents less
-//! `c`; a loss lower by more than [`OFFSET_Z`] standard deviations of its noise (Vuong's
-//! test of non-nested models, as the late voltage's check takes it) with an estimate moved
-//! by more than [`OFFSET_Z`] of the fit's standard errors makes the fit untrusted. The
+//! R_s` from the constants `a`; 0.4999 A for 0.5 A on a noise-free log, 0.056 A for 0.05 A
+//! on a low-resistance one), from the intervals where the rotor turns
+//! ([`crate::pmsm::checks::scan::TURNING`]): a phase current's offset, constant in the
+//! stator frame, turns in dq and averages out there. Where the offset would move an
+//! estimate of the regression by more than [`OFFSET_MOVES`] of its value, the logs are
+//! refitted with the currents less `c`; a loss lower by more than [`OFFSET_Z`] standard
+//! deviations of its noise (Vuong's test of non-nested models, as the late voltage's check
+//! takes it) with an estimate moved by more than [`OFFSET_Z`] of the fit's standard errors
+//! makes the fit untrusted. The
 //! regression's own significance is no gate: on a noise-free low-resistance log its
 //! residual is the discretisation's, and a 0.1 A offset that put `k_e` 0.1 % low at 77
 //! standard errors stood at 1 standard deviation of it.
@@ -26,8 +29,7 @@ use crate::estimate::{FitResult, Warning};
 use crate::pmsm::checks::detect::to_base;
 use crate::pmsm::checks::scan::{BASE, GRAM, OFFSETS};
 use crate::pmsm::log::signals::channel;
-use crate::pmsm::model::interval::SQRT_2_3;
-use crate::pmsm::model::interval::VoltageHold;
+use crate::pmsm::model::interval::{SQRT_2_3, VoltageHold};
 use crate::pmsm::model::kind::MotorKind;
 use crate::pmsm::options::{PmsmFitOptions, RefitReport};
 use nalgebra::{DMatrix, DVector};
@@ -93,14 +95,13 @@ fn largest(moves: &[f64]) -> f64 {
     moves.iter().fold(0.0, |m, v| m.max(v.abs()))
 }
 
-/// After a fit `fit` of `experiments` with `options`: an untrusted `current_offset` warning
-/// when the scan's regression `g` finds an offset that moves its estimates by more than
-/// [`OFFSET_MOVES`], and the refit (`refit`)
-/// of the logs with the currents less that offset both lowers the loss by more than
-/// [`OFFSET_Z`] standard deviations of its noise ([`noise_z_against`]) and moves an estimate by more
-/// than [`OFFSET_Z`] of the fit's standard errors (an offset the intervals already cover,
-/// such as a phase current's that the rotation averages out, is no reason to distrust
-/// them); `None` otherwise or when the refit fails.
+/// After a fit `fit` of `experiments` with `options` at the voltage `hold`: an untrusted
+/// `current_offset` warning when the scan's regression `g` finds an offset that moves its
+/// estimates by more than [`OFFSET_MOVES`], and the refit (`refit`, at `hold`) of the logs
+/// with the currents less that offset both lowers the loss by more than [`OFFSET_Z`]
+/// standard deviations of its noise ([`noise_z_against`]) and moves an estimate by more
+/// than [`OFFSET_Z`] of the fit's standard errors (an offset the intervals already cover
+/// is no reason to distrust them); `None` otherwise or when the refit fails.
 pub(crate) fn warning(
     g: &DMatrix<f64>,
     experiments: &[Experiment],
@@ -117,9 +118,9 @@ pub(crate) fn warning(
         experiments.iter().map(|e| less_offset(e, reg.offset)).collect::<crate::error::Result<_>>().ok()?;
     let names = options.model.parameter_names();
     // At the fit's hold, from its estimate where the model has no nuisance parameters (the
-    // least-squares start otherwise): a fraction of a fit (a noisy IPM log without an offset,
-    // refitted for a move of 7.5·10⁻⁴: the fit's CPU 2.0 times from both holds and the
-    // start, 1.3 times so).
+    // least-squares start otherwise): on a noisy IPM log without an offset, refitted for an
+    // implied move of 7.5·10⁻⁴, the fit took 2.07 times its CPU with the refit from the
+    // start at both holds, 1.27 times so.
     let start = (options.inverter.is_none() && options.pwm.is_none())
         .then(|| names.iter().map(|n| fit.parameter(n).map(|p| p.value)).collect::<Option<Vec<f64>>>())
         .flatten();
