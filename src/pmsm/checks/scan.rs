@@ -28,13 +28,13 @@ pub(crate) const BASE: usize = 6;
 
 /// The offset columns after the voltage: `1` (d rows), `1` (q rows), `ω_m` (d rows) on the
 /// intervals where the rotor turns faster than [`TURNING`] of the log's top speed (0
-/// elsewhere), then `1` (d rows), `1` (q rows) on the others. A constant offset `c` of the logged currents adds `−R_s c_d` and
-/// `n_p L_q ω_m c_q` to the d rows and `−R_s c_q` to the q rows (its `−n_p L_d ω_m c_d`
-/// there is the back-EMF's column, absorbed by `k_e`; MODEL.md §2): the regression of
-/// `pmsm::fit::current_offset`. A phase current's offset is constant in the stator frame:
-/// in dq it turns with the rotor and averages out where the rotor turns, but looks constant
-/// at standstill: the offset is read from the turning rows, the standstill rows' own
-/// constants absorbing what either offset leaves there.
+/// elsewhere), then `1` (d rows), `1` (q rows) on the others. A constant offset `c` of the
+/// logged currents adds `−R_s c_d` and `n_p L_q ω_m c_q` to the d rows and `−R_s c_q` to
+/// the q rows (its `−n_p L_d ω_m c_d` there is the back-EMF's column, absorbed by `k_e`;
+/// MODEL.md §2): the regression of `pmsm::fit::current_offset`. A phase current's offset
+/// is constant in the stator frame: in dq it turns with the rotor and averages out where the
+/// rotor turns, but looks constant at standstill. So the offset is read from the turning
+/// rows, and the standstill rows' own constants absorb what either offset leaves there.
 pub(crate) const OFFSETS: usize = 5;
 
 /// Share of a log's top speed above which an interval counts in the offset columns.
@@ -210,9 +210,8 @@ fn step(sections: &[Biquad], z: &mut [([[f64; 4]; 2], [f64; 2])], v: &mut [f64; 
 }
 
 /// Gram matrix `[C y O]ᵀ[C y O]` ([`GRAM`]²) of the base columns `C`, the voltage `y` and
-/// the offset columns `O` over every interval of the applied
-/// voltage, from a zero-phase low-passed copy of each log. One Gram serves every candidate
-/// `n_p` and both motor kinds.
+/// the offset columns `O` over every interval of the applied voltage, from a zero-phase
+/// low-passed copy of each log. One Gram serves every candidate `n_p` and both motor kinds.
 ///
 /// # Errors
 /// Those of [`applied_voltage`](crate::pmsm::model::interval::applied_voltage) and of the filter design.
