@@ -171,14 +171,16 @@ fn a_wrong_pole_pair_count_of_an_interior_magnet_log_is_named() {
     }
 }
 
+/// The shipped sample log (`data/sample.csv.gz`: 4 pole pairs, noise-free).
+fn sample() -> Experiment {
+    greybox::pmsm::read_log(concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz"), &Default::default())
+        .unwrap()
+}
+
 /// A parameter at its bound is flagged, with no interval, and makes the fit untrusted.
 #[test]
 fn a_parameter_at_a_bound_has_no_interval() {
-    let e = greybox::pmsm::read_log(
-        concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz"),
-        &Default::default(),
-    )
-    .unwrap();
+    let e = sample();
     let options = PmsmFitOptions {
         bounds: vec![("r_s".into(), 0.95, 2.0)],
         start: Some(vec![1.0, 4.5e-3, 0.54]),
@@ -215,11 +217,7 @@ fn with_current_offset(e: &Experiment, [c_d, c_q]: [f64; 2], phase: f64) -> Expe
 /// dq and leaves every estimate inside its interval, are not.
 #[test]
 fn a_current_offset_is_named() {
-    let e = greybox::pmsm::read_log(
-        concat!(env!("CARGO_MANIFEST_DIR"), "/data/sample.csv.gz"),
-        &Default::default(),
-    )
-    .unwrap();
+    let e = sample();
     let offset_named = |log: Experiment| {
         let fit = fit_pmsm(&[log], &pmsm_options(4)).unwrap();
         let c = codes(&fit);

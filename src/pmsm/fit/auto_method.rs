@@ -3,36 +3,30 @@
 //! hold checked again at the IV's own standard errors.
 
 use crate::data::Experiment;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::estimate::FitResult;
-use crate::pmsm::fit::iv::{Estimator, check_options, fit_pmsm_iv_after};
+use crate::pmsm::fit::iv::{Estimator, check_options, fit_pmsm_iv, fit_pmsm_iv_after};
 use crate::pmsm::fit::report::PmsmFit;
 use crate::pmsm::fit::workflow::fit_pmsm;
 use crate::pmsm::options::PmsmFitOptions;
 
-/// Fits `experiments` with `estimator`: [`fit_pmsm`],
-/// [`fit_pmsm_iv`](crate::pmsm::fit_pmsm_iv), or for [`Estimator::Auto`] the output-error
-/// fit, followed by the IV fit from it ([`fit_pmsm_iv_after`]: at both holds where the
-/// output-error losses hardly choose one, as for `fit_pmsm_iv`) with a note saying why when
+/// Fits `experiments` with `estimator`: [`fit_pmsm`], [`fit_pmsm_iv`], or for
+/// [`Estimator::Auto`] the output-error fit, followed by the IV fit from it
+/// ([`fit_pmsm_iv_after`]: at both holds where the output-error losses hardly choose one,
+/// as for [`fit_pmsm_iv`]) with a note saying why when
 /// the former carries the untrusted `voltage_noise_bias` warning and [`check_options`]
 /// allows IV; where the IV fit fails, the output-error fit (untrusted by that warning) with
 /// a note saying why.
 ///
 /// # Errors
-/// Those of [`fit_pmsm`]; of `fit_pmsm_iv` for [`Estimator::InstrumentalVariables`], its
-/// reason then followed by the untrusted warnings of the output-error fit it started from.
+/// Those of [`fit_pmsm`] and, for [`Estimator::InstrumentalVariables`], of [`fit_pmsm_iv`].
 pub fn fit_pmsm_by(
     experiments: &[Experiment],
     options: &PmsmFitOptions,
     estimator: Estimator,
 ) -> Result<PmsmFit> {
     if estimator == Estimator::InstrumentalVariables {
-        // fit_pmsm_iv, with the output-error fit's warnings kept for its error.
-        check_options(options)?;
-        let oe = fit_pmsm(experiments, options)?;
-        let untrusted: Vec<String> =
-            oe.report.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.clone()).collect();
-        return fit_pmsm_iv_after(oe, experiments, options).map_err(|e| named_by(e, &untrusted));
+        return fit_pmsm_iv(experiments, options);
     }
     let oe = fit_pmsm(experiments, options)?;
     let biased =
@@ -58,22 +52,4 @@ pub fn fit_pmsm_by(
     };
     let notes = fit.report.notes.iter().cloned().chain([note]).collect();
     Ok(PmsmFit { report: FitResult { notes, ..fit.report }, ..fit })
-}
-
-/// A failed IV fit's error `e` with the untrusted warnings `codes` of the output-error fit IV
-/// started from appended, where there are any: what went wrong before the instruments did
-/// (a speed in rpm, a wrong pole-pair count), which the bare numerical failure does not say.
-/// Errors other than numerical ones are returned as they are.
-fn named_by(e: Error, codes: &[String]) -> Error {
-    match e {
-        Error::Numerical { context, reason } if !codes.is_empty() => Error::Numerical {
-            context,
-            reason: format!(
-                "{reason}; the output-error fit IV starts from is untrusted ({}): --method pem reports it with \
-                 those warnings",
-                codes.join(", ")
-            ),
-        },
-        e => e,
-    }
 }

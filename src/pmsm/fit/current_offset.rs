@@ -2,12 +2,13 @@
 //! answer with exit 0).
 //!
 //! A drive whose logged dq currents carry an offset (an offset calibrated out of the phase
-//! currents but added back in dq, a logging stage's own offset) logs `i + c`. The voltage equations of the logged current then carry
-//! `−R_s c_d + n_p L_q ω_m c_q` in the d axis and `−R_s c_q − n_p L_d ω_m c_d` in the q axis
-//! (MODEL.md §2). The output-error fit absorbs much of it: where the load keeps `i_q` of
-//! one sign, `R_s` takes `c_q` (0.5 A on a shared log's `i_q` put `r_s` 7 % low at 5
-//! standard errors with exit 0), and `k_e` takes `L_d c_d` whole (0.5 A on `i_d`: `k_e`
-//! −2.1 % at 36 standard errors, exit 0). Nothing else in the report shows it.
+//! currents but added back in dq, a logging stage's own offset) logs `i + c`. The voltage
+//! equations of the logged current then carry `−R_s c_d + n_p L_q ω_m c_q` in the d axis
+//! and `−R_s c_q − n_p L_d ω_m c_d` in the q axis (MODEL.md §2). The output-error fit
+//! absorbs much of it: where the load keeps `i_q` of one sign, `R_s` takes `c_q` (0.5 A on
+//! a shared log's `i_q` put `r_s` 7 % low at 5 standard errors with exit 0), and `k_e`
+//! takes `L_d c_d` whole (0.5 A on `i_d`: `k_e` −2.1 % at 36 standard errors, exit 0).
+//! Nothing else in the report shows it.
 //!
 //! The setup scan's regression (thesis 5.2.1) with the offset columns of
 //! [`crate::pmsm::checks::scan::OFFSETS`] estimates `c` (`c_d = −a_d / R_s`, `c_q = −a_q /
@@ -19,14 +20,13 @@
 //! refitted with the currents less `c`; a loss lower by more than [`OFFSET_Z`] standard
 //! deviations of its noise (Vuong's test of non-nested models, as the late voltage's check
 //! takes it) with an estimate moved by more than [`OFFSET_Z`] of the fit's standard errors
-//! makes the fit untrusted. The
-//! regression's own significance is no gate: on a noise-free low-resistance log its
-//! residual is the discretisation's, and a 0.1 A offset that put `k_e` 0.1 % low at 77
-//! standard errors stood at 1 standard deviation of it.
+//! makes the fit untrusted. The regression's own significance is no gate: on a noise-free
+//! low-resistance log its residual is the discretisation's, and a 0.1 A offset that put
+//! `k_e` 0.1 % low at 77 standard errors stood at 1 standard deviation of it.
 
 use crate::data::{Channel, Experiment};
 use crate::estimate::{FitResult, Warning};
-use crate::pmsm::checks::detect::to_base;
+use crate::pmsm::checks::detect::{loss_at_factor, to_base};
 use crate::pmsm::checks::scan::{BASE, GRAM, OFFSETS};
 use crate::pmsm::log::signals::channel;
 use crate::pmsm::model::interval::{SQRT_2_3, VoltageHold};
@@ -73,13 +73,8 @@ pub(crate) fn regression(g: &DMatrix<f64>, kind: MotorKind, n_p: u32) -> Option<
     te.view_mut((BASE, p), (OFFSETS, OFFSETS)).fill_with_identity();
     let gcc = DMatrix::from_fn(cols.len(), cols.len(), |a, b| g[(cols[a], cols[b])]);
     let gcy = DVector::from_fn(cols.len(), |a, _| g[(cols[a], BASE)]);
-    // The estimate of the regressors `C t`.
-    let solve = |t: &DMatrix<f64>, gcc: &DMatrix<f64>, gcy: &DVector<f64>| {
-        Some((t.transpose() * gcc * t).cholesky()?.solve(&(t.transpose() * gcy)))
-    };
-    let with = solve(&te, &gcc, &gcy)?;
-    let base = gcc.view((0, 0), (BASE, BASE)).into_owned();
-    let without = solve(&t, &base, &gcy.rows(0, BASE).into_owned())?;
+    let with = (te.transpose() * gcc * &te).cholesky()?.solve(&(te.transpose() * gcy));
+    let (_, without) = loss_at_factor(g, kind, np)?;
     let r = with[0];
     let offset = [-with[p] / r, -with[p + 1] / r];
     let last = p - 1;

@@ -145,11 +145,32 @@ fn sums(model: &PmsmSpm, logs: &[Log], theta: &[f64]) -> Result<IvSums> {
 /// # Errors
 /// [`Error::InvalidOption`] (`method`) for options the inverse model does not cover; those
 /// of [`fit_pmsm`]; [`Error::Numerical`] when the instruments do not determine every
-/// parameter or the iteration leaves the positive parameters.
+/// parameter or the iteration leaves the positive parameters, its reason followed by the
+/// untrusted warnings of the output-error fit it started from.
 pub fn fit_pmsm_iv(experiments: &[Experiment], options: &PmsmFitOptions) -> Result<PmsmFit> {
     check_options(options)?;
     let oe = fit_pmsm(experiments, options)?;
-    fit_pmsm_iv_after(oe, experiments, options)
+    let untrusted: Vec<String> =
+        oe.report.warnings.iter().filter(|w| w.untrusted).map(|w| w.code.clone()).collect();
+    fit_pmsm_iv_after(oe, experiments, options).map_err(|e| named_by(e, &untrusted))
+}
+
+/// A failed IV fit's error `e` with the untrusted warnings `codes` of the output-error fit IV
+/// started from appended, where there are any: what went wrong before the instruments did
+/// (a speed in rpm, a wrong pole-pair count), which the bare numerical failure does not say.
+/// Errors other than numerical ones are returned as they are.
+fn named_by(e: Error, codes: &[String]) -> Error {
+    match e {
+        Error::Numerical { context, reason } if !codes.is_empty() => Error::Numerical {
+            context,
+            reason: format!(
+                "{reason}; the output-error fit IV starts from is untrusted ({}): --method pem reports it with \
+                 those warnings",
+                codes.join(", ")
+            ),
+        },
+        e => e,
+    }
 }
 
 /// [`fit_pmsm_iv`] from the output-error fit `oe` of the same `experiments` and `options`
