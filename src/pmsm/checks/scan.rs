@@ -40,18 +40,30 @@ pub(crate) const OFFSETS: usize = 5;
 /// Share of a log's top speed above which an interval counts in the offset columns.
 pub(crate) const TURNING: f64 = 0.1;
 
-/// Side of the scan's Gram: the base columns, the voltage and the offset columns.
-pub(crate) const GRAM: usize = BASE + 1 + OFFSETS;
+/// The cross columns after the offsets, summed in the Gram of the logs as given only
+/// ([`scan_grams`]' [`IDENTITY`]): `di_q/dt`, `ω_m i_d` (d rows), `di_d/dt`, `ω_m i_q` (q
+/// rows). A dq frame turned by a small δ from an interior-magnet rotor's adds `δ (L_q − L_d)`
+/// times `di_q/dt − n_p ω_m i_d` to the d rows and `di_d/dt + n_p ω_m i_q` to the q rows
+/// (beside the back-EMF's `√(2/3) k_e ω_m sin δ` in the d rows): the regression of
+/// `pmsm::fit::angle_offset`.
+pub(crate) const CROSS: usize = 4;
+
+/// Side of the scan's Gram: the base columns, the voltage, the offset and the cross columns.
+pub(crate) const GRAM: usize = BASE + 1 + OFFSETS + CROSS;
 
 /// Filtered signals per sample: `[u_d, u_q, i_d, i_q, w_m]`.
 const LANES: usize = 5;
 
-/// Columns of a d row that can be non-zero: `i_d`, `di_d/dt`, `−ω_m i_q`, `u_d`, and the
-/// offset columns `1`, `ω_m` (turning) and `1` (standstill).
-const D_COLUMNS: [usize; 7] = [0, 1, 3, 6, 7, 9, 10];
+/// Columns of a d row that can be non-zero: `i_d`, `di_d/dt`, `−ω_m i_q`, `u_d`, the
+/// offset columns `1`, `ω_m` (turning) and `1` (standstill), then the cross columns
+/// `di_q/dt`, `ω_m i_d`.
+const D_COLUMNS: [usize; 9] = [0, 1, 3, 6, 7, 9, 10, 12, 13];
 /// Columns of a q row that can be non-zero: `i_q`, `ω_m i_d`, `di_q/dt`, `√(2/3) ω_m`,
-/// `u_q`, and the offset columns `1` (turning) and `1` (standstill).
-const Q_COLUMNS: [usize; 7] = [0, 2, 4, 5, 6, 8, 11];
+/// `u_q`, the offset columns `1` (turning) and `1` (standstill), then the cross columns
+/// `di_d/dt`, `ω_m i_q`.
+const Q_COLUMNS: [usize; 9] = [0, 2, 4, 5, 6, 8, 11, 14, 15];
+/// The entries of each row before its cross columns.
+const PLAIN: usize = 7;
 
 /// Samples per chunk of the streamed zero-phase filter ([`filtfilt_chunks`]).
 const CHUNK: usize = 4096;
@@ -257,9 +269,14 @@ pub(crate) fn scan_grams(
                     permuted.extend(chunk.iter().map(|v| relabel(v, p)));
                     &permuted[..]
                 };
-                add_intervals(g, h, turning, chunk);
+                let cross = *p == IDENTITY;
+                add_intervals(g, h, turning, cross, chunk);
                 if let (Some(a), Some(b)) = (chunk.last(), next) {
-                    add_interval(g, h, turning, a, &relabel(&b, p));
+                    if cross {
+                        add_interval::<9>(g, h, turning, a, &b);
+                    } else {
+                        add_interval::<PLAIN>(g, h, turning, a, &relabel(&b, p));
+                    }
                 }
             }
         });
@@ -271,36 +288,47 @@ pub(crate) fn scan_grams(
 
 /// Adds the d and q rows of every interval between consecutive samples of `chunk` (the
 /// filtered `[u_d, u_q, i_d, i_q, w_m]`, sample time `h` \[s\]; offset columns above the
-/// speed `turning`) to the Gram `g`, in order.
+/// speed `turning`; the [`CROSS`] columns where `cross`) to the Gram `g`, in order.
 #[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2"))]
-fn add_intervals(g: &mut [[f64; GRAM]; GRAM], h: f64, turning: f64, chunk: &[[f64; LANES]]) {
+fn add_intervals(g: &mut [[f64; GRAM]; GRAM], h: f64, turning: f64, cross: bool, chunk: &[[f64; LANES]]) {
     // A local copy the compiler can hold in registers.
     let mut sums = *g;
-    for (a, b) in chunk.iter().zip(chunk.iter().skip(1)) {
-        add_interval(&mut sums, h, turning, a, b);
+    let pairs = chunk.iter().zip(chunk.iter().skip(1));
+    if cross {
+        pairs.for_each(|(a, b)| add_interval::<9>(&mut sums, h, turning, a, b));
+    } else {
+        pairs.for_each(|(a, b)| add_interval::<PLAIN>(&mut sums, h, turning, a, b));
     }
     *g = sums;
 }
 
 /// Adds the d and q rows of the interval from sample `a` to sample `b` to the Gram `g`: the
 /// interval means of the current and the speed, the current's change over `h`, the
-/// voltage of `a`, and the offset columns where the mean speed exceeds `turning` \[rad/s\].
+/// voltage of `a`, and the offset columns where the mean speed exceeds `turning` \[rad/s\];
+/// the first `K` entries of each row ([`PLAIN`], or 9 with the cross columns).
 #[inline(always)]
-fn add_interval(g: &mut [[f64; GRAM]; GRAM], h: f64, turning: f64, a: &[f64; LANES], b: &[f64; LANES]) {
+fn add_interval<const K: usize>(
+    g: &mut [[f64; GRAM]; GRAM],
+    h: f64,
+    turning: f64,
+    a: &[f64; LANES],
+    b: &[f64; LANES],
+) {
     let [ud, uq, id0, iq0, w0] = *a;
     let [_, _, id1, iq1, w1] = *b;
     let (i_d, i_q) = (0.5 * (id0 + id1), 0.5 * (iq0 + iq1));
     let (di_d, di_q) = ((id1 - id0) / h, (iq1 - iq0) / h);
     let w = 0.5 * (w0 + w1);
     let on = if w.abs() > turning { 1.0 } else { 0.0 };
-    add_products(g, &D_COLUMNS, [i_d, di_d, -w * i_q, ud, on, on * w, 1.0 - on]);
-    add_products(g, &Q_COLUMNS, [i_q, w * i_d, di_q, SQRT_2_3 * w, uq, on, 1.0 - on]);
+    let d = [i_d, di_d, -w * i_q, ud, on, on * w, 1.0 - on, di_q, w * i_d];
+    add_products::<K>(g, &D_COLUMNS, &d);
+    add_products::<K>(g, &Q_COLUMNS, &[i_q, w * i_d, di_q, SQRT_2_3 * w, uq, on, 1.0 - on, di_d, w * i_q]);
 }
 
-/// Adds the products `r_a r_b` of a row's non-zero entries `r` (at base columns `at`) to the
-/// upper triangle of `g`.
+/// Adds the products `r_a r_b` of a row's first `K` entries `r` (at base columns `at`) to
+/// the upper triangle of `g`.
 #[inline(always)]
-fn add_products<const K: usize>(g: &mut [[f64; GRAM]; GRAM], at: &[usize; K], r: [f64; K]) {
+fn add_products<const K: usize>(g: &mut [[f64; GRAM]; GRAM], at: &[usize; 9], r: &[f64; 9]) {
     for a in 0..K {
         for b in a..K {
             g[at[a]][at[b]] += r[a] * r[b];

@@ -189,6 +189,7 @@ fn fit_beside(
                 hold,
                 refit,
             ));
+            warnings.extend(super::angle_offset::warning(&g.gram, experiments, options, &best, hold, refit));
             warnings.extend(crate::pmsm::checks::columns::warning(
                 g,
                 experiments,

@@ -25,9 +25,9 @@
 //! `k_e` 0.1 % low at 77 standard errors stood at 1 standard deviation of it.
 
 use crate::data::{Channel, Experiment};
-use crate::estimate::{FitResult, Warning};
+use crate::estimate::{FitResult, ParameterEstimate, Warning};
 use crate::pmsm::checks::detect::{loss_at_factor, to_base};
-use crate::pmsm::checks::scan::{BASE, GRAM, OFFSETS};
+use crate::pmsm::checks::scan::{BASE, OFFSETS};
 use crate::pmsm::log::signals::channel;
 use crate::pmsm::model::interval::{SQRT_2_3, VoltageHold};
 use crate::pmsm::model::kind::MotorKind;
@@ -63,17 +63,8 @@ pub(crate) struct OffsetRegression {
 /// `kind` at `n_p`; `None` when a normal matrix is singular or `R_s` is not positive.
 pub(crate) fn regression(g: &DMatrix<f64>, kind: MotorKind, n_p: u32) -> Option<OffsetRegression> {
     let np = f64::from(n_p);
-    let t = to_base(kind, np);
-    let p = t.ncols();
-    // Columns of the Gram the extended regressors combine: the base ones, then the offsets
-    // (the voltage, at BASE, is the regressand).
-    let cols: Vec<usize> = (0..BASE).chain(BASE + 1..GRAM).collect();
-    let mut te = DMatrix::zeros(BASE + OFFSETS, p + OFFSETS);
-    te.view_mut((0, 0), (BASE, p)).copy_from(&t);
-    te.view_mut((BASE, p), (OFFSETS, OFFSETS)).fill_with_identity();
-    let gcc = DMatrix::from_fn(cols.len(), cols.len(), |a, b| g[(cols[a], cols[b])]);
-    let gcy = DVector::from_fn(cols.len(), |a, _| g[(cols[a], BASE)]);
-    let with = (te.transpose() * gcc * &te).cholesky()?.solve(&(te.transpose() * gcy));
+    let p = to_base(kind, np).ncols();
+    let with = extended(g, kind, np, &(BASE + 1..BASE + 1 + OFFSETS).collect::<Vec<_>>())?;
     let (_, without) = loss_at_factor(g, kind, np)?;
     let r = with[0];
     let offset = [-with[p] / r, -with[p + 1] / r];
@@ -83,6 +74,23 @@ pub(crate) fn regression(g: &DMatrix<f64>, kind: MotorKind, n_p: u32) -> Option<
     // i_d there: the logged i_d less c_d takes n_p L_d c_d / √(2/3) from k_e.
     moves[last] += np * with[1] * offset[0] / (SQRT_2_3 * with[last]);
     (r > 0.0).then_some(OffsetRegression { moves, offset })
+}
+
+/// The regression of the voltage equations for `kind` at `n_p` (as `f64`) on the scan
+/// Gram `g` ([`crate::pmsm::checks::scan::scan_gram`]) with its columns `extra` beside the
+/// base ones: the model's parameters (its order), then one coefficient per extra column;
+/// `None` when the normal matrix is singular.
+pub(super) fn extended(g: &DMatrix<f64>, kind: MotorKind, np: f64, extra: &[usize]) -> Option<DVector<f64>> {
+    let t = to_base(kind, np);
+    let (p, k) = (t.ncols(), extra.len());
+    // The voltage, at BASE, is the regressand.
+    let cols: Vec<usize> = (0..BASE).chain(extra.iter().copied()).collect();
+    let mut te = DMatrix::zeros(BASE + k, p + k);
+    te.view_mut((0, 0), (BASE, p)).copy_from(&t);
+    te.view_mut((BASE, p), (k, k)).fill_with_identity();
+    let gcc = DMatrix::from_fn(cols.len(), cols.len(), |a, b| g[(cols[a], cols[b])]);
+    let gcy = DVector::from_fn(cols.len(), |a, _| g[(cols[a], BASE)]);
+    Some((te.transpose() * gcc * &te).cholesky()?.solve(&(te.transpose() * gcy)))
 }
 
 /// The largest relative move of an estimate the offset implies.
@@ -111,6 +119,56 @@ pub(crate) fn warning(
     }
     let shifted: Vec<Experiment> =
         experiments.iter().map(|e| less_offset(e, reg.offset)).collect::<crate::error::Result<_>>().ok()?;
+    let (z, lower, moves) = confirmed(
+        &shifted,
+        options,
+        fit,
+        hold,
+        refit,
+        Moved { unit: |p| p.std_error, bound: OFFSET_Z, ratio: None },
+    )?;
+    Some(Warning::untrusted(
+        "current_offset",
+        format!(
+            "the logged currents look offset, by about i_d {}, i_q {} (the voltage equations' regression with \
+             constant terms, a rough estimate: on fresh logs 0.073 A for 0.05 A): the fit of the currents less that \
+             offset has a {lower} loss ({z:.1} standard deviations of its noise) and moves {moves}; calibrate the \
+             current sensors' offset (their reading at zero current) and log again: subtracting this estimate leaves \
+             a bias of its own",
+            amperes(reg.offset[0]),
+            amperes(reg.offset[1]),
+        ),
+    ))
+}
+
+/// How far a refit must move an estimate to matter: more than `bound` times its `unit` in
+/// the fit (a standard error, or the 95 % interval's half width), or, where `ratio` is
+/// given, anywhere once the refit's loss is more than `ratio` times lower (the fit's
+/// residual is then mostly the mistake's, and its intervals, widened by it, cover what they
+/// should not).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Moved {
+    pub unit: fn(&ParameterEstimate) -> f64,
+    pub bound: f64,
+    pub ratio: Option<f64>,
+}
+
+/// The refit (`refit`) of `changed` (the logs of `fit` with a setup mistake undone) with
+/// `options` at the voltage `hold`, when it both lowers the loss by more than [`OFFSET_Z`]
+/// standard deviations of its noise ([`noise_z_against`]) and moves an estimate by more
+/// than [`Moved`]'s bound (a mistake the intervals already cover is no reason to distrust
+/// them) or lowers the loss more than its ratio: that z,
+/// the loss's fall in words (`"2.3 times lower"`) and each estimate's move (`"r_s -1.234 %
+/// (-5.6 standard errors)"`, comma-separated); `None` otherwise or when the refit fails.
+pub(super) fn confirmed(
+    changed: &[Experiment],
+    options: &PmsmFitOptions,
+    fit: &FitResult,
+    hold: VoltageHold,
+    refit: RefitReport<'_>,
+    moved: Moved,
+) -> Option<(f64, String, String)> {
+    let Moved { unit, bound, ratio } = moved;
     let names = options.model.parameter_names();
     // At the fit's hold, from its estimate where the model has no nuisance parameters (the
     // least-squares start otherwise): on a noisy IPM log without an offset, refitted for an
@@ -120,11 +178,14 @@ pub(crate) fn warning(
         .then(|| names.iter().map(|n| fit.parameter(n).map(|p| p.value)).collect::<Option<Vec<f64>>>())
         .flatten();
     let other = PmsmFitOptions { hold: hold.into(), start, skip_setup_checks: true, ..options.clone() };
-    let alt = refit(&shifted, &other)?;
+    let alt = refit(changed, &other)?;
     let z = noise_z_against(fit, alt.fit.loss).filter(|z| alt.fit.loss < fit.fit.loss && *z > OFFSET_Z)?;
     let variance: Vec<f64> =
-        names.iter().map(|n| fit.parameter(n).map_or(f64::NAN, |p| p.std_error.powi(2))).collect();
-    largest_difference(fit, &alt, names, Some(&variance)).filter(|(_, d)| *d > OFFSET_Z)?;
+        names.iter().map(|n| fit.parameter(n).map_or(f64::NAN, |p| unit(p).powi(2))).collect();
+    let explained = ratio.is_some_and(|r| fit.fit.loss > r * alt.fit.loss);
+    if !explained {
+        largest_difference(fit, &alt, names, Some(&variance)).filter(|(_, d)| *d > bound)?;
+    }
     let moves: Vec<String> = names
         .iter()
         .filter_map(|n| {
@@ -136,26 +197,13 @@ pub(crate) fn warning(
             ))
         })
         .collect();
-    let lower = fit.fit.loss / alt.fit.loss;
-    let lower = match lower {
+    let lower = match fit.fit.loss / alt.fit.loss {
         l if l < 2.0 => format!("{:.1} % lower", 100.0 * (1.0 - 1.0 / l)),
         l if l < 100.0 => format!("{l:.1} times lower"),
         l if l < 1e5 => format!("{l:.0} times lower"),
         l => format!("{l:.1e} times lower"),
     };
-    Some(Warning::untrusted(
-        "current_offset",
-        format!(
-            "the logged currents look offset, by about i_d {}, i_q {} (the voltage equations' regression with \
-             constant terms, a rough estimate: on fresh logs 0.073 A for 0.05 A): the fit of the currents less that \
-             offset has a {lower} loss ({z:.1} standard deviations of its noise) and moves {}; calibrate the current \
-             sensors' offset (their reading at zero current) and log again: subtracting this estimate leaves a \
-             bias of its own",
-            amperes(reg.offset[0]),
-            amperes(reg.offset[1]),
-            moves.join(", "),
-        ),
-    ))
+    Some((z, lower, moves.join(", ")))
 }
 
 /// `c` \[A\] to the milliampere, signed, without a negative zero.

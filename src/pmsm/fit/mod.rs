@@ -2,6 +2,7 @@
 //! (the voltage input's search, instrumental variables, the automatic pole pairs), the
 //! hold choice, the report, and a saved fit's validation and simulation.
 
+pub(super) mod angle_offset;
 pub(super) mod auto_mask;
 pub(super) mod auto_method;
 mod base;
